@@ -1,0 +1,155 @@
+// chronomap integrate DATASET -o SESSION.cmap
+
+#include <chrono>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "chronomap/core/error.h"
+#include "chronomap/core/pose.h"
+#include "chronomap/integrate/integrator.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/dataset.h"
+#include "commands.h"
+#include "progress.h"
+
+namespace chronomap::cli {
+
+namespace {
+
+struct IntegrateOptions {
+  std::string dataset;
+  std::string output;
+  double resolution_m = 0.05;
+  double max_range_m = IntegratorSettings{}.max_range_m;
+  std::string format = "auto";
+  bool fast = false;
+  int threads = 0;
+  bool no_compress = false;
+  double depth_scale = 0.0;
+  std::string intrinsics;
+  std::string pose;
+  std::string trajectory;
+  bool json = false;
+};
+
+int runIntegrate(const IntegrateOptions& o) {
+  io::DatasetOptions dopt;
+  dopt.format = io::parseDatasetFormat(o.format);
+  if (o.depth_scale != 0.0) dopt.depth_scale = o.depth_scale;
+  if (!o.intrinsics.empty()) dopt.intrinsics = io::parseIntrinsics(o.intrinsics);
+  if (!o.pose.empty()) dopt.pose = parsePose(o.pose);
+  if (!o.trajectory.empty()) dopt.trajectory = o.trajectory;
+  if (std::filesystem::path(o.output).extension() != ".cmap") {
+    throw UsageError("output '" + o.output + "' must end in .cmap");
+  }
+  IntegratorSettings settings;
+  settings.max_range_m = o.max_range_m;
+  settings.fast = o.fast;
+  settings.threads = o.threads;
+  settings.compress_free = !o.no_compress;
+
+  auto dataset = io::openDataset(o.dataset, dopt);
+  SessionMap map(o.resolution_m);
+  ProgressBar bar("integrating", dataset->size());
+  const IntegrationStats stats = integrate(*dataset, map, settings, [&](size_t done, size_t) { bar.update(done); });
+  bar.finish();
+  if (stats.points == 0) {
+    throw DataError(o.dataset + ": no valid points within " + std::to_string(o.max_range_m) + " m in " +
+                    std::to_string(stats.frames) + " frame(s) (" + std::to_string(stats.pointsSkipped()) +
+                    " skipped); nothing to write");
+  }
+  nlohmann::json meta = {{"created_by", "chronomap integrate"},
+                         {"dataset", std::filesystem::absolute(o.dataset).lexically_normal().string()},
+                         {"format", io::toString(dataset->format())},
+                         {"frames", stats.frames},
+                         {"points", stats.points},
+                         {"max_range_m", settings.max_range_m},
+                         {"fast", settings.fast},
+                         {"compressed", settings.compress_free}};
+  io::writeSessionMap(o.output, map, meta);
+  const SessionMapCounts counts = map.counts();
+  const auto file_bytes = std::filesystem::file_size(o.output);
+  if (o.json) {
+    nlohmann::json j = {{"frames", stats.frames},
+                        {"frames_dropped", dataset->framesDropped()},
+                        {"points", stats.points},
+                        {"points_skipped", stats.pointsSkipped()},
+                        {"points_invalid", stats.points_invalid},
+                        {"points_out_of_range", stats.points_out_of_range},
+                        {"points_outside_map", stats.points_outside_map},
+                        {"rays", stats.rays},
+                        {"occupied", counts.occupied_voxels},
+                        {"free", counts.free_voxels},
+                        {"nodes", counts.inner_nodes + counts.leaves},
+                        {"bytes", map.memoryBytes()},
+                        {"file_bytes", file_bytes},
+                        {"resolution_m", map.resolution_m()},
+                        {"seconds", stats.seconds},
+                        {"output", o.output}};
+    std::cout << j.dump() << "\n";
+  } else {
+    std::cout << "integrated " << stats.frames << " frame(s) of " << o.dataset << " (" << io::toString(dataset->format())
+              << ")";
+    if (dataset->framesDropped()) std::cout << ", " << dataset->framesDropped() << " frame(s) without pose or colour dropped";
+    std::cout << "\n  points:  " << stats.points << " cast, " << stats.pointsSkipped() << " skipped ("
+              << stats.points_invalid << " invalid, " << stats.points_out_of_range << " beyond "
+              << settings.max_range_m << " m, " << stats.points_outside_map << " outside the map)\n"
+              << "  voxels:  " << counts.occupied_voxels << " occupied, " << counts.free_voxels << " free at "
+              << map.resolution_m() << " m\n"
+              << "  nodes:   " << counts.inner_nodes + counts.leaves << " (" << counts.leaves << " leaves, "
+              << counts.compressed_leaves << " compressed), " << humanBytes(static_cast<double>(map.memoryBytes()))
+              << " in memory\n"
+              << "  time:    " << stats.seconds << " s ("
+              << (stats.seconds > 0 ? static_cast<double>(stats.points) / stats.seconds / 1e6 : 0.0)
+              << " M points/s)\n"
+              << "wrote " << o.output << " (" << humanBytes(static_cast<double>(file_bytes)) << ")\n";
+  }
+  return 0;
+}
+
+}  // namespace
+
+Command addIntegrate(CLI::App& root) {
+  auto o = std::make_shared<IntegrateOptions>();
+  CLI::App* app = root.add_subcommand(
+      "integrate",
+      "Integrate one recording into a session map (.cmap).\n"
+      "DATASET is a TUM RGB-D folder (depth.txt, rgb.txt, trajectory.txt or groundtruth.txt), a "
+      "3DMatch/7-Scenes folder (frame-*.depth.png, frame-*.pose.txt, camera-intrinsics.txt), a single "
+      "PCD/PLY/XYZ cloud (seen from the origin unless --pose), or a text list of clouds with poses "
+      "('cloud.pcd tx ty tz qx qy qz qw' per line).");
+  app->add_option("DATASET", o->dataset, "dataset folder or file")->required();
+  app->add_option("-o,--output", o->output, "session map to write (.cmap)")->required();
+  app->add_option("--resolution", o->resolution_m, "edge of a unit voxel, metres")->capture_default_str();
+  app->add_option("--max-range", o->max_range_m, "points farther from the sensor are discarded, metres")
+      ->capture_default_str();
+  app->add_option("--format", o->format, "auto, tum, 3dmatch or clouds")->capture_default_str();
+  app->add_flag("--fast", o->fast,
+                "bundle the points of a frame that end in the same voxel into one weighted ray "
+                "(much faster; see docs/integration.md for how far the counters may differ)");
+  app->add_option("--threads", o->threads, "worker threads, 0 = all cores (the map does not depend on it)")
+      ->capture_default_str();
+  app->add_flag("--no-compress", o->no_compress, "keep every free unit voxel instead of merging free subtrees");
+  app->add_option("--depth-scale", o->depth_scale, "depth image units per metre (TUM 5000, 3DMatch 1000)");
+  app->add_option("--intrinsics", o->intrinsics, "camera intrinsics fx,fy,cx,cy in pixels");
+  app->add_option("--pose", o->pose, "pose of a single cloud: tx,ty,tz,qx,qy,qz,qw (sensor to map)");
+  app->add_option("--trajectory", o->trajectory, "TUM: pose file to use instead of trajectory.txt/groundtruth.txt");
+  app->add_flag("--json", o->json, "print a JSON summary on stdout");
+  return {app, [o] { return runIntegrate(*o); }};
+}
+
+std::string humanBytes(double bytes) {
+  const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB"};
+  int u = 0;
+  while (bytes >= 1024.0 && u < 4) {
+    bytes /= 1024.0;
+    ++u;
+  }
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), u == 0 ? "%.0f %s" : "%.1f %s", bytes, units[u]);
+  return buf;
+}
+
+}  // namespace chronomap::cli

@@ -1,0 +1,56 @@
+// chronomap: the command line. Parses, dispatches, and turns errors into messages and exit codes
+// (2 for bad usage, 1 for bad data or a failed operation).
+
+#include <cstdio>
+#include <iostream>
+#include <new>
+#include <vector>
+
+#include "chronomap/core/error.h"
+#include "commands.h"
+
+namespace {
+
+int fail(int code, const std::string& message) {
+  std::cerr << "chronomap: error: " << message << "\n";
+  return code;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace chronomap;
+  CLI::App app{
+      "chronomap: four-dimensional maps from RGB-D recordings of one place.\n"
+      "Integrate recordings into session maps, inspect them and export them."};
+  app.name("chronomap");
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "chronomap 0.1.0");
+  const std::vector<cli::Command> commands = {cli::addIntegrate(app), cli::addStats(app), cli::addExport(app)};
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    return fail(2, std::string(e.what()) + " (see chronomap --help)");
+  }
+  try {
+    for (const auto& command : commands) {
+      if (command.app->parsed()) return command.run();
+    }
+    return fail(2, "no command given (see chronomap --help)");
+  } catch (const UsageError& e) {
+    return fail(2, e.what());
+  } catch (const Error& e) {
+    return fail(1, e.what());
+  } catch (const std::bad_alloc&) {
+    return fail(1, "out of memory");
+  } catch (const std::exception& e) {
+    return fail(1, std::string("internal error: ") + e.what());
+  }
+}

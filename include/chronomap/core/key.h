@@ -1,0 +1,83 @@
+#pragma once
+/// @file
+/// Voxel keys: integer coordinates of unit voxels in a tree of fixed depth, and Morton codes.
+
+#include <cmath>
+#include <compare>
+#include <cstdint>
+#include <optional>
+
+#include <Eigen/Core>
+
+namespace chronomap {
+
+/// Depth of every chronomap octree; the root spans 2^16 unit voxels per axis (as in OctoMap,
+/// so keys convert to OctoMap keys one to one).
+inline constexpr int kTreeDepth = 16;
+/// Key of the voxel whose lower corner is the map origin (0, 0, 0).
+inline constexpr int32_t kKeyOrigin = 1 << (kTreeDepth - 1);
+/// Number of unit voxels per axis.
+inline constexpr int32_t kKeysPerAxis = 1 << kTreeDepth;
+
+/// Integer coordinates of a unit voxel; each in [0, 2^16).
+struct VoxelKey {
+  uint16_t x = 0;
+  uint16_t y = 0;
+  uint16_t z = 0;
+  friend constexpr auto operator<=>(const VoxelKey&, const VoxelKey&) = default;
+};
+
+/// Interleaves the bits of a key into a 48-bit Morton code (x in the lowest bit of each triple).
+constexpr uint64_t mortonEncode(const VoxelKey& key) {
+  auto spread = [](uint64_t v) {
+    v &= 0xffff;
+    v = (v | (v << 16)) & 0x0000ff0000ffULL;
+    v = (v | (v << 8)) & 0x00f00f00f00fULL;
+    v = (v | (v << 4)) & 0x0c30c30c30c3ULL;
+    v = (v | (v << 2)) & 0x249249249249ULL;
+    return v;
+  };
+  return spread(key.x) | (spread(key.y) << 1) | (spread(key.z) << 2);
+}
+
+/// Inverse of mortonEncode.
+constexpr VoxelKey mortonDecode(uint64_t code) {
+  auto compact = [](uint64_t v) {
+    v &= 0x249249249249ULL;
+    v = (v | (v >> 2)) & 0x0c30c30c30c3ULL;
+    v = (v | (v >> 4)) & 0x00f00f00f00fULL;
+    v = (v | (v >> 8)) & 0x0000ff0000ffULL;
+    v = (v | (v >> 16)) & 0xffff;
+    return static_cast<uint16_t>(v);
+  };
+  return VoxelKey{compact(code), compact(code >> 1), compact(code >> 2)};
+}
+
+/// Converts between metric coordinates (map frame) and voxel keys for one resolution.
+/// Voxel k spans [(k - 2^15) * res, (k - 2^15 + 1) * res) on each axis.
+class KeyGrid {
+ public:
+  /// @throw UsageError if resolution_m is not a finite positive number.
+  explicit KeyGrid(double resolution_m);
+
+  double resolution_m() const { return resolution_m_; }
+  /// Half the extent of the map along each axis, in metres.
+  double halfExtent_m() const { return resolution_m_ * kKeyOrigin; }
+
+  /// Continuous key-space coordinate (units of voxels) of a metric coordinate.
+  Eigen::Vector3d toKeySpace(const Eigen::Vector3d& p_m) const {
+    return p_m * inv_resolution_ + Eigen::Vector3d::Constant(kKeyOrigin);
+  }
+  /// The key of the voxel that contains p_m, or nothing if p_m lies outside the map.
+  std::optional<VoxelKey> keyOf(const Eigen::Vector3d& p_m) const;
+  /// Centre of a voxel at the given level (0 = unit voxel) whose lower corner key is `key`.
+  Eigen::Vector3d centerOf(const VoxelKey& key, int level = 0) const;
+  /// Lower corner of the voxel `key`.
+  Eigen::Vector3d cornerOf(const VoxelKey& key) const;
+
+ private:
+  double resolution_m_;
+  double inv_resolution_;
+};
+
+}  // namespace chronomap

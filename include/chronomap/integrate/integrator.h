@@ -1,0 +1,102 @@
+#pragma once
+/// @file
+/// Integration of RGB-D frames into a session map by exact ray casting (thesis §2.1).
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <vector>
+
+#include "chronomap/core/point_cloud.h"
+#include "chronomap/octree/session_map.h"
+
+namespace chronomap {
+
+/// Settings of the integrator. Defaults follow the thesis.
+struct IntegratorSettings {
+  /// Points farther than this from their sensor origin are discarded entirely.
+  double max_range_m = 3.0;
+  /// Fast mode: all points of a frame that end in the same voxel are cast as one ray to their
+  /// mean position, weighted by their count (docs/integration.md states how far it differs).
+  bool fast = false;
+  /// Worker threads; 0 uses every core. Results do not depend on this number.
+  int threads = 0;
+  /// Merge known-free subtrees after integration (see SessionMap::compressFree).
+  bool compress_free = true;
+  /// A frame whose bounding box spans more voxels than this is accumulated in a hash table
+  /// instead of a dense scratch grid (large ranges, laser scans).
+  size_t dense_grid_max_cells = size_t{1} << 25;
+};
+
+/// What an integration did, point by point.
+struct IntegrationStats {
+  uint64_t frames = 0;
+  uint64_t points = 0;              ///< points cast as rays
+  uint64_t points_invalid = 0;      ///< NaN, infinite, or at the sensor origin (zero depth)
+  uint64_t points_out_of_range = 0; ///< farther than max_range_m
+  uint64_t points_outside_map = 0;  ///< outside the map's extent
+  uint64_t rays = 0;                ///< rays cast (fewer than points in fast mode)
+  uint64_t voxel_updates = 0;       ///< per-frame unique voxels merged into the map
+  double seconds = 0.0;
+
+  uint64_t pointsSkipped() const { return points_invalid + points_out_of_range + points_outside_map; }
+  IntegrationStats& operator+=(const IntegrationStats& o);
+};
+
+/// A sequence of frames that can be loaded by index from several threads at once.
+class FrameSource {
+ public:
+  virtual ~FrameSource() = default;
+  /// Number of frames.
+  virtual size_t size() const = 0;
+  /// Loads frame i. Must be safe to call concurrently.
+  /// @throw DataError, FormatError or IoError naming the file at fault.
+  virtual Frame load(size_t i) const = 0;
+};
+
+/// Frames already in memory.
+class FrameVector : public FrameSource {
+ public:
+  explicit FrameVector(std::vector<Frame> frames) : frames_(std::move(frames)) {}
+  size_t size() const override { return frames_.size(); }
+  Frame load(size_t i) const override { return frames_.at(i); }
+  const std::vector<Frame>& frames() const { return frames_; }
+
+ private:
+  std::vector<Frame> frames_;
+};
+
+/// The voxels one frame touches and what it adds to each, in a fixed order.
+struct VoxelDeltas {
+  std::vector<VoxelKey> keys;
+  std::vector<VoxelCounters> deltas;
+  IntegrationStats stats;
+};
+
+/// Scratch space that turns one frame into VoxelDeltas. One per thread; reusable.
+class RayAccumulator {
+ public:
+  RayAccumulator(const KeyGrid& grid, const IntegratorSettings& settings);
+  ~RayAccumulator();
+  RayAccumulator(RayAccumulator&&) noexcept;
+  RayAccumulator& operator=(RayAccumulator&&) noexcept;
+
+  /// Casts the rays of `frame` and writes the per-voxel sums to `out` (cleared first).
+  /// @throw DataError when the sensor pose is not finite or lies outside the map.
+  void accumulate(const Frame& frame, VoxelDeltas& out);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Called after each frame is merged: (frames done, frames in all).
+using ProgressFn = std::function<void(size_t, size_t)>;
+
+/// Integrates every frame of `source` into `map`, in frame order.
+/// @throw UsageError for bad settings; whatever source.load throws for bad frames.
+IntegrationStats integrate(const FrameSource& source, SessionMap& map, const IntegratorSettings& settings = {},
+                           const ProgressFn& progress = {});
+
+}  // namespace chronomap

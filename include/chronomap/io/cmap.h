@@ -1,0 +1,68 @@
+#pragma once
+/// @file
+/// The .cmap container (docs/file-format.md): magic, format version, kind, resolution, bounds,
+/// then checksummed blocks, each optionally zstd-compressed. Written atomically.
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nlohmann/json_fwd.hpp>
+
+#include "chronomap/octree/session_map.h"
+
+namespace chronomap::io {
+
+/// What a .cmap file holds.
+enum class MapKind : uint32_t { Session = 1, Temporal = 2, Diff = 3 };
+/// "session", "4d", "diff".
+const char* toString(MapKind kind);
+
+/// The format version this build writes and the newest it reads.
+inline constexpr uint32_t kCmapFormatVersion = 1;
+
+/// Fixed-size header of a .cmap file.
+struct CmapHeader {
+  uint32_t version = kCmapFormatVersion;
+  MapKind kind = MapKind::Session;
+  double resolution_m = 0.0;
+  uint32_t tree_depth = kTreeDepth;
+  Eigen::Vector3d bounds_min_m = Eigen::Vector3d::Zero();  ///< of the known voxels
+  Eigen::Vector3d bounds_max_m = Eigen::Vector3d::Zero();
+};
+
+/// One named block of payload (tag: four ASCII characters).
+struct CmapBlock {
+  std::string tag;
+  std::vector<uint8_t> data;
+};
+
+/// A decoded .cmap file.
+struct CmapFile {
+  CmapHeader header;
+  std::vector<CmapBlock> blocks;
+  uint64_t file_bytes = 0;
+  /// The block with this tag. @throw FormatError naming `source` when missing.
+  const CmapBlock& block(const std::string& tag, const std::string& source) const;
+};
+
+/// Encodes header and blocks; blocks are zstd-compressed at `zstd_level` (0 stores them raw).
+std::vector<uint8_t> encodeCmap(const CmapHeader& header, const std::vector<CmapBlock>& blocks, int zstd_level = 3);
+/// Decodes and checks a whole file image.
+/// @throw FormatError naming `source`: truncated, corrupt (checksum), wrong magic, newer version.
+CmapFile decodeCmap(const std::vector<uint8_t>& bytes, const std::string& source);
+/// Reads and decodes a .cmap file. @throw IoError, FormatError.
+CmapFile readCmap(const std::filesystem::path& path);
+
+/// Writes a session map with optional metadata (a JSON object) atomically.
+void writeSessionMap(const std::filesystem::path& path, const SessionMap& map, const nlohmann::json& meta);
+/// Reads a session map. @throw FormatError when the file is not a valid session map.
+SessionMap readSessionMap(const std::filesystem::path& path);
+/// The session map stored in a decoded file. @throw FormatError.
+SessionMap sessionMapFrom(const CmapFile& file, const std::string& source);
+/// The metadata block of a file, or an empty object.
+nlohmann::json metadataOf(const CmapFile& file);
+
+}  // namespace chronomap::io

@@ -1,0 +1,74 @@
+#pragma once
+/// @file
+/// Datasets: folders and files of RGB-D frames with poses, in common layouts.
+
+#include <filesystem>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "chronomap/integrate/integrator.h"
+#include "chronomap/io/png.h"
+
+namespace chronomap::io {
+
+/// Layouts chronomap reads.
+enum class DatasetFormat {
+  Auto,         ///< detect from the path
+  Tum,          ///< TUM RGB-D: rgb.txt, depth.txt, groundtruth.txt or trajectory.txt
+  ThreeDMatch,  ///< 3DMatch / 7-Scenes: frame-*.{color,depth}.png, frame-*.pose.txt
+  Clouds,       ///< one cloud file, or a text list of "cloud tx ty tz qx qy qz qw"
+};
+
+/// "tum", "3dmatch", "clouds" or "auto".
+const char* toString(DatasetFormat format);
+/// Inverse of toString. @throw UsageError for an unknown name.
+DatasetFormat parseDatasetFormat(const std::string& name);
+
+/// Pinhole intrinsics of a depth camera, in pixels.
+struct CameraIntrinsics {
+  double fx = 525.0, fy = 525.0, cx = 319.5, cy = 239.5;
+};
+
+/// Parses "fx,fy,cx,cy". @throw UsageError.
+CameraIntrinsics parseIntrinsics(const std::string& text);
+/// Reads a 3x3 K matrix, or one line "fx fy cx cy". @throw FormatError naming the file.
+CameraIntrinsics readIntrinsicsFile(const std::filesystem::path& path);
+
+/// Options of openDataset; unset values take the format's defaults.
+struct DatasetOptions {
+  DatasetFormat format = DatasetFormat::Auto;
+  /// Depth image units per metre (TUM: 5000, 3DMatch: 1000).
+  std::optional<double> depth_scale;
+  /// Overrides the intrinsics file of the dataset (TUM default: 525, 525, 319.5, 239.5).
+  std::optional<CameraIntrinsics> intrinsics;
+  /// Pose of a single cloud (default: identity).
+  std::optional<Eigen::Isometry3d> pose;
+  /// TUM: pose file to use instead of trajectory.txt or groundtruth.txt.
+  std::optional<std::filesystem::path> trajectory;
+  /// TUM: largest time difference accepted when associating depth, colour and pose.
+  double max_time_difference_s = 0.02;
+};
+
+/// Frames of one recording. load() reads and decodes one frame; safe from several threads.
+class Dataset : public FrameSource {
+ public:
+  /// The layout that was read.
+  virtual DatasetFormat format() const = 0;
+  /// Frames listed but left out (no colour or pose within the time tolerance).
+  virtual size_t framesDropped() const { return 0; }
+};
+
+/// Opens a dataset folder or file. Reads every index and pose file now (and checks them), and
+/// images only when frames are loaded.
+/// @throw UsageError when the path does not exist or the format cannot be detected;
+///        DataError / FormatError naming the file at fault for malformed input or no frames.
+std::unique_ptr<Dataset> openDataset(const std::filesystem::path& path, const DatasetOptions& options = {});
+
+/// Back-projects a depth image into an organized cloud in the camera frame (x right, y down,
+/// z forward). Zero depth becomes NaN. `rgb` may be null; otherwise it must match in size.
+/// @throw DataError naming `source` for mismatched sizes or a bad scale.
+PointCloud depthToCloud(const ImageU16& depth, const ImageRgb* rgb, const CameraIntrinsics& k, double depth_scale,
+                        const std::string& source);
+
+}  // namespace chronomap::io

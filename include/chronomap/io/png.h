@@ -1,0 +1,40 @@
+#pragma once
+/// @file
+/// PNG images through libpng: 8-bit colour and 16-bit depth.
+
+#include <cstdint>
+#include <filesystem>
+#include <vector>
+
+#include "chronomap/core/counters.h"
+
+namespace chronomap::io {
+
+/// An 8-bit RGB image, row-major.
+struct ImageRgb {
+  uint32_t width = 0, height = 0;
+  std::vector<Rgb> pixels;
+};
+
+/// A 16-bit single-channel image (depth), row-major.
+struct ImageU16 {
+  uint32_t width = 0, height = 0;
+  std::vector<uint16_t> pixels;
+};
+
+/// Largest width or height accepted when reading, to refuse decompression bombs.
+inline constexpr uint32_t kMaxImageSide = 1u << 15;
+
+/// Reads any PNG as 8-bit RGB (grey, palette and alpha are converted; 16-bit is reduced).
+/// @throw IoError when unreadable, FormatError naming the file when not a valid PNG.
+ImageRgb readPngRgb(const std::filesystem::path& path);
+/// Reads a 16-bit greyscale PNG (a depth image) without any conversion.
+/// @throw FormatError when the PNG is not 16-bit single-channel.
+ImageU16 readPngU16(const std::filesystem::path& path);
+
+/// Writes an 8-bit RGB PNG atomically.
+void writePng(const std::filesystem::path& path, const ImageRgb& image);
+/// Writes a 16-bit greyscale PNG atomically.
+void writePng(const std::filesystem::path& path, const ImageU16& image);
+
+}  // namespace chronomap::io

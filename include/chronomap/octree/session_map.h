@@ -1,0 +1,152 @@
+#pragma once
+/// @file
+/// The session map: one octree of voxel counters for one recording (thesis §2.1).
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "chronomap/core/counters.h"
+#include "chronomap/core/key.h"
+
+namespace chronomap {
+
+/// One leaf of a session map as seen by iteration: the voxel's lower-corner key, its level
+/// (0 = unit voxel; k > 0 = a compressed known-free node spanning 2^k voxels per axis) and its
+/// summed counters.
+struct LeafView {
+  VoxelKey key;
+  int level = 0;
+  VoxelCounters counters;
+};
+
+/// Counts of what a session map holds.
+struct SessionMapCounts {
+  size_t inner_nodes = 0;       ///< nodes with children (the root included)
+  size_t leaves = 0;            ///< leaf nodes (unit voxels and compressed nodes)
+  size_t compressed_leaves = 0; ///< leaves above unit level
+  uint64_t occupied_voxels = 0; ///< unit voxels whose state is occupied
+  uint64_t free_voxels = 0;     ///< unit voxels whose state is free (compressed nodes expanded)
+};
+
+/// An octree of VoxelCounters with a fixed depth (kTreeDepth) and resolution.
+///
+/// Storage is two flat pools addressed by 32-bit references: inner nodes (8 child references,
+/// 32 bytes) and leaves (20 bytes of counters). No node owns heap memory. A leaf above unit level
+/// is a compressed known-free node: its counters are the sums of the 2^(3k) unit voxels it
+/// replaced; when an update reaches inside it, it is split evenly into 8 children.
+class SessionMap {
+ public:
+  /// @throw UsageError for a resolution that is not a finite positive number.
+  explicit SessionMap(double resolution_m = 0.05);
+
+  const KeyGrid& grid() const { return grid_; }
+  double resolution_m() const { return grid_.resolution_m(); }
+
+  /// Adds `delta` to the unit voxel `key`, refining compressed nodes on the way.
+  void add(const VoxelKey& key, const VoxelCounters& delta);
+  /// Adds many deltas. Correct for any order; fastest when consecutive keys are close
+  /// (raster or Morton order), because the descent restarts at their common ancestor.
+  void addMany(std::span<const VoxelKey> keys, std::span<const VoxelCounters> deltas);
+
+  /// Counters of the unit voxel `key`; for a voxel inside a compressed node, that node's sums
+  /// divided evenly. Nothing when the voxel was never observed.
+  std::optional<VoxelCounters> find(const VoxelKey& key) const;
+  /// The leaf that contains `key` (unit or compressed), or nothing.
+  std::optional<LeafView> findLeaf(const VoxelKey& key) const;
+  /// State of the unit voxel `key` (Unknown when never observed).
+  VoxelState stateOf(const VoxelKey& key) const;
+
+  /// Calls fn(const LeafView&) for every leaf, in Morton order of the leaves' keys.
+  template <class Fn>
+  void forEachLeaf(Fn&& fn) const;
+
+  /// Merges every node whose 8 children are known-free leaves without hits into one leaf
+  /// holding their sums, recursively, then re-lays the pools out in depth-first order.
+  /// @return the number of leaves removed.
+  size_t compressFree();
+
+  /// Counts nodes and voxel states (linear in the number of nodes).
+  SessionMapCounts counts() const;
+  /// Number of leaves (unit and compressed).
+  size_t leafCount() const { return leaves_.size(); }
+  /// Number of inner nodes, the root included.
+  size_t innerCount() const { return inner_.size(); }
+  /// Bytes of node storage in use (pool sizes, not capacities).
+  size_t memoryBytes() const;
+  /// Bytes reserved by the pools (what the process really holds).
+  size_t reservedBytes() const;
+  /// True when nothing was ever added.
+  bool empty() const { return leaves_.empty(); }
+
+  /// Low-level access for serialisation: references are kEmpty, an inner index, or
+  /// kLeafBit | leaf index. The root is inner node 0.
+  using Ref = uint32_t;
+  static constexpr Ref kEmpty = 0xffffffffu;
+  static constexpr Ref kLeafBit = 0x80000000u;
+  using Children = std::array<Ref, 8>;
+  const std::vector<Children>& innerPool() const { return inner_; }
+  const std::vector<VoxelCounters>& leafPool() const { return leaves_; }
+  /// Replaces the pools (used by readers).
+  /// @throw FormatError if the pools do not form a valid tree of depth kTreeDepth.
+  void assignPools(std::vector<Children> inner, std::vector<VoxelCounters> leaves);
+
+  friend bool operator==(const SessionMap& a, const SessionMap& b);
+
+ private:
+  static bool isLeaf(Ref r) { return r != kEmpty && (r & kLeafBit) != 0; }
+  static bool isInner(Ref r) { return r != kEmpty && (r & kLeafBit) == 0; }
+  static uint32_t index(Ref r) { return r & ~kLeafBit; }
+  static int childSlot(const VoxelKey& key, int child_level) {
+    return ((key.x >> child_level) & 1) | (((key.y >> child_level) & 1) << 1) | (((key.z >> child_level) & 1) << 2);
+  }
+  Ref newLeaf(const VoxelCounters& c);
+  Ref newInner();
+  /// Replaces the compressed leaf in slot `slot` of inner node `parent` (leaf at `level`) by an
+  /// inner node whose 8 children hold an eighth of its counters each.
+  uint32_t splitLeaf(uint32_t parent, int slot);
+  /// Returns the inner node for the child `slot` of `parent`, creating or splitting as needed.
+  uint32_t descend(uint32_t parent, int slot);
+
+  KeyGrid grid_;
+  std::vector<Children> inner_;
+  std::vector<VoxelCounters> leaves_;
+};
+
+template <class Fn>
+void SessionMap::forEachLeaf(Fn&& fn) const {
+  struct Item {
+    uint32_t node;
+    int level;  // level of the node's children
+    VoxelKey base;
+    int next;
+  };
+  std::array<Item, kTreeDepth + 1> stack;
+  int top = 0;
+  stack[0] = Item{0, kTreeDepth - 1, VoxelKey{}, 0};
+  while (top >= 0) {
+    Item& it = stack[top];
+    if (it.next == 8) {
+      --top;
+      continue;
+    }
+    const int slot = it.next++;
+    const Ref r = inner_[it.node][slot];
+    if (r == kEmpty) continue;
+    VoxelKey k = it.base;
+    const uint16_t step = static_cast<uint16_t>(1u << it.level);
+    if (slot & 1) k.x = static_cast<uint16_t>(k.x + step);
+    if (slot & 2) k.y = static_cast<uint16_t>(k.y + step);
+    if (slot & 4) k.z = static_cast<uint16_t>(k.z + step);
+    if (isLeaf(r)) {
+      fn(LeafView{k, it.level, leaves_[index(r)]});
+    } else {
+      stack[++top] = Item{r, it.level - 1, k, 0};
+    }
+  }
+}
+
+}  // namespace chronomap

@@ -1,0 +1,240 @@
+#include "chronomap/io/cmap.h"
+
+#include <zlib.h>
+#include <zstd.h>
+
+#include <bit>
+#include <cstring>
+#include <limits>
+#include <nlohmann/json.hpp>
+
+#include "chronomap/core/error.h"
+#include "chronomap/io/file.h"
+
+namespace chronomap::io {
+
+static_assert(std::endian::native == std::endian::little, "the .cmap writer assumes a little-endian host");
+
+namespace {
+
+constexpr uint8_t kMagic[8] = {0x89, 'C', 'M', 'A', 'P', '\r', '\n', 0x1a};
+constexpr size_t kHeaderBytes = 84;
+constexpr size_t kBlockHeaderBytes = 32;
+constexpr uint32_t kCodecRaw = 0;
+constexpr uint32_t kCodecZstd = 1;
+/// Largest block a reader will inflate; guards against absurd sizes in crafted files.
+constexpr uint64_t kMaxRawBlockBytes = uint64_t{1} << 36;
+
+uint32_t crc(const uint8_t* data, size_t n) {
+  uLong c = crc32(0L, Z_NULL, 0);
+  while (n > 0) {
+    const uInt chunk = static_cast<uInt>(std::min<size_t>(n, 1u << 30));
+    c = crc32(c, data, chunk);
+    data += chunk;
+    n -= chunk;
+  }
+  return static_cast<uint32_t>(c);
+}
+
+template <class T>
+void put(std::vector<uint8_t>& out, const T& v) {
+  const auto* p = reinterpret_cast<const uint8_t*>(&v);
+  out.insert(out.end(), p, p + sizeof(T));
+}
+
+template <class T>
+T get(const uint8_t* p) {
+  T v;
+  std::memcpy(&v, p, sizeof(T));
+  return v;
+}
+
+}  // namespace
+
+const char* toString(MapKind kind) {
+  switch (kind) {
+    case MapKind::Session: return "session";
+    case MapKind::Temporal: return "4d";
+    case MapKind::Diff: return "diff";
+  }
+  return "unknown";
+}
+
+const CmapBlock& CmapFile::block(const std::string& tag, const std::string& source) const {
+  for (const auto& b : blocks) {
+    if (b.tag == tag) return b;
+  }
+  throw FormatError(source + ": the file has no '" + tag + "' block");
+}
+
+std::vector<uint8_t> encodeCmap(const CmapHeader& header, const std::vector<CmapBlock>& blocks, int zstd_level) {
+  std::vector<uint8_t> out(kMagic, kMagic + 8);
+  put(out, header.version);
+  put(out, static_cast<uint32_t>(header.kind));
+  put(out, header.resolution_m);
+  for (int a = 0; a < 3; ++a) put(out, header.bounds_min_m[a]);
+  for (int a = 0; a < 3; ++a) put(out, header.bounds_max_m[a]);
+  put(out, header.tree_depth);
+  put(out, static_cast<uint32_t>(blocks.size()));
+  put(out, crc(out.data(), out.size()));
+  for (const CmapBlock& b : blocks) {
+    if (b.tag.size() != 4) throw UsageError("cmap block tags have four characters");
+    std::vector<uint8_t> stored;
+    uint32_t codec = kCodecRaw;
+    if (zstd_level > 0 && !b.data.empty()) {
+      stored.resize(ZSTD_compressBound(b.data.size()));
+      const size_t n = ZSTD_compress(stored.data(), stored.size(), b.data.data(), b.data.size(), zstd_level);
+      if (ZSTD_isError(n)) throw Error(std::string("zstd compression failed: ") + ZSTD_getErrorName(n));
+      stored.resize(n);
+      codec = kCodecZstd;
+    } else {
+      stored = b.data;
+    }
+    out.insert(out.end(), b.tag.begin(), b.tag.end());
+    put(out, codec);
+    put(out, static_cast<uint64_t>(b.data.size()));
+    put(out, static_cast<uint64_t>(stored.size()));
+    put(out, crc(stored.data(), stored.size()));
+    put(out, crc(b.data.data(), b.data.size()));
+    out.insert(out.end(), stored.begin(), stored.end());
+  }
+  return out;
+}
+
+CmapFile decodeCmap(const std::vector<uint8_t>& bytes, const std::string& source) {
+  if (bytes.empty()) throw FormatError(source + ": the file is empty");
+  if (bytes.size() < 8 || std::memcmp(bytes.data(), kMagic, 8) != 0) {
+    throw FormatError(source + ": not a chronomap map (wrong magic bytes)");
+  }
+  if (bytes.size() < kHeaderBytes) throw FormatError(source + ": the file is truncated (incomplete header)");
+  CmapFile f;
+  f.file_bytes = bytes.size();
+  const uint8_t* p = bytes.data();
+  f.header.version = get<uint32_t>(p + 8);
+  if (f.header.version > kCmapFormatVersion) {
+    throw FormatError(source + ": written by a newer chronomap (format version " + std::to_string(f.header.version) +
+                      "; this build reads up to " + std::to_string(kCmapFormatVersion) + ")");
+  }
+  if (f.header.version == 0) throw FormatError(source + ": invalid format version 0");
+  if (crc(p, kHeaderBytes - 4) != get<uint32_t>(p + kHeaderBytes - 4)) {
+    throw FormatError(source + ": the header is corrupt (checksum mismatch)");
+  }
+  const uint32_t kind = get<uint32_t>(p + 12);
+  if (kind < 1 || kind > 3) throw FormatError(source + ": unknown map kind " + std::to_string(kind));
+  f.header.kind = static_cast<MapKind>(kind);
+  f.header.resolution_m = get<double>(p + 16);
+  for (int a = 0; a < 3; ++a) f.header.bounds_min_m[a] = get<double>(p + 24 + 8 * a);
+  for (int a = 0; a < 3; ++a) f.header.bounds_max_m[a] = get<double>(p + 48 + 8 * a);
+  f.header.tree_depth = get<uint32_t>(p + 72);
+  const uint32_t nblocks = get<uint32_t>(p + 76);
+  if (!(f.header.resolution_m > 0.0) || !std::isfinite(f.header.resolution_m)) {
+    throw FormatError(source + ": invalid resolution in header");
+  }
+  if (f.header.tree_depth != static_cast<uint32_t>(kTreeDepth)) {
+    throw FormatError(source + ": unsupported tree depth " + std::to_string(f.header.tree_depth));
+  }
+  size_t pos = kHeaderBytes;
+  for (uint32_t i = 0; i < nblocks; ++i) {
+    if (bytes.size() - pos < kBlockHeaderBytes) {
+      throw FormatError(source + ": the file is truncated (block " + std::to_string(i + 1) + " of " +
+                        std::to_string(nblocks) + " missing)");
+    }
+    CmapBlock b;
+    b.tag.assign(reinterpret_cast<const char*>(p + pos), 4);
+    const uint32_t codec = get<uint32_t>(p + pos + 4);
+    const uint64_t raw_size = get<uint64_t>(p + pos + 8);
+    const uint64_t stored_size = get<uint64_t>(p + pos + 16);
+    const uint32_t crc_stored = get<uint32_t>(p + pos + 24);
+    const uint32_t crc_raw = get<uint32_t>(p + pos + 28);
+    pos += kBlockHeaderBytes;
+    const std::string what = source + ": block '" + b.tag + "'";
+    if (stored_size > bytes.size() - pos) throw FormatError(what + " is truncated");
+    if (crc(p + pos, stored_size) != crc_stored) throw FormatError(what + " is corrupt (checksum mismatch)");
+    if (raw_size > kMaxRawBlockBytes) throw FormatError(what + " claims an impossible size");
+    if (codec == kCodecRaw) {
+      if (raw_size != stored_size) throw FormatError(what + " has inconsistent sizes");
+      b.data.assign(p + pos, p + pos + stored_size);
+    } else if (codec == kCodecZstd) {
+      const unsigned long long content = ZSTD_getFrameContentSize(p + pos, stored_size);
+      if (content != raw_size) throw FormatError(what + " has inconsistent sizes");
+      b.data.resize(raw_size);
+      const size_t n = ZSTD_decompress(b.data.data(), b.data.size(), p + pos, stored_size);
+      if (ZSTD_isError(n) || n != raw_size) throw FormatError(what + " cannot be decompressed");
+    } else {
+      throw FormatError(what + " uses unknown compression " + std::to_string(codec));
+    }
+    if (crc(b.data.data(), b.data.size()) != crc_raw) throw FormatError(what + " is corrupt (checksum mismatch)");
+    pos += stored_size;
+    f.blocks.push_back(std::move(b));
+  }
+  if (pos != bytes.size()) throw FormatError(source + ": unexpected bytes after the last block");
+  return f;
+}
+
+CmapFile readCmap(const std::filesystem::path& path) { return decodeCmap(readFileBytes(path), path.string()); }
+
+void writeSessionMap(const std::filesystem::path& path, const SessionMap& map, const nlohmann::json& meta) {
+  CmapHeader header;
+  header.kind = MapKind::Session;
+  header.resolution_m = map.resolution_m();
+  bool any = false;
+  Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();
+  map.forEachLeaf([&](const LeafView& leaf) {
+    const Eigen::Vector3d a = map.grid().cornerOf(leaf.key);
+    const Eigen::Vector3d b = a + Eigen::Vector3d::Constant(map.resolution_m() * (1 << leaf.level));
+    lo = any ? lo.cwiseMin(a) : a;
+    hi = any ? hi.cwiseMax(b) : b;
+    any = true;
+  });
+  header.bounds_min_m = lo;
+  header.bounds_max_m = hi;
+  std::vector<CmapBlock> blocks(3);
+  blocks[0].tag = "META";
+  const std::string text = meta.is_null() ? "{}" : meta.dump();
+  blocks[0].data.assign(text.begin(), text.end());
+  blocks[1].tag = "INNR";
+  const auto& inner = map.innerPool();
+  blocks[1].data.resize(inner.size() * sizeof(SessionMap::Children));
+  std::memcpy(blocks[1].data.data(), inner.data(), blocks[1].data.size());
+  blocks[2].tag = "LEAF";
+  const auto& leaves = map.leafPool();
+  blocks[2].data.resize(leaves.size() * sizeof(VoxelCounters));
+  std::memcpy(blocks[2].data.data(), leaves.data(), blocks[2].data.size());
+  writeFileAtomic(path, encodeCmap(header, blocks));
+}
+
+SessionMap sessionMapFrom(const CmapFile& file, const std::string& source) {
+  if (file.header.kind != MapKind::Session) {
+    throw FormatError(source + ": holds a " + std::string(toString(file.header.kind)) + " map, not a session map");
+  }
+  const CmapBlock& inner_block = file.block("INNR", source);
+  const CmapBlock& leaf_block = file.block("LEAF", source);
+  if (inner_block.data.size() % sizeof(SessionMap::Children) != 0 || leaf_block.data.size() % sizeof(VoxelCounters) != 0) {
+    throw FormatError(source + ": node blocks have impossible sizes");
+  }
+  std::vector<SessionMap::Children> inner(inner_block.data.size() / sizeof(SessionMap::Children));
+  std::memcpy(inner.data(), inner_block.data.data(), inner_block.data.size());
+  std::vector<VoxelCounters> leaves(leaf_block.data.size() / sizeof(VoxelCounters));
+  std::memcpy(leaves.data(), leaf_block.data.data(), leaf_block.data.size());
+  SessionMap map(file.header.resolution_m);
+  try {
+    map.assignPools(std::move(inner), std::move(leaves));
+  } catch (const FormatError& e) {
+    throw FormatError(source + ": " + e.what());
+  }
+  return map;
+}
+
+SessionMap readSessionMap(const std::filesystem::path& path) { return sessionMapFrom(readCmap(path), path.string()); }
+
+nlohmann::json metadataOf(const CmapFile& file) {
+  for (const auto& b : file.blocks) {
+    if (b.tag == "META") {
+      auto j = nlohmann::json::parse(b.data.begin(), b.data.end(), nullptr, false);
+      if (!j.is_discarded() && j.is_object()) return j;
+    }
+  }
+  return nlohmann::json::object();
+}
+
+}  // namespace chronomap::io

@@ -1,0 +1,424 @@
+#include "chronomap/io/dataset.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <regex>
+#include <sstream>
+
+#include "chronomap/core/error.h"
+#include "chronomap/core/pose.h"
+#include "chronomap/io/cloud_io.h"
+#include "chronomap/io/file.h"
+#include "text_util.h"
+
+namespace chronomap::io {
+
+namespace fs = std::filesystem;
+
+const char* toString(DatasetFormat format) {
+  switch (format) {
+    case DatasetFormat::Auto: return "auto";
+    case DatasetFormat::Tum: return "tum";
+    case DatasetFormat::ThreeDMatch: return "3dmatch";
+    case DatasetFormat::Clouds: return "clouds";
+  }
+  return "unknown";
+}
+
+DatasetFormat parseDatasetFormat(const std::string& name) {
+  if (name == "auto") return DatasetFormat::Auto;
+  if (name == "tum") return DatasetFormat::Tum;
+  if (name == "3dmatch" || name == "7scenes") return DatasetFormat::ThreeDMatch;
+  if (name == "clouds") return DatasetFormat::Clouds;
+  throw UsageError("unknown dataset format '" + name + "' (expected auto, tum, 3dmatch or clouds)");
+}
+
+CameraIntrinsics parseIntrinsics(const std::string& text) {
+  std::string s = text;
+  std::replace(s.begin(), s.end(), ',', ' ');
+  const auto tok = splitWhitespace(s);
+  if (tok.size() != 4) throw UsageError("intrinsics '" + text + "' must be four numbers: fx,fy,cx,cy");
+  CameraIntrinsics k;
+  try {
+    k = {parseDouble(tok[0], "fx"), parseDouble(tok[1], "fy"), parseDouble(tok[2], "cx"), parseDouble(tok[3], "cy")};
+  } catch (const FormatError& e) {
+    throw UsageError(std::string("intrinsics: ") + e.what());
+  }
+  if (!(k.fx > 0 && k.fy > 0) || !std::isfinite(k.fx) || !std::isfinite(k.fy) || !std::isfinite(k.cx) ||
+      !std::isfinite(k.cy)) {
+    throw UsageError("intrinsics '" + text + "': focal lengths must be positive and all values finite");
+  }
+  return k;
+}
+
+CameraIntrinsics readIntrinsicsFile(const fs::path& path) {
+  const std::string name = path.string();
+  std::vector<double> v;
+  for (const auto& [number, line] : contentLines(readTextFile(path))) {
+    for (const auto& t : splitWhitespace(line)) v.push_back(parseDouble(t, name + ":" + std::to_string(number)));
+  }
+  CameraIntrinsics k;
+  if (v.size() == 9) {
+    k = {v[0], v[4], v[2], v[5]};
+  } else if (v.size() == 4) {
+    k = {v[0], v[1], v[2], v[3]};
+  } else {
+    throw FormatError(name + ": expected a 3x3 matrix or 'fx fy cx cy', found " + std::to_string(v.size()) + " numbers");
+  }
+  if (!(k.fx > 0 && k.fy > 0) || !std::isfinite(k.cx) || !std::isfinite(k.cy)) {
+    throw FormatError(name + ": focal lengths must be positive and all values finite");
+  }
+  return k;
+}
+
+PointCloud depthToCloud(const ImageU16& depth, const ImageRgb* rgb, const CameraIntrinsics& k, double depth_scale,
+                        const std::string& source) {
+  if (!(depth_scale > 0.0) || !std::isfinite(depth_scale)) {
+    throw DataError(source + ": depth scale must be a positive number of units per metre");
+  }
+  if (rgb && (rgb->width != depth.width || rgb->height != depth.height)) {
+    std::ostringstream msg;
+    msg << source << ": colour image is " << rgb->width << "x" << rgb->height << " but the depth image is "
+        << depth.width << "x" << depth.height;
+    throw DataError(msg.str());
+  }
+  PointCloud cloud;
+  cloud.width = depth.width;
+  cloud.height = depth.height;
+  const size_t n = size_t{depth.width} * depth.height;
+  cloud.points.resize(n);
+  if (rgb) cloud.colors = rgb->pixels;
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const double inv_scale = 1.0 / depth_scale;
+  for (uint32_t v = 0; v < depth.height; ++v) {
+    for (uint32_t u = 0; u < depth.width; ++u) {
+      const size_t i = size_t{v} * depth.width + u;
+      const uint16_t d = depth.pixels[i];
+      if (d == 0) {
+        cloud.points[i] = Eigen::Vector3f(nan, nan, nan);
+        continue;
+      }
+      const double z = d * inv_scale;
+      cloud.points[i] = Eigen::Vector3f(static_cast<float>((u - k.cx) * z / k.fx),
+                                        static_cast<float>((v - k.cy) * z / k.fy), static_cast<float>(z));
+    }
+  }
+  return cloud;
+}
+
+namespace {
+
+/// One RGB-D frame on disk.
+struct ImageFrame {
+  fs::path depth;
+  std::optional<fs::path> color;
+  Eigen::Isometry3d pose;
+  double timestamp_s = 0.0;
+};
+
+class ImageDataset : public Dataset {
+ public:
+  ImageDataset(DatasetFormat format, std::vector<ImageFrame> frames, CameraIntrinsics k, double scale, size_t dropped)
+      : format_(format), frames_(std::move(frames)), k_(k), scale_(scale), dropped_(dropped) {}
+  size_t size() const override { return frames_.size(); }
+  DatasetFormat format() const override { return format_; }
+  size_t framesDropped() const override { return dropped_; }
+  Frame load(size_t i) const override {
+    const ImageFrame& f = frames_.at(i);
+    const ImageU16 depth = readPngU16(f.depth);
+    std::optional<ImageRgb> rgb;
+    if (f.color) rgb = readPngRgb(*f.color);
+    Frame frame;
+    frame.source = f.depth.string();
+    frame.cloud = depthToCloud(depth, rgb ? &*rgb : nullptr, k_, scale_, frame.source);
+    frame.T_world_sensor = f.pose;
+    frame.timestamp_s = f.timestamp_s;
+    return frame;
+  }
+
+ private:
+  DatasetFormat format_;
+  std::vector<ImageFrame> frames_;
+  CameraIntrinsics k_;
+  double scale_;
+  size_t dropped_;
+};
+
+class CloudDataset : public Dataset {
+ public:
+  struct Item {
+    fs::path path;
+    Eigen::Isometry3d pose;
+  };
+  explicit CloudDataset(std::vector<Item> items) : items_(std::move(items)) {}
+  size_t size() const override { return items_.size(); }
+  DatasetFormat format() const override { return DatasetFormat::Clouds; }
+  Frame load(size_t i) const override {
+    Frame frame;
+    frame.cloud = readCloud(items_.at(i).path);
+    frame.T_world_sensor = items_.at(i).pose;
+    frame.source = items_.at(i).path.string();
+    return frame;
+  }
+
+ private:
+  std::vector<Item> items_;
+};
+
+double checkedScale(const DatasetOptions& o, double fallback) {
+  const double s = o.depth_scale.value_or(fallback);
+  if (!(s > 0.0) || !std::isfinite(s)) throw UsageError("depth scale must be a positive number of units per metre");
+  return s;
+}
+
+void requireFile(const fs::path& p, const std::string& what) {
+  std::error_code ec;
+  if (!fs::is_regular_file(p, ec)) throw DataError(p.string() + ": " + what + " is missing");
+}
+
+// ---------------------------------------------------------------- 3DMatch / 7-Scenes
+
+std::vector<fs::path> sortedFrames(const fs::path& dir) {
+  static const std::regex re(R"(frame-(\d+)\.depth\.png)");
+  std::vector<std::pair<long, fs::path>> found;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    std::smatch m;
+    const std::string name = e.path().filename().string();
+    if (std::regex_match(name, m, re)) found.emplace_back(std::stol(m[1]), e.path());
+  }
+  std::sort(found.begin(), found.end());
+  std::vector<fs::path> out;
+  for (auto& [n, p] : found) out.push_back(p);
+  return out;
+}
+
+std::vector<fs::path> threeDMatchSequences(const fs::path& root) {
+  std::vector<fs::path> seqs;
+  if (!sortedFrames(root).empty()) seqs.push_back(root);
+  std::vector<fs::path> subdirs;
+  for (const auto& e : fs::directory_iterator(root)) {
+    if (e.is_directory() && e.path().filename().string().rfind("seq-", 0) == 0) subdirs.push_back(e.path());
+  }
+  std::sort(subdirs.begin(), subdirs.end());
+  for (auto& s : subdirs) {
+    if (!sortedFrames(s).empty()) seqs.push_back(s);
+  }
+  return seqs;
+}
+
+Eigen::Matrix4d readMatrix4(const fs::path& path) {
+  std::vector<double> v;
+  const std::string name = path.string();
+  for (const auto& [number, line] : contentLines(readTextFile(path))) {
+    for (const auto& t : splitWhitespace(line)) v.push_back(parseDouble(t, name + ":" + std::to_string(number)));
+  }
+  if (v.size() != 16) throw FormatError(name + ": expected a 4x4 matrix, found " + std::to_string(v.size()) + " numbers");
+  Eigen::Matrix4d m;
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) m(r, c) = v[static_cast<size_t>(r * 4 + c)];
+  }
+  return m;
+}
+
+std::unique_ptr<Dataset> openThreeDMatch(const fs::path& root, const DatasetOptions& o) {
+  fs::path intrinsics = root / "camera-intrinsics.txt";
+  std::error_code ec;
+  if (!fs::exists(intrinsics, ec)) intrinsics = root.parent_path() / "camera-intrinsics.txt";
+  const CameraIntrinsics k = o.intrinsics ? *o.intrinsics : (requireFile(intrinsics, "camera intrinsics file"),
+                                                               readIntrinsicsFile(intrinsics));
+  std::vector<ImageFrame> frames;
+  for (const auto& seq : threeDMatchSequences(root)) {
+    for (const auto& depth : sortedFrames(seq)) {
+      const std::string stem = depth.filename().string().substr(0, depth.filename().string().size() - 10);
+      const fs::path pose = seq / (stem + ".pose.txt");
+      const fs::path color = seq / (stem + ".color.png");
+      requireFile(pose, "pose file");
+      ImageFrame f;
+      f.depth = depth;
+      if (fs::exists(color, ec)) f.color = color;
+      f.pose = poseFromMatrix(readMatrix4(pose), pose.string());
+      f.timestamp_s = static_cast<double>(frames.size());
+      frames.push_back(f);
+    }
+  }
+  if (frames.empty()) throw DataError(root.string() + ": no frame-*.depth.png files found");
+  return std::make_unique<ImageDataset>(DatasetFormat::ThreeDMatch, std::move(frames), k, checkedScale(o, 1000.0), 0);
+}
+
+// ---------------------------------------------------------------- TUM RGB-D
+
+struct Stamped {
+  double t;
+  std::string value;
+};
+
+std::vector<Stamped> readStampedList(const fs::path& path) {
+  std::vector<Stamped> out;
+  const std::string name = path.string();
+  for (const auto& [number, line] : contentLines(readTextFile(path))) {
+    const auto tok = splitWhitespace(line);
+    const std::string ctx = name + ":" + std::to_string(number);
+    if (tok.size() != 2) throw FormatError(ctx + ": expected 'timestamp filename'");
+    const double t = parseDouble(tok[0], ctx);
+    if (!std::isfinite(t)) throw FormatError(ctx + ": timestamp is not finite");
+    out.push_back({t, tok[1]});
+  }
+  std::stable_sort(out.begin(), out.end(), [](const Stamped& a, const Stamped& b) { return a.t < b.t; });
+  return out;
+}
+
+struct StampedPose {
+  double t;
+  Eigen::Isometry3d pose;
+};
+
+std::vector<StampedPose> readTumTrajectory(const fs::path& path) {
+  std::vector<StampedPose> out;
+  const std::string name = path.string();
+  for (const auto& [number, line] : contentLines(readTextFile(path))) {
+    const auto tok = splitWhitespace(line);
+    const std::string ctx = name + ":" + std::to_string(number);
+    if (tok.size() != 8) throw FormatError(ctx + ": expected 'timestamp tx ty tz qx qy qz qw'");
+    double v[8];
+    for (int i = 0; i < 8; ++i) v[i] = parseDouble(tok[static_cast<size_t>(i)], ctx);
+    if (!std::isfinite(v[0])) throw FormatError(ctx + ": timestamp is not finite");
+    out.push_back({v[0], poseFromTranslationQuaternion({v[1], v[2], v[3]}, v[4], v[5], v[6], v[7], ctx)});
+  }
+  std::stable_sort(out.begin(), out.end(), [](const StampedPose& a, const StampedPose& b) { return a.t < b.t; });
+  return out;
+}
+
+template <class T>
+const T* nearest(const std::vector<T>& sorted, double t, double tolerance) {
+  auto it = std::lower_bound(sorted.begin(), sorted.end(), t, [](const T& a, double v) { return a.t < v; });
+  const T* best = nullptr;
+  double best_dt = tolerance;
+  if (it != sorted.end() && std::abs(it->t - t) <= best_dt) {
+    best = &*it;
+    best_dt = std::abs(it->t - t);
+  }
+  if (it != sorted.begin() && std::abs(std::prev(it)->t - t) <= best_dt) best = &*std::prev(it);
+  return best;
+}
+
+std::unique_ptr<Dataset> openTum(const fs::path& root, const DatasetOptions& o) {
+  std::error_code ec;
+  const fs::path depth_list = root / "depth.txt";
+  requireFile(depth_list, "TUM depth list (depth.txt)");
+  fs::path traj;
+  if (o.trajectory) {
+    traj = *o.trajectory;
+    requireFile(traj, "trajectory file");
+  } else if (fs::exists(root / "trajectory.txt", ec)) {
+    traj = root / "trajectory.txt";
+  } else if (fs::exists(root / "groundtruth.txt", ec)) {
+    traj = root / "groundtruth.txt";
+  } else {
+    throw DataError(root.string() + ": no trajectory.txt or groundtruth.txt (give one with --trajectory)");
+  }
+  CameraIntrinsics k;
+  if (o.intrinsics) {
+    k = *o.intrinsics;
+  } else {
+    for (const char* name : {"camera-intrinsics.txt", "intrinsics.txt"}) {
+      if (fs::exists(root / name, ec)) {
+        k = readIntrinsicsFile(root / name);
+        break;
+      }
+    }
+  }
+  const auto depths = readStampedList(depth_list);
+  std::vector<Stamped> colors;
+  const bool have_rgb = fs::exists(root / "rgb.txt", ec);
+  if (have_rgb) colors = readStampedList(root / "rgb.txt");
+  const auto poses = readTumTrajectory(traj);
+  if (poses.empty()) throw DataError(traj.string() + ": no poses");
+  std::vector<ImageFrame> frames;
+  size_t dropped = 0;
+  for (const Stamped& d : depths) {
+    const StampedPose* pose = nearest(poses, d.t, o.max_time_difference_s);
+    const Stamped* color = have_rgb ? nearest(colors, d.t, o.max_time_difference_s) : nullptr;
+    if (!pose || (have_rgb && !color)) {
+      ++dropped;
+      continue;
+    }
+    ImageFrame f;
+    f.depth = root / d.value;
+    if (color) f.color = root / color->value;
+    f.pose = pose->pose;
+    f.timestamp_s = d.t;
+    frames.push_back(f);
+  }
+  if (frames.empty()) {
+    throw DataError(root.string() + ": none of the " + std::to_string(depths.size()) +
+                    " depth frames has a pose (and colour) within " + std::to_string(o.max_time_difference_s) + " s");
+  }
+  return std::make_unique<ImageDataset>(DatasetFormat::Tum, std::move(frames), k, checkedScale(o, 5000.0), dropped);
+}
+
+// ---------------------------------------------------------------- clouds
+
+std::unique_ptr<Dataset> openClouds(const fs::path& path, const DatasetOptions& o) {
+  if (isCloudFile(path)) {
+    return std::make_unique<CloudDataset>(
+        std::vector<CloudDataset::Item>{{path, o.pose.value_or(Eigen::Isometry3d::Identity())}});
+  }
+  if (o.pose) throw UsageError("--pose applies to a single cloud file, not to a list");
+  std::vector<CloudDataset::Item> items;
+  const std::string name = path.string();
+  for (const auto& [number, line] : contentLines(readTextFile(path))) {
+    const auto tok = splitWhitespace(line);
+    const std::string ctx = name + ":" + std::to_string(number);
+    if (tok.size() != 8) throw FormatError(ctx + ": expected 'cloud_file tx ty tz qx qy qz qw'");
+    double v[7];
+    for (int i = 0; i < 7; ++i) v[i] = parseDouble(tok[static_cast<size_t>(i + 1)], ctx);
+    fs::path cloud = tok[0];
+    if (cloud.is_relative()) cloud = path.parent_path() / cloud;
+    requireFile(cloud, "cloud listed at " + ctx);
+    items.push_back({cloud, poseFromTranslationQuaternion({v[0], v[1], v[2]}, v[3], v[4], v[5], v[6], ctx)});
+  }
+  if (items.empty()) throw DataError(name + ": the cloud list is empty");
+  return std::make_unique<CloudDataset>(std::move(items));
+}
+
+DatasetFormat detect(const fs::path& path) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) {
+    if (fs::exists(path / "depth.txt", ec)) return DatasetFormat::Tum;
+    if (!threeDMatchSequences(path).empty()) return DatasetFormat::ThreeDMatch;
+    throw UsageError(path.string() +
+                     ": cannot tell the dataset format (no depth.txt, no frame-*.depth.png); use --format");
+  }
+  if (isCloudFile(path) || dataExtension(path) == ".txt") return DatasetFormat::Clouds;
+  throw UsageError(path.string() + ": cannot tell the dataset format from the extension; use --format");
+}
+
+}  // namespace
+
+std::unique_ptr<Dataset> openDataset(const fs::path& path, const DatasetOptions& options) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw UsageError(path.string() + ": no such file or folder");
+  DatasetFormat format = options.format == DatasetFormat::Auto ? detect(path) : options.format;
+  if (format != DatasetFormat::Clouds && options.pose) {
+    throw UsageError("--pose applies to a single cloud file");
+  }
+  switch (format) {
+    case DatasetFormat::Tum:
+      if (!fs::is_directory(path, ec)) throw UsageError(path.string() + ": a TUM dataset is a folder");
+      return openTum(path, options);
+    case DatasetFormat::ThreeDMatch:
+      if (!fs::is_directory(path, ec)) throw UsageError(path.string() + ": a 3DMatch dataset is a folder");
+      return openThreeDMatch(path, options);
+    case DatasetFormat::Clouds:
+      if (fs::is_directory(path, ec)) {
+        throw UsageError(path.string() + ": for clouds give one cloud file or a list file, not a folder");
+      }
+      return openClouds(path, options);
+    case DatasetFormat::Auto:
+      break;
+  }
+  throw UsageError("unknown dataset format");
+}
+
+}  // namespace chronomap::io

@@ -1,0 +1,57 @@
+#include "chronomap/io/export.h"
+
+#include <octomap/ColorOcTree.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "chronomap/core/error.h"
+#include "chronomap/io/cloud_io.h"
+
+namespace chronomap::io {
+
+size_t exportOccupiedPly(const std::filesystem::path& path, const SessionMap& map) {
+  PointCloud cloud;
+  map.forEachLeaf([&](const LeafView& leaf) {
+    if (leaf.level != 0 || leaf.counters.state() != VoxelState::Occupied) return;
+    cloud.points.push_back(map.grid().centerOf(leaf.key).cast<float>());
+    cloud.colors.push_back(leaf.counters.meanColor());
+  });
+  cloud.width = static_cast<uint32_t>(cloud.points.size());
+  writePly(path, cloud);
+  return cloud.points.size();
+}
+
+size_t exportOctomap(const std::filesystem::path& path, const SessionMap& map) {
+  octomap::ColorOcTree tree(map.resolution_m());
+  const double p_min = tree.getClampingThresMin();
+  const double p_max = tree.getClampingThresMax();
+  auto logodds = [&](double p) {
+    p = std::clamp(p, p_min, p_max);
+    return static_cast<float>(std::log(p / (1.0 - p)));
+  };
+  map.forEachLeaf([&](const LeafView& leaf) {
+    const VoxelState state = leaf.counters.state();
+    if (state == VoxelState::Unknown) return;
+    const float value = logodds(leaf.counters.probability());
+    const int side = 1 << leaf.level;
+    const Rgb color = leaf.counters.meanColor();
+    for (int dz = 0; dz < side; ++dz) {
+      for (int dy = 0; dy < side; ++dy) {
+        for (int dx = 0; dx < side; ++dx) {
+          const octomap::OcTreeKey key(static_cast<octomap::key_type>(leaf.key.x + dx),
+                                       static_cast<octomap::key_type>(leaf.key.y + dy),
+                                       static_cast<octomap::key_type>(leaf.key.z + dz));
+          tree.setNodeValue(key, value, true);
+          if (state == VoxelState::Occupied) tree.setNodeColor(key, color.r, color.g, color.b);
+        }
+      }
+    }
+  });
+  tree.updateInnerOccupancy();
+  tree.prune();
+  if (!tree.write(path.string())) throw IoError(path.string() + ": cannot write the OctoMap file");
+  return tree.getNumLeafNodes();
+}
+
+}  // namespace chronomap::io

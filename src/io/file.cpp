@@ -1,0 +1,117 @@
+#include "chronomap/io/file.h"
+
+#include <bzlib.h>
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <random>
+
+#include "chronomap/core/error.h"
+
+namespace chronomap::io {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::vector<uint8_t> bunzip(const std::vector<uint8_t>& in, const fs::path& path) {
+  bz_stream stream{};
+  if (BZ2_bzDecompressInit(&stream, 0, 0) != BZ_OK) throw IoError(path.string() + ": cannot start bzip2 decoder");
+  std::vector<uint8_t> out(std::max<size_t>(in.size() * 4, 1 << 16));
+  stream.next_in = reinterpret_cast<char*>(const_cast<uint8_t*>(in.data()));
+  stream.avail_in = static_cast<unsigned>(in.size());
+  size_t produced = 0;
+  int rc = BZ_OK;
+  while (true) {
+    if (produced == out.size()) out.resize(out.size() * 2);
+    stream.next_out = reinterpret_cast<char*>(out.data() + produced);
+    stream.avail_out = static_cast<unsigned>(std::min<size_t>(out.size() - produced, 1u << 30));
+    const unsigned before = stream.avail_out;
+    rc = BZ2_bzDecompress(&stream);
+    produced += before - stream.avail_out;
+    if (rc == BZ_STREAM_END) break;
+    if (rc != BZ_OK || (stream.avail_in == 0 && before == stream.avail_out)) {
+      BZ2_bzDecompressEnd(&stream);
+      throw FormatError(path.string() + ": corrupt or truncated bzip2 data");
+    }
+  }
+  BZ2_bzDecompressEnd(&stream);
+  out.resize(produced);
+  return out;
+}
+
+}  // namespace
+
+std::vector<uint8_t> readFileBytes(const fs::path& path) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) throw IoError(path.string() + ": is a folder, expected a file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw IoError(path.string() + ": cannot open (" + std::strerror(errno) + ")");
+  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw IoError(path.string() + ": read failed");
+  if (path.extension() == ".bz2") return bunzip(bytes, path);
+  return bytes;
+}
+
+std::string readTextFile(const fs::path& path) {
+  const auto bytes = readFileBytes(path);
+  return std::string(bytes.begin(), bytes.end());
+}
+
+void writeFileAtomic(const fs::path& path, const std::vector<uint8_t>& bytes) {
+  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  std::random_device rd;
+  // Built with append: GCC 12 warns falsely (-Wrestrict) on a chain of string operator+.
+  std::string name(".");
+  name.append(path.filename().string()).append(".tmp-").append(std::to_string(::getpid()));
+  name.append("-").append(std::to_string(rd() & 0xffffff));
+  const fs::path tmp = dir / name;
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  if (fd < 0) throw IoError(path.string() + ": cannot create (" + std::strerror(errno) + ")");
+  auto fail = [&](const char* what) {
+    const int err = errno;
+    ::close(fd);
+    ::unlink(tmp.c_str());
+    throw IoError(path.string() + ": " + what + " (" + std::strerror(err) + "); the previous file is unchanged");
+  };
+  size_t written = 0;
+  while (written < bytes.size()) {
+    const ssize_t n = ::write(fd, bytes.data() + written, bytes.size() - written);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      fail("write failed");
+    }
+    written += static_cast<size_t>(n);
+  }
+  if (::fsync(fd) != 0) fail("flush to disk failed");
+  if (::close(fd) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    throw IoError(path.string() + ": close failed (" + std::strerror(err) + ")");
+  }
+  if (::rename(tmp.c_str(), path.c_str()) != 0) {
+    const int err = errno;
+    ::unlink(tmp.c_str());
+    throw IoError(path.string() + ": cannot move into place (" + std::strerror(err) + ")");
+  }
+  const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dfd >= 0) {
+    ::fsync(dfd);  // best effort: the rename itself is already atomic
+    ::close(dfd);
+  }
+}
+
+std::string dataExtension(const fs::path& path) {
+  fs::path p = path;
+  if (p.extension() == ".bz2") p = p.stem();
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext;
+}
+
+}  // namespace chronomap::io

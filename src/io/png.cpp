@@ -1,0 +1,190 @@
+#include "chronomap/io/png.h"
+
+#include <png.h>
+
+#include <csetjmp>
+#include <cstring>
+#include <string>
+
+#include "chronomap/core/error.h"
+#include "chronomap/io/file.h"
+
+namespace chronomap::io {
+
+namespace {
+
+struct PngContext {
+  const uint8_t* data = nullptr;
+  size_t size = 0;
+  size_t offset = 0;
+  char message[256] = {0};
+  std::vector<uint8_t>* out = nullptr;
+};
+
+void onError(png_structp png, png_const_charp msg) {
+  auto* ctx = static_cast<PngContext*>(png_get_error_ptr(png));
+  std::snprintf(ctx->message, sizeof(ctx->message), "%s", msg);
+  longjmp(png_jmpbuf(png), 1);
+}
+void onWarning(png_structp, png_const_charp) {}
+
+void readFromMemory(png_structp png, png_bytep dst, png_size_t n) {
+  auto* ctx = static_cast<PngContext*>(png_get_io_ptr(png));
+  if (ctx->offset + n > ctx->size) png_error(png, "file is truncated");
+  std::memcpy(dst, ctx->data + ctx->offset, n);
+  ctx->offset += n;
+}
+
+void writeToMemory(png_structp png, png_bytep src, png_size_t n) {
+  auto* ctx = static_cast<PngContext*>(png_get_io_ptr(png));
+  ctx->out->insert(ctx->out->end(), src, src + n);
+}
+void flushNothing(png_structp) {}
+
+struct Decoded {
+  uint32_t width = 0, height = 0;
+  int channels = 0;
+  int bit_depth = 0;
+  std::vector<uint8_t> bytes;  // rows, native-endian 16-bit samples when bit_depth == 16
+};
+
+/// Decodes `file` to either RGB8 (want16 = false) or raw grey samples (want16 = true).
+/// Only plain data lives across setjmp; errors come back as a message.
+bool decode(const std::vector<uint8_t>& file, bool want16, Decoded& out, std::string& error) {
+  PngContext ctx;
+  ctx.data = file.data();
+  ctx.size = file.size();
+  if (file.size() < 8 || png_sig_cmp(file.data(), 0, 8) != 0) {
+    error = "not a PNG file (bad signature)";
+    return false;
+  }
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &ctx, onError, onWarning);
+  if (!png) {
+    error = "cannot allocate PNG decoder";
+    return false;
+  }
+  png_infop info = png_create_info_struct(png);
+  if (!info || setjmp(png_jmpbuf(png))) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    error = ctx.message[0] ? ctx.message : "corrupt PNG";
+    return false;
+  }
+  png_set_user_limits(png, kMaxImageSide, kMaxImageSide);
+  png_set_read_fn(png, &ctx, readFromMemory);
+  png_read_info(png, info);
+  const int color_type = png_get_color_type(png, info);
+  const int depth = png_get_bit_depth(png, info);
+  if (want16) {
+    if (color_type != PNG_COLOR_TYPE_GRAY || depth != 16) {
+      png_destroy_read_struct(&png, &info, nullptr);
+      error = "expected a 16-bit single-channel depth image, found " + std::to_string(depth) + "-bit " +
+              (color_type == PNG_COLOR_TYPE_GRAY ? "grey" : "colour");
+      return false;
+    }
+    png_set_swap(png);  // PNG stores 16-bit samples big-endian
+  } else {
+    if (depth == 16) png_set_strip_16(png);
+    if (color_type == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
+    if (color_type == PNG_COLOR_TYPE_GRAY && depth < 8) png_set_expand_gray_1_2_4_to_8(png);
+    if (color_type == PNG_COLOR_TYPE_GRAY || color_type == PNG_COLOR_TYPE_GRAY_ALPHA) png_set_gray_to_rgb(png);
+    if (color_type & PNG_COLOR_MASK_ALPHA) png_set_strip_alpha(png);
+    if (png_get_valid(png, info, PNG_INFO_tRNS)) png_set_strip_alpha(png);
+  }
+  png_set_interlace_handling(png);
+  png_read_update_info(png, info);
+  out.width = png_get_image_width(png, info);
+  out.height = png_get_image_height(png, info);
+  out.channels = png_get_channels(png, info);
+  out.bit_depth = png_get_bit_depth(png, info);
+  const size_t rowbytes = png_get_rowbytes(png, info);
+  if ((want16 && rowbytes != size_t{out.width} * 2) || (!want16 && rowbytes != size_t{out.width} * 3)) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    error = "unsupported PNG layout";
+    return false;
+  }
+  out.bytes.resize(rowbytes * out.height);
+  std::vector<png_bytep> rows(out.height);
+  for (uint32_t y = 0; y < out.height; ++y) rows[y] = out.bytes.data() + y * rowbytes;
+  png_read_image(png, rows.data());
+  png_read_end(png, nullptr);
+  png_destroy_read_struct(&png, &info, nullptr);
+  return true;
+}
+
+bool encode(uint32_t w, uint32_t h, bool sixteen, const uint8_t* data, std::vector<uint8_t>& out,
+            std::string& error) {
+  PngContext ctx;
+  ctx.out = &out;
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &ctx, onError, onWarning);
+  if (!png) {
+    error = "cannot allocate PNG encoder";
+    return false;
+  }
+  png_infop info = png_create_info_struct(png);
+  if (!info || setjmp(png_jmpbuf(png))) {
+    png_destroy_write_struct(&png, &info);
+    error = ctx.message[0] ? ctx.message : "PNG encoding failed";
+    return false;
+  }
+  png_set_write_fn(png, &ctx, writeToMemory, flushNothing);
+  png_set_IHDR(png, info, w, h, sixteen ? 16 : 8, sixteen ? PNG_COLOR_TYPE_GRAY : PNG_COLOR_TYPE_RGB,
+               PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_set_compression_level(png, 3);
+  png_write_info(png, info);
+  if (sixteen) png_set_swap(png);
+  const size_t rowbytes = size_t{w} * (sixteen ? 2 : 3);
+  for (uint32_t y = 0; y < h; ++y) png_write_row(png, const_cast<png_bytep>(data + y * rowbytes));
+  png_write_end(png, nullptr);
+  png_destroy_write_struct(&png, &info);
+  return true;
+}
+
+}  // namespace
+
+ImageRgb readPngRgb(const std::filesystem::path& path) {
+  const auto file = readFileBytes(path);
+  Decoded d;
+  std::string error;
+  if (!decode(file, false, d, error)) throw FormatError(path.string() + ": " + error);
+  ImageRgb img;
+  img.width = d.width;
+  img.height = d.height;
+  img.pixels.resize(size_t{d.width} * d.height);
+  std::memcpy(img.pixels.data(), d.bytes.data(), d.bytes.size());
+  return img;
+}
+
+ImageU16 readPngU16(const std::filesystem::path& path) {
+  const auto file = readFileBytes(path);
+  Decoded d;
+  std::string error;
+  if (!decode(file, true, d, error)) throw FormatError(path.string() + ": " + error);
+  ImageU16 img;
+  img.width = d.width;
+  img.height = d.height;
+  img.pixels.resize(size_t{d.width} * d.height);
+  std::memcpy(img.pixels.data(), d.bytes.data(), d.bytes.size());
+  return img;
+}
+
+void writePng(const std::filesystem::path& path, const ImageRgb& image) {
+  if (image.pixels.size() != size_t{image.width} * image.height) throw UsageError("writePng: size mismatch");
+  std::vector<uint8_t> out;
+  std::string error;
+  if (!encode(image.width, image.height, false, reinterpret_cast<const uint8_t*>(image.pixels.data()), out, error)) {
+    throw IoError(path.string() + ": " + error);
+  }
+  writeFileAtomic(path, out);
+}
+
+void writePng(const std::filesystem::path& path, const ImageU16& image) {
+  if (image.pixels.size() != size_t{image.width} * image.height) throw UsageError("writePng: size mismatch");
+  std::vector<uint8_t> out;
+  std::string error;
+  if (!encode(image.width, image.height, true, reinterpret_cast<const uint8_t*>(image.pixels.data()), out, error)) {
+    throw IoError(path.string() + ": " + error);
+  }
+  writeFileAtomic(path, out);
+}
+
+}  // namespace chronomap::io

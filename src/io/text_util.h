@@ -1,0 +1,18 @@
+#pragma once
+// Small text parsing helpers shared by the readers (internal).
+
+#include <string>
+#include <vector>
+
+namespace chronomap::io {
+
+/// Splits on spaces, tabs and carriage returns.
+std::vector<std::string> splitWhitespace(const std::string& line);
+/// Parses a whole token as a double. @throw FormatError "<context>: '<token>' is not a number".
+double parseDouble(const std::string& token, const std::string& context);
+/// Parses a whole token as an unsigned integer. @throw FormatError.
+unsigned long long parseUnsigned(const std::string& token, const std::string& context);
+/// Lines of a text, without '#' comment lines and blank lines; keeps 1-based line numbers.
+std::vector<std::pair<size_t, std::string>> contentLines(const std::string& text);
+
+}  // namespace chronomap::io

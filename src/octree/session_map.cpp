@@ -1,0 +1,273 @@
+#include "chronomap/octree/session_map.h"
+
+#include <bit>
+#include <functional>
+#include <string>
+
+#include "chronomap/core/error.h"
+
+namespace chronomap {
+
+namespace {
+constexpr uint32_t kMaxPoolIndex = 0x7ffffffeu;
+
+SessionMap::Children emptyChildren() {
+  SessionMap::Children c;
+  c.fill(SessionMap::kEmpty);
+  return c;
+}
+}  // namespace
+
+SessionMap::SessionMap(double resolution_m) : grid_(resolution_m) { inner_.push_back(emptyChildren()); }
+
+SessionMap::Ref SessionMap::newLeaf(const VoxelCounters& c) {
+  if (leaves_.size() >= kMaxPoolIndex) throw Error("session map is full: more than 2^31 leaves");
+  leaves_.push_back(c);
+  return static_cast<Ref>(leaves_.size() - 1) | kLeafBit;
+}
+
+SessionMap::Ref SessionMap::newInner() {
+  if (inner_.size() >= kMaxPoolIndex) throw Error("session map is full: more than 2^31 inner nodes");
+  inner_.push_back(emptyChildren());
+  return static_cast<Ref>(inner_.size() - 1);
+}
+
+uint32_t SessionMap::splitLeaf(uint32_t parent, int slot) {
+  const uint32_t leaf = index(inner_[parent][slot]);
+  VoxelCounters part = leaves_[leaf];
+  part.length_m /= 8.0f;  // compressed leaves never hold hits or colour
+  const Ref node = newInner();
+  // The first child reuses the old leaf's slot so that splitting does not grow the pool by 8.
+  leaves_[leaf] = part;
+  inner_[node][0] = leaf | kLeafBit;
+  for (int i = 1; i < 8; ++i) {
+    const Ref child = newLeaf(part);
+    inner_[node][i] = child;
+  }
+  inner_[parent][slot] = node;
+  return node;
+}
+
+uint32_t SessionMap::descend(uint32_t parent, int slot) {
+  const Ref r = inner_[parent][slot];
+  if (r == kEmpty) {
+    const Ref node = newInner();
+    inner_[parent][slot] = node;
+    return node;
+  }
+  if (isLeaf(r)) return splitLeaf(parent, slot);
+  return r;
+}
+
+void SessionMap::add(const VoxelKey& key, const VoxelCounters& delta) {
+  uint32_t node = 0;
+  for (int child_level = kTreeDepth - 1; child_level > 0; --child_level) {
+    node = descend(node, childSlot(key, child_level));
+  }
+  const int slot = childSlot(key, 0);
+  const Ref r = inner_[node][slot];
+  if (r == kEmpty) {
+    const Ref leaf = newLeaf(delta);
+    inner_[node][slot] = leaf;
+  } else {
+    leaves_[index(r)] += delta;
+  }
+}
+
+void SessionMap::addMany(std::span<const VoxelKey> keys, std::span<const VoxelCounters> deltas) {
+  if (keys.size() != deltas.size()) throw UsageError("addMany: keys and deltas differ in length");
+  // path[l] is the inner node at level l on the way to the previous key (path[kTreeDepth] = root).
+  std::array<uint32_t, kTreeDepth + 1> path{};
+  path[kTreeDepth] = 0;
+  VoxelKey prev{};
+  bool have_prev = false;
+  for (size_t i = 0; i < keys.size(); ++i) {
+    const VoxelKey& key = keys[i];
+    int level = kTreeDepth;  // level of the deepest valid common ancestor in path
+    if (have_prev) {
+      const uint32_t diff = static_cast<uint32_t>((key.x ^ prev.x) | (key.y ^ prev.y) | (key.z ^ prev.z));
+      level = diff == 0 ? 1 : std::bit_width(diff);
+    }
+    for (int l = level; l > 1; --l) {
+      path[l - 1] = descend(path[l], childSlot(key, l - 1));
+    }
+    const uint32_t node = path[1];
+    const int slot = childSlot(key, 0);
+    const Ref r = inner_[node][slot];
+    if (r == kEmpty) {
+      const Ref leaf = newLeaf(deltas[i]);
+      inner_[node][slot] = leaf;
+    } else {
+      leaves_[index(r)] += deltas[i];
+    }
+    prev = key;
+    have_prev = true;
+  }
+}
+
+std::optional<LeafView> SessionMap::findLeaf(const VoxelKey& key) const {
+  uint32_t node = 0;
+  for (int child_level = kTreeDepth - 1; child_level >= 0; --child_level) {
+    const Ref r = inner_[node][childSlot(key, child_level)];
+    if (r == kEmpty) return std::nullopt;
+    if (isLeaf(r)) {
+      const uint16_t mask = static_cast<uint16_t>(~((1u << child_level) - 1));
+      return LeafView{VoxelKey{static_cast<uint16_t>(key.x & mask), static_cast<uint16_t>(key.y & mask),
+                               static_cast<uint16_t>(key.z & mask)},
+                      child_level, leaves_[index(r)]};
+    }
+    node = r;
+  }
+  return std::nullopt;  // unreachable for a valid tree: level 0 children are leaves
+}
+
+std::optional<VoxelCounters> SessionMap::find(const VoxelKey& key) const {
+  auto leaf = findLeaf(key);
+  if (!leaf) return std::nullopt;
+  VoxelCounters c = leaf->counters;
+  if (leaf->level > 0) c.length_m /= static_cast<float>(uint64_t{1} << (3 * leaf->level));
+  return c;
+}
+
+VoxelState SessionMap::stateOf(const VoxelKey& key) const {
+  auto c = find(key);
+  return c ? c->state() : VoxelState::Unknown;
+}
+
+size_t SessionMap::compressFree() {
+  const size_t before = leaves_.size();
+  // Post-order: returns true when the child reference `r` is (now) a known-free leaf without hits.
+  std::function<bool(Ref&)> visit = [&](Ref& r) -> bool {
+    if (r == kEmpty) return false;
+    if (isLeaf(r)) return leaves_[index(r)].isKnownFreeWithoutHits();
+    bool all_free = true;
+    // Copy: recursion may not reallocate inner_, but keep the reference use simple and safe.
+    for (int i = 0; i < 8; ++i) {
+      Ref child = inner_[r][i];
+      const bool free = visit(child);
+      inner_[r][i] = child;
+      all_free = all_free && free;
+    }
+    if (!all_free || r == 0) return false;  // the root is never replaced
+    VoxelCounters sum;
+    for (int i = 0; i < 8; ++i) sum.length_m += leaves_[index(inner_[r][i])].length_m;
+    // Reuse the first child's leaf slot; the others become garbage removed by compaction below.
+    const uint32_t leaf = index(inner_[r][0]);
+    leaves_[leaf] = sum;
+    r = leaf | kLeafBit;
+    return true;
+  };
+  Ref root = 0;
+  visit(root);
+
+  // Compaction: copy the reachable tree depth first into fresh pools.
+  std::vector<Children> inner;
+  std::vector<VoxelCounters> leaves;
+  inner.reserve(inner_.size());
+  leaves.reserve(leaves_.size());
+  std::function<Ref(Ref)> copy = [&](Ref r) -> Ref {
+    if (r == kEmpty) return kEmpty;
+    if (isLeaf(r)) {
+      leaves.push_back(leaves_[index(r)]);
+      return static_cast<Ref>(leaves.size() - 1) | kLeafBit;
+    }
+    const Ref out = static_cast<Ref>(inner.size());
+    inner.push_back(emptyChildren());
+    for (int i = 0; i < 8; ++i) {
+      const Ref c = copy(inner_[r][i]);
+      inner[out][i] = c;
+    }
+    return out;
+  };
+  copy(0);
+  inner.shrink_to_fit();
+  leaves.shrink_to_fit();
+  inner_ = std::move(inner);
+  leaves_ = std::move(leaves);
+  return before - leaves_.size();
+}
+
+SessionMapCounts SessionMap::counts() const {
+  SessionMapCounts c;
+  c.inner_nodes = inner_.size();
+  forEachLeaf([&](const LeafView& leaf) {
+    ++c.leaves;
+    const uint64_t voxels = uint64_t{1} << (3 * leaf.level);
+    if (leaf.level > 0) ++c.compressed_leaves;
+    switch (leaf.counters.state()) {
+      case VoxelState::Occupied:
+        c.occupied_voxels += voxels;
+        break;
+      case VoxelState::Free:
+        c.free_voxels += voxels;
+        break;
+      case VoxelState::Unknown:
+        break;
+    }
+  });
+  return c;
+}
+
+size_t SessionMap::memoryBytes() const {
+  return sizeof(*this) + inner_.size() * sizeof(Children) + leaves_.size() * sizeof(VoxelCounters);
+}
+
+size_t SessionMap::reservedBytes() const {
+  return sizeof(*this) + inner_.capacity() * sizeof(Children) + leaves_.capacity() * sizeof(VoxelCounters);
+}
+
+void SessionMap::assignPools(std::vector<Children> inner, std::vector<VoxelCounters> leaves) {
+  if (inner.empty()) throw FormatError("session map has no root node");
+  if (inner.size() > kMaxPoolIndex || leaves.size() > kMaxPoolIndex) throw FormatError("session map too large");
+  // Every node must be reachable exactly once from the root, inner nodes only above unit level,
+  // leaves finite and non-negative, compressed leaves free of hits.
+  std::vector<uint8_t> inner_seen(inner.size(), 0);
+  std::vector<uint8_t> leaf_seen(leaves.size(), 0);
+  std::vector<std::pair<uint32_t, int>> stack{{0u, kTreeDepth}};
+  inner_seen[0] = 1;
+  size_t inner_reached = 1, leaves_reached = 0;
+  while (!stack.empty()) {
+    auto [node, level] = stack.back();
+    stack.pop_back();
+    for (Ref r : inner[node]) {
+      if (r == kEmpty) continue;
+      const uint32_t i = index(r);
+      if (isLeaf(r)) {
+        if (i >= leaves.size() || leaf_seen[i]) throw FormatError("session map has an invalid leaf reference");
+        leaf_seen[i] = 1;
+        ++leaves_reached;
+        const VoxelCounters& c = leaves[i];
+        if (!std::isfinite(c.length_m) || c.length_m < 0.0f) throw FormatError("session map has an invalid ray length");
+        if (level - 1 > 0 && !c.isKnownFreeWithoutHits()) {
+          throw FormatError("session map has a compressed node that is not known-free");
+        }
+      } else {
+        if (level - 1 == 0) throw FormatError("session map has an inner node below unit level");
+        if (i >= inner.size() || inner_seen[i]) throw FormatError("session map has an invalid node reference");
+        inner_seen[i] = 1;
+        ++inner_reached;
+        stack.emplace_back(i, level - 1);
+      }
+    }
+  }
+  if (inner_reached != inner.size() || leaves_reached != leaves.size()) {
+    throw FormatError("session map has unreachable nodes");
+  }
+  inner_ = std::move(inner);
+  leaves_ = std::move(leaves);
+}
+
+bool operator==(const SessionMap& a, const SessionMap& b) {
+  if (a.resolution_m() != b.resolution_m()) return false;
+  // Compare leaf by leaf in Morton order: equal trees regardless of pool layout.
+  std::vector<LeafView> la, lb;
+  a.forEachLeaf([&](const LeafView& l) { la.push_back(l); });
+  b.forEachLeaf([&](const LeafView& l) { lb.push_back(l); });
+  if (la.size() != lb.size()) return false;
+  for (size_t i = 0; i < la.size(); ++i) {
+    if (la[i].key != lb[i].key || la[i].level != lb[i].level || !(la[i].counters == lb[i].counters)) return false;
+  }
+  return true;
+}
+
+}  // namespace chronomap
