@@ -1,0 +1,124 @@
+// The command-line contract: exit codes, error messages, JSON keys, files written or not.
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "test_support.h"
+
+namespace chronomap {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string cli() { return std::string(CHRONOMAP_CLI_PATH); }
+
+TEST(Cli, HelpForEveryCommand) {
+  for (const char* cmd : {"", "integrate", "stats", "export"}) {
+    const auto r = test::runCommand(cli() + " " + cmd + " --help");
+    EXPECT_EQ(r.exit_code, 0) << cmd;
+    EXPECT_NE(r.out.find("Usage"), std::string::npos) << cmd;
+  }
+}
+
+TEST(Cli, BadUsageExitsWithTwo) {
+  test::TempDir tmp;
+  for (const std::string args : {"", "frobnicate", "integrate", "integrate x", "integrate x -o y.cmap --bogus",
+                                 "stats", "export a.cmap"}) {
+    const auto r = test::runCommand(cli() + " " + args);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.err;
+    EXPECT_EQ(r.err.rfind("chronomap: error: ", 0), 0u) << args << "\n" << r.err;
+  }
+  const auto r = test::runCommand(cli() + " integrate " + tmp.path().string() + " -o " + (tmp / "o.cmap").string() +
+                                  " --resolution -1");
+  EXPECT_EQ(r.exit_code, 2) << r.err;
+  EXPECT_FALSE(fs::exists(tmp / "o.cmap"));
+}
+
+TEST(Cli, IntegrateStatsExportOnRealFrames) {
+  CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
+  test::TempDir tmp;
+  const auto r = test::runCommand(cli() + " integrate " + root.string() + " -o " + (tmp / "room.cmap").string() +
+                                  " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  for (const char* key : {"frames", "points", "points_skipped", "occupied", "free", "seconds"}) {
+    EXPECT_TRUE(j.contains(key)) << key;
+  }
+  EXPECT_EQ(j["frames"], 5);
+  EXPECT_EQ(j["points"].get<uint64_t>() + j["points_skipped"].get<uint64_t>(), 5u * 640u * 480u);
+  EXPECT_GT(j["occupied"].get<uint64_t>(), 1000u);
+
+  const auto s = test::runCommand(cli() + " stats " + (tmp / "room.cmap").string() + " --json");
+  ASSERT_EQ(s.exit_code, 0) << s.err;
+  const auto js = nlohmann::json::parse(s.out);
+  for (const char* key : {"kind", "resolution_m", "sessions", "times", "nodes", "bytes", "nodes_separate"}) {
+    EXPECT_TRUE(js.contains(key)) << key;
+  }
+  EXPECT_EQ(js["kind"], "session");
+  EXPECT_EQ(js["occupied"], j["occupied"]);
+  EXPECT_DOUBLE_EQ(js["resolution_m"].get<double>(), 0.05);
+
+  const auto human = test::runCommand(cli() + " stats " + (tmp / "room.cmap").string());
+  EXPECT_EQ(human.exit_code, 0);
+  EXPECT_NE(human.out.find("occupied"), std::string::npos);
+
+  for (const char* ext : {"ply", "ot"}) {
+    const fs::path out = tmp / (std::string("room.") + ext);
+    const auto e = test::runCommand(cli() + " export " + (tmp / "room.cmap").string() + " -o " + out.string());
+    EXPECT_EQ(e.exit_code, 0) << e.err;
+    EXPECT_GT(fs::file_size(out), 1000u);
+  }
+}
+
+TEST(Cli, BadDataExitsWithOneAndWritesNothing) {
+  test::TempDir tmp;
+  std::ofstream(tmp / "broken.cmap") << "definitely not a map";
+  auto r = test::runCommand(cli() + " stats " + (tmp / "broken.cmap").string());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("broken.cmap"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("wrong magic"), std::string::npos) << r.err;
+
+  r = test::runCommand(cli() + " export " + (tmp / "broken.cmap").string() + " -o " + (tmp / "x.ply").string());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_FALSE(fs::exists(tmp / "x.ply"));
+
+  // A cloud whose points are all NaN: nothing to integrate, nothing written.
+  std::ofstream(tmp / "nan.xyz") << "nan nan nan\ninf 0 0\n";
+  r = test::runCommand(cli() + " integrate " + (tmp / "nan.xyz").string() + " -o " + (tmp / "n.cmap").string());
+  EXPECT_EQ(r.exit_code, 1) << r.err;
+  EXPECT_NE(r.err.find("no valid points"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(tmp / "n.cmap"));
+
+  // A bad pose in a cloud list names the file and line.
+  std::ofstream(tmp / "ok.xyz") << "1 0 0\n";
+  std::ofstream(tmp / "list.txt") << "ok.xyz 0 0 0 0 0 0 0\n";
+  r = test::runCommand(cli() + " integrate " + (tmp / "list.txt").string() + " -o " + (tmp / "l.cmap").string());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("list.txt:1: pose quaternion is zero"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(tmp / "l.cmap"));
+
+  // An existing map is not damaged by a failed run that targets it.
+  std::ofstream(tmp / "keep.cmap") << "old content";
+  r = test::runCommand(cli() + " integrate " + (tmp / "list.txt").string() + " -o " + (tmp / "keep.cmap").string());
+  EXPECT_EQ(r.exit_code, 1);
+  std::ifstream keep(tmp / "keep.cmap");
+  std::string content((std::istreambuf_iterator<char>(keep)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(content, "old content");
+}
+
+TEST(Cli, SingleCloudWithPoseOption) {
+  test::TempDir tmp;
+  std::ofstream(tmp / "p.xyz") << "1 0 0\n0 1 0\n";
+  const auto r = test::runCommand(cli() + " integrate " + (tmp / "p.xyz").string() + " -o " +
+                                  (tmp / "p.cmap").string() + " --pose 0.5,0,0,0,0,0,1 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["points"], 2);
+  const auto bad = test::runCommand(cli() + " integrate " + (tmp / "p.xyz").string() + " -o " +
+                                    (tmp / "q.cmap").string() + " --pose 1,2,3");
+  EXPECT_EQ(bad.exit_code, 2);
+}
+
+}  // namespace
+}  // namespace chronomap

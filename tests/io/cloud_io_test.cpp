@@ -1,0 +1,173 @@
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <fstream>
+
+#include "chronomap/core/error.h"
+#include "chronomap/io/cloud_io.h"
+#include "chronomap/io/file.h"
+#include "test_support.h"
+
+namespace chronomap::io {
+namespace {
+
+using namespace std::string_literals;
+
+void expectSameCloud(const PointCloud& a, const PointCloud& b) {
+  ASSERT_EQ(a.size(), b.size());
+  EXPECT_EQ(a.width, b.width);
+  EXPECT_EQ(a.height, b.height);
+  for (size_t i = 0; i < a.size(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      const float x = a.points[i][k], y = b.points[i][k];
+      if (std::isnan(x) || std::isnan(y)) {
+        ASSERT_TRUE(std::isnan(x) && std::isnan(y)) << "point " << i;
+      } else {
+        ASSERT_EQ(x, y) << "point " << i;
+      }
+    }
+  }
+  EXPECT_EQ(a.colors, b.colors);
+  EXPECT_EQ(a.labels, b.labels);
+}
+
+void writeBytes(const std::filesystem::path& p, const std::string& s) {
+  std::ofstream(p, std::ios::binary) << s;
+}
+
+TEST(Pcd, ReadsRealKinectFrameInAllThreeEncodings) {
+  CHRONOMAP_REQUIRE_DATA(path, "pcl-kinect/grabber_sequences/pcd/frame_20121214T142255.814212.pcd");
+  const PointCloud cloud = readPcd(path);  // binary_compressed (LZF)
+  ASSERT_EQ(cloud.width, 640u);
+  ASSERT_EQ(cloud.height, 480u);
+  ASSERT_TRUE(cloud.hasColors());
+  size_t valid = 0;
+  for (const auto& p : cloud.points) {
+    if (p.allFinite()) {
+      ++valid;
+      EXPECT_GT(p.z(), 0.3f);
+      EXPECT_LT(p.z(), 10.0f);
+    }
+  }
+  EXPECT_GT(valid, cloud.size() / 2);
+  test::TempDir tmp;
+  for (auto enc : {PcdEncoding::Ascii, PcdEncoding::Binary, PcdEncoding::BinaryCompressed}) {
+    writePcd(tmp / "c.pcd", cloud, enc);
+    expectSameCloud(readPcd(tmp / "c.pcd"), cloud);
+  }
+}
+
+TEST(Pcd, ReadsLabelsOfMosd) {
+  CHRONOMAP_REQUIRE_DATA(path, "mosd-a/test/test0.pcd");
+  const PointCloud cloud = readPcd(path);
+  ASSERT_TRUE(cloud.hasLabels());
+  ASSERT_EQ(cloud.size(), 640u * 480u);
+  size_t objects = 0;
+  for (uint32_t l : cloud.labels) objects += l >= 10;
+  EXPECT_GT(objects, 1000u);
+}
+
+TEST(Pcd, ReadsHandWrittenAsciiWithFloatRgbAndPadding) {
+  test::TempDir tmp;
+  float rgb_float;
+  const uint32_t packed = (10u << 16) | (20u << 8) | 30u;
+  std::memcpy(&rgb_float, &packed, 4);
+  char buf[64];
+  std::snprintf(buf, sizeof(buf), "%.9g", rgb_float);
+  writeBytes(tmp / "a.pcd", std::string("# comment\nVERSION .7\nFIELDS x y z _ rgb\nSIZE 4 4 4 1 4\nTYPE F F F U F\n"
+                                        "COUNT 1 1 1 4 1\nWIDTH 2\nHEIGHT 1\nPOINTS 2\nDATA ascii\n"
+                                        "1 2 3 0 0 0 0 ") + buf + "\nnan nan nan 0 0 0 0 " + buf + "\n");
+  const PointCloud c = readPcd(tmp / "a.pcd");
+  ASSERT_EQ(c.size(), 2u);
+  EXPECT_EQ(c.points[0], Eigen::Vector3f(1, 2, 3));
+  EXPECT_TRUE(std::isnan(c.points[1].x()));
+  EXPECT_EQ(c.colors[0], (Rgb{10, 20, 30}));
+}
+
+TEST(Pcd, RejectsMalformedFilesNamingThem) {
+  test::TempDir tmp;
+  const std::string header = "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 4\nHEIGHT 1\nPOINTS 4\n";
+  auto expectFormatError = [&](const std::string& content, const std::string& fragment) {
+    writeBytes(tmp / "bad.pcd", content);
+    try {
+      readPcd(tmp / "bad.pcd");
+      FAIL() << "accepted: " << fragment;
+    } catch (const FormatError& e) {
+      const std::string msg = e.what();
+      EXPECT_NE(msg.find("bad.pcd"), std::string::npos) << msg;
+      EXPECT_NE(msg.find(fragment), std::string::npos) << msg;
+    }
+  };
+  expectFormatError(header + "DATA binary\n" + std::string(20, '\0'), "truncated");
+  expectFormatError(header + "DATA ascii\n1 2 3\n4 5 6\n", "truncated");
+  expectFormatError(header + "DATA ascii\n1 2 3\n4 5\n1 1 1\n1 1 1\n", "values");
+  expectFormatError(header + "DATA ascii\n1 2 x\n", "not a number");
+  expectFormatError(header + "DATA binary_compressed\n\x10\0\0\0\x30\0\0\0garbagegarbage!!"s, "corrupt");
+  expectFormatError(header + "DATA binary_compressed\n\x10\0\0\0\x31\0\0\0"s, "does not match");
+  expectFormatError(header + "DATA lzma\n", "DATA");
+  expectFormatError("VERSION .7\nFIELDS a b c\nSIZE 4 4 4\nTYPE F F F\nWIDTH 1\nPOINTS 1\nDATA ascii\n1 2 3\n", "x, y and z");
+  expectFormatError("VERSION .7\nFIELDS x y z\nSIZE 4 4\nTYPE F F F\nWIDTH 1\nPOINTS 1\nDATA ascii\n", "differ");
+  expectFormatError("VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 2\nPOINTS 3\nDATA ascii\n", "POINTS");
+  expectFormatError("VERSION .7\nFIELDS x y z\n", "DATA");
+  expectFormatError("", "DATA");
+}
+
+TEST(Ply, RoundTripsAndReadsAsciiAndBigEndian) {
+  test::TempDir tmp;
+  PointCloud c = test::cloudOf({{1, 2, 3}, {-4, 5.5f, 6}});
+  c.colors = {{1, 2, 3}, {250, 128, 0}};
+  writePly(tmp / "c.ply", c);
+  expectSameCloud(readPly(tmp / "c.ply"), c);
+
+  writeBytes(tmp / "a.ply",
+             "ply\nformat ascii 1.0\ncomment hi\nelement vertex 2\nproperty float x\nproperty float y\n"
+             "property float z\nproperty float red\nproperty float green\nproperty float blue\n"
+             "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+             "1 2 3 1 0 0.5\n4 5 6 0 1 0\n3 0 1 1\n");
+  const PointCloud a = readPly(tmp / "a.ply");
+  ASSERT_EQ(a.size(), 2u);
+  EXPECT_EQ(a.points[1], Eigen::Vector3f(4, 5, 6));
+  EXPECT_EQ(a.colors[0], (Rgb{255, 0, 128}));
+
+  std::string be = "ply\nformat binary_big_endian 1.0\nelement vertex 1\nproperty double x\nproperty double y\n"
+                   "property double z\nend_header\n";
+  for (double v : {1.5, -2.0, 3.25}) {
+    uint8_t b[8];
+    std::memcpy(b, &v, 8);
+    for (int i = 7; i >= 0; --i) be.push_back(static_cast<char>(b[i]));
+  }
+  writeBytes(tmp / "be.ply", be);
+  EXPECT_EQ(readPly(tmp / "be.ply").points[0], Eigen::Vector3f(1.5f, -2.0f, 3.25f));
+}
+
+TEST(Ply, RejectsMalformedFiles) {
+  test::TempDir tmp;
+  const std::string hdr = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
+                          "property float y\nproperty float z\nend_header\n";
+  writeBytes(tmp / "t.ply", hdr + std::string(20, '\0'));
+  EXPECT_THROW(readPly(tmp / "t.ply"), FormatError);
+  writeBytes(tmp / "h.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 3\n");
+  EXPECT_THROW(readPly(tmp / "h.ply"), FormatError);
+  writeBytes(tmp / "m.ply", "plx\n");
+  EXPECT_THROW(readPly(tmp / "m.ply"), FormatError);
+  writeBytes(tmp / "f.ply", "ply\nformat binary_middle_endian 1.0\nend_header\n");
+  EXPECT_THROW(readPly(tmp / "f.ply"), FormatError);
+  writeBytes(tmp / "n.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n1 2\n");
+  EXPECT_THROW(readPly(tmp / "n.ply"), FormatError);
+}
+
+TEST(Xyz, ReadsPlainAndBzip2Text) {
+  test::TempDir tmp;
+  writeBytes(tmp / "s.xyz", "# scan\n1 2 3\n\n4 5 6\n");
+  const PointCloud c = readXyz(tmp / "s.xyz");
+  ASSERT_EQ(c.size(), 2u);
+  EXPECT_EQ(c.points[1], Eigen::Vector3f(4, 5, 6));
+  writeBytes(tmp / "bad.xyz", "1 2\n");
+  EXPECT_THROW(readXyz(tmp / "bad.xyz"), FormatError);
+  writeBytes(tmp / "bad.xyz.bz2", "BZh9 not really bzip2");
+  EXPECT_THROW(readCloud(tmp / "bad.xyz.bz2"), FormatError);
+  EXPECT_THROW(readCloud(tmp / "cloud.obj"), UsageError);
+}
+
+}  // namespace
+}  // namespace chronomap::io

@@ -1,0 +1,157 @@
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cstring>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "chronomap/core/error.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/file.h"
+#include "test_support.h"
+
+namespace chronomap::io {
+namespace {
+
+SessionMap sampleMap() {
+  SessionMap m(0.05);
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<int> c(30000, 30063);
+  for (int i = 0; i < 2000; ++i) {
+    VoxelCounters d;
+    d.length_m = 0.01f * static_cast<float>(i % 7 + 1);
+    d.hits = static_cast<uint32_t>(i % 3 == 0);
+    d.red = 200 * d.hits;
+    m.add({static_cast<uint16_t>(c(rng)), static_cast<uint16_t>(c(rng)), static_cast<uint16_t>(c(rng))}, d);
+  }
+  for (uint16_t x = 0; x < 8; ++x)
+    for (uint16_t y = 0; y < 8; ++y)
+      for (uint16_t z = 0; z < 8; ++z) {
+        VoxelCounters f;
+        f.length_m = 0.05f;
+        m.add({static_cast<uint16_t>(31000 + x), static_cast<uint16_t>(31000 + y), static_cast<uint16_t>(31000 + z)}, f);
+      }
+  m.compressFree();
+  return m;
+}
+
+void writeRaw(const std::filesystem::path& p, const std::vector<uint8_t>& b) {
+  std::ofstream(p, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
+}
+
+TEST(Cmap, SessionMapRoundTripsWithMetadata) {
+  test::TempDir tmp;
+  const SessionMap m = sampleMap();
+  writeSessionMap(tmp / "m.cmap", m, {{"frames", 3}});
+  const CmapFile f = readCmap(tmp / "m.cmap");
+  EXPECT_EQ(f.header.kind, MapKind::Session);
+  EXPECT_EQ(f.header.version, kCmapFormatVersion);
+  EXPECT_DOUBLE_EQ(f.header.resolution_m, 0.05);
+  EXPECT_EQ(metadataOf(f)["frames"], 3);
+  const SessionMap back = sessionMapFrom(f, "m.cmap");
+  EXPECT_TRUE(back == m);
+  EXPECT_EQ(back.innerPool(), m.innerPool());
+  EXPECT_EQ(back.counts().compressed_leaves, 1u);
+  // Bounds cover the known voxels.
+  EXPECT_NEAR(f.header.bounds_max_m.x(), (31008 - 32768) * 0.05, 1e-9);
+  // Writing twice gives identical bytes.
+  writeSessionMap(tmp / "m2.cmap", back, {{"frames", 3}});
+  EXPECT_EQ(readFileBytes(tmp / "m.cmap"), readFileBytes(tmp / "m2.cmap"));
+}
+
+TEST(Cmap, EmptyMapRoundTrips) {
+  test::TempDir tmp;
+  writeSessionMap(tmp / "e.cmap", SessionMap(0.1), nullptr);
+  const SessionMap back = readSessionMap(tmp / "e.cmap");
+  EXPECT_TRUE(back.empty());
+  EXPECT_DOUBLE_EQ(back.resolution_m(), 0.1);
+}
+
+TEST(Cmap, RejectsEveryTruncation) {
+  test::TempDir tmp;
+  writeSessionMap(tmp / "m.cmap", sampleMap(), {{"k", "v"}});
+  const auto bytes = readFileBytes(tmp / "m.cmap");
+  for (size_t cut = 0; cut < bytes.size(); cut += std::max<size_t>(1, bytes.size() / 300)) {
+    const std::vector<uint8_t> part(bytes.begin(), bytes.begin() + static_cast<long>(cut));
+    EXPECT_THROW(decodeCmap(part, "m.cmap"), FormatError) << "cut at " << cut;
+  }
+  auto longer = bytes;
+  longer.push_back(0);
+  EXPECT_THROW(decodeCmap(longer, "m.cmap"), FormatError);
+}
+
+TEST(Cmap, RejectsFlippedBytesAnywhere) {
+  test::TempDir tmp;
+  writeSessionMap(tmp / "m.cmap", sampleMap(), {{"k", "v"}});
+  const auto bytes = readFileBytes(tmp / "m.cmap");
+  std::mt19937 rng(9);
+  for (size_t pos = 0; pos < bytes.size(); pos += std::max<size_t>(1, bytes.size() / 400)) {
+    auto bad = bytes;
+    bad[pos] ^= static_cast<uint8_t>(1u << (rng() % 8));
+    EXPECT_THROW(sessionMapFrom(decodeCmap(bad, "m.cmap"), "m.cmap"), FormatError) << "flip at " << pos;
+  }
+}
+
+TEST(Cmap, ExplainsWrongMagicNewerVersionAndEmptyFiles) {
+  test::TempDir tmp;
+  writeSessionMap(tmp / "m.cmap", sampleMap(), nullptr);
+  auto bytes = readFileBytes(tmp / "m.cmap");
+  auto expectMessage = [&](const std::vector<uint8_t>& b, const std::string& fragment) {
+    writeRaw(tmp / "x.cmap", b);
+    try {
+      readSessionMap(tmp / "x.cmap");
+      FAIL() << fragment;
+    } catch (const FormatError& e) {
+      EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("x.cmap"), std::string::npos) << e.what();
+    }
+  };
+  auto magic = bytes;
+  magic[1] = 'X';
+  expectMessage(magic, "wrong magic");
+  auto newer = bytes;
+  newer[8] = static_cast<uint8_t>(kCmapFormatVersion + 1);
+  expectMessage(newer, "newer chronomap");
+  expectMessage({}, "empty");
+  std::vector<uint8_t> ply = {'p', 'l', 'y', '\n'};
+  expectMessage(ply, "wrong magic");
+}
+
+TEST(Cmap, RejectsAValidContainerWithAnInvalidTree) {
+  CmapHeader h;
+  h.resolution_m = 0.05;
+  std::vector<CmapBlock> blocks(2);
+  blocks[0].tag = "INNR";
+  SessionMap::Children root;
+  root.fill(SessionMap::kEmpty);
+  root[3] = 7;  // dangling
+  blocks[0].data.resize(sizeof(root));
+  std::memcpy(blocks[0].data.data(), &root, sizeof(root));
+  blocks[1].tag = "LEAF";
+  const auto bytes = encodeCmap(h, blocks);
+  EXPECT_THROW(sessionMapFrom(decodeCmap(bytes, "crafted.cmap"), "crafted.cmap"), FormatError);
+  h.kind = MapKind::Diff;
+  EXPECT_THROW(sessionMapFrom(decodeCmap(encodeCmap(h, blocks), "d.cmap"), "d.cmap"), FormatError);
+}
+
+TEST(Cmap, FailedWriteLeavesTheOldFileIntact) {
+  test::TempDir tmp;
+  writeSessionMap(tmp / "m.cmap", sampleMap(), nullptr);
+  const auto before = readFileBytes(tmp / "m.cmap");
+  EXPECT_THROW(writeSessionMap(tmp / "no-such-dir" / "m.cmap", sampleMap(), nullptr), IoError);
+  // Make the folder read-only: the temporary file cannot be created, the old file stays.
+  if (::geteuid() != 0) {
+    std::filesystem::permissions(tmp.path(), std::filesystem::perms::owner_read | std::filesystem::perms::owner_exec);
+    EXPECT_THROW(writeSessionMap(tmp / "m.cmap", SessionMap(0.1), nullptr), IoError);
+    std::filesystem::permissions(tmp.path(), std::filesystem::perms::owner_all);
+  }
+  EXPECT_EQ(readFileBytes(tmp / "m.cmap"), before);
+  size_t files = 0;
+  for (auto& e : std::filesystem::directory_iterator(tmp.path())) files += e.is_regular_file();
+  EXPECT_EQ(files, 1u);  // no temporary file left behind
+}
+
+}  // namespace
+}  // namespace chronomap::io

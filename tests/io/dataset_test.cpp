@@ -1,0 +1,179 @@
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "chronomap/core/error.h"
+#include "chronomap/io/cloud_io.h"
+#include "chronomap/io/dataset.h"
+#include "chronomap/io/png.h"
+#include "test_support.h"
+
+namespace chronomap::io {
+namespace {
+
+namespace fs = std::filesystem;
+
+void writeText(const fs::path& p, const std::string& s) { std::ofstream(p) << s; }
+
+/// A 4x3 TUM dataset: depth 1 m everywhere (5000 units), colour per frame, poses at 100 Hz.
+void makeTum(const fs::path& dir, int frames) {
+  fs::create_directories(dir / "rgb");
+  fs::create_directories(dir / "depth");
+  std::string rgb_list = "# colour images\n", depth_list = "# depth images\n", gt = "# timestamp tx ty tz qx qy qz qw\n";
+  for (int i = 0; i < frames; ++i) {
+    const double t = 100.0 + i * 0.1;
+    ImageU16 d{4, 3, std::vector<uint16_t>(12, 5000)};
+    d.pixels[0] = 0;  // one invalid pixel
+    ImageRgb c{4, 3, std::vector<Rgb>(12, Rgb{static_cast<uint8_t>(10 * i), 0, 0})};
+    writePng(dir / ("depth/" + std::to_string(i) + ".png"), d);
+    writePng(dir / ("rgb/" + std::to_string(i) + ".png"), c);
+    depth_list += std::to_string(t) + " depth/" + std::to_string(i) + ".png\n";
+    rgb_list += std::to_string(t + 0.005) + " rgb/" + std::to_string(i) + ".png\n";
+  }
+  for (int k = 0; k < frames * 10 + 5; ++k) {
+    gt += std::to_string(100.0 + k * 0.01) + " " + std::to_string(k * 0.01) + " 0 0 0 0 0 1\n";
+  }
+  writeText(dir / "rgb.txt", rgb_list);
+  writeText(dir / "depth.txt", depth_list);
+  writeText(dir / "groundtruth.txt", gt);
+  writeText(dir / "camera-intrinsics.txt", "2 2 1.5 1\n");
+}
+
+TEST(DepthToCloud, BackProjectsWithThePinholeModel) {
+  ImageU16 d{3, 2, {0, 1000, 2000, 3000, 4000, 5000}};
+  CameraIntrinsics k{500, 400, 1, 0.5};
+  const PointCloud c = depthToCloud(d, nullptr, k, 1000.0, "t");
+  EXPECT_TRUE(std::isnan(c.points[0].x()));
+  EXPECT_NEAR(c.points[2].x(), (2 - 1) * 2.0 / 500, 1e-6);
+  EXPECT_NEAR(c.points[2].y(), (0 - 0.5) * 2.0 / 400, 1e-6);
+  EXPECT_NEAR(c.points[5].z(), 5.0, 1e-6);
+  EXPECT_NEAR(c.points[5].y(), 0.5 * 5.0 / 400, 1e-6);
+  ImageRgb wrong{2, 2, std::vector<Rgb>(4)};
+  EXPECT_THROW(depthToCloud(d, &wrong, k, 1000.0, "t"), DataError);
+  EXPECT_THROW(depthToCloud(d, nullptr, k, 0.0, "t"), DataError);
+}
+
+TEST(Dataset, Reads3DMatchFramesWithPoses) {
+  CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
+  auto ds = openDataset(root);
+  EXPECT_EQ(ds->format(), DatasetFormat::ThreeDMatch);
+  ASSERT_EQ(ds->size(), 5u);
+  const Frame f = ds->load(0);
+  EXPECT_EQ(f.cloud.width, 640u);
+  EXPECT_TRUE(f.cloud.hasColors());
+  // frame-000000.pose.txt, first row: 0.313181 0.309473 -0.897856 1.973046
+  EXPECT_NEAR(f.T_world_sensor.translation().x(), 1.973046, 1e-6);
+  EXPECT_NEAR(f.T_world_sensor.linear()(0, 0), 0.313181, 1e-3);
+  size_t valid = 0;
+  for (const auto& p : f.cloud.points) valid += p.allFinite();
+  EXPECT_GT(valid, 200000u);
+}
+
+TEST(Dataset, ReadsTumWithAssociationAndIntrinsics) {
+  test::TempDir tmp;
+  makeTum(tmp.path(), 3);
+  auto ds = openDataset(tmp.path());
+  EXPECT_EQ(ds->format(), DatasetFormat::Tum);
+  ASSERT_EQ(ds->size(), 3u);
+  const Frame f = ds->load(2);
+  EXPECT_NEAR(f.T_world_sensor.translation().x(), 0.20, 1e-9);  // pose at t = 100.2
+  EXPECT_EQ(f.cloud.colors[5].r, 20);
+  EXPECT_NEAR(f.cloud.points[5].z(), 1.0, 1e-6);                    // 5000 units = 1 m
+  EXPECT_NEAR(f.cloud.points[5].x(), (1 - 1.5) * 1.0 / 2.0, 1e-6);  // intrinsics file used
+  EXPECT_TRUE(std::isnan(f.cloud.points[0].z()));
+}
+
+TEST(Dataset, TumDropsFramesWithoutPoseAndFailsWithNone) {
+  test::TempDir tmp;
+  makeTum(tmp.path(), 3);
+  writeText(tmp / "trajectory.txt", "100.0 0 0 0 0 0 0 1\n");  // preferred over groundtruth.txt
+  auto ds = openDataset(tmp.path());
+  EXPECT_EQ(ds->size(), 1u);
+  EXPECT_EQ(ds->framesDropped(), 2u);
+  writeText(tmp / "trajectory.txt", "50.0 0 0 0 0 0 0 1\n");
+  EXPECT_THROW(openDataset(tmp.path()), DataError);
+}
+
+TEST(Dataset, RejectsBadTumInputNamingTheFileAndLine) {
+  test::TempDir tmp;
+  makeTum(tmp.path(), 2);
+  auto expectError = [&](const std::string& fragment) {
+    try {
+      openDataset(tmp.path());
+      FAIL() << "accepted input expected to fail with " << fragment;
+    } catch (const DataError& e) {
+      EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+    }
+  };
+  writeText(tmp / "trajectory.txt", "100.0 0 0 0 0 0 0 0\n");
+  expectError("trajectory.txt:1: pose quaternion is zero");
+  writeText(tmp / "trajectory.txt", "100.0 0 0 0 0 0 0 3\n");
+  expectError("not a unit quaternion");
+  writeText(tmp / "trajectory.txt", "100.0 0 0 nan 0 0 0 1\n");
+  expectError("trajectory.txt:1");
+  writeText(tmp / "trajectory.txt", "100.0 0 0 0 0 1\n");
+  expectError("expected 'timestamp tx ty tz qx qy qz qw'");
+  fs::remove(tmp / "trajectory.txt");
+  writeText(tmp / "depth.txt", "100.0\n");
+  expectError("depth.txt:1");
+  writeText(tmp / "depth.txt", "# nothing\n");
+  expectError("none of the 0 depth frames");
+  fs::remove(tmp / "depth.txt");
+  EXPECT_THROW(openDataset(tmp.path()), UsageError);  // format can no longer be detected
+  DatasetOptions tum;
+  tum.format = DatasetFormat::Tum;
+  EXPECT_THROW(openDataset(tmp.path(), tum), DataError);
+}
+
+TEST(Dataset, TumFramesWithMismatchedImagesFailOnLoad) {
+  test::TempDir tmp;
+  makeTum(tmp.path(), 1);
+  writePng(tmp / "rgb/0.png", ImageRgb{2, 2, std::vector<Rgb>(4)});
+  auto ds = openDataset(tmp.path());
+  try {
+    ds->load(0);
+    FAIL();
+  } catch (const DataError& e) {
+    EXPECT_NE(std::string(e.what()).find("0.png: colour image is 2x2 but the depth image is 4x3"), std::string::npos)
+        << e.what();
+  }
+  writeText(tmp / "depth/0.png", "not a png");
+  EXPECT_THROW(ds->load(0), FormatError);
+}
+
+TEST(Dataset, RejectsBad3DMatchPoses) {
+  CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
+  test::TempDir tmp;
+  fs::copy_file(root / "camera-intrinsics.txt", tmp / "camera-intrinsics.txt");
+  fs::copy_file(root / "seq-01/frame-000000.depth.png", tmp / "frame-000000.depth.png");
+  writeText(tmp / "frame-000000.pose.txt", "2 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n");
+  EXPECT_THROW(openDataset(tmp.path()), DataError);
+  writeText(tmp / "frame-000000.pose.txt", "1 0 0 0\n0 1 0 0\n0 0 1 0\n");
+  EXPECT_THROW(openDataset(tmp.path()), FormatError);
+  fs::remove(tmp / "frame-000000.pose.txt");
+  EXPECT_THROW(openDataset(tmp.path()), DataError);
+}
+
+TEST(Dataset, CloudListsAndSingleClouds) {
+  test::TempDir tmp;
+  PointCloud c = test::cloudOf({{1, 0, 0}});
+  writePcd(tmp / "a.pcd", c, PcdEncoding::Binary);
+  writeText(tmp / "list.txt", "# cloud pose\na.pcd 1 2 3 0 0 0 1\na.pcd 0 0 0 0 0 1 0\n");
+  auto list = openDataset(tmp / "list.txt");
+  ASSERT_EQ(list->size(), 2u);
+  EXPECT_EQ(list->load(0).T_world_sensor.translation(), Eigen::Vector3d(1, 2, 3));
+  DatasetOptions o;
+  o.pose = Eigen::Isometry3d(Eigen::Translation3d(0, 0, 5));
+  auto single = openDataset(tmp / "a.pcd", o);
+  ASSERT_EQ(single->size(), 1u);
+  EXPECT_EQ(single->load(0).T_world_sensor.translation().z(), 5.0);
+  writeText(tmp / "list.txt", "missing.pcd 0 0 0 0 0 0 1\n");
+  EXPECT_THROW(openDataset(tmp / "list.txt"), DataError);
+  writeText(tmp / "list.txt", "");
+  EXPECT_THROW(openDataset(tmp / "list.txt"), DataError);
+  EXPECT_THROW(openDataset(tmp / "nothing-here"), UsageError);
+  EXPECT_THROW(openDataset(tmp.path()), UsageError);  // a folder of nothing known
+}
+
+}  // namespace
+}  // namespace chronomap::io

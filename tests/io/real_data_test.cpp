@@ -1,0 +1,104 @@
+// End-to-end checks on real recordings from ../shared/data.
+
+#include <gtest/gtest.h>
+
+#include <octomap/ColorOcTree.h>
+
+#include "chronomap/integrate/integrator.h"
+#include "chronomap/io/cloud_io.h"
+#include "chronomap/io/dataset.h"
+#include "chronomap/io/export.h"
+#include "test_support.h"
+
+namespace chronomap::io {
+namespace {
+
+TEST(RealData, ThreeDMatchFramesAgreeWithEachOther) {
+  CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
+  auto ds = openDataset(root);
+  IntegratorSettings s;
+  s.compress_free = false;
+  SessionMap map02(0.05), map1(0.05);
+  integrate(FrameVector({ds->load(0), ds->load(2)}), map02, s);
+  integrate(FrameVector({ds->load(1)}), map1, s);
+  size_t surface = 0, occupied = 0, near = 0;
+  map1.forEachLeaf([&](const LeafView& l) {
+    if (l.counters.state() != VoxelState::Occupied) return;
+    ++surface;
+    occupied += map02.stateOf(l.key) == VoxelState::Occupied;
+    bool any = false;  // within one voxel (pose and depth noise of a few centimetres)
+    for (int dx = -1; dx <= 1 && !any; ++dx)
+      for (int dy = -1; dy <= 1 && !any; ++dy)
+        for (int dz = -1; dz <= 1 && !any; ++dz)
+          any = map02.stateOf({static_cast<uint16_t>(l.key.x + dx), static_cast<uint16_t>(l.key.y + dy),
+                               static_cast<uint16_t>(l.key.z + dz)}) == VoxelState::Occupied;
+    near += any;
+  });
+  ASSERT_GT(surface, 1000u);
+  const double exact = static_cast<double>(occupied) / static_cast<double>(surface);
+  const double within_one = static_cast<double>(near) / static_cast<double>(surface);
+  RecordProperty("same_voxel_fraction", std::to_string(exact));
+  RecordProperty("within_one_voxel_fraction", std::to_string(within_one));
+  EXPECT_GT(exact, 0.9) << "frame 1 surface voxels occupied in the map of frames 0 and 2";
+  EXPECT_GT(within_one, 0.99);
+}
+
+TEST(RealData, OctomapScanIntegratesAsALaserScanFromTheOrigin) {
+  CHRONOMAP_REQUIRE_DATA(path, "octomap-data/scan.dat.bz2");
+  const PointCloud scan = readCloud(path);
+  ASSERT_EQ(scan.size(), 88206u);
+  SessionMap map(0.2);
+  IntegratorSettings s;
+  s.max_range_m = 30.0;  // the scan reaches 29 m
+  const IntegrationStats st = integrate(FrameVector({Frame{scan, Eigen::Isometry3d::Identity(), 0, path}}), map, s);
+  EXPECT_EQ(st.points, 88206u);
+  uint64_t hits = 0;
+  map.forEachLeaf([&](const LeafView& l) { hits += l.counters.hits; });
+  EXPECT_EQ(hits, 88206u);
+  const SessionMapCounts c = map.counts();
+  EXPECT_GT(c.occupied_voxels, 5000u);
+  EXPECT_GT(c.free_voxels, 10 * c.occupied_voxels);
+  EXPECT_EQ(map.stateOf(*map.grid().keyOf({0.1, 0.1, 0.1})), VoxelState::Free);  // the sensor sees around it
+}
+
+TEST(RealData, SingleKinectCloudIntegratesAndExports) {
+  CHRONOMAP_REQUIRE_DATA(path, "pcl-kinect/office1.pcd");
+  auto ds = openDataset(path);
+  SessionMap map(0.05);
+  const IntegrationStats st = integrate(*ds, map);
+  EXPECT_EQ(st.points + st.pointsSkipped(), 640u * 480u);
+  EXPECT_GT(st.points, 30000u);  // an office seen from afar: most of it lies beyond 3 m
+  EXPECT_GT(st.points_invalid, 0u);
+  test::TempDir tmp;
+  const size_t n = exportOccupiedPly(tmp / "o.ply", map);
+  EXPECT_EQ(n, map.counts().occupied_voxels);
+  const PointCloud back = readPly(tmp / "o.ply");
+  ASSERT_EQ(back.size(), n);
+  // Every exported centre lies in an occupied voxel.
+  for (size_t i = 0; i < back.size(); i += 97) {
+    EXPECT_EQ(map.stateOf(*map.grid().keyOf(back.points[i].cast<double>())), VoxelState::Occupied);
+  }
+  exportOctomap(tmp / "o.ot", map);
+  std::unique_ptr<octomap::AbstractOcTree> tree(octomap::AbstractOcTree::read((tmp / "o.ot").string()));
+  ASSERT_TRUE(tree);
+  auto* color = dynamic_cast<octomap::ColorOcTree*>(tree.get());
+  ASSERT_NE(color, nullptr);
+  EXPECT_DOUBLE_EQ(color->getResolution(), 0.05);
+  size_t occupied = 0;
+  for (auto it = color->begin_leafs(); it != color->end_leafs(); ++it) {
+    if (color->isNodeOccupied(*it)) occupied += static_cast<size_t>(std::pow(8, 16 - it.getDepth()));
+  }
+  EXPECT_EQ(occupied, map.counts().occupied_voxels);
+  // Our keys are OctoMap's keys: the same voxel is occupied in both.
+  size_t checked = 0;
+  map.forEachLeaf([&](const LeafView& l) {
+    if (l.level != 0 || l.counters.state() != VoxelState::Occupied || checked > 500) return;
+    auto* node = color->search(octomap::OcTreeKey(l.key.x, l.key.y, l.key.z));
+    ASSERT_NE(node, nullptr);
+    EXPECT_TRUE(color->isNodeOccupied(node));
+    ++checked;
+  });
+}
+
+}  // namespace
+}  // namespace chronomap::io

@@ -1,0 +1,84 @@
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "chronomap/core/counters.h"
+#include "chronomap/core/error.h"
+#include "chronomap/core/key.h"
+
+namespace chronomap {
+namespace {
+
+TEST(Morton, RoundTripsRandomKeys) {
+  std::mt19937 rng(1);
+  std::uniform_int_distribution<int> d(0, 65535);
+  for (int i = 0; i < 100000; ++i) {
+    const VoxelKey k{static_cast<uint16_t>(d(rng)), static_cast<uint16_t>(d(rng)), static_cast<uint16_t>(d(rng))};
+    EXPECT_EQ(mortonDecode(mortonEncode(k)), k);
+  }
+}
+
+TEST(Morton, InterleavesXLowest) {
+  EXPECT_EQ(mortonEncode({1, 0, 0}), 1u);
+  EXPECT_EQ(mortonEncode({0, 1, 0}), 2u);
+  EXPECT_EQ(mortonEncode({0, 0, 1}), 4u);
+  EXPECT_EQ(mortonEncode({2, 0, 0}), 8u);
+  EXPECT_EQ(mortonEncode({65535, 65535, 65535}), (uint64_t{1} << 48) - 1);
+}
+
+TEST(KeyGrid, MapsPointsToVoxelsAroundTheOrigin) {
+  KeyGrid g(0.05);
+  EXPECT_EQ(*g.keyOf({0.0, 0.0, 0.0}), (VoxelKey{32768, 32768, 32768}));
+  EXPECT_EQ(*g.keyOf({-0.001, 0.049, 0.051}), (VoxelKey{32767, 32768, 32769}));
+  const Eigen::Vector3d c = g.centerOf(VoxelKey{32768, 32767, 32770});
+  EXPECT_NEAR(c.x(), 0.025, 1e-12);
+  EXPECT_NEAR(c.y(), -0.025, 1e-12);
+  EXPECT_NEAR(c.z(), 0.125, 1e-12);
+  EXPECT_EQ(*g.keyOf(c), (VoxelKey{32768, 32767, 32770}));
+}
+
+TEST(KeyGrid, RejectsPointsOutsideTheMapAndNaN) {
+  KeyGrid g(0.05);
+  EXPECT_FALSE(g.keyOf({1700.0, 0, 0}).has_value());  // half extent is 1638.4 m
+  EXPECT_FALSE(g.keyOf({0, -1700.0, 0}).has_value());
+  EXPECT_FALSE(g.keyOf({std::nan(""), 0, 0}).has_value());
+  EXPECT_TRUE(g.keyOf({1638.0, 0, 0}).has_value());
+}
+
+TEST(KeyGrid, RejectsBadResolutions) {
+  EXPECT_THROW(KeyGrid(0.0), UsageError);
+  EXPECT_THROW(KeyGrid(-0.1), UsageError);
+  EXPECT_THROW(KeyGrid(std::nan("")), UsageError);
+}
+
+TEST(VoxelCounters, StatesFollowTheDefinition) {
+  VoxelCounters c;
+  EXPECT_EQ(c.state(), VoxelState::Unknown);  // never traversed
+  c.length_m = 0.2f;
+  EXPECT_EQ(c.state(), VoxelState::Free);  // traversed, no hit
+  EXPECT_DOUBLE_EQ(c.probability(), 0.0);
+  c.hits = 1;  // P = 1 - exp(-5)
+  EXPECT_NEAR(c.probability(), 1.0 - std::exp(-5.0), 1e-6);
+  EXPECT_EQ(c.state(), VoxelState::Occupied);
+  c.length_m = 2.0f;  // P = 1 - exp(-0.5) = 0.393
+  EXPECT_EQ(c.state(), VoxelState::Free);
+  c.length_m = 1.0f / std::log(2.0f) * 1.0001f;  // P just below 0.5
+  EXPECT_EQ(c.state(), VoxelState::Free);
+  c.length_m = 1.0f / std::log(2.0f) * 0.999f;  // just above
+  EXPECT_EQ(c.state(), VoxelState::Occupied);
+  VoxelCounters end_on_face;
+  end_on_face.hits = 1;  // a ray that ended exactly on the entry face
+  EXPECT_EQ(end_on_face.state(), VoxelState::Occupied);
+}
+
+TEST(VoxelCounters, MeanColourRounds) {
+  VoxelCounters c;
+  c.hits = 3;
+  c.red = 255 * 3;
+  c.green = 10;  // 3.33 -> 3
+  c.blue = 11;   // 3.67 -> 4
+  EXPECT_EQ(c.meanColor(), (Rgb{255, 3, 4}));
+}
+
+}  // namespace
+}  // namespace chronomap

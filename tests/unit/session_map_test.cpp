@@ -1,0 +1,202 @@
+#include <gtest/gtest.h>
+
+#include <map>
+#include <random>
+
+#include "chronomap/core/error.h"
+#include "chronomap/octree/session_map.h"
+
+namespace chronomap {
+namespace {
+
+VoxelCounters free(float length) {
+  VoxelCounters c;
+  c.length_m = length;
+  return c;
+}
+
+VoxelCounters hit(float length, uint32_t hits, uint8_t r = 0) {
+  VoxelCounters c;
+  c.length_m = length;
+  c.hits = hits;
+  c.red = r * hits;
+  return c;
+}
+
+TEST(SessionMap, UnobservedVoxelsAreUnknown) {
+  SessionMap m(0.1);
+  EXPECT_TRUE(m.empty());
+  EXPECT_FALSE(m.find({100, 100, 100}).has_value());
+  EXPECT_EQ(m.stateOf({100, 100, 100}), VoxelState::Unknown);
+}
+
+TEST(SessionMap, AddAccumulatesCounters) {
+  SessionMap m(0.1);
+  m.add({5, 6, 7}, hit(0.05f, 1, 100));
+  m.add({5, 6, 7}, hit(0.02f, 2, 100));
+  auto c = m.find({5, 6, 7});
+  ASSERT_TRUE(c);
+  EXPECT_FLOAT_EQ(c->length_m, 0.07f);
+  EXPECT_EQ(c->hits, 3u);
+  EXPECT_EQ(c->meanColor().r, 100);
+  EXPECT_EQ(m.stateOf({5, 6, 7}), VoxelState::Occupied);
+  EXPECT_EQ(m.stateOf({5, 6, 8}), VoxelState::Unknown);
+  EXPECT_EQ(m.leafCount(), 1u);
+  EXPECT_EQ(m.innerCount(), static_cast<size_t>(kTreeDepth));  // root + one node per level above unit
+}
+
+/// Property test: random updates in random batch orders equal a plain std::map reference.
+TEST(SessionMap, AddManyMatchesAReferenceOnRandomUpdates) {
+  for (uint64_t seed = 0; seed < 20; ++seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_int_distribution<int> coord(1000, 1040);
+    std::uniform_int_distribution<int> small(0, 3);
+    SessionMap single(0.05), batched(0.05);
+    std::map<VoxelKey, VoxelCounters> ref;
+    std::vector<VoxelKey> keys;
+    std::vector<VoxelCounters> deltas;
+    for (int i = 0; i < 3000; ++i) {
+      const VoxelKey k{static_cast<uint16_t>(coord(rng)), static_cast<uint16_t>(coord(rng)),
+                       static_cast<uint16_t>(coord(rng))};
+      const VoxelCounters d = hit(0.01f * static_cast<float>(small(rng) + 1), static_cast<uint32_t>(small(rng)));
+      single.add(k, d);
+      ref[k] += d;
+      keys.push_back(k);
+      deltas.push_back(d);
+      if (small(rng) == 0) {  // flush a random-sized batch
+        batched.addMany(keys, deltas);
+        keys.clear();
+        deltas.clear();
+      }
+    }
+    batched.addMany(keys, deltas);
+    ASSERT_EQ(single.leafCount(), ref.size());
+    for (const auto& [k, c] : ref) {
+      auto a = single.find(k);
+      auto b = batched.find(k);
+      ASSERT_TRUE(a && b);
+      EXPECT_NEAR(a->length_m, c.length_m, 1e-5);
+      EXPECT_EQ(a->hits, c.hits);
+      EXPECT_EQ(*a, *b);
+    }
+    EXPECT_TRUE(single == batched);
+    // Iteration visits each leaf once, in Morton order.
+    std::vector<uint64_t> codes;
+    single.forEachLeaf([&](const LeafView& l) { codes.push_back(mortonEncode(l.key)); });
+    EXPECT_EQ(codes.size(), ref.size());
+    EXPECT_TRUE(std::is_sorted(codes.begin(), codes.end()));
+  }
+}
+
+TEST(SessionMap, CompressionMergesKnownFreeSubtreesAndKeepsSums) {
+  SessionMap m(0.1);
+  // A fully free aligned 4x4x4 block (levels 0..2) and one occupied voxel next to it.
+  double total = 0.0;
+  for (uint16_t x = 8; x < 12; ++x) {
+    for (uint16_t y = 8; y < 12; ++y) {
+      for (uint16_t z = 8; z < 12; ++z) {
+        const float l = 0.01f * static_cast<float>(1 + x + y + z);
+        m.add({x, y, z}, free(l));
+        total += l;
+      }
+    }
+  }
+  m.add({12, 8, 8}, hit(0.05f, 3));
+  const size_t before = m.leafCount();
+  const size_t removed = m.compressFree();
+  EXPECT_EQ(before, 65u);
+  EXPECT_EQ(removed, 63u);  // 64 free voxels became one level-2 node
+  EXPECT_EQ(m.leafCount(), 2u);
+  auto leaf = m.findLeaf({9, 10, 11});
+  ASSERT_TRUE(leaf);
+  EXPECT_EQ(leaf->level, 2);
+  EXPECT_EQ(leaf->key, (VoxelKey{8, 8, 8}));
+  EXPECT_NEAR(leaf->counters.length_m, total, 1e-4);
+  // A unit look-up inside gets an even share; states are unchanged.
+  auto unit = m.find({9, 10, 11});
+  ASSERT_TRUE(unit);
+  EXPECT_NEAR(unit->length_m, total / 64.0, 1e-6);
+  EXPECT_EQ(m.stateOf({9, 10, 11}), VoxelState::Free);
+  EXPECT_EQ(m.stateOf({12, 8, 8}), VoxelState::Occupied);
+  const SessionMapCounts c = m.counts();
+  EXPECT_EQ(c.free_voxels, 64u);
+  EXPECT_EQ(c.occupied_voxels, 1u);
+  EXPECT_EQ(c.compressed_leaves, 1u);
+}
+
+TEST(SessionMap, CompressionNeverMergesHitsOrUnknown) {
+  SessionMap m(0.1);
+  for (uint16_t i = 0; i < 8; ++i) m.add({static_cast<uint16_t>(i & 1), static_cast<uint16_t>((i >> 1) & 1), static_cast<uint16_t>(i >> 2)}, free(0.1f));
+  m.add({1, 1, 1}, hit(0.0f, 1));  // a free voxel with a hit: P = 1 - exp(-1/0.1) -> occupied
+  for (uint16_t i = 0; i < 7; ++i) m.add({static_cast<uint16_t>(10 + (i & 1)), static_cast<uint16_t>((i >> 1) & 1), static_cast<uint16_t>(i >> 2)}, free(0.1f));
+  EXPECT_EQ(m.compressFree(), 0u);  // first group has a hit, second misses a child
+  EXPECT_EQ(m.leafCount(), 15u);
+}
+
+TEST(SessionMap, RefiningACompressedNodeSplitsItEvenly) {
+  SessionMap m(0.1);
+  for (uint16_t x = 0; x < 2; ++x) {
+    for (uint16_t y = 0; y < 2; ++y) {
+      for (uint16_t z = 0; z < 2; ++z) m.add({x, y, z}, free(0.1f));
+    }
+  }
+  ASSERT_EQ(m.compressFree(), 7u);
+  m.add({1, 0, 1}, hit(0.02f, 1, 50));
+  EXPECT_EQ(m.leafCount(), 8u);
+  auto changed = m.find({1, 0, 1});
+  ASSERT_TRUE(changed);
+  EXPECT_NEAR(changed->length_m, 0.1f + 0.02f, 1e-6);
+  EXPECT_EQ(changed->hits, 1u);
+  for (uint16_t x = 0; x < 2; ++x) {
+    for (uint16_t y = 0; y < 2; ++y) {
+      for (uint16_t z = 0; z < 2; ++z) {
+        if (x == 1 && y == 0 && z == 1) continue;
+        EXPECT_NEAR(m.find({x, y, z})->length_m, 0.1f, 1e-6);
+      }
+    }
+  }
+}
+
+TEST(SessionMap, RefinementThroughSeveralLevels) {
+  SessionMap m(0.1);
+  for (uint16_t x = 0; x < 8; ++x)
+    for (uint16_t y = 0; y < 8; ++y)
+      for (uint16_t z = 0; z < 8; ++z) m.add({x, y, z}, free(0.08f));
+  m.compressFree();
+  ASSERT_EQ(m.leafCount(), 1u);
+  m.add({5, 2, 7}, free(0.01f));
+  // One split per level: 3 levels x 8 children, minus the reused slots.
+  EXPECT_EQ(m.leafCount(), 22u);
+  EXPECT_NEAR(m.find({5, 2, 7})->length_m, 0.09f, 1e-6);
+  EXPECT_NEAR(m.find({0, 0, 0})->length_m, 0.08f, 1e-6);
+  double sum = 0.0;
+  m.forEachLeaf([&](const LeafView& l) { sum += l.counters.length_m; });
+  EXPECT_NEAR(sum, 512 * 0.08 + 0.01, 1e-3);
+}
+
+TEST(SessionMap, AssignPoolsRejectsInvalidTrees) {
+  using C = SessionMap::Children;
+  auto empty = [] {
+    C c;
+    c.fill(SessionMap::kEmpty);
+    return c;
+  };
+  SessionMap m(0.1);
+  EXPECT_THROW(m.assignPools({}, {}), FormatError);
+  std::vector<C> inner{empty()};
+  inner[0][0] = 5;  // dangling inner reference
+  EXPECT_THROW(m.assignPools(inner, {}), FormatError);
+  inner[0][0] = 0;  // cycle to the root
+  EXPECT_THROW(m.assignPools(inner, {}), FormatError);
+  inner[0][0] = SessionMap::kLeafBit | 0u;  // leaf at level 15 must be known-free
+  EXPECT_THROW(m.assignPools(inner, {hit(1.0f, 1)}), FormatError);
+  EXPECT_NO_THROW(m.assignPools(inner, {free(1.0f)}));
+  inner[0][1] = SessionMap::kLeafBit | 0u;  // the same leaf twice
+  EXPECT_THROW(m.assignPools(inner, {free(1.0f)}), FormatError);
+  inner[0][1] = SessionMap::kEmpty;
+  EXPECT_THROW(m.assignPools(inner, {free(1.0f), free(1.0f)}), FormatError);  // unreachable leaf
+  EXPECT_THROW(m.assignPools(inner, {free(std::nanf(""))}), FormatError);
+}
+
+}  // namespace
+}  // namespace chronomap
