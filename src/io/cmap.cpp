@@ -42,6 +42,11 @@ void put(std::vector<uint8_t>& out, const T& v) {
   out.insert(out.end(), p, p + sizeof(T));
 }
 
+/// memcpy that accepts empty ranges (memcpy's pointers must not be null even for size 0).
+void copyBytes(void* dst, const void* src, size_t n) {
+  if (n > 0) std::memcpy(dst, src, n);
+}
+
 template <class T>
 T get(const uint8_t* p) {
   T v;
@@ -195,11 +200,11 @@ void writeSessionMap(const std::filesystem::path& path, const SessionMap& map, c
   blocks[1].tag = "INNR";
   const auto& inner = map.innerPool();
   blocks[1].data.resize(inner.size() * sizeof(SessionMap::Children));
-  std::memcpy(blocks[1].data.data(), inner.data(), blocks[1].data.size());
+  copyBytes(blocks[1].data.data(), inner.data(), blocks[1].data.size());
   blocks[2].tag = "LEAF";
   const auto& leaves = map.leafPool();
   blocks[2].data.resize(leaves.size() * sizeof(VoxelCounters));
-  std::memcpy(blocks[2].data.data(), leaves.data(), blocks[2].data.size());
+  copyBytes(blocks[2].data.data(), leaves.data(), blocks[2].data.size());
   writeFileAtomic(path, encodeCmap(header, blocks));
 }
 
@@ -213,9 +218,9 @@ SessionMap sessionMapFrom(const CmapFile& file, const std::string& source) {
     throw FormatError(source + ": node blocks have impossible sizes");
   }
   std::vector<SessionMap::Children> inner(inner_block.data.size() / sizeof(SessionMap::Children));
-  std::memcpy(inner.data(), inner_block.data.data(), inner_block.data.size());
+  copyBytes(inner.data(), inner_block.data.data(), inner_block.data.size());
   std::vector<VoxelCounters> leaves(leaf_block.data.size() / sizeof(VoxelCounters));
-  std::memcpy(leaves.data(), leaf_block.data.data(), leaf_block.data.size());
+  copyBytes(leaves.data(), leaf_block.data.data(), leaf_block.data.size());
   SessionMap map(file.header.resolution_m);
   try {
     map.assignPools(std::move(inner), std::move(leaves));

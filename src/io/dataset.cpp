@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
-#include <regex>
 #include <sstream>
 
 #include "chronomap/core/error.h"
@@ -179,13 +178,23 @@ void requireFile(const fs::path& p, const std::string& what) {
 
 // ---------------------------------------------------------------- 3DMatch / 7-Scenes
 
+/// The frame number of "frame-NNNNNN.depth.png", or -1 for any other name.
+long frameNumber(const std::string& name) {
+  const std::string prefix = "frame-", suffix = ".depth.png";
+  if (name.size() <= prefix.size() + suffix.size() || name.compare(0, prefix.size(), prefix) != 0 ||
+      name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0) {
+    return -1;
+  }
+  const std::string digits = name.substr(prefix.size(), name.size() - prefix.size() - suffix.size());
+  if (digits.size() > 9 || digits.find_first_not_of("0123456789") != std::string::npos) return -1;
+  return std::stol(digits);
+}
+
 std::vector<fs::path> sortedFrames(const fs::path& dir) {
-  static const std::regex re(R"(frame-(\d+)\.depth\.png)");
   std::vector<std::pair<long, fs::path>> found;
   for (const auto& e : fs::directory_iterator(dir)) {
-    std::smatch m;
-    const std::string name = e.path().filename().string();
-    if (std::regex_match(name, m, re)) found.emplace_back(std::stol(m[1]), e.path());
+    const long n = frameNumber(e.path().filename().string());
+    if (n >= 0) found.emplace_back(n, e.path());
   }
   std::sort(found.begin(), found.end());
   std::vector<fs::path> out;

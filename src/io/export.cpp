@@ -54,4 +54,67 @@ size_t exportOctomap(const std::filesystem::path& path, const SessionMap& map) {
   return tree.getNumLeafNodes();
 }
 
+ImageRgb renderTopView(const SessionMap& map, const TopViewSettings& settings) {
+  if (map.empty()) throw DataError("the map is empty: nothing to draw");
+  int lo[2] = {kKeysPerAxis, kKeysPerAxis}, hi[2] = {-1, -1};
+  int zlo = kKeysPerAxis, zhi = -1;
+  map.forEachLeaf([&](const LeafView& l) {
+    const int side = 1 << l.level;
+    lo[0] = std::min(lo[0], int{l.key.x});
+    lo[1] = std::min(lo[1], int{l.key.y});
+    hi[0] = std::max(hi[0], l.key.x + side - 1);
+    hi[1] = std::max(hi[1], l.key.y + side - 1);
+    if (l.counters.state() == VoxelState::Occupied) {
+      zlo = std::min(zlo, int{l.key.z});
+      zhi = std::max(zhi, int{l.key.z});
+    }
+  });
+  const int ppv = std::max(1, settings.pixels_per_voxel);
+  const int nx = hi[0] - lo[0] + 1, ny = hi[1] - lo[1] + 1;
+  if (static_cast<int64_t>(nx) * ppv > 8192 || static_cast<int64_t>(ny) * ppv > 8192) {
+    throw DataError("the map is too large for a top view at this scale (" + std::to_string(nx) + " x " +
+                    std::to_string(ny) + " voxels)");
+  }
+  // Per column: highest occupied voxel (z, colour) or "free seen".
+  std::vector<int> top(static_cast<size_t>(nx) * ny, -1);
+  std::vector<Rgb> color(top.size());
+  std::vector<uint8_t> seen(top.size(), 0);
+  map.forEachLeaf([&](const LeafView& l) {
+    const VoxelState st = l.counters.state();
+    if (st == VoxelState::Unknown) return;
+    const int side = 1 << l.level;
+    for (int dy = 0; dy < side; ++dy) {
+      for (int dx = 0; dx < side; ++dx) {
+        const size_t i = static_cast<size_t>(l.key.y + dy - lo[1]) * nx + (l.key.x + dx - lo[0]);
+        seen[i] = 1;
+        if (st == VoxelState::Occupied && int{l.key.z} > top[i]) {
+          top[i] = l.key.z;
+          color[i] = l.counters.meanColor();
+        }
+      }
+    }
+  });
+  ImageRgb img;
+  img.width = static_cast<uint32_t>(nx * ppv);
+  img.height = static_cast<uint32_t>(ny * ppv);
+  img.pixels.resize(size_t{img.width} * img.height);
+  const double zrange = std::max(1, zhi - zlo);
+  for (int y = 0; y < ny; ++y) {
+    for (int x = 0; x < nx; ++x) {
+      const size_t i = static_cast<size_t>(y) * nx + x;
+      Rgb c = seen[i] ? settings.free_color : settings.unknown_color;
+      if (top[i] >= 0) {
+        const double shade = 0.55 + 0.45 * (top[i] - zlo) / zrange;  // higher is brighter
+        c = Rgb{static_cast<uint8_t>(color[i].r * shade), static_cast<uint8_t>(color[i].g * shade),
+                static_cast<uint8_t>(color[i].b * shade)};
+      }
+      for (int py = 0; py < ppv; ++py) {
+        const size_t row = static_cast<size_t>((ny - 1 - y) * ppv + py);  // y up
+        for (int px = 0; px < ppv; ++px) img.pixels[row * img.width + static_cast<size_t>(x * ppv + px)] = c;
+      }
+    }
+  }
+  return img;
+}
+
 }  // namespace chronomap::io

@@ -46,10 +46,12 @@ struct Decoded {
   int channels = 0;
   int bit_depth = 0;
   std::vector<uint8_t> bytes;  // rows, native-endian 16-bit samples when bit_depth == 16
+  std::vector<png_bytep> rows;  // owned here, not in decode(): a longjmp skips destructors
 };
 
 /// Decodes `file` to either RGB8 (want16 = false) or raw grey samples (want16 = true).
-/// Only plain data lives across setjmp; errors come back as a message.
+/// Only plain data lives in this frame across setjmp (buffers belong to `out`, whose destructor
+/// a longjmp cannot skip); errors come back as a message.
 bool decode(const std::vector<uint8_t>& file, bool want16, Decoded& out, std::string& error) {
   PngContext ctx;
   ctx.data = file.data();
@@ -103,9 +105,9 @@ bool decode(const std::vector<uint8_t>& file, bool want16, Decoded& out, std::st
     return false;
   }
   out.bytes.resize(rowbytes * out.height);
-  std::vector<png_bytep> rows(out.height);
-  for (uint32_t y = 0; y < out.height; ++y) rows[y] = out.bytes.data() + y * rowbytes;
-  png_read_image(png, rows.data());
+  out.rows.resize(out.height);
+  for (uint32_t y = 0; y < out.height; ++y) out.rows[y] = out.bytes.data() + y * rowbytes;
+  png_read_image(png, out.rows.data());
   png_read_end(png, nullptr);
   png_destroy_read_struct(&png, &info, nullptr);
   return true;

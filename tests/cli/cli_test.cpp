@@ -64,7 +64,7 @@ TEST(Cli, IntegrateStatsExportOnRealFrames) {
   EXPECT_EQ(human.exit_code, 0);
   EXPECT_NE(human.out.find("occupied"), std::string::npos);
 
-  for (const char* ext : {"ply", "ot"}) {
+  for (const char* ext : {"ply", "ot", "png"}) {
     const fs::path out = tmp / (std::string("room.") + ext);
     const auto e = test::runCommand(cli() + " export " + (tmp / "room.cmap").string() + " -o " + out.string());
     EXPECT_EQ(e.exit_code, 0) << e.err;
