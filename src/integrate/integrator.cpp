@@ -1,6 +1,8 @@
 #include "chronomap/integrate/integrator.h"
 
 #include <algorithm>
+#include <limits>
+#include <mutex>
 #include <chrono>
 #include <cmath>
 #include <sstream>
@@ -29,9 +31,17 @@ IntegrationStats& IntegrationStats::operator+=(const IntegrationStats& o) {
 
 namespace {
 
-/// A valid end point in key space with its colour.
-struct EndPoint {
-  double u[3];
+/// floor() for finite values of moderate size, inlined (std::floor is a library call on x86-64).
+inline int64_t floorInt(double v) {
+  const int64_t i = static_cast<int64_t>(v);
+  return i - (static_cast<double>(i) > v);
+}
+
+/// A valid end point in the frame's working coordinates: voxel units, relative to the lower
+/// corner of the origin's voxel, plus a bias that makes every in-range coordinate positive (so
+/// truncation is floor).
+struct RelPoint {
+  float u[3];
   Rgb color;
 };
 
@@ -40,29 +50,108 @@ struct EndEntry {
   uint32_t hits = 0;
   uint32_t red = 0, green = 0, blue = 0;
   double sum[3] = {0, 0, 0};
-  int64_t cell[3] = {0, 0, 0};
+  int64_t cell[3] = {0, 0, 0};  // working-frame voxel of the bundle
 };
 
-/// Dense scratch over the frame's bounding box: ray length (voxel units) and end-entry index
-/// (0 = none) per cell.
-struct DenseStore {
-  int64_t x0 = 0, y0 = 0, z0 = 0, nx = 0, ny = 0, nz = 0;
+/// Scratch cube of side 2 * bias + 1 around the sensor, covering every in-range point: ray
+/// length and end-entry index per cell. Zero at rest; emission zeroes what it reads, so a frame
+/// costs only the cells it touches.
+struct CubeStore {
+  int64_t side = 0;
   std::vector<float> length;
   std::vector<uint32_t> end;
 
-  void reset(int64_t ax, int64_t ay, int64_t az, int64_t bx, int64_t by, int64_t bz) {
-    x0 = ax, y0 = ay, z0 = az;
-    nx = bx - ax + 1, ny = by - ay + 1, nz = bz - az + 1;
-    const size_t cells = static_cast<size_t>(nx * ny * nz);
+  void ensure(int64_t s) {
+    if (side == s) return;
+    side = s;
+    const size_t cells = static_cast<size_t>(s * s * s);
+    length.assign(cells, 0.0f);
+    end.assign(cells, 0u);
+  }
+};
+
+/// Dense scratch over the frame's bounding box: ray length (voxel units) and end-entry index
+/// (0 = none) per cell. Cells are indexed relative to the box's lower corner `lo`.
+struct DenseStore {
+  int64_t lo[3] = {0, 0, 0}, n[3] = {0, 0, 0};
+  std::vector<float> length;
+  std::vector<uint32_t> end;
+
+  void reset(const int64_t a[3], const int64_t b[3]) {
+    for (int k = 0; k < 3; ++k) {
+      lo[k] = a[k];
+      n[k] = b[k] - a[k] + 1;
+    }
+    const size_t cells = static_cast<size_t>(n[0] * n[1] * n[2]);
     length.assign(cells, 0.0f);
     end.assign(cells, 0u);
   }
   size_t cell(int64_t x, int64_t y, int64_t z) const {
-    return static_cast<size_t>((x - x0) + nx * ((y - y0) + ny * (z - z0)));
+    return static_cast<size_t>((x - lo[0]) + n[0] * ((y - lo[1]) + n[1] * (z - lo[2])));
   }
-  float& lengthAt(int64_t x, int64_t y, int64_t z) { return length[cell(x, y, z)]; }
-  uint32_t& endAt(int64_t x, int64_t y, int64_t z) { return end[cell(x, y, z)]; }
 };
+
+/// The DDA of ray.h specialised for dense stores: walks cell indices directly and adds
+/// weight * segment length to each cell. Coordinates are the frame's working coordinates, the
+/// same on every path so that every path computes the same lengths; cell c has index
+/// (c - lo) . (1, stride_y, stride_z). Returns the index of the last cell (containing `end`).
+inline size_t castDense(const double origin[3], const double end[3], float weight, float* length,
+                        const int64_t lo[3], int64_t stride_y, int64_t stride_z) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const int64_t stride[3] = {1, stride_y, stride_z};
+  int64_t remaining[3], step_idx[3];
+  double t_max[3], t_delta[3], d[3];
+  int64_t idx = 0;
+  int64_t steps = 0;
+  for (int a = 0; a < 3; ++a) {
+    const int64_t c = floorInt(origin[a]);
+    const int64_t l = floorInt(end[a]);
+    d[a] = end[a] - origin[a];
+    idx += (c - lo[a]) * stride[a];
+    remaining[a] = l > c ? l - c : c - l;
+    steps += remaining[a];
+    if (remaining[a] == 0) {
+      t_max[a] = kInf;
+      t_delta[a] = kInf;
+      step_idx[a] = 0;
+    } else if (d[a] > 0) {
+      t_delta[a] = 1.0 / d[a];
+      t_max[a] = (static_cast<double>(c) + 1.0 - origin[a]) * t_delta[a];
+      step_idx[a] = stride[a];
+    } else {
+      t_delta[a] = -1.0 / d[a];
+      t_max[a] = (origin[a] - static_cast<double>(c)) * t_delta[a];
+      step_idx[a] = -stride[a];
+    }
+  }
+  const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+  // The per-axis state lives in scalars, not arrays indexed by the chosen axis: indexing would
+  // route every step through memory (store-to-load forwarding) and made a step ~3x slower.
+  double tx = t_max[0], ty = t_max[1], tz = t_max[2];
+  const double dx = t_delta[0], dy = t_delta[1], dz = t_delta[2];
+  int64_t rx = remaining[0], ry = remaining[1], rz = remaining[2];
+  const int64_t sx = step_idx[0], sy = step_idx[1], sz = step_idx[2];
+  double t = 0.0;
+  for (; steps > 0; --steps) {
+    // Branch-free choice of the axis crossed first (the sequence of axes is irregular).
+    const bool bx = tx <= ty && tx <= tz;
+    const bool by = !bx && ty <= tz;
+    const bool bz = !bx && !by;
+    const double t_cross = bx ? tx : (by ? ty : tz);
+    const double t_next = std::min(std::max(t_cross, t), 1.0);
+    length[idx] += weight * static_cast<float>((t_next - t) * len);
+    t = t_next;
+    idx += bx ? sx : (by ? sy : sz);
+    rx -= bx;
+    ry -= by;
+    rz -= bz;
+    tx = bx ? (rx == 0 ? kInf : tx + dx) : tx;
+    ty = by ? (ry == 0 ? kInf : ty + dy) : ty;
+    tz = bz ? (rz == 0 ? kInf : tz + dz) : tz;
+  }
+  length[idx] += weight * static_cast<float>((1.0 - t) * len);
+  return static_cast<size_t>(idx);
+}
 
 /// Open-addressing hash scratch for frames whose bounding box is too large for a dense grid.
 struct HashStore {
@@ -78,14 +167,13 @@ struct HashStore {
     slots.assign(1 << 16, Slot{});
     used = 0;
   }
-  static uint64_t codeOf(int64_t x, int64_t y, int64_t z) {
-    return mortonEncode(VoxelKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)}) + 1;
-  }
+  static size_t hashOf(uint64_t code) { return static_cast<size_t>((code * 0x9E3779B97F4A7C15ULL) >> 20); }
   Slot& slot(int64_t x, int64_t y, int64_t z) {
     if (2 * (used + 1) > slots.size()) grow();
-    const uint64_t code = codeOf(x, y, z);
+    const uint64_t code =
+        mortonEncode(VoxelKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)}) + 1;
     const size_t mask = slots.size() - 1;
-    size_t i = static_cast<size_t>((code * 0x9E3779B97F4A7C15ULL) >> 20) & mask;
+    size_t i = hashOf(code) & mask;
     while (slots[i].code != 0 && slots[i].code != code) i = (i + 1) & mask;
     if (slots[i].code == 0) {
       slots[i].code = code;
@@ -99,78 +187,111 @@ struct HashStore {
     const size_t mask = slots.size() - 1;
     for (const Slot& s : old) {
       if (s.code == 0) continue;
-      size_t i = static_cast<size_t>((s.code * 0x9E3779B97F4A7C15ULL) >> 20) & mask;
+      size_t i = hashOf(s.code) & mask;
       while (slots[i].code != 0) i = (i + 1) & mask;
       slots[i] = s;
     }
   }
-  float& lengthAt(int64_t x, int64_t y, int64_t z) { return slot(x, y, z).length; }
-  uint32_t& endAt(int64_t x, int64_t y, int64_t z) { return slot(x, y, z).end; }
 };
 
 }  // namespace
 
 struct RayAccumulator::Impl {
+  Impl(const KeyGrid& g, const IntegratorSettings& s) : grid(g), settings(s) {}
   KeyGrid grid;
   IntegratorSettings settings;
-  std::vector<EndPoint> points;
+  std::vector<RelPoint> points;
   std::vector<EndEntry> ends;  // ends[0] unused so that index 0 means "none"
   DenseStore dense;
   HashStore hash;
+  CubeStore cube;
 
-  template <class Store>
-  void cast(Store& store, const double origin[3]) {
+  uint32_t newEnd(const int64_t cell[3]) {
+    ends.push_back(EndEntry{0, 0, 0, 0, {0, 0, 0}, {cell[0], cell[1], cell[2]}});
+    return static_cast<uint32_t>(ends.size() - 1);
+  }
+  static void addEnd(EndEntry& e, const RelPoint& p) {
+    ++e.hits;
+    e.red += p.color.r;
+    e.green += p.color.g;
+    e.blue += p.color.b;
+    e.sum[0] += p.u[0];
+    e.sum[1] += p.u[1];
+    e.sum[2] += p.u[2];
+  }
+  /// Mean of a bundle, clamped into its voxel (rounding could push it onto a neighbour's face).
+  static void bundleMean(const EndEntry& e, double mean[3]) {
+    for (int a = 0; a < 3; ++a) {
+      const double lo = static_cast<double>(e.cell[a]);
+      mean[a] = std::clamp(e.sum[a] / e.hits, lo, std::nextafter(lo + 1.0, lo));
+    }
+  }
+
+  /// Casts every point (exact) or bundle (fast) into the dense store. Coordinates handed to the
+  /// DDA are relative to the store's lower corner; `o` is the origin relative to its own voxel.
+  void castDenseAll(const double o[3]) {
+    DenseStore& d = dense;
+    const int64_t sy = d.n[0], sz = d.n[0] * d.n[1];
+    float* length = d.length.data();
     if (!settings.fast) {
-      for (const EndPoint& p : points) {
-        traverseRay(origin, p.u, [&](int64_t x, int64_t y, int64_t z, double len, bool last) {
-          store.lengthAt(x, y, z) += static_cast<float>(len);
-          if (last) {
-            uint32_t& e = store.endAt(x, y, z);
-            if (e == 0) {
-              e = static_cast<uint32_t>(ends.size());
-              ends.push_back(EndEntry{0, 0, 0, 0, {0, 0, 0}, {x, y, z}});
-            }
-            EndEntry& entry = ends[e];
-            ++entry.hits;
-            entry.red += p.color.r;
-            entry.green += p.color.g;
-            entry.blue += p.color.b;
-          }
-        });
+      for (const RelPoint& p : points) {
+        const double end[3] = {p.u[0], p.u[1], p.u[2]};
+        const size_t last = castDense(o, end, 1.0f, length, d.lo, sy, sz);
+        uint32_t& e = d.end[last];
+        if (e == 0) {
+          const int64_t cell[3] = {static_cast<int64_t>(p.u[0]), static_cast<int64_t>(p.u[1]),
+                                   static_cast<int64_t>(p.u[2])};
+          e = newEnd(cell);
+        }
+        addEnd(ends[e], p);
       }
       return;
     }
-    // Fast mode: bundle the points of each end voxel, then cast one weighted ray per bundle.
-    for (const EndPoint& p : points) {
-      const int64_t x = static_cast<int64_t>(std::floor(p.u[0]));
-      const int64_t y = static_cast<int64_t>(std::floor(p.u[1]));
-      const int64_t z = static_cast<int64_t>(std::floor(p.u[2]));
-      uint32_t& e = store.endAt(x, y, z);
-      if (e == 0) {
-        e = static_cast<uint32_t>(ends.size());
-        ends.push_back(EndEntry{0, 0, 0, 0, {0, 0, 0}, {x, y, z}});
-      }
-      EndEntry& entry = ends[e];
-      ++entry.hits;
-      entry.red += p.color.r;
-      entry.green += p.color.g;
-      entry.blue += p.color.b;
-      entry.sum[0] += p.u[0];
-      entry.sum[1] += p.u[1];
-      entry.sum[2] += p.u[2];
+    for (const RelPoint& p : points) {
+      const int64_t cell[3] = {static_cast<int64_t>(p.u[0]), static_cast<int64_t>(p.u[1]),
+                               static_cast<int64_t>(p.u[2])};
+      uint32_t& e = d.end[d.cell(cell[0], cell[1], cell[2])];
+      if (e == 0) e = newEnd(cell);
+      addEnd(ends[e], p);
     }
     for (size_t e = 1; e < ends.size(); ++e) {
-      const EndEntry& entry = ends[e];
-      const float weight = static_cast<float>(entry.hits);
       double mean[3];
-      for (int a = 0; a < 3; ++a) {
-        // The mean of points inside a voxel lies inside it; clamp away rounding at its faces.
-        const double lo = static_cast<double>(entry.cell[a]);
-        mean[a] = std::clamp(entry.sum[a] / entry.hits, lo, std::nextafter(lo + 1.0, lo));
-      }
-      traverseRay(origin, mean, [&](int64_t x, int64_t y, int64_t z, double len, bool) {
-        store.lengthAt(x, y, z) += weight * static_cast<float>(len);
+      bundleMean(ends[e], mean);
+      castDense(o, mean, static_cast<float>(ends[e].hits), length, d.lo, sy, sz);
+    }
+  }
+
+  /// The same for the hash store, with absolute key-space coordinates (`oc` = key of the
+  /// working frame's cell 0).
+  void castHashAll(const double o[3], const int64_t oc[3]) {
+    auto castOne = [&](const double end[3], float weight) {
+      traverseRay(o, end, [&](int64_t x, int64_t y, int64_t z, double len, bool) {
+        hash.slot(x + oc[0], y + oc[1], z + oc[2]).length += weight * static_cast<float>(len);
       });
+    };
+    if (!settings.fast) {
+      for (const RelPoint& p : points) {
+        const double end[3] = {p.u[0], p.u[1], p.u[2]};
+        castOne(end, 1.0f);
+        const int64_t cell[3] = {static_cast<int64_t>(p.u[0]), static_cast<int64_t>(p.u[1]),
+                                 static_cast<int64_t>(p.u[2])};
+        HashStore::Slot& s = hash.slot(cell[0] + oc[0], cell[1] + oc[1], cell[2] + oc[2]);
+        if (s.end == 0) s.end = newEnd(cell);
+        addEnd(ends[s.end], p);
+      }
+      return;
+    }
+    for (const RelPoint& p : points) {
+      const int64_t cell[3] = {static_cast<int64_t>(p.u[0]), static_cast<int64_t>(p.u[1]),
+                               static_cast<int64_t>(p.u[2])};
+      HashStore::Slot& s = hash.slot(cell[0] + oc[0], cell[1] + oc[1], cell[2] + oc[2]);
+      if (s.end == 0) s.end = newEnd(cell);
+      addEnd(ends[s.end], p);
+    }
+    for (size_t e = 1; e < ends.size(); ++e) {
+      double mean[3];
+      bundleMean(ends[e], mean);
+      castOne(mean, static_cast<float>(ends[e].hits));
     }
   }
 
@@ -190,7 +311,7 @@ struct RayAccumulator::Impl {
 };
 
 RayAccumulator::RayAccumulator(const KeyGrid& grid, const IntegratorSettings& settings)
-    : impl_(std::make_unique<Impl>(Impl{grid, settings, {}, {}, {}, {}})) {}
+    : impl_(std::make_unique<Impl>(grid, settings)) {}
 RayAccumulator::~RayAccumulator() = default;
 RayAccumulator::RayAccumulator(RayAccumulator&&) noexcept = default;
 RayAccumulator& RayAccumulator::operator=(RayAccumulator&&) noexcept = default;
@@ -206,75 +327,166 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
   const Eigen::Isometry3d& T = frame.T_world_sensor;
   if (!T.matrix().allFinite()) throw DataError(frame.source + ": sensor pose is not finite");
   const Eigen::Vector3d origin_m = T.translation();
-  const Eigen::Vector3d origin_u = s.grid.toKeySpace(origin_m);
   if (!s.grid.keyOf(origin_m)) {
     std::ostringstream msg;
     msg << frame.source << ": sensor position (" << origin_m.transpose() << ") m lies outside the map (|x| < "
         << s.grid.halfExtent_m() << " m at this resolution)";
     throw DataError(msg.str());
   }
-  const double origin[3] = {origin_u.x(), origin_u.y(), origin_u.z()};
-
-  // Transform, validate and range-filter the points.
-  const double max_range_sq = s.settings.max_range_m * s.settings.max_range_m;
-  const Eigen::Matrix3d R = T.linear();
+  // Working frame: voxel units relative to the origin's voxel, shifted by `bias` voxels so that
+  // every point within range has positive coordinates (truncation is then floor) and small
+  // magnitudes keep float precision.
   const double inv_res = 1.0 / s.grid.resolution_m();
-  s.points.clear();
-  int64_t lo[3], hi[3];
-  for (int a = 0; a < 3; ++a) lo[a] = hi[a] = static_cast<int64_t>(std::floor(origin[a]));
+  const int64_t bias = static_cast<int64_t>(std::ceil(s.settings.max_range_m * inv_res)) + 2;
+  const Eigen::Vector3d origin_u = s.grid.toKeySpace(origin_m);
+  int64_t oc[3];  // key of working cell 0
+  double o[3];    // origin in the working frame
+  for (int a = 0; a < 3; ++a) {
+    const int64_t cell = floorInt(origin_u[a]);
+    oc[a] = cell - bias;
+    o[a] = origin_u[a] - static_cast<double>(cell) + static_cast<double>(bias);
+  }
+  // When the whole range cube lies inside the map, no point needs a bounds test.
+  bool cube_inside = true;
+  for (int a = 0; a < 3; ++a) cube_inside = cube_inside && oc[a] >= 0 && oc[a] + 2 * bias + 1 < kKeysPerAxis;
+  const Eigen::Matrix3f R = (T.linear() * inv_res).cast<float>();  // sensor metres -> voxel units
+  const float of[3] = {static_cast<float>(o[0]), static_cast<float>(o[1]), static_cast<float>(o[2])};
+  const float max_range_sq = static_cast<float>(s.settings.max_range_m * s.settings.max_range_m);
+
   const PointCloud& cloud = frame.cloud;
-  for (size_t i = 0; i < cloud.points.size(); ++i) {
+  const bool colors = cloud.hasColors();
+  const size_t n = cloud.points.size();
+  s.ends.assign(1, EndEntry{});
+  const int64_t side = 2 * bias + 1;
+  // Fast mode bundles in one pass over the cube. (Exact mode stays with two passes: its rays
+  // touch every cell of the bounding box, and the smaller box grid measured faster.)
+  if (s.settings.fast && static_cast<double>(side) * static_cast<double>(side) * static_cast<double>(side) <=
+                             static_cast<double>(s.settings.cube_max_cells)) {
+    // One pass: filter, transform and bundle straight into the cube.
+    CubeStore& cube = s.cube;
+    cube.ensure(side);
+    const int64_t sy = side, sz = side * side;
+    const int64_t kZero[3] = {0, 0, 0};
+    float* length = cube.length.data();
+    uint32_t* end = cube.end.data();
+    int32_t lo[3], hi[3];  // bounding box of everything touched, for emission
+    for (int a = 0; a < 3; ++a) lo[a] = hi[a] = static_cast<int32_t>(o[a]);
+    for (size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3f& p = cloud.points[i];
+      const float r2 = p.squaredNorm();  // the range is rotation-invariant: test before transforming
+      if (!(r2 <= max_range_sq && r2 > 0.0f)) {
+        if (r2 > max_range_sq && std::isfinite(r2)) {
+          ++st.points_out_of_range;
+        } else {
+          ++st.points_invalid;  // NaN, infinite, or zero depth
+        }
+        continue;
+      }
+      const Eigen::Vector3f d = R * p;
+      const RelPoint rp{{of[0] + d[0], of[1] + d[1], of[2] + d[2]}, colors ? cloud.colors[i] : Rgb{}};
+      const int32_t c[3] = {static_cast<int32_t>(rp.u[0]), static_cast<int32_t>(rp.u[1]),
+                            static_cast<int32_t>(rp.u[2])};
+      if (!cube_inside) {
+        bool inside = true;
+        for (int a = 0; a < 3; ++a) inside = inside && c[a] + oc[a] >= 0 && c[a] + oc[a] < kKeysPerAxis;
+        if (!inside) {
+          ++st.points_outside_map;
+          continue;
+        }
+      }
+      ++st.points;
+      uint32_t& e = end[static_cast<size_t>(c[0] + sy * c[1] + sz * c[2])];
+      if (e == 0) {
+        const int64_t c64[3] = {c[0], c[1], c[2]};
+        e = s.newEnd(c64);
+        for (int a = 0; a < 3; ++a) {
+          lo[a] = std::min(lo[a], c[a]);
+          hi[a] = std::max(hi[a], c[a]);
+        }
+      }
+      Impl::addEnd(s.ends[e], rp);
+    }
+    st.rays = s.ends.size() - 1;
+    for (size_t e = 1; e < s.ends.size(); ++e) {
+      double mean[3];
+      Impl::bundleMean(s.ends[e], mean);
+      castDense(o, mean, static_cast<float>(s.ends[e].hits), length, kZero, sy, sz);
+    }
+    // Emit in raster order (consecutive keys share most of their path in the tree), zeroing
+    // the cells read so the cube is clean for the next frame.
+    out.keys.reserve(s.ends.size() * 8);
+    out.deltas.reserve(s.ends.size() * 8);
+    for (int64_t z = lo[2]; z <= hi[2]; ++z) {
+      for (int64_t y = lo[1]; y <= hi[1]; ++y) {
+        const size_t row = static_cast<size_t>(sy * y + sz * z);
+        for (int64_t x = lo[0]; x <= hi[0]; ++x) {
+          const size_t idx = row + static_cast<size_t>(x);
+          if (length[idx] > 0.0f || end[idx] != 0) {
+            s.emitCell(oc[0] + x, oc[1] + y, oc[2] + z, length[idx], end[idx], out);
+            length[idx] = 0.0f;
+            end[idx] = 0;
+          }
+        }
+      }
+    }
+    st.voxel_updates = out.keys.size();
+    return;
+  }
+
+  // Two passes for large cubes (long ranges, fine resolutions): filter into a point list with
+  // its bounding box, then accumulate over that box only.
+  s.points.clear();
+  s.points.reserve(n);
+  int32_t lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) lo[a] = hi[a] = static_cast<int32_t>(o[a]);
+  for (size_t i = 0; i < n; ++i) {
     const Eigen::Vector3f& p = cloud.points[i];
-    if (!p.allFinite()) {
-      ++st.points_invalid;
+    const float r2 = p.squaredNorm();
+    if (!(r2 <= max_range_sq && r2 > 0.0f)) {
+      if (r2 > max_range_sq && std::isfinite(r2)) {
+        ++st.points_out_of_range;
+      } else {
+        ++st.points_invalid;
+      }
       continue;
     }
-    const Eigen::Vector3d offset = R * p.cast<double>();
-    const double r2 = offset.squaredNorm();
-    if (r2 == 0.0) {
-      ++st.points_invalid;
-      continue;
+    const Eigen::Vector3f d = R * p;
+    const RelPoint rp{{of[0] + d[0], of[1] + d[1], of[2] + d[2]}, colors ? cloud.colors[i] : Rgb{}};
+    const int32_t c[3] = {static_cast<int32_t>(rp.u[0]), static_cast<int32_t>(rp.u[1]), static_cast<int32_t>(rp.u[2])};
+    if (!cube_inside) {
+      bool inside = true;
+      for (int a = 0; a < 3; ++a) inside = inside && c[a] + oc[a] >= 0 && c[a] + oc[a] < kKeysPerAxis;
+      if (!inside) {
+        ++st.points_outside_map;
+        continue;
+      }
     }
-    if (r2 > max_range_sq) {
-      ++st.points_out_of_range;
-      continue;
-    }
-    EndPoint e;
-    bool inside = true;
     for (int a = 0; a < 3; ++a) {
-      e.u[a] = origin[a] + offset[a] * inv_res;
-      inside = inside && e.u[a] >= 0.0 && e.u[a] < kKeysPerAxis;
+      lo[a] = std::min(lo[a], c[a]);
+      hi[a] = std::max(hi[a], c[a]);
     }
-    if (!inside) {
-      ++st.points_outside_map;
-      continue;
-    }
-    e.color = cloud.hasColors() ? cloud.colors[i] : Rgb{};
-    for (int a = 0; a < 3; ++a) {
-      const int64_t c = static_cast<int64_t>(std::floor(e.u[a]));
-      lo[a] = std::min(lo[a], c);
-      hi[a] = std::max(hi[a], c);
-    }
-    s.points.push_back(e);
+    s.points.push_back(rp);
   }
   st.points = s.points.size();
   st.rays = st.points;
-  if (s.points.empty()) return;
+  if (st.points == 0) return;
 
-  s.ends.assign(1, EndEntry{});
   const double cells = static_cast<double>(hi[0] - lo[0] + 1) * static_cast<double>(hi[1] - lo[1] + 1) *
                        static_cast<double>(hi[2] - lo[2] + 1);
   if (cells <= static_cast<double>(s.settings.dense_grid_max_cells)) {
     DenseStore& d = s.dense;
-    d.reset(lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]);
-    s.cast(d, origin);
+    const int64_t lo64[3] = {lo[0], lo[1], lo[2]}, hi64[3] = {hi[0], hi[1], hi[2]};
+    d.reset(lo64, hi64);
+    s.castDenseAll(o);
     // Raster order: consecutive keys share most of their path in the tree.
+    out.keys.reserve(s.ends.size() * 8);
+    out.deltas.reserve(s.ends.size() * 8);
     size_t idx = 0;
-    for (int64_t z = 0; z < d.nz; ++z) {
-      for (int64_t y = 0; y < d.ny; ++y) {
-        for (int64_t x = 0; x < d.nx; ++x, ++idx) {
+    for (int64_t z = 0; z < d.n[2]; ++z) {
+      for (int64_t y = 0; y < d.n[1]; ++y) {
+        for (int64_t x = 0; x < d.n[0]; ++x, ++idx) {
           if (d.length[idx] > 0.0f || d.end[idx] != 0) {
-            s.emitCell(d.x0 + x, d.y0 + y, d.z0 + z, d.length[idx], d.end[idx], out);
+            s.emitCell(oc[0] + d.lo[0] + x, oc[1] + d.lo[1] + y, oc[2] + d.lo[2] + z, d.length[idx], d.end[idx], out);
           }
         }
       }
@@ -282,7 +494,7 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
   } else {
     HashStore& h = s.hash;
     h.reset();
-    s.cast(h, origin);
+    s.castHashAll(o, oc);
     std::vector<const HashStore::Slot*> filled;
     filled.reserve(h.used);
     for (const auto& slot : h.slots) {
@@ -322,7 +534,11 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
     RayAccumulator acc(map.grid(), settings);
     VoxelDeltas deltas;
     for (size_t i = 0; i < n; ++i) {
-      acc.accumulate(source.load(i), deltas);
+      if (const Frame* f = source.resident(i)) {
+        acc.accumulate(*f, deltas);
+      } else {
+        acc.accumulate(source.load(i), deltas);
+      }
       map.addMany(deltas.keys, deltas.deltas);
       total += deltas.stats;
       if (progress) progress(i + 1, n);
@@ -331,6 +547,16 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
     // Frames are loaded and cast in parallel; merging stays serial and in frame order, so the
     // map is the same for every thread count.
     tbb::enumerable_thread_specific<RayAccumulator> accumulators(map.grid(), settings);
+    // Delta buffers are recycled: at most 2 * threads frames are in flight.
+    std::mutex pool_mutex;
+    std::vector<std::shared_ptr<VoxelDeltas>> pool;
+    auto take = [&] {
+      std::lock_guard<std::mutex> lock(pool_mutex);
+      if (pool.empty()) return std::make_shared<VoxelDeltas>();
+      auto d = std::move(pool.back());
+      pool.pop_back();
+      return d;
+    };
     tbb::task_arena arena(threads);
     arena.execute([&] {
       size_t next = 0;
@@ -347,8 +573,12 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
               tbb::make_filter<size_t, std::shared_ptr<VoxelDeltas>>(
                   tbb::filter_mode::parallel,
                   [&](size_t i) {
-                    auto deltas = std::make_shared<VoxelDeltas>();
-                    accumulators.local().accumulate(source.load(i), *deltas);
+                    auto deltas = take();
+                    if (const Frame* f = source.resident(i)) {
+                      accumulators.local().accumulate(*f, *deltas);
+                    } else {
+                      accumulators.local().accumulate(source.load(i), *deltas);
+                    }
                     return deltas;
                   }) &
               tbb::make_filter<std::shared_ptr<VoxelDeltas>, void>(
@@ -356,6 +586,8 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
                     map.addMany(deltas->keys, deltas->deltas);
                     total += deltas->stats;
                     if (progress) progress(static_cast<size_t>(total.frames), n);
+                    std::lock_guard<std::mutex> lock(pool_mutex);
+                    pool.push_back(deltas);
                   }));
     });
   }

@@ -1,7 +1,6 @@
 #include "chronomap/octree/session_map.h"
 
 #include <bit>
-#include <functional>
 #include <string>
 
 #include "chronomap/core/error.h"
@@ -134,52 +133,50 @@ VoxelState SessionMap::stateOf(const VoxelKey& key) const {
   return c ? c->state() : VoxelState::Unknown;
 }
 
+bool SessionMap::compressBelow(Ref& r) {
+  if (r == kEmpty) return false;
+  if (isLeaf(r)) return leaves_[index(r)].isKnownFreeWithoutHits();
+  bool all_free = true;
+  for (int i = 0; i < 8; ++i) {
+    Ref child = inner_[r][i];
+    all_free = compressBelow(child) && all_free;
+    inner_[r][i] = child;
+  }
+  if (!all_free || r == 0) return false;  // the root is never replaced
+  VoxelCounters sum;
+  for (int i = 0; i < 8; ++i) sum.length_m += leaves_[index(inner_[r][i])].length_m;
+  // Reuse the first child's leaf slot; the others become garbage that compaction drops.
+  const uint32_t leaf = index(inner_[r][0]);
+  leaves_[leaf] = sum;
+  r = leaf | kLeafBit;
+  return true;
+}
+
+SessionMap::Ref SessionMap::copyInto(Ref r, std::vector<Children>& inner, std::vector<VoxelCounters>& leaves) const {
+  if (r == kEmpty) return kEmpty;
+  if (isLeaf(r)) {
+    leaves.push_back(leaves_[index(r)]);
+    return static_cast<Ref>(leaves.size() - 1) | kLeafBit;
+  }
+  const Ref out = static_cast<Ref>(inner.size());
+  inner.push_back(emptyChildren());
+  for (int i = 0; i < 8; ++i) {
+    const Ref c = copyInto(inner_[r][i], inner, leaves);
+    inner[out][i] = c;
+  }
+  return out;
+}
+
 size_t SessionMap::compressFree() {
   const size_t before = leaves_.size();
-  // Post-order: returns true when the child reference `r` is (now) a known-free leaf without hits.
-  std::function<bool(Ref&)> visit = [&](Ref& r) -> bool {
-    if (r == kEmpty) return false;
-    if (isLeaf(r)) return leaves_[index(r)].isKnownFreeWithoutHits();
-    bool all_free = true;
-    // Copy: recursion may not reallocate inner_, but keep the reference use simple and safe.
-    for (int i = 0; i < 8; ++i) {
-      Ref child = inner_[r][i];
-      const bool free = visit(child);
-      inner_[r][i] = child;
-      all_free = all_free && free;
-    }
-    if (!all_free || r == 0) return false;  // the root is never replaced
-    VoxelCounters sum;
-    for (int i = 0; i < 8; ++i) sum.length_m += leaves_[index(inner_[r][i])].length_m;
-    // Reuse the first child's leaf slot; the others become garbage removed by compaction below.
-    const uint32_t leaf = index(inner_[r][0]);
-    leaves_[leaf] = sum;
-    r = leaf | kLeafBit;
-    return true;
-  };
   Ref root = 0;
-  visit(root);
-
+  compressBelow(root);
   // Compaction: copy the reachable tree depth first into fresh pools.
   std::vector<Children> inner;
   std::vector<VoxelCounters> leaves;
   inner.reserve(inner_.size());
   leaves.reserve(leaves_.size());
-  std::function<Ref(Ref)> copy = [&](Ref r) -> Ref {
-    if (r == kEmpty) return kEmpty;
-    if (isLeaf(r)) {
-      leaves.push_back(leaves_[index(r)]);
-      return static_cast<Ref>(leaves.size() - 1) | kLeafBit;
-    }
-    const Ref out = static_cast<Ref>(inner.size());
-    inner.push_back(emptyChildren());
-    for (int i = 0; i < 8; ++i) {
-      const Ref c = copy(inner_[r][i]);
-      inner[out][i] = c;
-    }
-    return out;
-  };
-  copy(0);
+  copyInto(0, inner, leaves);
   inner.shrink_to_fit();
   leaves.shrink_to_fit();
   inner_ = std::move(inner);

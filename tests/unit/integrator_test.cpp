@@ -195,7 +195,7 @@ TEST(Integrator, ResultsDoNotDependOnThreadCount) {
   }
 }
 
-TEST(Integrator, HashScratchEqualsDenseScratch) {
+TEST(Integrator, EveryScratchPathGivesTheSameMap) {
   sim::PinholeCamera cam;
   cam.width = 120;
   cam.height = 90;
@@ -204,13 +204,16 @@ TEST(Integrator, HashScratchEqualsDenseScratch) {
   cam.cy = 44.5;
   const FrameVector frames(sim::benchmarkSequence(3, cam));
   for (bool fast : {false, true}) {
-    SessionMap dense(0.05), hashed(0.05);
     IntegratorSettings s;
     s.fast = fast;
     s.threads = 1;
+    SessionMap cube(0.05), dense(0.05), hashed(0.05);
+    integrate(frames, cube, s);  // fast mode: one pass over the range cube
+    s.cube_max_cells = 0;        // two passes over the bounding box
     integrate(frames, dense, s);
-    s.dense_grid_max_cells = 0;  // force the hash table
+    s.dense_grid_max_cells = 0;  // hash table
     integrate(frames, hashed, s);
+    EXPECT_TRUE(cube == dense) << "fast=" << fast;
     EXPECT_TRUE(dense == hashed) << "fast=" << fast;
   }
 }

@@ -24,8 +24,12 @@ struct IntegratorSettings {
   int threads = 0;
   /// Merge known-free subtrees after integration (see SessionMap::compressFree).
   bool compress_free = true;
-  /// A frame whose bounding box spans more voxels than this is accumulated in a hash table
-  /// instead of a dense scratch grid (large ranges, laser scans).
+  /// Fast mode accumulates a frame in one pass over a scratch cube of side 2 * max_range around
+  /// the sensor when it has at most this many voxels (8 bytes each, per thread) ...
+  size_t cube_max_cells = size_t{1} << 23;
+  /// ... otherwise (and in exact mode) in two passes over the frame's bounding box when that has
+  /// at most this many voxels, else in a hash table (long ranges, laser scans). Results are the
+  /// same on every path.
   size_t dense_grid_max_cells = size_t{1} << 25;
 };
 
@@ -53,6 +57,8 @@ class FrameSource {
   /// Loads frame i. Must be safe to call concurrently.
   /// @throw DataError, FormatError or IoError naming the file at fault.
   virtual Frame load(size_t i) const = 0;
+  /// Frame i when it is already in memory (then it is used without a copy), else null.
+  virtual const Frame* resident(size_t /*i*/) const { return nullptr; }
 };
 
 /// Frames already in memory.
@@ -61,6 +67,7 @@ class FrameVector : public FrameSource {
   explicit FrameVector(std::vector<Frame> frames) : frames_(std::move(frames)) {}
   size_t size() const override { return frames_.size(); }
   Frame load(size_t i) const override { return frames_.at(i); }
+  const Frame* resident(size_t i) const override { return &frames_.at(i); }
   const std::vector<Frame>& frames() const { return frames_; }
 
  private:

@@ -46,8 +46,8 @@ inline void traverseRay(const double origin[3], const double end[3], Visit&& vis
   }
   double t = 0.0;
   for (; remaining > 0; --remaining) {
-    int a = t_max[0] < t_max[1] ? 0 : 1;
-    if (t_max[2] < t_max[a]) a = 2;
+    // On ties x goes first, then y (the integrator's specialised copy does the same).
+    const int a = (t_max[0] <= t_max[1] && t_max[0] <= t_max[2]) ? 0 : (t_max[1] <= t_max[2] ? 1 : 2);
     double t_next = t_max[a];
     if (t_next < t) t_next = t;  // rounding can order crossings a hair early; keep t monotonic
     if (t_next > 1.0) t_next = 1.0;

@@ -110,6 +110,10 @@ class SessionMap {
   uint32_t splitLeaf(uint32_t parent, int slot);
   /// Returns the inner node for the child `slot` of `parent`, creating or splitting as needed.
   uint32_t descend(uint32_t parent, int slot);
+  /// compressFree's post-order pass: true when `r` is (now) a known-free leaf without hits.
+  bool compressBelow(Ref& r);
+  /// Copies the subtree `r` depth first into fresh pools; returns its new reference.
+  Ref copyInto(Ref r, std::vector<Children>& inner, std::vector<VoxelCounters>& leaves) const;
 
   KeyGrid grid_;
   std::vector<Children> inner_;
