@@ -15,4 +15,5 @@ bin=build/release/apps/chronomap/chronomap
 "$bin" stats "$out/room.cmap"
 "$bin" export "$out/room.cmap" -o "$out/room.ply"
 "$bin" export "$out/room.cmap" -o "$out/room.ot"
-echo "open $out/room.ply in any point-cloud viewer, or $out/room.ot in octovis"
+"$bin" export "$out/room.cmap" -o "$out/room.png" --scale 4
+echo "open $out/room.png (top view), $out/room.ply in any point-cloud viewer, or $out/room.ot in octovis"

@@ -1,6 +1,7 @@
 #include "chronomap/integrate/integrator.h"
 
 #include <algorithm>
+#include <cfloat>
 #include <limits>
 #include <mutex>
 #include <chrono>
@@ -37,6 +38,45 @@ inline int64_t floorInt(double v) {
   return i - (static_cast<double>(i) > v);
 }
 
+/// Working-frame coordinates of one sensor point (R row-major, scaled to voxel units).
+inline void transformPoint(const float* R, const float* of, const Eigen::Vector3f& p, float u[3]) {
+  u[0] = of[0] + (R[0] * p.x() + R[1] * p.y() + R[2] * p.z());
+  u[1] = of[1] + (R[3] * p.x() + R[4] * p.y() + R[5] * p.z());
+  u[2] = of[2] + (R[6] * p.x() + R[7] * p.y() + R[8] * p.z());
+}
+
+/// Transforms sensor points into working-frame voxel coordinates (u0, u1, u2) and scratch-cube
+/// cell indices (idx, -1 for points that are invalid or out of range). Written without branches
+/// so that it vectorises; where the CPU has AVX2 that clone is chosen at load time.
+/// Returns the number of points kept; `out_of_range` counts finite points beyond the range.
+__attribute__((target_clones("avx2", "default"))) uint64_t cubeCells(
+    const float* __restrict xyz, size_t n, const float* __restrict R, const float* __restrict of, float max_r2,
+    int32_t sy, int32_t sz, int32_t* __restrict idx, float* __restrict u0, float* __restrict u1,
+    float* __restrict u2, uint64_t* out_of_range) {
+  const float r00 = R[0], r01 = R[1], r02 = R[2], r10 = R[3], r11 = R[4], r12 = R[5], r20 = R[6], r21 = R[7],
+              r22 = R[8];
+  const float o0 = of[0], o1 = of[1], o2 = of[2];
+  uint64_t kept = 0, beyond = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const float px = xyz[3 * i], py = xyz[3 * i + 1], pz = xyz[3 * i + 2];
+    const float r2 = px * px + py * py + pz * pz;  // the range is rotation-invariant
+    const int valid = (r2 <= max_r2) & (r2 > 0.0f);  // false for NaN, infinity and zero depth
+    // Same expression, same order as transformPoint(): every path must compute the same bits.
+    const float a = valid ? o0 + (r00 * px + r01 * py + r02 * pz) : 0.0f;
+    const float b = valid ? o1 + (r10 * px + r11 * py + r12 * pz) : 0.0f;
+    const float c = valid ? o2 + (r20 * px + r21 * py + r22 * pz) : 0.0f;
+    const int32_t cell = static_cast<int32_t>(a) + sy * static_cast<int32_t>(b) + sz * static_cast<int32_t>(c);
+    idx[i] = valid ? cell : -1;
+    u0[i] = a;
+    u1[i] = b;
+    u2[i] = c;
+    kept += static_cast<uint64_t>(valid);
+    beyond += static_cast<uint64_t>((r2 > max_r2) & (r2 <= FLT_MAX));
+  }
+  *out_of_range = beyond;
+  return kept;
+}
+
 /// A valid end point in the frame's working coordinates: voxel units, relative to the lower
 /// corner of the origin's voxel, plus a bias that makes every in-range coordinate positive (so
 /// truncation is floor).
@@ -49,7 +89,8 @@ struct RelPoint {
 struct EndEntry {
   uint32_t hits = 0;
   uint32_t red = 0, green = 0, blue = 0;
-  double sum[3] = {0, 0, 0};
+  // Float suffices: coordinates are small (working frame) and the mean is clamped into the voxel.
+  float sum[3] = {0, 0, 0};
   int64_t cell[3] = {0, 0, 0};  // working-frame voxel of the bundle
 };
 
@@ -201,13 +242,17 @@ struct RayAccumulator::Impl {
   KeyGrid grid;
   IntegratorSettings settings;
   std::vector<RelPoint> points;
+  std::vector<int32_t> cell_index;  // one-pass path: per point
+  std::vector<float> u0, u1, u2;    // one-pass path: per point
   std::vector<EndEntry> ends;  // ends[0] unused so that index 0 means "none"
   DenseStore dense;
   HashStore hash;
   CubeStore cube;
 
   uint32_t newEnd(const int64_t cell[3]) {
-    ends.push_back(EndEntry{0, 0, 0, 0, {0, 0, 0}, {cell[0], cell[1], cell[2]}});
+    EndEntry e;
+    for (int a = 0; a < 3; ++a) e.cell[a] = cell[a];
+    ends.push_back(e);
     return static_cast<uint32_t>(ends.size() - 1);
   }
   static void addEnd(EndEntry& e, const RelPoint& p) {
@@ -223,7 +268,7 @@ struct RayAccumulator::Impl {
   static void bundleMean(const EndEntry& e, double mean[3]) {
     for (int a = 0; a < 3; ++a) {
       const double lo = static_cast<double>(e.cell[a]);
-      mean[a] = std::clamp(e.sum[a] / e.hits, lo, std::nextafter(lo + 1.0, lo));
+      mean[a] = std::clamp(static_cast<double>(e.sum[a]) / e.hits, lo, std::nextafter(lo + 1.0, lo));
     }
   }
 
@@ -350,6 +395,10 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
   bool cube_inside = true;
   for (int a = 0; a < 3; ++a) cube_inside = cube_inside && oc[a] >= 0 && oc[a] + 2 * bias + 1 < kKeysPerAxis;
   const Eigen::Matrix3f R = (T.linear() * inv_res).cast<float>();  // sensor metres -> voxel units
+  float Rm[9];  // row-major
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) Rm[3 * r + c] = R(r, c);
+  }
   const float of[3] = {static_cast<float>(o[0]), static_cast<float>(o[1]), static_cast<float>(o[2])};
   const float max_range_sq = static_cast<float>(s.settings.max_range_m * s.settings.max_range_m);
 
@@ -360,8 +409,9 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
   const int64_t side = 2 * bias + 1;
   // Fast mode bundles in one pass over the cube. (Exact mode stays with two passes: its rays
   // touch every cell of the bounding box, and the smaller box grid measured faster.)
-  if (s.settings.fast && static_cast<double>(side) * static_cast<double>(side) * static_cast<double>(side) <=
-                             static_cast<double>(s.settings.cube_max_cells)) {
+  if (s.settings.fast && cube_inside &&
+      static_cast<double>(side) * static_cast<double>(side) * static_cast<double>(side) <=
+          static_cast<double>(s.settings.cube_max_cells)) {
     // One pass: filter, transform and bundle straight into the cube.
     CubeStore& cube = s.cube;
     cube.ensure(side);
@@ -371,40 +421,45 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
     uint32_t* end = cube.end.data();
     int32_t lo[3], hi[3];  // bounding box of everything touched, for emission
     for (int a = 0; a < 3; ++a) lo[a] = hi[a] = static_cast<int32_t>(o[a]);
+    s.cell_index.resize(n);
+    s.u0.resize(n);
+    s.u1.resize(n);
+    s.u2.resize(n);
+    static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "points are read as a flat float array");
+    uint64_t out_of_range = 0;
+    const uint64_t kept =
+        cubeCells(cloud.points.empty() ? nullptr : cloud.points[0].data(), n, Rm, of, max_range_sq,
+                  static_cast<int32_t>(sy), static_cast<int32_t>(sz), s.cell_index.data(), s.u0.data(), s.u1.data(),
+                  s.u2.data(), &out_of_range);
+    st.points = kept;
+    st.points_out_of_range = out_of_range;
+    st.points_invalid = n - kept - out_of_range;
+    const Rgb* cols = colors ? cloud.colors.data() : nullptr;
+    const int32_t* cell_index = s.cell_index.data();
     for (size_t i = 0; i < n; ++i) {
-      const Eigen::Vector3f& p = cloud.points[i];
-      const float r2 = p.squaredNorm();  // the range is rotation-invariant: test before transforming
-      if (!(r2 <= max_range_sq && r2 > 0.0f)) {
-        if (r2 > max_range_sq && std::isfinite(r2)) {
-          ++st.points_out_of_range;
-        } else {
-          ++st.points_invalid;  // NaN, infinite, or zero depth
-        }
-        continue;
-      }
-      const Eigen::Vector3f d = R * p;
-      const RelPoint rp{{of[0] + d[0], of[1] + d[1], of[2] + d[2]}, colors ? cloud.colors[i] : Rgb{}};
-      const int32_t c[3] = {static_cast<int32_t>(rp.u[0]), static_cast<int32_t>(rp.u[1]),
-                            static_cast<int32_t>(rp.u[2])};
-      if (!cube_inside) {
-        bool inside = true;
-        for (int a = 0; a < 3; ++a) inside = inside && c[a] + oc[a] >= 0 && c[a] + oc[a] < kKeysPerAxis;
-        if (!inside) {
-          ++st.points_outside_map;
-          continue;
-        }
-      }
-      ++st.points;
-      uint32_t& e = end[static_cast<size_t>(c[0] + sy * c[1] + sz * c[2])];
+      const int32_t c = cell_index[i];
+      if (c < 0) continue;
+      uint32_t& e = end[static_cast<size_t>(c)];
       if (e == 0) {
-        const int64_t c64[3] = {c[0], c[1], c[2]};
+        const int32_t c32[3] = {static_cast<int32_t>(s.u0[i]), static_cast<int32_t>(s.u1[i]),
+                                static_cast<int32_t>(s.u2[i])};
+        const int64_t c64[3] = {c32[0], c32[1], c32[2]};
         e = s.newEnd(c64);
         for (int a = 0; a < 3; ++a) {
-          lo[a] = std::min(lo[a], c[a]);
-          hi[a] = std::max(hi[a], c[a]);
+          lo[a] = std::min(lo[a], c32[a]);
+          hi[a] = std::max(hi[a], c32[a]);
         }
       }
-      Impl::addEnd(s.ends[e], rp);
+      EndEntry& entry = s.ends[e];
+      ++entry.hits;
+      if (cols) {
+        entry.red += cols[i].r;
+        entry.green += cols[i].g;
+        entry.blue += cols[i].b;
+      }
+      entry.sum[0] += s.u0[i];
+      entry.sum[1] += s.u1[i];
+      entry.sum[2] += s.u2[i];
     }
     st.rays = s.ends.size() - 1;
     for (size_t e = 1; e < s.ends.size(); ++e) {
@@ -450,8 +505,9 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
       }
       continue;
     }
-    const Eigen::Vector3f d = R * p;
-    const RelPoint rp{{of[0] + d[0], of[1] + d[1], of[2] + d[2]}, colors ? cloud.colors[i] : Rgb{}};
+    RelPoint rp;
+    transformPoint(Rm, of, p, rp.u);
+    rp.color = colors ? cloud.colors[i] : Rgb{};
     const int32_t c[3] = {static_cast<int32_t>(rp.u[0]), static_cast<int32_t>(rp.u[1]), static_cast<int32_t>(rp.u[2])};
     if (!cube_inside) {
       bool inside = true;
