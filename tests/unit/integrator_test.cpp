@@ -12,6 +12,18 @@
 namespace chronomap {
 namespace {
 
+/// The Kinect-like benchmark camera scaled down to `width` pixels (same field of view).
+sim::PinholeCamera smallCamera(uint32_t width) {
+  sim::PinholeCamera cam;
+  const double scale = width / 640.0;
+  cam.width = width;
+  cam.height = static_cast<uint32_t>(480 * scale);
+  cam.fx = cam.fy = 525.0 * scale;
+  cam.cx = (cam.width - 1) / 2.0;
+  cam.cy = (cam.height - 1) / 2.0;
+  return cam;
+}
+
 IntegratorSettings exactUncompressed() {
   IntegratorSettings s;
   s.compress_free = false;
@@ -115,12 +127,7 @@ TEST(Integrator, RejectsBadPosesAndSettings) {
 }
 
 TEST(Integrator, FastModeKeepsHitsAndColoursAndBoundsLengths) {
-  sim::PinholeCamera cam;
-  cam.width = 160;
-  cam.height = 120;
-  cam.fx = cam.fy = 131.25;
-  cam.cx = 79.5;
-  cam.cy = 59.5;
+  const sim::PinholeCamera cam = smallCamera(160);
   auto frames = sim::benchmarkSequence(4, cam);
   for (auto& f : frames) f.cloud.colors.assign(f.cloud.size(), Rgb{10, 20, 30});
   const double res = 0.05;
@@ -161,12 +168,7 @@ TEST(Integrator, FastModeKeepsHitsAndColoursAndBoundsLengths) {
 }
 
 TEST(Integrator, ResultsDoNotDependOnThreadCount) {
-  sim::PinholeCamera cam;
-  cam.width = 200;
-  cam.height = 150;
-  cam.fx = cam.fy = 164.0;
-  cam.cx = 99.5;
-  cam.cy = 74.5;
+  const sim::PinholeCamera cam = smallCamera(200);
   const FrameVector frames(sim::benchmarkSequence(12, cam));
   for (bool fast : {false, true}) {
     std::vector<uint8_t> reference;
@@ -196,12 +198,7 @@ TEST(Integrator, ResultsDoNotDependOnThreadCount) {
 }
 
 TEST(Integrator, EveryScratchPathGivesTheSameMap) {
-  sim::PinholeCamera cam;
-  cam.width = 120;
-  cam.height = 90;
-  cam.fx = cam.fy = 98.0;
-  cam.cx = 59.5;
-  cam.cy = 44.5;
+  const sim::PinholeCamera cam = smallCamera(120);
   const FrameVector frames(sim::benchmarkSequence(3, cam));
   for (bool fast : {false, true}) {
     IntegratorSettings s;
@@ -219,12 +216,7 @@ TEST(Integrator, EveryScratchPathGivesTheSameMap) {
 }
 
 TEST(Integrator, CompressionKeepsEveryVoxelState) {
-  sim::PinholeCamera cam;
-  cam.width = 160;
-  cam.height = 120;
-  cam.fx = cam.fy = 131.25;
-  cam.cx = 79.5;
-  cam.cy = 59.5;
+  const sim::PinholeCamera cam = smallCamera(160);
   const FrameVector frames(sim::benchmarkSequence(3, cam));
   SessionMap plain(0.05), compressed(0.05);
   IntegratorSettings s = exactUncompressed();
