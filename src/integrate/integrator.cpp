@@ -45,14 +45,13 @@ inline void transformPoint(const float* R, const float* of, const Eigen::Vector3
   u[2] = of[2] + (R[6] * p.x() + R[7] * p.y() + R[8] * p.z());
 }
 
-/// Transforms sensor points into working-frame voxel coordinates (u0, u1, u2) and scratch-cube
-/// cell indices (idx, -1 for points that are invalid or out of range). Written without branches
-/// so that it vectorises; where the CPU has AVX2 that clone is chosen at load time.
-/// Returns the number of points kept; `out_of_range` counts finite points beyond the range.
+/// Transforms sensor points into scratch-cube cell indices (idx; -1 for points that are
+/// invalid or out of range). Written without branches so that it vectorises; where the CPU has
+/// AVX2 that clone is chosen at load time. Returns the number of points kept; `out_of_range`
+/// counts finite points beyond the range.
 __attribute__((target_clones("avx2", "default"))) uint64_t cubeCells(
     const float* __restrict xyz, size_t n, const float* __restrict R, const float* __restrict of, float max_r2,
-    int32_t sy, int32_t sz, int32_t* __restrict idx, float* __restrict u0, float* __restrict u1,
-    float* __restrict u2, uint64_t* out_of_range) {
+    int32_t sy, int32_t sz, int32_t* __restrict idx, uint64_t* out_of_range) {
   const float r00 = R[0], r01 = R[1], r02 = R[2], r10 = R[3], r11 = R[4], r12 = R[5], r20 = R[6], r21 = R[7],
               r22 = R[8];
   const float o0 = of[0], o1 = of[1], o2 = of[2];
@@ -67,9 +66,6 @@ __attribute__((target_clones("avx2", "default"))) uint64_t cubeCells(
     const float c = valid ? o2 + (r20 * px + r21 * py + r22 * pz) : 0.0f;
     const int32_t cell = static_cast<int32_t>(a) + sy * static_cast<int32_t>(b) + sz * static_cast<int32_t>(c);
     idx[i] = valid ? cell : -1;
-    u0[i] = a;
-    u1[i] = b;
-    u2[i] = c;
     kept += static_cast<uint64_t>(valid);
     beyond += static_cast<uint64_t>((r2 > max_r2) & (r2 <= FLT_MAX));
   }
@@ -85,13 +81,11 @@ struct RelPoint {
   Rgb color;
 };
 
-/// Hits and colour of one end voxel; in fast mode also the sum of its points.
+/// Hits and colour of one end voxel (in fast mode: one bundle).
 struct EndEntry {
   uint32_t hits = 0;
   uint32_t red = 0, green = 0, blue = 0;
-  // Float suffices: coordinates are small (working frame) and the mean is clamped into the voxel.
-  float sum[3] = {0, 0, 0};
-  int64_t cell[3] = {0, 0, 0};  // working-frame voxel of the bundle
+  int64_t cell[3] = {0, 0, 0};  // working-frame voxel
 };
 
 /// Scratch cube of side 2 * bias + 1 around the sensor, covering every in-range point: ray
@@ -243,7 +237,6 @@ struct RayAccumulator::Impl {
   IntegratorSettings settings;
   std::vector<RelPoint> points;
   std::vector<int32_t> cell_index;  // one-pass path: per point
-  std::vector<float> u0, u1, u2;    // one-pass path: per point
   std::vector<EndEntry> ends;  // ends[0] unused so that index 0 means "none"
   DenseStore dense;
   HashStore hash;
@@ -255,25 +248,19 @@ struct RayAccumulator::Impl {
     ends.push_back(e);
     return static_cast<uint32_t>(ends.size() - 1);
   }
-  static void addEnd(EndEntry& e, const RelPoint& p) {
+  static void addEnd(EndEntry& e, const Rgb& color) {
     ++e.hits;
-    e.red += p.color.r;
-    e.green += p.color.g;
-    e.blue += p.color.b;
-    e.sum[0] += p.u[0];
-    e.sum[1] += p.u[1];
-    e.sum[2] += p.u[2];
+    e.red += color.r;
+    e.green += color.g;
+    e.blue += color.b;
   }
-  /// Mean of a bundle, clamped into its voxel (rounding could push it onto a neighbour's face).
-  static void bundleMean(const EndEntry& e, double mean[3]) {
-    for (int a = 0; a < 3; ++a) {
-      const double lo = static_cast<double>(e.cell[a]);
-      mean[a] = std::clamp(static_cast<double>(e.sum[a]) / e.hits, lo, std::nextafter(lo + 1.0, lo));
-    }
+  /// Where a bundle's ray ends: the centre of its voxel.
+  static void bundleTarget(const EndEntry& e, double target[3]) {
+    for (int a = 0; a < 3; ++a) target[a] = static_cast<double>(e.cell[a]) + 0.5;
   }
 
-  /// Casts every point (exact) or bundle (fast) into the dense store. Coordinates handed to the
-  /// DDA are relative to the store's lower corner; `o` is the origin relative to its own voxel.
+  /// Casts every point (exact) or bundle (fast) into the bounding-box store; `o` is the sensor
+  /// origin in working coordinates, like the points.
   void castDenseAll(const double o[3]) {
     DenseStore& d = dense;
     const int64_t sy = d.n[0], sz = d.n[0] * d.n[1];
@@ -288,7 +275,7 @@ struct RayAccumulator::Impl {
                                    static_cast<int64_t>(p.u[2])};
           e = newEnd(cell);
         }
-        addEnd(ends[e], p);
+        addEnd(ends[e], p.color);
       }
       return;
     }
@@ -297,12 +284,12 @@ struct RayAccumulator::Impl {
                                static_cast<int64_t>(p.u[2])};
       uint32_t& e = d.end[d.cell(cell[0], cell[1], cell[2])];
       if (e == 0) e = newEnd(cell);
-      addEnd(ends[e], p);
+      addEnd(ends[e], p.color);
     }
     for (size_t e = 1; e < ends.size(); ++e) {
-      double mean[3];
-      bundleMean(ends[e], mean);
-      castDense(o, mean, static_cast<float>(ends[e].hits), length, d.lo, sy, sz);
+      double target[3];
+      bundleTarget(ends[e], target);
+      castDense(o, target, static_cast<float>(ends[e].hits), length, d.lo, sy, sz);
     }
   }
 
@@ -322,7 +309,7 @@ struct RayAccumulator::Impl {
                                  static_cast<int64_t>(p.u[2])};
         HashStore::Slot& s = hash.slot(cell[0] + oc[0], cell[1] + oc[1], cell[2] + oc[2]);
         if (s.end == 0) s.end = newEnd(cell);
-        addEnd(ends[s.end], p);
+        addEnd(ends[s.end], p.color);
       }
       return;
     }
@@ -331,12 +318,12 @@ struct RayAccumulator::Impl {
                                static_cast<int64_t>(p.u[2])};
       HashStore::Slot& s = hash.slot(cell[0] + oc[0], cell[1] + oc[1], cell[2] + oc[2]);
       if (s.end == 0) s.end = newEnd(cell);
-      addEnd(ends[s.end], p);
+      addEnd(ends[s.end], p.color);
     }
     for (size_t e = 1; e < ends.size(); ++e) {
-      double mean[3];
-      bundleMean(ends[e], mean);
-      castOne(mean, static_cast<float>(ends[e].hits));
+      double target[3];
+      bundleTarget(ends[e], target);
+      castOne(target, static_cast<float>(ends[e].hits));
     }
   }
 
@@ -422,27 +409,22 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
     int32_t lo[3], hi[3];  // bounding box of everything touched, for emission
     for (int a = 0; a < 3; ++a) lo[a] = hi[a] = static_cast<int32_t>(o[a]);
     s.cell_index.resize(n);
-    s.u0.resize(n);
-    s.u1.resize(n);
-    s.u2.resize(n);
     static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "points are read as a flat float array");
     uint64_t out_of_range = 0;
-    const uint64_t kept =
-        cubeCells(cloud.points.empty() ? nullptr : cloud.points[0].data(), n, Rm, of, max_range_sq,
-                  static_cast<int32_t>(sy), static_cast<int32_t>(sz), s.cell_index.data(), s.u0.data(), s.u1.data(),
-                  s.u2.data(), &out_of_range);
+    const uint64_t kept = cubeCells(cloud.points.empty() ? nullptr : cloud.points[0].data(), n, Rm, of,
+                                    max_range_sq, static_cast<int32_t>(sy), static_cast<int32_t>(sz),
+                                    s.cell_index.data(), &out_of_range);
     st.points = kept;
     st.points_out_of_range = out_of_range;
     st.points_invalid = n - kept - out_of_range;
-    const Rgb* cols = colors ? cloud.colors.data() : nullptr;
     const int32_t* cell_index = s.cell_index.data();
     for (size_t i = 0; i < n; ++i) {
       const int32_t c = cell_index[i];
       if (c < 0) continue;
       uint32_t& e = end[static_cast<size_t>(c)];
       if (e == 0) {
-        const int32_t c32[3] = {static_cast<int32_t>(s.u0[i]), static_cast<int32_t>(s.u1[i]),
-                                static_cast<int32_t>(s.u2[i])};
+        const int32_t c32[3] = {static_cast<int32_t>(c % sy), static_cast<int32_t>((c / sy) % sy),
+                                static_cast<int32_t>(c / sz)};
         const int64_t c64[3] = {c32[0], c32[1], c32[2]};
         e = s.newEnd(c64);
         for (int a = 0; a < 3; ++a) {
@@ -450,22 +432,13 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
           hi[a] = std::max(hi[a], c32[a]);
         }
       }
-      EndEntry& entry = s.ends[e];
-      ++entry.hits;
-      if (cols) {
-        entry.red += cols[i].r;
-        entry.green += cols[i].g;
-        entry.blue += cols[i].b;
-      }
-      entry.sum[0] += s.u0[i];
-      entry.sum[1] += s.u1[i];
-      entry.sum[2] += s.u2[i];
+      Impl::addEnd(s.ends[e], colors ? cloud.colors[i] : Rgb{});
     }
     st.rays = s.ends.size() - 1;
     for (size_t e = 1; e < s.ends.size(); ++e) {
-      double mean[3];
-      Impl::bundleMean(s.ends[e], mean);
-      castDense(o, mean, static_cast<float>(s.ends[e].hits), length, kZero, sy, sz);
+      double target[3];
+      Impl::bundleTarget(s.ends[e], target);
+      castDense(o, target, static_cast<float>(s.ends[e].hits), length, kZero, sy, sz);
     }
     // Emit in raster order (consecutive keys share most of their path in the tree), zeroing
     // the cells read so the cube is clean for the next frame.

@@ -17,8 +17,8 @@ namespace chronomap {
 struct IntegratorSettings {
   /// Points farther than this from their sensor origin are discarded entirely.
   double max_range_m = 3.0;
-  /// Fast mode: all points of a frame that end in the same voxel are cast as one ray to their
-  /// mean position, weighted by their count (docs/integration.md states how far it differs).
+  /// Fast mode: all points of a frame that end in the same voxel are cast as one ray to that
+  /// voxel's centre, weighted by their count (docs/integration.md states how far it differs).
   bool fast = false;
   /// Worker threads; 0 uses every core. Results do not depend on this number.
   int threads = 0;
