@@ -158,8 +158,8 @@ int main(int argc, char** argv) {
     for (double res : {0.05, 0.02}) {
       const double nframes = static_cast<double>(in.frames.size());
       std::printf("\n== %s at %.2f m: %.0f points per frame (best of %d rounds) ==\n", in.name.c_str(), res,
-                  static_cast<double>(in.points) / nframes, quick ? 1 : 3);
-      const std::vector<Result> results = measure(in, res, quick ? 1 : 3);
+                  static_cast<double>(in.points) / nframes, quick ? 1 : 5);
+      const std::vector<Result> results = measure(in, res, quick ? 1 : 5);
       const Result& plain = results[0];
       const Result& disc = results[1];
       std::printf("%-34s %10s %10s %11s %9s %9s %8s\n", "method", "ms/frame", "Mpts/s", "memory MiB", "vs plain",

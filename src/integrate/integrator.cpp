@@ -88,20 +88,18 @@ struct EndEntry {
   int64_t cell[3] = {0, 0, 0};  // working-frame voxel
 };
 
-/// Scratch cube of side 2 * bias + 1 around the sensor, covering every in-range point: ray
-/// length and end-entry index per cell. Zero at rest; emission zeroes what it reads, so a frame
-/// costs only the cells it touches.
+/// Scratch cube of side 2 * bias + 1 around the sensor, covering every in-range point: the
+/// end-entry index per cell. Zero at rest; emission zeroes what it reads, so a frame costs only
+/// the cells it touches. (Ray lengths go to a grid over the bundles' bounding box, which is
+/// far smaller and stays in cache.)
 struct CubeStore {
   int64_t side = 0;
-  std::vector<float> length;
   std::vector<uint32_t> end;
 
   void ensure(int64_t s) {
     if (side == s) return;
     side = s;
-    const size_t cells = static_cast<size_t>(s * s * s);
-    length.assign(cells, 0.0f);
-    end.assign(cells, 0u);
+    end.assign(static_cast<size_t>(s * s * s), 0u);
   }
 };
 
@@ -112,14 +110,14 @@ struct DenseStore {
   std::vector<float> length;
   std::vector<uint32_t> end;
 
-  void reset(const int64_t a[3], const int64_t b[3]) {
+  void reset(const int64_t a[3], const int64_t b[3], bool with_end = true) {
     for (int k = 0; k < 3; ++k) {
       lo[k] = a[k];
       n[k] = b[k] - a[k] + 1;
     }
     const size_t cells = static_cast<size_t>(n[0] * n[1] * n[2]);
     length.assign(cells, 0.0f);
-    end.assign(cells, 0u);
+    if (with_end) end.assign(cells, 0u);
   }
   size_t cell(int64_t x, int64_t y, int64_t z) const {
     return static_cast<size_t>((x - lo[0]) + n[0] * ((y - lo[1]) + n[1] * (z - lo[2])));
@@ -403,56 +401,66 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
     CubeStore& cube = s.cube;
     cube.ensure(side);
     const int64_t sy = side, sz = side * side;
-    const int64_t kZero[3] = {0, 0, 0};
-    float* length = cube.length.data();
     uint32_t* end = cube.end.data();
-    int32_t lo[3], hi[3];  // bounding box of everything touched, for emission
+    int32_t lo[3], hi[3];  // bounding box of the origin and all bundles
     for (int a = 0; a < 3; ++a) lo[a] = hi[a] = static_cast<int32_t>(o[a]);
-    s.cell_index.resize(n);
     static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "points are read as a flat float array");
-    uint64_t out_of_range = 0;
-    const uint64_t kept = cubeCells(cloud.points.empty() ? nullptr : cloud.points[0].data(), n, Rm, of,
-                                    max_range_sq, static_cast<int32_t>(sy), static_cast<int32_t>(sz),
-                                    s.cell_index.data(), &out_of_range);
+    // Chunks small enough that the cell indices stay in cache between the two loops.
+    constexpr size_t kChunk = 8192;
+    s.cell_index.resize(std::min(n, kChunk));
+    int32_t* cell_index = s.cell_index.data();
+    uint64_t kept = 0, out_of_range = 0;
+    for (size_t begin = 0; begin < n; begin += kChunk) {
+      const size_t count = std::min(kChunk, n - begin);
+      uint64_t beyond = 0;
+      kept += cubeCells(cloud.points[begin].data(), count, Rm, of, max_range_sq, static_cast<int32_t>(sy),
+                        static_cast<int32_t>(sz), cell_index, &beyond);
+      out_of_range += beyond;
+      for (size_t j = 0; j < count; ++j) {
+        const int32_t c = cell_index[j];
+        if (c < 0) continue;
+        uint32_t& e = end[static_cast<size_t>(c)];
+        if (e == 0) {
+          const int32_t c32[3] = {static_cast<int32_t>(c % sy), static_cast<int32_t>((c / sy) % sy),
+                                  static_cast<int32_t>(c / sz)};
+          const int64_t c64[3] = {c32[0], c32[1], c32[2]};
+          e = s.newEnd(c64);
+          for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], c32[a]);
+            hi[a] = std::max(hi[a], c32[a]);
+          }
+        }
+        Impl::addEnd(s.ends[e], colors ? cloud.colors[begin + j] : Rgb{});
+      }
+    }
     st.points = kept;
     st.points_out_of_range = out_of_range;
     st.points_invalid = n - kept - out_of_range;
-    const int32_t* cell_index = s.cell_index.data();
-    for (size_t i = 0; i < n; ++i) {
-      const int32_t c = cell_index[i];
-      if (c < 0) continue;
-      uint32_t& e = end[static_cast<size_t>(c)];
-      if (e == 0) {
-        const int32_t c32[3] = {static_cast<int32_t>(c % sy), static_cast<int32_t>((c / sy) % sy),
-                                static_cast<int32_t>(c / sz)};
-        const int64_t c64[3] = {c32[0], c32[1], c32[2]};
-        e = s.newEnd(c64);
-        for (int a = 0; a < 3; ++a) {
-          lo[a] = std::min(lo[a], c32[a]);
-          hi[a] = std::max(hi[a], c32[a]);
-        }
-      }
-      Impl::addEnd(s.ends[e], colors ? cloud.colors[i] : Rgb{});
-    }
     st.rays = s.ends.size() - 1;
+    // Cast the bundle rays into a grid over the bounding box only.
+    DenseStore& d = s.dense;
+    const int64_t lo64[3] = {lo[0], lo[1], lo[2]}, hi64[3] = {hi[0], hi[1], hi[2]};
+    d.reset(lo64, hi64, /*with_end=*/false);
+    const int64_t dy = d.n[0], dz = d.n[0] * d.n[1];
+    float* length = d.length.data();
     for (size_t e = 1; e < s.ends.size(); ++e) {
       double target[3];
       Impl::bundleTarget(s.ends[e], target);
-      castDense(o, target, static_cast<float>(s.ends[e].hits), length, kZero, sy, sz);
+      castDense(o, target, static_cast<float>(s.ends[e].hits), length, d.lo, dy, dz);
     }
-    // Emit in raster order (consecutive keys share most of their path in the tree), zeroing
-    // the cells read so the cube is clean for the next frame.
+    // Emit in raster order (consecutive keys share most of their path in the tree), zeroing the
+    // cube cells read so the cube is clean for the next frame.
     out.keys.reserve(s.ends.size() * 8);
     out.deltas.reserve(s.ends.size() * 8);
+    size_t idx = 0;
     for (int64_t z = lo[2]; z <= hi[2]; ++z) {
       for (int64_t y = lo[1]; y <= hi[1]; ++y) {
         const size_t row = static_cast<size_t>(sy * y + sz * z);
-        for (int64_t x = lo[0]; x <= hi[0]; ++x) {
-          const size_t idx = row + static_cast<size_t>(x);
-          if (length[idx] > 0.0f || end[idx] != 0) {
-            s.emitCell(oc[0] + x, oc[1] + y, oc[2] + z, length[idx], end[idx], out);
-            length[idx] = 0.0f;
-            end[idx] = 0;
+        for (int64_t x = lo[0]; x <= hi[0]; ++x, ++idx) {
+          uint32_t& e = end[row + static_cast<size_t>(x)];
+          if (length[idx] > 0.0f || e != 0) {
+            s.emitCell(oc[0] + x, oc[1] + y, oc[2] + z, length[idx], e, out);
+            e = 0;
           }
         }
       }
