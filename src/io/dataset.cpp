@@ -52,9 +52,12 @@ CameraIntrinsics parseIntrinsics(const std::string& text) {
 }
 
 CameraIntrinsics readIntrinsicsFile(const fs::path& path) {
-  const std::string name = path.string();
+  return parseIntrinsicsText(readTextFile(path), path.string());
+}
+
+CameraIntrinsics parseIntrinsicsText(const std::string& text, const std::string& name) {
   std::vector<double> v;
-  for (const auto& [number, line] : contentLines(readTextFile(path))) {
+  for (const auto& [number, line] : contentLines(text)) {
     for (const auto& t : splitWhitespace(line)) v.push_back(parseDouble(t, name + ":" + std::to_string(number)));
   }
   CameraIntrinsics k;
@@ -99,8 +102,8 @@ PointCloud depthToCloud(const ImageU16& depth, const ImageRgb* rgb, const Camera
         continue;
       }
       const double z = d * inv_scale;
-      cloud.points[i] = Eigen::Vector3f(static_cast<float>((u - k.cx) * z / k.fx),
-                                        static_cast<float>((v - k.cy) * z / k.fy), static_cast<float>(z));
+      cloud.points[i] = Eigen::Vector3f(toFloat((u - k.cx) * z / k.fx), toFloat((v - k.cy) * z / k.fy),
+                                        toFloat(z));
     }
   }
   return cloud;
@@ -216,10 +219,13 @@ std::vector<fs::path> threeDMatchSequences(const fs::path& root) {
   return seqs;
 }
 
-Eigen::Matrix4d readMatrix4(const fs::path& path) {
+Eigen::Matrix4d readMatrix4(const fs::path& path) { return parseMatrix4(readTextFile(path), path.string()); }
+
+}  // namespace
+
+Eigen::Matrix4d parseMatrix4(const std::string& text, const std::string& name) {
   std::vector<double> v;
-  const std::string name = path.string();
-  for (const auto& [number, line] : contentLines(readTextFile(path))) {
+  for (const auto& [number, line] : contentLines(text)) {
     for (const auto& t : splitWhitespace(line)) v.push_back(parseDouble(t, name + ":" + std::to_string(number)));
   }
   if (v.size() != 16) throw FormatError(name + ": expected a 4x4 matrix, found " + std::to_string(v.size()) + " numbers");
@@ -229,6 +235,8 @@ Eigen::Matrix4d readMatrix4(const fs::path& path) {
   }
   return m;
 }
+
+namespace {
 
 std::unique_ptr<Dataset> openThreeDMatch(const fs::path& root, const DatasetOptions& o) {
   fs::path intrinsics = root / "camera-intrinsics.txt";
@@ -257,15 +265,11 @@ std::unique_ptr<Dataset> openThreeDMatch(const fs::path& root, const DatasetOpti
 
 // ---------------------------------------------------------------- TUM RGB-D
 
-struct Stamped {
-  double t;
-  std::string value;
-};
+}  // namespace
 
-std::vector<Stamped> readStampedList(const fs::path& path) {
-  std::vector<Stamped> out;
-  const std::string name = path.string();
-  for (const auto& [number, line] : contentLines(readTextFile(path))) {
+std::vector<StampedName> parseStampedList(const std::string& text, const std::string& name) {
+  std::vector<StampedName> out;
+  for (const auto& [number, line] : contentLines(text)) {
     const auto tok = splitWhitespace(line);
     const std::string ctx = name + ":" + std::to_string(number);
     if (tok.size() != 2) throw FormatError(ctx + ": expected 'timestamp filename'");
@@ -273,19 +277,13 @@ std::vector<Stamped> readStampedList(const fs::path& path) {
     if (!std::isfinite(t)) throw FormatError(ctx + ": timestamp is not finite");
     out.push_back({t, tok[1]});
   }
-  std::stable_sort(out.begin(), out.end(), [](const Stamped& a, const Stamped& b) { return a.t < b.t; });
+  std::stable_sort(out.begin(), out.end(), [](const StampedName& a, const StampedName& b) { return a.t < b.t; });
   return out;
 }
 
-struct StampedPose {
-  double t;
-  Eigen::Isometry3d pose;
-};
-
-std::vector<StampedPose> readTumTrajectory(const fs::path& path) {
+std::vector<StampedPose> parseTumTrajectory(const std::string& text, const std::string& name) {
   std::vector<StampedPose> out;
-  const std::string name = path.string();
-  for (const auto& [number, line] : contentLines(readTextFile(path))) {
+  for (const auto& [number, line] : contentLines(text)) {
     const auto tok = splitWhitespace(line);
     const std::string ctx = name + ":" + std::to_string(number);
     if (tok.size() != 8) throw FormatError(ctx + ": expected 'timestamp tx ty tz qx qy qz qw'");
@@ -297,6 +295,8 @@ std::vector<StampedPose> readTumTrajectory(const fs::path& path) {
   std::stable_sort(out.begin(), out.end(), [](const StampedPose& a, const StampedPose& b) { return a.t < b.t; });
   return out;
 }
+
+namespace {
 
 template <class T>
 const T* nearest(const std::vector<T>& sorted, double t, double tolerance) {
@@ -337,24 +337,24 @@ std::unique_ptr<Dataset> openTum(const fs::path& root, const DatasetOptions& o) 
       }
     }
   }
-  const auto depths = readStampedList(depth_list);
-  std::vector<Stamped> colors;
+  const auto depths = parseStampedList(readTextFile(depth_list), depth_list.string());
+  std::vector<StampedName> colors;
   const bool have_rgb = fs::exists(root / "rgb.txt", ec);
-  if (have_rgb) colors = readStampedList(root / "rgb.txt");
-  const auto poses = readTumTrajectory(traj);
+  if (have_rgb) colors = parseStampedList(readTextFile(root / "rgb.txt"), (root / "rgb.txt").string());
+  const auto poses = parseTumTrajectory(readTextFile(traj), traj.string());
   if (poses.empty()) throw DataError(traj.string() + ": no poses");
   std::vector<ImageFrame> frames;
   size_t dropped = 0;
-  for (const Stamped& d : depths) {
+  for (const StampedName& d : depths) {
     const StampedPose* pose = nearest(poses, d.t, o.max_time_difference_s);
-    const Stamped* color = have_rgb ? nearest(colors, d.t, o.max_time_difference_s) : nullptr;
+    const StampedName* color = have_rgb ? nearest(colors, d.t, o.max_time_difference_s) : nullptr;
     if (!pose || (have_rgb && !color)) {
       ++dropped;
       continue;
     }
     ImageFrame f;
-    f.depth = root / d.value;
-    if (color) f.color = root / color->value;
+    f.depth = root / d.name;
+    if (color) f.color = root / color->name;
     f.pose = pose->pose;
     f.timestamp_s = d.t;
     frames.push_back(f);
@@ -376,20 +376,32 @@ std::unique_ptr<Dataset> openClouds(const fs::path& path, const DatasetOptions& 
   if (o.pose) throw UsageError("--pose applies to a single cloud file, not to a list");
   std::vector<CloudDataset::Item> items;
   const std::string name = path.string();
-  for (const auto& [number, line] : contentLines(readTextFile(path))) {
+  for (auto& entry : parseCloudList(readTextFile(path), name)) {
+    fs::path cloud = entry.cloud;
+    if (cloud.is_relative()) cloud = path.parent_path() / cloud;
+    requireFile(cloud, "cloud listed at " + entry.source);
+    items.push_back({cloud, entry.pose});
+  }
+  if (items.empty()) throw DataError(name + ": the cloud list is empty");
+  return std::make_unique<CloudDataset>(std::move(items));
+}
+
+}  // namespace
+
+std::vector<CloudListEntry> parseCloudList(const std::string& text, const std::string& name) {
+  std::vector<CloudListEntry> out;
+  for (const auto& [number, line] : contentLines(text)) {
     const auto tok = splitWhitespace(line);
     const std::string ctx = name + ":" + std::to_string(number);
     if (tok.size() != 8) throw FormatError(ctx + ": expected 'cloud_file tx ty tz qx qy qz qw'");
     double v[7];
     for (int i = 0; i < 7; ++i) v[i] = parseDouble(tok[static_cast<size_t>(i + 1)], ctx);
-    fs::path cloud = tok[0];
-    if (cloud.is_relative()) cloud = path.parent_path() / cloud;
-    requireFile(cloud, "cloud listed at " + ctx);
-    items.push_back({cloud, poseFromTranslationQuaternion({v[0], v[1], v[2]}, v[3], v[4], v[5], v[6], ctx)});
+    out.push_back({tok[0], poseFromTranslationQuaternion({v[0], v[1], v[2]}, v[3], v[4], v[5], v[6], ctx), ctx});
   }
-  if (items.empty()) throw DataError(name + ": the cloud list is empty");
-  return std::make_unique<CloudDataset>(std::move(items));
+  return out;
 }
+
+namespace {
 
 DatasetFormat detect(const fs::path& path) {
   std::error_code ec;

@@ -153,9 +153,9 @@ const PcdField* findField(const PcdHeader& h, std::initializer_list<const char*>
 
 }  // namespace
 
-PointCloud readPcd(const std::filesystem::path& path) {
-  const std::string name = path.string();
-  const auto bytes = readFileBytes(path);
+PointCloud readPcd(const std::filesystem::path& path) { return parsePcd(readFileBytes(path), path.string()); }
+
+PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name) {
   const PcdHeader h = parseHeader(bytes, name);
   const PcdField* fx = findField(h, {"x"});
   const PcdField* fy = findField(h, {"y"});
@@ -197,20 +197,23 @@ PointCloud readPcd(const std::filesystem::path& path) {
       for (const auto& f : h.fields) {
         const std::string& v = tok[t];
         auto num = [&]() { return parseDouble(v, name + ": PCD point " + std::to_string(i)); };
-        if (&f == fx) cloud.points[i].x() = static_cast<float>(num());
-        if (&f == fy) cloud.points[i].y() = static_cast<float>(num());
-        if (&f == fz) cloud.points[i].z() = static_cast<float>(num());
+        const std::string ctx = name + ": PCD point " + std::to_string(i);
+        if (&f == fx) cloud.points[i].x() = toFloat(num());
+        if (&f == fy) cloud.points[i].y() = toFloat(num());
+        if (&f == fz) cloud.points[i].z() = toFloat(num());
         if (&f == frgb) {
           uint32_t packed;
           if (f.type == 'F') {
-            const float fv = static_cast<float>(num());
+            const float fv = toFloat(num());
             std::memcpy(&packed, &fv, 4);
           } else {
-            packed = static_cast<uint32_t>(num());
+            packed = static_cast<uint32_t>(checkedInteger(num(), 0.0, 4294967295.0, ctx + " rgb"));
           }
           cloud.colors[i] = unpackRgb(packed);
         }
-        if (&f == flabel) cloud.labels[i] = static_cast<uint32_t>(num());
+        if (&f == flabel) {
+          cloud.labels[i] = static_cast<uint32_t>(checkedInteger(num(), 0.0, 4294967295.0, ctx + " label"));
+        }
         t += static_cast<size_t>(f.count);
       }
       ++i;
@@ -251,11 +254,14 @@ PointCloud readPcd(const std::filesystem::path& path) {
     return base + i * h.point_bytes + f.offset;
   };
   for (size_t i = 0; i < n; ++i) {
-    cloud.points[i] = Eigen::Vector3f(static_cast<float>(readScalar(at(*fx, i), *fx)),
-                                      static_cast<float>(readScalar(at(*fy, i), *fy)),
-                                      static_cast<float>(readScalar(at(*fz, i), *fz)));
+    cloud.points[i] = Eigen::Vector3f(toFloat(readScalar(at(*fx, i), *fx)), toFloat(readScalar(at(*fy, i), *fy)),
+                                      toFloat(readScalar(at(*fz, i), *fz)));
     if (frgb) cloud.colors[i] = unpackRgb(readPacked(at(*frgb, i)));
-    if (flabel) cloud.labels[i] = static_cast<uint32_t>(readScalar(at(*flabel, i), *flabel));
+    if (flabel) {
+      const double label = readScalar(at(*flabel, i), *flabel);
+      cloud.labels[i] = static_cast<uint32_t>(
+          checkedInteger(label, 0.0, 4294967295.0, name + ": PCD point " + std::to_string(i) + " label"));
+    }
   }
   return cloud;
 }

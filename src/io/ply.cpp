@@ -81,14 +81,15 @@ struct PlyElement {
 
 uint8_t toColorByte(double v, PlyType t) {
   if (t == PlyType::Float32 || t == PlyType::Float64) v *= 255.0;
-  return static_cast<uint8_t>(std::clamp(std::lround(v), 0L, 255L));
+  if (!(v > 0.0)) return 0;  // also NaN
+  return static_cast<uint8_t>(std::lround(std::min(v, 255.0)));
 }
 
 }  // namespace
 
-PointCloud readPly(const std::filesystem::path& path) {
-  const std::string name = path.string();
-  const auto bytes = readFileBytes(path);
+PointCloud readPly(const std::filesystem::path& path) { return parsePly(readFileBytes(path), path.string()); }
+
+PointCloud parsePly(const std::vector<uint8_t>& bytes, const std::string& name) {
   size_t pos = 0;
   auto nextLine = [&]() -> std::string {
     size_t eol = pos;
@@ -191,9 +192,8 @@ PointCloud readPly(const std::filesystem::path& path) {
         const auto tok = splitWhitespace(line);
         if (tok.size() < el.props.size()) throw FormatError(name + ": PLY vertex " + std::to_string(i) + " is short");
         const std::string ctx = name + ": PLY vertex " + std::to_string(i);
-        cloud.points[i] = Eigen::Vector3f(static_cast<float>(parseDouble(tok[ix], ctx)),
-                                          static_cast<float>(parseDouble(tok[iy], ctx)),
-                                          static_cast<float>(parseDouble(tok[iz], ctx)));
+        cloud.points[i] = Eigen::Vector3f(toFloat(parseDouble(tok[ix], ctx)), toFloat(parseDouble(tok[iy], ctx)),
+                                          toFloat(parseDouble(tok[iz], ctx)));
         if (color) {
           cloud.colors[i] = Rgb{toColorByte(parseDouble(tok[ir], ctx), el.props[ir].type),
                                 toColorByte(parseDouble(tok[ig], ctx), el.props[ig].type),
@@ -207,8 +207,7 @@ PointCloud readPly(const std::filesystem::path& path) {
       for (size_t i = 0; i < n; ++i) {
         const uint8_t* rec = bytes.data() + pos + i * record;
         auto get = [&](int k) { return readBinary(rec + offsets[k], el.props[k].type, big); };
-        cloud.points[i] = Eigen::Vector3f(static_cast<float>(get(ix)), static_cast<float>(get(iy)),
-                                          static_cast<float>(get(iz)));
+        cloud.points[i] = Eigen::Vector3f(toFloat(get(ix)), toFloat(get(iy)), toFloat(get(iz)));
         if (color) {
           cloud.colors[i] = Rgb{toColorByte(get(ir), el.props[ir].type), toColorByte(get(ig), el.props[ig].type),
                                 toColorByte(get(ib), el.props[ib].type)};
@@ -240,9 +239,9 @@ void writePly(const std::filesystem::path& path, const PointCloud& cloud) {
   writeFileAtomic(path, out);
 }
 
-PointCloud readXyz(const std::filesystem::path& path) {
-  const std::string name = path.string();
-  const std::string text = readTextFile(path);
+PointCloud readXyz(const std::filesystem::path& path) { return parseXyz(readTextFile(path), path.string()); }
+
+PointCloud parseXyz(const std::string& text, const std::string& name) {
   PointCloud cloud;
   for (const auto& [number, line] : contentLines(text)) {
     const auto tok = splitWhitespace(line);
@@ -250,12 +249,13 @@ PointCloud readXyz(const std::filesystem::path& path) {
     if (tok.size() != 3 && tok.size() != 6) {
       throw FormatError(ctx + ": expected 'x y z' or 'x y z r g b', found " + std::to_string(tok.size()) + " values");
     }
-    cloud.points.emplace_back(static_cast<float>(parseDouble(tok[0], ctx)), static_cast<float>(parseDouble(tok[1], ctx)),
-                              static_cast<float>(parseDouble(tok[2], ctx)));
+    cloud.points.emplace_back(toFloat(parseDouble(tok[0], ctx)), toFloat(parseDouble(tok[1], ctx)),
+                              toFloat(parseDouble(tok[2], ctx)));
     if (tok.size() == 6) {
       if (cloud.colors.size() + 1 != cloud.points.size()) throw FormatError(ctx + ": some lines have colour, some not");
       auto byte = [&](const std::string& t) {
-        return static_cast<uint8_t>(std::clamp(std::lround(parseDouble(t, ctx)), 0L, 255L));
+        const double v = parseDouble(t, ctx);
+        return static_cast<uint8_t>(v > 0.0 ? std::lround(std::min(v, 255.0)) : 0);
       };
       cloud.colors.push_back(Rgb{byte(tok[3]), byte(tok[4]), byte(tok[5])});
     } else if (!cloud.colors.empty()) {

@@ -143,11 +143,14 @@ bool encode(uint32_t w, uint32_t h, bool sixteen, const uint8_t* data, std::vect
 
 }  // namespace
 
-ImageRgb readPngRgb(const std::filesystem::path& path) {
-  const auto file = readFileBytes(path);
+ImageRgb readPngRgb(const std::filesystem::path& path) { return decodePngRgb(readFileBytes(path), path.string()); }
+
+ImageU16 readPngU16(const std::filesystem::path& path) { return decodePngU16(readFileBytes(path), path.string()); }
+
+ImageRgb decodePngRgb(const std::vector<uint8_t>& file, const std::string& name) {
   Decoded d;
   std::string error;
-  if (!decode(file, false, d, error)) throw FormatError(path.string() + ": " + error);
+  if (!decode(file, false, d, error)) throw FormatError(name + ": " + error);
   ImageRgb img;
   img.width = d.width;
   img.height = d.height;
@@ -156,11 +159,10 @@ ImageRgb readPngRgb(const std::filesystem::path& path) {
   return img;
 }
 
-ImageU16 readPngU16(const std::filesystem::path& path) {
-  const auto file = readFileBytes(path);
+ImageU16 decodePngU16(const std::vector<uint8_t>& file, const std::string& name) {
   Decoded d;
   std::string error;
-  if (!decode(file, true, d, error)) throw FormatError(path.string() + ": " + error);
+  if (!decode(file, true, d, error)) throw FormatError(name + ": " + error);
   ImageU16 img;
   img.width = d.width;
   img.height = d.height;

@@ -1,7 +1,9 @@
 #include "text_util.h"
 
 #include <cerrno>
+#include <cmath>
 #include <cstdlib>
+#include <limits>
 
 #include "chronomap/core/error.h"
 
@@ -37,6 +39,20 @@ unsigned long long parseUnsigned(const std::string& token, const std::string& co
   const unsigned long long v = std::strtoull(token.c_str(), &end, 10);
   if (end != token.c_str() + token.size() || errno == ERANGE) {
     throw FormatError(context + ": '" + token + "' is not a whole number");
+  }
+  return v;
+}
+
+float toFloat(double v) {
+  constexpr double kMax = std::numeric_limits<float>::max();
+  if (v > kMax) return std::numeric_limits<float>::infinity();
+  if (v < -kMax) return -std::numeric_limits<float>::infinity();
+  return static_cast<float>(v);  // also NaN
+}
+
+double checkedInteger(double v, double lo, double hi, const std::string& context) {
+  if (!(v >= lo && v <= hi) || v != std::floor(v)) {
+    throw FormatError(context + ": value " + std::to_string(v) + " is not a whole number in range");
   }
   return v;
 }

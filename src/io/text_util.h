@@ -12,6 +12,12 @@ std::vector<std::string> splitWhitespace(const std::string& line);
 double parseDouble(const std::string& token, const std::string& context);
 /// Parses a whole token as an unsigned integer. @throw FormatError.
 unsigned long long parseUnsigned(const std::string& token, const std::string& context);
+/// A coordinate read from a file as float: finite values beyond float's range become infinite
+/// (and so count as invalid points) instead of an undefined conversion.
+float toFloat(double v);
+/// A whole number in [lo, hi] read as double. @throw FormatError "<context>: ... out of range".
+double checkedInteger(double v, double lo, double hi, const std::string& context);
+
 /// Lines of a text, without '#' comment lines and blank lines; keeps 1-based line numbers.
 std::vector<std::pair<size_t, std::string>> contentLines(const std::string& text);
 

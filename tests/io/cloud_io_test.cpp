@@ -112,6 +112,29 @@ TEST(Pcd, RejectsMalformedFilesNamingThem) {
   expectFormatError("", "DATA");
 }
 
+// Found by fuzz_pcd: an ASCII value beyond uint32 in a U field was converted without a check.
+TEST(Pcd, RejectsOutOfRangeIntegersAndSaturatesHugeCoordinates) {
+  test::TempDir tmp;
+  writeBytes(tmp / "u.pcd", "VERSION .7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nWIDTH 1\nPOINTS 1\nDATA ascii\n"
+                            "0 0 1 9991312712\n");
+  EXPECT_THROW(readPcd(tmp / "u.pcd"), FormatError);
+  writeBytes(tmp / "l.pcd", "VERSION .7\nFIELDS x y z label\nSIZE 4 4 4 4\nTYPE F F F I\nWIDTH 1\nPOINTS 1\nDATA ascii\n"
+                            "0 0 1 -3\n");
+  EXPECT_THROW(readPcd(tmp / "l.pcd"), FormatError);
+  // A double coordinate beyond float's range becomes infinite: an invalid point, not UB.
+  std::string bin = "VERSION .7\nFIELDS x y z\nSIZE 8 8 8\nTYPE F F F\nWIDTH 1\nPOINTS 1\nDATA binary\n";
+  for (double v : {1e300, 0.0, 1.0}) bin.append(reinterpret_cast<const char*>(&v), 8);
+  writeBytes(tmp / "b.pcd", bin);
+  const PointCloud c = readPcd(tmp / "b.pcd");
+  EXPECT_TRUE(std::isinf(c.points[0].x()));
+  writeBytes(tmp / "h.xyz", "1e300 0 0\n-1e300 0 0 300 -5 nan\n");
+  EXPECT_THROW(readXyz(tmp / "h.xyz"), FormatError);  // mixed colour / no colour
+  writeBytes(tmp / "h.xyz", "1e300 0 0 300 -5 nan\n");
+  const PointCloud x = readXyz(tmp / "h.xyz");
+  EXPECT_TRUE(std::isinf(x.points[0].x()));
+  EXPECT_EQ(x.colors[0], (Rgb{255, 0, 0}));
+}
+
 TEST(Ply, RoundTripsAndReadsAsciiAndBigEndian) {
   test::TempDir tmp;
   PointCloud c = test::cloudOf({{1, 2, 3}, {-4, 5.5f, 6}});

@@ -3,7 +3,10 @@
 /// Point cloud files: PCD (ascii, binary, binary_compressed), PLY (ascii and binary) and plain
 /// text "x y z [r g b]" (.xyz, .dat), each optionally bzip2-compressed (.bz2).
 
+#include <cstdint>
 #include <filesystem>
+#include <string>
+#include <vector>
 
 #include "chronomap/core/point_cloud.h"
 
@@ -27,6 +30,11 @@ void writePly(const std::filesystem::path& path, const PointCloud& cloud);
 
 /// Reads whitespace-separated "x y z" or "x y z r g b" lines ('#' starts a comment).
 PointCloud readXyz(const std::filesystem::path& path);
+
+/// The same readers on a file's bytes already in memory; `name` is used in messages.
+PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name);
+PointCloud parsePly(const std::vector<uint8_t>& bytes, const std::string& name);
+PointCloud parseXyz(const std::string& text, const std::string& name);
 
 /// Reads any supported cloud file by its extension (.pcd, .ply, .xyz, .dat, optionally .bz2).
 /// @throw UsageError for an unknown extension.

@@ -6,6 +6,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/io/png.h"
@@ -34,6 +35,36 @@ struct CameraIntrinsics {
 CameraIntrinsics parseIntrinsics(const std::string& text);
 /// Reads a 3x3 K matrix, or one line "fx fy cx cy". @throw FormatError naming the file.
 CameraIntrinsics readIntrinsicsFile(const std::filesystem::path& path);
+
+/// The text formats inside datasets, parsed from memory; `source` names the file in messages.
+/// Each throws FormatError (or DataError for impossible poses) naming source and line.
+CameraIntrinsics parseIntrinsicsText(const std::string& text, const std::string& source);
+/// A 4x4 row-major matrix (3DMatch pose files).
+Eigen::Matrix4d parseMatrix4(const std::string& text, const std::string& source);
+
+/// A line "timestamp name" of a TUM rgb.txt or depth.txt.
+struct StampedName {
+  double t;
+  std::string name;
+};
+/// TUM rgb.txt / depth.txt, sorted by time.
+std::vector<StampedName> parseStampedList(const std::string& text, const std::string& source);
+
+/// A line "timestamp tx ty tz qx qy qz qw" of a TUM trajectory.
+struct StampedPose {
+  double t;
+  Eigen::Isometry3d pose;
+};
+/// TUM groundtruth.txt / trajectory.txt, sorted by time.
+std::vector<StampedPose> parseTumTrajectory(const std::string& text, const std::string& source);
+
+/// A line "cloud tx ty tz qx qy qz qw" of a cloud list, the path as written.
+struct CloudListEntry {
+  std::filesystem::path cloud;
+  Eigen::Isometry3d pose;
+  std::string source;  ///< "file:line"
+};
+std::vector<CloudListEntry> parseCloudList(const std::string& text, const std::string& source);
 
 /// Options of openDataset; unset values take the format's defaults.
 struct DatasetOptions {

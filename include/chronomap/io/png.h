@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <string>
 #include <vector>
 
 #include "chronomap/core/counters.h"
@@ -31,6 +32,10 @@ ImageRgb readPngRgb(const std::filesystem::path& path);
 /// Reads a 16-bit greyscale PNG (a depth image) without any conversion.
 /// @throw FormatError when the PNG is not 16-bit single-channel.
 ImageU16 readPngU16(const std::filesystem::path& path);
+
+/// The same readers on a file's bytes already in memory; `name` is used in messages.
+ImageRgb decodePngRgb(const std::vector<uint8_t>& bytes, const std::string& name);
+ImageU16 decodePngU16(const std::vector<uint8_t>& bytes, const std::string& name);
 
 /// Writes an 8-bit RGB PNG atomically.
 void writePng(const std::filesystem::path& path, const ImageRgb& image);

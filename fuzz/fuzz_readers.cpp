@@ -1,0 +1,69 @@
+// libFuzzer targets for every reader. One source, one target per reader (FUZZ_TARGET picks it).
+// A reader may reject input only with a chronomap::Error; anything else (a crash, a sanitizer
+// report, another exception) is a bug.
+
+#include <cstddef>
+#include <nlohmann/json.hpp>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "chronomap/core/error.h"
+#include "chronomap/io/cloud_io.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/dataset.h"
+#include "chronomap/io/png.h"
+
+namespace {
+
+using namespace chronomap;
+
+void fuzzOne(const std::vector<uint8_t>& bytes) {
+  const std::string name = "fuzz-input";
+#if defined(FUZZ_CMAP)
+  const io::CmapFile file = io::decodeCmap(bytes, name);
+  if (file.header.kind == io::MapKind::Session) {
+    const SessionMap map = io::sessionMapFrom(file, name);
+    volatile size_t leaves = map.counts().leaves;
+    (void)leaves;
+    map.find(VoxelKey{32768, 32768, 32768});
+  }
+  io::metadataOf(file);
+#elif defined(FUZZ_PCD)
+  io::parsePcd(bytes, name);
+#elif defined(FUZZ_PLY)
+  io::parsePly(bytes, name);
+#elif defined(FUZZ_XYZ)
+  io::parseXyz(std::string(bytes.begin(), bytes.end()), name);
+#elif defined(FUZZ_PNG)
+  try {
+    io::decodePngRgb(bytes, name);
+  } catch (const Error&) {
+  }
+  io::decodePngU16(bytes, name);
+#elif defined(FUZZ_TEXT)
+  // The first byte picks the format, the rest is the text.
+  if (bytes.empty()) return;
+  const std::string text(bytes.begin() + 1, bytes.end());
+  switch (bytes[0] % 5) {
+    case 0: io::parseIntrinsicsText(text, name); break;
+    case 1: chronomap::io::parseMatrix4(text, name); break;
+    case 2: io::parseStampedList(text, name); break;
+    case 3: io::parseTumTrajectory(text, name); break;
+    default: io::parseCloudList(text, name); break;
+  }
+#else
+#error "define one FUZZ_* target"
+#endif
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  try {
+    fuzzOne(std::vector<uint8_t>(data, data + size));
+  } catch (const chronomap::Error&) {
+    // Rejected with a clear error: the expected outcome for bad input.
+  }
+  return 0;
+}

@@ -1,0 +1,65 @@
+// Writes small valid inputs for every fuzz target, made by chronomap's own writers, into
+// DIR/<target>/. Usage: make_seeds DIR
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
+
+#include "chronomap/io/cloud_io.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/png.h"
+
+using namespace chronomap;
+namespace fs = std::filesystem;
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: make_seeds DIR\n");
+    return 2;
+  }
+  const fs::path root = argv[1];
+  for (const char* t : {"cmap", "pcd", "ply", "xyz", "png", "text"}) fs::create_directories(root / t);
+  PointCloud cloud;
+  cloud.width = 4;
+  cloud.height = 3;
+  for (int i = 0; i < 12; ++i) {
+    cloud.points.emplace_back(0.1f * i, -0.05f * i, 1.0f + 0.01f * i);
+    cloud.colors.push_back(Rgb{static_cast<uint8_t>(20 * i), 7, 200});
+    cloud.labels.push_back(static_cast<uint32_t>(i / 4));
+  }
+  cloud.points[5] = Eigen::Vector3f::Constant(std::numeric_limits<float>::quiet_NaN());
+  io::writePcd(root / "pcd/ascii.pcd", cloud, io::PcdEncoding::Ascii);
+  io::writePcd(root / "pcd/binary.pcd", cloud, io::PcdEncoding::Binary);
+  io::writePcd(root / "pcd/compressed.pcd", cloud, io::PcdEncoding::BinaryCompressed);
+  io::writePly(root / "ply/cloud.ply", cloud);
+  std::ofstream(root / "ply/ascii.ply") << "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n"
+                                           "property float y\nproperty float z\nproperty uchar red\n"
+                                           "property uchar green\nproperty uchar blue\nend_header\n"
+                                           "1 2 3 4 5 6\n7 8 9 10 11 12\n";
+  std::ofstream(root / "xyz/scan.xyz") << "# x y z\n1 2 3\n4 5 6\n";
+  std::ofstream(root / "xyz/color.xyz") << "1 2 3 10 20 30\n";
+  io::writePng(root / "png/depth.png", io::ImageU16{4, 3, std::vector<uint16_t>(12, 5000)});
+  io::writePng(root / "png/color.png", io::ImageRgb{4, 3, std::vector<Rgb>(12, Rgb{1, 2, 3})});
+  std::ofstream(root / "text/intrinsics") << '\0' << "525 0 319.5\n0 525 239.5\n0 0 1\n";
+  std::ofstream(root / "text/matrix") << '\1' << "1 0 0 0.5\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
+  std::ofstream(root / "text/list") << '\2' << "# timestamp filename\n1.0 depth/1.png\n1.1 depth/2.png\n";
+  std::ofstream(root / "text/trajectory") << '\3' << "1.0 0 0 0 0 0 0 1\n1.1 0.1 0 0 0 0 0.7071068 0.7071068\n";
+  std::ofstream(root / "text/clouds") << '\4' << "a.pcd 0 0 0 0 0 0 1\n";
+  SessionMap map(0.1);
+  VoxelCounters free, hit;
+  free.length_m = 0.1f;
+  hit.length_m = 0.05f;
+  hit.hits = 2;
+  hit.red = 100;
+  for (uint16_t x = 0; x < 4; ++x) map.add({static_cast<uint16_t>(32768 + x), 32768, 32768}, free);
+  map.add({32772, 32768, 32768}, hit);
+  for (uint16_t i = 0; i < 8; ++i) {
+    map.add({static_cast<uint16_t>(32776 + (i & 1)), static_cast<uint16_t>(32768 + ((i >> 1) & 1)),
+             static_cast<uint16_t>(32768 + (i >> 2))},
+            free);
+  }
+  map.compressFree();
+  io::writeSessionMap(root / "cmap/session.cmap", map, {{"seed", true}});
+  return 0;
+}

@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets (clang, ASan + UBSan) and runs each for SECONDS (default 60).
+# Seeds: small files made by chronomap's own writers, plus small real files from the data folder.
+# A crash leaves its input as build/fuzz/artifacts/<target>/crash-*; turn it into a regression
+# test under tests/io before fixing it. Usage: scripts/fuzz.sh [SECONDS]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+seconds="${1:-60}"
+scripts/install-deps.sh
+if ! command -v clang++ >/dev/null || [ ! -d /usr/lib/llvm-14/lib/clang ]; then
+  sudo_cmd=()
+  [ "$(id -u)" -eq 0 ] || sudo_cmd=(sudo)
+  "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends clang libclang-rt-dev >/dev/null
+fi
+cmake --preset fuzz >/dev/null
+cmake --build --preset fuzz -j"$(nproc)"
+bin=build/fuzz/fuzz
+data="${CHRONOMAP_DATA_DIR:-../shared/data}"
+seeds=build/fuzz/seeds
+rm -rf "$seeds"
+"$bin/fuzz_make_seeds" "$seeds"
+copy_seed() { [ -f "$1" ] && cp "$1" "$seeds/$2/" || true; }
+copy_seed "$data/rgbd-formats/TUM_depth.png" png
+copy_seed "$data/3dmatch/3dmatch/seq-01/frame-000000.depth.png" png
+copy_seed "$data/pcl-kinect/grabber_sequences/pcd/frame_20121214T142255.814212.pcd" pcd
+summary=build/fuzz/summary.txt
+: >"$summary"
+status=0
+for target in cmap pcd ply xyz png text; do
+  corpus="build/fuzz/corpus/$target"
+  artifacts="build/fuzz/artifacts/$target"
+  mkdir -p "$corpus" "$artifacts"
+  log="build/fuzz/$target.log"
+  if "$bin/fuzz_$target" "$corpus" "$seeds/$target" -max_total_time="$seconds" -max_len=65536 -rss_limit_mb=2048 \
+       -artifact_prefix="$artifacts/" -print_final_stats=1 >"$log" 2>&1; then
+    result=ok
+  else
+    result=CRASH
+    status=1
+  fi
+  runs=$(grep -m1 -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' || echo 0)
+  printf '%-5s %-6s %10s executions in %ss\n' "$target" "$result" "$runs" "$seconds" | tee -a "$summary"
+  [ "$result" = ok ] || tail -30 "$log"
+done
+exit $status
