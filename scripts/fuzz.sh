@@ -42,4 +42,5 @@ for target in cmap pcd ply xyz png text; do
   printf '%-5s %-6s %10s executions in %ss\n' "$target" "$result" "$runs" "$seconds" | tee -a "$summary"
   [ "$result" = ok ] || tail -30 "$log"
 done
+echo "fuzz: $(grep -c ' ok ' "$summary") passed, $(grep -c ' CRASH ' "$summary") failed"
 exit $status

@@ -119,6 +119,11 @@ struct ImageFrame {
   double timestamp_s = 0.0;
 };
 
+/// Median depths outside this range (metres) mean the depth scale is wrong, typically by a
+/// factor of 1000 (millimetres read as metres or the reverse).
+constexpr double kPlausibleMedianDepthMin_m = 0.02;
+constexpr double kPlausibleMedianDepthMax_m = 50.0;
+
 class ImageDataset : public Dataset {
  public:
   ImageDataset(DatasetFormat format, std::vector<ImageFrame> frames, CameraIntrinsics k, double scale, size_t dropped)
@@ -126,9 +131,31 @@ class ImageDataset : public Dataset {
   size_t size() const override { return frames_.size(); }
   DatasetFormat format() const override { return format_; }
   size_t framesDropped() const override { return dropped_; }
+
+  /// @throw DataError when the frame's median depth at this scale is not plausible.
+  void checkDepthScale(const ImageU16& depth, const std::string& source) const {
+    // About 4,000 samples are enough for a median.
+    const size_t step = std::max<size_t>(1, depth.pixels.size() / 4096);
+    std::vector<uint16_t> valid;
+    valid.reserve(depth.pixels.size() / step + 1);
+    for (size_t i = 0; i < depth.pixels.size(); i += step) {
+      if (depth.pixels[i] != 0) valid.push_back(depth.pixels[i]);
+    }
+    if (valid.empty()) return;
+    std::nth_element(valid.begin(), valid.begin() + static_cast<long>(valid.size() / 2), valid.end());
+    const double median_m = valid[valid.size() / 2] / scale_;
+    if (median_m < kPlausibleMedianDepthMin_m || median_m > kPlausibleMedianDepthMax_m) {
+      std::ostringstream msg;
+      msg << source << ": median depth is " << median_m << " m at a depth scale of " << scale_
+          << " units per metre; the scale looks wrong (set it with --depth-scale)";
+      throw DataError(msg.str());
+    }
+  }
+
   Frame load(size_t i) const override {
     const ImageFrame& f = frames_.at(i);
     const ImageU16 depth = readPngU16(f.depth);
+    checkDepthScale(depth, f.depth.string());
     std::optional<ImageRgb> rgb;
     if (f.color) rgb = readPngRgb(*f.color);
     Frame frame;

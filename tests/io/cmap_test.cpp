@@ -1,6 +1,10 @@
 #include <gtest/gtest.h>
 
+#include <sys/resource.h>
+#include <sys/wait.h>
 #include <unistd.h>
+
+#include <csignal>
 
 #include <cstring>
 #include <fstream>
@@ -151,6 +155,36 @@ TEST(Cmap, FailedWriteLeavesTheOldFileIntact) {
   size_t files = 0;
   for (auto& e : std::filesystem::directory_iterator(tmp.path())) files += e.is_regular_file();
   EXPECT_EQ(files, 1u);  // no temporary file left behind
+}
+
+TEST(Cmap, FullDiskLeavesTheOldFileIntact) {
+  test::TempDir tmp;
+  writeSessionMap(tmp / "m.cmap", SessionMap(0.1), nullptr);
+  const auto before = readFileBytes(tmp / "m.cmap");
+  // A child process with a 4 KiB file-size limit stands in for a full disk.
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    std::signal(SIGXFSZ, SIG_IGN);  // get EFBIG from write() instead of a signal
+    rlimit limit{4096, 4096};
+    ::setrlimit(RLIMIT_FSIZE, &limit);
+    try {
+      writeSessionMap(tmp / "m.cmap", sampleMap(), nullptr);
+    } catch (const IoError&) {
+      ::_exit(42);
+    } catch (...) {
+      ::_exit(2);
+    }
+    ::_exit(0);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 42) << "the write should fail with an IoError";
+  EXPECT_EQ(readFileBytes(tmp / "m.cmap"), before);
+  size_t files = 0;
+  for (auto& e : std::filesystem::directory_iterator(tmp.path())) files += e.is_regular_file();
+  EXPECT_EQ(files, 1u);  // the temporary file was removed
 }
 
 }  // namespace

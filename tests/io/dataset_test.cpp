@@ -141,6 +141,25 @@ TEST(Dataset, TumFramesWithMismatchedImagesFailOnLoad) {
   EXPECT_THROW(ds->load(0), FormatError);
 }
 
+TEST(Dataset, RejectsDepthScalesOffByAThousand) {
+  test::TempDir tmp;
+  makeTum(tmp.path(), 1);  // 5000 units = 1 m at the TUM scale
+  for (double wrong : {5.0, 5e6}) {
+    DatasetOptions o;
+    o.depth_scale = wrong;
+    auto ds = openDataset(tmp.path(), o);
+    try {
+      ds->load(0);
+      FAIL() << "scale " << wrong << " accepted";
+    } catch (const DataError& e) {
+      EXPECT_NE(std::string(e.what()).find("the scale looks wrong"), std::string::npos) << e.what();
+    }
+  }
+  DatasetOptions fine;
+  fine.depth_scale = 1000.0;  // 5 m: plausible
+  EXPECT_NO_THROW(openDataset(tmp.path(), fine)->load(0));
+}
+
 TEST(Dataset, RejectsBad3DMatchPoses) {
   CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
   test::TempDir tmp;
