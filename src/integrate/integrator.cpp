@@ -256,6 +256,20 @@ struct RayAccumulator::Impl {
   static void bundleTarget(const EndEntry& e, double target[3]) {
     for (int a = 0; a < 3; ++a) target[a] = static_cast<double>(e.cell[a]) + 0.5;
   }
+  /// The working-frame voxel of a point (coordinates are positive, so truncation is floor).
+  static void cellOf(const RelPoint& p, int64_t cell[3]) {
+    for (int a = 0; a < 3; ++a) cell[a] = static_cast<int64_t>(p.u[a]);
+  }
+  /// Casts one weighted ray per bundle into the bounding-box store's lengths.
+  void castBundles(const double o[3]) {
+    DenseStore& d = dense;
+    const int64_t sy = d.n[0], sz = d.n[0] * d.n[1];
+    for (size_t e = 1; e < ends.size(); ++e) {
+      double target[3];
+      bundleTarget(ends[e], target);
+      castDense(o, target, static_cast<float>(ends[e].hits), d.length.data(), d.lo, sy, sz);
+    }
+  }
 
   /// Casts every point (exact) or bundle (fast) into the bounding-box store; `o` is the sensor
   /// origin in working coordinates, like the points.
@@ -269,8 +283,8 @@ struct RayAccumulator::Impl {
         const size_t last = castDense(o, end, 1.0f, length, d.lo, sy, sz);
         uint32_t& e = d.end[last];
         if (e == 0) {
-          const int64_t cell[3] = {static_cast<int64_t>(p.u[0]), static_cast<int64_t>(p.u[1]),
-                                   static_cast<int64_t>(p.u[2])};
+          int64_t cell[3];
+          cellOf(p, cell);
           e = newEnd(cell);
         }
         addEnd(ends[e], p.color);
@@ -278,17 +292,13 @@ struct RayAccumulator::Impl {
       return;
     }
     for (const RelPoint& p : points) {
-      const int64_t cell[3] = {static_cast<int64_t>(p.u[0]), static_cast<int64_t>(p.u[1]),
-                               static_cast<int64_t>(p.u[2])};
+      int64_t cell[3];
+      cellOf(p, cell);
       uint32_t& e = d.end[d.cell(cell[0], cell[1], cell[2])];
       if (e == 0) e = newEnd(cell);
       addEnd(ends[e], p.color);
     }
-    for (size_t e = 1; e < ends.size(); ++e) {
-      double target[3];
-      bundleTarget(ends[e], target);
-      castDense(o, target, static_cast<float>(ends[e].hits), length, d.lo, sy, sz);
-    }
+    castBundles(o);
   }
 
   /// The same for the hash store, with absolute key-space coordinates (`oc` = key of the
@@ -303,8 +313,8 @@ struct RayAccumulator::Impl {
       for (const RelPoint& p : points) {
         const double end[3] = {p.u[0], p.u[1], p.u[2]};
         castOne(end, 1.0f);
-        const int64_t cell[3] = {static_cast<int64_t>(p.u[0]), static_cast<int64_t>(p.u[1]),
-                                 static_cast<int64_t>(p.u[2])};
+        int64_t cell[3];
+        cellOf(p, cell);
         HashStore::Slot& s = hash.slot(cell[0] + oc[0], cell[1] + oc[1], cell[2] + oc[2]);
         if (s.end == 0) s.end = newEnd(cell);
         addEnd(ends[s.end], p.color);
@@ -312,8 +322,8 @@ struct RayAccumulator::Impl {
       return;
     }
     for (const RelPoint& p : points) {
-      const int64_t cell[3] = {static_cast<int64_t>(p.u[0]), static_cast<int64_t>(p.u[1]),
-                               static_cast<int64_t>(p.u[2])};
+      int64_t cell[3];
+      cellOf(p, cell);
       HashStore::Slot& s = hash.slot(cell[0] + oc[0], cell[1] + oc[1], cell[2] + oc[2]);
       if (s.end == 0) s.end = newEnd(cell);
       addEnd(ends[s.end], p.color);
@@ -441,13 +451,8 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
     DenseStore& d = s.dense;
     const int64_t lo64[3] = {lo[0], lo[1], lo[2]}, hi64[3] = {hi[0], hi[1], hi[2]};
     d.reset(lo64, hi64, /*with_end=*/false);
-    const int64_t dy = d.n[0], dz = d.n[0] * d.n[1];
-    float* length = d.length.data();
-    for (size_t e = 1; e < s.ends.size(); ++e) {
-      double target[3];
-      Impl::bundleTarget(s.ends[e], target);
-      castDense(o, target, static_cast<float>(s.ends[e].hits), length, d.lo, dy, dz);
-    }
+    s.castBundles(o);
+    const float* length = d.length.data();
     // Emit in raster order (consecutive keys share most of their path in the tree), zeroing the
     // cube cells read so the cube is clean for the next frame.
     out.keys.reserve(s.ends.size() * 8);

@@ -59,18 +59,7 @@ uint32_t SessionMap::descend(uint32_t parent, int slot) {
 }
 
 void SessionMap::add(const VoxelKey& key, const VoxelCounters& delta) {
-  uint32_t node = 0;
-  for (int child_level = kTreeDepth - 1; child_level > 0; --child_level) {
-    node = descend(node, childSlot(key, child_level));
-  }
-  const int slot = childSlot(key, 0);
-  const Ref r = inner_[node][slot];
-  if (r == kEmpty) {
-    const Ref leaf = newLeaf(delta);
-    inner_[node][slot] = leaf;
-  } else {
-    leaves_[index(r)] += delta;
-  }
+  addMany(std::span<const VoxelKey>(&key, 1), std::span<const VoxelCounters>(&delta, 1));
 }
 
 void SessionMap::addMany(std::span<const VoxelKey> keys, std::span<const VoxelCounters> deltas) {
