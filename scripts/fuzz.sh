@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets (clang, ASan + UBSan) and runs each for SECONDS (default 60).
 # Seeds: small files made by chronomap's own writers, plus small real files from the data folder.
-# A crash leaves its input as build/fuzz/artifacts/<target>/crash-*; turn it into a regression
+# A crash, or an input that takes more than 10 s (a hang), leaves its input as build/fuzz/artifacts/<target>/crash-*; turn it into a regression
 # test under tests/io before fixing it. Usage: scripts/fuzz.sh [SECONDS]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -31,7 +31,7 @@ for target in cmap pcd ply xyz png text; do
   artifacts="build/fuzz/artifacts/$target"
   mkdir -p "$corpus" "$artifacts"
   log="build/fuzz/$target.log"
-  if "$bin/fuzz_$target" "$corpus" "$seeds/$target" -max_total_time="$seconds" -max_len=65536 -rss_limit_mb=2048 \
+  if "$bin/fuzz_$target" "$corpus" "$seeds/$target" -max_total_time="$seconds" -max_len=65536 -rss_limit_mb=2048 -timeout=10 \
        -artifact_prefix="$artifacts/" -print_final_stats=1 >"$log" 2>&1; then
     result=ok
   else

@@ -165,10 +165,16 @@ PointCloud parsePly(const std::vector<uint8_t>& bytes, const std::string& name) 
     if (!is_vertex) {
       if (ascii) {
         std::string skip;
-        for (uint64_t i = 0; i < el.count; ++i) std::getline(lines, skip);
+        for (uint64_t i = 0; i < el.count; ++i) {
+          // Stop at the end of the text: a huge declared count must not spin (found by fuzz_ply).
+          if (!std::getline(lines, skip)) throw FormatError(name + ": PLY element '" + el.name + "' is truncated");
+        }
       } else {
-        if (el.count * record > bytes.size() - pos) throw FormatError(name + ": PLY data is truncated");
-        pos += el.count * record;
+        // Division, not multiplication: a huge count must not overflow the check.
+        if (record != 0 && el.count > (bytes.size() - pos) / record) {
+          throw FormatError(name + ": PLY element '" + el.name + "' is truncated");
+        }
+        pos += static_cast<size_t>(el.count) * record;
       }
       continue;
     }

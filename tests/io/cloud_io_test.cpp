@@ -177,6 +177,14 @@ TEST(Ply, RejectsMalformedFiles) {
   EXPECT_THROW(readPly(tmp / "f.ply"), FormatError);
   writeBytes(tmp / "n.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n1 2\n");
   EXPECT_THROW(readPly(tmp / "n.ply"), FormatError);
+  // Found by fuzz_ply: a huge element count before the vertices made the reader spin forever
+  // (ASCII) or overflow its size check (binary).
+  const std::string huge = "element face 18446744073709551615\nproperty uchar a\nelement vertex 1\n"
+                           "property float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n";
+  writeBytes(tmp / "ha.ply", "ply\nformat ascii 1.0\n" + huge);
+  EXPECT_THROW(readPly(tmp / "ha.ply"), FormatError);
+  writeBytes(tmp / "hb.ply", "ply\nformat binary_little_endian 1.0\n" + huge);
+  EXPECT_THROW(readPly(tmp / "hb.ply"), FormatError);
 }
 
 TEST(Xyz, ReadsPlainAndBzip2Text) {
