@@ -1,0 +1,274 @@
+#pragma once
+/// @file
+/// The 4D map: a temporal octree that keeps every observed state of a place (thesis §2.3).
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "chronomap/core/counters.h"
+#include "chronomap/core/key.h"
+#include "chronomap/octree/session_map.h"
+#include "chronomap/temporal/coverage.h"
+
+namespace chronomap {
+
+/// When a new observation of a voxel counts as a change from the state valid before it.
+/// The occupied/free state always counts; the two thresholds add finer criteria.
+struct ChangeCriterion {
+  /// > 0: also a change when the occupancy probabilities differ by more than this (0..1).
+  double probability_threshold = 0.0;
+  /// > 0: also a change when both voxels hold hits and their mean colours lie farther apart
+  /// than this (Euclidean distance in 8-bit RGB units, 0..441).
+  double color_distance = 0.0;
+
+  /// True when `after` is a change from `before` (both known).
+  bool differs(const VoxelCounters& before, const VoxelCounters& after) const;
+  /// @throw UsageError for negative or non-finite thresholds.
+  void validate() const;
+};
+
+/// One entry of a voxel's history: from `time_s` until the next entry, the voxel read as
+/// `counters` (for a voxel inside a larger uniform cube: the cube's sums split evenly).
+struct HistoryEntry {
+  double time_s = 0.0;
+  VoxelCounters counters;
+  /// Level of the cube the entry is stored for (0 = the voxel itself).
+  int level = 0;
+};
+
+/// What the 4D map knows about one added session.
+struct SessionRecord {
+  double time_s = 0.0;
+  std::string name;             ///< where it came from (a file name), for people
+  uint64_t nodes_separate = 0;  ///< nodes of the session map stored on its own (inner + leaves)
+  int64_t nodes_added = 0;      ///< change in the 4D map's node count when it was added
+  Coverage coverage;            ///< the voxels it observed
+};
+
+/// Options of TemporalMap::add.
+struct AddOptions {
+  /// Replace a session already stored at the same time instead of refusing.
+  bool replace = false;
+  /// Name recorded with the session.
+  std::string name;
+};
+
+/// What one TemporalMap::add did.
+struct AddReport {
+  size_t entries_added = 0;    ///< history entries created (changes and restored states)
+  size_t entries_removed = 0;  ///< entries that became redundant and were dropped
+  size_t inner_added = 0;      ///< inner nodes created (new space or refined uniform cubes)
+  bool replaced = false;       ///< a session at the same time was replaced
+  bool out_of_order = false;   ///< later sessions were already stored
+};
+
+/// Node counts of a 4D map. Like the thesis' Figure 3, a "node" is an inner node or one
+/// entry of a child slot's time-keyed map.
+struct TemporalCounts {
+  size_t inner_nodes = 0;
+  size_t slots = 0;    ///< child slots that hold a time-keyed map
+  size_t entries = 0;  ///< entries in those maps
+  size_t nodes() const { return inner_nodes + entries; }
+};
+
+/// A temporal octree. Inner nodes hold 8 child references and never go away; a reference is
+/// either another inner node or a time-keyed map ("slot list") whose entries give the counters
+/// of the child's whole cube from a session on, until the next entry. Lists above unit level
+/// describe uniform known-free cubes; when a change reaches inside one, it is refined into 8
+/// lists that copy its whole history, so every query stays exact.
+///
+/// Entries are created only where a session observed a cube and its state changed under the
+/// ChangeCriterion; unobserved space adds nothing. Sessions may be added in any time order:
+/// the per-session Coverage tells which later session observed a voxel next, so the state seen
+/// at every time is that of the most recent observation, exactly as if added in time order.
+class TemporalMap {
+ public:
+  /// One stored entry: the session (rank in time order) and the counters from then on.
+  struct Entry {
+    uint32_t session = 0;
+    VoxelCounters value;
+    friend bool operator==(const Entry&, const Entry&) = default;
+  };
+  using Ref = uint32_t;
+  static constexpr Ref kEmpty = 0xffffffffu;
+  static constexpr Ref kListBit = 0x80000000u;
+  using Children = std::array<Ref, 8>;
+
+  /// @throw UsageError for a bad resolution or criterion.
+  explicit TemporalMap(double resolution_m = 0.05, ChangeCriterion criterion = {});
+
+  const KeyGrid& grid() const { return grid_; }
+  double resolution_m() const { return grid_.resolution_m(); }
+  const ChangeCriterion& criterion() const { return criterion_; }
+
+  /// Adds a session observed at `time_s` (seconds since the epoch).
+  /// @throw UsageError for a non-finite time, a different resolution, or a time already
+  /// stored when options.replace is false.
+  AddReport add(double time_s, const SessionMap& session, const AddOptions& options = {});
+  /// Removes the session stored at `time_s`, as if it had never been added.
+  /// @throw UsageError when no session has that time.
+  void remove(double time_s);
+
+  /// Session times in increasing order.
+  std::vector<double> times() const;
+  /// Sessions in time order.
+  const std::vector<SessionRecord>& sessions() const { return sessions_; }
+  size_t sessionCount() const { return sessions_.size(); }
+
+  /// The map as most recently observed at `time_s`: every voxel observed by a session at or
+  /// before `time_s` carries the entry valid then. Empty before the first session.
+  SessionMap snapshot(double time_s) const;
+  /// The entries of the voxel `key` in time order (empty when it was never observed).
+  std::vector<HistoryEntry> history(const VoxelKey& key) const;
+  /// Entries valid in the voxel `key` at `time_s`, if any.
+  std::optional<VoxelCounters> valueAt(const VoxelKey& key, double time_s) const;
+
+  /// Calls fn(const VoxelKey& corner, int level, uint32_t changes) for every cube whose history
+  /// holds at least one change with a time in (t0_s, t1_s]. A change is any entry after the
+  /// cube's first (its first observation is not a change).
+  template <class Fn>
+  void forEachChangeCount(double t0_s, double t1_s, Fn&& fn) const;
+
+  /// Calls fn(const VoxelKey& corner, int level, std::span<const Entry>) for every slot list.
+  template <class Fn>
+  void forEachList(Fn&& fn) const;
+
+  TemporalCounts counts() const;
+  /// Bytes of node storage in use (pools, free blocks included; coverage included).
+  size_t memoryBytes() const;
+
+  /// Merges 8 sibling lists with the same sessions and no hits into one (states stay exact;
+  /// lengths are summed, as in §2.1's compression) and re-lays the pools out depth first.
+  /// @return the number of lists removed.
+  size_t compact();
+
+  /// A depth-first, gap-free copy of the pools for serialisation.
+  struct Parts {
+    std::vector<Children> inner;
+    std::vector<uint32_t> list_sizes;  ///< in list-index order
+    std::vector<Entry> entries;        ///< all lists' entries, one list after another
+  };
+  Parts parts() const;
+  /// Rebuilds a map from parts and session records.
+  /// @throw FormatError if they do not form a valid map.
+  static TemporalMap fromParts(double resolution_m, ChangeCriterion criterion, Parts parts,
+                               std::vector<SessionRecord> sessions);
+
+  /// Same resolution, criterion, sessions and histories (layout may differ).
+  friend bool operator==(const TemporalMap& a, const TemporalMap& b);
+
+ private:
+  struct List {
+    Entry first;             // the only entry while size == 1
+    uint32_t block = 0;      // arena offset of the entries while size >= 2
+    uint16_t size = 0;
+    uint8_t capacity_log2 = 0;
+    uint8_t unused = 0;
+  };
+  static bool isList(Ref r) { return r != kEmpty && (r & kListBit) != 0; }
+  static bool isInner(Ref r) { return r != kEmpty && (r & kListBit) == 0; }
+  static uint32_t index(Ref r) { return r & ~kListBit; }
+  static int childSlot(const VoxelKey& key, int child_level) {
+    return ((key.x >> child_level) & 1) | (((key.y >> child_level) & 1) << 1) | (((key.z >> child_level) & 1) << 2);
+  }
+  static VoxelKey childCorner(const VoxelKey& base, int slot, int child_level);
+
+  const Entry* entriesOf(const List& l) const { return l.size == 1 ? &l.first : arena_.data() + l.block; }
+  Entry* entriesOf(List& l) { return l.size == 1 ? &l.first : arena_.data() + l.block; }
+  uint32_t newInner();
+  uint32_t newList(const Entry& e);
+  void freeList(uint32_t list);
+  uint32_t allocBlock(int capacity_log2);
+  void freeBlock(uint32_t block, int capacity_log2);
+  void insertEntry(uint32_t list, size_t pos, const Entry& e);
+  void eraseEntry(uint32_t list, size_t pos);
+  /// Index of the first entry whose session is >= `session` (the insertion position).
+  size_t lowerBound(const List& l, uint32_t session) const;
+  /// Replaces the list in `slot` of `node` (a cube at `level`) by an inner node with 8 lists
+  /// that copy its history, counters split evenly. Returns the new inner node.
+  uint32_t refine(uint32_t node, int slot, int level);
+  /// The first session after `rank` whose coverage meets the cube, and how.
+  std::optional<std::pair<uint32_t, Coverage::Overlap>> nextObserver(uint32_t rank, const VoxelKey& corner,
+                                                                     int level) const;
+  /// Applies the observation `value` of the cube (`corner`, `target_level`) by session `rank`,
+  /// descending from inner node `node` at `level`.
+  void apply(uint32_t node, int level, const VoxelKey& corner, int target_level, const VoxelCounters& value,
+             uint32_t rank, AddReport& report);
+  /// Records the observation in the list in `slot` of `node` (cube at `level`).
+  void applyToList(uint32_t node, int slot, int level, const VoxelKey& corner, const VoxelCounters& value,
+                   uint32_t rank, AddReport& report);
+  /// Removes session `rank`'s entries below inner node `node`.
+  void removeBelow(uint32_t node, int level, const VoxelKey& base, uint32_t rank);
+  void removeFromList(uint32_t node, int slot, int level, const VoxelKey& corner, uint32_t rank);
+  /// Adds `delta` to every entry's session number that is >= `from`.
+  void shiftSessions(uint32_t from, int delta);
+  /// Last session rank with a time <= t, or nothing.
+  std::optional<uint32_t> rankAtOrBefore(double time_s) const;
+  bool compactBelow(Ref& r, int level);
+
+  KeyGrid grid_;
+  ChangeCriterion criterion_;
+  std::vector<SessionRecord> sessions_;  // in time order; entries refer to these ranks
+  std::vector<Children> inner_;          // inner_[0] is the root
+  std::vector<List> lists_;
+  std::vector<Entry> arena_;
+  std::vector<uint32_t> free_lists_;
+  std::array<std::vector<uint32_t>, 17> free_blocks_;
+  size_t live_lists_ = 0;
+  size_t live_entries_ = 0;
+};
+
+template <class Fn>
+void TemporalMap::forEachList(Fn&& fn) const {
+  struct Item {
+    uint32_t node;
+    int child_level;
+    VoxelKey base;
+    int next;
+  };
+  std::array<Item, kTreeDepth + 1> stack;
+  int top = 0;
+  stack[0] = Item{0, kTreeDepth - 1, VoxelKey{}, 0};
+  while (top >= 0) {
+    Item& it = stack[top];
+    if (it.next == 8) {
+      --top;
+      continue;
+    }
+    const int slot = it.next++;
+    const Ref r = inner_[it.node][slot];
+    if (r == kEmpty) continue;
+    const VoxelKey k = childCorner(it.base, slot, it.child_level);
+    if (isList(r)) {
+      const List& l = lists_[index(r)];
+      fn(k, it.child_level, std::span<const Entry>(entriesOf(l), l.size));
+    } else {
+      stack[top + 1] = Item{r, it.child_level - 1, k, 0};
+      ++top;
+    }
+  }
+}
+
+template <class Fn>
+void TemporalMap::forEachChangeCount(double t0_s, double t1_s, Fn&& fn) const {
+  // Ranks whose time lies in (t0, t1].
+  uint32_t first = 0;
+  while (first < sessions_.size() && sessions_[first].time_s <= t0_s) ++first;
+  uint32_t end = first;
+  while (end < sessions_.size() && sessions_[end].time_s <= t1_s) ++end;
+  if (first == end) return;
+  forEachList([&](const VoxelKey& k, int level, std::span<const Entry> entries) {
+    uint32_t n = 0;
+    for (size_t i = 1; i < entries.size(); ++i) {
+      if (entries[i].session >= first && entries[i].session < end) ++n;
+    }
+    if (n > 0) fn(k, level, n);
+  });
+}
+
+}  // namespace chronomap

@@ -1,0 +1,176 @@
+#include "chronomap/io/temporal_file.h"
+
+#include <cstring>
+#include <nlohmann/json.hpp>
+
+#include "chronomap/core/error.h"
+#include "chronomap/io/file.h"
+
+namespace chronomap::io {
+
+static_assert(sizeof(TemporalMap::Entry) == 24, "history entries are stored as 24 bytes");
+static_assert(sizeof(TemporalMap::Children) == 32, "inner nodes are stored as 32 bytes");
+
+namespace {
+
+void putVarint(std::vector<uint8_t>& out, uint64_t v) {
+  while (v >= 0x80) {
+    out.push_back(static_cast<uint8_t>(v | 0x80));
+    v >>= 7;
+  }
+  out.push_back(static_cast<uint8_t>(v));
+}
+
+uint64_t getVarint(const std::vector<uint8_t>& in, size_t& pos, const std::string& source) {
+  uint64_t v = 0;
+  for (int shift = 0; shift < 64; shift += 7) {
+    if (pos >= in.size()) throw FormatError(source + ": coverage block ends inside a number");
+    const uint8_t b = in[pos++];
+    v |= static_cast<uint64_t>(b & 0x7f) << shift;
+    if ((b & 0x80) == 0) return v;
+  }
+  throw FormatError(source + ": coverage block holds an over-long number");
+}
+
+template <class T>
+std::vector<uint8_t> bytesOf(const std::vector<T>& v) {
+  std::vector<uint8_t> out(v.size() * sizeof(T));
+  if (!out.empty()) std::memcpy(out.data(), v.data(), out.size());
+  return out;
+}
+
+template <class T>
+std::vector<T> vectorOf(const CmapBlock& b, const std::string& source) {
+  if (b.data.size() % sizeof(T) != 0) throw FormatError(source + ": block " + b.tag + " has an impossible size");
+  std::vector<T> v(b.data.size() / sizeof(T));
+  if (!v.empty()) std::memcpy(v.data(), b.data.data(), b.data.size());
+  return v;
+}
+
+}  // namespace
+
+void writeTemporalMap(const std::filesystem::path& path, const TemporalMap& map, const nlohmann::json& meta) {
+  TemporalMap compacted = map;
+  compacted.compact();
+  const TemporalMap::Parts parts = compacted.parts();
+
+  CmapHeader header;
+  header.kind = MapKind::Temporal;
+  header.resolution_m = map.resolution_m();
+  bool any = false;
+  Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();
+  compacted.forEachList([&](const VoxelKey& k, int level, std::span<const TemporalMap::Entry>) {
+    const Eigen::Vector3d a = map.grid().cornerOf(k);
+    const Eigen::Vector3d b = a + Eigen::Vector3d::Constant(map.resolution_m() * (1 << level));
+    lo = any ? lo.cwiseMin(a) : a;
+    hi = any ? hi.cwiseMax(b) : b;
+    any = true;
+  });
+  header.bounds_min_m = lo;
+  header.bounds_max_m = hi;
+
+  nlohmann::json j = nlohmann::json::object();
+  j["user"] = meta.is_object() ? meta : nlohmann::json::object();
+  j["criterion"] = {{"probability_threshold", map.criterion().probability_threshold},
+                    {"color_distance", map.criterion().color_distance}};
+  nlohmann::json sessions = nlohmann::json::array();
+  std::vector<uint8_t> coverage;
+  for (const SessionRecord& s : compacted.sessions()) {
+    sessions.push_back({{"time_s", s.time_s},
+                        {"name", s.name},
+                        {"nodes_separate", s.nodes_separate},
+                        {"nodes_added", s.nodes_added}});
+    const auto& r = s.coverage.ranges();
+    putVarint(coverage, r.size() / 2);
+    uint64_t previous_end = 0;
+    for (size_t i = 0; i < r.size(); i += 2) {
+      putVarint(coverage, r[i] - previous_end);
+      putVarint(coverage, r[i + 1] - r[i]);
+      previous_end = r[i + 1];
+    }
+  }
+  j["sessions"] = std::move(sessions);
+  const std::string text = j.dump();
+
+  std::vector<CmapBlock> blocks(5);
+  blocks[0] = {"META", std::vector<uint8_t>(text.begin(), text.end())};
+  blocks[1] = {"INNR", bytesOf(parts.inner)};
+  blocks[2] = {"LSTS", bytesOf(parts.list_sizes)};
+  blocks[3] = {"ENTR", bytesOf(parts.entries)};
+  blocks[4] = {"COVR", std::move(coverage)};
+  writeFileAtomic(path, encodeCmap(header, blocks));
+}
+
+TemporalMap temporalMapFrom(const CmapFile& file, const std::string& source) {
+  if (file.header.kind != MapKind::Temporal) {
+    throw FormatError(source + ": holds a " + std::string(toString(file.header.kind)) + " map, not a 4D map");
+  }
+  const CmapBlock& meta_block = file.block("META", source);
+  const nlohmann::json j = nlohmann::json::parse(meta_block.data.begin(), meta_block.data.end(), nullptr, false);
+  if (j.is_discarded() || !j.is_object() || !j.contains("sessions") || !j["sessions"].is_array()) {
+    throw FormatError(source + ": 4D map metadata is not a valid JSON description");
+  }
+  ChangeCriterion criterion;
+  std::vector<SessionRecord> sessions;
+  try {
+    if (j.contains("criterion")) {
+      criterion.probability_threshold = j["criterion"].value("probability_threshold", 0.0);
+      criterion.color_distance = j["criterion"].value("color_distance", 0.0);
+      criterion.validate();
+    }
+    for (const auto& s : j["sessions"]) {
+      SessionRecord r;
+      r.time_s = s.at("time_s").get<double>();
+      r.name = s.value("name", std::string());
+      r.nodes_separate = s.value("nodes_separate", uint64_t{0});
+      r.nodes_added = s.value("nodes_added", int64_t{0});
+      sessions.push_back(std::move(r));
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw FormatError(source + ": 4D map metadata is malformed: " + e.what());
+  } catch (const UsageError& e) {
+    throw FormatError(source + ": 4D map metadata is malformed: " + e.what());
+  }
+  const CmapBlock& cov = file.block("COVR", source);
+  size_t pos = 0;
+  for (SessionRecord& s : sessions) {
+    const uint64_t n = getVarint(cov.data, pos, source);
+    if (n > cov.data.size()) throw FormatError(source + ": coverage block claims more ranges than it holds");
+    std::vector<uint64_t> ranges;
+    ranges.reserve(2 * n);
+    uint64_t previous_end = 0;
+    for (uint64_t i = 0; i < n; ++i) {
+      const uint64_t gap = getVarint(cov.data, pos, source);
+      const uint64_t length = getVarint(cov.data, pos, source);
+      const uint64_t limit = uint64_t{1} << 48;
+      if (gap > limit || length > limit) throw FormatError(source + ": coverage range outside the map");
+      ranges.push_back(previous_end + gap);
+      ranges.push_back(previous_end + gap + length);
+      previous_end = ranges.back();
+    }
+    try {
+      s.coverage = Coverage::fromRanges(std::move(ranges));
+    } catch (const FormatError& e) {
+      throw FormatError(source + ": " + e.what());
+    }
+  }
+  if (pos != cov.data.size()) throw FormatError(source + ": coverage block has trailing bytes");
+
+  TemporalMap::Parts parts;
+  parts.inner = vectorOf<TemporalMap::Children>(file.block("INNR", source), source);
+  parts.list_sizes = vectorOf<uint32_t>(file.block("LSTS", source), source);
+  parts.entries = vectorOf<TemporalMap::Entry>(file.block("ENTR", source), source);
+  try {
+    return TemporalMap::fromParts(file.header.resolution_m, criterion, std::move(parts), std::move(sessions));
+  } catch (const FormatError& e) {
+    throw FormatError(source + ": " + e.what());
+  } catch (const UsageError& e) {
+    throw FormatError(source + ": " + e.what());
+  }
+}
+
+TemporalMap readTemporalMap(const std::filesystem::path& path) {
+  return temporalMapFrom(readCmap(path), path.string());
+}
+
+}  // namespace chronomap::io

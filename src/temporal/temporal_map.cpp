@@ -1,0 +1,666 @@
+#include "chronomap/temporal/temporal_map.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "chronomap/core/error.h"
+#include "chronomap/core/time.h"
+
+namespace chronomap {
+
+namespace {
+
+constexpr uint32_t kMaxIndex = 0x7ffffff0u;
+constexpr size_t kMaxListSize = 0xffff;
+
+// Counters of one of the 8 children of a uniform cube. Lists above unit level only ever hold
+// known-free counters without hits, so only the length is split; a power-of-two division of a
+// float is exact.
+VoxelCounters eighth(const VoxelCounters& c) {
+  VoxelCounters part = c;
+  part.length_m /= 8.0f;
+  return part;
+}
+
+}  // namespace
+
+bool ChangeCriterion::differs(const VoxelCounters& before, const VoxelCounters& after) const {
+  if (before.state() != after.state()) return true;
+  if (probability_threshold > 0.0 && std::abs(before.probability() - after.probability()) > probability_threshold) {
+    return true;
+  }
+  if (color_distance > 0.0 && before.hits > 0 && after.hits > 0) {
+    const Rgb a = before.meanColor(), b = after.meanColor();
+    const double dr = a.r - b.r, dg = a.g - b.g, db = a.b - b.b;
+    if (std::sqrt(dr * dr + dg * dg + db * db) > color_distance) return true;
+  }
+  return false;
+}
+
+void ChangeCriterion::validate() const {
+  if (!std::isfinite(probability_threshold) || probability_threshold < 0.0 || probability_threshold >= 1.0) {
+    throw UsageError("probability threshold must lie in [0, 1), got " + std::to_string(probability_threshold));
+  }
+  if (!std::isfinite(color_distance) || color_distance < 0.0) {
+    throw UsageError("colour distance must be a non-negative number, got " + std::to_string(color_distance));
+  }
+}
+
+TemporalMap::TemporalMap(double resolution_m, ChangeCriterion criterion) : grid_(resolution_m), criterion_(criterion) {
+  criterion_.validate();
+  inner_.emplace_back();
+  inner_[0].fill(kEmpty);
+}
+
+VoxelKey TemporalMap::childCorner(const VoxelKey& base, int slot, int child_level) {
+  VoxelKey k = base;
+  const auto step = static_cast<uint16_t>(1u << child_level);
+  if (slot & 1) k.x = static_cast<uint16_t>(k.x + step);
+  if (slot & 2) k.y = static_cast<uint16_t>(k.y + step);
+  if (slot & 4) k.z = static_cast<uint16_t>(k.z + step);
+  return k;
+}
+
+uint32_t TemporalMap::newInner() {
+  if (inner_.size() >= kMaxIndex) throw DataError("4D map too large: more than 2^31 inner nodes");
+  inner_.emplace_back();
+  inner_.back().fill(kEmpty);
+  return static_cast<uint32_t>(inner_.size() - 1);
+}
+
+uint32_t TemporalMap::newList(const Entry& e) {
+  ++live_lists_;
+  ++live_entries_;
+  if (!free_lists_.empty()) {
+    const uint32_t i = free_lists_.back();
+    free_lists_.pop_back();
+    lists_[i] = List{e, 0, 1, 0, 0};
+    return i;
+  }
+  if (lists_.size() >= kMaxIndex) throw DataError("4D map too large: more than 2^31 slot lists");
+  lists_.push_back(List{e, 0, 1, 0, 0});
+  return static_cast<uint32_t>(lists_.size() - 1);
+}
+
+void TemporalMap::freeList(uint32_t list) {
+  List& l = lists_[list];
+  if (l.size >= 2) freeBlock(l.block, l.capacity_log2);
+  live_entries_ -= l.size;
+  --live_lists_;
+  l = List{};
+  free_lists_.push_back(list);
+}
+
+uint32_t TemporalMap::allocBlock(int capacity_log2) {
+  auto& free = free_blocks_[static_cast<size_t>(capacity_log2)];
+  if (!free.empty()) {
+    const uint32_t b = free.back();
+    free.pop_back();
+    return b;
+  }
+  const size_t at = arena_.size();
+  if (at + (size_t{1} << capacity_log2) >= kMaxIndex) throw DataError("4D map too large: more than 2^31 entries");
+  arena_.resize(at + (size_t{1} << capacity_log2));
+  return static_cast<uint32_t>(at);
+}
+
+void TemporalMap::freeBlock(uint32_t block, int capacity_log2) {
+  free_blocks_[static_cast<size_t>(capacity_log2)].push_back(block);
+}
+
+void TemporalMap::insertEntry(uint32_t list, size_t pos, const Entry& e) {
+  List& l = lists_[list];
+  if (l.size >= kMaxListSize) throw DataError("4D map: a voxel has more than 65535 history entries");
+  if (l.size == 0) {  // emptied by eraseEntry, refilled before it is freed
+    l.first = e;
+    l.size = 1;
+    ++live_entries_;
+    return;
+  }
+  if (l.size == 1) {
+    const Entry only = l.first;
+    const uint32_t block = allocBlock(1);
+    List& m = lists_[list];  // allocBlock does not touch lists_, but keep the reference fresh
+    m.block = block;
+    m.capacity_log2 = 1;
+    arena_[block + (pos == 0 ? 1 : 0)] = only;
+    arena_[block + pos] = e;
+    m.size = 2;
+    ++live_entries_;
+    return;
+  }
+  if (l.size == (size_t{1} << l.capacity_log2)) {
+    const int cap = l.capacity_log2 + 1;
+    const uint32_t block = allocBlock(cap);
+    std::copy(arena_.begin() + l.block, arena_.begin() + l.block + l.size, arena_.begin() + block);
+    freeBlock(l.block, l.capacity_log2);
+    l.block = block;
+    l.capacity_log2 = static_cast<uint8_t>(cap);
+  }
+  Entry* data = arena_.data() + l.block;
+  std::copy_backward(data + pos, data + l.size, data + l.size + 1);
+  data[pos] = e;
+  ++l.size;
+  ++live_entries_;
+}
+
+void TemporalMap::eraseEntry(uint32_t list, size_t pos) {
+  List& l = lists_[list];
+  if (l.size == 1) {
+    l.size = 0;
+    --live_entries_;
+    return;
+  }
+  Entry* data = arena_.data() + l.block;
+  std::copy(data + pos + 1, data + l.size, data + pos);
+  --l.size;
+  --live_entries_;
+  if (l.size == 1) {
+    const Entry only = data[0];
+    freeBlock(l.block, l.capacity_log2);
+    l.first = only;
+    l.block = 0;
+    l.capacity_log2 = 0;
+  }
+}
+
+size_t TemporalMap::lowerBound(const List& l, uint32_t session) const {
+  const Entry* e = entriesOf(l);
+  size_t i = 0;
+  while (i < l.size && e[i].session < session) ++i;  // lists are short: a linear scan wins
+  return i;
+}
+
+uint32_t TemporalMap::refine(uint32_t node, int slot, int level) {
+  const uint32_t list = index(inner_[node][slot]);
+  const uint32_t child = newInner();
+  const List source = lists_[list];
+  std::vector<Entry> history(entriesOf(source), entriesOf(source) + source.size);
+  for (Entry& e : history) e.value = eighth(e.value);
+  for (int i = 0; i < 8; ++i) {
+    const uint32_t l = newList(history[0]);
+    for (size_t k = 1; k < history.size(); ++k) insertEntry(l, k, history[k]);
+    inner_[child][i] = l | kListBit;
+  }
+  freeList(list);
+  inner_[node][slot] = child;
+  (void)level;
+  return child;
+}
+
+std::optional<std::pair<uint32_t, Coverage::Overlap>> TemporalMap::nextObserver(uint32_t rank, const VoxelKey& corner,
+                                                                                int level) const {
+  for (uint32_t s = rank + 1; s < sessions_.size(); ++s) {
+    const Coverage::Overlap o = sessions_[s].coverage.overlap(corner, level);
+    if (o != Coverage::Overlap::None) return std::make_pair(s, o);
+  }
+  return std::nullopt;
+}
+
+void TemporalMap::apply(uint32_t node, int level, const VoxelKey& corner, int target_level,
+                        const VoxelCounters& value, uint32_t rank, AddReport& report) {
+  while (true) {
+    const int child_level = level - 1;
+    const int slot = childSlot(corner, child_level);
+    const Ref r = inner_[node][slot];
+    if (child_level > target_level) {
+      if (r == kEmpty) {
+        const uint32_t child = newInner();
+        ++report.inner_added;
+        inner_[node][slot] = child;
+        node = child;
+      } else if (isInner(r)) {
+        node = r;
+      } else {
+        // A uniform cube larger than the observation: refine only when the state changes.
+        const List& l = lists_[index(r)];
+        const size_t pos = lowerBound(l, rank);
+        if (pos > 0 && !criterion_.differs(entriesOf(l)[pos - 1].value, value)) return;
+        node = refine(node, slot, child_level);
+        report.inner_added += 1;
+      }
+      level = child_level;
+      continue;
+    }
+    // The slot is the observed cube itself.
+    if (r == kEmpty) {
+      // Nobody observed any of this cube before, so no later session did either.
+      inner_[node][slot] = newList(Entry{rank, value}) | kListBit;
+      ++report.entries_added;
+      return;
+    }
+    if (isList(r)) {
+      applyToList(node, slot, child_level, corner, value, rank, report);
+      return;
+    }
+    // The session saw a uniform cube where the map holds finer structure: each eighth.
+    const VoxelCounters part = eighth(value);
+    for (int i = 0; i < 8; ++i) {
+      apply(r, child_level, childCorner(corner, i, child_level - 1), child_level - 1, part, rank, report);
+    }
+    return;
+  }
+}
+
+void TemporalMap::applyToList(uint32_t node, int slot, int level, const VoxelKey& corner,
+                              const VoxelCounters& value, uint32_t rank, AddReport& report) {
+  const uint32_t list = index(inner_[node][slot]);
+  const size_t pos = lowerBound(lists_[list], rank);
+  std::optional<VoxelCounters> before;
+  if (pos > 0) before = entriesOf(lists_[list])[pos - 1].value;
+  if (before && !criterion_.differs(*before, value)) return;  // no change: nothing to store
+
+  const auto next = nextObserver(rank, corner, level);
+  if (next && next->second == Coverage::Overlap::Partial && level > 0) {
+    // A later session saw only part of the cube: its parts now have different histories.
+    const uint32_t child = refine(node, slot, level);
+    ++report.inner_added;
+    const VoxelCounters part = eighth(value);
+    for (int i = 0; i < 8; ++i) {
+      applyToList(child, i, level - 1, childCorner(corner, i, level - 1), part, rank, report);
+    }
+    return;
+  }
+  insertEntry(list, pos, Entry{rank, value});
+  ++report.entries_added;
+  if (!next) return;
+  // The next observer's entry was decided against `before`; decide it again against `value`.
+  const List& l = lists_[list];
+  const size_t j = pos + 1;
+  if (j < l.size && entriesOf(l)[j].session == next->first) {
+    if (!criterion_.differs(value, entriesOf(l)[j].value)) {
+      eraseEntry(list, j);
+      ++report.entries_removed;
+    }
+  } else if (before) {
+    // It confirmed `before` and was not stored; with `value` in between it is a change back.
+    insertEntry(list, j, Entry{next->first, *before});
+    ++report.entries_added;
+  }
+}
+
+void TemporalMap::shiftSessions(uint32_t from, int delta) {
+  auto shift = [&](Entry& e) {
+    if (e.session >= from) e.session = static_cast<uint32_t>(static_cast<int64_t>(e.session) + delta);
+  };
+  for (List& l : lists_) {
+    if (l.size == 0) continue;
+    Entry* e = entriesOf(l);
+    for (size_t i = 0; i < l.size; ++i) shift(e[i]);
+  }
+}
+
+std::optional<uint32_t> TemporalMap::rankAtOrBefore(double time_s) const {
+  const auto it = std::upper_bound(sessions_.begin(), sessions_.end(), time_s,
+                                   [](double t, const SessionRecord& s) { return t < s.time_s; });
+  if (it == sessions_.begin()) return std::nullopt;
+  return static_cast<uint32_t>(it - sessions_.begin() - 1);
+}
+
+AddReport TemporalMap::add(double time_s, const SessionMap& session, const AddOptions& options) {
+  if (!std::isfinite(time_s)) throw UsageError("session time must be a finite number of seconds");
+  if (session.resolution_m() != resolution_m()) {
+    throw UsageError("session resolution " + std::to_string(session.resolution_m()) +
+                     " m differs from the 4D map's " + std::to_string(resolution_m()) + " m");
+  }
+  AddReport report;
+  auto it = std::lower_bound(sessions_.begin(), sessions_.end(), time_s,
+                             [](const SessionRecord& s, double t) { return s.time_s < t; });
+  if (it != sessions_.end() && it->time_s == time_s) {
+    if (!options.replace) {
+      throw UsageError("the 4D map already holds a session at " + formatTime(time_s) +
+                       " (ask to replace it, or give another time)");
+    }
+    remove(time_s);
+    report.replaced = true;
+    it = std::lower_bound(sessions_.begin(), sessions_.end(), time_s,
+                          [](const SessionRecord& s, double t) { return s.time_s < t; });
+  }
+  const auto rank = static_cast<uint32_t>(it - sessions_.begin());
+  report.out_of_order = rank < sessions_.size();
+  if (report.out_of_order) shiftSessions(rank, +1);
+  SessionRecord record;
+  record.time_s = time_s;
+  record.name = options.name;
+  record.nodes_separate = session.innerCount() + session.leafCount();
+  record.coverage = Coverage(session);
+  sessions_.insert(sessions_.begin() + rank, std::move(record));
+
+  const size_t nodes_before = inner_.size() + live_entries_;
+  session.forEachLeaf([&](const LeafView& leaf) {
+    apply(0, kTreeDepth, leaf.key, leaf.level, leaf.counters, rank, report);
+  });
+  sessions_[rank].nodes_added = static_cast<int64_t>(inner_.size() + live_entries_) - static_cast<int64_t>(nodes_before);
+  return report;
+}
+
+void TemporalMap::remove(double time_s) {
+  auto it = std::lower_bound(sessions_.begin(), sessions_.end(), time_s,
+                             [](const SessionRecord& s, double t) { return s.time_s < t; });
+  if (it == sessions_.end() || it->time_s != time_s) {
+    throw UsageError("the 4D map holds no session at " + formatTime(time_s));
+  }
+  const auto rank = static_cast<uint32_t>(it - sessions_.begin());
+  removeBelow(0, kTreeDepth, VoxelKey{}, rank);
+  sessions_.erase(sessions_.begin() + rank);
+  shiftSessions(rank + 1, -1);
+}
+
+void TemporalMap::removeBelow(uint32_t node, int level, const VoxelKey& base, uint32_t rank) {
+  for (int slot = 0; slot < 8; ++slot) {
+    const Ref r = inner_[node][slot];
+    if (r == kEmpty) continue;
+    const VoxelKey corner = childCorner(base, slot, level - 1);
+    if (isInner(r)) {
+      removeBelow(r, level - 1, corner, rank);
+    } else {
+      removeFromList(node, slot, level - 1, corner, rank);
+    }
+  }
+}
+
+void TemporalMap::removeFromList(uint32_t node, int slot, int level, const VoxelKey& corner, uint32_t rank) {
+  const uint32_t list = index(inner_[node][slot]);
+  const size_t pos = lowerBound(lists_[list], rank);
+  if (pos >= lists_[list].size || entriesOf(lists_[list])[pos].session != rank) return;
+  const auto next = nextObserver(rank, corner, level);
+  if (next && next->second == Coverage::Overlap::Partial && level > 0) {
+    const uint32_t child = refine(node, slot, level);
+    for (int i = 0; i < 8; ++i) removeFromList(child, i, level - 1, childCorner(corner, i, level - 1), rank);
+    return;
+  }
+  const VoxelCounters removed = entriesOf(lists_[list])[pos].value;
+  std::optional<VoxelCounters> before;
+  if (pos > 0) before = entriesOf(lists_[list])[pos - 1].value;
+  eraseEntry(list, pos);
+  if (next) {
+    const List& l = lists_[list];
+    if (pos < l.size && entriesOf(l)[pos].session == next->first) {
+      if (before && !criterion_.differs(*before, entriesOf(l)[pos].value)) eraseEntry(list, pos);
+    } else if (!before || criterion_.differs(*before, removed)) {
+      // The next observer confirmed the removed state without being stored: it now carries it.
+      insertEntry(list, pos, Entry{next->first, removed});
+    }
+  }
+  if (lists_[list].size == 0) {
+    freeList(list);
+    inner_[node][slot] = kEmpty;
+  }
+}
+
+std::vector<double> TemporalMap::times() const {
+  std::vector<double> t;
+  t.reserve(sessions_.size());
+  for (const auto& s : sessions_) t.push_back(s.time_s);
+  return t;
+}
+
+SessionMap TemporalMap::snapshot(double time_s) const {
+  SessionMap out(resolution_m());
+  const auto rank = rankAtOrBefore(time_s);
+  if (!rank) return out;
+  const uint32_t last = *rank;
+  std::vector<SessionMap::Children> inner;
+  std::vector<VoxelCounters> leaves;
+  inner.reserve(inner_.size());
+  leaves.reserve(live_lists_);
+  // Depth-first copy; a node is reserved before its children and dropped again when none of
+  // them holds anything at this time (it is then the last node in the pool).
+  auto build = [&](auto&& self, uint32_t node) -> SessionMap::Ref {
+    const auto me = static_cast<uint32_t>(inner.size());
+    inner.emplace_back();
+    bool any = false;
+    for (int slot = 0; slot < 8; ++slot) {
+      const Ref r = inner_[node][slot];
+      SessionMap::Ref out_ref = SessionMap::kEmpty;
+      if (isInner(r)) {
+        out_ref = self(self, r);
+      } else if (isList(r)) {
+        const List& l = lists_[index(r)];
+        const Entry* e = entriesOf(l);
+        if (e[0].session <= last) {
+          size_t i = 1;
+          while (i < l.size && e[i].session <= last) ++i;
+          leaves.push_back(e[i - 1].value);
+          out_ref = static_cast<uint32_t>(leaves.size() - 1) | SessionMap::kLeafBit;
+        }
+      }
+      inner[me][slot] = out_ref;
+      any = any || out_ref != SessionMap::kEmpty;
+    }
+    if (!any && me != 0) {
+      inner.pop_back();
+      return SessionMap::kEmpty;
+    }
+    return me;
+  };
+  build(build, 0);
+  out.assignPools(std::move(inner), std::move(leaves));
+  return out;
+}
+
+std::vector<HistoryEntry> TemporalMap::history(const VoxelKey& key) const {
+  std::vector<HistoryEntry> h;
+  uint32_t node = 0;
+  for (int level = kTreeDepth - 1; level >= 0; --level) {
+    const Ref r = inner_[node][childSlot(key, level)];
+    if (r == kEmpty) return h;
+    if (isInner(r)) {
+      node = r;
+      continue;
+    }
+    const List& l = lists_[index(r)];
+    const Entry* e = entriesOf(l);
+    h.reserve(l.size);
+    const auto scale = static_cast<float>(uint64_t{1} << (3 * level));
+    for (size_t i = 0; i < l.size; ++i) {
+      VoxelCounters c = e[i].value;
+      if (level > 0) c.length_m /= scale;
+      h.push_back(HistoryEntry{sessions_[e[i].session].time_s, c, level});
+    }
+    return h;
+  }
+  return h;
+}
+
+std::optional<VoxelCounters> TemporalMap::valueAt(const VoxelKey& key, double time_s) const {
+  const auto rank = rankAtOrBefore(time_s);
+  if (!rank) return std::nullopt;
+  std::optional<VoxelCounters> value;
+  for (const HistoryEntry& e : history(key)) {
+    if (e.time_s > sessions_[*rank].time_s) break;
+    value = e.counters;
+  }
+  return value;
+}
+
+TemporalCounts TemporalMap::counts() const {
+  TemporalCounts c;
+  c.inner_nodes = inner_.size();
+  c.slots = live_lists_;
+  c.entries = live_entries_;
+  return c;
+}
+
+size_t TemporalMap::memoryBytes() const {
+  size_t bytes = inner_.size() * sizeof(Children) + lists_.size() * sizeof(List) + arena_.size() * sizeof(Entry);
+  for (const auto& s : sessions_) bytes += s.coverage.memoryBytes() + sizeof(SessionRecord);
+  return bytes;
+}
+
+bool TemporalMap::compactBelow(Ref& r, int level) {
+  // Returns true when `r` is (now) a list without hits, candidate for merging one level up.
+  if (r == kEmpty) return false;
+  if (isList(r)) {
+    const List& l = lists_[index(r)];
+    const Entry* e = entriesOf(l);
+    for (size_t i = 0; i < l.size; ++i) {
+      if (!e[i].value.isKnownFreeWithoutHits()) return false;
+    }
+    return true;
+  }
+  bool mergeable = true;
+  for (int i = 0; i < 8; ++i) {
+    Ref child = inner_[r][i];
+    mergeable = compactBelow(child, level - 1) && mergeable;
+    inner_[r][i] = child;
+  }
+  if (!mergeable || r == 0) return false;
+  // Same sessions in all 8 lists: then every voxel of the cube read free at the same times.
+  const List& first = lists_[index(inner_[r][0])];
+  for (int i = 1; i < 8; ++i) {
+    const List& other = lists_[index(inner_[r][i])];
+    if (other.size != first.size) return false;
+    for (size_t k = 0; k < first.size; ++k) {
+      if (entriesOf(other)[k].session != entriesOf(first)[k].session) return false;
+    }
+  }
+  const uint32_t keep = index(inner_[r][0]);
+  for (int i = 1; i < 8; ++i) {
+    const uint32_t other = index(inner_[r][i]);
+    for (size_t k = 0; k < first.size; ++k) {
+      entriesOf(lists_[keep])[k].value.length_m += entriesOf(lists_[other])[k].value.length_m;
+    }
+    freeList(other);
+  }
+  r = keep | kListBit;  // the inner node becomes garbage that the re-layout drops
+  return true;
+}
+
+size_t TemporalMap::compact() {
+  const size_t lists_before = live_lists_;
+  Ref root = 0;
+  compactBelow(root, kTreeDepth);
+  Parts p = parts();
+  *this = fromParts(resolution_m(), criterion_, std::move(p), std::move(sessions_));
+  return lists_before - live_lists_;
+}
+
+TemporalMap::Parts TemporalMap::parts() const {
+  Parts p;
+  p.inner.reserve(inner_.size());
+  p.list_sizes.reserve(live_lists_);
+  p.entries.reserve(live_entries_);
+  auto copy = [&](auto&& self, uint32_t node) -> void {
+    const auto me = static_cast<uint32_t>(p.inner.size());
+    p.inner.emplace_back();
+    for (int slot = 0; slot < 8; ++slot) {
+      const Ref r = inner_[node][slot];
+      if (r == kEmpty) {
+        p.inner[me][slot] = kEmpty;
+      } else if (isList(r)) {
+        const List& l = lists_[index(r)];
+        p.inner[me][slot] = static_cast<uint32_t>(p.list_sizes.size()) | kListBit;
+        p.list_sizes.push_back(l.size);
+        p.entries.insert(p.entries.end(), entriesOf(l), entriesOf(l) + l.size);
+      } else {
+        p.inner[me][slot] = static_cast<uint32_t>(p.inner.size());
+        self(self, r);
+      }
+    }
+  };
+  copy(copy, 0);
+  return p;
+}
+
+TemporalMap TemporalMap::fromParts(double resolution_m, ChangeCriterion criterion, Parts parts,
+                                   std::vector<SessionRecord> sessions) {
+  TemporalMap m(resolution_m, criterion);
+  for (size_t i = 0; i < sessions.size(); ++i) {
+    if (!std::isfinite(sessions[i].time_s) || (i > 0 && !(sessions[i - 1].time_s < sessions[i].time_s))) {
+      throw FormatError("4D map session times are not finite and increasing");
+    }
+  }
+  if (parts.inner.empty()) throw FormatError("4D map has no root node");
+  if (parts.inner.size() >= kMaxIndex || parts.list_sizes.size() >= kMaxIndex) throw FormatError("4D map too large");
+  uint64_t total = 0;
+  for (uint32_t s : parts.list_sizes) {
+    if (s == 0 || s > kMaxListSize) throw FormatError("4D map has a history list of impossible length");
+    total += s;
+  }
+  if (total != parts.entries.size()) throw FormatError("4D map history lists do not match the entries stored");
+  std::vector<uint64_t> offsets(parts.list_sizes.size());
+  uint64_t at = 0;
+  for (size_t i = 0; i < offsets.size(); ++i) {
+    offsets[i] = at;
+    at += parts.list_sizes[i];
+  }
+  // Shape: every node reached once from the root, lists only, inner nodes above unit level.
+  std::vector<uint8_t> inner_seen(parts.inner.size(), 0), list_seen(parts.list_sizes.size(), 0);
+  std::vector<int> list_level(parts.list_sizes.size(), 0);
+  std::vector<std::pair<uint32_t, int>> stack{{0u, kTreeDepth}};
+  inner_seen[0] = 1;
+  size_t inner_reached = 1, lists_reached = 0;
+  while (!stack.empty()) {
+    auto [node, level] = stack.back();
+    stack.pop_back();
+    for (Ref r : parts.inner[node]) {
+      if (r == kEmpty) continue;
+      const uint32_t i = index(r);
+      if (isList(r)) {
+        if (i >= parts.list_sizes.size() || list_seen[i]) throw FormatError("4D map has an invalid list reference");
+        list_seen[i] = 1;
+        list_level[i] = level - 1;
+        ++lists_reached;
+      } else {
+        if (level - 1 == 0) throw FormatError("4D map has an inner node below unit level");
+        if (i >= parts.inner.size() || inner_seen[i]) throw FormatError("4D map has an invalid node reference");
+        inner_seen[i] = 1;
+        ++inner_reached;
+        stack.emplace_back(i, level - 1);
+      }
+    }
+  }
+  if (inner_reached != parts.inner.size() || lists_reached != parts.list_sizes.size()) {
+    throw FormatError("4D map has unreachable nodes");
+  }
+  for (size_t i = 0; i < parts.list_sizes.size(); ++i) {
+    for (uint64_t k = 0; k < parts.list_sizes[i]; ++k) {
+      const Entry& e = parts.entries[offsets[i] + k];
+      if (e.session >= sessions.size() || (k > 0 && e.session <= parts.entries[offsets[i] + k - 1].session)) {
+        throw FormatError("4D map has a history entry with an invalid session");
+      }
+      if (!std::isfinite(e.value.length_m) || e.value.length_m < 0.0f) {
+        throw FormatError("4D map has an invalid ray length");
+      }
+      if (list_level[i] > 0 && !e.value.isKnownFreeWithoutHits()) {
+        throw FormatError("4D map has a uniform cube that is not known-free");
+      }
+    }
+  }
+  m.inner_ = std::move(parts.inner);
+  m.lists_.resize(parts.list_sizes.size());
+  for (size_t i = 0; i < parts.list_sizes.size(); ++i) {
+    const Entry* e = parts.entries.data() + offsets[i];
+    const uint32_t n = parts.list_sizes[i];
+    List& l = m.lists_[i];
+    l.first = e[0];
+    l.size = 1;
+    ++m.live_lists_;
+    ++m.live_entries_;
+    for (uint32_t k = 1; k < n; ++k) m.insertEntry(static_cast<uint32_t>(i), k, e[k]);
+  }
+  m.sessions_ = std::move(sessions);
+  return m;
+}
+
+bool operator==(const TemporalMap& a, const TemporalMap& b) {
+  if (a.resolution_m() != b.resolution_m() || a.sessions_.size() != b.sessions_.size()) return false;
+  if (a.criterion_.probability_threshold != b.criterion_.probability_threshold ||
+      a.criterion_.color_distance != b.criterion_.color_distance) {
+    return false;
+  }
+  for (size_t i = 0; i < a.sessions_.size(); ++i) {
+    const auto& x = a.sessions_[i];
+    const auto& y = b.sessions_[i];
+    if (x.time_s != y.time_s || x.name != y.name || x.nodes_separate != y.nodes_separate ||
+        x.nodes_added != y.nodes_added || !(x.coverage == y.coverage)) {
+      return false;
+    }
+  }
+  const TemporalMap::Parts pa = a.parts(), pb = b.parts();
+  return pa.inner == pb.inner && pa.list_sizes == pb.list_sizes && pa.entries == pb.entries;
+}
+
+}  // namespace chronomap

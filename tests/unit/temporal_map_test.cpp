@@ -1,0 +1,450 @@
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <map>
+#include <random>
+
+#include "chronomap/core/error.h"
+#include "chronomap/temporal/temporal_map.h"
+
+namespace chronomap {
+namespace {
+
+constexpr uint16_t kBase = 32768;  // corner of the test region, aligned to 16
+constexpr int kSide = 16;
+
+VoxelCounters freeVoxel(float length) {
+  VoxelCounters c;
+  c.length_m = length;
+  return c;
+}
+
+VoxelCounters occupiedVoxel(uint32_t hits, uint8_t red = 200) {
+  VoxelCounters c;
+  c.length_m = 0.0625f * static_cast<float>(hits);
+  c.hits = hits;
+  c.red = uint32_t{red} * hits;
+  c.green = 10 * hits;
+  c.blue = 20 * hits;
+  return c;
+}
+
+VoxelKey at(int x, int y, int z) {
+  return {static_cast<uint16_t>(kBase + x), static_cast<uint16_t>(kBase + y), static_cast<uint16_t>(kBase + z)};
+}
+
+// ---------------------------------------------------------------------------------------------
+// The slow reference: a plain list of session maps, kept in time order.
+
+struct Reference {
+  std::vector<std::pair<double, SessionMap>> sessions;  // sorted by time
+  ChangeCriterion criterion;
+
+  void add(double t, const SessionMap& m) {
+    auto it = std::find_if(sessions.begin(), sessions.end(), [&](const auto& s) { return s.first > t; });
+    sessions.insert(it, {t, m});
+  }
+  void remove(double t) {
+    sessions.erase(std::find_if(sessions.begin(), sessions.end(), [&](const auto& s) { return s.first == t; }));
+  }
+  /// The state of the most recent observation at or before t.
+  VoxelState state(const VoxelKey& k, double t) const {
+    VoxelState s = VoxelState::Unknown;
+    for (const auto& [time, map] : sessions) {
+      if (time > t) break;
+      if (auto c = map.find(k)) s = c->state();
+    }
+    return s;
+  }
+  /// Observations in time order with a change under the criterion (the first one included).
+  std::vector<std::pair<double, VoxelCounters>> chain(const VoxelKey& k) const {
+    std::vector<std::pair<double, VoxelCounters>> out;
+    for (const auto& [time, map] : sessions) {
+      auto c = map.find(k);
+      if (!c) continue;
+      if (out.empty() || criterion.differs(out.back().second, *c)) out.emplace_back(time, *c);
+    }
+    return out;
+  }
+};
+
+// A world of kSide^3 voxels, mostly free, whose occupied voxels drift from session to session.
+struct World {
+  std::vector<uint8_t> occupied = std::vector<uint8_t>(kSide * kSide * kSide, 0);
+  void init(std::mt19937_64& rng) {
+    for (auto& o : occupied) o = rng() % 10 == 0;
+  }
+  void change(std::mt19937_64& rng, int flips) {
+    for (int i = 0; i < flips; ++i) occupied[rng() % occupied.size()] ^= 1;
+  }
+};
+
+// One session: an observed box (sometimes everything), a few holes, some noise, optionally
+// compressed. Lengths are binary fractions so that splitting and summing stay exact.
+SessionMap randomSession(std::mt19937_64& rng, const World& world) {
+  SessionMap m(0.05);
+  int lo[3], hi[3];
+  const bool everything = rng() % 3 == 0;
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = everything ? 0 : static_cast<int>(rng() % 8);
+    hi[a] = everything ? kSide : lo[a] + 4 + static_cast<int>(rng() % (kSide - lo[a] - 3));
+  }
+  const bool holes = rng() % 2 == 0;
+  for (int z = lo[2]; z < hi[2]; ++z) {
+    for (int y = lo[1]; y < hi[1]; ++y) {
+      for (int x = lo[0]; x < hi[0]; ++x) {
+        if (holes && rng() % 10 == 0) continue;
+        bool occ = world.occupied[(z * kSide + y) * kSide + x] != 0;
+        if (rng() % 40 == 0) occ = !occ;  // sensor noise
+        VoxelCounters c;
+        if (occ) {
+          c = occupiedVoxel(1 + static_cast<uint32_t>(rng() % 3), static_cast<uint8_t>(rng() % 256));
+        } else if (rng() % 50 == 0) {
+          c = freeVoxel(4.0f);  // free, but with a hit: never compressed
+          c.hits = 1;
+          c.red = c.green = c.blue = 50;
+        } else {
+          c = freeVoxel(0.125f * static_cast<float>(1 + rng() % 4));
+        }
+        m.add(at(x, y, z), c);
+      }
+    }
+  }
+  if (rng() % 2 == 0) m.compressFree();
+  return m;
+}
+
+void expectStatesMatch(const TemporalMap& map, const Reference& ref, double t) {
+  const SessionMap snap = map.snapshot(t);
+  for (int z = 0; z < kSide; ++z) {
+    for (int y = 0; y < kSide; ++y) {
+      for (int x = 0; x < kSide; ++x) {
+        ASSERT_EQ(snap.stateOf(at(x, y, z)), ref.state(at(x, y, z), t)) << "voxel " << x << "," << y << "," << z
+                                                                         << " at t=" << t;
+      }
+    }
+  }
+}
+
+// Histories: same times and states as the reference's chain; counters too when `exact`.
+void expectHistoriesMatch(const TemporalMap& map, const Reference& ref, bool exact) {
+  for (int z = 0; z < kSide; ++z) {
+    for (int y = 0; y < kSide; ++y) {
+      for (int x = 0; x < kSide; ++x) {
+        const auto h = map.history(at(x, y, z));
+        const auto c = ref.chain(at(x, y, z));
+        ASSERT_EQ(h.size(), c.size()) << "voxel " << x << "," << y << "," << z;
+        for (size_t i = 0; i < h.size(); ++i) {
+          ASSERT_EQ(h[i].time_s, c[i].first);
+          ASSERT_EQ(h[i].counters.state(), c[i].second.state());
+          if (exact) {
+            ASSERT_EQ(h[i].counters, c[i].second) << "voxel " << x << "," << y << "," << z << " entry " << i;
+          }
+        }
+      }
+    }
+  }
+}
+
+void expectChangeCountsMatch(const TemporalMap& map, const Reference& ref, double t0, double t1) {
+  std::map<VoxelKey, uint32_t> counted;
+  map.forEachChangeCount(t0, t1, [&](const VoxelKey& k, int level, uint32_t n) {
+    const int side = 1 << level;
+    for (int dz = 0; dz < side; ++dz) {
+      for (int dy = 0; dy < side; ++dy) {
+        for (int dx = 0; dx < side; ++dx) {
+          counted[{static_cast<uint16_t>(k.x + dx), static_cast<uint16_t>(k.y + dy), static_cast<uint16_t>(k.z + dz)}] = n;
+        }
+      }
+    }
+  });
+  for (int z = 0; z < kSide; ++z) {
+    for (int y = 0; y < kSide; ++y) {
+      for (int x = 0; x < kSide; ++x) {
+        const auto c = ref.chain(at(x, y, z));
+        uint32_t expected = 0;
+        for (size_t i = 1; i < c.size(); ++i) expected += c[i].first > t0 && c[i].first <= t1;
+        const auto it = counted.find(at(x, y, z));
+        ASSERT_EQ(it == counted.end() ? 0u : it->second, expected) << "voxel " << x << "," << y << "," << z;
+      }
+    }
+  }
+}
+
+double sessionTime(int i) { return 1000.0 + 100.0 * i; }
+
+// ---------------------------------------------------------------------------------------------
+// Analytic cases.
+
+TEST(TemporalMap, OnlyChangesCreateEntries) {
+  TemporalMap map(0.05);
+  SessionMap a(0.05), b(0.05), c(0.05);
+  a.add(at(1, 1, 1), occupiedVoxel(2));
+  a.add(at(2, 1, 1), freeVoxel(0.25f));
+  b.add(at(1, 1, 1), occupiedVoxel(3));  // still occupied: no entry
+  b.add(at(2, 1, 1), occupiedVoxel(1));  // free -> occupied: one entry
+  map.add(10, a);
+  const size_t nodes_after_a = map.counts().nodes();
+  map.add(20, b);
+  EXPECT_EQ(map.counts().nodes(), nodes_after_a + 1) << "a changed leaf adds exactly one node";
+  EXPECT_EQ(map.sessions()[1].nodes_added, 1);
+  map.add(30, c);  // observed nothing
+  EXPECT_EQ(map.sessions()[2].nodes_added, 0);
+
+  EXPECT_EQ(map.snapshot(5).leafCount(), 0u);
+  EXPECT_EQ(map.snapshot(10).stateOf(at(2, 1, 1)), VoxelState::Free);
+  EXPECT_EQ(map.snapshot(19.9).stateOf(at(2, 1, 1)), VoxelState::Free);
+  EXPECT_EQ(map.snapshot(20).stateOf(at(2, 1, 1)), VoxelState::Occupied);
+  EXPECT_EQ(map.snapshot(1e9).stateOf(at(2, 1, 1)), VoxelState::Occupied);
+  EXPECT_EQ(map.snapshot(1e9).stateOf(at(3, 1, 1)), VoxelState::Unknown);
+  // The unchanged voxel keeps the counters of the observation that set its state.
+  EXPECT_EQ(*map.snapshot(25).find(at(1, 1, 1)), occupiedVoxel(2));
+
+  const auto h = map.history(at(2, 1, 1));
+  ASSERT_EQ(h.size(), 2u);
+  EXPECT_EQ(h[0].time_s, 10);
+  EXPECT_EQ(h[0].counters.state(), VoxelState::Free);
+  EXPECT_EQ(h[1].time_s, 20);
+  EXPECT_EQ(h[1].counters, occupiedVoxel(1));
+  EXPECT_TRUE(map.history(at(9, 9, 9)).empty());
+}
+
+TEST(TemporalMap, UnobservedSpaceIsNeverAChange) {
+  TemporalMap map(0.05);
+  SessionMap a(0.05), b(0.05);
+  a.add(at(0, 0, 0), occupiedVoxel(1));
+  b.add(at(5, 5, 5), freeVoxel(0.5f));
+  map.add(1, a);
+  map.add(2, b);
+  EXPECT_EQ(map.snapshot(2).stateOf(at(0, 0, 0)), VoxelState::Occupied);
+  size_t changed = 0;
+  map.forEachChangeCount(0, 10, [&](const VoxelKey&, int, uint32_t) { ++changed; });
+  EXPECT_EQ(changed, 0u);
+}
+
+TEST(TemporalMap, RejectsDuplicateTimesUnlessReplacing) {
+  TemporalMap map(0.05);
+  SessionMap a(0.05), b(0.05);
+  a.add(at(0, 0, 0), occupiedVoxel(1));
+  b.add(at(0, 0, 0), freeVoxel(1.0f));
+  map.add(1, a);
+  EXPECT_THROW(map.add(1, b), UsageError);
+  EXPECT_EQ(map.snapshot(1).stateOf(at(0, 0, 0)), VoxelState::Occupied) << "a refused add changes nothing";
+  const AddReport r = map.add(1, b, AddOptions{true, "b"});
+  EXPECT_TRUE(r.replaced);
+  EXPECT_EQ(map.sessionCount(), 1u);
+  EXPECT_EQ(map.snapshot(1).stateOf(at(0, 0, 0)), VoxelState::Free);
+  EXPECT_THROW(map.add(std::nan(""), a), UsageError);
+  EXPECT_THROW(map.add(2, SessionMap(0.1)), UsageError);
+  EXPECT_THROW(map.remove(3), UsageError);
+}
+
+TEST(TemporalMap, ChangeInsideACompressedCubeRefinesIt) {
+  SessionMap a(0.05);
+  for (int z = 0; z < 8; ++z) {
+    for (int y = 0; y < 8; ++y) {
+      for (int x = 0; x < 8; ++x) a.add(at(x, y, z), freeVoxel(0.5f));
+    }
+  }
+  a.compressFree();
+  ASSERT_EQ(a.leafCount(), 1u);
+  SessionMap b(0.05);
+  b.add(at(3, 4, 5), occupiedVoxel(2));
+  TemporalMap map(0.05);
+  map.add(1, a);
+  EXPECT_EQ(map.counts().entries, 1u) << "a compressed free cube is one entry";
+  map.add(2, b);
+  const SessionMap s1 = map.snapshot(1), s2 = map.snapshot(2);
+  for (int z = 0; z < 8; ++z) {
+    for (int y = 0; y < 8; ++y) {
+      for (int x = 0; x < 8; ++x) {
+        EXPECT_EQ(s1.stateOf(at(x, y, z)), VoxelState::Free);
+        EXPECT_EQ(s2.stateOf(at(x, y, z)), x == 3 && y == 4 && z == 5 ? VoxelState::Occupied : VoxelState::Free);
+        EXPECT_FLOAT_EQ(s1.find(at(x, y, z))->length_m, 0.5f);
+      }
+    }
+  }
+  const auto h = map.history(at(0, 0, 0));
+  ASSERT_EQ(h.size(), 1u);
+  EXPECT_GT(h[0].level, 0);
+  EXPECT_FLOAT_EQ(h[0].counters.length_m, 0.5f);
+  // Compaction cannot merge the refined cube back (one voxel differs), but keeps it exact.
+  map.compact();
+  EXPECT_EQ(map.snapshot(2).stateOf(at(3, 4, 5)), VoxelState::Occupied);
+  EXPECT_EQ(map.snapshot(2).stateOf(at(3, 4, 4)), VoxelState::Free);
+}
+
+TEST(TemporalMap, SessionAddedBeforeLaterOnesRestoresTheirStates) {
+  // t=1 occupied, t=3 occupied again (not stored: no change); t=2 arrives late saying free.
+  SessionMap occ(0.05), fre(0.05);
+  occ.add(at(0, 0, 0), occupiedVoxel(1));
+  fre.add(at(0, 0, 0), freeVoxel(1.0f));
+  TemporalMap map(0.05);
+  map.add(1, occ);
+  map.add(3, occ);
+  EXPECT_EQ(map.history(at(0, 0, 0)).size(), 1u);
+  const AddReport r = map.add(2, fre);
+  EXPECT_TRUE(r.out_of_order);
+  EXPECT_EQ(map.snapshot(1).stateOf(at(0, 0, 0)), VoxelState::Occupied);
+  EXPECT_EQ(map.snapshot(2).stateOf(at(0, 0, 0)), VoxelState::Free);
+  EXPECT_EQ(map.snapshot(3).stateOf(at(0, 0, 0)), VoxelState::Occupied);
+  EXPECT_EQ(map.history(at(0, 0, 0)).size(), 3u);
+  map.remove(2);
+  EXPECT_EQ(map.history(at(0, 0, 0)).size(), 1u);
+  EXPECT_EQ(map.snapshot(2).stateOf(at(0, 0, 0)), VoxelState::Occupied);
+}
+
+TEST(TemporalMap, CriterionThresholds) {
+  ChangeCriterion c;
+  EXPECT_FALSE(c.differs(occupiedVoxel(1, 0), occupiedVoxel(1, 255)));
+  c.color_distance = 100;
+  EXPECT_TRUE(c.differs(occupiedVoxel(1, 0), occupiedVoxel(1, 255)));
+  EXPECT_FALSE(c.differs(occupiedVoxel(1, 100), occupiedVoxel(1, 150)));
+  EXPECT_FALSE(c.differs(freeVoxel(1.0f), freeVoxel(2.0f))) << "no colour without hits";
+  ChangeCriterion p;
+  p.probability_threshold = 0.2;
+  VoxelCounters weak = freeVoxel(1.0f);
+  weak.hits = 1;  // P = 0.63
+  VoxelCounters strong = freeVoxel(0.25f);
+  strong.hits = 4;  // P = 1 - e^-16
+  EXPECT_TRUE(p.differs(weak, strong));
+  EXPECT_FALSE(ChangeCriterion{}.differs(weak, strong));
+  EXPECT_THROW((ChangeCriterion{-1.0, 0.0}.validate()), UsageError);
+  EXPECT_THROW((ChangeCriterion{0.0, std::nan("")}.validate()), UsageError);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Property tests against the reference.
+
+class TemporalProperty : public ::testing::TestWithParam<uint64_t> {};
+
+TEST_P(TemporalProperty, InOrderSnapshotsHistoriesAndCountsMatchTheReference) {
+  std::mt19937_64 rng(GetParam());
+  World world;
+  world.init(rng);
+  TemporalMap map(0.05);
+  Reference ref;
+  const int n = 6 + static_cast<int>(rng() % 5);
+  for (int i = 0; i < n; ++i) {
+    world.change(rng, 60);
+    const SessionMap s = randomSession(rng, world);
+    map.add(sessionTime(i), s);
+    ref.add(sessionTime(i), s);
+  }
+  for (int i = -1; i < n; ++i) expectStatesMatch(map, ref, sessionTime(i) + (i % 2 ? 0.0 : 50.0));
+  expectHistoriesMatch(map, ref, /*exact=*/true);
+  expectChangeCountsMatch(map, ref, 0, 1e9);
+  expectChangeCountsMatch(map, ref, sessionTime(1), sessionTime(n - 2));
+  // Snapshot counters are those of the last change, as the reference chain says.
+  const double t = sessionTime(n - 1);
+  const SessionMap snap = map.snapshot(t);
+  for (int z = 0; z < kSide; ++z) {
+    for (int y = 0; y < kSide; ++y) {
+      for (int x = 0; x < kSide; ++x) {
+        const auto c = ref.chain(at(x, y, z));
+        const auto got = snap.find(at(x, y, z));
+        ASSERT_EQ(got.has_value(), !c.empty());
+        if (got) {
+          ASSERT_EQ(*got, c.back().second);
+        }
+      }
+    }
+  }
+  // Compaction and re-layout change nothing that a query can see.
+  TemporalMap compacted = map;
+  compacted.compact();
+  for (int i = 0; i < n; ++i) expectStatesMatch(compacted, ref, sessionTime(i));
+  expectChangeCountsMatch(compacted, ref, 0, 1e9);
+  EXPECT_LE(compacted.counts().nodes(), map.counts().nodes());
+}
+
+TEST_P(TemporalProperty, AnyInsertionOrderGivesTheSameStates) {
+  std::mt19937_64 rng(GetParam() + 1000);
+  World world;
+  world.init(rng);
+  std::vector<SessionMap> sessions;
+  const int n = 6 + static_cast<int>(rng() % 4);
+  for (int i = 0; i < n; ++i) {
+    world.change(rng, 60);
+    sessions.push_back(randomSession(rng, world));
+  }
+  std::vector<int> order(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) order[static_cast<size_t>(i)] = i;
+  std::shuffle(order.begin(), order.end(), rng);
+  TemporalMap map(0.05);
+  Reference ref;
+  for (int i : order) {
+    map.add(sessionTime(i), sessions[static_cast<size_t>(i)]);
+    ref.add(sessionTime(i), sessions[static_cast<size_t>(i)]);
+  }
+  for (int i = 0; i < n; ++i) expectStatesMatch(map, ref, sessionTime(i));
+  expectHistoriesMatch(map, ref, /*exact=*/false);
+  expectChangeCountsMatch(map, ref, 0, 1e9);
+  expectChangeCountsMatch(map, ref, sessionTime(2), sessionTime(n - 1));
+
+  // Replace one session, then remove another: still the reference's states.
+  world.change(rng, 200);
+  const SessionMap replacement = randomSession(rng, world);
+  const int replaced = static_cast<int>(rng() % static_cast<uint64_t>(n));
+  map.add(sessionTime(replaced), replacement, AddOptions{true, ""});
+  ref.remove(sessionTime(replaced));
+  ref.add(sessionTime(replaced), replacement);
+  const int removed = (replaced + 1) % n;
+  map.remove(sessionTime(removed));
+  ref.remove(sessionTime(removed));
+  for (int i = 0; i < n; ++i) expectStatesMatch(map, ref, sessionTime(i));
+  expectHistoriesMatch(map, ref, /*exact=*/false);
+}
+
+TEST_P(TemporalProperty, ProbabilityCriterionMatchesTheReferenceChain) {
+  std::mt19937_64 rng(GetParam() + 2000);
+  World world;
+  world.init(rng);
+  ChangeCriterion criterion;
+  criterion.probability_threshold = 0.1;
+  criterion.color_distance = 60;
+  TemporalMap map(0.05, criterion);
+  Reference ref;
+  ref.criterion = criterion;
+  for (int i = 0; i < 6; ++i) {
+    world.change(rng, 40);
+    const SessionMap s = randomSession(rng, world);
+    map.add(sessionTime(i), s);
+    ref.add(sessionTime(i), s);
+  }
+  expectHistoriesMatch(map, ref, /*exact=*/true);
+  for (int i = 0; i < 6; ++i) expectStatesMatch(map, ref, sessionTime(i));
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, TemporalProperty, ::testing::Range<uint64_t>(0, 12));
+
+TEST(TemporalMap, PartsRoundTripAndRejectBrokenParts) {
+  std::mt19937_64 rng(7);
+  World world;
+  world.init(rng);
+  TemporalMap map(0.05);
+  for (int i = 0; i < 5; ++i) {
+    world.change(rng, 50);
+    map.add(sessionTime(i), randomSession(rng, world));
+  }
+  map.compact();
+  std::vector<SessionRecord> records = map.sessions();
+  const TemporalMap back = TemporalMap::fromParts(0.05, {}, map.parts(), records);
+  EXPECT_TRUE(back == map);
+
+  auto broken = map.parts();
+  broken.entries[0].session = 99;
+  EXPECT_THROW(TemporalMap::fromParts(0.05, {}, broken, records), FormatError);
+  broken = map.parts();
+  broken.inner[0][0] = 12345678;
+  EXPECT_THROW(TemporalMap::fromParts(0.05, {}, broken, records), FormatError);
+  broken = map.parts();
+  broken.list_sizes.back() += 1;
+  EXPECT_THROW(TemporalMap::fromParts(0.05, {}, broken, records), FormatError);
+  auto unordered = records;
+  std::swap(unordered[0], unordered[1]);
+  EXPECT_THROW(TemporalMap::fromParts(0.05, {}, map.parts(), unordered), FormatError);
+}
+
+}  // namespace
+}  // namespace chronomap

@@ -1,0 +1,42 @@
+#include <gtest/gtest.h>
+
+#include "chronomap/core/error.h"
+#include "chronomap/core/time.h"
+
+namespace chronomap {
+namespace {
+
+TEST(Time, ParsesIsoAndEpochSeconds) {
+  EXPECT_DOUBLE_EQ(parseTime("1970-01-01T00:00:00Z"), 0.0);
+  EXPECT_DOUBLE_EQ(parseTime("2012-03-01T10:00:00Z"), 1330596000.0);  // date -u -d @1330596000
+  EXPECT_DOUBLE_EQ(parseTime("2012-03-01T12:00:00+02:00"), 1330596000.0);
+  EXPECT_DOUBLE_EQ(parseTime("2012-03-01 10:00:00"), 1330596000.0);
+  EXPECT_DOUBLE_EQ(parseTime("2012-03-01"), 1330560000.0);
+  EXPECT_DOUBLE_EQ(parseTime("2012-03-01T10:00:00.250Z"), 1330596000.25);
+  EXPECT_DOUBLE_EQ(parseTime("2000-02-29T00:00:00Z"), 951782400.0);  // a leap day
+  EXPECT_DOUBLE_EQ(parseTime("1330596000"), 1330596000.0);
+  EXPECT_DOUBLE_EQ(parseTime(" 1305031102.175304 "), 1305031102.175304);
+}
+
+TEST(Time, RejectsNonsenseWithTheText) {
+  for (const char* bad : {"", "yesterday", "2012-13-01", "2011-02-29", "2012-03-01T25:00:00Z", "2012-03-01T10:00Zx",
+                          "12abc", "nan", "inf"}) {
+    EXPECT_THROW(parseTime(bad), UsageError) << bad;
+  }
+  try {
+    parseTime("2012-3-1");
+    FAIL();
+  } catch (const UsageError& e) {
+    EXPECT_NE(std::string(e.what()).find("2012-3-1"), std::string::npos);
+  }
+}
+
+TEST(Time, FormatsAndRoundTrips) {
+  EXPECT_EQ(formatTime(1330596000.0), "2012-03-01T10:00:00Z");
+  EXPECT_EQ(formatTime(1330596000.25), "2012-03-01T10:00:00.250Z");
+  EXPECT_EQ(formatTime(-1.0), "1969-12-31T23:59:59Z");
+  for (double t : {0.0, 951782400.0, 1700000000.5, 4102444800.0}) EXPECT_DOUBLE_EQ(parseTime(formatTime(t)), t);
+}
+
+}  // namespace
+}  // namespace chronomap
