@@ -21,59 +21,84 @@ namespace {
 struct IntegrateOptions {
   std::string dataset;
   std::string output;
-  double resolution_m = 0.05;
-  double max_range_m = IntegratorSettings{}.max_range_m;
-  std::string format = "auto";
-  bool fast = false;
-  int threads = 0;
-  bool no_compress = false;
-  double depth_scale = 0.0;
-  std::string intrinsics;
-  std::string pose;
-  std::string trajectory;
+  IntegrateSettings settings;
   bool json = false;
 };
 
-int runIntegrate(const IntegrateOptions& o) {
+}  // namespace
+
+IntegratedSession integrateDataset(const std::string& path, const IntegrateSettings& o, const std::string& label) {
   io::DatasetOptions dopt;
   dopt.format = io::parseDatasetFormat(o.format);
   if (o.depth_scale != 0.0) dopt.depth_scale = o.depth_scale;
   if (!o.intrinsics.empty()) dopt.intrinsics = io::parseIntrinsics(o.intrinsics);
   if (!o.pose.empty()) dopt.pose = parsePose(o.pose);
   if (!o.trajectory.empty()) dopt.trajectory = o.trajectory;
-  if (std::filesystem::path(o.output).extension() != ".cmap") {
-    throw UsageError("output '" + o.output + "' must end in .cmap");
-  }
   IntegratorSettings settings;
   settings.max_range_m = o.max_range_m;
   settings.fast = o.fast;
   settings.threads = o.threads;
   settings.compress_free = !o.no_compress;
 
-  auto dataset = io::openDataset(o.dataset, dopt);
-  SessionMap map(o.resolution_m);
-  ProgressBar bar("integrating", dataset->size());
-  const IntegrationStats stats = integrate(*dataset, map, settings, [&](size_t done, size_t) { bar.update(done); });
+  auto dataset = io::openDataset(path, dopt);
+  IntegratedSession out{SessionMap(o.resolution_m), {}, dataset->recordedAt(), io::toString(dataset->format()),
+                        dataset->framesDropped()};
+  ProgressBar bar(label, dataset->size());
+  out.stats = integrate(*dataset, out.map, settings, [&](size_t done, size_t) { bar.update(done); });
   bar.finish();
-  if (stats.points == 0) {
-    throw DataError(o.dataset + ": no valid points within " + std::to_string(o.max_range_m) + " m in " +
-                    std::to_string(stats.frames) + " frame(s) (" + std::to_string(stats.pointsSkipped()) +
+  if (out.stats.points == 0) {
+    throw DataError(path + ": no valid points within " + std::to_string(o.max_range_m) + " m in " +
+                    std::to_string(out.stats.frames) + " frame(s) (" + std::to_string(out.stats.pointsSkipped()) +
                     " skipped); nothing to write");
   }
+  return out;
+}
+
+void addIntegrateOptions(CLI::App* app, IntegrateSettings& o) {
+  app->add_option("--resolution", o.resolution_m, "edge of a unit voxel, metres")->capture_default_str();
+  app->add_option("--max-range", o.max_range_m, "points farther from the sensor are discarded, metres")
+      ->capture_default_str();
+  app->add_option("--format", o.format, "auto, tum, 3dmatch or clouds")->capture_default_str();
+  app->add_flag("--fast", o.fast,
+                "bundle the points of a frame that end in the same voxel into one weighted ray "
+                "(much faster; see docs/integration.md for how far the counters may differ)");
+  app->add_option("--threads", o.threads, "worker threads, 0 = all cores (the map does not depend on it)")
+      ->capture_default_str();
+  app->add_flag("--no-compress", o.no_compress, "keep every free unit voxel instead of merging free subtrees");
+  app->add_option("--depth-scale", o.depth_scale, "depth image units per metre (TUM 5000, 3DMatch 1000)");
+  app->add_option("--intrinsics", o.intrinsics, "camera intrinsics fx,fy,cx,cy in pixels");
+  app->add_option("--pose", o.pose, "pose of a single cloud: tx,ty,tz,qx,qy,qz,qw (sensor to map)");
+  app->add_option("--trajectory", o.trajectory, "TUM: pose file to use instead of trajectory.txt/groundtruth.txt");
+}
+
+namespace {
+
+int runIntegrate(const IntegrateOptions& o) {
+  if (std::filesystem::path(o.output).extension() != ".cmap") {
+    throw UsageError("output '" + o.output + "' must end in .cmap");
+  }
+  const IntegratedSession session = integrateDataset(o.dataset, o.settings, "integrating");
+  const SessionMap& map = session.map;
+  const IntegrationStats& stats = session.stats;
+  IntegratorSettings settings;
+  settings.max_range_m = o.settings.max_range_m;
+  settings.fast = o.settings.fast;
+  settings.compress_free = !o.settings.no_compress;
   nlohmann::json meta = {{"created_by", "chronomap integrate"},
                          {"dataset", std::filesystem::absolute(o.dataset).lexically_normal().string()},
-                         {"format", io::toString(dataset->format())},
+                         {"format", session.format},
                          {"frames", stats.frames},
                          {"points", stats.points},
                          {"max_range_m", settings.max_range_m},
                          {"fast", settings.fast},
                          {"compressed", settings.compress_free}};
+  if (session.recorded_at) meta["recorded_at"] = *session.recorded_at;
   io::writeSessionMap(o.output, map, meta);
   const SessionMapCounts counts = map.counts();
   const auto file_bytes = std::filesystem::file_size(o.output);
   if (o.json) {
     nlohmann::json j = {{"frames", stats.frames},
-                        {"frames_dropped", dataset->framesDropped()},
+                        {"frames_dropped", session.frames_dropped},
                         {"points", stats.points},
                         {"points_skipped", stats.pointsSkipped()},
                         {"points_invalid", stats.points_invalid},
@@ -90,9 +115,8 @@ int runIntegrate(const IntegrateOptions& o) {
                         {"output", o.output}};
     std::cout << j.dump() << "\n";
   } else {
-    std::cout << "integrated " << stats.frames << " frame(s) of " << o.dataset << " (" << io::toString(dataset->format())
-              << ")";
-    if (dataset->framesDropped()) std::cout << ", " << dataset->framesDropped() << " frame(s) without pose or colour dropped";
+    std::cout << "integrated " << stats.frames << " frame(s) of " << o.dataset << " (" << session.format << ")";
+    if (session.frames_dropped) std::cout << ", " << session.frames_dropped << " frame(s) without pose or colour dropped";
     std::cout << "\n  points:  " << stats.points << " cast, " << stats.pointsSkipped() << " skipped ("
               << stats.points_invalid << " invalid, " << stats.points_out_of_range << " beyond "
               << settings.max_range_m << " m, " << stats.points_outside_map << " outside the map)\n"
@@ -122,20 +146,7 @@ Command addIntegrate(CLI::App& root) {
       "('cloud.pcd tx ty tz qx qy qz qw' per line).");
   app->add_option("DATASET", o->dataset, "dataset folder or file")->required();
   app->add_option("-o,--output", o->output, "session map to write (.cmap)")->required();
-  app->add_option("--resolution", o->resolution_m, "edge of a unit voxel, metres")->capture_default_str();
-  app->add_option("--max-range", o->max_range_m, "points farther from the sensor are discarded, metres")
-      ->capture_default_str();
-  app->add_option("--format", o->format, "auto, tum, 3dmatch or clouds")->capture_default_str();
-  app->add_flag("--fast", o->fast,
-                "bundle the points of a frame that end in the same voxel into one weighted ray "
-                "(much faster; see docs/integration.md for how far the counters may differ)");
-  app->add_option("--threads", o->threads, "worker threads, 0 = all cores (the map does not depend on it)")
-      ->capture_default_str();
-  app->add_flag("--no-compress", o->no_compress, "keep every free unit voxel instead of merging free subtrees");
-  app->add_option("--depth-scale", o->depth_scale, "depth image units per metre (TUM 5000, 3DMatch 1000)");
-  app->add_option("--intrinsics", o->intrinsics, "camera intrinsics fx,fy,cx,cy in pixels");
-  app->add_option("--pose", o->pose, "pose of a single cloud: tx,ty,tz,qx,qy,qz,qw (sensor to map)");
-  app->add_option("--trajectory", o->trajectory, "TUM: pose file to use instead of trajectory.txt/groundtruth.txt");
+  addIntegrateOptions(app, o->settings);
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runIntegrate(*o); }};
 }

@@ -5,7 +5,10 @@
 #include <nlohmann/json.hpp>
 
 #include "chronomap/core/error.h"
+#include "chronomap/core/time.h"
 #include "chronomap/io/cmap.h"
+#include "chronomap/io/plot.h"
+#include "chronomap/io/temporal_file.h"
 #include "commands.h"
 
 namespace chronomap::cli {
@@ -14,15 +17,108 @@ namespace {
 
 struct StatsOptions {
   std::string file;
+  std::string plot;
   bool json = false;
 };
 
+/// Cumulative node counts after each session (in time order): stored separately, and the 4D map.
+void storageCurves(const TemporalMap& map, std::vector<double>& separate, std::vector<double>& four_d) {
+  double a = 0.0, b = 0.0;
+  for (const auto& s : map.sessions()) {
+    a += static_cast<double>(s.nodes_separate);
+    b += static_cast<double>(s.nodes_added);
+    separate.push_back(a);
+    four_d.push_back(b);
+  }
+}
+
+void writeStoragePlot(const std::string& path, const TemporalMap& map) {
+  std::vector<double> separate, four_d, x;
+  storageCurves(map, separate, four_d);
+  for (size_t i = 0; i < separate.size(); ++i) x.push_back(static_cast<double>(i + 1));
+  io::PlotSettings s;
+  s.title = "Storage: nodes after each session";
+  s.x_label = "sessions";
+  s.y_label = "nodes";
+  const io::ImageRgb img = io::renderLinePlot(
+      {{"session maps stored separately", Rgb{200, 60, 50}, x, separate}, {"4D map", Rgb{40, 90, 200}, x, four_d}}, s);
+  io::writePng(path, img);
+}
+
+int runTemporalStats(const StatsOptions& o, const io::CmapFile& file) {
+  const TemporalMap map = io::temporalMapFrom(file, o.file);
+  const TemporalCounts c = map.counts();
+  std::vector<double> separate, four_d;
+  storageCurves(map, separate, four_d);
+  const double nodes_separate = separate.empty() ? 0.0 : separate.back();
+  if (!o.plot.empty()) {
+    if (std::filesystem::path(o.plot).extension() != ".png") throw UsageError("--plot '" + o.plot + "' must end in .png");
+    if (map.sessionCount() == 0) throw DataError(o.file + ": no sessions to plot");
+    writeStoragePlot(o.plot, map);
+  }
+  const auto& h = file.header;
+  if (o.json) {
+    nlohmann::json times = nlohmann::json::array(), sessions = nlohmann::json::array();
+    for (const auto& s : map.sessions()) {
+      times.push_back(formatTime(s.time_s));
+      sessions.push_back({{"time", formatTime(s.time_s)},
+                          {"time_s", s.time_s},
+                          {"name", s.name},
+                          {"nodes_added", s.nodes_added},
+                          {"nodes_separate", s.nodes_separate},
+                          {"observed_voxels", s.coverage.voxelCount()}});
+    }
+    nlohmann::json j = {{"kind", io::toString(h.kind)},
+                        {"format_version", h.version},
+                        {"resolution_m", h.resolution_m},
+                        {"sessions", map.sessionCount()},
+                        {"times", times},
+                        {"nodes", c.nodes()},
+                        {"inner_nodes", c.inner_nodes},
+                        {"entries", c.entries},
+                        {"slots", c.slots},
+                        {"bytes", map.memoryBytes()},
+                        {"file_bytes", file.file_bytes},
+                        {"nodes_separate", static_cast<uint64_t>(nodes_separate)},
+                        {"per_session", sessions},
+                        {"bounds_min", {h.bounds_min_m.x(), h.bounds_min_m.y(), h.bounds_min_m.z()}},
+                        {"bounds_max", {h.bounds_max_m.x(), h.bounds_max_m.y(), h.bounds_max_m.z()}}};
+    if (!o.plot.empty()) j["plot"] = o.plot;
+    std::cout << j.dump() << "\n";
+    return 0;
+  }
+  std::cout << o.file << ": 4d map, format version " << h.version << "\n"
+            << "  resolution:  " << h.resolution_m << " m\n"
+            << "  bounds:      [" << h.bounds_min_m.transpose() << "] .. [" << h.bounds_max_m.transpose() << "] m\n"
+            << "  sessions:    " << map.sessionCount();
+  if (map.sessionCount()) {
+    std::cout << " (" << formatTime(map.sessions().front().time_s) << " .. " << formatTime(map.sessions().back().time_s)
+              << ")";
+  }
+  std::cout << "\n  nodes:       " << c.nodes() << " (" << c.inner_nodes << " inner, " << c.entries
+            << " history entries in " << c.slots << " slots)\n"
+            << "  separately:  " << static_cast<uint64_t>(nodes_separate) << " nodes for the session maps on their own";
+  if (nodes_separate > 0) std::cout << " (the 4D map holds " << 100.0 * static_cast<double>(c.nodes()) / nodes_separate << "%)";
+  std::cout << "\n  memory:      " << humanBytes(static_cast<double>(map.memoryBytes())) << "\n"
+            << "  file:        " << humanBytes(static_cast<double>(file.file_bytes)) << "\n";
+  if (map.sessionCount()) {
+    std::cout << "  per session: time, nodes added, nodes on its own\n";
+    for (const auto& s : map.sessions()) {
+      std::cout << "    " << formatTime(s.time_s) << "  " << s.nodes_added << "  " << s.nodes_separate << "\n";
+    }
+  }
+  if (!o.plot.empty()) std::cout << "wrote " << o.plot << "\n";
+  return 0;
+}
+
 int runStats(const StatsOptions& o) {
   const io::CmapFile file = io::readCmap(o.file);
+  if (file.header.kind == io::MapKind::Temporal) return runTemporalStats(o, file);
   if (file.header.kind != io::MapKind::Session) {
     throw DataError(o.file + ": stats for " + std::string(io::toString(file.header.kind)) +
                     " maps are not supported by this build");
   }
+  if (!o.plot.empty()) throw UsageError("--plot draws the storage of a 4D map; " + o.file + " is a session map");
   const SessionMap map = io::sessionMapFrom(file, o.file);
   const SessionMapCounts c = map.counts();
   const nlohmann::json meta = io::metadataOf(file);
@@ -68,8 +164,11 @@ int runStats(const StatsOptions& o) {
 
 Command addStats(CLI::App& root) {
   auto o = std::make_shared<StatsOptions>();
-  CLI::App* app = root.add_subcommand("stats", "Print what a .cmap file holds: kind, resolution, voxels, nodes, bytes.");
+  CLI::App* app = root.add_subcommand("stats", "Print what a .cmap file holds: kind, resolution, voxels, nodes, bytes; for a 4D map also the "
+      "sessions and the nodes each added.");
   app->add_option("FILE", o->file, "a .cmap file")->required();
+  app->add_option("--plot", o->plot,
+                  "4D maps: draw nodes against sessions, stored separately and as the 4D map, into this PNG");
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runStats(*o); }};
 }

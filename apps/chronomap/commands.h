@@ -4,7 +4,11 @@
 
 #include <CLI/CLI.hpp>
 #include <functional>
+#include <optional>
 #include <string>
+
+#include "chronomap/integrate/integrator.h"
+#include "chronomap/octree/session_map.h"
 
 namespace chronomap::cli {
 
@@ -20,6 +24,39 @@ struct Command {
 Command addIntegrate(CLI::App& root);
 Command addStats(CLI::App& root);
 Command addExport(CLI::App& root);
+Command addAdd(CLI::App& root);
+Command addBuild(CLI::App& root);
+Command addSnapshot(CLI::App& root);
+Command addHistory(CLI::App& root);
+Command addChanges(CLI::App& root);
+
+/// How datasets become session maps (the options of integrate, shared with build).
+struct IntegrateSettings {
+  double resolution_m = 0.05;
+  double max_range_m = IntegratorSettings{}.max_range_m;
+  std::string format = "auto";
+  bool fast = false;
+  int threads = 0;
+  bool no_compress = false;
+  double depth_scale = 0.0;
+  std::string intrinsics;
+  std::string pose;
+  std::string trajectory;
+};
+/// Registers the integration options on a subcommand.
+void addIntegrateOptions(CLI::App* app, IntegrateSettings& settings);
+
+/// A dataset integrated into a session map.
+struct IntegratedSession {
+  SessionMap map;
+  IntegrationStats stats;
+  std::optional<double> recorded_at;  ///< from the dataset's own timestamps, if any
+  std::string format;
+  size_t frames_dropped = 0;
+};
+/// Opens and integrates a dataset with a progress bar labelled `label`.
+/// @throw DataError when no point could be integrated.
+IntegratedSession integrateDataset(const std::string& path, const IntegrateSettings& settings, const std::string& label);
 
 /// Formats a byte count as "12.3 MiB".
 std::string humanBytes(double bytes);

@@ -22,11 +22,14 @@ int main(int argc, char** argv) {
   using namespace chronomap;
   CLI::App app{
       "chronomap: four-dimensional maps from RGB-D recordings of one place.\n"
-      "Integrate recordings into session maps, inspect them and export them."};
+      "Integrate recordings into session maps, combine them into a 4D map that keeps every observed\n"
+      "state, and ask it what the place looked like, what changed and how often."};
   app.name("chronomap");
   app.require_subcommand(1);
   app.set_version_flag("--version", "chronomap 0.1.0");
-  const std::vector<cli::Command> commands = {cli::addIntegrate(app), cli::addStats(app), cli::addExport(app)};
+  const std::vector<cli::Command> commands = {cli::addIntegrate(app), cli::addAdd(app),      cli::addBuild(app),
+                                              cli::addSnapshot(app),  cli::addHistory(app),  cli::addChanges(app),
+                                              cli::addStats(app),     cli::addExport(app)};
 
   try {
     app.parse(argc, argv);

@@ -130,6 +130,10 @@ class ImageDataset : public Dataset {
       : format_(format), frames_(std::move(frames)), k_(k), scale_(scale), dropped_(dropped) {}
   size_t size() const override { return frames_.size(); }
   DatasetFormat format() const override { return format_; }
+  std::optional<double> recordedAt() const override {
+    if (format_ != DatasetFormat::Tum || frames_.empty()) return std::nullopt;
+    return frames_.front().timestamp_s;
+  }
   size_t framesDropped() const override { return dropped_; }
 
   /// @throw DataError when the frame's median depth at this scale is not plausible.

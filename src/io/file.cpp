@@ -2,6 +2,7 @@
 
 #include <bzlib.h>
 #include <fcntl.h>
+#include <signal.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -63,8 +64,35 @@ std::string readTextFile(const fs::path& path) {
   return std::string(bytes.begin(), bytes.end());
 }
 
+namespace {
+
+// Removes temporary files that an earlier writer of `path` left when it was killed: their
+// names carry the writer's process id, and that process no longer exists.
+void removeStaleTemporaries(const fs::path& dir, const fs::path& path) {
+  std::string prefix(".");
+  prefix.append(path.filename().string()).append(".tmp-");
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.rfind(prefix, 0) != 0) continue;
+    const std::string rest = name.substr(prefix.size());
+    const size_t dash = rest.find('-');
+    if (dash == std::string::npos || dash == 0) continue;
+    char* end_ptr = nullptr;
+    const long pid = std::strtol(rest.c_str(), &end_ptr, 10);
+    if (end_ptr != rest.c_str() + dash || pid <= 0) continue;
+    if (::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH) {
+      std::error_code ignored;
+      fs::remove(it->path(), ignored);
+    }
+  }
+}
+
+}  // namespace
+
 void writeFileAtomic(const fs::path& path, const std::vector<uint8_t>& bytes) {
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  removeStaleTemporaries(dir, path);
   std::random_device rd;
   // Built with append: GCC 12 warns falsely (-Wrestrict) on a chain of string operator+.
   std::string name(".");

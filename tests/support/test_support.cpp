@@ -51,6 +51,30 @@ CommandResult runCommand(const std::string& command) {
   return r;
 }
 
+SessionMap randomSessionMap(uint64_t seed, int side, double occupied, double resolution_m) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  SessionMap m(resolution_m);
+  for (int z = 0; z < side; ++z) {
+    for (int y = 0; y < side; ++y) {
+      for (int x = 0; x < side; ++x) {
+        if (u(rng) > 0.9) continue;
+        VoxelCounters c;
+        c.length_m = 0.125f;
+        if (u(rng) < occupied) {
+          c.hits = 2;
+          c.red = 2 * static_cast<uint32_t>(rng() % 256);
+        }
+        m.add(VoxelKey{static_cast<uint16_t>(kKeyOrigin + x), static_cast<uint16_t>(kKeyOrigin + y),
+                       static_cast<uint16_t>(kKeyOrigin + z)},
+              c);
+      }
+    }
+  }
+  m.compressFree();
+  return m;
+}
+
 PointCloud cloudOf(std::initializer_list<Eigen::Vector3f> points) {
   PointCloud c;
   c.points.assign(points.begin(), points.end());

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "chronomap/core/point_cloud.h"
+#include "chronomap/octree/session_map.h"
 
 namespace chronomap::test {
 
@@ -37,6 +38,10 @@ struct CommandResult {
   std::string err;
 };
 CommandResult runCommand(const std::string& command);
+
+/// A random session map over a side^3 block of voxels at the map origin: each voxel observed
+/// with probability 0.9, occupied with probability `occupied`, free subtrees compressed.
+SessionMap randomSessionMap(uint64_t seed, int side = 16, double occupied = 0.1, double resolution_m = 0.05);
 
 /// A cloud of the given points (no colour).
 PointCloud cloudOf(std::initializer_list<Eigen::Vector3f> points);

@@ -88,6 +88,9 @@ class Dataset : public FrameSource {
   virtual DatasetFormat format() const = 0;
   /// Frames listed but left out (no colour or pose within the time tolerance).
   virtual size_t framesDropped() const { return 0; }
+  /// When the recording started (seconds since the epoch), if its files say so: the first
+  /// frame's timestamp of a TUM folder. Nothing for formats without times.
+  virtual std::optional<double> recordedAt() const { return std::nullopt; }
 };
 
 /// Opens a dataset folder or file. Reads every index and pose file now (and checks them), and

@@ -1,0 +1,500 @@
+// chronomap add | build | snapshot | history | changes: the 4D map on the command line.
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "chronomap/core/error.h"
+#include "chronomap/core/time.h"
+#include "chronomap/io/cloud_io.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/export.h"
+#include "chronomap/io/temporal_file.h"
+#include "commands.h"
+
+namespace chronomap::cli {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+void requireExtension(const std::string& path, const std::string& ext, const std::string& what) {
+  if (fs::path(path).extension() != ext) throw UsageError(what + " '" + path + "' must end in " + ext);
+}
+
+/// Opens the 4D map at `path`, or a new one when the file does not exist.
+TemporalMap openOrCreate(const std::string& path, double resolution_m, const ChangeCriterion& criterion,
+                         bool& created) {
+  created = !fs::exists(path);
+  if (created) return TemporalMap(resolution_m, criterion);
+  TemporalMap map = io::readTemporalMap(path);
+  if (map.resolution_m() != resolution_m) {
+    throw UsageError(path + ": the 4D map has resolution " + std::to_string(map.resolution_m()) +
+                     " m but the session has " + std::to_string(resolution_m) + " m");
+  }
+  return map;
+}
+
+nlohmann::json addReportJson(const AddReport& r, double time_s, int64_t nodes_added) {
+  return {{"time", formatTime(time_s)},      {"time_s", time_s},           {"entries_added", r.entries_added},
+          {"entries_removed", r.entries_removed}, {"inner_added", r.inner_added}, {"nodes_added", nodes_added},
+          {"replaced", r.replaced},          {"out_of_order", r.out_of_order}};
+}
+
+int64_t nodesAddedAt(const TemporalMap& map, double time_s) {
+  for (const auto& s : map.sessions()) {
+    if (s.time_s == time_s) return s.nodes_added;
+  }
+  return 0;
+}
+
+// ------------------------------------------------------------------------------------------
+// add
+
+struct AddCmdOptions {
+  std::string map;
+  std::string session;
+  std::string time;
+  bool replace = false;
+  ChangeCriterion criterion;
+  bool json = false;
+};
+
+int runAdd(const AddCmdOptions& o) {
+  requireExtension(o.map, ".cmap", "4D map");
+  const io::CmapFile file = io::readCmap(o.session);
+  const SessionMap session = io::sessionMapFrom(file, o.session);
+  double time_s = 0.0;
+  if (!o.time.empty()) {
+    time_s = parseTime(o.time);
+  } else {
+    const nlohmann::json meta = io::metadataOf(file);
+    if (!meta.contains("recorded_at") || !meta["recorded_at"].is_number()) {
+      throw UsageError(o.session + " does not say when it was recorded; give --time");
+    }
+    time_s = meta["recorded_at"].get<double>();
+  }
+  bool created = false;
+  TemporalMap map = openOrCreate(o.map, session.resolution_m(), o.criterion, created);
+  const AddReport report = map.add(time_s, session, AddOptions{o.replace, fs::path(o.session).filename().string()});
+  io::writeTemporalMap(o.map, map, {});
+  const int64_t added = nodesAddedAt(map, time_s);
+  if (o.json) {
+    nlohmann::json j = addReportJson(report, time_s, added);
+    j["map"] = o.map;
+    j["created"] = created;
+    j["sessions"] = map.sessionCount();
+    j["nodes"] = map.counts().nodes();
+    j["file_bytes"] = fs::file_size(o.map);
+    std::cout << j.dump() << "\n";
+  } else {
+    std::cout << (created ? "created " : "updated ") << o.map << ": session " << formatTime(time_s)
+              << (report.replaced ? " replaced" : " added") << (report.out_of_order ? " (before later sessions)" : "")
+              << ", " << added << " nodes added (" << report.entries_added << " entries, " << report.inner_added
+              << " inner nodes); " << map.sessionCount() << " session(s), " << map.counts().nodes() << " nodes, "
+              << humanBytes(static_cast<double>(fs::file_size(o.map))) << " on disk\n";
+  }
+  return 0;
+}
+
+void addCriterionOptions(CLI::App* app, ChangeCriterion& c) {
+  app->add_option("--probability-threshold", c.probability_threshold,
+                  "new map only: also store a change when P moves by more than this (0 = state only)")
+      ->capture_default_str();
+  app->add_option("--color-distance", c.color_distance,
+                  "new map only: also store a change when the mean colour moves farther than this "
+                  "(8-bit RGB units; 0 = off)")
+      ->capture_default_str();
+}
+
+// ------------------------------------------------------------------------------------------
+// build
+
+struct BuildCmdOptions {
+  std::string map;
+  std::vector<std::string> datasets;
+  std::string times;
+  bool replace = false;
+  ChangeCriterion criterion;
+  IntegrateSettings integrate;
+  bool json = false;
+};
+
+std::vector<std::string> splitCommas(const std::string& text) {
+  std::vector<std::string> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) out.push_back(item);
+  return out;
+}
+
+int runBuild(const BuildCmdOptions& o) {
+  requireExtension(o.map, ".cmap", "4D map");
+  for (const auto& d : o.datasets) {
+    if (!fs::exists(d)) throw UsageError("dataset '" + d + "' does not exist");
+  }
+  std::vector<std::optional<double>> times(o.datasets.size());
+  if (!o.times.empty()) {
+    const auto parts = splitCommas(o.times);
+    if (parts.size() != o.datasets.size()) {
+      throw UsageError("--times lists " + std::to_string(parts.size()) + " time(s) for " +
+                       std::to_string(o.datasets.size()) + " dataset(s)");
+    }
+    for (size_t i = 0; i < parts.size(); ++i) times[i] = parseTime(parts[i]);
+  }
+  bool created = false;
+  TemporalMap map = openOrCreate(o.map, o.integrate.resolution_m, o.criterion, created);
+  // Refuse known clashes before the long integration.
+  for (size_t i = 0; i < times.size(); ++i) {
+    if (!times[i] || o.replace) continue;
+    for (const auto& s : map.sessions()) {
+      if (s.time_s == *times[i]) {
+        throw UsageError(o.map + " already holds a session at " + formatTime(s.time_s) + " (given for " +
+                         o.datasets[i] + "); use --replace or another time");
+      }
+    }
+  }
+  // Integrate first (times may come from the datasets), then add in time order.
+  struct Pending {
+    size_t index;
+    double time_s;
+    IntegratedSession session;
+  };
+  std::vector<Pending> pending;
+  for (size_t i = 0; i < o.datasets.size(); ++i) {
+    if (!o.json) std::cerr << "[" << i + 1 << "/" << o.datasets.size() << "] " << o.datasets[i] << "\n";
+    IntegratedSession s = integrateDataset(o.datasets[i], o.integrate, "integrating");
+    const std::optional<double> t = times[i] ? times[i] : s.recorded_at;
+    if (!t) {
+      throw UsageError(o.datasets[i] + " has no timestamps (" + s.format +
+                       " datasets do not carry times); give one per dataset with --times");
+    }
+    pending.push_back({i, *t, std::move(s)});
+  }
+  std::stable_sort(pending.begin(), pending.end(), [](const Pending& a, const Pending& b) { return a.time_s < b.time_s; });
+  for (size_t i = 1; i < pending.size(); ++i) {
+    if (pending[i].time_s == pending[i - 1].time_s) {
+      throw UsageError(o.datasets[pending[i - 1].index] + " and " + o.datasets[pending[i].index] +
+                       " have the same time " + formatTime(pending[i].time_s));
+    }
+  }
+  nlohmann::json reports = nlohmann::json::array();
+  for (const Pending& p : pending) {
+    const AddReport r =
+        map.add(p.time_s, p.session.map, AddOptions{o.replace, fs::path(o.datasets[p.index]).filename().string()});
+    nlohmann::json j = addReportJson(r, p.time_s, nodesAddedAt(map, p.time_s));
+    j["dataset"] = o.datasets[p.index];
+    j["points"] = p.session.stats.points;
+    j["nodes_separate"] = p.session.map.innerCount() + p.session.map.leafCount();
+    reports.push_back(j);
+  }
+  // One atomic write at the end: a crash leaves the previous map (or none) on disk.
+  io::writeTemporalMap(o.map, map, {});
+  const auto file_bytes = fs::file_size(o.map);
+  if (o.json) {
+    std::cout << nlohmann::json{{"map", o.map},
+                                {"created", created},
+                                {"sessions", map.sessionCount()},
+                                {"nodes", map.counts().nodes()},
+                                {"file_bytes", file_bytes},
+                                {"added", reports}}
+                     .dump()
+              << "\n";
+  } else {
+    for (const auto& r : reports) {
+      std::cout << "  " << r["time"].get<std::string>() << "  " << r["dataset"].get<std::string>() << ": "
+                << r["nodes_added"].get<int64_t>() << " nodes added (" << r["nodes_separate"].get<uint64_t>()
+                << " on its own)\n";
+    }
+    std::cout << (created ? "created " : "updated ") << o.map << ": " << map.sessionCount() << " session(s), "
+              << map.counts().nodes() << " nodes, " << humanBytes(static_cast<double>(file_bytes)) << " on disk\n";
+  }
+  return 0;
+}
+
+// ------------------------------------------------------------------------------------------
+// snapshot
+
+struct SnapshotCmdOptions {
+  std::string map;
+  std::string at;
+  std::string output;
+  bool json = false;
+};
+
+int runSnapshot(const SnapshotCmdOptions& o) {
+  const std::string ext = fs::path(o.output).extension().string();
+  if (ext != ".cmap" && ext != ".ply" && ext != ".ot" && ext != ".png") {
+    throw UsageError("output '" + o.output + "' must end in .cmap, .ply, .ot or .png");
+  }
+  const double t = parseTime(o.at);
+  const TemporalMap map = io::readTemporalMap(o.map);
+  if (map.sessionCount() == 0 || t < map.sessions().front().time_s) {
+    throw UsageError(o.map + " holds no session at or before " + formatTime(t) +
+                     (map.sessionCount() ? " (the first is at " + formatTime(map.sessions().front().time_s) + ")" : ""));
+  }
+  const SessionMap snap = map.snapshot(t);
+  size_t n = 0;
+  if (ext == ".cmap") {
+    io::writeSessionMap(o.output, snap, {{"created_by", "chronomap snapshot"}, {"snapshot_of", o.map}, {"time_s", t}});
+    n = snap.leafCount();
+  } else if (ext == ".ply") {
+    n = io::exportOccupiedPly(o.output, snap);
+  } else if (ext == ".ot") {
+    n = io::exportOctomap(o.output, snap);
+  } else {
+    const io::ImageRgb img = io::renderTopView(snap);
+    io::writePng(o.output, img);
+    n = size_t{img.width} * img.height;
+  }
+  const SessionMapCounts c = snap.counts();
+  if (o.json) {
+    std::cout << nlohmann::json{{"output", o.output},   {"time", formatTime(t)},       {"time_s", t},
+                                {"occupied", c.occupied_voxels}, {"free", c.free_voxels}, {"elements", n}}
+                     .dump()
+              << "\n";
+  } else {
+    std::cout << "wrote " << o.output << ": the map as last observed at " << formatTime(t) << " ("
+              << c.occupied_voxels << " occupied, " << c.free_voxels << " free voxels)\n";
+  }
+  return 0;
+}
+
+// ------------------------------------------------------------------------------------------
+// history
+
+struct HistoryCmdOptions {
+  std::string map;
+  std::string point;
+  bool json = false;
+};
+
+Eigen::Vector3d parsePoint(const std::string& text) {
+  const auto parts = splitCommas(text);
+  if (parts.size() != 3) throw UsageError("--point must be X,Y,Z in metres, got '" + text + "'");
+  Eigen::Vector3d p;
+  for (int i = 0; i < 3; ++i) {
+    try {
+      size_t used = 0;
+      p[i] = std::stod(parts[static_cast<size_t>(i)], &used);
+      if (used != parts[static_cast<size_t>(i)].size() || !std::isfinite(p[i])) throw std::invalid_argument("");
+    } catch (const std::exception&) {
+      throw UsageError("--point must be X,Y,Z in metres, got '" + text + "'");
+    }
+  }
+  return p;
+}
+
+int runHistory(const HistoryCmdOptions& o) {
+  const Eigen::Vector3d p = parsePoint(o.point);
+  const TemporalMap map = io::readTemporalMap(o.map);
+  const auto key = map.grid().keyOf(p);
+  if (!key) throw UsageError("point " + o.point + " lies outside the map");
+  const auto history = map.history(*key);
+  const Eigen::Vector3d c = map.grid().centerOf(*key);
+  if (o.json) {
+    nlohmann::json entries = nlohmann::json::array();
+    for (const auto& e : history) {
+      const Rgb rgb = e.counters.meanColor();
+      entries.push_back({{"time", formatTime(e.time_s)},
+                         {"time_s", e.time_s},
+                         {"state", toString(e.counters.state())},
+                         {"probability", e.counters.probability()},
+                         {"hits", e.counters.hits},
+                         {"length_m", e.counters.length_m},
+                         {"color", {rgb.r, rgb.g, rgb.b}},
+                         {"level", e.level}});
+    }
+    std::cout << nlohmann::json{{"point", {p.x(), p.y(), p.z()}},
+                                {"voxel_center", {c.x(), c.y(), c.z()}},
+                                {"key", {key->x, key->y, key->z}},
+                                {"entries", entries}}
+                     .dump()
+              << "\n";
+    return 0;
+  }
+  std::cout << "voxel at (" << c.transpose() << ") m, key (" << key->x << ", " << key->y << ", " << key->z << ")\n";
+  if (history.empty()) {
+    std::cout << "  never observed in " << map.sessionCount() << " session(s)\n";
+    return 0;
+  }
+  for (const auto& e : history) {
+    const Rgb rgb = e.counters.meanColor();
+    std::cout << "  " << formatTime(e.time_s) << "  " << std::setw(8) << std::left << toString(e.counters.state())
+              << std::right << " P=" << std::fixed << std::setprecision(3) << e.counters.probability()
+              << std::defaultfloat << "  hits=" << e.counters.hits;
+    if (e.counters.hits) std::cout << "  colour=(" << int(rgb.r) << "," << int(rgb.g) << "," << int(rgb.b) << ")";
+    if (e.level > 0) std::cout << "  (uniform cube of " << (1 << e.level) << "^3 voxels)";
+    std::cout << "\n";
+  }
+  std::cout << "  " << history.size() << " entr" << (history.size() == 1 ? "y" : "ies") << " in "
+            << map.sessionCount() << " session(s); unchanged observations are not stored\n";
+  return 0;
+}
+
+// ------------------------------------------------------------------------------------------
+// changes
+
+struct ChangesCmdOptions {
+  std::string map;
+  std::string from;
+  std::string to;
+  uint32_t min = 1;
+  std::string output;
+  bool json = false;
+};
+
+// Blue (few changes) to red (many) for a count in [min, max].
+Rgb heat(uint32_t n, uint32_t lo, uint32_t hi) {
+  const double t = hi > lo ? static_cast<double>(n - lo) / static_cast<double>(hi - lo) : 1.0;
+  auto channel = [](double v) { return static_cast<uint8_t>(std::lround(std::clamp(v, 0.0, 1.0) * 255.0)); };
+  return {channel(1.5 * t), channel(1.0 - 2.0 * std::abs(t - 0.5)), channel(1.5 * (1.0 - t))};
+}
+
+int runChanges(const ChangesCmdOptions& o) {
+  if (!o.output.empty()) requireExtension(o.output, ".ply", "output");
+  if (o.min < 1) throw UsageError("--min must be at least 1");
+  const TemporalMap map = io::readTemporalMap(o.map);
+  const double t0 = o.from.empty() ? -std::numeric_limits<double>::infinity() : parseTime(o.from);
+  const double t1 = o.to.empty() ? std::numeric_limits<double>::infinity() : parseTime(o.to);
+  if (t1 < t0) throw UsageError("--to lies before --from");
+  struct Changed {
+    VoxelKey key;
+    uint32_t count;
+  };
+  std::vector<Changed> changed;
+  std::vector<uint64_t> histogram;
+  map.forEachChangeCount(t0, t1, [&](const VoxelKey& k, int level, uint32_t n) {
+    const uint64_t voxels = uint64_t{1} << (3 * level);
+    if (histogram.size() <= n) histogram.resize(n + 1, 0);
+    histogram[n] += voxels;
+    if (n < o.min) return;
+    const int side = 1 << level;
+    for (int dz = 0; dz < side; ++dz) {
+      for (int dy = 0; dy < side; ++dy) {
+        for (int dx = 0; dx < side; ++dx) {
+          changed.push_back({VoxelKey{static_cast<uint16_t>(k.x + dx), static_cast<uint16_t>(k.y + dy),
+                                      static_cast<uint16_t>(k.z + dz)},
+                             n});
+        }
+      }
+    }
+  });
+  uint32_t max_count = 0;
+  for (const auto& c : changed) max_count = std::max(max_count, c.count);
+  if (!o.output.empty()) {
+    PointCloud cloud;
+    cloud.points.reserve(changed.size());
+    cloud.colors.reserve(changed.size());
+    for (const auto& c : changed) {
+      cloud.points.push_back(map.grid().centerOf(c.key).cast<float>());
+      cloud.colors.push_back(heat(c.count, o.min, max_count));
+    }
+    cloud.width = static_cast<uint32_t>(cloud.points.size());
+    io::writePly(o.output, cloud);
+  }
+  if (o.json) {
+    nlohmann::json hist = nlohmann::json::object();
+    for (size_t n = 1; n < histogram.size(); ++n) {
+      if (histogram[n]) hist[std::to_string(n)] = histogram[n];
+    }
+    std::cout << nlohmann::json{{"min", o.min},
+                                {"voxels", changed.size()},
+                                {"max_changes", max_count},
+                                {"histogram", hist},
+                                {"output", o.output}}
+                     .dump()
+              << "\n";
+  } else {
+    std::cout << changed.size() << " voxel(s) changed at least " << o.min << " time(s)";
+    if (!changed.empty()) std::cout << " (at most " << max_count << ")";
+    std::cout << " in " << map.sessionCount() << " session(s)\n";
+    for (size_t n = 1; n < histogram.size(); ++n) {
+      if (histogram[n]) std::cout << "  " << std::setw(3) << n << " change(s): " << histogram[n] << " voxel(s)\n";
+    }
+    if (!o.output.empty()) std::cout << "wrote " << o.output << " (voxel centres coloured blue = few to red = many)\n";
+  }
+  return 0;
+}
+
+}  // namespace
+
+Command addAdd(CLI::App& root) {
+  auto o = std::make_shared<AddCmdOptions>();
+  CLI::App* app = root.add_subcommand(
+      "add",
+      "Add a session map to a 4D map (created when missing). Only voxels the session observed and whose "
+      "state changed are stored; adding a session older than stored ones is allowed.");
+  app->add_option("MAP", o->map, "the 4D map (.cmap)")->required();
+  app->add_option("SESSION", o->session, "a session map from chronomap integrate (.cmap)")->required();
+  app->add_option("--time", o->time,
+                  "when the session was recorded: ISO-8601 (2012-03-01T10:00:00Z) or seconds since the epoch; "
+                  "default: the time the session file records");
+  app->add_flag("--replace", o->replace, "replace a session stored at the same time instead of refusing");
+  addCriterionOptions(app, o->criterion);
+  app->add_flag("--json", o->json, "print a JSON summary on stdout");
+  return {app, [o] { return runAdd(*o); }};
+}
+
+Command addBuild(CLI::App& root) {
+  auto o = std::make_shared<BuildCmdOptions>();
+  CLI::App* app = root.add_subcommand(
+      "build",
+      "Integrate several recordings and add them to a 4D map in time order (the map is created when "
+      "missing and written once, atomically, at the end).");
+  app->add_option("MAP", o->map, "the 4D map (.cmap)")->required();
+  app->add_option("DATASET", o->datasets, "dataset folders or files, one per session")->required();
+  app->add_option("--times", o->times,
+                  "comma-separated times, one per dataset (ISO-8601 or epoch seconds); default: the datasets' "
+                  "first timestamps (TUM)");
+  app->add_flag("--replace", o->replace, "replace sessions stored at the same times");
+  addCriterionOptions(app, o->criterion);
+  addIntegrateOptions(app, o->integrate);
+  app->add_flag("--json", o->json, "print a JSON summary on stdout");
+  return {app, [o] { return runBuild(*o); }};
+}
+
+Command addSnapshot(CLI::App& root) {
+  auto o = std::make_shared<SnapshotCmdOptions>();
+  CLI::App* app = root.add_subcommand(
+      "snapshot",
+      "The map as most recently observed at a time: every voxel carries its latest state at or before "
+      "--at. Output by extension: .cmap (a session map), .ply (occupied voxels), .ot (OctoMap), .png (top view).");
+  app->add_option("MAP", o->map, "the 4D map (.cmap)")->required();
+  app->add_option("--at", o->at, "time: ISO-8601 or seconds since the epoch")->required();
+  app->add_option("-o,--output", o->output, "file to write (.cmap, .ply, .ot or .png)")->required();
+  app->add_flag("--json", o->json, "print a JSON summary on stdout");
+  return {app, [o] { return runSnapshot(*o); }};
+}
+
+Command addHistory(CLI::App& root) {
+  auto o = std::make_shared<HistoryCmdOptions>();
+  CLI::App* app = root.add_subcommand(
+      "history", "Every stored state of the voxel that contains a point: time, state, probability, colour.");
+  app->add_option("MAP", o->map, "the 4D map (.cmap)")->required();
+  app->add_option("--point", o->point, "X,Y,Z in metres, map frame")->required();
+  app->add_flag("--json", o->json, "print a JSON summary on stdout");
+  return {app, [o] { return runHistory(*o); }};
+}
+
+Command addChanges(CLI::App& root) {
+  auto o = std::make_shared<ChangesCmdOptions>();
+  CLI::App* app = root.add_subcommand(
+      "changes",
+      "Voxels whose state changed at least --min times in (--from, --to], with a histogram of change "
+      "counts; -o writes them as a PLY coloured by count (the thesis' Figure 6b: --min 7 for 'more than 6').");
+  app->add_option("MAP", o->map, "the 4D map (.cmap)")->required();
+  app->add_option("--from", o->from, "count changes after this time (default: the beginning)");
+  app->add_option("--to", o->to, "count changes up to this time (default: the end)");
+  app->add_option("--min", o->min, "least number of changes a voxel needs")->capture_default_str();
+  app->add_option("-o,--output", o->output, "PLY of the voxel centres to write");
+  app->add_flag("--json", o->json, "print a JSON summary on stdout");
+  return {app, [o] { return runChanges(*o); }};
+}
+
+}  // namespace chronomap::cli

@@ -1,0 +1,279 @@
+// The 4D map on the command line: add, build, snapshot, history, changes, stats; bad input;
+// and a harness that kills `chronomap add` at random moments.
+
+#include <gtest/gtest.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <thread>
+
+#include "chronomap/core/time.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/png.h"
+#include "chronomap/io/temporal_file.h"
+#include "test_support.h"
+
+namespace chronomap {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string cli() { return std::string(CHRONOMAP_CLI_PATH); }
+
+std::vector<uint8_t> bytesOf(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+/// The path of session file i ("s0.cmap").
+fs::path sessionFile(const test::TempDir& dir, int i) {
+  std::string name("s");
+  name.append(std::to_string(i)).append(".cmap");
+  return dir / name;
+}
+
+/// Three session files s0..s2 in `dir`.
+void writeSessions(const test::TempDir& dir, int side = 16) {
+  for (int i = 0; i < 3; ++i) {
+    io::writeSessionMap(sessionFile(dir, i),
+                        test::randomSessionMap(static_cast<uint64_t>(10 + i), side), {});
+  }
+}
+
+TEST(TemporalCli, HelpForEveryCommand) {
+  for (const char* cmd : {"add", "build", "snapshot", "history", "changes", "stats"}) {
+    const auto r = test::runCommand(cli() + " " + cmd + " --help");
+    EXPECT_EQ(r.exit_code, 0) << cmd;
+    EXPECT_NE(r.out.find("Usage"), std::string::npos) << cmd;
+  }
+}
+
+TEST(TemporalCli, AddSnapshotHistoryChangesStats) {
+  test::TempDir tmp;
+  writeSessions(tmp);
+  const std::string map = (tmp / "m.cmap").string();
+  const char* times[] = {"2012-03-01T10:00:00Z", "2012-03-03T10:00:00Z", "2012-03-02T10:00:00Z"};
+  for (int i = 0; i < 3; ++i) {
+    const auto r = test::runCommand(cli() + " add " + map + " " + sessionFile(tmp, i).string() +
+                                    " --time " + times[i] + " --json");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto j = nlohmann::json::parse(r.out);
+    EXPECT_EQ(j["sessions"], i + 1);
+    EXPECT_EQ(j["out_of_order"], i == 2);
+  }
+  // The map on disk equals the library's map built from the same sessions.
+  TemporalMap expected(0.05);
+  for (int i = 0; i < 3; ++i) {
+    expected.add(parseTime(times[i]), io::readSessionMap(sessionFile(tmp, i)));
+  }
+  const TemporalMap onDisk = io::readTemporalMap(map);
+  for (double t : expected.times()) {
+    const SessionMap a = onDisk.snapshot(t), b = expected.snapshot(t);
+    EXPECT_EQ(a.counts().occupied_voxels, b.counts().occupied_voxels);
+    EXPECT_EQ(a.counts().free_voxels, b.counts().free_voxels);
+  }
+
+  // snapshot to a session map equals the library snapshot.
+  auto r = test::runCommand(cli() + " snapshot " + map + " --at 2012-03-02T12:00:00Z -o " + (tmp / "snap.cmap").string() +
+                            " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const SessionMap snap = io::readSessionMap(tmp / "snap.cmap");
+  const SessionMap lib = expected.snapshot(parseTime("2012-03-02T12:00:00Z"));
+  EXPECT_EQ(snap.counts().occupied_voxels, lib.counts().occupied_voxels);
+  EXPECT_EQ(nlohmann::json::parse(r.out)["occupied"], lib.counts().occupied_voxels);
+  for (const char* ext : {"ply", "ot", "png"}) {
+    const fs::path out = tmp / (std::string("snap.") + ext);
+    r = test::runCommand(cli() + " snapshot " + map + " --at 1330682400 -o " + out.string());
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_GT(fs::file_size(out), 100u);
+  }
+  r = test::runCommand(cli() + " snapshot " + map + " --at 2000-01-01 -o " + (tmp / "early.ply").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("no session at or before"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(tmp / "early.ply"));
+
+  // history of a voxel: the library's entries.
+  r = test::runCommand(cli() + " history " + map + " --point 0.01,0.01,0.01 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto h = nlohmann::json::parse(r.out);
+  const auto libHistory = expected.history(VoxelKey{kKeyOrigin, kKeyOrigin, kKeyOrigin});
+  ASSERT_EQ(h["entries"].size(), libHistory.size());
+  for (size_t i = 0; i < libHistory.size(); ++i) {
+    EXPECT_EQ(h["entries"][i]["state"], toString(libHistory[i].counters.state()));
+    EXPECT_EQ(h["entries"][i]["time_s"].get<double>(), libHistory[i].time_s);
+  }
+  r = test::runCommand(cli() + " history " + map + " --point 0.01,0.01,0.01");
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.out.find("2012-03-01T10:00:00Z"), std::string::npos) << r.out;
+
+  // changes: the number of voxels with at least one change.
+  uint64_t changedVoxels = 0;
+  expected.forEachChangeCount(-1e300, 1e300, [&](const VoxelKey&, int level, uint32_t) {
+    changedVoxels += uint64_t{1} << (3 * level);
+  });
+  ASSERT_GT(changedVoxels, 0u);
+  r = test::runCommand(cli() + " changes " + map + " --min 1 -o " + (tmp / "changes.ply").string() + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["voxels"].get<uint64_t>(), changedVoxels);
+  EXPECT_TRUE(fs::exists(tmp / "changes.ply"));
+
+  // stats --json with the contract's keys, and the storage plot.
+  r = test::runCommand(cli() + " stats " + map + " --json --plot " + (tmp / "storage.png").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto s = nlohmann::json::parse(r.out);
+  for (const char* key : {"kind", "resolution_m", "sessions", "times", "nodes", "bytes", "nodes_separate"}) {
+    EXPECT_TRUE(s.contains(key)) << key;
+  }
+  EXPECT_EQ(s["kind"], "4d");
+  EXPECT_EQ(s["sessions"], 3);
+  EXPECT_EQ(s["times"][0], "2012-03-01T10:00:00Z");
+  EXPECT_EQ(s["times"][1], "2012-03-02T10:00:00Z");
+  EXPECT_LT(s["nodes"].get<uint64_t>(), s["nodes_separate"].get<uint64_t>());
+  EXPECT_GT(fs::file_size(tmp / "storage.png"), 1000u);
+}
+
+TEST(TemporalCli, BadInputChangesNothing) {
+  test::TempDir tmp;
+  writeSessions(tmp);
+  const std::string map = (tmp / "m.cmap").string();
+  ASSERT_EQ(test::runCommand(cli() + " add " + map + " " + (tmp / "s0.cmap").string() + " --time 100").exit_code, 0);
+  const auto before = bytesOf(map);
+  struct Case {
+    std::string args;
+    int code;
+    std::string message;
+  };
+  const std::vector<Case> cases = {
+      {"add " + map + " " + (tmp / "s1.cmap").string() + " --time 100", 2, "already holds a session"},
+      {"add " + map + " " + (tmp / "s1.cmap").string() + " --time yesterday", 2, "'yesterday'"},
+      {"add " + map + " " + (tmp / "s1.cmap").string(), 2, "give --time"},
+      {"add " + map + " " + (tmp / "missing.cmap").string() + " --time 5", 1, "missing.cmap"},
+      {"add " + map + " " + map + " --time 5", 1, "not a session map"},
+      {"history " + map + " --point 1,2", 2, "X,Y,Z"},
+      {"history " + map + " --point 1e9,0,0", 2, "outside the map"},
+      {"changes " + map + " --min 0", 2, "--min"},
+      {"changes " + map + " -o out.txt", 2, ".ply"},
+      {"snapshot " + map + " --at 200 -o x.las", 2, ".cmap, .ply"},
+      {"stats " + (tmp / "s0.cmap").string() + " --plot p.png", 2, "4D map"},
+      {"build " + map + " " + (tmp / "nowhere").string() + " --times 5", 2, "does not exist"},
+  };
+  for (const Case& c : cases) {
+    const auto r = test::runCommand(cli() + " " + c.args);
+    EXPECT_EQ(r.exit_code, c.code) << c.args << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.message), std::string::npos) << c.args << "\n" << r.err;
+    EXPECT_EQ(bytesOf(map), before) << c.args;
+  }
+  // A damaged 4D map is reported, never overwritten by add.
+  std::ofstream(tmp / "bad.cmap") << "garbage";
+  const auto r = test::runCommand(cli() + " add " + (tmp / "bad.cmap").string() + " " + (tmp / "s1.cmap").string() +
+                                  " --time 7");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("bad.cmap"), std::string::npos);
+  EXPECT_EQ(bytesOf(tmp / "bad.cmap"), std::vector<uint8_t>({'g', 'a', 'r', 'b', 'a', 'g', 'e'}));
+}
+
+TEST(TemporalCli, BuildTakesTimesFromTumFolders) {
+  test::TempDir tmp;
+  // Two tiny TUM folders whose first timestamps order them in reverse of the command line.
+  for (int i = 0; i < 2; ++i) {
+    const fs::path d = tmp / (i == 0 ? "tum0" : "tum1");
+    fs::create_directories(d / "depth");
+    io::ImageU16 depth;
+    depth.width = 64;
+    depth.height = 48;
+    depth.pixels.assign(64 * 48, static_cast<uint16_t>(5000 * (1 + i)));
+    io::writePng(d / "depth" / "0.png", depth);
+    const double t = i == 0 ? 2000.0 : 1000.0;
+    std::ofstream(d / "depth.txt") << std::fixed << t << " depth/0.png\n";
+    std::ofstream(d / "trajectory.txt") << std::fixed << t << " 0 0 0 0 0 0 1\n";
+  }
+  const std::string map = (tmp / "m.cmap").string();
+  auto r = test::runCommand(cli() + " build " + map + " " + (tmp / "tum0").string() + " " + (tmp / "tum1").string() +
+                            " --intrinsics 50,50,32,24 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["sessions"], 2);
+  ASSERT_EQ(j["added"].size(), 2u);
+  EXPECT_EQ(j["added"][0]["time_s"].get<double>(), 1000.0) << "sessions are added in time order";
+  const TemporalMap m = io::readTemporalMap(map);
+  // In time order a wall at 2 m (tum1), then at 1 m (tum0): the voxel at 1 m turns from free to
+  // occupied.
+  const auto key = m.grid().keyOf(Eigen::Vector3d(0.01, 0.01, 1.01));
+  ASSERT_TRUE(key);
+  const auto h = m.history(*key);
+  ASSERT_EQ(h.size(), 2u);
+  EXPECT_EQ(h[0].counters.state(), VoxelState::Free);
+  EXPECT_EQ(h[1].counters.state(), VoxelState::Occupied);
+  // 3DMatch-style data has no times: build asks for them.
+  CHRONOMAP_REQUIRE_DATA(room, "3dmatch/3dmatch");
+  r = test::runCommand(cli() + " build " + (tmp / "r.cmap").string() + " " + room.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--times"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(tmp / "r.cmap"));
+}
+
+/// Kills `chronomap add` at random moments: the map on disk must always be the old one or the
+/// new one, byte for byte, and readable.
+TEST(TemporalCli, KilledAddLeavesOldOrNewMap) {
+  test::TempDir tmp;
+  io::writeSessionMap(tmp / "big.cmap", test::randomSessionMap(99, 64, 0.2), {});
+  TemporalMap old_map(0.05);
+  old_map.add(1000, test::randomSessionMap(98, 64, 0.2));
+  io::writeTemporalMap(tmp / "old.cmap", old_map, {});
+  const auto old_bytes = bytesOf(tmp / "old.cmap");
+  const fs::path map = tmp / "m.cmap";
+  fs::copy_file(tmp / "old.cmap", map);
+  const std::string add = cli() + " add " + map.string() + " " + (tmp / "big.cmap").string() + " --time 2000";
+  const auto start = std::chrono::steady_clock::now();
+  ASSERT_EQ(test::runCommand(add).exit_code, 0);
+  const auto full_us =
+      std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now() - start).count();
+  const auto new_bytes = bytesOf(map);
+  ASSERT_NE(new_bytes, old_bytes);
+
+  std::mt19937_64 rng(5);
+  int old_seen = 0, new_seen = 0;
+  const int rounds = 40;
+  for (int round = 0; round < rounds; ++round) {
+    fs::copy_file(tmp / "old.cmap", map, fs::copy_options::overwrite_existing);
+    const pid_t pid = fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+      const int null_fd = open("/dev/null", O_WRONLY);
+      dup2(null_fd, 1);
+      dup2(null_fd, 2);
+      execl(cli().c_str(), "chronomap", "add", map.c_str(), (tmp / "big.cmap").c_str(), "--time", "2000",
+            static_cast<char*>(nullptr));
+      _exit(127);
+    }
+    std::this_thread::sleep_for(std::chrono::microseconds(static_cast<int64_t>(rng() % static_cast<uint64_t>(2 * full_us + 1))));
+    kill(pid, SIGKILL);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    const auto now = bytesOf(map);
+    if (now == old_bytes) {
+      ++old_seen;
+    } else {
+      ASSERT_EQ(now, new_bytes) << "round " << round << ": the map is neither the old nor the new one";
+      ++new_seen;
+    }
+    EXPECT_NO_THROW(io::readTemporalMap(map));
+  }
+  EXPECT_EQ(old_seen + new_seen, rounds);
+  std::cout << "killed add: " << old_seen << " old, " << new_seen << " new of " << rounds << " (full run " << full_us
+            << " us)\n";
+  // Temporaries of killed writers are removed by the next write.
+  ASSERT_EQ(test::runCommand(add + " --replace").exit_code, 0);
+  for (const auto& e : fs::directory_iterator(tmp.path())) {
+    EXPECT_EQ(e.path().filename().string().find(".m.cmap.tmp-"), std::string::npos) << e.path();
+  }
+}
+
+}  // namespace
+}  // namespace chronomap
