@@ -11,6 +11,7 @@
 #include "chronomap/core/error.h"
 #include "chronomap/io/cloud_io.h"
 #include "chronomap/io/cmap.h"
+#include "chronomap/io/temporal_file.h"
 #include "chronomap/io/dataset.h"
 #include "chronomap/io/png.h"
 
@@ -27,6 +28,16 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
     volatile size_t leaves = map.counts().leaves;
     (void)leaves;
     map.find(VoxelKey{32768, 32768, 32768});
+  } else if (file.header.kind == io::MapKind::Temporal) {
+    // A 4D map that reads must also answer queries without crashing.
+    TemporalMap map = io::temporalMapFrom(file, name);
+    if (map.sessionCount() > 0) {
+      const SessionMap snap = map.snapshot(map.sessions().back().time_s);
+      volatile size_t leaves = snap.leafCount();
+      (void)leaves;
+    }
+    map.history(VoxelKey{32768, 32768, 32768});
+    map.compact();
   }
   io::metadataOf(file);
 #elif defined(FUZZ_PCD)

@@ -8,6 +8,7 @@
 
 #include "chronomap/io/cloud_io.h"
 #include "chronomap/io/cmap.h"
+#include "chronomap/io/temporal_file.h"
 #include "chronomap/io/png.h"
 
 using namespace chronomap;
@@ -61,5 +62,16 @@ int main(int argc, char** argv) {
   }
   map.compressFree();
   io::writeSessionMap(root / "cmap/session.cmap", map, {{"seed", true}});
+  {
+    // A small 4D map: the session, then the same session shifted by a voxel, added out of order.
+    TemporalMap four_d(map.resolution_m());
+    four_d.add(2000.0, map);
+    SessionMap shifted(map.resolution_m());
+    map.forEachLeaf([&](const LeafView& leaf) {
+      if (leaf.level == 0) shifted.add(VoxelKey{static_cast<uint16_t>(leaf.key.x + 1), leaf.key.y, leaf.key.z}, leaf.counters);
+    });
+    four_d.add(1000.0, shifted);
+    io::writeTemporalMap(root / "cmap/four_d.cmap", four_d, {{"seed", true}});
+  }
   return 0;
 }

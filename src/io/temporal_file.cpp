@@ -13,25 +13,6 @@ static_assert(sizeof(TemporalMap::Children) == 32, "inner nodes are stored as 32
 
 namespace {
 
-void putVarint(std::vector<uint8_t>& out, uint64_t v) {
-  while (v >= 0x80) {
-    out.push_back(static_cast<uint8_t>(v | 0x80));
-    v >>= 7;
-  }
-  out.push_back(static_cast<uint8_t>(v));
-}
-
-uint64_t getVarint(const std::vector<uint8_t>& in, size_t& pos, const std::string& source) {
-  uint64_t v = 0;
-  for (int shift = 0; shift < 64; shift += 7) {
-    if (pos >= in.size()) throw FormatError(source + ": coverage block ends inside a number");
-    const uint8_t b = in[pos++];
-    v |= static_cast<uint64_t>(b & 0x7f) << shift;
-    if ((b & 0x80) == 0) return v;
-  }
-  throw FormatError(source + ": coverage block holds an over-long number");
-}
-
 template <class T>
 std::vector<uint8_t> bytesOf(const std::vector<T>& v) {
   std::vector<uint8_t> out(v.size() * sizeof(T));
@@ -80,14 +61,7 @@ void writeTemporalMap(const std::filesystem::path& path, const TemporalMap& map,
                         {"name", s.name},
                         {"nodes_separate", s.nodes_separate},
                         {"nodes_added", s.nodes_added}});
-    const auto& r = s.coverage.ranges();
-    putVarint(coverage, r.size() / 2);
-    uint64_t previous_end = 0;
-    for (size_t i = 0; i < r.size(); i += 2) {
-      putVarint(coverage, r[i] - previous_end);
-      putVarint(coverage, r[i + 1] - r[i]);
-      previous_end = r[i + 1];
-    }
+    coverage.insert(coverage.end(), s.coverage.encoded().begin(), s.coverage.encoded().end());
   }
   j["sessions"] = std::move(sessions);
   const std::string text = j.dump();
@@ -134,22 +108,8 @@ TemporalMap temporalMapFrom(const CmapFile& file, const std::string& source) {
   const CmapBlock& cov = file.block("COVR", source);
   size_t pos = 0;
   for (SessionRecord& s : sessions) {
-    const uint64_t n = getVarint(cov.data, pos, source);
-    if (n > cov.data.size()) throw FormatError(source + ": coverage block claims more ranges than it holds");
-    std::vector<uint64_t> ranges;
-    ranges.reserve(2 * n);
-    uint64_t previous_end = 0;
-    for (uint64_t i = 0; i < n; ++i) {
-      const uint64_t gap = getVarint(cov.data, pos, source);
-      const uint64_t length = getVarint(cov.data, pos, source);
-      const uint64_t limit = uint64_t{1} << 48;
-      if (gap > limit || length > limit) throw FormatError(source + ": coverage range outside the map");
-      ranges.push_back(previous_end + gap);
-      ranges.push_back(previous_end + gap + length);
-      previous_end = ranges.back();
-    }
     try {
-      s.coverage = Coverage::fromRanges(std::move(ranges));
+      s.coverage = Coverage::decodeFrom(cov.data, pos);
     } catch (const FormatError& e) {
       throw FormatError(source + ": " + e.what());
     }

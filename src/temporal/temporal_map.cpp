@@ -189,11 +189,16 @@ uint32_t TemporalMap::refine(uint32_t node, int slot, int level) {
   return child;
 }
 
-std::optional<std::pair<uint32_t, Coverage::Overlap>> TemporalMap::nextObserver(uint32_t rank, const VoxelKey& corner,
-                                                                                int level) const {
+std::optional<std::pair<uint32_t, CoverageIndex::Overlap>> TemporalMap::nextObserver(uint32_t rank,
+                                                                                     const VoxelKey& corner, int level) {
+  if (coverage_cache_.size() != sessions_.size()) {
+    coverage_cache_.clear();
+    coverage_cache_.resize(sessions_.size());
+  }
   for (uint32_t s = rank + 1; s < sessions_.size(); ++s) {
-    const Coverage::Overlap o = sessions_[s].coverage.overlap(corner, level);
-    if (o != Coverage::Overlap::None) return std::make_pair(s, o);
+    if (!coverage_cache_[s]) coverage_cache_[s] = std::make_shared<const CoverageIndex>(sessions_[s].coverage);
+    const CoverageIndex::Overlap o = coverage_cache_[s]->overlap(corner, level);
+    if (o != CoverageIndex::Overlap::None) return std::make_pair(s, o);
   }
   return std::nullopt;
 }
@@ -252,7 +257,7 @@ void TemporalMap::applyToList(uint32_t node, int slot, int level, const VoxelKey
   if (before && !criterion_.differs(*before, value)) return;  // no change: nothing to store
 
   const auto next = nextObserver(rank, corner, level);
-  if (next && next->second == Coverage::Overlap::Partial && level > 0) {
+  if (next && next->second == CoverageIndex::Overlap::Partial && level > 0) {
     // A later session saw only part of the cube: its parts now have different histories.
     const uint32_t child = refine(node, slot, level);
     ++report.inner_added;
@@ -328,9 +333,11 @@ AddReport TemporalMap::add(double time_s, const SessionMap& session, const AddOp
   sessions_.insert(sessions_.begin() + rank, std::move(record));
 
   const size_t nodes_before = inner_.size() + live_entries_;
+  coverage_cache_.clear();
   session.forEachLeaf([&](const LeafView& leaf) {
     apply(0, kTreeDepth, leaf.key, leaf.level, leaf.counters, rank, report);
   });
+  coverage_cache_.clear();
   sessions_[rank].nodes_added = static_cast<int64_t>(inner_.size() + live_entries_) - static_cast<int64_t>(nodes_before);
   return report;
 }
@@ -342,7 +349,9 @@ void TemporalMap::remove(double time_s) {
     throw UsageError("the 4D map holds no session at " + formatTime(time_s));
   }
   const auto rank = static_cast<uint32_t>(it - sessions_.begin());
+  coverage_cache_.clear();
   removeBelow(0, kTreeDepth, VoxelKey{}, rank);
+  coverage_cache_.clear();
   sessions_.erase(sessions_.begin() + rank);
   shiftSessions(rank + 1, -1);
 }
@@ -365,7 +374,7 @@ void TemporalMap::removeFromList(uint32_t node, int slot, int level, const Voxel
   const size_t pos = lowerBound(lists_[list], rank);
   if (pos >= lists_[list].size || entriesOf(lists_[list])[pos].session != rank) return;
   const auto next = nextObserver(rank, corner, level);
-  if (next && next->second == Coverage::Overlap::Partial && level > 0) {
+  if (next && next->second == CoverageIndex::Overlap::Partial && level > 0) {
     const uint32_t child = refine(node, slot, level);
     for (int i = 0; i < 8; ++i) removeFromList(child, i, level - 1, childCorner(corner, i, level - 1), rank);
     return;
@@ -436,7 +445,7 @@ SessionMap TemporalMap::snapshot(double time_s) const {
     return me;
   };
   build(build, 0);
-  out.assignPools(std::move(inner), std::move(leaves));
+  out.adoptPools(std::move(inner), std::move(leaves));
   return out;
 }
 
@@ -485,7 +494,7 @@ TemporalCounts TemporalMap::counts() const {
 
 size_t TemporalMap::memoryBytes() const {
   size_t bytes = inner_.size() * sizeof(Children) + lists_.size() * sizeof(List) + arena_.size() * sizeof(Entry);
-  for (const auto& s : sessions_) bytes += s.coverage.memoryBytes() + sizeof(SessionRecord);
+  for (const auto& s : sessions_) bytes += s.coverage.memoryBytes() + sizeof(SessionRecord) + s.name.capacity();
   return bytes;
 }
 

@@ -338,6 +338,8 @@ TEST_P(TemporalProperty, InOrderSnapshotsHistoriesAndCountsMatchTheReference) {
   // Snapshot counters are those of the last change, as the reference chain says.
   const double t = sessionTime(n - 1);
   const SessionMap snap = map.snapshot(t);
+  SessionMap checked(0.05);  // the snapshot's pools pass the reader's validation
+  EXPECT_NO_THROW(checked.assignPools(snap.innerPool(), snap.leafPool()));
   for (int z = 0; z < kSide; ++z) {
     for (int y = 0; y < kSide; ++y) {
       for (int x = 0; x < kSide; ++x) {
@@ -444,6 +446,39 @@ TEST(TemporalMap, PartsRoundTripAndRejectBrokenParts) {
   auto unordered = records;
   std::swap(unordered[0], unordered[1]);
   EXPECT_THROW(TemporalMap::fromParts(0.05, {}, map.parts(), unordered), FormatError);
+}
+
+}  // namespace
+}  // namespace chronomap
+
+namespace chronomap {
+namespace {
+
+TEST(Coverage, KnowsWhichCubesASessionSaw) {
+  SessionMap m(0.05);
+  for (int z = 0; z < 4; ++z) {
+    for (int y = 0; y < 4; ++y) {
+      for (int x = 0; x < 4; ++x) m.add(at(x, y, z), freeVoxel(0.5f));
+    }
+  }
+  m.add(at(9, 9, 9), occupiedVoxel(1));
+  m.compressFree();
+  const Coverage c(m);
+  EXPECT_EQ(c.voxelCount(), 65u);
+  const CoverageIndex index(c);
+  EXPECT_EQ(index.overlap(at(0, 0, 0), 2), CoverageIndex::Overlap::Full);
+  EXPECT_EQ(index.overlap(at(0, 0, 0), 3), CoverageIndex::Overlap::Partial);
+  EXPECT_EQ(index.overlap(at(4, 0, 0), 2), CoverageIndex::Overlap::None);
+  EXPECT_TRUE(index.contains(at(9, 9, 9)));
+  EXPECT_FALSE(index.contains(at(9, 9, 8)));
+  size_t pos = 0;
+  EXPECT_TRUE(Coverage::decodeFrom(c.encoded(), pos) == c);
+  EXPECT_EQ(pos, c.encoded().size());
+  EXPECT_THROW(Coverage::fromRanges({5, 3}), FormatError);
+  EXPECT_THROW(Coverage::fromRanges({0, 4, 4, 8}), FormatError) << "touching ranges are not canonical";
+  std::vector<uint8_t> truncated(c.encoded().begin(), c.encoded().end() - 1);
+  pos = 0;
+  EXPECT_THROW(Coverage::decodeFrom(truncated, pos), FormatError);
 }
 
 }  // namespace

@@ -97,6 +97,12 @@ class SessionMap {
   friend bool operator==(const SessionMap& a, const SessionMap& b);
 
  private:
+  friend class TemporalMap;  // builds snapshots whose pools are valid by construction
+  void adoptPools(std::vector<Children> inner, std::vector<VoxelCounters> leaves) {
+    inner_ = std::move(inner);
+    leaves_ = std::move(leaves);
+  }
+
   static bool isLeaf(Ref r) { return r != kEmpty && (r & kLeafBit) != 0; }
   static bool isInner(Ref r) { return r != kEmpty && (r & kLeafBit) == 0; }
   static uint32_t index(Ref r) { return r & ~kLeafBit; }

@@ -5,6 +5,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <span>
 #include <string>
@@ -193,8 +194,8 @@ class TemporalMap {
   /// that copy its history, counters split evenly. Returns the new inner node.
   uint32_t refine(uint32_t node, int slot, int level);
   /// The first session after `rank` whose coverage meets the cube, and how.
-  std::optional<std::pair<uint32_t, Coverage::Overlap>> nextObserver(uint32_t rank, const VoxelKey& corner,
-                                                                     int level) const;
+  std::optional<std::pair<uint32_t, CoverageIndex::Overlap>> nextObserver(uint32_t rank, const VoxelKey& corner,
+                                                                          int level);
   /// Applies the observation `value` of the cube (`corner`, `target_level`) by session `rank`,
   /// descending from inner node `node` at `level`.
   void apply(uint32_t node, int level, const VoxelKey& corner, int target_level, const VoxelCounters& value,
@@ -221,6 +222,8 @@ class TemporalMap {
   std::array<std::vector<uint32_t>, 17> free_blocks_;
   size_t live_lists_ = 0;
   size_t live_entries_ = 0;
+  // Decoded coverages of sessions, filled on demand while one add or remove runs.
+  std::vector<std::shared_ptr<const CoverageIndex>> coverage_cache_;
 };
 
 template <class Fn>

@@ -1,0 +1,329 @@
+// The 4D map against storing every session separately (thesis §2.4, Figure 3), on synthetic
+// session maps of one floor in which a fixed fraction of the furniture moves between sessions.
+// Until the simulator lands, the sessions are built voxel by voxel (no rendering): a floor of
+// 9.6 x 9.6 x 1.6 m at 0.05 m with walls, doors that open and close, and boxes (observed as
+// shells, their insides unknown) of which a fixed fraction moves each session; each session
+// observes a window of 6.4 x 6.4 m at a random place, with 0.05% of its voxels flipped as noise.
+//
+// Measures after each session: nodes and bytes stored separately (chronomap session maps and
+// OctoMap OcTrees, both in the same run) vs the 4D map; snapshot time after 8, 33 and 66
+// sessions; history latency per voxel; add time per session; bytes per stored change.
+//
+// Usage: temporal [--sessions N] [--move F] [--plot storage.png] [--quick]
+// The last line of output is one JSON object.
+
+#include <octomap/OcTree.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "chronomap/io/plot.h"
+#include "chronomap/io/temporal_file.h"
+#include "chronomap/temporal/temporal_map.h"
+
+using namespace chronomap;
+
+namespace {
+
+constexpr int kX = 192, kY = 192, kZ = 32;  // voxels
+constexpr int kWindow = 128;
+constexpr double kResolution = 0.05;
+
+struct Box {
+  int x, y, sx, sy, sz;
+  Rgb color;
+};
+
+struct World {
+  std::vector<uint8_t> cell;  // 0 free, 1 occupied, 2 unobservable (inside a box)
+  std::vector<Rgb> color;
+  std::vector<Box> boxes;
+  std::vector<bool> door_open;
+  uint8_t at(int x, int y, int z) const { return cell[(static_cast<size_t>(z) * kY + y) * kX + x]; }
+};
+
+const int kDoorX[] = {20, 84, 150, 40, 110, 170};
+const int kDoorY[] = {64, 64, 64, 128, 128, 128};
+
+void rasterise(World& w) {
+  w.cell.assign(static_cast<size_t>(kX) * kY * kZ, 0);
+  w.color.assign(w.cell.size(), Rgb{});
+  auto set = [&](int x, int y, int z, uint8_t v, Rgb c) {
+    if (x < 0 || y < 0 || z < 0 || x >= kX || y >= kY || z >= kZ) return;
+    const size_t i = (static_cast<size_t>(z) * kY + y) * kX + x;
+    w.cell[i] = v;
+    w.color[i] = c;
+  };
+  for (int y = 0; y < kY; ++y) {
+    for (int x = 0; x < kX; ++x) set(x, y, 0, 1, Rgb{120, 110, 100});  // floor
+  }
+  // Two walls along x at y = 64 and y = 128, each with three doors of 10 voxels.
+  for (int wall = 0; wall < 2; ++wall) {
+    const int y = wall == 0 ? 64 : 128;
+    for (int x = 0; x < kX; ++x) {
+      bool in_door = false;
+      for (int d = 0; d < 3; ++d) {
+        const int i = wall * 3 + d;
+        if (x >= kDoorX[i] && x < kDoorX[i] + 10) in_door = w.door_open[static_cast<size_t>(i)] ? true : in_door;
+      }
+      for (int z = 1; z < kZ; ++z) {
+        if (!in_door || z >= 24) set(x, y, z, 1, Rgb{200, 200, 190});
+        set(x, y + 1, z, 2, Rgb{});
+      }
+    }
+  }
+  for (const Box& b : w.boxes) {
+    for (int z = 1; z <= b.sz; ++z) {
+      for (int y = b.y; y < b.y + b.sy; ++y) {
+        for (int x = b.x; x < b.x + b.sx; ++x) {
+          const bool shell = z == b.sz || y == b.y || y == b.y + b.sy - 1 || x == b.x || x == b.x + b.sx - 1;
+          set(x, y, z, shell ? 1 : 2, b.color);
+        }
+      }
+    }
+  }
+}
+
+Box randomBox(std::mt19937_64& rng) {
+  Box b;
+  b.sx = 4 + static_cast<int>(rng() % 10);
+  b.sy = 4 + static_cast<int>(rng() % 10);
+  b.sz = 4 + static_cast<int>(rng() % 14);
+  b.x = static_cast<int>(rng() % static_cast<uint64_t>(kX - b.sx));
+  b.y = static_cast<int>(rng() % static_cast<uint64_t>(kY - b.sy));
+  b.color = Rgb{static_cast<uint8_t>(rng()), static_cast<uint8_t>(rng()), static_cast<uint8_t>(rng())};
+  return b;
+}
+
+SessionMap observe(const World& w, std::mt19937_64& rng) {
+  const int x0 = static_cast<int>(rng() % (kX - kWindow + 1)), y0 = static_cast<int>(rng() % (kY - kWindow + 1));
+  SessionMap m(kResolution);
+  std::vector<VoxelKey> keys;
+  std::vector<VoxelCounters> values;
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int z = 0; z < kZ; ++z) {
+    for (int y = y0; y < y0 + kWindow; ++y) {
+      for (int x = x0; x < x0 + kWindow; ++x) {
+        uint8_t c = w.at(x, y, z);
+        if (c == 2) continue;
+        if (u(rng) < 0.0005) c = c ? 0 : 1;  // sensor noise
+        VoxelCounters v;
+        if (c == 1) {
+          const Rgb col = w.color[(static_cast<size_t>(z) * kY + y) * kX + x];
+          v.hits = 3;
+          v.length_m = 0.1f;
+          v.red = 3u * col.r;
+          v.green = 3u * col.g;
+          v.blue = 3u * col.b;
+        } else {
+          v.length_m = 0.15f;
+        }
+        keys.push_back(VoxelKey{static_cast<uint16_t>(kKeyOrigin + x), static_cast<uint16_t>(kKeyOrigin + y),
+                                static_cast<uint16_t>(kKeyOrigin + z)});
+        values.push_back(v);
+      }
+    }
+  }
+  m.addMany(keys, values);
+  m.compressFree();
+  return m;
+}
+
+// An OctoMap OcTree holding the same session (occupied and free voxels), pruned.
+size_t octomapBytes(const SessionMap& m) {
+  octomap::OcTree tree(kResolution);
+  const float occ = tree.getClampingThresMaxLog(), fre = tree.getClampingThresMinLog();
+  m.forEachLeaf([&](const LeafView& leaf) {
+    const int side = 1 << leaf.level;
+    const float v = leaf.counters.state() == VoxelState::Occupied ? occ : fre;
+    for (int dz = 0; dz < side; ++dz) {
+      for (int dy = 0; dy < side; ++dy) {
+        for (int dx = 0; dx < side; ++dx) {
+          tree.setNodeValue(octomap::OcTreeKey(static_cast<octomap::key_type>(leaf.key.x + dx),
+                                               static_cast<octomap::key_type>(leaf.key.y + dy),
+                                               static_cast<octomap::key_type>(leaf.key.z + dz)),
+                            v, true);
+        }
+      }
+    }
+  });
+  tree.updateInnerOccupancy();
+  tree.prune();
+  return tree.memoryUsage();
+}
+
+double seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
+
+double timeSnapshot(const TemporalMap& map) {
+  double best = 1e9;
+  for (int r = 0; r < 3; ++r) {
+    const auto a = std::chrono::steady_clock::now();
+    const SessionMap s = map.snapshot(map.times().back());
+    const auto b = std::chrono::steady_clock::now();
+    if (r == 0) {
+      const SessionMapCounts c = s.counts();
+      std::printf("  snapshot: %zu leaves (%zu compressed), %llu voxels known; 4D map: %zu slot lists\n", c.leaves,
+                  c.compressed_leaves, static_cast<unsigned long long>(c.occupied_voxels + c.free_voxels),
+                  map.counts().slots);
+    }
+    best = std::min(best, seconds(a, b));
+  }
+  return best;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int sessions = 66;
+  double move = 0.1;
+  std::string plot;
+  int octomap_every = 1;
+  for (int i = 1; i < argc; ++i) {
+    if (!std::strcmp(argv[i], "--sessions") && i + 1 < argc) {
+      sessions = std::atoi(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--move") && i + 1 < argc) {
+      move = std::atof(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--plot") && i + 1 < argc) {
+      plot = argv[++i];
+    } else if (!std::strcmp(argv[i], "--quick")) {
+      sessions = 12;
+      octomap_every = 4;
+    } else {
+      std::fprintf(stderr, "usage: temporal [--sessions N] [--move F] [--plot storage.png] [--quick]\n");
+      return 2;
+    }
+  }
+  if (sessions < 1) return 2;
+  std::mt19937_64 rng(42);
+  World world;
+  world.door_open.assign(6, true);
+  for (int i = 0; i < 40; ++i) world.boxes.push_back(randomBox(rng));
+  rasterise(world);
+
+  TemporalMap map(kResolution);
+  std::vector<double> sep_nodes, nodes_4d, octo_bytes, x;
+  double separate = 0.0, octomap_total = 0.0, add_seconds = 0.0, octo_last = 0.0;
+  uint64_t separate_bytes = 0;
+  double snap8 = 0.0, snap33 = 0.0, snap66 = 0.0;
+  size_t bytes_after_first = 0, entries_after_first = 0;
+  std::printf("session  nodes_separate  nodes_4d  bytes_4d  octomap_separate_MiB  add_ms\n");
+  for (int s = 0; s < sessions; ++s) {
+    if (s > 0) {
+      for (auto& b : world.boxes) {
+        if (std::uniform_real_distribution<double>(0, 1)(rng) < move) b = randomBox(rng);
+      }
+      for (size_t d = 0; d < world.door_open.size(); ++d) {
+        if (rng() % 5 == 0) world.door_open[d] = !world.door_open[d];
+      }
+      rasterise(world);
+    }
+    const SessionMap session = observe(world, rng);
+    separate += static_cast<double>(session.innerCount() + session.leafCount());
+    separate_bytes += session.memoryBytes();
+    if (s % octomap_every == 0) octo_last = static_cast<double>(octomapBytes(session));
+    octomap_total += octo_last;
+    const auto a = std::chrono::steady_clock::now();
+    map.add(3600.0 * 8 * s, session);
+    const auto b = std::chrono::steady_clock::now();
+    add_seconds += seconds(a, b);
+    const TemporalCounts c = map.counts();
+    if (s == 0) {
+      bytes_after_first = map.memoryBytes();
+      entries_after_first = c.entries;
+    }
+    x.push_back(s + 1);
+    sep_nodes.push_back(separate);
+    nodes_4d.push_back(static_cast<double>(c.nodes()));
+    octo_bytes.push_back(octomap_total);
+    std::printf("%7d  %14.0f  %8zu  %8zu  %20.1f  %6.1f\n", s + 1, separate, c.nodes(), map.memoryBytes(),
+                octomap_total / 1048576.0, 1e3 * seconds(a, b));
+    if (s + 1 == 8) snap8 = timeSnapshot(map);
+    if (s + 1 == 33) snap33 = timeSnapshot(map);
+    if (s + 1 == sessions) snap66 = timeSnapshot(map);
+  }
+  if (sessions < 8) snap8 = snap66;
+
+  // History latency: random voxels of the floor, many times.
+  std::vector<VoxelKey> probes;
+  for (int i = 0; i < 200000; ++i) {
+    probes.push_back(VoxelKey{static_cast<uint16_t>(kKeyOrigin + static_cast<int>(rng() % kX)),
+                              static_cast<uint16_t>(kKeyOrigin + static_cast<int>(rng() % kY)),
+                              static_cast<uint16_t>(kKeyOrigin + static_cast<int>(rng() % kZ))});
+  }
+  size_t entries_seen = 0;
+  const auto h0 = std::chrono::steady_clock::now();
+  for (const VoxelKey& k : probes) entries_seen += map.history(k).size();
+  const auto h1 = std::chrono::steady_clock::now();
+  const double history_us = 1e6 * seconds(h0, h1) / static_cast<double>(probes.size());
+
+  // On disk.
+  const auto path = std::filesystem::temp_directory_path() / "chronomap-bench-temporal.cmap";
+  const auto w0 = std::chrono::steady_clock::now();
+  io::writeTemporalMap(path, map, {});
+  const auto w1 = std::chrono::steady_clock::now();
+  const auto file_bytes = std::filesystem::file_size(path);
+  const TemporalMap back = io::readTemporalMap(path);
+  const auto w2 = std::chrono::steady_clock::now();
+  if (!std::getenv("CHRONOMAP_KEEP_BENCH_MAP")) std::filesystem::remove(path);
+  const TemporalCounts c = map.counts();
+  TemporalMap compacted = map;
+  compacted.compact();
+  const double stored_changes = static_cast<double>(c.entries - entries_after_first);
+  const double bytes_per_change =
+      stored_changes > 0 ? static_cast<double>(map.memoryBytes() - bytes_after_first) / stored_changes : 0.0;
+
+  std::printf("\n%d sessions, %.0f%% of the boxes moved per session, doors toggled with p = 0.2\n", sessions,
+              100.0 * move);
+  std::printf("nodes: separate %.0f, 4D map %zu (%.1f%% of separate; %.1f%% reduction; thesis: 93 M -> 14 M, 85%%)\n",
+              separate, c.nodes(), 100.0 * static_cast<double>(c.nodes()) / separate,
+              100.0 * (1.0 - static_cast<double>(c.nodes()) / separate));
+  std::printf("after compaction (as written): %zu nodes\n", compacted.counts().nodes());
+  std::printf("bytes: 4D map %.1f MiB in memory, %.1f MiB on disk; session maps separately %.1f MiB; "
+              "OctoMap OcTrees separately %.1f MiB (4D/OctoMap = %.3f)\n",
+              map.memoryBytes() / 1048576.0, static_cast<double>(file_bytes) / 1048576.0,
+              static_cast<double>(separate_bytes) / 1048576.0, octomap_total / 1048576.0,
+              static_cast<double>(map.memoryBytes()) / octomap_total);
+  std::printf("nodes added per session after the first: %.0f on average\n",
+              (static_cast<double>(c.nodes()) - nodes_4d.front()) / std::max(1, sessions - 1));
+  std::printf("snapshot of the latest time: %.1f ms after 8, %.1f ms after 33, %.1f ms after %d sessions (%.2fx)\n",
+              1e3 * snap8, 1e3 * snap33, 1e3 * snap66, sessions, snap66 / snap8);
+  std::printf("history: %.3f us per voxel (%zu entries over %zu probes)\n", history_us, entries_seen, probes.size());
+  std::printf("add: %.1f ms per session on average; write %.1f ms, read %.1f ms\n", 1e3 * add_seconds / sessions,
+              1e3 * seconds(w0, w1), 1e3 * seconds(w1, w2));
+  std::printf("bytes per stored change: %.1f\n", bytes_per_change);
+  if (!(back.counts().nodes() == compacted.counts().nodes())) std::printf("WARNING: read-back differs\n");
+
+  if (!plot.empty()) {
+    io::PlotSettings ps;
+    ps.title = "Nodes after each session";
+    ps.x_label = "sessions";
+    ps.y_label = "nodes";
+    io::writePng(plot, io::renderLinePlot({{"session maps stored separately", Rgb{200, 60, 50}, x, sep_nodes},
+                                           {"4D map", Rgb{40, 90, 200}, x, nodes_4d}},
+                                          ps));
+    std::printf("wrote %s\n", plot.c_str());
+  }
+  const nlohmann::json j = {{"sessions", sessions},
+                            {"nodes_separate", static_cast<uint64_t>(separate)},
+                            {"nodes_4d", c.nodes()},
+                            {"bytes_4d", map.memoryBytes()},
+                            {"file_bytes_4d", file_bytes},
+                            {"octomap_bytes_separate", static_cast<uint64_t>(octomap_total)},
+                            {"snapshot_66_vs_8", snap66 / snap8},
+                            {"history_us", history_us},
+                            {"add_ms_per_session", 1e3 * add_seconds / sessions},
+                            {"bytes_per_change", bytes_per_change}};
+  std::printf("%s\n", j.dump().c_str());
+  return 0;
+}
