@@ -32,19 +32,6 @@ void storageCurves(const TemporalMap& map, std::vector<double>& separate, std::v
   }
 }
 
-void writeStoragePlot(const std::string& path, const TemporalMap& map) {
-  std::vector<double> separate, four_d, x;
-  storageCurves(map, separate, four_d);
-  for (size_t i = 0; i < separate.size(); ++i) x.push_back(static_cast<double>(i + 1));
-  io::PlotSettings s;
-  s.title = "Storage: nodes after each session";
-  s.x_label = "sessions";
-  s.y_label = "nodes";
-  const io::ImageRgb img = io::renderLinePlot(
-      {{"session maps stored separately", Rgb{200, 60, 50}, x, separate}, {"4D map", Rgb{40, 90, 200}, x, four_d}}, s);
-  io::writePng(path, img);
-}
-
 int runTemporalStats(const StatsOptions& o, const io::CmapFile& file) {
   const TemporalMap map = io::temporalMapFrom(file, o.file);
   const TemporalCounts c = map.counts();
@@ -161,6 +148,19 @@ int runStats(const StatsOptions& o) {
 }
 
 }  // namespace
+
+void writeStoragePlot(const std::string& path, const TemporalMap& map) {
+  std::vector<double> separate, four_d, x;
+  storageCurves(map, separate, four_d);
+  for (size_t i = 0; i < separate.size(); ++i) x.push_back(static_cast<double>(i + 1));
+  io::PlotSettings s;
+  s.title = "Storage: nodes after each session";
+  s.x_label = "sessions";
+  s.y_label = "nodes";
+  const io::ImageRgb img = io::renderLinePlot(
+      {{"session maps stored separately", Rgb{200, 60, 50}, x, separate}, {"4D map", Rgb{40, 90, 200}, x, four_d}}, s);
+  io::writePng(path, img);
+}
 
 Command addStats(CLI::App& root) {
   auto o = std::make_shared<StatsOptions>();

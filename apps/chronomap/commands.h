@@ -9,6 +9,7 @@
 
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/octree/session_map.h"
+#include "chronomap/temporal/temporal_map.h"
 
 namespace chronomap::cli {
 
@@ -57,6 +58,12 @@ struct IntegratedSession {
 /// Opens and integrates a dataset with a progress bar labelled `label`.
 /// @throw DataError when no point could be integrated.
 IntegratedSession integrateDataset(const std::string& path, const IntegrateSettings& settings, const std::string& label);
+
+Command addSimulate(CLI::App& root);
+Command addDemo(CLI::App& root);
+
+/// Draws nodes against sessions (stored separately and as the 4D map) into a PNG.
+void writeStoragePlot(const std::string& path, const TemporalMap& map);
 
 /// Formats a byte count as "12.3 MiB".
 std::string humanBytes(double bytes);
