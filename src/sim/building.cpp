@@ -458,23 +458,19 @@ std::vector<VoxelKey> objectVoxels(const Object& object, const KeyGrid& grid) {
   auto index = [&](double v) { return static_cast<int64_t>(std::floor(v / res)) + kKeyOrigin; };
   // Last voxel index touched by [lo, hi): a face that ends on a voxel face does not enter it.
   auto lastIndex = [&](double hi) { return static_cast<int64_t>(std::ceil(hi / res)) - 1 + kKeyOrigin; };
+  // Parts are solid: every voxel that overlaps one holds geometry (a wall's or a box's inside
+  // is occupied space, even though no sensor sees it).
   for (const Part& p : object.parts) {
     const Eigen::Vector3d lo = p.box.min(), hi = p.box.max();
-    for (int axis = 0; axis < 3; ++axis) {
-      const int a1 = (axis + 1) % 3, a2 = (axis + 2) % 3;
-      for (double plane : {lo[axis], hi[axis]}) {
-        const int64_t k = index(plane);
-        for (int64_t i = index(lo[a1]); i <= lastIndex(hi[a1]); ++i) {
-          for (int64_t j = index(lo[a2]); j <= lastIndex(hi[a2]); ++j) {
-            int64_t c[3];
-            c[axis] = k;
-            c[a1] = i;
-            c[a2] = j;
-            if (c[0] < 0 || c[1] < 0 || c[2] < 0 || c[0] >= kKeysPerAxis || c[1] >= kKeysPerAxis || c[2] >= kKeysPerAxis) {
-              continue;
-            }
-            keys.push_back(VoxelKey{static_cast<uint16_t>(c[0]), static_cast<uint16_t>(c[1]), static_cast<uint16_t>(c[2])});
-          }
+    int64_t first[3], last[3];
+    for (int a = 0; a < 3; ++a) {
+      first[a] = std::max<int64_t>(0, index(lo[a]));
+      last[a] = std::min<int64_t>(kKeysPerAxis - 1, lastIndex(hi[a]));
+    }
+    for (int64_t z = first[2]; z <= last[2]; ++z) {
+      for (int64_t y = first[1]; y <= last[1]; ++y) {
+        for (int64_t x = first[0]; x <= last[0]; ++x) {
+          keys.push_back(VoxelKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)});
         }
       }
     }

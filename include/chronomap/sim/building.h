@@ -132,7 +132,8 @@ SceneState makeScene(const std::string& preset, uint64_t seed);
 /// Applies one session's change processes to `state`; returns the changed object ids with
 /// their event kinds. A session may have no change at all.
 std::vector<std::pair<uint32_t, std::string>> applyChanges(SceneState& state, uint64_t seed, int session);
-/// Unit voxels that intersect the surface of a present part (the ground-truth occupancy).
+/// Unit voxels that overlap a present part, parts being solid (the ground-truth occupancy),
+/// sorted in Morton order.
 std::vector<VoxelKey> truthOccupancy(const SceneState& state, const KeyGrid& grid);
 /// The same for one object.
 std::vector<VoxelKey> objectVoxels(const Object& object, const KeyGrid& grid);

@@ -1,0 +1,204 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <set>
+
+#include "chronomap/core/error.h"
+#include "chronomap/integrate/integrator.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/dataset.h"
+#include "chronomap/io/file.h"
+#include "chronomap/sim/building.h"
+#include "test_support.h"
+
+namespace chronomap {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::vector<uint8_t> bytesOf(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+/// Every file below `root`, relative, sorted.
+std::vector<fs::path> filesBelow(const fs::path& root) {
+  std::vector<fs::path> out;
+  for (const auto& e : fs::recursive_directory_iterator(root)) {
+    if (e.is_regular_file()) out.push_back(fs::relative(e.path(), root));
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// A camera in the tiny room looking at a wall straight on.
+Eigen::Isometry3d lookingAt(const Eigen::Vector3d& position, double yaw) {
+  const Eigen::Vector3d forward(std::cos(yaw), std::sin(yaw), 0.0), right(std::sin(yaw), -std::cos(yaw), 0.0);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear().col(0) = right;
+  T.linear().col(1) = forward.cross(right);
+  T.linear().col(2) = forward;
+  T.translation() = position;
+  return T;
+}
+
+// Distance from p to the nearest surface of a present part.
+double distanceToSurface(const sim::SceneState& state, const Eigen::Vector3d& p) {
+  double best = 1e9;
+  for (const auto& o : state.objects) {
+    if (!o.present) continue;
+    for (const auto& part : o.parts) {
+      const Eigen::Vector3d lo = part.box.min(), hi = part.box.max();
+      const Eigen::Vector3d outside = (lo - p).cwiseMax(p - hi).cwiseMax(0.0);
+      double d = outside.norm();
+      if (d == 0.0) d = std::min((p - lo).minCoeff(), (hi - p).minCoeff());  // inside: to the nearest face
+      best = std::min(best, d);
+    }
+  }
+  return best;
+}
+
+TEST(Simulator, SameSeedSameBytesWhateverTheThreads) {
+  test::TempDir tmp;
+  sim::SimulationSettings s;
+  s.preset = "tiny";
+  s.sessions = 2;
+  s.resolution_scale = 0.25;
+  s.threads = 1;
+  sim::simulate(s, tmp / "a");
+  s.threads = 2;
+  sim::simulate(s, tmp / "b");
+  const auto files = filesBelow(tmp / "a");
+  ASSERT_EQ(files, filesBelow(tmp / "b"));
+  ASSERT_GT(files.size(), 20u);
+  for (const auto& f : files) EXPECT_EQ(bytesOf(tmp / "a" / f), bytesOf(tmp / "b" / f)) << f;
+  s.seed = 2;
+  sim::simulate(s, tmp / "c");
+  EXPECT_NE(bytesOf(tmp / "a" / "scene.json"), bytesOf(tmp / "c" / "scene.json"));
+}
+
+TEST(Simulator, DepthNoiseFollowsTheModel) {
+  const sim::SceneState scene = sim::makeScene("tiny", 3);
+  const sim::Renderer renderer(scene);
+  sim::SensorModel sensor;
+  sensor.edge_dropout = 0.0;
+  sensor.dark_dropout = 0.0;
+  const sim::Camera camera = sim::kinectCamera(0.5);
+  double sum = 0.0, sum2 = 0.0;
+  size_t n = 0;
+  for (int view = 0; view < 4; ++view) {
+    const auto f = renderer.render(camera, lookingAt({1.0, 1.75, 1.2}, 1.5708 * view), sensor, 12.0, 100 + view);
+    for (size_t i = 0; i < f.true_depth_m.size(); ++i) {
+      const double z = f.true_depth_m[i];
+      if (z < 1.0 || f.depth.pixels[i] == 0) continue;
+      const double e = (f.depth.pixels[i] / sensor.depth_scale - z) / (z * z);
+      sum += e;
+      sum2 += e * e;
+      ++n;
+    }
+  }
+  ASSERT_GT(n, 20000u);
+  const double mean = sum / static_cast<double>(n);
+  const double sigma = std::sqrt(sum2 / static_cast<double>(n) - mean * mean);
+  EXPECT_NEAR(sigma, sensor.noise_per_m2, 0.1 * sensor.noise_per_m2) << n << " pixels";
+  EXPECT_LT(std::abs(mean), 0.1 * sensor.noise_per_m2);
+}
+
+TEST(Simulator, FramesReprojectOntoTheTrueSurfaces) {
+  const sim::SceneState scene = sim::makeScene("office", 4);
+  const sim::Renderer renderer(scene);
+  sim::SensorModel sensor;
+  sensor.noise_per_m2 = 0.0;
+  const sim::Camera camera = sim::kinectCamera(0.25);
+  const io::CameraIntrinsics k{camera.fx, camera.fy, camera.cx, camera.cy};
+  size_t points = 0;
+  for (double yaw : {0.0, 1.0, 2.0, 3.0, 4.5}) {
+    const Eigen::Isometry3d T = lookingAt({3.0, 1.0, 1.2}, yaw);
+    const auto f = renderer.render(camera, T, sensor, 10.0, 1);
+    const PointCloud cloud = io::depthToCloud(f.depth, &f.rgb, k, sensor.depth_scale, "frame");
+    for (const auto& p : cloud.points) {
+      if (!p.allFinite()) continue;
+      const Eigen::Vector3d w = T * p.cast<double>();
+      ASSERT_LT(distanceToSurface(scene, w), 1e-3) << "point " << w.transpose();
+      ++points;
+    }
+  }
+  EXPECT_GT(points, 5000u);
+}
+
+TEST(Simulator, ChangeEventsShowInTheTruth) {
+  test::TempDir tmp;
+  sim::SimulationSettings s;
+  s.preset = "office";
+  s.sessions = 5;
+  s.resolution_scale = 0.1;
+  sim::simulate(s, tmp.path());
+  const auto scene = nlohmann::json::parse(io::readTextFile(tmp / "scene.json"));
+  ASSERT_EQ(scene["sessions"].size(), 5u);
+  ASSERT_GT(scene["events"].size(), 3u);
+  std::vector<std::vector<VoxelKey>> truth;
+  for (int i = 0; i < 5; ++i) {
+    char name[64];
+    std::snprintf(name, sizeof name, "occupancy_%02d.cmap", i);
+    const SessionMap m = io::readSessionMap(tmp / "truth" / name);
+    truth.emplace_back();
+    m.forEachLeaf([&](const LeafView& l) { truth.back().push_back(l.key); });
+    std::sort(truth.back().begin(), truth.back().end());
+  }
+  auto has = [&](int session, const VoxelKey& k) {
+    return std::binary_search(truth[static_cast<size_t>(session)].begin(), truth[static_cast<size_t>(session)].end(), k);
+  };
+  std::set<std::string> kinds;
+  for (const auto& e : scene["events"]) {
+    const int from = e["from_session"], to = e["to_session"];
+    ASSERT_EQ(to, from + 1);
+    ASSERT_FALSE(e["voxels"].empty()) << e["kind"];
+    kinds.insert(e["kind"].get<std::string>());
+    for (const auto& v : e["voxels"]) {
+      const VoxelKey k{v[0].get<uint16_t>(), v[1].get<uint16_t>(), v[2].get<uint16_t>()};
+      ASSERT_NE(has(from, k), has(to, k)) << "event " << e["kind"] << " of object " << e["object"];
+    }
+  }
+  EXPECT_GE(kinds.size(), 2u);
+}
+
+TEST(Simulator, TinySessionWithTruePosesMatchesTheTruth) {
+  test::TempDir tmp;
+  sim::SimulationSettings s;
+  s.preset = "tiny";
+  s.sessions = 1;
+  s.resolution_scale = 0.5;
+  const auto summary = sim::simulate(s, tmp.path());
+  io::DatasetOptions dopt;
+  dopt.trajectory = (summary.session_dirs[0] / "groundtruth.txt").string();
+  auto dataset = io::openDataset(summary.session_dirs[0], dopt);
+  SessionMap map(0.05);
+  integrate(*dataset, map, IntegratorSettings{});
+  const SessionMap truth_map = io::readSessionMap(tmp / "truth" / "occupancy_00.cmap");
+  std::vector<VoxelKey> truth;
+  truth_map.forEachLeaf([&](const LeafView& l) { truth.push_back(l.key); });
+  const sim::OccupancyScore score = sim::scoreOccupancy(map, truth);
+  std::cout << "tiny, true poses: precision " << score.precision << ", recall " << score.recall << " ("
+            << score.predicted << " occupied, " << score.truth_known << " truth voxels observed)\n";
+  EXPECT_GE(score.precision, 0.9);
+  EXPECT_GE(score.recall, 0.9);
+  EXPECT_GT(score.predicted, 1000u);
+}
+
+TEST(Simulator, RejectsBadSettings) {
+  test::TempDir tmp;
+  sim::SimulationSettings s;
+  s.preset = "castle";
+  EXPECT_THROW(sim::simulate(s, tmp.path()), UsageError);
+  s.preset = "tiny";
+  s.resolution_scale = 3.0;
+  EXPECT_THROW(sim::simulate(s, tmp.path()), UsageError);
+  s.resolution_scale = 0.25;
+  s.sessions = -1;
+  EXPECT_THROW(sim::simulate(s, tmp.path()), UsageError);
+}
+
+}  // namespace
+}  // namespace chronomap
