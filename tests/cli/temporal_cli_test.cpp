@@ -15,6 +15,7 @@
 
 #include "chronomap/core/time.h"
 #include "chronomap/io/cmap.h"
+#include "chronomap/io/file.h"
 #include "chronomap/io/png.h"
 #include "chronomap/io/temporal_file.h"
 #include "test_support.h"
@@ -273,6 +274,47 @@ TEST(TemporalCli, KilledAddLeavesOldOrNewMap) {
   for (const auto& e : fs::directory_iterator(tmp.path())) {
     EXPECT_EQ(e.path().filename().string().find(".m.cmap.tmp-"), std::string::npos) << e.path();
   }
+}
+
+}  // namespace
+}  // namespace chronomap
+
+namespace chronomap {
+namespace {
+
+TEST(SimulatorCli, SimulateAndDemo) {
+  test::TempDir tmp;
+  auto r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " simulate --preset tiny --sessions 2 --resolution-scale 0.2 -o " +
+                            (tmp / "sim").string() + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["sessions"], 2);
+  EXPECT_TRUE(fs::exists(tmp / "sim" / "session_01" / "trajectory.txt"));
+  EXPECT_TRUE(fs::exists(tmp / "sim" / "truth" / "occupancy_01.cmap"));
+  // The simulated sessions are ordinary TUM folders: build takes their times.
+  r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "m.cmap").string() + " " +
+                       (tmp / "sim" / "session_00").string() + " " + (tmp / "sim" / "session_01").string() + " --fast --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["sessions"], 2);
+
+  r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " simulate --preset castle -o " + (tmp / "x").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("unknown simulator preset 'castle'"), std::string::npos) << r.err;
+
+  r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " demo --resolution-scale 0.2 -o " + (tmp / "demo").string() +
+                       " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto d = nlohmann::json::parse(r.out);
+  EXPECT_EQ(d["sessions"], 6);
+  EXPECT_GT(d["precision"].get<double>(), 0.5);
+  EXPECT_LT(d["nodes_4d"].get<uint64_t>(), d["nodes_separate"].get<uint64_t>());
+  const std::string report = io::readTextFile(tmp / "demo" / "report.md");
+  for (const char* image : {"map_topview.png", "session_00_cloud.png", "frame_rgb.png", "frame_depth.png",
+                            "trajectory.png", "storage.png"}) {
+    EXPECT_NE(report.find(std::string("images/") + image), std::string::npos) << image;
+    EXPECT_GT(fs::file_size(tmp / "demo" / "images" / image), 500u) << image;
+  }
+  EXPECT_TRUE(fs::exists(tmp / "demo" / "office.cmap"));
 }
 
 }  // namespace
