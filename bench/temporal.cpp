@@ -9,7 +9,11 @@
 // OctoMap OcTrees, both in the same run) vs the 4D map; snapshot time after 8, 33 and 66
 // sessions; history latency per voxel; add time per session; bytes per stored change.
 //
-// Usage: temporal [--sessions N] [--move F] [--plot storage.png] [--quick]
+// With --sim DIR the sessions are instead the TUM folders DIR/session_NN written by
+// `chronomap simulate` (e.g. the floor66 preset), each integrated in fast mode with its
+// estimated poses and added at its recorded time: the thesis' storage study replayed.
+//
+// Usage: temporal [--sessions N] [--move F] [--plot storage.png] [--quick] [--sim DIR]
 // The last line of output is one JSON object.
 
 #include <octomap/OcTree.h>
@@ -26,6 +30,8 @@
 #include <string>
 #include <vector>
 
+#include "chronomap/integrate/integrator.h"
+#include "chronomap/io/dataset.h"
 #include "chronomap/io/plot.h"
 #include "chronomap/io/temporal_file.h"
 #include "chronomap/temporal/temporal_map.h"
@@ -189,6 +195,7 @@ int main(int argc, char** argv) {
   double move = 0.1;
   std::string plot;
   int octomap_every = 1;
+  std::string sim_dir;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--sessions") && i + 1 < argc) {
       sessions = std::atoi(argv[++i]);
@@ -196,15 +203,30 @@ int main(int argc, char** argv) {
       move = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--plot") && i + 1 < argc) {
       plot = argv[++i];
+    } else if (!std::strcmp(argv[i], "--sim") && i + 1 < argc) {
+      sim_dir = argv[++i];
     } else if (!std::strcmp(argv[i], "--quick")) {
       sessions = 12;
       octomap_every = 4;
     } else {
-      std::fprintf(stderr, "usage: temporal [--sessions N] [--move F] [--plot storage.png] [--quick]\n");
+      std::fprintf(stderr, "usage: temporal [--sessions N] [--move F] [--plot storage.png] [--quick] [--sim DIR]\n");
       return 2;
     }
   }
+  std::vector<std::filesystem::path> sim_sessions;
+  if (!sim_dir.empty()) {
+    for (const auto& e : std::filesystem::directory_iterator(sim_dir)) {
+      if (e.is_directory() && e.path().filename().string().rfind("session_", 0) == 0) sim_sessions.push_back(e.path());
+    }
+    std::sort(sim_sessions.begin(), sim_sessions.end());
+    if (sim_sessions.empty()) {
+      std::fprintf(stderr, "no session_NN folders in %s\n", sim_dir.c_str());
+      return 2;
+    }
+    sessions = static_cast<int>(sim_sessions.size());
+  }
   if (sessions < 1) return 2;
+  double integrate_seconds = 0.0;
   std::mt19937_64 rng(42);
   World world;
   world.door_open.assign(6, true);
@@ -219,22 +241,33 @@ int main(int argc, char** argv) {
   size_t bytes_after_first = 0, entries_after_first = 0;
   std::printf("session  nodes_separate  nodes_4d  bytes_4d  octomap_separate_MiB  add_ms\n");
   for (int s = 0; s < sessions; ++s) {
-    if (s > 0) {
-      for (auto& b : world.boxes) {
-        if (std::uniform_real_distribution<double>(0, 1)(rng) < move) b = randomBox(rng);
+    double time_s = 3600.0 * 8 * s;
+    SessionMap session(kResolution);
+    if (!sim_sessions.empty()) {
+      const auto dataset = io::openDataset(sim_sessions[static_cast<size_t>(s)]);
+      IntegratorSettings is;
+      is.fast = true;
+      const IntegrationStats st = integrate(*dataset, session, is);
+      integrate_seconds += st.seconds;
+      time_s = dataset->recordedAt().value_or(time_s);
+    } else {
+      if (s > 0) {
+        for (auto& b : world.boxes) {
+          if (std::uniform_real_distribution<double>(0, 1)(rng) < move) b = randomBox(rng);
+        }
+        for (size_t d = 0; d < world.door_open.size(); ++d) {
+          if (rng() % 5 == 0) world.door_open[d] = !world.door_open[d];
+        }
+        rasterise(world);
       }
-      for (size_t d = 0; d < world.door_open.size(); ++d) {
-        if (rng() % 5 == 0) world.door_open[d] = !world.door_open[d];
-      }
-      rasterise(world);
+      session = observe(world, rng);
     }
-    const SessionMap session = observe(world, rng);
     separate += static_cast<double>(session.innerCount() + session.leafCount());
     separate_bytes += session.memoryBytes();
     if (s % octomap_every == 0) octo_last = static_cast<double>(octomapBytes(session));
     octomap_total += octo_last;
     const auto a = std::chrono::steady_clock::now();
-    map.add(3600.0 * 8 * s, session);
+    map.add(time_s, session);
     const auto b = std::chrono::steady_clock::now();
     add_seconds += seconds(a, b);
     const TemporalCounts c = map.counts();
@@ -254,12 +287,20 @@ int main(int argc, char** argv) {
   }
   if (sessions < 8) snap8 = snap66;
 
-  // History latency: random voxels of the floor, many times.
+  // History latency: random voxels inside the map's known region, many times.
   std::vector<VoxelKey> probes;
-  for (int i = 0; i < 200000; ++i) {
-    probes.push_back(VoxelKey{static_cast<uint16_t>(kKeyOrigin + static_cast<int>(rng() % kX)),
-                              static_cast<uint16_t>(kKeyOrigin + static_cast<int>(rng() % kY)),
-                              static_cast<uint16_t>(kKeyOrigin + static_cast<int>(rng() % kZ))});
+  {
+    const SessionMap latest = map.snapshot(map.times().back());
+    VoxelKey lo{65535, 65535, 65535}, hi{0, 0, 0};
+    latest.forEachLeaf([&](const LeafView& l) {
+      lo = VoxelKey{std::min(lo.x, l.key.x), std::min(lo.y, l.key.y), std::min(lo.z, l.key.z)};
+      hi = VoxelKey{std::max(hi.x, l.key.x), std::max(hi.y, l.key.y), std::max(hi.z, l.key.z)};
+    });
+    for (int i = 0; i < 200000; ++i) {
+      probes.push_back(VoxelKey{static_cast<uint16_t>(lo.x + rng() % (hi.x - lo.x + 1u)),
+                                static_cast<uint16_t>(lo.y + rng() % (hi.y - lo.y + 1u)),
+                                static_cast<uint16_t>(lo.z + rng() % (hi.z - lo.z + 1u))});
+    }
   }
   size_t entries_seen = 0;
   const auto h0 = std::chrono::steady_clock::now();
@@ -283,8 +324,13 @@ int main(int argc, char** argv) {
   const double bytes_per_change =
       stored_changes > 0 ? static_cast<double>(map.memoryBytes() - bytes_after_first) / stored_changes : 0.0;
 
-  std::printf("\n%d sessions, %.0f%% of the boxes moved per session, doors toggled with p = 0.2\n", sessions,
-              100.0 * move);
+  if (sim_sessions.empty()) {
+    std::printf("\n%d sessions, %.0f%% of the boxes moved per session, doors toggled with p = 0.2\n", sessions,
+                100.0 * move);
+  } else {
+    std::printf("\n%d simulated sessions from %s, integrated in fast mode in %.1f s\n", sessions, sim_dir.c_str(),
+                integrate_seconds);
+  }
   std::printf("nodes: separate %.0f, 4D map %zu (%.1f%% of separate; %.1f%% reduction; thesis: 93 M -> 14 M, 85%%)\n",
               separate, c.nodes(), 100.0 * static_cast<double>(c.nodes()) / separate,
               100.0 * (1.0 - static_cast<double>(c.nodes()) / separate));

@@ -120,11 +120,11 @@ TEST(TemporalFile, CraftedBlocksAreRejected) {
     io::writeFileAtomic(tmp / "x.cmap", io::encodeCmap(f.header, f.blocks));
     return tmp / "x.cmap";
   };
-  EXPECT_THROW(io::readTemporalMap(rewrite("LSTS", [](auto& d) { d.resize(d.size() - 4); })), FormatError);
+  EXPECT_THROW(io::readTemporalMap(rewrite("LSTS", [](auto& d) { d.erase(d.end() - std::min<std::ptrdiff_t>(4, std::ssize(d)), d.end()); })), FormatError);
   EXPECT_THROW(io::readTemporalMap(rewrite("ENTR", [](auto& d) { d[0] = 0xff; d[1] = 0xff; })), FormatError);
   EXPECT_THROW(io::readTemporalMap(rewrite("COVR", [](auto& d) { d.push_back(1); })), FormatError);
-  EXPECT_THROW(io::readTemporalMap(rewrite("COVR", [](auto& d) { d.assign(d.size(), 0xff); })), FormatError);
-  EXPECT_THROW(io::readTemporalMap(rewrite("META", [](auto& d) { d.assign({'{', '}'}); })), FormatError);
+  EXPECT_THROW(io::readTemporalMap(rewrite("COVR", [](auto& d) { std::fill(d.begin(), d.end(), uint8_t{0xff}); })), FormatError);
+  EXPECT_THROW(io::readTemporalMap(rewrite("META", [](auto& d) { d = std::vector<uint8_t>{'{', '}'}; })), FormatError);
   EXPECT_THROW(io::readTemporalMap(rewrite("INNR", [](auto& d) { d[3] = 0x12; })), FormatError);
 }
 
