@@ -53,15 +53,6 @@ TemporalMap::TemporalMap(double resolution_m, ChangeCriterion criterion) : grid_
   inner_[0].fill(kEmpty);
 }
 
-VoxelKey TemporalMap::childCorner(const VoxelKey& base, int slot, int child_level) {
-  VoxelKey k = base;
-  const auto step = static_cast<uint16_t>(1u << child_level);
-  if (slot & 1) k.x = static_cast<uint16_t>(k.x + step);
-  if (slot & 2) k.y = static_cast<uint16_t>(k.y + step);
-  if (slot & 4) k.z = static_cast<uint16_t>(k.z + step);
-  return k;
-}
-
 uint32_t TemporalMap::newInner() {
   if (inner_.size() >= kMaxIndex) throw DataError("4D map too large: more than 2^31 inner nodes");
   inner_.emplace_back();
@@ -127,6 +118,7 @@ void TemporalMap::insertEntry(uint32_t list, size_t pos, const Entry& e) {
     arena_[block + (pos == 0 ? 1 : 0)] = only;
     arena_[block + pos] = e;
     m.size = 2;
+    m.first = arena_[block + 1];
     ++live_entries_;
     return;
   }
@@ -142,6 +134,7 @@ void TemporalMap::insertEntry(uint32_t list, size_t pos, const Entry& e) {
   std::copy_backward(data + pos, data + l.size, data + l.size + 1);
   data[pos] = e;
   ++l.size;
+  l.first = data[l.size - 1];
   ++live_entries_;
 }
 
@@ -162,6 +155,8 @@ void TemporalMap::eraseEntry(uint32_t list, size_t pos) {
     l.first = only;
     l.block = 0;
     l.capacity_log2 = 0;
+  } else {
+    l.first = data[l.size - 1];
   }
 }
 
@@ -293,6 +288,7 @@ void TemporalMap::shiftSessions(uint32_t from, int delta) {
     if (l.size == 0) continue;
     Entry* e = entriesOf(l);
     for (size_t i = 0; i < l.size; ++i) shift(e[i]);
+    if (l.size >= 2) l.first = e[l.size - 1];
   }
 }
 
@@ -427,11 +423,24 @@ SessionMap TemporalMap::snapshot(double time_s) const {
         out_ref = self(self, r);
       } else if (isList(r)) {
         const List& l = lists_[index(r)];
-        const Entry* e = entriesOf(l);
-        if (e[0].session <= last) {
-          size_t i = 1;
-          while (i < l.size && e[i].session <= last) ++i;
-          leaves.push_back(e[i - 1].value);
+        if (l.first.session <= last) {
+          // The newest entry is valid: it is kept in the list record itself, so the snapshot of
+          // the latest time never reads the entry arena.
+          leaves.push_back(l.first.value);
+          out_ref = static_cast<uint32_t>(leaves.size() - 1) | SessionMap::kLeafBit;
+        } else if (l.size > 1 && entriesOf(l)[0].session <= last) {
+          // An older entry: binary search, so that long histories do not slow snapshots down.
+          const Entry* e = entriesOf(l);
+          size_t lo = 1, hi = l.size - 1;  // e[lo - 1] <= last < e[hi]
+          while (lo < hi) {
+            const size_t mid = (lo + hi) / 2;
+            if (e[mid].session <= last) {
+              lo = mid + 1;
+            } else {
+              hi = mid;
+            }
+          }
+          leaves.push_back(e[lo - 1].value);
           out_ref = static_cast<uint32_t>(leaves.size() - 1) | SessionMap::kLeafBit;
         }
       }
@@ -533,6 +542,8 @@ bool TemporalMap::compactBelow(Ref& r, int level) {
     }
     freeList(other);
   }
+  List& merged = lists_[keep];
+  if (merged.size >= 2) merged.first = entriesOf(merged)[merged.size - 1];
   r = keep | kListBit;  // the inner node becomes garbage that the re-layout drops
   return true;
 }

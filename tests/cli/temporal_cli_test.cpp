@@ -319,3 +319,61 @@ TEST(SimulatorCli, SimulateAndDemo) {
 
 }  // namespace
 }  // namespace chronomap
+
+namespace chronomap {
+namespace {
+
+/// Kills `chronomap build` at random moments: the map on disk is the old one or the new one.
+TEST(TemporalCli, KilledBuildLeavesOldOrNewMap) {
+  test::TempDir tmp;
+  const std::string cli_path = CHRONOMAP_CLI_PATH;
+  ASSERT_EQ(test::runCommand(cli_path + " simulate --preset tiny --sessions 3 --resolution-scale 0.3 -o " +
+                             (tmp / "sim").string())
+                .exit_code,
+            0);
+  const fs::path map = tmp / "m.cmap";
+  const std::string first = cli_path + " build " + map.string() + " " + (tmp / "sim" / "session_00").string();
+  ASSERT_EQ(test::runCommand(first).exit_code, 0);
+  fs::copy_file(map, tmp / "old.cmap");
+  const auto old_bytes = bytesOf(map);
+  const std::vector<std::string> args = {"chronomap", "build", map.string(), (tmp / "sim" / "session_01").string(),
+                                         (tmp / "sim" / "session_02").string()};
+  const auto start = std::chrono::steady_clock::now();
+  ASSERT_EQ(test::runCommand(cli_path + " build " + args[2] + " " + args[3] + " " + args[4]).exit_code, 0);
+  const auto full_us =
+      std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now() - start).count();
+  const auto new_bytes = bytesOf(map);
+  ASSERT_NE(new_bytes, old_bytes);
+  std::mt19937_64 rng(9);
+  int old_seen = 0, new_seen = 0;
+  for (int round = 0; round < 15; ++round) {
+    fs::copy_file(tmp / "old.cmap", map, fs::copy_options::overwrite_existing);
+    const pid_t pid = fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+      const int null_fd = open("/dev/null", O_WRONLY);
+      dup2(null_fd, 1);
+      dup2(null_fd, 2);
+      execl(cli_path.c_str(), args[0].c_str(), args[1].c_str(), args[2].c_str(), args[3].c_str(), args[4].c_str(),
+            static_cast<char*>(nullptr));
+      _exit(127);
+    }
+    std::this_thread::sleep_for(
+        std::chrono::microseconds(static_cast<int64_t>(rng() % static_cast<uint64_t>(full_us + full_us / 4 + 1))));
+    kill(pid, SIGKILL);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    const auto now = bytesOf(map);
+    if (now == old_bytes) {
+      ++old_seen;
+    } else {
+      ASSERT_EQ(now, new_bytes) << "round " << round;
+      ++new_seen;
+    }
+    EXPECT_NO_THROW(io::readTemporalMap(map));
+  }
+  std::cout << "killed build: " << old_seen << " old, " << new_seen << " new of 15 (full run " << full_us << " us)\n";
+}
+
+}  // namespace
+}  // namespace chronomap

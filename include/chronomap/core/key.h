@@ -53,6 +53,17 @@ constexpr VoxelKey mortonDecode(uint64_t code) {
   return VoxelKey{compact(code), compact(code >> 1), compact(code >> 2)};
 }
 
+/// Lower corner of child `slot` (bit 0: +x, bit 1: +y, bit 2: +z) of the node whose lower
+/// corner is `base`, the child being at `child_level` (2^child_level voxels per axis).
+constexpr VoxelKey childCorner(const VoxelKey& base, int slot, int child_level) {
+  const auto step = static_cast<uint16_t>(1u << child_level);
+  VoxelKey k = base;
+  if (slot & 1) k.x = static_cast<uint16_t>(k.x + step);
+  if (slot & 2) k.y = static_cast<uint16_t>(k.y + step);
+  if (slot & 4) k.z = static_cast<uint16_t>(k.z + step);
+  return k;
+}
+
 /// Converts between metric coordinates (map frame) and voxel keys for one resolution.
 /// Voxel k spans [(k - 2^15) * res, (k - 2^15 + 1) * res) on each axis.
 class KeyGrid {

@@ -146,11 +146,7 @@ void SessionMap::forEachLeaf(Fn&& fn) const {
     const int slot = it.next++;
     const Ref r = inner_[it.node][slot];
     if (r == kEmpty) continue;
-    VoxelKey k = it.base;
-    const uint16_t step = static_cast<uint16_t>(1u << it.level);
-    if (slot & 1) k.x = static_cast<uint16_t>(k.x + step);
-    if (slot & 2) k.y = static_cast<uint16_t>(k.y + step);
-    if (slot & 4) k.z = static_cast<uint16_t>(k.z + step);
+    const VoxelKey k = childCorner(it.base, slot, it.level);
     if (isLeaf(r)) {
       fn(LeafView{k, it.level, leaves_[index(r)]});
     } else {

@@ -165,7 +165,7 @@ class TemporalMap {
 
  private:
   struct List {
-    Entry first;             // the only entry while size == 1
+    Entry first;             // the only entry while size == 1, else a copy of the newest
     uint32_t block = 0;      // arena offset of the entries while size >= 2
     uint16_t size = 0;
     uint8_t capacity_log2 = 0;
@@ -177,7 +177,6 @@ class TemporalMap {
   static int childSlot(const VoxelKey& key, int child_level) {
     return ((key.x >> child_level) & 1) | (((key.y >> child_level) & 1) << 1) | (((key.z >> child_level) & 1) << 2);
   }
-  static VoxelKey childCorner(const VoxelKey& base, int slot, int child_level);
 
   const Entry* entriesOf(const List& l) const { return l.size == 1 ? &l.first : arena_.data() + l.block; }
   Entry* entriesOf(List& l) { return l.size == 1 ? &l.first : arena_.data() + l.block; }
