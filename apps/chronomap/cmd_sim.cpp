@@ -158,7 +158,6 @@ int runDemo(const DemoOptions& o) {
   const sim::SimulationSummary simulated =
       sim::simulate(settings, out / "data", [&](size_t done, size_t) { sim_bar.update(done); });
   sim_bar.finish();
-  const nlohmann::json scene = nlohmann::json::parse(io::readTextFile(out / "data" / "scene.json"));
 
   // 2. Integrate every session with the estimated poses, score against the truth.
   step(2, "integrating " + std::to_string(simulated.session_dirs.size()) + " sessions (" +
@@ -319,7 +318,6 @@ int runDemo(const DemoOptions& o) {
               << "  pictures: " << images.string() << "/\n"
               << "  4D map:   " << map_path.string() << "\n";
   }
-  (void)scene;
   return 0;
 }
 

@@ -89,13 +89,11 @@ struct Builder {
   }
 };
 
-// Shapes of furniture standing at (x, y) on the floor; sizes from `rng`.
-std::vector<Part> chairAt(double x, double y, double yaw_quadrant, Rgb c) {
+// A chair whose back stands on its +y side (back_north) or its -y side.
+std::vector<Part> chairAt(double x, double y, bool back_north, Rgb c) {
   std::vector<Part> p;
   p.push_back(solid({x - 0.22, y - 0.22, 0.0}, {x + 0.22, y + 0.22, 0.46}, c));  // seat on its base
-  const double bx = yaw_quadrant == 0 ? 0.0 : 0.0;
-  (void)bx;
-  if (yaw_quadrant < 0.5) {
+  if (back_north) {
     p.push_back(solid({x - 0.22, y + 0.17, 0.46}, {x + 0.22, y + 0.22, 0.9}, c));
   } else {
     p.push_back(solid({x - 0.22, y - 0.22, 0.46}, {x + 0.22, y - 0.17, 0.9}, c));
@@ -161,12 +159,12 @@ void furnish(Builder& b, int room_index, Rng& rng) {
   const double dir = north ? -1.0 : 1.0;  // from the back wall into the room
   const Rgb chair_color = rng.chance(0.5) ? Rgb{30, 30, 34} : randomColor(rng, 60, 200);
   if (room.name == "meeting room") {
-    const Eigen::Vector2d c = a.center() + Eigen::Vector2d(0.0, -dir * 0.0 + (north ? 0.6 : -0.6));
+    const Eigen::Vector2d c = a.center() + Eigen::Vector2d(0.0, north ? 0.6 : -0.6);  // off the robot's stand
     b.add(ObjectKind::Table, room_index, tableAt(c.x(), c.y(), 2.4, 1.0, 0.74, Rgb{150, 110, 70}));
     for (int i = 0; i < 6; ++i) {
       const double x = c.x() - 0.8 + 0.8 * (i % 3);
       const double y = c.y() + (i < 3 ? -0.8 : 0.8);
-      b.add(ObjectKind::Chair, room_index, chairAt(x, y, i < 3 ? 1.0 : 0.0, chair_color));
+      b.add(ObjectKind::Chair, room_index, chairAt(x, y, i >= 3, chair_color));
     }
   } else if (room.name == "kitchen") {
     b.add(ObjectKind::Shelf, room_index,
@@ -175,7 +173,7 @@ void furnish(Builder& b, int room_index, Rng& rng) {
     const Eigen::Vector2d t = spotIn(room, rng, 0.7);
     b.add(ObjectKind::Table, room_index, tableAt(t.x(), t.y(), 1.2, 0.8, 0.75, Rgb{200, 190, 170}));
     for (int i = 0; i < 2; ++i) {
-      b.add(ObjectKind::Chair, room_index, chairAt(t.x() - 0.3 + 0.6 * i, t.y() - 0.6, 1.0, chair_color));
+      b.add(ObjectKind::Chair, room_index, chairAt(t.x() - 0.3 + 0.6 * i, t.y() - 0.6, false, chair_color));
     }
   } else {
     const int desks = a.sizes().x() > 4.5 ? 2 : 1;
@@ -185,7 +183,7 @@ void furnish(Builder& b, int room_index, Rng& rng) {
       const Rgb desk = randomColor(rng, 120, 230);
       b.add(ObjectKind::Desk, room_index,
             {solid({x - 0.7, y - 0.35, 0.0}, {x + 0.7, y + 0.35, 0.74}, desk)});
-      b.add(ObjectKind::Chair, room_index, chairAt(x, y + dir * 0.75, north ? 0.0 : 1.0, chair_color));
+      b.add(ObjectKind::Chair, room_index, chairAt(x, y + dir * 0.75, north, chair_color));
     }
     const double sx = rng.chance(0.5) ? a.min().x() + 0.2 : a.max().x() - 0.6;
     b.add(ObjectKind::Shelf, room_index,

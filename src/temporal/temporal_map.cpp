@@ -167,7 +167,7 @@ size_t TemporalMap::lowerBound(const List& l, uint32_t session) const {
   return i;
 }
 
-uint32_t TemporalMap::refine(uint32_t node, int slot, int level) {
+uint32_t TemporalMap::refine(uint32_t node, int slot) {
   const uint32_t list = index(inner_[node][slot]);
   const uint32_t child = newInner();
   const List source = lists_[list];
@@ -180,7 +180,6 @@ uint32_t TemporalMap::refine(uint32_t node, int slot, int level) {
   }
   freeList(list);
   inner_[node][slot] = child;
-  (void)level;
   return child;
 }
 
@@ -217,7 +216,7 @@ void TemporalMap::apply(uint32_t node, int level, const VoxelKey& corner, int ta
         const List& l = lists_[index(r)];
         const size_t pos = lowerBound(l, rank);
         if (pos > 0 && !criterion_.differs(entriesOf(l)[pos - 1].value, value)) return;
-        node = refine(node, slot, child_level);
+        node = refine(node, slot);
         report.inner_added += 1;
       }
       level = child_level;
@@ -254,7 +253,7 @@ void TemporalMap::applyToList(uint32_t node, int slot, int level, const VoxelKey
   const auto next = nextObserver(rank, corner, level);
   if (next && next->second == CoverageIndex::Overlap::Partial && level > 0) {
     // A later session saw only part of the cube: its parts now have different histories.
-    const uint32_t child = refine(node, slot, level);
+    const uint32_t child = refine(node, slot);
     ++report.inner_added;
     const VoxelCounters part = eighth(value);
     for (int i = 0; i < 8; ++i) {
@@ -371,7 +370,7 @@ void TemporalMap::removeFromList(uint32_t node, int slot, int level, const Voxel
   if (pos >= lists_[list].size || entriesOf(lists_[list])[pos].session != rank) return;
   const auto next = nextObserver(rank, corner, level);
   if (next && next->second == CoverageIndex::Overlap::Partial && level > 0) {
-    const uint32_t child = refine(node, slot, level);
+    const uint32_t child = refine(node, slot);
     for (int i = 0; i < 8; ++i) removeFromList(child, i, level - 1, childCorner(corner, i, level - 1), rank);
     return;
   }

@@ -189,9 +189,9 @@ class TemporalMap {
   void eraseEntry(uint32_t list, size_t pos);
   /// Index of the first entry whose session is >= `session` (the insertion position).
   size_t lowerBound(const List& l, uint32_t session) const;
-  /// Replaces the list in `slot` of `node` (a cube at `level`) by an inner node with 8 lists
-  /// that copy its history, counters split evenly. Returns the new inner node.
-  uint32_t refine(uint32_t node, int slot, int level);
+  /// Replaces the list in `slot` of `node` by an inner node with 8 lists that copy its
+  /// history, counters split evenly. Returns the new inner node.
+  uint32_t refine(uint32_t node, int slot);
   /// The first session after `rank` whose coverage meets the cube, and how.
   std::optional<std::pair<uint32_t, CoverageIndex::Overlap>> nextObserver(uint32_t rank, const VoxelKey& corner,
                                                                           int level);
