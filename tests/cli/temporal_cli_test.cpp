@@ -219,6 +219,45 @@ TEST(TemporalCli, BuildTakesTimesFromTumFolders) {
   EXPECT_FALSE(fs::exists(tmp / "r.cmap"));
 }
 
+/// Runs `argv` (argv[0] the program name) `rounds` times, each on a fresh copy of `old_copy` at
+/// `map`, killed (SIGKILL) after a random delay below `max_delay_us`; after each kill the map must
+/// be byte for byte `old_bytes` or `new_bytes` and readable. Counts both outcomes.
+void killAtRandom(const std::vector<std::string>& argv, const fs::path& old_copy, const fs::path& map,
+                  const std::vector<uint8_t>& old_bytes, const std::vector<uint8_t>& new_bytes, int rounds,
+                  int64_t max_delay_us, uint64_t seed, int& old_seen, int& new_seen) {
+  std::mt19937_64 rng(seed);
+  std::vector<char*> args;
+  for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  old_seen = new_seen = 0;
+  for (int round = 0; round < rounds; ++round) {
+    fs::copy_file(old_copy, map, fs::copy_options::overwrite_existing);
+    const pid_t pid = fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+      const int null_fd = open("/dev/null", O_WRONLY);
+      dup2(null_fd, 1);
+      dup2(null_fd, 2);
+      execv(CHRONOMAP_CLI_PATH, args.data());
+      _exit(127);
+    }
+    std::this_thread::sleep_for(
+        std::chrono::microseconds(static_cast<int64_t>(rng() % static_cast<uint64_t>(max_delay_us + 1))));
+    kill(pid, SIGKILL);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    const auto now = bytesOf(map);
+    if (now == old_bytes) {
+      ++old_seen;
+    } else {
+      ASSERT_EQ(now, new_bytes) << "round " << round << ": the map is neither the old nor the new one";
+      ++new_seen;
+    }
+    EXPECT_NO_THROW(io::readTemporalMap(map));
+  }
+  EXPECT_EQ(old_seen + new_seen, rounds);
+}
+
 /// Kills `chronomap add` at random moments: the map on disk must always be the old one or the
 /// new one, byte for byte, and readable.
 TEST(TemporalCli, KilledAddLeavesOldOrNewMap) {
@@ -238,35 +277,10 @@ TEST(TemporalCli, KilledAddLeavesOldOrNewMap) {
   const auto new_bytes = bytesOf(map);
   ASSERT_NE(new_bytes, old_bytes);
 
-  std::mt19937_64 rng(5);
   int old_seen = 0, new_seen = 0;
   const int rounds = 40;
-  for (int round = 0; round < rounds; ++round) {
-    fs::copy_file(tmp / "old.cmap", map, fs::copy_options::overwrite_existing);
-    const pid_t pid = fork();
-    ASSERT_GE(pid, 0);
-    if (pid == 0) {
-      const int null_fd = open("/dev/null", O_WRONLY);
-      dup2(null_fd, 1);
-      dup2(null_fd, 2);
-      execl(cli().c_str(), "chronomap", "add", map.c_str(), (tmp / "big.cmap").c_str(), "--time", "2000",
-            static_cast<char*>(nullptr));
-      _exit(127);
-    }
-    std::this_thread::sleep_for(std::chrono::microseconds(static_cast<int64_t>(rng() % static_cast<uint64_t>(2 * full_us + 1))));
-    kill(pid, SIGKILL);
-    int status = 0;
-    waitpid(pid, &status, 0);
-    const auto now = bytesOf(map);
-    if (now == old_bytes) {
-      ++old_seen;
-    } else {
-      ASSERT_EQ(now, new_bytes) << "round " << round << ": the map is neither the old nor the new one";
-      ++new_seen;
-    }
-    EXPECT_NO_THROW(io::readTemporalMap(map));
-  }
-  EXPECT_EQ(old_seen + new_seen, rounds);
+  killAtRandom({"chronomap", "add", map.string(), (tmp / "big.cmap").string(), "--time", "2000"}, tmp / "old.cmap",
+               map, old_bytes, new_bytes, rounds, 2 * full_us, 5, old_seen, new_seen);
   std::cout << "killed add: " << old_seen << " old, " << new_seen << " new of " << rounds << " (full run " << full_us
             << " us)\n";
   // Temporaries of killed writers are removed by the next write.
@@ -344,34 +358,8 @@ TEST(TemporalCli, KilledBuildLeavesOldOrNewMap) {
       std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now() - start).count();
   const auto new_bytes = bytesOf(map);
   ASSERT_NE(new_bytes, old_bytes);
-  std::mt19937_64 rng(9);
   int old_seen = 0, new_seen = 0;
-  for (int round = 0; round < 15; ++round) {
-    fs::copy_file(tmp / "old.cmap", map, fs::copy_options::overwrite_existing);
-    const pid_t pid = fork();
-    ASSERT_GE(pid, 0);
-    if (pid == 0) {
-      const int null_fd = open("/dev/null", O_WRONLY);
-      dup2(null_fd, 1);
-      dup2(null_fd, 2);
-      execl(cli_path.c_str(), args[0].c_str(), args[1].c_str(), args[2].c_str(), args[3].c_str(), args[4].c_str(),
-            static_cast<char*>(nullptr));
-      _exit(127);
-    }
-    std::this_thread::sleep_for(
-        std::chrono::microseconds(static_cast<int64_t>(rng() % static_cast<uint64_t>(full_us + full_us / 4 + 1))));
-    kill(pid, SIGKILL);
-    int status = 0;
-    waitpid(pid, &status, 0);
-    const auto now = bytesOf(map);
-    if (now == old_bytes) {
-      ++old_seen;
-    } else {
-      ASSERT_EQ(now, new_bytes) << "round " << round;
-      ++new_seen;
-    }
-    EXPECT_NO_THROW(io::readTemporalMap(map));
-  }
+  killAtRandom(args, tmp / "old.cmap", map, old_bytes, new_bytes, 15, full_us + full_us / 4, 9, old_seen, new_seen);
   std::cout << "killed build: " << old_seen << " old, " << new_seen << " new of 15 (full run " << full_us << " us)\n";
 }
 
