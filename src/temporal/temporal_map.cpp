@@ -329,6 +329,7 @@ AddReport TemporalMap::add(double time_s, const SessionMap& session, const AddOp
 
   const size_t nodes_before = inner_.size() + live_entries_;
   coverage_cache_.clear();
+  change_masks_valid_ = false;
   session.forEachLeaf([&](const LeafView& leaf) {
     apply(0, kTreeDepth, leaf.key, leaf.level, leaf.counters, rank, report);
   });
@@ -345,6 +346,7 @@ void TemporalMap::remove(double time_s) {
   }
   const auto rank = static_cast<uint32_t>(it - sessions_.begin());
   coverage_cache_.clear();
+  change_masks_valid_ = false;
   removeBelow(0, kTreeDepth, VoxelKey{}, rank);
   coverage_cache_.clear();
   sessions_.erase(sessions_.begin() + rank);
@@ -503,6 +505,7 @@ TemporalCounts TemporalMap::counts() const {
 size_t TemporalMap::memoryBytes() const {
   size_t bytes = inner_.size() * sizeof(Children) + lists_.size() * sizeof(List) + arena_.size() * sizeof(Entry);
   for (const auto& s : sessions_) bytes += s.coverage.memoryBytes() + sizeof(SessionRecord) + s.name.capacity();
+  bytes += change_masks_.capacity() * sizeof(uint64_t);
   return bytes;
 }
 
@@ -547,8 +550,29 @@ bool TemporalMap::compactBelow(Ref& r, int level) {
   return true;
 }
 
+void TemporalMap::buildChangeMasks() const {
+  change_masks_.assign(inner_.size(), 0);
+  auto build = [&](auto&& self, uint32_t node) -> uint64_t {
+    uint64_t mask = 0;
+    for (const Ref r : inner_[node]) {
+      if (isInner(r)) {
+        mask |= self(self, r);
+      } else if (isList(r)) {
+        const List& l = lists_[index(r)];
+        const Entry* e = entriesOf(l);
+        for (size_t i = 1; i < l.size; ++i) mask |= uint64_t{1} << (e[i].session % 64);
+      }
+    }
+    change_masks_[node] = mask;
+    return mask;
+  };
+  build(build, 0);
+  change_masks_valid_ = true;
+}
+
 size_t TemporalMap::compact() {
   const size_t lists_before = live_lists_;
+  change_masks_valid_ = false;
   Ref root = 0;
   compactBelow(root, kTreeDepth);
   Parts p = parts();

@@ -139,6 +139,19 @@ class TemporalMap {
   template <class Fn>
   void forEachList(Fn&& fn) const;
 
+  /// Calls fn(const VoxelKey& corner, int level, std::span<const Entry>) for every slot list
+  /// that holds a change (an entry after its first) by a session of rank in [first, end).
+  /// Subtrees without such a change are skipped by a summary per inner node (a 64-bit mask of
+  /// the ranks, modulo 64, of the changes below it), so the cost follows the number of changes
+  /// in the range rather than the size of the map. The summary is rebuilt on the first call
+  /// after the map was modified (linear in the map; that first call must not run concurrently
+  /// with another). @return the number of inner nodes visited.
+  template <class Fn>
+  size_t forEachListChangedIn(uint32_t first, uint32_t end, Fn&& fn) const;
+
+  /// Rank (index in sessions()) of the last session with a time <= time_s, or nothing.
+  std::optional<uint32_t> rankAtOrBefore(double time_s) const;
+
   TemporalCounts counts() const;
   /// Bytes of node storage in use (pools, free blocks included; coverage included).
   size_t memoryBytes() const;
@@ -207,8 +220,6 @@ class TemporalMap {
   void removeFromList(uint32_t node, int slot, int level, const VoxelKey& corner, uint32_t rank);
   /// Adds `delta` to every entry's session number that is >= `from`.
   void shiftSessions(uint32_t from, int delta);
-  /// Last session rank with a time <= t, or nothing.
-  std::optional<uint32_t> rankAtOrBefore(double time_s) const;
   bool compactBelow(Ref& r, int level);
 
   KeyGrid grid_;
@@ -221,6 +232,11 @@ class TemporalMap {
   std::array<std::vector<uint32_t>, 17> free_blocks_;
   size_t live_lists_ = 0;
   size_t live_entries_ = 0;
+  // Per inner node: bit (rank % 64) set when a change of that rank lies below (see
+  // forEachListChangedIn); rebuilt on demand after any modification.
+  mutable std::vector<uint64_t> change_masks_;
+  mutable bool change_masks_valid_ = false;
+  void buildChangeMasks() const;
   // Decoded coverages of sessions, filled on demand while one add or remove runs.
   std::vector<std::shared_ptr<const CoverageIndex>> coverage_cache_;
 };
@@ -257,6 +273,48 @@ void TemporalMap::forEachList(Fn&& fn) const {
 }
 
 template <class Fn>
+size_t TemporalMap::forEachListChangedIn(uint32_t first, uint32_t end, Fn&& fn) const {
+  if (first >= end) return 0;
+  if (!change_masks_valid_) buildChangeMasks();
+  uint64_t query = ~uint64_t{0};
+  if (end - first < 64) {
+    query = 0;
+    for (uint32_t r = first; r < end; ++r) query |= uint64_t{1} << (r % 64);
+  }
+  auto changedIn = [&](std::span<const Entry> entries) {
+    for (size_t i = 1; i < entries.size(); ++i) {
+      if (entries[i].session >= first && entries[i].session < end) return true;
+    }
+    return false;
+  };
+  struct Item {
+    uint32_t node;
+    int child_level;
+    VoxelKey base;
+  };
+  std::vector<Item> stack{{0, kTreeDepth - 1, VoxelKey{}}};
+  size_t visited = 0;
+  while (!stack.empty()) {
+    const Item it = stack.back();
+    stack.pop_back();
+    ++visited;
+    for (int slot = 0; slot < 8; ++slot) {
+      const Ref r = inner_[it.node][slot];
+      if (r == kEmpty) continue;
+      const VoxelKey k = childCorner(it.base, slot, it.child_level);
+      if (isList(r)) {
+        const List& l = lists_[index(r)];
+        const std::span<const Entry> entries(entriesOf(l), l.size);
+        if (l.size > 1 && changedIn(entries)) fn(k, it.child_level, entries);
+      } else if ((change_masks_[r] & query) != 0) {
+        stack.push_back(Item{r, it.child_level - 1, k});
+      }
+    }
+  }
+  return visited;
+}
+
+template <class Fn>
 void TemporalMap::forEachChangeCount(double t0_s, double t1_s, Fn&& fn) const {
   // Ranks whose time lies in (t0, t1].
   uint32_t first = 0;
@@ -264,7 +322,7 @@ void TemporalMap::forEachChangeCount(double t0_s, double t1_s, Fn&& fn) const {
   uint32_t end = first;
   while (end < sessions_.size() && sessions_[end].time_s <= t1_s) ++end;
   if (first == end) return;
-  forEachList([&](const VoxelKey& k, int level, std::span<const Entry> entries) {
+  forEachListChangedIn(first, end, [&](const VoxelKey& k, int level, std::span<const Entry> entries) {
     uint32_t n = 0;
     for (size_t i = 1; i < entries.size(); ++i) {
       if (entries[i].session >= first && entries[i].session < end) ++n;

@@ -1,0 +1,130 @@
+#pragma once
+/// @file
+/// Differencing of maps (thesis §3.1): what changed between two session maps, a session map and
+/// a time of a 4D map, or two times of one 4D map.
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "chronomap/core/counters.h"
+#include "chronomap/core/key.h"
+#include "chronomap/octree/session_map.h"
+#include "chronomap/temporal/temporal_map.h"
+
+namespace chronomap {
+
+/// How two observations of a voxel are compared (DESIGN.md "Differencing").
+enum class DiffMode : uint8_t {
+  Hard = 0,        ///< occupied <-> free changes only; unknown on either side is no change
+  Threshold = 1,   ///< |P1 - P2| > alpha, both known
+  Band = 2,        ///< hard, but P within 0.5 +- alpha counts as unknown
+  Continuous = 3,  ///< |P1 - P2| for every voxel known in both
+};
+
+/// "hard", "threshold", "band", "continuous".
+const char* toString(DiffMode mode);
+/// Parses a mode name. @throw UsageError naming the accepted names.
+DiffMode parseDiffMode(const std::string& name);
+
+/// Settings of a diff.
+struct DiffSettings {
+  DiffMode mode = DiffMode::Hard;
+  /// The threshold of Threshold mode (probability difference) and the half width of Band
+  /// mode's grey band around 0.5. Ignored by Hard and Continuous. A negative value picks the
+  /// mode's default: kDefaultThresholdAlpha or kDefaultBandAlpha.
+  double alpha = -1.0;
+
+  /// Threshold mode's default: a voxel must move by more than 0.4 in probability, so a free
+  /// voxel (P near 0) must become clearly occupied (P > 0.4) to count.
+  static constexpr double kDefaultThresholdAlpha = 0.4;
+  /// Band mode's default: probabilities in (0.4, 0.6) are too uncertain to call.
+  static constexpr double kDefaultBandAlpha = 0.1;
+
+  /// alpha with the default applied.
+  double effectiveAlpha() const;
+  /// @throw UsageError for an alpha that is not finite, or not in [0, 1) (threshold) or
+  /// [0, 0.5) (band).
+  void validate() const;
+};
+
+/// What happened to a changed cell, from the first map to the second.
+enum class ChangeKind : uint8_t {
+  Appeared = 1,   ///< more occupied in the second map (free -> occupied, or P rose)
+  Vanished = 2,   ///< less occupied in the second map (occupied -> free, or P fell)
+  Unchanged = 3,  ///< Continuous mode only: known in both with the same probability
+};
+/// "appeared", "vanished", "unchanged".
+const char* toString(ChangeKind kind);
+
+/// One cell of a diff: a unit voxel (level 0) or a uniform cube of 2^level voxels per axis.
+struct ChangeCell {
+  VoxelKey key;     ///< lower corner
+  uint8_t level = 0;
+  ChangeKind kind = ChangeKind::Appeared;
+  /// Mean colour of the occupied side (the new surface for Appeared, the vanished one for
+  /// Vanished; for Continuous, the side with hits, the second map preferred). Black without.
+  Rgb color;
+  /// |P1 - P2|.
+  float value = 0.0f;
+  friend bool operator==(const ChangeCell&, const ChangeCell&) = default;
+};
+
+/// Work a 4D diff did, for benchmarks.
+struct DiffStats {
+  size_t inner_nodes_visited = 0;
+  size_t lists_compared = 0;
+};
+
+/// The output of a diff: a sparse linear octree, i.e. its cells sorted by the Morton code of
+/// their lower corner, non-overlapping. Hard, Threshold and Band diffs hold changed cells only;
+/// a Continuous diff holds every cell known in both maps.
+class DiffMap {
+ public:
+  /// @throw UsageError for a bad resolution.
+  explicit DiffMap(double resolution_m = 0.05, DiffSettings settings = {});
+  /// Builds a diff from cells in any order.
+  /// @throw FormatError when cells overlap or have an impossible level.
+  static DiffMap fromCells(double resolution_m, DiffSettings settings, std::vector<ChangeCell> cells);
+
+  const KeyGrid& grid() const { return grid_; }
+  double resolution_m() const { return grid_.resolution_m(); }
+  const DiffSettings& settings() const { return settings_; }
+  /// Cells in Morton order of their corners.
+  std::span<const ChangeCell> cells() const { return cells_; }
+  bool empty() const { return cells_.empty(); }
+
+  /// Unit voxels in cells of this kind (every kind when `kind` is not given).
+  uint64_t voxelCount() const;
+  uint64_t voxelCount(ChangeKind kind) const;
+
+  friend bool operator==(const DiffMap&, const DiffMap&);
+
+ private:
+  friend DiffMap diff(const SessionMap&, const SessionMap&, const DiffSettings&);
+  friend DiffMap diff(const TemporalMap&, double, double, const DiffSettings&, DiffStats*);
+  KeyGrid grid_;
+  DiffSettings settings_;
+  std::vector<ChangeCell> cells_;
+};
+
+/// Compares one observation pair (either may be unknown: length and hits zero) under the
+/// settings: the cell to record at `key`/`level`, or nothing. The rule every diff applies.
+std::optional<ChangeCell> compareVoxel(const VoxelCounters& before, const VoxelCounters& after,
+                                       const DiffSettings& settings);
+
+/// What changed from `before` to `after` (two session maps of the same resolution).
+/// @throw UsageError for different resolutions or bad settings.
+DiffMap diff(const SessionMap& before, const SessionMap& after, const DiffSettings& settings = {});
+
+/// What changed in a 4D map from its state at t1_s to its state at t2_s: equal to the diff of
+/// the two snapshots. Except in Continuous mode, which must report unchanged voxels too, only
+/// the subtrees that hold changes by sessions between the two times are visited.
+/// @throw UsageError for bad settings.
+DiffMap diff(const TemporalMap& map, double t1_s, double t2_s, const DiffSettings& settings = {},
+             DiffStats* stats = nullptr);
+
+}  // namespace chronomap

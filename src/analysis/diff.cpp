@@ -1,0 +1,240 @@
+#include "chronomap/analysis/diff.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "chronomap/core/error.h"
+
+namespace chronomap {
+
+const char* toString(DiffMode mode) {
+  switch (mode) {
+    case DiffMode::Hard: return "hard";
+    case DiffMode::Threshold: return "threshold";
+    case DiffMode::Band: return "band";
+    case DiffMode::Continuous: return "continuous";
+  }
+  return "?";
+}
+
+DiffMode parseDiffMode(const std::string& name) {
+  for (DiffMode m : {DiffMode::Hard, DiffMode::Threshold, DiffMode::Band, DiffMode::Continuous}) {
+    if (name == toString(m)) return m;
+  }
+  throw UsageError("unknown diff mode '" + name + "' (use hard, threshold, band or continuous)");
+}
+
+const char* toString(ChangeKind kind) {
+  switch (kind) {
+    case ChangeKind::Appeared: return "appeared";
+    case ChangeKind::Vanished: return "vanished";
+    case ChangeKind::Unchanged: return "unchanged";
+  }
+  return "?";
+}
+
+double DiffSettings::effectiveAlpha() const {
+  if (alpha >= 0.0) return alpha;
+  if (mode == DiffMode::Threshold) return kDefaultThresholdAlpha;
+  if (mode == DiffMode::Band) return kDefaultBandAlpha;
+  return 0.0;
+}
+
+void DiffSettings::validate() const {
+  if (mode != DiffMode::Hard && mode != DiffMode::Threshold && mode != DiffMode::Band &&
+      mode != DiffMode::Continuous) {
+    throw UsageError("invalid diff mode " + std::to_string(static_cast<int>(mode)));
+  }
+  if (std::isnan(alpha)) throw UsageError("diff alpha must be a number");
+  const double a = effectiveAlpha();
+  if (mode == DiffMode::Threshold && !(a < 1.0)) {
+    throw UsageError("threshold alpha must lie in [0, 1), got " + std::to_string(a));
+  }
+  if (mode == DiffMode::Band && !(a < 0.5)) {
+    throw UsageError("band alpha must lie in [0, 0.5), got " + std::to_string(a));
+  }
+}
+
+namespace {
+
+bool isKnown(const VoxelCounters& c) { return c.length_m > 0.0f || c.hits > 0; }
+
+// Band mode's binning: the grey band around 0.5 reads as unknown.
+VoxelState bandState(const VoxelCounters& c, double alpha) {
+  if (!isKnown(c)) return VoxelState::Unknown;
+  const double p = c.probability();
+  if (p > 0.5 + alpha) return VoxelState::Occupied;
+  if (p < 0.5 - alpha) return VoxelState::Free;
+  return VoxelState::Unknown;
+}
+
+}  // namespace
+
+std::optional<ChangeCell> compareVoxel(const VoxelCounters& before, const VoxelCounters& after,
+                                       const DiffSettings& settings) {
+  if (!isKnown(before) || !isKnown(after)) return std::nullopt;  // unknown is never a change
+  const double p1 = before.probability(), p2 = after.probability();
+  ChangeCell cell;
+  cell.value = static_cast<float>(std::abs(p1 - p2));
+  cell.kind = p2 > p1 ? ChangeKind::Appeared : ChangeKind::Vanished;
+  switch (settings.mode) {
+    case DiffMode::Hard: {
+      const VoxelState s1 = before.state(), s2 = after.state();
+      if (s1 == s2) return std::nullopt;
+      cell.kind = s2 == VoxelState::Occupied ? ChangeKind::Appeared : ChangeKind::Vanished;
+      break;
+    }
+    case DiffMode::Threshold:
+      if (!(cell.value > settings.effectiveAlpha())) return std::nullopt;
+      break;
+    case DiffMode::Band: {
+      const double a = settings.effectiveAlpha();
+      const VoxelState s1 = bandState(before, a), s2 = bandState(after, a);
+      if (s1 == VoxelState::Unknown || s2 == VoxelState::Unknown || s1 == s2) return std::nullopt;
+      cell.kind = s2 == VoxelState::Occupied ? ChangeKind::Appeared : ChangeKind::Vanished;
+      break;
+    }
+    case DiffMode::Continuous:
+      if (p1 == p2) cell.kind = ChangeKind::Unchanged;
+      break;
+  }
+  // The colour of the occupied side tells what the change was: the new surface, or the lost one.
+  const VoxelCounters& first = cell.kind == ChangeKind::Vanished ? before : after;
+  const VoxelCounters& second = cell.kind == ChangeKind::Vanished ? after : before;
+  cell.color = first.hits > 0 ? first.meanColor() : second.meanColor();
+  return cell;
+}
+
+DiffMap::DiffMap(double resolution_m, DiffSettings settings) : grid_(resolution_m), settings_(settings) {
+  settings_.validate();
+}
+
+DiffMap DiffMap::fromCells(double resolution_m, DiffSettings settings, std::vector<ChangeCell> cells) {
+  DiffMap d(resolution_m, settings);
+  std::sort(cells.begin(), cells.end(),
+            [](const ChangeCell& a, const ChangeCell& b) { return mortonEncode(a.key) < mortonEncode(b.key); });
+  uint64_t end = 0;
+  for (const ChangeCell& c : cells) {
+    if (c.level > kTreeDepth) throw FormatError("diff cell with an impossible level " + std::to_string(c.level));
+    const uint64_t size = uint64_t{1} << (3 * c.level);
+    const uint64_t code = mortonEncode(c.key);
+    if (code % size != 0) throw FormatError("diff cell whose corner does not align with its level");
+    if (code < end) throw FormatError("diff cells overlap");
+    if (c.kind != ChangeKind::Appeared && c.kind != ChangeKind::Vanished && c.kind != ChangeKind::Unchanged) {
+      throw FormatError("diff cell with an unknown kind " + std::to_string(static_cast<int>(c.kind)));
+    }
+    if (!std::isfinite(c.value) || c.value < 0.0f || c.value > 1.0f) throw FormatError("diff cell with an invalid value");
+    end = code + size;
+  }
+  d.cells_ = std::move(cells);
+  return d;
+}
+
+uint64_t DiffMap::voxelCount() const {
+  uint64_t n = 0;
+  for (const ChangeCell& c : cells_) n += uint64_t{1} << (3 * c.level);
+  return n;
+}
+
+uint64_t DiffMap::voxelCount(ChangeKind kind) const {
+  uint64_t n = 0;
+  for (const ChangeCell& c : cells_) {
+    if (c.kind == kind) n += uint64_t{1} << (3 * c.level);
+  }
+  return n;
+}
+
+bool operator==(const DiffMap& a, const DiffMap& b) {
+  return a.resolution_m() == b.resolution_m() && a.settings_.mode == b.settings_.mode &&
+         a.settings_.effectiveAlpha() == b.settings_.effectiveAlpha() && a.cells_ == b.cells_;
+}
+
+namespace {
+
+// Walks two session maps together. A leaf on one side stands for its whole cube while the
+// other side descends: a uniform cube's counters split evenly keep its probability and colour.
+struct SessionWalk {
+  const SessionMap& a;
+  const SessionMap& b;
+  const DiffSettings& settings;
+  std::vector<ChangeCell>& out;
+
+  using Ref = SessionMap::Ref;
+  static bool isLeaf(Ref r) { return (r & SessionMap::kLeafBit) != 0; }
+
+  void walk(Ref ra, Ref rb, int level, const VoxelKey& corner) {
+    if (ra == SessionMap::kEmpty || rb == SessionMap::kEmpty) return;
+    if (isLeaf(ra) && isLeaf(rb)) {
+      const auto cell = compareVoxel(a.leafPool()[ra & ~SessionMap::kLeafBit],
+                                     b.leafPool()[rb & ~SessionMap::kLeafBit], settings);
+      if (cell) {
+        out.push_back(*cell);
+        out.back().key = corner;
+        out.back().level = static_cast<uint8_t>(level);
+      }
+      return;
+    }
+    for (int slot = 0; slot < 8; ++slot) {
+      const Ref ca = isLeaf(ra) ? ra : a.innerPool()[ra][slot];
+      const Ref cb = isLeaf(rb) ? rb : b.innerPool()[rb][slot];
+      walk(ca, cb, level - 1, childCorner(corner, slot, level - 1));
+    }
+  }
+};
+
+}  // namespace
+
+DiffMap diff(const SessionMap& before, const SessionMap& after, const DiffSettings& settings) {
+  if (before.resolution_m() != after.resolution_m()) {
+    throw UsageError("cannot compare maps of different resolutions (" + std::to_string(before.resolution_m()) +
+                     " m and " + std::to_string(after.resolution_m()) + " m)");
+  }
+  DiffMap d(before.resolution_m(), settings);
+  SessionWalk w{before, after, settings, d.cells_};
+  w.walk(0, 0, kTreeDepth, VoxelKey{});  // inner node 0 is the root of both
+  return d;
+}
+
+DiffMap diff(const TemporalMap& map, double t1_s, double t2_s, const DiffSettings& settings, DiffStats* stats) {
+  if (!std::isfinite(t1_s) || !std::isfinite(t2_s)) throw UsageError("diff times must be finite");
+  DiffMap d(map.resolution_m(), settings);
+  const auto r1 = map.rankAtOrBefore(t1_s), r2 = map.rankAtOrBefore(t2_s);
+  // Entry valid at rank r (none before the list's first entry, or before any session).
+  auto valueAt = [](std::span<const TemporalMap::Entry> e, std::optional<uint32_t> r) -> VoxelCounters {
+    if (!r) return {};
+    size_t lo = 0, hi = e.size();  // first entry with session > r
+    while (lo < hi) {
+      const size_t mid = (lo + hi) / 2;
+      if (e[mid].session <= *r) {
+        lo = mid + 1;
+      } else {
+        hi = mid;
+      }
+    }
+    return lo == 0 ? VoxelCounters{} : e[lo - 1].value;
+  };
+  DiffStats local;
+  auto compare = [&](const VoxelKey& k, int level, std::span<const TemporalMap::Entry> e) {
+    ++local.lists_compared;
+    auto cell = compareVoxel(valueAt(e, r1), valueAt(e, r2), settings);
+    if (!cell) return;
+    cell->key = k;
+    cell->level = static_cast<uint8_t>(level);
+    d.cells_.push_back(*cell);
+  };
+  if (settings.mode == DiffMode::Continuous) {
+    map.forEachList(compare);  // unchanged voxels are part of the answer: every list counts
+  } else {
+    // Only lists with a change by a session in (min rank, max rank] can differ.
+    auto bound = [](std::optional<uint32_t> r) { return r ? *r + 1 : 0u; };
+    const uint32_t lo = std::min(bound(r1), bound(r2)), hi = std::max(bound(r1), bound(r2));
+    local.inner_nodes_visited = map.forEachListChangedIn(lo, hi, compare);
+  }
+  // The pruned walk reports lists before deeper siblings: restore Morton order.
+  std::sort(d.cells_.begin(), d.cells_.end(),
+            [](const ChangeCell& a, const ChangeCell& b) { return mortonEncode(a.key) < mortonEncode(b.key); });
+  if (stats) *stats = local;
+  return d;
+}
+
+}  // namespace chronomap

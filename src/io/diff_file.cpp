@@ -1,0 +1,120 @@
+#include "chronomap/io/diff_file.h"
+
+#include <cstring>
+#include <nlohmann/json.hpp>
+
+#include "chronomap/core/error.h"
+#include "chronomap/core/point_cloud.h"
+#include "chronomap/io/cloud_io.h"
+#include "chronomap/io/file.h"
+
+namespace chronomap::io {
+
+namespace {
+
+// One cell on disk: x, y, z (uint16 each), level, kind, r, g, b (uint8 each), value (float32),
+// little endian, no padding: 15 bytes.
+constexpr size_t kCellBytes = 15;
+
+void put16(std::vector<uint8_t>& out, uint16_t v) {
+  out.push_back(static_cast<uint8_t>(v & 0xff));
+  out.push_back(static_cast<uint8_t>(v >> 8));
+}
+
+uint16_t get16(const uint8_t* p) { return static_cast<uint16_t>(p[0] | (p[1] << 8)); }
+
+}  // namespace
+
+void writeDiffMap(const std::filesystem::path& path, const DiffMap& diff, const nlohmann::json& meta) {
+  CmapHeader header;
+  header.kind = MapKind::Diff;
+  header.resolution_m = diff.resolution_m();
+  bool any = false;
+  std::vector<uint8_t> cells;
+  cells.reserve(diff.cells().size() * kCellBytes);
+  for (const ChangeCell& c : diff.cells()) {
+    const Eigen::Vector3d a = diff.grid().cornerOf(c.key);
+    const Eigen::Vector3d b = a + Eigen::Vector3d::Constant(diff.resolution_m() * (1 << c.level));
+    header.bounds_min_m = any ? header.bounds_min_m.cwiseMin(a) : a;
+    header.bounds_max_m = any ? header.bounds_max_m.cwiseMax(b) : b;
+    any = true;
+    put16(cells, c.key.x);
+    put16(cells, c.key.y);
+    put16(cells, c.key.z);
+    cells.insert(cells.end(), {c.level, static_cast<uint8_t>(c.kind), c.color.r, c.color.g, c.color.b});
+    uint8_t value[4];
+    std::memcpy(value, &c.value, 4);
+    cells.insert(cells.end(), value, value + 4);
+  }
+  nlohmann::json j = nlohmann::json::object();
+  j["user"] = meta.is_object() ? meta : nlohmann::json::object();
+  j["mode"] = toString(diff.settings().mode);
+  j["alpha"] = diff.settings().effectiveAlpha();
+  const std::string text = j.dump();
+  std::vector<CmapBlock> blocks(2);
+  blocks[0] = {"META", std::vector<uint8_t>(text.begin(), text.end())};
+  blocks[1] = {"CELL", std::move(cells)};
+  writeFileAtomic(path, encodeCmap(header, blocks));
+}
+
+DiffMap diffMapFrom(const CmapFile& file, const std::string& source) {
+  if (file.header.kind != MapKind::Diff) {
+    throw FormatError(source + ": holds a " + std::string(toString(file.header.kind)) + " map, not a diff");
+  }
+  DiffSettings settings;
+  try {
+    const nlohmann::json j = metadataOf(file);
+    settings.mode = parseDiffMode(j.at("mode").get<std::string>());
+    settings.alpha = j.at("alpha").get<double>();
+    settings.validate();
+  } catch (const std::exception& e) {
+    throw FormatError(source + ": invalid diff settings (" + e.what() + ")");
+  }
+  const CmapBlock& block = file.block("CELL", source);
+  if (block.data.size() % kCellBytes != 0) throw FormatError(source + ": block CELL has an impossible size");
+  std::vector<ChangeCell> cells(block.data.size() / kCellBytes);
+  const uint8_t* p = block.data.data();
+  for (ChangeCell& c : cells) {
+    c.key = VoxelKey{get16(p), get16(p + 2), get16(p + 4)};
+    c.level = p[6];
+    c.kind = static_cast<ChangeKind>(p[7]);
+    c.color = Rgb{p[8], p[9], p[10]};
+    std::memcpy(&c.value, p + 11, 4);
+    p += kCellBytes;
+  }
+  try {
+    return DiffMap::fromCells(file.header.resolution_m, settings, std::move(cells));
+  } catch (const Error& e) {
+    throw FormatError(source + ": " + e.what());
+  }
+}
+
+DiffMap readDiffMap(const std::filesystem::path& path) { return diffMapFrom(readCmap(path), path.string()); }
+
+size_t exportDiffPly(const std::filesystem::path& path, const DiffMap& diff, std::span<const ChangeCell> cells) {
+  uint64_t total = 0;
+  for (const ChangeCell& c : cells) total += uint64_t{1} << (3 * c.level);
+  constexpr uint64_t kMaxPoints = 100'000'000;
+  if (total > kMaxPoints) {
+    throw DataError(path.string() + ": " + std::to_string(total) + " voxels are too many for a PLY cloud");
+  }
+  PointCloud cloud;
+  for (const ChangeCell& c : cells) {
+    const int side = 1 << c.level;
+    for (int dz = 0; dz < side; ++dz) {
+      for (int dy = 0; dy < side; ++dy) {
+        for (int dx = 0; dx < side; ++dx) {
+          const VoxelKey k{static_cast<uint16_t>(c.key.x + dx), static_cast<uint16_t>(c.key.y + dy),
+                           static_cast<uint16_t>(c.key.z + dz)};
+          cloud.points.push_back(diff.grid().centerOf(k).cast<float>());
+          cloud.colors.push_back(c.color);
+        }
+      }
+    }
+  }
+  cloud.width = static_cast<uint32_t>(cloud.points.size());
+  writePly(path, cloud);
+  return cloud.points.size();
+}
+
+}  // namespace chronomap::io

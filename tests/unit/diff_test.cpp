@@ -1,0 +1,320 @@
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <map>
+#include <random>
+
+#include "chronomap/analysis/diff.h"
+#include "chronomap/core/error.h"
+
+namespace chronomap {
+namespace {
+
+constexpr uint16_t kBase = 32768 - 8;  // the test region straddles the root's centre
+constexpr int kSide = 16;
+
+VoxelKey at(int x, int y, int z) {
+  return {static_cast<uint16_t>(kBase + x), static_cast<uint16_t>(kBase + y), static_cast<uint16_t>(kBase + z)};
+}
+
+// Counters with a chosen probability: hits / length = -ln(1 - p).
+VoxelCounters withProbability(double p, uint32_t hits = 4, uint8_t red = 100) {
+  VoxelCounters c;
+  c.hits = hits;
+  c.length_m = static_cast<float>(hits / -std::log(1.0 - p));
+  c.red = uint32_t{red} * hits;
+  c.green = 7 * hits;
+  c.blue = 9 * hits;
+  return c;
+}
+
+VoxelCounters freeVoxel(float length = 0.25f) {
+  VoxelCounters c;
+  c.length_m = length;
+  return c;
+}
+
+DiffSettings mode(DiffMode m, double alpha = -1.0) {
+  DiffSettings s;
+  s.mode = m;
+  s.alpha = alpha;
+  return s;
+}
+
+std::map<VoxelKey, ChangeCell> byKey(const DiffMap& d) {
+  std::map<VoxelKey, ChangeCell> out;
+  for (const ChangeCell& c : d.cells()) out[c.key] = c;
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Analytic cases.
+
+TEST(Diff, HardModeSeesOnlyOccupiedFreeChanges) {
+  SessionMap a(0.05), b(0.05);
+  a.add(at(0, 0, 0), withProbability(0.9));  // occupied -> free: vanished
+  b.add(at(0, 0, 0), freeVoxel());
+  a.add(at(1, 0, 0), freeVoxel());  // free -> occupied: appeared
+  b.add(at(1, 0, 0), withProbability(0.8, 4, 210));
+  a.add(at(2, 0, 0), withProbability(0.9));  // occupied -> unknown: no change
+  b.add(at(3, 0, 0), freeVoxel());           // unknown -> free: no change
+  a.add(at(4, 0, 0), freeVoxel(0.5f));       // free -> free
+  b.add(at(4, 0, 0), freeVoxel(0.125f));
+  a.add(at(5, 0, 0), withProbability(0.6));  // occupied -> occupied
+  b.add(at(5, 0, 0), withProbability(0.99));
+
+  const DiffMap d = diff(a, b, mode(DiffMode::Hard));
+  ASSERT_EQ(d.cells().size(), 2u);
+  const auto cells = byKey(d);
+  EXPECT_EQ(cells.at(at(0, 0, 0)).kind, ChangeKind::Vanished);
+  EXPECT_EQ(cells.at(at(0, 0, 0)).color.r, 100) << "a vanished voxel keeps the colour of what vanished";
+  EXPECT_EQ(cells.at(at(1, 0, 0)).kind, ChangeKind::Appeared);
+  EXPECT_EQ(cells.at(at(1, 0, 0)).color.r, 210) << "an appeared voxel has the colour of the new surface";
+  EXPECT_NEAR(cells.at(at(1, 0, 0)).value, 0.8, 1e-5);
+  EXPECT_EQ(d.voxelCount(ChangeKind::Appeared), 1u);
+  EXPECT_EQ(d.voxelCount(ChangeKind::Vanished), 1u);
+}
+
+TEST(Diff, ThresholdBandAndContinuousFollowTheirDefinitions) {
+  SessionMap a(0.05), b(0.05);
+  a.add(at(0, 0, 0), withProbability(0.45));  // crosses 0.5 by 0.1
+  b.add(at(0, 0, 0), withProbability(0.55));
+  a.add(at(1, 0, 0), withProbability(0.05));  // 0.05 -> 0.7: a jump of 0.65
+  b.add(at(1, 0, 0), withProbability(0.7));
+  a.add(at(2, 0, 0), withProbability(0.3));  // 0.3 -> 0.35: no bin changes, small jump
+  b.add(at(2, 0, 0), withProbability(0.35));
+  a.add(at(3, 0, 0), freeVoxel());  // free in a, unknown in b
+  a.add(at(4, 0, 0), freeVoxel());  // identical
+  b.add(at(4, 0, 0), freeVoxel());
+
+  const auto hard = byKey(diff(a, b, mode(DiffMode::Hard)));
+  EXPECT_EQ(hard.size(), 2u);
+  EXPECT_TRUE(hard.count(at(0, 0, 0)) && hard.count(at(1, 0, 0)));
+
+  const auto threshold = byKey(diff(a, b, mode(DiffMode::Threshold, 0.4)));
+  ASSERT_EQ(threshold.size(), 1u) << "only the 0.65 jump exceeds alpha = 0.4";
+  EXPECT_EQ(threshold.at(at(1, 0, 0)).kind, ChangeKind::Appeared);
+  const auto threshold_low = byKey(diff(a, b, mode(DiffMode::Threshold, 0.04)));
+  EXPECT_EQ(threshold_low.size(), 3u) << "0.1, 0.65 and 0.05 exceed 0.04";
+
+  const auto band = byKey(diff(a, b, mode(DiffMode::Band, 0.1)));
+  ASSERT_EQ(band.size(), 1u) << "0.45 and 0.55 lie in the grey band (0.4, 0.6)";
+  EXPECT_TRUE(band.count(at(1, 0, 0)));
+
+  const auto cont = byKey(diff(a, b, mode(DiffMode::Continuous)));
+  ASSERT_EQ(cont.size(), 4u) << "every voxel known in both, the unknown one excluded";
+  EXPECT_NEAR(cont.at(at(0, 0, 0)).value, 0.1, 1e-5);
+  EXPECT_NEAR(cont.at(at(1, 0, 0)).value, 0.65, 1e-5);
+  EXPECT_NEAR(cont.at(at(2, 0, 0)).value, 0.05, 1e-5);
+  EXPECT_EQ(cont.at(at(4, 0, 0)).value, 0.0f);
+  EXPECT_EQ(cont.at(at(4, 0, 0)).kind, ChangeKind::Unchanged);
+  EXPECT_EQ(cont.at(at(2, 0, 0)).kind, ChangeKind::Appeared);
+}
+
+TEST(Diff, UnknownAgainstAnythingIsNeverAChange) {
+  SessionMap a(0.05), b(0.05);
+  for (int i = 0; i < 8; ++i) a.add(at(i, 0, 0), i % 2 ? freeVoxel() : withProbability(0.9));
+  for (int i = 0; i < 8; ++i) b.add(at(i, 5, 0), i % 2 ? withProbability(0.9) : freeVoxel());
+  for (DiffMode m : {DiffMode::Hard, DiffMode::Threshold, DiffMode::Band, DiffMode::Continuous}) {
+    EXPECT_TRUE(diff(a, b, mode(m)).empty()) << toString(m);
+    EXPECT_TRUE(diff(a, SessionMap(0.05), mode(m)).empty()) << toString(m);
+  }
+}
+
+TEST(Diff, CompressedFreeCubesCompareAtTheFinerSide) {
+  SessionMap a(0.05), b(0.05);
+  for (int z = 0; z < 8; ++z) {
+    for (int y = 0; y < 8; ++y) {
+      for (int x = 0; x < 8; ++x) {
+        a.add(at(x, y, z), freeVoxel());
+        b.add(at(x, y, z), (x == 3 && y == 4 && z == 5) ? withProbability(0.9) : freeVoxel(0.5f));
+      }
+    }
+  }
+  a.compressFree();
+  b.compressFree();
+  ASSERT_LT(a.leafCount(), 64u) << "a compressed";
+  const DiffMap hard = diff(a, b, mode(DiffMode::Hard));
+  ASSERT_EQ(hard.cells().size(), 1u);
+  EXPECT_EQ(hard.cells()[0].key, at(3, 4, 5));
+  EXPECT_EQ(hard.cells()[0].level, 0);
+  EXPECT_EQ(hard.cells()[0].kind, ChangeKind::Appeared);
+  // Continuous: uniform cubes known in both come out as one cell each, with value 0.
+  const DiffMap cont = diff(a, b, mode(DiffMode::Continuous));
+  EXPECT_EQ(cont.voxelCount(), 512u);
+  EXPECT_LT(cont.cells().size(), 512u);
+  EXPECT_EQ(cont.voxelCount(ChangeKind::Unchanged), 511u);
+}
+
+TEST(Diff, SettingsAreChecked) {
+  EXPECT_THROW(parseDiffMode("soft"), UsageError);
+  EXPECT_EQ(parseDiffMode("band"), DiffMode::Band);
+  EXPECT_THROW(mode(DiffMode::Threshold, 1.0).validate(), UsageError);
+  EXPECT_THROW(mode(DiffMode::Band, 0.5).validate(), UsageError);
+  EXPECT_THROW(mode(DiffMode::Band, std::nan("")).validate(), UsageError);
+  EXPECT_NO_THROW(mode(DiffMode::Hard, 7.0).validate()) << "hard ignores alpha";
+  EXPECT_EQ(mode(DiffMode::Threshold).effectiveAlpha(), DiffSettings::kDefaultThresholdAlpha);
+  EXPECT_THROW(diff(SessionMap(0.05), SessionMap(0.1)), UsageError);
+  TemporalMap m(0.05);
+  EXPECT_THROW(diff(m, 0.0, std::numeric_limits<double>::infinity()), UsageError);
+}
+
+TEST(Diff, CellsMustNotOverlap) {
+  ChangeCell big;
+  big.key = at(0, 0, 0);
+  big.level = 1;
+  ChangeCell inside;
+  inside.key = at(1, 1, 1);
+  EXPECT_THROW(DiffMap::fromCells(0.05, {}, {big, inside}), FormatError);
+  ChangeCell misaligned;
+  misaligned.key = at(1, 0, 0);
+  misaligned.level = 1;
+  EXPECT_THROW(DiffMap::fromCells(0.05, {}, {misaligned}), FormatError);
+  inside.value = std::nanf("");
+  EXPECT_THROW(DiffMap::fromCells(0.05, {}, {inside}), FormatError);
+  ChangeCell beside;
+  beside.key = at(2, 2, 2);
+  EXPECT_EQ(DiffMap::fromCells(0.05, {}, {beside, big}).cells()[0].key, big.key) << "sorted by Morton code";
+}
+
+// ---------------------------------------------------------------------------------------------
+// Random maps against a slow reference: voxel by voxel, compareVoxel on find()'s counters.
+
+SessionMap randomMap(std::mt19937_64& rng, const std::vector<uint8_t>& world) {
+  SessionMap m(0.05);
+  const int lo = static_cast<int>(rng() % 6), hi = kSide - static_cast<int>(rng() % 6);
+  for (int z = lo; z < hi; ++z) {
+    for (int y = 0; y < kSide; ++y) {
+      for (int x = 0; x < kSide; ++x) {
+        if (rng() % 12 == 0) continue;  // unobserved
+        const bool occ = world[(z * kSide + y) * kSide + x] != (rng() % 15 == 0);
+        if (occ) {
+          m.add(at(x, y, z), withProbability(0.5 + 0.49 * static_cast<double>(rng() % 100) / 100.0,
+                                             1 + static_cast<uint32_t>(rng() % 4), static_cast<uint8_t>(rng())));
+        } else if (rng() % 20 == 0) {
+          m.add(at(x, y, z), withProbability(0.02 + 0.47 * static_cast<double>(rng() % 100) / 100.0));
+        } else {
+          m.add(at(x, y, z), freeVoxel(0.125f * static_cast<float>(1 + rng() % 4)));
+        }
+      }
+    }
+  }
+  if (rng() % 2 == 0) m.compressFree();
+  return m;
+}
+
+std::vector<uint8_t> randomWorld(std::mt19937_64& rng) {
+  std::vector<uint8_t> w(kSide * kSide * kSide);
+  for (auto& v : w) v = rng() % 8 == 0;
+  return w;
+}
+
+// Expands a diff into unit voxels.
+std::map<VoxelKey, ChangeCell> unitCells(const DiffMap& d) {
+  std::map<VoxelKey, ChangeCell> out;
+  for (const ChangeCell& c : d.cells()) {
+    const int side = 1 << c.level;
+    for (int dz = 0; dz < side; ++dz) {
+      for (int dy = 0; dy < side; ++dy) {
+        for (int dx = 0; dx < side; ++dx) {
+          ChangeCell u = c;
+          u.key = VoxelKey{static_cast<uint16_t>(c.key.x + dx), static_cast<uint16_t>(c.key.y + dy),
+                           static_cast<uint16_t>(c.key.z + dz)};
+          u.level = 0;
+          out[u.key] = u;
+        }
+      }
+    }
+  }
+  return out;
+}
+
+TEST(Diff, EqualsVoxelByVoxelReferenceOnRandomMaps) {
+  for (uint64_t seed = 1; seed <= 12; ++seed) {
+    std::mt19937_64 rng(seed);
+    auto world = randomWorld(rng);
+    const SessionMap a = randomMap(rng, world);
+    for (auto& v : world) v ^= rng() % 10 == 0;
+    const SessionMap b = randomMap(rng, world);
+    for (DiffMode m : {DiffMode::Hard, DiffMode::Threshold, DiffMode::Band, DiffMode::Continuous}) {
+      const DiffSettings s = mode(m);
+      const auto got = unitCells(diff(a, b, s));
+      size_t expected_count = 0;
+      // The region plus a margin: nothing outside it may appear.
+      for (int z = -1; z <= kSide; ++z) {
+        for (int y = -1; y <= kSide; ++y) {
+          for (int x = -1; x <= kSide; ++x) {
+            const VoxelKey k = at(x, y, z);
+            const auto expected =
+                compareVoxel(a.find(k).value_or(VoxelCounters{}), b.find(k).value_or(VoxelCounters{}), s);
+            const auto it = got.find(k);
+            ASSERT_EQ(expected.has_value(), it != got.end())
+                << "seed " << seed << " mode " << toString(m) << " voxel " << x << "," << y << "," << z;
+            if (!expected) continue;
+            ++expected_count;
+            EXPECT_EQ(it->second.kind, expected->kind);
+            EXPECT_EQ(it->second.color, expected->color);
+            EXPECT_FLOAT_EQ(it->second.value, expected->value);
+          }
+        }
+      }
+      EXPECT_EQ(got.size(), expected_count);
+    }
+  }
+}
+
+TEST(Diff, FourDimensionalDiffEqualsDiffOfSnapshots) {
+  for (uint64_t seed = 1; seed <= 8; ++seed) {
+    std::mt19937_64 rng(seed * 7919);
+    auto world = randomWorld(rng);
+    TemporalMap map(0.05);
+    std::vector<double> times;
+    for (int i = 0; i < 7; ++i) {
+      for (auto& v : world) v ^= rng() % 12 == 0;
+      const double t = 1000.0 + 100.0 * static_cast<double>(rng() % 50);  // any order
+      if (std::find(times.begin(), times.end(), t) != times.end()) continue;
+      map.add(t, randomMap(rng, world));
+      times.push_back(t);
+    }
+    std::sort(times.begin(), times.end());
+    std::vector<double> probes = times;
+    probes.push_back(times.front() - 1.0);  // before the first session
+    probes.push_back(times.back() + 50.0);
+    for (int trial = 0; trial < 10; ++trial) {
+      const double t1 = probes[rng() % probes.size()], t2 = probes[rng() % probes.size()];
+      for (DiffMode m : {DiffMode::Hard, DiffMode::Threshold, DiffMode::Band, DiffMode::Continuous}) {
+        const DiffMap fast = diff(map, t1, t2, mode(m));
+        const DiffMap slow = diff(map.snapshot(t1), map.snapshot(t2), mode(m));
+        ASSERT_TRUE(fast == slow) << "seed " << seed << " mode " << toString(m) << " t1 " << t1 << " t2 " << t2
+                                  << ": " << fast.cells().size() << " vs " << slow.cells().size() << " cells";
+      }
+    }
+  }
+}
+
+TEST(Diff, FourDimensionalDiffVisitsOnlyChangedSubtrees) {
+  // Many sessions over a wide area; one session changes one voxel. A diff across that session
+  // visits one path; a diff across an unchanging session visits almost nothing.
+  TemporalMap map(0.05);
+  std::mt19937_64 rng(5);
+  auto world = randomWorld(rng);
+  for (int i = 0; i < 6; ++i) map.add(100.0 * i, randomMap(rng, world));
+  SessionMap one(0.05);
+  one.add(at(40, 40, 40), withProbability(0.9));
+  map.add(1000.0, one);
+  SessionMap flip(0.05);
+  flip.add(at(40, 40, 40), freeVoxel());
+  map.add(1100.0, flip);
+  DiffStats stats;
+  const DiffMap d = diff(map, 1000.0, 1100.0, {}, &stats);
+  ASSERT_EQ(d.cells().size(), 1u);
+  EXPECT_EQ(d.cells()[0].kind, ChangeKind::Vanished);
+  EXPECT_LE(stats.inner_nodes_visited, static_cast<size_t>(kTreeDepth) + 1) << "one root-to-leaf path";
+  EXPECT_EQ(stats.lists_compared, 1u);
+  DiffStats none;
+  EXPECT_TRUE(diff(map, 1100.0, 1200.0, {}, &none).empty());
+  EXPECT_LE(none.inner_nodes_visited, 1u);
+}
+
+}  // namespace
+}  // namespace chronomap
