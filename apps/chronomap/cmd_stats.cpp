@@ -7,6 +7,7 @@
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
 #include "chronomap/io/cmap.h"
+#include "chronomap/io/diff_file.h"
 #include "chronomap/io/plot.h"
 #include "chronomap/io/temporal_file.h"
 #include "commands.h"
@@ -98,9 +99,41 @@ int runTemporalStats(const StatsOptions& o, const io::CmapFile& file) {
   return 0;
 }
 
+int runDiffStats(const StatsOptions& o, const io::CmapFile& file) {
+  if (!o.plot.empty()) throw UsageError("--plot draws the storage of a 4D map; " + o.file + " is a diff");
+  const DiffMap d = io::diffMapFrom(file, o.file);
+  const uint64_t appeared = d.voxelCount(ChangeKind::Appeared), vanished = d.voxelCount(ChangeKind::Vanished);
+  const auto& h = file.header;
+  if (o.json) {
+    std::cout << nlohmann::json{{"kind", io::toString(h.kind)},
+                                {"format_version", h.version},
+                                {"resolution_m", h.resolution_m},
+                                {"mode", toString(d.settings().mode)},
+                                {"alpha", d.settings().effectiveAlpha()},
+                                {"cells", d.cells().size()},
+                                {"changed_voxels", appeared + vanished},
+                                {"appeared", appeared},
+                                {"vanished", vanished},
+                                {"file_bytes", file.file_bytes},
+                                {"bounds_min", {h.bounds_min_m.x(), h.bounds_min_m.y(), h.bounds_min_m.z()}},
+                                {"bounds_max", {h.bounds_max_m.x(), h.bounds_max_m.y(), h.bounds_max_m.z()}}}
+                     .dump()
+              << "\n";
+    return 0;
+  }
+  std::cout << o.file << ": diff, format version " << h.version << "\n"
+            << "  mode:        " << toString(d.settings().mode) << " (alpha " << d.settings().effectiveAlpha() << ")\n"
+            << "  resolution:  " << h.resolution_m << " m\n"
+            << "  changed:     " << appeared + vanished << " voxels (" << appeared << " appeared, " << vanished
+            << " vanished) in " << d.cells().size() << " cells\n"
+            << "  file:        " << humanBytes(static_cast<double>(file.file_bytes)) << "\n";
+  return 0;
+}
+
 int runStats(const StatsOptions& o) {
   const io::CmapFile file = io::readCmap(o.file);
   if (file.header.kind == io::MapKind::Temporal) return runTemporalStats(o, file);
+  if (file.header.kind == io::MapKind::Diff) return runDiffStats(o, file);
   if (file.header.kind != io::MapKind::Session) {
     throw DataError(o.file + ": stats for " + std::string(io::toString(file.header.kind)) +
                     " maps are not supported by this build");

@@ -30,6 +30,8 @@ Command addBuild(CLI::App& root);
 Command addSnapshot(CLI::App& root);
 Command addHistory(CLI::App& root);
 Command addChanges(CLI::App& root);
+Command addDiff(CLI::App& root);
+Command addSegment(CLI::App& root);
 
 /// How datasets become session maps (the options of integrate, shared with build).
 struct IntegrateSettings {

@@ -1,0 +1,240 @@
+// chronomap diff | segment: what changed, and which objects.
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "chronomap/analysis/segment.h"
+#include "chronomap/core/error.h"
+#include "chronomap/core/time.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/diff_file.h"
+#include "chronomap/io/temporal_file.h"
+#include "commands.h"
+
+namespace chronomap::cli {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// ------------------------------------------------------------------------------------------
+// diff
+
+struct DiffCmdOptions {
+  std::string before;
+  std::string after;
+  std::string mode = "hard";
+  double alpha = -1.0;
+  std::string output;
+  std::string ply;
+  bool json = false;
+};
+
+/// One side of a diff: a session file, or a 4D map at a time ("MAP.cmap@T").
+struct MapRef {
+  std::string path;
+  std::optional<double> time_s;
+};
+
+MapRef parseMapRef(const std::string& text) {
+  // A file whose own name holds '@' wins over a time suffix.
+  const size_t at = text.rfind('@');
+  if (at == std::string::npos || fs::exists(text)) return {text, std::nullopt};
+  return {text.substr(0, at), parseTime(text.substr(at + 1))};
+}
+
+SessionMap sessionOf(const MapRef& ref, const io::CmapFile& file) {
+  if (file.header.kind == io::MapKind::Session) {
+    if (ref.time_s) throw UsageError(ref.path + " is a session map: it has no times to pick with @");
+    return io::sessionMapFrom(file, ref.path);
+  }
+  if (file.header.kind == io::MapKind::Temporal) {
+    if (!ref.time_s) throw UsageError(ref.path + " is a 4D map: say which time to compare, as " + ref.path + "@TIME");
+    return io::temporalMapFrom(file, ref.path).snapshot(*ref.time_s);
+  }
+  throw UsageError(ref.path + " holds a " + std::string(io::toString(file.header.kind)) +
+                   " map; diff compares session maps and 4D maps");
+}
+
+int runDiff(const DiffCmdOptions& o) {
+  DiffSettings settings;
+  settings.mode = parseDiffMode(o.mode);
+  settings.alpha = o.alpha;
+  settings.validate();
+  if (fs::path(o.output).extension() != ".cmap") throw UsageError("output '" + o.output + "' must end in .cmap");
+  if (!o.ply.empty() && fs::path(o.ply).extension() != ".ply") throw UsageError("--ply '" + o.ply + "' must end in .ply");
+  const auto start = std::chrono::steady_clock::now();
+  const MapRef a = parseMapRef(o.before), b = parseMapRef(o.after);
+  const io::CmapFile fa = io::readCmap(a.path);
+  DiffMap d;
+  if (fa.header.kind == io::MapKind::Temporal && a.time_s && b.time_s && fs::exists(b.path) &&
+      fs::equivalent(a.path, b.path)) {
+    // Two times of one 4D map: visit only what changed in between.
+    d = diff(io::temporalMapFrom(fa, a.path), *a.time_s, *b.time_s, settings);
+  } else {
+    const SessionMap ma = sessionOf(a, fa);
+    const SessionMap mb = sessionOf(b, io::readCmap(b.path));
+    d = diff(ma, mb, settings);
+  }
+  io::writeDiffMap(o.output, d, {{"created_by", "chronomap diff"}, {"before", o.before}, {"after", o.after}});
+  std::vector<ChangeCell> changed;
+  for (const ChangeCell& c : d.cells()) {
+    if (c.kind != ChangeKind::Unchanged) changed.push_back(c);
+  }
+  if (!o.ply.empty()) io::exportDiffPly(o.ply, d, changed);
+  const uint64_t appeared = d.voxelCount(ChangeKind::Appeared), vanished = d.voxelCount(ChangeKind::Vanished);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  if (o.json) {
+    std::cout << nlohmann::json{{"mode", toString(settings.mode)},
+                                {"alpha", settings.effectiveAlpha()},
+                                {"changed_voxels", appeared + vanished},
+                                {"appeared", appeared},
+                                {"vanished", vanished},
+                                {"cells", d.cells().size()},
+                                {"output", o.output},
+                                {"seconds", seconds}}
+                     .dump()
+              << "\n";
+  } else {
+    std::cout << toString(settings.mode) << " diff: " << appeared + vanished << " voxels changed (" << appeared
+              << " appeared, " << vanished << " vanished)";
+    if (settings.mode == DiffMode::Continuous) {
+      std::cout << "; " << d.voxelCount() << " voxels known in both";
+    }
+    std::cout << "\nwrote " << o.output << (o.ply.empty() ? "" : " and " + o.ply) << "\n";
+  }
+  return 0;
+}
+
+// ------------------------------------------------------------------------------------------
+// segment
+
+struct SegmentCmdOptions {
+  std::string input;
+  std::string connectivity = "face";
+  double color_tolerance = -1.0;
+  uint64_t min_voxels = 1;
+  double min_value = SegmentSettings{}.min_value;
+  std::string output_dir;
+  bool json = false;
+};
+
+nlohmann::json vec3(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+int runSegment(const SegmentCmdOptions& o) {
+  SegmentSettings settings;
+  settings.connectivity = parseConnectivity(o.connectivity);
+  settings.color_tolerance = o.color_tolerance;
+  settings.min_voxels = o.min_voxels;
+  settings.min_value = o.min_value;
+  settings.validate();
+  const DiffMap d = io::readDiffMap(o.input);
+  const auto start = std::chrono::steady_clock::now();
+  const Segmentation seg = segment(d, settings);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  nlohmann::json list = nlohmann::json::array();
+  for (const Component& c : seg.components) {
+    list.push_back({{"id", c.id},
+                    {"voxels", c.voxels},
+                    {"volume_m3", c.volume_m3},
+                    {"bbox_min", vec3(c.bbox_min_m)},
+                    {"bbox_max", vec3(c.bbox_max_m)},
+                    {"centroid", vec3(c.centroid_m)},
+                    {"mean_color", {c.mean_color.r, c.mean_color.g, c.mean_color.b}},
+                    {"kind", toString(c.kind)}});
+  }
+  const nlohmann::json summary = {{"components", list},
+                                  {"dropped", seg.dropped},
+                                  {"connectivity", toString(settings.connectivity)},
+                                  {"seconds", seconds}};
+  if (!o.output_dir.empty()) {
+    fs::create_directories(o.output_dir);
+    for (const Component& c : seg.components) {
+      char name[32];
+      std::snprintf(name, sizeof(name), "component_%04u", c.id);
+      const DiffMap part = componentDiff(d, c);
+      io::writeDiffMap(fs::path(o.output_dir) / (std::string(name) + ".cmap"), part,
+                       {{"created_by", "chronomap segment"}, {"from", o.input}, {"component", c.id}});
+      io::exportDiffPly(fs::path(o.output_dir) / (std::string(name) + ".ply"), part, part.cells());
+    }
+    std::ofstream(fs::path(o.output_dir) / "components.json") << summary.dump(2) << "\n";
+  }
+  if (o.json) {
+    std::cout << summary.dump() << "\n";
+    return 0;
+  }
+  std::cout << seg.components.size() << " components (" << toString(settings.connectivity) << " connectivity";
+  if (settings.color_tolerance >= 0) std::cout << ", colour tolerance " << settings.color_tolerance;
+  std::cout << ")";
+  if (seg.dropped) std::cout << ", " << seg.dropped << " smaller than " << settings.min_voxels << " voxels dropped";
+  std::cout << "\n";
+  if (!seg.components.empty()) {
+    std::cout << "    id  kind      voxels   volume m3   centroid x, y, z (m)        size x, y, z (m)      colour\n";
+  }
+  std::cout << std::fixed;
+  for (const Component& c : seg.components) {
+    const Eigen::Vector3d size = c.bbox_max_m - c.bbox_min_m;
+    std::cout << std::setw(6) << c.id << "  " << std::left << std::setw(8) << toString(c.kind) << std::right
+              << std::setw(8) << c.voxels << std::setw(12) << std::setprecision(4) << c.volume_m3 << "   "
+              << std::setprecision(2) << std::setw(6) << c.centroid_m.x() << ", " << std::setw(6) << c.centroid_m.y()
+              << ", " << std::setw(6) << c.centroid_m.z() << "   " << std::setw(5) << size.x() << ", "
+              << std::setw(5) << size.y() << ", " << std::setw(5) << size.z() << "   #" << std::hex
+              << std::setfill('0') << std::setw(2) << int{c.mean_color.r} << std::setw(2) << int{c.mean_color.g}
+              << std::setw(2) << int{c.mean_color.b} << std::dec << std::setfill(' ') << "\n";
+  }
+  if (!o.output_dir.empty()) {
+    std::cout << "wrote " << seg.components.size() << " components (.cmap and .ply each) and components.json to "
+              << o.output_dir << "\n";
+  }
+  return 0;
+}
+
+}  // namespace
+
+Command addDiff(CLI::App& root) {
+  auto o = std::make_shared<DiffCmdOptions>();
+  CLI::App* app = root.add_subcommand(
+      "diff",
+      "What changed from A to B (thesis §3.1). A and B are session maps or MAP.cmap@TIME (a 4D map at a "
+      "time; two times of one map compare only what changed in between). Unknown on either side is never "
+      "a change. Modes: hard (occupied <-> free), threshold (|P1 - P2| > alpha, default 0.4), band (hard "
+      "with P in 0.5 +- alpha unknown, default 0.1), continuous (|P1 - P2| for every voxel known in both).");
+  app->add_option("A", o->before, "the earlier map: SESSION.cmap or MAP.cmap@TIME")->required();
+  app->add_option("B", o->after, "the later map: SESSION.cmap or MAP.cmap@TIME")->required();
+  app->add_option("--mode", o->mode, "hard, threshold, band or continuous")->capture_default_str();
+  app->add_option("--alpha", o->alpha, "threshold (threshold mode) or half band width (band mode)");
+  app->add_option("-o,--output", o->output, "the diff to write (.cmap)")->required();
+  app->add_option("--ply", o->ply, "also write the changed voxels as a PLY, coloured by what they show");
+  app->add_flag("--json", o->json, "print a JSON summary on stdout");
+  return {app, [o] { return runDiff(*o); }};
+}
+
+Command addSegment(CLI::App& root) {
+  auto o = std::make_shared<SegmentCmdOptions>();
+  CLI::App* app = root.add_subcommand(
+      "segment",
+      "Split a diff into connected objects (thesis §3.2): voxel count, volume, bounding box, centroid, mean "
+      "colour and whether it appeared or vanished, per component; -o writes each as its own .cmap and .ply "
+      "at the original coordinates.");
+  app->add_option("DIFF", o->input, "a diff written by chronomap diff (.cmap)")->required();
+  app->add_option("--connectivity", o->connectivity, "face (6 neighbours), edge (18) or vertex (26)")
+      ->capture_default_str();
+  app->add_option("--color-tolerance", o->color_tolerance,
+                  "join neighbours only when their colours differ by at most this (RGB distance, 0..441)");
+  app->add_option("--min-voxels", o->min_voxels, "drop components with fewer voxels")->capture_default_str();
+  app->add_option("--min-value", o->min_value, "continuous diffs: voxels that take part have |P1 - P2| above this")
+      ->capture_default_str();
+  app->add_option("-o,--output", o->output_dir, "folder for one .cmap and .ply per component and components.json");
+  app->add_flag("--json", o->json, "print the components as JSON on stdout");
+  return {app, [o] { return runSegment(*o); }};
+}
+
+}  // namespace chronomap::cli

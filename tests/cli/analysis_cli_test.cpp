@@ -1,0 +1,182 @@
+// chronomap diff and segment on the command line: results equal the library's, JSON keys,
+// 4D times, and bad input.
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "chronomap/analysis/segment.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/diff_file.h"
+#include "chronomap/io/file.h"
+#include "chronomap/io/temporal_file.h"
+#include "test_support.h"
+
+namespace chronomap {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string cli() { return std::string(CHRONOMAP_CLI_PATH); }
+
+VoxelKey origin(int x, int y, int z) {
+  return {static_cast<uint16_t>(kKeyOrigin + x), static_cast<uint16_t>(kKeyOrigin + y),
+          static_cast<uint16_t>(kKeyOrigin + z)};
+}
+
+VoxelCounters occupied() {
+  VoxelCounters c;
+  c.length_m = 0.1f;
+  c.hits = 3;
+  c.red = 3 * 200;
+  return c;
+}
+
+VoxelCounters freeVoxel() {
+  VoxelCounters c;
+  c.length_m = 0.2f;
+  return c;
+}
+
+// A floor of 10x10 free voxels; `b` has a 2x2x2 box on it and a separate voxel.
+void writePair(const fs::path& a, const fs::path& b) {
+  SessionMap ma(0.05), mb(0.05);
+  for (int z = 0; z < 4; ++z) {
+    for (int y = 0; y < 10; ++y) {
+      for (int x = 0; x < 10; ++x) {
+        ma.add(origin(x, y, z), freeVoxel());
+        const bool box = x >= 2 && x < 4 && y >= 2 && y < 4 && z < 2;
+        const bool lone = x == 8 && y == 8 && z == 0;
+        mb.add(origin(x, y, z), box || lone ? occupied() : freeVoxel());
+      }
+    }
+  }
+  io::writeSessionMap(a, ma, {});
+  io::writeSessionMap(b, mb, {});
+}
+
+TEST(AnalysisCli, HelpForEveryCommand) {
+  for (const char* cmd : {"diff", "segment"}) {
+    const auto r = test::runCommand(cli() + " " + cmd + " --help");
+    EXPECT_EQ(r.exit_code, 0) << cmd;
+    EXPECT_NE(r.out.find("Usage"), std::string::npos) << cmd;
+  }
+}
+
+TEST(AnalysisCli, DiffThenSegmentFindsTheBox) {
+  test::TempDir tmp;
+  writePair(tmp / "a.cmap", tmp / "b.cmap");
+  const auto d = test::runCommand(cli() + " diff " + (tmp / "a.cmap").string() + " " + (tmp / "b.cmap").string() +
+                                  " -o " + (tmp / "d.cmap").string() + " --ply " + (tmp / "d.ply").string() +
+                                  " --json");
+  ASSERT_EQ(d.exit_code, 0) << d.err;
+  const auto dj = nlohmann::json::parse(d.out);
+  EXPECT_EQ(dj["mode"], "hard");
+  EXPECT_EQ(dj["changed_voxels"], 9);
+  EXPECT_EQ(dj["appeared"], 9);
+  EXPECT_EQ(dj["vanished"], 0);
+  EXPECT_TRUE(fs::exists(tmp / "d.ply"));
+  const DiffMap file = io::readDiffMap(tmp / "d.cmap");
+  EXPECT_EQ(file, diff(io::readSessionMap(tmp / "a.cmap"), io::readSessionMap(tmp / "b.cmap")));
+
+  const auto s = test::runCommand(cli() + " segment " + (tmp / "d.cmap").string() + " --json -o " +
+                                  (tmp / "parts").string());
+  ASSERT_EQ(s.exit_code, 0) << s.err;
+  const auto sj = nlohmann::json::parse(s.out);
+  ASSERT_EQ(sj["components"].size(), 2u);
+  const auto& box = sj["components"][0];
+  EXPECT_EQ(box["id"], 1);
+  EXPECT_EQ(box["voxels"], 8);
+  EXPECT_EQ(box["kind"], "appeared");
+  EXPECT_NEAR(box["volume_m3"].get<double>(), 8 * 0.05 * 0.05 * 0.05, 1e-12);
+  for (int i = 0; i < 3; ++i) {
+    const double lo = i == 2 ? 0.0 : 0.10, hi = i == 2 ? 0.10 : 0.20;
+    EXPECT_NEAR(box["bbox_min"][i].get<double>(), lo, 1e-9);
+    EXPECT_NEAR(box["bbox_max"][i].get<double>(), hi, 1e-9);
+    EXPECT_NEAR(box["centroid"][i].get<double>(), (lo + hi) / 2, 1e-9);
+  }
+  EXPECT_EQ(box["mean_color"][0], 200);
+  EXPECT_EQ(sj["components"][1]["voxels"], 1);
+  EXPECT_EQ(io::readDiffMap(tmp / "parts" / "component_0001.cmap").voxelCount(), 8u);
+  EXPECT_TRUE(fs::exists(tmp / "parts" / "component_0002.ply"));
+  EXPECT_TRUE(fs::exists(tmp / "parts" / "components.json"));
+
+  const auto small = test::runCommand(cli() + " segment " + (tmp / "d.cmap").string() + " --min-voxels 2 --json");
+  ASSERT_EQ(small.exit_code, 0) << small.err;
+  EXPECT_EQ(nlohmann::json::parse(small.out)["components"].size(), 1u);
+  EXPECT_EQ(nlohmann::json::parse(small.out)["dropped"], 1);
+
+  const auto stats = test::runCommand(cli() + " stats " + (tmp / "d.cmap").string() + " --json");
+  ASSERT_EQ(stats.exit_code, 0) << stats.err;
+  EXPECT_EQ(nlohmann::json::parse(stats.out)["kind"], "diff");
+  EXPECT_EQ(nlohmann::json::parse(stats.out)["changed_voxels"], 9);
+}
+
+TEST(AnalysisCli, DiffOfTwoTimesOfA4DMap) {
+  test::TempDir tmp;
+  writePair(tmp / "a.cmap", tmp / "b.cmap");
+  TemporalMap map(0.05);
+  map.add(100, io::readSessionMap(tmp / "a.cmap"));
+  map.add(200, io::readSessionMap(tmp / "b.cmap"));
+  io::writeTemporalMap(tmp / "m.cmap", map, {});
+  const std::string m = (tmp / "m.cmap").string();
+  const auto r = test::runCommand(cli() + " diff " + m + "@150 " + m + "@200 --mode band -o " +
+                                  (tmp / "d.cmap").string() + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["changed_voxels"], 9);
+  // A session map against a 4D map time: nothing changed since b.
+  const auto same = test::runCommand(cli() + " diff " + (tmp / "b.cmap").string() + " " + m + "@200 -o " +
+                                     (tmp / "e.cmap").string() + " --json");
+  ASSERT_EQ(same.exit_code, 0) << same.err;
+  EXPECT_EQ(nlohmann::json::parse(same.out)["changed_voxels"], 0);
+}
+
+TEST(AnalysisCli, BadInputGetsOneClearMessage) {
+  test::TempDir tmp;
+  writePair(tmp / "a.cmap", tmp / "b.cmap");
+  const std::string a = (tmp / "a.cmap").string(), b = (tmp / "b.cmap").string(), out = (tmp / "d.cmap").string();
+  struct Case {
+    std::string args;
+    int code;
+    std::string says;
+  };
+  const std::vector<Case> cases = {
+      {"diff " + a + " " + b + " --mode soft -o " + out, 2, "unknown diff mode"},
+      {"diff " + a + " " + b + " --mode threshold --alpha 1.5 -o " + out, 2, "alpha"},
+      {"diff " + a + " " + b + " -o " + (tmp / "d.txt").string(), 2, "must end in .cmap"},
+      {"diff " + a + "@100 " + b + " -o " + out, 2, "is a session map"},
+      {"diff " + a + " " + (tmp / "missing.cmap").string() + " -o " + out, 1, "missing.cmap"},
+      {"segment " + a, 1, "not a diff"},
+      {"segment " + (tmp / "missing.cmap").string(), 1, "missing.cmap"},
+      {"segment " + out + " --connectivity corner", 2, "unknown connectivity"},
+  };
+  for (const Case& c : cases) {
+    const auto r = test::runCommand(cli() + " " + c.args);
+    EXPECT_EQ(r.exit_code, c.code) << c.args << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.says), std::string::npos) << c.args << "\n" << r.err;
+    EXPECT_FALSE(fs::exists(out)) << "no diff written after: " << c.args;
+  }
+  // A 4D map without a time.
+  TemporalMap map(0.05);
+  map.add(100, io::readSessionMap(a));
+  io::writeTemporalMap(tmp / "m.cmap", map, {});
+  const auto r = test::runCommand(cli() + " diff " + (tmp / "m.cmap").string() + " " + b + " -o " + out);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("@TIME"), std::string::npos) << r.err;
+  // Truncated and corrupt diffs.
+  ASSERT_EQ(test::runCommand(cli() + " diff " + a + " " + b + " -o " + out).exit_code, 0);
+  std::vector<uint8_t> bytes = io::readFileBytes(out);
+  const fs::path cut = tmp / "cut.cmap", flipped = tmp / "flipped.cmap";
+  io::writeFileAtomic(cut, std::vector<uint8_t>(bytes.begin(), bytes.begin() + static_cast<long>(bytes.size() / 2)));
+  bytes[bytes.size() - 5] ^= 0x40;
+  io::writeFileAtomic(flipped, bytes);
+  for (const fs::path& bad : {cut, flipped}) {
+    const auto s = test::runCommand(cli() + " segment " + bad.string());
+    EXPECT_EQ(s.exit_code, 1) << bad;
+    EXPECT_NE(s.err.find(bad.filename().string()), std::string::npos) << s.err;
+  }
+}
+
+}  // namespace
+}  // namespace chronomap
