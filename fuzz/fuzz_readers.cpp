@@ -12,6 +12,8 @@
 #include "chronomap/io/cloud_io.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/temporal_file.h"
+#include "chronomap/io/diff_file.h"
+#include "chronomap/analysis/segment.h"
 #include "chronomap/io/dataset.h"
 #include "chronomap/io/png.h"
 
@@ -37,7 +39,18 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
       (void)leaves;
     }
     map.history(VoxelKey{32768, 32768, 32768});
+    if (map.sessionCount() > 1) {
+      volatile size_t cells = diff(map, map.sessions().front().time_s, map.sessions().back().time_s).cells().size();
+      (void)cells;
+    }
     map.compact();
+  } else if (file.header.kind == io::MapKind::Diff) {
+    // A diff that reads must also segment without crashing.
+    const DiffMap d = io::diffMapFrom(file, name);
+    SegmentSettings s;
+    s.connectivity = Connectivity::Vertex;
+    volatile size_t n = segment(d, s).components.size();
+    (void)n;
   }
   io::metadataOf(file);
 #elif defined(FUZZ_PCD)

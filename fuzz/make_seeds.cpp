@@ -9,6 +9,7 @@
 #include "chronomap/io/cloud_io.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/temporal_file.h"
+#include "chronomap/io/diff_file.h"
 #include "chronomap/io/png.h"
 
 using namespace chronomap;
@@ -72,6 +73,7 @@ int main(int argc, char** argv) {
     });
     four_d.add(1000.0, shifted);
     io::writeTemporalMap(root / "cmap/four_d.cmap", four_d, {{"seed", true}});
+    io::writeDiffMap(root / "cmap/diff.cmap", diff(four_d, 1000.0, 2000.0), {{"seed", true}});
   }
   return 0;
 }

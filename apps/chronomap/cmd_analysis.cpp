@@ -32,6 +32,7 @@ struct DiffCmdOptions {
   std::string after;
   std::string mode = "hard";
   double alpha = -1.0;
+  int neighbourhood = 0;
   std::string output;
   std::string ply;
   bool json = false;
@@ -67,6 +68,7 @@ int runDiff(const DiffCmdOptions& o) {
   DiffSettings settings;
   settings.mode = parseDiffMode(o.mode);
   settings.alpha = o.alpha;
+  settings.neighbourhood_voxels = o.neighbourhood;
   settings.validate();
   if (fs::path(o.output).extension() != ".cmap") throw UsageError("output '" + o.output + "' must end in .cmap");
   if (!o.ply.empty() && fs::path(o.ply).extension() != ".ply") throw UsageError("--ply '" + o.ply + "' must end in .ply");
@@ -211,6 +213,10 @@ Command addDiff(CLI::App& root) {
   app->add_option("B", o->after, "the later map: SESSION.cmap or MAP.cmap@TIME")->required();
   app->add_option("--mode", o->mode, "hard, threshold, band or continuous")->capture_default_str();
   app->add_option("--alpha", o->alpha, "threshold (threshold mode) or half band width (band mode)");
+  app->add_option("--neighbourhood", o->neighbourhood,
+                  "ignore a voxel that appeared (vanished) when the other map is occupied within this many voxels: "
+                  "surfaces shifted by localisation error are not changes (0..3; 0 compares twins only)")
+      ->capture_default_str();
   app->add_option("-o,--output", o->output, "the diff to write (.cmap)")->required();
   app->add_option("--ply", o->ply, "also write the changed voxels as a PLY, coloured by what they show");
   app->add_flag("--json", o->json, "print a JSON summary on stdout");

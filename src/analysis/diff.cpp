@@ -7,6 +7,10 @@
 
 namespace chronomap {
 
+namespace {
+constexpr int kMaxNeighbourhood = 3;
+}  // namespace
+
 const char* toString(DiffMode mode) {
   switch (mode) {
     case DiffMode::Hard: return "hard";
@@ -46,6 +50,10 @@ void DiffSettings::validate() const {
     throw UsageError("invalid diff mode " + std::to_string(static_cast<int>(mode)));
   }
   if (std::isnan(alpha)) throw UsageError("diff alpha must be a number");
+  if (neighbourhood_voxels < 0 || neighbourhood_voxels > kMaxNeighbourhood) {
+    throw UsageError("diff neighbourhood must lie in 0.." + std::to_string(kMaxNeighbourhood) + " voxels, got " +
+                     std::to_string(neighbourhood_voxels));
+  }
   const double a = effectiveAlpha();
   if (mode == DiffMode::Threshold && !(a < 1.0)) {
     throw UsageError("threshold alpha must lie in [0, 1), got " + std::to_string(a));
@@ -182,6 +190,32 @@ struct SessionWalk {
   }
 };
 
+// Drops appeared cells with an occupied voxel near them in the first map, and vanished cells
+// with one near them in the second (DiffSettings::neighbourhood_voxels).
+template <class StateBefore, class StateAfter>
+void dropNearSurfaces(std::vector<ChangeCell>& cells, int r, StateBefore before, StateAfter after) {
+  if (r <= 0) return;
+  auto occupiedNear = [r](const VoxelKey& k, auto&& state) {
+    for (int dz = -r; dz <= r; ++dz) {
+      for (int dy = -r; dy <= r; ++dy) {
+        for (int dx = -r; dx <= r; ++dx) {
+          const int x = k.x + dx, y = k.y + dy, z = k.z + dz;
+          if (x < 0 || y < 0 || z < 0 || x >= kKeysPerAxis || y >= kKeysPerAxis || z >= kKeysPerAxis) continue;
+          const VoxelKey n{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)};
+          if (state(n) == VoxelState::Occupied) return true;
+        }
+      }
+    }
+    return false;
+  };
+  std::erase_if(cells, [&](const ChangeCell& c) {
+    if (c.level != 0) return false;
+    if (c.kind == ChangeKind::Appeared) return occupiedNear(c.key, before);
+    if (c.kind == ChangeKind::Vanished) return occupiedNear(c.key, after);
+    return false;
+  });
+}
+
 }  // namespace
 
 DiffMap diff(const SessionMap& before, const SessionMap& after, const DiffSettings& settings) {
@@ -192,6 +226,11 @@ DiffMap diff(const SessionMap& before, const SessionMap& after, const DiffSettin
   DiffMap d(before.resolution_m(), settings);
   SessionWalk w{before, after, settings, d.cells_};
   w.walk(0, 0, kTreeDepth, VoxelKey{});  // inner node 0 is the root of both
+  if (settings.mode != DiffMode::Continuous) {
+    dropNearSurfaces(
+        d.cells_, settings.neighbourhood_voxels, [&](const VoxelKey& k) { return before.stateOf(k); },
+        [&](const VoxelKey& k) { return after.stateOf(k); });
+  }
   return d;
 }
 
@@ -229,6 +268,15 @@ DiffMap diff(const TemporalMap& map, double t1_s, double t2_s, const DiffSetting
     auto bound = [](std::optional<uint32_t> r) { return r ? *r + 1 : 0u; };
     const uint32_t lo = std::min(bound(r1), bound(r2)), hi = std::max(bound(r1), bound(r2));
     local.inner_nodes_visited = map.forEachListChangedIn(lo, hi, compare);
+  }
+  if (settings.mode != DiffMode::Continuous) {
+    auto stateAt = [&map](double t) {
+      return [&map, t](const VoxelKey& k) {
+        const auto v = map.valueAt(k, t);
+        return v ? v->state() : VoxelState::Unknown;
+      };
+    };
+    dropNearSurfaces(d.cells_, settings.neighbourhood_voxels, stateAt(t1_s), stateAt(t2_s));
   }
   // The pruned walk reports lists before deeper siblings: restore Morton order.
   std::sort(d.cells_.begin(), d.cells_.end(),

@@ -50,6 +50,7 @@ void writeDiffMap(const std::filesystem::path& path, const DiffMap& diff, const 
   j["user"] = meta.is_object() ? meta : nlohmann::json::object();
   j["mode"] = toString(diff.settings().mode);
   j["alpha"] = diff.settings().effectiveAlpha();
+  j["neighbourhood_voxels"] = diff.settings().neighbourhood_voxels;
   const std::string text = j.dump();
   std::vector<CmapBlock> blocks(2);
   blocks[0] = {"META", std::vector<uint8_t>(text.begin(), text.end())};
@@ -66,6 +67,7 @@ DiffMap diffMapFrom(const CmapFile& file, const std::string& source) {
     const nlohmann::json j = metadataOf(file);
     settings.mode = parseDiffMode(j.at("mode").get<std::string>());
     settings.alpha = j.at("alpha").get<double>();
+    settings.neighbourhood_voxels = j.value("neighbourhood_voxels", 0);
     settings.validate();
   } catch (const std::exception& e) {
     throw FormatError(source + ": invalid diff settings (" + e.what() + ")");

@@ -7,6 +7,7 @@
 
 #include "chronomap/core/error.h"
 #include "chronomap/io/cloud_io.h"
+#include "chronomap/io/plot.h"
 
 namespace chronomap::io {
 
@@ -113,6 +114,55 @@ ImageRgb renderTopView(const SessionMap& map, const TopViewSettings& settings) {
         for (int px = 0; px < ppv; ++px) img.pixels[row * img.width + static_cast<size_t>(x * ppv + px)] = c;
       }
     }
+  }
+  return img;
+}
+
+ImageRgb renderChangeView(const SessionMap& background, const DiffMap& diff, const Segmentation& segmentation,
+                          const TopViewSettings& settings) {
+  ImageRgb img = renderTopView(background, settings);
+  // The same frame as renderTopView: the key bounds of the background's leaves, y up.
+  int lo_x = kKeysPerAxis, lo_y = kKeysPerAxis, hi_y = -1;
+  background.forEachLeaf([&](const LeafView& l) {
+    lo_x = std::min(lo_x, int{l.key.x});
+    lo_y = std::min(lo_y, int{l.key.y});
+    hi_y = std::max(hi_y, l.key.y + (1 << l.level) - 1);
+  });
+  const int ppv = std::max(1, settings.pixels_per_voxel);
+  for (Rgb& p : img.pixels) {  // fade the background so that the changes stand out
+    p = Rgb{static_cast<uint8_t>(160 + p.r * 3 / 8), static_cast<uint8_t>(160 + p.g * 3 / 8),
+            static_cast<uint8_t>(160 + p.b * 3 / 8)};
+  }
+  auto toPixel = [&](int kx, int ky) {
+    return std::pair<int, int>{(kx - lo_x) * ppv, (hi_y - ky) * ppv};
+  };
+  auto inside = [&](int x, int y) { return x >= 0 && y >= 0 && x < int(img.width) && y < int(img.height); };
+  for (const Component& c : segmentation.components) {
+    const Rgb color = c.kind == ChangeKind::Appeared ? Rgb{20, 150, 40} : Rgb{210, 40, 30};
+    for (uint32_t idx : c.cells) {
+      const ChangeCell& cell = diff.cells()[idx];
+      const int side = 1 << cell.level;
+      const auto [x0, y0] = toPixel(cell.key.x, cell.key.y + side - 1);
+      for (int y = y0; y < y0 + side * ppv; ++y) {
+        for (int x = x0; x < x0 + side * ppv; ++x) {
+          if (inside(x, y)) img.pixels[static_cast<size_t>(y) * img.width + static_cast<size_t>(x)] = color;
+        }
+      }
+    }
+  }
+  for (const Component& c : segmentation.components) {
+    const Rgb color = c.kind == ChangeKind::Appeared ? Rgb{10, 90, 20} : Rgb{140, 20, 10};
+    const auto lo = diff.grid().keyOf(c.bbox_min_m + Eigen::Vector3d::Constant(diff.resolution_m() / 2));
+    const auto hi = diff.grid().keyOf(c.bbox_max_m - Eigen::Vector3d::Constant(diff.resolution_m() / 2));
+    if (!lo || !hi) continue;
+    const auto [x0, y0] = toPixel(lo->x, hi->y);
+    const auto [x1, y1] = toPixel(hi->x + 1, lo->y - 1);
+    const int m = 2;  // margin around the component
+    drawLine(img, x0 - m, y0 - m, x1 + m, y0 - m, color);
+    drawLine(img, x0 - m, y1 + m, x1 + m, y1 + m, color);
+    drawLine(img, x0 - m, y0 - m, x0 - m, y1 + m, color);
+    drawLine(img, x1 + m, y0 - m, x1 + m, y1 + m, color);
+    drawText(img, x1 + m + 2, y0 - m, std::to_string(c.id), color, 2);
   }
   return img;
 }

@@ -146,6 +146,29 @@ TEST(Diff, CompressedFreeCubesCompareAtTheFinerSide) {
   EXPECT_EQ(cont.voxelCount(ChangeKind::Unchanged), 511u);
 }
 
+TEST(Diff, NeighbourhoodIgnoresShiftedSurfacesButNotObjects) {
+  // A wall at x = 4 in a, at x = 5 in b (a localisation shift of one voxel); a box appears in b
+  // three voxels away from anything a saw occupied.
+  SessionMap a(0.05), b(0.05);
+  for (int z = 0; z < 6; ++z) {
+    for (int y = 0; y < 6; ++y) {
+      for (int x = 0; x < 12; ++x) {
+        a.add(at(x, y, z), x == 4 ? withProbability(0.9) : freeVoxel());
+        const bool box = x == 9 && y < 2 && z < 2;
+        b.add(at(x, y, z), x == 5 || box ? withProbability(0.9) : freeVoxel());
+      }
+    }
+  }
+  DiffSettings s;
+  EXPECT_EQ(diff(a, b, s).voxelCount(), 36u + 36u + 4u) << "the shifted wall: 36 vanished, 36 appeared";
+  s.neighbourhood_voxels = 1;
+  const DiffMap near = diff(a, b, s);
+  EXPECT_EQ(near.voxelCount(ChangeKind::Vanished), 0u);
+  EXPECT_EQ(near.voxelCount(ChangeKind::Appeared), 4u) << "only the box";
+  s.neighbourhood_voxels = 4;
+  EXPECT_THROW(s.validate(), UsageError);
+}
+
 TEST(Diff, SettingsAreChecked) {
   EXPECT_THROW(parseDiffMode("soft"), UsageError);
   EXPECT_EQ(parseDiffMode("band"), DiffMode::Band);
@@ -283,8 +306,10 @@ TEST(Diff, FourDimensionalDiffEqualsDiffOfSnapshots) {
     for (int trial = 0; trial < 10; ++trial) {
       const double t1 = probes[rng() % probes.size()], t2 = probes[rng() % probes.size()];
       for (DiffMode m : {DiffMode::Hard, DiffMode::Threshold, DiffMode::Band, DiffMode::Continuous}) {
-        const DiffMap fast = diff(map, t1, t2, mode(m));
-        const DiffMap slow = diff(map.snapshot(t1), map.snapshot(t2), mode(m));
+        DiffSettings s = mode(m);
+        s.neighbourhood_voxels = trial % 3 == 0 ? 1 : 0;
+        const DiffMap fast = diff(map, t1, t2, s);
+        const DiffMap slow = diff(map.snapshot(t1), map.snapshot(t2), s);
         ASSERT_TRUE(fast == slow) << "seed " << seed << " mode " << toString(m) << " t1 " << t1 << " t2 " << t2
                                   << ": " << fast.cells().size() << " vs " << slow.cells().size() << " cells";
       }

@@ -37,6 +37,12 @@ struct DiffSettings {
   /// mode's grey band around 0.5. Ignored by Hard and Continuous. A negative value picks the
   /// mode's default: kDefaultThresholdAlpha or kDefaultBandAlpha.
   double alpha = -1.0;
+  /// > 0: a voxel that appeared is no change when the first map holds an occupied voxel within
+  /// this many voxels (Chebyshev distance), and one that vanished is none when the second map
+  /// does: a surface seen a voxel or two away, as a localisation error of a few centimetres
+  /// makes it, is not a change. 0 (the default) compares each voxel with its twin only, as
+  /// §3.1 defines. Unit cells only; Continuous mode ignores it.
+  int neighbourhood_voxels = 0;
 
   /// Threshold mode's default: a voxel must move by more than 0.4 in probability, so a free
   /// voxel (P near 0) must become clearly occupied (P > 0.4) to count.
@@ -47,7 +53,7 @@ struct DiffSettings {
   /// alpha with the default applied.
   double effectiveAlpha() const;
   /// @throw UsageError for an alpha that is not finite, or not in [0, 1) (threshold) or
-  /// [0, 0.5) (band).
+  /// [0, 0.5) (band), or a neighbourhood outside 0..3.
   void validate() const;
 };
 

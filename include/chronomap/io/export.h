@@ -4,6 +4,7 @@
 
 #include <filesystem>
 
+#include "chronomap/analysis/segment.h"
 #include "chronomap/io/png.h"
 #include "chronomap/octree/session_map.h"
 
@@ -34,5 +35,11 @@ struct TopViewSettings {
 /// only free voxels are light, unobserved ones dark.
 /// @throw DataError when the map is empty or the picture would exceed 8192 pixels a side.
 ImageRgb renderTopView(const SessionMap& map, const TopViewSettings& settings = {});
+
+/// The top view of `background`, faded, with the changed cells of `diff` drawn over it from above
+/// (appeared green, vanished red) and each component of `segmentation` framed and labelled with
+/// its id. @throw DataError as renderTopView.
+ImageRgb renderChangeView(const SessionMap& background, const DiffMap& diff, const Segmentation& segmentation,
+                          const TopViewSettings& settings = {});
 
 }  // namespace chronomap::io

@@ -1,0 +1,384 @@
+// change_eval: how well chronomap finds what changed and which objects, against ground truth.
+//
+// 1. The simulated office (and floor66 when given): every consecutive pair of sessions is
+//    integrated (fast mode), diffed in every mode, segmented and scored against the
+//    simulator's change events: voxel precision and recall, object recall (an event counts as
+//    found when a component overlaps its voxels), false components per pair. With estimated
+//    poses (what a robot has) and true poses (what the sensor alone gives).
+// 2. Real data from ../shared/data: mOSD group A (objects re-arranged on a table between five
+//    shots, per-point labels: is every moved object found?), nvblox's human_dataset (the share
+//    of frame 2's pixels flagged changed after frame 1; nvblox's test accepts 5-20 %), and the
+//    PCL grabber sequence of a static scene (the false change rate).
+//
+// Usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick]
+//   --office DIR   a `chronomap simulate --preset office` output (default: simulate one at half
+//                  resolution into a temporary folder)
+//   --floor66 DIR  also evaluate a floor66 simulation (not simulated by default: ~7 minutes)
+//   --quick        only the default settings, no sweep
+// The last line of output is one JSON object with the headline figures.
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <unistd.h>
+#include <filesystem>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <string>
+#include <unordered_set>
+#include <vector>
+
+#include "chronomap/analysis/segment.h"
+#include "chronomap/integrate/integrator.h"
+#include "chronomap/io/cloud_io.h"
+#include "chronomap/io/dataset.h"
+#include "chronomap/io/png.h"
+#include "chronomap/sim/building.h"
+#include "chronomap/sim/change_truth.h"
+
+using namespace chronomap;
+namespace fs = std::filesystem;
+
+namespace {
+
+// The settings the demo and the documentation recommend for robot sessions (see docs/changes.md).
+DiffSettings defaultDiff() {
+  DiffSettings d;
+  d.mode = DiffMode::Hard;
+  d.neighbourhood_voxels = 1;
+  return d;
+}
+
+SegmentSettings defaultSegment() {
+  SegmentSettings s;
+  s.connectivity = Connectivity::Vertex;
+  s.min_voxels = 20;
+  return s;
+}
+
+double seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+// ------------------------------------------------------------------------------------------
+// Simulated buildings
+
+struct SimSessions {
+  std::vector<SessionMap> estimated, truth_pose;
+  std::vector<sim::TruthEvent> events;
+};
+
+SimSessions loadSimulation(const fs::path& dir, bool with_true_poses) {
+  SimSessions s;
+  s.events = sim::readTruthEvents(dir / "scene.json");
+  std::vector<fs::path> sessions;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (e.is_directory() && e.path().filename().string().rfind("session_", 0) == 0) sessions.push_back(e.path());
+  }
+  std::sort(sessions.begin(), sessions.end());
+  for (const fs::path& p : sessions) {
+    IntegratorSettings is;
+    is.fast = true;
+    {
+      SessionMap m(0.05);
+      integrate(*io::openDataset(p), m, is);
+      s.estimated.push_back(std::move(m));
+    }
+    if (with_true_poses) {
+      io::DatasetOptions o;
+      o.trajectory = p / "groundtruth.txt";
+      SessionMap m(0.05);
+      integrate(*io::openDataset(p, o), m, is);
+      s.truth_pose.push_back(std::move(m));
+    }
+    std::fprintf(stderr, "\r  integrated %zu/%zu sessions", s.estimated.size(), sessions.size());
+  }
+  std::fprintf(stderr, "\n");
+  return s;
+}
+
+sim::ChangeScore scorePairs(const std::vector<SessionMap>& maps, const std::vector<sim::TruthEvent>& events,
+                            const DiffSettings& ds, const SegmentSettings& ss, size_t* pairs_with_false = nullptr) {
+  sim::ChangeScore total;
+  for (size_t k = 1; k < maps.size(); ++k) {
+    std::vector<sim::TruthEvent> pair;
+    for (const auto& e : events) {
+      if (e.from_session == k - 1) pair.push_back(e);
+    }
+    const DiffMap d = diff(maps[k - 1], maps[k], ds);
+    const Segmentation seg = segment(d, ss);
+    const sim::ChangeScore s = sim::scoreChanges(d, seg, pair, maps[k - 1], maps[k]);
+    if (pairs_with_false && s.false_components > 1) ++*pairs_with_false;
+    total += s;
+  }
+  return total;
+}
+
+struct SimSummary {
+  double object_recall = 0.0;
+  double false_components_per_pair = 0.0;
+  double voxel_precision = 0.0, voxel_recall = 0.0;
+};
+
+SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool sweep) {
+  std::printf("\n== %s (%s) ==\n", name.c_str(), dir.c_str());
+  const auto start = std::chrono::steady_clock::now();
+  const SimSessions s = loadSimulation(dir, true);
+  const size_t pairs = s.estimated.size() - 1;
+  std::printf("%zu sessions, %zu change events, integrated in %.1f s\n", s.estimated.size(), s.events.size(),
+              seconds(start));
+
+  auto row = [&](const char* poses, const std::vector<SessionMap>& maps, const DiffSettings& ds,
+                 const SegmentSettings& ss) {
+    size_t bad_pairs = 0;
+    const auto t = std::chrono::steady_clock::now();
+    const sim::ChangeScore c = scorePairs(maps, s.events, ds, ss, &bad_pairs);
+    std::printf("%-9s %-10s %5.2f %5d %-7s %5llu | %9.3f %9.3f | %4zu/%-4zu %7.3f | %10.2f %9zu | %6.2f\n", poses,
+                toString(ds.mode), ds.effectiveAlpha(), ds.neighbourhood_voxels, toString(ss.connectivity),
+                static_cast<unsigned long long>(ss.min_voxels), c.precision(), c.recall(), c.events_found,
+                c.events_observable,
+                c.events_observable ? double(c.events_found) / double(c.events_observable) : 1.0,
+                double(c.false_components) / double(pairs), bad_pairs, seconds(t));
+    return c;
+  };
+  std::printf("poses     mode       alpha nbhd  conn    min_v | voxel_prec voxel_rec | objects  recall | "
+              "false/pair >1 false | seconds\n");
+  const sim::ChangeScore headline = row("estimated", s.estimated, defaultDiff(), defaultSegment());
+  row("true", s.truth_pose, defaultDiff(), defaultSegment());
+  if (sweep) {
+    for (const char* poses : {"estimated", "true"}) {
+      const auto& maps = std::strcmp(poses, "true") == 0 ? s.truth_pose : s.estimated;
+      for (DiffMode m : {DiffMode::Hard, DiffMode::Threshold, DiffMode::Band, DiffMode::Continuous}) {
+        for (int nb : {0, 1, 2}) {
+          DiffSettings ds;
+          ds.mode = m;
+          ds.neighbourhood_voxels = nb;
+          if (m == DiffMode::Continuous && nb > 0) continue;
+          row(poses, maps, ds, defaultSegment());
+        }
+      }
+      for (Connectivity c : {Connectivity::Face, Connectivity::Edge}) {
+        SegmentSettings ss = defaultSegment();
+        ss.connectivity = c;
+        row(poses, maps, defaultDiff(), ss);
+      }
+      for (uint64_t mv : {1, 10, 50}) {
+        SegmentSettings ss = defaultSegment();
+        ss.min_voxels = mv;
+        row(poses, maps, defaultDiff(), ss);
+      }
+    }
+  }
+  SimSummary out;
+  out.object_recall =
+      headline.events_observable ? double(headline.events_found) / double(headline.events_observable) : 1.0;
+  out.false_components_per_pair = double(headline.false_components) / double(pairs);
+  out.voxel_precision = headline.precision();
+  out.voxel_recall = headline.recall();
+  return out;
+}
+
+// ------------------------------------------------------------------------------------------
+// Real data
+
+SessionMap integrateCloud(const PointCloud& cloud, double resolution_m, double max_range_m) {
+  Frame f;
+  f.cloud = cloud;
+  SessionMap m(resolution_m);
+  IntegratorSettings is;
+  is.max_range_m = max_range_m;
+  integrate(FrameVector({f}), m, is);
+  return m;
+}
+
+struct MosdResult {
+  size_t found = 0, total = 0, false_components = 0, pairs = 0;
+};
+
+// mOSD group A: objects (labels 10k..10k+9) re-arranged between shots of an unmoved camera.
+MosdResult evaluateMosd(const fs::path& dir) {
+  constexpr double kResolution = 0.01;  // the objects are boxes and cans of 5-20 cm
+  std::printf("\n== mOSD group A (%s) ==\n", dir.c_str());
+  std::vector<PointCloud> clouds;
+  for (int i = 0; i < 5; ++i) clouds.push_back(io::readPcd(dir / ("test" + std::to_string(i) + ".pcd")));
+  std::vector<SessionMap> maps;
+  // Per shot: object number -> the voxels its points fall in.
+  std::vector<std::map<uint32_t, std::set<VoxelKey>>> objects;
+  for (const PointCloud& c : clouds) {
+    maps.push_back(integrateCloud(c, kResolution, 3.0));
+    std::map<uint32_t, std::set<VoxelKey>> objs;
+    for (size_t i = 0; i < c.points.size(); ++i) {
+      if (i >= c.labels.size() || c.labels[i] < 10 || !c.points[i].allFinite()) continue;
+      if (auto k = maps.back().grid().keyOf(c.points[i].cast<double>())) objs[c.labels[i] / 10].insert(*k);
+    }
+    objects.push_back(std::move(objs));
+  }
+  auto iou = [](const std::set<VoxelKey>& a, const std::set<VoxelKey>& b) {
+    size_t inter = 0;
+    for (const auto& k : a) inter += b.count(k);
+    return double(inter) / double(a.size() + b.size() - inter);
+  };
+  MosdResult r;
+  std::printf("pair  objects_moved  found  components  false_components\n");
+  for (size_t k = 1; k < maps.size(); ++k) {
+    const DiffMap d = diff(maps[k - 1], maps[k], defaultDiff());
+    SegmentSettings ss = defaultSegment();
+    ss.min_voxels = 10;
+    const Segmentation seg = segment(d, ss);
+    // An object moved when no object of the other shot occupies nearly the same voxels.
+    std::vector<const std::set<VoxelKey>*> moved;
+    for (size_t side = 0; side < 2; ++side) {
+      const auto& mine = objects[k - 1 + side];
+      const auto& other = objects[k - side];
+      for (const auto& [id, vox] : mine) {
+        double best = 0.0;
+        for (const auto& [id2, vox2] : other) best = std::max(best, iou(vox, vox2));
+        if (best < 0.5) moved.push_back(&vox);
+      }
+    }
+    // Found: a component holds a voxel within one voxel of the object's.
+    std::unordered_set<uint64_t> component_voxels;
+    std::vector<uint8_t> component_used(seg.components.size(), 0);
+    size_t found = 0;
+    for (const auto* vox : moved) {
+      bool hit = false;
+      for (size_t c = 0; c < seg.components.size(); ++c) {
+        for (uint32_t idx : seg.components[c].cells) {
+          const VoxelKey& key = d.cells()[idx].key;
+          for (const VoxelKey& o : *vox) {
+            if (std::abs(key.x - o.x) <= 1 && std::abs(key.y - o.y) <= 1 && std::abs(key.z - o.z) <= 1) {
+              hit = true;
+              component_used[c] = 1;
+              break;
+            }
+          }
+          if (component_used[c]) break;
+        }
+      }
+      found += hit;
+    }
+    const size_t false_components =
+        static_cast<size_t>(std::count(component_used.begin(), component_used.end(), uint8_t{0}));
+    std::printf("%zu->%zu  %13zu  %5zu  %10zu  %16zu\n", k - 1, k, moved.size(), found, seg.components.size(),
+                false_components);
+    r.found += found;
+    r.total += moved.size();
+    r.false_components += false_components;
+    ++r.pairs;
+  }
+  return r;
+}
+
+// nvblox's human_dataset: a static camera, a person walking. Share of frame 2's pixels whose
+// point falls in a voxel that appeared after frame 1.
+double evaluateHuman(const fs::path& dir) {
+  std::printf("\n== human_dataset (%s) ==\n", dir.c_str());
+  const io::CameraIntrinsics k = io::readIntrinsicsFile(dir / "camera-intrinsics.txt");
+  const io::ImageU16 d1 = io::readPngU16(dir / "depth_image_1.png");
+  const io::ImageU16 d2 = io::readPngU16(dir / "depth_image_2.png");
+  const PointCloud c1 = io::depthToCloud(d1, nullptr, k, 1000.0, "depth_image_1.png");
+  const PointCloud c2 = io::depthToCloud(d2, nullptr, k, 1000.0, "depth_image_2.png");
+  constexpr double kResolution = 0.05, kRange = 9.0;  // depth reaches 8.2 m
+  const SessionMap m1 = integrateCloud(c1, kResolution, kRange), m2 = integrateCloud(c2, kResolution, kRange);
+  const DiffMap d = diff(m1, m2, defaultDiff());
+  std::unordered_set<uint64_t> appeared;
+  for (const ChangeCell& c : d.cells()) {
+    if (c.kind == ChangeKind::Appeared) appeared.insert(mortonEncode(c.key));
+  }
+  size_t flagged = 0;
+  for (const auto& p : c2.points) {
+    if (!p.allFinite()) continue;
+    const auto key = m2.grid().keyOf(p.cast<double>());
+    if (key && appeared.count(mortonEncode(*key))) ++flagged;
+  }
+  const double fraction = double(flagged) / double(c2.points.size());
+  std::printf("frame 2: %zu of %zu pixels flagged changed (%.1f %%; nvblox's test accepts 5-20 %%); diff: %llu "
+              "appeared, %llu vanished voxels\n",
+              flagged, c2.points.size(), 100.0 * fraction,
+              static_cast<unsigned long long>(d.voxelCount(ChangeKind::Appeared)),
+              static_cast<unsigned long long>(d.voxelCount(ChangeKind::Vanished)));
+  return fraction;
+}
+
+// PCL grabber sequence: three frames of a static scene. Changed voxels / voxels known in both.
+double evaluateGrabber(const fs::path& dir) {
+  std::printf("\n== grabber_sequences (%s) ==\n", dir.c_str());
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (e.path().extension() == ".pcd") files.push_back(e.path());
+  }
+  std::sort(files.begin(), files.end());
+  std::vector<SessionMap> maps;
+  for (const auto& f : files) maps.push_back(integrateCloud(io::readPcd(f), 0.05, 3.0));
+  uint64_t changed = 0, known = 0;
+  for (size_t k = 1; k < maps.size(); ++k) {
+    const DiffMap d = diff(maps[k - 1], maps[k], defaultDiff());
+    DiffSettings all;
+    all.mode = DiffMode::Continuous;
+    const uint64_t both = diff(maps[k - 1], maps[k], all).voxelCount();
+    const uint64_t ch = d.voxelCount(ChangeKind::Appeared) + d.voxelCount(ChangeKind::Vanished);
+    std::printf("frame %zu->%zu: %llu of %llu voxels known in both flagged changed\n", k - 1, k,
+                static_cast<unsigned long long>(ch), static_cast<unsigned long long>(both));
+    changed += ch;
+    known += both;
+  }
+  return known ? double(changed) / double(known) : 0.0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  fs::path office, floor66, data = CHRONOMAP_DEFAULT_DATA_DIR;
+  bool quick = false;
+  for (int i = 1; i < argc; ++i) {
+    if (!std::strcmp(argv[i], "--office") && i + 1 < argc) {
+      office = argv[++i];
+    } else if (!std::strcmp(argv[i], "--floor66") && i + 1 < argc) {
+      floor66 = argv[++i];
+    } else if (!std::strcmp(argv[i], "--data") && i + 1 < argc) {
+      data = argv[++i];
+    } else if (!std::strcmp(argv[i], "--quick")) {
+      quick = true;
+    } else {
+      std::fprintf(stderr, "usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick]\n");
+      return 2;
+    }
+  }
+  try {
+    fs::path tmp;
+    if (office.empty()) {
+      tmp = fs::temp_directory_path() / ("change_eval_" + std::to_string(::getpid()));
+      sim::SimulationSettings s;
+      s.preset = "office";
+      s.resolution_scale = 0.5;
+      std::fprintf(stderr, "simulating the office into %s\n", tmp.c_str());
+      sim::simulate(s, tmp, {});
+      office = tmp;
+    }
+    const SimSummary o = evaluateSimulation("office", office, !quick);
+    if (!floor66.empty()) evaluateSimulation("floor66", floor66, false);
+    const MosdResult mosd = evaluateMosd(data / "mosd-a" / "test");
+    const double human = evaluateHuman(data / "3dmatch" / "human_dataset");
+    const double grabber = evaluateGrabber(data / "pcl-kinect" / "grabber_sequences" / "pcd");
+    if (!tmp.empty()) fs::remove_all(tmp);
+    std::printf("\n%s\n", nlohmann::json{{"office_object_recall", o.object_recall},
+                                         {"office_false_components_per_pair", o.false_components_per_pair},
+                                         {"office_voxel_precision", o.voxel_precision},
+                                         {"office_voxel_recall", o.voxel_recall},
+                                         {"mosd_a_found", mosd.found},
+                                         {"mosd_a_total", mosd.total},
+                                         {"mosd_a_false_components_per_pair",
+                                          mosd.pairs ? double(mosd.false_components) / double(mosd.pairs) : 0.0},
+                                         {"human_changed_fraction", human},
+                                         {"grabber_false_change_rate", grabber}}
+                                  .dump()
+                                  .c_str());
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "change_eval: error: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,122 @@
+#include "chronomap/sim/change_truth.h"
+
+#include <nlohmann/json.hpp>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "chronomap/core/error.h"
+#include "chronomap/io/file.h"
+
+namespace chronomap::sim {
+
+std::vector<TruthEvent> readTruthEvents(const std::filesystem::path& scene_json) {
+  const std::string source = scene_json.string();
+  std::vector<TruthEvent> out;
+  try {
+    const nlohmann::json j = nlohmann::json::parse(io::readTextFile(scene_json));
+    for (const auto& e : j.at("events")) {
+      TruthEvent t;
+      t.from_session = e.at("from_session").get<uint32_t>();
+      t.object = e.at("object").get<uint32_t>();
+      t.object_kind = e.at("object_kind").get<std::string>();
+      t.kind = e.at("kind").get<std::string>();
+      for (const auto& v : e.at("voxels")) {
+        t.voxels.push_back(VoxelKey{v.at(0).get<uint16_t>(), v.at(1).get<uint16_t>(), v.at(2).get<uint16_t>()});
+      }
+      out.push_back(std::move(t));
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw FormatError(source + ": not a simulator scene (" + e.what() + ")");
+  }
+  return out;
+}
+
+ChangeScore& ChangeScore::operator+=(const ChangeScore& o) {
+  events += o.events;
+  events_observable += o.events_observable;
+  events_found += o.events_found;
+  components += o.components;
+  false_components += o.false_components;
+  changed_voxels += o.changed_voxels;
+  true_changed_voxels += o.true_changed_voxels;
+  truth_voxels += o.truth_voxels;
+  truth_voxels_found += o.truth_voxels_found;
+  return *this;
+}
+
+namespace {
+
+// Calls fn(code) for the Morton codes of the voxels within r of k.
+template <class Fn>
+void forNeighbours(const VoxelKey& k, int r, Fn&& fn) {
+  for (int dz = -r; dz <= r; ++dz) {
+    for (int dy = -r; dy <= r; ++dy) {
+      for (int dx = -r; dx <= r; ++dx) {
+        const int x = k.x + dx, y = k.y + dy, z = k.z + dz;
+        if (x < 0 || y < 0 || z < 0 || x >= kKeysPerAxis || y >= kKeysPerAxis || z >= kKeysPerAxis) continue;
+        fn(mortonEncode(VoxelKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)}));
+      }
+    }
+  }
+}
+
+}  // namespace
+
+ChangeScore scoreChanges(const DiffMap& diff, const Segmentation& segmentation, const std::vector<TruthEvent>& events,
+                         const SessionMap& before, const SessionMap& after, const ChangeScoreSettings& settings) {
+  ChangeScore s;
+  s.events = events.size();
+  const int r = settings.match_tolerance_voxels;
+  // Event voxels, dilated by the tolerance: code -> event index (the first event wins).
+  std::unordered_map<uint64_t, int> near_event;
+  std::vector<uint8_t> observable(events.size(), 0);
+  for (size_t e = 0; e < events.size(); ++e) {
+    size_t known = 0;
+    for (const VoxelKey& k : events[e].voxels) {
+      forNeighbours(k, r, [&](uint64_t code) { near_event.emplace(code, static_cast<int>(e)); });
+      if (before.stateOf(k) != VoxelState::Unknown && after.stateOf(k) != VoxelState::Unknown) ++known;
+    }
+    observable[e] = known >= settings.min_observed_voxels;
+    s.events_observable += observable[e];
+  }
+  // Changed voxels, dilated likewise.
+  std::unordered_set<uint64_t> near_change;
+  for (const ChangeCell& c : diff.cells()) {
+    if (c.kind == ChangeKind::Unchanged || c.level != 0) continue;
+    ++s.changed_voxels;
+    if (near_event.count(mortonEncode(c.key))) ++s.true_changed_voxels;
+    forNeighbours(c.key, r, [&](uint64_t code) { near_change.insert(code); });
+  }
+  for (const TruthEvent& e : events) {
+    for (const VoxelKey& k : e.voxels) {
+      if (before.stateOf(k) == VoxelState::Unknown || after.stateOf(k) == VoxelState::Unknown) continue;
+      ++s.truth_voxels;
+      s.truth_voxels_found += near_change.count(mortonEncode(k));
+    }
+  }
+  // Components: which event each overlaps most.
+  std::vector<uint8_t> found(events.size(), 0);
+  for (const Component& comp : segmentation.components) {
+    ++s.components;
+    std::unordered_map<int, size_t> votes;
+    for (uint32_t idx : comp.cells) {
+      const auto it = near_event.find(mortonEncode(diff.cells()[idx].key));
+      if (it != near_event.end()) ++votes[it->second];
+    }
+    int best = -1;
+    size_t best_votes = 0;
+    for (const auto& [e, n] : votes) {
+      if (n > best_votes || (n == best_votes && e < best)) {
+        best = e;
+        best_votes = n;
+      }
+      found[static_cast<size_t>(e)] = 1;
+    }
+    s.component_event.push_back(best);
+    if (best < 0) ++s.false_components;
+  }
+  for (size_t e = 0; e < events.size(); ++e) s.events_found += observable[e] && found[e];
+  return s;
+}
+
+}  // namespace chronomap::sim
