@@ -28,6 +28,7 @@
 #include <nlohmann/json.hpp>
 #include <set>
 #include <string>
+#include <tuple>
 #include <unordered_set>
 #include <vector>
 
@@ -47,7 +48,7 @@ namespace {
 // The settings the demo and the documentation recommend for robot sessions (see docs/changes.md).
 DiffSettings defaultDiff() {
   DiffSettings d;
-  d.mode = DiffMode::Hard;
+  d.mode = DiffMode::Band;
   d.neighbourhood_voxels = 1;
   return d;
 }
@@ -118,10 +119,75 @@ sim::ChangeScore scorePairs(const std::vector<SessionMap>& maps, const std::vect
 }
 
 struct SimSummary {
+  double segment_speedup = 0.0;        // flood fill time / segment time on the largest input
+  double diff_ms_first = 0.0, diff_ms_last = 0.0;  // 4D diff time with the fewest and most sessions
   double object_recall = 0.0;
   double false_components_per_pair = 0.0;
   double voxel_precision = 0.0, voxel_recall = 0.0;
 };
+
+template <class Fn>
+double bestMs(int repeats, Fn&& fn) {
+  double best = 1e300;
+  for (int i = 0; i < repeats; ++i) {
+    const auto t = std::chrono::steady_clock::now();
+    fn();
+    best = std::min(best, seconds(t) * 1000.0);
+  }
+  return best;
+}
+
+// Segmentation against the flood fill on growing inputs: the unfiltered diffs of consecutive
+// sessions (the largest diffs the data gives), merged one pair after another.
+double benchSegmentation(const std::vector<SessionMap>& maps) {
+  std::printf("\nsegmentation (vertex connectivity) vs the flood fill on unions of hard diffs:\n"
+              "changed_voxels  components  segment_ms  floodfill_ms  speedup  segment_ns_per_voxel\n");
+  std::map<uint64_t, ChangeCell> merged;
+  double speedup = 0.0;
+  for (size_t k = 1; k < maps.size(); ++k) {
+    const DiffMap d = diff(maps[k - 1], maps[k]);
+    for (const ChangeCell& c : d.cells()) merged.emplace(mortonEncode(c.key), c);
+    std::vector<ChangeCell> cells;
+    for (const auto& [code, c] : merged) cells.push_back(c);
+    const DiffMap input = DiffMap::fromCells(d.resolution_m(), {}, std::move(cells));
+    SegmentSettings ss;
+    ss.connectivity = Connectivity::Vertex;
+    size_t n = 0;
+    const double fast = bestMs(5, [&] { n = segment(input, ss).components.size(); });
+    const double slow = bestMs(2, [&] { segmentByFloodFill(input, ss); });
+    speedup = slow / fast;
+    std::printf("%14llu  %10zu  %10.2f  %12.2f  %7.1f  %20.0f\n",
+                static_cast<unsigned long long>(input.voxelCount()), n, fast, slow, speedup,
+                fast * 1e6 / double(input.voxelCount()));
+  }
+  return speedup;
+}
+
+// A 4D diff across one session as the map grows: the office's sessions added again and again
+// (every added session changes about as much as its predecessor did).
+std::pair<double, double> benchTemporalDiff(const std::vector<SessionMap>& maps) {
+  std::printf("\n4D diff across the last session as sessions accumulate (hard mode):\n"
+              "sessions  nodes_4d  changed_voxels  inner_nodes_visited  diff_ms  diff_of_snapshots_ms\n");
+  TemporalMap m(maps.front().resolution_m());
+  double first = 0.0, last = 0.0;
+  size_t next_report = 6;
+  for (size_t i = 0; i < 48; ++i) {
+    m.add(3600.0 * static_cast<double>(i), maps[i % maps.size()]);
+    if (i + 1 != next_report) continue;
+    next_report *= 2;
+    const double t1 = 3600.0 * static_cast<double>(i - 1), t2 = 3600.0 * static_cast<double>(i);
+    diff(m, t1, t2);  // builds the change summary once
+    DiffStats st;
+    size_t changed = 0;
+    const double ms = bestMs(5, [&] { changed = diff(m, t1, t2, {}, &st).voxelCount(); });
+    const double snap_ms = bestMs(1, [&] { diff(m.snapshot(t1), m.snapshot(t2)); });
+    std::printf("%8zu  %8zu  %14zu  %19zu  %7.2f  %20.1f\n", i + 1, m.counts().nodes(), changed,
+                st.inner_nodes_visited, ms, snap_ms);
+    if (first == 0.0) first = ms;
+    last = ms;
+  }
+  return {first, last};
+}
 
 SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool sweep) {
   std::printf("\n== %s (%s) ==\n", name.c_str(), dir.c_str());
@@ -173,6 +239,8 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
     }
   }
   SimSummary out;
+  out.segment_speedup = benchSegmentation(s.estimated);
+  std::tie(out.diff_ms_first, out.diff_ms_last) = benchTemporalDiff(s.estimated);
   out.object_recall =
       headline.events_observable ? double(headline.events_found) / double(headline.events_observable) : 1.0;
   out.false_components_per_pair = double(headline.false_components) / double(pairs);
@@ -365,6 +433,9 @@ int main(int argc, char** argv) {
     const double grabber = evaluateGrabber(data / "pcl-kinect" / "grabber_sequences" / "pcd");
     if (!tmp.empty()) fs::remove_all(tmp);
     std::printf("\n%s\n", nlohmann::json{{"office_object_recall", o.object_recall},
+                                         {"office_segment_speedup_vs_floodfill", o.segment_speedup},
+                                         {"office_4d_diff_ms_6_sessions", o.diff_ms_first},
+                                         {"office_4d_diff_ms_48_sessions", o.diff_ms_last},
                                          {"office_false_components_per_pair", o.false_components_per_pair},
                                          {"office_voxel_precision", o.voxel_precision},
                                          {"office_voxel_recall", o.voxel_recall},
