@@ -6,7 +6,7 @@
 //    found when a component overlaps its voxels), false components per pair. With estimated
 //    poses (what a robot has) and true poses (what the sensor alone gives).
 // 2. Real data from ../shared/data: mOSD group A (objects re-arranged on a table between five
-//    shots, per-point labels: is every moved object found?), nvblox's human_dataset (the share
+//    shots, per-point labels: is every changed placement of an object found?), nvblox's human_dataset (the share
 //    of frame 2's pixels flagged changed after frame 1; nvblox's test accepts 5-20 %), and the
 //    PCL grabber sequence of a static scene (the false change rate).
 //
@@ -290,7 +290,9 @@ MosdResult evaluateMosd(const fs::path& dir) {
     return double(inter) / double(a.size() + b.size() - inter);
   };
   MosdResult r;
-  std::printf("pair  objects_moved  found  components  false_components\n");
+  // Objects are numbered anew in every shot, so a moved object is two placements: where it was
+  // (no object of the next shot there) and where it is (no object of the previous shot there).
+  std::printf("pair  changed_placements  found  components  false_components\n");
   for (size_t k = 1; k < maps.size(); ++k) {
     const DiffMap d = diff(maps[k - 1], maps[k], defaultDiff());
     SegmentSettings ss = defaultSegment();
@@ -330,7 +332,7 @@ MosdResult evaluateMosd(const fs::path& dir) {
     }
     const size_t false_components =
         static_cast<size_t>(std::count(component_used.begin(), component_used.end(), uint8_t{0}));
-    std::printf("%zu->%zu  %13zu  %5zu  %10zu  %16zu\n", k - 1, k, moved.size(), found, seg.components.size(),
+    std::printf("%zu->%zu  %18zu  %5zu  %10zu  %16zu\n", k - 1, k, moved.size(), found, seg.components.size(),
                 false_components);
     r.found += found;
     r.total += moved.size();
