@@ -105,10 +105,7 @@ sim::ChangeScore scorePairs(const std::vector<SessionMap>& maps, const std::vect
                             const DiffSettings& ds, const SegmentSettings& ss, size_t* pairs_with_false = nullptr) {
   sim::ChangeScore total;
   for (size_t k = 1; k < maps.size(); ++k) {
-    std::vector<sim::TruthEvent> pair;
-    for (const auto& e : events) {
-      if (e.from_session == k - 1) pair.push_back(e);
-    }
+    const std::vector<sim::TruthEvent> pair = sim::eventsFrom(events, static_cast<uint32_t>(k - 1));
     const DiffMap d = diff(maps[k - 1], maps[k], ds);
     const Segmentation seg = segment(d, ss);
     const sim::ChangeScore s = sim::scoreChanges(d, seg, pair, maps[k - 1], maps[k]);

@@ -219,10 +219,7 @@ int runDemo(const DemoOptions& o) {
   sim::ChangeScore change_total;
   std::ostringstream changes_md;
   for (size_t k = 1; k < results.size(); ++k) {
-    std::vector<sim::TruthEvent> pair_events;
-    for (const auto& e : truth_events) {
-      if (e.from_session == k - 1) pair_events.push_back(e);
-    }
+    const std::vector<sim::TruthEvent> pair_events = sim::eventsFrom(truth_events, static_cast<uint32_t>(k - 1));
     const DiffMap d = diff(results[k - 1].map, results[k].map, diff_settings);
     const Segmentation seg = segment(d, segment_settings);
     const sim::ChangeScore score = sim::scoreChanges(d, seg, pair_events, results[k - 1].map, results[k].map);

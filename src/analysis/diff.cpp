@@ -196,17 +196,7 @@ template <class StateBefore, class StateAfter>
 void dropNearSurfaces(std::vector<ChangeCell>& cells, int r, StateBefore before, StateAfter after) {
   if (r <= 0) return;
   auto occupiedNear = [r](const VoxelKey& k, auto&& state) {
-    for (int dz = -r; dz <= r; ++dz) {
-      for (int dy = -r; dy <= r; ++dy) {
-        for (int dx = -r; dx <= r; ++dx) {
-          const int x = k.x + dx, y = k.y + dy, z = k.z + dz;
-          if (x < 0 || y < 0 || z < 0 || x >= kKeysPerAxis || y >= kKeysPerAxis || z >= kKeysPerAxis) continue;
-          const VoxelKey n{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)};
-          if (state(n) == VoxelState::Occupied) return true;
-        }
-      }
-    }
-    return false;
+    return anyKeyWithin(k, r, [&](const VoxelKey& n) { return state(n) == VoxelState::Occupied; });
   };
   std::erase_if(cells, [&](const ChangeCell& c) {
     if (c.level != 0) return false;
@@ -265,8 +255,8 @@ DiffMap diff(const TemporalMap& map, double t1_s, double t2_s, const DiffSetting
     map.forEachList(compare);  // unchanged voxels are part of the answer: every list counts
   } else {
     // Only lists with a change by a session in (min rank, max rank] can differ.
-    auto bound = [](std::optional<uint32_t> r) { return r ? *r + 1 : 0u; };
-    const uint32_t lo = std::min(bound(r1), bound(r2)), hi = std::max(bound(r1), bound(r2));
+    const uint32_t n1 = map.ranksThrough(t1_s), n2 = map.ranksThrough(t2_s);
+    const uint32_t lo = std::min(n1, n2), hi = std::max(n1, n2);
     local.inner_nodes_visited = map.forEachListChangedIn(lo, hi, compare);
   }
   if (settings.mode != DiffMode::Continuous) {
@@ -278,9 +268,7 @@ DiffMap diff(const TemporalMap& map, double t1_s, double t2_s, const DiffSetting
     };
     dropNearSurfaces(d.cells_, settings.neighbourhood_voxels, stateAt(t1_s), stateAt(t2_s));
   }
-  // The pruned walk reports lists before deeper siblings: restore Morton order.
-  std::sort(d.cells_.begin(), d.cells_.end(),
-            [](const ChangeCell& a, const ChangeCell& b) { return mortonEncode(a.key) < mortonEncode(b.key); });
+  // Both walks visit lists in slot order, which is Morton order: the cells are sorted already.
   if (stats) *stats = local;
   return d;
 }

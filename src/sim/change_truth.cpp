@@ -31,6 +31,14 @@ std::vector<TruthEvent> readTruthEvents(const std::filesystem::path& scene_json)
   return out;
 }
 
+std::vector<TruthEvent> eventsFrom(const std::vector<TruthEvent>& events, uint32_t from_session) {
+  std::vector<TruthEvent> out;
+  for (const TruthEvent& e : events) {
+    if (e.from_session == from_session) out.push_back(e);
+  }
+  return out;
+}
+
 ChangeScore& ChangeScore::operator+=(const ChangeScore& o) {
   events += o.events;
   events_observable += o.events_observable;
@@ -44,40 +52,27 @@ ChangeScore& ChangeScore::operator+=(const ChangeScore& o) {
   return *this;
 }
 
-namespace {
-
-// Calls fn(code) for the Morton codes of the voxels within r of k.
-template <class Fn>
-void forNeighbours(const VoxelKey& k, int r, Fn&& fn) {
-  for (int dz = -r; dz <= r; ++dz) {
-    for (int dy = -r; dy <= r; ++dy) {
-      for (int dx = -r; dx <= r; ++dx) {
-        const int x = k.x + dx, y = k.y + dy, z = k.z + dz;
-        if (x < 0 || y < 0 || z < 0 || x >= kKeysPerAxis || y >= kKeysPerAxis || z >= kKeysPerAxis) continue;
-        fn(mortonEncode(VoxelKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)}));
-      }
-    }
-  }
-}
-
-}  // namespace
-
 ChangeScore scoreChanges(const DiffMap& diff, const Segmentation& segmentation, const std::vector<TruthEvent>& events,
                          const SessionMap& before, const SessionMap& after, const ChangeScoreSettings& settings) {
   ChangeScore s;
   s.events = events.size();
   const int r = settings.match_tolerance_voxels;
-  // Event voxels, dilated by the tolerance: code -> event index (the first event wins).
+  // Event voxels, dilated by the tolerance: code -> event index (the first event wins); and the
+  // event voxels known in both sessions, per event.
+  auto dilate = [r](const VoxelKey& k, auto&& add) {
+    anyKeyWithin(k, r, [&](const VoxelKey& n) {
+      add(mortonEncode(n));
+      return false;
+    });
+  };
   std::unordered_map<uint64_t, int> near_event;
-  std::vector<uint8_t> observable(events.size(), 0);
+  std::vector<std::vector<VoxelKey>> known(events.size());
   for (size_t e = 0; e < events.size(); ++e) {
-    size_t known = 0;
     for (const VoxelKey& k : events[e].voxels) {
-      forNeighbours(k, r, [&](uint64_t code) { near_event.emplace(code, static_cast<int>(e)); });
-      if (before.stateOf(k) != VoxelState::Unknown && after.stateOf(k) != VoxelState::Unknown) ++known;
+      dilate(k, [&](uint64_t code) { near_event.emplace(code, static_cast<int>(e)); });
+      if (before.stateOf(k) != VoxelState::Unknown && after.stateOf(k) != VoxelState::Unknown) known[e].push_back(k);
     }
-    observable[e] = known >= settings.min_observed_voxels;
-    s.events_observable += observable[e];
+    s.events_observable += known[e].size() >= settings.min_observed_voxels;
   }
   // Changed voxels, dilated likewise.
   std::unordered_set<uint64_t> near_change;
@@ -85,14 +80,11 @@ ChangeScore scoreChanges(const DiffMap& diff, const Segmentation& segmentation, 
     if (c.kind == ChangeKind::Unchanged || c.level != 0) continue;
     ++s.changed_voxels;
     if (near_event.count(mortonEncode(c.key))) ++s.true_changed_voxels;
-    forNeighbours(c.key, r, [&](uint64_t code) { near_change.insert(code); });
+    dilate(c.key, [&](uint64_t code) { near_change.insert(code); });
   }
-  for (const TruthEvent& e : events) {
-    for (const VoxelKey& k : e.voxels) {
-      if (before.stateOf(k) == VoxelState::Unknown || after.stateOf(k) == VoxelState::Unknown) continue;
-      ++s.truth_voxels;
-      s.truth_voxels_found += near_change.count(mortonEncode(k));
-    }
+  for (const auto& keys : known) {
+    s.truth_voxels += keys.size();
+    for (const VoxelKey& k : keys) s.truth_voxels_found += near_change.count(mortonEncode(k));
   }
   // Components: which event each overlaps most.
   std::vector<uint8_t> found(events.size(), 0);
@@ -115,7 +107,9 @@ ChangeScore scoreChanges(const DiffMap& diff, const Segmentation& segmentation, 
     s.component_event.push_back(best);
     if (best < 0) ++s.false_components;
   }
-  for (size_t e = 0; e < events.size(); ++e) s.events_found += observable[e] && found[e];
+  for (size_t e = 0; e < events.size(); ++e) {
+    s.events_found += known[e].size() >= settings.min_observed_voxels && found[e];
+  }
   return s;
 }
 

@@ -64,6 +64,23 @@ constexpr VoxelKey childCorner(const VoxelKey& base, int slot, int child_level) 
   return k;
 }
 
+/// Calls pred(const VoxelKey&) for every key within Chebyshev distance r of `key` (itself
+/// included) that lies inside the key space, until it returns true.
+/// @return whether pred returned true for one of them.
+template <class Pred>
+bool anyKeyWithin(const VoxelKey& key, int r, Pred&& pred) {
+  for (int dz = -r; dz <= r; ++dz) {
+    for (int dy = -r; dy <= r; ++dy) {
+      for (int dx = -r; dx <= r; ++dx) {
+        const int x = key.x + dx, y = key.y + dy, z = key.z + dz;
+        if (x < 0 || y < 0 || z < 0 || x >= kKeysPerAxis || y >= kKeysPerAxis || z >= kKeysPerAxis) continue;
+        if (pred(VoxelKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)})) return true;
+      }
+    }
+  }
+  return false;
+}
+
 /// Converts between metric coordinates (map frame) and voxel keys for one resolution.
 /// Voxel k spans [(k - 2^15) * res, (k - 2^15 + 1) * res) on each axis.
 class KeyGrid {

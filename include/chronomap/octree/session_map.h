@@ -11,6 +11,7 @@
 
 #include "chronomap/core/counters.h"
 #include "chronomap/core/key.h"
+#include "chronomap/core/tree_walk.h"
 
 namespace chronomap {
 
@@ -128,31 +129,9 @@ class SessionMap {
 
 template <class Fn>
 void SessionMap::forEachLeaf(Fn&& fn) const {
-  struct Item {
-    uint32_t node;
-    int level;  // level of the node's children
-    VoxelKey base;
-    int next;
-  };
-  std::array<Item, kTreeDepth + 1> stack;
-  int top = 0;
-  stack[0] = Item{0, kTreeDepth - 1, VoxelKey{}, 0};
-  while (top >= 0) {
-    Item& it = stack[top];
-    if (it.next == 8) {
-      --top;
-      continue;
-    }
-    const int slot = it.next++;
-    const Ref r = inner_[it.node][slot];
-    if (r == kEmpty) continue;
-    const VoxelKey k = childCorner(it.base, slot, it.level);
-    if (isLeaf(r)) {
-      fn(LeafView{k, it.level, leaves_[index(r)]});
-    } else {
-      stack[++top] = Item{r, it.level - 1, k, 0};
-    }
-  }
+  walkPoolTree(
+      inner_, kLeafBit, [](uint32_t) { return true; },
+      [&](Ref r, const VoxelKey& k, int level) { fn(LeafView{k, level, leaves_[index(r)]}); });
 }
 
 }  // namespace chronomap

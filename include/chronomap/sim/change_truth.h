@@ -25,6 +25,9 @@ struct TruthEvent {
 /// Reads the events of a simulation's scene.json. @throw IoError, FormatError naming the file.
 std::vector<TruthEvent> readTruthEvents(const std::filesystem::path& scene_json);
 
+/// The events between sessions `from_session` and `from_session + 1`.
+std::vector<TruthEvent> eventsFrom(const std::vector<TruthEvent>& events, uint32_t from_session);
+
 /// Settings of the scoring.
 struct ChangeScoreSettings {
   /// An event counts as observable when at least this many of its voxels are known (observed)

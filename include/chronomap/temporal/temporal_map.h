@@ -151,6 +151,12 @@ class TemporalMap {
 
   /// Rank (index in sessions()) of the last session with a time <= time_s, or nothing.
   std::optional<uint32_t> rankAtOrBefore(double time_s) const;
+  /// Number of sessions with a time <= time_s: sessions in (t0, t1] have the ranks
+  /// [ranksThrough(t0), ranksThrough(t1)).
+  uint32_t ranksThrough(double time_s) const {
+    const auto r = rankAtOrBefore(time_s);
+    return r ? *r + 1 : 0u;
+  }
 
   TemporalCounts counts() const;
   /// Bytes of node storage in use (pools, free blocks included; coverage included).
@@ -243,33 +249,12 @@ class TemporalMap {
 
 template <class Fn>
 void TemporalMap::forEachList(Fn&& fn) const {
-  struct Item {
-    uint32_t node;
-    int child_level;
-    VoxelKey base;
-    int next;
-  };
-  std::array<Item, kTreeDepth + 1> stack;
-  int top = 0;
-  stack[0] = Item{0, kTreeDepth - 1, VoxelKey{}, 0};
-  while (top >= 0) {
-    Item& it = stack[top];
-    if (it.next == 8) {
-      --top;
-      continue;
-    }
-    const int slot = it.next++;
-    const Ref r = inner_[it.node][slot];
-    if (r == kEmpty) continue;
-    const VoxelKey k = childCorner(it.base, slot, it.child_level);
-    if (isList(r)) {
-      const List& l = lists_[index(r)];
-      fn(k, it.child_level, std::span<const Entry>(entriesOf(l), l.size));
-    } else {
-      stack[top + 1] = Item{r, it.child_level - 1, k, 0};
-      ++top;
-    }
-  }
+  walkPoolTree(
+      inner_, kListBit, [](uint32_t) { return true; },
+      [&](Ref r, const VoxelKey& k, int level) {
+        const List& l = lists_[index(r)];
+        fn(k, level, std::span<const Entry>(entriesOf(l), l.size));
+      });
 }
 
 template <class Fn>
@@ -281,47 +266,25 @@ size_t TemporalMap::forEachListChangedIn(uint32_t first, uint32_t end, Fn&& fn) 
     query = 0;
     for (uint32_t r = first; r < end; ++r) query |= uint64_t{1} << (r % 64);
   }
-  auto changedIn = [&](std::span<const Entry> entries) {
-    for (size_t i = 1; i < entries.size(); ++i) {
-      if (entries[i].session >= first && entries[i].session < end) return true;
-    }
-    return false;
-  };
-  struct Item {
-    uint32_t node;
-    int child_level;
-    VoxelKey base;
-  };
-  std::vector<Item> stack{{0, kTreeDepth - 1, VoxelKey{}}};
-  size_t visited = 0;
-  while (!stack.empty()) {
-    const Item it = stack.back();
-    stack.pop_back();
-    ++visited;
-    for (int slot = 0; slot < 8; ++slot) {
-      const Ref r = inner_[it.node][slot];
-      if (r == kEmpty) continue;
-      const VoxelKey k = childCorner(it.base, slot, it.child_level);
-      if (isList(r)) {
+  return walkPoolTree(
+      inner_, kListBit, [&](uint32_t node) { return (change_masks_[node] & query) != 0; },
+      [&](Ref r, const VoxelKey& k, int level) {
         const List& l = lists_[index(r)];
         const std::span<const Entry> entries(entriesOf(l), l.size);
-        if (l.size > 1 && changedIn(entries)) fn(k, it.child_level, entries);
-      } else if ((change_masks_[r] & query) != 0) {
-        stack.push_back(Item{r, it.child_level - 1, k});
-      }
-    }
-  }
-  return visited;
+        for (size_t i = 1; i < entries.size(); ++i) {
+          if (entries[i].session >= first && entries[i].session < end) {
+            fn(k, level, entries);
+            return;
+          }
+        }
+      });
 }
 
 template <class Fn>
 void TemporalMap::forEachChangeCount(double t0_s, double t1_s, Fn&& fn) const {
   // Ranks whose time lies in (t0, t1].
-  uint32_t first = 0;
-  while (first < sessions_.size() && sessions_[first].time_s <= t0_s) ++first;
-  uint32_t end = first;
-  while (end < sessions_.size() && sessions_[end].time_s <= t1_s) ++end;
-  if (first == end) return;
+  const uint32_t first = ranksThrough(t0_s), end = ranksThrough(t1_s);
+  if (first >= end) return;
   forEachListChangedIn(first, end, [&](const VoxelKey& k, int level, std::span<const Entry> entries) {
     uint32_t n = 0;
     for (size_t i = 1; i < entries.size(); ++i) {
