@@ -39,6 +39,7 @@
 #include "chronomap/io/png.h"
 #include "chronomap/sim/building.h"
 #include "chronomap/sim/change_truth.h"
+#include "bench_sim.h"
 
 using namespace chronomap;
 namespace fs = std::filesystem;
@@ -67,39 +68,8 @@ double seconds(std::chrono::steady_clock::time_point since) {
 // ------------------------------------------------------------------------------------------
 // Simulated buildings
 
-struct SimSessions {
-  std::vector<SessionMap> estimated, truth_pose;
-  std::vector<sim::TruthEvent> events;
-};
-
-SimSessions loadSimulation(const fs::path& dir, bool with_true_poses) {
-  SimSessions s;
-  s.events = sim::readTruthEvents(dir / "scene.json");
-  std::vector<fs::path> sessions;
-  for (const auto& e : fs::directory_iterator(dir)) {
-    if (e.is_directory() && e.path().filename().string().rfind("session_", 0) == 0) sessions.push_back(e.path());
-  }
-  std::sort(sessions.begin(), sessions.end());
-  for (const fs::path& p : sessions) {
-    IntegratorSettings is;
-    is.fast = true;
-    {
-      SessionMap m(0.05);
-      integrate(*io::openDataset(p), m, is);
-      s.estimated.push_back(std::move(m));
-    }
-    if (with_true_poses) {
-      io::DatasetOptions o;
-      o.trajectory = p / "groundtruth.txt";
-      SessionMap m(0.05);
-      integrate(*io::openDataset(p, o), m, is);
-      s.truth_pose.push_back(std::move(m));
-    }
-    std::fprintf(stderr, "\r  integrated %zu/%zu sessions", s.estimated.size(), sessions.size());
-  }
-  std::fprintf(stderr, "\n");
-  return s;
-}
+using bench::loadSimulation;
+using bench::SimSessions;
 
 sim::ChangeScore scorePairs(const std::vector<SessionMap>& maps, const std::vector<sim::TruthEvent>& events,
                             const DiffSettings& ds, const SegmentSettings& ss, size_t* pairs_with_false = nullptr) {
@@ -417,12 +387,7 @@ int main(int argc, char** argv) {
   try {
     fs::path tmp;
     if (office.empty()) {
-      tmp = fs::temp_directory_path() / ("change_eval_" + std::to_string(::getpid()));
-      sim::SimulationSettings s;
-      s.preset = "office";
-      s.resolution_scale = 0.5;
-      std::fprintf(stderr, "simulating the office into %s\n", tmp.c_str());
-      sim::simulate(s, tmp, {});
+      tmp = bench::simulateTemporary("office", "change_eval");
       office = tmp;
     }
     const SimSummary o = evaluateSimulation("office", office, !quick);

@@ -9,6 +9,8 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "chronomap/align/consensus.h"
+#include "chronomap/align/realign.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
 #include "chronomap/io/cloud_io.h"
@@ -53,6 +55,36 @@ int64_t nodesAddedAt(const TemporalMap& map, double time_s) {
   return 0;
 }
 
+/// --realign and its settings, shared by add and build.
+struct RealignOptions {
+  bool enabled = false;
+  RealignSettings settings;
+  std::string move = "transfer";
+};
+
+void addRealignOptions(CLI::App* app, RealignOptions& o) {
+  app->add_flag("--realign", o.enabled,
+                "re-align each session against the consensus map first (thesis §2.2): voxel data that "
+                "localisation error put a voxel away from where the other sessions saw it is moved back, "
+                "so it is not stored as change (docs/realign.md)");
+  app->add_option("--realign-alpha", o.settings.alpha, "least score of a move")->capture_default_str();
+  app->add_option("--realign-max-distance", o.settings.max_distance_voxels,
+                  "farthest move in voxels (d_max, at most 8)")
+      ->capture_default_str();
+  app->add_option("--realign-move", o.move,
+                  "transfer: the data goes to the new place and the old one becomes unobserved; swap: the two "
+                  "places exchange their contents")
+      ->check(CLI::IsMember({"transfer", "swap"}))
+      ->capture_default_str();
+}
+
+RealignSettings realignSettings(const RealignOptions& o) {
+  RealignSettings s = o.settings;
+  s.move = o.move == "swap" ? RealignSettings::Move::Swap : RealignSettings::Move::Transfer;
+  s.validate();
+  return s;
+}
+
 // ------------------------------------------------------------------------------------------
 // add
 
@@ -62,13 +94,15 @@ struct AddCmdOptions {
   std::string time;
   bool replace = false;
   ChangeCriterion criterion;
+  RealignOptions realign;
   bool json = false;
 };
 
 int runAdd(const AddCmdOptions& o) {
   requireExtension(o.map, ".cmap", "4D map");
+  const RealignSettings realign_settings = realignSettings(o.realign);
   const io::CmapFile file = io::readCmap(o.session);
-  const SessionMap session = io::sessionMapFrom(file, o.session);
+  SessionMap session = io::sessionMapFrom(file, o.session);
   double time_s = 0.0;
   if (!o.time.empty()) {
     time_s = parseTime(o.time);
@@ -81,11 +115,21 @@ int runAdd(const AddCmdOptions& o) {
   }
   bool created = false;
   TemporalMap map = openOrCreate(o.map, session.resolution_m(), o.criterion, created);
+  std::optional<RealignReport> realigned;
+  if (o.realign.enabled) {
+    // The consensus of every session stored so far (each time's snapshot) and this one.
+    SessionMap avg = map.sessionCount() ? consensus(map, map.sessions().front().time_s, map.sessions().back().time_s)
+                                        : SessionMap(session.resolution_m());
+    avg.merge(session);
+    realigned.emplace();
+    session = realign(session, avg, realign_settings, &*realigned);
+  }
   const AddReport report = map.add(time_s, session, AddOptions{o.replace, fs::path(o.session).filename().string()});
   io::writeTemporalMap(o.map, map, {});
   const int64_t added = nodesAddedAt(map, time_s);
   if (o.json) {
     nlohmann::json j = addReportJson(report, time_s, added);
+    if (realigned) j["realigned_voxels"] = realigned->moved();
     j["map"] = o.map;
     j["created"] = created;
     j["sessions"] = map.sessionCount();
@@ -98,6 +142,7 @@ int runAdd(const AddCmdOptions& o) {
               << ", " << added << " nodes added (" << report.entries_added << " entries, " << report.inner_added
               << " inner nodes); " << map.sessionCount() << " session(s), " << map.counts().nodes() << " nodes, "
               << humanBytes(static_cast<double>(fs::file_size(o.map))) << " on disk\n";
+    if (realigned) std::cout << "re-aligned: " << realigned->moved() << " voxel(s) moved\n";
   }
   return 0;
 }
@@ -122,6 +167,7 @@ struct BuildCmdOptions {
   bool replace = false;
   ChangeCriterion criterion;
   IntegrateSettings integrate;
+  RealignOptions realign;
   bool json = false;
 };
 
@@ -135,6 +181,7 @@ std::vector<std::string> splitCommas(const std::string& text) {
 
 int runBuild(const BuildCmdOptions& o) {
   requireExtension(o.map, ".cmap", "4D map");
+  const RealignSettings realign_settings = realignSettings(o.realign);  // bad settings fail before integrating
   for (const auto& d : o.datasets) {
     if (!fs::exists(d)) throw UsageError("dataset '" + d + "' does not exist");
   }
@@ -183,11 +230,28 @@ int runBuild(const BuildCmdOptions& o) {
                        " have the same time " + formatTime(pending[i].time_s));
     }
   }
+  // Re-alignment against the consensus of every session given (before any is replaced).
+  std::vector<std::optional<size_t>> moved(pending.size());
+  if (o.realign.enabled) {
+    std::vector<const SessionMap*> all;
+    for (const Pending& p : pending) all.push_back(&p.session.map);
+    const SessionMap avg = consensus(std::span<const SessionMap* const>(all));
+    std::vector<SessionMap> aligned;
+    for (size_t i = 0; i < pending.size(); ++i) {
+      if (!o.json) std::cerr << "re-aligning " << o.datasets[pending[i].index] << "\n";
+      RealignReport r;
+      aligned.push_back(realign(pending[i].session.map, avg, realign_settings, &r));
+      moved[i] = r.moved();
+    }
+    for (size_t i = 0; i < pending.size(); ++i) pending[i].session.map = std::move(aligned[i]);
+  }
   nlohmann::json reports = nlohmann::json::array();
-  for (const Pending& p : pending) {
+  for (size_t i = 0; i < pending.size(); ++i) {
+    const Pending& p = pending[i];
     const AddReport r =
         map.add(p.time_s, p.session.map, AddOptions{o.replace, fs::path(o.datasets[p.index]).filename().string()});
     nlohmann::json j = addReportJson(r, p.time_s, nodesAddedAt(map, p.time_s));
+    if (moved[i]) j["realigned_voxels"] = *moved[i];
     j["dataset"] = o.datasets[p.index];
     j["points"] = p.session.stats.points;
     j["nodes_separate"] = p.session.map.innerCount() + p.session.map.leafCount();
@@ -209,7 +273,9 @@ int runBuild(const BuildCmdOptions& o) {
     for (const auto& r : reports) {
       std::cout << "  " << r["time"].get<std::string>() << "  " << r["dataset"].get<std::string>() << ": "
                 << r["nodes_added"].get<int64_t>() << " nodes added (" << r["nodes_separate"].get<uint64_t>()
-                << " on its own)\n";
+                << " on its own)";
+      if (r.contains("realigned_voxels")) std::cout << ", " << r["realigned_voxels"].get<size_t>() << " voxels re-aligned";
+      std::cout << "\n";
     }
     std::cout << (created ? "created " : "updated ") << o.map << ": " << map.sessionCount() << " session(s), "
               << map.counts().nodes() << " nodes, " << humanBytes(static_cast<double>(file_bytes)) << " on disk\n";
@@ -437,6 +503,7 @@ Command addAdd(CLI::App& root) {
                   "default: the time the session file records");
   app->add_flag("--replace", o->replace, "replace a session stored at the same time instead of refusing");
   addCriterionOptions(app, o->criterion);
+  addRealignOptions(app, o->realign);
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runAdd(*o); }};
 }
@@ -455,6 +522,7 @@ Command addBuild(CLI::App& root) {
   app->add_flag("--replace", o->replace, "replace sessions stored at the same times");
   addCriterionOptions(app, o->criterion);
   addIntegrateOptions(app, o->integrate);
+  addRealignOptions(app, o->realign);
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runBuild(*o); }};
 }

@@ -93,6 +93,69 @@ void SessionMap::addMany(std::span<const VoxelKey> keys, std::span<const VoxelCo
   }
 }
 
+void SessionMap::spreadInto(uint32_t parent, int slot, int level, const VoxelCounters& sums) {
+  const Ref r = inner_[parent][slot];
+  if (r == kEmpty) {
+    const Ref leaf = newLeaf(sums);
+    inner_[parent][slot] = leaf;
+  } else if (isLeaf(r)) {
+    leaves_[index(r)] += sums;  // a leaf of the cube's own size
+  } else {
+    VoxelCounters part = sums;  // level > 0: a known-free cube without hits
+    part.length_m /= 8.0f;
+    for (int i = 0; i < 8; ++i) spreadInto(r, i, level - 1, part);
+  }
+}
+
+void SessionMap::addCube(const VoxelKey& corner, int level, const VoxelCounters& sums) {
+  if (level < 0 || level >= kTreeDepth) throw UsageError("addCube: level " + std::to_string(level) + " out of range");
+  const uint32_t low = (1u << level) - 1;
+  if (((corner.x | corner.y | corner.z) & low) != 0) throw UsageError("addCube: corner not aligned to the cube");
+  if (level > 0 && (sums.hits | sums.red | sums.green | sums.blue) != 0) {
+    throw UsageError("addCube: a cube above unit level must be known-free without hits");
+  }
+  if (level > 0 && sums.length_m <= 0.0f) return;  // an unobserved cube adds nothing
+  uint32_t node = 0;
+  for (int l = kTreeDepth; l > level + 1; --l) node = descend(node, childSlot(corner, l - 1));
+  spreadInto(node, childSlot(corner, level), level, sums);
+}
+
+void SessionMap::mergeInto(uint32_t parent, int slot, int level, const SessionMap& other, Ref src) {
+  if (src == kEmpty) return;
+  if (isLeaf(src)) {
+    spreadInto(parent, slot, level, other.leaves_[index(src)]);
+    return;
+  }
+  const uint32_t node = descend(parent, slot);
+  for (int i = 0; i < 8; ++i) mergeInto(node, i, level - 1, other, other.inner_[src][i]);
+}
+
+void SessionMap::merge(const SessionMap& other) {
+  if (other.resolution_m() != resolution_m()) throw UsageError("merge: the maps have different resolutions");
+  if (&other == this) {
+    const SessionMap copy = other;
+    merge(copy);
+    return;
+  }
+  for (int i = 0; i < 8; ++i) mergeInto(0, i, kTreeDepth - 1, other, other.inner_[0][i]);
+}
+
+void SessionMap::assign(const VoxelKey& key, const std::optional<VoxelCounters>& value) {
+  if (!value && !findLeaf(key)) return;  // already unknown
+  uint32_t node = 0;
+  for (int l = kTreeDepth; l > 1; --l) node = descend(node, childSlot(key, l - 1));
+  const int slot = childSlot(key, 0);
+  const Ref r = inner_[node][slot];
+  if (!value) {
+    inner_[node][slot] = kEmpty;  // the leaf stays behind as garbage until compressFree()
+  } else if (r == kEmpty) {
+    const Ref leaf = newLeaf(*value);
+    inner_[node][slot] = leaf;
+  } else {
+    leaves_[index(r)] = *value;
+  }
+}
+
 std::optional<LeafView> SessionMap::findLeaf(const VoxelKey& key) const {
   uint32_t node = 0;
   for (int child_level = kTreeDepth - 1; child_level >= 0; --child_level) {
@@ -149,9 +212,15 @@ SessionMap::Ref SessionMap::copyInto(Ref r, std::vector<Children>& inner, std::v
   }
   const Ref out = static_cast<Ref>(inner.size());
   inner.push_back(emptyChildren());
+  bool any = false;
   for (int i = 0; i < 8; ++i) {
     const Ref c = copyInto(inner_[r][i], inner, leaves);
     inner[out][i] = c;
+    any = any || c != kEmpty;
+  }
+  if (!any && r != 0) {  // an inner node left without children (assign() emptied it)
+    inner.pop_back();
+    return kEmpty;
   }
   return out;
 }

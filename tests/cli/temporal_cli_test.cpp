@@ -18,6 +18,7 @@
 #include "chronomap/io/file.h"
 #include "chronomap/io/png.h"
 #include "chronomap/io/temporal_file.h"
+#include "chronomap/octree/session_map.h"
 #include "test_support.h"
 
 namespace chronomap {
@@ -45,6 +46,66 @@ void writeSessions(const test::TempDir& dir, int side = 16) {
     io::writeSessionMap(sessionFile(dir, i),
                         test::randomSessionMap(static_cast<uint64_t>(10 + i), side), {});
   }
+}
+
+/// A 16 x 16 wall in the plane x = wall_x seen from -x, with a colour per voxel.
+SessionMap wallSession(int wall_x) {
+  SessionMap m(0.05);
+  for (int z = 0; z < 16; ++z) {
+    for (int y = 0; y < 16; ++y) {
+      for (int x = 0; x < wall_x; ++x) {
+        VoxelCounters free;
+        free.length_m = 0.05f;
+        m.add(VoxelKey{uint16_t(kKeyOrigin + x), uint16_t(kKeyOrigin + y), uint16_t(kKeyOrigin + z)}, free);
+      }
+      VoxelCounters wall;
+      wall.hits = 10;
+      wall.length_m = 0.25f;
+      wall.red = 160u * uint32_t(y);
+      wall.green = 160u * uint32_t(z);
+      wall.blue = 1280;
+      m.add(VoxelKey{uint16_t(kKeyOrigin + wall_x), uint16_t(kKeyOrigin + y), uint16_t(kKeyOrigin + z)}, wall);
+    }
+  }
+  return m;
+}
+
+TEST(TemporalCli, AddRealignMovesAShiftedSessionBack) {
+  test::TempDir tmp;
+  for (int i = 0; i < 3; ++i) io::writeSessionMap(sessionFile(tmp, i), wallSession(10), {});
+  io::writeSessionMap(tmp / "shifted.cmap", wallSession(11), {});
+  int64_t added[2] = {0, 0};
+  for (int realign = 0; realign < 2; ++realign) {
+    const std::string map = (tmp / ("m" + std::to_string(realign) + ".cmap")).string();
+    for (int i = 0; i < 3; ++i) {
+      ASSERT_EQ(test::runCommand(cli() + " add " + map + " " + sessionFile(tmp, i).string() + " --time " +
+                                 std::to_string(100 * (i + 1)))
+                    .exit_code,
+                0);
+    }
+    const auto r = test::runCommand(cli() + " add " + map + " " + (tmp / "shifted.cmap").string() + " --time 400 --json" +
+                                    (realign ? " --realign" : ""));
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto j = nlohmann::json::parse(r.out);
+    added[realign] = j["nodes_added"].get<int64_t>();
+    if (realign) {
+      EXPECT_EQ(j["realigned_voxels"], 256);
+    } else {
+      EXPECT_FALSE(j.contains("realigned_voxels"));
+    }
+  }
+  EXPECT_GE(added[0], 512);  // every wall voxel changed twice: vanished here, appeared behind
+  EXPECT_LT(added[1], 64);   // re-aligned: the wall is where it was
+  // Bad settings are refused before anything is written.
+  const std::string map = (tmp / "m1.cmap").string();
+  const auto before = bytesOf(map);
+  for (const char* bad : {"--realign-alpha -1", "--realign-max-distance 20", "--realign-move sideways"}) {
+    const auto r = test::runCommand(cli() + " add " + map + " " + (tmp / "shifted.cmap").string() +
+                                    " --time 500 --realign " + bad);
+    EXPECT_EQ(r.exit_code, 2) << bad;
+    EXPECT_FALSE(r.err.empty());
+  }
+  EXPECT_EQ(bytesOf(map), before);
 }
 
 TEST(TemporalCli, HelpForEveryCommand) {
@@ -307,9 +368,12 @@ TEST(SimulatorCli, SimulateAndDemo) {
   EXPECT_TRUE(fs::exists(tmp / "sim" / "truth" / "occupancy_01.cmap"));
   // The simulated sessions are ordinary TUM folders: build takes their times.
   r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "m.cmap").string() + " " +
-                       (tmp / "sim" / "session_00").string() + " " + (tmp / "sim" / "session_01").string() + " --fast --json");
+                       (tmp / "sim" / "session_00").string() + " " + (tmp / "sim" / "session_01").string() +
+                       " --fast --json --realign");
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_EQ(nlohmann::json::parse(r.out)["sessions"], 2);
+  const auto built = nlohmann::json::parse(r.out);
+  EXPECT_EQ(built["sessions"], 2);
+  for (const auto& a : built["added"]) EXPECT_TRUE(a.contains("realigned_voxels"));
 
   r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " simulate --preset castle -o " + (tmp / "x").string());
   EXPECT_EQ(r.exit_code, 2);

@@ -52,6 +52,21 @@ class SessionMap {
   /// Adds many deltas. Correct for any order; fastest when consecutive keys are close
   /// (raster or Morton order), because the descent restarts at their common ancestor.
   void addMany(std::span<const VoxelKey> keys, std::span<const VoxelCounters> deltas);
+  /// Adds `sums`, the summed counters of the cube of 2^level voxels per axis at `corner`, spread
+  /// evenly over its unit voxels: a compressed node where the cube holds nothing yet, the sums
+  /// split in eighths where it is already finer.
+  /// @throw UsageError for a level above kTreeDepth - 1, a corner not aligned to the level, or
+  /// a cube above unit level with hits (only known-free cubes can be spread).
+  void addCube(const VoxelKey& corner, int level, const VoxelCounters& sums);
+  /// Adds every counter of `other` (same resolution) to this map, volume by volume; a
+  /// compressed node of either map is spread evenly where the other is finer (the consensus
+  /// of §2.2). Linear in the nodes of both maps.
+  /// @throw UsageError for a different resolution.
+  void merge(const SessionMap& other);
+  /// Sets the unit voxel `key` to `value`, or makes it unknown when `value` is empty; a
+  /// compressed node around it is split first. Leaves garbage in the pools until the next
+  /// compressFree().
+  void assign(const VoxelKey& key, const std::optional<VoxelCounters>& value);
 
   /// Counters of the unit voxel `key`; for a voxel inside a compressed node, that node's sums
   /// divided evenly. Nothing when the voxel was never observed.
@@ -66,7 +81,8 @@ class SessionMap {
   void forEachLeaf(Fn&& fn) const;
 
   /// Merges every node whose 8 children are known-free leaves without hits into one leaf
-  /// holding their sums, recursively, then re-lays the pools out in depth-first order.
+  /// holding their sums, recursively, then re-lays the pools out in depth-first order (inner
+  /// nodes left without children are dropped).
   /// @return the number of leaves removed.
   size_t compressFree();
 
@@ -117,6 +133,11 @@ class SessionMap {
   uint32_t splitLeaf(uint32_t parent, int slot);
   /// Returns the inner node for the child `slot` of `parent`, creating or splitting as needed.
   uint32_t descend(uint32_t parent, int slot);
+  /// merge()'s recursion: adds the subtree `src` of `other` (cube at `level`) into slot `slot`
+  /// of inner node `parent`.
+  void mergeInto(uint32_t parent, int slot, int level, const SessionMap& other, Ref src);
+  /// Spreads `sums` of a known-free cube at `level` over slot `slot` of `parent`.
+  void spreadInto(uint32_t parent, int slot, int level, const VoxelCounters& sums);
   /// compressFree's post-order pass: true when `r` is (now) a known-free leaf without hits.
   bool compressBelow(Ref& r);
   /// Copies the subtree `r` depth first into fresh pools; returns its new reference.

@@ -1,0 +1,66 @@
+#pragma once
+// Shared by the benchmark programs: the sessions of a `chronomap simulate` output, integrated.
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <unistd.h>
+#include <vector>
+
+#include "chronomap/integrate/integrator.h"
+#include "chronomap/io/dataset.h"
+#include "chronomap/sim/building.h"
+#include "chronomap/sim/change_truth.h"
+
+namespace chronomap::bench {
+
+struct SimSessions {
+  std::vector<SessionMap> estimated;   // integrated with the estimated poses (trajectory.txt)
+  std::vector<SessionMap> truth_pose;  // with the true poses (groundtruth.txt), when asked for
+  std::vector<sim::TruthEvent> events;
+};
+
+// Integrates every session_NN folder of `dir` in fast mode at 0.05 m.
+inline SimSessions loadSimulation(const std::filesystem::path& dir, bool with_true_poses) {
+  namespace fs = std::filesystem;
+  SimSessions s;
+  s.events = sim::readTruthEvents(dir / "scene.json");
+  std::vector<fs::path> sessions;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (e.is_directory() && e.path().filename().string().rfind("session_", 0) == 0) sessions.push_back(e.path());
+  }
+  std::sort(sessions.begin(), sessions.end());
+  for (const fs::path& p : sessions) {
+    IntegratorSettings is;
+    is.fast = true;
+    {
+      SessionMap m(0.05);
+      integrate(*io::openDataset(p), m, is);
+      s.estimated.push_back(std::move(m));
+    }
+    if (with_true_poses) {
+      io::DatasetOptions o;
+      o.trajectory = p / "groundtruth.txt";
+      SessionMap m(0.05);
+      integrate(*io::openDataset(p, o), m, is);
+      s.truth_pose.push_back(std::move(m));
+    }
+    std::fprintf(stderr, "\r  integrated %zu/%zu sessions", s.estimated.size(), sessions.size());
+  }
+  std::fprintf(stderr, "\n");
+  return s;
+}
+
+// Simulates `preset` at half resolution into a fresh temporary folder and returns it.
+inline std::filesystem::path simulateTemporary(const std::string& preset, const std::string& tag) {
+  const auto dir = std::filesystem::temp_directory_path() / (tag + "_" + preset + "_" + std::to_string(::getpid()));
+  sim::SimulationSettings s;
+  s.preset = preset;
+  s.resolution_scale = 0.5;
+  std::fprintf(stderr, "simulating %s into %s\n", preset.c_str(), dir.c_str());
+  sim::simulate(s, dir, {});
+  return dir;
+}
+
+}  // namespace chronomap::bench

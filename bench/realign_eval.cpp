@@ -1,0 +1,270 @@
+// realign_eval: how much of the change a 4D map stores is localisation noise, and how much of
+// it re-alignment against the consensus (thesis §2.2) removes, measured against the
+// simulator's ground truth.
+//
+// For a simulation (office, floor66): every session is integrated (fast mode, 0.05 m) with its
+// estimated poses and added to a 4D map in time order, once as recorded and once re-aligned
+// against the consensus of all sessions. For each session after the first, the voxels whose
+// state the 4D map records as changed by it (history entries after a voxel's first) are split
+// into true changes (within one voxel of a truth event voxel of an event between the session
+// that saw the previous state and this one) and false ones. Then a sweep over alpha and d_max.
+//
+// Usage: realign_eval [--office DIR] [--floor66 DIR] [--quick] [--skip-floor66]
+//   --office DIR    a `chronomap simulate --preset office` output (default: simulate one at half
+//                   resolution into a temporary folder)
+//   --floor66 DIR   a floor66 simulation (default: simulate one at half resolution, ~7 minutes)
+//   --quick         no sweep
+//   --skip-floor66  office only (the last line then reports the office)
+// The last line of output is one JSON object for floor66: false_changes_removed,
+// true_changes_kept (fractions), nodes_4d and nodes_4d_realigned.
+
+#include <chrono>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <unordered_set>
+#include <vector>
+
+#include "bench_sim.h"
+#include "chronomap/align/consensus.h"
+#include "chronomap/align/realign.h"
+#include "chronomap/temporal/temporal_map.h"
+
+using namespace chronomap;
+namespace fs = std::filesystem;
+
+namespace {
+
+double seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+// The truth event voxels by the session gap they belong to (events between sessions s, s + 1).
+class TruthIndex {
+ public:
+  TruthIndex(const std::vector<sim::TruthEvent>& events, size_t sessions) : by_gap_(sessions) {
+    for (const auto& e : events) {
+      if (e.from_session >= by_gap_.size()) continue;
+      for (const VoxelKey& k : e.voxels) by_gap_[e.from_session].insert(mortonEncode(k));
+    }
+  }
+  // True when a voxel within one voxel of `key` changed in the truth between sessions
+  // `before` and `after`.
+  bool isTrue(const VoxelKey& key, uint32_t before, uint32_t after) const {
+    for (uint32_t s = before; s < after && s < by_gap_.size(); ++s) {
+      if (by_gap_[s].empty()) continue;
+      if (anyKeyWithin(key, 1, [&](const VoxelKey& k) { return by_gap_[s].count(mortonEncode(k)) != 0; })) return true;
+    }
+    return false;
+  }
+
+ private:
+  std::vector<std::unordered_set<uint64_t>> by_gap_;
+};
+
+const char* moveName(RealignSettings::Move m) { return m == RealignSettings::Move::Swap ? "swap" : "transfer"; }
+
+struct SessionTally {
+  uint64_t true_changes = 0, false_changes = 0;
+  int64_t nodes_added = 0;
+};
+
+struct Run {
+  std::vector<SessionTally> sessions;
+  uint64_t true_changes = 0, false_changes = 0;
+  uint64_t nodes_4d = 0;
+  size_t moved = 0;
+  double realign_s = 0.0;
+};
+
+// Builds the 4D map of `maps` in order and tallies each session's changes.
+Run tally(const std::vector<SessionMap>& maps, const TruthIndex& truth) {
+  Run run;
+  TemporalMap map(maps.front().resolution_m());
+  for (size_t k = 0; k < maps.size(); ++k) map.add(static_cast<double>(k), maps[k]);
+  run.sessions.resize(maps.size());
+  for (size_t k = 0; k < maps.size(); ++k) run.sessions[k].nodes_added = map.sessions()[k].nodes_added;
+  for (uint32_t k = 1; k < maps.size(); ++k) {
+    SessionTally& t = run.sessions[k];
+    map.forEachListChangedIn(k, k + 1, [&](const VoxelKey& corner, int level, std::span<const TemporalMap::Entry> e) {
+      for (size_t i = 1; i < e.size(); ++i) {
+        if (e[i].session != k) continue;
+        const int side = 1 << level;
+        for (int dz = 0; dz < side; ++dz) {
+          for (int dy = 0; dy < side; ++dy) {
+            for (int dx = 0; dx < side; ++dx) {
+              const VoxelKey v{static_cast<uint16_t>(corner.x + dx), static_cast<uint16_t>(corner.y + dy),
+                               static_cast<uint16_t>(corner.z + dz)};
+              (truth.isTrue(v, e[i - 1].session, k) ? t.true_changes : t.false_changes)++;
+            }
+          }
+        }
+      }
+    });
+    run.true_changes += t.true_changes;
+    run.false_changes += t.false_changes;
+  }
+  run.nodes_4d = map.counts().nodes();
+  return run;
+}
+
+Run realignedRun(const std::vector<SessionMap>& maps, const SessionMap& avg, const RealignSettings& settings,
+                 const TruthIndex& truth) {
+  const auto start = std::chrono::steady_clock::now();
+  std::vector<SessionMap> aligned;
+  aligned.reserve(maps.size());
+  size_t moved = 0;
+  for (const SessionMap& m : maps) {
+    RealignReport r;
+    aligned.push_back(realign(m, avg, settings, &r));
+    moved += r.moved();
+  }
+  const double s = seconds(start);
+  Run run = tally(aligned, truth);
+  run.moved = moved;
+  run.realign_s = s;
+  return run;
+}
+
+struct Outcome {
+  double false_removed = 0.0, true_kept = 0.0;
+  uint64_t nodes_4d = 0, nodes_4d_realigned = 0;
+};
+
+Outcome compare(const Run& before, const Run& after) {
+  Outcome o;
+  o.false_removed = before.false_changes ? 1.0 - double(after.false_changes) / double(before.false_changes) : 0.0;
+  o.true_kept = before.true_changes ? double(after.true_changes) / double(before.true_changes) : 1.0;
+  o.nodes_4d = before.nodes_4d;
+  o.nodes_4d_realigned = after.nodes_4d;
+  return o;
+}
+
+Outcome evaluate(const std::string& name, const fs::path& dir, bool sweep, bool per_session) {
+  std::printf("\n== %s (%s) ==\n", name.c_str(), dir.c_str());
+  const bench::SimSessions s = bench::loadSimulation(dir, true);
+  const TruthIndex truth(s.events, s.estimated.size());
+  auto t = std::chrono::steady_clock::now();
+  const SessionMap avg = consensus(std::span<const SessionMap>(s.estimated));
+  const double consensus_s = seconds(t);
+  std::printf("%zu sessions; consensus of all: %zu leaves, %.2f s\n", s.estimated.size(), avg.leafCount(), consensus_s);
+
+  const Run plain = tally(s.estimated, truth);
+  const Run true_poses = tally(s.truth_pose, truth);
+  const RealignSettings defaults;
+  const Run aligned = realignedRun(s.estimated, avg, defaults, truth);
+  const Outcome o = compare(plain, aligned);
+  if (per_session) {
+    std::printf("\nper session (changed voxels the 4D map records; true = within 1 voxel of a truth event):\n");
+    std::printf("| session | true | false | nodes added | true, re-aligned | false, re-aligned | nodes added, re-aligned |\n");
+    std::printf("|---:|---:|---:|---:|---:|---:|---:|\n");
+    for (size_t k = 1; k < plain.sessions.size(); ++k) {
+      const auto& a = plain.sessions[k];
+      const auto& b = aligned.sessions[k];
+      std::printf("| %zu | %llu | %llu | %lld | %llu | %llu | %lld |\n", k, (unsigned long long)a.true_changes,
+                  (unsigned long long)a.false_changes, (long long)a.nodes_added, (unsigned long long)b.true_changes,
+                  (unsigned long long)b.false_changes, (long long)b.nodes_added);
+    }
+  }
+  const double n = static_cast<double>(s.estimated.size() - 1);
+  auto mean_added = [&](const Run& r) {
+    double sum = 0;
+    for (size_t k = 1; k < r.sessions.size(); ++k) sum += static_cast<double>(r.sessions[k].nodes_added);
+    return sum / n;
+  };
+  std::printf("\ndefaults (%s, alpha %.4g, d_max %.3g voxels, epsilon %.3g, consensus occupied above %.4g, "
+              "weights %.3g/%.3g/%.3g):\n",
+              moveName(defaults.move), defaults.alpha, defaults.max_distance_voxels, defaults.epsilon,
+              defaults.consensus_occupied_above, defaults.weight_distance, defaults.weight_color,
+              defaults.weight_probability);
+  std::printf("  as recorded: %llu true + %llu false changed voxels; 4D map %llu nodes, %.0f added per session\n",
+              (unsigned long long)plain.true_changes, (unsigned long long)plain.false_changes,
+              (unsigned long long)plain.nodes_4d, mean_added(plain));
+  std::printf("  true poses (no localisation error, for reference): %llu true + %llu false changed voxels; 4D map "
+              "%llu nodes\n",
+              (unsigned long long)true_poses.true_changes, (unsigned long long)true_poses.false_changes,
+              (unsigned long long)true_poses.nodes_4d);
+  std::printf("  re-aligned:  %llu true + %llu false changed voxels; 4D map %llu nodes, %.0f added per session; "
+              "%zu voxels moved in %.2f s (%.1f ms a session)\n",
+              (unsigned long long)aligned.true_changes, (unsigned long long)aligned.false_changes,
+              (unsigned long long)aligned.nodes_4d, mean_added(aligned), aligned.moved, aligned.realign_s,
+              aligned.realign_s * 1000.0 / static_cast<double>(s.estimated.size()));
+  std::printf("  false changes removed %.1f%%, true changes kept %.1f%%, nodes %.1f%% of as recorded\n",
+              100.0 * o.false_removed, 100.0 * o.true_kept,
+              100.0 * double(aligned.nodes_4d) / double(std::max<uint64_t>(1, plain.nodes_4d)));
+
+  if (sweep) {
+    std::printf("\nsweep (epsilon %.3g, weights 1; the score of identical voxels 1 voxel apart is %.0f):\n",
+                defaults.epsilon, realignScore(1.0, 0.0, 0.0, defaults));
+    std::printf("| move | consensus occupied above | d_max | alpha | moved | false removed | true kept | nodes 4D |\n"
+                "|---|---:|---:|---:|---:|---:|---:|---:|\n");
+    for (auto move : {RealignSettings::Move::Swap, RealignSettings::Move::Transfer}) {
+      for (double tau : {0.5, 0.999}) {
+        for (double d_max : {1.0, 1.75, 2.0}) {
+          for (double alpha : {2.0, 300.0, 1000.0, 2000.0, 3000.0, 5000.0}) {
+            RealignSettings rs = defaults;
+            rs.move = move;
+            rs.consensus_occupied_above = tau;
+            rs.alpha = alpha;
+            rs.max_distance_voxels = d_max;
+            const Run r = realignedRun(s.estimated, avg, rs, truth);
+            const Outcome c = compare(plain, r);
+            std::printf("| %s | %g | %g | %g | %zu | %.1f%% | %.1f%% | %llu |\n", moveName(move), tau, d_max, alpha,
+                        r.moved, 100.0 * c.false_removed, 100.0 * c.true_kept, (unsigned long long)r.nodes_4d);
+            std::fflush(stdout);
+          }
+        }
+      }
+    }
+  }
+  return o;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  fs::path office, floor66;
+  bool quick = false, skip_floor66 = false;
+  for (int i = 1; i < argc; ++i) {
+    if (!std::strcmp(argv[i], "--office") && i + 1 < argc) {
+      office = argv[++i];
+    } else if (!std::strcmp(argv[i], "--floor66") && i + 1 < argc) {
+      floor66 = argv[++i];
+    } else if (!std::strcmp(argv[i], "--quick")) {
+      quick = true;
+    } else if (!std::strcmp(argv[i], "--skip-floor66")) {
+      skip_floor66 = true;
+    } else {
+      std::fprintf(stderr, "usage: realign_eval [--office DIR] [--floor66 DIR] [--quick] [--skip-floor66]\n");
+      return 2;
+    }
+  }
+  try {
+    std::vector<fs::path> temporary;
+    if (office.empty()) temporary.push_back(office = bench::simulateTemporary("office", "realign_eval"));
+    const Outcome o = evaluate("office", office, !quick, true);
+    Outcome f = o;
+    if (!skip_floor66) {
+      if (floor66.empty()) temporary.push_back(floor66 = bench::simulateTemporary("floor66", "realign_eval"));
+      f = evaluate("floor66", floor66, false, false);
+    }
+    for (const auto& t : temporary) fs::remove_all(t);
+    std::printf("\n%s\n", nlohmann::json{{"preset", skip_floor66 ? "office" : "floor66"},
+                                         {"false_changes_removed", f.false_removed},
+                                         {"true_changes_kept", f.true_kept},
+                                         {"nodes_4d", f.nodes_4d},
+                                         {"nodes_4d_realigned", f.nodes_4d_realigned},
+                                         {"office_false_changes_removed", o.false_removed},
+                                         {"office_true_changes_kept", o.true_kept}}
+                              .dump()
+                              .c_str());
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "realign_eval: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
