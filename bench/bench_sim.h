@@ -19,7 +19,18 @@ struct SimSessions {
   std::vector<SessionMap> estimated;   // integrated with the estimated poses (trajectory.txt)
   std::vector<SessionMap> truth_pose;  // with the true poses (groundtruth.txt), when asked for
   std::vector<sim::TruthEvent> events;
+  std::vector<std::filesystem::path> dirs;  // the session folders, in order
 };
+
+// Integrates one session folder (estimated poses, fast mode, 0.05 m) with its poses corrected by T.
+inline SessionMap integrateCorrected(const std::filesystem::path& dir, const Eigen::Isometry3d& correction) {
+  IntegratorSettings is;
+  is.fast = true;
+  SessionMap m(0.05);
+  const auto dataset = io::openDataset(dir);
+  integrate(CorrectedFrames(*dataset, correction), m, is);
+  return m;
+}
 
 // Integrates every session_NN folder of `dir` in fast mode at 0.05 m.
 inline SimSessions loadSimulation(const std::filesystem::path& dir, bool with_true_poses) {
@@ -31,6 +42,7 @@ inline SimSessions loadSimulation(const std::filesystem::path& dir, bool with_tr
     if (e.is_directory() && e.path().filename().string().rfind("session_", 0) == 0) sessions.push_back(e.path());
   }
   std::sort(sessions.begin(), sessions.end());
+  s.dirs = sessions;
   for (const fs::path& p : sessions) {
     IntegratorSettings is;
     is.fast = true;

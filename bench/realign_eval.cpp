@@ -15,7 +15,8 @@
 //   --floor66 DIR   a floor66 simulation (default: simulate one at half resolution, ~7 minutes)
 //   --quick         no sweep
 //   --skip-floor66  office only (the last line then reports the office)
-// The last line of output is one JSON object for floor66: false_changes_removed,
+// The last line of output is one JSON object for floor66 (registration + re-alignment, the
+// recommended pipeline): false_changes_removed,
 // true_changes_kept (fractions), nodes_4d and nodes_4d_realigned.
 
 #include <chrono>
@@ -32,6 +33,7 @@
 #include "bench_sim.h"
 #include "chronomap/align/consensus.h"
 #include "chronomap/align/realign.h"
+#include "chronomap/align/register.h"
 #include "chronomap/temporal/temporal_map.h"
 
 using namespace chronomap;
@@ -53,13 +55,20 @@ class TruthIndex {
     }
   }
   // True when a voxel within one voxel of `key` changed in the truth between sessions
-  // `before` and `after`.
-  bool isTrue(const VoxelKey& key, uint32_t before, uint32_t after) const {
+  // `before` and `after`; those truth voxels (Morton code | gap << 48) go to `found`.
+  bool isTrue(const VoxelKey& key, uint32_t before, uint32_t after, std::unordered_set<uint64_t>& found) const {
+    bool any = false;
     for (uint32_t s = before; s < after && s < by_gap_.size(); ++s) {
       if (by_gap_[s].empty()) continue;
-      if (anyKeyWithin(key, 1, [&](const VoxelKey& k) { return by_gap_[s].count(mortonEncode(k)) != 0; })) return true;
+      anyKeyWithin(key, 1, [&](const VoxelKey& k) {
+        if (by_gap_[s].count(mortonEncode(k))) {
+          found.insert(mortonEncode(k) | (uint64_t{s} << 48));
+          any = true;
+        }
+        return false;
+      });
     }
-    return false;
+    return any;
   }
 
  private:
@@ -75,6 +84,7 @@ struct SessionTally {
 
 struct Run {
   std::vector<SessionTally> sessions;
+  std::unordered_set<uint64_t> truth_found;  // truth event voxels that a recorded change matches
   uint64_t true_changes = 0, false_changes = 0;
   uint64_t nodes_4d = 0;
   size_t moved = 0;
@@ -99,7 +109,7 @@ Run tally(const std::vector<SessionMap>& maps, const TruthIndex& truth) {
             for (int dx = 0; dx < side; ++dx) {
               const VoxelKey v{static_cast<uint16_t>(corner.x + dx), static_cast<uint16_t>(corner.y + dy),
                                static_cast<uint16_t>(corner.z + dz)};
-              (truth.isTrue(v, e[i - 1].session, k) ? t.true_changes : t.false_changes)++;
+              (truth.isTrue(v, e[i - 1].session, k, run.truth_found) ? t.true_changes : t.false_changes)++;
             }
           }
         }
@@ -135,16 +145,25 @@ struct Outcome {
   uint64_t nodes_4d = 0, nodes_4d_realigned = 0;
 };
 
+// The figures of one preset: re-alignment alone, registration alone, and both.
+struct Evaluation {
+  Outcome realign_only, register_only, pipeline;
+};
+
 Outcome compare(const Run& before, const Run& after) {
   Outcome o;
   o.false_removed = before.false_changes ? 1.0 - double(after.false_changes) / double(before.false_changes) : 0.0;
-  o.true_kept = before.true_changes ? double(after.true_changes) / double(before.true_changes) : 1.0;
+  // Of the truth event voxels that the changes recorded without re-alignment match, the share
+  // that the re-aligned changes still match.
+  size_t kept = 0;
+  for (uint64_t v : before.truth_found) kept += after.truth_found.count(v);
+  o.true_kept = before.truth_found.empty() ? 1.0 : double(kept) / double(before.truth_found.size());
   o.nodes_4d = before.nodes_4d;
   o.nodes_4d_realigned = after.nodes_4d;
   return o;
 }
 
-Outcome evaluate(const std::string& name, const fs::path& dir, bool sweep, bool per_session) {
+Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bool per_session) {
   std::printf("\n== %s (%s) ==\n", name.c_str(), dir.c_str());
   const bench::SimSessions s = bench::loadSimulation(dir, true);
   const TruthIndex truth(s.events, s.estimated.size());
@@ -188,14 +207,72 @@ Outcome evaluate(const std::string& name, const fs::path& dir, bool sweep, bool 
               "%llu nodes\n",
               (unsigned long long)true_poses.true_changes, (unsigned long long)true_poses.false_changes,
               (unsigned long long)true_poses.nodes_4d);
+  {
+    const Outcome perfect = compare(plain, true_poses);
+    std::printf("  (true poses on this scale: false changes removed %.1f%%, true change voxels kept %.1f%%)\n",
+                100.0 * perfect.false_removed, 100.0 * perfect.true_kept);
+  }
   std::printf("  re-aligned:  %llu true + %llu false changed voxels; 4D map %llu nodes, %.0f added per session; "
               "%zu voxels moved in %.2f s (%.1f ms a session)\n",
               (unsigned long long)aligned.true_changes, (unsigned long long)aligned.false_changes,
               (unsigned long long)aligned.nodes_4d, mean_added(aligned), aligned.moved, aligned.realign_s,
               aligned.realign_s * 1000.0 / static_cast<double>(s.estimated.size()));
-  std::printf("  false changes removed %.1f%%, true changes kept %.1f%%, nodes %.1f%% of as recorded\n",
+  std::printf("  false changes removed %.1f%%, true change voxels kept %.1f%%, nodes %.1f%% of as recorded\n",
               100.0 * o.false_removed, 100.0 * o.true_kept,
               100.0 * double(aligned.nodes_4d) / double(std::max<uint64_t>(1, plain.nodes_4d)));
+
+  // Registration first: one rigid correction per session against the consensus, the session
+  // integrated again with it, then the per-voxel re-alignment against the new consensus.
+  Evaluation result;
+  result.realign_only = o;
+  {
+    const auto start = std::chrono::steady_clock::now();
+    std::vector<SessionMap> registered = s.estimated;
+    std::vector<RegisterReport> reports;
+    const auto corrections = registerSessions(
+        registered, [&](size_t k, const Eigen::Isometry3d& c) { return bench::integrateCorrected(s.dirs[k], c); }, 3, {},
+        &reports);
+    double shift_before = 0.0, shift_after = 0.0, correction_m = 0.0;
+    for (size_t k = 0; k < corrections.size(); ++k) {
+      shift_before += reports[k].mean_shift_before_m;
+      shift_after += reports[k].mean_shift_after_m;
+      correction_m += corrections[k].translation().norm();
+    }
+    const double register_s = seconds(start);
+    const double n_s = static_cast<double>(s.estimated.size());
+    const Run reg = tally(registered, truth);
+    const Outcome ro = compare(plain, reg);
+    const SessionMap avg2 = consensus(std::span<const SessionMap>(registered));
+    const Run both = realignedRun(registered, avg2, defaults, truth);
+    const Outcome bo = compare(plain, both);
+    result.pipeline = bo;
+    result.register_only = ro;
+    std::printf("\nregistered to the consensus (mean pull %.1f mm before, %.1f mm after; mean correction %.1f mm; "
+                "%.2f s a session for 3 rounds with re-integration):\n",
+                1000.0 * shift_before / n_s, 1000.0 * shift_after / n_s, 1000.0 * correction_m / n_s,
+                register_s / n_s);
+    std::printf("  registered:               %llu true + %llu false; false removed %.1f%%, true kept %.1f%%, 4D map %llu nodes\n",
+                (unsigned long long)reg.true_changes, (unsigned long long)reg.false_changes, 100.0 * ro.false_removed,
+                100.0 * ro.true_kept, (unsigned long long)reg.nodes_4d);
+    std::printf("  registered + re-aligned:  %llu true + %llu false; false removed %.1f%%, true kept %.1f%%, 4D map %llu nodes\n",
+                (unsigned long long)both.true_changes, (unsigned long long)both.false_changes, 100.0 * bo.false_removed,
+                100.0 * bo.true_kept, (unsigned long long)both.nodes_4d);
+    if (sweep) {
+      std::printf("\nre-alignment after registration (transfer, consensus occupied above 0.5):\n"
+                  "| d_max | alpha | false removed | true kept | nodes 4D |\n|---:|---:|---:|---:|---:|\n");
+      for (double d_max : {1.0, 1.75}) {
+        for (double alpha : {300.0, 1000.0, 3000.0, 5000.0, 8000.0}) {
+          RealignSettings rs = defaults;
+          rs.alpha = alpha;
+          rs.max_distance_voxels = d_max;
+          const Outcome c = compare(plain, realignedRun(registered, avg2, rs, truth));
+          std::printf("| %g | %g | %.1f%% | %.1f%% | %llu |\n", d_max, alpha, 100.0 * c.false_removed,
+                      100.0 * c.true_kept, (unsigned long long)c.nodes_4d_realigned);
+          std::fflush(stdout);
+        }
+      }
+    }
+  }
 
   if (sweep) {
     std::printf("\nsweep (epsilon %.3g, weights 1; the score of identical voxels 1 voxel apart is %.0f):\n",
@@ -221,7 +298,7 @@ Outcome evaluate(const std::string& name, const fs::path& dir, bool sweep, bool 
       }
     }
   }
-  return o;
+  return result;
 }
 
 }  // namespace
@@ -246,20 +323,27 @@ int main(int argc, char** argv) {
   try {
     std::vector<fs::path> temporary;
     if (office.empty()) temporary.push_back(office = bench::simulateTemporary("office", "realign_eval"));
-    const Outcome o = evaluate("office", office, !quick, true);
-    Outcome f = o;
+    const Evaluation o = evaluate("office", office, !quick, true);
+    Evaluation f = o;
     if (!skip_floor66) {
       if (floor66.empty()) temporary.push_back(floor66 = bench::simulateTemporary("floor66", "realign_eval"));
       f = evaluate("floor66", floor66, false, false);
     }
     for (const auto& t : temporary) fs::remove_all(t);
     std::printf("\n%s\n", nlohmann::json{{"preset", skip_floor66 ? "office" : "floor66"},
-                                         {"false_changes_removed", f.false_removed},
-                                         {"true_changes_kept", f.true_kept},
-                                         {"nodes_4d", f.nodes_4d},
-                                         {"nodes_4d_realigned", f.nodes_4d_realigned},
-                                         {"office_false_changes_removed", o.false_removed},
-                                         {"office_true_changes_kept", o.true_kept}}
+                                         {"false_changes_removed", f.pipeline.false_removed},
+                                         {"true_changes_kept", f.pipeline.true_kept},
+                                         {"nodes_4d", f.pipeline.nodes_4d},
+                                         {"nodes_4d_realigned", f.pipeline.nodes_4d_realigned},
+                                         {"realign_only_false_changes_removed", f.realign_only.false_removed},
+                                         {"realign_only_true_changes_kept", f.realign_only.true_kept},
+                                         {"register_only_false_changes_removed", f.register_only.false_removed},
+                                         {"register_only_true_changes_kept", f.register_only.true_kept},
+                                         {"nodes_4d_registered", f.register_only.nodes_4d_realigned},
+                                         {"office_false_changes_removed", o.pipeline.false_removed},
+                                         {"office_true_changes_kept", o.pipeline.true_kept},
+                                         {"office_register_only_false_changes_removed", o.register_only.false_removed},
+                                         {"office_register_only_true_changes_kept", o.register_only.true_kept}}
                               .dump()
                               .c_str());
   } catch (const std::exception& e) {

@@ -27,7 +27,8 @@ struct IntegrateOptions {
 
 }  // namespace
 
-IntegratedSession integrateDataset(const std::string& path, const IntegrateSettings& o, const std::string& label) {
+IntegratedSession integrateDataset(const std::string& path, const IntegrateSettings& o, const std::string& label,
+                                   const Eigen::Isometry3d& correction) {
   io::DatasetOptions dopt;
   dopt.format = io::parseDatasetFormat(o.format);
   if (o.depth_scale != 0.0) dopt.depth_scale = o.depth_scale;
@@ -44,7 +45,8 @@ IntegratedSession integrateDataset(const std::string& path, const IntegrateSetti
   IntegratedSession out{SessionMap(o.resolution_m), {}, dataset->recordedAt(), io::toString(dataset->format()),
                         dataset->framesDropped()};
   ProgressBar bar(label, dataset->size());
-  out.stats = integrate(*dataset, out.map, settings, [&](size_t done, size_t) { bar.update(done); });
+  const CorrectedFrames frames(*dataset, correction);
+  out.stats = integrate(frames, out.map, settings, [&](size_t done, size_t) { bar.update(done); });
   bar.finish();
   if (out.stats.points == 0) {
     throw DataError(path + ": no valid points within " + std::to_string(o.max_range_m) + " m in " +

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iomanip>
+#include <numbers>
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -11,6 +12,7 @@
 
 #include "chronomap/align/consensus.h"
 #include "chronomap/align/realign.h"
+#include "chronomap/align/register.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
 #include "chronomap/io/cloud_io.h"
@@ -168,6 +170,8 @@ struct BuildCmdOptions {
   ChangeCriterion criterion;
   IntegrateSettings integrate;
   RealignOptions realign;
+  bool register_sessions = false;
+  int register_rounds = 3;
   bool json = false;
 };
 
@@ -182,6 +186,7 @@ std::vector<std::string> splitCommas(const std::string& text) {
 int runBuild(const BuildCmdOptions& o) {
   requireExtension(o.map, ".cmap", "4D map");
   const RealignSettings realign_settings = realignSettings(o.realign);  // bad settings fail before integrating
+  if (o.register_rounds < 1 || o.register_rounds > 10) throw UsageError("--register-rounds must lie in [1, 10]");
   for (const auto& d : o.datasets) {
     if (!fs::exists(d)) throw UsageError("dataset '" + d + "' does not exist");
   }
@@ -230,6 +235,23 @@ int runBuild(const BuildCmdOptions& o) {
                        " have the same time " + formatTime(pending[i].time_s));
     }
   }
+  // Registration: each session's rigid correction against the consensus of all given, then
+  // integrated again with it.
+  std::vector<std::optional<Eigen::Isometry3d>> corrections(pending.size());
+  if (o.register_sessions) {
+    std::vector<SessionMap> maps;
+    for (Pending& p : pending) maps.push_back(std::move(p.session.map));
+    const auto found = registerSessions(
+        maps,
+        [&](size_t k, const Eigen::Isometry3d& c) {
+          return integrateDataset(o.datasets[pending[k].index], o.integrate, "registering", c).map;
+        },
+        o.register_rounds);
+    for (size_t i = 0; i < pending.size(); ++i) {
+      pending[i].session.map = std::move(maps[i]);
+      corrections[i] = found[i];
+    }
+  }
   // Re-alignment against the consensus of every session given (before any is replaced).
   std::vector<std::optional<size_t>> moved(pending.size());
   if (o.realign.enabled) {
@@ -252,6 +274,11 @@ int runBuild(const BuildCmdOptions& o) {
         map.add(p.time_s, p.session.map, AddOptions{o.replace, fs::path(o.datasets[p.index]).filename().string()});
     nlohmann::json j = addReportJson(r, p.time_s, nodesAddedAt(map, p.time_s));
     if (moved[i]) j["realigned_voxels"] = *moved[i];
+    if (corrections[i]) {
+      const Eigen::Isometry3d& c = *corrections[i];
+      j["registration_m"] = {c.translation().x(), c.translation().y(), c.translation().z()};
+      j["registration_deg"] = Eigen::AngleAxisd(c.linear()).angle() * 180.0 / std::numbers::pi;
+    }
     j["dataset"] = o.datasets[p.index];
     j["points"] = p.session.stats.points;
     j["nodes_separate"] = p.session.map.innerCount() + p.session.map.leafCount();
@@ -274,6 +301,12 @@ int runBuild(const BuildCmdOptions& o) {
       std::cout << "  " << r["time"].get<std::string>() << "  " << r["dataset"].get<std::string>() << ": "
                 << r["nodes_added"].get<int64_t>() << " nodes added (" << r["nodes_separate"].get<uint64_t>()
                 << " on its own)";
+      if (r.contains("registration_m")) {
+        const auto& t = r["registration_m"];
+        std::cout << ", moved by (" << std::fixed << std::setprecision(3) << t[0].get<double>() << ", "
+                  << t[1].get<double>() << ", " << t[2].get<double>() << ") m, " << std::setprecision(2)
+                  << r["registration_deg"].get<double>() << " deg" << std::defaultfloat;
+      }
       if (r.contains("realigned_voxels")) std::cout << ", " << r["realigned_voxels"].get<size_t>() << " voxels re-aligned";
       std::cout << "\n";
     }
@@ -522,6 +555,13 @@ Command addBuild(CLI::App& root) {
   app->add_flag("--replace", o->replace, "replace sessions stored at the same times");
   addCriterionOptions(app, o->criterion);
   addIntegrateOptions(app, o->integrate);
+  app->add_flag("--register", o->register_sessions,
+                "register each session rigidly to the consensus of all given and integrate it again with the "
+                "correction (removes the part of the localisation error that is one offset per session; "
+                "docs/realign.md)");
+  app->add_option("--register-rounds", o->register_rounds,
+                  "registration rounds, each against the consensus the previous one left")
+      ->capture_default_str();
   addRealignOptions(app, o->realign);
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runBuild(*o); }};

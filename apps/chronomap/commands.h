@@ -59,7 +59,9 @@ struct IntegratedSession {
 };
 /// Opens and integrates a dataset with a progress bar labelled `label`.
 /// @throw DataError when no point could be integrated.
-IntegratedSession integrateDataset(const std::string& path, const IntegrateSettings& settings, const std::string& label);
+/// `correction` (map frame) is applied to every pose: T_world_sensor becomes correction * T_world_sensor.
+IntegratedSession integrateDataset(const std::string& path, const IntegrateSettings& settings, const std::string& label,
+                                   const Eigen::Isometry3d& correction = Eigen::Isometry3d::Identity());
 
 Command addSimulate(CLI::App& root);
 Command addDemo(CLI::App& root);

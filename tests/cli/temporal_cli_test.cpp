@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <random>
@@ -369,11 +370,19 @@ TEST(SimulatorCli, SimulateAndDemo) {
   // The simulated sessions are ordinary TUM folders: build takes their times.
   r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "m.cmap").string() + " " +
                        (tmp / "sim" / "session_00").string() + " " + (tmp / "sim" / "session_01").string() +
-                       " --fast --json --realign");
+                       " --fast --json --register --register-rounds 1 --realign");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto built = nlohmann::json::parse(r.out);
   EXPECT_EQ(built["sessions"], 2);
-  for (const auto& a : built["added"]) EXPECT_TRUE(a.contains("realigned_voxels"));
+  for (const auto& a : built["added"]) {
+    EXPECT_TRUE(a.contains("realigned_voxels"));
+    ASSERT_TRUE(a.contains("registration_m"));
+    EXPECT_LT(std::abs(a["registration_m"][0].get<double>()), 0.2);  // a correction of centimetres
+  }
+  r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "n.cmap").string() + " " +
+                       (tmp / "sim" / "session_00").string() + " --register --register-rounds 0");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_FALSE(fs::exists(tmp / "n.cmap"));
 
   r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " simulate --preset castle -o " + (tmp / "x").string());
   EXPECT_EQ(r.exit_code, 2);

@@ -12,6 +12,7 @@
 
 #include "chronomap/align/consensus.h"
 #include "chronomap/align/realign.h"
+#include "chronomap/align/register.h"
 #include "chronomap/core/error.h"
 #include "chronomap/temporal/temporal_map.h"
 #include "test_support.h"
@@ -467,4 +468,100 @@ TEST(Realign, EqualsTheDenseReferenceOnRandomMaps) {
   }
   EXPECT_GT(total_moves, 500u);  // the property was exercised
   EXPECT_GT(transfer_moves, 200u);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Registration to the consensus
+
+namespace {
+
+// A closed room (floor z = 0, four walls 1 m high, 2 x 2 m inside) sampled every 1 cm and moved
+// by `t`: occupied voxels where the points fall.
+SessionMap room(const Eigen::Isometry3d& t) {
+  SessionMap m(0.05);
+  const KeyGrid& g = m.grid();
+  auto hit = [&](double x, double y, double z) {
+    if (const auto k = g.keyOf(t * Eigen::Vector3d(x, y, z))) m.add(*k, occupiedVoxel({100, 100, 100}, 1));
+  };
+  for (double a = 0.005; a < 2.0; a += 0.01) {
+    for (double b = 0.005; b < 2.0; b += 0.01) hit(a, b, 0.0126);
+    for (double z = 0.005; z < 1.0; z += 0.01) {
+      hit(0.0126, a, z);
+      hit(2.0126, a, z);
+      hit(a, 0.0126, z);
+      hit(a, 2.0126, z);
+    }
+  }
+  return m;
+}
+
+}  // namespace
+
+TEST(RegisterToConsensus, FindsAShiftOfOneVoxel) {
+  Eigen::Isometry3d shift = Eigen::Isometry3d::Identity();
+  shift.translation() = Eigen::Vector3d(0.05, -0.05, 0.0);
+  const SessionMap truth = room(Eigen::Isometry3d::Identity());
+  const SessionMap shifted = room(shift);
+  for (bool yaw_only : {true, false}) {
+    RegisterSettings settings;
+    settings.yaw_only = yaw_only;
+    RegisterReport report;
+    const Eigen::Isometry3d t = registerToConsensus(shifted, truth, settings, &report);
+    EXPECT_NEAR(t.translation().x(), -0.05, 0.006) << yaw_only;
+    EXPECT_NEAR(t.translation().y(), 0.05, 0.006);
+    EXPECT_NEAR(t.translation().z(), 0.0, 0.006);
+    EXPECT_LT(Eigen::AngleAxisd(t.linear()).angle(), 0.01);
+    EXPECT_GT(report.points, 1000u);
+    EXPECT_GT(report.mean_shift_before_m, 0.03);
+    EXPECT_LT(report.mean_shift_after_m, 0.01);
+  }
+  // The same map needs no correction; nothing in reach gives the identity.
+  EXPECT_LT(registerToConsensus(truth, truth).translation().norm(), 1e-9);
+  SessionMap far_away(0.05);
+  far_away.add(at(500, 500, 500), occupiedVoxel({1, 1, 1}));
+  EXPECT_TRUE(registerToConsensus(far_away, truth).isApprox(Eigen::Isometry3d::Identity()));
+}
+
+TEST(RegisterToConsensus, RejectsBadSettings) {
+  RegisterSettings s;
+  s.radius_voxels = 0.5;
+  EXPECT_THROW(s.validate(), UsageError);
+  s = {};
+  s.max_iterations = 0;
+  EXPECT_THROW(s.validate(), UsageError);
+  s = {};
+  s.min_step_m = std::nan("");
+  EXPECT_THROW(s.validate(), UsageError);
+  EXPECT_THROW(registerToConsensus(SessionMap(0.05), SessionMap(0.1)), UsageError);
+}
+
+TEST(RegisterSessions, BringsTheOddSessionToTheOthersAndReintegratesIt) {
+  Eigen::Isometry3d shift = Eigen::Isometry3d::Identity();
+  shift.translation() = Eigen::Vector3d(0.05, 0.0, 0.0);
+  const std::vector<Eigen::Isometry3d> poses = {Eigen::Isometry3d::Identity(), Eigen::Isometry3d::Identity(),
+                                                Eigen::Isometry3d::Identity(), shift};
+  std::vector<SessionMap> sessions;
+  for (const auto& p : poses) sessions.push_back(room(p));
+  size_t calls = 0;
+  std::vector<RegisterReport> reports;
+  const auto corrections = registerSessions(
+      sessions,
+      [&](size_t k, const Eigen::Isometry3d& c) {
+        ++calls;
+        return room(c * poses[k]);
+      },
+      3, {}, &reports);
+  EXPECT_EQ(calls, 3 * poses.size());
+  ASSERT_EQ(corrections.size(), poses.size());
+  // Any correction that puts the shifted walls back into the others' voxels is exact at this
+  // resolution: x in (-0.0626, -0.0126) m.
+  EXPECT_GT(corrections[3].translation().x(), -0.0626);
+  EXPECT_LT(corrections[3].translation().x(), -0.0126);
+  EXPECT_EQ(sessions[3], sessions[0]);
+  for (size_t k = 0; k < 3; ++k) EXPECT_LT(corrections[k].translation().norm(), 0.02);
+  EXPECT_EQ(sessions[3], room(corrections[3] * shift));  // the re-integrated map replaced it
+  EXPECT_GT(reports[3].mean_shift_before_m, reports[3].mean_shift_after_m);
+  std::vector<SessionMap> none;
+  EXPECT_THROW(registerSessions(none, {}, 1), UsageError);
+  EXPECT_THROW(registerSessions(sessions, {}, 0), UsageError);
 }

@@ -22,7 +22,7 @@ namespace chronomap {
 /// score a finite 1 / (d^ωd · ε^(ωc+ωp)). The thesis used α = 2 and all weights 1 in units it
 /// does not state; the defaults here come from bench/realign_eval (docs/realign.md).
 struct RealignSettings {
-  double alpha = 300.0;              ///< a move needs a score above this
+  double alpha = 1000.0;             ///< a move needs a score above this
   double weight_distance = 1.0;      ///< ωd
   double weight_color = 1.0;         ///< ωc
   double weight_probability = 1.0;   ///< ωp

@@ -74,6 +74,23 @@ class FrameVector : public FrameSource {
   std::vector<Frame> frames_;
 };
 
+/// Another source's frames with every pose corrected by a rigid transform of the map frame:
+/// T_world_sensor becomes correction * T_world_sensor (a session registered to others).
+class CorrectedFrames : public FrameSource {
+ public:
+  CorrectedFrames(const FrameSource& inner, const Eigen::Isometry3d& correction) : inner_(inner), correction_(correction) {}
+  size_t size() const override { return inner_.size(); }
+  Frame load(size_t i) const override {
+    Frame f = inner_.load(i);
+    f.T_world_sensor = correction_ * f.T_world_sensor;
+    return f;
+  }
+
+ private:
+  const FrameSource& inner_;
+  Eigen::Isometry3d correction_;
+};
+
 /// The voxels one frame touches and what it adds to each, in a fixed order.
 struct VoxelDeltas {
   std::vector<VoxelKey> keys;
