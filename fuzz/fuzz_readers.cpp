@@ -13,6 +13,8 @@
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/temporal_file.h"
 #include "chronomap/io/diff_file.h"
+#include "chronomap/align/consensus.h"
+#include "chronomap/align/realign.h"
 #include "chronomap/analysis/segment.h"
 #include "chronomap/io/dataset.h"
 #include "chronomap/io/png.h"
@@ -30,6 +32,11 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
     volatile size_t leaves = map.counts().leaves;
     (void)leaves;
     map.find(VoxelKey{32768, 32768, 32768});
+    // A session map that reads must also merge and re-align against itself.
+    const SessionMap* both[] = {&map, &map};
+    const SessionMap avg = consensus(std::span<const SessionMap* const>(both));
+    volatile size_t moved = realign(map, avg).leafCount();
+    (void)moved;
   } else if (file.header.kind == io::MapKind::Temporal) {
     // A 4D map that reads must also answer queries without crashing.
     TemporalMap map = io::temporalMapFrom(file, name);
@@ -39,6 +46,10 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
       (void)leaves;
     }
     map.history(VoxelKey{32768, 32768, 32768});
+    if (map.sessionCount() > 0) {
+      volatile size_t leaves = consensus(map, map.sessions().front().time_s, map.sessions().back().time_s).leafCount();
+      (void)leaves;
+    }
     if (map.sessionCount() > 1) {
       volatile size_t cells = diff(map, map.sessions().front().time_s, map.sessions().back().time_s).cells().size();
       (void)cells;
