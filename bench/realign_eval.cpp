@@ -3,11 +3,13 @@
 // simulator's ground truth.
 //
 // For a simulation (office, floor66): every session is integrated (fast mode, 0.05 m) with its
-// estimated poses and added to a 4D map in time order, once as recorded and once re-aligned
-// against the consensus of all sessions. For each session after the first, the voxels whose
-// state the 4D map records as changed by it (history entries after a voxel's first) are split
-// into true changes (within one voxel of a truth event voxel of an event between the session
-// that saw the previous state and this one) and false ones. Then a sweep over alpha and d_max.
+// estimated poses and added to a 4D map in time order: as recorded, re-aligned against the
+// consensus of all sessions, registered to the consensus (3 rounds, re-integrated), and
+// registered then re-aligned. For each session after the first, the voxels whose state the 4D
+// map records as changed by it (history entries after a voxel's first) are split into true
+// changes (within one voxel of a truth event voxel of an event between the session that saw
+// the previous state and this one) and false ones; "true changes kept" is the share of the
+// truth voxels matched as recorded that are still matched. Then sweeps over the settings.
 //
 // Usage: realign_eval [--office DIR] [--floor66 DIR] [--quick] [--skip-floor66]
 //   --office DIR    a `chronomap simulate --preset office` output (default: simulate one at half
