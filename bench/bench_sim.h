@@ -1,7 +1,9 @@
 #pragma once
-// Shared by the benchmark programs: the sessions of a `chronomap simulate` output, integrated.
+// Shared by the benchmark programs: the sessions of a `chronomap simulate` output, integrated,
+// and a stopwatch.
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <string>
@@ -14,6 +16,11 @@
 #include "chronomap/sim/change_truth.h"
 
 namespace chronomap::bench {
+
+// Seconds since `since`.
+inline double seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
 
 struct SimSessions {
   std::vector<SessionMap> estimated;   // integrated with the estimated poses (trajectory.txt)

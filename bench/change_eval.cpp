@@ -46,6 +46,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
+using bench::seconds;
+
 // The settings the demo and the documentation recommend for robot sessions (see docs/changes.md).
 DiffSettings defaultDiff() {
   DiffSettings d;
@@ -59,10 +61,6 @@ SegmentSettings defaultSegment() {
   s.connectivity = Connectivity::Vertex;
   s.min_voxels = 20;
   return s;
-}
-
-double seconds(std::chrono::steady_clock::time_point since) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
 }
 
 // ------------------------------------------------------------------------------------------

@@ -43,9 +43,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-double seconds(std::chrono::steady_clock::time_point since) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
-}
+using bench::seconds;
 
 // The truth event voxels by the session gap they belong to (events between sessions s, s + 1).
 class TruthIndex {

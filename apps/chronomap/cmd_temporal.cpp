@@ -252,20 +252,18 @@ int runBuild(const BuildCmdOptions& o) {
       corrections[i] = found[i];
     }
   }
-  // Re-alignment against the consensus of every session given (before any is replaced).
+  // Re-alignment against the consensus of every session given (taken before any is replaced).
   std::vector<std::optional<size_t>> moved(pending.size());
   if (o.realign.enabled) {
     std::vector<const SessionMap*> all;
     for (const Pending& p : pending) all.push_back(&p.session.map);
     const SessionMap avg = consensus(std::span<const SessionMap* const>(all));
-    std::vector<SessionMap> aligned;
     for (size_t i = 0; i < pending.size(); ++i) {
       if (!o.json) std::cerr << "re-aligning " << o.datasets[pending[i].index] << "\n";
       RealignReport r;
-      aligned.push_back(realign(pending[i].session.map, avg, realign_settings, &r));
+      pending[i].session.map = realign(pending[i].session.map, avg, realign_settings, &r);
       moved[i] = r.moved();
     }
-    for (size_t i = 0; i < pending.size(); ++i) pending[i].session.map = std::move(aligned[i]);
   }
   nlohmann::json reports = nlohmann::json::array();
   for (size_t i = 0; i < pending.size(); ++i) {

@@ -67,12 +67,6 @@ std::vector<Offset> offsetsWithin(double d_max) {
   return out;
 }
 
-std::optional<VoxelKey> shifted(const VoxelKey& k, const Offset& o) {
-  const int x = k.x + o.dx, y = k.y + o.dy, z = k.z + o.dz;
-  if (x < 0 || y < 0 || z < 0 || x >= kKeysPerAxis || y >= kKeysPerAxis || z >= kKeysPerAxis) return std::nullopt;
-  return VoxelKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)};
-}
-
 /// Voxels of one role (the session's occupied voxels; the consensus' occupied voxels where the
 /// session is not occupied) in Morton order, with an index by Morton code.
 struct VoxelSet {
@@ -140,7 +134,7 @@ SessionMap realign(const SessionMap& session, const SessionMap& consensus, const
     double best_score = -1.0;
     uint64_t best_code = 0;
     for (const Offset& o : offsets) {
-      const auto k = shifted(key, o);
+      const auto k = offsetKey(key, o.dx, o.dy, o.dz);
       if (!k) continue;
       const auto j = set.find(*k);
       if (!j) continue;
@@ -155,7 +149,18 @@ SessionMap realign(const SessionMap& session, const SessionMap& consensus, const
     return std::make_pair(best_index, best_score);
   };
 
-  // Pass 1: occupied here, free in the consensus.
+  // Records a move; each voxel takes part in one move at most, and a voxel can be in both sets
+  // (Move::Transfer).
+  auto record = [&](const VoxelKey& from, const VoxelKey& to, double score, bool occupied_pass) {
+    rep.moves.push_back({from, to, score, occupied_pass});
+    for (VoxelSet* set : {&occupied, &targets}) {
+      set->markUsed(from);
+      set->markUsed(to);
+    }
+    ++(occupied_pass ? rep.moved_occupied : rep.moved_free);
+  };
+
+  // Pass 1: occupied here, not occupied in the consensus.
   for (uint32_t i = 0; i < occupied.keys.size(); ++i) {
     if (!occupied_disagrees[i]) continue;
     ++rep.occupied_disagreeing;
@@ -163,12 +168,7 @@ SessionMap realign(const SessionMap& session, const SessionMap& consensus, const
       return realignScore(occupied.values[i], targets.values[t], d, settings);
     });
     if (!j || !(s > settings.alpha)) continue;
-    rep.moves.push_back({occupied.keys[i], targets.keys[*j], s, true});
-    for (VoxelSet* set : {&occupied, &targets}) {  // a voxel can be in both sets (Move::Transfer)
-      set->markUsed(rep.moves.back().from);
-      set->markUsed(rep.moves.back().to);
-    }
-    ++rep.moved_occupied;
+    record(occupied.keys[i], targets.keys[*j], s, true);
   }
   // Pass 2: free here, occupied in the consensus.
   for (uint32_t t = 0; t < targets.keys.size(); ++t) {
@@ -179,12 +179,7 @@ SessionMap realign(const SessionMap& session, const SessionMap& consensus, const
       return realignScore(occupied.values[o], targets.values[t], d, settings);
     });
     if (!j || !(s > settings.alpha)) continue;
-    rep.moves.push_back({occupied.keys[*j], targets.keys[t], s, false});
-    for (VoxelSet* set : {&occupied, &targets}) {
-      set->markUsed(rep.moves.back().from);
-      set->markUsed(rep.moves.back().to);
-    }
-    ++rep.moved_free;
+    record(occupied.keys[*j], targets.keys[t], s, false);
   }
 
   SessionMap out = session;

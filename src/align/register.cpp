@@ -64,11 +64,14 @@ Eigen::Isometry3d fitRigid(const std::vector<Eigen::Vector3d>& a, const std::vec
 
 using HitMap = std::unordered_map<uint64_t, uint32_t>;
 
-/// Occupied unit voxels of a map and their hits.
-HitMap surfaceOf(const SessionMap& map) {
+/// Occupied unit voxels of a map and their hits; their centres, in Morton order, go to `centres`
+/// when given.
+HitMap surfaceOf(const SessionMap& map, std::vector<Eigen::Vector3d>* centres = nullptr) {
   HitMap out;
   map.forEachLeaf([&](const LeafView& l) {
-    if (l.level == 0 && l.counters.state() == VoxelState::Occupied) out.emplace(mortonEncode(l.key), l.counters.hits);
+    if (l.level != 0 || l.counters.state() != VoxelState::Occupied) return;
+    out.emplace(mortonEncode(l.key), l.counters.hits);
+    if (centres) centres->push_back(map.grid().centerOf(l.key));
   });
   return out;
 }
@@ -87,12 +90,11 @@ std::optional<Eigen::Vector3d> centroidNear(const HitMap& surface, const KeyGrid
   for (int dz = -r; dz <= r; ++dz) {
     for (int dy = -r; dy <= r; ++dy) {
       for (int dx = -r; dx <= r; ++dx) {
-        const int x = k->x + dx, y = k->y + dy, z = k->z + dz;
-        if (x < 0 || y < 0 || z < 0 || x >= kKeysPerAxis || y >= kKeysPerAxis || z >= kKeysPerAxis) continue;
-        const VoxelKey n{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)};
-        const auto found = surface.find(mortonEncode(n));
+        const auto n = offsetKey(*k, dx, dy, dz);
+        if (!n) continue;
+        const auto found = surface.find(mortonEncode(*n));
         if (found == surface.end()) continue;
-        const Eigen::Vector3d c = grid.centerOf(n);
+        const Eigen::Vector3d c = grid.centerOf(*n);
         const double d2 = (c - p).squaredNorm();
         if (d2 > radius_m * radius_m) continue;
         const double w = static_cast<double>(found->second) * std::exp(-2.0 * d2 / (radius_m * radius_m));
@@ -115,12 +117,9 @@ Eigen::Isometry3d registerToConsensus(const SessionMap& session, const SessionMa
   }
   const KeyGrid& grid = session.grid();
   const HitMap surface = surfaceOf(consensus);
-  const HitMap own = surfaceOf(session);
-  // The session's occupied voxel centres, evenly thinned.
+  // The session's surface and its occupied voxel centres, evenly thinned.
   std::vector<Eigen::Vector3d> points;
-  session.forEachLeaf([&](const LeafView& l) {
-    if (l.level == 0 && l.counters.state() == VoxelState::Occupied) points.push_back(grid.centerOf(l.key));
-  });
+  const HitMap own = surfaceOf(session, &points);
   if (points.size() > settings.max_points) {
     std::vector<Eigen::Vector3d> thinned;
     const double step = static_cast<double>(points.size()) / static_cast<double>(settings.max_points);

@@ -462,10 +462,9 @@ Segmentation segmentByFloodFill(const DiffMap& diff, const SegmentSettings& sett
             for (int dx = -1; dx <= 1; ++dx) {
               const int nonzero = (dx != 0) + (dy != 0) + (dz != 0);
               if (nonzero == 0 || nonzero > max_nonzero) continue;
-              const int x = v.x + dx, y = v.y + dy, z = v.z + dz;
-              if (x < 0 || y < 0 || z < 0 || x >= kKeysPerAxis || y >= kKeysPerAxis || z >= kKeysPerAxis) continue;
-              const auto it = owner.find(mortonEncode(
-                  VoxelKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)}));
+              const auto neighbour = offsetKey(v, dx, dy, dz);
+              if (!neighbour) continue;
+              const auto it = owner.find(mortonEncode(*neighbour));
               if (it == owner.end()) continue;
               const uint32_t j = it->second;
               if (label[j] != kNone || !rule(i, j)) continue;

@@ -64,6 +64,13 @@ constexpr VoxelKey childCorner(const VoxelKey& base, int slot, int child_level) 
   return k;
 }
 
+/// The key (dx, dy, dz) voxels away from `key`, or nothing outside the key space.
+inline std::optional<VoxelKey> offsetKey(const VoxelKey& key, int dx, int dy, int dz) {
+  const int x = key.x + dx, y = key.y + dy, z = key.z + dz;
+  if (x < 0 || y < 0 || z < 0 || x >= kKeysPerAxis || y >= kKeysPerAxis || z >= kKeysPerAxis) return std::nullopt;
+  return VoxelKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)};
+}
+
 /// Calls pred(const VoxelKey&) for every key within Chebyshev distance r of `key` (itself
 /// included) that lies inside the key space, until it returns true.
 /// @return whether pred returned true for one of them.
@@ -72,9 +79,8 @@ bool anyKeyWithin(const VoxelKey& key, int r, Pred&& pred) {
   for (int dz = -r; dz <= r; ++dz) {
     for (int dy = -r; dy <= r; ++dy) {
       for (int dx = -r; dx <= r; ++dx) {
-        const int x = key.x + dx, y = key.y + dy, z = key.z + dz;
-        if (x < 0 || y < 0 || z < 0 || x >= kKeysPerAxis || y >= kKeysPerAxis || z >= kKeysPerAxis) continue;
-        if (pred(VoxelKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)})) return true;
+        const auto k = offsetKey(key, dx, dy, dz);
+        if (k && pred(*k)) return true;
       }
     }
   }
