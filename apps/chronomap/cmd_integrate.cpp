@@ -45,8 +45,11 @@ IntegratedSession integrateDataset(const std::string& path, const IntegrateSetti
   IntegratedSession out{SessionMap(o.resolution_m), {}, dataset->recordedAt(), io::toString(dataset->format()),
                         dataset->framesDropped()};
   ProgressBar bar(label, dataset->size());
+  // Without a correction the dataset is read directly (frames already in memory are not copied).
+  const bool corrected = !correction.matrix().isIdentity(0.0);
   const CorrectedFrames frames(*dataset, correction);
-  out.stats = integrate(frames, out.map, settings, [&](size_t done, size_t) { bar.update(done); });
+  out.stats = integrate(corrected ? static_cast<const FrameSource&>(frames) : *dataset, out.map, settings,
+                        [&](size_t done, size_t) { bar.update(done); });
   bar.finish();
   if (out.stats.points == 0) {
     throw DataError(path + ": no valid points within " + std::to_string(o.max_range_m) + " m in " +
