@@ -35,6 +35,7 @@ void storageCurves(const TemporalMap& map, std::vector<double>& separate, std::v
 
 int runTemporalStats(const StatsOptions& o, const io::CmapFile& file) {
   const TemporalMap map = io::temporalMapFrom(file, o.file);
+  const io::TemporalFileLayout layout = io::layoutOf(file);
   const TemporalCounts c = map.counts();
   std::vector<double> separate, four_d;
   storageCurves(map, separate, four_d);
@@ -67,6 +68,9 @@ int runTemporalStats(const StatsOptions& o, const io::CmapFile& file) {
                         {"slots", c.slots},
                         {"bytes", map.memoryBytes()},
                         {"file_bytes", file.file_bytes},
+                        {"appended_sessions", layout.appended_sessions},
+                        {"appended_bytes", layout.appended_bytes},
+                        {"incomplete_append_bytes", layout.incomplete_tail_bytes},
                         {"nodes_separate", static_cast<uint64_t>(nodes_separate)},
                         {"per_session", sessions},
                         {"bounds_min", {h.bounds_min_m.x(), h.bounds_min_m.y(), h.bounds_min_m.z()}},
@@ -88,7 +92,16 @@ int runTemporalStats(const StatsOptions& o, const io::CmapFile& file) {
             << "  separately:  " << static_cast<uint64_t>(nodes_separate) << " nodes for the session maps on their own";
   if (nodes_separate > 0) std::cout << " (the 4D map holds " << 100.0 * static_cast<double>(c.nodes()) / nodes_separate << "%)";
   std::cout << "\n  memory:      " << humanBytes(static_cast<double>(map.memoryBytes())) << "\n"
-            << "  file:        " << humanBytes(static_cast<double>(file.file_bytes)) << "\n";
+            << "  file:        " << humanBytes(static_cast<double>(file.file_bytes));
+  if (layout.appended_sessions) {
+    std::cout << " (" << layout.appended_sessions << " session(s) appended by add: "
+              << humanBytes(static_cast<double>(layout.appended_bytes)) << ", folded in when it next writes the map whole)";
+  }
+  std::cout << "\n";
+  if (layout.incomplete_tail_bytes) {
+    std::cout << "  note:        " << layout.incomplete_tail_bytes
+              << " bytes at the end are an interrupted add and not part of the map; the next add removes them\n";
+  }
   if (map.sessionCount()) {
     std::cout << "  per session: time, nodes added, nodes on its own\n";
     for (const auto& s : map.sessions()) {

@@ -7,6 +7,7 @@
 #include <numbers>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -18,6 +19,7 @@
 #include "chronomap/io/cloud_io.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/export.h"
+#include "chronomap/io/file.h"
 #include "chronomap/io/temporal_file.h"
 #include "commands.h"
 
@@ -33,10 +35,10 @@ void requireExtension(const std::string& path, const std::string& ext, const std
 
 /// Opens the 4D map at `path`, or a new one when the file does not exist.
 TemporalMap openOrCreate(const std::string& path, double resolution_m, const ChangeCriterion& criterion,
-                         bool& created) {
+                         bool& created, io::TemporalFileLayout* layout = nullptr) {
   created = !fs::exists(path);
   if (created) return TemporalMap(resolution_m, criterion);
-  TemporalMap map = io::readTemporalMap(path);
+  TemporalMap map = io::readTemporalMap(path, layout);
   if (map.resolution_m() != resolution_m) {
     throw UsageError(path + ": the 4D map has resolution " + std::to_string(map.resolution_m()) +
                      " m but the session has " + std::to_string(resolution_m) + " m");
@@ -95,6 +97,7 @@ struct AddCmdOptions {
   std::string session;
   std::string time;
   bool replace = false;
+  std::string write = "auto";
   ChangeCriterion criterion;
   RealignOptions realign;
   bool json = false;
@@ -115,8 +118,12 @@ int runAdd(const AddCmdOptions& o) {
     }
     time_s = meta["recorded_at"].get<double>();
   }
+  // One add at a time per map: a second one waits here, then reads what the first wrote.
+  std::optional<io::FileLock> lock;
+  if (fs::exists(o.map)) lock.emplace(o.map);
   bool created = false;
-  TemporalMap map = openOrCreate(o.map, session.resolution_m(), o.criterion, created);
+  io::TemporalFileLayout layout;
+  TemporalMap map = openOrCreate(o.map, session.resolution_m(), o.criterion, created, &layout);
   std::optional<RealignReport> realigned;
   if (o.realign.enabled) {
     // The consensus of every session stored so far (each time's snapshot) and this one.
@@ -126,14 +133,26 @@ int runAdd(const AddCmdOptions& o) {
     realigned.emplace();
     session = realign(session, avg, realign_settings, &*realigned);
   }
-  const AddReport report = map.add(time_s, session, AddOptions{o.replace, fs::path(o.session).filename().string()});
-  io::writeTemporalMap(o.map, map, {});
+  const AddOptions add_options{o.replace, fs::path(o.session).filename().string()};
+  const AddReport report = map.add(time_s, session, add_options);
+  // Append the session as a record (the file's bytes so far stay as they are), or write the whole
+  // map again, folding earlier records in: "auto" appends while the records stay smaller than the
+  // base, so that reading never replays more than the base holds.
+  const std::vector<uint8_t> record = created ? std::vector<uint8_t>{} : io::encodeSessionRecord(time_s, session, add_options);
+  const bool append = !created && (o.write == "append" ||
+                                   (o.write == "auto" && layout.appended_bytes + record.size() <= layout.base_bytes));
+  if (append) {
+    io::appendToFile(o.map, layout.completeBytes(), record);
+  } else {
+    io::writeTemporalMap(o.map, map, {});
+  }
   const int64_t added = nodesAddedAt(map, time_s);
   if (o.json) {
     nlohmann::json j = addReportJson(report, time_s, added);
     if (realigned) j["realigned_voxels"] = realigned->moved();
     j["map"] = o.map;
     j["created"] = created;
+    j["appended"] = append;
     j["sessions"] = map.sessionCount();
     j["nodes"] = map.counts().nodes();
     j["file_bytes"] = fs::file_size(o.map);
@@ -143,7 +162,9 @@ int runAdd(const AddCmdOptions& o) {
               << (report.replaced ? " replaced" : " added") << (report.out_of_order ? " (before later sessions)" : "")
               << ", " << added << " nodes added (" << report.entries_added << " entries, " << report.inner_added
               << " inner nodes); " << map.sessionCount() << " session(s), " << map.counts().nodes() << " nodes, "
-              << humanBytes(static_cast<double>(fs::file_size(o.map))) << " on disk\n";
+              << humanBytes(static_cast<double>(fs::file_size(o.map))) << " on disk ("
+              << (append ? "appended " + humanBytes(static_cast<double>(record.size())) : std::string("written whole"))
+              << ")\n";
     if (realigned) std::cout << "re-aligned: " << realigned->moved() << " voxel(s) moved\n";
   }
   return 0;
@@ -199,6 +220,9 @@ int runBuild(const BuildCmdOptions& o) {
     }
     for (size_t i = 0; i < parts.size(); ++i) times[i] = parseTime(parts[i]);
   }
+  // Held to the end: an add to the same map meanwhile would otherwise be lost by the rewrite.
+  std::optional<io::FileLock> lock;
+  if (fs::exists(o.map)) lock.emplace(o.map);
   bool created = false;
   TemporalMap map = openOrCreate(o.map, o.integrate.resolution_m, o.criterion, created);
   // Refuse known clashes before the long integration.
@@ -533,6 +557,12 @@ Command addAdd(CLI::App& root) {
                   "when the session was recorded: ISO-8601 (2012-03-01T10:00:00Z) or seconds since the epoch; "
                   "default: the time the session file records");
   app->add_flag("--replace", o->replace, "replace a session stored at the same time instead of refusing");
+  app->add_option("--write", o->write,
+                  "append: add the session at the end of the file, leaving the bytes before it untouched; rewrite: "
+                  "write the whole map again (folding appended sessions in); auto: append while the appended "
+                  "sessions take fewer bytes than the rest of the file")
+      ->check(CLI::IsMember({"auto", "append", "rewrite"}))
+      ->capture_default_str();
   addCriterionOptions(app, o->criterion);
   addRealignOptions(app, o->realign);
   app->add_flag("--json", o->json, "print a JSON summary on stdout");

@@ -20,6 +20,8 @@ namespace {
 constexpr uint8_t kMagic[8] = {0x89, 'C', 'M', 'A', 'P', '\r', '\n', 0x1a};
 constexpr size_t kHeaderBytes = 84;
 constexpr size_t kBlockHeaderBytes = 32;
+/// An append record: a block header, a CRC-32 of that header, then the stored bytes.
+constexpr size_t kRecordHeaderBytes = kBlockHeaderBytes + 4;
 constexpr uint32_t kCodecRaw = 0;
 constexpr uint32_t kCodecZstd = 1;
 /// Largest block a reader will inflate; guards against absurd sizes in crafted files.
@@ -54,6 +56,73 @@ T get(const uint8_t* p) {
   return v;
 }
 
+/// Appends one block (32-byte header, then its stored bytes) to `out`; with `header_crc` the
+/// header is followed by a CRC-32 of itself (append records, docs/file-format.md).
+void appendBlock(std::vector<uint8_t>& out, const CmapBlock& b, int zstd_level, bool header_crc = false) {
+  if (b.tag.size() != 4) throw UsageError("cmap block tags have four characters");
+  std::vector<uint8_t> stored;
+  uint32_t codec = kCodecRaw;
+  if (zstd_level > 0 && !b.data.empty()) {
+    stored.resize(ZSTD_compressBound(b.data.size()));
+    const size_t n = ZSTD_compress(stored.data(), stored.size(), b.data.data(), b.data.size(), zstd_level);
+    if (ZSTD_isError(n)) throw Error(std::string("zstd compression failed: ") + ZSTD_getErrorName(n));
+    stored.resize(n);
+    codec = kCodecZstd;
+  } else {
+    stored = b.data;
+  }
+  const size_t start = out.size();
+  out.insert(out.end(), b.tag.begin(), b.tag.end());
+  put(out, codec);
+  put(out, static_cast<uint64_t>(b.data.size()));
+  put(out, static_cast<uint64_t>(stored.size()));
+  put(out, crc(stored.data(), stored.size()));
+  put(out, crc(b.data.data(), b.data.size()));
+  if (header_crc) put(out, crc(out.data() + start, kBlockHeaderBytes));
+  out.insert(out.end(), stored.begin(), stored.end());
+}
+
+/// The fields of a block header.
+struct BlockHeader {
+  std::string tag;
+  uint32_t codec = 0;
+  uint64_t raw_size = 0, stored_size = 0;
+  uint32_t crc_stored = 0, crc_raw = 0;
+};
+
+BlockHeader blockHeaderAt(const uint8_t* p) {
+  BlockHeader h;
+  h.tag.assign(reinterpret_cast<const char*>(p), 4);
+  h.codec = get<uint32_t>(p + 4);
+  h.raw_size = get<uint64_t>(p + 8);
+  h.stored_size = get<uint64_t>(p + 16);
+  h.crc_stored = get<uint32_t>(p + 24);
+  h.crc_raw = get<uint32_t>(p + 28);
+  return h;
+}
+
+/// Checks and inflates the stored bytes of a block whose header is `h` (all present at `p`).
+CmapBlock decodeBlock(const BlockHeader& h, const uint8_t* p, const std::string& what) {
+  CmapBlock b;
+  b.tag = h.tag;
+  if (crc(p, h.stored_size) != h.crc_stored) throw FormatError(what + " is corrupt (checksum mismatch)");
+  if (h.raw_size > kMaxRawBlockBytes) throw FormatError(what + " claims an impossible size");
+  if (h.codec == kCodecRaw) {
+    if (h.raw_size != h.stored_size) throw FormatError(what + " has inconsistent sizes");
+    b.data.assign(p, p + h.stored_size);
+  } else if (h.codec == kCodecZstd) {
+    const unsigned long long content = ZSTD_getFrameContentSize(p, h.stored_size);
+    if (content != h.raw_size) throw FormatError(what + " has inconsistent sizes");
+    b.data.resize(h.raw_size);
+    const size_t n = ZSTD_decompress(b.data.data(), b.data.size(), p, h.stored_size);
+    if (ZSTD_isError(n) || n != h.raw_size) throw FormatError(what + " cannot be decompressed");
+  } else {
+    throw FormatError(what + " uses unknown compression " + std::to_string(h.codec));
+  }
+  if (crc(b.data.data(), b.data.size()) != h.crc_raw) throw FormatError(what + " is corrupt (checksum mismatch)");
+  return b;
+}
+
 }  // namespace
 
 const char* toString(MapKind kind) {
@@ -82,27 +151,7 @@ std::vector<uint8_t> encodeCmap(const CmapHeader& header, const std::vector<Cmap
   put(out, header.tree_depth);
   put(out, static_cast<uint32_t>(blocks.size()));
   put(out, crc(out.data(), out.size()));
-  for (const CmapBlock& b : blocks) {
-    if (b.tag.size() != 4) throw UsageError("cmap block tags have four characters");
-    std::vector<uint8_t> stored;
-    uint32_t codec = kCodecRaw;
-    if (zstd_level > 0 && !b.data.empty()) {
-      stored.resize(ZSTD_compressBound(b.data.size()));
-      const size_t n = ZSTD_compress(stored.data(), stored.size(), b.data.data(), b.data.size(), zstd_level);
-      if (ZSTD_isError(n)) throw Error(std::string("zstd compression failed: ") + ZSTD_getErrorName(n));
-      stored.resize(n);
-      codec = kCodecZstd;
-    } else {
-      stored = b.data;
-    }
-    out.insert(out.end(), b.tag.begin(), b.tag.end());
-    put(out, codec);
-    put(out, static_cast<uint64_t>(b.data.size()));
-    put(out, static_cast<uint64_t>(stored.size()));
-    put(out, crc(stored.data(), stored.size()));
-    put(out, crc(b.data.data(), b.data.size()));
-    out.insert(out.end(), stored.begin(), stored.end());
-  }
+  for (const CmapBlock& b : blocks) appendBlock(out, b, zstd_level);
   return out;
 }
 
@@ -144,41 +193,46 @@ CmapFile decodeCmap(const std::vector<uint8_t>& bytes, const std::string& source
       throw FormatError(source + ": the file is truncated (block " + std::to_string(i + 1) + " of " +
                         std::to_string(nblocks) + " missing)");
     }
-    CmapBlock b;
-    b.tag.assign(reinterpret_cast<const char*>(p + pos), 4);
-    const uint32_t codec = get<uint32_t>(p + pos + 4);
-    const uint64_t raw_size = get<uint64_t>(p + pos + 8);
-    const uint64_t stored_size = get<uint64_t>(p + pos + 16);
-    const uint32_t crc_stored = get<uint32_t>(p + pos + 24);
-    const uint32_t crc_raw = get<uint32_t>(p + pos + 28);
+    const BlockHeader h = blockHeaderAt(p + pos);
     pos += kBlockHeaderBytes;
-    const std::string what = source + ": block '" + b.tag + "'";
-    if (stored_size > bytes.size() - pos) throw FormatError(what + " is truncated");
-    if (crc(p + pos, stored_size) != crc_stored) throw FormatError(what + " is corrupt (checksum mismatch)");
-    if (raw_size > kMaxRawBlockBytes) throw FormatError(what + " claims an impossible size");
-    if (codec == kCodecRaw) {
-      if (raw_size != stored_size) throw FormatError(what + " has inconsistent sizes");
-      b.data.assign(p + pos, p + pos + stored_size);
-    } else if (codec == kCodecZstd) {
-      const unsigned long long content = ZSTD_getFrameContentSize(p + pos, stored_size);
-      if (content != raw_size) throw FormatError(what + " has inconsistent sizes");
-      b.data.resize(raw_size);
-      const size_t n = ZSTD_decompress(b.data.data(), b.data.size(), p + pos, stored_size);
-      if (ZSTD_isError(n) || n != raw_size) throw FormatError(what + " cannot be decompressed");
-    } else {
-      throw FormatError(what + " uses unknown compression " + std::to_string(codec));
-    }
-    if (crc(b.data.data(), b.data.size()) != crc_raw) throw FormatError(what + " is corrupt (checksum mismatch)");
-    pos += stored_size;
-    f.blocks.push_back(std::move(b));
+    const std::string what = source + ": block '" + h.tag + "'";
+    if (h.stored_size > bytes.size() - pos) throw FormatError(what + " is truncated");
+    f.blocks.push_back(decodeBlock(h, p + pos, what));
+    pos += h.stored_size;
   }
-  if (pos != bytes.size()) throw FormatError(source + ": unexpected bytes after the last block");
+  f.base_bytes = pos;
+  // Append records (4D maps only): each complete one is checked like a block; the file may end
+  // inside the last one (an append that was interrupted), which is then not part of the map.
+  if (f.header.kind == MapKind::Temporal) {
+    while (pos < bytes.size()) {
+      const size_t left = bytes.size() - pos;
+      const std::string what = source + ": appended record " + std::to_string(f.appended.size() + 1);
+      if (left < kRecordHeaderBytes) break;
+      if (crc(p + pos, kBlockHeaderBytes) != get<uint32_t>(p + pos + kBlockHeaderBytes)) {
+        throw FormatError(what + " is corrupt (header checksum mismatch)");
+      }
+      const BlockHeader h = blockHeaderAt(p + pos);
+      if (h.stored_size > left - kRecordHeaderBytes) break;
+      f.appended.push_back(decodeBlock(h, p + pos + kRecordHeaderBytes, what));
+      pos += kRecordHeaderBytes + h.stored_size;
+    }
+    f.incomplete_tail_bytes = bytes.size() - pos;
+  } else if (pos != bytes.size()) {
+    throw FormatError(source + ": unexpected bytes after the last block");
+  }
+  f.complete_bytes = pos;
   return f;
+}
+
+std::vector<uint8_t> encodeAppendRecord(const CmapBlock& record, int zstd_level) {
+  std::vector<uint8_t> out;
+  appendBlock(out, record, zstd_level, /*header_crc=*/true);
+  return out;
 }
 
 CmapFile readCmap(const std::filesystem::path& path) { return decodeCmap(readFileBytes(path), path.string()); }
 
-void writeSessionMap(const std::filesystem::path& path, const SessionMap& map, const nlohmann::json& meta) {
+std::vector<uint8_t> encodeSessionMap(const SessionMap& map, const nlohmann::json& meta, int zstd_level) {
   CmapHeader header;
   header.kind = MapKind::Session;
   header.resolution_m = map.resolution_m();
@@ -205,7 +259,11 @@ void writeSessionMap(const std::filesystem::path& path, const SessionMap& map, c
   const auto& leaves = map.leafPool();
   blocks[2].data.resize(leaves.size() * sizeof(VoxelCounters));
   copyBytes(blocks[2].data.data(), leaves.data(), blocks[2].data.size());
-  writeFileAtomic(path, encodeCmap(header, blocks));
+  return encodeCmap(header, blocks, zstd_level);
+}
+
+void writeSessionMap(const std::filesystem::path& path, const SessionMap& map, const nlohmann::json& meta) {
+  writeFileAtomic(path, encodeSessionMap(map, meta));
 }
 
 SessionMap sessionMapFrom(const CmapFile& file, const std::string& source) {

@@ -3,6 +3,8 @@
 #include <bzlib.h>
 #include <fcntl.h>
 #include <signal.h>
+#include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -132,6 +134,63 @@ void writeFileAtomic(const fs::path& path, const std::vector<uint8_t>& bytes) {
     ::fsync(dfd);  // best effort: the rename itself is already atomic
     ::close(dfd);
   }
+}
+
+void appendToFile(const fs::path& path, uint64_t keep_bytes, const std::vector<uint8_t>& bytes) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);
+  if (fd < 0) throw IoError(path.string() + ": cannot open for appending (" + std::strerror(errno) + ")");
+  struct stat st {};
+  if (::fstat(fd, &st) != 0 || static_cast<uint64_t>(st.st_size) < keep_bytes) {
+    ::close(fd);
+    throw IoError(path.string() + ": changed while it was being read; nothing was written");
+  }
+  auto fail = [&](const char* what) {
+    const int err = errno;
+    const bool restored = ::ftruncate(fd, static_cast<off_t>(keep_bytes)) == 0;
+    ::close(fd);
+    throw IoError(path.string() + ": " + what + " (" + std::strerror(err) + ")" +
+                  (restored ? "; the map is unchanged" : "; the unfinished append at its end is ignored by readers"));
+  };
+  if (static_cast<uint64_t>(st.st_size) > keep_bytes && ::ftruncate(fd, static_cast<off_t>(keep_bytes)) != 0) {
+    fail("cannot remove an interrupted append");
+  }
+  size_t written = 0;
+  while (written < bytes.size()) {
+    const ssize_t n = ::pwrite(fd, bytes.data() + written, bytes.size() - written,
+                               static_cast<off_t>(keep_bytes + written));
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      fail("write failed");
+    }
+    written += static_cast<size_t>(n);
+  }
+  if (::fsync(fd) != 0) fail("flush to disk failed");
+  if (::close(fd) != 0) throw IoError(path.string() + ": close failed (" + std::strerror(errno) + ")");
+}
+
+FileLock::FileLock(const fs::path& path) {
+  for (;;) {
+    fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd_ < 0) throw IoError(path.string() + ": cannot open (" + std::strerror(errno) + ")");
+    while (::flock(fd_, LOCK_EX) != 0) {
+      if (errno != EINTR) {
+        const int err = errno;
+        ::close(fd_);
+        throw IoError(path.string() + ": cannot lock (" + std::strerror(err) + ")");
+      }
+    }
+    // Still the file under that name? (Another writer may have renamed a new one over it.)
+    struct stat held {}, named {};
+    if (::fstat(fd_, &held) == 0 && ::stat(path.c_str(), &named) == 0 && held.st_dev == named.st_dev &&
+        held.st_ino == named.st_ino) {
+      return;
+    }
+    ::close(fd_);
+  }
+}
+
+FileLock::~FileLock() {
+  if (fd_ >= 0) ::close(fd_);  // closing releases the lock
 }
 
 std::string dataExtension(const fs::path& path) {

@@ -120,17 +120,62 @@ TemporalMap temporalMapFrom(const CmapFile& file, const std::string& source) {
   parts.inner = vectorOf<TemporalMap::Children>(file.block("INNR", source), source);
   parts.list_sizes = vectorOf<uint32_t>(file.block("LSTS", source), source);
   parts.entries = vectorOf<TemporalMap::Entry>(file.block("ENTR", source), source);
+  TemporalMap map(file.header.resolution_m);
   try {
-    return TemporalMap::fromParts(file.header.resolution_m, criterion, std::move(parts), std::move(sessions));
+    map = TemporalMap::fromParts(file.header.resolution_m, criterion, std::move(parts), std::move(sessions));
   } catch (const FormatError& e) {
     throw FormatError(source + ": " + e.what());
   } catch (const UsageError& e) {
     throw FormatError(source + ": " + e.what());
   }
+  for (size_t i = 0; i < file.appended.size(); ++i) {
+    const std::string what = source + ": appended session " + std::to_string(i + 1);
+    const CmapBlock& record = file.appended[i];
+    if (record.tag != "ADDS") throw FormatError(what + " has the unknown tag '" + record.tag + "'");
+    const CmapFile inner = decodeCmap(record.data, what);
+    if (!inner.appended.empty() || inner.base_bytes != record.data.size()) {
+      throw FormatError(what + " holds more than one session map");
+    }
+    const SessionMap session = sessionMapFrom(inner, what);
+    const nlohmann::json meta = metadataOf(inner);
+    AddOptions options;
+    double time_s = 0.0;
+    try {
+      time_s = meta.at("time_s").get<double>();
+      options.replace = meta.at("replace").get<bool>();
+      options.name = meta.at("name").get<std::string>();
+    } catch (const nlohmann::json::exception& e) {
+      throw FormatError(what + ": its description is malformed: " + e.what());
+    }
+    try {
+      map.add(time_s, session, options);
+    } catch (const UsageError& e) {
+      throw FormatError(what + " cannot be added again: " + e.what());
+    }
+  }
+  return map;
 }
 
-TemporalMap readTemporalMap(const std::filesystem::path& path) {
-  return temporalMapFrom(readCmap(path), path.string());
+TemporalFileLayout layoutOf(const CmapFile& file) {
+  TemporalFileLayout l;
+  l.file_bytes = file.file_bytes;
+  l.base_bytes = file.base_bytes;
+  l.appended_bytes = file.complete_bytes - file.base_bytes;
+  l.appended_sessions = file.appended.size();
+  l.incomplete_tail_bytes = file.incomplete_tail_bytes;
+  return l;
+}
+
+TemporalMap readTemporalMap(const std::filesystem::path& path, TemporalFileLayout* layout) {
+  const CmapFile file = readCmap(path);
+  if (layout) *layout = layoutOf(file);
+  return temporalMapFrom(file, path.string());
+}
+
+std::vector<uint8_t> encodeSessionRecord(double time_s, const SessionMap& session, const AddOptions& options) {
+  const nlohmann::json meta = {{"time_s", time_s}, {"replace", options.replace}, {"name", options.name}};
+  CmapBlock record{"ADDS", encodeSessionMap(session, meta, /*zstd_level=*/0)};
+  return encodeAppendRecord(record);
 }
 
 }  // namespace chronomap::io

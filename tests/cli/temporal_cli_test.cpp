@@ -284,14 +284,18 @@ TEST(TemporalCli, BuildTakesTimesFromTumFolders) {
 /// Runs `argv` (argv[0] the program name) `rounds` times, each on a fresh copy of `old_copy` at
 /// `map`, killed (SIGKILL) after a random delay below `max_delay_us`; after each kill the map must
 /// be byte for byte `old_bytes` or `new_bytes` and readable. Counts both outcomes.
+/// With `interrupted` (appending commands), the map may also be the old bytes followed by part of
+/// the new record, which must read as the old map; those outcomes are counted there.
 void killAtRandom(const std::vector<std::string>& argv, const fs::path& old_copy, const fs::path& map,
                   const std::vector<uint8_t>& old_bytes, const std::vector<uint8_t>& new_bytes, int rounds,
-                  int64_t max_delay_us, uint64_t seed, int& old_seen, int& new_seen) {
+                  int64_t max_delay_us, uint64_t seed, int& old_seen, int& new_seen, int* interrupted = nullptr) {
+  const TemporalMap old_map = io::readTemporalMap(old_copy);
   std::mt19937_64 rng(seed);
   std::vector<char*> args;
   for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
   old_seen = new_seen = 0;
+  if (interrupted) *interrupted = 0;
   for (int round = 0; round < rounds; ++round) {
     fs::copy_file(old_copy, map, fs::copy_options::overwrite_existing);
     const pid_t pid = fork();
@@ -311,17 +315,25 @@ void killAtRandom(const std::vector<std::string>& argv, const fs::path& old_copy
     const auto now = bytesOf(map);
     if (now == old_bytes) {
       ++old_seen;
-    } else {
-      ASSERT_EQ(now, new_bytes) << "round " << round << ": the map is neither the old nor the new one";
+    } else if (now == new_bytes) {
       ++new_seen;
+    } else {
+      ASSERT_TRUE(interrupted) << "round " << round << ": the map is neither the old nor the new one";
+      ASSERT_TRUE(now.size() > old_bytes.size() && now.size() < new_bytes.size() &&
+                  std::equal(now.begin(), now.end(), new_bytes.begin()) &&
+                  std::equal(old_bytes.begin(), old_bytes.end(), now.begin()))
+          << "round " << round << ": the map is not the old one with part of an append";
+      ASSERT_TRUE(io::readTemporalMap(map) == old_map) << "round " << round;
+      ++*interrupted;
     }
     EXPECT_NO_THROW(io::readTemporalMap(map));
   }
-  EXPECT_EQ(old_seen + new_seen, rounds);
+  EXPECT_EQ(old_seen + new_seen + (interrupted ? *interrupted : 0), rounds);
 }
 
-/// Kills `chronomap add` at random moments: the map on disk must always be the old one or the
-/// new one, byte for byte, and readable.
+/// Kills `chronomap add` at random moments, writing the map whole and appending: the map on disk
+/// must always be the old one or the new one, byte for byte, or (appending) the old one with an
+/// unfinished record after it, which reads as the old map and which the next add replaces.
 TEST(TemporalCli, KilledAddLeavesOldOrNewMap) {
   test::TempDir tmp;
   io::writeSessionMap(tmp / "big.cmap", test::randomSessionMap(99, 64, 0.2), {});
@@ -330,26 +342,130 @@ TEST(TemporalCli, KilledAddLeavesOldOrNewMap) {
   io::writeTemporalMap(tmp / "old.cmap", old_map, {});
   const auto old_bytes = bytesOf(tmp / "old.cmap");
   const fs::path map = tmp / "m.cmap";
-  fs::copy_file(tmp / "old.cmap", map);
-  const std::string add = cli() + " add " + map.string() + " " + (tmp / "big.cmap").string() + " --time 2000";
-  const auto start = std::chrono::steady_clock::now();
-  ASSERT_EQ(test::runCommand(add).exit_code, 0);
-  const auto full_us =
-      std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now() - start).count();
-  const auto new_bytes = bytesOf(map);
-  ASSERT_NE(new_bytes, old_bytes);
-
-  int old_seen = 0, new_seen = 0;
-  const int rounds = 40;
-  killAtRandom({"chronomap", "add", map.string(), (tmp / "big.cmap").string(), "--time", "2000"}, tmp / "old.cmap",
-               map, old_bytes, new_bytes, rounds, 2 * full_us, 5, old_seen, new_seen);
-  std::cout << "killed add: " << old_seen << " old, " << new_seen << " new of " << rounds << " (full run " << full_us
-            << " us)\n";
-  // Temporaries of killed writers are removed by the next write.
-  ASSERT_EQ(test::runCommand(add + " --replace").exit_code, 0);
-  for (const auto& e : fs::directory_iterator(tmp.path())) {
-    EXPECT_EQ(e.path().filename().string().find(".m.cmap.tmp-"), std::string::npos) << e.path();
+  for (const std::string write : {"rewrite", "append"}) {
+    fs::copy_file(tmp / "old.cmap", map, fs::copy_options::overwrite_existing);
+    const std::vector<std::string> argv = {"chronomap", "add",    map.string(), (tmp / "big.cmap").string(),
+                                           "--time",    "2000",   "--write",    write};
+    std::string add = cli();
+    for (size_t i = 1; i < argv.size(); ++i) add += " " + argv[i];
+    const auto start = std::chrono::steady_clock::now();
+    ASSERT_EQ(test::runCommand(add).exit_code, 0);
+    const auto full_us =
+        std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now() - start).count();
+    const auto new_bytes = bytesOf(map);
+    ASSERT_NE(new_bytes, old_bytes);
+    if (write == "append") {
+      ASSERT_TRUE(std::equal(old_bytes.begin(), old_bytes.end(), new_bytes.begin())) << "append rewrote bytes";
+    }
+    int old_seen = 0, new_seen = 0, interrupted = 0;
+    const int rounds = 30;
+    killAtRandom(argv, tmp / "old.cmap", map, old_bytes, new_bytes, rounds, 2 * full_us, 5, old_seen, new_seen,
+                 write == "append" ? &interrupted : nullptr);
+    std::cout << "killed add --write " << write << ": " << old_seen << " old, " << new_seen << " new, " << interrupted
+              << " interrupted appends of " << rounds << " (full run " << full_us << " us)\n";
+    if (write == "append") {
+      // Kills at random moments rarely land inside the write itself: also kill as soon as the
+      // file starts to grow.
+      std::vector<char*> args;
+      for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+      args.push_back(nullptr);
+      const TemporalMap before = io::readTemporalMap(tmp / "old.cmap");
+      int cut = 0;
+      for (int round = 0; round < 10; ++round) {
+        fs::copy_file(tmp / "old.cmap", map, fs::copy_options::overwrite_existing);
+        const pid_t pid = fork();
+        ASSERT_GE(pid, 0);
+        if (pid == 0) {
+          const int null_fd = open("/dev/null", O_WRONLY);
+          dup2(null_fd, 1);
+          dup2(null_fd, 2);
+          execv(CHRONOMAP_CLI_PATH, args.data());
+          _exit(127);
+        }
+        int status = 0;
+        while (fs::file_size(map) == old_bytes.size() && waitpid(pid, &status, WNOHANG) == 0) {
+        }
+        kill(pid, SIGKILL);
+        waitpid(pid, &status, 0);
+        const auto now = bytesOf(map);
+        ASSERT_TRUE(std::equal(now.begin(), now.end(), new_bytes.begin()) && now.size() >= old_bytes.size());
+        if (now.size() < new_bytes.size()) {
+          ++cut;
+          ASSERT_TRUE(io::readTemporalMap(map) == before) << "an interrupted append does not read as the old map";
+        }
+      }
+      std::cout << "killed add --write append while writing: " << cut << " of 10 left part of the record\n";
+    }
+    // The next add finishes the job: temporaries of killed writers are removed and an unfinished
+    // record (here half of one) is replaced.
+    std::vector<uint8_t> left = old_bytes;
+    if (write == "append") {
+      left.insert(left.end(), new_bytes.begin() + std::ssize(old_bytes),
+                  new_bytes.begin() + std::ssize(old_bytes) + std::ssize(new_bytes) / 2 - std::ssize(old_bytes) / 2);
+    }
+    {
+      std::ofstream out(map, std::ios::binary | std::ios::trunc);
+      out.write(reinterpret_cast<const char*>(left.data()), std::ssize(left));
+    }
+    ASSERT_EQ(test::runCommand(add).exit_code, 0);
+    EXPECT_EQ(bytesOf(map), new_bytes);
+    for (const auto& e : fs::directory_iterator(tmp.path())) {
+      EXPECT_EQ(e.path().filename().string().find(".m.cmap.tmp-"), std::string::npos) << e.path();
+    }
   }
+}
+
+/// `chronomap add` appends: the bytes already in the file stay as they are, `stats` counts the
+/// appended sessions, `--write rewrite` folds them in, and the map reads the same either way.
+TEST(TemporalCli, AddAppendsWithoutRewriting) {
+  test::TempDir tmp;
+  for (int i = 0; i < 4; ++i) {
+    io::writeSessionMap(tmp / ("s" + std::to_string(i) + ".cmap"), test::randomSessionMap(40 + i, 32, 0.2), {});
+  }
+  const fs::path map = tmp / "m.cmap";
+  auto add = [&](int i, const std::string& time, const std::string& extra) {
+    const auto r = test::runCommand(cli() + " add " + map.string() + " " + (tmp / ("s" + std::to_string(i) + ".cmap")).string() +
+                                    " --time " + time + " --json " + extra);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return nlohmann::json::parse(r.out);
+  };
+  EXPECT_FALSE(add(0, "1000", "")["appended"].get<bool>());  // created: written whole
+  auto before = bytesOf(map);
+  EXPECT_TRUE(add(1, "2000", "--write append")["appended"].get<bool>());
+  auto after = bytesOf(map);
+  ASSERT_GT(after.size(), before.size());
+  EXPECT_TRUE(std::equal(before.begin(), before.end(), after.begin()));
+  before = after;
+  EXPECT_TRUE(add(2, "500", "--write append")["appended"].get<bool>());  // out of time order
+  after = bytesOf(map);
+  EXPECT_TRUE(std::equal(before.begin(), before.end(), after.begin()));
+  auto stats = nlohmann::json::parse(test::runCommand(cli() + " stats --json " + map.string()).out);
+  EXPECT_EQ(stats["appended_sessions"], 2);
+  EXPECT_EQ(stats["sessions"], 3);
+  const TemporalMap appended = io::readTemporalMap(map);
+  // auto: the appended records now outweigh the base, so this add writes the map whole.
+  fs::copy_file(map, tmp / "copy.cmap");
+  EXPECT_FALSE(add(3, "3000", "")["appended"].get<bool>());
+  stats = nlohmann::json::parse(test::runCommand(cli() + " stats --json " + map.string()).out);
+  EXPECT_EQ(stats["appended_sessions"], 0);
+  EXPECT_EQ(stats["sessions"], 4);
+  // The same four sessions added to the copy by appending give the same map.
+  const auto r = test::runCommand(cli() + " add " + (tmp / "copy.cmap").string() + " " + (tmp / "s3.cmap").string() +
+                                  " --time 3000 --write append");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  TemporalMap a = io::readTemporalMap(map), b = io::readTemporalMap(tmp / "copy.cmap");
+  a.compact();
+  b.compact();
+  EXPECT_TRUE(a == b);
+  EXPECT_EQ(appended.times(), (std::vector<double>{500, 1000, 2000}));
+  EXPECT_EQ(a.times(), (std::vector<double>{500, 1000, 2000, 3000}));
+  // A bad --write is a usage error and leaves the map alone.
+  const auto bytes = bytesOf(map);
+  EXPECT_EQ(test::runCommand(cli() + " add " + map.string() + " " + (tmp / "s3.cmap").string() +
+                             " --time 4000 --write sometimes")
+                .exit_code,
+            2);
+  EXPECT_EQ(bytesOf(map), bytes);
 }
 
 }  // namespace

@@ -1,6 +1,12 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <random>
+
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <nlohmann/json.hpp>
 
 #include "chronomap/core/error.h"
@@ -126,6 +132,168 @@ TEST(TemporalFile, CraftedBlocksAreRejected) {
   EXPECT_THROW(io::readTemporalMap(rewrite("COVR", [](auto& d) { std::fill(d.begin(), d.end(), uint8_t{0xff}); })), FormatError);
   EXPECT_THROW(io::readTemporalMap(rewrite("META", [](auto& d) { d = std::vector<uint8_t>{'{', '}'}; })), FormatError);
   EXPECT_THROW(io::readTemporalMap(rewrite("INNR", [](auto& d) { d[3] = 0x12; })), FormatError);
+}
+
+/// A base of two sessions, then three sessions appended as records (one out of time order, one
+/// replacing), as `chronomap add` appends them. `stages[k]` is the map after k records and
+/// `ends[k]` the file length then.
+struct AppendedFile {
+  std::vector<TemporalMap> stages;
+  std::vector<uint64_t> ends;
+};
+
+AppendedFile writeAppended(const fs::path& path) {
+  AppendedFile f;
+  io::writeTemporalMap(path, sampleMap(2), {});
+  f.stages.push_back(io::readTemporalMap(path));
+  f.ends.push_back(fs::file_size(path));
+  const struct {
+    double time_s;
+    uint64_t seed;
+    bool replace;
+  } adds[] = {{3000.0, 3, false}, {1500.0, 4, false}, {3000.0, 5, true}};
+  for (const auto& a : adds) {
+    const SessionMap session = test::randomSessionMap(a.seed);
+    const AddOptions options{a.replace, "seed " + std::to_string(a.seed)};
+    TemporalMap next = f.stages.back();
+    next.add(a.time_s, session, options);
+    io::appendToFile(path, f.ends.back(), io::encodeSessionRecord(a.time_s, session, options));
+    f.stages.push_back(std::move(next));
+    f.ends.push_back(fs::file_size(path));
+  }
+  return f;
+}
+
+TEST(TemporalFile, AppendedSessionsReadBackAsTheMapThatAddedThem) {
+  test::TempDir tmp;
+  const AppendedFile f = writeAppended(tmp / "m.cmap");
+  io::TemporalFileLayout layout;
+  const TemporalMap back = io::readTemporalMap(tmp / "m.cmap", &layout);
+  EXPECT_TRUE(back == f.stages.back());
+  EXPECT_EQ(back.times(), (std::vector<double>{1000.0, 1500.0, 2000.0, 3000.0}));
+  EXPECT_EQ(layout.appended_sessions, 3u);
+  EXPECT_EQ(layout.base_bytes, f.ends.front());
+  EXPECT_EQ(layout.completeBytes(), f.ends.back());
+  EXPECT_EQ(layout.incomplete_tail_bytes, 0u);
+  // The same map as building it in memory in one go, and writing it whole folds the records in.
+  TemporalMap direct = sampleMap(2);
+  direct.add(3000.0, test::randomSessionMap(3), {false, "seed 3"});
+  direct.add(1500.0, test::randomSessionMap(4), {false, "seed 4"});
+  direct.add(3000.0, test::randomSessionMap(5), {true, "seed 5"});
+  EXPECT_TRUE(back == direct);
+  io::writeTemporalMap(tmp / "whole.cmap", back, {});
+  io::TemporalFileLayout whole;
+  TemporalMap compacted = direct;
+  compacted.compact();  // as every whole write does
+  EXPECT_TRUE(io::readTemporalMap(tmp / "whole.cmap", &whole) == compacted);
+  EXPECT_EQ(whole.appended_sessions, 0u);
+}
+
+TEST(TemporalFile, AnInterruptedAppendLeavesThePreviousMap) {
+  // A kill during an append leaves the bytes before it and a prefix of the record: every such
+  // prefix reads as the map before that record, and the next append replaces it.
+  test::TempDir tmp;
+  const AppendedFile f = writeAppended(tmp / "m.cmap");
+  const auto good = bytesOf(tmp / "m.cmap");
+  std::mt19937_64 rng(7);
+  for (size_t k = 0; k + 1 < f.ends.size(); ++k) {
+    const uint64_t begin = f.ends[k], end = f.ends[k + 1];
+    std::vector<uint64_t> cuts = {begin + 1, begin + 35, begin + 36, begin + 37, end - 1};
+    for (int i = 0; i < 12; ++i) cuts.push_back(begin + 1 + rng() % (end - begin - 1));
+    for (uint64_t cut : cuts) {
+      writeBytes(tmp / "t.cmap", std::vector<uint8_t>(good.begin(), good.begin() + static_cast<long>(cut)));
+      io::TemporalFileLayout layout;
+      const TemporalMap back = io::readTemporalMap(tmp / "t.cmap", &layout);
+      ASSERT_TRUE(back == f.stages[k]) << "record " << k + 1 << " cut after " << cut - begin << " bytes";
+      EXPECT_EQ(layout.appended_sessions, k);
+      EXPECT_EQ(layout.incomplete_tail_bytes, cut - begin);
+      // Appending the record again cuts the interrupted one off first.
+      const std::vector<uint8_t> record(good.begin() + static_cast<long>(begin), good.begin() + static_cast<long>(end));
+      io::appendToFile(tmp / "t.cmap", layout.completeBytes(), record);
+      ASSERT_TRUE(io::readTemporalMap(tmp / "t.cmap") == f.stages[k + 1]);
+    }
+  }
+}
+
+TEST(TemporalFile, CorruptOrCraftedAppendedRecordsAreRejected) {
+  test::TempDir tmp;
+  const AppendedFile f = writeAppended(tmp / "m.cmap");
+  const auto good = bytesOf(tmp / "m.cmap");
+  // Every flipped byte of a complete record is caught: its header carries its own checksum.
+  for (uint64_t at = f.ends.front(); at < good.size(); at += 1 + (good.size() - f.ends.front()) / 61) {
+    auto bad = good;
+    bad[at] ^= 0x21;
+    writeBytes(tmp / "c.cmap", bad);
+    try {
+      io::readTemporalMap(tmp / "c.cmap");
+      FAIL() << "byte " << at << " flipped was accepted";
+    } catch (const FormatError& e) {
+      EXPECT_NE(std::string(e.what()).find("appended record"), std::string::npos) << e.what();
+    }
+  }
+  // Well-formed records whose content is wrong.
+  const std::vector<uint8_t> base(good.begin(), good.begin() + static_cast<long>(f.ends.front()));
+  auto withRecord = [&](const std::vector<uint8_t>& record) {
+    std::vector<uint8_t> bytes = base;
+    bytes.insert(bytes.end(), record.begin(), record.end());
+    writeBytes(tmp / "x.cmap", bytes);
+    return tmp / "x.cmap";
+  };
+  const SessionMap session = test::randomSessionMap(9);
+  auto expectRejected = [&](const std::vector<uint8_t>& record, const std::string& words) {
+    try {
+      io::readTemporalMap(withRecord(record));
+      FAIL() << "accepted; expected: " << words;
+    } catch (const FormatError& e) {
+      EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+    }
+  };
+  // A time the base already holds, without replace.
+  expectRejected(io::encodeSessionRecord(1000.0, session, {}), "cannot be added again");
+  expectRejected(io::encodeAppendRecord({"XTRA", {1, 2, 3}}), "unknown tag");
+  expectRejected(io::encodeAppendRecord({"ADDS", {1, 2, 3}}), "appended session 1");
+  expectRejected(io::encodeAppendRecord({"ADDS", io::encodeSessionMap(session, {{"time_s", 5.0}}, 0)}),
+                 "description is malformed");
+  expectRejected(io::encodeAppendRecord({"ADDS", io::encodeSessionMap(test::randomSessionMap(9, 16, 0.1, 0.1),
+                                                                      {{"time_s", 5.0}, {"replace", false}, {"name", ""}}, 0)}),
+                 "resolution");
+  // Session and diff files take no records at all.
+  io::writeSessionMap(tmp / "s.cmap", session, {});
+  auto s_bytes = bytesOf(tmp / "s.cmap");
+  const auto record = io::encodeSessionRecord(5.0, session, {});
+  s_bytes.insert(s_bytes.end(), record.begin(), record.end());
+  writeBytes(tmp / "s.cmap", s_bytes);
+  EXPECT_THROW(io::readSessionMap(tmp / "s.cmap"), FormatError);
+}
+
+TEST(TemporalFile, AFailedAppendLeavesTheFileAsItWas) {
+  test::TempDir tmp;
+  io::writeTemporalMap(tmp / "m.cmap", sampleMap(2), {});
+  const auto before = bytesOf(tmp / "m.cmap");
+  const auto record = io::encodeSessionRecord(3000.0, test::randomSessionMap(3, 32, 0.3), {});
+  // A file-size limit just above the current size makes the write fail part-way (as a full
+  // disk does), in a child process so that the limit stays there.
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    signal(SIGXFSZ, SIG_IGN);
+    const rlimit limit{static_cast<rlim_t>(before.size() + 100), static_cast<rlim_t>(before.size() + 100)};
+    setrlimit(RLIMIT_FSIZE, &limit);
+    try {
+      io::appendToFile(tmp / "m.cmap", before.size(), record);
+    } catch (const IoError& e) {
+      _exit(std::string(e.what()).find("the map is unchanged") != std::string::npos ? 3 : 4);
+    }
+    _exit(0);
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 3);
+  EXPECT_EQ(bytesOf(tmp / "m.cmap"), before);
+  // A file that is shorter than what was read is refused, not extended.
+  EXPECT_THROW(io::appendToFile(tmp / "m.cmap", before.size() + 1, record), IoError);
+  EXPECT_EQ(bytesOf(tmp / "m.cmap"), before);
 }
 
 }  // namespace

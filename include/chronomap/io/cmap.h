@@ -43,19 +43,28 @@ struct CmapBlock {
 struct CmapFile {
   CmapHeader header;
   std::vector<CmapBlock> blocks;
+  /// 4D maps only: the complete append records after the blocks, in file order.
+  std::vector<CmapBlock> appended;
   uint64_t file_bytes = 0;
+  uint64_t base_bytes = 0;             ///< header and blocks
+  uint64_t complete_bytes = 0;         ///< header, blocks and complete append records
+  uint64_t incomplete_tail_bytes = 0;  ///< an interrupted append's bytes after those (ignored)
   /// The block with this tag. @throw FormatError naming `source` when missing.
   const CmapBlock& block(const std::string& tag, const std::string& source) const;
 };
 
 /// Encodes header and blocks; blocks are zstd-compressed at `zstd_level` (0 stores them raw).
 std::vector<uint8_t> encodeCmap(const CmapHeader& header, const std::vector<CmapBlock>& blocks, int zstd_level = 3);
+/// One append record (docs/file-format.md): the block, its header guarded by its own CRC-32.
+std::vector<uint8_t> encodeAppendRecord(const CmapBlock& record, int zstd_level = 3);
 /// Decodes and checks a whole file image.
 /// @throw FormatError naming `source`: truncated, corrupt (checksum), wrong magic, newer version.
 CmapFile decodeCmap(const std::vector<uint8_t>& bytes, const std::string& source);
 /// Reads and decodes a .cmap file. @throw IoError, FormatError.
 CmapFile readCmap(const std::filesystem::path& path);
 
+/// The bytes of a session map file (see writeSessionMap).
+std::vector<uint8_t> encodeSessionMap(const SessionMap& map, const nlohmann::json& meta, int zstd_level = 3);
 /// Writes a session map with optional metadata (a JSON object) atomically.
 void writeSessionMap(const std::filesystem::path& path, const SessionMap& map, const nlohmann::json& meta);
 /// Reads a session map. @throw FormatError when the file is not a valid session map.

@@ -22,6 +22,28 @@ std::string readTextFile(const std::filesystem::path& path);
 /// @throw IoError naming the file (disk full, permission, missing folder).
 void writeFileAtomic(const std::filesystem::path& path, const std::vector<uint8_t>& bytes);
 
+/// Appends `bytes` to `path` after its first `keep_bytes` bytes (anything beyond them, such as
+/// an interrupted earlier append, is cut off first), then flushes the file to disk. On failure
+/// (disk full, a write limit) the file is cut back to `keep_bytes`, so it holds what it held.
+/// A kill during the call leaves the first `keep_bytes` bytes followed by a prefix of `bytes`.
+/// @throw IoError naming the file.
+void appendToFile(const std::filesystem::path& path, uint64_t keep_bytes, const std::vector<uint8_t>& bytes);
+
+/// An exclusive advisory lock (flock) on an existing file, held until destruction, so that
+/// two processes updating one map run one after the other. The lock follows the name: when
+/// another process replaced the file (rename) while this one waited, the new file is locked.
+class FileLock {
+ public:
+  /// Blocks until the lock is held. @throw IoError when the file cannot be opened.
+  explicit FileLock(const std::filesystem::path& path);
+  ~FileLock();
+  FileLock(const FileLock&) = delete;
+  FileLock& operator=(const FileLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
 /// `path` without a trailing ".bz2", lower-cased extension of what remains (".pcd", ".ply", ...).
 std::string dataExtension(const std::filesystem::path& path);
 

@@ -15,9 +15,28 @@ namespace chronomap::io {
 /// Writes a 4D map atomically (temporary file, then rename): a crash leaves the previous
 /// file as it was. Compacts a copy of the map first; `meta` (a JSON object) is stored as is.
 void writeTemporalMap(const std::filesystem::path& path, const TemporalMap& map, const nlohmann::json& meta);
-/// Reads a 4D map. @throw IoError, FormatError naming the file.
-TemporalMap readTemporalMap(const std::filesystem::path& path);
-/// The 4D map stored in a decoded file. @throw FormatError naming `source`.
+/// How a 4D map file is laid out: a base written in one piece (writeTemporalMap), then the
+/// sessions that `chronomap add` appended as records since (docs/file-format.md).
+struct TemporalFileLayout {
+  uint64_t file_bytes = 0;
+  uint64_t base_bytes = 0;
+  uint64_t appended_bytes = 0;  ///< complete append records
+  size_t appended_sessions = 0;
+  uint64_t incomplete_tail_bytes = 0;  ///< an interrupted append after those: not part of the map
+  /// Where the next record goes: after the base and the complete records.
+  uint64_t completeBytes() const { return base_bytes + appended_bytes; }
+};
+TemporalFileLayout layoutOf(const CmapFile& file);
+
+/// Reads a 4D map: the base, then each appended session added again in file order.
+/// @throw IoError, FormatError naming the file.
+TemporalMap readTemporalMap(const std::filesystem::path& path, TemporalFileLayout* layout = nullptr);
+/// The 4D map stored in a decoded file, appended sessions included. @throw FormatError naming `source`.
 TemporalMap temporalMapFrom(const CmapFile& file, const std::string& source);
+
+/// The append record (tag `ADDS`) of one session added to a 4D map: reading it back means
+/// TemporalMap::add(time_s, session, options) on the map stored before it, which gives the
+/// same map as the add that wrote it. Append it with appendToFile (io/file.h).
+std::vector<uint8_t> encodeSessionRecord(double time_s, const SessionMap& session, const AddOptions& options);
 
 }  // namespace chronomap::io
