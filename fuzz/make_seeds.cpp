@@ -8,6 +8,7 @@
 
 #include "chronomap/io/cloud_io.h"
 #include "chronomap/io/cmap.h"
+#include "chronomap/io/file.h"
 #include "chronomap/io/temporal_file.h"
 #include "chronomap/io/diff_file.h"
 #include "chronomap/io/png.h"
@@ -74,6 +75,11 @@ int main(int argc, char** argv) {
     four_d.add(1000.0, shifted);
     io::writeTemporalMap(root / "cmap/four_d.cmap", four_d, {{"seed", true}});
     io::writeDiffMap(root / "cmap/diff.cmap", diff(four_d, 1000.0, 2000.0), {{"seed", true}});
+    // The same 4D map with a third session appended as `chronomap add` appends it.
+    io::writeTemporalMap(root / "cmap/four_d_appended.cmap", four_d, {{"seed", true}});
+    const AddOptions options{false, "appended"};
+    io::appendToFile(root / "cmap/four_d_appended.cmap", std::filesystem::file_size(root / "cmap/four_d_appended.cmap"),
+                     io::encodeSessionRecord(3000.0, shifted, options));
   }
   return 0;
 }

@@ -281,6 +281,22 @@ TEST(TemporalCli, BuildTakesTimesFromTumFolders) {
   EXPECT_FALSE(fs::exists(tmp / "r.cmap"));
 }
 
+/// Starts the CLI with `argv` (argv[0] the program name), output discarded; returns its pid.
+pid_t spawnCli(const std::vector<std::string>& argv) {
+  std::vector<char*> args;
+  for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const int null_fd = open("/dev/null", O_WRONLY);
+    dup2(null_fd, 1);
+    dup2(null_fd, 2);
+    execv(CHRONOMAP_CLI_PATH, args.data());
+    _exit(127);
+  }
+  return pid;
+}
+
 /// Runs `argv` (argv[0] the program name) `rounds` times, each on a fresh copy of `old_copy` at
 /// `map`, killed (SIGKILL) after a random delay below `max_delay_us`; after each kill the map must
 /// be byte for byte `old_bytes` or `new_bytes` and readable. Counts both outcomes.
@@ -291,22 +307,12 @@ void killAtRandom(const std::vector<std::string>& argv, const fs::path& old_copy
                   int64_t max_delay_us, uint64_t seed, int& old_seen, int& new_seen, int* interrupted = nullptr) {
   const TemporalMap old_map = io::readTemporalMap(old_copy);
   std::mt19937_64 rng(seed);
-  std::vector<char*> args;
-  for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-  args.push_back(nullptr);
   old_seen = new_seen = 0;
   if (interrupted) *interrupted = 0;
   for (int round = 0; round < rounds; ++round) {
     fs::copy_file(old_copy, map, fs::copy_options::overwrite_existing);
-    const pid_t pid = fork();
+    const pid_t pid = spawnCli(argv);
     ASSERT_GE(pid, 0);
-    if (pid == 0) {
-      const int null_fd = open("/dev/null", O_WRONLY);
-      dup2(null_fd, 1);
-      dup2(null_fd, 2);
-      execv(CHRONOMAP_CLI_PATH, args.data());
-      _exit(127);
-    }
     std::this_thread::sleep_for(
         std::chrono::microseconds(static_cast<int64_t>(rng() % static_cast<uint64_t>(max_delay_us + 1))));
     kill(pid, SIGKILL);
@@ -366,22 +372,12 @@ TEST(TemporalCli, KilledAddLeavesOldOrNewMap) {
     if (write == "append") {
       // Kills at random moments rarely land inside the write itself: also kill as soon as the
       // file starts to grow.
-      std::vector<char*> args;
-      for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-      args.push_back(nullptr);
       const TemporalMap before = io::readTemporalMap(tmp / "old.cmap");
       int cut = 0;
       for (int round = 0; round < 10; ++round) {
         fs::copy_file(tmp / "old.cmap", map, fs::copy_options::overwrite_existing);
-        const pid_t pid = fork();
+        const pid_t pid = spawnCli(argv);
         ASSERT_GE(pid, 0);
-        if (pid == 0) {
-          const int null_fd = open("/dev/null", O_WRONLY);
-          dup2(null_fd, 1);
-          dup2(null_fd, 2);
-          execv(CHRONOMAP_CLI_PATH, args.data());
-          _exit(127);
-        }
         int status = 0;
         while (fs::file_size(map) == old_bytes.size() && waitpid(pid, &status, WNOHANG) == 0) {
         }
