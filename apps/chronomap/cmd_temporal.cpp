@@ -264,11 +264,13 @@ int runBuild(const BuildCmdOptions& o) {
   std::vector<std::optional<Eigen::Isometry3d>> corrections(pending.size());
   if (o.register_sessions) {
     std::vector<SessionMap> maps;
+    maps.reserve(pending.size());
     for (Pending& p : pending) maps.push_back(std::move(p.session.map));
+    if (!o.json) std::cerr << "registering " << maps.size() << " session(s), " << o.register_rounds << " round(s)\n";
+    // Sessions are integrated again in parallel: no progress bars (they would overwrite each other).
     const auto found = registerSessions(
-        maps,
-        [&](size_t k, const Eigen::Isometry3d& c) {
-          return integrateDataset(o.datasets[pending[k].index], o.integrate, "registering", c).map;
+        maps, [&](size_t k, const Eigen::Isometry3d& c) {
+          return integrateDataset(o.datasets[pending[k].index], o.integrate, "", c).map;
         },
         o.register_rounds);
     for (size_t i = 0; i < pending.size(); ++i) {
@@ -280,6 +282,7 @@ int runBuild(const BuildCmdOptions& o) {
   std::vector<std::optional<size_t>> moved(pending.size());
   if (o.realign.enabled) {
     std::vector<const SessionMap*> all;
+    all.reserve(pending.size());
     for (const Pending& p : pending) all.push_back(&p.session.map);
     const SessionMap avg = consensus(std::span<const SessionMap* const>(all));
     for (size_t i = 0; i < pending.size(); ++i) {

@@ -7,7 +7,7 @@
 namespace chronomap::cli {
 
 ProgressBar::ProgressBar(std::string label, size_t total)
-    : label_(std::move(label)), total_(total), enabled_(::isatty(STDERR_FILENO) == 1),
+    : label_(std::move(label)), total_(total), enabled_(!label_.empty() && ::isatty(STDERR_FILENO) == 1),
       start_(std::chrono::steady_clock::now()), last_() {}
 
 ProgressBar::~ProgressBar() { finish(); }

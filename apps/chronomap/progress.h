@@ -13,7 +13,8 @@ class ProgressBar {
   ~ProgressBar();
   ProgressBar(const ProgressBar&) = delete;
   ProgressBar& operator=(const ProgressBar&) = delete;
-  /// Redraws with `done` of `total` units finished (at most ten times a second).
+  /// Redraws with `done` of `total` units finished (at most ten times a second). A bar without
+  /// a label never draws (work running in parallel, where bars would overwrite each other).
   void update(size_t done);
   /// Clears the bar.
   void finish();

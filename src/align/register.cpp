@@ -1,11 +1,13 @@
 #include "chronomap/align/register.h"
 
+#include <algorithm>
 #include <cmath>
 #include <optional>
 #include <unordered_map>
 #include <vector>
 
 #include <Eigen/Cholesky>
+#include <tbb/parallel_for.h>
 
 #include "chronomap/align/consensus.h"
 #include "chronomap/core/error.h"
@@ -109,14 +111,26 @@ std::optional<Eigen::Vector3d> centroidNear(const HitMap& surface, const KeyGrid
 
 }  // namespace
 
+RegistrationTarget::RegistrationTarget(const SessionMap& consensus)
+    : grid_(consensus.grid()), surface_(surfaceOf(consensus)) {}
+
 Eigen::Isometry3d registerToConsensus(const SessionMap& session, const SessionMap& consensus,
                                       const RegisterSettings& settings, RegisterReport* report) {
   settings.validate();
   if (session.resolution_m() != consensus.resolution_m()) {
     throw UsageError("registration: the session and the consensus have different resolutions");
   }
+  return registerToConsensus(session, RegistrationTarget(consensus), settings, report);
+}
+
+Eigen::Isometry3d registerToConsensus(const SessionMap& session, const RegistrationTarget& target,
+                                      const RegisterSettings& settings, RegisterReport* report) {
+  settings.validate();
+  if (session.resolution_m() != target.resolution_m()) {
+    throw UsageError("registration: the session and the consensus have different resolutions");
+  }
   const KeyGrid& grid = session.grid();
-  const HitMap surface = surfaceOf(consensus);
+  const HitMap& surface = target.surface();
   // The session's surface and its occupied voxel centres, evenly thinned.
   std::vector<Eigen::Vector3d> points;
   const HitMap own = surfaceOf(session, &points);
@@ -173,11 +187,15 @@ std::vector<Eigen::Isometry3d> registerSessions(std::vector<SessionMap>& session
   std::vector<Eigen::Isometry3d> corrections(sessions.size(), Eigen::Isometry3d::Identity());
   if (reports) reports->assign(sessions.size(), {});
   for (int round = 0; round < rounds; ++round) {
-    const SessionMap target = consensus(std::span<const SessionMap>(sessions));
-    for (size_t k = 0; k < sessions.size(); ++k) {
-      RegisterReport r;
-      corrections[k] = registerToConsensus(sessions[k], target, settings, &r) * corrections[k];
-      if (reports) {
+    const RegistrationTarget target(consensus(std::span<const SessionMap>(sessions)));
+    std::vector<RegisterReport> found(sessions.size());
+    // Each session against the same target: independent, so in parallel (each writes its own slot).
+    tbb::parallel_for(size_t{0}, sessions.size(), [&](size_t k) {
+      corrections[k] = registerToConsensus(sessions[k], target, settings, &found[k]) * corrections[k];
+    });
+    if (reports) {
+      for (size_t k = 0; k < sessions.size(); ++k) {
+        const RegisterReport& r = found[k];
         if (round == 0) (*reports)[k].mean_shift_before_m = r.mean_shift_before_m;
         (*reports)[k].iterations += r.iterations;
         (*reports)[k].points = r.points;
@@ -185,7 +203,7 @@ std::vector<Eigen::Isometry3d> registerSessions(std::vector<SessionMap>& session
         (*reports)[k].mean_shift_after_m = r.mean_shift_after_m;
       }
     }
-    for (size_t k = 0; k < sessions.size(); ++k) sessions[k] = reintegrate(k, corrections[k]);
+    tbb::parallel_for(size_t{0}, sessions.size(), [&](size_t k) { sessions[k] = reintegrate(k, corrections[k]); });
   }
   return corrections;
 }

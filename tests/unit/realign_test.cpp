@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <map>
 #include <optional>
@@ -542,7 +543,7 @@ TEST(RegisterSessions, BringsTheOddSessionToTheOthersAndReintegratesIt) {
                                                 Eigen::Isometry3d::Identity(), shift};
   std::vector<SessionMap> sessions;
   for (const auto& p : poses) sessions.push_back(room(p));
-  size_t calls = 0;
+  std::atomic<size_t> calls = 0;  // sessions are integrated again in parallel
   std::vector<RegisterReport> reports;
   const auto corrections = registerSessions(
       sessions,

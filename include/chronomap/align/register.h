@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <functional>
+#include <unordered_map>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -39,6 +40,20 @@ struct RegisterReport {
   double mean_shift_after_m = 0.0;   ///< the same after the last
 };
 
+/// The occupied surface of a consensus map, prepared once for many registrations against it.
+class RegistrationTarget {
+ public:
+  explicit RegistrationTarget(const SessionMap& consensus);
+  double resolution_m() const { return grid_.resolution_m(); }
+  const KeyGrid& grid() const { return grid_; }
+  /// Hits of the occupied unit voxels, by Morton code.
+  const std::unordered_map<uint64_t, uint32_t>& surface() const { return surface_; }
+
+ private:
+  KeyGrid grid_;
+  std::unordered_map<uint64_t, uint32_t> surface_;
+};
+
 /// The rigid correction T (map frame) that moves the session's occupied voxels onto the
 /// consensus' surfaces: re-integrating the session with T · pose for every frame puts it where
 /// the other sessions saw the place. A mean-shift registration: every iteration pulls each
@@ -49,14 +64,19 @@ struct RegisterReport {
 /// @throw UsageError for different resolutions or bad settings.
 Eigen::Isometry3d registerToConsensus(const SessionMap& session, const SessionMap& consensus,
                                       const RegisterSettings& settings = {}, RegisterReport* report = nullptr);
+/// The same against a prepared target (for many sessions against one consensus).
+Eigen::Isometry3d registerToConsensus(const SessionMap& session, const RegistrationTarget& target,
+                                      const RegisterSettings& settings = {}, RegisterReport* report = nullptr);
 
 /// Integrates session `index` again with every pose corrected by `correction` (map frame).
+/// Called from several threads at once, for different sessions.
 using Reintegrate = std::function<SessionMap(size_t index, const Eigen::Isometry3d& correction)>;
 
 /// Registers every session to the consensus of all of them, `rounds` times (each round against
 /// the consensus of the sessions as the previous round left them), integrating each session
 /// again with its correction after every round. `sessions` are replaced by the re-integrated
-/// ones. @return the correction of each session.
+/// ones. Sessions are registered and integrated in parallel; the result does not depend on the
+/// thread count. @return the correction of each session.
 /// @throw UsageError for no sessions, rounds outside [1, 10] or bad settings.
 std::vector<Eigen::Isometry3d> registerSessions(std::vector<SessionMap>& sessions, const Reintegrate& reintegrate,
                                                 int rounds = 3, const RegisterSettings& settings = {},
