@@ -16,9 +16,7 @@ int fail(int code, const std::string& message) {
   return code;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   using namespace chronomap;
   CLI::App app{
       "chronomap: four-dimensional maps from RGB-D recordings of one place.\n"
@@ -56,5 +54,18 @@ int main(int argc, char** argv) {
     return fail(1, "out of memory");
   } catch (const std::exception& e) {
     return fail(1, std::string("internal error: ") + e.what());
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  // Building the command line itself may fail (memory); even then the answer is one message.
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    return fail(1, std::string("internal error: ") + e.what());
+  } catch (...) {
+    return fail(1, "internal error");
   }
 }

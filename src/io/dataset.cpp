@@ -232,6 +232,7 @@ std::vector<fs::path> sortedFrames(const fs::path& dir) {
   }
   std::sort(found.begin(), found.end());
   std::vector<fs::path> out;
+  out.reserve(found.size());
   for (auto& [n, p] : found) out.push_back(p);
   return out;
 }
@@ -262,7 +263,7 @@ Eigen::Matrix4d parseMatrix4(const std::string& text, const std::string& name) {
   if (v.size() != 16) throw FormatError(name + ": expected a 4x4 matrix, found " + std::to_string(v.size()) + " numbers");
   Eigen::Matrix4d m;
   for (int r = 0; r < 4; ++r) {
-    for (int c = 0; c < 4; ++c) m(r, c) = v[static_cast<size_t>(r * 4 + c)];
+    for (int c = 0; c < 4; ++c) m(r, c) = v[static_cast<size_t>(r) * 4 + static_cast<size_t>(c)];
   }
   return m;
 }
@@ -426,7 +427,7 @@ std::vector<CloudListEntry> parseCloudList(const std::string& text, const std::s
     const std::string ctx = name + ":" + std::to_string(number);
     if (tok.size() != 8) throw FormatError(ctx + ": expected 'cloud_file tx ty tz qx qy qz qw'");
     double v[7];
-    for (int i = 0; i < 7; ++i) v[i] = parseDouble(tok[static_cast<size_t>(i + 1)], ctx);
+    for (int i = 0; i < 7; ++i) v[i] = parseDouble(tok[static_cast<size_t>(i) + 1], ctx);
     out.push_back({tok[0], poseFromTranslationQuaternion({v[0], v[1], v[2]}, v[3], v[4], v[5], v[6], ctx), ctx});
   }
   return out;

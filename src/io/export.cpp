@@ -110,7 +110,7 @@ ImageRgb renderTopView(const SessionMap& map, const TopViewSettings& settings) {
                 static_cast<uint8_t>(color[i].b * shade)};
       }
       for (int py = 0; py < ppv; ++py) {
-        const size_t row = static_cast<size_t>((ny - 1 - y) * ppv + py);  // y up
+        const size_t row = static_cast<size_t>(ny - 1 - y) * static_cast<size_t>(ppv) + static_cast<size_t>(py);  // y up
         for (int px = 0; px < ppv; ++px) img.pixels[row * img.width + static_cast<size_t>(x * ppv + px)] = c;
       }
     }

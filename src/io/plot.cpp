@@ -163,12 +163,17 @@ ImageRgb renderLinePlot(const std::vector<PlotSeries>& series, const PlotSetting
   auto px = [&](double x) { return left + static_cast<int>(std::lround(x / x_max * (right - left))); };
   auto py = [&](double y) { return bottom - static_cast<int>(std::lround(y / y_max * (bottom - top))); };
 
-  for (double t = 0.0; t <= x_max + 1e-9 * x_max; t += x_step) {
+  // Ticks counted in integers (a floating-point loop counter can gain or lose the last tick).
+  const int x_ticks = static_cast<int>(std::floor(x_max / x_step + 1e-9));
+  const int y_ticks = static_cast<int>(std::floor(y_max / y_step + 1e-9));
+  for (int i = 0; i <= x_ticks; ++i) {
+    const double t = i * x_step;
     drawLine(img, px(t), top, px(t), bottom, grid);
     const std::string label = tickLabel(t);
     drawText(img, px(t) - textWidth(label) / 2, bottom + 6, label, ink);
   }
-  for (double t = 0.0; t <= y_max + 1e-9 * y_max; t += y_step) {
+  for (int i = 0; i <= y_ticks; ++i) {
+    const double t = i * y_step;
     drawLine(img, left, py(t), right, py(t), grid);
     const std::string label = tickLabel(t);
     drawText(img, left - 6 - textWidth(label), py(t) - 3, label, ink);

@@ -133,7 +133,8 @@ void SessionMap::mergeInto(uint32_t parent, int slot, int level, const SessionMa
 void SessionMap::merge(const SessionMap& other) {
   if (other.resolution_m() != resolution_m()) throw UsageError("merge: the maps have different resolutions");
   if (&other == this) {
-    const SessionMap copy = other;
+    // Merging a map into itself reads what it writes: merge a snapshot of it instead.
+    const SessionMap copy = other;  // NOLINT(performance-unnecessary-copy-initialization)
     merge(copy);
     return;
   }
