@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Builds and runs every test: a release build with warnings as errors, then the same suite under
-# AddressSanitizer + UndefinedBehaviorSanitizer. Set CHRONOMAP_SKIP_SANITIZERS=1 to skip the second.
+# AddressSanitizer + UndefinedBehaviorSanitizer, then the multi-threaded tests (integration,
+# registration, the simulator) under ThreadSanitizer. Set CHRONOMAP_SKIP_SANITIZERS=1 to skip
+# the sanitizer runs.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
@@ -12,4 +14,8 @@ if [ "${CHRONOMAP_SKIP_SANITIZERS:-0}" != 1 ]; then
   cmake --preset asan >/dev/null
   cmake --build --preset asan -j"$jobs"
   ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 ctest --preset asan -j"$jobs"
+  cmake --preset tsan >/dev/null
+  cmake --build --preset tsan -j"$jobs" --target chronomap_unit_tests chronomap_io_tests
+  TSAN_OPTIONS="halt_on_error=1 suppressions=$PWD/tests/tsan.supp" \
+    ctest --preset tsan -j"$jobs" -R '^(Integrator|RegisterSessions|Simulator)\.'
 fi

@@ -7,10 +7,10 @@
 #include <vector>
 
 #include <Eigen/Cholesky>
-#include <tbb/parallel_for.h>
 
 #include "chronomap/align/consensus.h"
 #include "chronomap/core/error.h"
+#include "chronomap/core/parallel.h"
 
 namespace chronomap {
 
@@ -190,7 +190,7 @@ std::vector<Eigen::Isometry3d> registerSessions(std::vector<SessionMap>& session
     const RegistrationTarget target(consensus(std::span<const SessionMap>(sessions)));
     std::vector<RegisterReport> found(sessions.size());
     // Each session against the same target: independent, so in parallel (each writes its own slot).
-    tbb::parallel_for(size_t{0}, sessions.size(), [&](size_t k) {
+    parallelFor(sessions.size(), 0, [&](size_t k) {
       corrections[k] = registerToConsensus(sessions[k], target, settings, &found[k]) * corrections[k];
     });
     if (reports) {
@@ -203,7 +203,7 @@ std::vector<Eigen::Isometry3d> registerSessions(std::vector<SessionMap>& session
         (*reports)[k].mean_shift_after_m = r.mean_shift_after_m;
       }
     }
-    tbb::parallel_for(size_t{0}, sessions.size(), [&](size_t k) { sessions[k] = reintegrate(k, corrections[k]); });
+    parallelFor(sessions.size(), 0, [&](size_t k) { sessions[k] = reintegrate(k, corrections[k]); });
   }
   return corrections;
 }

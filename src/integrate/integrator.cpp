@@ -14,6 +14,7 @@
 #include <tbb/task_arena.h>
 
 #include "chronomap/core/error.h"
+#include "chronomap/core/happens_before.h"
 #include "chronomap/integrate/ray.h"
 
 namespace chronomap {
@@ -49,7 +50,14 @@ inline void transformPoint(const float* R, const float* of, const Eigen::Vector3
 /// invalid or out of range). Written without branches so that it vectorises; where the CPU has
 /// AVX2 that clone is chosen at load time. Returns the number of points kept; `out_of_range`
 /// counts finite points beyond the range.
-__attribute__((target_clones("avx2", "default"))) uint64_t cubeCells(
+// (ThreadSanitizer builds take the portable code only: the clones' resolver runs while the
+// program is loaded, before the sanitizer's runtime can handle its instrumentation.)
+#if defined(__SANITIZE_THREAD__)
+#define CHRONOMAP_AVX2_CLONES
+#else
+#define CHRONOMAP_AVX2_CLONES __attribute__((target_clones("avx2", "default")))
+#endif
+CHRONOMAP_AVX2_CLONES uint64_t cubeCells(
     const float* __restrict xyz, size_t n, const float* __restrict R, const float* __restrict of, float max_r2,
     int32_t sy, int32_t sz, int32_t* __restrict idx, uint64_t* out_of_range) {
   const float r00 = R[0], r01 = R[1], r02 = R[2], r10 = R[3], r11 = R[4], r12 = R[5], r20 = R[6], r21 = R[7],
@@ -589,48 +597,67 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
     // Frames are loaded and cast in parallel; merging stays serial and in frame order, so the
     // map is the same for every thread count.
     tbb::enumerable_thread_specific<RayAccumulator> accumulators(map.grid(), settings);
-    // Delta buffers are recycled: at most 2 * threads frames are in flight.
-    std::mutex pool_mutex;
-    std::vector<std::shared_ptr<VoxelDeltas>> pool;
-    auto take = [&] {
-      std::lock_guard<std::mutex> lock(pool_mutex);
-      if (pool.empty()) return std::make_shared<VoxelDeltas>();
-      auto d = std::move(pool.back());
-      pool.pop_back();
-      return d;
-    };
+    // At most `tokens` frames are in flight, each in its own buffer; the stages pass buffer
+    // numbers, and a merged buffer goes back to the free list.
+    const size_t tokens = static_cast<size_t>(threads) * 2;
+    std::vector<VoxelDeltas> buffers(tokens);
+    std::vector<size_t> free_buffers(tokens);
+    for (size_t b = 0; b < tokens; ++b) free_buffers[b] = b;
+    std::mutex free_mutex;
     tbb::task_arena arena(threads);
+    // Hand-overs between the stages' threads, for ThreadSanitizer (core/happens_before.h). The
+    // marks are static objects: a stage must not read its captures before its mark.
+    static char setup_done, source_turn, handed_over, merge_turn;
     arena.execute([&] {
       size_t next = 0;
-      tbb::parallel_pipeline(
-          static_cast<size_t>(threads) * 2,
+      auto stages =
           tbb::make_filter<void, size_t>(tbb::filter_mode::serial_in_order,
                                          [&](tbb::flow_control& fc) -> size_t {
-                                           if (next >= n) {
+                                           CHRONOMAP_HAPPENS_AFTER(&setup_done);
+                                           CHRONOMAP_HAPPENS_AFTER(&source_turn);  // one call after another
+                                           const size_t i = next < n ? next++ : n;
+                                           CHRONOMAP_HAPPENS_BEFORE(&source_turn);
+                                           if (i >= n) {
                                              fc.stop();
                                              return 0;
                                            }
-                                           return next++;
+                                           return i;
                                          }) &
-              tbb::make_filter<size_t, std::shared_ptr<VoxelDeltas>>(
-                  tbb::filter_mode::parallel,
-                  [&](size_t i) {
-                    auto deltas = take();
-                    if (const Frame* f = source.resident(i)) {
-                      accumulators.local().accumulate(*f, *deltas);
-                    } else {
-                      accumulators.local().accumulate(source.load(i), *deltas);
-                    }
-                    return deltas;
-                  }) &
-              tbb::make_filter<std::shared_ptr<VoxelDeltas>, void>(
-                  tbb::filter_mode::serial_in_order, [&](const std::shared_ptr<VoxelDeltas>& deltas) {
-                    map.addMany(deltas->keys, deltas->deltas);
-                    total += deltas->stats;
-                    if (progress) progress(static_cast<size_t>(total.frames), n);
-                    std::lock_guard<std::mutex> lock(pool_mutex);
-                    pool.push_back(deltas);
-                  }));
+          tbb::make_filter<size_t, size_t>(
+              tbb::filter_mode::parallel,
+              [&](size_t i) {
+                CHRONOMAP_HAPPENS_AFTER(&setup_done);
+                size_t b = 0;
+                {
+                  std::lock_guard<std::mutex> lock(free_mutex);
+                  b = free_buffers.back();
+                  free_buffers.pop_back();
+                }
+                if (const Frame* f = source.resident(i)) {
+                  accumulators.local().accumulate(*f, buffers[b]);
+                } else {
+                  accumulators.local().accumulate(source.load(i), buffers[b]);
+                }
+                CHRONOMAP_HAPPENS_BEFORE(&handed_over);  // to the merging stage
+                return b;
+              }) &
+          tbb::make_filter<size_t, void>(tbb::filter_mode::serial_in_order, [&](size_t b) {
+            CHRONOMAP_HAPPENS_AFTER(&setup_done);
+            CHRONOMAP_HAPPENS_AFTER(&handed_over);
+            CHRONOMAP_HAPPENS_AFTER(&merge_turn);  // one merge after another
+            map.addMany(buffers[b].keys, buffers[b].deltas);
+            total += buffers[b].stats;
+            if (progress) progress(static_cast<size_t>(total.frames), n);
+            {
+              std::lock_guard<std::mutex> lock(free_mutex);
+              free_buffers.push_back(b);
+            }
+            CHRONOMAP_HAPPENS_BEFORE(&merge_turn);
+          });
+      CHRONOMAP_HAPPENS_BEFORE(&setup_done);
+      tbb::parallel_pipeline(tokens, stages);
+      CHRONOMAP_HAPPENS_AFTER(&source_turn);
+      CHRONOMAP_HAPPENS_AFTER(&merge_turn);
     });
   }
   if (settings.compress_free) map.compressFree();

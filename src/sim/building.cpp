@@ -1,7 +1,6 @@
 #include "chronomap/sim/building.h"
 
 #include <tbb/global_control.h>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <chrono>
@@ -12,6 +11,7 @@
 #include <numbers>
 
 #include "chronomap/core/error.h"
+#include "chronomap/core/parallel.h"
 #include "chronomap/core/time.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/file.h"
@@ -910,7 +910,7 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
       std::snprintf(st, sizeof st, "%.6f", times[static_cast<size_t>(s)] + 0.5 * static_cast<double>(i));
       stamps[i] = st;
     }
-    tbb::parallel_for(size_t{0}, shots.size(), [&](size_t i) {
+    parallelFor(shots.size(), settings.threads, [&](size_t i) {
       const RenderedFrame f = renderer.render(camera, true_poses[i], sensor, hours[static_cast<size_t>(s)],
                                               mix(settings.seed, (static_cast<uint64_t>(s) << 20) + i));
       io::writePng(dir / "rgb" / (stamps[i] + ".png"), f.rgb);
