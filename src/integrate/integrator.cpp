@@ -606,7 +606,8 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
     std::mutex free_mutex;
     tbb::task_arena arena(threads);
     // Hand-overs between the stages' threads, for ThreadSanitizer (core/happens_before.h). The
-    // marks are static objects: a stage must not read its captures before its mark.
+    // marks are static objects: a stage must not read its captures before its mark, nor any
+    // of this thread's variables after its closing mark.
     static char setup_done, source_turn, handed_over, merge_turn;
     arena.execute([&] {
       size_t next = 0;
@@ -616,8 +617,9 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
                                            CHRONOMAP_HAPPENS_AFTER(&setup_done);
                                            CHRONOMAP_HAPPENS_AFTER(&source_turn);  // one call after another
                                            const size_t i = next < n ? next++ : n;
+                                           const bool done = i >= n;  // n is read before the mark
                                            CHRONOMAP_HAPPENS_BEFORE(&source_turn);
-                                           if (i >= n) {
+                                           if (done) {
                                              fc.stop();
                                              return 0;
                                            }
