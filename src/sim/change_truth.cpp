@@ -49,6 +49,7 @@ ChangeScore& ChangeScore::operator+=(const ChangeScore& o) {
   true_changed_voxels += o.true_changed_voxels;
   truth_voxels += o.truth_voxels;
   truth_voxels_found += o.truth_voxels_found;
+  missed_events.insert(missed_events.end(), o.missed_events.begin(), o.missed_events.end());
   return *this;
 }
 
@@ -108,7 +109,15 @@ ChangeScore scoreChanges(const DiffMap& diff, const Segmentation& segmentation, 
     if (best < 0) ++s.false_components;
   }
   for (size_t e = 0; e < events.size(); ++e) {
-    s.events_found += known[e].size() >= settings.min_observed_voxels && found[e];
+    if (known[e].size() < settings.min_observed_voxels) continue;
+    if (found[e]) {
+      ++s.events_found;
+    } else {
+      const TruthEvent& ev = events[e];
+      s.missed_events.push_back(ev.object_kind + " " + std::to_string(ev.object) + " " + ev.kind + " (session " +
+                                std::to_string(ev.from_session) + " -> " + std::to_string(ev.from_session + 1) + ", " +
+                                std::to_string(known[e].size()) + " voxels observed)");
+    }
   }
   return s;
 }

@@ -51,6 +51,9 @@ struct ChangeScore {
   uint64_t truth_voxels_found = 0;   ///< of those, voxels matched by a changed voxel
   /// For each component (in order), the index into `events` it overlaps most, or -1.
   std::vector<int> component_event;
+  /// The observable events no component overlaps, e.g. "chair 18 moved (session 0 -> 1, 312
+  /// voxels observed)".
+  std::vector<std::string> missed_events;
 
   double precision() const { return changed_voxels ? double(true_changed_voxels) / double(changed_voxels) : 1.0; }
   double recall() const { return truth_voxels ? double(truth_voxels_found) / double(truth_voxels) : 1.0; }

@@ -1,0 +1,129 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "chronomap/analysis/diff.h"
+#include "chronomap/analysis/segment.h"
+#include "chronomap/sim/change_truth.h"
+
+namespace chronomap::sim {
+namespace {
+
+constexpr uint16_t kBase = 32768 - 16;
+
+VoxelKey at(int x, int y, int z) {
+  return {static_cast<uint16_t>(kBase + x), static_cast<uint16_t>(kBase + y), static_cast<uint16_t>(kBase + z)};
+}
+
+VoxelCounters occupied() {
+  VoxelCounters c;
+  c.hits = 4;
+  c.length_m = 0.2f;  // P = 1 - exp(-20)
+  return c;
+}
+
+VoxelCounters freeVoxel() {
+  VoxelCounters c;
+  c.length_m = 0.5f;
+  return c;
+}
+
+// A 32^3 region observed free, with the given boxes (inclusive corners) occupied.
+struct Box {
+  int x0, y0, z0, x1, y1, z1;
+};
+
+SessionMap room(std::initializer_list<Box> boxes) {
+  SessionMap m;
+  for (int x = 0; x < 32; ++x) {
+    for (int y = 0; y < 32; ++y) {
+      for (int z = 0; z < 32; ++z) {
+        bool in = false;
+        for (const Box& b : boxes) in |= x >= b.x0 && x <= b.x1 && y >= b.y0 && y <= b.y1 && z >= b.z0 && z <= b.z1;
+        m.add(at(x, y, z), in ? occupied() : freeVoxel());
+      }
+    }
+  }
+  return m;
+}
+
+TruthEvent eventOf(const Box& b, uint32_t object, const char* kind) {
+  TruthEvent e;
+  e.object = object;
+  e.object_kind = "box";
+  e.kind = kind;
+  for (int x = b.x0; x <= b.x1; ++x) {
+    for (int y = b.y0; y <= b.y1; ++y) {
+      for (int z = b.z0; z <= b.z1; ++z) e.voxels.push_back(at(x, y, z));
+    }
+  }
+  return e;
+}
+
+ChangeScore score(const SessionMap& before, const SessionMap& after, const std::vector<TruthEvent>& events) {
+  const DiffMap d = diff(before, after);
+  return scoreChanges(d, segment(d), events, before, after);
+}
+
+TEST(ChangeTruth, AnAppearedBoxIsFoundAndAStrayVoxelIsFalse) {
+  const Box table{4, 4, 4, 7, 7, 7};   // 64 voxels
+  const Box stray{20, 20, 20, 22, 22, 22};  // 27 voxels, no event
+  const SessionMap before = room({});
+  const SessionMap after = room({table, stray});
+  const ChangeScore s = score(before, after, {eventOf(table, 3, "appeared")});
+  EXPECT_EQ(s.events, 1u);
+  EXPECT_EQ(s.events_observable, 1u);
+  EXPECT_EQ(s.events_found, 1u);
+  EXPECT_TRUE(s.missed_events.empty());
+  EXPECT_EQ(s.components, 2u);
+  EXPECT_EQ(s.false_components, 1u);
+  EXPECT_EQ(s.changed_voxels, 64u + 27u);
+  EXPECT_EQ(s.true_changed_voxels, 64u);
+  EXPECT_EQ(s.truth_voxels, 64u);
+  EXPECT_EQ(s.truth_voxels_found, 64u);
+  EXPECT_DOUBLE_EQ(s.precision(), 64.0 / 91.0);
+  EXPECT_DOUBLE_EQ(s.recall(), 1.0);
+}
+
+TEST(ChangeTruth, AnUnseenChangeIsMissedAndNamed) {
+  // The event's voxels are observed in both sessions but did not change in the maps (as when
+  // the diff filters it away): it is observable, not found, and named.
+  const Box chair{10, 10, 10, 12, 12, 12};
+  const SessionMap before = room({chair});
+  const SessionMap after = room({chair});
+  TruthEvent e = eventOf(chair, 17, "moved");
+  e.from_session = 2;
+  const ChangeScore s = score(before, after, {e});
+  EXPECT_EQ(s.events_observable, 1u);
+  EXPECT_EQ(s.events_found, 0u);
+  ASSERT_EQ(s.missed_events.size(), 1u);
+  EXPECT_EQ(s.missed_events[0], "box 17 moved (session 2 -> 3, 27 voxels observed)");
+  EXPECT_EQ(s.changed_voxels, 0u);
+  EXPECT_DOUBLE_EQ(s.precision(), 1.0);
+  EXPECT_DOUBLE_EQ(s.recall(), 0.0);
+}
+
+TEST(ChangeTruth, EventsOutsideTheObservedSpaceDoNotCount) {
+  // 19 voxels known (below the default minimum of 20), the rest outside the observed region.
+  TruthEvent e;
+  e.object_kind = "door";
+  e.kind = "door_opened";
+  for (int i = 0; i < 19; ++i) e.voxels.push_back(at(i, 0, 0));
+  for (int i = 0; i < 40; ++i) e.voxels.push_back(at(i, 40, 0));
+  const SessionMap m = room({});
+  ChangeScore s = score(m, m, {e});
+  EXPECT_EQ(s.events_observable, 0u);
+  EXPECT_TRUE(s.missed_events.empty());
+  EXPECT_EQ(s.truth_voxels, 19u);
+  // Sums add up, missed events included.
+  ChangeScore twice = s;
+  e.voxels.push_back(at(19, 0, 0));
+  twice += score(m, m, {e});
+  EXPECT_EQ(twice.events, 2u);
+  EXPECT_EQ(twice.events_observable, 1u);
+  EXPECT_EQ(twice.missed_events.size(), 1u);
+  EXPECT_EQ(twice.truth_voxels, 39u);
+}
+
+}  // namespace
+}  // namespace chronomap::sim
