@@ -32,6 +32,9 @@
 #include <unordered_set>
 #include <vector>
 
+#include "chronomap/align/consensus.h"
+#include "chronomap/align/realign.h"
+#include "chronomap/align/register.h"
 #include "chronomap/analysis/segment.h"
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/io/cloud_io.h"
@@ -161,9 +164,22 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
   const size_t pairs = s.estimated.size() - 1;
   std::printf("%zu sessions, %zu change events, integrated in %.1f s\n", s.estimated.size(), s.events.size(),
               seconds(start));
+  // Noise reduction (docs/realign.md): every session registered to the consensus of all (3
+  // rounds, re-integrated with its correction), then also re-aligned voxel by voxel.
+  const auto reg_start = std::chrono::steady_clock::now();
+  std::vector<SessionMap> registered = s.estimated;
+  registerSessions(registered, [&](size_t k, const Eigen::Isometry3d& c) {
+    return bench::integrateCorrected(s.dirs[k], c);
+  });
+  std::vector<SessionMap> realigned;
+  {
+    const SessionMap avg = consensus(std::span<const SessionMap>(registered));
+    for (const SessionMap& m : registered) realigned.push_back(realign(m, avg));
+  }
+  std::printf("registered (3 rounds) and re-aligned in %.1f s\n", seconds(reg_start));
 
   auto row = [&](const char* poses, const std::vector<SessionMap>& maps, const DiffSettings& ds,
-                 const SegmentSettings& ss) {
+                 const SegmentSettings& ss, bool verbose = false) {
     size_t bad_pairs = 0;
     const auto t = std::chrono::steady_clock::now();
     const sim::ChangeScore c = scorePairs(maps, s.events, ds, ss, &bad_pairs);
@@ -173,15 +189,23 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
                 c.events_observable,
                 c.events_observable ? double(c.events_found) / double(c.events_observable) : 1.0,
                 double(c.false_components) / double(pairs), bad_pairs, seconds(t));
+    if (verbose) {
+      for (const std::string& m : c.missed_events) std::printf("            missed: %s\n", m.c_str());
+    }
     return c;
   };
   std::printf("poses     mode       alpha nbhd  conn    min_v | voxel_prec voxel_rec | objects  recall | "
               "false/pair >1 false | seconds\n");
-  const sim::ChangeScore headline = row("estimated", s.estimated, defaultDiff(), defaultSegment());
-  row("true", s.truth_pose, defaultDiff(), defaultSegment());
+  const sim::ChangeScore headline = row("estimated", s.estimated, defaultDiff(), defaultSegment(), true);
+  row("true", s.truth_pose, defaultDiff(), defaultSegment(), true);
+  row("register", registered, defaultDiff(), defaultSegment(), true);
+  row("reg+align", realigned, defaultDiff(), defaultSegment(), true);
   if (sweep) {
-    for (const char* poses : {"estimated", "true"}) {
-      const auto& maps = std::strcmp(poses, "true") == 0 ? s.truth_pose : s.estimated;
+    for (const char* poses : {"estimated", "true", "register", "reg+align"}) {
+      const auto& maps = std::strcmp(poses, "true") == 0        ? s.truth_pose
+                         : std::strcmp(poses, "register") == 0  ? registered
+                         : std::strcmp(poses, "reg+align") == 0 ? realigned
+                                                                : s.estimated;
       for (DiffMode m : {DiffMode::Hard, DiffMode::Threshold, DiffMode::Band, DiffMode::Continuous}) {
         for (int nb : {0, 1, 2}) {
           DiffSettings ds;
