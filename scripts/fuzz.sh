@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets (clang, ASan + UBSan) and runs each for SECONDS (default 60).
+# Builds the libFuzzer targets (clang, ASan + UBSan) and runs each for SECONDS (default 60),
+# as many at once as there are cores.
 # Seeds: small files made by chronomap's own writers, plus small real files from the data folder.
 # A crash, or an input that takes more than 10 s (a hang), leaves its input as build/fuzz/artifacts/<target>/crash-*; turn it into a regression
 # test under tests/io before fixing it. Usage: scripts/fuzz.sh [SECONDS]
@@ -25,22 +26,32 @@ copy_seed "$data/3dmatch/3dmatch/seq-01/frame-000000.depth.png" png
 copy_seed "$data/pcl-kinect/grabber_sequences/pcd/frame_20121214T142255.814212.pcd" pcd
 summary=build/fuzz/summary.txt
 : >"$summary"
-status=0
-for target in cmap pcd ply xyz png text; do
-  corpus="build/fuzz/corpus/$target"
-  artifacts="build/fuzz/artifacts/$target"
+# One target per core at a time; each writes its own log and result line.
+fuzz_one() {
+  local target="$1" corpus="build/fuzz/corpus/$1" artifacts="build/fuzz/artifacts/$1" log="build/fuzz/$1.log" result runs
   mkdir -p "$corpus" "$artifacts"
-  log="build/fuzz/$target.log"
   if "$bin/fuzz_$target" "$corpus" "$seeds/$target" -max_total_time="$seconds" -max_len=65536 -rss_limit_mb=2048 -timeout=10 \
        -artifact_prefix="$artifacts/" -print_final_stats=1 >"$log" 2>&1; then
     result=ok
   else
     result=CRASH
-    status=1
   fi
   runs=$(grep -m1 -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' || echo 0)
-  printf '%-5s %-6s %10s executions in %ss\n' "$target" "$result" "$runs" "$seconds" | tee -a "$summary"
-  [ "$result" = ok ] || tail -30 "$log"
+  printf '%-5s %-6s %10s executions in %ss\n' "$target" "$result" "$runs" "$seconds" >"build/fuzz/$target.result"
+}
+jobs="$(nproc)"
+rm -f build/fuzz/*.result
+targets=(cmap pcd ply xyz png text)
+for target in "${targets[@]}"; do
+  while [ "$(jobs -rp | wc -l)" -ge "$jobs" ]; do wait -n || true; done
+  fuzz_one "$target" &
 done
+wait
+for target in "${targets[@]}"; do
+  cat "build/fuzz/$target.result" | tee -a "$summary"
+  grep -q ' ok ' "build/fuzz/$target.result" || tail -30 "build/fuzz/$target.log"
+done
+status=0
+grep -q ' CRASH ' "$summary" && status=1
 echo "fuzz: $(grep -c ' ok ' "$summary") passed, $(grep -c ' CRASH ' "$summary") failed"
 exit $status
