@@ -10,6 +10,7 @@
 #include <unistd.h>
 #include <vector>
 
+#include "chronomap/align/register.h"
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/io/dataset.h"
 #include "chronomap/sim/building.h"
@@ -29,14 +30,54 @@ struct SimSessions {
   std::vector<std::filesystem::path> dirs;  // the session folders, in order
 };
 
-// Integrates one session folder (estimated poses, fast mode, 0.05 m) with its poses corrected by T.
-inline SessionMap integrateCorrected(const std::filesystem::path& dir, const Eigen::Isometry3d& correction) {
+// Integrates one session folder (estimated poses, fast mode, 0.05 m) with its poses corrected.
+inline SessionMap integrateCorrected(const std::filesystem::path& dir, const PoseCorrection& correction) {
   IntegratorSettings is;
   is.fast = true;
   SessionMap m(0.05);
   const auto dataset = io::openDataset(dir);
   integrate(CorrectedFrames(*dataset, correction), m, is);
   return m;
+}
+
+// The sensor positions of one session folder (estimated poses).
+inline std::vector<Eigen::Vector3d> sensorPositions(const std::filesystem::path& dir) {
+  const auto dataset = io::openDataset(dir);
+  std::vector<Eigen::Vector3d> out;
+  for (size_t i = 0; i < dataset->size(); ++i) out.push_back(dataset->poseOf(i).translation());
+  return out;
+}
+
+// "world" or "per-pose" (a --register-model argument); false for anything else.
+inline bool parseCorrectionModel(const char* text, CorrectionModel& out) {
+  const std::string t = text;
+  if (t == "world") out = CorrectionModel::World;
+  else if (t == "per-pose") out = CorrectionModel::PerPose;
+  else return false;
+  return true;
+}
+
+inline const char* correctionModelName(CorrectionModel m) {
+  return m == CorrectionModel::World ? "world" : "per-pose";
+}
+
+// The estimated sessions registered to the consensus of all (3 rounds, re-integrated), with
+// corrections of the given model; the corrections go to `corrections` when given.
+inline std::vector<SessionMap> registerSimulation(const SimSessions& s, CorrectionModel model,
+                                                  std::vector<PoseCorrection>* corrections = nullptr,
+                                                  std::vector<RegisterReport>* reports = nullptr) {
+  std::vector<SessionMap> maps = s.estimated;
+  std::vector<std::vector<Eigen::Vector3d>> positions;
+  if (model == CorrectionModel::PerPose) {
+    for (const auto& dir : s.dirs) positions.push_back(sensorPositions(dir));
+  }
+  RegisterSettings settings;
+  settings.model = model;
+  auto found = registerSessions(
+      maps, [&](size_t k, const PoseCorrection& c) { return integrateCorrected(s.dirs[k], c); }, 3, settings, reports,
+      positions);
+  if (corrections) *corrections = std::move(found);
+  return maps;
 }
 
 // Integrates every session_NN folder of `dir` in fast mode at 0.05 m.

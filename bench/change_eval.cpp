@@ -10,11 +10,13 @@
 //    of frame 2's pixels flagged changed after frame 1; nvblox's test accepts 5-20 %), and the
 //    PCL grabber sequence of a static scene (the false change rate).
 //
-// Usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick]
+// Usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] [--register-model M]
 //   --office DIR   a `chronomap simulate --preset office` output (default: simulate one at half
 //                  resolution into a temporary folder)
 //   --floor66 DIR  also evaluate a floor66 simulation (not simulated by default: ~7 minutes)
 //   --quick        only the default settings, no sweep
+//   --register-model  world (default) or per-pose: the registration's correction model
+//                  (align/register.h) for the "register" and "reg+align" rows
 // The last line of output is one JSON object with the headline figures.
 
 #include <algorithm>
@@ -157,7 +159,7 @@ std::pair<double, double> benchTemporalDiff(const std::vector<SessionMap>& maps)
   return {first, last};
 }
 
-SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool sweep) {
+SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool sweep, CorrectionModel model) {
   std::printf("\n== %s (%s) ==\n", name.c_str(), dir.c_str());
   const auto start = std::chrono::steady_clock::now();
   const SimSessions s = loadSimulation(dir, true);
@@ -167,16 +169,14 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
   // Noise reduction (docs/realign.md): every session registered to the consensus of all (3
   // rounds, re-integrated with its correction), then also re-aligned voxel by voxel.
   const auto reg_start = std::chrono::steady_clock::now();
-  std::vector<SessionMap> registered = s.estimated;
-  registerSessions(registered, [&](size_t k, const Eigen::Isometry3d& c) {
-    return bench::integrateCorrected(s.dirs[k], c);
-  });
+  const std::vector<SessionMap> registered = bench::registerSimulation(s, model);
   std::vector<SessionMap> realigned;
   {
     const SessionMap avg = consensus(std::span<const SessionMap>(registered));
     for (const SessionMap& m : registered) realigned.push_back(realign(m, avg));
   }
-  std::printf("registered (3 rounds) and re-aligned in %.1f s\n", seconds(reg_start));
+  std::printf("registered (3 rounds, %s corrections) and re-aligned in %.1f s\n", bench::correctionModelName(model),
+              seconds(reg_start));
 
   auto row = [&](const char* poses, const std::vector<SessionMap>& maps, const DiffSettings& ds,
                  const SegmentSettings& ss, bool verbose = false) {
@@ -392,8 +392,11 @@ double evaluateGrabber(const fs::path& dir) {
 int main(int argc, char** argv) {
   fs::path office, floor66, data = CHRONOMAP_DEFAULT_DATA_DIR;
   bool quick = false;
+  CorrectionModel model = CorrectionModel::World;
   for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--office") && i + 1 < argc) {
+    if (!std::strcmp(argv[i], "--register-model") && i + 1 < argc && bench::parseCorrectionModel(argv[i + 1], model)) {
+      ++i;
+    } else if (!std::strcmp(argv[i], "--office") && i + 1 < argc) {
       office = argv[++i];
     } else if (!std::strcmp(argv[i], "--floor66") && i + 1 < argc) {
       floor66 = argv[++i];
@@ -402,7 +405,9 @@ int main(int argc, char** argv) {
     } else if (!std::strcmp(argv[i], "--quick")) {
       quick = true;
     } else {
-      std::fprintf(stderr, "usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick]\n");
+      std::fprintf(stderr,
+                   "usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] "
+                   "[--register-model world|per-pose]\n");
       return 2;
     }
   }
@@ -412,8 +417,8 @@ int main(int argc, char** argv) {
       tmp = bench::simulateTemporary("office", "change_eval");
       office = tmp;
     }
-    const SimSummary o = evaluateSimulation("office", office, !quick);
-    if (!floor66.empty()) evaluateSimulation("floor66", floor66, false);
+    const SimSummary o = evaluateSimulation("office", office, !quick, model);
+    if (!floor66.empty()) evaluateSimulation("floor66", floor66, false, model);
     const MosdResult mosd = evaluateMosd(data / "mosd-a" / "test");
     const double human = evaluateHuman(data / "3dmatch" / "human_dataset");
     const double grabber = evaluateGrabber(data / "pcl-kinect" / "grabber_sequences" / "pcd");

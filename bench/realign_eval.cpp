@@ -11,12 +11,14 @@
 // the previous state and this one) and false ones; "true changes kept" is the share of the
 // truth voxels matched as recorded that are still matched. Then sweeps over the settings.
 //
-// Usage: realign_eval [--office DIR] [--floor66 DIR] [--quick] [--skip-floor66]
+// Usage: realign_eval [--office DIR] [--floor66 DIR] [--quick] [--skip-floor66] [--register-model M]
 //   --office DIR    a `chronomap simulate --preset office` output (default: simulate one at half
 //                   resolution into a temporary folder)
 //   --floor66 DIR   a floor66 simulation (default: simulate one at half resolution, ~7 minutes)
 //   --quick         no sweep
 //   --skip-floor66  office only (the last line then reports the office)
+//   --register-model  world (default) or per-pose: the registration's correction model
+//                   (align/register.h)
 // The last line of output is one JSON object for floor66 (registration + re-alignment, the
 // recommended pipeline): false_changes_removed,
 // true_changes_kept (fractions), nodes_4d and nodes_4d_realigned.
@@ -163,7 +165,7 @@ Outcome compare(const Run& before, const Run& after) {
   return o;
 }
 
-Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bool per_session) {
+Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bool per_session, CorrectionModel model) {
   std::printf("\n== %s (%s) ==\n", name.c_str(), dir.c_str());
   const bench::SimSessions s = bench::loadSimulation(dir, true);
   const TruthIndex truth(s.events, s.estimated.size());
@@ -227,16 +229,14 @@ Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bo
   result.realign_only = o;
   {
     const auto start = std::chrono::steady_clock::now();
-    std::vector<SessionMap> registered = s.estimated;
     std::vector<RegisterReport> reports;
-    const auto corrections = registerSessions(
-        registered, [&](size_t k, const Eigen::Isometry3d& c) { return bench::integrateCorrected(s.dirs[k], c); }, 3, {},
-        &reports);
+    std::vector<PoseCorrection> corrections;
+    const std::vector<SessionMap> registered = bench::registerSimulation(s, model, &corrections, &reports);
     double shift_before = 0.0, shift_after = 0.0, correction_m = 0.0;
     for (size_t k = 0; k < corrections.size(); ++k) {
       shift_before += reports[k].mean_shift_before_m;
       shift_after += reports[k].mean_shift_after_m;
-      correction_m += corrections[k].translation().norm();
+      correction_m += corrections[k].motion.translation().norm();
     }
     const double register_s = seconds(start);
     const double n_s = static_cast<double>(s.estimated.size());
@@ -247,9 +247,9 @@ Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bo
     const Outcome bo = compare(plain, both);
     result.pipeline = bo;
     result.register_only = ro;
-    std::printf("\nregistered to the consensus (mean pull %.1f mm before, %.1f mm after; mean correction %.1f mm; "
+    std::printf("\nregistered to the consensus (%s corrections; mean pull %.1f mm before, %.1f mm after; mean correction %.1f mm; "
                 "%.2f s a session for 3 rounds with re-integration):\n",
-                1000.0 * shift_before / n_s, 1000.0 * shift_after / n_s, 1000.0 * correction_m / n_s,
+                bench::correctionModelName(model), 1000.0 * shift_before / n_s, 1000.0 * shift_after / n_s, 1000.0 * correction_m / n_s,
                 register_s / n_s);
     std::printf("  registered:               %llu true + %llu false; false removed %.1f%%, true kept %.1f%%, 4D map %llu nodes\n",
                 (unsigned long long)reg.true_changes, (unsigned long long)reg.false_changes, 100.0 * ro.false_removed,
@@ -306,8 +306,11 @@ Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bo
 int main(int argc, char** argv) {
   fs::path office, floor66;
   bool quick = false, skip_floor66 = false;
+  CorrectionModel model = CorrectionModel::World;
   for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--office") && i + 1 < argc) {
+    if (!std::strcmp(argv[i], "--register-model") && i + 1 < argc && bench::parseCorrectionModel(argv[i + 1], model)) {
+      ++i;
+    } else if (!std::strcmp(argv[i], "--office") && i + 1 < argc) {
       office = argv[++i];
     } else if (!std::strcmp(argv[i], "--floor66") && i + 1 < argc) {
       floor66 = argv[++i];
@@ -316,21 +319,24 @@ int main(int argc, char** argv) {
     } else if (!std::strcmp(argv[i], "--skip-floor66")) {
       skip_floor66 = true;
     } else {
-      std::fprintf(stderr, "usage: realign_eval [--office DIR] [--floor66 DIR] [--quick] [--skip-floor66]\n");
+      std::fprintf(stderr,
+                   "usage: realign_eval [--office DIR] [--floor66 DIR] [--quick] [--skip-floor66] "
+                   "[--register-model world|per-pose]\n");
       return 2;
     }
   }
   try {
     std::vector<fs::path> temporary;
     if (office.empty()) temporary.push_back(office = bench::simulateTemporary("office", "realign_eval"));
-    const Evaluation o = evaluate("office", office, !quick, true);
+    const Evaluation o = evaluate("office", office, !quick, true, model);
     Evaluation f = o;
     if (!skip_floor66) {
       if (floor66.empty()) temporary.push_back(floor66 = bench::simulateTemporary("floor66", "realign_eval"));
-      f = evaluate("floor66", floor66, false, false);
+      f = evaluate("floor66", floor66, false, false, model);
     }
     for (const auto& t : temporary) fs::remove_all(t);
     std::printf("\n%s\n", nlohmann::json{{"preset", skip_floor66 ? "office" : "floor66"},
+                                         {"register_model", bench::correctionModelName(model)},
                                          {"false_changes_removed", f.pipeline.false_removed},
                                          {"true_changes_kept", f.pipeline.true_kept},
                                          {"nodes_4d", f.pipeline.nodes_4d},

@@ -28,7 +28,7 @@ struct IntegrateOptions {
 }  // namespace
 
 IntegratedSession integrateDataset(const std::string& path, const IntegrateSettings& o, const std::string& label,
-                                   const Eigen::Isometry3d& correction) {
+                                   const PoseCorrection& correction) {
   io::DatasetOptions dopt;
   dopt.format = io::parseDatasetFormat(o.format);
   if (o.depth_scale != 0.0) dopt.depth_scale = o.depth_scale;
@@ -43,10 +43,11 @@ IntegratedSession integrateDataset(const std::string& path, const IntegrateSetti
 
   auto dataset = io::openDataset(path, dopt);
   IntegratedSession out{SessionMap(o.resolution_m), {}, dataset->recordedAt(), io::toString(dataset->format()),
-                        dataset->framesDropped()};
+                        dataset->framesDropped(), {}};
   ProgressBar bar(label, dataset->size());
   // Without a correction the dataset is read directly (frames already in memory are not copied).
-  const bool corrected = !correction.matrix().isIdentity(0.0);
+  for (size_t i = 0; i < dataset->size(); ++i) out.sensor_positions.push_back(dataset->poseOf(i).translation());
+  const bool corrected = !correction.isIdentity();
   const CorrectedFrames frames(*dataset, correction);
   out.stats = integrate(corrected ? static_cast<const FrameSource&>(frames) : *dataset, out.map, settings,
                         [&](size_t done, size_t) { bar.update(done); });

@@ -193,6 +193,7 @@ struct BuildCmdOptions {
   RealignOptions realign;
   bool register_sessions = false;
   int register_rounds = 3;
+  std::string register_model = "world";
   bool json = false;
 };
 
@@ -208,6 +209,14 @@ int runBuild(const BuildCmdOptions& o) {
   requireExtension(o.map, ".cmap", "4D map");
   const RealignSettings realign_settings = realignSettings(o.realign);  // bad settings fail before integrating
   if (o.register_rounds < 1 || o.register_rounds > 10) throw UsageError("--register-rounds must lie in [1, 10]");
+  RegisterSettings register_settings;
+  if (o.register_model == "world") {
+    register_settings.model = CorrectionModel::World;
+  } else if (o.register_model == "per-pose") {
+    register_settings.model = CorrectionModel::PerPose;
+  } else {
+    throw UsageError("--register-model must be world or per-pose, not '" + o.register_model + "'");
+  }
   for (const auto& d : o.datasets) {
     if (!fs::exists(d)) throw UsageError("dataset '" + d + "' does not exist");
   }
@@ -261,18 +270,20 @@ int runBuild(const BuildCmdOptions& o) {
   }
   // Registration: each session's rigid correction against the consensus of all given, then
   // integrated again with it.
-  std::vector<std::optional<Eigen::Isometry3d>> corrections(pending.size());
+  std::vector<std::optional<PoseCorrection>> corrections(pending.size());
   if (o.register_sessions) {
     std::vector<SessionMap> maps;
     maps.reserve(pending.size());
     for (Pending& p : pending) maps.push_back(std::move(p.session.map));
     if (!o.json) std::cerr << "registering " << maps.size() << " session(s), " << o.register_rounds << " round(s)\n";
     // Sessions are integrated again in parallel: no progress bars (they would overwrite each other).
+    std::vector<std::vector<Eigen::Vector3d>> positions;
+    for (const Pending& p : pending) positions.push_back(p.session.sensor_positions);
     const auto found = registerSessions(
-        maps, [&](size_t k, const Eigen::Isometry3d& c) {
+        maps, [&](size_t k, const PoseCorrection& c) {
           return integrateDataset(o.datasets[pending[k].index], o.integrate, "", c).map;
         },
-        o.register_rounds);
+        o.register_rounds, register_settings, nullptr, positions);
     for (size_t i = 0; i < pending.size(); ++i) {
       pending[i].session.map = std::move(maps[i]);
       corrections[i] = found[i];
@@ -300,9 +311,10 @@ int runBuild(const BuildCmdOptions& o) {
     nlohmann::json j = addReportJson(r, p.time_s, nodesAddedAt(map, p.time_s));
     if (moved[i]) j["realigned_voxels"] = *moved[i];
     if (corrections[i]) {
-      const Eigen::Isometry3d& c = *corrections[i];
+      const Eigen::Isometry3d& c = corrections[i]->motion;
       j["registration_m"] = {c.translation().x(), c.translation().y(), c.translation().z()};
       j["registration_deg"] = Eigen::AngleAxisd(c.linear()).angle() * 180.0 / std::numbers::pi;
+      j["registration_model"] = o.register_model;
     }
     j["dataset"] = o.datasets[p.index];
     j["points"] = p.session.stats.points;
@@ -587,9 +599,13 @@ Command addBuild(CLI::App& root) {
   addCriterionOptions(app, o->criterion);
   addIntegrateOptions(app, o->integrate);
   app->add_flag("--register", o->register_sessions,
-                "register each session rigidly to the consensus of all given and integrate it again with the "
+                "register each session to the consensus of all given and integrate it again with the "
                 "correction (removes the part of the localisation error that is one offset per session; "
                 "docs/realign.md)");
+  app->add_option("--register-model", o->register_model,
+                  "what a correction is: world (one rigid motion of the session's map frame) or per-pose (the same "
+                  "position and heading offset of every pose, turned about each pose; docs/realign.md compares them)")
+      ->capture_default_str();
   app->add_option("--register-rounds", o->register_rounds,
                   "registration rounds, each against the consensus the previous one left")
       ->capture_default_str();

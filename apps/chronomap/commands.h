@@ -56,12 +56,13 @@ struct IntegratedSession {
   std::optional<double> recorded_at;  ///< from the dataset's own timestamps, if any
   std::string format;
   size_t frames_dropped = 0;
+  std::vector<Eigen::Vector3d> sensor_positions;  ///< of every frame, as recorded (before `correction`)
 };
-/// Opens and integrates a dataset with a progress bar labelled `label`.
+/// Opens and integrates a dataset with a progress bar labelled `label`, every pose corrected by
+/// `correction` (integrator.h).
 /// @throw DataError when no point could be integrated.
-/// `correction` (map frame) is applied to every pose: T_world_sensor becomes correction * T_world_sensor.
 IntegratedSession integrateDataset(const std::string& path, const IntegrateSettings& settings, const std::string& label,
-                                   const Eigen::Isometry3d& correction = Eigen::Isometry3d::Identity());
+                                   const PoseCorrection& correction = {});
 
 Command addSimulate(CLI::App& root);
 Command addDemo(CLI::App& root);

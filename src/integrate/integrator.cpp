@@ -19,6 +19,16 @@
 
 namespace chronomap {
 
+PoseCorrection PoseCorrection::then(const PoseCorrection& next) const {
+  if (next.model != model) throw UsageError("pose corrections of different models cannot be combined");
+  if (model == CorrectionModel::World) return {next.motion * motion, model};
+  // Per pose: rotations about the (moving) sensor position compose, translations add.
+  PoseCorrection out{Eigen::Isometry3d::Identity(), model};
+  out.motion.linear() = next.motion.linear() * motion.linear();
+  out.motion.translation() = motion.translation() + next.motion.translation();
+  return out;
+}
+
 IntegrationStats& IntegrationStats::operator+=(const IntegrationStats& o) {
   frames += o.frames;
   points += o.points;

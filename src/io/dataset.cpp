@@ -135,6 +135,7 @@ class ImageDataset : public Dataset {
     return frames_.front().timestamp_s;
   }
   size_t framesDropped() const override { return dropped_; }
+  Eigen::Isometry3d poseOf(size_t i) const override { return frames_.at(i).pose; }
 
   /// @throw DataError when the frame's median depth at this scale is not plausible.
   void checkDepthScale(const ImageU16& depth, const std::string& source) const {
@@ -187,6 +188,7 @@ class CloudDataset : public Dataset {
   explicit CloudDataset(std::vector<Item> items) : items_(std::move(items)) {}
   size_t size() const override { return items_.size(); }
   DatasetFormat format() const override { return DatasetFormat::Clouds; }
+  Eigen::Isometry3d poseOf(size_t i) const override { return items_.at(i).pose; }
   Frame load(size_t i) const override {
     Frame frame;
     frame.cloud = readCloud(items_.at(i).path);

@@ -490,7 +490,18 @@ TEST(SimulatorCli, SimulateAndDemo) {
     EXPECT_TRUE(a.contains("realigned_voxels"));
     ASSERT_TRUE(a.contains("registration_m"));
     EXPECT_LT(std::abs(a["registration_m"][0].get<double>()), 0.2);  // a correction of centimetres
+    EXPECT_EQ(a["registration_model"], "world");  // the default
   }
+  r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "w.cmap").string() + " " +
+                       (tmp / "sim" / "session_00").string() + " " + (tmp / "sim" / "session_01").string() +
+                       " --fast --json --register --register-rounds 1 --register-model per-pose");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  for (const auto& a : nlohmann::json::parse(r.out)["added"]) EXPECT_EQ(a["registration_model"], "per-pose");
+  r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "n.cmap").string() + " " +
+                       (tmp / "sim" / "session_00").string() + " --register --register-model sideways");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--register-model must be world or per-pose, not 'sideways'"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(tmp / "n.cmap"));
   r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "n.cmap").string() + " " +
                        (tmp / "sim" / "session_00").string() + " --register --register-rounds 0");
   EXPECT_EQ(r.exit_code, 2);

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <cmath>
 #include <map>
+#include <numbers>
 #include <optional>
 #include <random>
 #include <vector>
@@ -547,22 +548,151 @@ TEST(RegisterSessions, BringsTheOddSessionToTheOthersAndReintegratesIt) {
   std::vector<RegisterReport> reports;
   const auto corrections = registerSessions(
       sessions,
-      [&](size_t k, const Eigen::Isometry3d& c) {
+      [&](size_t k, const PoseCorrection& c) {
         ++calls;
-        return room(c * poses[k]);
+        EXPECT_EQ(c.model, CorrectionModel::World);
+        return room(c.motion * poses[k]);
       },
       3, {}, &reports);
   EXPECT_EQ(calls, 3 * poses.size());
   ASSERT_EQ(corrections.size(), poses.size());
   // Any correction that puts the shifted walls back into the others' voxels is exact at this
   // resolution: x in (-0.0626, -0.0126) m.
-  EXPECT_GT(corrections[3].translation().x(), -0.0626);
-  EXPECT_LT(corrections[3].translation().x(), -0.0126);
+  EXPECT_GT(corrections[3].motion.translation().x(), -0.0626);
+  EXPECT_LT(corrections[3].motion.translation().x(), -0.0126);
   EXPECT_EQ(sessions[3], sessions[0]);
-  for (size_t k = 0; k < 3; ++k) EXPECT_LT(corrections[k].translation().norm(), 0.02);
-  EXPECT_EQ(sessions[3], room(corrections[3] * shift));  // the re-integrated map replaced it
+  for (size_t k = 0; k < 3; ++k) EXPECT_LT(corrections[k].motion.translation().norm(), 0.02);
+  EXPECT_EQ(sessions[3], room(corrections[3].motion * shift));  // the re-integrated map replaced it
   EXPECT_GT(reports[3].mean_shift_before_m, reports[3].mean_shift_after_m);
   std::vector<SessionMap> none;
   EXPECT_THROW(registerSessions(none, {}, 1), UsageError);
   EXPECT_THROW(registerSessions(sessions, {}, 0), UsageError);
+  RegisterSettings per_pose;
+  per_pose.model = CorrectionModel::PerPose;
+  EXPECT_THROW(registerSessions(sessions, {}, 1, per_pose), UsageError);  // no sensor positions
+}
+
+namespace {
+
+// A hall 20 x 4 m (walls 1 m high, pillars of 0.3 m every 4 m along both long walls) seen from
+// sensors every 0.5 m along its middle, each seeing the surfaces within 3 m. With a per-pose
+// error every sensor sees its surroundings turned by `yaw` about itself and moved by `offset`,
+// as a robot that localises with a heading and position offset does.
+struct Hall {
+  std::vector<Eigen::Vector3d> surface;  // samples every 2 cm
+  std::vector<Eigen::Vector3d> sensors;  // true positions
+  Hall() {
+    auto box = [&](double x0, double y0, double x1, double y1) {
+      for (double z = 0.01; z < 1.0; z += 0.02) {
+        for (double x = x0; x <= x1; x += 0.02) {
+          surface.emplace_back(x, y0, z);
+          surface.emplace_back(x, y1, z);
+        }
+        for (double y = y0; y <= y1; y += 0.02) {
+          surface.emplace_back(x0, y, z);
+          surface.emplace_back(x1, y, z);
+        }
+      }
+    };
+    box(0.0, 0.0, 20.0, 4.0);
+    for (double x = 2.0; x < 20.0; x += 4.0) {
+      box(x, 0.0, x + 0.3, 0.3);
+      box(x + 1.0, 3.7, x + 1.3, 4.0);
+    }
+    for (double x = 0.01; x < 20.0; x += 0.02) {
+      for (double y = 0.01; y < 4.0; y += 0.02) surface.emplace_back(x, y, 0.0);
+    }
+    for (double x = 1.0; x <= 19.0; x += 0.5) sensors.emplace_back(x, 2.0, 0.5);
+  }
+  SessionMap seen(double yaw, const Eigen::Vector3d& offset) const {
+    SessionMap m(0.05);
+    const Eigen::Matrix3d r = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    for (const Eigen::Vector3d& c : sensors) {
+      for (const Eigen::Vector3d& p : surface) {
+        if ((p - c).squaredNorm() > 9.0) continue;
+        if (const auto k = m.grid().keyOf(c + offset + r * (p - c))) m.add(*k, occupiedVoxel({100, 100, 100}, 1));
+      }
+    }
+    return m;
+  }
+  std::vector<Eigen::Vector3d> estimatedSensors(const Eigen::Vector3d& offset) const {
+    std::vector<Eigen::Vector3d> out = sensors;
+    for (auto& c : out) c += offset;
+    return out;
+  }
+};
+
+}  // namespace
+
+TEST(RegisterToConsensus, PerPoseFindsAHeadingOffsetThatNoRigidMotionUndoes) {
+  const Hall hall;
+  const double yaw = 0.5 * std::numbers::pi / 180.0;  // 0.5 degrees: 8.7 cm at 10 m from a pivot
+  const Eigen::Vector3d offset(0.04, -0.03, 0.0);
+  const SessionMap truth = hall.seen(0.0, Eigen::Vector3d::Zero());
+  const SessionMap session = hall.seen(yaw, offset);
+  const std::vector<Eigen::Vector3d> believed = hall.estimatedSensors(offset);
+  RegisterSettings settings;
+  settings.max_points = 5000;  // enough for 3 degrees of freedom; keeps the sanitizer runs short
+  settings.model = CorrectionModel::PerPose;
+  RegisterReport per_pose;
+  const Eigen::Isometry3d t = registerToConsensus(session, truth, settings, &per_pose, believed);
+  // The correction turns every pose back by the heading error and moves it back by the offset,
+  // the latter to within the voxels' quantisation: the walls lie on voxel boundaries, so every
+  // shift that puts them back into the truth's voxels fits (y in [0.03, 0.08) here).
+  const Eigen::AngleAxisd turn(t.linear());
+  const double per_pose_yaw = turn.angle() * (turn.axis().z() < 0 ? -1.0 : 1.0);
+  EXPECT_NEAR(per_pose_yaw, -yaw, 0.1 * std::numbers::pi / 180.0);
+  EXPECT_NEAR(t.translation().x(), -offset.x(), 0.05);
+  EXPECT_GE(t.translation().y(), 0.03 - 1e-9);
+  EXPECT_LT(t.translation().y(), 0.08);
+  EXPECT_NEAR(t.translation().z(), 0.0, 0.01);
+  EXPECT_LT(per_pose.mean_shift_after_m, 0.5 * per_pose.mean_shift_before_m);
+  // Corrected that way, the session's sensors see the truth's voxels again.
+  const PoseCorrection c{t, CorrectionModel::PerPose};
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  pose.translation() = believed[10];
+  const Eigen::Isometry3d fixed = c.apply(pose);
+  EXPECT_LT((fixed.translation() - hall.sensors[10]).norm(), 0.05);
+  EXPECT_LT(Eigen::AngleAxisd(fixed.linear()).angle(), 0.1 * std::numbers::pi / 180.0);
+  // One rigid motion of the whole session cannot turn the sensors back: turning the hall about
+  // one point would move its far end by 8 cm, so the World fit keeps the heading error (and
+  // with it the sensors' surroundings turned by up to 2.6 cm at 3 m) and fits worse.
+  settings.model = CorrectionModel::World;
+  RegisterReport world;
+  const Eigen::Isometry3d tw = registerToConsensus(session, truth, settings, &world);
+  EXPECT_LT(Eigen::AngleAxisd(tw.linear()).angle(), 0.25 * yaw);
+  EXPECT_GT(world.mean_shift_after_m, per_pose.mean_shift_after_m);
+  // PerPose needs the positions; they must be finite.
+  settings.model = CorrectionModel::PerPose;
+  EXPECT_THROW(registerToConsensus(session, truth, settings), UsageError);
+  std::vector<Eigen::Vector3d> bad = believed;
+  bad[3].x() = std::nan("");
+  EXPECT_THROW(registerToConsensus(session, truth, settings, nullptr, bad), UsageError);
+}
+
+TEST(PoseCorrection, ComposesAndAppliesPerModel) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translation() = Eigen::Vector3d(10.0, 0.0, 0.5);
+  Eigen::Isometry3d m = Eigen::Isometry3d::Identity();
+  m.linear() = Eigen::AngleAxisd(std::numbers::pi / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  m.translation() = Eigen::Vector3d(1.0, 2.0, 0.0);
+  // World: the map frame turns about its origin, so the sensor moves from (10, 0) to (1, 12).
+  const Eigen::Isometry3d w = PoseCorrection{m, CorrectionModel::World}.apply(pose);
+  EXPECT_TRUE(w.translation().isApprox(Eigen::Vector3d(1.0, 12.0, 0.5)));
+  // Per pose: the sensor turns in place and moves by the translation.
+  const Eigen::Isometry3d p = PoseCorrection{m, CorrectionModel::PerPose}.apply(pose);
+  EXPECT_TRUE(p.translation().isApprox(Eigen::Vector3d(11.0, 2.0, 0.5)));
+  EXPECT_TRUE(p.linear().isApprox(m.linear()));
+  // Composition equals applying one after the other, for both models.
+  Eigen::Isometry3d m2 = Eigen::Isometry3d::Identity();
+  m2.linear() = Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  m2.translation() = Eigen::Vector3d(-0.5, 0.25, 2.0);
+  for (CorrectionModel model : {CorrectionModel::World, CorrectionModel::PerPose}) {
+    const PoseCorrection a{m, model}, b{m2, model};
+    EXPECT_TRUE(a.then(b).apply(pose).isApprox(b.apply(a.apply(pose)), 1e-12));
+  }
+  EXPECT_THROW((PoseCorrection{m, CorrectionModel::World}.then(PoseCorrection{m2, CorrectionModel::PerPose})),
+               UsageError);
+  EXPECT_TRUE(PoseCorrection{}.isIdentity());
 }

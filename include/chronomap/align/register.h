@@ -5,11 +5,13 @@
 
 #include <cstddef>
 #include <functional>
+#include <span>
 #include <unordered_map>
 #include <vector>
 
 #include <Eigen/Geometry>
 
+#include "chronomap/integrate/integrator.h"
 #include "chronomap/octree/session_map.h"
 
 namespace chronomap {
@@ -26,6 +28,15 @@ struct RegisterSettings {
   bool yaw_only = true;
   /// At most this many of the session's occupied voxels take part (evenly spread in Morton order).
   size_t max_points = 20000;
+  /// What the correction is (integrator.h): one rigid motion of the session's map frame, or the
+  /// same position and heading offset of every pose. PerPose needs the session's sensor
+  /// positions. PerPose is the simulator's error model, yet World corrects the simulated
+  /// sessions better (docs/realign.md has the figures): a rotation about one point also takes
+  /// up part of the slow drift.
+  CorrectionModel model = CorrectionModel::World;
+  /// PerPose: a voxel turns about the mean of the sensor positions within this distance of it
+  /// (those that could have seen it; the integrator's default range), or the nearest one.
+  double observer_range_m = 3.0;
 
   /// @throw UsageError for values out of range.
   void validate() const;
@@ -54,32 +65,38 @@ class RegistrationTarget {
   std::unordered_map<uint64_t, uint32_t> surface_;
 };
 
-/// The rigid correction T (map frame) that moves the session's occupied voxels onto the
-/// consensus' surfaces: re-integrating the session with T · pose for every frame puts it where
-/// the other sessions saw the place. A mean-shift registration: every iteration pulls each
+/// The correction that moves the session's occupied voxels onto the consensus' surfaces:
+/// re-integrating the session with every pose corrected by it (PoseCorrection{T, settings.model})
+/// puts it where the other sessions saw the place. For the World model T is a rigid motion of
+/// the map frame; for PerPose, T's rotation turns every pose about its own position and T's
+/// translation moves it, and `sensor_positions` (the session's, as integrated) are required. A mean-shift registration: every iteration pulls each
 /// session voxel centre towards the hit-weighted centre of the consensus' occupied voxels
 /// around it and fits the rigid motion of least squares (yaw and translation, or full). A
 /// consensus that includes the session still works: its own share only slows convergence.
 /// Identity when nothing matches.
 /// @throw UsageError for different resolutions or bad settings.
 Eigen::Isometry3d registerToConsensus(const SessionMap& session, const SessionMap& consensus,
-                                      const RegisterSettings& settings = {}, RegisterReport* report = nullptr);
+                                      const RegisterSettings& settings = {}, RegisterReport* report = nullptr,
+                                      std::span<const Eigen::Vector3d> sensor_positions = {});
 /// The same against a prepared target (for many sessions against one consensus).
 Eigen::Isometry3d registerToConsensus(const SessionMap& session, const RegistrationTarget& target,
-                                      const RegisterSettings& settings = {}, RegisterReport* report = nullptr);
+                                      const RegisterSettings& settings = {}, RegisterReport* report = nullptr,
+                                      std::span<const Eigen::Vector3d> sensor_positions = {});
 
-/// Integrates session `index` again with every pose corrected by `correction` (map frame).
+/// Integrates session `index` again with every pose corrected by `correction`.
 /// Called from several threads at once, for different sessions.
-using Reintegrate = std::function<SessionMap(size_t index, const Eigen::Isometry3d& correction)>;
+using Reintegrate = std::function<SessionMap(size_t index, const PoseCorrection& correction)>;
 
 /// Registers every session to the consensus of all of them, `rounds` times (each round against
 /// the consensus of the sessions as the previous round left them), integrating each session
 /// again with its correction after every round. `sessions` are replaced by the re-integrated
 /// ones. Sessions are registered and integrated in parallel; the result does not depend on the
-/// thread count. @return the correction of each session.
-/// @throw UsageError for no sessions, rounds outside [1, 10] or bad settings.
-std::vector<Eigen::Isometry3d> registerSessions(std::vector<SessionMap>& sessions, const Reintegrate& reintegrate,
-                                                int rounds = 3, const RegisterSettings& settings = {},
-                                                std::vector<RegisterReport>* reports = nullptr);
+/// thread count. `sensor_positions`: each session's sensor positions as first integrated
+/// (required by the PerPose model, ignored by World). @return the correction of each session.
+/// @throw UsageError for no sessions, rounds outside [1, 10], bad settings or missing positions.
+std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, const Reintegrate& reintegrate,
+                                             int rounds = 3, const RegisterSettings& settings = {},
+                                             std::vector<RegisterReport>* reports = nullptr,
+                                             std::span<const std::vector<Eigen::Vector3d>> sensor_positions = {});
 
 }  // namespace chronomap

@@ -59,6 +59,9 @@ class FrameSource {
   virtual Frame load(size_t i) const = 0;
   /// Frame i when it is already in memory (then it is used without a copy), else null.
   virtual const Frame* resident(size_t /*i*/) const { return nullptr; }
+  /// The pose of frame i (T_world_sensor) without its points. Sources that hold their poses
+  /// answer without reading the frame.
+  virtual Eigen::Isometry3d poseOf(size_t i) const { return load(i).T_world_sensor; }
 };
 
 /// Frames already in memory.
@@ -68,27 +71,62 @@ class FrameVector : public FrameSource {
   size_t size() const override { return frames_.size(); }
   Frame load(size_t i) const override { return frames_.at(i); }
   const Frame* resident(size_t i) const override { return &frames_.at(i); }
+  Eigen::Isometry3d poseOf(size_t i) const override { return frames_.at(i).T_world_sensor; }
   const std::vector<Frame>& frames() const { return frames_; }
 
  private:
   std::vector<Frame> frames_;
 };
 
-/// Another source's frames with every pose corrected by a rigid transform of the map frame:
-/// T_world_sensor becomes correction * T_world_sensor (a session registered to others).
+/// How a session's pose correction moves its poses.
+enum class CorrectionModel : uint8_t {
+  /// One rigid motion C of the map frame: T_world_sensor becomes C * T_world_sensor (the
+  /// session's frame of reference was off as a whole, as between two SLAM maps).
+  World,
+  /// Every pose turned by C's rotation about its own position, then moved by C's translation:
+  /// the sensor's position and heading estimates were off by the same amounts all session (a
+  /// robot localising against a prior map). Far from where the session started this differs
+  /// from World: a heading error of 0.3° turns the world about the sensor, not about a fixed
+  /// point 20 m away.
+  PerPose,
+};
+
+/// A correction of every pose of a session.
+struct PoseCorrection {
+  Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
+  CorrectionModel model = CorrectionModel::World;
+
+  /// The corrected pose.
+  Eigen::Isometry3d apply(const Eigen::Isometry3d& T_world_sensor) const {
+    if (model == CorrectionModel::World) return motion * T_world_sensor;
+    Eigen::Isometry3d out = T_world_sensor;
+    out.linear() = motion.linear() * T_world_sensor.linear();
+    out.translation() = T_world_sensor.translation() + motion.translation();
+    return out;
+  }
+  /// The correction `next` applied after this one (same model). @throw UsageError otherwise.
+  PoseCorrection then(const PoseCorrection& next) const;
+  bool isIdentity() const { return motion.matrix().isIdentity(0.0); }
+};
+
+/// Another source's frames with every pose corrected (a session registered to others).
 class CorrectedFrames : public FrameSource {
  public:
-  CorrectedFrames(const FrameSource& inner, const Eigen::Isometry3d& correction) : inner_(inner), correction_(correction) {}
+  CorrectedFrames(const FrameSource& inner, const PoseCorrection& correction) : inner_(inner), correction_(correction) {}
+  /// A World correction: T_world_sensor becomes correction * T_world_sensor.
+  CorrectedFrames(const FrameSource& inner, const Eigen::Isometry3d& correction)
+      : inner_(inner), correction_{correction, CorrectionModel::World} {}
   size_t size() const override { return inner_.size(); }
   Frame load(size_t i) const override {
     Frame f = inner_.load(i);
-    f.T_world_sensor = correction_ * f.T_world_sensor;
+    f.T_world_sensor = correction_.apply(f.T_world_sensor);
     return f;
   }
+  Eigen::Isometry3d poseOf(size_t i) const override { return correction_.apply(inner_.poseOf(i)); }
 
  private:
   const FrameSource& inner_;
-  Eigen::Isometry3d correction_;
+  PoseCorrection correction_;
 };
 
 /// The voxels one frame touches and what it adds to each, in a fixed order.
