@@ -496,7 +496,8 @@ TEST(SimulatorCli, SimulateAndDemo) {
                        (tmp / "sim" / "session_00").string() + " " + (tmp / "sim" / "session_01").string() +
                        " --fast --json --register --register-rounds 1 --register-model per-pose");
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  for (const auto& a : nlohmann::json::parse(r.out)["added"]) EXPECT_EQ(a["registration_model"], "per-pose");
+  const auto per_pose = nlohmann::json::parse(r.out);
+  for (const auto& a : per_pose["added"]) EXPECT_EQ(a["registration_model"], "per-pose");
   r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "n.cmap").string() + " " +
                        (tmp / "sim" / "session_00").string() + " --register --register-model sideways");
   EXPECT_EQ(r.exit_code, 2);
