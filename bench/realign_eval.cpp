@@ -11,7 +11,7 @@
 // the previous state and this one) and false ones; "true changes kept" is the share of the
 // truth voxels matched as recorded that are still matched. Then sweeps over the settings.
 //
-// Usage: realign_eval [--office DIR] [--floor66 DIR] [--quick] [--skip-floor66] [--register-model M]
+// Usage: realign_eval [--office DIR] [--floor66 DIR] [--quick] [--skip-floor66] [--register-model M] [--drift-knots N]
 //   --office DIR    a `chronomap simulate --preset office` output (default: simulate one at half
 //                   resolution into a temporary folder)
 //   --floor66 DIR   a floor66 simulation (default: simulate one at half resolution, ~7 minutes)
@@ -19,6 +19,7 @@
 //   --skip-floor66  office only (the last line then reports the office)
 //   --register-model  world (default) or per-pose: the registration's correction model
 //                   (align/register.h)
+//   --drift-knots N  also correct each session's drift, knots every N frames (0, the default: no)
 // The last line of output is one JSON object for floor66 (registration + re-alignment, the
 // recommended pipeline): false_changes_removed,
 // true_changes_kept (fractions), nodes_4d and nodes_4d_realigned.
@@ -27,6 +28,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -165,7 +167,8 @@ Outcome compare(const Run& before, const Run& after) {
   return o;
 }
 
-Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bool per_session, CorrectionModel model) {
+Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bool per_session, CorrectionModel model,
+                    int drift_knots) {
   std::printf("\n== %s (%s) ==\n", name.c_str(), dir.c_str());
   const bench::SimSessions s = bench::loadSimulation(dir, true);
   const TruthIndex truth(s.events, s.estimated.size());
@@ -231,7 +234,7 @@ Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bo
     const auto start = std::chrono::steady_clock::now();
     std::vector<RegisterReport> reports;
     std::vector<PoseCorrection> corrections;
-    const std::vector<SessionMap> registered = bench::registerSimulation(s, model, &corrections, &reports);
+    const std::vector<SessionMap> registered = bench::registerSimulation(s, model, &corrections, &reports, drift_knots);
     double shift_before = 0.0, shift_after = 0.0, correction_m = 0.0;
     for (size_t k = 0; k < corrections.size(); ++k) {
       shift_before += reports[k].mean_shift_before_m;
@@ -247,6 +250,7 @@ Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bo
     const Outcome bo = compare(plain, both);
     result.pipeline = bo;
     result.register_only = ro;
+    if (drift_knots > 0) std::printf("\ndrift corrected too: knots every %d frames, 2 rounds", drift_knots);
     std::printf("\nregistered to the consensus (%s corrections; mean pull %.1f mm before, %.1f mm after; mean correction %.1f mm; "
                 "%.2f s a session for 3 rounds with re-integration):\n",
                 bench::correctionModelName(model), 1000.0 * shift_before / n_s, 1000.0 * shift_after / n_s, 1000.0 * correction_m / n_s,
@@ -307,8 +311,11 @@ int main(int argc, char** argv) {
   fs::path office, floor66;
   bool quick = false, skip_floor66 = false;
   CorrectionModel model = CorrectionModel::World;
+  int drift_knots = 0;
   for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--register-model") && i + 1 < argc && bench::parseCorrectionModel(argv[i + 1], model)) {
+    if (!std::strcmp(argv[i], "--drift-knots") && i + 1 < argc) {
+      drift_knots = std::atoi(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--register-model") && i + 1 < argc && bench::parseCorrectionModel(argv[i + 1], model)) {
       ++i;
     } else if (!std::strcmp(argv[i], "--office") && i + 1 < argc) {
       office = argv[++i];
@@ -321,22 +328,23 @@ int main(int argc, char** argv) {
     } else {
       std::fprintf(stderr,
                    "usage: realign_eval [--office DIR] [--floor66 DIR] [--quick] [--skip-floor66] "
-                   "[--register-model world|per-pose]\n");
+                   "[--register-model world|per-pose] [--drift-knots FRAMES]\n");
       return 2;
     }
   }
   try {
     std::vector<fs::path> temporary;
     if (office.empty()) temporary.push_back(office = bench::simulateTemporary("office", "realign_eval"));
-    const Evaluation o = evaluate("office", office, !quick, true, model);
+    const Evaluation o = evaluate("office", office, !quick, true, model, drift_knots);
     Evaluation f = o;
     if (!skip_floor66) {
       if (floor66.empty()) temporary.push_back(floor66 = bench::simulateTemporary("floor66", "realign_eval"));
-      f = evaluate("floor66", floor66, false, false, model);
+      f = evaluate("floor66", floor66, false, false, model, drift_knots);
     }
     for (const auto& t : temporary) fs::remove_all(t);
     std::printf("\n%s\n", nlohmann::json{{"preset", skip_floor66 ? "office" : "floor66"},
                                          {"register_model", bench::correctionModelName(model)},
+                                         {"drift_knot_frames", drift_knots},
                                          {"false_changes_removed", f.pipeline.false_removed},
                                          {"true_changes_kept", f.pipeline.true_kept},
                                          {"nodes_4d", f.pipeline.nodes_4d},

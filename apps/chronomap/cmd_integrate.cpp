@@ -27,14 +27,19 @@ struct IntegrateOptions {
 
 }  // namespace
 
-IntegratedSession integrateDataset(const std::string& path, const IntegrateSettings& o, const std::string& label,
-                                   const PoseCorrection& correction) {
+io::DatasetOptions datasetOptions(const IntegrateSettings& o) {
   io::DatasetOptions dopt;
   dopt.format = io::parseDatasetFormat(o.format);
   if (o.depth_scale != 0.0) dopt.depth_scale = o.depth_scale;
   if (!o.intrinsics.empty()) dopt.intrinsics = io::parseIntrinsics(o.intrinsics);
   if (!o.pose.empty()) dopt.pose = parsePose(o.pose);
   if (!o.trajectory.empty()) dopt.trajectory = o.trajectory;
+  return dopt;
+}
+
+IntegratedSession integrateDataset(const std::string& path, const IntegrateSettings& o, const std::string& label,
+                                   const PoseCorrection& correction) {
+  const io::DatasetOptions dopt = datasetOptions(o);
   IntegratorSettings settings;
   settings.max_range_m = o.max_range_m;
   settings.fast = o.fast;

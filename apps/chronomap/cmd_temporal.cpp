@@ -194,6 +194,7 @@ struct BuildCmdOptions {
   bool register_sessions = false;
   int register_rounds = 3;
   std::string register_model = "world";
+  int register_drift = 0;
   bool json = false;
 };
 
@@ -217,6 +218,11 @@ int runBuild(const BuildCmdOptions& o) {
   } else {
     throw UsageError("--register-model must be world or per-pose, not '" + o.register_model + "'");
   }
+  if (o.register_drift < 0 || o.register_drift > 100000) {
+    throw UsageError("--register-drift must be a number of frames in [0, 100000] (0: no drift correction)");
+  }
+  if (o.register_drift > 0 && !o.register_sessions) throw UsageError("--register-drift needs --register");
+  register_settings.drift_knot_frames = o.register_drift;
   for (const auto& d : o.datasets) {
     if (!fs::exists(d)) throw UsageError("dataset '" + d + "' does not exist");
   }
@@ -283,7 +289,9 @@ int runBuild(const BuildCmdOptions& o) {
         maps, [&](size_t k, const PoseCorrection& c) {
           return integrateDataset(o.datasets[pending[k].index], o.integrate, "", c).map;
         },
-        o.register_rounds, register_settings, nullptr, positions);
+        o.register_rounds, register_settings, nullptr, positions, [&](size_t k) -> std::unique_ptr<FrameSource> {
+          return io::openDataset(o.datasets[pending[k].index], datasetOptions(o.integrate));
+        });
     for (size_t i = 0; i < pending.size(); ++i) {
       pending[i].session.map = std::move(maps[i]);
       corrections[i] = found[i];
@@ -315,6 +323,11 @@ int runBuild(const BuildCmdOptions& o) {
       j["registration_m"] = {c.translation().x(), c.translation().y(), c.translation().z()};
       j["registration_deg"] = Eigen::AngleAxisd(c.linear()).angle() * 180.0 / std::numbers::pi;
       j["registration_model"] = o.register_model;
+      if (!corrections[i]->per_frame.empty()) {
+        double largest = 0.0;
+        for (const auto& f : corrections[i]->per_frame) largest = std::max(largest, f.translation().norm());
+        j["drift_correction_max_m"] = largest;
+      }
     }
     j["dataset"] = o.datasets[p.index];
     j["points"] = p.session.stats.points;
@@ -605,6 +618,10 @@ Command addBuild(CLI::App& root) {
   app->add_option("--register-model", o->register_model,
                   "what a correction is: world (one rigid motion of the session's map frame) or per-pose (the same "
                   "position and heading offset of every pose, turned about each pose; docs/realign.md compares them)")
+      ->capture_default_str();
+  app->add_option("--register-drift", o->register_drift,
+                  "after the rigid rounds, also correct each session's drift: every frame gets its own position and "
+                  "heading correction, linear between knots this many frames apart (0: none; docs/realign.md)")
       ->capture_default_str();
   app->add_option("--register-rounds", o->register_rounds,
                   "registration rounds, each against the consensus the previous one left")

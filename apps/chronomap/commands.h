@@ -8,6 +8,7 @@
 #include <string>
 
 #include "chronomap/integrate/integrator.h"
+#include "chronomap/io/dataset.h"
 #include "chronomap/octree/session_map.h"
 #include "chronomap/temporal/temporal_map.h"
 
@@ -58,6 +59,8 @@ struct IntegratedSession {
   size_t frames_dropped = 0;
   std::vector<Eigen::Vector3d> sensor_positions;  ///< of every frame, as recorded (before `correction`)
 };
+/// The reader options the integrate options ask for.
+io::DatasetOptions datasetOptions(const IntegrateSettings& settings);
 /// Opens and integrates a dataset with a progress bar labelled `label`, every pose corrected by
 /// `correction` (integrator.h).
 /// @throw DataError when no point could be integrated.

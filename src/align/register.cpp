@@ -3,11 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <optional>
 #include <unordered_map>
 #include <vector>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 
 #include "chronomap/align/consensus.h"
 #include "chronomap/core/error.h"
@@ -24,6 +26,18 @@ void RegisterSettings::validate() const {
   if (max_points < 3) throw UsageError("registration: at least 3 points are needed");
   if (!std::isfinite(observer_range_m) || observer_range_m <= 0.0) {
     throw UsageError("registration: the observer range must be > 0");
+  }
+  if (drift_knot_frames < 0 || drift_knot_frames > 1000000) {
+    throw UsageError("registration: the drift knot spacing must lie in [0, 1000000] frames");
+  }
+  if (drift_rounds < 1 || drift_rounds > 10) throw UsageError("registration: drift rounds must lie in [1, 10]");
+  if (!std::isfinite(drift_per_frame_m) || drift_per_frame_m <= 0.0 || !std::isfinite(drift_yaw_per_frame_deg) ||
+      drift_yaw_per_frame_deg <= 0.0) {
+    throw UsageError("registration: the drift per frame must be > 0");
+  }
+  if (drift_samples_per_frame < 1) throw UsageError("registration: at least one drift sample per frame is needed");
+  if (!std::isfinite(drift_max_range_m) || drift_max_range_m <= 0.0) {
+    throw UsageError("registration: the drift range must be > 0");
   }
 }
 
@@ -109,9 +123,9 @@ HitMap surfaceOf(const SessionMap& map, std::vector<Eigen::Vector3d>* centres = 
 
 /// The centre of the voxels of `surface` around `p`, weighted by their hits and a Gaussian of
 /// the distance (sigma half the radius; nothing beyond the radius), so that it moves smoothly
-/// with `p`.
+/// with `p` (continuously with `vanishing`).
 std::optional<Eigen::Vector3d> centroidNear(const HitMap& surface, const KeyGrid& grid, const Eigen::Vector3d& p,
-                                            double radius_voxels) {
+                                            double radius_voxels, bool vanishing = false) {
   const auto k = grid.keyOf(p);
   if (!k) return std::nullopt;
   const int r = static_cast<int>(std::ceil(radius_voxels));
@@ -128,7 +142,10 @@ std::optional<Eigen::Vector3d> centroidNear(const HitMap& surface, const KeyGrid
         const Eigen::Vector3d c = grid.centerOf(*n);
         const double d2 = (c - p).squaredNorm();
         if (d2 > radius_m * radius_m) continue;
-        const double w = static_cast<double>(found->second) * std::exp(-2.0 * d2 / (radius_m * radius_m));
+        // `vanishing`: the Gaussian minus its value at the radius, so that the centre moves
+        // continuously as voxels leave the neighbourhood.
+        const double w = static_cast<double>(found->second) *
+                         (std::exp(-2.0 * d2 / (radius_m * radius_m)) - (vanishing ? std::exp(-2.0) : 0.0));
         sum += w * c;
         weight += w;
       }
@@ -239,10 +256,217 @@ Eigen::Isometry3d registerToConsensus(const SessionMap& session, const Registrat
   return total;
 }
 
+namespace {
+
+/// One voxel a frame saw, for the drift fit.
+struct DriftSample {
+  Eigen::Vector3d point;     ///< the voxel centre, as integrated
+  Eigen::Vector3d own_pull;  ///< the pull of the session's own surface on it
+  Eigen::Vector3d normal;    ///< of the session's surface here; zero where it is no plane
+  uint32_t frame = 0;
+};
+
+/// The normal of `surface` around `p` (the direction of least spread of the voxel centres
+/// within the radius, weighted as in centroidNear()), or zero where the surface there is no
+/// plane (an edge, a corner, too few voxels): its spread across is not below a third of the
+/// next smallest.
+Eigen::Vector3d normalNear(const HitMap& surface, const KeyGrid& grid, const Eigen::Vector3d& p, double radius_voxels) {
+  const auto k = grid.keyOf(p);
+  if (!k) return Eigen::Vector3d::Zero();
+  const int r = static_cast<int>(std::ceil(radius_voxels));
+  const double radius_m = radius_voxels * grid.resolution_m();
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+  double weight = 0.0;
+  int count = 0;
+  for (int dz = -r; dz <= r; ++dz) {
+    for (int dy = -r; dy <= r; ++dy) {
+      for (int dx = -r; dx <= r; ++dx) {
+        const auto n = offsetKey(*k, dx, dy, dz);
+        if (!n || !surface.count(mortonEncode(*n))) continue;
+        const Eigen::Vector3d c = grid.centerOf(*n) - p;
+        const double d2 = c.squaredNorm();
+        if (d2 > radius_m * radius_m) continue;
+        const double w = std::exp(-2.0 * d2 / (radius_m * radius_m));
+        sum += w * c;
+        outer += w * c * c.transpose();
+        weight += w;
+        ++count;
+      }
+    }
+  }
+  if (count < 6) return Eigen::Vector3d::Zero();
+  const Eigen::Vector3d mean = sum / weight;
+  const Eigen::Matrix3d cov = outer / weight - mean * mean.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  const Eigen::Vector3d values = eig.eigenvalues();  // ascending
+  if (!(values(0) < values(1) / 3.0)) return Eigen::Vector3d::Zero();
+  return eig.eigenvectors().col(0);
+}
+
+}  // namespace
+
+std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const SessionMap& session,
+                                        const RegistrationTarget& target, const RegisterSettings& settings,
+                                        RegisterReport* report) {
+  settings.validate();
+  if (settings.drift_knot_frames < 1) throw UsageError("registration: the drift knot spacing must be >= 1 frame");
+  if (session.resolution_m() != target.resolution_m()) {
+    throw UsageError("registration: the session and the consensus have different resolutions");
+  }
+  const size_t n_frames = frames.size();
+  std::vector<Eigen::Isometry3d> out(n_frames, Eigen::Isometry3d::Identity());
+  RegisterReport rep;
+  if (n_frames == 0) {
+    if (report) *report = rep;
+    return out;
+  }
+  const KeyGrid& grid = session.grid();
+  // Samples: the voxels each frame's points end in, evenly thinned, each with the pull of that
+  // frame's own voxels on it (the frame's surface quantised exactly as the consensus is, so
+  // that a frame that fits pulls nowhere) and the normal of the frame's surface there.
+  std::vector<DriftSample> samples;
+  std::vector<Eigen::Vector3d> sensors(n_frames);
+  std::vector<uint64_t> codes;
+  HitMap frame_surface;
+  const double range2 = settings.drift_max_range_m * settings.drift_max_range_m;
+  for (size_t i = 0; i < n_frames; ++i) {
+    const Frame f = frames.load(i);
+    sensors[i] = f.T_world_sensor.translation();
+    if (!f.T_world_sensor.matrix().allFinite()) throw UsageError(f.source + ": the pose is not finite");
+    frame_surface.clear();
+    for (const Eigen::Vector3f& q : f.cloud.points) {
+      if (!q.allFinite() || q.squaredNorm() == 0.0f || q.cast<double>().squaredNorm() > range2) continue;
+      const auto k = grid.keyOf(f.T_world_sensor * q.cast<double>());
+      if (k) ++frame_surface[mortonEncode(*k)];
+    }
+    codes.clear();
+    for (const auto& [code, hits] : frame_surface) codes.push_back(code);
+    std::sort(codes.begin(), codes.end());
+    const size_t take = std::min(codes.size(), settings.drift_samples_per_frame);
+    for (size_t j = 0; j < take; ++j) {
+      const uint64_t code = codes[j * codes.size() / take];
+      DriftSample d;
+      d.point = grid.centerOf(mortonDecode(code));
+      d.own_pull =
+          centroidNear(frame_surface, grid, d.point, settings.radius_voxels, true).value_or(d.point) - d.point;
+      d.normal = normalNear(frame_surface, grid, d.point, settings.radius_voxels);
+      d.frame = static_cast<uint32_t>(i);
+      samples.push_back(d);
+    }
+  }
+  rep.points = samples.size();
+  // Knots: frame i lies at u = i / spacing between knots floor(u) and floor(u) + 1.
+  const size_t spacing = static_cast<size_t>(settings.drift_knot_frames);
+  const size_t knots = (n_frames - 1) / spacing + 2;
+  const auto knotOf = [&](size_t i) {
+    const size_t k = i / spacing;
+    return std::pair<size_t, double>{k, static_cast<double>(i - k * spacing) / static_cast<double>(spacing)};
+  };
+  constexpr int kDof = 4;  // x, y, z offset and yaw
+  const int dim = static_cast<int>(knots) * kDof;
+  // The prior: knot differences of a random walk over `spacing` frames, against a pull noise of
+  // half a voxel (both in the least-squares units of the data).
+  const double noise = 0.5 * grid.resolution_m();
+  const double yaw_step = settings.drift_yaw_per_frame_deg * std::numbers::pi / 180.0;
+  const double lambda_t = noise * noise / (static_cast<double>(spacing) * settings.drift_per_frame_m *
+                                           settings.drift_per_frame_m);
+  const double lambda_yaw = noise * noise / (static_cast<double>(spacing) * yaw_step * yaw_step);
+  const double lambda[kDof] = {lambda_t, lambda_t, lambda_t, lambda_yaw};
+  Eigen::VectorXd x = Eigen::VectorXd::Zero(dim);
+  const HitMap& surface = target.surface();
+  std::vector<Eigen::Vector4d> frame_params(n_frames);
+  for (int it = 0; it < settings.max_iterations && !surface.empty() && !samples.empty(); ++it) {
+    for (size_t i = 0; i < n_frames; ++i) {
+      const auto [k, w] = knotOf(i);
+      frame_params[i] = (1.0 - w) * x.segment<kDof>(static_cast<Eigen::Index>(k) * kDof) +
+                        w * x.segment<kDof>(static_cast<Eigen::Index>(k + 1) * kDof);
+    }
+    Eigen::MatrixXd ata = Eigen::MatrixXd::Zero(dim, dim);
+    Eigen::VectorXd atb = Eigen::VectorXd::Zero(dim);
+    double shift = 0.0;
+    size_t matched = 0;
+    for (const DriftSample& d : samples) {
+      const Eigen::Vector4d& fp = frame_params[d.frame];
+      const Eigen::Matrix3d r = Eigen::AngleAxisd(fp(3), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      const Eigen::Vector3d arm = r * (d.point - sensors[d.frame]);
+      const Eigen::Vector3d p = sensors[d.frame] + fp.head<3>() + arm;
+      const auto q = centroidNear(surface, grid, p, settings.radius_voxels, true);
+      if (!q) continue;
+      // Where the session's surface is a plane, the pull counts along its normal only (it says
+      // how far the surface lies, not where along it the voxel belongs); elsewhere in full.
+      // Voxels that already fit count too: they hold the frame where it is.
+      const Eigen::Vector3d pull = *q - r * d.own_pull - p;
+      ++matched;
+      const auto [k, w] = knotOf(d.frame);
+      const Eigen::Index a = static_cast<Eigen::Index>(k) * kDof, b = a + kDof;
+      const auto addRow = [&](const Eigen::Vector3d& n, double residual) {
+        Eigen::Vector4d j;
+        j << n, arm.x() * n.y() - arm.y() * n.x();  // d(p . n) / d yaw = (z x arm) . n
+        const Eigen::Vector4d ja = (1.0 - w) * j, jb = w * j;
+        ata.block<kDof, kDof>(a, a) += ja * ja.transpose();
+        ata.block<kDof, kDof>(a, b) += ja * jb.transpose();
+        ata.block<kDof, kDof>(b, a) += jb * ja.transpose();
+        ata.block<kDof, kDof>(b, b) += jb * jb.transpose();
+        atb.segment<kDof>(a) += ja * residual;
+        atb.segment<kDof>(b) += jb * residual;
+      };
+      if (d.normal.squaredNorm() > 0.0) {
+        const Eigen::Vector3d n = r * d.normal;
+        addRow(n, n.dot(pull));
+        shift += std::abs(n.dot(pull));
+      } else {
+        for (int c = 0; c < 3; ++c) addRow(Eigen::Vector3d::Unit(c), pull(c));
+        shift += pull.norm();
+      }
+    }
+    rep.matched = matched;
+    const double mean_shift = matched ? shift / static_cast<double>(matched) : 0.0;
+    if (it == 0) rep.mean_shift_before_m = mean_shift;
+    rep.mean_shift_after_m = mean_shift;
+    rep.iterations = it + 1;
+    if (matched < 3) break;
+    // The prior on the totals x + step: lambda |x[k+1] + s[k+1] - x[k] - s[k]|^2.
+    for (size_t k = 0; k + 1 < knots; ++k) {
+      const Eigen::Index a = static_cast<Eigen::Index>(k) * kDof, b = a + kDof;
+      for (int c = 0; c < kDof; ++c) {
+        const double l = lambda[c];
+        const double diff = x(b + c) - x(a + c);
+        ata(a + c, a + c) += l;
+        ata(b + c, b + c) += l;
+        ata(a + c, b + c) -= l;
+        ata(b + c, a + c) -= l;
+        atb(a + c) += l * diff;
+        atb(b + c) -= l * diff;
+      }
+    }
+    ata.diagonal().array() += 1e-6 * (ata.trace() / dim + 1.0);
+    const Eigen::VectorXd step = ata.ldlt().solve(atb);
+    if (!step.allFinite()) break;
+    x += step;
+    double moved = 0.0;
+    for (size_t k = 0; k < knots; ++k) {
+      const Eigen::Index a = static_cast<Eigen::Index>(k) * kDof;
+      moved = std::max(moved, step.segment<3>(a).norm() + std::abs(step(a + 3)));
+    }
+    if (moved < settings.min_step_m) break;
+  }
+  for (size_t i = 0; i < n_frames; ++i) {
+    const auto [k, w] = knotOf(i);
+    const Eigen::Vector4d fp = (1.0 - w) * x.segment<kDof>(static_cast<Eigen::Index>(k) * kDof) +
+                               w * x.segment<kDof>(static_cast<Eigen::Index>(k + 1) * kDof);
+    out[i].linear() = Eigen::AngleAxisd(fp(3), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    out[i].translation() = fp.head<3>();
+  }
+  if (report) *report = rep;
+  return out;
+}
+
 std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, const Reintegrate& reintegrate,
                                              int rounds, const RegisterSettings& settings,
                                              std::vector<RegisterReport>* reports,
-                                             std::span<const std::vector<Eigen::Vector3d>> sensor_positions) {
+                                             std::span<const std::vector<Eigen::Vector3d>> sensor_positions,
+                                             const SessionFrames& frames) {
   settings.validate();
   if (sessions.empty()) throw UsageError("registration of no sessions");
   if (rounds < 1 || rounds > 10) throw UsageError("registration: rounds must lie in [1, 10]");
@@ -250,7 +474,11 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
   if (per_pose && sensor_positions.size() != sessions.size()) {
     throw UsageError("registration per pose needs the sensor positions of every session");
   }
-  std::vector<PoseCorrection> corrections(sessions.size(), PoseCorrection{Eigen::Isometry3d::Identity(), settings.model});
+  if (settings.drift_knot_frames > 0 && !frames) {
+    throw UsageError("registration with drift needs the frames of every session");
+  }
+  std::vector<PoseCorrection> corrections(sessions.size(),
+                                          PoseCorrection{Eigen::Isometry3d::Identity(), settings.model, {}});
   if (reports) reports->assign(sessions.size(), {});
   for (int round = 0; round < rounds; ++round) {
     const RegistrationTarget target(consensus(std::span<const SessionMap>(sessions)));
@@ -264,7 +492,7 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
         for (Eigen::Vector3d& c : positions) c += corrections[k].motion.translation();
       }
       const Eigen::Isometry3d t = registerToConsensus(sessions[k], target, settings, &found[k], positions);
-      corrections[k] = corrections[k].then(PoseCorrection{t, settings.model});
+      corrections[k] = corrections[k].then(PoseCorrection{t, settings.model, {}});
     });
     if (reports) {
       for (size_t k = 0; k < sessions.size(); ++k) {
@@ -277,6 +505,27 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
       }
     }
     parallelFor(sessions.size(), 0, [&](size_t k) { sessions[k] = reintegrate(k, corrections[k]); });
+  }
+  if (settings.drift_knot_frames > 0) {
+    for (int round = 0; round < settings.drift_rounds; ++round) {
+      const RegistrationTarget target(consensus(std::span<const SessionMap>(sessions)));
+      std::vector<RegisterReport> found(sessions.size());
+      parallelFor(sessions.size(), 0, [&](size_t k) {
+        const std::unique_ptr<FrameSource> source = frames(k);
+        if (!source) throw UsageError("registration with drift: no frames for session " + std::to_string(k));
+        const CorrectedFrames corrected(*source, corrections[k]);
+        PoseCorrection drift{Eigen::Isometry3d::Identity(), settings.model,
+                             fitDrift(corrected, sessions[k], target, settings, &found[k])};
+        corrections[k] = corrections[k].then(drift);
+      });
+      if (reports) {
+        for (size_t k = 0; k < sessions.size(); ++k) {
+          (*reports)[k].iterations += found[k].iterations;
+          (*reports)[k].mean_shift_after_m = found[k].mean_shift_after_m;
+        }
+      }
+      parallelFor(sessions.size(), 0, [&](size_t k) { sessions[k] = reintegrate(k, corrections[k]); });
+    }
   }
   return corrections;
 }

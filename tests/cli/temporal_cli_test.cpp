@@ -498,6 +498,23 @@ TEST(SimulatorCli, SimulateAndDemo) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto per_pose = nlohmann::json::parse(r.out);
   for (const auto& a : per_pose["added"]) EXPECT_EQ(a["registration_model"], "per-pose");
+  // Drift: per-frame corrections after the rigid round, reported by their largest translation.
+  r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "d.cmap").string() + " " +
+                       (tmp / "sim" / "session_00").string() + " " + (tmp / "sim" / "session_01").string() +
+                       " --fast --json --register --register-rounds 1 --register-drift 5");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto drift = nlohmann::json::parse(r.out);
+  for (const auto& a : drift["added"]) {
+    ASSERT_TRUE(a.contains("drift_correction_max_m"));
+    EXPECT_LT(a["drift_correction_max_m"].get<double>(), 0.2);
+  }
+  for (const char* bad : {" --register-drift 5", " --register --register-drift -1"}) {
+    r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "n.cmap").string() + " " +
+                         (tmp / "sim" / "session_00").string() + bad);
+    EXPECT_EQ(r.exit_code, 2) << bad;
+    EXPECT_NE(r.err.find("--register-drift"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(tmp / "n.cmap"));
+  }
   r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "n.cmap").string() + " " +
                        (tmp / "sim" / "session_00").string() + " --register --register-model sideways");
   EXPECT_EQ(r.exit_code, 2);

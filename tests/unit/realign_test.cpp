@@ -7,6 +7,7 @@
 #include <atomic>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <numbers>
 #include <optional>
 #include <random>
@@ -695,4 +696,162 @@ TEST(PoseCorrection, ComposesAndAppliesPerModel) {
   EXPECT_THROW((PoseCorrection{m, CorrectionModel::World}.then(PoseCorrection{m2, CorrectionModel::PerPose})),
                UsageError);
   EXPECT_TRUE(PoseCorrection{}.isIdentity());
+}
+
+namespace {
+
+// The hall, turned by 7 degrees against the voxel grid (so that its walls cross the voxels at
+// every fraction and the maps show shifts smaller than a voxel), seen by a robot whose position
+// estimate wanders during the session: frame j is taken at the true sensor position (the
+// surfaces within 3 m as its points) but believed `offsetOf(j)` away, an error of up to 3 cm
+// that changes smoothly along the hall.
+struct DriftingHall {
+  Hall hall = turned(Hall());
+  static Hall turned(Hall h) {
+    Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+    t.linear() = Eigen::AngleAxisd(7.0 * std::numbers::pi / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    t.translation() = Eigen::Vector3d(0.013, 0.021, 0.0126);
+    for (auto& p : h.surface) p = t * p;
+    for (auto& c : h.sensors) c = t * c;
+    return h;
+  }
+  FrameVector frames = FrameVector({});
+  FrameVector true_frames = FrameVector({});
+  static Eigen::Vector3d offsetOf(size_t j, size_t n) {
+    const double u = static_cast<double>(j) / static_cast<double>(n - 1);
+    return {0.03 * std::sin(2.0 * std::numbers::pi * u), 0.06 * u - 0.03, 0.0};
+  }
+  DriftingHall() {
+    std::vector<Frame> believed, truth;
+    const size_t n = hall.sensors.size();
+    for (size_t j = 0; j < n; ++j) {
+      Frame f;
+      for (const Eigen::Vector3d& p : hall.surface) {
+        // Every other sample: 4 cm apart, still several per voxel.
+        if ((p - hall.sensors[j]).squaredNorm() <= 9.0 && (&p - hall.surface.data()) % 2 == 0) {
+          f.cloud.points.push_back((p - hall.sensors[j]).cast<float>());
+        }
+      }
+      f.cloud.width = static_cast<uint32_t>(f.cloud.points.size());
+      f.T_world_sensor.translation() = hall.sensors[j];
+      truth.push_back(f);
+      f.T_world_sensor.translation() += offsetOf(j, n);
+      believed.push_back(std::move(f));
+    }
+    frames = FrameVector(std::move(believed));
+    true_frames = FrameVector(std::move(truth));
+  }
+  // Occupied voxels where the points of `source` land with its poses corrected by `c`.
+  static SessionMap seen(const FrameSource& source, const PoseCorrection& c = {}) {
+    SessionMap m(0.05);
+    for (size_t i = 0; i < source.size(); ++i) {
+      const Frame f = source.load(i);
+      const Eigen::Isometry3d pose = c.apply(f.T_world_sensor, i);
+      for (const Eigen::Vector3f& q : f.cloud.points) {
+        if (const auto k = m.grid().keyOf(pose * q.cast<double>())) m.add(*k, occupiedVoxel({100, 100, 100}, 1));
+      }
+    }
+    return m;
+  }
+  // Mean distance of the corrected sensor positions from the true ones.
+  double meanError(const PoseCorrection& c) const {
+    double sum = 0.0;
+    for (size_t j = 0; j < frames.size(); ++j) {
+      sum += (c.apply(frames.poseOf(j), j).translation() - hall.sensors[j]).norm();
+    }
+    return sum / static_cast<double>(frames.size());
+  }
+};
+
+}  // namespace
+
+TEST(FitDrift, FollowsAPositionErrorThatWandersAlongTheSession) {
+  const DriftingHall d;
+  const SessionMap truth = DriftingHall::seen(d.true_frames);
+  const SessionMap session = DriftingHall::seen(d.frames);
+  const RegistrationTarget target(truth);
+  RegisterSettings settings;
+  settings.drift_knot_frames = 4;  // 2 m of hall between knots
+  RegisterReport report;
+  const std::vector<Eigen::Isometry3d> drift = fitDrift(d.frames, session, target, settings, &report);
+  ASSERT_EQ(drift.size(), d.frames.size());
+  const PoseCorrection corrected{Eigen::Isometry3d::Identity(), CorrectionModel::World, drift};
+  const double before = d.meanError({}), after = d.meanError(corrected);
+  EXPECT_GT(before, 0.025);
+  EXPECT_LT(after, 0.5 * before) << "before " << before << " after " << after;
+  EXPECT_LT(report.mean_shift_after_m, report.mean_shift_before_m);
+  EXPECT_GT(report.points, d.frames.size() * 50);
+  // The headings stay as they were (the error has none).
+  for (const auto& c : drift) EXPECT_LT(Eigen::AngleAxisd(c.linear()).angle(), 0.2 * std::numbers::pi / 180.0);
+  // One rigid motion cannot follow the error: it changes sign along the hall.
+  RegisterSettings rigid;
+  const Eigen::Isometry3d t = registerToConsensus(session, target, rigid);
+  EXPECT_GT(d.meanError({t, CorrectionModel::World, {}}), 1.5 * after);
+  // A session that agrees with the target needs no drift correction.
+  const std::vector<Eigen::Isometry3d> none = fitDrift(d.true_frames, truth, target, settings);
+  for (const auto& c : none) EXPECT_LT(c.translation().norm(), 0.006);
+  // Bad settings and mismatched resolutions are refused.
+  settings.drift_knot_frames = 0;
+  EXPECT_THROW(fitDrift(d.frames, session, target, settings), UsageError);
+  settings.drift_knot_frames = 4;
+  settings.drift_per_frame_m = 0.0;
+  EXPECT_THROW(fitDrift(d.frames, session, target, settings), UsageError);
+  settings.drift_per_frame_m = 0.002;
+  EXPECT_THROW(fitDrift(d.frames, SessionMap(0.1), target, settings), UsageError);
+  // No frames: nothing to correct.
+  EXPECT_TRUE(fitDrift(FrameVector({}), session, target, settings).empty());
+}
+
+TEST(RegisterSessions, CorrectsDriftFromTheFramesAndReintegrates) {
+  const DriftingHall d;
+  // Two sessions with the true poses and the drifting one.
+  const std::vector<const FrameSource*> sources = {&d.true_frames, &d.true_frames, &d.frames};
+  std::vector<SessionMap> sessions;
+  for (const FrameSource* s : sources) sessions.push_back(DriftingHall::seen(*s));
+  RegisterSettings settings;
+  settings.max_points = 5000;
+  settings.drift_knot_frames = 4;
+  settings.drift_rounds = 1;
+  const auto reintegrate = [&](size_t k, const PoseCorrection& c) { return DriftingHall::seen(*sources[k], c); };
+  const auto frames = [&](size_t k) -> std::unique_ptr<FrameSource> {
+    return std::make_unique<FrameVector>(static_cast<const FrameVector*>(sources[k])->frames());
+  };
+  const auto corrections = registerSessions(sessions, reintegrate, 1, settings, nullptr, {}, frames);
+  ASSERT_EQ(corrections.size(), 3u);
+  ASSERT_EQ(corrections[2].per_frame.size(), d.frames.size());
+  // (The consensus holds the drifting session too, so this is less exact than against the truth.)
+  EXPECT_LT(d.meanError(corrections[2]), 0.65 * d.meanError({}));
+  EXPECT_EQ(sessions[2], DriftingHall::seen(d.frames, corrections[2]));  // re-integrated with it
+  // Drift needs the frames.
+  EXPECT_THROW(registerSessions(sessions, reintegrate, 1, settings), UsageError);
+}
+
+TEST(PoseCorrection, PerFramePartsApplyByIndexAndCompose) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translation() = Eigen::Vector3d(10.0, 0.0, 0.5);
+  Eigen::Isometry3d m = Eigen::Isometry3d::Identity();
+  m.translation() = Eigen::Vector3d(1.0, 0.0, 0.0);
+  Eigen::Isometry3d f0 = Eigen::Isometry3d::Identity(), f1 = Eigen::Isometry3d::Identity();
+  f0.translation() = Eigen::Vector3d(0.0, 0.5, 0.0);
+  f1.linear() = Eigen::AngleAxisd(0.1, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const PoseCorrection c{m, CorrectionModel::World, {f0, f1}};
+  EXPECT_TRUE(c.apply(pose, 0).translation().isApprox(Eigen::Vector3d(11.0, 0.5, 0.5)));
+  // Frame 1 turns about its own (corrected) position.
+  EXPECT_TRUE(c.apply(pose, 1).translation().isApprox(Eigen::Vector3d(11.0, 0.0, 0.5)));
+  EXPECT_TRUE(c.apply(pose, 1).linear().isApprox(f1.linear()));
+  EXPECT_THROW(c.apply(pose, 2), UsageError);
+  EXPECT_FALSE(c.isIdentity());
+  EXPECT_FALSE((PoseCorrection{Eigen::Isometry3d::Identity(), CorrectionModel::World, {f0}}.isIdentity()));
+  // A motion, then per-frame parts, then more per-frame parts: the same as one after the other.
+  const PoseCorrection rigid{m, CorrectionModel::World, {}};
+  const PoseCorrection drift{Eigen::Isometry3d::Identity(), CorrectionModel::World, {f0, f1}};
+  const PoseCorrection more{Eigen::Isometry3d::Identity(), CorrectionModel::World, {f1, f0}};
+  const PoseCorrection all = rigid.then(drift).then(more);
+  for (size_t i = 0; i < 2; ++i) {
+    const Eigen::Isometry3d step = more.apply(drift.apply(rigid.apply(pose, i), i), i);
+    EXPECT_TRUE(all.apply(pose, i).isApprox(step, 1e-12)) << i;
+  }
+  // A motion cannot follow per-frame parts; per-frame parts of different lengths do not combine.
+  EXPECT_THROW(drift.then(rigid), UsageError);
+  EXPECT_THROW(drift.then(PoseCorrection{Eigen::Isometry3d::Identity(), CorrectionModel::World, {f0}}), UsageError);
 }

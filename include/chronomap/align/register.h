@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <functional>
+#include <memory>
 #include <span>
 #include <unordered_map>
 #include <vector>
@@ -37,6 +38,20 @@ struct RegisterSettings {
   /// PerPose: a voxel turns about the mean of the sensor positions within this distance of it
   /// (those that could have seen it; the integrator's default range), or the nearest one.
   double observer_range_m = 3.0;
+  /// Drift (registerSessions, after the rigid rounds): every frame gets a correction of its own,
+  /// a position offset and a heading turn about the frame's position that vary linearly between
+  /// knots this many frames apart (0: no drift correction). fitDrift() has the details.
+  int drift_knot_frames = 0;
+  /// Rounds of drift correction, each against the consensus the previous round left.
+  int drift_rounds = 2;
+  /// The smoothness prior: how far the localisation is expected to wander from one frame to the
+  /// next (standard deviation of a random walk per frame, metres and degrees).
+  double drift_per_frame_m = 0.002;
+  double drift_yaw_per_frame_deg = 0.01;
+  /// At most this many occupied voxels of each frame take part (evenly spread).
+  size_t drift_samples_per_frame = 100;
+  /// Frame points farther than this from their sensor are not used (the integrator's range).
+  double drift_max_range_m = 3.0;
 
   /// @throw UsageError for values out of range.
   void validate() const;
@@ -83,6 +98,24 @@ Eigen::Isometry3d registerToConsensus(const SessionMap& session, const Registrat
                                       const RegisterSettings& settings = {}, RegisterReport* report = nullptr,
                                       std::span<const Eigen::Vector3d> sensor_positions = {});
 
+/// The slow drift of a session's localisation: one correction per frame of `frames` (as
+/// integrated into `session`), to apply after the poses' present correction in the PerPose sense
+/// (turned about the frame's position, then moved). Each frame's occupied voxels (at most
+/// drift_samples_per_frame, within drift_max_range_m of its sensor, occupied in `session`) are
+/// pulled towards the target's surface as in registerToConsensus(); the unknowns are a position
+/// offset and a yaw at knots every drift_knot_frames frames, linear in between, fitted by least
+/// squares along each pull with a random-walk prior on the differences of neighbouring knots
+/// (drift_per_frame_m, drift_yaw_per_frame_deg; a pull's noise taken as half a voxel), so
+/// stretches of a session that see little are carried by their neighbours.
+/// @throw UsageError for bad settings (drift_knot_frames < 1 included) or resolutions that differ;
+/// whatever frames.load throws.
+std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const SessionMap& session,
+                                        const RegistrationTarget& target, const RegisterSettings& settings,
+                                        RegisterReport* report = nullptr);
+
+/// The recording of session `index` as first read (poses uncorrected), for the drift correction.
+using SessionFrames = std::function<std::unique_ptr<FrameSource>(size_t index)>;
+
 /// Integrates session `index` again with every pose corrected by `correction`.
 /// Called from several threads at once, for different sessions.
 using Reintegrate = std::function<SessionMap(size_t index, const PoseCorrection& correction)>;
@@ -92,11 +125,16 @@ using Reintegrate = std::function<SessionMap(size_t index, const PoseCorrection&
 /// again with its correction after every round. `sessions` are replaced by the re-integrated
 /// ones. Sessions are registered and integrated in parallel; the result does not depend on the
 /// thread count. `sensor_positions`: each session's sensor positions as first integrated
-/// (required by the PerPose model, ignored by World). @return the correction of each session.
-/// @throw UsageError for no sessions, rounds outside [1, 10], bad settings or missing positions.
+/// (required by the PerPose model, ignored by World). With settings.drift_knot_frames > 0,
+/// drift_rounds more rounds follow, each fitting every session's drift (fitDrift()) on the
+/// frames `frames` gives, corrected as integrated last, and integrating it again.
+/// @return the correction of each session (with per-frame parts after a drift correction).
+/// @throw UsageError for no sessions, rounds outside [1, 10], bad settings, missing positions or
+/// frames.
 std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, const Reintegrate& reintegrate,
                                              int rounds = 3, const RegisterSettings& settings = {},
                                              std::vector<RegisterReport>* reports = nullptr,
-                                             std::span<const std::vector<Eigen::Vector3d>> sensor_positions = {});
+                                             std::span<const std::vector<Eigen::Vector3d>> sensor_positions = {},
+                                             const SessionFrames& frames = {});
 
 }  // namespace chronomap

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "chronomap/core/point_cloud.h"
@@ -91,22 +92,38 @@ enum class CorrectionModel : uint8_t {
   PerPose,
 };
 
-/// A correction of every pose of a session.
+/// A correction of every pose of a session: one motion of the given model, then, when
+/// `per_frame` is not empty, a motion for each frame by index (the slow drift of a localisation
+/// within the session), each in the PerPose sense: turned about the frame's own position, then
+/// moved.
 struct PoseCorrection {
   Eigen::Isometry3d motion = Eigen::Isometry3d::Identity();
   CorrectionModel model = CorrectionModel::World;
+  std::vector<Eigen::Isometry3d> per_frame;
 
-  /// The corrected pose.
+  PoseCorrection() = default;
+  PoseCorrection(const Eigen::Isometry3d& motion_, CorrectionModel model_,
+                 std::vector<Eigen::Isometry3d> per_frame_ = {})
+      : motion(motion_), model(model_), per_frame(std::move(per_frame_)) {}
+
+  /// The corrected pose of a frame, ignoring `per_frame`.
   Eigen::Isometry3d apply(const Eigen::Isometry3d& T_world_sensor) const {
-    if (model == CorrectionModel::World) return motion * T_world_sensor;
-    Eigen::Isometry3d out = T_world_sensor;
-    out.linear() = motion.linear() * T_world_sensor.linear();
-    out.translation() = T_world_sensor.translation() + motion.translation();
+    return model == CorrectionModel::World ? motion * T_world_sensor : perPose(motion, T_world_sensor);
+  }
+  /// The corrected pose of frame `i`. @throw UsageError when `per_frame` is set for a
+  /// different number of frames (i beyond it).
+  Eigen::Isometry3d apply(const Eigen::Isometry3d& T_world_sensor, size_t i) const;
+  /// The correction `next` applied after this one (same model; `next.per_frame` empty or as
+  /// long as this one's). @throw UsageError otherwise.
+  PoseCorrection then(const PoseCorrection& next) const;
+  bool isIdentity() const;
+  /// `T` turned by `c`'s rotation about its own position, then moved by `c`'s translation.
+  static Eigen::Isometry3d perPose(const Eigen::Isometry3d& c, const Eigen::Isometry3d& T) {
+    Eigen::Isometry3d out = T;
+    out.linear() = c.linear() * T.linear();
+    out.translation() = T.translation() + c.translation();
     return out;
   }
-  /// The correction `next` applied after this one (same model). @throw UsageError otherwise.
-  PoseCorrection then(const PoseCorrection& next) const;
-  bool isIdentity() const { return motion.matrix().isIdentity(0.0); }
 };
 
 /// Another source's frames with every pose corrected (a session registered to others).
@@ -115,14 +132,14 @@ class CorrectedFrames : public FrameSource {
   CorrectedFrames(const FrameSource& inner, const PoseCorrection& correction) : inner_(inner), correction_(correction) {}
   /// A World correction: T_world_sensor becomes correction * T_world_sensor.
   CorrectedFrames(const FrameSource& inner, const Eigen::Isometry3d& correction)
-      : inner_(inner), correction_{correction, CorrectionModel::World} {}
+      : inner_(inner), correction_{correction, CorrectionModel::World, {}} {}
   size_t size() const override { return inner_.size(); }
   Frame load(size_t i) const override {
     Frame f = inner_.load(i);
-    f.T_world_sensor = correction_.apply(f.T_world_sensor);
+    f.T_world_sensor = correction_.apply(f.T_world_sensor, i);
     return f;
   }
-  Eigen::Isometry3d poseOf(size_t i) const override { return correction_.apply(inner_.poseOf(i)); }
+  Eigen::Isometry3d poseOf(size_t i) const override { return correction_.apply(inner_.poseOf(i), i); }
 
  private:
   const FrameSource& inner_;
