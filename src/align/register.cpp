@@ -5,6 +5,7 @@
 #include <limits>
 #include <numbers>
 #include <optional>
+#include <utility>
 #include <unordered_map>
 #include <vector>
 
@@ -398,7 +399,10 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
       // Voxels that already fit count too: they hold the frame where it is.
       const Eigen::Vector3d pull = *q - r * d.own_pull - p;
       ++matched;
-      const auto [k, w] = knotOf(d.frame);
+      // Plain variables, not a structured binding: the lambda below captures them.
+      const std::pair<size_t, double> knot = knotOf(d.frame);
+      const size_t k = knot.first;
+      const double w = knot.second;
       const Eigen::Index a = static_cast<Eigen::Index>(k) * kDof, b = a + kDof;
       const auto addRow = [&](const Eigen::Vector3d& n, double residual) {
         Eigen::Vector4d j;
