@@ -122,17 +122,15 @@ HitMap surfaceOf(const SessionMap& map, std::vector<Eigen::Vector3d>* centres = 
   return out;
 }
 
-/// The centre of the voxels of `surface` around `p`, weighted by their hits and a Gaussian of
-/// the distance (sigma half the radius; nothing beyond the radius), so that it moves smoothly
-/// with `p` (continuously with `vanishing`).
-std::optional<Eigen::Vector3d> centroidNear(const HitMap& surface, const KeyGrid& grid, const Eigen::Vector3d& p,
-                                            double radius_voxels, bool vanishing = false) {
+/// Calls fn(centre, hits, d2) for every voxel of `surface` within `radius_voxels` of `p`
+/// (d2: squared distance of its centre from `p`, in m^2). Returns the radius in metres, or a
+/// negative value when `p` lies outside the grid.
+template <typename Fn>
+double forEachNear(const HitMap& surface, const KeyGrid& grid, const Eigen::Vector3d& p, double radius_voxels, Fn fn) {
   const auto k = grid.keyOf(p);
-  if (!k) return std::nullopt;
+  if (!k) return -1.0;
   const int r = static_cast<int>(std::ceil(radius_voxels));
   const double radius_m = radius_voxels * grid.resolution_m();
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  double weight = 0.0;
   for (int dz = -r; dz <= r; ++dz) {
     for (int dy = -r; dy <= r; ++dy) {
       for (int dx = -r; dx <= r; ++dx) {
@@ -143,15 +141,29 @@ std::optional<Eigen::Vector3d> centroidNear(const HitMap& surface, const KeyGrid
         const Eigen::Vector3d c = grid.centerOf(*n);
         const double d2 = (c - p).squaredNorm();
         if (d2 > radius_m * radius_m) continue;
-        // `vanishing`: the Gaussian minus its value at the radius, so that the centre moves
-        // continuously as voxels leave the neighbourhood.
-        const double w = static_cast<double>(found->second) *
-                         (std::exp(-2.0 * d2 / (radius_m * radius_m)) - (vanishing ? std::exp(-2.0) : 0.0));
-        sum += w * c;
-        weight += w;
+        fn(c, found->second, d2);
       }
     }
   }
+  return radius_m;
+}
+
+/// The centre of the voxels of `surface` around `p`, weighted by their hits and a Gaussian of
+/// the distance (sigma half the radius; nothing beyond the radius), so that it moves smoothly
+/// with `p` (continuously with `vanishing`).
+std::optional<Eigen::Vector3d> centroidNear(const HitMap& surface, const KeyGrid& grid, const Eigen::Vector3d& p,
+                                            double radius_voxels, bool vanishing = false) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  double weight = 0.0;
+  const double radius_m = radius_voxels * grid.resolution_m();
+  forEachNear(surface, grid, p, radius_voxels, [&](const Eigen::Vector3d& c, uint32_t hits, double d2) {
+    // `vanishing`: the Gaussian minus its value at the radius, so that the centre moves
+    // continuously as voxels leave the neighbourhood.
+    const double w = static_cast<double>(hits) *
+                     (std::exp(-2.0 * d2 / (radius_m * radius_m)) - (vanishing ? std::exp(-2.0) : 0.0));
+    sum += w * c;
+    weight += w;
+  });
   if (weight <= 0.0) return std::nullopt;
   return sum / weight;
 }
@@ -262,8 +274,8 @@ namespace {
 /// One voxel a frame saw, for the drift fit.
 struct DriftSample {
   Eigen::Vector3d point;     ///< the voxel centre, as integrated
-  Eigen::Vector3d own_pull;  ///< the pull of the session's own surface on it
-  Eigen::Vector3d normal;    ///< of the session's surface here; zero where it is no plane
+  Eigen::Vector3d own_pull;  ///< the pull of the frame's own voxels on it
+  Eigen::Vector3d normal;    ///< of the frame's surface here; zero where it is no plane
   uint32_t frame = 0;
 };
 
@@ -272,30 +284,19 @@ struct DriftSample {
 /// plane (an edge, a corner, too few voxels): its spread across is not below a third of the
 /// next smallest.
 Eigen::Vector3d normalNear(const HitMap& surface, const KeyGrid& grid, const Eigen::Vector3d& p, double radius_voxels) {
-  const auto k = grid.keyOf(p);
-  if (!k) return Eigen::Vector3d::Zero();
-  const int r = static_cast<int>(std::ceil(radius_voxels));
-  const double radius_m = radius_voxels * grid.resolution_m();
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
   double weight = 0.0;
   int count = 0;
-  for (int dz = -r; dz <= r; ++dz) {
-    for (int dy = -r; dy <= r; ++dy) {
-      for (int dx = -r; dx <= r; ++dx) {
-        const auto n = offsetKey(*k, dx, dy, dz);
-        if (!n || !surface.count(mortonEncode(*n))) continue;
-        const Eigen::Vector3d c = grid.centerOf(*n) - p;
-        const double d2 = c.squaredNorm();
-        if (d2 > radius_m * radius_m) continue;
-        const double w = std::exp(-2.0 * d2 / (radius_m * radius_m));
-        sum += w * c;
-        outer += w * c * c.transpose();
-        weight += w;
-        ++count;
-      }
-    }
-  }
+  const double radius_m = radius_voxels * grid.resolution_m();
+  forEachNear(surface, grid, p, radius_voxels, [&](const Eigen::Vector3d& centre, uint32_t, double d2) {
+    const Eigen::Vector3d c = centre - p;
+    const double w = std::exp(-2.0 * d2 / (radius_m * radius_m));
+    sum += w * c;
+    outer += w * c * c.transpose();
+    weight += w;
+    ++count;
+  });
   if (count < 6) return Eigen::Vector3d::Zero();
   const Eigen::Vector3d mean = sum / weight;
   const Eigen::Matrix3d cov = outer / weight - mean * mean.transpose();
@@ -375,14 +376,16 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
   const double lambda_yaw = noise * noise / (static_cast<double>(spacing) * yaw_step * yaw_step);
   const double lambda[kDof] = {lambda_t, lambda_t, lambda_t, lambda_yaw};
   Eigen::VectorXd x = Eigen::VectorXd::Zero(dim);
+  // Frame i's offset and yaw: its two knots' values, linearly interpolated.
+  const auto paramsOf = [&](size_t i) -> Eigen::Vector4d {
+    const auto [k, w] = knotOf(i);
+    return (1.0 - w) * x.segment<kDof>(static_cast<Eigen::Index>(k) * kDof) +
+           w * x.segment<kDof>(static_cast<Eigen::Index>(k + 1) * kDof);
+  };
   const HitMap& surface = target.surface();
   std::vector<Eigen::Vector4d> frame_params(n_frames);
   for (int it = 0; it < settings.max_iterations && !surface.empty() && !samples.empty(); ++it) {
-    for (size_t i = 0; i < n_frames; ++i) {
-      const auto [k, w] = knotOf(i);
-      frame_params[i] = (1.0 - w) * x.segment<kDof>(static_cast<Eigen::Index>(k) * kDof) +
-                        w * x.segment<kDof>(static_cast<Eigen::Index>(k + 1) * kDof);
-    }
+    for (size_t i = 0; i < n_frames; ++i) frame_params[i] = paramsOf(i);
     Eigen::MatrixXd ata = Eigen::MatrixXd::Zero(dim, dim);
     Eigen::VectorXd atb = Eigen::VectorXd::Zero(dim);
     double shift = 0.0;
@@ -394,7 +397,7 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
       const Eigen::Vector3d p = sensors[d.frame] + fp.head<3>() + arm;
       const auto q = centroidNear(surface, grid, p, settings.radius_voxels, true);
       if (!q) continue;
-      // Where the session's surface is a plane, the pull counts along its normal only (it says
+      // Where the frame's surface is a plane, the pull counts along its normal only (it says
       // how far the surface lies, not where along it the voxel belongs); elsewhere in full.
       // Voxels that already fit count too: they hold the frame where it is.
       const Eigen::Vector3d pull = *q - r * d.own_pull - p;
@@ -456,9 +459,7 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
     if (moved < settings.min_step_m) break;
   }
   for (size_t i = 0; i < n_frames; ++i) {
-    const auto [k, w] = knotOf(i);
-    const Eigen::Vector4d fp = (1.0 - w) * x.segment<kDof>(static_cast<Eigen::Index>(k) * kDof) +
-                               w * x.segment<kDof>(static_cast<Eigen::Index>(k + 1) * kDof);
+    const Eigen::Vector4d fp = paramsOf(i);
     out[i].linear() = Eigen::AngleAxisd(fp(3), Eigen::Vector3d::UnitZ()).toRotationMatrix();
     out[i].translation() = fp.head<3>();
   }

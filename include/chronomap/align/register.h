@@ -100,9 +100,11 @@ Eigen::Isometry3d registerToConsensus(const SessionMap& session, const Registrat
 
 /// The slow drift of a session's localisation: one correction per frame of `frames` (as
 /// integrated into `session`), to apply after the poses' present correction in the PerPose sense
-/// (turned about the frame's position, then moved). Each frame's occupied voxels (at most
-/// drift_samples_per_frame, within drift_max_range_m of its sensor, occupied in `session`) are
-/// pulled towards the target's surface as in registerToConsensus(); the unknowns are a position
+/// (turned about the frame's position, then moved). The voxels each frame's points end in (at
+/// most drift_samples_per_frame, within drift_max_range_m of its sensor) are pulled towards the
+/// target's surface as in registerToConsensus(), relative to the pull of the frame's own voxels,
+/// along the frame surface's normal where that is a plane; `session` gives the voxel grid
+/// (its resolution must be the target's). The unknowns are a position
 /// offset and a yaw at knots every drift_knot_frames frames, linear in between, fitted by least
 /// squares along each pull with a random-walk prior on the differences of neighbouring knots
 /// (drift_per_frame_m, drift_yaw_per_frame_deg; a pull's noise taken as half a voxel), so
