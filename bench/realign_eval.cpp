@@ -8,8 +8,11 @@
 // registered then re-aligned. For each session after the first, the voxels whose state the 4D
 // map records as changed by it (history entries after a voxel's first) are split into true
 // changes (within one voxel of a truth event voxel of an event between the session that saw
-// the previous state and this one) and false ones; "true changes kept" is the share of the
-// truth voxels matched as recorded that are still matched. Then sweeps over the settings.
+// the previous state and this one) and false ones. "True changes kept" is the share of the
+// observable truth voxels still matched: those that the changes recorded as is match and that
+// the changes recorded with the true poses match too. (The share of all truth voxels matched as
+// recorded is printed beside it: noise changes next to a truth voxel count there, so it scores
+// better alignment as loss.) Then sweeps over the settings.
 //
 // Usage: realign_eval [--office DIR] [--floor66 DIR] [--quick] [--skip-floor66] [--register-model M] [--drift-knots N]
 //   --office DIR    a `chronomap simulate --preset office` output (default: simulate one at half
@@ -19,10 +22,12 @@
 //   --skip-floor66  office only (the last line then reports the office)
 //   --register-model  world (default) or per-pose: the registration's correction model
 //                   (align/register.h)
-//   --drift-knots N  also correct each session's drift, knots every N frames (0, the default: no)
-// The last line of output is one JSON object for floor66 (registration + re-alignment, the
-// recommended pipeline): false_changes_removed,
-// true_changes_kept (fractions), nodes_4d and nodes_4d_realigned.
+//   --drift-knots N  the registration's drift correction: knots every N frames (default 20;
+//                   0: one rigid correction per session only)
+// The last line of output is one JSON object for floor66 with the recommended step,
+// registration (as `chronomap build --register --register-drift 20`): false_changes_removed,
+// true_changes_kept (fractions), nodes_4d (as recorded) and nodes_4d_realigned (registered);
+// then the same for re-alignment alone and for registration followed by re-alignment.
 
 #include <chrono>
 #include <algorithm>
@@ -145,7 +150,15 @@ Run realignedRun(const std::vector<SessionMap>& maps, const SessionMap& avg, con
 }
 
 struct Outcome {
-  double false_removed = 0.0, true_kept = 0.0;
+  double false_removed = 0.0;
+  // Of the truth event voxels that both the changes recorded as is and those recorded with the
+  // true poses match (the true changes a perfectly localised map records), the share still
+  // matched. The headline "true changes kept".
+  double true_kept = 0.0;
+  // Of the truth event voxels that the changes recorded as is match, the share still matched.
+  // Biased against better alignment: noise changes that happen to lie next to a truth voxel
+  // count as finding it, so even the true poses keep only ~85% by this measure.
+  double true_kept_any = 0.0;
   uint64_t nodes_4d = 0, nodes_4d_realigned = 0;
 };
 
@@ -154,14 +167,22 @@ struct Evaluation {
   Outcome realign_only, register_only, pipeline;
 };
 
-Outcome compare(const Run& before, const Run& after) {
+// `reference` is the run with the true poses: it decides which truth voxels are observable
+// changes (Outcome::true_kept).
+Outcome compare(const Run& before, const Run& after, const Run& reference) {
   Outcome o;
   o.false_removed = before.false_changes ? 1.0 - double(after.false_changes) / double(before.false_changes) : 0.0;
-  // Of the truth event voxels that the changes recorded without re-alignment match, the share
-  // that the re-aligned changes still match.
-  size_t kept = 0;
-  for (uint64_t v : before.truth_found) kept += after.truth_found.count(v);
-  o.true_kept = before.truth_found.empty() ? 1.0 : double(kept) / double(before.truth_found.size());
+  size_t kept_any = 0, observable = 0, kept = 0;
+  for (uint64_t v : before.truth_found) {
+    const bool still = after.truth_found.count(v) != 0;
+    kept_any += still;
+    if (reference.truth_found.count(v)) {
+      ++observable;
+      kept += still;
+    }
+  }
+  o.true_kept_any = before.truth_found.empty() ? 1.0 : double(kept_any) / double(before.truth_found.size());
+  o.true_kept = observable == 0 ? 1.0 : double(kept) / double(observable);
   o.nodes_4d = before.nodes_4d;
   o.nodes_4d_realigned = after.nodes_4d;
   return o;
@@ -181,7 +202,7 @@ Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bo
   const Run true_poses = tally(s.truth_pose, truth);
   const RealignSettings defaults;
   const Run aligned = realignedRun(s.estimated, avg, defaults, truth);
-  const Outcome o = compare(plain, aligned);
+  const Outcome o = compare(plain, aligned, true_poses);
   if (per_session) {
     std::printf("\nper session (changed voxels the 4D map records; true = within 1 voxel of a truth event):\n");
     std::printf("| session | true | false | nodes added | true, re-aligned | false, re-aligned | nodes added, re-aligned |\n");
@@ -213,17 +234,19 @@ Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bo
               (unsigned long long)true_poses.true_changes, (unsigned long long)true_poses.false_changes,
               (unsigned long long)true_poses.nodes_4d);
   {
-    const Outcome perfect = compare(plain, true_poses);
-    std::printf("  (true poses on this scale: false changes removed %.1f%%, true change voxels kept %.1f%%)\n",
-                100.0 * perfect.false_removed, 100.0 * perfect.true_kept);
+    const Outcome perfect = compare(plain, true_poses, true_poses);
+    std::printf("  (true poses on this scale: false changes removed %.1f%%, true change voxels kept %.1f%% "
+                "of those any recorded change matches)\n",
+                100.0 * perfect.false_removed, 100.0 * perfect.true_kept_any);
   }
   std::printf("  re-aligned:  %llu true + %llu false changed voxels; 4D map %llu nodes, %.0f added per session; "
               "%zu voxels moved in %.2f s (%.1f ms a session)\n",
               (unsigned long long)aligned.true_changes, (unsigned long long)aligned.false_changes,
               (unsigned long long)aligned.nodes_4d, mean_added(aligned), aligned.moved, aligned.realign_s,
               aligned.realign_s * 1000.0 / static_cast<double>(s.estimated.size()));
-  std::printf("  false changes removed %.1f%%, true change voxels kept %.1f%%, nodes %.1f%% of as recorded\n",
-              100.0 * o.false_removed, 100.0 * o.true_kept,
+  std::printf("  false changes removed %.1f%%, true change voxels kept %.1f%% (of any matched: %.1f%%), nodes %.1f%% "
+              "of as recorded\n",
+              100.0 * o.false_removed, 100.0 * o.true_kept, 100.0 * o.true_kept_any,
               100.0 * double(aligned.nodes_4d) / double(std::max<uint64_t>(1, plain.nodes_4d)));
 
   // Registration first: one rigid correction per session against the consensus, the session
@@ -244,10 +267,10 @@ Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bo
     const double register_s = seconds(start);
     const double n_s = static_cast<double>(s.estimated.size());
     const Run reg = tally(registered, truth);
-    const Outcome ro = compare(plain, reg);
+    const Outcome ro = compare(plain, reg, true_poses);
     const SessionMap avg2 = consensus(std::span<const SessionMap>(registered));
     const Run both = realignedRun(registered, avg2, defaults, truth);
-    const Outcome bo = compare(plain, both);
+    const Outcome bo = compare(plain, both, true_poses);
     result.pipeline = bo;
     result.register_only = ro;
     if (drift_knots > 0) std::printf("\ndrift corrected too: knots every %d frames, 2 rounds", drift_knots);
@@ -255,12 +278,14 @@ Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bo
                 "%.2f s a session for 3 rounds with re-integration):\n",
                 bench::correctionModelName(model), 1000.0 * shift_before / n_s, 1000.0 * shift_after / n_s, 1000.0 * correction_m / n_s,
                 register_s / n_s);
-    std::printf("  registered:               %llu true + %llu false; false removed %.1f%%, true kept %.1f%%, 4D map %llu nodes\n",
+    std::printf("  registered:               %llu true + %llu false; false removed %.1f%%, true kept %.1f%% (of any "
+                "matched: %.1f%%), 4D map %llu nodes\n",
                 (unsigned long long)reg.true_changes, (unsigned long long)reg.false_changes, 100.0 * ro.false_removed,
-                100.0 * ro.true_kept, (unsigned long long)reg.nodes_4d);
-    std::printf("  registered + re-aligned:  %llu true + %llu false; false removed %.1f%%, true kept %.1f%%, 4D map %llu nodes\n",
+                100.0 * ro.true_kept, 100.0 * ro.true_kept_any, (unsigned long long)reg.nodes_4d);
+    std::printf("  registered + re-aligned:  %llu true + %llu false; false removed %.1f%%, true kept %.1f%% (of any "
+                "matched: %.1f%%), 4D map %llu nodes\n",
                 (unsigned long long)both.true_changes, (unsigned long long)both.false_changes, 100.0 * bo.false_removed,
-                100.0 * bo.true_kept, (unsigned long long)both.nodes_4d);
+                100.0 * bo.true_kept, 100.0 * bo.true_kept_any, (unsigned long long)both.nodes_4d);
     if (sweep) {
       std::printf("\nre-alignment after registration (transfer, consensus occupied above 0.5):\n"
                   "| d_max | alpha | false removed | true kept | nodes 4D |\n|---:|---:|---:|---:|---:|\n");
@@ -269,7 +294,7 @@ Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bo
           RealignSettings rs = defaults;
           rs.alpha = alpha;
           rs.max_distance_voxels = d_max;
-          const Outcome c = compare(plain, realignedRun(registered, avg2, rs, truth));
+          const Outcome c = compare(plain, realignedRun(registered, avg2, rs, truth), true_poses);
           std::printf("| %g | %g | %.1f%% | %.1f%% | %llu |\n", d_max, alpha, 100.0 * c.false_removed,
                       100.0 * c.true_kept, (unsigned long long)c.nodes_4d_realigned);
           std::fflush(stdout);
@@ -293,7 +318,7 @@ Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bo
             rs.alpha = alpha;
             rs.max_distance_voxels = d_max;
             const Run r = realignedRun(s.estimated, avg, rs, truth);
-            const Outcome c = compare(plain, r);
+            const Outcome c = compare(plain, r, true_poses);
             std::printf("| %s | %g | %g | %g | %zu | %.1f%% | %.1f%% | %llu |\n", moveName(move), tau, d_max, alpha,
                         r.moved, 100.0 * c.false_removed, 100.0 * c.true_kept, (unsigned long long)r.nodes_4d);
             std::fflush(stdout);
@@ -311,7 +336,7 @@ int main(int argc, char** argv) {
   fs::path office, floor66;
   bool quick = false, skip_floor66 = false;
   CorrectionModel model = CorrectionModel::World;
-  int drift_knots = 0;
+  int drift_knots = 20;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--drift-knots") && i + 1 < argc) {
       drift_knots = std::atoi(argv[++i]);
@@ -342,22 +367,26 @@ int main(int argc, char** argv) {
       f = evaluate("floor66", floor66, false, false, model, drift_knots);
     }
     for (const auto& t : temporary) fs::remove_all(t);
+    // The headline is the recommended step, registration (with the drift correction unless
+    // --drift-knots 0): re-alignment after it removes more but trades true changes for false.
     std::printf("\n%s\n", nlohmann::json{{"preset", skip_floor66 ? "office" : "floor66"},
                                          {"register_model", bench::correctionModelName(model)},
                                          {"drift_knot_frames", drift_knots},
-                                         {"false_changes_removed", f.pipeline.false_removed},
-                                         {"true_changes_kept", f.pipeline.true_kept},
-                                         {"nodes_4d", f.pipeline.nodes_4d},
-                                         {"nodes_4d_realigned", f.pipeline.nodes_4d_realigned},
+                                         {"false_changes_removed", f.register_only.false_removed},
+                                         {"true_changes_kept", f.register_only.true_kept},
+                                         {"true_changes_kept_of_any_matched", f.register_only.true_kept_any},
+                                         {"nodes_4d", f.register_only.nodes_4d},
+                                         {"nodes_4d_realigned", f.register_only.nodes_4d_realigned},
                                          {"realign_only_false_changes_removed", f.realign_only.false_removed},
                                          {"realign_only_true_changes_kept", f.realign_only.true_kept},
-                                         {"register_only_false_changes_removed", f.register_only.false_removed},
-                                         {"register_only_true_changes_kept", f.register_only.true_kept},
-                                         {"nodes_4d_registered", f.register_only.nodes_4d_realigned},
-                                         {"office_false_changes_removed", o.pipeline.false_removed},
-                                         {"office_true_changes_kept", o.pipeline.true_kept},
-                                         {"office_register_only_false_changes_removed", o.register_only.false_removed},
-                                         {"office_register_only_true_changes_kept", o.register_only.true_kept}}
+                                         {"nodes_4d_realign_only", f.realign_only.nodes_4d_realigned},
+                                         {"register_realign_false_changes_removed", f.pipeline.false_removed},
+                                         {"register_realign_true_changes_kept", f.pipeline.true_kept},
+                                         {"nodes_4d_register_realign", f.pipeline.nodes_4d_realigned},
+                                         {"office_false_changes_removed", o.register_only.false_removed},
+                                         {"office_true_changes_kept", o.register_only.true_kept},
+                                         {"office_register_realign_false_changes_removed", o.pipeline.false_removed},
+                                         {"office_register_realign_true_changes_kept", o.pipeline.true_kept}}
                               .dump()
                               .c_str());
   } catch (const std::exception& e) {
