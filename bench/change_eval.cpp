@@ -10,13 +10,14 @@
 //    of frame 2's pixels flagged changed after frame 1; nvblox's test accepts 5-20 %), and the
 //    PCL grabber sequence of a static scene (the false change rate).
 //
-// Usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] [--register-model M]
+// Usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] [--register-model M] [--drift-knots N]
 //   --office DIR   a `chronomap simulate --preset office` output (default: simulate one at half
 //                  resolution into a temporary folder)
 //   --floor66 DIR  also evaluate a floor66 simulation (not simulated by default: ~7 minutes)
 //   --quick        only the default settings, no sweep
 //   --register-model  world (default) or per-pose: the registration's correction model
 //                  (align/register.h) for the "register" and "reg+align" rows
+//   --drift-knots N  the registration also corrects drift, knots every N frames (default 0: no)
 // The last line of output is one JSON object with the headline figures.
 
 #include <algorithm>
@@ -159,7 +160,8 @@ std::pair<double, double> benchTemporalDiff(const std::vector<SessionMap>& maps)
   return {first, last};
 }
 
-SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool sweep, CorrectionModel model) {
+SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool sweep, CorrectionModel model,
+                              int drift_knots) {
   std::printf("\n== %s (%s) ==\n", name.c_str(), dir.c_str());
   const auto start = std::chrono::steady_clock::now();
   const SimSessions s = loadSimulation(dir, true);
@@ -169,13 +171,14 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
   // Noise reduction (docs/realign.md): every session registered to the consensus of all (3
   // rounds, re-integrated with its correction), then also re-aligned voxel by voxel.
   const auto reg_start = std::chrono::steady_clock::now();
-  const std::vector<SessionMap> registered = bench::registerSimulation(s, model);
+  const std::vector<SessionMap> registered = bench::registerSimulation(s, model, nullptr, nullptr, drift_knots);
   std::vector<SessionMap> realigned;
   {
     const SessionMap avg = consensus(std::span<const SessionMap>(registered));
     for (const SessionMap& m : registered) realigned.push_back(realign(m, avg));
   }
-  std::printf("registered (3 rounds, %s corrections) and re-aligned in %.1f s\n", bench::correctionModelName(model),
+  std::printf("registered (3 rounds, %s corrections%s) and re-aligned in %.1f s\n", bench::correctionModelName(model),
+              drift_knots > 0 ? (", then drift knots every " + std::to_string(drift_knots) + " frames").c_str() : "",
               seconds(reg_start));
 
   auto row = [&](const char* poses, const std::vector<SessionMap>& maps, const DiffSettings& ds,
@@ -224,6 +227,14 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
         SegmentSettings ss = defaultSegment();
         ss.min_voxels = mv;
         row(poses, maps, defaultDiff(), ss);
+      }
+      // Without the neighbourhood rule (which hides one-voxel moves), larger components only.
+      for (uint64_t mv : {30, 50, 100}) {
+        DiffSettings ds = defaultDiff();
+        ds.neighbourhood_voxels = 0;
+        SegmentSettings ss = defaultSegment();
+        ss.min_voxels = mv;
+        row(poses, maps, ds, ss, true);
       }
     }
   }
@@ -393,8 +404,11 @@ int main(int argc, char** argv) {
   fs::path office, floor66, data = CHRONOMAP_DEFAULT_DATA_DIR;
   bool quick = false;
   CorrectionModel model = CorrectionModel::World;
+  int drift_knots = 0;
   for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--register-model") && i + 1 < argc && bench::parseCorrectionModel(argv[i + 1], model)) {
+    if (!std::strcmp(argv[i], "--drift-knots") && i + 1 < argc) {
+      drift_knots = std::atoi(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--register-model") && i + 1 < argc && bench::parseCorrectionModel(argv[i + 1], model)) {
       ++i;
     } else if (!std::strcmp(argv[i], "--office") && i + 1 < argc) {
       office = argv[++i];
@@ -407,7 +421,7 @@ int main(int argc, char** argv) {
     } else {
       std::fprintf(stderr,
                    "usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] "
-                   "[--register-model world|per-pose]\n");
+                   "[--register-model world|per-pose] [--drift-knots FRAMES]\n");
       return 2;
     }
   }
@@ -417,8 +431,8 @@ int main(int argc, char** argv) {
       tmp = bench::simulateTemporary("office", "change_eval");
       office = tmp;
     }
-    const SimSummary o = evaluateSimulation("office", office, !quick, model);
-    if (!floor66.empty()) evaluateSimulation("floor66", floor66, false, model);
+    const SimSummary o = evaluateSimulation("office", office, !quick, model, drift_knots);
+    if (!floor66.empty()) evaluateSimulation("floor66", floor66, false, model, drift_knots);
     const MosdResult mosd = evaluateMosd(data / "mosd-a" / "test");
     const double human = evaluateHuman(data / "3dmatch" / "human_dataset");
     const double grabber = evaluateGrabber(data / "pcl-kinect" / "grabber_sequences" / "pcd");
