@@ -17,8 +17,11 @@
 //   --quick        only the default settings, no sweep
 //   --register-model  world (default) or per-pose: the registration's correction model
 //                  (align/register.h) for the "register" and "reg+align" rows
-//   --drift-knots N  the registration also corrects drift, knots every N frames (default 0: no)
-// The last line of output is one JSON object with the headline figures.
+//   --drift-knots N  the registration also corrects drift, knots every N frames (default 20, as
+//                  `chronomap build --register --register-drift 20`; 0: rigid corrections only)
+// The last line of output is one JSON object with the headline figures: the office sessions
+// registered to their consensus (as `chronomap build --register --register-drift 20`) at the
+// recommended settings, and the same with the shift test (office_shift_...).
 
 #include <algorithm>
 #include <chrono>
@@ -54,7 +57,9 @@ namespace {
 
 using bench::seconds;
 
-// The settings the demo and the documentation recommend for robot sessions (see docs/changes.md).
+// The settings the demo and the documentation recommend for robot sessions (see
+// docs/changes.md): band mode, a surface within one voxel is no change, vertex connectivity,
+// components of at least 20 voxels.
 DiffSettings defaultDiff() {
   DiffSettings d;
   d.mode = DiffMode::Band;
@@ -67,6 +72,14 @@ SegmentSettings defaultSegment() {
   s.connectivity = Connectivity::Vertex;
   s.min_voxels = 20;
   return s;
+}
+
+// With the shift test: a surface within one voxel is still a change when it moved by half a
+// voxel or more.
+DiffSettings shiftDiff() {
+  DiffSettings d = defaultDiff();
+  d.min_shift_voxels = DiffSettings::kRecommendedMinShift;
+  return d;
 }
 
 // ------------------------------------------------------------------------------------------
@@ -95,6 +108,7 @@ struct SimSummary {
   double object_recall = 0.0;
   double false_components_per_pair = 0.0;
   double voxel_precision = 0.0, voxel_recall = 0.0;
+  double shift_object_recall = 0.0, shift_false_components_per_pair = 0.0;  // with shiftDiff()
 };
 
 template <class Fn>
@@ -186,8 +200,9 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
     size_t bad_pairs = 0;
     const auto t = std::chrono::steady_clock::now();
     const sim::ChangeScore c = scorePairs(maps, s.events, ds, ss, &bad_pairs);
-    std::printf("%-9s %-10s %5.2f %5d %-7s %5llu | %9.3f %9.3f | %4zu/%-4zu %7.3f | %10.2f %9zu | %6.2f\n", poses,
-                toString(ds.mode), ds.effectiveAlpha(), ds.neighbourhood_voxels, toString(ss.connectivity),
+    std::printf("%-9s %-10s %5.2f %5d %5.2f %-7s %5llu | %9.3f %9.3f | %4zu/%-4zu %7.3f | %10.2f %9zu | %6.2f\n",
+                poses, toString(ds.mode), ds.effectiveAlpha(), ds.neighbourhood_voxels, ds.min_shift_voxels,
+                toString(ss.connectivity),
                 static_cast<unsigned long long>(ss.min_voxels), c.precision(), c.recall(), c.events_found,
                 c.events_observable,
                 c.events_observable ? double(c.events_found) / double(c.events_observable) : 1.0,
@@ -197,12 +212,17 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
     }
     return c;
   };
-  std::printf("poses     mode       alpha nbhd  conn    min_v | voxel_prec voxel_rec | objects  recall | "
+  std::printf("poses     mode       alpha nbhd shift  conn    min_v | voxel_prec voxel_rec | objects  recall | "
               "false/pair >1 false | seconds\n");
-  const sim::ChangeScore headline = row("estimated", s.estimated, defaultDiff(), defaultSegment(), true);
+  const sim::ChangeScore headline = row("register", registered, defaultDiff(), defaultSegment(), true);
   row("true", s.truth_pose, defaultDiff(), defaultSegment(), true);
-  row("register", registered, defaultDiff(), defaultSegment(), true);
   row("reg+align", realigned, defaultDiff(), defaultSegment(), true);
+  row("estimated", s.estimated, defaultDiff(), defaultSegment(), true);
+  std::printf("with the shift test (min shift 0.5 voxel):\n");
+  const sim::ChangeScore shifted = row("register", registered, shiftDiff(), defaultSegment(), true);
+  row("true", s.truth_pose, shiftDiff(), defaultSegment(), true);
+  row("reg+align", realigned, shiftDiff(), defaultSegment(), true);
+  row("estimated", s.estimated, shiftDiff(), defaultSegment(), true);
   if (sweep) {
     for (const char* poses : {"estimated", "true", "register", "reg+align"}) {
       const auto& maps = std::strcmp(poses, "true") == 0        ? s.truth_pose
@@ -228,6 +248,16 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
         ss.min_voxels = mv;
         row(poses, maps, defaultDiff(), ss);
       }
+      // The shift test's threshold and the component size.
+      for (double shift : {0.3, 0.4, 0.5, 0.6, 0.7}) {
+        for (uint64_t mv : {20, 30, 40}) {
+          DiffSettings ds = shiftDiff();
+          ds.min_shift_voxels = shift;
+          SegmentSettings ss = defaultSegment();
+          ss.min_voxels = mv;
+          row(poses, maps, ds, ss, true);
+        }
+      }
       // Without the neighbourhood rule (which hides one-voxel moves), larger components only.
       for (uint64_t mv : {30, 50, 100}) {
         DiffSettings ds = defaultDiff();
@@ -246,6 +276,9 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
   out.false_components_per_pair = double(headline.false_components) / double(pairs);
   out.voxel_precision = headline.precision();
   out.voxel_recall = headline.recall();
+  out.shift_object_recall =
+      shifted.events_observable ? double(shifted.events_found) / double(shifted.events_observable) : 1.0;
+  out.shift_false_components_per_pair = double(shifted.false_components) / double(pairs);
   return out;
 }
 
@@ -404,7 +437,7 @@ int main(int argc, char** argv) {
   fs::path office, floor66, data = CHRONOMAP_DEFAULT_DATA_DIR;
   bool quick = false;
   CorrectionModel model = CorrectionModel::World;
-  int drift_knots = 0;
+  int drift_knots = 20;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--drift-knots") && i + 1 < argc) {
       drift_knots = std::atoi(argv[++i]);
@@ -444,6 +477,9 @@ int main(int argc, char** argv) {
                                          {"office_false_components_per_pair", o.false_components_per_pair},
                                          {"office_voxel_precision", o.voxel_precision},
                                          {"office_voxel_recall", o.voxel_recall},
+                                         {"office_shift_object_recall", o.shift_object_recall},
+                                         {"office_shift_false_components_per_pair",
+                                          o.shift_false_components_per_pair},
                                          {"mosd_a_found", mosd.found},
                                          {"mosd_a_total", mosd.total},
                                          {"mosd_a_false_components_per_pair",

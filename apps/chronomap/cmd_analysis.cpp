@@ -33,6 +33,7 @@ struct DiffCmdOptions {
   std::string mode = "hard";
   double alpha = -1.0;
   int neighbourhood = 0;
+  double min_shift_voxels = 0.0;
   std::string output;
   std::string ply;
   bool json = false;
@@ -69,6 +70,7 @@ int runDiff(const DiffCmdOptions& o) {
   settings.mode = parseDiffMode(o.mode);
   settings.alpha = o.alpha;
   settings.neighbourhood_voxels = o.neighbourhood;
+  settings.min_shift_voxels = o.min_shift_voxels;
   settings.validate();
   if (fs::path(o.output).extension() != ".cmap") throw UsageError("output '" + o.output + "' must end in .cmap");
   if (!o.ply.empty() && fs::path(o.ply).extension() != ".ply") throw UsageError("--ply '" + o.ply + "' must end in .ply");
@@ -216,6 +218,12 @@ Command addDiff(CLI::App& root) {
   app->add_option("--neighbourhood", o->neighbourhood,
                   "ignore a voxel that appeared (vanished) when the other map is occupied within this many voxels: "
                   "surfaces shifted by localisation error are not changes (0..3; 0 compares twins only)")
+      ->capture_default_str();
+  app->add_option("--min-shift", o->min_shift_voxels,
+                  "voxels: with --neighbourhood, keep a voxel near a surface when that surface moved at least this far "
+                  "(measured to a fraction of a voxel from how the hits split between voxels); 0 drops them all. 0.5 "
+                  "tells a chair moved by a voxel from a centimetre of pose error, in sessions registered with "
+                  "build --register")
       ->capture_default_str();
   app->add_option("-o,--output", o->output, "the diff to write (.cmap)")->required();
   app->add_option("--ply", o->ply, "also write the changed voxels as a PLY, coloured by what they show");

@@ -54,6 +54,9 @@ void DiffSettings::validate() const {
     throw UsageError("diff neighbourhood must lie in 0.." + std::to_string(kMaxNeighbourhood) + " voxels, got " +
                      std::to_string(neighbourhood_voxels));
   }
+  if (!std::isfinite(min_shift_voxels) || min_shift_voxels < 0.0) {
+    throw UsageError("diff min shift must be a number of voxels >= 0, got " + std::to_string(min_shift_voxels));
+  }
   const double a = effectiveAlpha();
   if (mode == DiffMode::Threshold && !(a < 1.0)) {
     throw UsageError("threshold alpha must lie in [0, 1), got " + std::to_string(a));
@@ -190,20 +193,65 @@ struct SessionWalk {
   }
 };
 
-// Drops appeared cells with an occupied voxel near them in the first map, and vanished cells
-// with one near them in the second (DiffSettings::neighbourhood_voxels).
-template <class StateBefore, class StateAfter>
-void dropNearSurfaces(std::vector<ChangeCell>& cells, int r, StateBefore before, StateAfter after) {
+// The hit-weighted mean of the voxel offsets within r of `key` on each side, over the voxels
+// known on both sides; their distance in voxels, or nothing when a side has no hits there.
+// `before` and `after` give a voxel's counters (zero when unknown).
+template <class CountersBefore, class CountersAfter>
+std::optional<double> shiftInVoxels(const VoxelKey& key, int r, CountersBefore before, CountersAfter after) {
+  double sum_a[3] = {0, 0, 0}, sum_b[3] = {0, 0, 0};
+  double hits_a = 0.0, hits_b = 0.0;
+  for (int dz = -r; dz <= r; ++dz) {
+    for (int dy = -r; dy <= r; ++dy) {
+      for (int dx = -r; dx <= r; ++dx) {
+        const auto k = offsetKey(key, dx, dy, dz);
+        if (!k) continue;
+        const VoxelCounters a = before(*k), b = after(*k);
+        if (!isKnown(a) || !isKnown(b)) continue;
+        const double offset[3] = {double(dx), double(dy), double(dz)};
+        for (int i = 0; i < 3; ++i) {
+          sum_a[i] += a.hits * offset[i];
+          sum_b[i] += b.hits * offset[i];
+        }
+        hits_a += a.hits;
+        hits_b += b.hits;
+      }
+    }
+  }
+  if (hits_a == 0.0 || hits_b == 0.0) return std::nullopt;
+  double d2 = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    const double d = sum_b[i] / hits_b - sum_a[i] / hits_a;
+    d2 += d * d;
+  }
+  return std::sqrt(d2);
+}
+
+// The neighbourhood rule (DiffSettings::neighbourhood_voxels, min_shift_voxels): drops appeared
+// cells with an occupied voxel near them in the first map, and vanished cells with one near
+// them in the second, unless the surface there moved by at least min_shift_voxels.
+template <class CountersBefore, class CountersAfter>
+void dropNearSurfaces(std::vector<ChangeCell>& cells, const DiffSettings& settings, CountersBefore before,
+                      CountersAfter after) {
+  const int r = settings.neighbourhood_voxels;
   if (r <= 0) return;
-  auto occupiedNear = [r](const VoxelKey& k, auto&& state) {
-    return anyKeyWithin(k, r, [&](const VoxelKey& n) { return state(n) == VoxelState::Occupied; });
+  auto occupiedNear = [r](const VoxelKey& k, auto&& counters) {
+    return anyKeyWithin(k, r, [&](const VoxelKey& n) { return counters(n).state() == VoxelState::Occupied; });
+  };
+  auto moved = [&](const VoxelKey& k) {
+    if (settings.min_shift_voxels <= 0.0) return false;
+    const auto shift = shiftInVoxels(k, r, before, after);
+    return shift && *shift >= settings.min_shift_voxels;
   };
   std::erase_if(cells, [&](const ChangeCell& c) {
     if (c.level != 0) return false;
-    if (c.kind == ChangeKind::Appeared) return occupiedNear(c.key, before);
-    if (c.kind == ChangeKind::Vanished) return occupiedNear(c.key, after);
+    if (c.kind == ChangeKind::Appeared) return occupiedNear(c.key, before) && !moved(c.key);
+    if (c.kind == ChangeKind::Vanished) return occupiedNear(c.key, after) && !moved(c.key);
     return false;
   });
+}
+
+auto countersOf(const SessionMap& m) {
+  return [&m](const VoxelKey& k) { return m.find(k).value_or(VoxelCounters{}); };
 }
 
 }  // namespace
@@ -217,9 +265,7 @@ DiffMap diff(const SessionMap& before, const SessionMap& after, const DiffSettin
   SessionWalk w{before, after, settings, d.cells_};
   w.walk(0, 0, kTreeDepth, VoxelKey{});  // inner node 0 is the root of both
   if (settings.mode != DiffMode::Continuous) {
-    dropNearSurfaces(
-        d.cells_, settings.neighbourhood_voxels, [&](const VoxelKey& k) { return before.stateOf(k); },
-        [&](const VoxelKey& k) { return after.stateOf(k); });
+    dropNearSurfaces(d.cells_, settings, countersOf(before), countersOf(after));
   }
   return d;
 }
@@ -260,17 +306,23 @@ DiffMap diff(const TemporalMap& map, double t1_s, double t2_s, const DiffSetting
     local.inner_nodes_visited = map.forEachListChangedIn(lo, hi, compare);
   }
   if (settings.mode != DiffMode::Continuous) {
-    auto stateAt = [&map](double t) {
-      return [&map, t](const VoxelKey& k) {
-        const auto v = map.valueAt(k, t);
-        return v ? v->state() : VoxelState::Unknown;
-      };
+    auto countersAt = [&map](double t) {
+      return [&map, t](const VoxelKey& k) { return map.valueAt(k, t).value_or(VoxelCounters{}); };
     };
-    dropNearSurfaces(d.cells_, settings.neighbourhood_voxels, stateAt(t1_s), stateAt(t2_s));
+    dropNearSurfaces(d.cells_, settings, countersAt(t1_s), countersAt(t2_s));
   }
   // Both walks visit lists in slot order, which is Morton order: the cells are sorted already.
   if (stats) *stats = local;
   return d;
+}
+
+std::optional<double> surfaceShift(const SessionMap& before, const SessionMap& after, const VoxelKey& key,
+                                   int radius_voxels) {
+  if (before.resolution_m() != after.resolution_m()) throw UsageError("cannot compare maps of different resolutions");
+  if (radius_voxels < 0 || radius_voxels > kMaxNeighbourhood) {
+    throw UsageError("surface shift radius must lie in 0.." + std::to_string(kMaxNeighbourhood) + " voxels");
+  }
+  return shiftInVoxels(key, radius_voxels, countersOf(before), countersOf(after));
 }
 
 }  // namespace chronomap

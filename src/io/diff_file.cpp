@@ -51,6 +51,7 @@ void writeDiffMap(const std::filesystem::path& path, const DiffMap& diff, const 
   j["mode"] = toString(diff.settings().mode);
   j["alpha"] = diff.settings().effectiveAlpha();
   j["neighbourhood_voxels"] = diff.settings().neighbourhood_voxels;
+  j["min_shift_voxels"] = diff.settings().min_shift_voxels;
   const std::string text = j.dump();
   std::vector<CmapBlock> blocks(2);
   blocks[0] = {"META", std::vector<uint8_t>(text.begin(), text.end())};
@@ -68,6 +69,7 @@ DiffMap diffMapFrom(const CmapFile& file, const std::string& source) {
     settings.mode = parseDiffMode(j.at("mode").get<std::string>());
     settings.alpha = j.at("alpha").get<double>();
     settings.neighbourhood_voxels = j.value("neighbourhood_voxels", 0);
+    settings.min_shift_voxels = j.value("min_shift_voxels", 0.0);
     settings.validate();
   } catch (const std::exception& e) {
     throw FormatError(source + ": invalid diff settings (" + e.what() + ")");

@@ -1,7 +1,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <map>
+#include <optional>
 #include <random>
 
 #include "chronomap/analysis/diff.h"
@@ -169,6 +171,66 @@ TEST(Diff, NeighbourhoodIgnoresShiftedSurfacesButNotObjects) {
   EXPECT_THROW(s.validate(), UsageError);
 }
 
+// A wall across the yz plane whose hits split between x = 4 and x = 5: `hits4` of every 10
+// rays end at x = 4, the others at x = 5; the voxel with more hits is occupied, the other free.
+void addSplitWall(SessionMap& m, uint32_t hits4) {
+  for (int z = 0; z < 6; ++z) {
+    for (int y = 0; y < 6; ++y) {
+      for (int x = 0; x < 10; ++x) {
+        if (x == 4 || x == 5) {
+          const uint32_t hits = x == 4 ? hits4 : 10 - hits4;
+          VoxelCounters c = withProbability(0.9, hits);
+          if (hits < 5) {  // free: a few hits over a long path, P = 1 - exp(-1/4) = 0.22
+            c = freeVoxel(hits == 0 ? 0.25f : 4.0f * static_cast<float>(hits));
+            c.hits = hits;
+          }
+          m.add(at(x, y, z), c);
+        } else {
+          m.add(at(x, y, z), freeVoxel());
+        }
+      }
+    }
+  }
+}
+
+TEST(Diff, MinShiftTellsAMovedSurfaceFromAShiftedOne) {
+  // Pose error: 9 of 10 hits at x = 4 before, 6 of 10 at x = 5 after -- the wall moved by
+  // half a voxel (2.5 cm), enough to flip both voxels.
+  SessionMap wall_a(0.05), wall_b(0.05);
+  addSplitWall(wall_a, 9);
+  addSplitWall(wall_b, 4);
+  // An object moved by one voxel: every hit at x = 4 before, every hit at x = 5 after.
+  SessionMap obj_a(0.05), obj_b(0.05);
+  addSplitWall(obj_a, 10);
+  addSplitWall(obj_b, 0);
+  ASSERT_EQ(wall_a.stateOf(at(5, 2, 2)), VoxelState::Free);
+  ASSERT_EQ(wall_b.stateOf(at(5, 2, 2)), VoxelState::Occupied);
+  ASSERT_EQ(wall_b.stateOf(at(4, 2, 2)), VoxelState::Free);
+
+  // The hit-weighted centres: 4.1 -> 4.6 (wall), 4.0 -> 5.0 (object); lateral terms cancel.
+  EXPECT_NEAR(surfaceShift(wall_a, wall_b, at(4, 2, 2), 1).value(), 0.5, 1e-9);
+  EXPECT_NEAR(surfaceShift(wall_a, wall_b, at(4, 0, 0), 1).value(), 0.5, 1e-9) << "at the wall's corner";
+  EXPECT_NEAR(surfaceShift(obj_a, obj_b, at(5, 3, 1), 1).value(), 1.0, 1e-9);
+  EXPECT_FALSE(surfaceShift(wall_a, wall_b, at(8, 2, 2), 1)) << "no hits within one voxel";
+  EXPECT_THROW(surfaceShift(wall_a, SessionMap(0.1), at(4, 2, 2), 1), UsageError);
+
+  DiffSettings s;
+  EXPECT_EQ(diff(wall_a, wall_b, s).voxelCount(), 72u) << "36 vanished at x = 4, 36 appeared at x = 5";
+  EXPECT_EQ(diff(obj_a, obj_b, s).voxelCount(), 72u);
+  s.neighbourhood_voxels = 1;
+  EXPECT_TRUE(diff(wall_a, wall_b, s).empty()) << "min_shift 0: the neighbourhood rule drops both";
+  EXPECT_TRUE(diff(obj_a, obj_b, s).empty());
+  s.min_shift_voxels = 0.6;  // between the two shifts
+  EXPECT_TRUE(diff(wall_a, wall_b, s).empty());
+  EXPECT_EQ(diff(obj_a, obj_b, s).voxelCount(), 72u) << "the moved object is kept whole";
+  s.min_shift_voxels = 0.4;
+  EXPECT_EQ(diff(wall_a, wall_b, s).voxelCount(), 72u);
+  s.min_shift_voxels = -0.1;
+  EXPECT_THROW(s.validate(), UsageError);
+  s.min_shift_voxels = std::nan("");
+  EXPECT_THROW(s.validate(), UsageError);
+}
+
 TEST(Diff, SettingsAreChecked) {
   EXPECT_THROW(parseDiffMode("soft"), UsageError);
   EXPECT_EQ(parseDiffMode("band"), DiffMode::Band);
@@ -286,6 +348,79 @@ TEST(Diff, EqualsVoxelByVoxelReferenceOnRandomMaps) {
   }
 }
 
+// The neighbourhood rule written out plainly: is an occupied voxel within r of k in `other`,
+// and how far did the hit-weighted centre of the window move?
+bool referenceOccupiedNear(const SessionMap& other, const VoxelKey& k, int r) {
+  for (int dz = -r; dz <= r; ++dz) {
+    for (int dy = -r; dy <= r; ++dy) {
+      for (int dx = -r; dx <= r; ++dx) {
+        const VoxelKey n{static_cast<uint16_t>(k.x + dx), static_cast<uint16_t>(k.y + dy),
+                         static_cast<uint16_t>(k.z + dz)};
+        if (other.stateOf(n) == VoxelState::Occupied) return true;
+      }
+    }
+  }
+  return false;
+}
+
+std::optional<double> referenceShiftVoxels(const SessionMap& a, const SessionMap& b, const VoxelKey& k, int r) {
+  double ax = 0, ay = 0, az = 0, bx = 0, by = 0, bz = 0, wa = 0, wb = 0;
+  for (int dz = -r; dz <= r; ++dz) {
+    for (int dy = -r; dy <= r; ++dy) {
+      for (int dx = -r; dx <= r; ++dx) {
+        const VoxelKey n{static_cast<uint16_t>(k.x + dx), static_cast<uint16_t>(k.y + dy),
+                         static_cast<uint16_t>(k.z + dz)};
+        if (a.stateOf(n) == VoxelState::Unknown || b.stateOf(n) == VoxelState::Unknown) continue;
+        const double ha = a.find(n)->hits, hb = b.find(n)->hits;
+        ax += ha * (k.x + dx), ay += ha * (k.y + dy), az += ha * (k.z + dz), wa += ha;
+        bx += hb * (k.x + dx), by += hb * (k.y + dy), bz += hb * (k.z + dz), wb += hb;
+      }
+    }
+  }
+  if (wa == 0 || wb == 0) return std::nullopt;
+  return std::hypot(bx / wb - ax / wa, by / wb - ay / wa, bz / wb - az / wa);
+}
+
+TEST(Diff, NeighbourhoodRuleEqualsReferenceOnRandomMaps) {
+  size_t kept_by_shift = 0, dropped = 0;
+  for (uint64_t seed = 1; seed <= 10; ++seed) {
+    std::mt19937_64 rng(seed * 31);
+    auto world = randomWorld(rng);
+    const SessionMap a = randomMap(rng, world);
+    for (auto& v : world) v ^= rng() % 10 == 0;
+    const SessionMap b = randomMap(rng, world);
+    for (int r : {1, 2}) {
+      for (double min_shift : {0.0, 0.2, 0.6}) {
+        DiffSettings s = mode(seed % 2 ? DiffMode::Hard : DiffMode::Band);
+        const auto plain = unitCells(diff(a, b, s));
+        s.neighbourhood_voxels = r;
+        s.min_shift_voxels = min_shift;
+        const auto got = unitCells(diff(a, b, s));
+        size_t expected_count = 0, ties = 0;
+        for (const auto& [k, c] : plain) {
+          const bool near = referenceOccupiedNear(c.kind == ChangeKind::Appeared ? a : b, k, r);
+          const auto shift = referenceShiftVoxels(a, b, k, r);
+          const bool moved = min_shift > 0.0 && shift && *shift >= min_shift;
+          const bool keep = !near || moved;
+          if (near && shift && std::abs(*shift - min_shift) < 1e-9) {  // rounding decides a tie
+            ++ties;
+            continue;
+          }
+          ASSERT_EQ(keep, got.count(k) == 1) << "seed " << seed << " r " << r << " min shift " << min_shift
+                                             << " shift " << shift.value_or(-1.0);
+          expected_count += keep;
+          if (near && moved) ++kept_by_shift;
+          if (!keep) ++dropped;
+        }
+        EXPECT_GE(got.size(), expected_count);
+        EXPECT_LE(got.size(), expected_count + ties);
+      }
+    }
+  }
+  EXPECT_GT(kept_by_shift, 50u) << "the random maps exercise the shift test";
+  EXPECT_GT(dropped, 50u);
+}
+
 TEST(Diff, FourDimensionalDiffEqualsDiffOfSnapshots) {
   for (uint64_t seed = 1; seed <= 8; ++seed) {
     std::mt19937_64 rng(seed * 7919);
@@ -308,6 +443,7 @@ TEST(Diff, FourDimensionalDiffEqualsDiffOfSnapshots) {
       for (DiffMode m : {DiffMode::Hard, DiffMode::Threshold, DiffMode::Band, DiffMode::Continuous}) {
         DiffSettings s = mode(m);
         s.neighbourhood_voxels = trial % 3 == 0 ? 1 : 0;
+        if (trial % 6 == 0) s.min_shift_voxels = 0.4;
         const DiffMap fast = diff(map, t1, t2, s);
         const DiffMap slow = diff(map.snapshot(t1), map.snapshot(t2), s);
         ASSERT_TRUE(fast == slow) << "seed " << seed << " mode " << toString(m) << " t1 " << t1 << " t2 " << t2

@@ -43,6 +43,17 @@ struct DiffSettings {
   /// makes it, is not a change. 0 (the default) compares each voxel with its twin only, as
   /// §3.1 defines. Unit cells only; Continuous mode ignores it.
   int neighbourhood_voxels = 0;
+  /// With neighbourhood_voxels > 0: a voxel that rule would drop is still a change when the
+  /// surface around it moved by at least this many voxels. Each map's surface position is the
+  /// mean of the voxel centres within the neighbourhood (Chebyshev distance
+  /// neighbourhood_voxels), weighted by their hits, over the voxels known in both maps: the
+  /// hits a surface splits between neighbouring voxels place it to a fraction of a voxel, so a
+  /// surface shifted by a centimetre of pose error is told from an object moved by a voxel.
+  /// Where either side has no hits there, the rule drops the voxel as before. 0 (the default):
+  /// the rule drops every voxel near a surface.
+  double min_shift_voxels = 0.0;
+  /// The recommended min_shift_voxels for registered sessions: a surface moved by half a voxel.
+  static constexpr double kRecommendedMinShift = 0.5;
 
   /// Threshold mode's default: a voxel must move by more than 0.4 in probability, so a free
   /// voxel (P near 0) must become clearly occupied (P > 0.4) to count.
@@ -53,7 +64,8 @@ struct DiffSettings {
   /// alpha with the default applied.
   double effectiveAlpha() const;
   /// @throw UsageError for an alpha that is not finite, or not in [0, 1) (threshold) or
-  /// [0, 0.5) (band), or a neighbourhood outside 0..3.
+  /// [0, 0.5) (band), a neighbourhood outside 0..3, or a min_shift_voxels that is not finite or is
+  /// negative.
   void validate() const;
 };
 
@@ -118,9 +130,17 @@ class DiffMap {
 };
 
 /// Compares one observation pair (either may be unknown: length and hits zero) under the
-/// settings: the cell to record at `key`/`level`, or nothing. The rule every diff applies.
+/// settings: the cell to record at `key`/`level`, or nothing. The rule every diff applies
+/// before the neighbourhood rule.
 std::optional<ChangeCell> compareVoxel(const VoxelCounters& before, const VoxelCounters& after,
                                        const DiffSettings& settings);
+
+/// How far the surface near `key` moved from `before` to `after`, in voxels, as
+/// DiffSettings::min_shift_voxels measures it over the voxels within `radius_voxels` (Chebyshev)
+/// that both maps know; nothing when either side has no hits there.
+/// @throw UsageError for different resolutions or a radius outside 0..3.
+std::optional<double> surfaceShift(const SessionMap& before, const SessionMap& after, const VoxelKey& key,
+                                   int radius_voxels);
 
 /// What changed from `before` to `after` (two session maps of the same resolution).
 /// @throw UsageError for different resolutions or bad settings.
