@@ -297,6 +297,7 @@ SessionMap integrateCloud(const PointCloud& cloud, double resolution_m, double m
 
 struct MosdResult {
   size_t found = 0, total = 0, false_components = 0, pairs = 0;
+  size_t observable = 0, observable_found = 0;  // placements with >= 20 voxels known in both shots
 };
 
 // mOSD group A: objects (labels 10k..10k+9) re-arranged between shots of an unmoved camera.
@@ -325,7 +326,7 @@ MosdResult evaluateMosd(const fs::path& dir) {
   MosdResult r;
   // Objects are numbered anew in every shot, so a moved object is two placements: where it was
   // (no object of the next shot there) and where it is (no object of the previous shot there).
-  std::printf("pair  changed_placements  found  components  false_components\n");
+  std::printf("pair  changed_placements  observable  found  observable_found  components  false_components\n");
   for (size_t k = 1; k < maps.size(); ++k) {
     const DiffMap d = diff(maps[k - 1], maps[k], defaultDiff());
     SegmentSettings ss = defaultSegment();
@@ -343,10 +344,15 @@ MosdResult evaluateMosd(const fs::path& dir) {
       }
     }
     // Found: a component holds a voxel within one voxel of the object's.
-    std::unordered_set<uint64_t> component_voxels;
     std::vector<uint8_t> component_used(seg.components.size(), 0);
-    size_t found = 0;
+    size_t found = 0, observable = 0, observable_found = 0;
     for (const auto* vox : moved) {
+      // As for the simulator's events: a placement whose voxels one shot never saw (hidden
+      // behind another object) cannot show in a diff, where unknown is never a change.
+      const size_t known = static_cast<size_t>(std::count_if(vox->begin(), vox->end(), [&](const VoxelKey& o) {
+        return maps[k - 1].stateOf(o) != VoxelState::Unknown && maps[k].stateOf(o) != VoxelState::Unknown;
+      }));
+      const bool is_observable = known >= 20;
       bool hit = false;
       for (size_t c = 0; c < seg.components.size(); ++c) {
         for (uint32_t idx : seg.components[c].cells) {
@@ -362,12 +368,19 @@ MosdResult evaluateMosd(const fs::path& dir) {
         }
       }
       found += hit;
+      observable += is_observable;
+      observable_found += is_observable && hit;
+      if (!hit) {
+        std::printf("      missed: a placement of %zu voxels, %zu of them known in both shots\n", vox->size(), known);
+      }
     }
     const size_t false_components =
         static_cast<size_t>(std::count(component_used.begin(), component_used.end(), uint8_t{0}));
-    std::printf("%zu->%zu  %18zu  %5zu  %10zu  %16zu\n", k - 1, k, moved.size(), found, seg.components.size(),
-                false_components);
+    std::printf("%zu->%zu  %18zu  %10zu  %5zu  %16zu  %10zu  %16zu\n", k - 1, k, moved.size(), observable, found,
+                observable_found, seg.components.size(), false_components);
     r.found += found;
+    r.observable += observable;
+    r.observable_found += observable_found;
     r.total += moved.size();
     r.false_components += false_components;
     ++r.pairs;
@@ -482,6 +495,8 @@ int main(int argc, char** argv) {
                                           o.shift_false_components_per_pair},
                                          {"mosd_a_found", mosd.found},
                                          {"mosd_a_total", mosd.total},
+                                         {"mosd_a_observable", mosd.observable},
+                                         {"mosd_a_observable_found", mosd.observable_found},
                                          {"mosd_a_false_components_per_pair",
                                           mosd.pairs ? double(mosd.false_components) / double(mosd.pairs) : 0.0},
                                          {"human_changed_fraction", human},
