@@ -1,5 +1,6 @@
 #include <lzf.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -170,13 +171,31 @@ PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name) 
 
   PointCloud cloud;
   const size_t n = static_cast<size_t>(h.points);
-  cloud.width = static_cast<uint32_t>(h.width);
-  cloud.height = static_cast<uint32_t>(h.height);
-  cloud.points.resize(n);
-  if (frgb) cloud.colors.resize(n);
-  if (flabel) cloud.labels.resize(n);
   const uint8_t* data = bytes.data() + h.header_bytes;
   const size_t available = bytes.size() - h.header_bytes;
+  size_t per_point = 0;
+  for (const auto& f : h.fields) per_point += static_cast<size_t>(f.count);
+  // Before the points are allocated: can the data hold as many as the header declares? (A
+  // header that declares two billion points over a few bytes must not take gigabytes; found by
+  // fuzzing.) LZF turns 3 bytes into at most 264; ASCII text is allocated for as many points as
+  // it can hold (below).
+  if (h.data == "binary" && h.point_bytes != 0 && n > available / h.point_bytes) {
+    throw FormatError(name + ": PCD binary data is truncated (" + std::to_string(available) + " bytes for " +
+                      std::to_string(n) + " points of " + std::to_string(h.point_bytes) + " bytes)");
+  }
+  if (h.data == "binary_compressed" && available >= 8 && readPacked(data + 4) / 88 > readPacked(data)) {
+    throw FormatError(name + ": PCD compressed data is corrupt (" + std::to_string(readPacked(data)) +
+                      " bytes cannot expand to " + std::to_string(readPacked(data + 4)) + ")");
+  }
+  // An ASCII point takes at least a digit and a separator per value (the last line may lack
+  // its newline), so the text holds at most (available + 1) / (2 * values per point) points.
+  const size_t capacity =
+      h.data == "ascii" && per_point != 0 ? std::min(n, (available + 1) / (2 * per_point)) : n;
+  cloud.width = static_cast<uint32_t>(h.width);
+  cloud.height = static_cast<uint32_t>(h.height);
+  cloud.points.resize(capacity);
+  if (frgb) cloud.colors.resize(capacity);
+  if (flabel) cloud.labels.resize(capacity);
 
   if (h.data == "ascii") {
     std::string text(reinterpret_cast<const char*>(data), available);
@@ -184,11 +203,10 @@ PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name) 
     std::string line;
     size_t i = 0;
     std::vector<std::string> tok;
-    size_t per_point = 0;
-    for (const auto& f : h.fields) per_point += static_cast<size_t>(f.count);
     while (i < n && std::getline(in, line)) {
       tok = splitWhitespace(line);
       if (tok.empty()) continue;
+      if (i == capacity) break;  // more points than the text can hold: impossible, reported below
       if (tok.size() != per_point) {
         throw FormatError(name + ": PCD point " + std::to_string(i) + " has " + std::to_string(tok.size()) +
                           " values, expected " + std::to_string(per_point));

@@ -180,6 +180,16 @@ PointCloud parsePly(const std::vector<uint8_t>& bytes, const std::string& name) 
     }
     if (ix < 0 || iy < 0 || iz < 0) throw FormatError(name + ": PLY vertices have no x, y and z");
     if (el.count > (uint64_t{1} << 31)) throw FormatError(name + ": PLY has too many vertices");
+    // The data must be able to hold the declared vertices before they are allocated (a header
+    // that declares a billion vertices must not take gigabytes; found by fuzz_ply): a binary
+    // record has `record` bytes, an ASCII vertex at least a digit and a separator per property
+    // (the last line may lack its newline).
+    const size_t min_bytes = ascii ? 2 * el.props.size() : record;
+    const size_t room = bytes.size() - pos + (ascii ? 1 : 0);
+    if (min_bytes != 0 && el.count > room / min_bytes) {
+      throw FormatError(name + ": PLY is truncated: the header declares " + std::to_string(el.count) +
+                        " vertices, the file holds at most " + std::to_string(room / min_bytes));
+    }
     const bool color = ir >= 0 && ig >= 0 && ib >= 0;
     const size_t n = static_cast<size_t>(el.count);
     cloud.points.resize(n);

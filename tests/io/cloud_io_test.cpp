@@ -110,6 +110,13 @@ TEST(Pcd, RejectsMalformedFilesNamingThem) {
   expectFormatError("VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nWIDTH 2\nPOINTS 3\nDATA ascii\n", "POINTS");
   expectFormatError("VERSION .7\nFIELDS x y z\n", "DATA");
   expectFormatError("", "DATA");
+  // A header that declares two billion points over a few bytes is refused before the points
+  // are allocated (24 GB), in every encoding.
+  const std::string huge = "VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2000000000\n"
+                           "HEIGHT 1\nPOINTS 2000000000\n";
+  expectFormatError(huge + "DATA ascii\n1 2 3\n", "1 of 2000000000 points");
+  expectFormatError(huge + "DATA binary\n" + std::string(24, '\0'), "truncated");
+  expectFormatError(huge + "DATA binary_compressed\n\x10\0\0\0\0\x5a\x62\x02garbagegarbage!!"s, "cannot expand");
 }
 
 // Found by fuzz_pcd: an ASCII value beyond uint32 in a U field was converted without a check.
@@ -185,6 +192,24 @@ TEST(Ply, RejectsMalformedFiles) {
   EXPECT_THROW(readPly(tmp / "ha.ply"), FormatError);
   writeBytes(tmp / "hb.ply", "ply\nformat binary_little_endian 1.0\n" + huge);
   EXPECT_THROW(readPly(tmp / "hb.ply"), FormatError);
+  // Found by fuzz_ply: 1.6 billion vertices declared over 35 bytes of data were allocated (19
+  // GB) before the data ran out. The count is checked against the data first.
+  const std::string many = "element vertex 1607814711\nproperty float x\nproperty float y\nproperty float z\n"
+                           "end_header\n";
+  for (const char* format : {"binary_little_endian", "ascii"}) {
+    writeBytes(tmp / "v.ply", std::string("ply\nformat ") + format + " 1.0\n" + many + std::string(35, '1'));
+    try {
+      readPly(tmp / "v.ply");
+      ADD_FAILURE() << format << ": no error";
+    } catch (const FormatError& e) {
+      EXPECT_NE(std::string(e.what()).find("declares 1607814711 vertices"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("v.ply"), std::string::npos) << e.what();
+    }
+  }
+  // The check leaves the shortest valid text alone: one-digit values, no final newline.
+  writeBytes(tmp / "short.ply", "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                                "property float z\nend_header\n1 2 3\n4 5 6");
+  EXPECT_EQ(readPly(tmp / "short.ply").points[1], Eigen::Vector3f(4, 5, 6));
 }
 
 TEST(Xyz, ReadsPlainAndBzip2Text) {
