@@ -61,13 +61,13 @@ inline const char* correctionModelName(CorrectionModel m) {
   return m == CorrectionModel::World ? "world" : "per-pose";
 }
 
-// The estimated sessions registered to the consensus of all (3 rounds, re-integrated), with
-// corrections of the given model and, when drift_knot_frames > 0, a drift correction with knots
-// that many frames apart; the corrections go to `corrections` when given.
+// The estimated sessions registered to the consensus of all (`rounds` rounds, re-integrated),
+// with corrections of the given model and, when drift_knot_frames > 0, a drift correction with
+// knots that many frames apart; the corrections go to `corrections` when given.
 inline std::vector<SessionMap> registerSimulation(const SimSessions& s, CorrectionModel model,
                                                   std::vector<PoseCorrection>* corrections = nullptr,
                                                   std::vector<RegisterReport>* reports = nullptr,
-                                                  int drift_knot_frames = 0) {
+                                                  int drift_knot_frames = 0, int rounds = 3) {
   std::vector<SessionMap> maps = s.estimated;
   std::vector<std::vector<Eigen::Vector3d>> positions;
   if (model == CorrectionModel::PerPose) {
@@ -77,7 +77,7 @@ inline std::vector<SessionMap> registerSimulation(const SimSessions& s, Correcti
   settings.model = model;
   settings.drift_knot_frames = drift_knot_frames;
   auto found = registerSessions(
-      maps, [&](size_t k, const PoseCorrection& c) { return integrateCorrected(s.dirs[k], c); }, 3, settings, reports,
+      maps, [&](size_t k, const PoseCorrection& c) { return integrateCorrected(s.dirs[k], c); }, rounds, settings, reports,
       positions, [&](size_t k) { return std::unique_ptr<FrameSource>(io::openDataset(s.dirs[k])); });
   if (corrections) *corrections = std::move(found);
   return maps;

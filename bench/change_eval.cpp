@@ -11,12 +11,14 @@
 //    PCL grabber sequence of a static scene (the false change rate).
 //
 // Usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] [--register-model M] [--drift-knots N]
+//                    [--register-rounds N]
 //   --office DIR   a `chronomap simulate --preset office` output (default: simulate one at half
 //                  resolution into a temporary folder)
 //   --floor66 DIR  also evaluate a floor66 simulation (not simulated by default: ~7 minutes)
 //   --quick        only the default settings, no sweep
 //   --register-model  world (default) or per-pose: the registration's correction model
 //                  (align/register.h) for the "register" and "reg+align" rows
+//   --register-rounds N  rigid registration rounds (default 3, as `chronomap build --register`)
 //   --drift-knots N  the registration also corrects drift, knots every N frames (default 20, as
 //                  `chronomap build --register --register-drift 20`; 0: rigid corrections only)
 // The last line of output is one JSON object with the headline figures: the office sessions
@@ -175,23 +177,25 @@ std::pair<double, double> benchTemporalDiff(const std::vector<SessionMap>& maps)
 }
 
 SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool sweep, CorrectionModel model,
-                              int drift_knots) {
+                              int drift_knots, int rounds) {
   std::printf("\n== %s (%s) ==\n", name.c_str(), dir.c_str());
   const auto start = std::chrono::steady_clock::now();
   const SimSessions s = loadSimulation(dir, true);
   const size_t pairs = s.estimated.size() - 1;
   std::printf("%zu sessions, %zu change events, integrated in %.1f s\n", s.estimated.size(), s.events.size(),
               seconds(start));
-  // Noise reduction (docs/realign.md): every session registered to the consensus of all (3
-  // rounds, re-integrated with its correction), then also re-aligned voxel by voxel.
+  // Noise reduction (docs/realign.md): every session registered to the consensus of all
+  // (`rounds` rounds, re-integrated with its correction), then also re-aligned voxel by voxel.
   const auto reg_start = std::chrono::steady_clock::now();
-  const std::vector<SessionMap> registered = bench::registerSimulation(s, model, nullptr, nullptr, drift_knots);
+  const std::vector<SessionMap> registered =
+      bench::registerSimulation(s, model, nullptr, nullptr, drift_knots, rounds);
   std::vector<SessionMap> realigned;
   {
     const SessionMap avg = consensus(std::span<const SessionMap>(registered));
     for (const SessionMap& m : registered) realigned.push_back(realign(m, avg));
   }
-  std::printf("registered (3 rounds, %s corrections%s) and re-aligned in %.1f s\n", bench::correctionModelName(model),
+  std::printf("registered (%d rounds, %s corrections%s) and re-aligned in %.1f s\n", rounds,
+              bench::correctionModelName(model),
               drift_knots > 0 ? (", then drift knots every " + std::to_string(drift_knots) + " frames").c_str() : "",
               seconds(reg_start));
 
@@ -451,9 +455,12 @@ int main(int argc, char** argv) {
   bool quick = false;
   CorrectionModel model = CorrectionModel::World;
   int drift_knots = 20;
+  int rounds = 3;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--drift-knots") && i + 1 < argc) {
       drift_knots = std::atoi(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--register-rounds") && i + 1 < argc) {
+      rounds = std::atoi(argv[++i]);
     } else if (!std::strcmp(argv[i], "--register-model") && i + 1 < argc && bench::parseCorrectionModel(argv[i + 1], model)) {
       ++i;
     } else if (!std::strcmp(argv[i], "--office") && i + 1 < argc) {
@@ -467,7 +474,7 @@ int main(int argc, char** argv) {
     } else {
       std::fprintf(stderr,
                    "usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] "
-                   "[--register-model world|per-pose] [--drift-knots FRAMES]\n");
+                   "[--register-model world|per-pose] [--drift-knots FRAMES] [--register-rounds N]\n");
       return 2;
     }
   }
@@ -477,8 +484,8 @@ int main(int argc, char** argv) {
       tmp = bench::simulateTemporary("office", "change_eval");
       office = tmp;
     }
-    const SimSummary o = evaluateSimulation("office", office, !quick, model, drift_knots);
-    if (!floor66.empty()) evaluateSimulation("floor66", floor66, false, model, drift_knots);
+    const SimSummary o = evaluateSimulation("office", office, !quick, model, drift_knots, rounds);
+    if (!floor66.empty()) evaluateSimulation("floor66", floor66, false, model, drift_knots, rounds);
     const MosdResult mosd = evaluateMosd(data / "mosd-a" / "test");
     const double human = evaluateHuman(data / "3dmatch" / "human_dataset");
     const double grabber = evaluateGrabber(data / "pcl-kinect" / "grabber_sequences" / "pcd");
