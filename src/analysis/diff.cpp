@@ -207,7 +207,7 @@ std::optional<double> shiftInVoxels(const VoxelKey& key, int r, CountersBefore b
         if (!k) continue;
         const VoxelCounters a = before(*k), b = after(*k);
         if (!isKnown(a) || !isKnown(b)) continue;
-        const double offset[3] = {double(dx), double(dy), double(dz)};
+        const double offset[3] = {static_cast<double>(dx), static_cast<double>(dy), static_cast<double>(dz)};
         for (int i = 0; i < 3; ++i) {
           sum_a[i] += a.hits * offset[i];
           sum_b[i] += b.hits * offset[i];
