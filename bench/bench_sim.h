@@ -61,26 +61,33 @@ inline const char* correctionModelName(CorrectionModel m) {
   return m == CorrectionModel::World ? "world" : "per-pose";
 }
 
-// The estimated sessions registered to the consensus of all (`rounds` rounds, re-integrated),
-// with corrections of the given model and, when drift_knot_frames > 0, a drift correction with
-// knots that many frames apart; the corrections go to `corrections` when given.
-inline std::vector<SessionMap> registerSimulation(const SimSessions& s, CorrectionModel model,
+// The estimated sessions registered to the consensus of all (`rounds` rounds, re-integrated)
+// with `settings` (its model, radius and, when drift_knot_frames > 0, the drift correction);
+// the corrections go to `corrections` when given.
+inline std::vector<SessionMap> registerSimulation(const SimSessions& s, const RegisterSettings& settings, int rounds,
                                                   std::vector<PoseCorrection>* corrections = nullptr,
-                                                  std::vector<RegisterReport>* reports = nullptr,
-                                                  int drift_knot_frames = 0, int rounds = 3) {
+                                                  std::vector<RegisterReport>* reports = nullptr) {
   std::vector<SessionMap> maps = s.estimated;
   std::vector<std::vector<Eigen::Vector3d>> positions;
-  if (model == CorrectionModel::PerPose) {
+  if (settings.model == CorrectionModel::PerPose) {
     for (const auto& dir : s.dirs) positions.push_back(sensorPositions(dir));
   }
-  RegisterSettings settings;
-  settings.model = model;
-  settings.drift_knot_frames = drift_knot_frames;
   auto found = registerSessions(
       maps, [&](size_t k, const PoseCorrection& c) { return integrateCorrected(s.dirs[k], c); }, rounds, settings, reports,
       positions, [&](size_t k) { return std::unique_ptr<FrameSource>(io::openDataset(s.dirs[k])); });
   if (corrections) *corrections = std::move(found);
   return maps;
+}
+
+// The same with the library's settings but for the model and the drift knots.
+inline std::vector<SessionMap> registerSimulation(const SimSessions& s, CorrectionModel model,
+                                                  std::vector<PoseCorrection>* corrections = nullptr,
+                                                  std::vector<RegisterReport>* reports = nullptr,
+                                                  int drift_knot_frames = 0, int rounds = 3) {
+  RegisterSettings settings;
+  settings.model = model;
+  settings.drift_knot_frames = drift_knot_frames;
+  return registerSimulation(s, settings, rounds, corrections, reports);
 }
 
 // Integrates every session_NN folder of `dir` in fast mode at 0.05 m.

@@ -11,7 +11,7 @@
 //    PCL grabber sequence of a static scene (the false change rate).
 //
 // Usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] [--register-model M] [--drift-knots N]
-//                    [--register-rounds N]
+//                    [--register-rounds N] [--register-radius R] [--drift-rounds N]
 //   --office DIR   a `chronomap simulate --preset office` output (default: simulate one at half
 //                  resolution into a temporary folder)
 //   --floor66 DIR  also evaluate a floor66 simulation (not simulated by default: ~7 minutes)
@@ -21,6 +21,8 @@
 //   --register-rounds N  rigid registration rounds (default 3, as `chronomap build --register`)
 //   --drift-knots N  the registration also corrects drift, knots every N frames (default 20, as
 //                  `chronomap build --register --register-drift 20`; 0: rigid corrections only)
+//   --register-radius R, --drift-rounds N  the registration's neighbourhood (voxels) and rounds
+//                  of drift correction (RegisterSettings; defaults as the library's)
 // The last line of output is one JSON object with the headline figures: the office sessions
 // registered to their consensus (as `chronomap build --register --register-drift 20`) at the
 // recommended settings, and the same with the shift test (office_shift_...).
@@ -176,8 +178,10 @@ std::pair<double, double> benchTemporalDiff(const std::vector<SessionMap>& maps)
   return {first, last};
 }
 
-SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool sweep, CorrectionModel model,
-                              int drift_knots, int rounds) {
+SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool sweep,
+                              const RegisterSettings& reg, int rounds) {
+  const CorrectionModel model = reg.model;
+  const int drift_knots = reg.drift_knot_frames;
   std::printf("\n== %s (%s) ==\n", name.c_str(), dir.c_str());
   const auto start = std::chrono::steady_clock::now();
   const SimSessions s = loadSimulation(dir, true);
@@ -187,17 +191,17 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
   // Noise reduction (docs/realign.md): every session registered to the consensus of all
   // (`rounds` rounds, re-integrated with its correction), then also re-aligned voxel by voxel.
   const auto reg_start = std::chrono::steady_clock::now();
-  const std::vector<SessionMap> registered =
-      bench::registerSimulation(s, model, nullptr, nullptr, drift_knots, rounds);
+  const std::vector<SessionMap> registered = bench::registerSimulation(s, reg, rounds);
   std::vector<SessionMap> realigned;
   {
     const SessionMap avg = consensus(std::span<const SessionMap>(registered));
     for (const SessionMap& m : registered) realigned.push_back(realign(m, avg));
   }
-  std::printf("registered (%d rounds, %s corrections%s) and re-aligned in %.1f s\n", rounds,
-              bench::correctionModelName(model),
-              drift_knots > 0 ? (", then drift knots every " + std::to_string(drift_knots) + " frames").c_str() : "",
-              seconds(reg_start));
+  const std::string drift =
+      drift_knots > 0 ? ", then " + std::to_string(reg.drift_rounds) + " rounds of drift knots every " +
+                            std::to_string(drift_knots) + " frames" : "";
+  std::printf("registered (%d rounds, %s corrections%s; radius %.2f voxels) and re-aligned in %.1f s\n", rounds,
+              bench::correctionModelName(model), drift.c_str(), reg.radius_voxels, seconds(reg_start));
 
   auto row = [&](const char* poses, const std::vector<SessionMap>& maps, const DiffSettings& ds,
                  const SegmentSettings& ss, bool verbose = false) {
@@ -456,9 +460,14 @@ int main(int argc, char** argv) {
   CorrectionModel model = CorrectionModel::World;
   int drift_knots = 20;
   int rounds = 3;
+  RegisterSettings reg;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--drift-knots") && i + 1 < argc) {
       drift_knots = std::atoi(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--register-radius") && i + 1 < argc) {
+      reg.radius_voxels = std::atof(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--drift-rounds") && i + 1 < argc) {
+      reg.drift_rounds = std::atoi(argv[++i]);
     } else if (!std::strcmp(argv[i], "--register-rounds") && i + 1 < argc) {
       rounds = std::atoi(argv[++i]);
     } else if (!std::strcmp(argv[i], "--register-model") && i + 1 < argc && bench::parseCorrectionModel(argv[i + 1], model)) {
@@ -474,7 +483,8 @@ int main(int argc, char** argv) {
     } else {
       std::fprintf(stderr,
                    "usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] "
-                   "[--register-model world|per-pose] [--drift-knots FRAMES] [--register-rounds N]\n");
+                   "[--register-model world|per-pose] [--drift-knots FRAMES] [--register-rounds N] "
+                   "[--register-radius VOXELS] [--drift-rounds N]\n");
       return 2;
     }
   }
@@ -484,8 +494,11 @@ int main(int argc, char** argv) {
       tmp = bench::simulateTemporary("office", "change_eval");
       office = tmp;
     }
-    const SimSummary o = evaluateSimulation("office", office, !quick, model, drift_knots, rounds);
-    if (!floor66.empty()) evaluateSimulation("floor66", floor66, false, model, drift_knots, rounds);
+    reg.model = model;
+    reg.drift_knot_frames = drift_knots;
+    reg.validate();
+    const SimSummary o = evaluateSimulation("office", office, !quick, reg, rounds);
+    if (!floor66.empty()) evaluateSimulation("floor66", floor66, false, reg, rounds);
     const MosdResult mosd = evaluateMosd(data / "mosd-a" / "test");
     const double human = evaluateHuman(data / "3dmatch" / "human_dataset");
     const double grabber = evaluateGrabber(data / "pcl-kinect" / "grabber_sequences" / "pcd");
