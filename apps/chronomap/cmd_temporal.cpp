@@ -195,6 +195,7 @@ struct BuildCmdOptions {
   int register_rounds = 3;
   std::string register_model = "world";
   int register_drift = 0;
+  double register_radius = RegisterSettings{}.radius_voxels;
   bool json = false;
 };
 
@@ -223,6 +224,13 @@ int runBuild(const BuildCmdOptions& o) {
   }
   if (o.register_drift > 0 && !o.register_sessions) throw UsageError("--register-drift needs --register");
   register_settings.drift_knot_frames = o.register_drift;
+  if (!(o.register_radius >= 1.0 && o.register_radius <= 8.0)) {
+    throw UsageError("--register-radius must lie in [1, 8] voxels");
+  }
+  if (o.register_radius != RegisterSettings{}.radius_voxels && !o.register_sessions) {
+    throw UsageError("--register-radius needs --register");
+  }
+  register_settings.radius_voxels = o.register_radius;
   for (const auto& d : o.datasets) {
     if (!fs::exists(d)) throw UsageError("dataset '" + d + "' does not exist");
   }
@@ -625,6 +633,10 @@ Command addBuild(CLI::App& root) {
       ->capture_default_str();
   app->add_option("--register-rounds", o->register_rounds,
                   "registration rounds, each against the consensus the previous one left")
+      ->capture_default_str();
+  app->add_option("--register-radius", o->register_radius,
+                  "how far (voxels) each surface voxel looks for the consensus' surfaces; smaller resolves finer "
+                  "offsets once sessions lie close (docs/changes.md has the office figures)")
       ->capture_default_str();
   addRealignOptions(app, o->realign);
   app->add_flag("--json", o->json, "print a JSON summary on stdout");

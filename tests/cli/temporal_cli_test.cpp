@@ -494,7 +494,7 @@ TEST(SimulatorCli, SimulateAndDemo) {
   }
   r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "w.cmap").string() + " " +
                        (tmp / "sim" / "session_00").string() + " " + (tmp / "sim" / "session_01").string() +
-                       " --fast --json --register --register-rounds 1 --register-model per-pose");
+                       " --fast --json --register --register-rounds 1 --register-model per-pose --register-radius 1.5");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto per_pose = nlohmann::json::parse(r.out);
   for (const auto& a : per_pose["added"]) EXPECT_EQ(a["registration_model"], "per-pose");
@@ -513,6 +513,14 @@ TEST(SimulatorCli, SimulateAndDemo) {
                          (tmp / "sim" / "session_00").string() + bad);
     EXPECT_EQ(r.exit_code, 2) << bad;
     EXPECT_NE(r.err.find("--register-drift"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(tmp / "n.cmap"));
+  }
+  for (const char* bad : {" --register-radius 1.5", " --register --register-radius 0.5",
+                          " --register --register-radius nan"}) {
+    r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "n.cmap").string() + " " +
+                         (tmp / "sim" / "session_00").string() + bad);
+    EXPECT_EQ(r.exit_code, 2) << bad;
+    EXPECT_NE(r.err.find("--register-radius"), std::string::npos) << bad << ": " << r.err;
     EXPECT_FALSE(fs::exists(tmp / "n.cmap"));
   }
   r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "n.cmap").string() + " " +
