@@ -175,17 +175,28 @@ PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name) 
   const size_t available = bytes.size() - h.header_bytes;
   size_t per_point = 0;
   for (const auto& f : h.fields) per_point += static_cast<size_t>(f.count);
-  // Before the points are allocated: can the data hold as many as the header declares? (A
-  // header that declares two billion points over a few bytes must not take gigabytes; found by
-  // fuzzing.) LZF turns 3 bytes into at most 264; ASCII text is allocated for as many points as
-  // it can hold (below).
-  if (h.data == "binary" && h.point_bytes != 0 && n > available / h.point_bytes) {
-    throw FormatError(name + ": PCD binary data is truncated (" + std::to_string(available) + " bytes for " +
-                      std::to_string(n) + " points of " + std::to_string(h.point_bytes) + " bytes)");
-  }
-  if (h.data == "binary_compressed" && available >= 8 && readPacked(data + 4) / 88 > readPacked(data)) {
-    throw FormatError(name + ": PCD compressed data is corrupt (" + std::to_string(readPacked(data)) +
-                      " bytes cannot expand to " + std::to_string(readPacked(data + 4)) + ")");
+  // The data's layout against the header, before the points are allocated: a header that
+  // declares two billion points over a few bytes must not take gigabytes (found by fuzzing).
+  // LZF turns 3 bytes into at most 264; ASCII text is allocated for as many points as it can
+  // hold (below).
+  uint32_t compressed = 0, raw = 0;
+  if (h.data == "binary") {
+    if (h.point_bytes != 0 && n > available / h.point_bytes) {
+      throw FormatError(name + ": PCD binary data is truncated (" + std::to_string(available) + " bytes for " +
+                        std::to_string(n) + " points of " + std::to_string(h.point_bytes) + " bytes)");
+    }
+  } else if (h.data == "binary_compressed") {
+    if (available < 8) throw FormatError(name + ": PCD compressed data is truncated");
+    compressed = readPacked(data);
+    raw = readPacked(data + 4);
+    if (raw / 88 > compressed) {
+      throw FormatError(name + ": PCD compressed data is corrupt (" + std::to_string(compressed) +
+                        " bytes cannot expand to " + std::to_string(raw) + ")");
+    }
+    if (raw != n * h.point_bytes) throw FormatError(name + ": PCD compressed size does not match the header");
+    if (compressed > available - 8) throw FormatError(name + ": PCD compressed data is truncated");
+  } else if (h.data != "ascii") {
+    throw FormatError(name + ": PCD DATA '" + h.data + "' is not ascii, binary or binary_compressed");
   }
   // An ASCII point takes at least a digit and a separator per value (the last line may lack
   // its newline), so the text holds at most (available + 1) / (2 * values per point) points.
@@ -246,17 +257,7 @@ PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name) 
   std::vector<uint8_t> soa;
   bool field_major = false;
   const uint8_t* base = data;
-  if (h.data == "binary") {
-    if (available < n * h.point_bytes) {
-      throw FormatError(name + ": PCD binary data is truncated (" + std::to_string(available) + " of " +
-                        std::to_string(n * h.point_bytes) + " bytes)");
-    }
-  } else if (h.data == "binary_compressed") {
-    if (available < 8) throw FormatError(name + ": PCD compressed data is truncated");
-    const uint32_t compressed = readPacked(data);
-    const uint32_t raw = readPacked(data + 4);
-    if (raw != n * h.point_bytes) throw FormatError(name + ": PCD compressed size does not match the header");
-    if (compressed > available - 8) throw FormatError(name + ": PCD compressed data is truncated");
+  if (h.data == "binary_compressed") {
     soa.resize(raw);
     if (raw > 0) {
       const unsigned got = lzf_decompress(data + 8, compressed, soa.data(), raw);
@@ -264,8 +265,6 @@ PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name) 
     }
     base = soa.data();
     field_major = true;
-  } else {
-    throw FormatError(name + ": PCD DATA '" + h.data + "' is not ascii, binary or binary_compressed");
   }
   auto at = [&](const PcdField& f, size_t i) -> const uint8_t* {
     if (field_major) return base + f.offset * n + i * static_cast<size_t>(f.size) * static_cast<size_t>(f.count);

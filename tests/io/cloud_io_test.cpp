@@ -117,6 +117,7 @@ TEST(Pcd, RejectsMalformedFilesNamingThem) {
   expectFormatError(huge + "DATA ascii\n1 2 3\n", "1 of 2000000000 points");
   expectFormatError(huge + "DATA binary\n" + std::string(24, '\0'), "truncated");
   expectFormatError(huge + "DATA binary_compressed\n\x10\0\0\0\0\x5a\x62\x02garbagegarbage!!"s, "cannot expand");
+  expectFormatError(huge + "DATA zip\n", "'zip' is not ascii, binary or binary_compressed");
 }
 
 // Found by fuzz_pcd: an ASCII value beyond uint32 in a U field was converted without a check.
