@@ -180,8 +180,6 @@ std::pair<double, double> benchTemporalDiff(const std::vector<SessionMap>& maps)
 
 SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool sweep,
                               const RegisterSettings& reg, int rounds) {
-  const CorrectionModel model = reg.model;
-  const int drift_knots = reg.drift_knot_frames;
   std::printf("\n== %s (%s) ==\n", name.c_str(), dir.c_str());
   const auto start = std::chrono::steady_clock::now();
   const SimSessions s = loadSimulation(dir, true);
@@ -198,10 +196,11 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
     for (const SessionMap& m : registered) realigned.push_back(realign(m, avg));
   }
   const std::string drift =
-      drift_knots > 0 ? ", then " + std::to_string(reg.drift_rounds) + " rounds of drift knots every " +
-                            std::to_string(drift_knots) + " frames" : "";
+      reg.drift_knot_frames > 0 ? ", then " + std::to_string(reg.drift_rounds) + " rounds of drift knots every " +
+                                      std::to_string(reg.drift_knot_frames) + " frames"
+                                : "";
   std::printf("registered (%d rounds, %s corrections%s; radius %.2f voxels) and re-aligned in %.1f s\n", rounds,
-              bench::correctionModelName(model), drift.c_str(), reg.radius_voxels, seconds(reg_start));
+              bench::correctionModelName(reg.model), drift.c_str(), reg.radius_voxels, seconds(reg_start));
 
   auto row = [&](const char* poses, const std::vector<SessionMap>& maps, const DiffSettings& ds,
                  const SegmentSettings& ss, bool verbose = false) {
@@ -457,20 +456,19 @@ double evaluateGrabber(const fs::path& dir) {
 int main(int argc, char** argv) {
   fs::path office, floor66, data = CHRONOMAP_DEFAULT_DATA_DIR;
   bool quick = false;
-  CorrectionModel model = CorrectionModel::World;
-  int drift_knots = 20;
   int rounds = 3;
   RegisterSettings reg;
+  reg.drift_knot_frames = 20;  // as the README's `build --register --register-drift 20`
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--drift-knots") && i + 1 < argc) {
-      drift_knots = std::atoi(argv[++i]);
+      reg.drift_knot_frames = std::atoi(argv[++i]);
     } else if (!std::strcmp(argv[i], "--register-radius") && i + 1 < argc) {
       reg.radius_voxels = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--drift-rounds") && i + 1 < argc) {
       reg.drift_rounds = std::atoi(argv[++i]);
     } else if (!std::strcmp(argv[i], "--register-rounds") && i + 1 < argc) {
       rounds = std::atoi(argv[++i]);
-    } else if (!std::strcmp(argv[i], "--register-model") && i + 1 < argc && bench::parseCorrectionModel(argv[i + 1], model)) {
+    } else if (!std::strcmp(argv[i], "--register-model") && i + 1 < argc && bench::parseCorrectionModel(argv[i + 1], reg.model)) {
       ++i;
     } else if (!std::strcmp(argv[i], "--office") && i + 1 < argc) {
       office = argv[++i];
@@ -494,8 +492,6 @@ int main(int argc, char** argv) {
       tmp = bench::simulateTemporary("office", "change_eval");
       office = tmp;
     }
-    reg.model = model;
-    reg.drift_knot_frames = drift_knots;
     reg.validate();
     const SimSummary o = evaluateSimulation("office", office, !quick, reg, rounds);
     if (!floor66.empty()) evaluateSimulation("floor66", floor66, false, reg, rounds);
