@@ -16,6 +16,7 @@
 #include "chronomap/core/error.h"
 #include "chronomap/core/happens_before.h"
 #include "chronomap/integrate/ray.h"
+#include "bundle_rays.h"
 
 namespace chronomap {
 
@@ -309,15 +310,28 @@ struct RayAccumulator::Impl {
   static void cellOf(const RelPoint& p, int64_t cell[3]) {
     for (int a = 0; a < 3; ++a) cell[a] = static_cast<int64_t>(p.u[a]);
   }
-  /// Casts one weighted ray per bundle into the bounding-box store's lengths.
-  void castBundles(const double o[3]) {
-    DenseStore& d = dense;
-    const int64_t sy = d.n[0], sz = d.n[0] * d.n[1];
-    for (size_t e = 1; e < ends.size(); ++e) {
+  /// Casts one weighted ray per bundle, four at a time (bundle_rays.h), in a grid with cell
+  /// index (c - lo) . stride, calling add(index, length) per cell. Every fast-mode path goes
+  /// through here, so all of them form the same float sums.
+  template <class Add>
+  void castBundleRays(const double o[3], const int64_t lo[3], const int64_t stride[3], Add&& add) {
+    size_t e = 1;
+    auto next = [&](detail::LaneRay& r) {
+      if (e >= ends.size()) return false;
       double target[3];
       bundleTarget(ends[e], target);
-      castDense(o, target, static_cast<float>(ends[e].hits), d.length.data(), d.lo, sy, sz);
-    }
+      r = detail::laneRay(o, target, static_cast<float>(ends[e].hits), lo, stride);
+      ++e;
+      return true;
+    };
+    detail::castBundleLanes(next, add, settings.simd);
+  }
+  /// Casts the bundles into the bounding-box store's lengths.
+  void castBundles(const double o[3]) {
+    DenseStore& d = dense;
+    const int64_t stride[3] = {1, d.n[0], d.n[0] * d.n[1]};
+    float* length = d.length.data();
+    castBundleRays(o, d.lo, stride, [length](int64_t c, float v) { length[c] += v; });
   }
 
   /// Casts every point (exact) or bundle (fast) into the bounding-box store; `o` is the sensor
@@ -377,11 +391,14 @@ struct RayAccumulator::Impl {
       if (s.end == 0) s.end = newEnd(cell);
       addEnd(ends[s.end], p.color);
     }
-    for (size_t e = 1; e < ends.size(); ++e) {
-      double target[3];
-      bundleTarget(ends[e], target);
-      castOne(target, static_cast<float>(ends[e].hits));
-    }
+    // Cells as packed absolute keys: x + y * 2^21 + z * 2^42 (keys have 16 bits).
+    constexpr int kShift = 21;
+    constexpr int64_t kMask = (int64_t{1} << kShift) - 1;
+    const int64_t lo[3] = {-oc[0], -oc[1], -oc[2]};
+    const int64_t stride[3] = {1, int64_t{1} << kShift, int64_t{1} << (2 * kShift)};
+    castBundleRays(o, lo, stride, [this](int64_t c, float v) {
+      hash.slot(c & kMask, (c >> kShift) & kMask, c >> (2 * kShift)).length += v;
+    });
   }
 
   void emitCell(int64_t x, int64_t y, int64_t z, float length, uint32_t end, VoxelDeltas& out) const {

@@ -213,6 +213,14 @@ TEST(Integrator, EveryScratchPathGivesTheSameMap) {
     integrate(frames, hashed, s);
     EXPECT_TRUE(cube == dense) << "fast=" << fast;
     EXPECT_TRUE(dense == hashed) << "fast=" << fast;
+    // Fast mode's bundle rays: the portable lanes give the map of the vector lanes.
+    SessionMap portable(0.05);
+    s = IntegratorSettings{};
+    s.fast = fast;
+    s.threads = 1;
+    s.simd = false;
+    integrate(frames, portable, s);
+    EXPECT_TRUE(portable == cube) << "fast=" << fast;
   }
 }
 
