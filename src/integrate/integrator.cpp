@@ -131,8 +131,11 @@ struct RelPoint {
   Rgb color;
 };
 
-/// Hits and colour of one end voxel (in fast mode: one bundle).
-struct EndEntry {
+/// Hits and colour of one end voxel (in fast mode: one bundle). One entry per cache line: the
+/// bundling loop measured 1.61 ms per synthetic frame with these, 1.75 ms with 40-byte entries
+/// and 1.79 ms with 32-byte ones (neighbouring points alternate between neighbouring bundles,
+/// whose entries then shared lines).
+struct alignas(64) EndEntry {
   uint32_t hits = 0;
   uint32_t red = 0, green = 0, blue = 0;
   int64_t cell[3] = {0, 0, 0};  // working-frame voxel
@@ -492,21 +495,38 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
       kept += cubeCells(cloud.points[begin].data(), count, Rm, of, max_range_sq, static_cast<int32_t>(sy),
                         static_cast<int32_t>(sz), cell_index, &beyond);
       out_of_range += beyond;
-      for (size_t j = 0; j < count; ++j) {
-        const int32_t c = cell_index[j];
-        if (c < 0) continue;
-        uint32_t& e = end[static_cast<size_t>(c)];
-        if (e == 0) {
-          const int32_t c32[3] = {static_cast<int32_t>(c % sy), static_cast<int32_t>((c / sy) % sy),
-                                  static_cast<int32_t>(c / sz)};
-          const int64_t c64[3] = {c32[0], c32[1], c32[2]};
-          e = s.newEnd(c64);
-          for (int a = 0; a < 3; ++a) {
-            lo[a] = std::min(lo[a], c32[a]);
-            hi[a] = std::max(hi[a], c32[a]);
+      // Bundling, with and without colours (no per-point test of which).
+      auto bundle = [&](auto with_colors) {
+        EndEntry* entries = s.ends.data();
+        const Rgb* color = colors ? cloud.colors.data() + begin : nullptr;
+        for (size_t j = 0; j < count; ++j) {
+          const int32_t c = cell_index[j];
+          if (c < 0) continue;
+          uint32_t& e = end[static_cast<size_t>(c)];
+          if (e == 0) {
+            const int32_t c32[3] = {static_cast<int32_t>(c % sy), static_cast<int32_t>((c / sy) % sy),
+                                    static_cast<int32_t>(c / sz)};
+            const int64_t c64[3] = {c32[0], c32[1], c32[2]};
+            e = s.newEnd(c64);
+            entries = s.ends.data();
+            for (int a = 0; a < 3; ++a) {
+              lo[a] = std::min(lo[a], c32[a]);
+              hi[a] = std::max(hi[a], c32[a]);
+            }
+          }
+          EndEntry& entry = entries[e];
+          ++entry.hits;
+          if constexpr (decltype(with_colors)::value) {
+            entry.red += color[j].r;
+            entry.green += color[j].g;
+            entry.blue += color[j].b;
           }
         }
-        Impl::addEnd(s.ends[e], colors ? cloud.colors[begin + j] : Rgb{});
+      };
+      if (colors) {
+        bundle(std::true_type{});
+      } else {
+        bundle(std::false_type{});
       }
     }
     st.points = kept;
