@@ -1,15 +1,17 @@
 #pragma once
 /// @file
-/// Fast mode's bundle rays, cast four at a time. Every bundle ray ends at the centre of its
+/// Fast mode's bundle rays, cast eight at a time. Every bundle ray ends at the centre of its
 /// voxel, which lets its DDA (Amanatides & Woo, as in ray.h) drop the per-axis crossing counts:
 /// the crossing after an axis' last one lies half a voxel beyond the end, at a ray parameter
 /// above 1, while every crossing still to come on the other axes lies below 1 - so the axis
 /// with the smallest next crossing is never an exhausted one while crossings remain. What is
 /// left per step is branch-free: a minimum of three, three masks, masked adds.
 ///
-/// Four rays run side by side in lanes (AVX2 registers where the CPU has them); a lane that
-/// finishes takes the next ray. The sink sees the same sequence of calls with and without
-/// AVX2, so float sums formed from it are bitwise the same on every machine.
+/// Eight rays run side by side in lanes (two groups of four in AVX2 registers where the CPU
+/// has them: two independent chains of dependent steps, 7% faster than one group, while a
+/// third group gained nothing); a lane that finishes takes the next ray. The sink sees the same
+/// sequence of calls with and without AVX2, so float sums formed from it are bitwise the same
+/// on every machine.
 
 #include <cmath>
 #include <cstdint>
@@ -74,12 +76,13 @@ inline LaneRay laneRay(const double origin[3], const double end[3], float weight
   return r;
 }
 
-/// Four lanes of ray state, laid out for vector loads. A lane without a ray is all zeros with
+/// Lanes of ray state, laid out for vector loads. A lane without a ray is all zeros with
 /// steps = -1 (it never finishes and its calls are skipped).
+constexpr int kLanes = 8;
 struct Lanes {
-  alignas(32) double tx[4], ty[4], tz[4], t[4], dx[4], dy[4], dz[4], len[4];
-  alignas(32) int64_t cell[4], sx[4], sy[4], sz[4], steps[4];
-  alignas(16) float w[4];
+  alignas(32) double tx[kLanes], ty[kLanes], tz[kLanes], t[kLanes], dx[kLanes], dy[kLanes], dz[kLanes], len[kLanes];
+  alignas(32) int64_t cell[kLanes], sx[kLanes], sy[kLanes], sz[kLanes], steps[kLanes];
+  alignas(32) float w[kLanes];
 
   /// Puts the next ray with crossings into lane k; rays without crossings (origin and end in
   /// one cell) get their single call on the way. Returns false when the source is empty.
@@ -118,7 +121,7 @@ struct Lanes {
   template <class Next, class Add>
   unsigned fill(Next& next, Add& add) {
     unsigned live = 0;
-    for (int k = 0; k < 4; ++k) live |= static_cast<unsigned>(refill(k, next, add)) << k;
+    for (int k = 0; k < kLanes; ++k) live |= static_cast<unsigned>(refill(k, next, add)) << k;
     return live;
   }
 
@@ -126,7 +129,7 @@ struct Lanes {
   /// lanes, in lane order. Returns the new mask of live lanes.
   template <class Next, class Add>
   unsigned finish(unsigned done, unsigned live, Next& next, Add& add) {
-    for (int k = 0; k < 4; ++k) {
+    for (int k = 0; k < kLanes; ++k) {
       if (!(done >> k & 1u)) continue;
       add(cell[k], w[k] * static_cast<float>((1.0 - t[k]) * len[k]));
       if (!refill(k, next, add)) live &= ~(1u << k);
@@ -146,9 +149,9 @@ void castLanesPortable(Next& next, Add& add) {
   while (live != 0) {
     unsigned done = 0;
     while (done == 0) {
-      int64_t cells[4];
-      float values[4];
-      for (int k = 0; k < 4; ++k) {
+      int64_t cells[kLanes];
+      float values[kLanes];
+      for (int k = 0; k < kLanes; ++k) {
         const double tc = std::min(std::min(s.tx[k], s.ty[k]), s.tz[k]);
         const int64_t mx = -static_cast<int64_t>(s.tx[k] == tc);
         const int64_t my = ~mx & -static_cast<int64_t>(s.ty[k] == tc);
@@ -163,7 +166,7 @@ void castLanesPortable(Next& next, Add& add) {
         s.tz[k] += mz ? s.dz[k] : 0.0;
         done |= static_cast<unsigned>(--s.steps[k] == 0) << k;
       }
-      for (int k = 0; k < 4; ++k) {
+      for (int k = 0; k < kLanes; ++k) {
         if (live >> k & 1u) add(cells[k], values[k]);
       }
       done &= live;
@@ -175,56 +178,71 @@ void castLanesPortable(Next& next, Add& add) {
 #if CHRONOMAP_HAVE_AVX2_LANES
 /// The same lanes in AVX2 registers. Each operation is the portable one's, lane by lane
 /// (minimum, equality masks, masked adds, float conversion), so the calls are the same.
+__attribute__((target("avx2"))) inline __m256i ld(const int64_t* p) {
+  return _mm256_load_si256(reinterpret_cast<const __m256i*>(p));
+}
+__attribute__((target("avx2"))) inline void st(int64_t* p, __m256i v) {
+  _mm256_store_si256(reinterpret_cast<__m256i*>(p), v);
+}
+
 template <class Next, class Add>
 __attribute__((target("avx2"))) void castLanesAvx2(Next& next, Add& add) {
   Lanes s;
   unsigned live = s.fill(next, add);
   const __m256d one = _mm256_set1_pd(1.0);
   const __m256i zero = _mm256_setzero_si256(), minus_one = _mm256_set1_epi64x(-1);
+  // Groups of four lanes: g = 0 holds lanes 0-3, g = 1 lanes 4-7.
   while (live != 0) {
-    __m256d tx = _mm256_load_pd(s.tx), ty = _mm256_load_pd(s.ty), tz = _mm256_load_pd(s.tz);
-    __m256d t = _mm256_load_pd(s.t);
-    const __m256d dx = _mm256_load_pd(s.dx), dy = _mm256_load_pd(s.dy), dz = _mm256_load_pd(s.dz);
-    const __m256d len = _mm256_load_pd(s.len);
-    __m256i cell = _mm256_load_si256(reinterpret_cast<const __m256i*>(s.cell));
-    const __m256i sx = _mm256_load_si256(reinterpret_cast<const __m256i*>(s.sx));
-    const __m256i sy = _mm256_load_si256(reinterpret_cast<const __m256i*>(s.sy));
-    const __m256i sz = _mm256_load_si256(reinterpret_cast<const __m256i*>(s.sz));
-    __m256i steps = _mm256_load_si256(reinterpret_cast<const __m256i*>(s.steps));
-    const __m128 w = _mm_load_ps(s.w);
+    __m256d tx[kLanes / 4], ty[kLanes / 4], tz[kLanes / 4], t[kLanes / 4];
+    __m256i cell[kLanes / 4], steps[kLanes / 4];
+    for (int g = 0; g < kLanes / 4; ++g) {
+      tx[g] = _mm256_load_pd(s.tx + 4 * g);
+      ty[g] = _mm256_load_pd(s.ty + 4 * g);
+      tz[g] = _mm256_load_pd(s.tz + 4 * g);
+      t[g] = _mm256_load_pd(s.t + 4 * g);
+      cell[g] = ld(s.cell + 4 * g);
+      steps[g] = ld(s.steps + 4 * g);
+    }
     unsigned done = 0;
-    alignas(32) int64_t cells[4];
-    alignas(16) float values[4];
+    alignas(32) int64_t cells[kLanes];
+    alignas(32) float values[kLanes];
     while (done == 0) {
-      // min(a, b) is a < b ? a : b, as std::min(b, a); with no NaN the values match.
-      const __m256d tc = _mm256_min_pd(_mm256_min_pd(tx, ty), tz);
-      const __m256d mx = _mm256_cmp_pd(tx, tc, _CMP_EQ_OQ);
-      const __m256d my = _mm256_andnot_pd(mx, _mm256_cmp_pd(ty, tc, _CMP_EQ_OQ));
-      const __m256d mz = _mm256_andnot_pd(_mm256_or_pd(mx, my), _mm256_castsi256_pd(minus_one));
-      const __m256d tn = _mm256_min_pd(_mm256_max_pd(tc, t), one);
-      const __m128 v = _mm_mul_ps(w, _mm256_cvtpd_ps(_mm256_mul_pd(_mm256_sub_pd(tn, t), len)));
-      _mm256_store_si256(reinterpret_cast<__m256i*>(cells), cell);
-      _mm_store_ps(values, v);
-      for (int k = 0; k < 4; ++k) {
+      for (int g = 0; g < kLanes / 4; ++g) {
+        // min(a, b) is a < b ? a : b, as std::min(b, a); with no NaN the values match.
+        const __m256d tc = _mm256_min_pd(_mm256_min_pd(tx[g], ty[g]), tz[g]);
+        const __m256d mx = _mm256_cmp_pd(tx[g], tc, _CMP_EQ_OQ);
+        const __m256d my = _mm256_andnot_pd(mx, _mm256_cmp_pd(ty[g], tc, _CMP_EQ_OQ));
+        const __m256d mz = _mm256_andnot_pd(_mm256_or_pd(mx, my), _mm256_castsi256_pd(minus_one));
+        const __m256d tn = _mm256_min_pd(_mm256_max_pd(tc, t[g]), one);
+        const __m256d seg = _mm256_mul_pd(_mm256_sub_pd(tn, t[g]), _mm256_load_pd(s.len + 4 * g));
+        _mm_store_ps(values + 4 * g, _mm_mul_ps(_mm_load_ps(s.w + 4 * g), _mm256_cvtpd_ps(seg)));
+        st(cells + 4 * g, cell[g]);
+        t[g] = tn;
+        const __m256i step =
+            _mm256_or_si256(_mm256_or_si256(_mm256_and_si256(ld(s.sx + 4 * g), _mm256_castpd_si256(mx)),
+                                            _mm256_and_si256(ld(s.sy + 4 * g), _mm256_castpd_si256(my))),
+                            _mm256_and_si256(ld(s.sz + 4 * g), _mm256_castpd_si256(mz)));
+        cell[g] = _mm256_add_epi64(cell[g], step);
+        tx[g] = _mm256_add_pd(tx[g], _mm256_and_pd(_mm256_load_pd(s.dx + 4 * g), mx));
+        ty[g] = _mm256_add_pd(ty[g], _mm256_and_pd(_mm256_load_pd(s.dy + 4 * g), my));
+        tz[g] = _mm256_add_pd(tz[g], _mm256_and_pd(_mm256_load_pd(s.dz + 4 * g), mz));
+        steps[g] = _mm256_add_epi64(steps[g], minus_one);
+        done |= static_cast<unsigned>(_mm256_movemask_pd(_mm256_castsi256_pd(_mm256_cmpeq_epi64(steps[g], zero))))
+                << (4 * g);
+      }
+      for (int k = 0; k < kLanes; ++k) {
         if (live >> k & 1u) add(cells[k], values[k]);
       }
-      t = tn;
-      const __m256i step = _mm256_or_si256(
-          _mm256_or_si256(_mm256_and_si256(sx, _mm256_castpd_si256(mx)), _mm256_and_si256(sy, _mm256_castpd_si256(my))),
-          _mm256_and_si256(sz, _mm256_castpd_si256(mz)));
-      cell = _mm256_add_epi64(cell, step);
-      tx = _mm256_add_pd(tx, _mm256_and_pd(dx, mx));
-      ty = _mm256_add_pd(ty, _mm256_and_pd(dy, my));
-      tz = _mm256_add_pd(tz, _mm256_and_pd(dz, mz));
-      steps = _mm256_add_epi64(steps, minus_one);
-      done = static_cast<unsigned>(_mm256_movemask_pd(_mm256_castsi256_pd(_mm256_cmpeq_epi64(steps, zero)))) & live;
+      done &= live;
     }
-    _mm256_store_pd(s.tx, tx);
-    _mm256_store_pd(s.ty, ty);
-    _mm256_store_pd(s.tz, tz);
-    _mm256_store_pd(s.t, t);
-    _mm256_store_si256(reinterpret_cast<__m256i*>(s.cell), cell);
-    _mm256_store_si256(reinterpret_cast<__m256i*>(s.steps), steps);
+    for (int g = 0; g < kLanes / 4; ++g) {
+      _mm256_store_pd(s.tx + 4 * g, tx[g]);
+      _mm256_store_pd(s.ty + 4 * g, ty[g]);
+      _mm256_store_pd(s.tz + 4 * g, tz[g]);
+      _mm256_store_pd(s.t + 4 * g, t[g]);
+      st(s.cell + 4 * g, cell[g]);
+      st(s.steps + 4 * g, steps[g]);
+    }
     live = s.finish(done, live, next, add);
   }
 }

@@ -313,7 +313,7 @@ struct RayAccumulator::Impl {
   static void cellOf(const RelPoint& p, int64_t cell[3]) {
     for (int a = 0; a < 3; ++a) cell[a] = static_cast<int64_t>(p.u[a]);
   }
-  /// Casts one weighted ray per bundle, four at a time (bundle_rays.h), in a grid with cell
+  /// Casts one weighted ray per bundle, eight at a time (bundle_rays.h), in a grid with cell
   /// index (c - lo) . stride, calling add(index, length) per cell. Every fast-mode path goes
   /// through here, so all of them form the same float sums.
   template <class Add>

@@ -32,7 +32,7 @@ struct IntegratorSettings {
   /// at most this many voxels, else in a hash table (long ranges, laser scans). Results are the
   /// same on every path.
   size_t dense_grid_max_cells = size_t{1} << 25;
-  /// Fast mode casts its bundle rays four at a time in AVX2 registers where the CPU has them;
+  /// Fast mode casts its bundle rays eight at a time in AVX2 registers where the CPU has them;
   /// false takes the portable code. The maps are bitwise the same either way.
   bool simd = true;
 };
