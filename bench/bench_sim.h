@@ -3,6 +3,7 @@
 // and a stopwatch.
 
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -46,6 +47,61 @@ inline std::vector<Eigen::Vector3d> sensorPositions(const std::filesystem::path&
   std::vector<Eigen::Vector3d> out;
   for (size_t i = 0; i < dataset->size(); ++i) out.push_back(dataset->poseOf(i).translation());
   return out;
+}
+
+// How far a session's poses, with a correction applied, lie from its true poses
+// (groundtruth.txt): the mean error vector (the part one rigid offset would remove), the
+// spread of the errors around it (what is left to drift), the largest error, and the mean
+// heading error.
+struct PoseError {
+  Eigen::Vector3d mean_offset_m = Eigen::Vector3d::Zero();
+  double spread_m = 0.0;  // root mean square distance of the errors from their mean
+  double max_m = 0.0;
+  double mean_yaw_deg = 0.0;  // mean absolute heading error
+};
+
+inline PoseError poseError(const std::filesystem::path& dir, const PoseCorrection& correction) {
+  const auto estimated = io::openDataset(dir);
+  io::DatasetOptions truth_options;
+  truth_options.trajectory = dir / "groundtruth.txt";
+  const auto truth = io::openDataset(dir, truth_options);
+  const size_t n = std::min(estimated->size(), truth->size());
+  PoseError e;
+  if (n == 0) return e;
+  std::vector<Eigen::Vector3d> errors;
+  for (size_t i = 0; i < n; ++i) {
+    const Eigen::Isometry3d corrected = correction.apply(estimated->poseOf(i), i);
+    const Eigen::Isometry3d true_pose = truth->poseOf(i);
+    errors.push_back(corrected.translation() - true_pose.translation());
+    // Heading: the turn of the camera's optical axis (z) about the world's vertical.
+    const Eigen::Vector3d a = true_pose.linear().col(2), b = corrected.linear().col(2);
+    const double yaw = std::atan2(a.x() * b.y() - a.y() * b.x(), a.x() * b.x() + a.y() * b.y());
+    e.mean_yaw_deg += std::abs(yaw) * 180.0 / M_PI;
+    e.max_m = std::max(e.max_m, errors.back().norm());
+  }
+  for (const auto& v : errors) e.mean_offset_m += v;
+  e.mean_offset_m /= static_cast<double>(n);
+  for (const auto& v : errors) e.spread_m += (v - e.mean_offset_m).squaredNorm();
+  e.spread_m = std::sqrt(e.spread_m / static_cast<double>(n));
+  e.mean_yaw_deg /= static_cast<double>(n);
+  return e;
+}
+
+// Prints one table row per session: its pose errors before (estimated poses) and after the
+// correction, in millimetres and degrees.
+inline void printPoseErrors(const std::vector<std::filesystem::path>& dirs,
+                            const std::vector<PoseCorrection>& corrections) {
+  std::printf("\nposes against the truth per session (mm; offset = mean error, spread = rms about it):\n");
+  std::printf("| session | offset before (x, y, z) | spread before | offset after (x, y, z) | spread after | max after "
+              "| heading before | heading after |\n|---:|---|---:|---|---:|---:|---:|---:|\n");
+  for (size_t k = 0; k < dirs.size() && k < corrections.size(); ++k) {
+    const PoseError b = poseError(dirs[k], PoseCorrection{});
+    const PoseError a = poseError(dirs[k], corrections[k]);
+    std::printf("| %zu | %.1f, %.1f, %.1f | %.1f | %.1f, %.1f, %.1f | %.1f | %.1f | %.3f deg | %.3f deg |\n", k,
+                1e3 * b.mean_offset_m.x(), 1e3 * b.mean_offset_m.y(), 1e3 * b.mean_offset_m.z(), 1e3 * b.spread_m,
+                1e3 * a.mean_offset_m.x(), 1e3 * a.mean_offset_m.y(), 1e3 * a.mean_offset_m.z(), 1e3 * a.spread_m,
+                1e3 * a.max_m, b.mean_yaw_deg, a.mean_yaw_deg);
+  }
 }
 
 // "world" or "per-pose" (a --register-model argument); false for anything else.

@@ -11,7 +11,7 @@
 //    PCL grabber sequence of a static scene (the false change rate).
 //
 // Usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] [--register-model M] [--drift-knots N]
-//                    [--register-rounds N] [--register-radius R] [--drift-rounds N]
+//                    [--register-rounds N] [--register-radius R] [--drift-rounds N] [--register-planar]
 //   --office DIR   a `chronomap simulate --preset office` output (default: simulate one at half
 //                  resolution into a temporary folder)
 //   --floor66 DIR  also evaluate a floor66 simulation (not simulated by default: ~7 minutes)
@@ -23,6 +23,7 @@
 //                  `chronomap build --register --register-drift 20`; 0: rigid corrections only)
 //   --register-radius R, --drift-rounds N  the registration's neighbourhood (voxels) and rounds
 //                  of drift correction (RegisterSettings; defaults as the library's)
+//   --register-planar  x, y and heading only, no vertical offset (RegisterSettings::planar)
 // The last line of output is one JSON object with the headline figures: the office sessions
 // registered to their consensus (as `chronomap build --register --register-drift 20`) at the
 // recommended settings, and the same with the shift test (office_shift_...).
@@ -189,7 +190,8 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
   // Noise reduction (docs/realign.md): every session registered to the consensus of all
   // (`rounds` rounds, re-integrated with its correction), then also re-aligned voxel by voxel.
   const auto reg_start = std::chrono::steady_clock::now();
-  const std::vector<SessionMap> registered = bench::registerSimulation(s, reg, rounds);
+  std::vector<PoseCorrection> corrections;
+  const std::vector<SessionMap> registered = bench::registerSimulation(s, reg, rounds, &corrections);
   std::vector<SessionMap> realigned;
   {
     const SessionMap avg = consensus(std::span<const SessionMap>(registered));
@@ -199,8 +201,9 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
       reg.drift_knot_frames > 0 ? ", then " + std::to_string(reg.drift_rounds) + " rounds of drift knots every " +
                                       std::to_string(reg.drift_knot_frames) + " frames"
                                 : "";
-  std::printf("registered (%d rounds, %s corrections%s; radius %.2f voxels) and re-aligned in %.1f s\n", rounds,
-              bench::correctionModelName(reg.model), drift.c_str(), reg.radius_voxels, seconds(reg_start));
+  std::printf("registered (%d rounds, %s corrections%s; radius %.2f voxels%s) and re-aligned in %.1f s\n", rounds,
+              bench::correctionModelName(reg.model), drift.c_str(), reg.radius_voxels, reg.planar ? (reg.drift_points ? ", planar, drift on points" : ", planar") : (reg.drift_points ? ", drift on points" : ""), seconds(reg_start));
+  bench::printPoseErrors(s.dirs, corrections);
 
   auto row = [&](const char* poses, const std::vector<SessionMap>& maps, const DiffSettings& ds,
                  const SegmentSettings& ss, bool verbose = false) {
@@ -466,6 +469,10 @@ int main(int argc, char** argv) {
       reg.radius_voxels = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--drift-rounds") && i + 1 < argc) {
       reg.drift_rounds = std::atoi(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--register-planar")) {
+      reg.planar = true;
+    } else if (!std::strcmp(argv[i], "--drift-points")) {
+      reg.drift_points = true;
     } else if (!std::strcmp(argv[i], "--register-rounds") && i + 1 < argc) {
       rounds = std::atoi(argv[++i]);
     } else if (!std::strcmp(argv[i], "--register-model") && i + 1 < argc && bench::parseCorrectionModel(argv[i + 1], reg.model)) {
@@ -482,7 +489,7 @@ int main(int argc, char** argv) {
       std::fprintf(stderr,
                    "usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] "
                    "[--register-model world|per-pose] [--drift-knots FRAMES] [--register-rounds N] "
-                   "[--register-radius VOXELS] [--drift-rounds N]\n");
+                   "[--register-radius VOXELS] [--drift-rounds N] [--register-planar]\n");
       return 2;
     }
   }

@@ -273,6 +273,7 @@ Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bo
     const Outcome bo = compare(plain, both, true_poses);
     result.pipeline = bo;
     result.register_only = ro;
+    bench::printPoseErrors(s.dirs, corrections);
     if (drift_knots > 0) std::printf("\ndrift corrected too: knots every %d frames, 2 rounds", drift_knots);
     std::printf("\nregistered to the consensus (%s corrections; mean pull %.1f mm before, %.1f mm after; mean correction %.1f mm; "
                 "%.2f s a session for 3 rounds with re-integration):\n",
