@@ -196,6 +196,8 @@ struct BuildCmdOptions {
   std::string register_model = "world";
   int register_drift = 0;
   double register_radius = RegisterSettings{}.radius_voxels;
+  bool register_planar = false;
+  bool register_points = false;
   bool json = false;
 };
 
@@ -231,6 +233,10 @@ int runBuild(const BuildCmdOptions& o) {
     throw UsageError("--register-radius needs --register");
   }
   register_settings.radius_voxels = o.register_radius;
+  if (o.register_planar && !o.register_sessions) throw UsageError("--register-planar needs --register");
+  if (o.register_points && o.register_drift <= 0) throw UsageError("--register-points needs --register-drift");
+  register_settings.planar = o.register_planar;
+  register_settings.drift_points = o.register_points;
   for (const auto& d : o.datasets) {
     if (!fs::exists(d)) throw UsageError("dataset '" + d + "' does not exist");
   }
@@ -638,6 +644,12 @@ Command addBuild(CLI::App& root) {
                   "how far (voxels) each surface voxel looks for the consensus' surfaces; smaller resolves finer "
                   "offsets once sessions lie close (docs/changes.md has the office figures)")
       ->capture_default_str();
+  app->add_flag("--register-planar", o->register_planar,
+                "correct x, y and heading only, never the height: the error of a robot's 2D localisation "
+                "(docs/realign.md)");
+  app->add_flag("--register-points", o->register_points,
+                "fit the drift against the sessions' points rather than voxel centres, which resolves offsets "
+                "below a voxel (docs/realign.md has the office figures)");
   addRealignOptions(app, o->realign);
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runBuild(*o); }};

@@ -50,7 +50,7 @@ namespace {
 /// translation v and a rotation vector w, point i moving by v + w x (a[i] - pivot[i]). Yaw and
 /// translation (w along z) or all six degrees of freedom.
 Eigen::Matrix<double, 6, 1> fitStep(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b,
-                                    const std::vector<Eigen::Vector3d>& pivot, bool yaw_only) {
+                                    const std::vector<Eigen::Vector3d>& pivot, bool yaw_only, bool planar) {
   Eigen::Matrix<double, 6, 6> ata = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 1> atb = Eigen::Matrix<double, 6, 1>::Zero();
   for (size_t i = 0; i < a.size(); ++i) {
@@ -63,10 +63,13 @@ Eigen::Matrix<double, 6, 1> fitStep(const std::vector<Eigen::Vector3d>& a, const
     ata += j * j.transpose();
     atb += j * r;
   }
-  const int dof = yaw_only ? 4 : 6;  // yaw only: translation and rotation about z (index 5)
+  // The unknowns solved for: all six; yaw only: translation and rotation about z (index 5);
+  // planar: x, y and yaw.
+  const int dof = planar ? 3 : (yaw_only ? 4 : 6);
   Eigen::MatrixXd m(dof, dof);
   Eigen::VectorXd v(dof);
-  const int index[6] = {0, 1, 2, 5, 3, 4};
+  static constexpr int kAll[6] = {0, 1, 2, 5, 3, 4}, kPlanar[3] = {0, 1, 5};
+  const int* index = planar ? kPlanar : kAll;
   for (int i = 0; i < dof; ++i) {
     v(i) = atb(index[i]);
     for (int k = 0; k < dof; ++k) m(i, k) = ata(index[i], index[k]);
@@ -173,6 +176,24 @@ std::optional<Eigen::Vector3d> centroidNear(const HitMap& surface, const KeyGrid
 RegistrationTarget::RegistrationTarget(const SessionMap& consensus)
     : grid_(consensus.grid()), surface_(surfaceOf(consensus)) {}
 
+void RegistrationTarget::addPoints(const FrameSource& frames, double max_range_m) {
+  const double range2 = max_range_m * max_range_m;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const Frame f = frames.load(i);
+    if (!f.T_world_sensor.matrix().allFinite()) throw UsageError(f.source + ": the pose is not finite");
+    for (const Eigen::Vector3f& q : f.cloud.points) {
+      if (!q.allFinite() || q.squaredNorm() == 0.0f || q.cast<double>().squaredNorm() > range2) continue;
+      const Eigen::Vector3d w = f.T_world_sensor * q.cast<double>();
+      const auto k = grid_.keyOf(w);
+      if (!k) continue;
+      const uint64_t code = mortonEncode(*k);
+      if (!surface_.count(code)) continue;
+      // (try_emplace with a zero: a default-constructed Eigen vector is uninitialised.)
+      points_.try_emplace(code, Eigen::Vector4d::Zero()).first->second += Eigen::Vector4d(w.x(), w.y(), w.z(), 1.0);
+    }
+  }
+}
+
 Eigen::Isometry3d registerToConsensus(const SessionMap& session, const SessionMap& consensus,
                                       const RegisterSettings& settings, RegisterReport* report,
                                       std::span<const Eigen::Vector3d> sensor_positions) {
@@ -251,7 +272,7 @@ Eigen::Isometry3d registerToConsensus(const SessionMap& session, const Registrat
       centre /= static_cast<double>(from.size());
       pivot.assign(from.size(), centre);
     }
-    const Eigen::Matrix<double, 6, 1> x = fitStep(from, to, pivot, settings.yaw_only);
+    const Eigen::Matrix<double, 6, 1> x = fitStep(from, to, pivot, settings.yaw_only, settings.planar);
     const Eigen::Matrix3d r = rotationOf(x.tail<3>());
     if (per_pose) {
       total.linear() = r * total.linear();
@@ -306,6 +327,51 @@ Eigen::Vector3d normalNear(const HitMap& surface, const KeyGrid& grid, const Eig
   return eig.eigenvectors().col(0);
 }
 
+/// The points' surface around `p` (RegisterSettings::drift_points): the mean of the voxel
+/// means within the radius, weighted by their point counts and a Gaussian of the distance, and
+/// the normal there (least spread of the voxel means), or nothing where there are too few voxels
+/// or the surface is no plane.
+struct PlaneNear {
+  Eigen::Vector3d point;
+  Eigen::Vector3d normal;
+};
+std::optional<PlaneNear> pointPlaneNear(const std::unordered_map<uint64_t, Eigen::Vector4d>& points,
+                                        const KeyGrid& grid, const Eigen::Vector3d& p, double radius_voxels) {
+  const auto k = grid.keyOf(p);
+  if (!k) return std::nullopt;
+  const int r = static_cast<int>(std::ceil(radius_voxels));
+  const double radius_m = radius_voxels * grid.resolution_m();
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
+  double weight = 0.0;
+  int count = 0;
+  for (int dz = -r; dz <= r; ++dz) {
+    for (int dy = -r; dy <= r; ++dy) {
+      for (int dx = -r; dx <= r; ++dx) {
+        const auto n = offsetKey(*k, dx, dy, dz);
+        if (!n) continue;
+        const auto found = points.find(mortonEncode(*n));
+        if (found == points.end() || found->second.w() <= 0.0) continue;
+        const Eigen::Vector3d m = found->second.head<3>() / found->second.w() - p;
+        const double d2 = m.squaredNorm();
+        if (d2 > radius_m * radius_m) continue;
+        const double w = found->second.w() * std::exp(-2.0 * d2 / (radius_m * radius_m));
+        sum += w * m;
+        outer += w * m * m.transpose();
+        weight += w;
+        ++count;
+      }
+    }
+  }
+  if (count < 6 || weight <= 0.0) return std::nullopt;
+  const Eigen::Vector3d mean = sum / weight;
+  const Eigen::Matrix3d cov = outer / weight - mean * mean.transpose();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  const Eigen::Vector3d values = eig.eigenvalues();  // ascending
+  if (!(values(0) < values(1) / 3.0)) return std::nullopt;
+  return PlaneNear{p + mean, eig.eigenvectors().col(0)};
+}
+
 }  // namespace
 
 std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const SessionMap& session,
@@ -331,7 +397,9 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
   std::vector<Eigen::Vector3d> sensors(n_frames);
   std::vector<uint64_t> codes;
   HitMap frame_surface;
+  std::unordered_map<uint64_t, Eigen::Vector4d> frame_points;
   const double range2 = settings.drift_max_range_m * settings.drift_max_range_m;
+  const bool use_points = settings.drift_points && !target.points().empty();
   for (size_t i = 0; i < n_frames; ++i) {
     const Frame f = frames.load(i);
     sensors[i] = f.T_world_sensor.translation();
@@ -341,6 +409,41 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
       if (!q.allFinite() || q.squaredNorm() == 0.0f || q.cast<double>().squaredNorm() > range2) continue;
       const auto k = grid.keyOf(f.T_world_sensor * q.cast<double>());
       if (k) ++frame_surface[mortonEncode(*k)];
+    }
+    if (use_points) {
+      // The frame's own points by voxel (sums and counts), for the pull of its own surface.
+      frame_points.clear();
+      for (const Eigen::Vector3f& q : f.cloud.points) {
+        if (!q.allFinite() || q.squaredNorm() == 0.0f || q.cast<double>().squaredNorm() > range2) continue;
+        const Eigen::Vector3d w = f.T_world_sensor * q.cast<double>();
+        const auto k = grid.keyOf(w);
+        if (k) frame_points.try_emplace(mortonEncode(*k), Eigen::Vector4d::Zero()).first->second += Eigen::Vector4d(w.x(), w.y(), w.z(), 1.0);
+      }
+      // Frame points, evenly thinned, as integrated (sub-voxel positions).
+      size_t valid = 0;
+      for (const Eigen::Vector3f& q : f.cloud.points) {
+        valid += q.allFinite() && q.squaredNorm() > 0.0f && q.cast<double>().squaredNorm() <= range2;
+      }
+      const size_t take = std::min(valid, settings.drift_samples_per_frame);
+      size_t seen = 0, next_index = 0, taken = 0;
+      for (const Eigen::Vector3f& q : f.cloud.points) {
+        if (taken >= take) break;
+        if (!q.allFinite() || q.squaredNorm() == 0.0f || q.cast<double>().squaredNorm() > range2) continue;
+        if (seen++ != next_index) continue;
+        DriftSample d;
+        d.point = f.T_world_sensor * q.cast<double>();
+        // Where the frame's own points put the plane near the point: a frame that fits its
+        // target pulls nowhere, at edges and corners too.
+        const auto own = pointPlaneNear(frame_points, grid, d.point, settings.radius_voxels);
+        ++taken;
+        next_index = taken * valid / take;
+        if (!own) continue;
+        d.own_pull = own->point - d.point;
+        d.normal = own->normal;
+        d.frame = static_cast<uint32_t>(i);
+        samples.push_back(d);
+      }
+      continue;
     }
     codes.clear();
     for (const auto& [code, hits] : frame_surface) codes.push_back(code);
@@ -395,6 +498,28 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
       const Eigen::Matrix3d r = Eigen::AngleAxisd(fp(3), Eigen::Vector3d::UnitZ()).toRotationMatrix();
       const Eigen::Vector3d arm = r * (d.point - sensors[d.frame]);
       const Eigen::Vector3d p = sensors[d.frame] + fp.head<3>() + arm;
+      if (use_points) {
+        // Point to plane against the points' surface; no plane, no sample.
+        const auto plane = pointPlaneNear(target.points(), grid, p, settings.radius_voxels);
+        if (!plane) continue;
+        ++matched;
+        const auto [k, w] = knotOf(d.frame);
+        const Eigen::Index a = static_cast<Eigen::Index>(k) * kDof, b = a + kDof;
+        const Eigen::Vector3d& n = plane->normal;
+        const double residual = n.dot(plane->point - r * d.own_pull - p);
+        Eigen::Vector4d j;
+        j << n, arm.x() * n.y() - arm.y() * n.x();
+        if (settings.planar) j(2) = 0.0;
+        const Eigen::Vector4d ja = (1.0 - w) * j, jb = w * j;
+        ata.block<kDof, kDof>(a, a) += ja * ja.transpose();
+        ata.block<kDof, kDof>(a, b) += ja * jb.transpose();
+        ata.block<kDof, kDof>(b, a) += jb * ja.transpose();
+        ata.block<kDof, kDof>(b, b) += jb * jb.transpose();
+        atb.segment<kDof>(a) += ja * residual;
+        atb.segment<kDof>(b) += jb * residual;
+        shift += std::abs(residual);
+        continue;
+      }
       const auto q = centroidNear(surface, grid, p, settings.radius_voxels, true);
       if (!q) continue;
       // Where the frame's surface is a plane, the pull counts along its normal only (it says
@@ -410,6 +535,7 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
       const auto addRow = [&](const Eigen::Vector3d& n, double residual) {
         Eigen::Vector4d j;
         j << n, arm.x() * n.y() - arm.y() * n.x();  // d(p . n) / d yaw = (z x arm) . n
+        if (settings.planar) j(2) = 0.0;  // no vertical offset: its unknowns stay 0
         const Eigen::Vector4d ja = (1.0 - w) * j, jb = w * j;
         ata.block<kDof, kDof>(a, a) += ja * ja.transpose();
         ata.block<kDof, kDof>(a, b) += ja * jb.transpose();
@@ -513,7 +639,15 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
   }
   if (settings.drift_knot_frames > 0) {
     for (int round = 0; round < settings.drift_rounds; ++round) {
-      const RegistrationTarget target(consensus(std::span<const SessionMap>(sessions)));
+      RegistrationTarget target(consensus(std::span<const SessionMap>(sessions)));
+      if (settings.drift_points) {
+        // Every session's points, as corrected so far (serially: one target).
+        for (size_t k = 0; k < sessions.size(); ++k) {
+          const std::unique_ptr<FrameSource> source = frames(k);
+          if (!source) throw UsageError("registration with drift: no frames for session " + std::to_string(k));
+          target.addPoints(CorrectedFrames(*source, corrections[k]), settings.drift_max_range_m);
+        }
+      }
       std::vector<RegisterReport> found(sessions.size());
       parallelFor(sessions.size(), 0, [&](size_t k) {
         const std::unique_ptr<FrameSource> source = frames(k);

@@ -508,6 +508,27 @@ TEST(SimulatorCli, SimulateAndDemo) {
     ASSERT_TRUE(a.contains("drift_correction_max_m"));
     EXPECT_LT(a["drift_correction_max_m"].get<double>(), 0.2);
   }
+  // Planar, drift on points: no vertical correction; a drift correction of centimetres.
+  r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "p.cmap").string() + " " +
+                       (tmp / "sim" / "session_00").string() + " " + (tmp / "sim" / "session_01").string() +
+                       " --fast --json --register --register-rounds 1 --register-drift 5 --register-planar"
+                       " --register-points");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto points = nlohmann::json::parse(r.out);
+  for (const auto& a : points["added"]) {
+    ASSERT_TRUE(a.contains("registration_m"));
+    EXPECT_NEAR(a["registration_m"][2].get<double>(), 0.0, 1e-9);
+    ASSERT_TRUE(a.contains("drift_correction_max_m"));
+    EXPECT_LT(a["drift_correction_max_m"].get<double>(), 0.2);
+  }
+  for (const auto& [bad, flag] : std::vector<std::pair<const char*, const char*>>{
+           {" --register-planar", "--register-planar"}, {" --register --register-points", "--register-points"}}) {
+    r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "n.cmap").string() + " " +
+                         (tmp / "sim" / "session_00").string() + bad);
+    EXPECT_EQ(r.exit_code, 2) << bad;
+    EXPECT_NE(r.err.find(std::string(flag) + " needs"), std::string::npos) << bad << ": " << r.err;
+    EXPECT_FALSE(fs::exists(tmp / "n.cmap"));
+  }
   for (const char* bad : {" --register-drift 5", " --register --register-drift -1"}) {
     r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "n.cmap").string() + " " +
                          (tmp / "sim" / "session_00").string() + bad);

@@ -27,6 +27,10 @@ struct RegisterSettings {
   double min_step_m = 1e-4;
   /// Rotation about the vertical axis only (a robot on a floor); false: any rotation.
   bool yaw_only = true;
+  /// No vertical offset either, in the rigid fit and the drift fit: the error of a robot's 2D
+  /// localisation (x, y, heading), its height and tilt fixed by the robot itself. Implies
+  /// yaw_only.
+  bool planar = false;
   /// At most this many of the session's occupied voxels take part (evenly spread in Morton order).
   size_t max_points = 20000;
   /// What the correction is (integrator.h): one rigid motion of the session's map frame, or the
@@ -52,6 +56,11 @@ struct RegisterSettings {
   size_t drift_samples_per_frame = 100;
   /// Frame points farther than this from their sensor are not used (the integrator's range).
   double drift_max_range_m = 3.0;
+  /// The drift fit measures against the sessions' own points instead of voxel centres: each
+  /// sample is a frame point, pulled along the surface normal onto the mean position of the
+  /// points all sessions put in the target's voxels around it (RegistrationTarget::addPoints),
+  /// so offsets below a voxel are seen. Samples where the surface is no plane are left out.
+  bool drift_points = false;
 
   /// @throw UsageError for values out of range.
   void validate() const;
@@ -74,10 +83,17 @@ class RegistrationTarget {
   const KeyGrid& grid() const { return grid_; }
   /// Hits of the occupied unit voxels, by Morton code.
   const std::unordered_map<uint64_t, uint32_t>& surface() const { return surface_; }
+  /// Adds the points of `frames` (within `max_range_m` of their sensor) that fall into the
+  /// surface's voxels to those voxels' point sums (for RegisterSettings::drift_points).
+  /// @throw whatever frames.load throws.
+  void addPoints(const FrameSource& frames, double max_range_m);
+  /// Sum of the added points (x, y, z) and their number (w), by Morton code.
+  const std::unordered_map<uint64_t, Eigen::Vector4d>& points() const { return points_; }
 
  private:
   KeyGrid grid_;
   std::unordered_map<uint64_t, uint32_t> surface_;
+  std::unordered_map<uint64_t, Eigen::Vector4d> points_;
 };
 
 /// The correction that moves the session's occupied voxels onto the consensus' surfaces:
