@@ -292,10 +292,11 @@ Eigen::Isometry3d registerToConsensus(const SessionMap& session, const Registrat
 
 namespace {
 
-/// One voxel a frame saw, for the drift fit.
+/// One voxel a frame saw (or, with RegisterSettings::drift_points, one of its points), for the
+/// drift fit.
 struct DriftSample {
-  Eigen::Vector3d point;     ///< the voxel centre, as integrated
-  Eigen::Vector3d own_pull;  ///< the pull of the frame's own voxels on it
+  Eigen::Vector3d point;     ///< the voxel centre (or the point), as integrated
+  Eigen::Vector3d own_pull;  ///< the pull of the frame's own voxels (points) on it
   Eigen::Vector3d normal;    ///< of the frame's surface here; zero where it is no plane
   uint32_t frame = 0;
 };
@@ -498,35 +499,6 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
       const Eigen::Matrix3d r = Eigen::AngleAxisd(fp(3), Eigen::Vector3d::UnitZ()).toRotationMatrix();
       const Eigen::Vector3d arm = r * (d.point - sensors[d.frame]);
       const Eigen::Vector3d p = sensors[d.frame] + fp.head<3>() + arm;
-      if (use_points) {
-        // Point to plane against the points' surface; no plane, no sample.
-        const auto plane = pointPlaneNear(target.points(), grid, p, settings.radius_voxels);
-        if (!plane) continue;
-        ++matched;
-        const auto [k, w] = knotOf(d.frame);
-        const Eigen::Index a = static_cast<Eigen::Index>(k) * kDof, b = a + kDof;
-        const Eigen::Vector3d& n = plane->normal;
-        const double residual = n.dot(plane->point - r * d.own_pull - p);
-        Eigen::Vector4d j;
-        j << n, arm.x() * n.y() - arm.y() * n.x();
-        if (settings.planar) j(2) = 0.0;
-        const Eigen::Vector4d ja = (1.0 - w) * j, jb = w * j;
-        ata.block<kDof, kDof>(a, a) += ja * ja.transpose();
-        ata.block<kDof, kDof>(a, b) += ja * jb.transpose();
-        ata.block<kDof, kDof>(b, a) += jb * ja.transpose();
-        ata.block<kDof, kDof>(b, b) += jb * jb.transpose();
-        atb.segment<kDof>(a) += ja * residual;
-        atb.segment<kDof>(b) += jb * residual;
-        shift += std::abs(residual);
-        continue;
-      }
-      const auto q = centroidNear(surface, grid, p, settings.radius_voxels, true);
-      if (!q) continue;
-      // Where the frame's surface is a plane, the pull counts along its normal only (it says
-      // how far the surface lies, not where along it the voxel belongs); elsewhere in full.
-      // Voxels that already fit count too: they hold the frame where it is.
-      const Eigen::Vector3d pull = *q - r * d.own_pull - p;
-      ++matched;
       // Plain variables, not a structured binding: the lambda below captures them.
       const std::pair<size_t, double> knot = knotOf(d.frame);
       const size_t k = knot.first;
@@ -544,6 +516,24 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
         atb.segment<kDof>(a) += ja * residual;
         atb.segment<kDof>(b) += jb * residual;
       };
+      if (use_points) {
+        // Point to plane against the points' surface, relative to the frame's own plane there;
+        // no plane, no sample.
+        const auto plane = pointPlaneNear(target.points(), grid, p, settings.radius_voxels);
+        if (!plane) continue;
+        ++matched;
+        const double residual = plane->normal.dot(plane->point - r * d.own_pull - p);
+        addRow(plane->normal, residual);
+        shift += std::abs(residual);
+        continue;
+      }
+      const auto q = centroidNear(surface, grid, p, settings.radius_voxels, true);
+      if (!q) continue;
+      // Where the frame's surface is a plane, the pull counts along its normal only (it says
+      // how far the surface lies, not where along it the voxel belongs); elsewhere in full.
+      // Voxels that already fit count too: they hold the frame where it is.
+      const Eigen::Vector3d pull = *q - r * d.own_pull - p;
+      ++matched;
       if (d.normal.squaredNorm() > 0.0) {
         const Eigen::Vector3d n = r * d.normal;
         addRow(n, n.dot(pull));
