@@ -112,6 +112,19 @@ std::vector<Eigen::Vector3d> observersOf(const std::vector<Eigen::Vector3d>& poi
 }
 
 using HitMap = std::unordered_map<uint64_t, uint32_t>;
+using PointSums = std::unordered_map<uint64_t, Eigen::Vector4d>;
+
+/// A frame point the registration uses: finite, not at the sensor, within `range2` (squared
+/// metres) of it.
+bool usablePoint(const Eigen::Vector3f& q, double range2) {
+  return q.allFinite() && q.squaredNorm() != 0.0f && q.cast<double>().squaredNorm() <= range2;
+}
+
+/// Adds the world point `w` to the sums (x, y, z, count) of the voxel `code`.
+void addPointSum(PointSums& sums, uint64_t code, const Eigen::Vector3d& w) {
+  // try_emplace with a zero: a default-constructed Eigen vector is uninitialised.
+  sums.try_emplace(code, Eigen::Vector4d::Zero()).first->second += Eigen::Vector4d(w.x(), w.y(), w.z(), 1.0);
+}
 
 /// Occupied unit voxels of a map and their hits; their centres, in Morton order, go to `centres`
 /// when given.
@@ -125,30 +138,38 @@ HitMap surfaceOf(const SessionMap& map, std::vector<Eigen::Vector3d>* centres = 
   return out;
 }
 
+/// Calls fn(key) for every voxel of the cube of ceil(radius_voxels) voxels around the voxel of
+/// `p` that lies inside the grid. False when `p` itself lies outside.
+template <typename Fn>
+bool forEachKeyAround(const KeyGrid& grid, const Eigen::Vector3d& p, double radius_voxels, Fn fn) {
+  const auto k = grid.keyOf(p);
+  if (!k) return false;
+  const int r = static_cast<int>(std::ceil(radius_voxels));
+  for (int dz = -r; dz <= r; ++dz) {
+    for (int dy = -r; dy <= r; ++dy) {
+      for (int dx = -r; dx <= r; ++dx) {
+        if (const auto n = offsetKey(*k, dx, dy, dz)) fn(*n);
+      }
+    }
+  }
+  return true;
+}
+
 /// Calls fn(centre, hits, d2) for every voxel of `surface` within `radius_voxels` of `p`
 /// (d2: squared distance of its centre from `p`, in m^2). Returns the radius in metres, or a
 /// negative value when `p` lies outside the grid.
 template <typename Fn>
 double forEachNear(const HitMap& surface, const KeyGrid& grid, const Eigen::Vector3d& p, double radius_voxels, Fn fn) {
-  const auto k = grid.keyOf(p);
-  if (!k) return -1.0;
-  const int r = static_cast<int>(std::ceil(radius_voxels));
   const double radius_m = radius_voxels * grid.resolution_m();
-  for (int dz = -r; dz <= r; ++dz) {
-    for (int dy = -r; dy <= r; ++dy) {
-      for (int dx = -r; dx <= r; ++dx) {
-        const auto n = offsetKey(*k, dx, dy, dz);
-        if (!n) continue;
-        const auto found = surface.find(mortonEncode(*n));
-        if (found == surface.end()) continue;
-        const Eigen::Vector3d c = grid.centerOf(*n);
-        const double d2 = (c - p).squaredNorm();
-        if (d2 > radius_m * radius_m) continue;
-        fn(c, found->second, d2);
-      }
-    }
-  }
-  return radius_m;
+  const bool inside = forEachKeyAround(grid, p, radius_voxels, [&](const VoxelKey& n) {
+    const auto found = surface.find(mortonEncode(n));
+    if (found == surface.end()) return;
+    const Eigen::Vector3d c = grid.centerOf(n);
+    const double d2 = (c - p).squaredNorm();
+    if (d2 > radius_m * radius_m) return;
+    fn(c, found->second, d2);
+  });
+  return inside ? radius_m : -1.0;
 }
 
 /// The centre of the voxels of `surface` around `p`, weighted by their hits and a Gaussian of
@@ -182,14 +203,12 @@ void RegistrationTarget::addPoints(const FrameSource& frames, double max_range_m
     const Frame f = frames.load(i);
     if (!f.T_world_sensor.matrix().allFinite()) throw UsageError(f.source + ": the pose is not finite");
     for (const Eigen::Vector3f& q : f.cloud.points) {
-      if (!q.allFinite() || q.squaredNorm() == 0.0f || q.cast<double>().squaredNorm() > range2) continue;
+      if (!usablePoint(q, range2)) continue;
       const Eigen::Vector3d w = f.T_world_sensor * q.cast<double>();
       const auto k = grid_.keyOf(w);
       if (!k) continue;
       const uint64_t code = mortonEncode(*k);
-      if (!surface_.count(code)) continue;
-      // (try_emplace with a zero: a default-constructed Eigen vector is uninitialised.)
-      points_.try_emplace(code, Eigen::Vector4d::Zero()).first->second += Eigen::Vector4d(w.x(), w.y(), w.z(), 1.0);
+      if (surface_.count(code)) addPointSum(points_, code, w);
     }
   }
 }
@@ -336,35 +355,26 @@ struct PlaneNear {
   Eigen::Vector3d point;
   Eigen::Vector3d normal;
 };
-std::optional<PlaneNear> pointPlaneNear(const std::unordered_map<uint64_t, Eigen::Vector4d>& points,
-                                        const KeyGrid& grid, const Eigen::Vector3d& p, double radius_voxels) {
-  const auto k = grid.keyOf(p);
-  if (!k) return std::nullopt;
-  const int r = static_cast<int>(std::ceil(radius_voxels));
+std::optional<PlaneNear> pointPlaneNear(const PointSums& points, const KeyGrid& grid, const Eigen::Vector3d& p,
+                                        double radius_voxels) {
   const double radius_m = radius_voxels * grid.resolution_m();
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
   double weight = 0.0;
   int count = 0;
-  for (int dz = -r; dz <= r; ++dz) {
-    for (int dy = -r; dy <= r; ++dy) {
-      for (int dx = -r; dx <= r; ++dx) {
-        const auto n = offsetKey(*k, dx, dy, dz);
-        if (!n) continue;
-        const auto found = points.find(mortonEncode(*n));
-        if (found == points.end() || found->second.w() <= 0.0) continue;
-        const Eigen::Vector3d m = found->second.head<3>() / found->second.w() - p;
-        const double d2 = m.squaredNorm();
-        if (d2 > radius_m * radius_m) continue;
-        const double w = found->second.w() * std::exp(-2.0 * d2 / (radius_m * radius_m));
-        sum += w * m;
-        outer += w * m * m.transpose();
-        weight += w;
-        ++count;
-      }
-    }
-  }
-  if (count < 6 || weight <= 0.0) return std::nullopt;
+  const bool inside = forEachKeyAround(grid, p, radius_voxels, [&](const VoxelKey& n) {
+    const auto found = points.find(mortonEncode(n));
+    if (found == points.end() || found->second.w() <= 0.0) return;
+    const Eigen::Vector3d m = found->second.head<3>() / found->second.w() - p;
+    const double d2 = m.squaredNorm();
+    if (d2 > radius_m * radius_m) return;
+    const double w = found->second.w() * std::exp(-2.0 * d2 / (radius_m * radius_m));
+    sum += w * m;
+    outer += w * m * m.transpose();
+    weight += w;
+    ++count;
+  });
+  if (!inside || count < 6 || weight <= 0.0) return std::nullopt;
   const Eigen::Vector3d mean = sum / weight;
   const Eigen::Matrix3d cov = outer / weight - mean * mean.transpose();
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
@@ -398,38 +408,29 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
   std::vector<Eigen::Vector3d> sensors(n_frames);
   std::vector<uint64_t> codes;
   HitMap frame_surface;
-  std::unordered_map<uint64_t, Eigen::Vector4d> frame_points;
+  PointSums frame_points;
   const double range2 = settings.drift_max_range_m * settings.drift_max_range_m;
   const bool use_points = settings.drift_points && !target.points().empty();
   for (size_t i = 0; i < n_frames; ++i) {
     const Frame f = frames.load(i);
     sensors[i] = f.T_world_sensor.translation();
     if (!f.T_world_sensor.matrix().allFinite()) throw UsageError(f.source + ": the pose is not finite");
-    frame_surface.clear();
-    for (const Eigen::Vector3f& q : f.cloud.points) {
-      if (!q.allFinite() || q.squaredNorm() == 0.0f || q.cast<double>().squaredNorm() > range2) continue;
-      const auto k = grid.keyOf(f.T_world_sensor * q.cast<double>());
-      if (k) ++frame_surface[mortonEncode(*k)];
-    }
     if (use_points) {
       // The frame's own points by voxel (sums and counts), for the pull of its own surface.
       frame_points.clear();
-      for (const Eigen::Vector3f& q : f.cloud.points) {
-        if (!q.allFinite() || q.squaredNorm() == 0.0f || q.cast<double>().squaredNorm() > range2) continue;
-        const Eigen::Vector3d w = f.T_world_sensor * q.cast<double>();
-        const auto k = grid.keyOf(w);
-        if (k) frame_points.try_emplace(mortonEncode(*k), Eigen::Vector4d::Zero()).first->second += Eigen::Vector4d(w.x(), w.y(), w.z(), 1.0);
-      }
-      // Frame points, evenly thinned, as integrated (sub-voxel positions).
       size_t valid = 0;
       for (const Eigen::Vector3f& q : f.cloud.points) {
-        valid += q.allFinite() && q.squaredNorm() > 0.0f && q.cast<double>().squaredNorm() <= range2;
+        if (!usablePoint(q, range2)) continue;
+        ++valid;
+        const Eigen::Vector3d w = f.T_world_sensor * q.cast<double>();
+        if (const auto k = grid.keyOf(w)) addPointSum(frame_points, mortonEncode(*k), w);
       }
+      // Frame points, evenly thinned, as integrated (sub-voxel positions).
       const size_t take = std::min(valid, settings.drift_samples_per_frame);
       size_t seen = 0, next_index = 0, taken = 0;
       for (const Eigen::Vector3f& q : f.cloud.points) {
         if (taken >= take) break;
-        if (!q.allFinite() || q.squaredNorm() == 0.0f || q.cast<double>().squaredNorm() > range2) continue;
+        if (!usablePoint(q, range2)) continue;
         if (seen++ != next_index) continue;
         DriftSample d;
         d.point = f.T_world_sensor * q.cast<double>();
@@ -445,6 +446,12 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
         samples.push_back(d);
       }
       continue;
+    }
+    frame_surface.clear();
+    for (const Eigen::Vector3f& q : f.cloud.points) {
+      if (!usablePoint(q, range2)) continue;
+      const auto k = grid.keyOf(f.T_world_sensor * q.cast<double>());
+      if (k) ++frame_surface[mortonEncode(*k)];
     }
     codes.clear();
     for (const auto& [code, hits] : frame_surface) codes.push_back(code);
