@@ -37,8 +37,8 @@ struct LaneRay {
   float weight = 0;               ///< the ray's weight (points in the bundle)
 };
 
-/// floor() for finite values of moderate size (the same as the integrator's).
-inline int64_t laneFloor(double v) {
+/// floor() for finite values of moderate size, inlined (std::floor is a library call on x86-64).
+inline int64_t floorInt(double v) {
   const int64_t i = static_cast<int64_t>(v);
   return i - (static_cast<double>(i) > v);
 }
@@ -52,8 +52,8 @@ inline LaneRay laneRay(const double origin[3], const double end[3], float weight
   r.weight = weight;
   double d[3];
   for (int a = 0; a < 3; ++a) {
-    const int64_t c = laneFloor(origin[a]);
-    const int64_t l = laneFloor(end[a]);
+    const int64_t c = floorInt(origin[a]);
+    const int64_t l = floorInt(end[a]);
     d[a] = end[a] - origin[a];
     r.cell += (c - lo[a]) * stride[a];
     const int64_t remaining = l > c ? l - c : c - l;

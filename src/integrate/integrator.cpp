@@ -75,11 +75,7 @@ IntegrationStats& IntegrationStats::operator+=(const IntegrationStats& o) {
 
 namespace {
 
-/// floor() for finite values of moderate size, inlined (std::floor is a library call on x86-64).
-inline int64_t floorInt(double v) {
-  const int64_t i = static_cast<int64_t>(v);
-  return i - (static_cast<double>(i) > v);
-}
+using detail::floorInt;
 
 /// Working-frame coordinates of one sensor point (R row-major, scaled to voxel units).
 inline void transformPoint(const float* R, const float* of, const Eigen::Vector3f& p, float u[3]) {
@@ -181,6 +177,8 @@ struct DenseStore {
 /// weight * segment length to each cell. Coordinates are the frame's working coordinates, the
 /// same on every path so that every path computes the same lengths; cell c has index
 /// (c - lo) . (1, stride_y, stride_z). Returns the index of the last cell (containing `end`).
+/// Its set-up is that of detail::laneRay() plus the per-axis counts; built on laneRay() it
+/// measured 8% slower in exact mode (60 against 55.5 ms per synthetic frame), so it stays here.
 inline size_t castDense(const double origin[3], const double end[3], float weight, float* length,
                         const int64_t lo[3], int64_t stride_y, int64_t stride_z) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
