@@ -12,6 +12,7 @@
 //
 // Usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] [--register-model M] [--drift-knots N]
 //                    [--register-rounds N] [--register-radius R] [--drift-rounds N] [--register-planar]
+//                    [--drift-points]
 //   --office DIR   a `chronomap simulate --preset office` output (default: simulate one at half
 //                  resolution into a temporary folder)
 //   --floor66 DIR  also evaluate a floor66 simulation (not simulated by default: ~7 minutes)
@@ -24,6 +25,7 @@
 //   --register-radius R, --drift-rounds N  the registration's neighbourhood (voxels) and rounds
 //                  of drift correction (RegisterSettings; defaults as the library's)
 //   --register-planar  x, y and heading only, no vertical offset (RegisterSettings::planar)
+//   --drift-points  the drift fit on the sessions' points (RegisterSettings::drift_points)
 // The last line of output is one JSON object with the headline figures: the office sessions
 // registered to their consensus (as `chronomap build --register --register-drift 20`) at the
 // recommended settings, and the same with the shift test (office_shift_...).
@@ -201,8 +203,11 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
       reg.drift_knot_frames > 0 ? ", then " + std::to_string(reg.drift_rounds) + " rounds of drift knots every " +
                                       std::to_string(reg.drift_knot_frames) + " frames"
                                 : "";
+  const std::string options =
+      std::string(reg.planar ? ", planar" : "") + (reg.drift_points ? ", drift on points" : "");
   std::printf("registered (%d rounds, %s corrections%s; radius %.2f voxels%s) and re-aligned in %.1f s\n", rounds,
-              bench::correctionModelName(reg.model), drift.c_str(), reg.radius_voxels, reg.planar ? (reg.drift_points ? ", planar, drift on points" : ", planar") : (reg.drift_points ? ", drift on points" : ""), seconds(reg_start));
+              bench::correctionModelName(reg.model), drift.c_str(), reg.radius_voxels, options.c_str(),
+              seconds(reg_start));
   bench::printPoseErrors(s.dirs, corrections);
 
   auto row = [&](const char* poses, const std::vector<SessionMap>& maps, const DiffSettings& ds,
@@ -489,7 +494,7 @@ int main(int argc, char** argv) {
       std::fprintf(stderr,
                    "usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] "
                    "[--register-model world|per-pose] [--drift-knots FRAMES] [--register-rounds N] "
-                   "[--register-radius VOXELS] [--drift-rounds N] [--register-planar]\n");
+                   "[--register-radius VOXELS] [--drift-rounds N] [--register-planar] [--drift-points]\n");
       return 2;
     }
   }
