@@ -45,6 +45,7 @@ IntegratedSession integrateDataset(const std::string& path, const IntegrateSetti
   settings.fast = o.fast;
   settings.threads = o.threads;
   settings.compress_free = !o.no_compress;
+  settings.hit_positions = !o.no_positions;
 
   auto dataset = io::openDataset(path, dopt);
   IntegratedSession out{SessionMap(o.resolution_m), {}, dataset->recordedAt(), io::toString(dataset->format()),
@@ -76,6 +77,9 @@ void addIntegrateOptions(CLI::App* app, IntegrateSettings& o) {
   app->add_option("--threads", o.threads, "worker threads, 0 = all cores (the map does not depend on it)")
       ->capture_default_str();
   app->add_flag("--no-compress", o.no_compress, "keep every free unit voxel instead of merging free subtrees");
+  app->add_flag("--no-positions", o.no_positions,
+                "do not record where in each voxel the rays ended (fast mode about 7% faster; the diff's shift test "
+                "then sees surfaces only to the voxel; docs/changes.md)");
   app->add_option("--depth-scale", o.depth_scale, "depth image units per metre (TUM 5000, 3DMatch 1000)");
   app->add_option("--intrinsics", o.intrinsics, "camera intrinsics fx,fy,cx,cy in pixels");
   app->add_option("--pose", o.pose, "pose of a single cloud: tx,ty,tz,qx,qy,qz,qw (sensor to map)");
@@ -95,6 +99,7 @@ int runIntegrate(const IntegrateOptions& o) {
   settings.max_range_m = o.settings.max_range_m;
   settings.fast = o.settings.fast;
   settings.compress_free = !o.settings.no_compress;
+  settings.hit_positions = !o.settings.no_positions;
   nlohmann::json meta = {{"created_by", "chronomap integrate"},
                          {"dataset", std::filesystem::absolute(o.dataset).lexically_normal().string()},
                          {"format", session.format},
@@ -102,7 +107,8 @@ int runIntegrate(const IntegrateOptions& o) {
                          {"points", stats.points},
                          {"max_range_m", settings.max_range_m},
                          {"fast", settings.fast},
-                         {"compressed", settings.compress_free}};
+                         {"compressed", settings.compress_free},
+                         {"hit_positions", settings.hit_positions}};
   if (session.recorded_at) meta["recorded_at"] = *session.recorded_at;
   io::writeSessionMap(o.output, map, meta);
   const SessionMapCounts counts = map.counts();

@@ -42,6 +42,7 @@ struct IntegrateSettings {
   bool fast = false;
   int threads = 0;
   bool no_compress = false;
+  bool no_positions = false;
   double depth_scale = 0.0;
   std::string intrinsics;
   std::string pose;

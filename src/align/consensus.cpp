@@ -53,6 +53,7 @@ SessionMap consensus(const TemporalMap& map, double t0_s, double t1_s) {
       c.red *= w;
       c.green *= w;
       c.blue *= w;
+      for (float& o : c.offset) o *= static_cast<float>(w);
       sum.addCube(corner, level, c);
     }
   });

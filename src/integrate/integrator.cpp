@@ -1,6 +1,9 @@
 #include "chronomap/integrate/integrator.h"
 
 #include <algorithm>
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
 #include <cfloat>
 #include <limits>
 #include <mutex>
@@ -84,6 +87,7 @@ inline void transformPoint(const float* R, const float* of, const Eigen::Vector3
   u[2] = of[2] + (R[6] * p.x() + R[7] * p.y() + R[8] * p.z());
 }
 
+
 /// Transforms sensor points into scratch-cube cell indices (idx; -1 for points that are
 /// invalid or out of range). Written without branches so that it vectorises; where the CPU has
 /// AVX2 that clone is chosen at load time. Returns the number of points kept; `out_of_range`
@@ -125,6 +129,7 @@ CHRONOMAP_AVX2_CLONES uint64_t cubeCells(
 struct RelPoint {
   float u[3];
   Rgb color;
+  uint32_t index;  // in the frame's cloud
 };
 
 /// Hits and colour of one end voxel (in fast mode: one bundle). One entry per cache line: the
@@ -134,7 +139,23 @@ struct RelPoint {
 struct alignas(64) EndEntry {
   uint32_t hits = 0;
   uint32_t red = 0, green = 0, blue = 0;
+  /// Sums of the points as the sensor saw them (metres, sensor frame; the fourth is unused):
+  /// where in the voxel they ended follows from them once per entry (emitCell), which is
+  /// cheaper than transforming every point for it. Every path adds the same points in the same
+  /// order, so the float sums agree bit for bit.
+  alignas(16) float sensor_sum[4] = {0.0f, 0.0f, 0.0f, 0.0f};
   int64_t cell[3] = {0, 0, 0};  // working-frame voxel
+
+  void addPoint(const Eigen::Vector3f& p) {
+#if defined(__SSE2__)
+    // One vector add (the lanes round exactly as three scalar adds would).
+    const __m128 xy = _mm_castpd_ps(_mm_load_sd(reinterpret_cast<const double*>(p.data())));
+    const __m128 xyz = _mm_movelh_ps(xy, _mm_load_ss(p.data() + 2));
+    _mm_store_ps(sensor_sum, _mm_add_ps(_mm_load_ps(sensor_sum), xyz));
+#else
+    for (int a = 0; a < 3; ++a) sensor_sum[a] += p[a];
+#endif
+  }
 };
 
 /// Scratch cube of side 2 * bias + 1 around the sensor, covering every in-range point: the
@@ -286,6 +307,11 @@ struct RayAccumulator::Impl {
   IntegratorSettings settings;
   std::vector<RelPoint> points;
   std::vector<int32_t> cell_index;  // one-pass path: per point
+  // The frame being accumulated: its cloud, its sensor origin in the working frame, the rotation
+  // from sensor metres to working voxel units (row-major).
+  const PointCloud* cloud = nullptr;
+  double origin[3] = {0.0, 0.0, 0.0};
+  double rotation[9] = {};
   std::vector<EndEntry> ends;  // ends[0] unused so that index 0 means "none"
   DenseStore dense;
   HashStore hash;
@@ -297,11 +323,12 @@ struct RayAccumulator::Impl {
     ends.push_back(e);
     return static_cast<uint32_t>(ends.size() - 1);
   }
-  static void addEnd(EndEntry& e, const Rgb& color) {
+  void addEnd(EndEntry& e, const RelPoint& p) const {
     ++e.hits;
-    e.red += color.r;
-    e.green += color.g;
-    e.blue += color.b;
+    e.red += p.color.r;
+    e.green += p.color.g;
+    e.blue += p.color.b;
+    if (settings.hit_positions) e.addPoint(cloud->points[p.index]);
   }
   /// Where a bundle's ray ends: the centre of its voxel.
   static void bundleTarget(const EndEntry& e, double target[3]) {
@@ -351,7 +378,7 @@ struct RayAccumulator::Impl {
           cellOf(p, cell);
           e = newEnd(cell);
         }
-        addEnd(ends[e], p.color);
+        addEnd(ends[e], p);
       }
       return;
     }
@@ -360,7 +387,7 @@ struct RayAccumulator::Impl {
       cellOf(p, cell);
       uint32_t& e = d.end[d.cell(cell[0], cell[1], cell[2])];
       if (e == 0) e = newEnd(cell);
-      addEnd(ends[e], p.color);
+      addEnd(ends[e], p);
     }
     castBundles(o);
   }
@@ -381,7 +408,7 @@ struct RayAccumulator::Impl {
         cellOf(p, cell);
         HashStore::Slot& s = hash.slot(cell[0] + oc[0], cell[1] + oc[1], cell[2] + oc[2]);
         if (s.end == 0) s.end = newEnd(cell);
-        addEnd(ends[s.end], p.color);
+        addEnd(ends[s.end], p);
       }
       return;
     }
@@ -390,7 +417,7 @@ struct RayAccumulator::Impl {
       cellOf(p, cell);
       HashStore::Slot& s = hash.slot(cell[0] + oc[0], cell[1] + oc[1], cell[2] + oc[2]);
       if (s.end == 0) s.end = newEnd(cell);
-      addEnd(ends[s.end], p.color);
+      addEnd(ends[s.end], p);
     }
     // Cells as packed absolute keys: x + y * 2^21 + z * 2^42 (keys have 16 bits).
     constexpr int kShift = 21;
@@ -403,7 +430,10 @@ struct RayAccumulator::Impl {
   }
 
   void emitCell(int64_t x, int64_t y, int64_t z, float length, uint32_t end, VoxelDeltas& out) const {
-    VoxelCounters c;
+    out.keys.push_back(VoxelKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)});
+    // Written in place, field by field: a copy of a counter built on the stack measured a
+    // store-forwarding stall per cell.
+    VoxelCounters& c = out.deltas.emplace_back();
     c.length_m = length * static_cast<float>(grid.resolution_m());
     if (end != 0) {
       const EndEntry& entry = ends[end];
@@ -411,9 +441,16 @@ struct RayAccumulator::Impl {
       c.red = entry.red;
       c.green = entry.green;
       c.blue = entry.blue;
+      // The points' offsets from the voxel centre, summed: R . sum + n (o - centre), in voxels.
+      const double n = entry.hits;
+      for (int a = 0; a < 3 && settings.hit_positions; ++a) {
+        double sum = n * (origin[a] - static_cast<double>(entry.cell[a]) - 0.5);
+        for (int b = 0; b < 3; ++b) {
+          sum += rotation[3 * a + b] * static_cast<double>(entry.sensor_sum[b]);
+        }
+        c.offset[a] = static_cast<float>(sum);
+      }
     }
-    out.keys.push_back(VoxelKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)});
-    out.deltas.push_back(c);
   }
 };
 
@@ -465,6 +502,12 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
   const float max_range_sq = static_cast<float>(s.settings.max_range_m * s.settings.max_range_m);
 
   const PointCloud& cloud = frame.cloud;
+  s.cloud = &cloud;
+  const Eigen::Matrix3d rotation = T.linear() * inv_res;
+  for (int r = 0; r < 3; ++r) {
+    s.origin[r] = o[r];
+    for (int c = 0; c < 3; ++c) s.rotation[3 * r + c] = rotation(r, c);
+  }
   const bool colors = cloud.hasColors();
   const size_t n = cloud.points.size();
   s.ends.assign(1, EndEntry{});
@@ -494,7 +537,7 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
                         static_cast<int32_t>(sz), cell_index, &beyond);
       out_of_range += beyond;
       // Bundling, with and without colours (no per-point test of which).
-      auto bundle = [&](auto with_colors) {
+      auto bundle = [&](auto with_colors, auto with_positions) {
         EndEntry* entries = s.ends.data();
         const Rgb* color = colors ? cloud.colors.data() + begin : nullptr;
         for (size_t j = 0; j < count; ++j) {
@@ -514,6 +557,7 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
           }
           EndEntry& entry = entries[e];
           ++entry.hits;
+          if constexpr (decltype(with_positions)::value) entry.addPoint(cloud.points[begin + j]);
           if constexpr (decltype(with_colors)::value) {
             entry.red += color[j].r;
             entry.green += color[j].g;
@@ -521,10 +565,15 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
           }
         }
       };
-      if (colors) {
-        bundle(std::true_type{});
+      // Four variants, so that the loop tests neither per point.
+      if (colors && s.settings.hit_positions) {
+        bundle(std::true_type{}, std::true_type{});
+      } else if (colors) {
+        bundle(std::true_type{}, std::false_type{});
+      } else if (s.settings.hit_positions) {
+        bundle(std::false_type{}, std::true_type{});
       } else {
-        bundle(std::false_type{});
+        bundle(std::false_type{}, std::false_type{});
       }
     }
     st.points = kept;
@@ -578,6 +627,7 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
     RelPoint rp;
     transformPoint(Rm, of, p, rp.u);
     rp.color = colors ? cloud.colors[i] : Rgb{};
+    rp.index = static_cast<uint32_t>(i);
     const int32_t c[3] = {static_cast<int32_t>(rp.u[0]), static_cast<int32_t>(rp.u[1]), static_cast<int32_t>(rp.u[2])};
     if (!cube_inside) {
       bool inside = true;

@@ -134,6 +134,33 @@ const char* toString(MapKind kind) {
   return "unknown";
 }
 
+const CmapBlock* CmapFile::find(const std::string& tag) const {
+  for (const auto& b : blocks) {
+    if (b.tag == tag) return &b;
+  }
+  return nullptr;
+}
+
+void putCounterRecord(uint8_t* out, const VoxelCounters& c) {
+  copyBytes(out, &c.length_m, 4);
+  copyBytes(out + 4, &c.hits, 4);
+  copyBytes(out + 8, &c.red, 4);
+  copyBytes(out + 12, &c.green, 4);
+  copyBytes(out + 16, &c.blue, 4);
+}
+
+void getCounterRecord(const uint8_t* in, VoxelCounters& c) {
+  copyBytes(&c.length_m, in, 4);
+  copyBytes(&c.hits, in + 4, 4);
+  copyBytes(&c.red, in + 8, 4);
+  copyBytes(&c.green, in + 12, 4);
+  copyBytes(&c.blue, in + 16, 4);
+}
+
+void putOffsetRecord(uint8_t* out, const VoxelCounters& c) { copyBytes(out, c.offset, kOffsetRecordBytes); }
+
+void getOffsetRecord(const uint8_t* in, VoxelCounters& c) { copyBytes(c.offset, in, kOffsetRecordBytes); }
+
 const CmapBlock& CmapFile::block(const std::string& tag, const std::string& source) const {
   for (const auto& b : blocks) {
     if (b.tag == tag) return b;
@@ -247,7 +274,7 @@ std::vector<uint8_t> encodeSessionMap(const SessionMap& map, const nlohmann::jso
   });
   header.bounds_min_m = lo;
   header.bounds_max_m = hi;
-  std::vector<CmapBlock> blocks(3);
+  std::vector<CmapBlock> blocks(4);
   blocks[0].tag = "META";
   const std::string text = meta.is_null() ? "{}" : meta.dump();
   blocks[0].data.assign(text.begin(), text.end());
@@ -256,9 +283,14 @@ std::vector<uint8_t> encodeSessionMap(const SessionMap& map, const nlohmann::jso
   blocks[1].data.resize(inner.size() * sizeof(SessionMap::Children));
   copyBytes(blocks[1].data.data(), inner.data(), blocks[1].data.size());
   blocks[2].tag = "LEAF";
+  blocks[3].tag = "HPOS";
   const auto& leaves = map.leafPool();
-  blocks[2].data.resize(leaves.size() * sizeof(VoxelCounters));
-  copyBytes(blocks[2].data.data(), leaves.data(), blocks[2].data.size());
+  blocks[2].data.resize(leaves.size() * kCounterRecordBytes);
+  blocks[3].data.resize(leaves.size() * kOffsetRecordBytes);
+  for (size_t i = 0; i < leaves.size(); ++i) {
+    putCounterRecord(blocks[2].data.data() + i * kCounterRecordBytes, leaves[i]);
+    putOffsetRecord(blocks[3].data.data() + i * kOffsetRecordBytes, leaves[i]);
+  }
   return encodeCmap(header, blocks, zstd_level);
 }
 
@@ -272,13 +304,20 @@ SessionMap sessionMapFrom(const CmapFile& file, const std::string& source) {
   }
   const CmapBlock& inner_block = file.block("INNR", source);
   const CmapBlock& leaf_block = file.block("LEAF", source);
-  if (inner_block.data.size() % sizeof(SessionMap::Children) != 0 || leaf_block.data.size() % sizeof(VoxelCounters) != 0) {
+  if (inner_block.data.size() % sizeof(SessionMap::Children) != 0 || leaf_block.data.size() % kCounterRecordBytes != 0) {
     throw FormatError(source + ": node blocks have impossible sizes");
   }
   std::vector<SessionMap::Children> inner(inner_block.data.size() / sizeof(SessionMap::Children));
   copyBytes(inner.data(), inner_block.data.data(), inner_block.data.size());
-  std::vector<VoxelCounters> leaves(leaf_block.data.size() / sizeof(VoxelCounters));
-  copyBytes(leaves.data(), leaf_block.data.data(), leaf_block.data.size());
+  std::vector<VoxelCounters> leaves(leaf_block.data.size() / kCounterRecordBytes);
+  for (size_t i = 0; i < leaves.size(); ++i) getCounterRecord(leaf_block.data.data() + i * kCounterRecordBytes, leaves[i]);
+  // Hit positions: absent in files written before them (then every surface sits at its centre).
+  if (const CmapBlock* positions = file.find("HPOS")) {
+    if (positions->data.size() != leaves.size() * kOffsetRecordBytes) {
+      throw FormatError(source + ": the hit position block does not match the leaves");
+    }
+    for (size_t i = 0; i < leaves.size(); ++i) getOffsetRecord(positions->data.data() + i * kOffsetRecordBytes, leaves[i]);
+  }
   SessionMap map(file.header.resolution_m);
   try {
     map.assignPools(std::move(inner), std::move(leaves));

@@ -8,7 +8,8 @@
 
 namespace chronomap::io {
 
-static_assert(sizeof(TemporalMap::Entry) == 24, "history entries are stored as 24 bytes");
+/// An entry as ENTR stores it: the session number, then the counters as a LEAF record.
+constexpr size_t kEntryRecordBytes = 4 + kCounterRecordBytes;
 static_assert(sizeof(TemporalMap::Children) == 32, "inner nodes are stored as 32 bytes");
 
 namespace {
@@ -26,6 +27,44 @@ std::vector<T> vectorOf(const CmapBlock& b, const std::string& source) {
   std::vector<T> v(b.data.size() / sizeof(T));
   if (!v.empty()) std::memcpy(v.data(), b.data.data(), b.data.size());
   return v;
+}
+
+std::vector<uint8_t> entryBytes(const std::vector<TemporalMap::Entry>& entries) {
+  std::vector<uint8_t> out(entries.size() * kEntryRecordBytes);
+  for (size_t i = 0; i < entries.size(); ++i) {
+    uint8_t* p = out.data() + i * kEntryRecordBytes;
+    std::memcpy(p, &entries[i].session, 4);
+    putCounterRecord(p + 4, entries[i].value);
+  }
+  return out;
+}
+
+std::vector<uint8_t> entryOffsetBytes(const std::vector<TemporalMap::Entry>& entries) {
+  std::vector<uint8_t> out(entries.size() * kOffsetRecordBytes);
+  for (size_t i = 0; i < entries.size(); ++i) putOffsetRecord(out.data() + i * kOffsetRecordBytes, entries[i].value);
+  return out;
+}
+
+/// The entries of ENTR, with their hit positions from EPOS when the file has them (files
+/// written before them have not: every surface then sits at its voxel's centre).
+std::vector<TemporalMap::Entry> entriesOf(const CmapFile& file, const std::string& source) {
+  const CmapBlock& b = file.block("ENTR", source);
+  if (b.data.size() % kEntryRecordBytes != 0) throw FormatError(source + ": block ENTR has an impossible size");
+  std::vector<TemporalMap::Entry> entries(b.data.size() / kEntryRecordBytes);
+  for (size_t i = 0; i < entries.size(); ++i) {
+    const uint8_t* p = b.data.data() + i * kEntryRecordBytes;
+    std::memcpy(&entries[i].session, p, 4);
+    getCounterRecord(p + 4, entries[i].value);
+  }
+  if (const CmapBlock* positions = file.find("EPOS")) {
+    if (positions->data.size() != entries.size() * kOffsetRecordBytes) {
+      throw FormatError(source + ": the hit position block does not match the entries");
+    }
+    for (size_t i = 0; i < entries.size(); ++i) {
+      getOffsetRecord(positions->data.data() + i * kOffsetRecordBytes, entries[i].value);
+    }
+  }
+  return entries;
 }
 
 }  // namespace
@@ -66,12 +105,13 @@ void writeTemporalMap(const std::filesystem::path& path, const TemporalMap& map,
   j["sessions"] = std::move(sessions);
   const std::string text = j.dump();
 
-  std::vector<CmapBlock> blocks(5);
+  std::vector<CmapBlock> blocks(6);
   blocks[0] = {"META", std::vector<uint8_t>(text.begin(), text.end())};
   blocks[1] = {"INNR", bytesOf(parts.inner)};
   blocks[2] = {"LSTS", bytesOf(parts.list_sizes)};
-  blocks[3] = {"ENTR", bytesOf(parts.entries)};
+  blocks[3] = {"ENTR", entryBytes(parts.entries)};
   blocks[4] = {"COVR", std::move(coverage)};
+  blocks[5] = {"EPOS", entryOffsetBytes(parts.entries)};
   writeFileAtomic(path, encodeCmap(header, blocks));
 }
 
@@ -119,7 +159,7 @@ TemporalMap temporalMapFrom(const CmapFile& file, const std::string& source) {
   TemporalMap::Parts parts;
   parts.inner = vectorOf<TemporalMap::Children>(file.block("INNR", source), source);
   parts.list_sizes = vectorOf<uint32_t>(file.block("LSTS", source), source);
-  parts.entries = vectorOf<TemporalMap::Entry>(file.block("ENTR", source), source);
+  parts.entries = entriesOf(file, source);
   TemporalMap map(file.header.resolution_m);
   try {
     map = TemporalMap::fromParts(file.header.resolution_m, criterion, std::move(parts), std::move(sessions));

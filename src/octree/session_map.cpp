@@ -111,7 +111,7 @@ void SessionMap::addCube(const VoxelKey& corner, int level, const VoxelCounters&
   if (level < 0 || level >= kTreeDepth) throw UsageError("addCube: level " + std::to_string(level) + " out of range");
   const uint32_t low = (1u << level) - 1;
   if (((corner.x | corner.y | corner.z) & low) != 0) throw UsageError("addCube: corner not aligned to the cube");
-  if (level > 0 && (sums.hits | sums.red | sums.green | sums.blue) != 0) {
+  if (level > 0 && ((sums.hits | sums.red | sums.green | sums.blue) != 0 || !sums.offsetsValid())) {
     throw UsageError("addCube: a cube above unit level must be known-free without hits");
   }
   if (level > 0 && sums.length_m <= 0.0f) return;  // an unobserved cube adds nothing
@@ -294,6 +294,7 @@ void SessionMap::assignPools(std::vector<Children> inner, std::vector<VoxelCount
         ++leaves_reached;
         const VoxelCounters& c = leaves[i];
         if (!std::isfinite(c.length_m) || c.length_m < 0.0f) throw FormatError("session map has an invalid ray length");
+        if (!c.offsetsValid()) throw FormatError("session map has an invalid hit position");
         if (level - 1 > 0 && !c.isKnownFreeWithoutHits()) {
           throw FormatError("session map has a compressed node that is not known-free");
         }

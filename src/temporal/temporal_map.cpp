@@ -667,6 +667,7 @@ TemporalMap TemporalMap::fromParts(double resolution_m, ChangeCriterion criterio
       if (!std::isfinite(e.value.length_m) || e.value.length_m < 0.0f) {
         throw FormatError("4D map has an invalid ray length");
       }
+      if (!e.value.offsetsValid()) throw FormatError("4D map has an invalid hit position");
       if (list_level[i] > 0 && !e.value.isKnownFreeWithoutHits()) {
         throw FormatError("4D map has a uniform cube that is not known-free");
       }

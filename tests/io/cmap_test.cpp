@@ -28,6 +28,8 @@ SessionMap sampleMap() {
     d.length_m = 0.01f * static_cast<float>(i % 7 + 1);
     d.hits = static_cast<uint32_t>(i % 3 == 0);
     d.red = 200 * d.hits;
+    d.offset[0] = 0.25f * static_cast<float>(d.hits);
+    d.offset[2] = -0.5f * static_cast<float>(d.hits);
     m.add({static_cast<uint16_t>(c(rng)), static_cast<uint16_t>(c(rng)), static_cast<uint16_t>(c(rng))}, d);
   }
   for (uint16_t x = 0; x < 8; ++x)
@@ -138,6 +140,52 @@ TEST(Cmap, RejectsAValidContainerWithAnInvalidTree) {
   EXPECT_THROW(sessionMapFrom(decodeCmap(bytes, "crafted.cmap"), "crafted.cmap"), FormatError);
   h.kind = MapKind::Diff;
   EXPECT_THROW(sessionMapFrom(decodeCmap(encodeCmap(h, blocks), "d.cmap"), "d.cmap"), FormatError);
+}
+
+TEST(Cmap, FilesWithoutHitPositionsReadWithHitsAtTheCentres) {
+  // Files written before the hit positions were kept have no HPOS block.
+  const SessionMap m = sampleMap();
+  CmapFile f = decodeCmap(encodeSessionMap(m, nullptr), "m.cmap");
+  ASSERT_NE(f.find("HPOS"), nullptr);
+  std::erase_if(f.blocks, [](const CmapBlock& b) { return b.tag == "HPOS"; });
+  const SessionMap old = sessionMapFrom(decodeCmap(encodeCmap(f.header, f.blocks), "old.cmap"), "old.cmap");
+  ASSERT_EQ(old.leafCount(), m.leafCount());
+  size_t with_hits = 0;
+  for (size_t i = 0; i < m.leafCount(); ++i) {
+    VoxelCounters expected = m.leafPool()[i];
+    with_hits += expected.hits > 0 && expected.offset[0] != 0.0f;
+    for (float& o : expected.offset) o = 0.0f;
+    EXPECT_EQ(old.leafPool()[i], expected);
+  }
+  EXPECT_GT(with_hits, 100u) << "the sample map has positions to lose";
+}
+
+TEST(Cmap, RejectsImpossibleHitPositions) {
+  const SessionMap m = sampleMap();
+  const CmapFile f = decodeCmap(encodeSessionMap(m, nullptr), "m.cmap");
+  // The first leaf with hits, and one without.
+  size_t hit = 0, empty = 0;
+  while (m.leafPool()[hit].hits == 0) ++hit;
+  while (m.leafPool()[empty].hits != 0) ++empty;
+  auto withPositions = [&](auto&& mutate) {
+    CmapFile g = f;
+    for (CmapBlock& b : g.blocks) {
+      if (b.tag == "HPOS") mutate(b.data);
+    }
+    return decodeCmap(encodeCmap(g.header, g.blocks), "crafted.cmap");
+  };
+  auto setFloat = [](std::vector<uint8_t>& d, size_t at, float v) { std::memcpy(d.data() + at, &v, 4); };
+  EXPECT_NO_THROW(sessionMapFrom(withPositions([](auto&) {}), "crafted.cmap"));
+  EXPECT_THROW(sessionMapFrom(withPositions([](auto& d) { d.pop_back(); }), "crafted.cmap"), FormatError);
+  EXPECT_THROW(sessionMapFrom(withPositions([&](auto& d) { setFloat(d, hit * 12, std::nanf("")); }), "crafted.cmap"),
+               FormatError);
+  // Beyond half a voxel per hit: no ray ends outside its voxel.
+  const float too_far = 0.51f * static_cast<float>(m.leafPool()[hit].hits);
+  EXPECT_THROW(sessionMapFrom(withPositions([&](auto& d) { setFloat(d, hit * 12 + 4, too_far); }), "crafted.cmap"),
+               FormatError);
+  EXPECT_THROW(sessionMapFrom(withPositions([&](auto& d) { setFloat(d, empty * 12, 0.1f); }), "crafted.cmap"),
+               FormatError)
+      << "a position without hits";
 }
 
 TEST(Cmap, FailedWriteLeavesTheOldFileIntact) {

@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstring>
 #include <fstream>
 #include <random>
 
@@ -132,6 +134,39 @@ TEST(TemporalFile, CraftedBlocksAreRejected) {
   EXPECT_THROW(io::readTemporalMap(rewrite("COVR", [](auto& d) { std::fill(d.begin(), d.end(), uint8_t{0xff}); })), FormatError);
   EXPECT_THROW(io::readTemporalMap(rewrite("META", [](auto& d) { d = std::vector<uint8_t>{'{', '}'}; })), FormatError);
   EXPECT_THROW(io::readTemporalMap(rewrite("INNR", [](auto& d) { d[3] = 0x12; })), FormatError);
+}
+
+TEST(TemporalFile, FilesWithoutHitPositionsReadWithHitsAtTheCentres) {
+  test::TempDir tmp;
+  TemporalMap map = sampleMap(3);
+  map.compact();
+  io::writeTemporalMap(tmp / "m.cmap", map, {});
+  io::CmapFile f = io::readCmap(tmp / "m.cmap");
+  ASSERT_NE(f.find("EPOS"), nullptr);
+  std::erase_if(f.blocks, [](const io::CmapBlock& b) { return b.tag == "EPOS"; });
+  io::writeFileAtomic(tmp / "old.cmap", io::encodeCmap(f.header, f.blocks));
+  const TemporalMap old = io::readTemporalMap(tmp / "old.cmap");
+  TemporalMap::Parts expected = map.parts(), got = old.parts();
+  size_t with_positions = 0;
+  for (TemporalMap::Entry& e : expected.entries) {
+    with_positions += e.value.offset[0] != 0.0f;
+    for (float& o : e.value.offset) o = 0.0f;
+  }
+  EXPECT_GT(with_positions, 100u);
+  EXPECT_EQ(got.entries, expected.entries);
+  // A position block of the wrong size, or with impossible positions, is refused.
+  for (auto mutate : {+[](std::vector<uint8_t>& d) { d.resize(d.size() - 12); },
+                      +[](std::vector<uint8_t>& d) {
+                        const float nan = std::nanf("");
+                        for (size_t i = 0; i + 4 <= d.size(); i += 4) std::memcpy(d.data() + i, &nan, 4);
+                      }}) {
+    io::CmapFile g = io::readCmap(tmp / "m.cmap");
+    for (auto& b : g.blocks) {
+      if (b.tag == "EPOS") mutate(b.data);
+    }
+    io::writeFileAtomic(tmp / "x.cmap", io::encodeCmap(g.header, g.blocks));
+    EXPECT_THROW(io::readTemporalMap(tmp / "x.cmap"), FormatError);
+  }
 }
 
 /// A base of two sessions, then three sessions appended as records (one out of time order, one

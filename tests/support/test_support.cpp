@@ -54,6 +54,7 @@ CommandResult runCommand(const std::string& command) {
 SessionMap randomSessionMap(uint64_t seed, int side, double occupied, double resolution_m) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::mt19937 position(static_cast<uint32_t>(seed * 7 + 1));  // its own stream: the rest stays as it was
   SessionMap m(resolution_m);
   for (int z = 0; z < side; ++z) {
     for (int y = 0; y < side; ++y) {
@@ -64,6 +65,7 @@ SessionMap randomSessionMap(uint64_t seed, int side, double occupied, double res
         if (u(rng) < occupied) {
           c.hits = 2;
           c.red = 2 * static_cast<uint32_t>(rng() % 256);
+          for (float& o : c.offset) o = 2.0f * (static_cast<float>(position() % 101) / 100.0f - 0.5f);
         }
         m.add(VoxelKey{static_cast<uint16_t>(kKeyOrigin + x), static_cast<uint16_t>(kKeyOrigin + y),
                        static_cast<uint16_t>(kKeyOrigin + z)},

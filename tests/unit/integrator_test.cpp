@@ -66,6 +66,32 @@ TEST(Integrator, SingleAxisRayHasExactLengthsAndOneHit) {
   EXPECT_EQ(map.leafCount(), 10u);
 }
 
+TEST(Integrator, RecordsWhereInTheVoxelRaysEnd) {
+  // Three points in the voxel [0.9, 1.0) x [0, 0.1) x [0, 0.1) (centre 0.95, 0.05, 0.05), one in
+  // the next; the sensor at the centre of voxel 0. Offsets from the centre, in voxels.
+  for (bool fast : {false, true}) {
+    SessionMap map(0.1);
+    IntegratorSettings s = exactUncompressed();
+    s.fast = fast;
+    const PointCloud cloud =
+        test::cloudOf({{0.88f, 0.02f, -0.01f}, {0.91f, -0.03f, 0.0f}, {0.86f, 0.04f, 0.035f}, {0.955f, 0.0f, 0.0f}});
+    integrate(FrameVector({frameAt({0.05, 0.05, 0.05}, cloud)}), map, s);
+    const auto end = map.find(*map.grid().keyOf({0.95, 0.05, 0.05}));
+    ASSERT_TRUE(end);
+    ASSERT_EQ(end->hits, 3u);
+    // x: 0.93, 0.96, 0.91 against 0.95; y: 0.07, 0.02, 0.09 against 0.05; z: 0.04, 0.05, 0.085.
+    EXPECT_NEAR(end->offset[0], (-0.02 + 0.01 - 0.04) / 0.1, 1e-5) << "fast=" << fast;
+    EXPECT_NEAR(end->offset[1], (0.02 - 0.03 + 0.04) / 0.1, 1e-5);
+    EXPECT_NEAR(end->offset[2], (-0.01 + 0.0 + 0.035) / 0.1, 1e-5);
+    EXPECT_NEAR(end->meanOffset(0), -0.05 / 0.3, 1e-5);
+    const auto next = map.find(*map.grid().keyOf({1.05, 0.05, 0.05}));
+    ASSERT_TRUE(next);
+    EXPECT_NEAR(next->offset[0], -0.45, 1e-5) << "x = 1.005 lies 0.005 m past the voxel's lower face";
+    // Voxels the rays only crossed hold no offsets.
+    EXPECT_EQ(map.find(*map.grid().keyOf({0.55, 0.05, 0.05}))->offset[0], 0.0f);
+  }
+}
+
 TEST(Integrator, DiagonalRayLengthsSumToItsLength) {
   SessionMap map(0.05);
   const Eigen::Vector3f p(0.4f, 0.3f, -0.5f);
@@ -148,9 +174,10 @@ TEST(Integrator, FastModeKeepsHitsAndColoursAndBoundsLengths) {
     len_a += c.length_m;
     auto it = b.find(k);
     const uint32_t hits_b = it == b.end() ? 0 : it->second.hits;
-    EXPECT_EQ(c.hits, hits_b);  // bound 1: every voxel has exactly the same hits and colour sums
+    EXPECT_EQ(c.hits, hits_b);  // bound 1: every voxel has the same hits, colour and position sums
     if (it != b.end()) {
       EXPECT_EQ(c.red, it->second.red);
+      for (int axis = 0; axis < 3; ++axis) EXPECT_NEAR(c.offset[axis], it->second.offset[axis], 1e-3);
       ++both;
       agree += c.state() == it->second.state();
     }

@@ -35,6 +35,10 @@ struct IntegratorSettings {
   /// Fast mode casts its bundle rays eight at a time in AVX2 registers where the CPU has them;
   /// false takes the portable code. The maps are bitwise the same either way.
   bool simd = true;
+  /// Record where in each voxel the rays ended (VoxelCounters::offset), which lets the diff's
+  /// shift test see surfaces move by less than a voxel. Costs fast mode about a third more time
+  /// per frame (docs/benchmarks.md); false leaves the offsets at zero (hits at the centres).
+  bool hit_positions = true;
 };
 
 /// What an integration did, point by point.

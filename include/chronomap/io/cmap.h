@@ -51,6 +51,8 @@ struct CmapFile {
   uint64_t incomplete_tail_bytes = 0;  ///< an interrupted append's bytes after those (ignored)
   /// The block with this tag. @throw FormatError naming `source` when missing.
   const CmapBlock& block(const std::string& tag, const std::string& source) const;
+  /// The block with this tag, or null.
+  const CmapBlock* find(const std::string& tag) const;
 };
 
 /// Encodes header and blocks; blocks are zstd-compressed at `zstd_level` (0 stores them raw).
@@ -73,5 +75,19 @@ SessionMap readSessionMap(const std::filesystem::path& path);
 SessionMap sessionMapFrom(const CmapFile& file, const std::string& source);
 /// The metadata block of a file, or an empty object.
 nlohmann::json metadataOf(const CmapFile& file);
+
+/// Size of the counters as a LEAF or ENTR record stores them: length, hits, colour sums.
+inline constexpr size_t kCounterRecordBytes = 20;
+/// Size of the hit offsets as an HPOS or EPOS record stores them: three f32 sums. They have a
+/// block of their own so that files written before them still read (positions at the centre).
+inline constexpr size_t kOffsetRecordBytes = 12;
+/// Writes `c`'s length, hits and colour sums to `out` (kCounterRecordBytes).
+void putCounterRecord(uint8_t* out, const VoxelCounters& c);
+/// Reads them back into `c` (its offsets untouched).
+void getCounterRecord(const uint8_t* in, VoxelCounters& c);
+/// Writes `c`'s hit offset sums to `out` (kOffsetRecordBytes).
+void putOffsetRecord(uint8_t* out, const VoxelCounters& c);
+/// Reads them back into `c`.
+void getOffsetRecord(const uint8_t* in, VoxelCounters& c);
 
 }  // namespace chronomap::io
