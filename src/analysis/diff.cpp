@@ -193,8 +193,9 @@ struct SessionWalk {
   }
 };
 
-// The hit-weighted mean of the voxel offsets within r of `key` on each side, over the voxels
-// known on both sides; their distance in voxels, or nothing when a side has no hits there.
+// The mean position of the hits within r of `key` on each side (each at its voxel's centre plus
+// the offset the voxel recorded for it), over the voxels known on both sides; their distance in
+// voxels, or nothing when a side has no hits there.
 // `before` and `after` give a voxel's counters (zero when unknown).
 template <class CountersBefore, class CountersAfter>
 std::optional<double> shiftInVoxels(const VoxelKey& key, int r, CountersBefore before, CountersAfter after) {
@@ -208,9 +209,10 @@ std::optional<double> shiftInVoxels(const VoxelKey& key, int r, CountersBefore b
         const VoxelCounters a = before(*k), b = after(*k);
         if (!isKnown(a) || !isKnown(b)) continue;
         const double offset[3] = {static_cast<double>(dx), static_cast<double>(dy), static_cast<double>(dz)};
+        // Each hit where it ended: the voxel's centre plus its offset from it.
         for (int i = 0; i < 3; ++i) {
-          sum_a[i] += a.hits * offset[i];
-          sum_b[i] += b.hits * offset[i];
+          sum_a[i] += a.hits * offset[i] + a.offset[i];
+          sum_b[i] += b.hits * offset[i] + b.offset[i];
         }
         hits_a += a.hits;
         hits_b += b.hits;

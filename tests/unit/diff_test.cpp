@@ -231,6 +231,54 @@ TEST(Diff, MinShiftTellsAMovedSurfaceFromAShiftedOne) {
   EXPECT_THROW(s.validate(), UsageError);
 }
 
+// A surface that moves within its voxel: the hits stay in the same voxels, only where in them
+// they ended changes. Only the recorded hit positions can see it.
+TEST(Diff, MinShiftSeesAMoveWithinOneVoxel) {
+  // A wall of 6 x 6 voxels at x = 4 whose hits end 0.4 voxels below the centre (x = 4.1 in
+  // voxel units from the voxel's lower corner), then 0.35 above it (4.85): moved 0.75 voxels.
+  // A thin sheet behind it (x = 5) is occupied only afterwards, so the diff has cells to test.
+  auto wall = [](float offset, bool sheet) {
+    SessionMap m(0.05);
+    for (int z = 0; z < 6; ++z) {
+      for (int y = 0; y < 6; ++y) {
+        for (int x = 0; x < 10; ++x) {
+          VoxelCounters c = freeVoxel();
+          if (x == 4) {
+            c = withProbability(0.9, 10);
+            c.offset[0] = 10.0f * offset;
+          } else if (x == 5 && sheet) {
+            c = withProbability(0.9, 2);
+            c.offset[0] = 2.0f * -0.45f;
+          }
+          m.add(at(x, y, z), c);
+        }
+      }
+    }
+    return m;
+  };
+  const SessionMap before = wall(-0.4f, false), after = wall(0.35f, true);
+  // Before: 360 hits at 4 - 0.4; after: 360 at 4 + 0.35 and 72 at 5 - 0.45. Mean x, per row of
+  // the 3 x 3 window (10 and 2 hits a voxel): 3.6 before, (10 * 4.35 + 2 * 4.55) / 12 after.
+  const double after_x = (10.0 * 4.35 + 2.0 * 4.55) / 12.0;
+  EXPECT_NEAR(surfaceShift(before, after, at(5, 2, 2), 1).value(), after_x - 3.6, 1e-5);
+  // Without positions (a map written before they were kept) the same hits sit at the centres.
+  SessionMap before_c(0.05), after_c(0.05);
+  for (const auto& [src, dst] : {std::pair{&before, &before_c}, std::pair{&after, &after_c}}) {
+    src->forEachLeaf([&](const LeafView& leaf) {
+      VoxelCounters c = leaf.counters;
+      for (float& o : c.offset) o = 0.0f;
+      if (leaf.level == 0) dst->add(leaf.key, c);
+    });
+  }
+  EXPECT_NEAR(surfaceShift(before_c, after_c, at(5, 2, 2), 1).value(), 2.0 / 12.0, 1e-9);
+
+  DiffSettings s;
+  s.neighbourhood_voxels = 1;
+  s.min_shift_voxels = DiffSettings::kRecommendedMinShift;
+  EXPECT_EQ(diff(before, after, s).voxelCount(), 36u) << "the sheet appeared where the wall moved";
+  EXPECT_TRUE(diff(before_c, after_c, s).empty()) << "at the centres the move is a sixth of a voxel";
+}
+
 TEST(Diff, SettingsAreChecked) {
   EXPECT_THROW(parseDiffMode("soft"), UsageError);
   EXPECT_EQ(parseDiffMode("band"), DiffMode::Band);
@@ -274,8 +322,11 @@ SessionMap randomMap(std::mt19937_64& rng, const std::vector<uint8_t>& world) {
         if (rng() % 12 == 0) continue;  // unobserved
         const bool occ = world[(z * kSide + y) * kSide + x] != (rng() % 15 == 0);
         if (occ) {
-          m.add(at(x, y, z), withProbability(0.5 + 0.49 * static_cast<double>(rng() % 100) / 100.0,
-                                             1 + static_cast<uint32_t>(rng() % 4), static_cast<uint8_t>(rng())));
+          VoxelCounters c = withProbability(0.5 + 0.49 * static_cast<double>(rng() % 100) / 100.0,
+                                            1 + static_cast<uint32_t>(rng() % 4), static_cast<uint8_t>(rng()));
+          // Where in the voxel the hits ended: anywhere within it.
+          for (float& o : c.offset) o = static_cast<float>(c.hits) * (static_cast<float>(rng() % 101) / 100.0f - 0.5f);
+          m.add(at(x, y, z), c);
         } else if (rng() % 20 == 0) {
           m.add(at(x, y, z), withProbability(0.02 + 0.47 * static_cast<double>(rng() % 100) / 100.0));
         } else {
@@ -349,7 +400,8 @@ TEST(Diff, EqualsVoxelByVoxelReferenceOnRandomMaps) {
 }
 
 // The neighbourhood rule written out plainly: is an occupied voxel within r of k in `other`,
-// and how far did the hit-weighted centre of the window move?
+// and how far did the mean hit position of the window move (each voxel's hits at its centre
+// plus the offsets it recorded)?
 bool referenceOccupiedNear(const SessionMap& other, const VoxelKey& k, int r) {
   for (int dz = -r; dz <= r; ++dz) {
     for (int dy = -r; dy <= r; ++dy) {
@@ -371,9 +423,12 @@ std::optional<double> referenceShiftVoxels(const SessionMap& a, const SessionMap
         const VoxelKey n{static_cast<uint16_t>(k.x + dx), static_cast<uint16_t>(k.y + dy),
                          static_cast<uint16_t>(k.z + dz)};
         if (a.stateOf(n) == VoxelState::Unknown || b.stateOf(n) == VoxelState::Unknown) continue;
-        const double ha = a.find(n)->hits, hb = b.find(n)->hits;
-        ax += ha * (k.x + dx), ay += ha * (k.y + dy), az += ha * (k.z + dz), wa += ha;
-        bx += hb * (k.x + dx), by += hb * (k.y + dy), bz += hb * (k.z + dz), wb += hb;
+        const VoxelCounters ca = *a.find(n), cb = *b.find(n);
+        const double ha = ca.hits, hb = cb.hits;
+        ax += ha * (k.x + dx) + ca.offset[0], ay += ha * (k.y + dy) + ca.offset[1];
+        az += ha * (k.z + dz) + ca.offset[2], wa += ha;
+        bx += hb * (k.x + dx) + cb.offset[0], by += hb * (k.y + dy) + cb.offset[1];
+        bz += hb * (k.z + dz) + cb.offset[2], wb += hb;
       }
     }
   }

@@ -45,10 +45,11 @@ struct DiffSettings {
   int neighbourhood_voxels = 0;
   /// With neighbourhood_voxels > 0: a voxel that rule would drop is still a change when the
   /// surface around it moved by at least this many voxels. Each map's surface position is the
-  /// mean of the voxel centres within the neighbourhood (Chebyshev distance
-  /// neighbourhood_voxels), weighted by their hits, over the voxels known in both maps: the
-  /// hits a surface splits between neighbouring voxels place it to a fraction of a voxel, so a
-  /// surface shifted by a centimetre of pose error is told from an object moved by a voxel.
+  /// mean position of the hits within the neighbourhood (Chebyshev distance
+  /// neighbourhood_voxels), over the voxels known in both maps; every voxel keeps where in it
+  /// its rays ended (VoxelCounters::offset), so the position is good to a fraction of a voxel
+  /// and a surface shifted by a centimetre of pose error is told from an object moved by a few
+  /// centimetres. (Maps written without hit positions place each hit at its voxel's centre.)
   /// Where either side has no hits there, the rule drops the voxel as before. 0 (the default):
   /// the rule drops every voxel near a surface.
   double min_shift_voxels = 0.0;
@@ -136,8 +137,10 @@ std::optional<ChangeCell> compareVoxel(const VoxelCounters& before, const VoxelC
                                        const DiffSettings& settings);
 
 /// How far the surface near `key` moved from `before` to `after`, in voxels, as
-/// DiffSettings::min_shift_voxels measures it over the voxels within `radius_voxels` (Chebyshev)
-/// that both maps know; nothing when either side has no hits there.
+/// DiffSettings::min_shift_voxels measures it: the distance between the mean positions of the
+/// hits within `radius_voxels` (Chebyshev) of `key` on each side, over the voxels both maps
+/// know (a hit lies at its voxel's centre plus the voxel's mean offset,
+/// VoxelCounters::offset); nothing when either side has no hits there.
 /// @throw UsageError for different resolutions or a radius outside 0..3.
 std::optional<double> surfaceShift(const SessionMap& before, const SessionMap& after, const VoxelKey& key,
                                    int radius_voxels);
