@@ -87,7 +87,6 @@ inline void transformPoint(const float* R, const float* of, const Eigen::Vector3
   u[2] = of[2] + (R[6] * p.x() + R[7] * p.y() + R[8] * p.z());
 }
 
-
 /// Transforms sensor points into scratch-cube cell indices (idx; -1 for points that are
 /// invalid or out of range). Written without branches so that it vectorises; where the CPU has
 /// AVX2 that clone is chosen at load time. Returns the number of points kept; `out_of_range`
@@ -149,7 +148,7 @@ struct alignas(64) EndEntry {
   void addPoint(const Eigen::Vector3f& p) {
 #if defined(__SSE2__)
     // One vector add (the lanes round exactly as three scalar adds would).
-    const __m128 xy = _mm_castpd_ps(_mm_load_sd(reinterpret_cast<const double*>(p.data())));
+    const __m128 xy = _mm_loadl_pi(_mm_setzero_ps(), reinterpret_cast<const __m64*>(p.data()));
     const __m128 xyz = _mm_movelh_ps(xy, _mm_load_ss(p.data() + 2));
     _mm_store_ps(sensor_sum, _mm_add_ps(_mm_load_ps(sensor_sum), xyz));
 #else
@@ -442,13 +441,13 @@ struct RayAccumulator::Impl {
       c.green = entry.green;
       c.blue = entry.blue;
       // The points' offsets from the voxel centre, summed: R . sum + n (o - centre), in voxels.
-      const double n = entry.hits;
-      for (int a = 0; a < 3 && settings.hit_positions; ++a) {
-        double sum = n * (origin[a] - static_cast<double>(entry.cell[a]) - 0.5);
-        for (int b = 0; b < 3; ++b) {
-          sum += rotation[3 * a + b] * static_cast<double>(entry.sensor_sum[b]);
+      if (settings.hit_positions) {
+        const double n = entry.hits;
+        for (int a = 0; a < 3; ++a) {
+          double sum = n * (origin[a] - static_cast<double>(entry.cell[a]) - 0.5);
+          for (int b = 0; b < 3; ++b) sum += rotation[3 * a + b] * static_cast<double>(entry.sensor_sum[b]);
+          c.offset[a] = static_cast<float>(sum);
         }
-        c.offset[a] = static_cast<float>(sum);
       }
     }
   }

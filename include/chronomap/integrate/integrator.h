@@ -36,8 +36,8 @@ struct IntegratorSettings {
   /// false takes the portable code. The maps are bitwise the same either way.
   bool simd = true;
   /// Record where in each voxel the rays ended (VoxelCounters::offset), which lets the diff's
-  /// shift test see surfaces move by less than a voxel. Costs fast mode about a third more time
-  /// per frame (docs/benchmarks.md); false leaves the offsets at zero (hits at the centres).
+  /// shift test see surfaces move by less than a voxel. Costs fast mode about 7% more time per
+  /// frame (docs/benchmarks.md); false leaves the offsets at zero (hits at the centres).
   bool hit_positions = true;
 };
 
