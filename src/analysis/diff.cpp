@@ -276,10 +276,20 @@ DiffMap diff(const TemporalMap& map, double t1_s, double t2_s, const DiffSetting
   if (!std::isfinite(t1_s) || !std::isfinite(t2_s)) throw UsageError("diff times must be finite");
   DiffMap d(map.resolution_m(), settings);
   const auto r1 = map.rankAtOrBefore(t1_s), r2 = map.rankAtOrBefore(t2_s);
-  // Entry valid at rank r (none before the list's first entry, or before any session).
+  // Entry valid at rank r (none before the list's first entry, or before any session). The
+  // search gallops back from the newest entry, so its cost follows how far back in the list the
+  // time lies, not how long the history is: a diff of recent times stays as fast as the map grows.
   auto valueAt = [](std::span<const TemporalMap::Entry> e, std::optional<uint32_t> r) -> VoxelCounters {
     if (!r) return {};
-    size_t lo = 0, hi = e.size();  // first entry with session > r
+    size_t lo = 0, hi = e.size();  // first entry with session > r lies in [lo, hi]
+    for (size_t step = 1; hi > 0; step *= 2) {
+      const size_t probe = hi > step ? hi - step : 0;
+      if (e[probe].session <= *r) {
+        lo = probe + 1;
+        break;
+      }
+      hi = probe;
+    }
     while (lo < hi) {
       const size_t mid = (lo + hi) / 2;
       if (e[mid].session <= *r) {
