@@ -32,8 +32,8 @@
 // registered to their consensus (as `chronomap build --register --register-drift 20
 // --register-planar --register-points`) at the recommended settings (band mode, neighbourhood 1,
 // the shift test at half a voxel, vertex connectivity, at least 20 voxels), and the same
-// without the shift test (office_no_shift_...). The real data are diffed with the recommended
-// settings too.
+// without the shift test (office_no_shift_...). The real data (single shots without pose error)
+// are diffed without the shift test.
 
 #include <algorithm>
 #include <chrono>
@@ -87,8 +87,8 @@ SegmentSettings defaultSegment() {
   return s;
 }
 
-// Without the shift test: every surface within one voxel is no change (what the demo uses, for
-// sessions with the poses as recorded).
+// Without the shift test: every surface within one voxel is no change (for maps whose poses
+// were not registered: the demo's sessions, the real data's single shots).
 DiffSettings noShiftDiff() {
   DiffSettings d = defaultDiff();
   d.min_shift_voxels = 0.0;
@@ -349,7 +349,7 @@ MosdResult evaluateMosd(const fs::path& dir) {
   // (no object of the next shot there) and where it is (no object of the previous shot there).
   std::printf("pair  changed_placements  observable  found  observable_found  components  false_components\n");
   for (size_t k = 1; k < maps.size(); ++k) {
-    const DiffMap d = diff(maps[k - 1], maps[k], defaultDiff());
+    const DiffMap d = diff(maps[k - 1], maps[k], noShiftDiff());
     SegmentSettings ss = defaultSegment();
     ss.min_voxels = 10;
     const Segmentation seg = segment(d, ss);
@@ -420,7 +420,7 @@ double evaluateHuman(const fs::path& dir) {
   const PointCloud c2 = io::depthToCloud(d2, nullptr, k, 1000.0, "depth_image_2.png");
   constexpr double kResolution = 0.05, kRange = 9.0;  // depth reaches 8.2 m
   const SessionMap m1 = integrateCloud(c1, kResolution, kRange), m2 = integrateCloud(c2, kResolution, kRange);
-  const DiffMap d = diff(m1, m2, defaultDiff());
+  const DiffMap d = diff(m1, m2, noShiftDiff());
   std::unordered_set<uint64_t> appeared;
   for (const ChangeCell& c : d.cells()) {
     if (c.kind == ChangeKind::Appeared) appeared.insert(mortonEncode(c.key));
@@ -452,7 +452,7 @@ double evaluateGrabber(const fs::path& dir) {
   for (const auto& f : files) maps.push_back(integrateCloud(io::readPcd(f), 0.05, 3.0));
   uint64_t changed = 0, known = 0;
   for (size_t k = 1; k < maps.size(); ++k) {
-    const DiffMap d = diff(maps[k - 1], maps[k], defaultDiff());
+    const DiffMap d = diff(maps[k - 1], maps[k], noShiftDiff());
     DiffSettings all;
     all.mode = DiffMode::Continuous;
     const uint64_t both = diff(maps[k - 1], maps[k], all).voxelCount();
