@@ -221,9 +221,9 @@ Command addDiff(CLI::App& root) {
       ->capture_default_str();
   app->add_option("--min-shift", o->min_shift_voxels,
                   "voxels: with --neighbourhood, keep a voxel near a surface when that surface moved at least this far "
-                  "(measured to a fraction of a voxel from how the hits split between voxels); 0 drops them all. 0.5 "
-                  "tells a chair moved by a voxel from a centimetre of pose error, in sessions registered with "
-                  "build --register")
+                  "(the mean position of the hits around it, from where in each voxel the rays ended); 0 drops them "
+                  "all. 0.5 tells a chair pushed by 4 cm from a centimetre of pose error, in sessions registered with "
+                  "build --register --register-drift 20 --register-planar --register-points (docs/changes.md)")
       ->capture_default_str();
   app->add_option("-o,--output", o->output, "the diff to write (.cmap)")->required();
   app->add_option("--ply", o->ply, "also write the changed voxels as a PLY, coloured by what they show");
