@@ -5,6 +5,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "chronomap/io/cmap.h"
 #include "test_support.h"
 
 namespace chronomap {
@@ -70,6 +71,34 @@ TEST(Cli, IntegrateStatsExportOnRealFrames) {
     EXPECT_EQ(e.exit_code, 0) << e.err;
     EXPECT_GT(fs::file_size(out), 1000u);
   }
+}
+
+// Hit positions: recorded by default (every occupied voxel's offsets lie within half a voxel per
+// hit and are not all zero), none with --no-positions; the rest of the map is the same.
+TEST(Cli, IntegrateRecordsHitPositionsUnlessToldNot) {
+  CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
+  test::TempDir tmp;
+  for (const char* extra : {"", " --no-positions"}) {
+    const fs::path out = tmp / (extra[0] ? "bare.cmap" : "room.cmap");
+    const auto r = test::runCommand(cli() + " integrate " + root.string() + " --fast -o " + out.string() + extra);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+  }
+  const io::CmapFile file = io::readCmap(tmp / "room.cmap");
+  EXPECT_EQ(io::metadataOf(file)["hit_positions"], true);
+  EXPECT_EQ(io::metadataOf(io::readCmap(tmp / "bare.cmap"))["hit_positions"], false);
+  const SessionMap with = io::sessionMapFrom(file, "room.cmap"), bare = io::readSessionMap(tmp / "bare.cmap");
+  ASSERT_EQ(with.leafCount(), bare.leafCount());
+  size_t placed = 0;
+  for (size_t i = 0; i < with.leafCount(); ++i) {
+    VoxelCounters a = with.leafPool()[i];
+    const VoxelCounters& b = bare.leafPool()[i];
+    EXPECT_TRUE(a.offsetsValid());
+    placed += a.hits > 0 && (a.offset[0] != 0.0f || a.offset[1] != 0.0f || a.offset[2] != 0.0f);
+    for (float o : b.offset) EXPECT_EQ(o, 0.0f);
+    for (float& o : a.offset) o = 0.0f;
+    ASSERT_EQ(a, b) << "leaf " << i;
+  }
+  EXPECT_GT(placed, 1000u);
 }
 
 TEST(Cli, BadDataExitsWithOneAndWritesNothing) {
