@@ -564,6 +564,9 @@ TEST(SimulatorCli, SimulateAndDemo) {
   const auto d = nlohmann::json::parse(r.out);
   EXPECT_EQ(d["sessions"], 6);
   EXPECT_GT(d["precision"].get<double>(), 0.5);
+  // Registration brings the sessions closer to the truth than their recorded poses.
+  EXPECT_GT(d["precision"].get<double>(), d["precision_as_recorded"].get<double>());
+  EXPECT_GT(d["events_found"].get<int>(), 0);
   EXPECT_LT(d["nodes_4d"].get<uint64_t>(), d["nodes_separate"].get<uint64_t>());
   const std::string report = io::readTextFile(tmp / "demo" / "report.md");
   for (const char* image : {"map_topview.png", "session_00_cloud.png", "frame_rgb.png", "frame_depth.png",
