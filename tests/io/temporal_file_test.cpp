@@ -155,7 +155,7 @@ TEST(TemporalFile, FilesWithoutHitPositionsReadWithHitsAtTheCentres) {
   EXPECT_GT(with_positions, 100u);
   EXPECT_EQ(got.entries, expected.entries);
   // A position block of the wrong size, or with impossible positions, is refused.
-  for (auto mutate : {+[](std::vector<uint8_t>& d) { d.resize(d.size() - 12); },
+  for (auto mutate : {+[](std::vector<uint8_t>& d) { d.erase(d.end() - std::min<std::ptrdiff_t>(12, std::ssize(d)), d.end()); },
                       +[](std::vector<uint8_t>& d) {
                         const float nan = std::nanf("");
                         for (size_t i = 0; i + 4 <= d.size(); i += 4) std::memcpy(d.data() + i, &nan, 4);
