@@ -161,10 +161,16 @@ void putOffsetRecord(uint8_t* out, const VoxelCounters& c) { copyBytes(out, c.of
 
 void getOffsetRecord(const uint8_t* in, VoxelCounters& c) { copyBytes(c.offset, in, kOffsetRecordBytes); }
 
-const CmapBlock& CmapFile::block(const std::string& tag, const std::string& source) const {
-  for (const auto& b : blocks) {
-    if (b.tag == tag) return b;
+const CmapBlock* offsetBlock(const CmapFile& file, const std::string& tag, size_t records, const std::string& what) {
+  const CmapBlock* b = file.find(tag);
+  if (b && b->data.size() != records * kOffsetRecordBytes) {
+    throw FormatError(what + ": the hit position block " + tag + " does not match its records");
   }
+  return b;
+}
+
+const CmapBlock& CmapFile::block(const std::string& tag, const std::string& source) const {
+  if (const CmapBlock* b = find(tag)) return *b;
   throw FormatError(source + ": the file has no '" + tag + "' block");
 }
 
@@ -312,10 +318,7 @@ SessionMap sessionMapFrom(const CmapFile& file, const std::string& source) {
   std::vector<VoxelCounters> leaves(leaf_block.data.size() / kCounterRecordBytes);
   for (size_t i = 0; i < leaves.size(); ++i) getCounterRecord(leaf_block.data.data() + i * kCounterRecordBytes, leaves[i]);
   // Hit positions: absent in files written before them (then every surface sits at its centre).
-  if (const CmapBlock* positions = file.find("HPOS")) {
-    if (positions->data.size() != leaves.size() * kOffsetRecordBytes) {
-      throw FormatError(source + ": the hit position block does not match the leaves");
-    }
+  if (const CmapBlock* positions = offsetBlock(file, "HPOS", leaves.size(), source)) {
     for (size_t i = 0; i < leaves.size(); ++i) getOffsetRecord(positions->data.data() + i * kOffsetRecordBytes, leaves[i]);
   }
   SessionMap map(file.header.resolution_m);

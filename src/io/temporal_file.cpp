@@ -56,10 +56,7 @@ std::vector<TemporalMap::Entry> entriesOf(const CmapFile& file, const std::strin
     std::memcpy(&entries[i].session, p, 4);
     getCounterRecord(p + 4, entries[i].value);
   }
-  if (const CmapBlock* positions = file.find("EPOS")) {
-    if (positions->data.size() != entries.size() * kOffsetRecordBytes) {
-      throw FormatError(source + ": the hit position block does not match the entries");
-    }
+  if (const CmapBlock* positions = offsetBlock(file, "EPOS", entries.size(), source)) {
     for (size_t i = 0; i < entries.size(); ++i) {
       getOffsetRecord(positions->data.data() + i * kOffsetRecordBytes, entries[i].value);
     }

@@ -89,5 +89,9 @@ void getCounterRecord(const uint8_t* in, VoxelCounters& c);
 void putOffsetRecord(uint8_t* out, const VoxelCounters& c);
 /// Reads them back into `c`.
 void getOffsetRecord(const uint8_t* in, VoxelCounters& c);
+/// The optional hit position block `tag` (HPOS, EPOS) of `file`, holding one record for each
+/// of `records` counters, or null when the file has none (it was written before them).
+/// @throw FormatError naming `what` when its size does not match.
+const CmapBlock* offsetBlock(const CmapFile& file, const std::string& tag, size_t records, const std::string& what);
 
 }  // namespace chronomap::io
