@@ -37,15 +37,20 @@ io::DatasetOptions datasetOptions(const IntegrateSettings& o) {
   return dopt;
 }
 
-IntegratedSession integrateDataset(const std::string& path, const IntegrateSettings& o, const std::string& label,
-                                   const PoseCorrection& correction) {
-  const io::DatasetOptions dopt = datasetOptions(o);
+IntegratorSettings integratorSettings(const IntegrateSettings& o) {
   IntegratorSettings settings;
   settings.max_range_m = o.max_range_m;
   settings.fast = o.fast;
   settings.threads = o.threads;
   settings.compress_free = !o.no_compress;
   settings.hit_positions = !o.no_positions;
+  return settings;
+}
+
+IntegratedSession integrateDataset(const std::string& path, const IntegrateSettings& o, const std::string& label,
+                                   const PoseCorrection& correction) {
+  const io::DatasetOptions dopt = datasetOptions(o);
+  const IntegratorSettings settings = integratorSettings(o);
 
   auto dataset = io::openDataset(path, dopt);
   IntegratedSession out{SessionMap(o.resolution_m), {}, dataset->recordedAt(), io::toString(dataset->format()),
@@ -64,6 +69,16 @@ IntegratedSession integrateDataset(const std::string& path, const IntegrateSetti
                     " skipped); nothing to write");
   }
   return out;
+}
+
+std::vector<PoseCorrection> registerDatasets(std::vector<SessionMap>& maps, const std::vector<std::string>& paths,
+                                             std::span<const std::vector<Eigen::Vector3d>> sensor_positions,
+                                             const IntegrateSettings& o, int rounds, const RegisterSettings& settings) {
+  // Sessions are integrated again in parallel: no progress bars (they would overwrite each other).
+  return registerSessions(
+      maps, [&](size_t k, const PoseCorrection& c) { return integrateDataset(paths[k], o, "", c).map; }, rounds,
+      settings, nullptr, sensor_positions,
+      [&](size_t k) -> std::unique_ptr<FrameSource> { return io::openDataset(paths[k], datasetOptions(o)); });
 }
 
 void addIntegrateOptions(CLI::App* app, IntegrateSettings& o) {
@@ -95,11 +110,7 @@ int runIntegrate(const IntegrateOptions& o) {
   const IntegratedSession session = integrateDataset(o.dataset, o.settings, "integrating");
   const SessionMap& map = session.map;
   const IntegrationStats& stats = session.stats;
-  IntegratorSettings settings;
-  settings.max_range_m = o.settings.max_range_m;
-  settings.fast = o.settings.fast;
-  settings.compress_free = !o.settings.no_compress;
-  settings.hit_positions = !o.settings.no_positions;
+  const IntegratorSettings settings = integratorSettings(o.settings);
   nlohmann::json meta = {{"created_by", "chronomap integrate"},
                          {"dataset", std::filesystem::absolute(o.dataset).lexically_normal().string()},
                          {"format", session.format},

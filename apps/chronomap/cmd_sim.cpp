@@ -11,7 +11,6 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "chronomap/align/register.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
 #include "chronomap/io/cmap.h"
@@ -203,18 +202,13 @@ int runDemo(const DemoOptions& o) {
   {
     std::vector<SessionMap> maps;
     std::vector<std::vector<Eigen::Vector3d>> positions;
-    for (SessionResult& r : results) {
-      maps.push_back(std::move(r.map));
-      positions.push_back(r.sensor_positions);
+    std::vector<std::string> paths;
+    for (size_t s = 0; s < results.size(); ++s) {
+      maps.push_back(std::move(results[s].map));
+      positions.push_back(std::move(results[s].sensor_positions));
+      paths.push_back(simulated.session_dirs[s].string());
     }
-    registerSessions(
-        maps,
-        [&](size_t k, const PoseCorrection& c) {
-          return integrateDataset(simulated.session_dirs[k].string(), is, "", c).map;
-        },
-        kDemoRegisterRounds, register_settings, nullptr, positions, [&](size_t k) -> std::unique_ptr<FrameSource> {
-          return io::openDataset(simulated.session_dirs[k], datasetOptions(is));
-        });
+    registerDatasets(maps, paths, positions, is, kDemoRegisterRounds, register_settings);
     for (size_t s = 0; s < results.size(); ++s) {
       results[s].map = std::move(maps[s]);
       results[s].registered_score = sim::scoreOccupancy(results[s].map, results[s].truth);

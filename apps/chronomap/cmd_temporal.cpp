@@ -296,16 +296,13 @@ int runBuild(const BuildCmdOptions& o) {
     maps.reserve(pending.size());
     for (Pending& p : pending) maps.push_back(std::move(p.session.map));
     if (!o.json) std::cerr << "registering " << maps.size() << " session(s), " << o.register_rounds << " round(s)\n";
-    // Sessions are integrated again in parallel: no progress bars (they would overwrite each other).
     std::vector<std::vector<Eigen::Vector3d>> positions;
-    for (const Pending& p : pending) positions.push_back(p.session.sensor_positions);
-    const auto found = registerSessions(
-        maps, [&](size_t k, const PoseCorrection& c) {
-          return integrateDataset(o.datasets[pending[k].index], o.integrate, "", c).map;
-        },
-        o.register_rounds, register_settings, nullptr, positions, [&](size_t k) -> std::unique_ptr<FrameSource> {
-          return io::openDataset(o.datasets[pending[k].index], datasetOptions(o.integrate));
-        });
+    std::vector<std::string> paths;
+    for (const Pending& p : pending) {
+      positions.push_back(p.session.sensor_positions);
+      paths.push_back(o.datasets[p.index]);
+    }
+    const auto found = registerDatasets(maps, paths, positions, o.integrate, o.register_rounds, register_settings);
     for (size_t i = 0; i < pending.size(); ++i) {
       pending[i].session.map = std::move(maps[i]);
       corrections[i] = found[i];

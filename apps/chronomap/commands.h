@@ -5,8 +5,11 @@
 #include <CLI/CLI.hpp>
 #include <functional>
 #include <optional>
+#include <span>
 #include <string>
+#include <vector>
 
+#include "chronomap/align/register.h"
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/io/dataset.h"
 #include "chronomap/octree/session_map.h"
@@ -62,11 +65,20 @@ struct IntegratedSession {
 };
 /// The reader options the integrate options ask for.
 io::DatasetOptions datasetOptions(const IntegrateSettings& settings);
+/// The integrator settings they ask for.
+IntegratorSettings integratorSettings(const IntegrateSettings& settings);
 /// Opens and integrates a dataset with a progress bar labelled `label`, every pose corrected by
 /// `correction` (integrator.h).
 /// @throw DataError when no point could be integrated.
 IntegratedSession integrateDataset(const std::string& path, const IntegrateSettings& settings, const std::string& label,
                                    const PoseCorrection& correction = {});
+/// Registers the session maps integrated from `paths` (in that order, with `sensor_positions`
+/// as recorded) to their consensus (registerSessions), integrating each dataset again with its
+/// correction; `maps` become the corrected sessions.
+std::vector<PoseCorrection> registerDatasets(std::vector<SessionMap>& maps, const std::vector<std::string>& paths,
+                                             std::span<const std::vector<Eigen::Vector3d>> sensor_positions,
+                                             const IntegrateSettings& settings, int rounds,
+                                             const RegisterSettings& register_settings);
 
 Command addSimulate(CLI::App& root);
 Command addDemo(CLI::App& root);
