@@ -9,6 +9,7 @@
 #include "chronomap/core/pose.h"
 #include "chronomap/io/cloud_io.h"
 #include "chronomap/io/file.h"
+#include "chronomap/io/png.h"
 #include "text_util.h"
 
 namespace chronomap::io {

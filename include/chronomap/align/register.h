@@ -12,6 +12,7 @@
 
 #include <Eigen/Geometry>
 
+#include "chronomap/align/pose_correction.h"
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/octree/session_map.h"
 

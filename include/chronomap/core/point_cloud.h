@@ -1,9 +1,8 @@
 #pragma once
 /// @file
-/// Point clouds and frames: what readers produce and the integrator consumes.
+/// Point clouds: what readers produce and the integrator consumes.
 
 #include <cstdint>
-#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -26,14 +25,6 @@ struct PointCloud {
   size_t size() const { return points.size(); }
   bool hasColors() const { return !colors.empty(); }
   bool hasLabels() const { return !labels.empty(); }
-};
-
-/// One observation: a cloud in the sensor frame and the sensor's pose in the map frame.
-struct Frame {
-  PointCloud cloud;                                              ///< points in the sensor frame
-  Eigen::Isometry3d T_world_sensor = Eigen::Isometry3d::Identity();  ///< sensor to map frame
-  double timestamp_s = 0.0;                                      ///< seconds (0 when unknown)
-  std::string source;                                            ///< file or frame name, for messages
 };
 
 }  // namespace chronomap

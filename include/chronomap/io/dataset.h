@@ -8,8 +8,9 @@
 #include <string>
 #include <vector>
 
-#include "chronomap/integrate/integrator.h"
-#include "chronomap/io/png.h"
+#include "chronomap/core/camera.h"
+#include "chronomap/core/frame.h"
+#include "chronomap/core/image.h"
 
 namespace chronomap::io {
 
@@ -25,11 +26,6 @@ enum class DatasetFormat {
 const char* toString(DatasetFormat format);
 /// Inverse of toString. @throw UsageError for an unknown name.
 DatasetFormat parseDatasetFormat(const std::string& name);
-
-/// Pinhole intrinsics of a depth camera, in pixels.
-struct CameraIntrinsics {
-  double fx = 525.0, fy = 525.0, cx = 319.5, cy = 239.5;
-};
 
 /// Parses "fx,fy,cx,cy". @throw UsageError.
 CameraIntrinsics parseIntrinsics(const std::string& text);

@@ -7,21 +7,9 @@
 #include <string>
 #include <vector>
 
-#include "chronomap/core/counters.h"
+#include "chronomap/core/image.h"
 
 namespace chronomap::io {
-
-/// An 8-bit RGB image, row-major.
-struct ImageRgb {
-  uint32_t width = 0, height = 0;
-  std::vector<Rgb> pixels;
-};
-
-/// A 16-bit single-channel image (depth), row-major.
-struct ImageU16 {
-  uint32_t width = 0, height = 0;
-  std::vector<uint16_t> pixels;
-};
 
 /// Largest width or height accepted when reading, to refuse decompression bombs.
 inline constexpr uint32_t kMaxImageSide = 1u << 15;

@@ -8,7 +8,7 @@
 
 #include <Eigen/Geometry>
 
-#include "chronomap/core/point_cloud.h"
+#include "chronomap/core/frame.h"
 
 namespace chronomap::sim {
 
