@@ -15,6 +15,7 @@
 #include "chronomap/core/time.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/file.h"
+#include "chronomap/io/png.h"
 
 namespace chronomap::sim {
 

@@ -1,9 +1,9 @@
 #include <gtest/gtest.h>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/export.h"
+#include "chronomap/render/top_view.h"
 
-namespace chronomap::io {
+namespace chronomap::render {
 namespace {
 
 TEST(TopView, DrawsHighestOccupiedVoxelFreeAndUnknownColumns) {
@@ -37,4 +37,4 @@ TEST(TopView, DrawsHighestOccupiedVoxelFreeAndUnknownColumns) {
 }
 
 }  // namespace
-}  // namespace chronomap::io
+}  // namespace chronomap::render

@@ -1,14 +1,14 @@
 #pragma once
 /// @file
-/// Small raster drawings for reports: line plots with axes and a legend, and text, with a
-/// built-in 5x7 pixel font (upper case, digits and common punctuation).
+/// Line plots with axes and a legend, for reports.
 
 #include <string>
 #include <vector>
 
-#include "chronomap/io/png.h"
+#include "chronomap/core/image.h"
+#include "chronomap/temporal/temporal_map.h"
 
-namespace chronomap::io {
+namespace chronomap::render {
 
 /// One line of a plot.
 struct PlotSeries {
@@ -30,14 +30,13 @@ struct PlotSettings {
 /// @throw UsageError when a series has x and y of different lengths or no finite point.
 ImageRgb renderLinePlot(const std::vector<PlotSeries>& series, const PlotSettings& settings);
 
-/// Draws `text` with the built-in font at pixel (x, y) (top left), scaled by `scale`.
-/// Lower-case letters are drawn as capitals; characters without a glyph as a box.
-void drawText(ImageRgb& image, int x, int y, const std::string& text, Rgb color, int scale = 1);
-/// Width in pixels of `text` drawn at `scale`.
-int textWidth(const std::string& text, int scale = 1);
-/// Fills a rectangle, clipped to the image.
-void fillRect(ImageRgb& image, int x0, int y0, int x1, int y1, Rgb color);
-/// Draws a line (Bresenham), clipped to the image, `thickness` pixels wide.
-void drawLine(ImageRgb& image, int x0, int y0, int x1, int y1, Rgb color, int thickness = 1);
+/// Nodes against sessions: two cumulative series, one point per session (`separate`: the
+/// session maps stored on their own, `four_d`: the 4D map), as a line plot titled `title`.
+ImageRgb renderStoragePlot(const std::vector<double>& separate, const std::vector<double>& four_d,
+                           const std::string& title = "Storage: nodes after each session");
 
-}  // namespace chronomap::io
+/// The storage plot of a 4D map: the nodes each session holds on its own, and the nodes it
+/// added to the map, summed in time order. @throw DataError when the map holds no session.
+ImageRgb renderStoragePlot(const TemporalMap& map);
+
+}  // namespace chronomap::render

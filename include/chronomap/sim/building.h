@@ -15,7 +15,7 @@
 
 #include "chronomap/core/counters.h"
 #include "chronomap/core/key.h"
-#include "chronomap/io/png.h"
+#include "chronomap/core/image.h"
 #include "chronomap/octree/session_map.h"
 
 namespace chronomap::sim {
@@ -99,8 +99,8 @@ struct SensorModel {
 
 /// One rendered frame: what the sensor recorded, and the noise-free depth (metres, 0 = no hit).
 struct RenderedFrame {
-  io::ImageRgb rgb;
-  io::ImageU16 depth;
+  ImageRgb rgb;
+  ImageU16 depth;
   std::vector<float> true_depth_m;
 };
 

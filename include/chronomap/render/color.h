@@ -1,0 +1,17 @@
+#pragma once
+/// @file
+/// Colour ramps that turn numbers into colours, for pictures and coloured point clouds.
+
+#include "chronomap/core/counters.h"
+#include "chronomap/core/image.h"
+
+namespace chronomap::render {
+
+/// Blue (t = 0) through green to red (t = 1); t is clamped to [0, 1].
+Rgb heatColor(double t);
+
+/// A depth image in false colour: blue near, red far over 0..5 m; zero depth (no measurement)
+/// black. `depth_scale` is the image's units per metre.
+ImageRgb colorizeDepth(const ImageU16& depth, double depth_scale);
+
+}  // namespace chronomap::render
