@@ -1,0 +1,70 @@
+#pragma once
+/// @file
+/// Map files as the command line names them: a session map, or a 4D map at a time
+/// ("MAP.cmap@T"); snapshots and exports by file extension; the change frequency of a 4D map;
+/// a diff, and its segmentation written out object by object.
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "chronomap/analysis/change_frequency.h"
+#include "chronomap/analysis/diff.h"
+#include "chronomap/analysis/segment.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/octree/session_map.h"
+#include "chronomap/temporal/temporal_map.h"
+
+namespace chronomap::pipeline {
+
+/// A session map file, or a 4D map file at a time.
+struct MapRef {
+  std::filesystem::path path;
+  std::optional<double> time_s;
+};
+
+/// "FILE" or "FILE@TIME" (ISO-8601 or epoch seconds). A file whose own name holds '@' wins over
+/// a time suffix. @throw UsageError for a bad time.
+MapRef parseMapRef(const std::string& text);
+
+/// The session map a reference names: the session file itself, or the 4D map's snapshot at the
+/// time. @throw UsageError when a session map is given a time, a 4D map none, or the file holds
+/// another kind of map.
+SessionMap loadSessionMap(const MapRef& ref, const io::CmapFile& file);
+
+/// What changed from `before` to `after` (map references as parseMapRef reads them). Two times
+/// of one 4D map visit only what changed in between.
+DiffMap diffMaps(const std::string& before, const std::string& after, const DiffSettings& settings);
+
+/// The 4D map's snapshot at `time_s`. @throw UsageError when no session lies at or before it.
+SessionMap snapshotAt(const TemporalMap& map, double time_s, const std::string& name);
+
+/// How exportSessionMap() writes.
+struct ExportSettings {
+  int pixels_per_voxel = 2;  ///< .png
+  nlohmann::json metadata;   ///< .cmap
+};
+
+/// Writes a session map in the format its extension names: .cmap (a session map), .ply
+/// (occupied voxel centres), .ot (OctoMap ColorOcTree), .png (top view).
+/// @return the elements written (leaves, points, OctoMap leaves or pixels).
+/// @throw UsageError for another extension.
+size_t exportSessionMap(const std::filesystem::path& path, const SessionMap& map, const ExportSettings& settings = {});
+
+/// The voxels of `frequency` as a PLY of their centres, coloured blue (min_changes changes) to
+/// red (the most). @return the points written.
+size_t writeChangeFrequencyPly(const std::filesystem::path& path, const TemporalMap& map,
+                               const ChangeFrequency& frequency, uint32_t min_changes);
+
+/// A segmentation as JSON: every component's fields, the dropped count, the connectivity.
+nlohmann::json segmentationJson(const Segmentation& segmentation, const SegmentSettings& settings);
+
+/// Writes each component of `segmentation` as its own diff (.cmap) and PLY at the original
+/// coordinates into `folder` (component_NNNN.*), and `summary` as components.json.
+void writeComponents(const std::filesystem::path& folder, const DiffMap& diff, const Segmentation& segmentation,
+                     const std::string& source, const nlohmann::json& summary);
+
+}  // namespace chronomap::pipeline

@@ -1,0 +1,69 @@
+#pragma once
+/// @file
+/// From a recording to a session map: open a dataset, integrate it (with its poses corrected),
+/// and register several sessions to their consensus, integrating each again with its correction.
+
+#include <cstddef>
+#include <filesystem>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <nlohmann/json.hpp>
+
+#include "chronomap/align/pose_correction.h"
+#include "chronomap/align/register.h"
+#include "chronomap/integrate/integrator.h"
+#include "chronomap/io/dataset.h"
+#include "chronomap/octree/session_map.h"
+#include "chronomap/pipeline/progress.h"
+
+namespace chronomap::pipeline {
+
+/// How a recording becomes a session map: how it is read, and how it is integrated.
+struct SessionSettings {
+  double resolution_m = 0.05;
+  io::DatasetOptions dataset;
+  IntegratorSettings integrator;
+};
+
+/// A recording integrated into a session map.
+struct IntegratedSession {
+  SessionMap map;
+  IntegrationStats stats;
+  std::optional<double> recorded_at;  ///< from the dataset's own timestamps, if any
+  std::string format;                 ///< the layout that was read ("tum", "3dmatch", "clouds")
+  size_t frames_dropped = 0;
+  std::vector<Eigen::Vector3d> sensor_positions;  ///< of every frame, as recorded (before the correction)
+};
+
+/// Opens and integrates the recording at `path`, every pose corrected by `correction`; reports
+/// the frames as work labelled `label` (none when empty).
+/// @throw DataError when no point could be integrated; whatever the reader throws for bad input.
+IntegratedSession integrateDataset(const std::filesystem::path& path, const SessionSettings& settings,
+                                   const PoseCorrection& correction = {}, const Progress& progress = {},
+                                   const std::string& label = "integrating");
+
+/// The metadata `chronomap integrate` writes into a session map file: what was read, how, and
+/// when it was recorded.
+nlohmann::json sessionMetadata(const std::filesystem::path& dataset, const IntegratedSession& session,
+                               const SessionSettings& settings);
+
+/// How sessions are registered to their consensus (align/register.h).
+struct RegistrationSettings {
+  int rounds = 3;  ///< each against the consensus the previous one left, in [1, 10]
+  RegisterSettings align;
+};
+
+/// Registers the session maps integrated from `paths` (in that order, with `sensor_positions` as
+/// recorded) to their consensus, integrating each recording again with its correction (in
+/// parallel, unreported); `maps` become the corrected sessions. `reports`, when given, receives
+/// each session's last registration report. @return each session's correction.
+std::vector<PoseCorrection> registerDatasets(std::vector<SessionMap>& maps, std::span<const std::filesystem::path> paths,
+                                             std::span<const std::vector<Eigen::Vector3d>> sensor_positions,
+                                             const SessionSettings& settings, const RegistrationSettings& registration,
+                                             std::vector<RegisterReport>* reports = nullptr);
+
+}  // namespace chronomap::pipeline

@@ -1,0 +1,247 @@
+#include "chronomap/pipeline/demo.h"
+
+#include <chrono>
+#include <cstdio>
+#include <iomanip>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "chronomap/analysis/change_frequency.h"
+#include "chronomap/analysis/diff.h"
+#include "chronomap/analysis/segment.h"
+#include "chronomap/core/error.h"
+#include "chronomap/core/time.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/dataset.h"
+#include "chronomap/io/diff_file.h"
+#include "chronomap/io/file.h"
+#include "chronomap/io/png.h"
+#include "chronomap/io/temporal_file.h"
+#include "chronomap/pipeline/session.h"
+#include "chronomap/render/color.h"
+#include "chronomap/render/plot.h"
+#include "chronomap/render/top_view.h"
+#include "chronomap/sim/building.h"
+#include "chronomap/sim/change_truth.h"
+#include "demo_report.h"
+
+namespace chronomap::pipeline {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// The demo's registration: as the README's `build --register --register-drift 20
+// --register-planar --register-points`.
+constexpr int kRegisterRounds = 3;
+constexpr int kDriftKnots = 20;
+
+std::string numbered(const char* pattern, size_t n) {
+  char name[64];
+  std::snprintf(name, sizeof name, pattern, n);
+  return name;
+}
+
+/// Step 2: every session integrated with the estimated poses and scored against the truth.
+std::vector<DemoSession> integrateSessions(const DemoSettings& s, const sim::SimulationSummary& simulated,
+                                           const SessionSettings& session_settings) {
+  std::vector<DemoSession> sessions;
+  for (size_t k = 0; k < simulated.session_dirs.size(); ++k) {
+    IntegratedSession i = integrateDataset(simulated.session_dirs[k], session_settings, {}, s.progress,
+                                           "session " + std::to_string(k));
+    const SessionMap truth_map =
+        io::readSessionMap(s.output / "data" / "truth" / numbered("occupancy_%02zu.cmap", k));
+    std::vector<VoxelKey> truth;
+    truth_map.forEachLeaf([&](const LeafView& l) { truth.push_back(l.key); });
+    const sim::OccupancyScore score = sim::scoreOccupancy(i.map, truth);
+    sessions.push_back({std::move(i.map), i.stats, score, {}, std::move(truth), std::move(i.sensor_positions)});
+  }
+  return sessions;
+}
+
+/// Step 3: registration to the consensus of all sessions, each integrated again with its
+/// correction, scored again and written to sessions/.
+void registerAll(const DemoSettings& s, const sim::SimulationSummary& simulated,
+                      const SessionSettings& session_settings, std::vector<DemoSession>& sessions) {
+  RegistrationSettings registration;
+  registration.rounds = kRegisterRounds;
+  registration.align.drift_knot_frames = kDriftKnots;
+  registration.align.planar = true;
+  registration.align.drift_points = true;
+  std::vector<SessionMap> maps;
+  std::vector<std::vector<Eigen::Vector3d>> positions;
+  for (DemoSession& d : sessions) {
+    maps.push_back(std::move(d.map));
+    positions.push_back(std::move(d.sensor_positions));
+  }
+  registerDatasets(maps, simulated.session_dirs, positions, session_settings, registration);
+  for (size_t k = 0; k < sessions.size(); ++k) {
+    sessions[k].map = std::move(maps[k]);
+    sessions[k].registered_score = sim::scoreOccupancy(sessions[k].map, sessions[k].truth);
+    io::writeSessionMap(s.output / "sessions" / numbered("session_%02zu.cmap", k), sessions[k].map,
+                        {{"created_by", "chronomap demo"}, {"recorded_at", simulated.times_s[k]}, {"registered", true}});
+  }
+}
+
+/// Step 4: the 4D map of the registered sessions.
+TemporalMap buildMap(const sim::SimulationSummary& simulated, const std::vector<DemoSession>& sessions,
+                     const fs::path& path) {
+  TemporalMap map(sessions.front().map.resolution_m());
+  for (size_t k = 0; k < sessions.size(); ++k) {
+    map.add(simulated.times_s[k], sessions[k].map, AddOptions{false, numbered("session_%02zu", k)});
+  }
+  io::writeTemporalMap(path, map, {{"created_by", "chronomap demo"}});
+  return map;
+}
+
+/// Step 5: what changed between consecutive sessions, and which objects: diff, segment, score.
+std::vector<DemoPair> findChanges(const DemoSettings& s, const std::vector<DemoSession>& sessions,
+                                  const fs::path& images) {
+  fs::create_directories(s.output / "changes");
+  const std::vector<sim::TruthEvent> truth_events = sim::readTruthEvents(s.output / "data" / "scene.json");
+  const DemoChangeSettings cs = demoChangeSettings();
+  std::vector<DemoPair> pairs;
+  for (size_t k = 1; k < sessions.size(); ++k) {
+    DemoPair p;
+    p.from = k - 1;
+    p.events = sim::eventsFrom(truth_events, static_cast<uint32_t>(k - 1));
+    const DiffMap d = diff(sessions[k - 1].map, sessions[k].map, cs.diff);
+    p.segmentation = segment(d, cs.segment);
+    p.score = sim::scoreChanges(d, p.segmentation, p.events, sessions[k - 1].map, sessions[k].map);
+    const std::string name = numbered("diff_%02zu", k - 1) + numbered("_%02zu", k);
+    io::writeDiffMap(s.output / "changes" / (name + ".cmap"), d, {{"created_by", "chronomap demo"}});
+    render::TopViewSettings view;
+    view.pixels_per_voxel = 3;
+    io::writePng(images / (name + ".png"), render::renderChangeView(sessions[k].map, d, p.segmentation, view));
+    pairs.push_back(std::move(p));
+  }
+  return pairs;
+}
+
+/// Session 0's points from above, every second point of every frame.
+ImageRgb sessionCloudView(const fs::path& dir) {
+  const auto dataset = io::openDataset(dir);
+  std::vector<Eigen::Vector3f> points;
+  std::vector<Rgb> colors;
+  for (size_t i = 0; i < dataset->size(); ++i) {
+    const Frame f = dataset->load(i);
+    for (size_t k = 0; k < f.cloud.size(); k += 2) {
+      const Eigen::Vector3f& p = f.cloud.points[k];
+      if (!p.allFinite()) continue;
+      points.push_back((f.T_world_sensor * p.cast<double>()).cast<float>());
+      colors.push_back(f.cloud.hasColors() ? f.cloud.colors[k] : Rgb{200, 200, 200});
+    }
+  }
+  return render::renderPointsTopView(points, colors, 0.02);
+}
+
+std::vector<Eigen::Vector3d> trajectoryPositions(const fs::path& path) {
+  std::vector<Eigen::Vector3d> out;
+  for (const auto& p : io::parseTumTrajectory(io::readTextFile(path), path.string())) out.push_back(p.pose.translation());
+  return out;
+}
+
+/// Session 0's camera path, true and estimated.
+ImageRgb trajectoryPlot(const fs::path& dir) {
+  render::PlotSeries truth{"true path", Rgb{40, 90, 200}, {}, {}}, estimate{"estimated path", Rgb{220, 80, 40}, {}, {}};
+  for (const auto& p : trajectoryPositions(dir / "groundtruth.txt")) {
+    truth.x.push_back(p.x());
+    truth.y.push_back(p.y());
+  }
+  for (const auto& p : trajectoryPositions(dir / "trajectory.txt")) {
+    estimate.x.push_back(p.x());
+    estimate.y.push_back(p.y());
+  }
+  render::PlotSettings ps;
+  ps.title = "Session 0: camera path";
+  ps.x_label = "x (m)";
+  ps.y_label = "y (m)";
+  return render::renderLinePlot({truth, estimate}, ps);
+}
+
+/// Step 6: the pictures beside the changes.
+void drawPictures(const sim::SimulationSummary& simulated, const TemporalMap& map, const fs::path& images) {
+  render::TopViewSettings view;
+  view.pixels_per_voxel = 3;
+  io::writePng(images / "map_topview.png", render::renderTopView(map.snapshot(simulated.times_s.back()), view));
+  const fs::path& first = simulated.session_dirs.front();
+  io::writePng(images / "session_00_cloud.png", sessionCloudView(first));
+  // One frame as recorded: colour and depth (from the middle of the first session).
+  const auto names = io::parseStampedList(io::readTextFile(first / "depth.txt"), "depth.txt");
+  const auto& mid = names[names.size() / 2];
+  fs::copy_file(first / ("rgb/" + mid.name.substr(6)), images / "frame_rgb.png", fs::copy_options::overwrite_existing);
+  io::writePng(images / "frame_depth.png", render::colorizeDepth(io::readPngU16(first / mid.name), 5000.0));
+  io::writePng(images / "trajectory.png", trajectoryPlot(first));
+  io::writePng(images / "storage.png", render::renderStoragePlot(map));
+}
+
+void summarise(const std::vector<DemoSession>& sessions, const std::vector<DemoPair>& pairs, DemoResult& r) {
+  const double w = 1.0 / static_cast<double>(sessions.size());
+  for (const DemoSession& d : sessions) {
+    r.precision += w * d.registered_score.precision;
+    r.recall += w * d.registered_score.recall;
+    r.precision_as_recorded += w * d.score.precision;
+    r.recall_as_recorded += w * d.score.recall;
+  }
+  sim::ChangeScore total;
+  for (const DemoPair& p : pairs) total += p.score;
+  r.events_observable = total.events_observable;
+  r.events_found = total.events_found;
+  r.false_components = total.false_components;
+}
+
+}  // namespace
+
+DemoResult runDemo(const DemoSettings& s) {
+  const auto started = std::chrono::steady_clock::now();
+  DemoResult r;
+  r.images = s.output / "images";
+  r.map = s.output / "office.cmap";
+  r.report = s.output / "report.md";
+  std::error_code ec;
+  fs::create_directories(r.images, ec);
+  if (ec) throw IoError(s.output.string() + ": cannot create folder (" + ec.message() + ")");
+
+  s.progress.say("[1/6] simulating the 'office' preset: a corridor, an office, a kitchen and a meeting room");
+  sim::SimulationSettings sim_settings;
+  sim_settings.preset = "office";
+  sim_settings.seed = s.seed;
+  sim_settings.resolution_scale = s.resolution_scale;
+  const sim::SimulationSummary simulated = sim::simulate(
+      sim_settings, s.output / "data", [&](size_t done, size_t) { s.progress.advance("simulating", done, 6); });
+
+  s.progress.say("[2/6] integrating " + std::to_string(simulated.session_dirs.size()) + " sessions (" +
+                 (s.fast ? "fast" : "exact") + " mode, estimated poses)");
+  fs::create_directories(s.output / "sessions", ec);
+  SessionSettings session_settings;
+  session_settings.integrator.fast = s.fast;
+  std::vector<DemoSession> sessions = integrateSessions(s, simulated, session_settings);
+
+  s.progress.say("[3/6] registering the sessions to their consensus (x, y and heading; drift per frame, fitted on "
+                 "points)");
+  registerAll(s, simulated, session_settings, sessions);
+
+  s.progress.say("[4/6] building the 4D map of the registered sessions");
+  const TemporalMap map = buildMap(simulated, sessions, r.map);
+
+  s.progress.say("[5/6] finding what changed between consecutive sessions");
+  const std::vector<DemoPair> pairs = findChanges(s, sessions, r.images);
+
+  s.progress.say("[6/6] drawing the report");
+  drawPictures(simulated, map, r.images);
+  r.sessions = sessions.size();
+  r.frames = simulated.frames;
+  r.events = simulated.events;
+  r.nodes_4d = map.counts().nodes();
+  for (const auto& session : map.sessions()) r.nodes_separate += session.nodes_separate;
+  for (uint64_t n : changeHistogram(map, -1e300, 1e300)) r.changed_voxels += n;
+  summarise(sessions, pairs, r);
+  const std::string report =
+      demoReport({s, sim_settings, simulated, sessions, pairs, map, r, fs::file_size(r.map), kDriftKnots});
+  io::writeFileAtomic(r.report, std::vector<uint8_t>(report.begin(), report.end()));
+  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  return r;
+}
+
+}  // namespace chronomap::pipeline

@@ -1,0 +1,58 @@
+#pragma once
+// The demo's intermediate results and its report (pipeline/demo.h runs it).
+
+#include <string>
+#include <vector>
+
+#include "chronomap/analysis/diff.h"
+#include "chronomap/analysis/segment.h"
+#include "chronomap/integrate/integrator.h"
+#include "chronomap/pipeline/demo.h"
+#include "chronomap/sim/building.h"
+#include "chronomap/sim/change_truth.h"
+#include "chronomap/temporal/temporal_map.h"
+
+namespace chronomap::pipeline {
+
+/// One simulated session as the demo integrated and scored it.
+struct DemoSession {
+  SessionMap map;
+  IntegrationStats stats;
+  sim::OccupancyScore score;             ///< with the poses as recorded
+  sim::OccupancyScore registered_score;  ///< after registration
+  std::vector<VoxelKey> truth;           ///< the truth's occupied voxels
+  std::vector<Eigen::Vector3d> sensor_positions;
+};
+
+/// The changes between sessions `from` and `from + 1`.
+struct DemoPair {
+  size_t from = 0;
+  std::vector<sim::TruthEvent> events;
+  Segmentation segmentation;
+  sim::ChangeScore score;
+};
+
+/// How the demo diffs and segments: the recommended settings for registered sessions.
+struct DemoChangeSettings {
+  DiffSettings diff;
+  SegmentSettings segment;
+};
+DemoChangeSettings demoChangeSettings();
+
+/// Everything the report states.
+struct DemoReportInput {
+  const DemoSettings& settings;
+  const sim::SimulationSettings& simulation;
+  const sim::SimulationSummary& simulated;
+  const std::vector<DemoSession>& sessions;
+  const std::vector<DemoPair>& pairs;
+  const TemporalMap& map;
+  const DemoResult& result;
+  uint64_t map_file_bytes;
+  int drift_knots;
+};
+
+/// report.md.
+std::string demoReport(const DemoReportInput& in);
+
+}  // namespace chronomap::pipeline

@@ -1,0 +1,244 @@
+#include "chronomap/pipeline/map4d.h"
+
+#include <algorithm>
+#include <span>
+#include <sstream>
+#include <utility>
+
+#include "chronomap/align/consensus.h"
+#include "chronomap/core/error.h"
+#include "chronomap/core/time.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/file.h"
+
+namespace chronomap::pipeline {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+int64_t nodesAddedAt(const TemporalMap& map, double time_s) {
+  for (const auto& s : map.sessions()) {
+    if (s.time_s == time_s) return s.nodes_added;
+  }
+  return 0;
+}
+
+/// A recording integrated, waiting to be added.
+struct Pending {
+  size_t index;  // into the settings' datasets
+  double time_s;
+  IntegratedSession session;
+};
+
+void checkInputs(const BuildSettings& s) {
+  if (s.realign) s.realign->validate();  // bad settings fail before integrating
+  if (!s.times_s.empty() && s.times_s.size() != s.datasets.size()) {
+    throw UsageError(std::to_string(s.times_s.size()) + " time(s) given for " + std::to_string(s.datasets.size()) +
+                     " dataset(s)");
+  }
+  for (const auto& d : s.datasets) {
+    if (!fs::exists(d)) throw UsageError("dataset '" + d.string() + "' does not exist");
+  }
+}
+
+std::optional<double> givenTime(const BuildSettings& s, size_t i) {
+  return s.times_s.empty() ? std::nullopt : s.times_s[i];
+}
+
+/// Refuses known clashes with stored sessions before the long integration.
+void refuseClashes(const BuildSettings& s, const TemporalMap& map) {
+  if (s.replace) return;
+  for (size_t i = 0; i < s.datasets.size(); ++i) {
+    const std::optional<double> t = givenTime(s, i);
+    if (!t) continue;
+    for (const auto& stored : map.sessions()) {
+      if (stored.time_s == *t) {
+        throw UsageError(s.map.string() + " already holds a session at " + formatTime(stored.time_s) + " (given for " +
+                         s.datasets[i].string() + "); use --replace or another time");
+      }
+    }
+  }
+}
+
+/// Integrates every dataset (times may come from the datasets) and sorts them by time.
+std::vector<Pending> integrateAll(const BuildSettings& s) {
+  std::vector<Pending> pending;
+  for (size_t i = 0; i < s.datasets.size(); ++i) {
+    std::ostringstream step;  // (a chain of string + trips GCC 12's -Wrestrict)
+    step << "[" << i + 1 << "/" << s.datasets.size() << "] " << s.datasets[i].string();
+    s.progress.say(step.str());
+    IntegratedSession session = integrateDataset(s.datasets[i], s.session, {}, s.progress);
+    const std::optional<double> given = givenTime(s, i);
+    const std::optional<double> t = given ? given : session.recorded_at;
+    if (!t) {
+      throw UsageError(s.datasets[i].string() + " has no timestamps (" + session.format +
+                       " datasets do not carry times); give one per dataset with --times");
+    }
+    pending.push_back({i, *t, std::move(session)});
+  }
+  std::stable_sort(pending.begin(), pending.end(), [](const Pending& a, const Pending& b) { return a.time_s < b.time_s; });
+  for (size_t i = 1; i < pending.size(); ++i) {
+    if (pending[i].time_s == pending[i - 1].time_s) {
+      throw UsageError(s.datasets[pending[i - 1].index].string() + " and " + s.datasets[pending[i].index].string() +
+                       " have the same time " + formatTime(pending[i].time_s));
+    }
+  }
+  return pending;
+}
+
+/// Each session's correction against the consensus of all given; the sessions become the
+/// recordings integrated again with it.
+std::vector<PoseCorrection> registerPending(const BuildSettings& s, std::vector<Pending>& pending) {
+  std::vector<SessionMap> maps;
+  std::vector<std::vector<Eigen::Vector3d>> positions;
+  std::vector<fs::path> paths;
+  for (Pending& p : pending) {
+    maps.push_back(std::move(p.session.map));
+    positions.push_back(p.session.sensor_positions);
+    paths.push_back(s.datasets[p.index]);
+  }
+  s.progress.say("registering " + std::to_string(maps.size()) + " session(s), " +
+                 std::to_string(s.registration->rounds) + " round(s)");
+  std::vector<PoseCorrection> found = registerDatasets(maps, paths, positions, s.session, *s.registration);
+  for (size_t i = 0; i < pending.size(); ++i) pending[i].session.map = std::move(maps[i]);
+  return found;
+}
+
+/// Re-aligns every session against the consensus of all given; @return the voxels each moved.
+std::vector<size_t> realignPending(const BuildSettings& s, std::vector<Pending>& pending) {
+  std::vector<const SessionMap*> all;
+  for (const Pending& p : pending) all.push_back(&p.session.map);
+  const SessionMap avg = consensus(std::span<const SessionMap* const>(all));
+  std::vector<size_t> moved;
+  for (Pending& p : pending) {
+    s.progress.say("re-aligning " + s.datasets[p.index].string());
+    RealignReport r;
+    p.session.map = realign(p.session.map, avg, *s.realign, &r);
+    moved.push_back(r.moved());
+  }
+  return moved;
+}
+
+}  // namespace
+
+TemporalMap openOrCreate(const fs::path& path, double resolution_m, const ChangeCriterion& criterion, bool& created,
+                         io::TemporalFileLayout* layout) {
+  created = !fs::exists(path);
+  if (created) return TemporalMap(resolution_m, criterion);
+  TemporalMap map = io::readTemporalMap(path, layout);
+  if (map.resolution_m() != resolution_m) {
+    throw UsageError(path.string() + ": the 4D map has resolution " + std::to_string(map.resolution_m()) +
+                     " m but the session has " + std::to_string(resolution_m) + " m");
+  }
+  return map;
+}
+
+BuildResult build(const BuildSettings& s) {
+  checkInputs(s);
+  // Held to the end: an add to the same map meanwhile would otherwise be lost by the rewrite.
+  std::optional<io::FileLock> lock;
+  if (fs::exists(s.map)) lock.emplace(s.map);
+  BuildResult result;
+  TemporalMap map = openOrCreate(s.map, s.session.resolution_m, s.criterion, result.created);
+  refuseClashes(s, map);
+  std::vector<Pending> pending = integrateAll(s);
+  std::vector<PoseCorrection> corrections;
+  if (s.registration) corrections = registerPending(s, pending);
+  std::vector<size_t> moved;
+  if (s.realign) moved = realignPending(s, pending);
+  for (size_t i = 0; i < pending.size(); ++i) {
+    const Pending& p = pending[i];
+    const fs::path& dataset = s.datasets[p.index];
+    BuiltSession b;
+    b.dataset = dataset;
+    b.time_s = p.time_s;
+    b.report = map.add(p.time_s, p.session.map, AddOptions{s.replace, dataset.filename().string()});
+    b.nodes_added = nodesAddedAt(map, p.time_s);
+    b.nodes_separate = p.session.map.innerCount() + p.session.map.leafCount();
+    b.points = p.session.stats.points;
+    if (!corrections.empty()) b.correction = corrections[i];
+    if (!moved.empty()) b.realigned_voxels = moved[i];
+    result.added.push_back(std::move(b));
+  }
+  // One atomic write at the end: a crash leaves the previous map (or none) on disk.
+  io::writeTemporalMap(s.map, map, {});
+  result.sessions = map.sessionCount();
+  result.nodes = map.counts().nodes();
+  result.file_bytes = fs::file_size(s.map);
+  return result;
+}
+
+const char* toString(WritePolicy policy) {
+  switch (policy) {
+    case WritePolicy::Auto: return "auto";
+    case WritePolicy::Append: return "append";
+    case WritePolicy::Rewrite: return "rewrite";
+  }
+  return "?";
+}
+
+WritePolicy parseWritePolicy(const std::string& name) {
+  for (WritePolicy p : {WritePolicy::Auto, WritePolicy::Append, WritePolicy::Rewrite}) {
+    if (name == toString(p)) return p;
+  }
+  throw UsageError("write policy must be auto, append or rewrite, not '" + name + "'");
+}
+
+namespace {
+
+double sessionTime(const AddSessionSettings& s, const io::CmapFile& file) {
+  if (s.time_s) return *s.time_s;
+  const nlohmann::json meta = io::metadataOf(file);
+  if (!meta.contains("recorded_at") || !meta["recorded_at"].is_number()) {
+    throw UsageError(s.session.string() + " does not say when it was recorded; give --time");
+  }
+  return meta["recorded_at"].get<double>();
+}
+
+}  // namespace
+
+AddSessionResult addSession(const AddSessionSettings& s) {
+  if (s.realign) s.realign->validate();
+  const io::CmapFile file = io::readCmap(s.session);
+  SessionMap session = io::sessionMapFrom(file, s.session.string());
+  AddSessionResult r;
+  r.time_s = sessionTime(s, file);
+  // One add at a time per map: a second one waits here, then reads what the first wrote.
+  std::optional<io::FileLock> lock;
+  if (fs::exists(s.map)) lock.emplace(s.map);
+  io::TemporalFileLayout layout;
+  TemporalMap map = openOrCreate(s.map, session.resolution_m(), s.criterion, r.created, &layout);
+  if (s.realign) {
+    // The consensus of every session stored so far (each time's snapshot) and this one.
+    SessionMap avg = map.sessionCount() ? consensus(map, map.sessions().front().time_s, map.sessions().back().time_s)
+                                        : SessionMap(session.resolution_m());
+    avg.merge(session);
+    RealignReport realigned;
+    session = realign(session, avg, *s.realign, &realigned);
+    r.realigned_voxels = realigned.moved();
+  }
+  const AddOptions add_options{s.replace, s.session.filename().string()};
+  r.report = map.add(r.time_s, session, add_options);
+  // Append the session as a record (the file's bytes so far stay as they are), or write the whole
+  // map again, folding earlier records in: "auto" appends while the records stay smaller than the
+  // base, so that reading never replays more than the base holds.
+  const std::vector<uint8_t> record =
+      r.created ? std::vector<uint8_t>{} : io::encodeSessionRecord(r.time_s, session, add_options);
+  r.appended = !r.created && (s.write == WritePolicy::Append ||
+                              (s.write == WritePolicy::Auto &&
+                               layout.appended_bytes + record.size() <= layout.base_bytes));
+  if (r.appended) {
+    io::appendToFile(s.map, layout.completeBytes(), record);
+    r.record_bytes = record.size();
+  } else {
+    io::writeTemporalMap(s.map, map, {});
+  }
+  r.nodes_added = nodesAddedAt(map, r.time_s);
+  r.sessions = map.sessionCount();
+  r.nodes = map.counts().nodes();
+  r.file_bytes = fs::file_size(s.map);
+  return r;
+}
+
+}  // namespace chronomap::pipeline

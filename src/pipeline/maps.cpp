@@ -1,0 +1,130 @@
+#include "chronomap/pipeline/maps.h"
+
+#include <cstdio>
+#include <fstream>
+#include <vector>
+
+#include "chronomap/core/error.h"
+#include "chronomap/core/time.h"
+#include "chronomap/io/cloud_io.h"
+#include "chronomap/io/diff_file.h"
+#include "chronomap/io/export.h"
+#include "chronomap/io/png.h"
+#include "chronomap/io/temporal_file.h"
+#include "chronomap/render/color.h"
+#include "chronomap/render/top_view.h"
+
+namespace chronomap::pipeline {
+
+namespace fs = std::filesystem;
+
+MapRef parseMapRef(const std::string& text) {
+  const size_t at = text.rfind('@');
+  if (at == std::string::npos || fs::exists(text)) return {text, std::nullopt};
+  return {text.substr(0, at), parseTime(text.substr(at + 1))};
+}
+
+SessionMap loadSessionMap(const MapRef& ref, const io::CmapFile& file) {
+  const std::string path = ref.path.string();
+  if (file.header.kind == io::MapKind::Session) {
+    if (ref.time_s) throw UsageError(path + " is a session map: it has no times to pick with @");
+    return io::sessionMapFrom(file, path);
+  }
+  if (file.header.kind == io::MapKind::Temporal) {
+    if (!ref.time_s) throw UsageError(path + " is a 4D map: say which time to compare, as " + path + "@TIME");
+    return io::temporalMapFrom(file, path).snapshot(*ref.time_s);
+  }
+  throw UsageError(path + " holds a " + std::string(io::toString(file.header.kind)) +
+                   " map; diff compares session maps and 4D maps");
+}
+
+DiffMap diffMaps(const std::string& before, const std::string& after, const DiffSettings& settings) {
+  const MapRef a = parseMapRef(before), b = parseMapRef(after);
+  const io::CmapFile fa = io::readCmap(a.path);
+  if (fa.header.kind == io::MapKind::Temporal && a.time_s && b.time_s && fs::exists(b.path) &&
+      fs::equivalent(a.path, b.path)) {
+    return diff(io::temporalMapFrom(fa, a.path.string()), *a.time_s, *b.time_s, settings);
+  }
+  const SessionMap ma = loadSessionMap(a, fa);
+  const SessionMap mb = loadSessionMap(b, io::readCmap(b.path));
+  return diff(ma, mb, settings);
+}
+
+SessionMap snapshotAt(const TemporalMap& map, double time_s, const std::string& name) {
+  if (map.sessionCount() == 0 || time_s < map.sessions().front().time_s) {
+    throw UsageError(name + " holds no session at or before " + formatTime(time_s) +
+                     (map.sessionCount() ? " (the first is at " + formatTime(map.sessions().front().time_s) + ")" : ""));
+  }
+  return map.snapshot(time_s);
+}
+
+size_t exportSessionMap(const fs::path& path, const SessionMap& map, const ExportSettings& settings) {
+  const std::string ext = path.extension().string();
+  if (ext == ".cmap") {
+    io::writeSessionMap(path, map, settings.metadata);
+    return map.leafCount();
+  }
+  if (ext == ".ply") return io::exportOccupiedPly(path, map);
+  if (ext == ".ot") return io::exportOctomap(path, map);
+  if (ext == ".png") {
+    render::TopViewSettings view;
+    view.pixels_per_voxel = settings.pixels_per_voxel;
+    const ImageRgb img = render::renderTopView(map, view);
+    io::writePng(path, img);
+    return size_t{img.width} * img.height;
+  }
+  throw UsageError("output '" + path.string() + "' must end in .cmap, .ply, .ot or .png");
+}
+
+size_t writeChangeFrequencyPly(const fs::path& path, const TemporalMap& map, const ChangeFrequency& frequency,
+                               uint32_t min_changes) {
+  const uint32_t lo = min_changes, hi = frequency.max_count;
+  PointCloud cloud;
+  cloud.points.reserve(frequency.voxels.size());
+  cloud.colors.reserve(frequency.voxels.size());
+  for (const VoxelChangeCount& v : frequency.voxels) {
+    cloud.points.push_back(map.grid().centerOf(v.key).cast<float>());
+    const double t = hi > lo ? static_cast<double>(v.count - lo) / static_cast<double>(hi - lo) : 1.0;
+    cloud.colors.push_back(render::heatColor(t));
+  }
+  cloud.width = static_cast<uint32_t>(cloud.points.size());
+  io::writePly(path, cloud);
+  return cloud.points.size();
+}
+
+namespace {
+
+nlohmann::json vec3(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+}  // namespace
+
+nlohmann::json segmentationJson(const Segmentation& segmentation, const SegmentSettings& settings) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const Component& c : segmentation.components) {
+    list.push_back({{"id", c.id},
+                    {"voxels", c.voxels},
+                    {"volume_m3", c.volume_m3},
+                    {"bbox_min", vec3(c.bbox_min_m)},
+                    {"bbox_max", vec3(c.bbox_max_m)},
+                    {"centroid", vec3(c.centroid_m)},
+                    {"mean_color", {c.mean_color.r, c.mean_color.g, c.mean_color.b}},
+                    {"kind", toString(c.kind)}});
+  }
+  return {{"components", list}, {"dropped", segmentation.dropped}, {"connectivity", toString(settings.connectivity)}};
+}
+
+void writeComponents(const fs::path& folder, const DiffMap& diff, const Segmentation& segmentation,
+                     const std::string& source, const nlohmann::json& summary) {
+  fs::create_directories(folder);
+  for (const Component& c : segmentation.components) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "component_%04u", c.id);
+    const DiffMap part = componentDiff(diff, c);
+    io::writeDiffMap(folder / (std::string(name) + ".cmap"), part,
+                     {{"created_by", "chronomap segment"}, {"from", source}, {"component", c.id}});
+    io::exportDiffPly(folder / (std::string(name) + ".ply"), part, part.cells());
+  }
+  std::ofstream(folder / "components.json") << summary.dump(2) << "\n";
+}
+
+}  // namespace chronomap::pipeline

@@ -1,0 +1,57 @@
+#include "chronomap/pipeline/session.h"
+
+#include <memory>
+#include <string>
+
+#include "chronomap/core/error.h"
+
+namespace chronomap::pipeline {
+
+IntegratedSession integrateDataset(const std::filesystem::path& path, const SessionSettings& settings,
+                                   const PoseCorrection& correction, const Progress& progress,
+                                   const std::string& label) {
+  auto dataset = io::openDataset(path, settings.dataset);
+  IntegratedSession out{SessionMap(settings.resolution_m), {}, dataset->recordedAt(), io::toString(dataset->format()),
+                        dataset->framesDropped(), {}};
+  out.sensor_positions.reserve(dataset->size());
+  for (size_t i = 0; i < dataset->size(); ++i) out.sensor_positions.push_back(dataset->poseOf(i).translation());
+  // Without a correction the dataset is read directly (frames already in memory are not copied).
+  const CorrectedFrames frames(*dataset, correction);
+  const FrameSource& source = correction.isIdentity() ? static_cast<const FrameSource&>(*dataset) : frames;
+  out.stats = integrate(source, out.map, settings.integrator,
+                        [&](size_t done, size_t total) { progress.advance(label, done, total); });
+  if (out.stats.points == 0) {
+    throw DataError(path.string() + ": no valid points within " + std::to_string(settings.integrator.max_range_m) +
+                    " m in " + std::to_string(out.stats.frames) + " frame(s) (" +
+                    std::to_string(out.stats.pointsSkipped()) + " skipped); nothing to write");
+  }
+  return out;
+}
+
+nlohmann::json sessionMetadata(const std::filesystem::path& dataset, const IntegratedSession& session,
+                               const SessionSettings& settings) {
+  nlohmann::json meta = {{"created_by", "chronomap integrate"},
+                         {"dataset", std::filesystem::absolute(dataset).lexically_normal().string()},
+                         {"format", session.format},
+                         {"frames", session.stats.frames},
+                         {"points", session.stats.points},
+                         {"max_range_m", settings.integrator.max_range_m},
+                         {"fast", settings.integrator.fast},
+                         {"compressed", settings.integrator.compress_free},
+                         {"hit_positions", settings.integrator.hit_positions}};
+  if (session.recorded_at) meta["recorded_at"] = *session.recorded_at;
+  return meta;
+}
+
+std::vector<PoseCorrection> registerDatasets(std::vector<SessionMap>& maps, std::span<const std::filesystem::path> paths,
+                                             std::span<const std::vector<Eigen::Vector3d>> sensor_positions,
+                                             const SessionSettings& settings, const RegistrationSettings& registration,
+                                             std::vector<RegisterReport>* reports) {
+  return registerSessions(
+      maps,
+      [&](size_t k, const PoseCorrection& c) { return integrateDataset(paths[k], settings, c, {}, "").map; },
+      registration.rounds, registration.align, reports, sensor_positions,
+      [&](size_t k) -> std::unique_ptr<FrameSource> { return io::openDataset(paths[k], settings.dataset); });
+}
+
+}  // namespace chronomap::pipeline
