@@ -3,7 +3,6 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <iomanip>
 #include <iostream>
 #include <memory>
@@ -15,7 +14,7 @@
 #include "chronomap/core/time.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/diff_file.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/pipeline/maps.h"
 #include "commands.h"
 
 namespace chronomap::cli {
@@ -39,32 +38,6 @@ struct DiffCmdOptions {
   bool json = false;
 };
 
-/// One side of a diff: a session file, or a 4D map at a time ("MAP.cmap@T").
-struct MapRef {
-  std::string path;
-  std::optional<double> time_s;
-};
-
-MapRef parseMapRef(const std::string& text) {
-  // A file whose own name holds '@' wins over a time suffix.
-  const size_t at = text.rfind('@');
-  if (at == std::string::npos || fs::exists(text)) return {text, std::nullopt};
-  return {text.substr(0, at), parseTime(text.substr(at + 1))};
-}
-
-SessionMap sessionOf(const MapRef& ref, const io::CmapFile& file) {
-  if (file.header.kind == io::MapKind::Session) {
-    if (ref.time_s) throw UsageError(ref.path + " is a session map: it has no times to pick with @");
-    return io::sessionMapFrom(file, ref.path);
-  }
-  if (file.header.kind == io::MapKind::Temporal) {
-    if (!ref.time_s) throw UsageError(ref.path + " is a 4D map: say which time to compare, as " + ref.path + "@TIME");
-    return io::temporalMapFrom(file, ref.path).snapshot(*ref.time_s);
-  }
-  throw UsageError(ref.path + " holds a " + std::string(io::toString(file.header.kind)) +
-                   " map; diff compares session maps and 4D maps");
-}
-
 int runDiff(const DiffCmdOptions& o) {
   DiffSettings settings;
   settings.mode = parseDiffMode(o.mode);
@@ -75,18 +48,7 @@ int runDiff(const DiffCmdOptions& o) {
   if (fs::path(o.output).extension() != ".cmap") throw UsageError("output '" + o.output + "' must end in .cmap");
   if (!o.ply.empty() && fs::path(o.ply).extension() != ".ply") throw UsageError("--ply '" + o.ply + "' must end in .ply");
   const auto start = std::chrono::steady_clock::now();
-  const MapRef a = parseMapRef(o.before), b = parseMapRef(o.after);
-  const io::CmapFile fa = io::readCmap(a.path);
-  DiffMap d;
-  if (fa.header.kind == io::MapKind::Temporal && a.time_s && b.time_s && fs::exists(b.path) &&
-      fs::equivalent(a.path, b.path)) {
-    // Two times of one 4D map: visit only what changed in between.
-    d = diff(io::temporalMapFrom(fa, a.path), *a.time_s, *b.time_s, settings);
-  } else {
-    const SessionMap ma = sessionOf(a, fa);
-    const SessionMap mb = sessionOf(b, io::readCmap(b.path));
-    d = diff(ma, mb, settings);
-  }
+  const DiffMap d = pipeline::diffMaps(o.before, o.after, settings);
   io::writeDiffMap(o.output, d, {{"created_by", "chronomap diff"}, {"before", o.before}, {"after", o.after}});
   std::vector<ChangeCell> changed;
   for (const ChangeCell& c : d.cells()) {
@@ -130,8 +92,6 @@ struct SegmentCmdOptions {
   bool json = false;
 };
 
-nlohmann::json vec3(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
-
 int runSegment(const SegmentCmdOptions& o) {
   SegmentSettings settings;
   settings.connectivity = parseConnectivity(o.connectivity);
@@ -144,33 +104,9 @@ int runSegment(const SegmentCmdOptions& o) {
   const Segmentation seg = segment(d, settings);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
-  nlohmann::json list = nlohmann::json::array();
-  for (const Component& c : seg.components) {
-    list.push_back({{"id", c.id},
-                    {"voxels", c.voxels},
-                    {"volume_m3", c.volume_m3},
-                    {"bbox_min", vec3(c.bbox_min_m)},
-                    {"bbox_max", vec3(c.bbox_max_m)},
-                    {"centroid", vec3(c.centroid_m)},
-                    {"mean_color", {c.mean_color.r, c.mean_color.g, c.mean_color.b}},
-                    {"kind", toString(c.kind)}});
-  }
-  const nlohmann::json summary = {{"components", list},
-                                  {"dropped", seg.dropped},
-                                  {"connectivity", toString(settings.connectivity)},
-                                  {"seconds", seconds}};
-  if (!o.output_dir.empty()) {
-    fs::create_directories(o.output_dir);
-    for (const Component& c : seg.components) {
-      char name[32];
-      std::snprintf(name, sizeof(name), "component_%04u", c.id);
-      const DiffMap part = componentDiff(d, c);
-      io::writeDiffMap(fs::path(o.output_dir) / (std::string(name) + ".cmap"), part,
-                       {{"created_by", "chronomap segment"}, {"from", o.input}, {"component", c.id}});
-      io::exportDiffPly(fs::path(o.output_dir) / (std::string(name) + ".ply"), part, part.cells());
-    }
-    std::ofstream(fs::path(o.output_dir) / "components.json") << summary.dump(2) << "\n";
-  }
+  nlohmann::json summary = pipeline::segmentationJson(seg, settings);
+  summary["seconds"] = seconds;
+  if (!o.output_dir.empty()) pipeline::writeComponents(o.output_dir, d, seg, o.input, summary);
   if (o.json) {
     std::cout << summary.dump() << "\n";
     return 0;

@@ -7,7 +7,7 @@
 
 #include "chronomap/core/error.h"
 #include "chronomap/io/cmap.h"
-#include "chronomap/io/export.h"
+#include "chronomap/pipeline/maps.h"
 #include "commands.h"
 
 namespace chronomap::cli {
@@ -27,23 +27,12 @@ int runExport(const ExportOptions& o) {
     throw UsageError("output '" + o.output + "' must end in .ply, .ot or .png");
   }
   if (o.pixels_per_voxel < 1 || o.pixels_per_voxel > 64) throw UsageError("--scale must be 1 to 64");
-  const SessionMap map = io::readSessionMap(o.input);
-  size_t n = 0;
-  std::string what;
-  if (ext == ".ply") {
-    n = io::exportOccupiedPly(o.output, map);
-    what = " occupied voxel centres";
-  } else if (ext == ".ot") {
-    n = io::exportOctomap(o.output, map);
-    what = " OctoMap ColorOcTree leaves";
-  } else {
-    io::TopViewSettings settings;
-    settings.pixels_per_voxel = o.pixels_per_voxel;
-    const io::ImageRgb img = io::renderTopView(map, settings);
-    io::writePng(o.output, img);
-    n = size_t{img.width} * img.height;
-    what = " pixels, top view";
-  }
+  pipeline::ExportSettings settings;
+  settings.pixels_per_voxel = o.pixels_per_voxel;
+  const size_t n = pipeline::exportSessionMap(o.output, io::readSessionMap(o.input), settings);
+  const std::string what = ext == ".ply"  ? " occupied voxel centres"
+                           : ext == ".ot" ? " OctoMap ColorOcTree leaves"
+                                          : " pixels, top view";
   if (o.json) {
     std::cout << nlohmann::json{{"output", o.output}, {"format", ext.substr(1)}, {"elements", n}}.dump() << "\n";
   } else {

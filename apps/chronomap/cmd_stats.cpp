@@ -5,10 +5,12 @@
 #include <nlohmann/json.hpp>
 
 #include "chronomap/core/error.h"
+#include "chronomap/core/format.h"
 #include "chronomap/core/time.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/diff_file.h"
-#include "chronomap/io/plot.h"
+#include "chronomap/io/png.h"
+#include "chronomap/render/plot.h"
 #include "chronomap/io/temporal_file.h"
 #include "commands.h"
 
@@ -22,63 +24,54 @@ struct StatsOptions {
   bool json = false;
 };
 
-/// Cumulative node counts after each session (in time order): stored separately, and the 4D map.
-void storageCurves(const TemporalMap& map, std::vector<double>& separate, std::vector<double>& four_d) {
-  double a = 0.0, b = 0.0;
-  for (const auto& s : map.sessions()) {
-    a += static_cast<double>(s.nodes_separate);
-    b += static_cast<double>(s.nodes_added);
-    separate.push_back(a);
-    four_d.push_back(b);
+/// What stats prints of a 4D map.
+struct TemporalStats {
+  const TemporalMap& map;
+  const io::CmapFile& file;
+  io::TemporalFileLayout layout;
+  TemporalCounts counts;
+  double nodes_separate = 0.0;
+};
+
+void printTemporalJson(const StatsOptions& o, const TemporalStats& s) {
+  nlohmann::json times = nlohmann::json::array(), sessions = nlohmann::json::array();
+  for (const auto& session : s.map.sessions()) {
+    times.push_back(formatTime(session.time_s));
+    sessions.push_back({{"time", formatTime(session.time_s)},
+                        {"time_s", session.time_s},
+                        {"name", session.name},
+                        {"nodes_added", session.nodes_added},
+                        {"nodes_separate", session.nodes_separate},
+                        {"observed_voxels", session.coverage.voxelCount()}});
   }
+  const auto& h = s.file.header;
+  const TemporalCounts& c = s.counts;
+  nlohmann::json j = {{"kind", io::toString(h.kind)},
+                      {"format_version", h.version},
+                      {"resolution_m", h.resolution_m},
+                      {"sessions", s.map.sessionCount()},
+                      {"times", times},
+                      {"nodes", c.nodes()},
+                      {"inner_nodes", c.inner_nodes},
+                      {"entries", c.entries},
+                      {"slots", c.slots},
+                      {"bytes", s.map.memoryBytes()},
+                      {"file_bytes", s.file.file_bytes},
+                      {"appended_sessions", s.layout.appended_sessions},
+                      {"appended_bytes", s.layout.appended_bytes},
+                      {"incomplete_append_bytes", s.layout.incomplete_tail_bytes},
+                      {"nodes_separate", static_cast<uint64_t>(s.nodes_separate)},
+                      {"per_session", sessions},
+                      {"bounds_min", {h.bounds_min_m.x(), h.bounds_min_m.y(), h.bounds_min_m.z()}},
+                      {"bounds_max", {h.bounds_max_m.x(), h.bounds_max_m.y(), h.bounds_max_m.z()}}};
+  if (!o.plot.empty()) j["plot"] = o.plot;
+  std::cout << j.dump() << "\n";
 }
 
-int runTemporalStats(const StatsOptions& o, const io::CmapFile& file) {
-  const TemporalMap map = io::temporalMapFrom(file, o.file);
-  const io::TemporalFileLayout layout = io::layoutOf(file);
-  const TemporalCounts c = map.counts();
-  std::vector<double> separate, four_d;
-  storageCurves(map, separate, four_d);
-  const double nodes_separate = separate.empty() ? 0.0 : separate.back();
-  if (!o.plot.empty()) {
-    if (std::filesystem::path(o.plot).extension() != ".png") throw UsageError("--plot '" + o.plot + "' must end in .png");
-    if (map.sessionCount() == 0) throw DataError(o.file + ": no sessions to plot");
-    writeStoragePlot(o.plot, map);
-  }
-  const auto& h = file.header;
-  if (o.json) {
-    nlohmann::json times = nlohmann::json::array(), sessions = nlohmann::json::array();
-    for (const auto& s : map.sessions()) {
-      times.push_back(formatTime(s.time_s));
-      sessions.push_back({{"time", formatTime(s.time_s)},
-                          {"time_s", s.time_s},
-                          {"name", s.name},
-                          {"nodes_added", s.nodes_added},
-                          {"nodes_separate", s.nodes_separate},
-                          {"observed_voxels", s.coverage.voxelCount()}});
-    }
-    nlohmann::json j = {{"kind", io::toString(h.kind)},
-                        {"format_version", h.version},
-                        {"resolution_m", h.resolution_m},
-                        {"sessions", map.sessionCount()},
-                        {"times", times},
-                        {"nodes", c.nodes()},
-                        {"inner_nodes", c.inner_nodes},
-                        {"entries", c.entries},
-                        {"slots", c.slots},
-                        {"bytes", map.memoryBytes()},
-                        {"file_bytes", file.file_bytes},
-                        {"appended_sessions", layout.appended_sessions},
-                        {"appended_bytes", layout.appended_bytes},
-                        {"incomplete_append_bytes", layout.incomplete_tail_bytes},
-                        {"nodes_separate", static_cast<uint64_t>(nodes_separate)},
-                        {"per_session", sessions},
-                        {"bounds_min", {h.bounds_min_m.x(), h.bounds_min_m.y(), h.bounds_min_m.z()}},
-                        {"bounds_max", {h.bounds_max_m.x(), h.bounds_max_m.y(), h.bounds_max_m.z()}}};
-    if (!o.plot.empty()) j["plot"] = o.plot;
-    std::cout << j.dump() << "\n";
-    return 0;
-  }
+void printTemporalText(const StatsOptions& o, const TemporalStats& s) {
+  const auto& h = s.file.header;
+  const TemporalMap& map = s.map;
+  const TemporalCounts& c = s.counts;
   std::cout << o.file << ": 4d map, format version " << h.version << "\n"
             << "  resolution:  " << h.resolution_m << " m\n"
             << "  bounds:      [" << h.bounds_min_m.transpose() << "] .. [" << h.bounds_max_m.transpose() << "] m\n"
@@ -89,26 +82,46 @@ int runTemporalStats(const StatsOptions& o, const io::CmapFile& file) {
   }
   std::cout << "\n  nodes:       " << c.nodes() << " (" << c.inner_nodes << " inner, " << c.entries
             << " history entries in " << c.slots << " slots)\n"
-            << "  separately:  " << static_cast<uint64_t>(nodes_separate) << " nodes for the session maps on their own";
-  if (nodes_separate > 0) std::cout << " (the 4D map holds " << 100.0 * static_cast<double>(c.nodes()) / nodes_separate << "%)";
+            << "  separately:  " << static_cast<uint64_t>(s.nodes_separate) << " nodes for the session maps on their own";
+  if (s.nodes_separate > 0) {
+    std::cout << " (the 4D map holds " << 100.0 * static_cast<double>(c.nodes()) / s.nodes_separate << "%)";
+  }
   std::cout << "\n  memory:      " << humanBytes(static_cast<double>(map.memoryBytes())) << "\n"
-            << "  file:        " << humanBytes(static_cast<double>(file.file_bytes));
-  if (layout.appended_sessions) {
-    std::cout << " (" << layout.appended_sessions << " session(s) appended by add: "
-              << humanBytes(static_cast<double>(layout.appended_bytes)) << ", folded in when it next writes the map whole)";
+            << "  file:        " << humanBytes(static_cast<double>(s.file.file_bytes));
+  if (s.layout.appended_sessions) {
+    std::cout << " (" << s.layout.appended_sessions << " session(s) appended by add: "
+              << humanBytes(static_cast<double>(s.layout.appended_bytes))
+              << ", folded in when it next writes the map whole)";
   }
   std::cout << "\n";
-  if (layout.incomplete_tail_bytes) {
-    std::cout << "  note:        " << layout.incomplete_tail_bytes
+  if (s.layout.incomplete_tail_bytes) {
+    std::cout << "  note:        " << s.layout.incomplete_tail_bytes
               << " bytes at the end are an interrupted add and not part of the map; the next add removes them\n";
   }
   if (map.sessionCount()) {
     std::cout << "  per session: time, nodes added, nodes on its own\n";
-    for (const auto& s : map.sessions()) {
-      std::cout << "    " << formatTime(s.time_s) << "  " << s.nodes_added << "  " << s.nodes_separate << "\n";
+    for (const auto& session : map.sessions()) {
+      std::cout << "    " << formatTime(session.time_s) << "  " << session.nodes_added << "  "
+                << session.nodes_separate << "\n";
     }
   }
   if (!o.plot.empty()) std::cout << "wrote " << o.plot << "\n";
+}
+
+int runTemporalStats(const StatsOptions& o, const io::CmapFile& file) {
+  const TemporalMap map = io::temporalMapFrom(file, o.file);
+  TemporalStats s{map, file, io::layoutOf(file), map.counts(), 0.0};
+  for (const auto& session : map.sessions()) s.nodes_separate += static_cast<double>(session.nodes_separate);
+  if (!o.plot.empty()) {
+    if (std::filesystem::path(o.plot).extension() != ".png") throw UsageError("--plot '" + o.plot + "' must end in .png");
+    if (map.sessionCount() == 0) throw DataError(o.file + ": no sessions to plot");
+    io::writePng(o.plot, render::renderStoragePlot(map));
+  }
+  if (o.json) {
+    printTemporalJson(o, s);
+  } else {
+    printTemporalText(o, s);
+  }
   return 0;
 }
 
@@ -194,19 +207,6 @@ int runStats(const StatsOptions& o) {
 }
 
 }  // namespace
-
-void writeStoragePlot(const std::string& path, const TemporalMap& map) {
-  std::vector<double> separate, four_d, x;
-  storageCurves(map, separate, four_d);
-  for (size_t i = 0; i < separate.size(); ++i) x.push_back(static_cast<double>(i + 1));
-  io::PlotSettings s;
-  s.title = "Storage: nodes after each session";
-  s.x_label = "sessions";
-  s.y_label = "nodes";
-  const io::ImageRgb img = io::renderLinePlot(
-      {{"session maps stored separately", Rgb{200, 60, 50}, x, separate}, {"4D map", Rgb{40, 90, 200}, x, four_d}}, s);
-  io::writePng(path, img);
-}
 
 Command addStats(CLI::App& root) {
   auto o = std::make_shared<StatsOptions>();

@@ -1,19 +1,14 @@
 #pragma once
-// The subcommands of the chronomap binary. Each registers its options on the root app and
-// returns the function that runs it; commands only parse, call the library and print.
+// The subcommands of the chronomap binary. Each registers its flags on the root app and returns
+// the function that runs it; a command parses its flags into library settings, makes one call
+// (pipeline/, or one library function) and prints what it returned.
 
 #include <CLI/CLI.hpp>
 #include <functional>
-#include <optional>
-#include <span>
 #include <string>
-#include <vector>
 
-#include "chronomap/align/register.h"
 #include "chronomap/integrate/integrator.h"
-#include "chronomap/io/dataset.h"
-#include "chronomap/octree/session_map.h"
-#include "chronomap/temporal/temporal_map.h"
+#include "chronomap/pipeline/session.h"
 
 namespace chronomap::cli {
 
@@ -36,9 +31,11 @@ Command addHistory(CLI::App& root);
 Command addChanges(CLI::App& root);
 Command addDiff(CLI::App& root);
 Command addSegment(CLI::App& root);
+Command addSimulate(CLI::App& root);
+Command addDemo(CLI::App& root);
 
-/// How datasets become session maps (the options of integrate, shared with build).
-struct IntegrateSettings {
+/// The integration flags of integrate and build, as given.
+struct IntegrateFlags {
   double resolution_m = 0.05;
   double max_range_m = IntegratorSettings{}.max_range_m;
   std::string format = "auto";
@@ -51,42 +48,12 @@ struct IntegrateSettings {
   std::string pose;
   std::string trajectory;
 };
-/// Registers the integration options on a subcommand.
-void addIntegrateOptions(CLI::App* app, IntegrateSettings& settings);
+/// Registers the integration flags on a subcommand.
+void addIntegrateFlags(CLI::App* app, IntegrateFlags& flags);
+/// The session settings the flags ask for. @throw UsageError for unreadable values.
+pipeline::SessionSettings sessionSettings(const IntegrateFlags& flags);
 
-/// A dataset integrated into a session map.
-struct IntegratedSession {
-  SessionMap map;
-  IntegrationStats stats;
-  std::optional<double> recorded_at;  ///< from the dataset's own timestamps, if any
-  std::string format;
-  size_t frames_dropped = 0;
-  std::vector<Eigen::Vector3d> sensor_positions;  ///< of every frame, as recorded (before `correction`)
-};
-/// The reader options the integrate options ask for.
-io::DatasetOptions datasetOptions(const IntegrateSettings& settings);
-/// The integrator settings they ask for.
-IntegratorSettings integratorSettings(const IntegrateSettings& settings);
-/// Opens and integrates a dataset with a progress bar labelled `label`, every pose corrected by
-/// `correction` (integrator.h).
-/// @throw DataError when no point could be integrated.
-IntegratedSession integrateDataset(const std::string& path, const IntegrateSettings& settings, const std::string& label,
-                                   const PoseCorrection& correction = {});
-/// Registers the session maps integrated from `paths` (in that order, with `sensor_positions`
-/// as recorded) to their consensus (registerSessions), integrating each dataset again with its
-/// correction; `maps` become the corrected sessions.
-std::vector<PoseCorrection> registerDatasets(std::vector<SessionMap>& maps, const std::vector<std::string>& paths,
-                                             std::span<const std::vector<Eigen::Vector3d>> sensor_positions,
-                                             const IntegrateSettings& settings, int rounds,
-                                             const RegisterSettings& register_settings);
-
-Command addSimulate(CLI::App& root);
-Command addDemo(CLI::App& root);
-
-/// Draws nodes against sessions (stored separately and as the 4D map) into a PNG.
-void writeStoragePlot(const std::string& path, const TemporalMap& map);
-
-/// Formats a byte count as "12.3 MiB".
-std::string humanBytes(double bytes);
+/// Throws UsageError unless `path` ends in `ext` ("4D map 'x' must end in .cmap").
+void requireExtension(const std::string& path, const std::string& ext, const std::string& what);
 
 }  // namespace chronomap::cli

@@ -3,6 +3,8 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <iostream>
+#include <memory>
 
 namespace chronomap::cli {
 
@@ -34,6 +36,26 @@ void ProgressBar::finish() {
     std::fflush(stderr);
   }
   drawn_ = false;
+}
+
+pipeline::Progress terminalProgress(bool quiet) {
+  // One bar at a time: a new label starts a new bar, the last unit of the work clears it.
+  struct Current {
+    std::string label;
+    std::unique_ptr<ProgressBar> bar;
+  };
+  auto current = std::make_shared<Current>();
+  pipeline::Progress p;
+  if (!quiet) p.step = [](const std::string& message) { std::cerr << message << "\n"; };
+  p.work = [current](const std::string& label, size_t done, size_t total) {
+    if (!current->bar || current->label != label) {
+      current->bar = std::make_unique<ProgressBar>(label, total);
+      current->label = label;
+    }
+    current->bar->update(done);
+    if (done >= total) current->bar.reset();
+  };
+  return p;
 }
 
 }  // namespace chronomap::cli

@@ -1,9 +1,12 @@
 #pragma once
-// A progress bar on stderr, drawn only when stderr is a terminal.
+// Progress on stderr: a bar drawn only when stderr is a terminal, and the adapter that turns the
+// library's progress callbacks into bars and step lines.
 
 #include <chrono>
 #include <cstddef>
 #include <string>
+
+#include "chronomap/pipeline/progress.h"
 
 namespace chronomap::cli {
 
@@ -26,5 +29,9 @@ class ProgressBar {
   bool drawn_ = false;
   std::chrono::steady_clock::time_point start_, last_;
 };
+
+/// Progress for a command: each step's message as a line on stderr (none when `quiet`, as with
+/// --json) and a bar for each piece of work with a label.
+pipeline::Progress terminalProgress(bool quiet);
 
 }  // namespace chronomap::cli

@@ -1,0 +1,317 @@
+// chronomap add | build: sessions into a 4D map.
+
+#include <algorithm>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <memory>
+#include <numbers>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "chronomap/core/error.h"
+#include "chronomap/core/format.h"
+#include "chronomap/core/time.h"
+#include "chronomap/pipeline/map4d.h"
+#include "commands.h"
+#include "progress.h"
+
+namespace chronomap::cli {
+
+namespace {
+
+/// --realign and its settings, shared by add and build.
+struct RealignFlags {
+  bool enabled = false;
+  RealignSettings settings;
+  std::string move = "transfer";
+};
+
+void addRealignFlags(CLI::App* app, RealignFlags& f) {
+  app->add_flag("--realign", f.enabled,
+                "re-align each session against the consensus map first (thesis §2.2): voxel data that "
+                "localisation error put a voxel away from where the other sessions saw it is moved back, "
+                "so it is not stored as change (docs/realign.md)");
+  app->add_option("--realign-alpha", f.settings.alpha, "least score of a move")->capture_default_str();
+  app->add_option("--realign-max-distance", f.settings.max_distance_voxels,
+                  "farthest move in voxels (d_max, at most 8)")
+      ->capture_default_str();
+  app->add_option("--realign-move", f.move,
+                  "transfer: the data goes to the new place and the old one becomes unobserved; swap: the two "
+                  "places exchange their contents")
+      ->check(CLI::IsMember({"transfer", "swap"}))
+      ->capture_default_str();
+}
+
+/// The re-alignment the flags ask for, validated even when not enabled (bad values fail early).
+std::optional<RealignSettings> realignSettings(const RealignFlags& f) {
+  RealignSettings s = f.settings;
+  s.move = f.move == "swap" ? RealignSettings::Move::Swap : RealignSettings::Move::Transfer;
+  s.validate();
+  if (!f.enabled) return std::nullopt;
+  return s;
+}
+
+void addCriterionFlags(CLI::App* app, ChangeCriterion& c) {
+  app->add_option("--probability-threshold", c.probability_threshold,
+                  "new map only: also store a change when P moves by more than this (0 = state only)")
+      ->capture_default_str();
+  app->add_option("--color-distance", c.color_distance,
+                  "new map only: also store a change when the mean colour moves farther than this "
+                  "(8-bit RGB units; 0 = off)")
+      ->capture_default_str();
+}
+
+nlohmann::json addReportJson(const AddReport& r, double time_s, int64_t nodes_added) {
+  return {{"time", formatTime(time_s)},           {"time_s", time_s},           {"entries_added", r.entries_added},
+          {"entries_removed", r.entries_removed}, {"inner_added", r.inner_added}, {"nodes_added", nodes_added},
+          {"replaced", r.replaced},               {"out_of_order", r.out_of_order}};
+}
+
+// ------------------------------------------------------------------------------------------
+// add
+
+struct AddCmdOptions {
+  std::string map;
+  std::string session;
+  std::string time;
+  bool replace = false;
+  std::string write = "auto";
+  ChangeCriterion criterion;
+  RealignFlags realign;
+  bool json = false;
+};
+
+void printAdded(const AddCmdOptions& o, const pipeline::AddSessionResult& r) {
+  if (o.json) {
+    nlohmann::json j = addReportJson(r.report, r.time_s, r.nodes_added);
+    if (r.realigned_voxels) j["realigned_voxels"] = *r.realigned_voxels;
+    j["map"] = o.map;
+    j["created"] = r.created;
+    j["appended"] = r.appended;
+    j["sessions"] = r.sessions;
+    j["nodes"] = r.nodes;
+    j["file_bytes"] = r.file_bytes;
+    std::cout << j.dump() << "\n";
+    return;
+  }
+  std::cout << (r.created ? "created " : "updated ") << o.map << ": session " << formatTime(r.time_s)
+            << (r.report.replaced ? " replaced" : " added") << (r.report.out_of_order ? " (before later sessions)" : "")
+            << ", " << r.nodes_added << " nodes added (" << r.report.entries_added << " entries, "
+            << r.report.inner_added << " inner nodes); " << r.sessions << " session(s), " << r.nodes << " nodes, "
+            << humanBytes(static_cast<double>(r.file_bytes)) << " on disk ("
+            << (r.appended ? "appended " + humanBytes(static_cast<double>(r.record_bytes)) : std::string("written whole"))
+            << ")\n";
+  if (r.realigned_voxels) std::cout << "re-aligned: " << *r.realigned_voxels << " voxel(s) moved\n";
+}
+
+int runAdd(const AddCmdOptions& o) {
+  requireExtension(o.map, ".cmap", "4D map");
+  pipeline::AddSessionSettings s;
+  s.map = o.map;
+  s.session = o.session;
+  if (!o.time.empty()) s.time_s = parseTime(o.time);
+  s.replace = o.replace;
+  s.write = pipeline::parseWritePolicy(o.write);
+  s.criterion = o.criterion;
+  s.realign = realignSettings(o.realign);
+  printAdded(o, pipeline::addSession(s));
+  return 0;
+}
+
+// ------------------------------------------------------------------------------------------
+// build
+
+struct BuildCmdOptions {
+  std::string map;
+  std::vector<std::string> datasets;
+  std::string times;
+  bool replace = false;
+  ChangeCriterion criterion;
+  IntegrateFlags integrate;
+  RealignFlags realign;
+  bool register_sessions = false;
+  int register_rounds = 3;
+  std::string register_model = "world";
+  int register_drift = 0;
+  double register_radius = RegisterSettings{}.radius_voxels;
+  bool register_planar = false;
+  bool register_points = false;
+  bool json = false;
+};
+
+/// The registration the flags ask for; refuses values out of range and flags without --register.
+std::optional<pipeline::RegistrationSettings> registrationSettings(const BuildCmdOptions& o) {
+  if (o.register_rounds < 1 || o.register_rounds > 10) throw UsageError("--register-rounds must lie in [1, 10]");
+  pipeline::RegistrationSettings s;
+  s.rounds = o.register_rounds;
+  s.align.model = parseCorrectionModel(o.register_model);
+  if (o.register_drift < 0 || o.register_drift > 100000) {
+    throw UsageError("--register-drift must be a number of frames in [0, 100000] (0: no drift correction)");
+  }
+  if (o.register_drift > 0 && !o.register_sessions) throw UsageError("--register-drift needs --register");
+  s.align.drift_knot_frames = o.register_drift;
+  if (!(o.register_radius >= 1.0 && o.register_radius <= 8.0)) {
+    throw UsageError("--register-radius must lie in [1, 8] voxels");
+  }
+  if (o.register_radius != RegisterSettings{}.radius_voxels && !o.register_sessions) {
+    throw UsageError("--register-radius needs --register");
+  }
+  s.align.radius_voxels = o.register_radius;
+  if (o.register_planar && !o.register_sessions) throw UsageError("--register-planar needs --register");
+  if (o.register_points && o.register_drift <= 0) throw UsageError("--register-points needs --register-drift");
+  s.align.planar = o.register_planar;
+  s.align.drift_points = o.register_points;
+  if (!o.register_sessions) return std::nullopt;
+  return s;
+}
+
+/// One time per dataset from --times, or none.
+std::vector<std::optional<double>> buildTimes(const BuildCmdOptions& o) {
+  if (o.times.empty()) return {};
+  std::vector<std::string> parts;
+  std::stringstream ss(o.times);
+  for (std::string item; std::getline(ss, item, ',');) parts.push_back(item);
+  if (parts.size() != o.datasets.size()) {
+    throw UsageError("--times lists " + std::to_string(parts.size()) + " time(s) for " +
+                     std::to_string(o.datasets.size()) + " dataset(s)");
+  }
+  std::vector<std::optional<double>> times;
+  for (const auto& p : parts) times.emplace_back(parseTime(p));
+  return times;
+}
+
+nlohmann::json builtJson(const pipeline::BuiltSession& b) {
+  nlohmann::json j = addReportJson(b.report, b.time_s, b.nodes_added);
+  if (b.realigned_voxels) j["realigned_voxels"] = *b.realigned_voxels;
+  if (b.correction) {
+    const Eigen::Isometry3d& c = b.correction->motion;
+    j["registration_m"] = {c.translation().x(), c.translation().y(), c.translation().z()};
+    j["registration_deg"] = Eigen::AngleAxisd(c.linear()).angle() * 180.0 / std::numbers::pi;
+    j["registration_model"] = toString(b.correction->model);
+    if (!b.correction->per_frame.empty()) {
+      double largest = 0.0;
+      for (const auto& f : b.correction->per_frame) largest = std::max(largest, f.translation().norm());
+      j["drift_correction_max_m"] = largest;
+    }
+  }
+  j["dataset"] = b.dataset.string();
+  j["points"] = b.points;
+  j["nodes_separate"] = b.nodes_separate;
+  return j;
+}
+
+void printBuilt(const BuildCmdOptions& o, const pipeline::BuildResult& r) {
+  nlohmann::json reports = nlohmann::json::array();
+  for (const auto& b : r.added) reports.push_back(builtJson(b));
+  if (o.json) {
+    std::cout << nlohmann::json{{"map", o.map},         {"created", r.created},       {"sessions", r.sessions},
+                                {"nodes", r.nodes},      {"file_bytes", r.file_bytes}, {"added", reports}}
+                     .dump()
+              << "\n";
+    return;
+  }
+  for (const auto& j : reports) {
+    std::cout << "  " << j["time"].get<std::string>() << "  " << j["dataset"].get<std::string>() << ": "
+              << j["nodes_added"].get<int64_t>() << " nodes added (" << j["nodes_separate"].get<uint64_t>()
+              << " on its own)";
+    if (j.contains("registration_m")) {
+      const auto& t = j["registration_m"];
+      std::cout << ", moved by (" << std::fixed << std::setprecision(3) << t[0].get<double>() << ", "
+                << t[1].get<double>() << ", " << t[2].get<double>() << ") m, " << std::setprecision(2)
+                << j["registration_deg"].get<double>() << " deg" << std::defaultfloat;
+    }
+    if (j.contains("realigned_voxels")) std::cout << ", " << j["realigned_voxels"].get<size_t>() << " voxels re-aligned";
+    std::cout << "\n";
+  }
+  std::cout << (r.created ? "created " : "updated ") << o.map << ": " << r.sessions << " session(s), " << r.nodes
+            << " nodes, " << humanBytes(static_cast<double>(r.file_bytes)) << " on disk\n";
+}
+
+int runBuild(const BuildCmdOptions& o) {
+  requireExtension(o.map, ".cmap", "4D map");
+  pipeline::BuildSettings s;
+  s.realign = realignSettings(o.realign);
+  s.registration = registrationSettings(o);
+  s.map = o.map;
+  s.datasets.assign(o.datasets.begin(), o.datasets.end());
+  s.times_s = buildTimes(o);
+  s.replace = o.replace;
+  s.criterion = o.criterion;
+  s.session = sessionSettings(o.integrate);
+  s.progress = terminalProgress(o.json);
+  printBuilt(o, pipeline::build(s));
+  return 0;
+}
+
+}  // namespace
+
+Command addAdd(CLI::App& root) {
+  auto o = std::make_shared<AddCmdOptions>();
+  CLI::App* app = root.add_subcommand(
+      "add",
+      "Add a session map to a 4D map (created when missing). Only voxels the session observed and whose "
+      "state changed are stored; adding a session older than stored ones is allowed.");
+  app->add_option("MAP", o->map, "the 4D map (.cmap)")->required();
+  app->add_option("SESSION", o->session, "a session map from chronomap integrate (.cmap)")->required();
+  app->add_option("--time", o->time,
+                  "when the session was recorded: ISO-8601 (2012-03-01T10:00:00Z) or seconds since the epoch; "
+                  "default: the time the session file records");
+  app->add_flag("--replace", o->replace, "replace a session stored at the same time instead of refusing");
+  app->add_option("--write", o->write,
+                  "append: add the session at the end of the file, leaving the bytes before it untouched; rewrite: "
+                  "write the whole map again (folding appended sessions in); auto: append while the appended "
+                  "sessions take fewer bytes than the rest of the file")
+      ->check(CLI::IsMember({"auto", "append", "rewrite"}))
+      ->capture_default_str();
+  addCriterionFlags(app, o->criterion);
+  addRealignFlags(app, o->realign);
+  app->add_flag("--json", o->json, "print a JSON summary on stdout");
+  return {app, [o] { return runAdd(*o); }};
+}
+
+Command addBuild(CLI::App& root) {
+  auto o = std::make_shared<BuildCmdOptions>();
+  CLI::App* app = root.add_subcommand(
+      "build",
+      "Integrate several recordings and add them to a 4D map in time order (the map is created when "
+      "missing and written once, atomically, at the end).");
+  app->add_option("MAP", o->map, "the 4D map (.cmap)")->required();
+  app->add_option("DATASET", o->datasets, "dataset folders or files, one per session")->required();
+  app->add_option("--times", o->times,
+                  "comma-separated times, one per dataset (ISO-8601 or epoch seconds); default: the datasets' "
+                  "first timestamps (TUM)");
+  app->add_flag("--replace", o->replace, "replace sessions stored at the same times");
+  addCriterionFlags(app, o->criterion);
+  addIntegrateFlags(app, o->integrate);
+  app->add_flag("--register", o->register_sessions,
+                "register each session to the consensus of all given and integrate it again with the "
+                "correction (removes the part of the localisation error that is one offset per session; "
+                "docs/realign.md)");
+  app->add_option("--register-model", o->register_model,
+                  "what a correction is: world (one rigid motion of the session's map frame) or per-pose (the same "
+                  "position and heading offset of every pose, turned about each pose; docs/realign.md compares them)")
+      ->capture_default_str();
+  app->add_option("--register-drift", o->register_drift,
+                  "after the rigid rounds, also correct each session's drift: every frame gets its own position and "
+                  "heading correction, linear between knots this many frames apart (0: none; docs/realign.md)")
+      ->capture_default_str();
+  app->add_option("--register-rounds", o->register_rounds,
+                  "registration rounds, each against the consensus the previous one left")
+      ->capture_default_str();
+  app->add_option("--register-radius", o->register_radius,
+                  "how far (voxels) each surface voxel looks for the consensus' surfaces; smaller resolves finer "
+                  "offsets once sessions lie close (docs/changes.md has the office figures)")
+      ->capture_default_str();
+  app->add_flag("--register-planar", o->register_planar,
+                "correct x, y and heading only, never the height: the error of a robot's 2D localisation "
+                "(docs/realign.md)");
+  app->add_flag("--register-points", o->register_points,
+                "fit the drift against the sessions' points rather than voxel centres, which resolves offsets "
+                "below a voxel (docs/realign.md has the office figures)");
+  addRealignFlags(app, o->realign);
+  app->add_flag("--json", o->json, "print a JSON summary on stdout");
+  return {app, [o] { return runBuild(*o); }};
+}
+
+}  // namespace chronomap::cli
