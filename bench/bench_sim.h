@@ -12,8 +12,8 @@
 #include <vector>
 
 #include "chronomap/align/register.h"
-#include "chronomap/integrate/integrator.h"
 #include "chronomap/io/dataset.h"
+#include "chronomap/pipeline/session.h"
 #include "chronomap/sim/building.h"
 #include "chronomap/sim/change_truth.h"
 
@@ -29,24 +29,14 @@ struct SimSessions {
   std::vector<SessionMap> truth_pose;  // with the true poses (groundtruth.txt), when asked for
   std::vector<sim::TruthEvent> events;
   std::vector<std::filesystem::path> dirs;  // the session folders, in order
+  std::vector<std::vector<Eigen::Vector3d>> positions;  // each session's sensor positions (estimated poses)
 };
 
-// Integrates one session folder (estimated poses, fast mode, 0.05 m) with its poses corrected.
-inline SessionMap integrateCorrected(const std::filesystem::path& dir, const PoseCorrection& correction) {
-  IntegratorSettings is;
-  is.fast = true;
-  SessionMap m(0.05);
-  const auto dataset = io::openDataset(dir);
-  integrate(CorrectedFrames(*dataset, correction), m, is);
-  return m;
-}
-
-// The sensor positions of one session folder (estimated poses).
-inline std::vector<Eigen::Vector3d> sensorPositions(const std::filesystem::path& dir) {
-  const auto dataset = io::openDataset(dir);
-  std::vector<Eigen::Vector3d> out;
-  for (size_t i = 0; i < dataset->size(); ++i) out.push_back(dataset->poseOf(i).translation());
-  return out;
+// How the benchmarks integrate simulated sessions: fast mode at 0.05 m.
+inline pipeline::SessionSettings simSessionSettings() {
+  pipeline::SessionSettings s;
+  s.integrator.fast = true;
+  return s;
 }
 
 // How far a session's poses, with a correction applied, lie from its true poses
@@ -104,19 +94,6 @@ inline void printPoseErrors(const std::vector<std::filesystem::path>& dirs,
   }
 }
 
-// "world" or "per-pose" (a --register-model argument); false for anything else.
-inline bool parseCorrectionModel(const char* text, CorrectionModel& out) {
-  const std::string t = text;
-  if (t == "world") out = CorrectionModel::World;
-  else if (t == "per-pose") out = CorrectionModel::PerPose;
-  else return false;
-  return true;
-}
-
-inline const char* correctionModelName(CorrectionModel m) {
-  return m == CorrectionModel::World ? "world" : "per-pose";
-}
-
 // The estimated sessions registered to the consensus of all (`rounds` rounds, re-integrated)
 // with `settings` (its model, radius and, when drift_knot_frames > 0, the drift correction);
 // the corrections go to `corrections` when given.
@@ -124,13 +101,7 @@ inline std::vector<SessionMap> registerSimulation(const SimSessions& s, const Re
                                                   std::vector<PoseCorrection>* corrections = nullptr,
                                                   std::vector<RegisterReport>* reports = nullptr) {
   std::vector<SessionMap> maps = s.estimated;
-  std::vector<std::vector<Eigen::Vector3d>> positions;
-  if (settings.model == CorrectionModel::PerPose) {
-    for (const auto& dir : s.dirs) positions.push_back(sensorPositions(dir));
-  }
-  auto found = registerSessions(
-      maps, [&](size_t k, const PoseCorrection& c) { return integrateCorrected(s.dirs[k], c); }, rounds, settings, reports,
-      positions, [&](size_t k) { return std::unique_ptr<FrameSource>(io::openDataset(s.dirs[k])); });
+  auto found = pipeline::registerDatasets(maps, s.dirs, s.positions, simSessionSettings(), {rounds, settings}, reports);
   if (corrections) *corrections = std::move(found);
   return maps;
 }
@@ -158,19 +129,13 @@ inline SimSessions loadSimulation(const std::filesystem::path& dir, bool with_tr
   std::sort(sessions.begin(), sessions.end());
   s.dirs = sessions;
   for (const fs::path& p : sessions) {
-    IntegratorSettings is;
-    is.fast = true;
-    {
-      SessionMap m(0.05);
-      integrate(*io::openDataset(p), m, is);
-      s.estimated.push_back(std::move(m));
-    }
+    pipeline::IntegratedSession estimated = pipeline::integrateDataset(p, simSessionSettings());
+    s.estimated.push_back(std::move(estimated.map));
+    s.positions.push_back(std::move(estimated.sensor_positions));
     if (with_true_poses) {
-      io::DatasetOptions o;
-      o.trajectory = p / "groundtruth.txt";
-      SessionMap m(0.05);
-      integrate(*io::openDataset(p, o), m, is);
-      s.truth_pose.push_back(std::move(m));
+      pipeline::SessionSettings truth = simSessionSettings();
+      truth.dataset.trajectory = p / "groundtruth.txt";
+      s.truth_pose.push_back(pipeline::integrateDataset(p, truth).map);
     }
     std::fprintf(stderr, "\r  integrated %zu/%zu sessions", s.estimated.size(), sessions.size());
   }

@@ -212,7 +212,7 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
   const std::string options =
       std::string(reg.planar ? ", planar" : "") + (reg.drift_points ? ", drift on points" : "");
   std::printf("registered (%d rounds, %s corrections%s; radius %.2f voxels%s) and re-aligned in %.1f s\n", rounds,
-              bench::correctionModelName(reg.model), drift.c_str(), reg.radius_voxels, options.c_str(),
+              toString(reg.model), drift.c_str(), reg.radius_voxels, options.c_str(),
               seconds(reg_start));
   bench::printPoseErrors(s.dirs, corrections);
 
@@ -413,9 +413,9 @@ MosdResult evaluateMosd(const fs::path& dir) {
 // point falls in a voxel that appeared after frame 1.
 double evaluateHuman(const fs::path& dir) {
   std::printf("\n== human_dataset (%s) ==\n", dir.c_str());
-  const io::CameraIntrinsics k = io::readIntrinsicsFile(dir / "camera-intrinsics.txt");
-  const io::ImageU16 d1 = io::readPngU16(dir / "depth_image_1.png");
-  const io::ImageU16 d2 = io::readPngU16(dir / "depth_image_2.png");
+  const CameraIntrinsics k = io::readIntrinsicsFile(dir / "camera-intrinsics.txt");
+  const ImageU16 d1 = io::readPngU16(dir / "depth_image_1.png");
+  const ImageU16 d2 = io::readPngU16(dir / "depth_image_2.png");
   const PointCloud c1 = io::depthToCloud(d1, nullptr, k, 1000.0, "depth_image_1.png");
   const PointCloud c2 = io::depthToCloud(d2, nullptr, k, 1000.0, "depth_image_2.png");
   constexpr double kResolution = 0.05, kRange = 9.0;  // depth reaches 8.2 m
@@ -489,8 +489,8 @@ int main(int argc, char** argv) {
       reg.drift_points = false;
     } else if (!std::strcmp(argv[i], "--register-rounds") && i + 1 < argc) {
       rounds = std::atoi(argv[++i]);
-    } else if (!std::strcmp(argv[i], "--register-model") && i + 1 < argc && bench::parseCorrectionModel(argv[i + 1], reg.model)) {
-      ++i;
+    } else if (!std::strcmp(argv[i], "--register-model") && i + 1 < argc) {
+      reg.model = parseCorrectionModel(argv[++i]);
     } else if (!std::strcmp(argv[i], "--office") && i + 1 < argc) {
       office = argv[++i];
     } else if (!std::strcmp(argv[i], "--floor66") && i + 1 < argc) {

@@ -277,7 +277,7 @@ Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bo
     if (drift_knots > 0) std::printf("\ndrift corrected too: knots every %d frames, 2 rounds", drift_knots);
     std::printf("\nregistered to the consensus (%s corrections; mean pull %.1f mm before, %.1f mm after; mean correction %.1f mm; "
                 "%.2f s a session for 3 rounds with re-integration):\n",
-                bench::correctionModelName(model), 1000.0 * shift_before / n_s, 1000.0 * shift_after / n_s, 1000.0 * correction_m / n_s,
+                toString(model), 1000.0 * shift_before / n_s, 1000.0 * shift_after / n_s, 1000.0 * correction_m / n_s,
                 register_s / n_s);
     std::printf("  registered:               %llu true + %llu false; false removed %.1f%%, true kept %.1f%% (of any "
                 "matched: %.1f%%), 4D map %llu nodes\n",
@@ -341,8 +341,8 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--drift-knots") && i + 1 < argc) {
       drift_knots = std::atoi(argv[++i]);
-    } else if (!std::strcmp(argv[i], "--register-model") && i + 1 < argc && bench::parseCorrectionModel(argv[i + 1], model)) {
-      ++i;
+    } else if (!std::strcmp(argv[i], "--register-model") && i + 1 < argc) {
+      model = parseCorrectionModel(argv[++i]);
     } else if (!std::strcmp(argv[i], "--office") && i + 1 < argc) {
       office = argv[++i];
     } else if (!std::strcmp(argv[i], "--floor66") && i + 1 < argc) {
@@ -371,7 +371,7 @@ int main(int argc, char** argv) {
     // The headline is the recommended step, registration (with the drift correction unless
     // --drift-knots 0): re-alignment after it removes more but trades true changes for false.
     std::printf("\n%s\n", nlohmann::json{{"preset", skip_floor66 ? "office" : "floor66"},
-                                         {"register_model", bench::correctionModelName(model)},
+                                         {"register_model", toString(model)},
                                          {"drift_knot_frames", drift_knots},
                                          {"false_changes_removed", f.register_only.false_removed},
                                          {"true_changes_kept", f.register_only.true_kept},

@@ -32,7 +32,7 @@
 
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/io/dataset.h"
-#include "chronomap/io/plot.h"
+#include "chronomap/render/plot.h"
 #include "chronomap/io/temporal_file.h"
 #include "chronomap/temporal/temporal_map.h"
 
@@ -234,7 +234,7 @@ int main(int argc, char** argv) {
   rasterise(world);
 
   TemporalMap map(kResolution);
-  std::vector<double> sep_nodes, nodes_4d, octo_bytes, x;
+  std::vector<double> sep_nodes, nodes_4d, octo_bytes;
   double separate = 0.0, octomap_total = 0.0, add_seconds = 0.0, octo_last = 0.0;
   uint64_t separate_bytes = 0;
   double snap8 = 0.0, snap33 = 0.0, snap66 = 0.0;
@@ -275,7 +275,6 @@ int main(int argc, char** argv) {
       bytes_after_first = map.memoryBytes();
       entries_after_first = c.entries;
     }
-    x.push_back(s + 1);
     sep_nodes.push_back(separate);
     nodes_4d.push_back(static_cast<double>(c.nodes()));
     octo_bytes.push_back(octomap_total);
@@ -351,13 +350,7 @@ int main(int argc, char** argv) {
   if (!(back.counts().nodes() == compacted.counts().nodes())) std::printf("WARNING: read-back differs\n");
 
   if (!plot.empty()) {
-    io::PlotSettings ps;
-    ps.title = "Nodes after each session";
-    ps.x_label = "sessions";
-    ps.y_label = "nodes";
-    io::writePng(plot, io::renderLinePlot({{"session maps stored separately", Rgb{200, 60, 50}, x, sep_nodes},
-                                           {"4D map", Rgb{40, 90, 200}, x, nodes_4d}},
-                                          ps));
+    io::writePng(plot, render::renderStoragePlot(sep_nodes, nodes_4d, "Nodes after each session"));
     std::printf("wrote %s\n", plot.c_str());
   }
   const nlohmann::json j = {{"sessions", sessions},

@@ -42,8 +42,8 @@ int main(int argc, char** argv) {
                                            "1 2 3 4 5 6\n7 8 9 10 11 12\n";
   std::ofstream(root / "xyz/scan.xyz") << "# x y z\n1 2 3\n4 5 6\n";
   std::ofstream(root / "xyz/color.xyz") << "1 2 3 10 20 30\n";
-  io::writePng(root / "png/depth.png", io::ImageU16{4, 3, std::vector<uint16_t>(12, 5000)});
-  io::writePng(root / "png/color.png", io::ImageRgb{4, 3, std::vector<Rgb>(12, Rgb{1, 2, 3})});
+  io::writePng(root / "png/depth.png", ImageU16{4, 3, std::vector<uint16_t>(12, 5000)});
+  io::writePng(root / "png/color.png", ImageRgb{4, 3, std::vector<Rgb>(12, Rgb{1, 2, 3})});
   std::ofstream(root / "text/intrinsics") << '\0' << "525 0 319.5\n0 525 239.5\n0 0 1\n";
   std::ofstream(root / "text/matrix") << '\1' << "1 0 0 0.5\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
   std::ofstream(root / "text/list") << '\2' << "# timestamp filename\n1.0 depth/1.png\n1.1 depth/2.png\n";

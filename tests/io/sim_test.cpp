@@ -112,7 +112,7 @@ TEST(Simulator, FramesReprojectOntoTheTrueSurfaces) {
   sim::SensorModel sensor;
   sensor.noise_per_m2 = 0.0;
   const sim::Camera camera = sim::kinectCamera(0.25);
-  const io::CameraIntrinsics k{camera.fx, camera.fy, camera.cx, camera.cy};
+  const CameraIntrinsics k{camera.fx, camera.fy, camera.cx, camera.cy};
   size_t points = 0;
   for (double yaw : {0.0, 1.0, 2.0, 3.0, 4.5}) {
     const Eigen::Isometry3d T = lookingAt({3.0, 1.0, 1.2}, yaw);
