@@ -6,6 +6,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/install-deps.sh
+scripts/check-architecture.sh
 jobs="$(nproc)"
 cmake --preset ci >/dev/null
 cmake --build --preset ci -j"$jobs"
