@@ -240,7 +240,7 @@ int runDemo(const DemoOptions& o) {
   // 5. What changed between consecutive sessions, and which objects: diff, segment, score.
   step(5, "finding what changed between consecutive sessions");
   fs::create_directories(out / "changes", ec);
-  const std::vector<sim::TruthEvent> truth_events = sim::readTruthEvents(out / "data" / "scene.json");
+  const std::vector<sim::ChangeEvent> truth_events = sim::readTruthEvents(out / "data" / "scene.json");
   DiffSettings diff_settings;
   diff_settings.mode = DiffMode::Band;
   diff_settings.neighbourhood_voxels = 1;
@@ -251,7 +251,7 @@ int runDemo(const DemoOptions& o) {
   sim::ChangeScore change_total;
   std::ostringstream changes_md;
   for (size_t k = 1; k < results.size(); ++k) {
-    const std::vector<sim::TruthEvent> pair_events = sim::eventsFrom(truth_events, static_cast<uint32_t>(k - 1));
+    const std::vector<sim::ChangeEvent> pair_events = sim::eventsFrom(truth_events, static_cast<uint32_t>(k - 1));
     const DiffMap d = diff(results[k - 1].map, results[k].map, diff_settings);
     const Segmentation seg = segment(d, segment_settings);
     const sim::ChangeScore score = sim::scoreChanges(d, seg, pair_events, results[k - 1].map, results[k].map);
@@ -265,7 +265,7 @@ int runDemo(const DemoOptions& o) {
     changes_md << "### Session " << k - 1 << " → " << k << "\n\n"
                << "The simulator made " << pair_events.size() << " changes (";
     for (size_t i = 0; i < pair_events.size(); ++i) {
-      changes_md << (i ? ", " : "") << pair_events[i].object_kind << " " << pair_events[i].kind;
+      changes_md << (i ? ", " : "") << toString(pair_events[i].object_kind) << " " << toString(pair_events[i].kind);
     }
     changes_md << "); " << score.events_observable << " of them were observed in both sessions and "
                << score.events_found << " found. The diff holds " << score.changed_voxels
@@ -285,9 +285,10 @@ int runDemo(const DemoOptions& o) {
                     comp.volume_m3 * 1000.0, comp.centroid_m.x(), comp.centroid_m.y(), comp.centroid_m.z(), size.x(),
                     size.y(), size.z(), comp.mean_color.r, comp.mean_color.g, comp.mean_color.b);
       const int e = score.component_event[c];
+      const sim::ChangeEvent* event = e >= 0 ? &pair_events[static_cast<size_t>(e)] : nullptr;
       changes_md << line
-                 << (e >= 0 ? pair_events[static_cast<size_t>(e)].object_kind + " " + pair_events[static_cast<size_t>(e)].kind
-                            : std::string("no event (false)"))
+                 << (event ? std::string(toString(event->object_kind)) + " " + toString(event->kind)
+                           : std::string("no event (false)"))
                  << " |\n";
     }
     changes_md << "\n";

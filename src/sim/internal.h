@@ -6,7 +6,6 @@
 #include <cmath>
 #include <cstdint>
 #include <numbers>
-#include <string>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -55,9 +54,9 @@ struct Patrol {
 Patrol patrolSession(const SceneState& state, const SimulationSettings& settings, int session);
 
 // The change `kind` to object `id` between the states of two consecutive sessions, with the truth
-// voxels (truthOccupancy() of each state) it changes (truth.cpp). No voxels: hidden by other
-// objects.
-ChangeEvent changeEvent(uint32_t id, const std::string& kind, const SceneState& previous_state, const SceneState& state,
+// voxels (truthOccupancy() of each state) it changes (truth.cpp); from_session is left 0. No
+// voxels: hidden by other objects.
+ChangeEvent changeEvent(uint32_t id, EventKind kind, const SceneState& previous_state, const SceneState& state,
                         const std::vector<VoxelKey>& previous_truth, const std::vector<VoxelKey>& truth,
                         const KeyGrid& grid);
 // The truth voxels as a session map, each occupied with one hit (truth.cpp).

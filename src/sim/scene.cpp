@@ -198,6 +198,35 @@ const char* toString(ObjectKind kind) {
   return "unknown";
 }
 
+ObjectKind parseObjectKind(const std::string& name) {
+  for (ObjectKind k : {ObjectKind::Floor, ObjectKind::Wall, ObjectKind::Door, ObjectKind::Desk, ObjectKind::Chair,
+                       ObjectKind::Shelf, ObjectKind::Table, ObjectKind::Box, ObjectKind::Person, ObjectKind::Robot}) {
+    if (name == toString(k)) return k;
+  }
+  throw FormatError("unknown object kind '" + name + "'");
+}
+
+const char* toString(EventKind kind) {
+  switch (kind) {
+    case EventKind::DoorOpened: return "door_opened";
+    case EventKind::DoorClosed: return "door_closed";
+    case EventKind::Moved: return "moved";
+    case EventKind::Added: return "added";
+    case EventKind::Removed: return "removed";
+    case EventKind::Appeared: return "appeared";
+    case EventKind::Left: return "left";
+  }
+  return "unknown";
+}
+
+EventKind parseEventKind(const std::string& name) {
+  for (EventKind k : {EventKind::DoorOpened, EventKind::DoorClosed, EventKind::Moved, EventKind::Added,
+                      EventKind::Removed, EventKind::Appeared, EventKind::Left}) {
+    if (name == toString(k)) return k;
+  }
+  throw FormatError("unknown change event kind '" + name + "'");
+}
+
 SceneState makeScene(const std::string& preset, uint64_t seed) {
   Rng rng(mix(seed, 0x5ce4e));
   Builder b;
@@ -294,9 +323,9 @@ SceneState makeScene(const std::string& preset, uint64_t seed) {
   return b.s;
 }
 
-std::vector<std::pair<uint32_t, std::string>> applyChanges(SceneState& state, uint64_t seed, int session) {
+std::vector<std::pair<uint32_t, EventKind>> applyChanges(SceneState& state, uint64_t seed, int session) {
   Rng rng(mix(seed, 1000 + static_cast<uint64_t>(session)));
-  std::vector<std::pair<uint32_t, std::string>> events;
+  std::vector<std::pair<uint32_t, EventKind>> events;
   if (rng.chance(0.15)) return events;  // a session in which nothing changed
   auto roomOf = [&](const Object& o) -> const Room* {
     return o.room >= 0 ? &state.rooms[static_cast<size_t>(o.room)] : nullptr;
@@ -313,7 +342,7 @@ std::vector<std::pair<uint32_t, std::string>> applyChanges(SceneState& state, ui
       case ObjectKind::Door:
         if (rng.chance(0.25)) {
           o.present = !o.present;
-          events.emplace_back(o.id, o.present ? "door_closed" : "door_opened");
+          events.emplace_back(o.id, o.present ? EventKind::DoorClosed : EventKind::DoorOpened);
         }
         break;
       case ObjectKind::Chair: {
@@ -328,7 +357,7 @@ std::vector<std::pair<uint32_t, std::string>> applyChanges(SceneState& state, ui
           t = t.cwiseMax(inner.min()).cwiseMin(inner.max());
           if (clearOf(*room, t.x(), t.y(), 0.3)) {
             moveTo(o, t);
-            events.emplace_back(o.id, "moved");
+            events.emplace_back(o.id, EventKind::Moved);
           }
         }
         break;
@@ -337,10 +366,10 @@ std::vector<std::pair<uint32_t, std::string>> applyChanges(SceneState& state, ui
         if (!room) break;
         if (o.present && rng.chance(0.08)) {
           o.present = false;
-          events.emplace_back(o.id, "removed");
+          events.emplace_back(o.id, EventKind::Removed);
         } else if (o.present && rng.chance(0.08)) {
           moveTo(o, spotIn(*room, rng, 0.4));
-          events.emplace_back(o.id, "moved");
+          events.emplace_back(o.id, EventKind::Moved);
         }
         break;
       case ObjectKind::Person:
@@ -350,7 +379,7 @@ std::vector<std::pair<uint32_t, std::string>> applyChanges(SceneState& state, ui
         if (!now && !o.present) break;
         if (!now) {
           o.present = false;
-          events.emplace_back(o.id, "left");
+          events.emplace_back(o.id, EventKind::Left);
           break;
         }
         // Somewhere in the corridor off its centre line, or (a person) in a room.
@@ -374,7 +403,7 @@ std::vector<std::pair<uint32_t, std::string>> applyChanges(SceneState& state, ui
         moveTo(o, target);
         o.room = room_index;
         o.present = true;
-        events.emplace_back(o.id, was ? "moved" : "appeared");
+        events.emplace_back(o.id, was ? EventKind::Moved : EventKind::Appeared);
         break;
       }
       default:
@@ -394,7 +423,7 @@ std::vector<std::pair<uint32_t, std::string>> applyChanges(SceneState& state, ui
     o.room = room_index;
     o.parts = {solid({p.x() - s / 2, p.y() - s / 2, kOffset.z()}, {p.x() + s / 2, p.y() + s / 2, kOffset.z() + s},
                      randomColor(rng, 90, 230))};
-    events.emplace_back(o.id, "added");
+    events.emplace_back(o.id, EventKind::Added);
     state.objects.push_back(std::move(o));
   }
   return events;

@@ -79,7 +79,7 @@ bool containsKey(const std::vector<VoxelKey>& sorted, const VoxelKey& k) {
 
 }  // namespace
 
-ChangeEvent changeEvent(uint32_t id, const std::string& kind, const SceneState& previous_state, const SceneState& state,
+ChangeEvent changeEvent(uint32_t id, EventKind kind, const SceneState& previous_state, const SceneState& state,
                         const std::vector<VoxelKey>& previous_truth, const std::vector<VoxelKey>& truth,
                         const KeyGrid& grid) {
   const Object* before = nullptr;

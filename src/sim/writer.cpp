@@ -124,20 +124,21 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
   std::vector<VoxelKey> previous_truth;
   SceneState previous_state;
   for (int s = 0; s < sessions; ++s) {
-    std::vector<std::pair<uint32_t, std::string>> changes;
+    std::vector<std::pair<uint32_t, EventKind>> changes;
     if (s > 0) changes = applyChanges(state, settings.seed, s);
     const std::vector<VoxelKey> truth = truthOccupancy(state, grid);
     // Change events with the truth voxels each one changes.
     for (const auto& [id, kind] : changes) {
-      const ChangeEvent e = detail::changeEvent(id, kind, previous_state, state, previous_truth, truth, grid);
+      ChangeEvent e = detail::changeEvent(id, kind, previous_state, state, previous_truth, truth, grid);
+      e.from_session = static_cast<uint32_t>(s - 1);
       if (e.voxels.empty()) continue;  // hidden by other objects: nothing a map could see
       nlohmann::json voxels = nlohmann::json::array();
       for (const VoxelKey& k : e.voxels) voxels.push_back({k.x, k.y, k.z});
-      events_json.push_back({{"from_session", s - 1},
+      events_json.push_back({{"from_session", e.from_session},
                              {"to_session", s},
                              {"object", e.object},
                              {"object_kind", toString(e.object_kind)},
-                             {"kind", e.kind},
+                             {"kind", toString(e.kind)},
                              {"voxel_count", e.voxels.size()},
                              {"voxels", voxels}});
       ++summary.events;

@@ -20,6 +20,8 @@ namespace chronomap::sim {
 enum class ObjectKind : uint8_t { Floor, Wall, Door, Desk, Chair, Shelf, Table, Box, Person, Robot };
 /// "floor", "wall", "door", ...
 const char* toString(ObjectKind kind);
+/// The kind toString() names. @throw FormatError for an unknown name.
+ObjectKind parseObjectKind(const std::string& name);
 
 /// One axis-aligned box of an object with a colour per face (-x, +x, -y, +y, -z, +z).
 struct Part {
@@ -52,11 +54,20 @@ struct SceneState {
   Eigen::AlignedBox3d bounds;
 };
 
-/// One change between consecutive sessions, with the voxels of the ground truth it changes.
+/// What happened to an object between two sessions.
+enum class EventKind : uint8_t { DoorOpened, DoorClosed, Moved, Added, Removed, Appeared, Left };
+/// "door_opened", "door_closed", "moved", "added", "removed", "appeared", "left" (as in scene.json).
+const char* toString(EventKind kind);
+/// The kind toString() names. @throw FormatError for an unknown name.
+EventKind parseEventKind(const std::string& name);
+
+/// One change between sessions `from_session` and `from_session + 1`, with the voxels of the
+/// ground truth it changes: what simulate() writes into scene.json and readTruthEvents() reads.
 struct ChangeEvent {
+  uint32_t from_session = 0;
   uint32_t object = 0;
   ObjectKind object_kind = ObjectKind::Box;
-  std::string kind;  ///< "door_opened", "door_closed", "moved", "added", "removed", "appeared", "left"
+  EventKind kind = EventKind::Moved;
   std::vector<VoxelKey> voxels;  ///< truth voxels whose occupancy differs because of it
 };
 
@@ -65,6 +76,6 @@ struct ChangeEvent {
 SceneState makeScene(const std::string& preset, uint64_t seed);
 /// Applies one session's change processes to `state`; returns the changed object ids with
 /// their event kinds. A session may have no change at all.
-std::vector<std::pair<uint32_t, std::string>> applyChanges(SceneState& state, uint64_t seed, int session);
+std::vector<std::pair<uint32_t, EventKind>> applyChanges(SceneState& state, uint64_t seed, int session);
 
 }  // namespace chronomap::sim
