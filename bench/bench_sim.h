@@ -27,7 +27,7 @@ inline double seconds(std::chrono::steady_clock::time_point since) {
 struct SimSessions {
   std::vector<SessionMap> estimated;   // integrated with the estimated poses (trajectory.txt)
   std::vector<SessionMap> truth_pose;  // with the true poses (groundtruth.txt), when asked for
-  std::vector<sim::TruthEvent> events;
+  std::vector<sim::ChangeEvent> events;
   std::vector<std::filesystem::path> dirs;  // the session folders, in order
   std::vector<std::vector<Eigen::Vector3d>> positions;  // each session's sensor positions (estimated poses)
 };

@@ -101,11 +101,11 @@ DiffSettings noShiftDiff() {
 using bench::loadSimulation;
 using bench::SimSessions;
 
-sim::ChangeScore scorePairs(const std::vector<SessionMap>& maps, const std::vector<sim::TruthEvent>& events,
+sim::ChangeScore scorePairs(const std::vector<SessionMap>& maps, const std::vector<sim::ChangeEvent>& events,
                             const DiffSettings& ds, const SegmentSettings& ss, size_t* pairs_with_false = nullptr) {
   sim::ChangeScore total;
   for (size_t k = 1; k < maps.size(); ++k) {
-    const std::vector<sim::TruthEvent> pair = sim::eventsFrom(events, static_cast<uint32_t>(k - 1));
+    const std::vector<sim::ChangeEvent> pair = sim::eventsFrom(events, static_cast<uint32_t>(k - 1));
     const DiffMap d = diff(maps[k - 1], maps[k], ds);
     const Segmentation seg = segment(d, ss);
     const sim::ChangeScore s = sim::scoreChanges(d, seg, pair, maps[k - 1], maps[k]);

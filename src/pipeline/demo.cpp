@@ -99,7 +99,7 @@ TemporalMap buildMap(const sim::SimulationSummary& simulated, const std::vector<
 std::vector<DemoPair> findChanges(const DemoSettings& s, const std::vector<DemoSession>& sessions,
                                   const fs::path& images) {
   fs::create_directories(s.output / "changes");
-  const std::vector<sim::TruthEvent> truth_events = sim::readTruthEvents(s.output / "data" / "scene.json");
+  const std::vector<sim::ChangeEvent> truth_events = sim::readTruthEvents(s.output / "data" / "scene.json");
   const DemoChangeSettings cs = demoChangeSettings();
   std::vector<DemoPair> pairs;
   for (size_t k = 1; k < sessions.size(); ++k) {

@@ -17,7 +17,7 @@ std::string percent(double v) {
   return s.str();
 }
 
-std::string eventName(const sim::TruthEvent& e) { return e.object_kind + " " + e.kind; }
+std::string eventName(const sim::ChangeEvent& e) { return std::string(toString(e.object_kind)) + " " + toString(e.kind); }
 
 void introduction(std::ostream& md, const DemoReportInput& in) {
   md << "# chronomap demo: the simulated office\n\n"

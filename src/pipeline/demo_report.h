@@ -27,7 +27,7 @@ struct DemoSession {
 /// The changes between sessions `from` and `from + 1`.
 struct DemoPair {
   size_t from = 0;
-  std::vector<sim::TruthEvent> events;
+  std::vector<sim::ChangeEvent> events;
   Segmentation segmentation;
   sim::ChangeScore score;
 };

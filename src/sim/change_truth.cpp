@@ -9,17 +9,17 @@
 
 namespace chronomap::sim {
 
-std::vector<TruthEvent> readTruthEvents(const std::filesystem::path& scene_json) {
+std::vector<ChangeEvent> readTruthEvents(const std::filesystem::path& scene_json) {
   const std::string source = scene_json.string();
-  std::vector<TruthEvent> out;
+  std::vector<ChangeEvent> out;
   try {
     const nlohmann::json j = nlohmann::json::parse(io::readTextFile(scene_json));
     for (const auto& e : j.at("events")) {
-      TruthEvent t;
+      ChangeEvent t;
       t.from_session = e.at("from_session").get<uint32_t>();
       t.object = e.at("object").get<uint32_t>();
-      t.object_kind = e.at("object_kind").get<std::string>();
-      t.kind = e.at("kind").get<std::string>();
+      t.object_kind = parseObjectKind(e.at("object_kind").get<std::string>());
+      t.kind = parseEventKind(e.at("kind").get<std::string>());
       for (const auto& v : e.at("voxels")) {
         t.voxels.push_back(VoxelKey{v.at(0).get<uint16_t>(), v.at(1).get<uint16_t>(), v.at(2).get<uint16_t>()});
       }
@@ -27,13 +27,15 @@ std::vector<TruthEvent> readTruthEvents(const std::filesystem::path& scene_json)
     }
   } catch (const nlohmann::json::exception& e) {
     throw FormatError(source + ": not a simulator scene (" + e.what() + ")");
+  } catch (const FormatError& e) {
+    throw FormatError(source + ": " + e.what());
   }
   return out;
 }
 
-std::vector<TruthEvent> eventsFrom(const std::vector<TruthEvent>& events, uint32_t from_session) {
-  std::vector<TruthEvent> out;
-  for (const TruthEvent& e : events) {
+std::vector<ChangeEvent> eventsFrom(const std::vector<ChangeEvent>& events, uint32_t from_session) {
+  std::vector<ChangeEvent> out;
+  for (const ChangeEvent& e : events) {
     if (e.from_session == from_session) out.push_back(e);
   }
   return out;
@@ -53,7 +55,7 @@ ChangeScore& ChangeScore::operator+=(const ChangeScore& o) {
   return *this;
 }
 
-ChangeScore scoreChanges(const DiffMap& diff, const Segmentation& segmentation, const std::vector<TruthEvent>& events,
+ChangeScore scoreChanges(const DiffMap& diff, const Segmentation& segmentation, const std::vector<ChangeEvent>& events,
                          const SessionMap& before, const SessionMap& after, const ChangeScoreSettings& settings) {
   ChangeScore s;
   s.events = events.size();
@@ -113,10 +115,11 @@ ChangeScore scoreChanges(const DiffMap& diff, const Segmentation& segmentation, 
     if (found[e]) {
       ++s.events_found;
     } else {
-      const TruthEvent& ev = events[e];
-      s.missed_events.push_back(ev.object_kind + " " + std::to_string(ev.object) + " " + ev.kind + " (session " +
-                                std::to_string(ev.from_session) + " -> " + std::to_string(ev.from_session + 1) + ", " +
-                                std::to_string(known[e].size()) + " voxels observed)");
+      const ChangeEvent& ev = events[e];
+      s.missed_events.push_back(std::string(toString(ev.object_kind)) + " " + std::to_string(ev.object) + " " +
+                                toString(ev.kind) + " (session " + std::to_string(ev.from_session) + " -> " +
+                                std::to_string(ev.from_session + 1) + ", " + std::to_string(known[e].size()) +
+                                " voxels observed)");
     }
   }
   return s;

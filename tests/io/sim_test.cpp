@@ -11,6 +11,7 @@
 #include "chronomap/io/dataset.h"
 #include "chronomap/io/file.h"
 #include "chronomap/sim/building.h"
+#include "chronomap/sim/change_truth.h"
 #include "test_support.h"
 
 namespace chronomap {
@@ -162,6 +163,17 @@ TEST(Simulator, ChangeEventsShowInTheTruth) {
     }
   }
   EXPECT_GE(kinds.size(), 2u);
+  // The evaluators read back the events the simulator wrote.
+  const std::vector<sim::ChangeEvent> events = sim::readTruthEvents(tmp / "scene.json");
+  ASSERT_EQ(events.size(), scene["events"].size());
+  for (size_t i = 0; i < events.size(); ++i) {
+    const auto& e = scene["events"][i];
+    EXPECT_EQ(events[i].from_session, e["from_session"].get<uint32_t>());
+    EXPECT_EQ(events[i].object, e["object"].get<uint32_t>());
+    EXPECT_EQ(toString(events[i].object_kind), e["object_kind"].get<std::string>());
+    EXPECT_EQ(toString(events[i].kind), e["kind"].get<std::string>());
+    EXPECT_EQ(events[i].voxels.size(), e["voxel_count"].get<size_t>());
+  }
 }
 
 TEST(Simulator, TinySessionWithTruePosesMatchesTheTruth) {

@@ -4,7 +4,10 @@
 
 #include "chronomap/analysis/diff.h"
 #include "chronomap/analysis/segment.h"
+#include "chronomap/core/error.h"
+#include "chronomap/io/file.h"
 #include "chronomap/sim/change_truth.h"
+#include "test_support.h"
 
 namespace chronomap::sim {
 namespace {
@@ -47,10 +50,10 @@ SessionMap room(std::initializer_list<Box> boxes) {
   return m;
 }
 
-TruthEvent eventOf(const Box& b, uint32_t object, const char* kind) {
-  TruthEvent e;
+ChangeEvent eventOf(const Box& b, uint32_t object, EventKind kind) {
+  ChangeEvent e;
   e.object = object;
-  e.object_kind = "box";
+  e.object_kind = ObjectKind::Box;
   e.kind = kind;
   for (int x = b.x0; x <= b.x1; ++x) {
     for (int y = b.y0; y <= b.y1; ++y) {
@@ -60,7 +63,7 @@ TruthEvent eventOf(const Box& b, uint32_t object, const char* kind) {
   return e;
 }
 
-ChangeScore score(const SessionMap& before, const SessionMap& after, const std::vector<TruthEvent>& events) {
+ChangeScore score(const SessionMap& before, const SessionMap& after, const std::vector<ChangeEvent>& events) {
   const DiffMap d = diff(before, after);
   return scoreChanges(d, segment(d), events, before, after);
 }
@@ -70,7 +73,7 @@ TEST(ChangeTruth, AnAppearedBoxIsFoundAndAStrayVoxelIsFalse) {
   const Box stray{20, 20, 20, 22, 22, 22};  // 27 voxels, no event
   const SessionMap before = room({});
   const SessionMap after = room({table, stray});
-  const ChangeScore s = score(before, after, {eventOf(table, 3, "appeared")});
+  const ChangeScore s = score(before, after, {eventOf(table, 3, EventKind::Appeared)});
   EXPECT_EQ(s.events, 1u);
   EXPECT_EQ(s.events_observable, 1u);
   EXPECT_EQ(s.events_found, 1u);
@@ -91,7 +94,7 @@ TEST(ChangeTruth, AnUnseenChangeIsMissedAndNamed) {
   const Box chair{10, 10, 10, 12, 12, 12};
   const SessionMap before = room({chair});
   const SessionMap after = room({chair});
-  TruthEvent e = eventOf(chair, 17, "moved");
+  ChangeEvent e = eventOf(chair, 17, EventKind::Moved);
   e.from_session = 2;
   const ChangeScore s = score(before, after, {e});
   EXPECT_EQ(s.events_observable, 1u);
@@ -105,9 +108,9 @@ TEST(ChangeTruth, AnUnseenChangeIsMissedAndNamed) {
 
 TEST(ChangeTruth, EventsOutsideTheObservedSpaceDoNotCount) {
   // 19 voxels known (below the default minimum of 20), the rest outside the observed region.
-  TruthEvent e;
-  e.object_kind = "door";
-  e.kind = "door_opened";
+  ChangeEvent e;
+  e.object_kind = ObjectKind::Door;
+  e.kind = EventKind::DoorOpened;
   for (int i = 0; i < 19; ++i) e.voxels.push_back(at(i, 0, 0));
   for (int i = 0; i < 40; ++i) e.voxels.push_back(at(i, 40, 0));
   const SessionMap m = room({});
@@ -123,6 +126,46 @@ TEST(ChangeTruth, EventsOutsideTheObservedSpaceDoNotCount) {
   EXPECT_EQ(twice.events_observable, 1u);
   EXPECT_EQ(twice.missed_events.size(), 1u);
   EXPECT_EQ(twice.truth_voxels, 39u);
+}
+
+TEST(ChangeTruth, KindsReadBackAsTheyAreWritten) {
+  for (EventKind k : {EventKind::DoorOpened, EventKind::DoorClosed, EventKind::Moved, EventKind::Added,
+                      EventKind::Removed, EventKind::Appeared, EventKind::Left}) {
+    EXPECT_EQ(parseEventKind(toString(k)), k) << toString(k);
+  }
+  EXPECT_STREQ(toString(EventKind::DoorOpened), "door_opened");
+  EXPECT_STREQ(toString(EventKind::Left), "left");
+  EXPECT_THROW(parseEventKind("teleported"), FormatError);
+  EXPECT_THROW(parseEventKind(""), FormatError);
+  for (ObjectKind k : {ObjectKind::Floor, ObjectKind::Wall, ObjectKind::Door, ObjectKind::Desk, ObjectKind::Chair,
+                       ObjectKind::Shelf, ObjectKind::Table, ObjectKind::Box, ObjectKind::Person, ObjectKind::Robot}) {
+    EXPECT_EQ(parseObjectKind(toString(k)), k) << toString(k);
+  }
+  EXPECT_THROW(parseObjectKind("sofa"), FormatError);
+}
+
+TEST(ChangeTruth, ReadsTheEventsOfASceneAndRejectsUnknownKinds) {
+  test::TempDir tmp;
+  const auto write = [&](const std::string& kind) {
+    const std::string text = R"({"events": [{"from_session": 1, "to_session": 2, "object": 7, "object_kind": "chair",
+                                 "kind": ")" + kind + R"(", "voxel_count": 1, "voxels": [[1, 2, 3]]}]})";
+    io::writeFileAtomic(tmp / "scene.json", std::vector<uint8_t>(text.begin(), text.end()));
+    return tmp / "scene.json";
+  };
+  const std::vector<ChangeEvent> events = readTruthEvents(write("door_closed"));
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].from_session, 1u);
+  EXPECT_EQ(events[0].object, 7u);
+  EXPECT_EQ(events[0].object_kind, ObjectKind::Chair);
+  EXPECT_EQ(events[0].kind, EventKind::DoorClosed);
+  EXPECT_EQ(events[0].voxels, (std::vector<VoxelKey>{VoxelKey{1, 2, 3}}));
+  try {
+    readTruthEvents(write("vanished"));
+    FAIL() << "an unknown kind was read";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("scene.json"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("'vanished'"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

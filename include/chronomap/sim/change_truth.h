@@ -10,23 +10,16 @@
 
 #include "chronomap/analysis/segment.h"
 #include "chronomap/octree/session_map.h"
+#include "chronomap/sim/scene.h"
 
 namespace chronomap::sim {
 
-/// One change event of a simulation, between sessions `from_session` and `from_session + 1`.
-struct TruthEvent {
-  uint32_t from_session = 0;
-  uint32_t object = 0;
-  std::string object_kind;  ///< "chair", "door", ...
-  std::string kind;         ///< "moved", "door_opened", ...
-  std::vector<VoxelKey> voxels;  ///< truth voxels whose occupancy differs because of it
-};
-
-/// Reads the events of a simulation's scene.json. @throw IoError, FormatError naming the file.
-std::vector<TruthEvent> readTruthEvents(const std::filesystem::path& scene_json);
+/// Reads the change events simulate() wrote into a simulation's scene.json.
+/// @throw IoError, FormatError naming the file (unknown object or event kinds included).
+std::vector<ChangeEvent> readTruthEvents(const std::filesystem::path& scene_json);
 
 /// The events between sessions `from_session` and `from_session + 1`.
-std::vector<TruthEvent> eventsFrom(const std::vector<TruthEvent>& events, uint32_t from_session);
+std::vector<ChangeEvent> eventsFrom(const std::vector<ChangeEvent>& events, uint32_t from_session);
 
 /// Settings of the scoring.
 struct ChangeScoreSettings {
@@ -62,7 +55,7 @@ struct ChangeScore {
 
 /// Scores a diff between sessions `before` and `after` and its segmentation against the events
 /// between them.
-ChangeScore scoreChanges(const DiffMap& diff, const Segmentation& segmentation, const std::vector<TruthEvent>& events,
+ChangeScore scoreChanges(const DiffMap& diff, const Segmentation& segmentation, const std::vector<ChangeEvent>& events,
                          const SessionMap& before, const SessionMap& after, const ChangeScoreSettings& settings = {});
 
 }  // namespace chronomap::sim

@@ -1,0 +1,64 @@
+#pragma once
+/// @file
+/// The simulator's camera: ray casting a scene state through a bounding-volume hierarchy into
+/// Kinect-like RGB-D frames.
+
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "chronomap/core/image.h"
+#include "chronomap/sim/scene.h"
+
+namespace chronomap::sim {
+
+/// Pinhole camera in the optical frame (x right, y down, z forward).
+struct Camera {
+  uint32_t width = 640, height = 480;
+  double fx = 0, fy = 0, cx = 0, cy = 0;
+};
+/// The Kinect-like camera: 57 degrees horizontal field of view, 640 x 480 times `scale`.
+Camera kinectCamera(double scale = 1.0);
+
+/// Depth sensor model.
+struct SensorModel {
+  double noise_per_m2 = 0.0014;  ///< sigma = noise * z^2, metres
+  double min_range_m = 0.5, max_range_m = 5.0;
+  double depth_scale = 5000.0;   ///< units per metre in the depth PNG (TUM)
+  double edge_dropout = 0.5;     ///< probability of losing a pixel at a depth edge
+  double dark_dropout = 0.6;     ///< probability of losing a pixel on a dark surface
+  double dark_luminance = 40.0;  ///< surfaces darker than this (0..255) are "dark"
+};
+
+/// One rendered frame: what the sensor recorded, and the noise-free depth (metres, 0 = no hit).
+struct RenderedFrame {
+  ImageRgb rgb;
+  ImageU16 depth;
+  std::vector<float> true_depth_m;
+};
+
+/// Ray caster over a scene state: a bounding-volume hierarchy over the present parts.
+class Renderer {
+ public:
+  explicit Renderer(const SceneState& state);
+  /// Distance along a unit ray to the nearest part, its face colour; false when nothing is hit.
+  bool cast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double& t, Rgb& color) const;
+  /// Renders one frame. `hour` (0..24) sets the lighting colour; `seed` the noise.
+  RenderedFrame render(const Camera& camera, const Eigen::Isometry3d& T_world_camera, const SensorModel& sensor,
+                       double hour, uint64_t seed) const;
+
+ private:
+  struct Node {
+    Eigen::AlignedBox3d box;
+    uint32_t first = 0, count = 0;  // parts (leaf) or, when count == 0, children first, first + 1
+  };
+  std::vector<Part> parts_;
+  std::vector<Node> nodes_;
+  void build(uint32_t node, uint32_t begin, uint32_t end);
+};
+
+/// The lighting colour multiplier at an hour of the day (warm mornings, cool evenings).
+Eigen::Vector3d lightingAt(double hour);
+
+}  // namespace chronomap::sim

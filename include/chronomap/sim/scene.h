@@ -1,0 +1,81 @@
+#pragma once
+/// @file
+/// The simulated building's scene: objects made of boxes in rooms, generated from a seed, and
+/// the change events between sessions.
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "chronomap/core/key.h"
+#include "chronomap/core/counters.h"
+
+namespace chronomap::sim {
+
+/// What an object is; change processes act by kind.
+enum class ObjectKind : uint8_t { Floor, Wall, Door, Desk, Chair, Shelf, Table, Box, Person, Robot };
+/// "floor", "wall", "door", ...
+const char* toString(ObjectKind kind);
+/// The kind toString() names. @throw FormatError for an unknown name.
+ObjectKind parseObjectKind(const std::string& name);
+
+/// One axis-aligned box of an object with a colour per face (-x, +x, -y, +y, -z, +z).
+struct Part {
+  Eigen::AlignedBox3d box;
+  std::array<Rgb, 6> face_colors;
+};
+
+/// An object of the scene. Its parts are in world coordinates for the current state.
+struct Object {
+  uint32_t id = 0;
+  ObjectKind kind = ObjectKind::Box;
+  int room = -1;  ///< index into SceneState::rooms, -1 for the corridor or the building
+  bool present = true;
+  std::vector<Part> parts;
+};
+
+/// A room's floor area (z = 0) and its door.
+struct Room {
+  std::string name;           ///< "office 3", "kitchen", "meeting room", "corridor"
+  Eigen::AlignedBox2d area;   ///< inside the walls
+  Eigen::Vector2d door_m;     ///< centre of the door opening, on the wall to the corridor
+  Eigen::Vector2d inside_m;   ///< where the robot stands to look around
+  uint32_t door_object = 0;   ///< id of the door
+};
+
+/// The state of the building during one session.
+struct SceneState {
+  std::vector<Object> objects;
+  std::vector<Room> rooms;
+  Eigen::AlignedBox3d bounds;
+};
+
+/// What happened to an object between two sessions.
+enum class EventKind : uint8_t { DoorOpened, DoorClosed, Moved, Added, Removed, Appeared, Left };
+/// "door_opened", "door_closed", "moved", "added", "removed", "appeared", "left" (as in scene.json).
+const char* toString(EventKind kind);
+/// The kind toString() names. @throw FormatError for an unknown name.
+EventKind parseEventKind(const std::string& name);
+
+/// One change between sessions `from_session` and `from_session + 1`, with the voxels of the
+/// ground truth it changes: what simulate() writes into scene.json and readTruthEvents() reads.
+struct ChangeEvent {
+  uint32_t from_session = 0;
+  uint32_t object = 0;
+  ObjectKind object_kind = ObjectKind::Box;
+  EventKind kind = EventKind::Moved;
+  std::vector<VoxelKey> voxels;  ///< truth voxels whose occupancy differs because of it
+};
+
+/// The building of a preset in its first session's state.
+/// @throw UsageError for an unknown preset.
+SceneState makeScene(const std::string& preset, uint64_t seed);
+/// Applies one session's change processes to `state`; returns the changed object ids with
+/// their event kinds. A session may have no change at all.
+std::vector<std::pair<uint32_t, EventKind>> applyChanges(SceneState& state, uint64_t seed, int session);
+
+}  // namespace chronomap::sim

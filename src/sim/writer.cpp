@@ -1,0 +1,246 @@
+// The writer: simulate() runs the sessions and writes their TUM folders, the truth and scene.json.
+#include "chronomap/sim/building.h"
+
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <numbers>
+
+#include "chronomap/core/error.h"
+#include "chronomap/core/parallel.h"
+#include "chronomap/core/time.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/file.h"
+#include "chronomap/io/png.h"
+#include "internal.h"
+
+namespace chronomap::sim {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+using detail::centerOf;
+using detail::kCameraHeight;
+using detail::kCameraPitchDeg;
+using detail::mix;
+using detail::Rng;
+
+struct PresetPlan {
+  int sessions;
+  double days;
+};
+
+PresetPlan presetPlan(const std::string& preset) {
+  if (preset == "tiny") return {3, 2};
+  if (preset == "office") return {6, 4};
+  return {66, 45};
+}
+
+std::string poseLine(double stamp, const Eigen::Isometry3d& T) {
+  const Eigen::Quaterniond q(T.rotation());
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "%.6f %.6f %.6f %.6f %.9f %.9f %.9f %.9f\n", stamp, T.translation().x(),
+                T.translation().y(), T.translation().z(), q.x(), q.y(), q.z(), q.w());
+  return buf;
+}
+
+void writeText(const fs::path& path, const std::string& text) {
+  io::writeFileAtomic(path, std::vector<uint8_t>(text.begin(), text.end()));
+}
+
+nlohmann::json objectsJson(const SceneState& state) {
+  nlohmann::json objects = nlohmann::json::array();
+  for (const Object& o : state.objects) {
+    if (!o.present) continue;
+    nlohmann::json parts = nlohmann::json::array();
+    for (const Part& p : o.parts) {
+      parts.push_back({{"min", {p.box.min().x(), p.box.min().y(), p.box.min().z()}},
+                       {"max", {p.box.max().x(), p.box.max().y(), p.box.max().z()}},
+                       {"color", {p.face_colors[5].r, p.face_colors[5].g, p.face_colors[5].b}}});
+    }
+    const Eigen::Vector2d c = centerOf(o);
+    objects.push_back({{"id", o.id},
+                       {"kind", toString(o.kind)},
+                       {"room", o.room >= 0 ? state.rooms[static_cast<size_t>(o.room)].name : ""},
+                       {"position", {c.x(), c.y()}},
+                       {"parts", parts}});
+  }
+  return objects;
+}
+
+}  // namespace
+
+SimulationSummary simulate(const SimulationSettings& settings, const fs::path& out,
+                           const SimulationProgress& progress) {
+  const auto started = std::chrono::steady_clock::now();
+  const PresetPlan plan = presetPlan(settings.preset);
+  SceneState state = makeScene(settings.preset, settings.seed);  // validates the preset
+  const int sessions = settings.sessions > 0 ? settings.sessions : plan.sessions;
+  if (settings.sessions < 0 || sessions > 1000) throw UsageError("--sessions must lie between 1 and 1000");
+  if (!(settings.resolution_scale >= 0.1 && settings.resolution_scale <= 1.0)) {
+    throw UsageError("--resolution-scale must lie between 0.1 and 1");
+  }
+  if (!(settings.noise_per_m2 >= 0.0) || !(settings.localisation_offset_m >= 0.0) ||
+      !(settings.localisation_yaw_deg >= 0.0) || !(settings.drift_per_frame_m >= 0.0)) {
+    throw UsageError("noise and localisation errors must be non-negative");
+  }
+  const KeyGrid grid(settings.voxel_resolution_m);
+  const Camera camera = kinectCamera(settings.resolution_scale);
+  SensorModel sensor;
+  sensor.noise_per_m2 = settings.noise_per_m2;
+  std::error_code ec;
+  fs::create_directories(out / "truth", ec);
+  if (ec) throw IoError(out.string() + ": cannot create folder (" + ec.message() + ")");
+  std::unique_ptr<tbb::global_control> limit;
+  if (settings.threads > 0) {
+    limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                  static_cast<size_t>(settings.threads));
+  }
+
+  // Session times: 2 or 3 sessions on a recording day, at different hours, a day or two apart.
+  Rng time_rng(mix(settings.seed, 77));
+  std::vector<double> times, hours;
+  const double start = 1330560000.0;  // 2012-03-01T00:00:00Z
+  double day = 0.0;
+  while (static_cast<int>(times.size()) < sessions) {
+    static constexpr double kHours[] = {9.0, 11.5, 14.0, 16.5, 19.0};
+    const int today = settings.preset == "tiny" ? 1 : 2 + (time_rng.chance(0.5) ? 1 : 0);
+    int first = time_rng.below(5 - today + 1);
+    for (int k = 0; k < today && static_cast<int>(times.size()) < sessions; ++k) {
+      const double h = kHours[first + k] + time_rng.uniform(0.0, 1.0);
+      hours.push_back(h);
+      times.push_back(start + 86400.0 * day + 3600.0 * h);
+    }
+    day += plan.days * 2.5 / plan.sessions >= 1.0 ? 1.0 + time_rng.below(2) : 1.0;
+  }
+
+  SimulationSummary summary;
+  nlohmann::json sessions_json = nlohmann::json::array(), events_json = nlohmann::json::array();
+  std::vector<VoxelKey> previous_truth;
+  SceneState previous_state;
+  for (int s = 0; s < sessions; ++s) {
+    std::vector<std::pair<uint32_t, EventKind>> changes;
+    if (s > 0) changes = applyChanges(state, settings.seed, s);
+    const std::vector<VoxelKey> truth = truthOccupancy(state, grid);
+    // Change events with the truth voxels each one changes.
+    for (const auto& [id, kind] : changes) {
+      ChangeEvent e = detail::changeEvent(id, kind, previous_state, state, previous_truth, truth, grid);
+      e.from_session = static_cast<uint32_t>(s - 1);
+      if (e.voxels.empty()) continue;  // hidden by other objects: nothing a map could see
+      nlohmann::json voxels = nlohmann::json::array();
+      for (const VoxelKey& k : e.voxels) voxels.push_back({k.x, k.y, k.z});
+      events_json.push_back({{"from_session", e.from_session},
+                             {"to_session", s},
+                             {"object", e.object},
+                             {"object_kind", toString(e.object_kind)},
+                             {"kind", toString(e.kind)},
+                             {"voxel_count", e.voxels.size()},
+                             {"voxels", voxels}});
+      ++summary.events;
+    }
+
+    // The patrol, true and estimated poses.
+    const detail::Patrol patrol = detail::patrolSession(state, settings, s);
+    const size_t frames = patrol.true_poses.size();
+
+    char name[32];
+    std::snprintf(name, sizeof name, "session_%02d", s);
+    const fs::path dir = out / name;
+    fs::create_directories(dir / "rgb", ec);
+    fs::create_directories(dir / "depth", ec);
+    if (ec) throw IoError(dir.string() + ": cannot create folder (" + ec.message() + ")");
+    const Renderer renderer(state);
+    std::vector<std::string> stamps(frames);
+    for (size_t i = 0; i < frames; ++i) {
+      char st[32];
+      std::snprintf(st, sizeof st, "%.6f", times[static_cast<size_t>(s)] + 0.5 * static_cast<double>(i));
+      stamps[i] = st;
+    }
+    parallelFor(frames, settings.threads, [&](size_t i) {
+      const RenderedFrame f = renderer.render(camera, patrol.true_poses[i], sensor, hours[static_cast<size_t>(s)],
+                                              mix(settings.seed, (static_cast<uint64_t>(s) << 20) + i));
+      io::writePng(dir / "rgb" / (stamps[i] + ".png"), f.rgb);
+      io::writePng(dir / "depth" / (stamps[i] + ".png"), f.depth);
+    });
+    std::string rgb_txt = "# color images\n# timestamp filename\n", depth_txt = "# depth maps\n# timestamp filename\n";
+    std::string gt = "# true camera poses\n# timestamp tx ty tz qx qy qz qw\n";
+    std::string traj = "# estimated camera poses (localisation with offset and drift)\n# timestamp tx ty tz qx qy qz qw\n";
+    for (size_t i = 0; i < frames; ++i) {
+      const double stamp = times[static_cast<size_t>(s)] + 0.5 * static_cast<double>(i);
+      rgb_txt += stamps[i] + " rgb/" + stamps[i] + ".png\n";
+      depth_txt += stamps[i] + " depth/" + stamps[i] + ".png\n";
+      gt += poseLine(stamp, patrol.true_poses[i]);
+      traj += poseLine(stamp, patrol.estimated[i]);
+    }
+    writeText(dir / "rgb.txt", rgb_txt);
+    writeText(dir / "depth.txt", depth_txt);
+    writeText(dir / "groundtruth.txt", gt);
+    writeText(dir / "trajectory.txt", traj);
+    char k[128];
+    std::snprintf(k, sizeof k, "%.6f %.6f %.6f %.6f\n", camera.fx, camera.fy, camera.cx, camera.cy);
+    writeText(dir / "camera-intrinsics.txt", k);
+
+    // Ground truth of this session.
+    const SessionMap occupancy = detail::truthMap(truth, grid);
+    char truth_name[64];
+    std::snprintf(truth_name, sizeof truth_name, "occupancy_%02d.cmap", s);
+    io::writeSessionMap(out / "truth" / truth_name,
+                        occupancy, {{"created_by", "chronomap simulate"}, {"truth", true}, {"session", s}});
+    std::snprintf(truth_name, sizeof truth_name, "objects_%02d.json", s);
+    writeText(out / "truth" / truth_name, objectsJson(state).dump(1) + "\n");
+
+    const double offset_yaw_deg = patrol.offset_yaw_rad * 180.0 / std::numbers::pi;
+    sessions_json.push_back({{"index", s},
+                             {"dir", name},
+                             {"time_s", times[static_cast<size_t>(s)]},
+                             {"time", formatTime(times[static_cast<size_t>(s)])},
+                             {"hour", hours[static_cast<size_t>(s)]},
+                             {"frames", frames},
+                             {"changes", changes.size()},
+                             {"localisation_offset", {patrol.offset_x_m, patrol.offset_y_m, offset_yaw_deg}}});
+    summary.session_dirs.push_back(dir);
+    summary.times_s.push_back(times[static_cast<size_t>(s)]);
+    summary.hours.push_back(hours[static_cast<size_t>(s)]);
+    summary.frames += frames;
+    previous_truth = truth;
+    previous_state = state;
+    if (progress) progress(static_cast<size_t>(s) + 1, static_cast<size_t>(sessions));
+  }
+  nlohmann::json scene = {{"created_by", "chronomap simulate"},
+                          {"preset", settings.preset},
+                          {"seed", settings.seed},
+                          {"voxel_resolution_m", settings.voxel_resolution_m},
+                          {"camera",
+                           {{"width", camera.width},
+                            {"height", camera.height},
+                            {"fx", camera.fx},
+                            {"fy", camera.fy},
+                            {"cx", camera.cx},
+                            {"cy", camera.cy},
+                            {"height_m", kCameraHeight},
+                            {"pitch_deg", kCameraPitchDeg}}},
+                          {"sensor",
+                           {{"noise_per_m2", sensor.noise_per_m2},
+                            {"depth_scale", sensor.depth_scale},
+                            {"min_range_m", sensor.min_range_m},
+                            {"max_range_m", sensor.max_range_m}}},
+                          {"rooms", nlohmann::json::array()},
+                          {"sessions", sessions_json},
+                          {"events", events_json}};
+  for (const Room& r : state.rooms) {
+    scene["rooms"].push_back({{"name", r.name},
+                              {"min", {r.area.min().x(), r.area.min().y()}},
+                              {"max", {r.area.max().x(), r.area.max().y()}}});
+  }
+  writeText(out / "scene.json", scene.dump(1) + "\n");
+  summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  return summary;
+}
+
+}  // namespace chronomap::sim
