@@ -1,13 +1,20 @@
 #include <gtest/gtest.h>
 
 #include <map>
+#include <optional>
 #include <random>
 
 #include "chronomap/core/error.h"
 #include "chronomap/octree/session_map.h"
+#include "builders.h"
 
 namespace chronomap {
 namespace {
+
+using test::at;
+using test::freeVoxel;
+using test::nearlyEqual;
+using test::occupiedVoxel;
 
 VoxelCounters free(float length) {
   VoxelCounters c;
@@ -196,6 +203,78 @@ TEST(SessionMap, AssignPoolsRejectsInvalidTrees) {
   inner[0][1] = SessionMap::kEmpty;
   EXPECT_THROW(m.assignPools(inner, {free(1.0f), free(1.0f)}), FormatError);  // unreachable leaf
   EXPECT_THROW(m.assignPools(inner, {free(std::nanf(""))}), FormatError);
+}
+
+// ---------------------------------------------------------------------------------------------
+// SessionMap building blocks
+
+TEST(SessionMapMerge, SumsCountersAndSpreadsCompressedNodesEvenly) {
+  SessionMap coarse(0.05), fine(0.05);
+  coarse.addCube(at(0, 0, 0), 2, freeVoxel(6.4f));  // 64 voxels, 0.1 m each
+  fine.add(at(1, 2, 3), occupiedVoxel({10, 20, 30}, 4));
+  fine.add(at(5, 0, 0), freeVoxel(0.5f));  // outside the cube
+  SessionMap sum = coarse;
+  sum.merge(fine);
+  for (int z = 0; z < 4; ++z) {
+    for (int y = 0; y < 4; ++y) {
+      for (int x = 0; x < 4; ++x) {
+        VoxelCounters expected = freeVoxel(0.1f);
+        if (x == 1 && y == 2 && z == 3) expected += occupiedVoxel({10, 20, 30}, 4);
+        ASSERT_TRUE(sum.find(at(x, y, z)));
+        EXPECT_TRUE(nearlyEqual(*sum.find(at(x, y, z)), expected)) << x << y << z;
+      }
+    }
+  }
+  EXPECT_EQ(sum.find(at(5, 0, 0))->length_m, 0.5f);
+  EXPECT_FALSE(sum.find(at(6, 0, 0)));
+  // The other way round gives the same voxels.
+  SessionMap other = fine;
+  other.merge(coarse);
+  for (int x = 0; x < 6; ++x) EXPECT_TRUE(nearlyEqual(*sum.find(at(x, 0, 0)), *other.find(at(x, 0, 0))));
+}
+
+TEST(SessionMapMerge, MergingAMapIntoItselfDoublesIt) {
+  SessionMap m = test::randomSessionMap(3, 8);
+  const SessionMap before = m;
+  m.merge(m);
+  before.forEachLeaf([&](const LeafView& l) {
+    VoxelCounters twice = l.counters;
+    twice += l.counters;
+    const auto leaf = m.findLeaf(l.key);
+    ASSERT_TRUE(leaf);
+    EXPECT_EQ(leaf->level, l.level);
+    EXPECT_EQ(leaf->counters, twice);
+  });
+}
+
+TEST(SessionMapAssign, SetsAndForgetsVoxelsInsideCompressedNodes) {
+  SessionMap m(0.05);
+  m.addCube(at(0, 0, 0), 3, freeVoxel(51.2f));  // 512 voxels of 0.1 m
+  m.assign(at(3, 3, 3), occupiedVoxel({1, 2, 3}));
+  m.assign(at(4, 4, 4), std::nullopt);
+  EXPECT_EQ(m.stateOf(at(3, 3, 3)), VoxelState::Occupied);
+  EXPECT_EQ(m.stateOf(at(4, 4, 4)), VoxelState::Unknown);
+  EXPECT_FLOAT_EQ(m.find(at(0, 0, 0))->length_m, 0.1f);
+  EXPECT_FLOAT_EQ(m.find(at(7, 7, 7))->length_m, 0.1f);
+  const SessionMapCounts c = m.counts();
+  EXPECT_EQ(c.occupied_voxels, 1u);
+  EXPECT_EQ(c.free_voxels, 510u);
+  // Forgetting the only voxel of a branch leaves no empty inner nodes after compression.
+  SessionMap single(0.05);
+  single.add(at(9, 9, 9), occupiedVoxel({1, 1, 1}));
+  single.assign(at(9, 9, 9), std::nullopt);
+  single.compressFree();
+  EXPECT_EQ(single.innerCount(), 1u);
+  EXPECT_EQ(single.leafCount(), 0u);
+}
+
+TEST(SessionMapAddCube, RejectsBadCubes) {
+  SessionMap m(0.05);
+  EXPECT_THROW(m.addCube(at(1, 0, 0), 1, freeVoxel()), UsageError);  // not aligned
+  EXPECT_THROW(m.addCube(at(0, 0, 0), kTreeDepth, freeVoxel()), UsageError);
+  EXPECT_THROW(m.addCube(at(0, 0, 0), 2, occupiedVoxel({1, 1, 1})), UsageError);  // hits above unit level
+  m.addCube(at(0, 0, 0), 2, VoxelCounters{});  // an unobserved cube adds nothing
+  EXPECT_TRUE(m.empty());
 }
 
 }  // namespace
