@@ -16,12 +16,6 @@ using test::freeVoxel;
 using test::nearlyEqual;
 using test::occupiedVoxel;
 
-VoxelCounters free(float length) {
-  VoxelCounters c;
-  c.length_m = length;
-  return c;
-}
-
 VoxelCounters hit(float length, uint32_t hits, uint8_t r = 0) {
   VoxelCounters c;
   c.length_m = length;
@@ -103,7 +97,7 @@ TEST(SessionMap, CompressionMergesKnownFreeSubtreesAndKeepsSums) {
     for (uint16_t y = 8; y < 12; ++y) {
       for (uint16_t z = 8; z < 12; ++z) {
         const float l = 0.01f * static_cast<float>(1 + x + y + z);
-        m.add({x, y, z}, free(l));
+        m.add({x, y, z}, freeVoxel(l));
         total += l;
       }
     }
@@ -133,9 +127,15 @@ TEST(SessionMap, CompressionMergesKnownFreeSubtreesAndKeepsSums) {
 
 TEST(SessionMap, CompressionNeverMergesHitsOrUnknown) {
   SessionMap m(0.1);
-  for (uint16_t i = 0; i < 8; ++i) m.add({static_cast<uint16_t>(i & 1), static_cast<uint16_t>((i >> 1) & 1), static_cast<uint16_t>(i >> 2)}, free(0.1f));
+  for (uint16_t i = 0; i < 8; ++i) {
+    m.add({static_cast<uint16_t>(i & 1), static_cast<uint16_t>((i >> 1) & 1), static_cast<uint16_t>(i >> 2)},
+          freeVoxel(0.1f));
+  }
   m.add({1, 1, 1}, hit(0.0f, 1));  // a free voxel with a hit: P = 1 - exp(-1/0.1) -> occupied
-  for (uint16_t i = 0; i < 7; ++i) m.add({static_cast<uint16_t>(10 + (i & 1)), static_cast<uint16_t>((i >> 1) & 1), static_cast<uint16_t>(i >> 2)}, free(0.1f));
+  for (uint16_t i = 0; i < 7; ++i) {
+    m.add({static_cast<uint16_t>(10 + (i & 1)), static_cast<uint16_t>((i >> 1) & 1), static_cast<uint16_t>(i >> 2)},
+          freeVoxel(0.1f));
+  }
   EXPECT_EQ(m.compressFree(), 0u);  // first group has a hit, second misses a child
   EXPECT_EQ(m.leafCount(), 15u);
 }
@@ -144,7 +144,7 @@ TEST(SessionMap, RefiningACompressedNodeSplitsItEvenly) {
   SessionMap m(0.1);
   for (uint16_t x = 0; x < 2; ++x) {
     for (uint16_t y = 0; y < 2; ++y) {
-      for (uint16_t z = 0; z < 2; ++z) m.add({x, y, z}, free(0.1f));
+      for (uint16_t z = 0; z < 2; ++z) m.add({x, y, z}, freeVoxel(0.1f));
     }
   }
   ASSERT_EQ(m.compressFree(), 7u);
@@ -168,10 +168,10 @@ TEST(SessionMap, RefinementThroughSeveralLevels) {
   SessionMap m(0.1);
   for (uint16_t x = 0; x < 8; ++x)
     for (uint16_t y = 0; y < 8; ++y)
-      for (uint16_t z = 0; z < 8; ++z) m.add({x, y, z}, free(0.08f));
+      for (uint16_t z = 0; z < 8; ++z) m.add({x, y, z}, freeVoxel(0.08f));
   m.compressFree();
   ASSERT_EQ(m.leafCount(), 1u);
-  m.add({5, 2, 7}, free(0.01f));
+  m.add({5, 2, 7}, freeVoxel(0.01f));
   // One split per level: 3 levels x 8 children, minus the reused slots.
   EXPECT_EQ(m.leafCount(), 22u);
   EXPECT_NEAR(m.find({5, 2, 7})->length_m, 0.09f, 1e-6);
@@ -197,12 +197,12 @@ TEST(SessionMap, AssignPoolsRejectsInvalidTrees) {
   EXPECT_THROW(m.assignPools(inner, {}), FormatError);
   inner[0][0] = SessionMap::kLeafBit | 0u;  // leaf at level 15 must be known-free
   EXPECT_THROW(m.assignPools(inner, {hit(1.0f, 1)}), FormatError);
-  EXPECT_NO_THROW(m.assignPools(inner, {free(1.0f)}));
+  EXPECT_NO_THROW(m.assignPools(inner, {freeVoxel(1.0f)}));
   inner[0][1] = SessionMap::kLeafBit | 0u;  // the same leaf twice
-  EXPECT_THROW(m.assignPools(inner, {free(1.0f)}), FormatError);
+  EXPECT_THROW(m.assignPools(inner, {freeVoxel(1.0f)}), FormatError);
   inner[0][1] = SessionMap::kEmpty;
-  EXPECT_THROW(m.assignPools(inner, {free(1.0f), free(1.0f)}), FormatError);  // unreachable leaf
-  EXPECT_THROW(m.assignPools(inner, {free(std::nanf(""))}), FormatError);
+  EXPECT_THROW(m.assignPools(inner, {freeVoxel(1.0f), freeVoxel(1.0f)}), FormatError);  // unreachable leaf
+  EXPECT_THROW(m.assignPools(inner, {freeVoxel(std::nanf(""))}), FormatError);
 }
 
 // ---------------------------------------------------------------------------------------------
