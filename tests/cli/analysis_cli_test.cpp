@@ -18,12 +18,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string cli() { return std::string(CHRONOMAP_CLI_PATH); }
-
-VoxelKey origin(int x, int y, int z) {
-  return {static_cast<uint16_t>(kKeyOrigin + x), static_cast<uint16_t>(kKeyOrigin + y),
-          static_cast<uint16_t>(kKeyOrigin + z)};
-}
+using test::at;
+using test::cli;
 
 VoxelCounters occupied() {
   VoxelCounters c;
@@ -45,10 +41,10 @@ void writePair(const fs::path& a, const fs::path& b) {
   for (int z = 0; z < 4; ++z) {
     for (int y = 0; y < 10; ++y) {
       for (int x = 0; x < 10; ++x) {
-        ma.add(origin(x, y, z), freeVoxel());
+        ma.add(at(x, y, z), freeVoxel());
         const bool box = x >= 2 && x < 4 && y >= 2 && y < 4 && z < 2;
         const bool lone = x == 8 && y == 8 && z == 0;
-        mb.add(origin(x, y, z), box || lone ? occupied() : freeVoxel());
+        mb.add(at(x, y, z), box || lone ? occupied() : freeVoxel());
       }
     }
   }

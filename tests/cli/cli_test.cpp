@@ -13,7 +13,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string cli() { return std::string(CHRONOMAP_CLI_PATH); }
+using test::cli;
 
 TEST(Cli, HelpForEveryCommand) {
   for (const char* cmd : {"", "integrate", "stats", "export"}) {

@@ -27,12 +27,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::string cli() { return std::string(CHRONOMAP_CLI_PATH); }
-
-std::vector<uint8_t> bytesOf(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
+using test::bytesOf;
+using test::cli;
 
 /// The path of session file i ("s0.cmap").
 fs::path sessionFile(const test::TempDir& dir, int i) {
@@ -49,32 +45,10 @@ void writeSessions(const test::TempDir& dir, int side = 16) {
   }
 }
 
-/// A 16 x 16 wall in the plane x = wall_x seen from -x, with a colour per voxel.
-SessionMap wallSession(int wall_x) {
-  SessionMap m(0.05);
-  for (int z = 0; z < 16; ++z) {
-    for (int y = 0; y < 16; ++y) {
-      for (int x = 0; x < wall_x; ++x) {
-        VoxelCounters free;
-        free.length_m = 0.05f;
-        m.add(VoxelKey{uint16_t(kKeyOrigin + x), uint16_t(kKeyOrigin + y), uint16_t(kKeyOrigin + z)}, free);
-      }
-      VoxelCounters wall;
-      wall.hits = 10;
-      wall.length_m = 0.25f;
-      wall.red = 160u * uint32_t(y);
-      wall.green = 160u * uint32_t(z);
-      wall.blue = 1280;
-      m.add(VoxelKey{uint16_t(kKeyOrigin + wall_x), uint16_t(kKeyOrigin + y), uint16_t(kKeyOrigin + z)}, wall);
-    }
-  }
-  return m;
-}
-
 TEST(TemporalCli, AddRealignMovesAShiftedSessionBack) {
   test::TempDir tmp;
-  for (int i = 0; i < 3; ++i) io::writeSessionMap(sessionFile(tmp, i), wallSession(10), {});
-  io::writeSessionMap(tmp / "shifted.cmap", wallSession(11), {});
+  for (int i = 0; i < 3; ++i) io::writeSessionMap(sessionFile(tmp, i), test::wallSession(10, 0), {});
+  io::writeSessionMap(tmp / "shifted.cmap", test::wallSession(11, 0), {});
   int64_t added[2] = {0, 0};
   for (int realign = 0; realign < 2; ++realign) {
     const std::string map = (tmp / ("m" + std::to_string(realign) + ".cmap")).string();

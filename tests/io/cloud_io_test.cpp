@@ -31,9 +31,7 @@ void expectSameCloud(const PointCloud& a, const PointCloud& b) {
   EXPECT_EQ(a.labels, b.labels);
 }
 
-void writeBytes(const std::filesystem::path& p, const std::string& s) {
-  std::ofstream(p, std::ios::binary) << s;
-}
+using test::writeBytes;
 
 TEST(Pcd, ReadsRealKinectFrameInAllThreeEncodings) {
   CHRONOMAP_REQUIRE_DATA(path, "pcl-kinect/grabber_sequences/pcd/frame_20121214T142255.814212.pcd");

@@ -43,9 +43,7 @@ SessionMap sampleMap() {
   return m;
 }
 
-void writeRaw(const std::filesystem::path& p, const std::vector<uint8_t>& b) {
-  std::ofstream(p, std::ios::binary).write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
-}
+using test::writeBytes;
 
 TEST(Cmap, SessionMapRoundTripsWithMetadata) {
   test::TempDir tmp;
@@ -105,7 +103,7 @@ TEST(Cmap, ExplainsWrongMagicNewerVersionAndEmptyFiles) {
   writeSessionMap(tmp / "m.cmap", sampleMap(), nullptr);
   auto bytes = readFileBytes(tmp / "m.cmap");
   auto expectMessage = [&](const std::vector<uint8_t>& b, const std::string& fragment) {
-    writeRaw(tmp / "x.cmap", b);
+    writeBytes(tmp / "x.cmap", b);
     try {
       readSessionMap(tmp / "x.cmap");
       FAIL() << fragment;

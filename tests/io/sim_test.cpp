@@ -19,10 +19,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::vector<uint8_t> bytesOf(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
+using test::bytesOf;
 
 /// Every file below `root`, relative, sorted.
 std::vector<fs::path> filesBelow(const fs::path& root) {

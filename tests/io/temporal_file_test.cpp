@@ -27,15 +27,8 @@ TemporalMap sampleMap(int sessions, uint64_t seed = 1) {
   return map;
 }
 
-std::vector<uint8_t> bytesOf(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-void writeBytes(const fs::path& p, const std::vector<uint8_t>& b) {
-  std::ofstream out(p, std::ios::binary);
-  out.write(reinterpret_cast<const char*>(b.data()), static_cast<std::streamsize>(b.size()));
-}
+using test::bytesOf;
+using test::writeBytes;
 
 TEST(TemporalFile, RoundTripReadsBackIdentically) {
   test::TempDir tmp;

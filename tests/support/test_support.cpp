@@ -4,6 +4,7 @@
 
 #include <cstdlib>
 #include <fstream>
+#include <iterator>
 #include <random>
 #include <sstream>
 
@@ -51,37 +52,18 @@ CommandResult runCommand(const std::string& command) {
   return r;
 }
 
-SessionMap randomSessionMap(uint64_t seed, int side, double occupied, double resolution_m) {
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  std::mt19937 position(static_cast<uint32_t>(seed * 7 + 1));  // its own stream: the rest stays as it was
-  SessionMap m(resolution_m);
-  for (int z = 0; z < side; ++z) {
-    for (int y = 0; y < side; ++y) {
-      for (int x = 0; x < side; ++x) {
-        if (u(rng) > 0.9) continue;
-        VoxelCounters c;
-        c.length_m = 0.125f;
-        if (u(rng) < occupied) {
-          c.hits = 2;
-          c.red = 2 * static_cast<uint32_t>(rng() % 256);
-          for (float& o : c.offset) o = 2.0f * (static_cast<float>(position() % 101) / 100.0f - 0.5f);
-        }
-        m.add(VoxelKey{static_cast<uint16_t>(kKeyOrigin + x), static_cast<uint16_t>(kKeyOrigin + y),
-                       static_cast<uint16_t>(kKeyOrigin + z)},
-              c);
-      }
-    }
-  }
-  m.compressFree();
-  return m;
+std::string cli() { return std::string(CHRONOMAP_CLI_PATH); }
+
+std::vector<uint8_t> bytesOf(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
-PointCloud cloudOf(std::initializer_list<Eigen::Vector3f> points) {
-  PointCloud c;
-  c.points.assign(points.begin(), points.end());
-  c.width = static_cast<uint32_t>(c.points.size());
-  return c;
+void writeBytes(const fs::path& path, const std::string& bytes) { std::ofstream(path, std::ios::binary) << bytes; }
+
+void writeBytes(const fs::path& path, const std::vector<uint8_t>& bytes) {
+  std::ofstream(path, std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
 }
 
 }  // namespace chronomap::test

@@ -1,13 +1,15 @@
 #pragma once
-// Shared helpers for the tests: the real-data folder, temporary folders, small builders.
+// Shared helpers for the tests: the real-data folder, temporary folders, files, the command-line
+// tool; the builders of test inputs are in builders.h.
 
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
-#include "chronomap/core/point_cloud.h"
-#include "chronomap/octree/session_map.h"
+#include "builders.h"
 
 namespace chronomap::test {
 
@@ -39,12 +41,15 @@ struct CommandResult {
 };
 CommandResult runCommand(const std::string& command);
 
-/// A random session map over a side^3 block of voxels at the map origin: each voxel observed
-/// with probability 0.9, occupied with probability `occupied`, free subtrees compressed.
-SessionMap randomSessionMap(uint64_t seed, int side = 16, double occupied = 0.1, double resolution_m = 0.05);
+/// The path of the chronomap command-line tool built with the tests.
+std::string cli();
 
-/// A cloud of the given points (no colour).
-PointCloud cloudOf(std::initializer_list<Eigen::Vector3f> points);
+/// Every byte of a file (none when it cannot be read).
+std::vector<uint8_t> bytesOf(const std::filesystem::path& path);
+
+/// Writes exactly these bytes to a file, replacing it.
+void writeBytes(const std::filesystem::path& path, const std::string& bytes);
+void writeBytes(const std::filesystem::path& path, const std::vector<uint8_t>& bytes);
 
 }  // namespace chronomap::test
 

@@ -1,19 +1,20 @@
 #include <gtest/gtest.h>
 
 #include <map>
+#include <optional>
 #include <random>
 
 #include "chronomap/core/error.h"
 #include "chronomap/octree/session_map.h"
+#include "builders.h"
 
 namespace chronomap {
 namespace {
 
-VoxelCounters free(float length) {
-  VoxelCounters c;
-  c.length_m = length;
-  return c;
-}
+using test::at;
+using test::freeVoxel;
+using test::nearlyEqual;
+using test::occupiedVoxel;
 
 VoxelCounters hit(float length, uint32_t hits, uint8_t r = 0) {
   VoxelCounters c;
@@ -96,7 +97,7 @@ TEST(SessionMap, CompressionMergesKnownFreeSubtreesAndKeepsSums) {
     for (uint16_t y = 8; y < 12; ++y) {
       for (uint16_t z = 8; z < 12; ++z) {
         const float l = 0.01f * static_cast<float>(1 + x + y + z);
-        m.add({x, y, z}, free(l));
+        m.add({x, y, z}, freeVoxel(l));
         total += l;
       }
     }
@@ -126,9 +127,15 @@ TEST(SessionMap, CompressionMergesKnownFreeSubtreesAndKeepsSums) {
 
 TEST(SessionMap, CompressionNeverMergesHitsOrUnknown) {
   SessionMap m(0.1);
-  for (uint16_t i = 0; i < 8; ++i) m.add({static_cast<uint16_t>(i & 1), static_cast<uint16_t>((i >> 1) & 1), static_cast<uint16_t>(i >> 2)}, free(0.1f));
+  for (uint16_t i = 0; i < 8; ++i) {
+    m.add({static_cast<uint16_t>(i & 1), static_cast<uint16_t>((i >> 1) & 1), static_cast<uint16_t>(i >> 2)},
+          freeVoxel(0.1f));
+  }
   m.add({1, 1, 1}, hit(0.0f, 1));  // a free voxel with a hit: P = 1 - exp(-1/0.1) -> occupied
-  for (uint16_t i = 0; i < 7; ++i) m.add({static_cast<uint16_t>(10 + (i & 1)), static_cast<uint16_t>((i >> 1) & 1), static_cast<uint16_t>(i >> 2)}, free(0.1f));
+  for (uint16_t i = 0; i < 7; ++i) {
+    m.add({static_cast<uint16_t>(10 + (i & 1)), static_cast<uint16_t>((i >> 1) & 1), static_cast<uint16_t>(i >> 2)},
+          freeVoxel(0.1f));
+  }
   EXPECT_EQ(m.compressFree(), 0u);  // first group has a hit, second misses a child
   EXPECT_EQ(m.leafCount(), 15u);
 }
@@ -137,7 +144,7 @@ TEST(SessionMap, RefiningACompressedNodeSplitsItEvenly) {
   SessionMap m(0.1);
   for (uint16_t x = 0; x < 2; ++x) {
     for (uint16_t y = 0; y < 2; ++y) {
-      for (uint16_t z = 0; z < 2; ++z) m.add({x, y, z}, free(0.1f));
+      for (uint16_t z = 0; z < 2; ++z) m.add({x, y, z}, freeVoxel(0.1f));
     }
   }
   ASSERT_EQ(m.compressFree(), 7u);
@@ -161,10 +168,10 @@ TEST(SessionMap, RefinementThroughSeveralLevels) {
   SessionMap m(0.1);
   for (uint16_t x = 0; x < 8; ++x)
     for (uint16_t y = 0; y < 8; ++y)
-      for (uint16_t z = 0; z < 8; ++z) m.add({x, y, z}, free(0.08f));
+      for (uint16_t z = 0; z < 8; ++z) m.add({x, y, z}, freeVoxel(0.08f));
   m.compressFree();
   ASSERT_EQ(m.leafCount(), 1u);
-  m.add({5, 2, 7}, free(0.01f));
+  m.add({5, 2, 7}, freeVoxel(0.01f));
   // One split per level: 3 levels x 8 children, minus the reused slots.
   EXPECT_EQ(m.leafCount(), 22u);
   EXPECT_NEAR(m.find({5, 2, 7})->length_m, 0.09f, 1e-6);
@@ -190,12 +197,84 @@ TEST(SessionMap, AssignPoolsRejectsInvalidTrees) {
   EXPECT_THROW(m.assignPools(inner, {}), FormatError);
   inner[0][0] = SessionMap::kLeafBit | 0u;  // leaf at level 15 must be known-free
   EXPECT_THROW(m.assignPools(inner, {hit(1.0f, 1)}), FormatError);
-  EXPECT_NO_THROW(m.assignPools(inner, {free(1.0f)}));
+  EXPECT_NO_THROW(m.assignPools(inner, {freeVoxel(1.0f)}));
   inner[0][1] = SessionMap::kLeafBit | 0u;  // the same leaf twice
-  EXPECT_THROW(m.assignPools(inner, {free(1.0f)}), FormatError);
+  EXPECT_THROW(m.assignPools(inner, {freeVoxel(1.0f)}), FormatError);
   inner[0][1] = SessionMap::kEmpty;
-  EXPECT_THROW(m.assignPools(inner, {free(1.0f), free(1.0f)}), FormatError);  // unreachable leaf
-  EXPECT_THROW(m.assignPools(inner, {free(std::nanf(""))}), FormatError);
+  EXPECT_THROW(m.assignPools(inner, {freeVoxel(1.0f), freeVoxel(1.0f)}), FormatError);  // unreachable leaf
+  EXPECT_THROW(m.assignPools(inner, {freeVoxel(std::nanf(""))}), FormatError);
+}
+
+// ---------------------------------------------------------------------------------------------
+// SessionMap building blocks
+
+TEST(SessionMapMerge, SumsCountersAndSpreadsCompressedNodesEvenly) {
+  SessionMap coarse(0.05), fine(0.05);
+  coarse.addCube(at(0, 0, 0), 2, freeVoxel(6.4f));  // 64 voxels, 0.1 m each
+  fine.add(at(1, 2, 3), occupiedVoxel({10, 20, 30}, 4));
+  fine.add(at(5, 0, 0), freeVoxel(0.5f));  // outside the cube
+  SessionMap sum = coarse;
+  sum.merge(fine);
+  for (int z = 0; z < 4; ++z) {
+    for (int y = 0; y < 4; ++y) {
+      for (int x = 0; x < 4; ++x) {
+        VoxelCounters expected = freeVoxel(0.1f);
+        if (x == 1 && y == 2 && z == 3) expected += occupiedVoxel({10, 20, 30}, 4);
+        ASSERT_TRUE(sum.find(at(x, y, z)));
+        EXPECT_TRUE(nearlyEqual(*sum.find(at(x, y, z)), expected)) << x << y << z;
+      }
+    }
+  }
+  EXPECT_EQ(sum.find(at(5, 0, 0))->length_m, 0.5f);
+  EXPECT_FALSE(sum.find(at(6, 0, 0)));
+  // The other way round gives the same voxels.
+  SessionMap other = fine;
+  other.merge(coarse);
+  for (int x = 0; x < 6; ++x) EXPECT_TRUE(nearlyEqual(*sum.find(at(x, 0, 0)), *other.find(at(x, 0, 0))));
+}
+
+TEST(SessionMapMerge, MergingAMapIntoItselfDoublesIt) {
+  SessionMap m = test::randomSessionMap(3, 8);
+  const SessionMap before = m;
+  m.merge(m);
+  before.forEachLeaf([&](const LeafView& l) {
+    VoxelCounters twice = l.counters;
+    twice += l.counters;
+    const auto leaf = m.findLeaf(l.key);
+    ASSERT_TRUE(leaf);
+    EXPECT_EQ(leaf->level, l.level);
+    EXPECT_EQ(leaf->counters, twice);
+  });
+}
+
+TEST(SessionMapAssign, SetsAndForgetsVoxelsInsideCompressedNodes) {
+  SessionMap m(0.05);
+  m.addCube(at(0, 0, 0), 3, freeVoxel(51.2f));  // 512 voxels of 0.1 m
+  m.assign(at(3, 3, 3), occupiedVoxel({1, 2, 3}));
+  m.assign(at(4, 4, 4), std::nullopt);
+  EXPECT_EQ(m.stateOf(at(3, 3, 3)), VoxelState::Occupied);
+  EXPECT_EQ(m.stateOf(at(4, 4, 4)), VoxelState::Unknown);
+  EXPECT_FLOAT_EQ(m.find(at(0, 0, 0))->length_m, 0.1f);
+  EXPECT_FLOAT_EQ(m.find(at(7, 7, 7))->length_m, 0.1f);
+  const SessionMapCounts c = m.counts();
+  EXPECT_EQ(c.occupied_voxels, 1u);
+  EXPECT_EQ(c.free_voxels, 510u);
+  // Forgetting the only voxel of a branch leaves no empty inner nodes after compression.
+  SessionMap single(0.05);
+  single.add(at(9, 9, 9), occupiedVoxel({1, 1, 1}));
+  single.assign(at(9, 9, 9), std::nullopt);
+  single.compressFree();
+  EXPECT_EQ(single.innerCount(), 1u);
+  EXPECT_EQ(single.leafCount(), 0u);
+}
+
+TEST(SessionMapAddCube, RejectsBadCubes) {
+  SessionMap m(0.05);
+  EXPECT_THROW(m.addCube(at(1, 0, 0), 1, freeVoxel()), UsageError);  // not aligned
+  EXPECT_THROW(m.addCube(at(0, 0, 0), kTreeDepth, freeVoxel()), UsageError);
+  EXPECT_THROW(m.addCube(at(0, 0, 0), 2, occupiedVoxel({1, 1, 1})), UsageError);  // hits above unit level
+  m.addCube(at(0, 0, 0), 2, VoxelCounters{});  // an unobserved cube adds nothing
+  EXPECT_TRUE(m.empty());
 }
 
 }  // namespace

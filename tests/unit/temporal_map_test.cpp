@@ -6,18 +6,15 @@
 
 #include "chronomap/core/error.h"
 #include "chronomap/temporal/temporal_map.h"
+#include "builders.h"
 
 namespace chronomap {
 namespace {
 
-constexpr uint16_t kBase = 32768;  // corner of the test region, aligned to 16
-constexpr int kSide = 16;
+constexpr int kSide = 16;  // the test region: kSide^3 voxels from the map origin
 
-VoxelCounters freeVoxel(float length) {
-  VoxelCounters c;
-  c.length_m = length;
-  return c;
-}
+using test::at;
+using test::freeVoxel;
 
 VoxelCounters occupiedVoxel(uint32_t hits, uint8_t red = 200) {
   VoxelCounters c;
@@ -27,10 +24,6 @@ VoxelCounters occupiedVoxel(uint32_t hits, uint8_t red = 200) {
   c.green = 10 * hits;
   c.blue = 20 * hits;
   return c;
-}
-
-VoxelKey at(int x, int y, int z) {
-  return {static_cast<uint16_t>(kBase + x), static_cast<uint16_t>(kBase + y), static_cast<uint16_t>(kBase + z)};
 }
 
 // ---------------------------------------------------------------------------------------------

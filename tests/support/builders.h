@@ -1,0 +1,39 @@
+#pragma once
+// Builders of test inputs shared by the test programs: voxel keys and counters, session maps
+// (random, a wall), clouds.
+
+#include <cstdint>
+#include <initializer_list>
+
+#include "chronomap/core/counters.h"
+#include "chronomap/core/key.h"
+#include "chronomap/core/point_cloud.h"
+#include "chronomap/octree/session_map.h"
+
+namespace chronomap::test {
+
+/// The key of the voxel (x, y, z) voxels from the map origin (kKeyOrigin).
+VoxelKey at(int x, int y, int z);
+
+/// A voxel crossed by rays of `length` metres in all, none ending in it.
+VoxelCounters freeVoxel(float length = 0.05f);
+
+/// A voxel where `hits` rays of the given colour ended, 0.025 m of ray per hit.
+VoxelCounters occupiedVoxel(Rgb color, uint32_t hits = 10);
+
+/// Counters equal but for rounding in the summed length.
+bool nearlyEqual(const VoxelCounters& a, const VoxelCounters& b);
+
+/// A 16 x 16 wall in the plane x = wall_x, seen from -x: free voxels x = first_free_x .. wall_x - 1
+/// (freeVoxel()), the wall occupied (occupiedVoxel()) with a colour per (y, z), (16 y, 16 z, 128);
+/// nothing behind it. 0.05 m voxels.
+SessionMap wallSession(int wall_x, int first_free_x = 4);
+
+/// A random session map over a side^3 block of voxels at the map origin: each voxel observed
+/// with probability 0.9, occupied with probability `occupied`, free subtrees compressed.
+SessionMap randomSessionMap(uint64_t seed, int side = 16, double occupied = 0.1, double resolution_m = 0.05);
+
+/// A cloud of the given points (no colour).
+PointCloud cloudOf(std::initializer_list<Eigen::Vector3f> points);
+
+}  // namespace chronomap::test
