@@ -7,7 +7,7 @@
 #include <Eigen/Geometry>
 
 #include "chronomap/core/error.h"
-#include "chronomap/integrate/integrator.h"
+#include "chronomap/align/pose_correction.h"
 
 using namespace chronomap;
 
