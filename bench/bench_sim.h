@@ -52,7 +52,7 @@ struct PoseError {
 
 inline PoseError poseError(const std::filesystem::path& dir, const PoseCorrection& correction) {
   const auto estimated = io::openDataset(dir);
-  io::DatasetOptions truth_options;
+  io::DatasetSettings truth_options;
   truth_options.trajectory = dir / "groundtruth.txt";
   const auto truth = io::openDataset(dir, truth_options);
   const size_t n = std::min(estimated->size(), truth->size());

@@ -77,7 +77,7 @@ int main(int argc, char** argv) {
     io::writeDiffMap(root / "cmap/diff.cmap", diff(four_d, 1000.0, 2000.0), {{"seed", true}});
     // The same 4D map with a third session appended as `chronomap add` appends it.
     io::writeTemporalMap(root / "cmap/four_d_appended.cmap", four_d, {{"seed", true}});
-    const AddOptions options{false, "appended"};
+    const AddSettings options{false, "appended"};
     io::appendToFile(root / "cmap/four_d_appended.cmap", std::filesystem::file_size(root / "cmap/four_d_appended.cmap"),
                      io::encodeSessionRecord(3000.0, shifted, options));
   }

@@ -202,7 +202,7 @@ class CloudDataset : public Dataset {
   std::vector<Item> items_;
 };
 
-double checkedScale(const DatasetOptions& o, double fallback) {
+double checkedScale(const DatasetSettings& o, double fallback) {
   const double s = o.depth_scale.value_or(fallback);
   if (!(s > 0.0) || !std::isfinite(s)) throw UsageError("depth scale must be a positive number of units per metre");
   return s;
@@ -273,7 +273,7 @@ Eigen::Matrix4d parseMatrix4(const std::string& text, const std::string& name) {
 
 namespace {
 
-std::unique_ptr<Dataset> openThreeDMatch(const fs::path& root, const DatasetOptions& o) {
+std::unique_ptr<Dataset> openThreeDMatch(const fs::path& root, const DatasetSettings& o) {
   fs::path intrinsics = root / "camera-intrinsics.txt";
   std::error_code ec;
   if (!fs::exists(intrinsics, ec)) intrinsics = root.parent_path() / "camera-intrinsics.txt";
@@ -346,7 +346,7 @@ const T* nearest(const std::vector<T>& sorted, double t, double tolerance) {
   return best;
 }
 
-std::unique_ptr<Dataset> openTum(const fs::path& root, const DatasetOptions& o) {
+std::unique_ptr<Dataset> openTum(const fs::path& root, const DatasetSettings& o) {
   std::error_code ec;
   const fs::path depth_list = root / "depth.txt";
   requireFile(depth_list, "TUM depth list (depth.txt)");
@@ -403,7 +403,7 @@ std::unique_ptr<Dataset> openTum(const fs::path& root, const DatasetOptions& o) 
 
 // ---------------------------------------------------------------- clouds
 
-std::unique_ptr<Dataset> openClouds(const fs::path& path, const DatasetOptions& o) {
+std::unique_ptr<Dataset> openClouds(const fs::path& path, const DatasetSettings& o) {
   if (isCloudFile(path)) {
     return std::make_unique<CloudDataset>(
         std::vector<CloudDataset::Item>{{path, o.pose.value_or(Eigen::Isometry3d::Identity())}});
@@ -452,7 +452,7 @@ DatasetFormat detect(const fs::path& path) {
 
 }  // namespace
 
-std::unique_ptr<Dataset> openDataset(const fs::path& path, const DatasetOptions& options) {
+std::unique_ptr<Dataset> openDataset(const fs::path& path, const DatasetSettings& options) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw UsageError(path.string() + ": no such file or folder");
   DatasetFormat format = options.format == DatasetFormat::Auto ? detect(path) : options.format;

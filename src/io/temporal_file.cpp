@@ -175,7 +175,7 @@ TemporalMap temporalMapFrom(const CmapFile& file, const std::string& source) {
     }
     const SessionMap session = sessionMapFrom(inner, what);
     const nlohmann::json meta = metadataOf(inner);
-    AddOptions options;
+    AddSettings options;
     double time_s = 0.0;
     try {
       time_s = meta.at("time_s").get<double>();
@@ -209,7 +209,7 @@ TemporalMap readTemporalMap(const std::filesystem::path& path, TemporalFileLayou
   return temporalMapFrom(file, path.string());
 }
 
-std::vector<uint8_t> encodeSessionRecord(double time_s, const SessionMap& session, const AddOptions& options) {
+std::vector<uint8_t> encodeSessionRecord(double time_s, const SessionMap& session, const AddSettings& options) {
   const nlohmann::json meta = {{"time_s", time_s}, {"replace", options.replace}, {"name", options.name}};
   CmapBlock record{"ADDS", encodeSessionMap(session, meta, /*zstd_level=*/0)};
   return encodeAppendRecord(record);

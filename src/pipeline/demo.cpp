@@ -89,7 +89,7 @@ TemporalMap buildMap(const sim::SimulationSummary& simulated, const std::vector<
                      const fs::path& path) {
   TemporalMap map(sessions.front().map.resolution_m());
   for (size_t k = 0; k < sessions.size(); ++k) {
-    map.add(simulated.times_s[k], sessions[k].map, AddOptions{false, numbered("session_%02zu", k)});
+    map.add(simulated.times_s[k], sessions[k].map, AddSettings{false, numbered("session_%02zu", k)});
   }
   io::writeTemporalMap(path, map, {{"created_by", "chronomap demo"}});
   return map;

@@ -153,7 +153,7 @@ BuildResult build(const BuildSettings& s) {
     BuiltSession b;
     b.dataset = dataset;
     b.time_s = p.time_s;
-    b.report = map.add(p.time_s, p.session.map, AddOptions{s.replace, dataset.filename().string()});
+    b.report = map.add(p.time_s, p.session.map, AddSettings{s.replace, dataset.filename().string()});
     b.nodes_added = nodesAddedAt(map, p.time_s);
     b.nodes_separate = p.session.map.innerCount() + p.session.map.leafCount();
     b.points = p.session.stats.points;
@@ -218,13 +218,13 @@ AddSessionResult addSession(const AddSessionSettings& s) {
     session = realign(session, avg, *s.realign, &realigned);
     r.realigned_voxels = realigned.moved();
   }
-  const AddOptions add_options{s.replace, s.session.filename().string()};
-  r.report = map.add(r.time_s, session, add_options);
+  const AddSettings add_settings{s.replace, s.session.filename().string()};
+  r.report = map.add(r.time_s, session, add_settings);
   // Append the session as a record (the file's bytes so far stay as they are), or write the whole
   // map again, folding earlier records in: "auto" appends while the records stay smaller than the
   // base, so that reading never replays more than the base holds.
   const std::vector<uint8_t> record =
-      r.created ? std::vector<uint8_t>{} : io::encodeSessionRecord(r.time_s, session, add_options);
+      r.created ? std::vector<uint8_t>{} : io::encodeSessionRecord(r.time_s, session, add_settings);
   r.appended = !r.created && (s.write == WritePolicy::Append ||
                               (s.write == WritePolicy::Auto &&
                                layout.appended_bytes + record.size() <= layout.base_bytes));

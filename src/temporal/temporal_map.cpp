@@ -298,7 +298,7 @@ std::optional<uint32_t> TemporalMap::rankAtOrBefore(double time_s) const {
   return static_cast<uint32_t>(it - sessions_.begin() - 1);
 }
 
-AddReport TemporalMap::add(double time_s, const SessionMap& session, const AddOptions& options) {
+AddReport TemporalMap::add(double time_s, const SessionMap& session, const AddSettings& options) {
   if (!std::isfinite(time_s)) throw UsageError("session time must be a finite number of seconds");
   if (session.resolution_m() != resolution_m()) {
     throw UsageError("session resolution " + std::to_string(session.resolution_m()) +

@@ -120,7 +120,7 @@ TEST(Dataset, RejectsBadTumInputNamingTheFileAndLine) {
   expectError("none of the 0 depth frames");
   fs::remove(tmp / "depth.txt");
   EXPECT_THROW(openDataset(tmp.path()), UsageError);  // format can no longer be detected
-  DatasetOptions tum;
+  DatasetSettings tum;
   tum.format = DatasetFormat::Tum;
   EXPECT_THROW(openDataset(tmp.path(), tum), DataError);
 }
@@ -145,7 +145,7 @@ TEST(Dataset, RejectsDepthScalesOffByAThousand) {
   test::TempDir tmp;
   makeTum(tmp.path(), 1);  // 5000 units = 1 m at the TUM scale
   for (double wrong : {5.0, 5e6}) {
-    DatasetOptions o;
+    DatasetSettings o;
     o.depth_scale = wrong;
     auto ds = openDataset(tmp.path(), o);
     try {
@@ -155,7 +155,7 @@ TEST(Dataset, RejectsDepthScalesOffByAThousand) {
       EXPECT_NE(std::string(e.what()).find("the scale looks wrong"), std::string::npos) << e.what();
     }
   }
-  DatasetOptions fine;
+  DatasetSettings fine;
   fine.depth_scale = 1000.0;  // 5 m: plausible
   EXPECT_NO_THROW(openDataset(tmp.path(), fine)->load(0));
 }
@@ -181,7 +181,7 @@ TEST(Dataset, CloudListsAndSingleClouds) {
   auto list = openDataset(tmp / "list.txt");
   ASSERT_EQ(list->size(), 2u);
   EXPECT_EQ(list->load(0).T_world_sensor.translation(), Eigen::Vector3d(1, 2, 3));
-  DatasetOptions o;
+  DatasetSettings o;
   o.pose = Eigen::Isometry3d(Eigen::Translation3d(0, 0, 5));
   auto single = openDataset(tmp / "a.pcd", o);
   ASSERT_EQ(single->size(), 1u);

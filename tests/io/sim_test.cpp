@@ -180,7 +180,7 @@ TEST(Simulator, TinySessionWithTruePosesMatchesTheTruth) {
   s.sessions = 1;
   s.resolution_scale = 0.5;
   const auto summary = sim::simulate(s, tmp.path());
-  io::DatasetOptions dopt;
+  io::DatasetSettings dopt;
   dopt.trajectory = (summary.session_dirs[0] / "groundtruth.txt").string();
   auto dataset = io::openDataset(summary.session_dirs[0], dopt);
   SessionMap map(0.05);

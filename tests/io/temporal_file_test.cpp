@@ -182,7 +182,7 @@ AppendedFile writeAppended(const fs::path& path) {
   } adds[] = {{3000.0, 3, false}, {1500.0, 4, false}, {3000.0, 5, true}};
   for (const auto& a : adds) {
     const SessionMap session = test::randomSessionMap(a.seed);
-    const AddOptions options{a.replace, "seed " + std::to_string(a.seed)};
+    const AddSettings options{a.replace, "seed " + std::to_string(a.seed)};
     TemporalMap next = f.stages.back();
     next.add(a.time_s, session, options);
     io::appendToFile(path, f.ends.back(), io::encodeSessionRecord(a.time_s, session, options));

@@ -223,7 +223,7 @@ TEST(TemporalMap, RejectsDuplicateTimesUnlessReplacing) {
   map.add(1, a);
   EXPECT_THROW(map.add(1, b), UsageError);
   EXPECT_EQ(map.snapshot(1).stateOf(at(0, 0, 0)), VoxelState::Occupied) << "a refused add changes nothing";
-  const AddReport r = map.add(1, b, AddOptions{true, "b"});
+  const AddReport r = map.add(1, b, AddSettings{true, "b"});
   EXPECT_TRUE(r.replaced);
   EXPECT_EQ(map.sessionCount(), 1u);
   EXPECT_EQ(map.snapshot(1).stateOf(at(0, 0, 0)), VoxelState::Free);
@@ -381,7 +381,7 @@ TEST_P(TemporalProperty, AnyInsertionOrderGivesTheSameStates) {
   world.change(rng, 200);
   const SessionMap replacement = randomSession(rng, world);
   const int replaced = static_cast<int>(rng() % static_cast<uint64_t>(n));
-  map.add(sessionTime(replaced), replacement, AddOptions{true, ""});
+  map.add(sessionTime(replaced), replacement, AddSettings{true, ""});
   ref.remove(sessionTime(replaced));
   ref.add(sessionTime(replaced), replacement);
   const int removed = (replaced + 1) % n;

@@ -62,8 +62,8 @@ struct CloudListEntry {
 };
 std::vector<CloudListEntry> parseCloudList(const std::string& text, const std::string& source);
 
-/// Options of openDataset; unset values take the format's defaults.
-struct DatasetOptions {
+/// Settings of openDataset; unset values take the format's defaults.
+struct DatasetSettings {
   DatasetFormat format = DatasetFormat::Auto;
   /// Depth image units per metre (TUM: 5000, 3DMatch: 1000).
   std::optional<double> depth_scale;
@@ -93,7 +93,7 @@ class Dataset : public FrameSource {
 /// images only when frames are loaded.
 /// @throw UsageError when the path does not exist or the format cannot be detected;
 ///        DataError / FormatError naming the file at fault for malformed input or no frames.
-std::unique_ptr<Dataset> openDataset(const std::filesystem::path& path, const DatasetOptions& options = {});
+std::unique_ptr<Dataset> openDataset(const std::filesystem::path& path, const DatasetSettings& options = {});
 
 /// Back-projects a depth image into an organized cloud in the camera frame (x right, y down,
 /// z forward). Zero depth becomes NaN. `rgb` may be null; otherwise it must match in size.

@@ -37,6 +37,6 @@ TemporalMap temporalMapFrom(const CmapFile& file, const std::string& source);
 /// The append record (tag `ADDS`) of one session added to a 4D map: reading it back means
 /// TemporalMap::add(time_s, session, options) on the map stored before it, which gives the
 /// same map as the add that wrote it. Append it with appendToFile (io/file.h).
-std::vector<uint8_t> encodeSessionRecord(double time_s, const SessionMap& session, const AddOptions& options);
+std::vector<uint8_t> encodeSessionRecord(double time_s, const SessionMap& session, const AddSettings& options);
 
 }  // namespace chronomap::io

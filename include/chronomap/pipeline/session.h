@@ -25,7 +25,7 @@ namespace chronomap::pipeline {
 /// How a recording becomes a session map: how it is read, and how it is integrated.
 struct SessionSettings {
   double resolution_m = 0.05;
-  io::DatasetOptions dataset;
+  io::DatasetSettings dataset;
   IntegratorSettings integrator;
 };
 

@@ -52,7 +52,7 @@ struct SessionRecord {
 };
 
 /// Options of TemporalMap::add.
-struct AddOptions {
+struct AddSettings {
   /// Replace a session already stored at the same time instead of refusing.
   bool replace = false;
   /// Name recorded with the session.
@@ -110,7 +110,7 @@ class TemporalMap {
   /// Adds a session observed at `time_s` (seconds since the epoch).
   /// @throw UsageError for a non-finite time, a different resolution, or a time already
   /// stored when options.replace is false.
-  AddReport add(double time_s, const SessionMap& session, const AddOptions& options = {});
+  AddReport add(double time_s, const SessionMap& session, const AddSettings& options = {});
   /// Removes the session stored at `time_s`, as if it had never been added.
   /// @throw UsageError when no session has that time.
   void remove(double time_s);
