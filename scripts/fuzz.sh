@@ -14,7 +14,8 @@ if ! command -v clang++ >/dev/null || [ ! -d /usr/lib/llvm-14/lib/clang ]; then
   "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends clang libclang-rt-dev >/dev/null
 fi
 cmake --preset fuzz >/dev/null
-cmake --build --preset fuzz -j"$(nproc)"
+# Only the fuzz targets and the modules they link (not the command line or the simulator).
+cmake --build --preset fuzz -j"$(nproc)" --target fuzz_cmap fuzz_pcd fuzz_ply fuzz_xyz fuzz_png fuzz_text fuzz_make_seeds
 bin=build/fuzz/fuzz
 data="${CHRONOMAP_DATA_DIR:-../shared/data}"
 seeds=build/fuzz/seeds
