@@ -1,0 +1,165 @@
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <limits>
+
+#include "chronomap/core/error.h"
+#include "chronomap/io/cloud_io.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/temporal_file.h"
+#include "chronomap/pipeline/map4d.h"
+#include "chronomap/pipeline/maps.h"
+#include "chronomap/pipeline/session.h"
+#include "test_support.h"
+
+namespace chronomap::pipeline {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A cloud-list dataset of one cloud: a 1 x 1 m wall of points at x = wall_x (0.02 m apart), seen
+// from the origin.
+fs::path wallDataset(const test::TempDir& tmp, const std::string& name, float wall_x) {
+  PointCloud cloud;
+  for (float y = -0.5f; y <= 0.5f; y += 0.02f) {
+    for (float z = -0.5f; z <= 0.5f; z += 0.02f) cloud.points.push_back({wall_x, y, z});
+  }
+  cloud.width = static_cast<uint32_t>(cloud.points.size());
+  io::writePly(tmp / (name + ".ply"), cloud);
+  std::ofstream(tmp / (name + ".txt")) << name << ".ply 0 0 0 0 0 0 1\n";
+  return tmp / (name + ".txt");
+}
+
+TEST(PipelineSession, IntegratesADatasetAndRefusesOneWithoutPoints) {
+  test::TempDir tmp;
+  const IntegratedSession s = integrateDataset(wallDataset(tmp, "wall", 2.0f), SessionSettings{});
+  EXPECT_EQ(s.format, "clouds");
+  EXPECT_EQ(s.stats.frames, 1u);
+  EXPECT_GT(s.stats.points, 2000u);
+  EXPECT_GT(s.map.counts().occupied_voxels, 300u);
+  ASSERT_EQ(s.sensor_positions.size(), 1u);
+  EXPECT_EQ(s.sensor_positions[0], Eigen::Vector3d::Zero());
+  const nlohmann::json meta = sessionMetadata(tmp / "wall.txt", s, SessionSettings{});
+  EXPECT_EQ(meta["frames"], 1);
+  EXPECT_EQ(meta["format"], "clouds");
+  // Every point beyond the range: nothing to integrate is an error, not an empty map.
+  SessionSettings short_range;
+  short_range.integrator.max_range_m = 1.0;
+  EXPECT_THROW(integrateDataset(tmp / "wall.txt", short_range), DataError);
+}
+
+TEST(PipelineBuild, SortsByTimeAndRefusesClashesBeforeIntegrating) {
+  test::TempDir tmp;
+  BuildSettings s;
+  s.map = tmp / "map.cmap";
+  s.datasets = {wallDataset(tmp, "late", 2.0f), wallDataset(tmp, "early", 2.5f)};
+  s.times_s = {200.0, 100.0};
+  size_t steps = 0;
+  s.progress.step = [&](const std::string&) { ++steps; };
+  const BuildResult r = build(s);
+  EXPECT_TRUE(r.created);
+  EXPECT_EQ(r.sessions, 2u);
+  ASSERT_EQ(r.added.size(), 2u);
+  EXPECT_EQ(r.added[0].time_s, 100.0);  // time order, not argument order
+  EXPECT_EQ(r.added[0].dataset.filename(), "early.txt");
+  EXPECT_FALSE(r.added[0].correction);
+  EXPECT_EQ(steps, 2u);  // one line per dataset
+  EXPECT_EQ(io::readTemporalMap(s.map).sessionCount(), 2u);
+  EXPECT_EQ(r.file_bytes, fs::file_size(s.map));
+  // A time the map holds already, without replace: refused, the map unchanged.
+  const auto before = test::bytesOf(s.map);
+  s.times_s = {100.0, 300.0};
+  EXPECT_THROW(build(s), UsageError);
+  EXPECT_EQ(test::bytesOf(s.map), before);
+  // Times missing for datasets that carry none.
+  s.map = tmp / "other.cmap";
+  s.times_s.clear();
+  EXPECT_THROW(build(s), UsageError);
+  EXPECT_FALSE(fs::exists(s.map));
+}
+
+TEST(PipelineAdd, AppendsOrRewritesAsThePolicySays) {
+  test::TempDir tmp;
+  for (int i = 0; i < 4; ++i) {
+    io::writeSessionMap(tmp / ("s" + std::to_string(i) + ".cmap"), test::randomSessionMap(40 + i, 16, 0.3),
+                        {{"recorded_at", 1000.0 * i}});
+  }
+  AddSessionSettings s;
+  s.map = tmp / "map.cmap";
+  s.session = tmp / "s0.cmap";
+  AddSessionResult r = addSession(s);
+  EXPECT_TRUE(r.created);
+  EXPECT_FALSE(r.appended);
+  EXPECT_EQ(r.time_s, 0.0);  // from the file's metadata
+  s.session = tmp / "s1.cmap";
+  s.write = WritePolicy::Append;
+  const auto first = test::bytesOf(s.map);
+  r = addSession(s);
+  EXPECT_TRUE(r.appended);
+  EXPECT_GT(r.record_bytes, 0u);
+  EXPECT_EQ(r.file_bytes, first.size() + r.record_bytes);
+  const auto appended = test::bytesOf(s.map);
+  EXPECT_TRUE(std::equal(first.begin(), first.end(), appended.begin()));  // the bytes before it untouched
+  s.session = tmp / "s2.cmap";
+  s.write = WritePolicy::Rewrite;
+  r = addSession(s);
+  EXPECT_FALSE(r.appended);
+  EXPECT_EQ(r.sessions, 3u);
+  s.session = tmp / "s3.cmap";
+  s.write = WritePolicy::Auto;
+  s.time_s = 5000.0;  // given, overrides the file's
+  r = addSession(s);
+  EXPECT_EQ(r.time_s, 5000.0);
+  const TemporalMap map = io::readTemporalMap(s.map);
+  ASSERT_EQ(map.sessionCount(), 4u);
+  EXPECT_EQ(map.sessions().back().time_s, 5000.0);
+  // A session without a recorded time and none given.
+  io::writeSessionMap(tmp / "untimed.cmap", test::wallSession(10), {});
+  s.session = tmp / "untimed.cmap";
+  s.time_s.reset();
+  EXPECT_THROW(addSession(s), UsageError);
+  EXPECT_EQ(parseWritePolicy("append"), WritePolicy::Append);
+  EXPECT_THROW(parseWritePolicy("sometimes"), UsageError);
+}
+
+TEST(PipelineMaps, MapReferencesAndTheDiffOfTwoTimesEqualsTheDiffOfTheirSnapshots) {
+  test::TempDir tmp;
+  EXPECT_FALSE(parseMapRef("a.cmap").time_s);
+  const MapRef ref = parseMapRef("a.cmap@1000");
+  EXPECT_EQ(ref.path, "a.cmap");
+  EXPECT_EQ(ref.time_s, 1000.0);
+  std::ofstream(tmp / "odd@name.cmap") << "x";
+  EXPECT_FALSE(parseMapRef((tmp / "odd@name.cmap").string()).time_s);  // an existing file wins
+
+  TemporalMap map(0.05);
+  for (int i = 0; i < 4; ++i) map.add(100.0 * i, test::randomSessionMap(70 + i, 16, 0.3));
+  io::writeTemporalMap(tmp / "map.cmap", map, {});
+  const std::string m = (tmp / "map.cmap").string();
+  DiffSettings settings;
+  const DiffMap fast = diffMaps(m + "@100", m + "@300", settings);
+  const DiffMap slow = diff(map.snapshot(100.0), map.snapshot(300.0), settings);
+  EXPECT_EQ(fast.voxelCount(ChangeKind::Appeared), slow.voxelCount(ChangeKind::Appeared));
+  EXPECT_EQ(fast.voxelCount(ChangeKind::Vanished), slow.voxelCount(ChangeKind::Vanished));
+  EXPECT_GT(slow.voxelCount(), 0u);
+  EXPECT_THROW(diffMaps(m, m + "@300", settings), UsageError);  // a 4D map needs a time
+  EXPECT_THROW(snapshotAt(map, -50.0, m), UsageError);          // before the first session (at 0)
+}
+
+TEST(PipelineMaps, ExportsByExtension) {
+  test::TempDir tmp;
+  const SessionMap map = test::wallSession(10);
+  EXPECT_EQ(exportSessionMap(tmp / "m.cmap", map), map.leafCount());
+  EXPECT_EQ(io::readSessionMap(tmp / "m.cmap").counts().occupied_voxels, map.counts().occupied_voxels);
+  EXPECT_EQ(exportSessionMap(tmp / "m.ply", map), map.counts().occupied_voxels);
+  EXPECT_GT(exportSessionMap(tmp / "m.ot", map), 0u);
+  ExportSettings big;
+  big.pixels_per_voxel = 4;
+  EXPECT_EQ(exportSessionMap(tmp / "m4.png", map, big), 16 * exportSessionMap(tmp / "m1.png", map, {1, {}}));
+  EXPECT_THROW(exportSessionMap(tmp / "m.txt", map), UsageError);
+  EXPECT_FALSE(fs::exists(tmp / "m.txt"));
+}
+
+}  // namespace
+}  // namespace chronomap::pipeline
