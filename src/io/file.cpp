@@ -168,16 +168,52 @@ void appendToFile(const fs::path& path, uint64_t keep_bytes, const std::vector<u
   if (::close(fd) != 0) throw IoError(path.string() + ": close failed (" + std::strerror(errno) + ")");
 }
 
-FileLock::FileLock(const fs::path& path) {
+namespace {
+
+/// Takes an exclusive flock on `fd`, retrying when interrupted. @return 0 or the errno.
+int lockExclusive(int fd) {
+  while (::flock(fd, LOCK_EX) != 0) {
+    if (errno != EINTR) return errno;
+  }
+  return 0;
+}
+
+bool missing(const fs::path& path) {
+  struct stat st {};
+  return ::stat(path.c_str(), &st) != 0 && errno == ENOENT;
+}
+
+}  // namespace
+
+FileLock::FileLock(const fs::path& path, Missing if_missing) {
   for (;;) {
-    fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd_ < 0) throw IoError(path.string() + ": cannot open (" + std::strerror(errno) + ")");
-    while (::flock(fd_, LOCK_EX) != 0) {
-      if (errno != EINTR) {
-        const int err = errno;
-        ::close(fd_);
-        throw IoError(path.string() + ": cannot lock (" + std::strerror(err) + ")");
+    if (if_missing == Missing::LockFolder && missing(path)) {
+      const fs::path folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();
+      fd_ = ::open(folder.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+      if (fd_ < 0) {
+        throw IoError(path.string() + ": cannot open its folder to create it (" + std::strerror(errno) + ")");
       }
+      if (const int err = lockExclusive(fd_)) {
+        ::close(fd_);
+        throw IoError(path.string() + ": cannot lock its folder (" + std::strerror(err) + ")");
+      }
+      // Still missing once the folder is ours: this holder creates it. Else another command
+      // created it meanwhile: lock the file like any update.
+      if (missing(path)) {
+        creating_ = true;
+        return;
+      }
+      ::close(fd_);
+      continue;
+    }
+    fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd_ < 0) {
+      if (errno == ENOENT && if_missing == Missing::LockFolder) continue;
+      throw IoError(path.string() + ": cannot open (" + std::strerror(errno) + ")");
+    }
+    if (const int err = lockExclusive(fd_)) {
+      ::close(fd_);
+      throw IoError(path.string() + ": cannot lock (" + std::strerror(err) + ")");
     }
     // Still the file under that name? (Another writer may have renamed a new one over it.)
     struct stat held {}, named {};
@@ -186,6 +222,16 @@ FileLock::FileLock(const fs::path& path) {
       return;
     }
     ::close(fd_);
+  }
+}
+
+void refuseOverwritingInputs(const fs::path& output, const std::vector<fs::path>& inputs) {
+  for (const fs::path& input : inputs) {
+    std::error_code ec;
+    if (fs::equivalent(output, input, ec) && !ec) {
+      throw UsageError("output '" + output.string() + "' is the input '" + input.string() +
+                       "': refusing to overwrite it (write to another file)");
+    }
   }
 }
 

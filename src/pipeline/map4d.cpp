@@ -40,6 +40,7 @@ void checkInputs(const BuildSettings& s) {
   for (const auto& d : s.datasets) {
     if (!fs::exists(d)) throw UsageError("dataset '" + d.string() + "' does not exist");
   }
+  io::refuseOverwritingInputs(s.map, s.datasets);
 }
 
 std::optional<double> givenTime(const BuildSettings& s, size_t i) {
@@ -136,9 +137,9 @@ TemporalMap openOrCreate(const fs::path& path, double resolution_m, const Change
 
 BuildResult build(const BuildSettings& s) {
   checkInputs(s);
-  // Held to the end: an add to the same map meanwhile would otherwise be lost by the rewrite.
-  std::optional<io::FileLock> lock;
-  if (fs::exists(s.map)) lock.emplace(s.map);
+  // Held to the end: an add to the same map meanwhile would otherwise be lost by the rewrite. A
+  // map that does not exist yet locks its folder: two commands creating it run one after the other.
+  const io::FileLock lock(s.map, io::FileLock::Missing::LockFolder);
   BuildResult result;
   TemporalMap map = openOrCreate(s.map, s.session.resolution_m, s.criterion, result.created);
   refuseClashes(s, map);
@@ -200,13 +201,14 @@ double sessionTime(const AddSessionSettings& s, const io::CmapFile& file) {
 
 AddSessionResult addSession(const AddSessionSettings& s) {
   if (s.realign) s.realign->validate();
+  io::refuseOverwritingInputs(s.map, {s.session});
   const io::CmapFile file = io::readCmap(s.session);
   SessionMap session = io::sessionMapFrom(file, s.session.string());
   AddSessionResult r;
   r.time_s = sessionTime(s, file);
-  // One add at a time per map: a second one waits here, then reads what the first wrote.
-  std::optional<io::FileLock> lock;
-  if (fs::exists(s.map)) lock.emplace(s.map);
+  // One add at a time per map: a second one waits here, then reads what the first wrote (also
+  // when the first created the map).
+  const io::FileLock lock(s.map, io::FileLock::Missing::LockFolder);
   io::TemporalFileLayout layout;
   TemporalMap map = openOrCreate(s.map, session.resolution_m(), s.criterion, r.created, &layout);
   if (s.realign) {

@@ -29,20 +29,35 @@ void writeFileAtomic(const std::filesystem::path& path, const std::vector<uint8_
 /// @throw IoError naming the file.
 void appendToFile(const std::filesystem::path& path, uint64_t keep_bytes, const std::vector<uint8_t>& bytes);
 
-/// An exclusive advisory lock (flock) on an existing file, held until destruction, so that
-/// two processes updating one map run one after the other. The lock follows the name: when
-/// another process replaced the file (rename) while this one waited, the new file is locked.
+/// An exclusive advisory lock (flock) on a file, held until destruction, so that two processes
+/// updating one map run one after the other. The lock follows the name: when another process
+/// replaced the file (rename) while this one waited, the new file is locked.
 class FileLock {
  public:
-  /// Blocks until the lock is held. @throw IoError when the file cannot be opened.
-  explicit FileLock(const std::filesystem::path& path);
+  /// What to lock when the file does not exist (yet).
+  enum class Missing : uint8_t {
+    Fail,        ///< throw IoError
+    LockFolder,  ///< lock its folder instead, for the holder to create the file: two commands
+                 ///< creating one map run one after the other, and one that finds the file
+                 ///< created meanwhile locks the file as usual
+  };
+  /// Blocks until the lock is held. @throw IoError when the file (or folder) cannot be opened.
+  explicit FileLock(const std::filesystem::path& path, Missing missing = Missing::Fail);
   ~FileLock();
   FileLock(const FileLock&) = delete;
   FileLock& operator=(const FileLock&) = delete;
+  /// True when the file did not exist once the lock was held (its folder is locked).
+  bool creating() const { return creating_; }
 
  private:
   int fd_ = -1;
+  bool creating_ = false;
 };
+
+/// Refuses to write `output` over one of `inputs`, before any work: throws UsageError when it
+/// names the same existing file as an input, however either is spelled (links, "..", hard
+/// links). Outputs that do not exist yet are never an input.
+void refuseOverwritingInputs(const std::filesystem::path& output, const std::vector<std::filesystem::path>& inputs);
 
 /// `path` without a trailing ".bz2", lower-cased extension of what remains (".pcd", ".ply", ...).
 std::string dataExtension(const std::filesystem::path& path);
