@@ -14,6 +14,7 @@
 #include "chronomap/core/time.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/diff_file.h"
+#include "chronomap/io/file.h"
 #include "chronomap/pipeline/maps.h"
 #include "commands.h"
 
@@ -45,8 +46,11 @@ int runDiff(const DiffCmdOptions& o) {
   settings.neighbourhood_voxels = o.neighbourhood;
   settings.min_shift_voxels = o.min_shift_voxels;
   settings.validate();
-  if (fs::path(o.output).extension() != ".cmap") throw UsageError("output '" + o.output + "' must end in .cmap");
-  if (!o.ply.empty() && fs::path(o.ply).extension() != ".ply") throw UsageError("--ply '" + o.ply + "' must end in .ply");
+  requireExtension(o.output, ".cmap", "output");
+  if (!o.ply.empty()) requireExtension(o.ply, ".ply", "--ply");
+  const std::vector<fs::path> inputs = {pipeline::parseMapRef(o.before).path, pipeline::parseMapRef(o.after).path};
+  io::refuseOverwritingInputs(o.output, inputs);
+  if (!o.ply.empty()) io::refuseOverwritingInputs(o.ply, inputs);
   const auto start = std::chrono::steady_clock::now();
   const DiffMap d = pipeline::diffMaps(o.before, o.after, settings);
   io::writeDiffMap(o.output, d, {{"created_by", "chronomap diff"}, {"before", o.before}, {"after", o.after}});

@@ -7,6 +7,7 @@
 
 #include "chronomap/core/error.h"
 #include "chronomap/io/cmap.h"
+#include "chronomap/io/file.h"
 #include "chronomap/pipeline/maps.h"
 #include "commands.h"
 
@@ -27,6 +28,7 @@ int runExport(const ExportOptions& o) {
     throw UsageError("output '" + o.output + "' must end in .ply, .ot or .png");
   }
   if (o.pixels_per_voxel < 1 || o.pixels_per_voxel > 64) throw UsageError("--scale must be 1 to 64");
+  io::refuseOverwritingInputs(o.output, {o.input});
   pipeline::ExportSettings settings;
   settings.pixels_per_voxel = o.pixels_per_voxel;
   const size_t n = pipeline::exportSessionMap(o.output, io::readSessionMap(o.input), settings);

@@ -10,6 +10,7 @@
 #include "chronomap/core/pose.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/dataset.h"
+#include "chronomap/io/file.h"
 #include "chronomap/pipeline/session.h"
 #include "commands.h"
 #include "progress.h"
@@ -69,6 +70,7 @@ void printIntegrated(const IntegrateCmdOptions& o, const pipeline::IntegratedSes
 
 int runIntegrate(const IntegrateCmdOptions& o) {
   requireExtension(o.output, ".cmap", "output");
+  io::refuseOverwritingInputs(o.output, {o.dataset});
   const pipeline::SessionSettings settings = sessionSettings(o.flags);
   const pipeline::IntegratedSession session =
       pipeline::integrateDataset(o.dataset, settings, {}, terminalProgress(o.json));

@@ -9,6 +9,7 @@
 #include "chronomap/core/time.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/diff_file.h"
+#include "chronomap/io/file.h"
 #include "chronomap/io/png.h"
 #include "chronomap/render/plot.h"
 #include "chronomap/io/temporal_file.h"
@@ -114,6 +115,7 @@ int runTemporalStats(const StatsOptions& o, const io::CmapFile& file) {
   for (const auto& session : map.sessions()) s.nodes_separate += static_cast<double>(session.nodes_separate);
   if (!o.plot.empty()) {
     if (std::filesystem::path(o.plot).extension() != ".png") throw UsageError("--plot '" + o.plot + "' must end in .png");
+    io::refuseOverwritingInputs(o.plot, {o.file});
     if (map.sessionCount() == 0) throw DataError(o.file + ": no sessions to plot");
     io::writePng(o.plot, render::renderStoragePlot(map));
   }

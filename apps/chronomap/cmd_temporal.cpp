@@ -12,6 +12,7 @@
 #include "chronomap/analysis/change_frequency.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
+#include "chronomap/io/file.h"
 #include "chronomap/io/temporal_file.h"
 #include "chronomap/pipeline/maps.h"
 #include "commands.h"
@@ -37,6 +38,7 @@ int runSnapshot(const SnapshotCmdOptions& o) {
   if (ext != ".cmap" && ext != ".ply" && ext != ".ot" && ext != ".png") {
     throw UsageError("output '" + o.output + "' must end in .cmap, .ply, .ot or .png");
   }
+  io::refuseOverwritingInputs(o.output, {o.map});
   const double t = parseTime(o.at);
   const SessionMap snap = pipeline::snapshotAt(io::readTemporalMap(o.map), t, o.map);
   pipeline::ExportSettings settings;
@@ -174,7 +176,10 @@ void printChanges(const ChangesCmdOptions& o, const ChangeFrequency& f, size_t s
 }
 
 int runChanges(const ChangesCmdOptions& o) {
-  if (!o.output.empty()) requireExtension(o.output, ".ply", "output");
+  if (!o.output.empty()) {
+    requireExtension(o.output, ".ply", "output");
+    io::refuseOverwritingInputs(o.output, {o.map});
+  }
   if (o.min < 1) throw UsageError("--min must be at least 1");
   const TemporalMap map = io::readTemporalMap(o.map);
   const double t0 = o.from.empty() ? -std::numeric_limits<double>::infinity() : parseTime(o.from);

@@ -1,7 +1,7 @@
 #include "chronomap/pipeline/maps.h"
 
+#include <algorithm>
 #include <cstdio>
-#include <fstream>
 #include <vector>
 
 #include "chronomap/core/error.h"
@@ -9,6 +9,7 @@
 #include "chronomap/io/cloud_io.h"
 #include "chronomap/io/diff_file.h"
 #include "chronomap/io/export.h"
+#include "chronomap/io/file.h"
 #include "chronomap/io/png.h"
 #include "chronomap/io/temporal_file.h"
 #include "chronomap/render/color.h"
@@ -96,6 +97,23 @@ namespace {
 
 nlohmann::json vec3(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
+/// Removes the component files of an earlier segmentation into `folder` that this one did not
+/// write (component_NNNN.cmap and .ply beyond its components), so the folder matches its index.
+void removeStaleComponents(const fs::path& folder, const std::vector<fs::path>& written) {
+  std::vector<fs::path> stale;
+  for (const auto& entry : fs::directory_iterator(folder)) {
+    const std::string stem = entry.path().stem().string();
+    const std::string ext = entry.path().extension().string();
+    const bool component = stem.size() == 14 && stem.rfind("component_", 0) == 0 && (ext == ".cmap" || ext == ".ply") &&
+                           std::all_of(stem.begin() + 10, stem.end(), [](char c) { return c >= '0' && c <= '9'; });
+    if (!component || !entry.is_regular_file()) continue;
+    if (std::find(written.begin(), written.end(), folder / entry.path().stem()) == written.end()) {
+      stale.push_back(entry.path());
+    }
+  }
+  for (const fs::path& p : stale) fs::remove(p);
+}
+
 }  // namespace
 
 nlohmann::json segmentationJson(const Segmentation& segmentation, const SegmentSettings& settings) {
@@ -115,16 +133,29 @@ nlohmann::json segmentationJson(const Segmentation& segmentation, const SegmentS
 
 void writeComponents(const fs::path& folder, const DiffMap& diff, const Segmentation& segmentation,
                      const std::string& source, const nlohmann::json& summary) {
-  fs::create_directories(folder);
+  std::vector<fs::path> stems;  // folder/component_NNNN
   for (const Component& c : segmentation.components) {
     char name[32];
     std::snprintf(name, sizeof(name), "component_%04u", c.id);
-    const DiffMap part = componentDiff(diff, c);
-    io::writeDiffMap(folder / (std::string(name) + ".cmap"), part,
-                     {{"created_by", "chronomap segment"}, {"from", source}, {"component", c.id}});
-    io::exportDiffPly(folder / (std::string(name) + ".ply"), part, part.cells());
+    stems.push_back(folder / name);
   }
-  std::ofstream(folder / "components.json") << summary.dump(2) << "\n";
+  // Every file this writes is checked against the input before the first is written.
+  for (const fs::path& stem : stems) {
+    io::refuseOverwritingInputs(stem.string() + ".cmap", {source});
+    io::refuseOverwritingInputs(stem.string() + ".ply", {source});
+  }
+  io::refuseOverwritingInputs(folder / "components.json", {source});
+  fs::create_directories(folder);
+  for (size_t i = 0; i < stems.size(); ++i) {
+    const Component& c = segmentation.components[i];
+    const DiffMap part = componentDiff(diff, c);
+    io::writeDiffMap(stems[i].string() + ".cmap", part,
+                     {{"created_by", "chronomap segment"}, {"from", source}, {"component", c.id}});
+    io::exportDiffPly(stems[i].string() + ".ply", part, part.cells());
+  }
+  const std::string index = summary.dump(2) + "\n";
+  io::writeFileAtomic(folder / "components.json", std::vector<uint8_t>(index.begin(), index.end()));
+  removeStaleComponents(folder, stems);
 }
 
 }  // namespace chronomap::pipeline
