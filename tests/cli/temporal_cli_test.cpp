@@ -191,7 +191,7 @@ TEST(TemporalCli, BadInputChangesNothing) {
       {"add " + map + " " + (tmp / "s1.cmap").string() + " --time yesterday", 2, "'yesterday'"},
       {"add " + map + " " + (tmp / "s1.cmap").string(), 2, "give --time"},
       {"add " + map + " " + (tmp / "missing.cmap").string() + " --time 5", 1, "missing.cmap"},
-      {"add " + map + " " + map + " --time 5", 1, "not a session map"},
+      {"add " + map + " " + map + " --time 5", 2, "is the input"},
       {"history " + map + " --point 1,2", 2, "X,Y,Z"},
       {"history " + map + " --point 1e9,0,0", 2, "outside the map"},
       {"changes " + map + " --min 0", 2, "--min"},

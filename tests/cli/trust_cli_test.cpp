@@ -1,0 +1,133 @@
+// Trust on the command line: no session lost to a race between commands that create one map,
+// no input destroyed by an output that names it.
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/cloud_io.h"
+#include "chronomap/io/temporal_file.h"
+#include "test_support.h"
+
+namespace chronomap {
+namespace {
+
+namespace fs = std::filesystem;
+
+using test::bytesOf;
+using test::cli;
+
+// The parts written one after the other (a chain of string + trips GCC 12's -Wrestrict).
+template <class... Parts>
+std::string cat(const Parts&... parts) {
+  std::ostringstream s;
+  (s << ... << parts);
+  return s.str();
+}
+
+// A cloud-list dataset of one 1 x 1 m wall of points at x = wall_x, seen from the origin.
+fs::path wallDataset(const test::TempDir& tmp, const std::string& name, float wall_x) {
+  PointCloud cloud;
+  for (float y = -0.5f; y <= 0.5f; y += 0.02f) {
+    for (float z = -0.5f; z <= 0.5f; z += 0.02f) cloud.points.push_back({wall_x, y, z});
+  }
+  cloud.width = static_cast<uint32_t>(cloud.points.size());
+  io::writePly(tmp / cat(name, ".ply"), cloud);
+  std::ofstream(tmp / cat(name, ".txt")) << name << ".ply 0 0 0 0 0 0 1\n";
+  return tmp / cat(name, ".txt");
+}
+
+TEST(TrustCli, CommandsCreatingOneMapAtOnceKeepEverySession) {
+  test::TempDir tmp;
+  constexpr int kWriters = 4;
+  for (int i = 0; i < kWriters; ++i) {
+    io::writeSessionMap(tmp / cat("s", i, ".cmap"), test::randomSessionMap(60 + i, 16, 0.3), {});
+  }
+  const fs::path dataset = wallDataset(tmp, "wall", 2.0f);
+  for (int attempt = 0; attempt < 6; ++attempt) {
+    const fs::path map = tmp / cat("map", attempt, ".cmap");
+    // Every writer starts while the map does not exist yet; odd attempts mix in a build.
+    std::ostringstream script;
+    for (int i = 0; i < kWriters; ++i) {
+      script << cli() << " add " << map.string() << " " << (tmp / cat("s", i, ".cmap")).string() << " --time "
+             << 1000 + i << " >/dev/null 2>&1 & ";
+    }
+    if (attempt % 2) script << cli() << " build " << map.string() << " " << dataset.string() << " --times 5000 >/dev/null 2>&1 & ";
+    script << "wait";
+    ASSERT_EQ(test::runCommand(script.str()).exit_code, 0);
+    const TemporalMap m = io::readTemporalMap(map);
+    EXPECT_EQ(m.sessionCount(), static_cast<size_t>(kWriters + attempt % 2)) << "attempt " << attempt;
+  }
+}
+
+struct Case {
+  std::string command;  // {A}, {B}, {M}, {D}, {DIR} stand for the files below
+  std::string input;    // the input the output names
+};
+
+TEST(TrustCli, AnOutputThatIsAnInputIsRefusedBeforeWork) {
+  test::TempDir tmp;
+  io::writeSessionMap(tmp / "a.cmap", test::randomSessionMap(1, 16, 0.3), {});
+  io::writeSessionMap(tmp / "b.cmap", test::randomSessionMap(2, 16, 0.3), {});
+  const std::string a = (tmp / "a.cmap").string(), b = (tmp / "b.cmap").string(), m = (tmp / "m.cmap").string();
+  ASSERT_EQ(test::runCommand(cat(cli(), " add ", m, " ", a, " --time 1000 && ", cli(), " add ", m, " ", b, " --time 2000"))
+                .exit_code,
+            0);
+  // A segmentation's own folder as its input's folder: component 1 would replace the diff.
+  fs::create_directories(tmp / "objects");
+  const std::string d = (tmp / "objects" / "component_0001.cmap").string();
+  ASSERT_EQ(test::runCommand(cat(cli(), " diff ", a, " ", b, " -o ", d)).exit_code, 0);
+  fs::create_symlink(tmp / "a.cmap", tmp / "link.cmap");
+  fs::create_symlink(tmp / "a.cmap", tmp / "alias.ply");
+  const std::string link = (tmp / "link.cmap").string(), alias = (tmp / "alias.ply").string();
+  const std::string out = (tmp / "out.cmap").string();
+  const std::string b_again = (tmp / ".." / tmp.path().filename() / "b.cmap").string();
+  const std::vector<Case> cases = {
+      {cat("diff ", a, " ", b, " -o ", a), a},
+      {cat("diff ", a, " ", b, " -o ", b), b},
+      {cat("diff ", a, " ", b, " -o ", b_again), b},
+      {cat("diff ", link, " ", b, " -o ", a), a},  // the input named through a link
+      {cat("diff ", a, " ", b, " -o ", link), a},  // the output named through a link
+      {cat("diff ", a, " ", b, " -o ", out, " --ply ", alias), a},  // the PLY over an input
+      {cat("diff ", m, "@1000 ", m, "@2000 -o ", m), m},
+      {cat("snapshot ", m, " --at 2000 -o ", m), m},
+      {cat("add ", m, " ", m, " --time 3000"), m},
+      {cat("segment ", d, " -o ", (tmp / "objects").string()), d},
+  };
+  for (const Case& c : cases) {
+    const auto before = bytesOf(c.input);
+    const auto r = test::runCommand(cat(cli(), " ", c.command));
+    EXPECT_EQ(r.exit_code, 2) << c.command << "\n" << r.err;
+    EXPECT_NE(r.err.find("input"), std::string::npos) << c.command << "\n" << r.err;
+    EXPECT_EQ(bytesOf(c.input), before) << c.command;
+  }
+}
+
+TEST(TrustCli, SegmentReplacesAnEarlierSegmentationWhole) {
+  test::TempDir tmp;
+  io::writeSessionMap(tmp / "a.cmap", test::wallSession(10), {});
+  io::writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});
+  const std::string d = (tmp / "d.cmap").string(), objects = (tmp / "objects").string();
+  ASSERT_EQ(test::runCommand(cat(cli(), " diff ", (tmp / "a.cmap").string(), " ", (tmp / "b.cmap").string(), " -o ", d))
+                .exit_code,
+            0);
+  fs::create_directories(tmp / "objects");
+  test::writeBytes(tmp / "objects" / "component_0099.cmap", std::string("stale"));
+  test::writeBytes(tmp / "objects" / "component_0099.ply", std::string("stale"));
+  test::writeBytes(tmp / "objects" / "notes.txt", std::string("mine"));
+  const auto r = test::runCommand(cat(cli(), " segment ", d, " -o ", objects, " --json"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_FALSE(fs::exists(tmp / "objects" / "component_0099.cmap"));  // not in the new index
+  EXPECT_FALSE(fs::exists(tmp / "objects" / "component_0099.ply"));
+  EXPECT_TRUE(fs::exists(tmp / "objects" / "component_0001.cmap"));
+  EXPECT_TRUE(fs::exists(tmp / "objects" / "components.json"));
+  EXPECT_EQ(bytesOf(tmp / "objects" / "notes.txt").size(), 4u);  // other files are left alone
+}
+
+}  // namespace
+}  // namespace chronomap
