@@ -31,7 +31,7 @@ struct DiffCmdOptions {
   std::string before;
   std::string after;
   std::string mode = "hard";
-  double alpha = -1.0;
+  std::optional<double> alpha;  ///< unset: the mode's default
   int neighbourhood = 0;
   double min_shift_voxels = 0.0;
   std::string output;
@@ -42,7 +42,10 @@ struct DiffCmdOptions {
 int runDiff(const DiffCmdOptions& o) {
   DiffSettings settings;
   settings.mode = parseDiffMode(o.mode);
-  settings.alpha = o.alpha;
+  if (o.alpha) {
+    if (!(*o.alpha >= 0.0)) throw UsageError("--alpha must be at least 0 (leave it out for the mode's default)");
+    settings.alpha = *o.alpha;
+  }
   settings.neighbourhood_voxels = o.neighbourhood;
   settings.min_shift_voxels = o.min_shift_voxels;
   settings.validate();

@@ -94,7 +94,7 @@ pipeline::SessionSettings sessionSettings(const IntegrateFlags& f) {
   pipeline::SessionSettings s;
   s.resolution_m = f.resolution_m;
   s.dataset.format = io::parseDatasetFormat(f.format);
-  if (f.depth_scale != 0.0) s.dataset.depth_scale = f.depth_scale;
+  s.dataset.depth_scale = f.depth_scale;
   if (!f.intrinsics.empty()) s.dataset.intrinsics = io::parseIntrinsics(f.intrinsics);
   if (!f.pose.empty()) s.dataset.pose = parsePose(f.pose);
   if (!f.trajectory.empty()) s.dataset.trajectory = f.trajectory;

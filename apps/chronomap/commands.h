@@ -5,6 +5,7 @@
 
 #include <CLI/CLI.hpp>
 #include <functional>
+#include <optional>
 #include <string>
 
 #include "chronomap/integrate/integrator.h"
@@ -43,7 +44,7 @@ struct IntegrateFlags {
   int threads = 0;
   bool no_compress = false;
   bool no_positions = false;
-  double depth_scale = 0.0;
+  std::optional<double> depth_scale;  ///< unset: the format's own
   std::string intrinsics;
   std::string pose;
   std::string trajectory;

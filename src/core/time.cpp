@@ -111,6 +111,19 @@ bool parseIso(std::string_view s, double& out) {
 
 }  // namespace
 
+namespace {
+
+double inRange(double v, const std::string& quoted) {
+  if (v < kEarliestTime_s || v > kLatestTime_s) {
+    throw UsageError("time " + quoted + " lies outside the years 1 to 9999 (seconds since the epoch from " +
+                     std::to_string(static_cast<int64_t>(kEarliestTime_s)) + " to " +
+                     std::to_string(static_cast<int64_t>(kLatestTime_s)) + ")");
+  }
+  return v;
+}
+
+}  // namespace
+
 double parseTime(std::string_view text) {
   std::string_view s = text;
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
@@ -125,17 +138,17 @@ double parseTime(std::string_view text) {
     if (ec != std::errc{} || end != s.data() + s.size() || !std::isfinite(v)) {
       throw UsageError("time " + quoted + " is neither ISO-8601 (2012-03-01T10:00:00Z) nor seconds since the epoch");
     }
-    return v;
+    return inRange(v, quoted);
   }
   double v = 0.0;
   if (!parseIso(s, v)) {
     throw UsageError("time " + quoted + " is not a valid ISO-8601 time (expected e.g. 2012-03-01T10:00:00Z)");
   }
-  return v;
+  return inRange(v, quoted);
 }
 
 std::string formatTime(double seconds) {
-  if (!std::isfinite(seconds)) return "invalid-time";
+  if (!(seconds >= kEarliestTime_s && seconds <= kLatestTime_s)) return "invalid-time";
   const double whole = std::floor(seconds);
   auto millis = static_cast<int64_t>(std::llround((seconds - whole) * 1000.0));
   auto total = static_cast<int64_t>(whole);

@@ -455,6 +455,10 @@ DatasetFormat detect(const fs::path& path) {
 std::unique_ptr<Dataset> openDataset(const fs::path& path, const DatasetSettings& options) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw UsageError(path.string() + ": no such file or folder");
+  if (options.depth_scale && !(*options.depth_scale > 0.0 && std::isfinite(*options.depth_scale))) {
+    throw UsageError("the depth scale must be a positive number of image units per metre, got " +
+                     std::to_string(*options.depth_scale));
+  }
   DatasetFormat format = options.format == DatasetFormat::Auto ? detect(path) : options.format;
   if (format != DatasetFormat::Clouds && options.pose) {
     throw UsageError("--pose applies to a single cloud file");

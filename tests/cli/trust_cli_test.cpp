@@ -129,5 +129,36 @@ TEST(TrustCli, SegmentReplacesAnEarlierSegmentationWhole) {
   EXPECT_EQ(bytesOf(tmp / "objects" / "notes.txt").size(), 4u);  // other files are left alone
 }
 
+TEST(TrustCli, OutOfRangeValuesAreRefusedNotReplacedByDefaults) {
+  test::TempDir tmp;
+  io::writeSessionMap(tmp / "a.cmap", test::wallSession(10), {});
+  io::writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});
+  const fs::path dataset = wallDataset(tmp, "wall", 2.0f);
+  const std::string a = (tmp / "a.cmap").string(), b = (tmp / "b.cmap").string(), m = (tmp / "m.cmap").string();
+  struct Refused {
+    std::string args;
+    std::string message;
+    fs::path not_written;
+  };
+  const std::vector<Refused> cases = {
+      {cat("diff ", a, " ", b, " --mode band --alpha -0.5 -o ", (tmp / "d.cmap").string()), "--alpha", tmp / "d.cmap"},
+      {cat("integrate ", dataset.string(), " --depth-scale 0 -o ", (tmp / "s.cmap").string()), "depth scale",
+       tmp / "s.cmap"},
+      {cat("add ", m, " ", a, " --time 1e300"), "years 1 to 9999", m},
+      {cat("add ", m, " ", a, " --time -1e300"), "years 1 to 9999", m},
+  };
+  for (const Refused& c : cases) {
+    const auto r = test::runCommand(cat(cli(), " ", c.args));
+    EXPECT_EQ(r.exit_code, 2) << c.args << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.message), std::string::npos) << c.args << "\n" << r.err;
+    EXPECT_FALSE(fs::exists(c.not_written)) << c.args;
+  }
+  // In range, the given value is used as given.
+  const auto r = test::runCommand(cat(cli(), " diff ", a, " ", b, " --mode band --alpha 0.2 --json -o ",
+                                      (tmp / "d.cmap").string()));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["alpha"], 0.2);
+}
+
 }  // namespace
 }  // namespace chronomap

@@ -31,6 +31,24 @@ TEST(Time, RejectsNonsenseWithTheText) {
   }
 }
 
+TEST(Time, RefusesTimesOutsideFourDigitYears) {
+  EXPECT_DOUBLE_EQ(parseTime("-62135596800"), kEarliestTime_s);  // 0001-01-01T00:00:00Z
+  EXPECT_DOUBLE_EQ(parseTime("9999-12-31T23:59:59Z"), kLatestTime_s);
+  EXPECT_EQ(formatTime(kLatestTime_s), "9999-12-31T23:59:59Z");
+  EXPECT_EQ(formatTime(kEarliestTime_s), "0001-01-01T00:00:00Z");
+  for (const char* bad : {"1e300", "-1e300", "253402300800", "-62135596801", "0000-06-01", "9999-12-31T23:59:59-01:00"}) {
+    EXPECT_THROW(parseTime(bad), UsageError) << bad;
+  }
+  try {
+    parseTime("1e300");
+    FAIL();
+  } catch (const UsageError& e) {
+    EXPECT_NE(std::string(e.what()).find("years 1 to 9999"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(formatTime(1e300), "invalid-time");  // never a year in the past
+  EXPECT_EQ(formatTime(-1e300), "invalid-time");
+}
+
 TEST(Time, FormatsAndRoundTrips) {
   EXPECT_EQ(formatTime(1330596000.0), "2012-03-01T10:00:00Z");
   EXPECT_EQ(formatTime(1330596000.25), "2012-03-01T10:00:00.250Z");

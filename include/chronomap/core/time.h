@@ -10,11 +10,17 @@ namespace chronomap {
 /// Parses "2012-03-01T10:00:00Z", "2012-03-01T10:00:00.250+02:00", "2012-03-01 10:00:00",
 /// "2012-03-01" (midnight UTC; a time without a zone is UTC) or seconds since the epoch
 /// ("1330596000", "1330596000.5").
-/// @throw UsageError naming the text when it is none of these or not a valid calendar time.
+/// @throw UsageError naming the text when it is none of these, not a valid calendar time, or
+/// outside [kEarliestTime_s, kLatestTime_s].
 double parseTime(std::string_view text);
 
+/// The times chronomap accepts, in seconds since the epoch: 0001-01-01T00:00:00Z to
+/// 9999-12-31T23:59:59Z (four-digit years, as ISO-8601 writes them).
+inline constexpr double kEarliestTime_s = -62135596800.0;
+inline constexpr double kLatestTime_s = 253402300799.0;
+
 /// Formats seconds since the epoch as ISO-8601 UTC ("2012-03-01T10:00:00Z"; fractional
-/// seconds to the millisecond when present).
+/// seconds to the millisecond when present); "invalid-time" outside [kEarliestTime_s, kLatestTime_s].
 std::string formatTime(double seconds);
 
 }  // namespace chronomap
