@@ -2,6 +2,7 @@
 // (2 for bad usage, 1 for bad data or a failed operation).
 
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <new>
 #include <vector>
@@ -50,6 +51,10 @@ int run(int argc, char** argv) {
     return fail(2, e.what());
   } catch (const Error& e) {
     return fail(1, e.what());
+  } catch (const std::filesystem::filesystem_error& e) {
+    // The file and the system's word for the problem, not the library's own wording.
+    const std::string path = e.path1().empty() ? std::string() : e.path1().string() + ": ";
+    return fail(1, path + e.code().message());
   } catch (const std::bad_alloc&) {
     return fail(1, "out of memory");
   } catch (const std::exception& e) {

@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <sstream>
 
 #include "chronomap/core/error.h"
 #include "chronomap/io/cloud_io.h"
+#include "chronomap/io/file.h"
 
 namespace chronomap::io {
 
@@ -50,7 +52,11 @@ size_t exportOctomap(const std::filesystem::path& path, const SessionMap& map) {
   });
   tree.updateInnerOccupancy();
   tree.prune();
-  if (!tree.write(path.string())) throw IoError(path.string() + ": cannot write the OctoMap file");
+  // Through the same temporary file and rename as every writer: a full disk leaves the old file.
+  std::ostringstream out;
+  if (!tree.write(out)) throw IoError(path.string() + ": cannot encode the OctoMap tree");
+  const std::string bytes = out.str();
+  writeFileAtomic(path, std::vector<uint8_t>(bytes.begin(), bytes.end()));
   return tree.getNumLeafNodes();
 }
 

@@ -51,8 +51,15 @@ std::vector<uint8_t> bunzip(const std::vector<uint8_t>& in, const fs::path& path
 }  // namespace
 
 std::vector<uint8_t> readFileBytes(const fs::path& path) {
+  // Only regular files: a FIFO would block for ever, a device (/dev/zero) never ends, a link
+  // loop cannot be followed.
   std::error_code ec;
-  if (fs::is_directory(path, ec)) throw IoError(path.string() + ": is a folder, expected a file");
+  const fs::file_status st = fs::status(path, ec);
+  if (ec && ec != std::errc::no_such_file_or_directory) throw IoError(path.string() + ": " + ec.message());
+  if (fs::is_directory(st)) throw IoError(path.string() + ": is a folder, expected a file");
+  if (fs::exists(st) && !fs::is_regular_file(st)) {
+    throw IoError(path.string() + ": not a regular file (a FIFO, device or socket cannot be read as data)");
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) throw IoError(path.string() + ": cannot open (" + std::strerror(errno) + ")");
   std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());

@@ -160,5 +160,27 @@ TEST(TrustCli, OutOfRangeValuesAreRefusedNotReplacedByDefaults) {
   EXPECT_EQ(nlohmann::json::parse(r.out)["alpha"], 0.2);
 }
 
+TEST(TrustCli, SpecialFilesAreRefusedAtOnceNamingThem) {
+  test::TempDir tmp;
+  io::writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});
+  ASSERT_EQ(test::runCommand(cat("mkfifo ", (tmp / "pipe.ply").string())).exit_code, 0);
+  fs::create_symlink(tmp / "loop2.cmap", tmp / "loop.cmap");
+  fs::create_symlink(tmp / "loop.cmap", tmp / "loop2.cmap");
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      // A FIFO as a cloud would block for ever: `timeout` turns a hang into exit 124.
+      {cat("integrate ", (tmp / "pipe.ply").string(), " -o ", (tmp / "p.cmap").string()), "pipe.ply"},
+      {cat("diff ", (tmp / "loop.cmap").string(), " ", (tmp / "b.cmap").string(), " -o ", (tmp / "d.cmap").string()),
+       "loop.cmap"},
+      {cat("stats ", (tmp / "loop.cmap").string()), "loop.cmap"},
+      {cat("stats /dev/zero"), "/dev/zero"},
+  };
+  for (const auto& [args, name] : cases) {
+    const auto r = test::runCommand(cat("timeout 60 ", cli(), " ", args));
+    EXPECT_TRUE(r.exit_code == 1 || r.exit_code == 2) << args << " exited " << r.exit_code << "\n" << r.err;
+    EXPECT_NE(r.err.find(name), std::string::npos) << args << "\n" << r.err;
+    EXPECT_EQ(r.err.find("internal error"), std::string::npos) << args << "\n" << r.err;
+  }
+}
+
 }  // namespace
 }  // namespace chronomap
