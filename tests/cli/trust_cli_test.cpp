@@ -3,14 +3,12 @@
 
 #include <gtest/gtest.h>
 
-#include <fstream>
 #include <sstream>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
 #include "chronomap/io/cmap.h"
-#include "chronomap/io/cloud_io.h"
 #include "chronomap/io/temporal_file.h"
 #include "test_support.h"
 
@@ -30,25 +28,13 @@ std::string cat(const Parts&... parts) {
   return s.str();
 }
 
-// A cloud-list dataset of one 1 x 1 m wall of points at x = wall_x, seen from the origin.
-fs::path wallDataset(const test::TempDir& tmp, const std::string& name, float wall_x) {
-  PointCloud cloud;
-  for (float y = -0.5f; y <= 0.5f; y += 0.02f) {
-    for (float z = -0.5f; z <= 0.5f; z += 0.02f) cloud.points.push_back({wall_x, y, z});
-  }
-  cloud.width = static_cast<uint32_t>(cloud.points.size());
-  io::writePly(tmp / cat(name, ".ply"), cloud);
-  std::ofstream(tmp / cat(name, ".txt")) << name << ".ply 0 0 0 0 0 0 1\n";
-  return tmp / cat(name, ".txt");
-}
-
 TEST(TrustCli, CommandsCreatingOneMapAtOnceKeepEverySession) {
   test::TempDir tmp;
   constexpr int kWriters = 4;
   for (int i = 0; i < kWriters; ++i) {
     io::writeSessionMap(tmp / cat("s", i, ".cmap"), test::randomSessionMap(60 + i, 16, 0.3), {});
   }
-  const fs::path dataset = wallDataset(tmp, "wall", 2.0f);
+  const fs::path dataset = test::writeWallDataset(tmp.path(), "wall", 2.0f);
   for (int attempt = 0; attempt < 6; ++attempt) {
     const fs::path map = tmp / cat("map", attempt, ".cmap");
     // Every writer starts while the map does not exist yet; odd attempts mix in a build.
@@ -133,7 +119,7 @@ TEST(TrustCli, OutOfRangeValuesAreRefusedNotReplacedByDefaults) {
   test::TempDir tmp;
   io::writeSessionMap(tmp / "a.cmap", test::wallSession(10), {});
   io::writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});
-  const fs::path dataset = wallDataset(tmp, "wall", 2.0f);
+  const fs::path dataset = test::writeWallDataset(tmp.path(), "wall", 2.0f);
   const std::string a = (tmp / "a.cmap").string(), b = (tmp / "b.cmap").string(), m = (tmp / "m.cmap").string();
   struct Refused {
     std::string args;

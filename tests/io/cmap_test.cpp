@@ -1,11 +1,5 @@
 #include <gtest/gtest.h>
 
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
-
-#include <csignal>
-
 #include <cstring>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -207,26 +201,16 @@ TEST(Cmap, FullDiskLeavesTheOldFileIntact) {
   test::TempDir tmp;
   writeSessionMap(tmp / "m.cmap", SessionMap(0.1), nullptr);
   const auto before = readFileBytes(tmp / "m.cmap");
-  // A child process with a 4 KiB file-size limit stands in for a full disk.
-  const pid_t pid = ::fork();
-  ASSERT_GE(pid, 0);
-  if (pid == 0) {
-    std::signal(SIGXFSZ, SIG_IGN);  // get EFBIG from write() instead of a signal
-    rlimit limit{4096, 4096};
-    ::setrlimit(RLIMIT_FSIZE, &limit);
+  // A 4 KiB file-size limit in a child process stands in for a full disk.
+  const int code = test::exitCodeUnderFileSizeLimit(4096, [&] {
     try {
       writeSessionMap(tmp / "m.cmap", sampleMap(), nullptr);
     } catch (const IoError&) {
-      ::_exit(42);
-    } catch (...) {
-      ::_exit(2);
+      return 42;
     }
-    ::_exit(0);
-  }
-  int status = 0;
-  ::waitpid(pid, &status, 0);
-  ASSERT_TRUE(WIFEXITED(status));
-  EXPECT_EQ(WEXITSTATUS(status), 42) << "the write should fail with an IoError";
+    return 0;
+  });
+  EXPECT_EQ(code, 42) << "the write should fail with an IoError";
   EXPECT_EQ(readFileBytes(tmp / "m.cmap"), before);
   size_t files = 0;
   for (auto& e : std::filesystem::directory_iterator(tmp.path())) files += e.is_regular_file();

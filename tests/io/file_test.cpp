@@ -1,10 +1,7 @@
 #include <gtest/gtest.h>
-#include <sys/resource.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
-#include <csignal>
 #include <string>
 
 #include "chronomap/core/error.h"
@@ -54,26 +51,16 @@ TEST(ExportOctomap, FullDiskLeavesTheOldFileIntact) {
   exportOctomap(tmp / "m.ot", test::wallSession(10));
   const auto before = test::bytesOf(tmp / "m.ot");
   ASSERT_FALSE(before.empty());
-  // A child process with a 4 KiB file-size limit stands in for a full disk.
-  const pid_t pid = ::fork();
-  ASSERT_GE(pid, 0);
-  if (pid == 0) {
-    std::signal(SIGXFSZ, SIG_IGN);  // get EFBIG from write() instead of a signal
-    rlimit limit{4096, 4096};
-    ::setrlimit(RLIMIT_FSIZE, &limit);
+  // A 4 KiB file-size limit in a child process stands in for a full disk.
+  const int code = test::exitCodeUnderFileSizeLimit(4096, [&] {
     try {
       exportOctomap(tmp / "m.ot", map);
     } catch (const IoError&) {
-      ::_exit(42);
-    } catch (...) {
-      ::_exit(2);
+      return 42;
     }
-    ::_exit(0);
-  }
-  int status = 0;
-  ::waitpid(pid, &status, 0);
-  ASSERT_TRUE(WIFEXITED(status));
-  EXPECT_EQ(WEXITSTATUS(status), 42) << "the export should fail with an IoError";
+    return 0;
+  });
+  EXPECT_EQ(code, 42) << "the export should fail with an IoError";
   EXPECT_EQ(test::bytesOf(tmp / "m.ot"), before);
   size_t files = 0;
   for (const auto& e : fs::directory_iterator(tmp.path())) files += e.is_regular_file();

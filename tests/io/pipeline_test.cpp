@@ -6,7 +6,6 @@
 #include <limits>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/cloud_io.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/temporal_file.h"
 #include "chronomap/pipeline/map4d.h"
@@ -19,22 +18,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// A cloud-list dataset of one cloud: a 1 x 1 m wall of points at x = wall_x (0.02 m apart), seen
-// from the origin.
-fs::path wallDataset(const test::TempDir& tmp, const std::string& name, float wall_x) {
-  PointCloud cloud;
-  for (float y = -0.5f; y <= 0.5f; y += 0.02f) {
-    for (float z = -0.5f; z <= 0.5f; z += 0.02f) cloud.points.push_back({wall_x, y, z});
-  }
-  cloud.width = static_cast<uint32_t>(cloud.points.size());
-  io::writePly(tmp / (name + ".ply"), cloud);
-  std::ofstream(tmp / (name + ".txt")) << name << ".ply 0 0 0 0 0 0 1\n";
-  return tmp / (name + ".txt");
-}
-
 TEST(PipelineSession, IntegratesADatasetAndRefusesOneWithoutPoints) {
   test::TempDir tmp;
-  const IntegratedSession s = integrateDataset(wallDataset(tmp, "wall", 2.0f), SessionSettings{});
+  const IntegratedSession s = integrateDataset(test::writeWallDataset(tmp.path(), "wall", 2.0f), SessionSettings{});
   EXPECT_EQ(s.format, "clouds");
   EXPECT_EQ(s.stats.frames, 1u);
   EXPECT_GT(s.stats.points, 2000u);
@@ -54,7 +40,7 @@ TEST(PipelineBuild, SortsByTimeAndRefusesClashesBeforeIntegrating) {
   test::TempDir tmp;
   BuildSettings s;
   s.map = tmp / "map.cmap";
-  s.datasets = {wallDataset(tmp, "late", 2.0f), wallDataset(tmp, "early", 2.5f)};
+  s.datasets = {test::writeWallDataset(tmp.path(), "late", 2.0f), test::writeWallDataset(tmp.path(), "early", 2.5f)};
   s.times_s = {200.0, 100.0};
   size_t steps = 0;
   s.progress.step = [&](const std::string&) { ++steps; };

@@ -5,10 +5,6 @@
 #include <fstream>
 #include <random>
 
-#include <signal.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
-#include <unistd.h>
 #include <nlohmann/json.hpp>
 
 #include "chronomap/core/error.h"
@@ -301,23 +297,15 @@ TEST(TemporalFile, AFailedAppendLeavesTheFileAsItWas) {
   const auto record = io::encodeSessionRecord(3000.0, test::randomSessionMap(3, 32, 0.3), {});
   // A file-size limit just above the current size makes the write fail part-way (as a full
   // disk does), in a child process so that the limit stays there.
-  const pid_t pid = fork();
-  ASSERT_GE(pid, 0);
-  if (pid == 0) {
-    signal(SIGXFSZ, SIG_IGN);
-    const rlimit limit{static_cast<rlim_t>(before.size() + 100), static_cast<rlim_t>(before.size() + 100)};
-    setrlimit(RLIMIT_FSIZE, &limit);
+  const int code = test::exitCodeUnderFileSizeLimit(before.size() + 100, [&] {
     try {
       io::appendToFile(tmp / "m.cmap", before.size(), record);
     } catch (const IoError& e) {
-      _exit(std::string(e.what()).find("the map is unchanged") != std::string::npos ? 3 : 4);
+      return std::string(e.what()).find("the map is unchanged") != std::string::npos ? 3 : 4;
     }
-    _exit(0);
-  }
-  int status = 0;
-  waitpid(pid, &status, 0);
-  ASSERT_TRUE(WIFEXITED(status));
-  EXPECT_EQ(WEXITSTATUS(status), 3);
+    return 0;
+  });
+  EXPECT_EQ(code, 3);
   EXPECT_EQ(bytesOf(tmp / "m.cmap"), before);
   // A file that is shorter than what was read is refused, not extended.
   EXPECT_THROW(io::appendToFile(tmp / "m.cmap", before.size() + 1, record), IoError);

@@ -1,12 +1,17 @@
 #include "test_support.h"
 
+#include <sys/resource.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <csignal>
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
 #include <random>
 #include <sstream>
+
+#include "chronomap/io/cloud_io.h"
 
 namespace chronomap::test {
 
@@ -64,6 +69,37 @@ void writeBytes(const fs::path& path, const std::string& bytes) { std::ofstream(
 void writeBytes(const fs::path& path, const std::vector<uint8_t>& bytes) {
   std::ofstream(path, std::ios::binary)
       .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+}
+
+int exitCodeUnderFileSizeLimit(uint64_t max_file_bytes, const std::function<int()>& body) {
+  const pid_t pid = ::fork();
+  if (pid < 0) return -1;
+  if (pid == 0) {
+    std::signal(SIGXFSZ, SIG_IGN);  // EFBIG from write() instead of a signal
+    const rlimit limit{static_cast<rlim_t>(max_file_bytes), static_cast<rlim_t>(max_file_bytes)};
+    ::setrlimit(RLIMIT_FSIZE, &limit);
+    int code = 99;
+    try {
+      code = body();
+    } catch (...) {
+    }
+    ::_exit(code);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+fs::path writeWallDataset(const fs::path& dir, const std::string& name, float wall_x) {
+  PointCloud cloud;
+  for (float y = -0.5f; y <= 0.5f; y += 0.02f) {
+    for (float z = -0.5f; z <= 0.5f; z += 0.02f) cloud.points.push_back({wall_x, y, z});
+  }
+  cloud.width = static_cast<uint32_t>(cloud.points.size());
+  const fs::path list = dir / (name + ".txt");
+  io::writePly(dir / (name + ".ply"), cloud);
+  std::ofstream(list) << name << ".ply 0 0 0 0 0 0 1\n";
+  return list;
 }
 
 }  // namespace chronomap::test

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -50,6 +51,15 @@ std::vector<uint8_t> bytesOf(const std::filesystem::path& path);
 /// Writes exactly these bytes to a file, replacing it.
 void writeBytes(const std::filesystem::path& path, const std::string& bytes);
 void writeBytes(const std::filesystem::path& path, const std::vector<uint8_t>& bytes);
+
+/// Runs `body` in a child process whose files may grow to `max_file_bytes` at most (a full disk:
+/// writes past it fail with EFBIG, SIGXFSZ ignored). @return the exit code `body` returned, 99
+/// when it threw, -1 when the child did not exit normally.
+int exitCodeUnderFileSizeLimit(uint64_t max_file_bytes, const std::function<int()>& body);
+
+/// A cloud-list dataset `dir/name.txt` of one cloud `dir/name.ply`: a 1 x 1 m wall of points
+/// 0.02 m apart in the plane x = wall_x, seen from the origin. @return the list's path.
+std::filesystem::path writeWallDataset(const std::filesystem::path& dir, const std::string& name, float wall_x);
 
 }  // namespace chronomap::test
 
