@@ -51,11 +51,12 @@ int runDiff(const DiffCmdOptions& o) {
   settings.validate();
   requireExtension(o.output, ".cmap", "output");
   if (!o.ply.empty()) requireExtension(o.ply, ".ply", "--ply");
-  const std::vector<fs::path> inputs = {pipeline::parseMapRef(o.before).path, pipeline::parseMapRef(o.after).path};
+  const pipeline::MapRef before = pipeline::parseMapRef(o.before), after = pipeline::parseMapRef(o.after);
+  const std::vector<fs::path> inputs = {before.path, after.path};
   io::refuseOverwritingInputs(o.output, inputs);
   if (!o.ply.empty()) io::refuseOverwritingInputs(o.ply, inputs);
   const auto start = std::chrono::steady_clock::now();
-  const DiffMap d = pipeline::diffMaps(o.before, o.after, settings);
+  const DiffMap d = pipeline::diffMaps(before, after, settings);
   io::writeDiffMap(o.output, d, {{"created_by", "chronomap diff"}, {"before", o.before}, {"after", o.after}});
   std::vector<ChangeCell> changed;
   for (const ChangeCell& c : d.cells()) {

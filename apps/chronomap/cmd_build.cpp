@@ -7,7 +7,6 @@
 #include <memory>
 #include <numbers>
 #include <nlohmann/json.hpp>
-#include <sstream>
 
 #include "chronomap/core/error.h"
 #include "chronomap/core/format.h"
@@ -169,9 +168,7 @@ std::optional<pipeline::RegistrationSettings> registrationSettings(const BuildCm
 /// One time per dataset from --times, or none.
 std::vector<std::optional<double>> buildTimes(const BuildCmdOptions& o) {
   if (o.times.empty()) return {};
-  std::vector<std::string> parts;
-  std::stringstream ss(o.times);
-  for (std::string item; std::getline(ss, item, ',');) parts.push_back(item);
+  const std::vector<std::string> parts = splitCommas(o.times);
   if (parts.size() != o.datasets.size()) {
     throw UsageError("--times lists " + std::to_string(parts.size()) + " time(s) for " +
                      std::to_string(o.datasets.size()) + " dataset(s)");

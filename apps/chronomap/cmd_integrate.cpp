@@ -4,6 +4,7 @@
 #include <iostream>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "chronomap/core/error.h"
 #include "chronomap/core/format.h"
@@ -88,6 +89,13 @@ int runIntegrate(const IntegrateCmdOptions& o) {
 
 void requireExtension(const std::string& path, const std::string& ext, const std::string& what) {
   if (std::filesystem::path(path).extension() != ext) throw UsageError(what + " '" + path + "' must end in " + ext);
+}
+
+std::vector<std::string> splitCommas(const std::string& text) {
+  std::vector<std::string> parts;
+  std::stringstream ss(text);
+  for (std::string item; std::getline(ss, item, ',');) parts.push_back(item);
+  return parts;
 }
 
 pipeline::SessionSettings sessionSettings(const IntegrateFlags& f) {

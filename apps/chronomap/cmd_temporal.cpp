@@ -7,7 +7,6 @@
 #include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
-#include <sstream>
 
 #include "chronomap/analysis/change_frequency.h"
 #include "chronomap/core/error.h"
@@ -67,9 +66,7 @@ struct HistoryCmdOptions {
 };
 
 Eigen::Vector3d parsePoint(const std::string& text) {
-  std::vector<std::string> parts;
-  std::stringstream ss(text);
-  for (std::string item; std::getline(ss, item, ',');) parts.push_back(item);
+  const std::vector<std::string> parts = splitCommas(text);
   if (parts.size() != 3) throw UsageError("--point must be X,Y,Z in metres, got '" + text + "'");
   Eigen::Vector3d p;
   for (int i = 0; i < 3; ++i) {

@@ -7,6 +7,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/pipeline/session.h"
@@ -53,6 +54,9 @@ struct IntegrateFlags {
 void addIntegrateFlags(CLI::App* app, IntegrateFlags& flags);
 /// The session settings the flags ask for. @throw UsageError for unreadable values.
 pipeline::SessionSettings sessionSettings(const IntegrateFlags& flags);
+
+/// The comma-separated items of a flag's value ("a,b,,c" gives four, the third empty).
+std::vector<std::string> splitCommas(const std::string& text);
 
 /// Throws UsageError unless `path` ends in `ext` ("4D map 'x' must end in .cmap").
 void requireExtension(const std::string& path, const std::string& ext, const std::string& what);

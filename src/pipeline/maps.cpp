@@ -39,8 +39,7 @@ SessionMap loadSessionMap(const MapRef& ref, const io::CmapFile& file) {
                    " map; diff compares session maps and 4D maps");
 }
 
-DiffMap diffMaps(const std::string& before, const std::string& after, const DiffSettings& settings) {
-  const MapRef a = parseMapRef(before), b = parseMapRef(after);
+DiffMap diffMaps(const MapRef& a, const MapRef& b, const DiffSettings& settings) {
   const io::CmapFile fa = io::readCmap(a.path);
   if (fa.header.kind == io::MapKind::Temporal && a.time_s && b.time_s && fs::exists(b.path) &&
       fs::equivalent(a.path, b.path)) {

@@ -124,12 +124,12 @@ TEST(PipelineMaps, MapReferencesAndTheDiffOfTwoTimesEqualsTheDiffOfTheirSnapshot
   io::writeTemporalMap(tmp / "map.cmap", map, {});
   const std::string m = (tmp / "map.cmap").string();
   DiffSettings settings;
-  const DiffMap fast = diffMaps(m + "@100", m + "@300", settings);
+  const DiffMap fast = diffMaps(parseMapRef(m + "@100"), parseMapRef(m + "@300"), settings);
   const DiffMap slow = diff(map.snapshot(100.0), map.snapshot(300.0), settings);
   EXPECT_EQ(fast.voxelCount(ChangeKind::Appeared), slow.voxelCount(ChangeKind::Appeared));
   EXPECT_EQ(fast.voxelCount(ChangeKind::Vanished), slow.voxelCount(ChangeKind::Vanished));
   EXPECT_GT(slow.voxelCount(), 0u);
-  EXPECT_THROW(diffMaps(m, m + "@300", settings), UsageError);  // a 4D map needs a time
+  EXPECT_THROW(diffMaps(parseMapRef(m), parseMapRef(m + "@300"), settings), UsageError);  // a 4D map needs a time
   EXPECT_THROW(snapshotAt(map, -50.0, m), UsageError);          // before the first session (at 0)
 }
 

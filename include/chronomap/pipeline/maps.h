@@ -35,9 +35,9 @@ MapRef parseMapRef(const std::string& text);
 /// another kind of map.
 SessionMap loadSessionMap(const MapRef& ref, const io::CmapFile& file);
 
-/// What changed from `before` to `after` (map references as parseMapRef reads them). Two times
-/// of one 4D map visit only what changed in between.
-DiffMap diffMaps(const std::string& before, const std::string& after, const DiffSettings& settings);
+/// What changed from `before` to `after`. Two times of one 4D map visit only what changed in
+/// between.
+DiffMap diffMaps(const MapRef& before, const MapRef& after, const DiffSettings& settings);
 
 /// The 4D map's snapshot at `time_s`. @throw UsageError when no session lies at or before it.
 SessionMap snapshotAt(const TemporalMap& map, double time_s, const std::string& name);
