@@ -105,15 +105,15 @@ std::vector<DemoPair> findChanges(const DemoSettings& s, const std::vector<DemoS
   for (size_t k = 1; k < sessions.size(); ++k) {
     DemoPair p;
     p.from = k - 1;
+    p.name = numbered("diff_%02zu", k - 1) + numbered("_%02zu", k);
     p.events = sim::eventsFrom(truth_events, static_cast<uint32_t>(k - 1));
     const DiffMap d = diff(sessions[k - 1].map, sessions[k].map, cs.diff);
     p.segmentation = segment(d, cs.segment);
     p.score = sim::scoreChanges(d, p.segmentation, p.events, sessions[k - 1].map, sessions[k].map);
-    const std::string name = numbered("diff_%02zu", k - 1) + numbered("_%02zu", k);
-    io::writeDiffMap(s.output / "changes" / (name + ".cmap"), d, {{"created_by", "chronomap demo"}});
+    io::writeDiffMap(s.output / "changes" / (p.name + ".cmap"), d, {{"created_by", "chronomap demo"}});
     render::TopViewSettings view;
     view.pixels_per_voxel = 3;
-    io::writePng(images / (name + ".png"), render::renderChangeView(sessions[k].map, d, p.segmentation, view));
+    io::writePng(images / (p.name + ".png"), render::renderChangeView(sessions[k].map, d, p.segmentation, view));
     pairs.push_back(std::move(p));
   }
   return pairs;
@@ -176,7 +176,9 @@ void drawPictures(const sim::SimulationSummary& simulated, const TemporalMap& ma
   io::writePng(images / "storage.png", render::renderStoragePlot(map));
 }
 
-void summarise(const std::vector<DemoSession>& sessions, const std::vector<DemoPair>& pairs, DemoResult& r) {
+/// The result's means and totals; @return the change score over all pairs.
+sim::ChangeScore summarise(const std::vector<DemoSession>& sessions, const std::vector<DemoPair>& pairs,
+                           DemoResult& r) {
   const double w = 1.0 / static_cast<double>(sessions.size());
   for (const DemoSession& d : sessions) {
     r.precision += w * d.registered_score.precision;
@@ -189,6 +191,7 @@ void summarise(const std::vector<DemoSession>& sessions, const std::vector<DemoP
   r.events_observable = total.events_observable;
   r.events_found = total.events_found;
   r.false_components = total.false_components;
+  return total;
 }
 
 }  // namespace
@@ -236,9 +239,9 @@ DemoResult runDemo(const DemoSettings& s) {
   r.nodes_4d = map.counts().nodes();
   for (const auto& session : map.sessions()) r.nodes_separate += session.nodes_separate;
   for (uint64_t n : changeHistogram(map, -1e300, 1e300)) r.changed_voxels += n;
-  summarise(sessions, pairs, r);
-  const std::string report =
-      demoReport({s, sim_settings, simulated, sessions, pairs, map, r, fs::file_size(r.map), kDriftKnots});
+  const sim::ChangeScore changes = summarise(sessions, pairs, r);
+  const std::string report = demoReport(
+      {s, sim_settings, simulated, sessions, pairs, map, r, changes, fs::file_size(r.map), kDriftKnots});
   io::writeFileAtomic(r.report, std::vector<uint8_t>(report.begin(), report.end()));
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   return r;

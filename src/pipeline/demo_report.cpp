@@ -95,8 +95,6 @@ void componentTable(std::ostream& md, const DemoPair& p) {
 }
 
 void pairSection(std::ostream& md, const DemoPair& p, const SegmentSettings& segment) {
-  char name[64];
-  std::snprintf(name, sizeof name, "diff_%02zu_%02zu", p.from, p.from + 1);
   md << "### Session " << p.from << " → " << p.from + 1 << "\n\n"
      << "The simulator made " << p.events.size() << " changes (";
   for (size_t i = 0; i < p.events.size(); ++i) md << (i ? ", " : "") << eventName(p.events[i]);
@@ -104,13 +102,12 @@ void pairSection(std::ostream& md, const DemoPair& p, const SegmentSettings& seg
      << " found. The diff holds " << p.score.changed_voxels << " changed voxels, in "
      << p.segmentation.components.size() << " components of at least " << segment.min_voxels << " voxels ("
      << p.segmentation.dropped << " smaller ones dropped).\n\n"
-     << "![Changes from session " << p.from << " to " << p.from + 1 << "](images/" << name << ".png)\n\n";
+     << "![Changes from session " << p.from << " to " << p.from + 1 << "](images/" << p.name << ".png)\n\n";
   componentTable(md, p);
 }
 
 void changes(std::ostream& md, const DemoReportInput& in) {
-  sim::ChangeScore total;
-  for (const DemoPair& p : in.pairs) total += p.score;
+  const sim::ChangeScore& total = in.changes;
   const SegmentSettings segment = demoChangeSettings().segment;
   md << "## What changed, and which objects\n\n"
      << "Each pair of consecutive registered session maps was compared (`chronomap diff`, band mode: "

@@ -27,6 +27,7 @@ struct DemoSession {
 /// The changes between sessions `from` and `from + 1`.
 struct DemoPair {
   size_t from = 0;
+  std::string name;  ///< "diff_00_01": of its diff in changes/ and its picture in images/
   std::vector<sim::ChangeEvent> events;
   Segmentation segmentation;
   sim::ChangeScore score;
@@ -48,6 +49,7 @@ struct DemoReportInput {
   const std::vector<DemoPair>& pairs;
   const TemporalMap& map;
   const DemoResult& result;
+  const sim::ChangeScore& changes;  ///< over all pairs
   uint64_t map_file_bytes;
   int drift_knots;
 };
