@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -44,6 +45,10 @@ int runDiff(const DiffCmdOptions& o) {
   settings.mode = parseDiffMode(o.mode);
   if (o.alpha) {
     if (!(*o.alpha >= 0.0)) throw UsageError("--alpha must be at least 0 (leave it out for the mode's default)");
+    if (settings.mode != DiffMode::Threshold && settings.mode != DiffMode::Band) {
+      throw UsageError(std::string("--alpha applies to the threshold and band modes only (the ") +
+                       toString(settings.mode) + " mode has none)");
+    }
     settings.alpha = *o.alpha;
   }
   settings.neighbourhood_voxels = o.neighbourhood;
@@ -158,7 +163,9 @@ Command addDiff(CLI::App& root) {
   app->add_option("A", o->before, "the earlier map: SESSION.cmap or MAP.cmap@TIME")->required();
   app->add_option("B", o->after, "the later map: SESSION.cmap or MAP.cmap@TIME")->required();
   app->add_option("--mode", o->mode, "hard, threshold, band or continuous")->capture_default_str();
-  app->add_option("--alpha", o->alpha, "threshold (threshold mode) or half band width (band mode)");
+  app->add_option("--alpha", o->alpha,
+                  "threshold (threshold mode, 0 to 1) or half band width (band mode, 0 to 0.5); other modes have none")
+      ->check(numberIn(0, 1));
   app->add_option("--neighbourhood", o->neighbourhood,
                   "ignore a voxel that appeared (vanished) when the other map is occupied within this many voxels: "
                   "surfaces shifted by localisation error are not changes (0..3; 0 compares twins only)")
@@ -186,8 +193,12 @@ Command addSegment(CLI::App& root) {
   app->add_option("--connectivity", o->connectivity, "face (6 neighbours), edge (18) or vertex (26)")
       ->capture_default_str();
   app->add_option("--color-tolerance", o->color_tolerance,
-                  "join neighbours only when their colours differ by at most this (RGB distance, 0..441)");
-  app->add_option("--min-voxels", o->min_voxels, "drop components with fewer voxels")->capture_default_str();
+                  "join neighbours only when their colours differ by at most this (RGB distance, 0..441; "
+                  "leave it out to ignore colour)")
+      ->check(numberIn(0, std::numeric_limits<double>::max()));
+  app->add_option("--min-voxels", o->min_voxels, "drop components with fewer voxels")
+      ->check(numberIn(0, 1e18))
+      ->capture_default_str();
   app->add_option("--min-value", o->min_value, "continuous diffs: voxels that take part have |P1 - P2| above this")
       ->capture_default_str();
   app->add_option("-o,--output", o->output_dir, "folder for one .cmap and .ply per component and components.json");

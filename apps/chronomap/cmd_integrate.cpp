@@ -1,5 +1,7 @@
 // chronomap integrate DATASET -o SESSION.cmap
 
+#include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -87,6 +89,20 @@ int runIntegrate(const IntegrateCmdOptions& o) {
 
 }  // namespace
 
+CLI::Validator numberIn(double lo, double hi) {
+  std::ostringstream range;
+  range << "[" << lo << ", " << hi << "]";
+  return CLI::Validator(
+      [lo, hi, limits = range.str()](std::string& text) -> std::string {
+        char* end = nullptr;
+        const double v = std::strtod(text.c_str(), &end);
+        if (end == text.c_str() || *end != '\0' || !std::isfinite(v)) return text + ": not a finite number";
+        if (v < lo || v > hi) return text + ": must lie in " + limits;
+        return {};
+      },
+      "in " + range.str());
+}
+
 void requireExtension(const std::string& path, const std::string& ext, const std::string& what) {
   if (std::filesystem::path(path).extension() != ext) throw UsageError(what + " '" + path + "' must end in " + ext);
 }
@@ -104,7 +120,13 @@ pipeline::SessionSettings sessionSettings(const IntegrateFlags& f) {
   s.dataset.format = io::parseDatasetFormat(f.format);
   s.dataset.depth_scale = f.depth_scale;
   if (!f.intrinsics.empty()) s.dataset.intrinsics = io::parseIntrinsics(f.intrinsics);
-  if (!f.pose.empty()) s.dataset.pose = parsePose(f.pose);
+  if (!f.pose.empty()) {
+    try {
+      s.dataset.pose = parsePose(f.pose);
+    } catch (const DataError& e) {
+      throw UsageError(std::string("--pose: ") + e.what());
+    }
+  }
   if (!f.trajectory.empty()) s.dataset.trajectory = f.trajectory;
   s.integrator.max_range_m = f.max_range_m;
   s.integrator.fast = f.fast;
@@ -115,14 +137,22 @@ pipeline::SessionSettings sessionSettings(const IntegrateFlags& f) {
 }
 
 void addIntegrateFlags(CLI::App* app, IntegrateFlags& f) {
-  app->add_option("--resolution", f.resolution_m, "edge of a unit voxel, metres")->capture_default_str();
-  app->add_option("--max-range", f.max_range_m, "points farther from the sensor are discarded, metres")
+  std::ostringstream extent;
+  extent << "edge of a unit voxel, metres (" << kMinResolution_m << " to " << kMaxResolution_m << "; a map spans "
+         << kKeysPerAxis << " voxels per axis)";
+  app->add_option("--resolution", f.resolution_m, extent.str())
+      ->check(numberIn(kMinResolution_m, kMaxResolution_m))
+      ->capture_default_str();
+  app->add_option("--max-range", f.max_range_m,
+                  "points farther from the sensor are discarded, metres (any positive range; beyond the map's "
+                  "diagonal, sqrt(3) * 65536 voxels, it keeps every point in the map)")
       ->capture_default_str();
   app->add_option("--format", f.format, "auto, tum, 3dmatch or clouds")->capture_default_str();
   app->add_flag("--fast", f.fast,
                 "bundle the points of a frame that end in the same voxel into one weighted ray "
                 "(much faster; see docs/integration.md for how far the counters may differ)");
   app->add_option("--threads", f.threads, "worker threads, 0 = all cores (the map does not depend on it)")
+      ->check(numberIn(0, kMaxThreads))
       ->capture_default_str();
   app->add_flag("--no-compress", f.no_compress, "keep every free unit voxel instead of merging free subtrees");
   app->add_flag("--no-positions", f.no_positions,

@@ -119,13 +119,18 @@ Command addSimulate(CLI::App& root) {
       "(40 x 20 m, 16 rooms, 66 sessions over about 45 days).");
   app->add_option("--preset", o->settings.preset, "tiny, office or floor66")->capture_default_str();
   app->add_option("-o,--output", o->output, "folder to write")->required();
-  app->add_option("--seed", o->settings.seed, "random seed (same seed, same bytes)")->capture_default_str();
+  app->add_option("--seed", o->settings.seed, "random seed (same seed, same bytes)")
+      ->check(numberIn(0, 1e19))
+      ->capture_default_str();
   app->add_option("--sessions", o->settings.sessions, "number of sessions (0 = the preset's)")->capture_default_str();
   app->add_option("--resolution-scale", o->settings.resolution_scale,
                   "image size relative to 640 x 480 (0.1 .. 1; smaller is faster)")
       ->capture_default_str();
-  app->add_option("--noise", o->settings.noise_per_m2, "depth noise sigma = NOISE * z^2, metres")->capture_default_str();
+  app->add_option("--noise", o->settings.noise_per_m2, "depth noise sigma = NOISE * z^2, metres (0 to 1)")
+      ->check(numberIn(0, 1))
+      ->capture_default_str();
   app->add_option("--threads", o->settings.threads, "rendering threads, 0 = all cores (output does not depend on it)")
+      ->check(numberIn(0, kMaxThreads))
       ->capture_default_str();
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runSimulate(*o); }};

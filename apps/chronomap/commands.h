@@ -55,6 +55,13 @@ void addIntegrateFlags(CLI::App* app, IntegrateFlags& flags);
 /// The session settings the flags ask for. @throw UsageError for unreadable values.
 pipeline::SessionSettings sessionSettings(const IntegrateFlags& flags);
 
+/// Validator for a numeric flag: the value must be a finite number in [lo, hi]; otherwise the
+/// command stops with "--flag: VALUE: must lie in [lo, hi]" before anything runs. Every numeric
+/// flag with a limit uses it, so no value out of range is read as something else.
+CLI::Validator numberIn(double lo, double hi);
+/// The most worker threads a flag accepts.
+inline constexpr int kMaxThreads = 1024;
+
 /// The comma-separated items of a flag's value ("a,b,,c" gives four, the third empty).
 std::vector<std::string> splitCommas(const std::string& text);
 

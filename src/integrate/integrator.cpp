@@ -438,8 +438,11 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
   // Working frame: voxel units relative to the origin's voxel, shifted by `bias` voxels so that
   // every point within range has positive coordinates (truncation is then floor) and small
   // magnitudes keep float precision.
+  // A range beyond the map's diagonal reaches no further voxel than the diagonal itself, so the
+  // bias stops there: a huge --max-range is honoured exactly, and stays in integer range.
   const double inv_res = 1.0 / s.grid.resolution_m();
-  const int64_t bias = static_cast<int64_t>(std::ceil(s.settings.max_range_m * inv_res)) + 2;
+  const double reach_voxels = std::min(s.settings.max_range_m * inv_res, kMapDiagonalVoxels);
+  const int64_t bias = static_cast<int64_t>(std::ceil(reach_voxels)) + 2;
   const Eigen::Vector3d origin_u = s.grid.toKeySpace(origin_m);
   int64_t oc[3];  // key of working cell 0
   double o[3];    // origin in the working frame
@@ -457,7 +460,9 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
     for (int c = 0; c < 3; ++c) Rm[3 * r + c] = R(r, c);
   }
   const float of[3] = {static_cast<float>(o[0]), static_cast<float>(o[1]), static_cast<float>(o[2])};
-  const float max_range_sq = static_cast<float>(s.settings.max_range_m * s.settings.max_range_m);
+  // Squared in double, then saturated: a range past float's reach keeps every finite point.
+  const float max_range_sq = static_cast<float>(
+      std::min(s.settings.max_range_m * s.settings.max_range_m, double{std::numeric_limits<float>::max()}));
 
   const PointCloud& cloud = frame.cloud;
   s.cloud = &cloud;
@@ -586,15 +591,18 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
     transformPoint(Rm, of, p, rp.u);
     rp.color = colors ? cloud.colors[i] : Rgb{};
     rp.index = static_cast<uint32_t>(i);
-    const int32_t c[3] = {static_cast<int32_t>(rp.u[0]), static_cast<int32_t>(rp.u[1]), static_cast<int32_t>(rp.u[2])};
     if (!cube_inside) {
+      // Tested before any integer conversion: a far point's coordinate may exceed int32.
       bool inside = true;
-      for (int a = 0; a < 3; ++a) inside = inside && c[a] + oc[a] >= 0 && c[a] + oc[a] < kKeysPerAxis;
+      for (int a = 0; a < 3; ++a) {
+        inside = inside && rp.u[a] >= static_cast<float>(-oc[a]) && rp.u[a] < static_cast<float>(kKeysPerAxis - oc[a]);
+      }
       if (!inside) {
         ++st.points_outside_map;
         continue;
       }
     }
+    const int32_t c[3] = {static_cast<int32_t>(rp.u[0]), static_cast<int32_t>(rp.u[1]), static_cast<int32_t>(rp.u[2])};
     for (int a = 0; a < 3; ++a) {
       lo[a] = std::min(lo[a], c[a]);
       hi[a] = std::max(hi[a], c[a]);

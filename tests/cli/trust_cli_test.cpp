@@ -121,6 +121,8 @@ TEST(TrustCli, OutOfRangeValuesAreRefusedNotReplacedByDefaults) {
   io::writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});
   const fs::path dataset = test::writeWallDataset(tmp.path(), "wall", 2.0f);
   const std::string a = (tmp / "a.cmap").string(), b = (tmp / "b.cmap").string(), m = (tmp / "m.cmap").string();
+  const std::string d = (tmp / "ab.cmap").string();
+  ASSERT_EQ(test::runCommand(cat(cli(), " diff ", a, " ", b, " -o ", d)).exit_code, 0);
   struct Refused {
     std::string args;
     std::string message;
@@ -132,6 +134,28 @@ TEST(TrustCli, OutOfRangeValuesAreRefusedNotReplacedByDefaults) {
        tmp / "s.cmap"},
       {cat("add ", m, " ", a, " --time 1e300"), "years 1 to 9999", m},
       {cat("add ", m, " ", a, " --time -1e300"), "years 1 to 9999", m},
+      // Limits of the key space and of the machine: refused with the limit, not wrapped.
+      {cat("integrate ", dataset.string(), " --resolution 1e300 -o ", (tmp / "s.cmap").string()), "--resolution",
+       tmp / "s.cmap"},
+      {cat("integrate ", dataset.string(), " --resolution 1e-9 -o ", (tmp / "s.cmap").string()), "--resolution",
+       tmp / "s.cmap"},
+      {cat("integrate ", dataset.string(), " --threads 100000 -o ", (tmp / "s.cmap").string()), "--threads",
+       tmp / "s.cmap"},
+      {cat("integrate ", dataset.string(), " --pose 0,0,nan,0,0,0,1 -o ", (tmp / "s.cmap").string()), "--pose",
+       tmp / "s.cmap"},
+      // A value the mode does not use is refused, not ignored.
+      {cat("diff ", a, " ", b, " --alpha 0.3 -o ", (tmp / "d.cmap").string()), "threshold and band modes only",
+       tmp / "d.cmap"},
+      // Negative counts used to wrap to huge ones (no component kept); a negative tolerance meant "no colour".
+      {cat("segment ", d, " --min-voxels -1 -o ", (tmp / "objects").string()), "--min-voxels", tmp / "objects"},
+      {cat("segment ", d, " --color-tolerance -1 -o ", (tmp / "objects").string()), "--color-tolerance",
+       tmp / "objects"},
+      {cat("simulate --preset tiny --sessions 1 --resolution-scale 0.1 --noise inf -o ", (tmp / "sim").string()),
+       "--noise", tmp / "sim"},
+      {cat("simulate --preset tiny --sessions 1 --resolution-scale 0.1 --seed -1 -o ", (tmp / "sim").string()),
+       "--seed", tmp / "sim"},
+      {cat("simulate --preset tiny --sessions 1 --resolution-scale 0.1 --threads -1 -o ", (tmp / "sim").string()),
+       "--threads", tmp / "sim"},
   };
   for (const Refused& c : cases) {
     const auto r = test::runCommand(cat(cli(), " ", c.args));

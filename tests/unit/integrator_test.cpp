@@ -1,7 +1,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <map>
+#include <tuple>
 
 #include "chronomap/core/error.h"
 #include "chronomap/integrate/integrator.h"
@@ -119,6 +121,62 @@ TEST(Integrator, DiscardsPointsBeyondMaxRangeEntirely) {
   // Nothing along the discarded ray is observed, not even as free space.
   EXPECT_EQ(map.stateOf(*map.grid().keyOf({0.05, 1.05, 0.05})), VoxelState::Unknown);
   EXPECT_EQ(map.stateOf(*map.grid().keyOf({1.05, 0.05, 0.05})), VoxelState::Free);
+}
+
+/// (key, level, hits, state) of every leaf: what two integrations must agree on.
+std::vector<std::tuple<uint64_t, int, uint64_t, VoxelState>> leafSummary(const SessionMap& map) {
+  std::vector<std::tuple<uint64_t, int, uint64_t, VoxelState>> out;
+  map.forEachLeaf([&](const LeafView& leaf) {
+    out.emplace_back(mortonEncode(leaf.key), leaf.level, leaf.counters.hits, map.stateOf(leaf.key));
+  });
+  return out;
+}
+
+TEST(Integrator, AnyRangeBeyondTheSceneGivesTheSameMap) {
+  // Points at voxel centres 1 to 4 m from a sensor at a voxel centre, so that rounding cannot
+  // move one across a voxel face: every range that reaches them all must give the same voxels,
+  // however large (a range of 1e12 m used to leave no point at all, 1e6 m a fraction).
+  PointCloud cloud;
+  for (int i = 0; i < 300; ++i) {
+    const double a = 0.37 * i, b = 0.11 * i;
+    const double r = 10 + (i % 31);  // voxels
+    const Eigen::Vector3d d(std::cos(a) * std::cos(b), std::sin(a) * std::cos(b), std::sin(b));
+    const Eigen::Vector3d k = (d * r).array().round().matrix();
+    cloud.points.push_back((k * 0.1).cast<float>());
+  }
+  cloud.width = static_cast<uint32_t>(cloud.points.size());
+  const FrameVector frames({frameAt({0.05, 0.05, 0.05}, cloud)});
+  for (bool fast : {false, true}) {
+    IntegratorSettings s = exactUncompressed();
+    s.fast = fast;
+    s.max_range_m = 5.0;
+    SessionMap reference(0.1);
+    integrate(frames, reference, s);
+    for (double range : {1e3, 1e6, 1e12, 1e30, std::numeric_limits<double>::max()}) {
+      s.max_range_m = range;
+      SessionMap map(0.1);
+      const IntegrationStats st = integrate(frames, map, s);
+      EXPECT_EQ(st.points, cloud.points.size()) << "fast=" << fast << " range=" << range;
+      EXPECT_EQ(leafSummary(map), leafSummary(reference)) << "fast=" << fast << " range=" << range;
+    }
+  }
+  // A point within a huge range but far outside the map is counted as outside, not cast.
+  IntegratorSettings s = exactUncompressed();
+  s.max_range_m = 1e30;
+  SessionMap map(0.1);
+  const IntegrationStats st =
+      integrate(FrameVector({frameAt({0.05, 0.05, 0.05}, test::cloudOf({{1e18f, 0, 0}, {0, 3e9f, 0}, {1, 0, 0}}))}),
+                map, s);
+  EXPECT_EQ(st.points, 1u);
+  EXPECT_EQ(st.points_outside_map, 2u);
+}
+
+TEST(Integrator, ResolutionsOutsideTheLimitsAreRefused) {
+  EXPECT_NO_THROW(KeyGrid{kMinResolution_m});
+  EXPECT_NO_THROW(KeyGrid{kMaxResolution_m});
+  for (double r : {0.0, -0.05, kMinResolution_m / 2, kMaxResolution_m * 2, 1e300, std::nan("")}) {
+    EXPECT_THROW(KeyGrid{r}, UsageError) << r;
+  }
 }
 
 TEST(Integrator, SkipsAndCountsInvalidPoints) {

@@ -18,6 +18,13 @@ inline constexpr int kTreeDepth = 16;
 inline constexpr int32_t kKeyOrigin = 1 << (kTreeDepth - 1);
 /// Number of unit voxels per axis.
 inline constexpr int32_t kKeysPerAxis = 1 << kTreeDepth;
+/// Length of the map's space diagonal in unit voxels (sqrt(3) * 2^16): no two points of the map
+/// lie farther apart, so a longer sensor range reaches nothing more.
+inline constexpr double kMapDiagonalVoxels = 1.7320508075688772 * kKeysPerAxis;
+/// Finest and coarsest unit voxel edge a map may have, in metres: the map then spans 6.55 m or
+/// 65,536 km per axis. Points are single-precision metres, so finer voxels would be noise.
+inline constexpr double kMinResolution_m = 1e-4;
+inline constexpr double kMaxResolution_m = 1e3;
 
 /// Integer coordinates of a unit voxel; each in [0, 2^16).
 struct VoxelKey {
@@ -91,7 +98,7 @@ bool anyKeyWithin(const VoxelKey& key, int r, Pred&& pred) {
 /// Voxel k spans [(k - 2^15) * res, (k - 2^15 + 1) * res) on each axis.
 class KeyGrid {
  public:
-  /// @throw UsageError if resolution_m is not a finite positive number.
+  /// @throw UsageError if resolution_m lies outside [kMinResolution_m, kMaxResolution_m].
   explicit KeyGrid(double resolution_m);
 
   double resolution_m() const { return resolution_m_; }
