@@ -99,7 +99,21 @@ void removeStaleTemporaries(const fs::path& dir, const fs::path& path) {
 
 }  // namespace
 
-void writeFileAtomic(const fs::path& path, const std::vector<uint8_t>& bytes) {
+fs::path followLinks(const fs::path& path) {
+  fs::path p = path;
+  for (int hops = 0; hops < 40; ++hops) {
+    std::error_code ec;
+    if (!fs::is_symlink(fs::symlink_status(p, ec)) || ec) return p;
+    const fs::path target = fs::read_symlink(p, ec);
+    if (ec) throw IoError(path.string() + ": cannot read the link (" + ec.message() + ")");
+    p = target.is_absolute() ? target : p.parent_path() / target;
+  }
+  throw IoError(path.string() + ": too many levels of symbolic links");
+}
+
+void writeFileAtomic(const fs::path& link_or_path, const std::vector<uint8_t>& bytes) {
+  // Through a link, the target is replaced and the link stays (as a plain write would do).
+  const fs::path path = followLinks(link_or_path);
   const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
   removeStaleTemporaries(dir, path);
   std::random_device rd;
@@ -192,7 +206,9 @@ bool missing(const fs::path& path) {
 
 }  // namespace
 
-FileLock::FileLock(const fs::path& path, Missing if_missing) {
+FileLock::FileLock(const fs::path& link_or_path, Missing if_missing) {
+  // A map reached through a link is created where the link points: that folder is locked.
+  const fs::path path = followLinks(link_or_path);
   for (;;) {
     if (if_missing == Missing::LockFolder && missing(path)) {
       const fs::path folder = path.parent_path().empty() ? fs::path(".") : path.parent_path();

@@ -170,6 +170,45 @@ TEST(TrustCli, OutOfRangeValuesAreRefusedNotReplacedByDefaults) {
   EXPECT_EQ(nlohmann::json::parse(r.out)["alpha"], 0.2);
 }
 
+TEST(TrustCli, OutputsThroughALinkUpdateItsTarget) {
+  test::TempDir tmp;
+  fs::create_directories(tmp / "real");
+  io::writeSessionMap(tmp / "a.cmap", test::wallSession(10), {});
+  io::writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});
+  const std::string a = (tmp / "a.cmap").string(), b = (tmp / "b.cmap").string();
+  const fs::path dataset = test::writeWallDataset(tmp.path(), "wall", 2.0f);
+  // One link per output kind; the map links point at files that exist, the others dangle
+  // (a first write through a link creates the target).
+  io::writeSessionMap(tmp / "real" / "map.cmap", test::wallSession(11), {});
+  ASSERT_EQ(test::runCommand(cat(cli(), " add ", (tmp / "real" / "4d.cmap").string(), " ", a, " --time 1000"))
+                .exit_code,
+            0);
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"session.cmap", cat("integrate ", dataset.string(), " -o ")},
+      {"map.cmap", cat("integrate ", dataset.string(), " -o ")},
+      {"diff.cmap", cat("diff ", a, " ", b, " -o ")},
+      {"cloud.ply", cat("export ", a, " -o ")},
+      {"tree.ot", cat("export ", a, " -o ")},
+      {"top.png", cat("export ", a, " -o ")},
+      {"new4d.cmap", cat("build --times 1000 ")},  // the map is the first argument: built below
+      {"4d.cmap", cat("add ")},
+  };
+  for (const auto& [name, command] : cases) {
+    const fs::path link = tmp / name, target = tmp / "real" / name;
+    fs::create_symlink(fs::path("real") / name, link);
+    std::string args = cat(command, link.string());
+    if (name == "new4d.cmap") args = cat("build ", link.string(), " ", dataset.string(), " --times 1000");
+    if (name == "4d.cmap") args = cat("add ", link.string(), " ", b, " --time 2000 --write rewrite");
+    const auto r = test::runCommand(cat(cli(), " ", args));
+    ASSERT_EQ(r.exit_code, 0) << args << "\n" << r.err;
+    EXPECT_TRUE(fs::is_symlink(fs::symlink_status(link))) << name << ": the link was replaced by a file";
+    ASSERT_TRUE(fs::is_regular_file(target)) << name;
+    EXPECT_GT(fs::file_size(target), 0u) << name;
+  }
+  // Through the link, the 4D map gained the session: the target holds both.
+  EXPECT_EQ(io::readTemporalMap(tmp / "real" / "4d.cmap").sessionCount(), 2u);
+}
+
 TEST(TrustCli, SpecialFilesAreRefusedAtOnceNamingThem) {
   test::TempDir tmp;
   io::writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});

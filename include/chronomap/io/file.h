@@ -16,9 +16,15 @@ std::vector<uint8_t> readFileBytes(const std::filesystem::path& path);
 /// Reads a whole text file (see readFileBytes).
 std::string readTextFile(const std::filesystem::path& path);
 
+/// The file that `path` names once symbolic links in its last component are followed (to a
+/// file that may not exist yet); `path` itself when it is no link.
+/// @throw IoError for a link loop.
+std::filesystem::path followLinks(const std::filesystem::path& path);
+
 /// Writes `bytes` to `path` atomically: into a temporary file in the same folder, flushed to
 /// disk, then renamed over `path`. On any failure the temporary file is removed and `path` is
-/// left as it was.
+/// left as it was. When `path` is a symbolic link, the file it points to is replaced and the
+/// link kept.
 /// @throw IoError naming the file (disk full, permission, missing folder).
 void writeFileAtomic(const std::filesystem::path& path, const std::vector<uint8_t>& bytes);
 
