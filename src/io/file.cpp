@@ -75,11 +75,30 @@ std::string readTextFile(const fs::path& path) {
 
 namespace {
 
+/// ".NAME.tmp-PID-": the prefix of NAME's staging folders (and of its temporary files).
+std::string temporaryPrefix(const fs::path& path) {
+  std::string prefix(".");
+  prefix.append(path.filename().string()).append(".tmp-");
+  return prefix;
+}
+
+fs::path parentOf(const fs::path& path) {
+  return path.has_parent_path() ? path.parent_path() : fs::path(".");
+}
+
+/// A fresh temporary name beside `path`: the prefix, this process's id and a random number.
+fs::path temporaryBeside(const fs::path& path) {
+  std::random_device rd;
+  // Built with append: GCC 12 warns falsely (-Wrestrict) on a chain of string operator+.
+  std::string name = temporaryPrefix(path);
+  name.append(std::to_string(::getpid())).append("-").append(std::to_string(rd() & 0xffffff));
+  return parentOf(path) / name;
+}
+
 // Removes temporary files that an earlier writer of `path` left when it was killed: their
 // names carry the writer's process id, and that process no longer exists.
 void removeStaleTemporaries(const fs::path& dir, const fs::path& path) {
-  std::string prefix(".");
-  prefix.append(path.filename().string()).append(".tmp-");
+  const std::string prefix = temporaryPrefix(path);
   std::error_code ec;
   for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
@@ -92,7 +111,7 @@ void removeStaleTemporaries(const fs::path& dir, const fs::path& path) {
     if (end_ptr != rest.c_str() + dash || pid <= 0) continue;
     if (::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH) {
       std::error_code ignored;
-      fs::remove(it->path(), ignored);
+      fs::remove_all(it->path(), ignored);  // a temporary file, or a staging folder
     }
   }
 }
@@ -114,14 +133,9 @@ fs::path followLinks(const fs::path& path) {
 void writeFileAtomic(const fs::path& link_or_path, const std::vector<uint8_t>& bytes) {
   // Through a link, the target is replaced and the link stays (as a plain write would do).
   const fs::path path = followLinks(link_or_path);
-  const fs::path dir = path.has_parent_path() ? path.parent_path() : fs::path(".");
+  const fs::path dir = parentOf(path);
   removeStaleTemporaries(dir, path);
-  std::random_device rd;
-  // Built with append: GCC 12 warns falsely (-Wrestrict) on a chain of string operator+.
-  std::string name(".");
-  name.append(path.filename().string()).append(".tmp-").append(std::to_string(::getpid()));
-  name.append("-").append(std::to_string(rd() & 0xffffff));
-  const fs::path tmp = dir / name;
+  const fs::path tmp = temporaryBeside(path);
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
   if (fd < 0) throw IoError(path.string() + ": cannot create (" + std::strerror(errno) + ")");
   auto fail = [&](const char* what) {
@@ -256,6 +270,61 @@ void refuseOverwritingInputs(const fs::path& output, const std::vector<fs::path>
                        "': refusing to overwrite it (write to another file)");
     }
   }
+}
+
+StagedFolder::StagedFolder(const fs::path& destination) : destination_(followLinks(destination)) {
+  if (destination_.filename().empty()) destination_ = destination_.parent_path();
+  const fs::path dir = parentOf(destination_);
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw IoError(dir.string() + ": cannot create folder (" + ec.message() + ")");
+  removeStaleTemporaries(dir, destination_);
+  staging_ = temporaryBeside(destination_);
+  if (!fs::create_directory(staging_, ec) || ec) {
+    throw IoError(destination.string() + ": cannot create a folder beside it (" +
+                  (ec ? ec.message() : std::string("exists")) + ")");
+  }
+}
+
+StagedFolder::~StagedFolder() {
+  if (committed_) return;
+  std::error_code ignored;
+  fs::remove_all(staging_, ignored);
+}
+
+void StagedFolder::commit() {
+  std::error_code ec;
+  const bool exists = fs::exists(destination_, ec);
+  if (exists && !fs::is_directory(destination_, ec)) {
+    throw IoError(destination_.string() + ": exists and is not a folder; nothing was written");
+  }
+  if (!exists || fs::is_empty(destination_, ec)) {
+    if (exists) fs::remove(destination_, ec);
+    if (::rename(staging_.c_str(), destination_.c_str()) != 0) {
+      throw IoError(destination_.string() + ": cannot move into place (" + std::strerror(errno) + ")");
+    }
+    committed_ = true;
+    return;
+  }
+  // Entry by entry: what an entry replaces goes into the staging folder's ".replaced" first,
+  // which is removed with the staging folder.
+  const fs::path replaced = staging_ / ".replaced";
+  fs::create_directory(replaced, ec);
+  std::vector<fs::path> entries;
+  for (const auto& entry : fs::directory_iterator(staging_)) {
+    if (entry.path() != replaced) entries.push_back(entry.path());
+  }
+  for (const fs::path& entry : entries) {
+    const fs::path target = destination_ / entry.filename();
+    if (fs::exists(fs::symlink_status(target)) && ::rename(target.c_str(), (replaced / entry.filename()).c_str()) != 0) {
+      throw IoError(target.string() + ": cannot replace (" + std::strerror(errno) + ")");
+    }
+    if (::rename(entry.c_str(), target.c_str()) != 0) {
+      throw IoError(target.string() + ": cannot move into place (" + std::strerror(errno) + ")");
+    }
+  }
+  fs::remove_all(staging_, ec);
+  committed_ = true;
 }
 
 FileLock::~FileLock() {

@@ -94,8 +94,11 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
   const Camera camera = kinectCamera(settings.resolution_scale);
   SensorModel sensor;
   sensor.noise_per_m2 = settings.noise_per_m2;
+  // Written whole or not at all: into a staging folder beside `out`, moved into place at the end.
+  io::StagedFolder staged(out);
+  const fs::path& root = staged.path();
   std::error_code ec;
-  fs::create_directories(out / "truth", ec);
+  fs::create_directories(root / "truth", ec);
   if (ec) throw IoError(out.string() + ": cannot create folder (" + ec.message() + ")");
   std::unique_ptr<tbb::global_control> limit;
   if (settings.threads > 0) {
@@ -151,7 +154,7 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
 
     char name[32];
     std::snprintf(name, sizeof name, "session_%02d", s);
-    const fs::path dir = out / name;
+    const fs::path dir = root / name;
     fs::create_directories(dir / "rgb", ec);
     fs::create_directories(dir / "depth", ec);
     if (ec) throw IoError(dir.string() + ": cannot create folder (" + ec.message() + ")");
@@ -190,10 +193,10 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
     const SessionMap occupancy = detail::truthMap(truth, grid);
     char truth_name[64];
     std::snprintf(truth_name, sizeof truth_name, "occupancy_%02d.cmap", s);
-    io::writeSessionMap(out / "truth" / truth_name,
+    io::writeSessionMap(root / "truth" / truth_name,
                         occupancy, {{"created_by", "chronomap simulate"}, {"truth", true}, {"session", s}});
     std::snprintf(truth_name, sizeof truth_name, "objects_%02d.json", s);
-    writeText(out / "truth" / truth_name, objectsJson(state).dump(1) + "\n");
+    writeText(root / "truth" / truth_name, objectsJson(state).dump(1) + "\n");
 
     const double offset_yaw_deg = patrol.offset_yaw_rad * 180.0 / std::numbers::pi;
     sessions_json.push_back({{"index", s},
@@ -204,7 +207,7 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
                              {"frames", frames},
                              {"changes", changes.size()},
                              {"localisation_offset", {patrol.offset_x_m, patrol.offset_y_m, offset_yaw_deg}}});
-    summary.session_dirs.push_back(dir);
+    summary.session_dirs.push_back(out / name);
     summary.times_s.push_back(times[static_cast<size_t>(s)]);
     summary.hours.push_back(hours[static_cast<size_t>(s)]);
     summary.frames += frames;
@@ -238,7 +241,8 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
                               {"min", {r.area.min().x(), r.area.min().y()}},
                               {"max", {r.area.max().x(), r.area.max().y()}}});
   }
-  writeText(out / "scene.json", scene.dump(1) + "\n");
+  writeText(root / "scene.json", scene.dump(1) + "\n");
+  staged.commit();
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   return summary;
 }

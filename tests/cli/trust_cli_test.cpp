@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
 #include <sstream>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -207,6 +208,49 @@ TEST(TrustCli, OutputsThroughALinkUpdateItsTarget) {
   }
   // Through the link, the 4D map gained the session: the target holds both.
   EXPECT_EQ(io::readTemporalMap(tmp / "real" / "4d.cmap").sessionCount(), 2u);
+}
+
+/// Every file under `dir` with its size, by path relative to `dir`.
+std::map<std::string, uintmax_t> treeOf(const fs::path& dir) {
+  std::map<std::string, uintmax_t> tree;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    tree[fs::relative(e.path(), dir).string()] = e.is_regular_file() ? e.file_size() : 0;
+  }
+  return tree;
+}
+
+bool anyStagingLeftIn(const fs::path& dir) {
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (e.path().filename().string().find(".tmp-") != std::string::npos) return true;
+  }
+  return false;
+}
+
+TEST(TrustCli, SimulateOnAFullDiskLeavesNoPartialTree) {
+  test::TempDir tmp;
+  const fs::path sim = tmp / "sim";
+  auto simulate = [&](int seed) {
+    return cat(cli(), " simulate --preset tiny --sessions 2 --resolution-scale 0.1 --seed ", seed, " -o ", sim.string());
+  };
+  // A full disk (a 16 KiB file-size limit) part-way: no folder at all, nothing left beside it.
+  const int code = test::exitCodeUnderFileSizeLimit(16 << 10, [&] { return test::runCommand(simulate(1)).exit_code; });
+  EXPECT_EQ(code, 1);
+  EXPECT_FALSE(fs::exists(sim)) << "a failed simulation left a partial tree";
+  EXPECT_FALSE(anyStagingLeftIn(tmp.path()));
+  // Over an earlier simulation: the earlier tree stays exactly as it was.
+  ASSERT_EQ(test::runCommand(simulate(1)).exit_code, 0);
+  test::writeBytes(sim / "notes.txt", std::string("mine"));
+  const auto before = treeOf(sim);
+  const auto scene = bytesOf(sim / "scene.json");
+  EXPECT_EQ(test::exitCodeUnderFileSizeLimit(16 << 10, [&] { return test::runCommand(simulate(2)).exit_code; }), 1);
+  EXPECT_EQ(treeOf(sim), before);
+  EXPECT_EQ(bytesOf(sim / "scene.json"), scene);
+  EXPECT_FALSE(anyStagingLeftIn(tmp.path()));
+  // A successful run replaces what it writes and leaves other files alone.
+  ASSERT_EQ(test::runCommand(simulate(2)).exit_code, 0);
+  EXPECT_NE(bytesOf(sim / "scene.json"), scene);
+  EXPECT_EQ(bytesOf(sim / "notes.txt").size(), 4u);
+  EXPECT_FALSE(anyStagingLeftIn(tmp.path()));
 }
 
 TEST(TrustCli, SpecialFilesAreRefusedAtOnceNamingThem) {

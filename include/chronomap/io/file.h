@@ -60,6 +60,32 @@ class FileLock {
   bool creating_ = false;
 };
 
+/// A folder of outputs written as a whole: files go into a hidden sibling folder first
+/// (".NAME.tmp-PID-N"), and commit() moves them into `destination`. Destroyed without a commit
+/// (an error, a full disk) it removes everything written, so the destination is never left
+/// half written: it stays as it was, or does not exist. A missing or empty destination is
+/// replaced by one rename; into a folder that holds files, each top-level entry is renamed into
+/// place (what it replaces is removed, other files there are left alone). Staging folders left
+/// by a killed process are removed by the next one.
+class StagedFolder {
+ public:
+  /// @throw IoError when the staging folder cannot be created.
+  explicit StagedFolder(const std::filesystem::path& destination);
+  ~StagedFolder();
+  StagedFolder(const StagedFolder&) = delete;
+  StagedFolder& operator=(const StagedFolder&) = delete;
+
+  /// Where to write until commit().
+  const std::filesystem::path& path() const { return staging_; }
+  /// Moves what was written into the destination. @throw IoError naming the destination.
+  void commit();
+
+ private:
+  std::filesystem::path destination_;
+  std::filesystem::path staging_;
+  bool committed_ = false;
+};
+
 /// Refuses to write `output` over one of `inputs`, before any work: throws UsageError when it
 /// names the same existing file as an input, however either is spelled (links, "..", hard
 /// links). Outputs that do not exist yet are never an input.
