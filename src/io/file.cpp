@@ -137,7 +137,12 @@ void writeFileAtomic(const fs::path& link_or_path, const std::vector<uint8_t>& b
   removeStaleTemporaries(dir, path);
   const fs::path tmp = temporaryBeside(path);
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
-  if (fd < 0) throw IoError(path.string() + ": cannot create (" + std::strerror(errno) + ")");
+  if (fd < 0) {
+    if (errno == ENOENT || errno == ENOTDIR) {
+      throw IoError(path.string() + ": cannot create: the folder '" + dir.string() + "' does not exist");
+    }
+    throw IoError(path.string() + ": cannot create (" + std::strerror(errno) + ")");
+  }
   auto fail = [&](const char* what) {
     const int err = errno;
     ::close(fd);

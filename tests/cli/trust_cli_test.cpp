@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <map>
 #include <sstream>
 #include <nlohmann/json.hpp>
@@ -251,6 +252,37 @@ TEST(TrustCli, SimulateOnAFullDiskLeavesNoPartialTree) {
   EXPECT_NE(bytesOf(sim / "scene.json"), scene);
   EXPECT_EQ(bytesOf(sim / "notes.txt").size(), 4u);
   EXPECT_FALSE(anyStagingLeftIn(tmp.path()));
+}
+
+TEST(TrustCli, EveryFailureIsOneLineNamingTheFile) {
+  test::TempDir tmp;
+  io::writeSessionMap(tmp / "a.cmap", test::wallSession(10), {});
+  const std::string a = (tmp / "a.cmap").string();
+  const std::string nowhere = (tmp / "no" / "such" / "folder").string();
+  const std::string missing_folder = cat("'", nowhere, "' does not exist");
+  const std::vector<uint8_t> whole = bytesOf(tmp / "a.cmap");
+  test::writeBytes(tmp / "cut.cmap", std::vector<uint8_t>(whole.begin(), whole.begin() + 40));
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {cat("export ", a, " -o ", nowhere, "/x.ot"), missing_folder},
+      {cat("export ", a, " -o ", nowhere, "/x.png"), missing_folder},
+      {cat("export ", a, " -o ", nowhere, "/x.ply"), missing_folder},
+      {cat("diff ", a, " ", a, " --mode threshold -o ", nowhere, "/d.cmap"), missing_folder},
+      {cat("stats ", (tmp / "missing.cmap").string()), "missing.cmap"},
+      {cat("stats ", tmp.path().string()), tmp.path().string()},
+      {cat("stats ", (tmp / "cut.cmap").string()), "cut.cmap"},
+      {cat("integrate ", (tmp / "cut.cmap").string(), " -o ", (tmp / "s.cmap").string()), "cut.cmap"},
+      {"stats /dev/zero", "/dev/zero"},
+  };
+  for (const auto& [args, name] : cases) {
+    const auto r = test::runCommand(cat(cli(), " ", args));
+    EXPECT_NE(r.exit_code, 0) << args;
+    EXPECT_EQ(r.err.rfind("chronomap: error: ", 0), 0u) << args << "\n" << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << "one line: " << args << "\n" << r.err;
+    EXPECT_NE(r.err.find(name), std::string::npos) << args << "\n" << r.err;
+    for (const char* foreign : {"internal error", "filesystem error", "libpng", "std::", "basic_string"}) {
+      EXPECT_EQ(r.err.find(foreign), std::string::npos) << args << "\n" << r.err;
+    }
+  }
 }
 
 TEST(TrustCli, SpecialFilesAreRefusedAtOnceNamingThem) {
