@@ -144,16 +144,19 @@ void writeComponents(const fs::path& folder, const DiffMap& diff, const Segmenta
     io::refuseOverwritingInputs(stem.string() + ".ply", {source});
   }
   io::refuseOverwritingInputs(folder / "components.json", {source});
-  fs::create_directories(folder);
+  // All or nothing: the files go to a staging folder, moved into `folder` once all are written.
+  io::StagedFolder staged(folder);
   for (size_t i = 0; i < stems.size(); ++i) {
     const Component& c = segmentation.components[i];
     const DiffMap part = componentDiff(diff, c);
-    io::writeDiffMap(stems[i].string() + ".cmap", part,
+    const std::string staged_stem = (staged.path() / stems[i].filename()).string();
+    io::writeDiffMap(staged_stem + ".cmap", part,
                      {{"created_by", "chronomap segment"}, {"from", source}, {"component", c.id}});
-    io::exportDiffPly(stems[i].string() + ".ply", part, part.cells());
+    io::exportDiffPly(staged_stem + ".ply", part, part.cells());
   }
   const std::string index = summary.dump(2) + "\n";
-  io::writeFileAtomic(folder / "components.json", std::vector<uint8_t>(index.begin(), index.end()));
+  io::writeFileAtomic(staged.path() / "components.json", std::vector<uint8_t>(index.begin(), index.end()));
+  staged.commit();
   removeStaleComponents(folder, stems);
 }
 

@@ -254,6 +254,38 @@ TEST(TrustCli, SimulateOnAFullDiskLeavesNoPartialTree) {
   EXPECT_FALSE(anyStagingLeftIn(tmp.path()));
 }
 
+TEST(TrustCli, SegmentOnAFullDiskLeavesTheEarlierSegmentation) {
+  test::TempDir tmp;
+  for (int i = 0; i < 3; ++i) {
+    io::writeSessionMap(tmp / cat("r", i, ".cmap"), test::randomSessionMap(70 + i, 6, 0.3), {});
+  }
+  auto diff = [&](int a, int b, const std::string& out) {
+    return test::runCommand(cat(cli(), " diff ", (tmp / cat("r", a, ".cmap")).string(), " ",
+                                (tmp / cat("r", b, ".cmap")).string(), " -o ", (tmp / out).string()))
+        .exit_code;
+  };
+  ASSERT_EQ(diff(0, 1, "d1.cmap"), 0);
+  ASSERT_EQ(diff(0, 2, "d2.cmap"), 0);
+  const fs::path objects = tmp / "objects";
+  auto segment = [&](const char* d, const fs::path& out) {
+    return cat(cli(), " segment ", (tmp / d).string(), " -o ", out.string());
+  };
+  ASSERT_EQ(test::runCommand(segment("d1.cmap", objects)).exit_code, 0);
+  const auto before = treeOf(objects);
+  // The second segmentation, written unlimited elsewhere, gives a limit that every component
+  // file passes and the index (written last, the largest) does not: the disk fills at the end.
+  ASSERT_EQ(test::runCommand(segment("d2.cmap", tmp / "scratch")).exit_code, 0);
+  auto files = treeOf(tmp / "scratch");
+  const uintmax_t limit = files.at("components.json") - 1;
+  files.erase("components.json");
+  ASSERT_GT(files.size(), 4u);
+  for (const auto& [name, size] : files) ASSERT_LT(size, limit) << name;
+  const int code = test::exitCodeUnderFileSizeLimit(limit, [&] { return test::runCommand(segment("d2.cmap", objects)).exit_code; });
+  EXPECT_EQ(code, 1);
+  EXPECT_EQ(treeOf(objects), before) << "a failed segmentation changed the earlier one";
+  EXPECT_FALSE(anyStagingLeftIn(tmp.path()));
+}
+
 TEST(TrustCli, EveryFailureIsOneLineNamingTheFile) {
   test::TempDir tmp;
   io::writeSessionMap(tmp / "a.cmap", test::wallSession(10), {});
