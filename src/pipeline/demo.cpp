@@ -196,12 +196,16 @@ sim::ChangeScore summarise(const std::vector<DemoSession>& sessions, const std::
 
 }  // namespace
 
-DemoResult runDemo(const DemoSettings& s) {
+DemoResult runDemo(const DemoSettings& settings) {
   const auto started = std::chrono::steady_clock::now();
+  // Written whole or not at all: every step writes into a staging folder beside the output,
+  // moved into place at the end; the report and the result name the final places.
+  io::StagedFolder staged(settings.output);
+  DemoSettings s = settings;
+  s.output = staged.path();
   DemoResult r;
   r.images = s.output / "images";
   r.map = s.output / "office.cmap";
-  r.report = s.output / "report.md";
   std::error_code ec;
   fs::create_directories(r.images, ec);
   if (ec) throw IoError(s.output.string() + ": cannot create folder (" + ec.message() + ")");
@@ -240,9 +244,14 @@ DemoResult runDemo(const DemoSettings& s) {
   for (const auto& session : map.sessions()) r.nodes_separate += session.nodes_separate;
   for (uint64_t n : changeHistogram(map, -1e300, 1e300)) r.changed_voxels += n;
   const sim::ChangeScore changes = summarise(sessions, pairs, r);
-  const std::string report = demoReport(
-      {s, sim_settings, simulated, sessions, pairs, map, r, changes, fs::file_size(r.map), kDriftKnots});
-  io::writeFileAtomic(r.report, std::vector<uint8_t>(report.begin(), report.end()));
+  const uint64_t map_bytes = fs::file_size(r.map);
+  r.images = settings.output / "images";
+  r.map = settings.output / "office.cmap";
+  r.report = settings.output / "report.md";
+  const std::string report =
+      demoReport({settings, sim_settings, simulated, sessions, pairs, map, r, changes, map_bytes, kDriftKnots});
+  io::writeFileAtomic(s.output / "report.md", std::vector<uint8_t>(report.begin(), report.end()));
+  staged.commit();
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   return r;
 }
