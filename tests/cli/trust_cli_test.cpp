@@ -317,6 +317,59 @@ TEST(TrustCli, EveryFailureIsOneLineNamingTheFile) {
   }
 }
 
+TEST(TrustCli, EveryNumericFlagRefusesWhatIsNotAFiniteNumber) {
+  // The flags come from each command's --help, so that a flag added later is swept too.
+  test::TempDir tmp;
+  io::writeSessionMap(tmp / "a.cmap", test::wallSession(10), {});
+  io::writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});
+  const std::string a = (tmp / "a.cmap").string(), b = (tmp / "b.cmap").string();
+  const std::string d = (tmp / "d.cmap").string(), m = (tmp / "m.cmap").string();
+  const std::string dataset = test::writeWallDataset(tmp.path(), "wall", 2.0f).string();
+  ASSERT_EQ(test::runCommand(cat(cli(), " diff ", a, " ", b, " -o ", d)).exit_code, 0);
+  ASSERT_EQ(test::runCommand(cat(cli(), " add ", m, " ", a, " --time 1000")).exit_code, 0);
+  const std::string out = (tmp / "out").string();
+  // Each command with arguments that run it, flag by flag (a flag under test replaces its own).
+  const std::vector<std::pair<std::string, std::vector<std::pair<std::string, std::string>>>> commands = {
+      {cat("integrate ", dataset), {{"-o", out + ".cmap"}}},
+      {cat("export ", a), {{"-o", out + ".png"}}},
+      {cat("add ", out, "4d.cmap ", a), {{"--time", "5000"}, {"--realign", ""}}},
+      {cat("build ", out, "b4d.cmap ", dataset), {{"--times", "1000"}, {"--realign", ""}, {"--register", ""}}},
+      {cat("changes ", m), {}},
+      {cat("diff ", a, " ", b), {{"--mode", "band"}, {"-o", out + ".cmap"}}},
+      {cat("segment ", d), {{"-o", out}}},
+      {"simulate", {{"--preset", "tiny"}, {"--sessions", "1"}, {"--resolution-scale", "0.1"}, {"-o", out}}},
+      {"demo", {{"--resolution-scale", "0.1"}, {"-o", out}}},
+  };
+  size_t swept = 0;
+  for (const auto& [command, base] : commands) {
+    const std::string name = command.substr(0, command.find(' '));
+    const std::string help = test::runCommand(cat(cli(), " ", name, " --help")).out;
+    std::istringstream lines(help);
+    std::string line;
+    while (std::getline(lines, line)) {
+      const size_t dash = line.find("--");
+      if (dash == std::string::npos) continue;
+      const std::string rest = line.substr(dash);
+      const size_t space = rest.find(' ');
+      if (space == std::string::npos) continue;
+      const std::string flag = rest.substr(0, space), type = rest.substr(space + 1, 4);
+      if (type != "FLOA" && type != "INT " && type != "INT:" && type != "INT=" && type != "UINT") continue;
+      for (const char* value : {"nan", "inf", "-inf", "1e400"}) {
+        std::string args = cat(command, " ", flag, " ", value);
+        for (const auto& [f, v] : base) {
+          if (f != flag) args = cat(args, " ", f, v.empty() ? "" : " ", v);
+        }
+        const auto r = test::runCommand(cat("timeout 120 ", cli(), " ", args));
+        EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.err;
+        EXPECT_FALSE(fs::exists(out)) << args;
+        EXPECT_FALSE(fs::exists(out + ".cmap")) << args;
+      }
+      ++swept;
+    }
+  }
+  EXPECT_GE(swept, 30u) << "the --help parsing found too few numeric flags";
+}
+
 TEST(TrustCli, SpecialFilesAreRefusedAtOnceNamingThem) {
   test::TempDir tmp;
   io::writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});
