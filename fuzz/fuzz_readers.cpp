@@ -17,6 +17,7 @@
 #include "chronomap/align/realign.h"
 #include "chronomap/analysis/segment.h"
 #include "chronomap/io/dataset.h"
+#include "chronomap/io/jpeg.h"
 #include "chronomap/io/png.h"
 
 namespace {
@@ -71,6 +72,11 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
 #elif defined(FUZZ_XYZ)
   io::parseXyz(std::string(bytes.begin(), bytes.end()), name);
 #elif defined(FUZZ_PNG)
+  // Colour frames: PNG or JPEG, as readColorImage tells them apart; depth is PNG only.
+  if (io::looksLikeJpeg(bytes)) {
+    io::decodeJpegRgb(bytes, name);
+    return;
+  }
   try {
     io::decodePngRgb(bytes, name);
   } catch (const Error&) {

@@ -11,6 +11,8 @@
 #include "chronomap/io/file.h"
 #include "chronomap/io/temporal_file.h"
 #include "chronomap/io/diff_file.h"
+#include "chronomap/io/file.h"
+#include "chronomap/io/jpeg.h"
 #include "chronomap/io/png.h"
 
 using namespace chronomap;
@@ -44,6 +46,9 @@ int main(int argc, char** argv) {
   std::ofstream(root / "xyz/color.xyz") << "1 2 3 10 20 30\n";
   io::writePng(root / "png/depth.png", ImageU16{4, 3, std::vector<uint16_t>(12, 5000)});
   io::writePng(root / "png/color.png", ImageRgb{4, 3, std::vector<Rgb>(12, Rgb{1, 2, 3})});
+  const ImageRgb small{16, 8, std::vector<Rgb>(128, Rgb{90, 160, 30})};
+  io::writeFileAtomic(root / "png/color.jpg", io::encodeJpeg(small, {30, false, false}));
+  io::writeFileAtomic(root / "png/progressive.jpg", io::encodeJpeg(small, {30, false, true}));
   std::ofstream(root / "text/intrinsics") << '\0' << "525 0 319.5\n0 525 239.5\n0 0 1\n";
   std::ofstream(root / "text/matrix") << '\1' << "1 0 0 0.5\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
   std::ofstream(root / "text/list") << '\2' << "# timestamp filename\n1.0 depth/1.png\n1.1 depth/2.png\n";

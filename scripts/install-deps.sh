@@ -2,7 +2,7 @@
 # Installs chronomap's build and test dependencies from Debian's packages, when any is missing.
 set -euo pipefail
 packages=(build-essential cmake pkg-config libeigen3-dev libtbb-dev libcli11-dev nlohmann-json3-dev
-          libpng-dev zlib1g-dev libbz2-dev libzstd-dev liblzf-dev liboctomap-dev libgtest-dev
+          libpng-dev libjpeg62-turbo-dev zlib1g-dev libbz2-dev libzstd-dev liblzf-dev liboctomap-dev libgtest-dev
           libbenchmark-dev)
 missing=()
 for p in "${packages[@]}"; do

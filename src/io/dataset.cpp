@@ -9,6 +9,7 @@
 #include "chronomap/core/pose.h"
 #include "chronomap/io/cloud_io.h"
 #include "chronomap/io/file.h"
+#include "chronomap/io/jpeg.h"
 #include "chronomap/io/png.h"
 #include "text_util.h"
 
@@ -163,7 +164,7 @@ class ImageDataset : public Dataset {
     const ImageU16 depth = readPngU16(f.depth);
     checkDepthScale(depth, f.depth.string());
     std::optional<ImageRgb> rgb;
-    if (f.color) rgb = readPngRgb(*f.color);
+    if (f.color) rgb = readColorImage(*f.color);
     Frame frame;
     frame.source = f.depth.string();
     frame.cloud = depthToCloud(depth, rgb ? &*rgb : nullptr, k_, scale_, frame.source);
@@ -284,7 +285,9 @@ std::unique_ptr<Dataset> openThreeDMatch(const fs::path& root, const DatasetSett
     for (const auto& depth : sortedFrames(seq)) {
       const std::string stem = depth.filename().string().substr(0, depth.filename().string().size() - 10);
       const fs::path pose = seq / (stem + ".pose.txt");
-      const fs::path color = seq / (stem + ".color.png");
+      // Colour as PNG or, as 7-Scenes, ScanNet and many copies store it, JPEG.
+      fs::path color = seq / (stem + ".color.png");
+      if (!fs::exists(color, ec)) color = seq / (stem + ".color.jpg");
       requireFile(pose, "pose file");
       ImageFrame f;
       f.depth = depth;
