@@ -4,6 +4,7 @@
 
 #include <csetjmp>
 #include <cstring>
+#include <sstream>
 #include <string>
 
 #include "chronomap/core/error.h"
@@ -41,6 +42,30 @@ void writeToMemory(png_structp png, png_bytep src, png_size_t n) {
 }
 void flushNothing(png_structp) {}
 
+/// Deflate, the compression of PNG's image data, expands at most 1032:1: a match of at most 258
+/// bytes costs at least 2 bits (a 1-bit length code and a 1-bit distance code), a literal at
+/// least 1 bit for 1 byte. So a file of N bytes cannot hold more than 1032 N bytes of pixels.
+constexpr uint64_t kMaxDeflateRatio = 1032;
+/// Largest ancillary chunk (iCCP, zTXt, iTXt, ...) libpng may allocate, decompressed; a colour
+/// profile is a few KiB, and chronomap reads none of them.
+constexpr png_alloc_size_t kMaxChunkBytes = 1u << 20;
+
+/// Checks, after png_read_info and before anything is allocated, that the image the header
+/// declares could be held by the file: its samples (a lower bound of the decompressed data, with
+/// or without interlacing) must not exceed what `file_size` bytes of deflate can expand to.
+bool declaredSizeFits(png_structp png, png_infop info, size_t file_size, std::string& error) {
+  const uint64_t w = png_get_image_width(png, info), h = png_get_image_height(png, info);
+  const uint64_t bits_per_pixel = uint64_t{png_get_bit_depth(png, info)} * png_get_channels(png, info);
+  const uint64_t sample_bytes = w * h * bits_per_pixel / 8;  // at most 2^30 * 64 bits: no overflow
+  if (sample_bytes <= kMaxDeflateRatio * file_size) return true;
+  std::ostringstream msg;
+  msg << "declares a " << w << " x " << h << " image (" << sample_bytes << " bytes of samples) but holds only "
+      << file_size << " bytes, which cannot expand to more than " << kMaxDeflateRatio * file_size
+      << " (a decompression bomb or a damaged header)";
+  error = msg.str();
+  return false;
+}
+
 struct Decoded {
   uint32_t width = 0, height = 0;
   int channels = 0;
@@ -72,8 +97,13 @@ bool decode(const std::vector<uint8_t>& file, bool want16, Decoded& out, std::st
     return false;
   }
   png_set_user_limits(png, kMaxImageSide, kMaxImageSide);
+  png_set_chunk_malloc_max(png, kMaxChunkBytes);
   png_set_read_fn(png, &ctx, readFromMemory);
   png_read_info(png, info);
+  if (!declaredSizeFits(png, info, file.size(), error)) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    return false;
+  }
   const int color_type = png_get_color_type(png, info);
   const int depth = png_get_bit_depth(png, info);
   if (want16) {

@@ -1,4 +1,5 @@
 #include <gtest/gtest.h>
+#include <zlib.h>
 
 #include <fstream>
 
@@ -66,6 +67,72 @@ TEST(Png, RejectsColourAsDepthAndBadFiles) {
   } catch (const IoError& e) {
     EXPECT_NE(std::string(e.what()).find("missing.png"), std::string::npos);
   }
+}
+
+void putBigEndian32(std::vector<uint8_t>& out, uint32_t v) {
+  for (int shift = 24; shift >= 0; shift -= 8) out.push_back(static_cast<uint8_t>(v >> shift));
+}
+
+void putChunk(std::vector<uint8_t>& png, const char* type, const std::vector<uint8_t>& data) {
+  putBigEndian32(png, static_cast<uint32_t>(data.size()));
+  const size_t start = png.size();
+  png.insert(png.end(), type, type + 4);
+  png.insert(png.end(), data.begin(), data.end());
+  putBigEndian32(png, static_cast<uint32_t>(crc32(0, png.data() + start, static_cast<uInt>(png.size() - start))));
+}
+
+/// A PNG whose header declares `side` x `side` pixels over `data_bytes` zeros of image data,
+/// deflated as far as zlib can (level 9). With a few KiB of data for a large side, it is what a
+/// decompression bomb's header looks like; with the side's true size, a valid black image.
+std::vector<uint8_t> pngDeclaring(uint32_t side, uint8_t bit_depth, uint8_t colour_type, size_t data_bytes = 4096) {
+  std::vector<uint8_t> png = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  std::vector<uint8_t> ihdr;
+  putBigEndian32(ihdr, side);
+  putBigEndian32(ihdr, side);
+  ihdr.insert(ihdr.end(), {bit_depth, colour_type, 0, 0, 0});
+  putChunk(png, "IHDR", ihdr);
+  const std::vector<uint8_t> zeros(data_bytes, 0);
+  std::vector<uint8_t> idat(compressBound(zeros.size()));
+  uLongf n = idat.size();
+  EXPECT_EQ(compress2(idat.data(), &n, zeros.data(), zeros.size(), 9), Z_OK);
+  idat.resize(n);
+  putChunk(png, "IDAT", idat);
+  putChunk(png, "IEND", {});
+  return png;
+}
+
+/// Decodes `png` in a child process allowed 1 GiB more address space than it holds.
+/// @return 0 when it is refused with a FormatError saying what the header declares, 1 when it
+/// decodes, 2 for another message, 99 for another exception (std::bad_alloc).
+int decodeUnderMemoryLimit(const std::vector<uint8_t>& png, bool depth) {
+  return test::exitCodeUnderMemoryLimit(uint64_t{1} << 30, [&] {
+    try {
+      if (depth) {
+        decodePngU16(png, "bomb.png");
+      } else {
+        decodePngRgb(png, "bomb.png");
+      }
+      return 1;
+    } catch (const FormatError& e) {
+      const std::string m = e.what();
+      const bool named = m.find("bomb.png: declares a 32768 x 32768 image") != std::string::npos;
+      return named && m.find("holds only " + std::to_string(png.size()) + " bytes") != std::string::npos ? 0 : 2;
+    }
+  });
+}
+
+TEST(Png, RefusesHeadersDeclaringMoreThanTheFileCanHold) {
+  // 3 GiB of RGB and 2 GiB of 16-bit depth claimed by files of about 80 bytes: refused after the
+  // header, before the pixels are allocated (before, the reader allocated them and then failed).
+  EXPECT_EQ(decodeUnderMemoryLimit(pngDeclaring(32768, 8, 2), false), 0);
+  EXPECT_EQ(decodeUnderMemoryLimit(pngDeclaring(32768, 16, 0), true), 0);
+  // A valid image that deflate packs as far as it can (all black, 2048 x 2048, each row a
+  // filter byte and 6144 zeros) is still read: the bound is deflate's own limit, 1032:1.
+  const std::vector<uint8_t> black = pngDeclaring(2048, 8, 2, size_t{2048} * (1 + 2048 * 3));
+  EXPECT_GT(size_t{2048} * 2048 * 3 / black.size(), 1000u) << "expected deflate near its limit";
+  const ImageRgb image = decodePngRgb(black, "black.png");
+  EXPECT_EQ(image.width, 2048u);
+  EXPECT_EQ(image.pixels, std::vector<Rgb>(size_t{2048} * 2048));
 }
 
 }  // namespace
