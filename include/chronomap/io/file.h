@@ -9,8 +9,10 @@
 
 namespace chronomap::io {
 
-/// Reads a whole file. Files ending in .bz2 are decompressed.
-/// @throw IoError naming the file when it cannot be read; FormatError for a corrupt .bz2.
+/// Reads a whole file. Files ending in .bz2 are decompressed, up to a bound on how far they may
+/// expand (docs/reliability.md, "Limits").
+/// @throw IoError naming the file when it cannot be read; FormatError for a corrupt .bz2 or one
+/// that expands beyond the bound.
 std::vector<uint8_t> readFileBytes(const std::filesystem::path& path);
 
 /// Reads a whole text file (see readFileBytes).
