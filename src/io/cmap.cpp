@@ -7,6 +7,7 @@
 #include <cstring>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "chronomap/core/error.h"
 #include "chronomap/io/file.h"
@@ -26,6 +27,14 @@ constexpr uint32_t kCodecRaw = 0;
 constexpr uint32_t kCodecZstd = 1;
 /// Largest block a reader will inflate; guards against absurd sizes in crafted files.
 constexpr uint64_t kMaxRawBlockBytes = uint64_t{1} << 36;
+/// The most zstd can expand, from its format (RFC 8878): a frame is a header of at least 6 bytes
+/// and blocks; every block has a 3-byte header and yields at most Block_Maximum_Size, 128 KiB.
+/// The block yielding the most per stored byte is an RLE block: its header and one byte, 4 bytes
+/// for up to 128 KiB (a compressed block needs at least 5 bytes: its header, a literals header
+/// and a sequence count; a raw block yields its own size; skippable frames yield nothing). So n
+/// stored bytes decode to at most n / 4 * 131072 = 32768 n bytes: a block claiming more is
+/// crafted, and is refused before its claimed size is allocated. No valid block is refused.
+constexpr uint64_t kMaxZstdRatio = (uint64_t{128} << 10) / 4;
 
 uint32_t crc(const uint8_t* data, size_t n) {
   uLong c = crc32(0L, Z_NULL, 0);
@@ -101,6 +110,13 @@ BlockHeader blockHeaderAt(const uint8_t* p) {
   return h;
 }
 
+std::string zstdBombMessage(const BlockHeader& h, const std::string& what) {
+  std::ostringstream msg;
+  msg << what << " claims " << h.raw_size << " bytes from " << h.stored_size
+      << " stored bytes, more than zstd can expand to (" << kMaxZstdRatio << ":1); the file is crafted or damaged";
+  return msg.str();
+}
+
 /// Checks and inflates the stored bytes of a block whose header is `h` (all present at `p`).
 CmapBlock decodeBlock(const BlockHeader& h, const uint8_t* p, const std::string& what) {
   CmapBlock b;
@@ -113,6 +129,7 @@ CmapBlock decodeBlock(const BlockHeader& h, const uint8_t* p, const std::string&
   } else if (h.codec == kCodecZstd) {
     const unsigned long long content = ZSTD_getFrameContentSize(p, h.stored_size);
     if (content != h.raw_size) throw FormatError(what + " has inconsistent sizes");
+    if (h.raw_size / kMaxZstdRatio > h.stored_size) throw FormatError(zstdBombMessage(h, what));
     b.data.resize(h.raw_size);
     const size_t n = ZSTD_decompress(b.data.data(), b.data.size(), p, h.stored_size);
     if (ZSTD_isError(n) || n != h.raw_size) throw FormatError(what + " cannot be decompressed");

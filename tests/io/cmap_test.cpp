@@ -1,4 +1,5 @@
 #include <gtest/gtest.h>
+#include <zlib.h>
 
 #include <cstring>
 #include <fstream>
@@ -132,6 +133,58 @@ TEST(Cmap, RejectsAValidContainerWithAnInvalidTree) {
   EXPECT_THROW(sessionMapFrom(decodeCmap(bytes, "crafted.cmap"), "crafted.cmap"), FormatError);
   h.kind = MapKind::Diff;
   EXPECT_THROW(sessionMapFrom(decodeCmap(encodeCmap(h, blocks), "d.cmap"), "d.cmap"), FormatError);
+}
+
+/// A zstd frame (RFC 8878) whose header claims `content_bytes` but holds one RLE block of 128 KiB:
+/// magic, a descriptor (single segment, 8-byte content size), the size, a 3-byte block header
+/// (last block, RLE, 131072 bytes) and the repeated byte.
+std::vector<uint8_t> zstdFrameClaiming(uint64_t content_bytes) {
+  std::vector<uint8_t> frame = {0x28, 0xb5, 0x2f, 0xfd, 0xe0};
+  for (int i = 0; i < 8; ++i) frame.push_back(static_cast<uint8_t>(content_bytes >> (8 * i)));
+  const uint32_t block_header = 1u | (1u << 1) | (131072u << 3);
+  for (int i = 0; i < 3; ++i) frame.push_back(static_cast<uint8_t>(block_header >> (8 * i)));
+  frame.push_back('z');
+  return frame;
+}
+
+TEST(Cmap, RefusesZstdBlocksClaimingMoreThanTheyCanHold) {
+  // A block of 17 stored bytes whose header and zstd frame both claim 32 GiB, checksums valid:
+  // refused before its claimed size is allocated (before, the reader allocated 32 GiB).
+  CmapHeader h;
+  h.resolution_m = 0.05;
+  std::vector<CmapBlock> blocks(1);
+  blocks[0].tag = "META";
+  const uint64_t claimed = uint64_t{1} << 35;
+  blocks[0].data = zstdFrameClaiming(claimed);
+  std::vector<uint8_t> bytes = encodeCmap(h, blocks, /*zstd_level=*/0);
+  const uint32_t zstd = 1;
+  std::memcpy(bytes.data() + 84 + 4, &zstd, 4);      // the block's codec
+  std::memcpy(bytes.data() + 84 + 8, &claimed, 8);   // its raw size (the stored CRC is unchanged)
+  const int code = test::exitCodeUnderMemoryLimit(uint64_t{1} << 30, [&] {
+    try {
+      decodeCmap(bytes, "bomb.cmap");
+      return 1;
+    } catch (const FormatError& e) {
+      const std::string m = e.what();
+      return m.find("bomb.cmap: block 'META' claims 34359738368 bytes from 17 stored bytes") != std::string::npos ? 0
+                                                                                                                  : 2;
+    }
+  });
+  EXPECT_EQ(code, 0) << "0: refused naming the block, 1: read, 2: another message, 99: out of memory";
+  // The same frame claiming its true size is read: the bound leaves real RLE blocks alone.
+  blocks[0].data = zstdFrameClaiming(131072);
+  bytes = encodeCmap(h, blocks, 0);
+  std::memcpy(bytes.data() + 84 + 4, &zstd, 4);
+  const uint64_t real = 131072;
+  std::memcpy(bytes.data() + 84 + 8, &real, 8);
+  const uint32_t crc_raw = static_cast<uint32_t>(crc32(0, std::vector<uint8_t>(131072, 'z').data(), 131072));
+  std::memcpy(bytes.data() + 84 + 28, &crc_raw, 4);
+  EXPECT_EQ(decodeCmap(bytes, "rle.cmap").blocks.at(0).data, std::vector<uint8_t>(131072, 'z'));
+  // And so is what zstd itself writes for the most compressible data (8 MiB of zeros).
+  blocks[0].data.assign(size_t{8} << 20, 0);
+  const std::vector<uint8_t> packed = encodeCmap(h, blocks, 3);
+  EXPECT_GT(blocks[0].data.size() / packed.size(), 10000u) << "expected zstd near its maximum ratio";
+  EXPECT_EQ(decodeCmap(packed, "zeros.cmap").blocks.at(0).data, blocks[0].data);
 }
 
 TEST(Cmap, FilesWithoutHitPositionsReadWithHitsAtTheCentres) {
