@@ -280,7 +280,9 @@ std::vector<uint8_t> encodeAppendRecord(const CmapBlock& record, int zstd_level)
   return out;
 }
 
-CmapFile readCmap(const std::filesystem::path& path) { return decodeCmap(readFileBytes(path), path.string()); }
+CmapFile readCmap(const std::filesystem::path& path) {
+  return readNamingMemory(path, [&] { return decodeCmap(readFileBytes(path), path.string()); });
+}
 
 std::vector<uint8_t> encodeSessionMap(const SessionMap& map, const nlohmann::json& meta, int zstd_level) {
   CmapHeader header;
@@ -347,7 +349,9 @@ SessionMap sessionMapFrom(const CmapFile& file, const std::string& source) {
   return map;
 }
 
-SessionMap readSessionMap(const std::filesystem::path& path) { return sessionMapFrom(readCmap(path), path.string()); }
+SessionMap readSessionMap(const std::filesystem::path& path) {
+  return readNamingMemory(path, [&] { return sessionMapFrom(readCmap(path), path.string()); });
+}
 
 nlohmann::json metadataOf(const CmapFile& file) {
   for (const auto& b : file.blocks) {

@@ -90,9 +90,20 @@ std::vector<uint8_t> bunzip(const std::vector<uint8_t>& in, const fs::path& path
 
 }  // namespace
 
-std::vector<uint8_t> readFileBytes(const fs::path& path) {
-  // Only regular files: a FIFO would block for ever, a device (/dev/zero) never ends, a link
-  // loop cannot be followed.
+void throwOutOfMemory(const fs::path& path) {
+  std::error_code ec;
+  const uintmax_t size = fs::file_size(path, ec);
+  std::string msg = path.string();
+  msg.append(": not enough memory to read it");
+  if (!ec) msg.append(" (").append(humanBytes(static_cast<double>(size))).append(" on disk)");
+  throw IoError(msg);
+}
+
+namespace {
+
+/// Refuses what is not a regular file: a FIFO would block for ever, a device (/dev/zero) never
+/// ends, a link loop cannot be followed.
+void requireRegularFile(const fs::path& path) {
   std::error_code ec;
   const fs::file_status st = fs::status(path, ec);
   if (ec && ec != std::errc::no_such_file_or_directory) throw IoError(path.string() + ": " + ec.message());
@@ -100,12 +111,20 @@ std::vector<uint8_t> readFileBytes(const fs::path& path) {
   if (fs::exists(st) && !fs::is_regular_file(st)) {
     throw IoError(path.string() + ": not a regular file (a FIFO, device or socket cannot be read as data)");
   }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw IoError(path.string() + ": cannot open (" + std::strerror(errno) + ")");
-  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) throw IoError(path.string() + ": read failed");
-  if (path.extension() == ".bz2") return bunzip(bytes, path);
-  return bytes;
+}
+
+}  // namespace
+
+std::vector<uint8_t> readFileBytes(const fs::path& path) {
+  requireRegularFile(path);
+  return readNamingMemory(path, [&] {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw IoError(path.string() + ": cannot open (" + std::strerror(errno) + ")");
+    std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (in.bad()) throw IoError(path.string() + ": read failed");
+    if (path.extension() == ".bz2") return bunzip(bytes, path);
+    return bytes;
+  });
 }
 
 std::string readTextFile(const fs::path& path) {

@@ -173,9 +173,13 @@ bool encode(uint32_t w, uint32_t h, bool sixteen, const uint8_t* data, std::vect
 
 }  // namespace
 
-ImageRgb readPngRgb(const std::filesystem::path& path) { return decodePngRgb(readFileBytes(path), path.string()); }
+ImageRgb readPngRgb(const std::filesystem::path& path) {
+  return readNamingMemory(path, [&] { return decodePngRgb(readFileBytes(path), path.string()); });
+}
 
-ImageU16 readPngU16(const std::filesystem::path& path) { return decodePngU16(readFileBytes(path), path.string()); }
+ImageU16 readPngU16(const std::filesystem::path& path) {
+  return readNamingMemory(path, [&] { return decodePngU16(readFileBytes(path), path.string()); });
+}
 
 ImageRgb decodePngRgb(const std::vector<uint8_t>& file, const std::string& name) {
   Decoded d;

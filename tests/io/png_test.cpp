@@ -135,5 +135,21 @@ TEST(Png, RefusesHeadersDeclaringMoreThanTheFileCanHold) {
   EXPECT_EQ(image.pixels, std::vector<Rgb>(size_t{2048} * 2048));
 }
 
+TEST(Png, RunningOutOfMemoryNamesTheFile) {
+  // A valid 6144 x 6144 depth image (72 MiB of samples) read with 32 MiB to spare: the reader
+  // says which file it could not hold (before: std::bad_alloc, "out of memory" without a file).
+  test::TempDir tmp;
+  test::writeBytes(tmp / "big.png", pngDeclaring(6144, 16, 0, size_t{6144} * (1 + 6144 * 2)));
+  const int code = test::exitCodeUnderMemoryLimit(uint64_t{32} << 20, [&] {
+    try {
+      return readPngU16(tmp / "big.png").width == 6144 ? 1 : 3;
+    } catch (const IoError& e) {
+      const std::string m = e.what();
+      return m.find("big.png: not enough memory to read it") != std::string::npos ? 0 : 2;
+    }
+  });
+  EXPECT_EQ(code, test::memoryLimitsApply() ? 0 : 1) << "0: IoError naming the file, 1: read, 99: bad_alloc";
+}
+
 }  // namespace
 }  // namespace chronomap::io

@@ -64,6 +64,9 @@ int exitCodeUnderFileSizeLimit(uint64_t max_file_bytes, const std::function<int(
 /// in the child all the same. @return as exitCodeUnderFileSizeLimit.
 int exitCodeUnderMemoryLimit(uint64_t extra_bytes, const std::function<int()>& body);
 
+/// False under AddressSanitizer or ThreadSanitizer, where exitCodeUnderMemoryLimit sets no limit.
+bool memoryLimitsApply();
+
 /// A cloud-list dataset `dir/name.txt` of one cloud `dir/name.ply`: a 1 x 1 m wall of points
 /// 0.02 m apart in the plane x = wall_x, seen from the origin. @return the list's path.
 std::filesystem::path writeWallDataset(const std::filesystem::path& dir, const std::string& name, float wall_x);
