@@ -2,6 +2,7 @@
 
 #include <zlib.h>
 #include <zstd.h>
+#include <zstd_errors.h>
 
 #include <bit>
 #include <cstring>
@@ -117,6 +118,31 @@ std::string zstdBombMessage(const BlockHeader& h, const std::string& what) {
   return msg.str();
 }
 
+/// A block may claim up to kMaxZstdRatio times its stored size, and a real one can be that
+/// dense, so the claim alone cannot tell a bomb. Memory follows what the data really yields: the
+/// first buffer holds the claim up to 64 times the stored size (or 64 MiB), more than real map
+/// blocks expand; a block that fills it is decoded again into a buffer four times larger, up to
+/// its claim, so a false claim costs at most four times what the block truly holds (and 4/3 of
+/// the decoding work).
+constexpr uint64_t kFirstZstdRatio = 64;
+constexpr uint64_t kFirstZstdBytes = uint64_t{64} << 20;
+
+std::vector<uint8_t> inflateZstd(const BlockHeader& h, const uint8_t* p, const std::string& what) {
+  std::vector<uint8_t> out;
+  uint64_t capacity = std::min(h.raw_size, std::max(kFirstZstdBytes, kFirstZstdRatio * h.stored_size));
+  while (true) {
+    out.resize(capacity);
+    const size_t n = ZSTD_decompress(out.data(), out.size(), p, h.stored_size);
+    const bool too_small = ZSTD_isError(n) && ZSTD_getErrorCode(n) == ZSTD_error_dstSize_tooSmall;
+    if (too_small && capacity < h.raw_size) {
+      capacity = std::min(h.raw_size, 4 * capacity);
+      continue;
+    }
+    if (ZSTD_isError(n) || n != h.raw_size) throw FormatError(what + " cannot be decompressed");
+    return out;
+  }
+}
+
 /// Checks and inflates the stored bytes of a block whose header is `h` (all present at `p`).
 CmapBlock decodeBlock(const BlockHeader& h, const uint8_t* p, const std::string& what) {
   CmapBlock b;
@@ -130,9 +156,7 @@ CmapBlock decodeBlock(const BlockHeader& h, const uint8_t* p, const std::string&
     const unsigned long long content = ZSTD_getFrameContentSize(p, h.stored_size);
     if (content != h.raw_size) throw FormatError(what + " has inconsistent sizes");
     if (h.raw_size / kMaxZstdRatio > h.stored_size) throw FormatError(zstdBombMessage(h, what));
-    b.data.resize(h.raw_size);
-    const size_t n = ZSTD_decompress(b.data.data(), b.data.size(), p, h.stored_size);
-    if (ZSTD_isError(n) || n != h.raw_size) throw FormatError(what + " cannot be decompressed");
+    b.data = inflateZstd(h, p, what);
   } else {
     throw FormatError(what + " uses unknown compression " + std::to_string(h.codec));
   }
