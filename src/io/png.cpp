@@ -46,9 +46,11 @@ void flushNothing(png_structp) {}
 /// bytes costs at least 2 bits (a 1-bit length code and a 1-bit distance code), a literal at
 /// least 1 bit for 1 byte. So a file of N bytes cannot hold more than 1032 N bytes of pixels.
 constexpr uint64_t kMaxDeflateRatio = 1032;
-/// Largest ancillary chunk (iCCP, zTXt, iTXt, ...) libpng may allocate, decompressed; a colour
-/// profile is a few KiB, and chronomap reads none of them.
-constexpr png_alloc_size_t kMaxChunkBytes = 1u << 20;
+/// Ancillary chunks chronomap never uses. libpng would decompress text and colour profiles (up to
+/// 8 MB each, its default chunk limit, which stays) and keep up to 1000 of them: an 8 MB file of
+/// small zTXt bombs could take 8 GB. They are skipped unread instead.
+constexpr png_byte kSkippedChunks[] = {'i', 'C', 'C', 'P', 0, 'z', 'T', 'X', 't', 0, 'i', 'T', 'X', 't', 0,
+                                       't', 'E', 'X', 't', 0, 's', 'P', 'L', 'T', 0, 'e', 'X', 'I', 'f', 0};
 
 /// Checks, after png_read_info and before anything is allocated, that the image the header
 /// declares could be held by the file: its samples (a lower bound of the decompressed data, with
@@ -97,7 +99,7 @@ bool decode(const std::vector<uint8_t>& file, bool want16, Decoded& out, std::st
     return false;
   }
   png_set_user_limits(png, kMaxImageSide, kMaxImageSide);
-  png_set_chunk_malloc_max(png, kMaxChunkBytes);
+  png_set_keep_unknown_chunks(png, PNG_HANDLE_CHUNK_NEVER, kSkippedChunks, sizeof(kSkippedChunks) / 5);
   png_set_read_fn(png, &ctx, readFromMemory);
   png_read_info(png, info);
   if (!declaredSizeFits(png, info, file.size(), error)) {

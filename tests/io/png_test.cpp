@@ -1,4 +1,5 @@
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 #include <zlib.h>
 
 #include <fstream>
@@ -133,6 +134,32 @@ TEST(Png, RefusesHeadersDeclaringMoreThanTheFileCanHold) {
   const ImageRgb image = decodePngRgb(black, "black.png");
   EXPECT_EQ(image.width, 2048u);
   EXPECT_EQ(image.pixels, std::vector<Rgb>(size_t{2048} * 2048));
+}
+
+TEST(Png, SkipsTextAndProfileChunksUnread) {
+  // A valid 2 x 2 image behind 300 zTXt chunks of 4 MiB each deflated to 4 KiB (1.2 GB of text
+  // in 1.2 MB): libpng decompressed and kept them all. Read in a child, which must decode the
+  // image and grow by less than 64 MiB.
+  std::vector<uint8_t> full = pngDeclaring(2, 8, 2, 2 * (1 + 2 * 3));
+  const size_t idat_at = 8 + 12 + 13;  // after the signature and IHDR
+  std::vector<uint8_t> text = {'C', 'o', 'm', 'm', 'e', 'n', 't', 0, 0};
+  const std::vector<uint8_t> zeros(size_t{4} << 20, ' ');
+  std::vector<uint8_t> packed(compressBound(zeros.size()));
+  uLongf n = packed.size();
+  ASSERT_EQ(compress2(packed.data(), &n, zeros.data(), zeros.size(), 9), Z_OK);
+  text.insert(text.end(), packed.begin(), packed.begin() + static_cast<std::ptrdiff_t>(n));
+  std::vector<uint8_t> chunks;
+  for (int i = 0; i < 300; ++i) putChunk(chunks, "zTXt", text);
+  full.insert(full.begin() + idat_at, chunks.begin(), chunks.end());
+  const int code = test::exitCodeUnderMemoryLimit(uint64_t{1} << 30, [&] {
+    rusage before{}, after{};
+    ::getrusage(RUSAGE_SELF, &before);
+    const ImageRgb image = decodePngRgb(full, "text.png");
+    ::getrusage(RUSAGE_SELF, &after);
+    if (image.width != 2) return 2;
+    return after.ru_maxrss - before.ru_maxrss < 64 * 1024 ? 0 : 3;  // kilobytes
+  });
+  EXPECT_EQ(code, 0) << "0: read within 64 MiB, 2: wrong image, 3: took more, 99: threw";
 }
 
 TEST(Png, RunningOutOfMemoryNamesTheFile) {
