@@ -128,8 +128,10 @@ std::vector<uint8_t> readFileBytes(const fs::path& path) {
 }
 
 std::string readTextFile(const fs::path& path) {
-  const auto bytes = readFileBytes(path);
-  return std::string(bytes.begin(), bytes.end());
+  return readNamingMemory(path, [&] {
+    const auto bytes = readFileBytes(path);
+    return std::string(bytes.begin(), bytes.end());
+  });
 }
 
 namespace {
