@@ -219,7 +219,6 @@ inline size_t castDense(const double origin[3], const double end[3], float weigh
   return static_cast<size_t>(idx);
 }
 
-/// Open-addressing hash scratch for frames whose bounding box is too large for a dense grid.
 /// Stops integration that needs more than the memory limit, saying what needed it.
 /// `share` follows the amount (" per thread" for a frame's scratch).
 [[noreturn]] void refuseOverMemoryLimit(const char* what, size_t limit_bytes, const char* share, double resolution_m) {
@@ -229,6 +228,7 @@ inline size_t castDense(const double origin[3], const double end[3], float weigh
   throw UsageError(msg.str());
 }
 
+/// Open-addressing hash scratch for frames whose bounding box is too large for a dense grid.
 struct HashStore {
   struct Slot {
     uint64_t code = 0;  // Morton code + 1; 0 = empty
