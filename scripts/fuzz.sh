@@ -3,7 +3,10 @@
 # as many at once as there are cores.
 # Seeds: small files made by chronomap's own writers, plus small real files from the data folder.
 # A crash, or an input that takes more than 10 s (a hang), leaves its input as build/fuzz/artifacts/<target>/crash-*; turn it into a regression
-# test under tests/io before fixing it. Usage: scripts/fuzz.sh [SECONDS]
+# test under tests/io before fixing it. Memory bombs are findings too: a run may hold 2 GiB
+# (-rss_limit_mb) and no single allocation may reach 1 GiB (-malloc_limit_mb) from an input of at
+# most 64 KiB, which no reader's bound allows (docs/reliability.md, "Limits").
+# Usage: scripts/fuzz.sh [SECONDS]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds="${1:-60}"
@@ -31,8 +34,8 @@ summary=build/fuzz/summary.txt
 fuzz_one() {
   local target="$1" corpus="build/fuzz/corpus/$1" artifacts="build/fuzz/artifacts/$1" log="build/fuzz/$1.log" result runs
   mkdir -p "$corpus" "$artifacts"
-  if "$bin/fuzz_$target" "$corpus" "$seeds/$target" -max_total_time="$seconds" -max_len=65536 -rss_limit_mb=2048 -timeout=10 \
-       -artifact_prefix="$artifacts/" -print_final_stats=1 >"$log" 2>&1; then
+  if "$bin/fuzz_$target" "$corpus" "$seeds/$target" -max_total_time="$seconds" -max_len=65536 -rss_limit_mb=2048 -malloc_limit_mb=1024 \
+       -timeout=10 -artifact_prefix="$artifacts/" -print_final_stats=1 >"$log" 2>&1; then
     result=ok
   else
     result=CRASH

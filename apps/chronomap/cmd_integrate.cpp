@@ -133,8 +133,27 @@ pipeline::SessionSettings sessionSettings(const IntegrateFlags& f) {
   s.integrator.threads = f.threads;
   s.integrator.compress_free = !f.no_compress;
   s.integrator.hit_positions = !f.no_positions;
+  if (f.memory_limit_gib) {
+    const double gib = *f.memory_limit_gib;
+    if (!std::isfinite(gib) || gib < 0.0 || gib > 1e6) {
+      throw UsageError("--memory-limit must be a number of GiB (0 for no limit), not " + std::to_string(gib));
+    }
+    s.integrator.memory_limit_bytes = static_cast<size_t>(gib * 1073741824.0);
+  }
   return s;
 }
+
+namespace {
+
+std::string memoryLimitHelp() {
+  std::string help(
+      "most memory integration may take, GiB: the session map, and one frame's scratch per thread (this over "
+      "the threads); past it, integration stops and says what it needed. 0 = no limit; default half the "
+      "physical memory (");
+  return help.append(humanBytes(static_cast<double>(defaultMemoryLimitBytes()))).append(" here)");
+}
+
+}  // namespace
 
 void addIntegrateFlags(CLI::App* app, IntegrateFlags& f) {
   std::ostringstream extent;
@@ -158,6 +177,7 @@ void addIntegrateFlags(CLI::App* app, IntegrateFlags& f) {
   app->add_flag("--no-positions", f.no_positions,
                 "do not record where in each voxel the rays ended (fast mode about 7% faster; the diff's shift test "
                 "then sees surfaces only to the voxel; docs/changes.md)");
+  app->add_option("--memory-limit", f.memory_limit_gib, memoryLimitHelp());
   app->add_option("--depth-scale", f.depth_scale, "depth image units per metre (TUM 5000, 3DMatch 1000)");
   app->add_option("--intrinsics", f.intrinsics, "camera intrinsics fx,fy,cx,cy in pixels");
   app->add_option("--pose", f.pose, "pose of a single cloud: tx,ty,tz,qx,qy,qz,qw (sensor to map)");

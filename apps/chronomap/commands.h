@@ -46,6 +46,7 @@ struct IntegrateFlags {
   bool no_compress = false;
   bool no_positions = false;
   std::optional<double> depth_scale;  ///< unset: the format's own
+  std::optional<double> memory_limit_gib;  ///< unset: IntegratorSettings' default; 0: none
   std::string intrinsics;
   std::string pose;
   std::string trajectory;

@@ -12,11 +12,14 @@
 #include <sstream>
 #include <thread>
 
+#include <unistd.h>
+
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
 
 #include "chronomap/core/error.h"
+#include "chronomap/core/format.h"
 #include "chronomap/core/happens_before.h"
 #include "chronomap/integrate/ray.h"
 #include "bundle_rays.h"
@@ -216,6 +219,15 @@ inline size_t castDense(const double origin[3], const double end[3], float weigh
   return static_cast<size_t>(idx);
 }
 
+/// Stops integration that needs more than the memory limit, saying what needed it.
+/// `share` follows the amount (" per thread" for a frame's scratch).
+[[noreturn]] void refuseOverMemoryLimit(const char* what, size_t limit_bytes, const char* share, double resolution_m) {
+  std::ostringstream msg;
+  msg << what << " needs more than " << humanBytes(static_cast<double>(limit_bytes)) << share << " at resolution "
+      << resolution_m << " m; use a coarser --resolution or raise --memory-limit";
+  throw UsageError(msg.str());
+}
+
 /// Open-addressing hash scratch for frames whose bounding box is too large for a dense grid.
 struct HashStore {
   struct Slot {
@@ -225,6 +237,11 @@ struct HashStore {
   };
   std::vector<Slot> slots;
   size_t used = 0;
+  size_t max_bytes = 0;  // 0: no limit
+  double resolution_m = 0.0;
+
+  /// A table of `n` slots and the deltas of the voxels it can hold (half of them) once emitted.
+  static size_t bytesFor(size_t n) { return n * sizeof(Slot) + n / 2 * (sizeof(VoxelKey) + sizeof(VoxelCounters)); }
 
   void reset() {
     slots.assign(1 << 16, Slot{});
@@ -245,6 +262,9 @@ struct HashStore {
     return slots[i];
   }
   void grow() {
+    if (max_bytes != 0 && bytesFor(slots.size() * 2) > max_bytes) {
+      refuseOverMemoryLimit("casting one frame's rays", max_bytes, " per thread", resolution_m);
+    }
     std::vector<Slot> old = std::move(slots);
     slots.assign(old.size() * 2, Slot{});
     const size_t mask = slots.size() - 1;
@@ -260,7 +280,10 @@ struct HashStore {
 }  // namespace
 
 struct RayAccumulator::Impl {
-  Impl(const KeyGrid& g, const IntegratorSettings& s) : grid(g), settings(s) {}
+  Impl(const KeyGrid& g, const IntegratorSettings& s) : grid(g), settings(s) {
+    hash.max_bytes = s.memory_limit_bytes;
+    hash.resolution_m = g.resolution_m();
+  }
   KeyGrid grid;
   IntegratorSettings settings;
   std::vector<RelPoint> points;
@@ -654,6 +677,20 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
 
 namespace {
 
+/// The settings each thread's accumulator gets: its share of the memory limit.
+IntegratorSettings perThread(const IntegratorSettings& settings, int threads) {
+  IntegratorSettings s = settings;
+  s.memory_limit_bytes /= static_cast<size_t>(threads);
+  return s;
+}
+
+/// Called after each merge: one comparison, so the limit costs nothing per point.
+void checkMapMemory(const SessionMap& map, const IntegratorSettings& settings) {
+  if (settings.memory_limit_bytes != 0 && map.reservedBytes() > settings.memory_limit_bytes) {
+    refuseOverMemoryLimit("the session map", settings.memory_limit_bytes, "", map.resolution_m());
+  }
+}
+
 void checkSettings(const IntegratorSettings& settings) {
   if (!std::isfinite(settings.max_range_m) || settings.max_range_m <= 0.0) {
     throw UsageError("max range must be a positive number of metres");
@@ -662,6 +699,12 @@ void checkSettings(const IntegratorSettings& settings) {
 }
 
 }  // namespace
+
+size_t defaultMemoryLimitBytes() {
+  const long pages = ::sysconf(_SC_PHYS_PAGES), page_bytes = ::sysconf(_SC_PAGE_SIZE);
+  if (pages <= 0 || page_bytes <= 0) return 0;
+  return static_cast<size_t>(pages) * static_cast<size_t>(page_bytes) / 2;
+}
 
 IntegrationStats integrate(const FrameSource& source, SessionMap& map, const IntegratorSettings& settings,
                            const ProgressFn& progress) {
@@ -673,7 +716,7 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
   threads = std::max(1, threads);
 
   if (threads == 1 || n <= 1) {
-    RayAccumulator acc(map.grid(), settings);
+    RayAccumulator acc(map.grid(), perThread(settings, 1));
     VoxelDeltas deltas;
     for (size_t i = 0; i < n; ++i) {
       if (const Frame* f = source.resident(i)) {
@@ -682,13 +725,14 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
         acc.accumulate(source.load(i), deltas);
       }
       map.addMany(deltas.keys, deltas.deltas);
+      checkMapMemory(map, settings);
       total += deltas.stats;
       if (progress) progress(i + 1, n);
     }
   } else {
     // Frames are loaded and cast in parallel; merging stays serial and in frame order, so the
     // map is the same for every thread count.
-    tbb::enumerable_thread_specific<RayAccumulator> accumulators(map.grid(), settings);
+    tbb::enumerable_thread_specific<RayAccumulator> accumulators(map.grid(), perThread(settings, threads));
     // At most `tokens` frames are in flight, each in its own buffer; the stages pass buffer
     // numbers, and a merged buffer goes back to the free list.
     const size_t tokens = static_cast<size_t>(threads) * 2;
@@ -740,6 +784,7 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
             CHRONOMAP_HAPPENS_AFTER(&handed_over);
             CHRONOMAP_HAPPENS_AFTER(&merge_turn);  // one merge after another
             map.addMany(buffers[b].keys, buffers[b].deltas);
+            checkMapMemory(map, settings);
             total += buffers[b].stats;
             if (progress) progress(static_cast<size_t>(total.frames), n);
             {

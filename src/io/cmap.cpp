@@ -2,11 +2,13 @@
 
 #include <zlib.h>
 #include <zstd.h>
+#include <zstd_errors.h>
 
 #include <bit>
 #include <cstring>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "chronomap/core/error.h"
 #include "chronomap/io/file.h"
@@ -26,6 +28,14 @@ constexpr uint32_t kCodecRaw = 0;
 constexpr uint32_t kCodecZstd = 1;
 /// Largest block a reader will inflate; guards against absurd sizes in crafted files.
 constexpr uint64_t kMaxRawBlockBytes = uint64_t{1} << 36;
+/// The most zstd can expand, from its format (RFC 8878): a frame is a header of at least 6 bytes
+/// and blocks; every block has a 3-byte header and yields at most Block_Maximum_Size, 128 KiB.
+/// The block yielding the most per stored byte is an RLE block: its header and one byte, 4 bytes
+/// for up to 128 KiB (a compressed block needs at least 5 bytes: its header, a literals header
+/// and a sequence count; a raw block yields its own size; skippable frames yield nothing). So n
+/// stored bytes decode to at most n / 4 * 131072 = 32768 n bytes: a block claiming more is
+/// crafted, and is refused before its claimed size is allocated. No valid block is refused.
+constexpr uint64_t kMaxZstdRatio = (uint64_t{128} << 10) / 4;
 
 uint32_t crc(const uint8_t* data, size_t n) {
   uLong c = crc32(0L, Z_NULL, 0);
@@ -101,6 +111,38 @@ BlockHeader blockHeaderAt(const uint8_t* p) {
   return h;
 }
 
+std::string zstdBombMessage(const BlockHeader& h, const std::string& what) {
+  std::ostringstream msg;
+  msg << what << " claims " << h.raw_size << " bytes from " << h.stored_size
+      << " stored bytes, more than zstd can expand to (" << kMaxZstdRatio << ":1); the file is crafted or damaged";
+  return msg.str();
+}
+
+/// A block may claim up to kMaxZstdRatio times its stored size, and a real one can be that
+/// dense, so the claim alone cannot tell a bomb. Memory follows what the data really yields: the
+/// first buffer holds the claim up to 64 times the stored size (or 64 MiB), more than real map
+/// blocks expand; a block that fills it is decoded again into a buffer four times larger, up to
+/// its claim, so a false claim costs at most four times what the block truly holds (and 4/3 of
+/// the decoding work).
+constexpr uint64_t kFirstZstdRatio = 64;
+constexpr uint64_t kFirstZstdBytes = uint64_t{64} << 20;
+
+std::vector<uint8_t> inflateZstd(const BlockHeader& h, const uint8_t* p, const std::string& what) {
+  std::vector<uint8_t> out;
+  uint64_t capacity = std::min(h.raw_size, std::max(kFirstZstdBytes, kFirstZstdRatio * h.stored_size));
+  while (true) {
+    out.resize(capacity);
+    const size_t n = ZSTD_decompress(out.data(), out.size(), p, h.stored_size);
+    const bool too_small = ZSTD_isError(n) && ZSTD_getErrorCode(n) == ZSTD_error_dstSize_tooSmall;
+    if (too_small && capacity < h.raw_size) {
+      capacity = std::min(h.raw_size, 4 * capacity);
+      continue;
+    }
+    if (ZSTD_isError(n) || n != h.raw_size) throw FormatError(what + " cannot be decompressed");
+    return out;
+  }
+}
+
 /// Checks and inflates the stored bytes of a block whose header is `h` (all present at `p`).
 CmapBlock decodeBlock(const BlockHeader& h, const uint8_t* p, const std::string& what) {
   CmapBlock b;
@@ -113,9 +155,8 @@ CmapBlock decodeBlock(const BlockHeader& h, const uint8_t* p, const std::string&
   } else if (h.codec == kCodecZstd) {
     const unsigned long long content = ZSTD_getFrameContentSize(p, h.stored_size);
     if (content != h.raw_size) throw FormatError(what + " has inconsistent sizes");
-    b.data.resize(h.raw_size);
-    const size_t n = ZSTD_decompress(b.data.data(), b.data.size(), p, h.stored_size);
-    if (ZSTD_isError(n) || n != h.raw_size) throw FormatError(what + " cannot be decompressed");
+    if (h.raw_size / kMaxZstdRatio > h.stored_size) throw FormatError(zstdBombMessage(h, what));
+    b.data = inflateZstd(h, p, what);
   } else {
     throw FormatError(what + " uses unknown compression " + std::to_string(h.codec));
   }
@@ -263,7 +304,9 @@ std::vector<uint8_t> encodeAppendRecord(const CmapBlock& record, int zstd_level)
   return out;
 }
 
-CmapFile readCmap(const std::filesystem::path& path) { return decodeCmap(readFileBytes(path), path.string()); }
+CmapFile readCmap(const std::filesystem::path& path) {
+  return readNamingMemory(path, [&] { return decodeCmap(readFileBytes(path), path.string()); });
+}
 
 std::vector<uint8_t> encodeSessionMap(const SessionMap& map, const nlohmann::json& meta, int zstd_level) {
   CmapHeader header;
@@ -330,7 +373,9 @@ SessionMap sessionMapFrom(const CmapFile& file, const std::string& source) {
   return map;
 }
 
-SessionMap readSessionMap(const std::filesystem::path& path) { return sessionMapFrom(readCmap(path), path.string()); }
+SessionMap readSessionMap(const std::filesystem::path& path) {
+  return readNamingMemory(path, [&] { return sessionMapFrom(readCmap(path), path.string()); });
+}
 
 nlohmann::json metadataOf(const CmapFile& file) {
   for (const auto& b : file.blocks) {

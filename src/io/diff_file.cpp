@@ -93,7 +93,9 @@ DiffMap diffMapFrom(const CmapFile& file, const std::string& source) {
   }
 }
 
-DiffMap readDiffMap(const std::filesystem::path& path) { return diffMapFrom(readCmap(path), path.string()); }
+DiffMap readDiffMap(const std::filesystem::path& path) {
+  return readNamingMemory(path, [&] { return diffMapFrom(readCmap(path), path.string()); });
+}
 
 size_t exportDiffPly(const std::filesystem::path& path, const DiffMap& diff, std::span<const ChangeCell> cells) {
   uint64_t total = 0;

@@ -15,6 +15,7 @@
 #include <random>
 
 #include "chronomap/core/error.h"
+#include "chronomap/core/format.h"
 
 namespace chronomap::io {
 
@@ -22,37 +23,87 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::vector<uint8_t> bunzip(const std::vector<uint8_t>& in, const fs::path& path) {
+/// The most a .bz2 input may expand. bzip2 packs real data a few times (binary and text point
+/// clouds 1.3-3x, OctoMap's scan.dat.bz2 2.9x), but a file of one repeated byte more than a
+/// million times (a 208-byte stream holds 256 MiB of zeros), so a small file could claim all
+/// memory.
+/// Up to kMinBzip2Output every file may expand (small files are never refused); past it, at most
+/// kMaxBzip2Ratio times its compressed size (30 times what real point data reaches), and never
+/// past kMaxBzip2Output. A genuine file beyond them can be decompressed with bunzip2 first.
+constexpr uint64_t kMaxBzip2Ratio = 100;
+constexpr uint64_t kMinBzip2Output = uint64_t{64} << 20;
+constexpr uint64_t kMaxBzip2Output = uint64_t{8} << 30;
+
+uint64_t bzip2OutputLimit(size_t compressed_bytes) {
+  return std::min(kMaxBzip2Output, std::max(kMinBzip2Output, kMaxBzip2Ratio * compressed_bytes));
+}
+
+[[noreturn]] void refuseBzip2Bomb(const fs::path& path, size_t compressed_bytes, uint64_t limit) {
+  std::string msg = path.string();
+  msg.append(": expands beyond ").append(humanBytes(static_cast<double>(limit))).append(" from ");
+  msg.append(humanBytes(static_cast<double>(compressed_bytes)))
+      .append(" of bzip2 data (more than a ")
+      .append(std::to_string(kMaxBzip2Ratio))
+      .append(":1 ratio, as a decompression bomb does); refusing. Decompress it with bunzip2 if it is genuine");
+  throw FormatError(msg);
+}
+
+/// A bzip2 decoder, ended when it goes out of scope (also when an allocation throws).
+struct Bzip2Decoder {
   bz_stream stream{};
-  if (BZ2_bzDecompressInit(&stream, 0, 0) != BZ_OK) throw IoError(path.string() + ": cannot start bzip2 decoder");
-  std::vector<uint8_t> out(std::max<size_t>(in.size() * 4, 1 << 16));
+  explicit Bzip2Decoder(const fs::path& path) {
+    if (BZ2_bzDecompressInit(&stream, 0, 0) != BZ_OK) throw IoError(path.string() + ": cannot start bzip2 decoder");
+  }
+  ~Bzip2Decoder() { BZ2_bzDecompressEnd(&stream); }
+  Bzip2Decoder(const Bzip2Decoder&) = delete;
+  Bzip2Decoder& operator=(const Bzip2Decoder&) = delete;
+};
+
+std::vector<uint8_t> bunzip(const std::vector<uint8_t>& in, const fs::path& path) {
+  Bzip2Decoder decoder(path);
+  bz_stream& stream = decoder.stream;
   stream.next_in = reinterpret_cast<char*>(const_cast<uint8_t*>(in.data()));
   stream.avail_in = static_cast<unsigned>(in.size());
+  const uint64_t limit = bzip2OutputLimit(in.size());
+  // One byte more than the limit: producing it shows the stream goes on past the limit.
+  const size_t capacity = static_cast<size_t>(limit) + 1;
+  std::vector<uint8_t> out(std::min(capacity, std::max<size_t>(in.size() * 4, 1 << 16)));
   size_t produced = 0;
   int rc = BZ_OK;
-  while (true) {
-    if (produced == out.size()) out.resize(out.size() * 2);
+  while (rc == BZ_OK) {
+    if (produced == out.size()) {
+      if (out.size() == capacity) refuseBzip2Bomb(path, in.size(), limit);
+      out.resize(std::min(capacity, out.size() * 2));
+    }
     stream.next_out = reinterpret_cast<char*>(out.data() + produced);
     stream.avail_out = static_cast<unsigned>(std::min<size_t>(out.size() - produced, 1u << 30));
     const unsigned before = stream.avail_out;
     rc = BZ2_bzDecompress(&stream);
     produced += before - stream.avail_out;
-    if (rc == BZ_STREAM_END) break;
-    if (rc != BZ_OK || (stream.avail_in == 0 && before == stream.avail_out)) {
-      BZ2_bzDecompressEnd(&stream);
-      throw FormatError(path.string() + ": corrupt or truncated bzip2 data");
-    }
+    if (rc == BZ_OK && stream.avail_in == 0 && before == stream.avail_out) break;  // truncated
   }
-  BZ2_bzDecompressEnd(&stream);
+  if (produced > limit) refuseBzip2Bomb(path, in.size(), limit);
+  if (rc != BZ_STREAM_END) throw FormatError(path.string() + ": corrupt or truncated bzip2 data");
   out.resize(produced);
   return out;
 }
 
 }  // namespace
 
-std::vector<uint8_t> readFileBytes(const fs::path& path) {
-  // Only regular files: a FIFO would block for ever, a device (/dev/zero) never ends, a link
-  // loop cannot be followed.
+void throwOutOfMemory(const fs::path& path) {
+  std::error_code ec;
+  const uintmax_t size = fs::file_size(path, ec);
+  std::string msg = path.string();
+  msg.append(": not enough memory to read it");
+  if (!ec) msg.append(" (").append(humanBytes(static_cast<double>(size))).append(" on disk)");
+  throw IoError(msg);
+}
+
+namespace {
+
+/// Refuses what is not a regular file: a FIFO would block for ever, a device (/dev/zero) never
+/// ends, a link loop cannot be followed.
+void requireRegularFile(const fs::path& path) {
   std::error_code ec;
   const fs::file_status st = fs::status(path, ec);
   if (ec && ec != std::errc::no_such_file_or_directory) throw IoError(path.string() + ": " + ec.message());
@@ -60,17 +111,27 @@ std::vector<uint8_t> readFileBytes(const fs::path& path) {
   if (fs::exists(st) && !fs::is_regular_file(st)) {
     throw IoError(path.string() + ": not a regular file (a FIFO, device or socket cannot be read as data)");
   }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw IoError(path.string() + ": cannot open (" + std::strerror(errno) + ")");
-  std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) throw IoError(path.string() + ": read failed");
-  if (path.extension() == ".bz2") return bunzip(bytes, path);
-  return bytes;
+}
+
+}  // namespace
+
+std::vector<uint8_t> readFileBytes(const fs::path& path) {
+  requireRegularFile(path);
+  return readNamingMemory(path, [&] {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw IoError(path.string() + ": cannot open (" + std::strerror(errno) + ")");
+    std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (in.bad()) throw IoError(path.string() + ": read failed");
+    if (path.extension() == ".bz2") return bunzip(bytes, path);
+    return bytes;
+  });
 }
 
 std::string readTextFile(const fs::path& path) {
-  const auto bytes = readFileBytes(path);
-  return std::string(bytes.begin(), bytes.end());
+  return readNamingMemory(path, [&] {
+    const auto bytes = readFileBytes(path);
+    return std::string(bytes.begin(), bytes.end());
+  });
 }
 
 namespace {

@@ -154,7 +154,9 @@ const PcdField* findField(const PcdHeader& h, std::initializer_list<const char*>
 
 }  // namespace
 
-PointCloud readPcd(const std::filesystem::path& path) { return parsePcd(readFileBytes(path), path.string()); }
+PointCloud readPcd(const std::filesystem::path& path) {
+  return readNamingMemory(path, [&] { return parsePcd(readFileBytes(path), path.string()); });
+}
 
 PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name) {
   const PcdHeader h = parseHeader(bytes, name);

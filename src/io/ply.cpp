@@ -87,7 +87,9 @@ uint8_t toColorByte(double v, PlyType t) {
 
 }  // namespace
 
-PointCloud readPly(const std::filesystem::path& path) { return parsePly(readFileBytes(path), path.string()); }
+PointCloud readPly(const std::filesystem::path& path) {
+  return readNamingMemory(path, [&] { return parsePly(readFileBytes(path), path.string()); });
+}
 
 PointCloud parsePly(const std::vector<uint8_t>& bytes, const std::string& name) {
   size_t pos = 0;
@@ -255,7 +257,9 @@ void writePly(const std::filesystem::path& path, const PointCloud& cloud) {
   writeFileAtomic(path, out);
 }
 
-PointCloud readXyz(const std::filesystem::path& path) { return parseXyz(readTextFile(path), path.string()); }
+PointCloud readXyz(const std::filesystem::path& path) {
+  return readNamingMemory(path, [&] { return parseXyz(readTextFile(path), path.string()); });
+}
 
 PointCloud parseXyz(const std::string& text, const std::string& name) {
   PointCloud cloud;

@@ -4,6 +4,7 @@
 
 #include <csetjmp>
 #include <cstring>
+#include <sstream>
 #include <string>
 
 #include "chronomap/core/error.h"
@@ -41,6 +42,32 @@ void writeToMemory(png_structp png, png_bytep src, png_size_t n) {
 }
 void flushNothing(png_structp) {}
 
+/// Deflate, the compression of PNG's image data, expands at most 1032:1: a match of at most 258
+/// bytes costs at least 2 bits (a 1-bit length code and a 1-bit distance code), a literal at
+/// least 1 bit for 1 byte. So a file of N bytes cannot hold more than 1032 N bytes of pixels.
+constexpr uint64_t kMaxDeflateRatio = 1032;
+/// Ancillary chunks chronomap never uses. libpng would decompress text and colour profiles (up to
+/// 8 MB each, its default chunk limit, which stays) and keep up to 1000 of them: an 8 MB file of
+/// small zTXt bombs could take 8 GB. They are skipped unread instead.
+constexpr png_byte kSkippedChunks[] = {'i', 'C', 'C', 'P', 0, 'z', 'T', 'X', 't', 0, 'i', 'T', 'X', 't', 0,
+                                       't', 'E', 'X', 't', 0, 's', 'P', 'L', 'T', 0, 'e', 'X', 'I', 'f', 0};
+
+/// Checks, after png_read_info and before anything is allocated, that the image the header
+/// declares could be held by the file: its samples (a lower bound of the decompressed data, with
+/// or without interlacing) must not exceed what `file_size` bytes of deflate can expand to.
+bool declaredSizeFits(png_structp png, png_infop info, size_t file_size, std::string& error) {
+  const uint64_t w = png_get_image_width(png, info), h = png_get_image_height(png, info);
+  const uint64_t bits_per_pixel = uint64_t{png_get_bit_depth(png, info)} * png_get_channels(png, info);
+  const uint64_t sample_bytes = w * h * bits_per_pixel / 8;  // at most 2^30 * 64 bits: no overflow
+  if (sample_bytes <= kMaxDeflateRatio * file_size) return true;
+  std::ostringstream msg;
+  msg << "declares a " << w << " x " << h << " image (" << sample_bytes << " bytes of samples) but holds only "
+      << file_size << " bytes, which cannot expand to more than " << kMaxDeflateRatio * file_size
+      << " (a decompression bomb or a damaged header)";
+  error = msg.str();
+  return false;
+}
+
 struct Decoded {
   uint32_t width = 0, height = 0;
   int channels = 0;
@@ -72,8 +99,13 @@ bool decode(const std::vector<uint8_t>& file, bool want16, Decoded& out, std::st
     return false;
   }
   png_set_user_limits(png, kMaxImageSide, kMaxImageSide);
+  png_set_keep_unknown_chunks(png, PNG_HANDLE_CHUNK_NEVER, kSkippedChunks, sizeof(kSkippedChunks) / 5);
   png_set_read_fn(png, &ctx, readFromMemory);
   png_read_info(png, info);
+  if (!declaredSizeFits(png, info, file.size(), error)) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    return false;
+  }
   const int color_type = png_get_color_type(png, info);
   const int depth = png_get_bit_depth(png, info);
   if (want16) {
@@ -143,9 +175,13 @@ bool encode(uint32_t w, uint32_t h, bool sixteen, const uint8_t* data, std::vect
 
 }  // namespace
 
-ImageRgb readPngRgb(const std::filesystem::path& path) { return decodePngRgb(readFileBytes(path), path.string()); }
+ImageRgb readPngRgb(const std::filesystem::path& path) {
+  return readNamingMemory(path, [&] { return decodePngRgb(readFileBytes(path), path.string()); });
+}
 
-ImageU16 readPngU16(const std::filesystem::path& path) { return decodePngU16(readFileBytes(path), path.string()); }
+ImageU16 readPngU16(const std::filesystem::path& path) {
+  return readNamingMemory(path, [&] { return decodePngU16(readFileBytes(path), path.string()); });
+}
 
 ImageRgb decodePngRgb(const std::vector<uint8_t>& file, const std::string& name) {
   Decoded d;

@@ -204,9 +204,11 @@ TemporalFileLayout layoutOf(const CmapFile& file) {
 }
 
 TemporalMap readTemporalMap(const std::filesystem::path& path, TemporalFileLayout* layout) {
-  const CmapFile file = readCmap(path);
-  if (layout) *layout = layoutOf(file);
-  return temporalMapFrom(file, path.string());
+  return readNamingMemory(path, [&] {
+    const CmapFile file = readCmap(path);
+    if (layout) *layout = layoutOf(file);
+    return temporalMapFrom(file, path.string());
+  });
 }
 
 std::vector<uint8_t> encodeSessionRecord(double time_s, const SessionMap& session, const AddSettings& options) {

@@ -68,7 +68,9 @@ Coverage Coverage::fromRanges(const std::vector<uint64_t>& pairs) {
 Coverage Coverage::decodeFrom(const std::vector<uint8_t>& bytes, size_t& pos) {
   const size_t start = pos;
   const uint64_t n = getVarint(bytes, pos);
-  if (n > bytes.size()) throw FormatError("coverage claims more ranges than it holds");
+  // Each range takes at least two bytes (two varints): refuse a count the bytes left cannot hold
+  // before reserving for it.
+  if (n > (bytes.size() - pos) / 2) throw FormatError("coverage claims more ranges than it holds");
   std::vector<uint64_t> ranges;
   ranges.reserve(2 * n);
   uint64_t previous_end = 0;

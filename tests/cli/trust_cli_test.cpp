@@ -370,6 +370,33 @@ TEST(TrustCli, EveryNumericFlagRefusesWhatIsNotAFiniteNumber) {
   EXPECT_GE(swept, 30u) << "the --help parsing found too few numeric flags";
 }
 
+TEST(TrustCli, AResolutionTooFineStopsAtTheMemoryLimit) {
+  // A 1 x 1 m wall 2 m away at half a millimetre: its rays cross millions of voxels. Integration
+  // stops at --memory-limit with the reason and the way out, nothing written (before, it took
+  // memory until the system refused: "out of memory"). The shell's address-space limit (2 GiB,
+  // not under sanitizers) makes a missed limit a failure, not a machine out of memory.
+  test::TempDir tmp;
+  const fs::path dataset = test::writeWallDataset(tmp.path(), "wall", 2.0f);
+  const fs::path out = tmp / "s.cmap";
+  const std::string limit = test::memoryLimitsApply() ? "ulimit -v 2097152; " : "";
+  for (const char* threads : {"1", "2"}) {
+    const auto r = test::runCommand(cat(limit, cli(), " integrate ", dataset.string(), " --resolution 0.0005",
+                                        " --memory-limit 0.25 --threads ", threads, " -o ", out.string()));
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_NE(r.err.find("at resolution 0.0005 m; use a coarser --resolution or raise --memory-limit"),
+              std::string::npos)
+        << r.err;
+    EXPECT_FALSE(fs::exists(out));
+  }
+  const auto bad = test::runCommand(cat(cli(), " integrate ", dataset.string(), " --memory-limit -1 -o ", out.string()));
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("--memory-limit must be a number of GiB"), std::string::npos) << bad.err;
+  // At a sensible resolution the same limit is plenty.
+  const auto ok = test::runCommand(cat(limit, cli(), " integrate ", dataset.string(), " --memory-limit 0.25 -o ",
+                                       out.string()));
+  EXPECT_EQ(ok.exit_code, 0) << ok.err;
+}
+
 TEST(TrustCli, SpecialFilesAreRefusedAtOnceNamingThem) {
   test::TempDir tmp;
   io::writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});

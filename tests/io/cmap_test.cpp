@@ -1,4 +1,5 @@
 #include <gtest/gtest.h>
+#include <zlib.h>
 
 #include <cstring>
 #include <fstream>
@@ -132,6 +133,87 @@ TEST(Cmap, RejectsAValidContainerWithAnInvalidTree) {
   EXPECT_THROW(sessionMapFrom(decodeCmap(bytes, "crafted.cmap"), "crafted.cmap"), FormatError);
   h.kind = MapKind::Diff;
   EXPECT_THROW(sessionMapFrom(decodeCmap(encodeCmap(h, blocks), "d.cmap"), "d.cmap"), FormatError);
+}
+
+void putBlockHeader(std::vector<uint8_t>& frame, uint32_t header) {
+  for (int i = 0; i < 3; ++i) frame.push_back(static_cast<uint8_t>(header >> (8 * i)));
+}
+
+/// A zstd frame (RFC 8878) whose header claims `content_bytes` but holds `raw_blocks` raw blocks
+/// of 128 KiB and one RLE block of 128 KiB: magic, a descriptor (single segment, 8-byte content
+/// size), the size, then each block's 3-byte header (last flag, type, size) and its bytes.
+std::vector<uint8_t> zstdFrameClaiming(uint64_t content_bytes, int raw_blocks = 0) {
+  std::vector<uint8_t> frame = {0x28, 0xb5, 0x2f, 0xfd, 0xe0};
+  for (int i = 0; i < 8; ++i) frame.push_back(static_cast<uint8_t>(content_bytes >> (8 * i)));
+  for (int b = 0; b < raw_blocks; ++b) {
+    putBlockHeader(frame, 131072u << 3);
+    frame.insert(frame.end(), 131072, 'r');
+  }
+  putBlockHeader(frame, 1u | (1u << 1) | (131072u << 3));
+  frame.push_back('z');
+  return frame;
+}
+
+/// A .cmap of one zstd block storing `frame` and claiming `raw_bytes` (checksums valid).
+std::vector<uint8_t> cmapWithZstdBlock(const std::vector<uint8_t>& frame, uint64_t raw_bytes) {
+  CmapHeader h;
+  h.resolution_m = 0.05;
+  std::vector<CmapBlock> blocks(1);
+  blocks[0].tag = "META";
+  blocks[0].data = frame;
+  std::vector<uint8_t> bytes = encodeCmap(h, blocks, /*zstd_level=*/0);
+  const uint32_t zstd = 1;
+  std::memcpy(bytes.data() + 84 + 4, &zstd, 4);     // the block's codec
+  std::memcpy(bytes.data() + 84 + 8, &raw_bytes, 8);  // its raw size (the stored CRC is unchanged)
+  return bytes;
+}
+
+/// Decodes `bytes` in a child allowed 1 GiB more address space. @return 0 when refused with a
+/// FormatError holding `message`, 1 when read, 2 for another message, 99 for bad_alloc.
+int decodeUnderMemoryLimit(const std::vector<uint8_t>& bytes, const std::string& message) {
+  return test::exitCodeUnderMemoryLimit(uint64_t{1} << 30, [&] {
+    try {
+      decodeCmap(bytes, "bomb.cmap");
+      return 1;
+    } catch (const FormatError& e) {
+      return std::string(e.what()).find(message) != std::string::npos ? 0 : 2;
+    }
+  });
+}
+
+TEST(Cmap, RefusesZstdBlocksClaimingMoreThanTheyCanHold) {
+  // 17 stored bytes whose block header and zstd frame both claim 32 GiB: refused before the claim
+  // is allocated, by zstd's most expansion (before, the reader allocated 32 GiB).
+  const uint64_t claimed = uint64_t{1} << 35;
+  EXPECT_EQ(decodeUnderMemoryLimit(cmapWithZstdBlock(zstdFrameClaiming(claimed), claimed),
+                                   "bomb.cmap: block 'META' claims 34359738368 bytes from 17 stored bytes"),
+            0);
+  // 256 KiB stored (two raw blocks) claiming 4 GiB, within that bound: the buffer follows what
+  // the frame yields (384 KiB), not the claim, and the frame is refused once decoded.
+  const uint64_t four_gib = uint64_t{4} << 30;
+  EXPECT_EQ(decodeUnderMemoryLimit(cmapWithZstdBlock(zstdFrameClaiming(four_gib, 2), four_gib),
+                                   "bomb.cmap: block 'META' cannot be decompressed"),
+            0);
+  // The same frames claiming their true size are read: the bounds leave real RLE blocks alone.
+  const std::vector<uint8_t> truth = [] {
+    std::vector<uint8_t> v(2 * 131072, 'r');
+    v.insert(v.end(), 131072, 'z');
+    return v;
+  }();
+  std::vector<uint8_t> bytes = cmapWithZstdBlock(zstdFrameClaiming(truth.size(), 2), truth.size());
+  const uint32_t crc_raw = static_cast<uint32_t>(crc32(0, truth.data(), static_cast<uInt>(truth.size())));
+  std::memcpy(bytes.data() + 84 + 28, &crc_raw, 4);
+  EXPECT_EQ(decodeCmap(bytes, "rle.cmap").blocks.at(0).data, truth);
+  // And so is what zstd itself writes for the most compressible data (96 MiB of zeros), which
+  // also takes the path that grows the buffer (its first holds 64 MiB).
+  CmapHeader h;
+  h.resolution_m = 0.05;
+  std::vector<CmapBlock> blocks(1);
+  blocks[0].tag = "META";
+  blocks[0].data.assign(size_t{96} << 20, 0);
+  const std::vector<uint8_t> packed = encodeCmap(h, blocks, 3);
+  EXPECT_GT(blocks[0].data.size() / packed.size(), 10000u) << "expected zstd near its maximum ratio";
+  EXPECT_EQ(decodeCmap(packed, "zeros.cmap").blocks.at(0).data, blocks[0].data);
 }
 
 TEST(Cmap, FilesWithoutHitPositionsReadWithHitsAtTheCentres) {

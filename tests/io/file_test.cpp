@@ -1,7 +1,9 @@
+#include <bzlib.h>
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <string>
 
 #include "chronomap/core/error.h"
@@ -43,6 +45,84 @@ TEST(ReadFile, OnlyRegularFilesAreRead) {
   test::writeBytes(tmp / "real.txt", std::string("abc"));
   fs::create_symlink(tmp / "real.txt", tmp / "link.txt");
   EXPECT_EQ(readTextFile(tmp / "link.txt"), "abc");
+}
+
+/// Bits of a byte string, most significant first (bzip2's order).
+uint64_t bitsAt(const std::vector<uint8_t>& bytes, size_t bit, int count) {
+  uint64_t v = 0;
+  for (int i = 0; i < count; ++i, ++bit) v = (v << 1) | ((bytes[bit / 8] >> (7 - bit % 8)) & 1u);
+  return v;
+}
+
+struct BitWriter {
+  std::vector<uint8_t> bytes;
+  size_t bits = 0;
+  void put(uint64_t v, int count) {
+    for (int i = count - 1; i >= 0; --i, ++bits) {
+      if (bits % 8 == 0) bytes.push_back(0);
+      bytes.back() |= static_cast<uint8_t>(((v >> i) & 1u) << (7 - bits % 8));
+    }
+  }
+};
+
+constexpr uint64_t kBzip2EndMagic = 0x177245385090;
+
+/// A valid bzip2 stream of `blocks` copies of one block of 40,000,000 zeros, about 40 bytes per
+/// block: a decompression bomb made in a fraction of a second. The block is compressed once and
+/// its bits repeated (blocks need not start on a byte), then the stream's combined CRC is
+/// computed as bzip2 does: rotate left by one, xor the block's CRC.
+std::vector<uint8_t> bzip2OfZeros(int blocks) {
+  std::vector<char> zeros(40'000'000, 0);
+  std::vector<char> one(4096);
+  unsigned len = static_cast<unsigned>(one.size());
+  EXPECT_EQ(BZ2_bzBuffToBuffCompress(one.data(), &len, zeros.data(), static_cast<unsigned>(zeros.size()), 9, 0, 0),
+            BZ_OK);
+  const std::vector<uint8_t> stream(one.begin(), one.begin() + len);
+  // "BZh9", then the block from bit 32 (its magic, its CRC at bit 80), then the end magic and
+  // the combined CRC, padded to a byte.
+  const uint64_t block_crc = bitsAt(stream, 80, 32);
+  size_t end = 0;
+  for (size_t pad = 0; pad < 8 && end == 0; ++pad) {
+    const size_t at = stream.size() * 8 - pad - 80;
+    if (bitsAt(stream, at, 48) == kBzip2EndMagic && bitsAt(stream, at + 48, 32) == block_crc) end = at;
+  }
+  EXPECT_GT(end, 32u) << "not a one-block bzip2 stream";
+  BitWriter out;
+  for (char c : std::string("BZh9")) out.put(static_cast<uint8_t>(c), 8);
+  uint32_t combined = 0;
+  for (int b = 0; b < blocks; ++b) {
+    for (size_t bit = 32; bit < end; ++bit) out.put(bitsAt(stream, bit, 1), 1);
+    combined = ((combined << 1) | (combined >> 31)) ^ static_cast<uint32_t>(block_crc);
+  }
+  out.put(kBzip2EndMagic, 48);
+  out.put(combined, 32);
+  return out.bytes;
+}
+
+TEST(ReadFile, RefusesBzip2BombsAndReadsRealFiles) {
+  test::TempDir tmp;
+  // 4 GB of zeros in about 4 KB: refused once the output passes the bound (64 MiB for a file
+  // this small), in a child that may map 1 GiB more (before, it grew without end: bad_alloc).
+  test::writeBytes(tmp / "bomb.xyz.bz2", bzip2OfZeros(100));
+  const int code = test::exitCodeUnderMemoryLimit(uint64_t{1} << 30, [&] {
+    try {
+      readFileBytes(tmp / "bomb.xyz.bz2");
+      return 1;
+    } catch (const FormatError& e) {
+      const std::string m = e.what();
+      const bool named = m.find("bomb.xyz.bz2: expands beyond 64") != std::string::npos;
+      return named && m.find("refusing") != std::string::npos ? 0 : 2;
+    }
+  });
+  EXPECT_EQ(code, 0) << "0: refused naming the file, 1: read, 2: another message, 99: out of memory";
+  // Small files may always expand up to the bound: 40 MB of zeros in 40 bytes is read.
+  test::writeBytes(tmp / "zeros.bin.bz2", bzip2OfZeros(1));
+  const std::vector<uint8_t> zeros = readFileBytes(tmp / "zeros.bin.bz2");
+  EXPECT_EQ(zeros.size(), 40'000'000u);
+  EXPECT_EQ(std::count(zeros.begin(), zeros.end(), 0), 40'000'000);
+  // A real compressed scan.
+  CHRONOMAP_REQUIRE_DATA(scan, "octomap-data/scan.dat.bz2");
+  EXPECT_EQ(readFileBytes(scan).size(), 2'343'059u);
 }
 
 TEST(ExportOctomap, FullDiskLeavesTheOldFileIntact) {

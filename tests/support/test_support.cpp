@@ -71,13 +71,34 @@ void writeBytes(const fs::path& path, const std::vector<uint8_t>& bytes) {
       .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
 }
 
-int exitCodeUnderFileSizeLimit(uint64_t max_file_bytes, const std::function<int()>& body) {
+namespace {
+
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+constexpr bool kUnderSanitizer = true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+constexpr bool kUnderSanitizer = true;
+#else
+constexpr bool kUnderSanitizer = false;
+#endif
+#else
+constexpr bool kUnderSanitizer = false;
+#endif
+
+/// The address space this process holds now (/proc/self/statm), in bytes; 0 when unknown.
+uint64_t addressSpaceBytes() {
+  std::ifstream in("/proc/self/statm");
+  uint64_t pages = 0;
+  in >> pages;
+  return pages * static_cast<uint64_t>(::sysconf(_SC_PAGESIZE));
+}
+
+/// Forks; the child runs `limit`, then `body`, and exits with its code (99 when it threw).
+int exitCodeInChild(const std::function<void()>& limit, const std::function<int()>& body) {
   const pid_t pid = ::fork();
   if (pid < 0) return -1;
   if (pid == 0) {
-    std::signal(SIGXFSZ, SIG_IGN);  // EFBIG from write() instead of a signal
-    const rlimit limit{static_cast<rlim_t>(max_file_bytes), static_cast<rlim_t>(max_file_bytes)};
-    ::setrlimit(RLIMIT_FSIZE, &limit);
+    limit();
     int code = 99;
     try {
       code = body();
@@ -89,6 +110,31 @@ int exitCodeUnderFileSizeLimit(uint64_t max_file_bytes, const std::function<int(
   ::waitpid(pid, &status, 0);
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
+
+}  // namespace
+
+int exitCodeUnderFileSizeLimit(uint64_t max_file_bytes, const std::function<int()>& body) {
+  return exitCodeInChild(
+      [&] {
+        std::signal(SIGXFSZ, SIG_IGN);  // EFBIG from write() instead of a signal
+        const rlimit limit{static_cast<rlim_t>(max_file_bytes), static_cast<rlim_t>(max_file_bytes)};
+        ::setrlimit(RLIMIT_FSIZE, &limit);
+      },
+      body);
+}
+
+int exitCodeUnderMemoryLimit(uint64_t extra_bytes, const std::function<int()>& body) {
+  return exitCodeInChild(
+      [&] {
+        if (kUnderSanitizer) return;
+        const rlim_t bytes = static_cast<rlim_t>(addressSpaceBytes() + extra_bytes);
+        const rlimit limit{bytes, bytes};
+        ::setrlimit(RLIMIT_AS, &limit);
+      },
+      body);
+}
+
+bool memoryLimitsApply() { return !kUnderSanitizer; }
 
 fs::path writeWallDataset(const fs::path& dir, const std::string& name, float wall_x) {
   PointCloud cloud;

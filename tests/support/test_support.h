@@ -57,6 +57,16 @@ void writeBytes(const std::filesystem::path& path, const std::vector<uint8_t>& b
 /// when it threw, -1 when the child did not exit normally.
 int exitCodeUnderFileSizeLimit(uint64_t max_file_bytes, const std::function<int()>& body);
 
+/// Runs `body` in a child process that may map at most `extra_bytes` more address space than it
+/// holds when it starts (RLIMIT_AS), so that a reader allocating what its input only claims fails
+/// there (std::bad_alloc) instead of eating the machine's memory. Under AddressSanitizer or
+/// ThreadSanitizer, which reserve terabytes of address space, the limit is not set; `body` runs
+/// in the child all the same. @return as exitCodeUnderFileSizeLimit.
+int exitCodeUnderMemoryLimit(uint64_t extra_bytes, const std::function<int()>& body);
+
+/// False under AddressSanitizer or ThreadSanitizer, where exitCodeUnderMemoryLimit sets no limit.
+bool memoryLimitsApply();
+
 /// A cloud-list dataset `dir/name.txt` of one cloud `dir/name.ply`: a 1 x 1 m wall of points
 /// 0.02 m apart in the plane x = wall_x, seen from the origin. @return the list's path.
 std::filesystem::path writeWallDataset(const std::filesystem::path& dir, const std::string& name, float wall_x);

@@ -210,6 +210,35 @@ TEST(Integrator, RejectsBadPosesAndSettings) {
   EXPECT_THROW(integrate(FrameVector({}), map, s), UsageError);
 }
 
+TEST(Integrator, StopsWhenTheMapPassesTheMemoryLimit) {
+  const sim::PinholeCamera cam = smallCamera(160);
+  const FrameVector frames(sim::benchmarkSequence(4, cam));
+  IntegratorSettings s = exactUncompressed();
+  SessionMap unlimited(0.02);
+  s.memory_limit_bytes = 0;
+  integrate(frames, unlimited, s);
+  // A limit below what the map needs: stopped after a frame with the map's size and resolution.
+  for (int threads : {1, 2}) {
+    s.threads = threads;
+    s.memory_limit_bytes = unlimited.memoryBytes() / 2;
+    SessionMap map(0.02);
+    try {
+      integrate(frames, map, s);
+      ADD_FAILURE() << "integrated past the memory limit";
+    } catch (const UsageError& e) {
+      EXPECT_NE(std::string(e.what()).find("the session map needs more than"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("at resolution 0.02 m"), std::string::npos) << e.what();
+    }
+    EXPECT_LE(map.reservedBytes(), 2 * unlimited.reservedBytes());
+  }
+  // A limit above it changes nothing.
+  s.memory_limit_bytes = 4 * unlimited.reservedBytes() + (size_t{64} << 20);
+  SessionMap limited(0.02);
+  integrate(frames, limited, s);
+  EXPECT_EQ(limited.memoryBytes(), unlimited.memoryBytes());
+  EXPECT_GT(defaultMemoryLimitBytes(), size_t{0});
+}
+
 TEST(Integrator, FastModeKeepsHitsAndColoursAndBoundsLengths) {
   const sim::PinholeCamera cam = smallCamera(160);
   auto frames = sim::benchmarkSequence(4, cam);

@@ -14,6 +14,11 @@
 
 namespace chronomap {
 
+/// Half the machine's physical memory: the default memory limit of integration, which leaves
+/// room for a node pool growing (its old and new storage live side by side for a moment), the
+/// frames in flight and the rest of the process. 0 when the system does not say.
+size_t defaultMemoryLimitBytes();
+
 /// Settings of the integrator. Defaults follow the thesis.
 struct IntegratorSettings {
   /// Points farther than this from their sensor origin are discarded entirely.
@@ -39,6 +44,11 @@ struct IntegratorSettings {
   /// shift test see surfaces move by less than a voxel. Costs fast mode about 7% more time per
   /// frame (docs/benchmarks.md); false leaves the offsets at zero (hits at the centres).
   bool hit_positions = true;
+  /// Most bytes integration may take: the session map's node pools (checked after each frame is
+  /// merged) and the scratch space of one frame on each thread, this over the thread count
+  /// (checked as it grows). Past it, integration stops with a UsageError saying what it needed
+  /// at which resolution, instead of taking all memory. 0: no limit.
+  size_t memory_limit_bytes = defaultMemoryLimitBytes();
 };
 
 /// What an integration did, point by point.
@@ -72,7 +82,8 @@ class RayAccumulator {
   RayAccumulator& operator=(RayAccumulator&&) noexcept;
 
   /// Casts the rays of `frame` and writes the per-voxel sums to `out` (cleared first).
-  /// @throw DataError when the sensor pose is not finite or lies outside the map.
+  /// @throw DataError when the sensor pose is not finite or lies outside the map; UsageError when
+  /// the frame's scratch space would pass settings.memory_limit_bytes.
   void accumulate(const Frame& frame, VoxelDeltas& out);
 
  private:
@@ -84,7 +95,8 @@ class RayAccumulator {
 using ProgressFn = std::function<void(size_t, size_t)>;
 
 /// Integrates every frame of `source` into `map`, in frame order.
-/// @throw UsageError for bad settings; whatever source.load throws for bad frames.
+/// @throw UsageError for bad settings or when the map or a frame needs more memory than
+/// settings.memory_limit_bytes; whatever source.load throws for bad frames.
 IntegrationStats integrate(const FrameSource& source, SessionMap& map, const IntegratorSettings& settings = {},
                            const ProgressFn& progress = {});
 

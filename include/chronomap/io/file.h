@@ -4,14 +4,31 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <new>
 #include <string>
 #include <vector>
 
 namespace chronomap::io {
 
-/// Reads a whole file. Files ending in .bz2 are decompressed.
-/// @throw IoError naming the file when it cannot be read; FormatError for a corrupt .bz2.
+/// Reads a whole file. Files ending in .bz2 are decompressed, up to a bound on how far they may
+/// expand (docs/reliability.md, "Limits").
+/// @throw IoError naming the file when it cannot be read or memory runs out; FormatError for a
+/// corrupt .bz2 or one that expands beyond the bound.
 std::vector<uint8_t> readFileBytes(const std::filesystem::path& path);
+
+/// @throw IoError "PATH: not enough memory to read it (SIZE on disk)".
+[[noreturn]] void throwOutOfMemory(const std::filesystem::path& path);
+
+/// Runs `read`, a reader of `path`, turning std::bad_alloc into throwOutOfMemory(path): so that
+/// running out of memory names the file whatever command reads it.
+template <class Read>
+auto readNamingMemory(const std::filesystem::path& path, Read&& read) -> decltype(read()) {
+  try {
+    return read();
+  } catch (const std::bad_alloc&) {
+    throwOutOfMemory(path);
+  }
+}
 
 /// Reads a whole text file (see readFileBytes).
 std::string readTextFile(const std::filesystem::path& path);
