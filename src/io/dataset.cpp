@@ -23,6 +23,7 @@ const char* toString(DatasetFormat format) {
     case DatasetFormat::Tum: return "tum";
     case DatasetFormat::ThreeDMatch: return "3dmatch";
     case DatasetFormat::Clouds: return "clouds";
+    case DatasetFormat::ScanNet: return "scannet";
   }
   return "unknown";
 }
@@ -32,6 +33,7 @@ DatasetFormat parseDatasetFormat(const std::string& name) {
   if (name == "tum") return DatasetFormat::Tum;
   if (name == "3dmatch" || name == "7scenes") return DatasetFormat::ThreeDMatch;
   if (name == "clouds") return DatasetFormat::Clouds;
+  if (name == "scannet") return DatasetFormat::ScanNet;
   throw UsageError("unknown dataset format '" + name + "' (expected auto, tum, 3dmatch or clouds)");
 }
 
@@ -65,6 +67,8 @@ CameraIntrinsics parseIntrinsicsText(const std::string& text, const std::string&
   CameraIntrinsics k;
   if (v.size() == 9) {
     k = {v[0], v[4], v[2], v[5]};
+  } else if (v.size() == 16) {  // a 4x4 projection (ScanNet's intrinsic_*.txt)
+    k = {v[0], v[5], v[2], v[6]};
   } else if (v.size() == 4) {
     k = {v[0], v[1], v[2], v[3]};
   } else {
@@ -74,6 +78,28 @@ CameraIntrinsics parseIntrinsicsText(const std::string& text, const std::string&
     throw FormatError(name + ": focal lengths must be positive and all values finite");
   }
   return k;
+}
+
+ImageRgb colorInDepthView(const ImageRgb& color, const CameraIntrinsics& color_k, const CameraIntrinsics& depth_k,
+                          uint32_t width, uint32_t height) {
+  ImageRgb out{width, height, std::vector<Rgb>(size_t{width} * height, Rgb{0, 0, 0})};
+  // A ray's colour pixel does not depend on its depth: u_c = fx_c * (u - cx) / fx + cx_c.
+  std::vector<int64_t> columns(width), rows(height);
+  for (uint32_t u = 0; u < width; ++u) {
+    columns[u] = static_cast<int64_t>(std::floor(color_k.fx * (u - depth_k.cx) / depth_k.fx + color_k.cx + 0.5));
+  }
+  for (uint32_t v = 0; v < height; ++v) {
+    rows[v] = static_cast<int64_t>(std::floor(color_k.fy * (v - depth_k.cy) / depth_k.fy + color_k.cy + 0.5));
+  }
+  for (uint32_t v = 0; v < height; ++v) {
+    if (rows[v] < 0 || rows[v] >= color.height) continue;
+    for (uint32_t u = 0; u < width; ++u) {
+      if (columns[u] < 0 || columns[u] >= color.width) continue;
+      const size_t from = static_cast<size_t>(rows[v]) * color.width + static_cast<size_t>(columns[u]);
+      out.pixels[size_t{v} * width + u] = color.pixels[from];
+    }
+  }
+  return out;
 }
 
 PointCloud depthToCloud(const ImageU16& depth, const ImageRgb* rgb, const CameraIntrinsics& k, double depth_scale,
@@ -128,8 +154,9 @@ constexpr double kPlausibleMedianDepthMax_m = 50.0;
 
 class ImageDataset : public Dataset {
  public:
-  ImageDataset(DatasetFormat format, std::vector<ImageFrame> frames, CameraIntrinsics k, double scale, size_t dropped)
-      : format_(format), frames_(std::move(frames)), k_(k), scale_(scale), dropped_(dropped) {}
+  ImageDataset(DatasetFormat format, std::vector<ImageFrame> frames, CameraIntrinsics k, double scale, size_t dropped,
+               std::optional<CameraIntrinsics> color_k = std::nullopt)
+      : format_(format), frames_(std::move(frames)), k_(k), scale_(scale), dropped_(dropped), color_k_(color_k) {}
   size_t size() const override { return frames_.size(); }
   DatasetFormat format() const override { return format_; }
   std::optional<double> recordedAt() const override {
@@ -165,6 +192,8 @@ class ImageDataset : public Dataset {
     checkDepthScale(depth, f.depth.string());
     std::optional<ImageRgb> rgb;
     if (f.color) rgb = readColorImage(*f.color);
+    // A colour camera with intrinsics of its own (ScanNet): looked up along each depth ray.
+    if (rgb && color_k_) rgb = colorInDepthView(*rgb, *color_k_, k_, depth.width, depth.height);
     Frame frame;
     frame.source = f.depth.string();
     frame.cloud = depthToCloud(depth, rgb ? &*rgb : nullptr, k_, scale_, frame.source);
@@ -179,6 +208,7 @@ class ImageDataset : public Dataset {
   CameraIntrinsics k_;
   double scale_;
   size_t dropped_;
+  std::optional<CameraIntrinsics> color_k_;
 };
 
 class CloudDataset : public Dataset {
@@ -299,6 +329,71 @@ std::unique_ptr<Dataset> openThreeDMatch(const fs::path& root, const DatasetSett
   }
   if (frames.empty()) throw DataError(root.string() + ": no frame-*.depth.png files found");
   return std::make_unique<ImageDataset>(DatasetFormat::ThreeDMatch, std::move(frames), k, checkedScale(o, 1000.0), 0);
+}
+
+// ---------------------------------------------------------------- ScanNet
+
+/// Files "N.ext" of `dir` (N a whole number), in the order of N.
+std::vector<std::pair<long, fs::path>> numberedFiles(const fs::path& dir, const std::string& ext) {
+  std::vector<std::pair<long, fs::path>> found;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    const std::string name = e.path().filename().string();
+    if (e.path().extension() != ext) continue;
+    const std::string digits = name.substr(0, name.size() - ext.size());
+    if (digits.empty() || digits.size() > 9 || digits.find_first_not_of("0123456789") != std::string::npos) continue;
+    found.emplace_back(std::stol(digits), e.path());
+  }
+  std::sort(found.begin(), found.end());
+  return found;
+}
+
+bool isScanNet(const fs::path& root) {
+  std::error_code ec;
+  return fs::is_directory(root / "depth", ec) && fs::is_directory(root / "pose", ec) &&
+         fs::is_directory(root / "intrinsic", ec);
+}
+
+std::unique_ptr<Dataset> openScanNet(const fs::path& root, const DatasetSettings& o) {
+  const fs::path depth_k_file = root / "intrinsic" / "intrinsic_depth.txt";
+  const fs::path color_k_file = root / "intrinsic" / "intrinsic_color.txt";
+  const CameraIntrinsics k = o.intrinsics ? *o.intrinsics : (requireFile(depth_k_file, "depth intrinsics file"),
+                                                               readIntrinsicsFile(depth_k_file));
+  std::error_code ec;
+  const bool has_color = fs::is_directory(root / "color", ec);
+  std::optional<CameraIntrinsics> color_k;
+  if (has_color) {
+    requireFile(color_k_file, "colour intrinsics file");
+    color_k = readIntrinsicsFile(color_k_file);
+  }
+  std::vector<ImageFrame> frames;
+  size_t dropped = 0;
+  for (const auto& [n, depth] : numberedFiles(root / "depth", ".png")) {
+    const fs::path pose = root / "pose" / (std::to_string(n) + ".txt");
+    requireFile(pose, "pose file");
+    const Eigen::Matrix4d m = readMatrix4(pose);
+    // ScanNet marks frames its reconstruction lost with -inf poses: left out and counted.
+    if (!m.allFinite()) {
+      ++dropped;
+      continue;
+    }
+    ImageFrame f;
+    f.depth = depth;
+    if (has_color) {
+      fs::path color = root / "color" / (std::to_string(n) + ".jpg");
+      if (!fs::exists(color, ec)) color = root / "color" / (std::to_string(n) + ".png");
+      requireFile(color, "colour frame");
+      f.color = color;
+    }
+    f.pose = poseFromMatrix(m, pose.string());
+    f.timestamp_s = static_cast<double>(n);
+    frames.push_back(f);
+  }
+  if (frames.empty()) {
+    throw DataError(root.string() + ": no depth/N.png frame with a valid pose (" + std::to_string(dropped) +
+                    " with invalid poses)");
+  }
+  return std::make_unique<ImageDataset>(DatasetFormat::ScanNet, std::move(frames), k, checkedScale(o, 1000.0), dropped,
+                                        color_k);
 }
 
 // ---------------------------------------------------------------- TUM RGB-D
@@ -446,8 +541,10 @@ DatasetFormat detect(const fs::path& path) {
   if (fs::is_directory(path, ec)) {
     if (fs::exists(path / "depth.txt", ec)) return DatasetFormat::Tum;
     if (!threeDMatchSequences(path).empty()) return DatasetFormat::ThreeDMatch;
+    if (isScanNet(path)) return DatasetFormat::ScanNet;
     throw UsageError(path.string() +
-                     ": cannot tell the dataset format (no depth.txt, no frame-*.depth.png); use --format");
+                     ": cannot tell the dataset format (no depth.txt, no frame-*.depth.png, no depth/, pose/ and "
+                     "intrinsic/ folders); use --format");
   }
   if (isCloudFile(path) || dataExtension(path) == ".txt") return DatasetFormat::Clouds;
   throw UsageError(path.string() + ": cannot tell the dataset format from the extension; use --format");
@@ -473,6 +570,11 @@ std::unique_ptr<Dataset> openDataset(const fs::path& path, const DatasetSettings
     case DatasetFormat::ThreeDMatch:
       if (!fs::is_directory(path, ec)) throw UsageError(path.string() + ": a 3DMatch dataset is a folder");
       return openThreeDMatch(path, options);
+    case DatasetFormat::ScanNet:
+      if (!isScanNet(path)) {
+        throw UsageError(path.string() + ": a ScanNet export is a folder with depth/, pose/ and intrinsic/");
+      }
+      return openScanNet(path, options);
     case DatasetFormat::Clouds:
       if (fs::is_directory(path, ec)) {
         throw UsageError(path.string() + ": for clouds give one cloud file or a list file, not a folder");

@@ -1,10 +1,15 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdio>
 #include <fstream>
+#include <sstream>
 
 #include "chronomap/core/error.h"
 #include "chronomap/io/cloud_io.h"
 #include "chronomap/io/dataset.h"
+#include "chronomap/io/file.h"
+#include "chronomap/io/jpeg.h"
 #include "chronomap/io/png.h"
 #include "test_support.h"
 
@@ -192,6 +197,96 @@ TEST(Dataset, CloudListsAndSingleClouds) {
   EXPECT_THROW(openDataset(tmp / "list.txt"), DataError);
   EXPECT_THROW(openDataset(tmp / "nothing-here"), UsageError);
   EXPECT_THROW(openDataset(tmp.path()), UsageError);  // a folder of nothing known
+}
+
+}  // namespace
+}  // namespace chronomap::io
+
+namespace chronomap::io {
+namespace {
+
+TEST(ColorInDepthView, LooksUpEachDepthRayInTheColourImage) {
+  // Colour at twice the depth resolution, same field of view: depth pixel (u, v) sees colour
+  // pixel (2u + 1, 2v + 1) with these intrinsics (the centre of its 2 x 2 block).
+  const CameraIntrinsics depth_k{100, 100, 1.5, 1.0};
+  const CameraIntrinsics color_k{200, 200, 4.0, 3.0};
+  ImageRgb color{8, 6, std::vector<Rgb>(48)};
+  for (uint32_t y = 0; y < 6; ++y) {
+    for (uint32_t x = 0; x < 8; ++x) color.pixels[y * 8 + x] = Rgb{static_cast<uint8_t>(x), static_cast<uint8_t>(y), 7};
+  }
+  const ImageRgb seen = colorInDepthView(color, color_k, depth_k, 4, 3);
+  ASSERT_EQ(seen.width, 4u);
+  ASSERT_EQ(seen.height, 3u);
+  for (uint32_t v = 0; v < 3; ++v) {
+    for (uint32_t u = 0; u < 4; ++u) {
+      const Rgb p = seen.pixels[v * 4 + u];
+      EXPECT_EQ(p.r, 2 * u + 1) << u << "," << v;
+      EXPECT_EQ(p.g, 2 * v + 1) << u << "," << v;
+    }
+  }
+  // Rays that leave the colour image are black.
+  const ImageRgb narrow = colorInDepthView(color, CameraIntrinsics{400, 400, 4.0, 3.0}, depth_k, 4, 3);
+  EXPECT_EQ(narrow.pixels[0].b, 0);
+}
+
+TEST(Dataset, ReadsAScanNetExportWithColourAtItsOwnResolution) {
+  CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
+  // The real 3DMatch frames laid out as ScanNet exports them: depth/N.png, colour as JPEG at
+  // twice the resolution with its own intrinsics, pose/N.txt, 4x4 intrinsic matrices; frame 2
+  // lost by the reconstruction (-inf pose), as ScanNet marks it.
+  const CameraIntrinsics k = readIntrinsicsFile(root / "camera-intrinsics.txt");
+  test::TempDir tmp;
+  for (const char* dir : {"color", "depth", "pose", "intrinsic"}) fs::create_directories(tmp / dir);
+  auto matrix = [](const CameraIntrinsics& c) {
+    std::ostringstream m;
+    m.precision(17);
+    m << c.fx << " 0 " << c.cx << " 0\n0 " << c.fy << " " << c.cy << " 0\n0 0 1 0\n0 0 0 1\n";
+    return m.str();
+  };
+  const CameraIntrinsics color_k{2 * k.fx, 2 * k.fy, 2 * k.cx + 0.5, 2 * k.cy + 0.5};
+  writeText(tmp / "intrinsic" / "intrinsic_depth.txt", matrix(k));
+  writeText(tmp / "intrinsic" / "intrinsic_color.txt", matrix(color_k));
+  // The frame numbers of the real sequence: 116 must come after 2 (numbers, not names, sort).
+  for (int n : {0, 1, 2, 116, 422}) {
+    char stem[32];
+    std::snprintf(stem, sizeof stem, "frame-%06d", n);
+    const fs::path seq = root / "seq-01";
+    fs::copy(seq / (std::string(stem) + ".depth.png"), tmp / "depth" / (std::to_string(n) + ".png"));
+    if (n == 2) {
+      writeText(tmp / "pose" / "2.txt", "-inf -inf -inf -inf\n-inf -inf -inf -inf\n-inf -inf -inf -inf\n-inf -inf -inf -inf\n");
+    } else {
+      fs::copy(seq / (std::string(stem) + ".pose.txt"), tmp / "pose" / (std::to_string(n) + ".txt"));
+    }
+    const ImageRgb small = readPngRgb(seq / (std::string(stem) + ".color.png"));
+    ImageRgb big{small.width * 2, small.height * 2, std::vector<Rgb>(small.pixels.size() * 4)};
+    for (uint32_t y = 0; y < big.height; ++y) {
+      for (uint32_t x = 0; x < big.width; ++x) big.pixels[y * big.width + x] = small.pixels[(y / 2) * small.width + x / 2];
+    }
+    writeFileAtomic(tmp / "color" / (std::to_string(n) + ".jpg"), encodeJpeg(big, {95, false, false}));
+  }
+  const auto scannet = openDataset(tmp.path());
+  EXPECT_EQ(scannet->format(), DatasetFormat::ScanNet);
+  ASSERT_EQ(scannet->size(), 4u);
+  EXPECT_EQ(scannet->framesDropped(), 1u);
+  const auto reference = openDataset(root);
+  const Frame a = reference->load(3), b = scannet->load(2);  // frame 116 in both
+  EXPECT_TRUE(a.T_world_sensor.isApprox(b.T_world_sensor));
+  ASSERT_EQ(a.cloud.points.size(), b.cloud.points.size());
+  for (size_t i = 0; i < a.cloud.points.size(); i += 97) {
+    if (a.cloud.points[i].allFinite()) {
+      EXPECT_EQ(a.cloud.points[i], b.cloud.points[i]) << i;
+    }
+  }
+  ASSERT_TRUE(b.cloud.hasColors());
+  double difference = 0;
+  for (size_t i = 0; i < a.cloud.colors.size(); ++i) {
+    difference += std::abs(a.cloud.colors[i].r - b.cloud.colors[i].r) + std::abs(a.cloud.colors[i].g - b.cloud.colors[i].g) +
+                  std::abs(a.cloud.colors[i].b - b.cloud.colors[i].b);
+  }
+  EXPECT_LT(difference / (3.0 * static_cast<double>(a.cloud.colors.size())), 4.0);
+  // A missing colour frame is named, not skipped.
+  fs::remove(tmp / "color" / "422.jpg");
+  EXPECT_THROW(openDataset(tmp.path()), DataError);
 }
 
 }  // namespace

@@ -20,9 +20,10 @@ enum class DatasetFormat {
   Tum,          ///< TUM RGB-D: rgb.txt, depth.txt, groundtruth.txt or trajectory.txt
   ThreeDMatch,  ///< 3DMatch / 7-Scenes: frame-*.{color,depth}.png, frame-*.pose.txt
   Clouds,       ///< one cloud file, or a text list of "cloud tx ty tz qx qy qz qw"
+  ScanNet,      ///< ScanNet's exported folder: color/N.jpg, depth/N.png, pose/N.txt, intrinsic/
 };
 
-/// "tum", "3dmatch", "clouds" or "auto".
+/// "tum", "3dmatch", "scannet", "clouds" or "auto".
 const char* toString(DatasetFormat format);
 /// Inverse of toString. @throw UsageError for an unknown name.
 DatasetFormat parseDatasetFormat(const std::string& name);
@@ -98,6 +99,13 @@ std::unique_ptr<Dataset> openDataset(const std::filesystem::path& path, const Da
 /// Back-projects a depth image into an organized cloud in the camera frame (x right, y down,
 /// z forward). Zero depth becomes NaN. `rgb` may be null; otherwise it must match in size.
 /// @throw DataError naming `source` for mismatched sizes or a bad scale.
+/// The colour image as the depth camera sees it: for every depth pixel (width x height, depth
+/// intrinsics), the colour pixel on the same ray through the colour intrinsics (the cameras
+/// share their centre and axes, as in ScanNet's export), nearest neighbour; black where the
+/// ray leaves the colour image.
+ImageRgb colorInDepthView(const ImageRgb& color, const CameraIntrinsics& color_k, const CameraIntrinsics& depth_k,
+                          uint32_t width, uint32_t height);
+
 PointCloud depthToCloud(const ImageU16& depth, const ImageRgb* rgb, const CameraIntrinsics& k, double depth_scale,
                         const std::string& source);
 
