@@ -12,6 +12,7 @@
 
 #include "chronomap/core/error.h"
 #include "chronomap/io/file.h"
+#include "chronomap/octree/voxel_queries.h"
 
 namespace chronomap::io {
 
@@ -312,17 +313,10 @@ std::vector<uint8_t> encodeSessionMap(const SessionMap& map, const nlohmann::jso
   CmapHeader header;
   header.kind = MapKind::Session;
   header.resolution_m = map.resolution_m();
-  bool any = false;
-  Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();
-  map.forEachLeaf([&](const LeafView& leaf) {
-    const Eigen::Vector3d a = map.grid().cornerOf(leaf.key);
-    const Eigen::Vector3d b = a + Eigen::Vector3d::Constant(map.resolution_m() * (1 << leaf.level));
-    lo = any ? lo.cwiseMin(a) : a;
-    hi = any ? hi.cwiseMax(b) : b;
-    any = true;
-  });
-  header.bounds_min_m = lo;
-  header.bounds_max_m = hi;
+  if (const auto bounds = knownBounds(map)) {
+    header.bounds_min_m = bounds->min_m;
+    header.bounds_max_m = bounds->max_m;
+  }
   std::vector<CmapBlock> blocks(4);
   blocks[0].tag = "META";
   const std::string text = meta.is_null() ? "{}" : meta.dump();

@@ -9,16 +9,16 @@
 #include "chronomap/core/error.h"
 #include "chronomap/io/cloud_io.h"
 #include "chronomap/io/file.h"
+#include "chronomap/octree/voxel_queries.h"
 
 namespace chronomap::io {
 
 size_t exportOccupiedPly(const std::filesystem::path& path, const SessionMap& map) {
+  const VoxelCentres occupied = occupiedCentres(map);
   PointCloud cloud;
-  map.forEachLeaf([&](const LeafView& leaf) {
-    if (leaf.level != 0 || leaf.counters.state() != VoxelState::Occupied) return;
-    cloud.points.push_back(map.grid().centerOf(leaf.key).cast<float>());
-    cloud.colors.push_back(leaf.counters.meanColor());
-  });
+  cloud.points.reserve(occupied.centers_m.size());
+  for (const Eigen::Vector3d& c : occupied.centers_m) cloud.points.push_back(c.cast<float>());
+  cloud.colors = occupied.colors;
   cloud.width = static_cast<uint32_t>(cloud.points.size());
   writePly(path, cloud);
   return cloud.points.size();

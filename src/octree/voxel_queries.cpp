@@ -1,0 +1,30 @@
+#include "chronomap/octree/voxel_queries.h"
+
+namespace chronomap {
+
+VoxelCentres occupiedCentres(const SessionMap& map) {
+  VoxelCentres out;
+  map.forEachLeaf([&](const LeafView& leaf) {
+    if (leaf.level != 0 || leaf.counters.state() != VoxelState::Occupied) return;
+    out.centers_m.push_back(map.grid().centerOf(leaf.key));
+    out.colors.push_back(leaf.counters.meanColor());
+  });
+  return out;
+}
+
+std::optional<Bounds> knownBounds(const SessionMap& map) {
+  std::optional<Bounds> out;
+  map.forEachLeaf([&](const LeafView& leaf) {
+    const Eigen::Vector3d a = map.grid().cornerOf(leaf.key);
+    const Eigen::Vector3d b = a + Eigen::Vector3d::Constant(map.resolution_m() * (1 << leaf.level));
+    if (!out) {
+      out = Bounds{a, b};
+    } else {
+      out->min_m = out->min_m.cwiseMin(a);
+      out->max_m = out->max_m.cwiseMax(b);
+    }
+  });
+  return out;
+}
+
+}  // namespace chronomap
