@@ -1,4 +1,5 @@
 #include "chronomap/integrate/integrator.h"
+#include "chronomap/integrate/incremental.h"
 
 #include <algorithm>
 #if defined(__SSE2__)
@@ -802,6 +803,30 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
   if (settings.compress_free) map.compressFree();
   total.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return total;
+}
+
+IncrementalIntegrator::IncrementalIntegrator(double resolution_m, const IntegratorSettings& settings)
+    : settings_((checkSettings(settings), settings)),
+      map_(resolution_m),
+      accumulator_(map_.grid(), perThread(settings, 1)) {}
+
+IntegrationStats IncrementalIntegrator::add(const Frame& frame) {
+  const auto start = std::chrono::steady_clock::now();
+  accumulator_.accumulate(frame, deltas_);
+  map_.addMany(deltas_.keys, deltas_.deltas);
+  checkMapMemory(map_, settings_);
+  IntegrationStats frame_stats = deltas_.stats;
+  frame_stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  stats_ += frame_stats;
+  return frame_stats;
+}
+
+SessionMap IncrementalIntegrator::finish() {
+  if (settings_.compress_free) map_.compressFree();
+  SessionMap out = std::move(map_);
+  map_ = SessionMap(out.resolution_m());
+  stats_ = {};
+  return out;
 }
 
 }  // namespace chronomap

@@ -3,9 +3,11 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <tuple>
 
 #include "chronomap/core/error.h"
+#include "chronomap/integrate/incremental.h"
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/sim/box_room.h"
@@ -309,6 +311,26 @@ TEST(Integrator, ResultsDoNotDependOnThreadCount) {
         EXPECT_EQ(bytes, reference) << "fast=" << fast << " threads=" << threads;
       }
     }
+  }
+}
+
+TEST(Integrator, FrameByFrameGivesTheMapOfAllFramesAtOnce) {
+  const sim::PinholeCamera cam = smallCamera(200);
+  const FrameVector frames(sim::benchmarkSequence(12, cam));
+  for (bool fast : {false, true}) {
+    IntegratorSettings s;
+    s.fast = fast;
+    SessionMap all(0.05);
+    const IntegrationStats stats = integrate(frames, all, s);
+    IncrementalIntegrator incremental(0.05, s);
+    for (const Frame& f : frames.frames()) incremental.add(f);
+    EXPECT_EQ(incremental.stats().points, stats.points);
+    EXPECT_EQ(incremental.stats().frames, frames.size());
+    const SessionMap one_by_one = incremental.finish();
+    EXPECT_TRUE(one_by_one == all) << "fast=" << fast;
+    EXPECT_EQ(io::encodeSessionMap(one_by_one, {}), io::encodeSessionMap(all, {})) << "fast=" << fast;
+    EXPECT_TRUE(incremental.map().empty());
+    EXPECT_EQ(incremental.stats().frames, 0u);
   }
 }
 
