@@ -3,11 +3,13 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 #include "chronomap/core/error.h"
 #include "chronomap/io/cloud_io.h"
 #include "chronomap/io/dataset.h"
+#include "chronomap/io/depth_image.h"
 #include "chronomap/io/file.h"
 #include "chronomap/io/jpeg.h"
 #include "chronomap/io/png.h"
@@ -56,6 +58,28 @@ TEST(DepthToCloud, BackProjectsWithThePinholeModel) {
   ImageRgb wrong{2, 2, std::vector<Rgb>(4)};
   EXPECT_THROW(depthToCloud(d, &wrong, k, 1000.0, "t"), DataError);
   EXPECT_THROW(depthToCloud(d, nullptr, k, 0.0, "t"), DataError);
+}
+
+TEST(DepthToCloud, MetresAsFloatsGiveTheSamePointsAsMillimetres) {
+  const ImageU16 mm{3, 2, {0, 1000, 2000, 3000, 4000, 5000}};
+  const std::vector<float> m{0.0f, 1.0f, 2.0f, 3.0f, 4.0f, 5.0f};
+  const CameraIntrinsics k{500, 400, 1, 0.5};
+  const ImageRgb rgb{3, 2, std::vector<Rgb>(6, Rgb{1, 2, 3})};
+  const PointCloud a = depthToCloud(mm, &rgb, k, 1000.0, "t");
+  const PointCloud b = depthMetresToCloud(m, 3, 2, &rgb, k, "t");
+  ASSERT_EQ(b.points.size(), 6u);
+  EXPECT_EQ(b.width, 3u);
+  EXPECT_EQ(b.height, 2u);
+  EXPECT_TRUE(std::isnan(b.points[0].x()));
+  for (size_t i = 1; i < 6; ++i) EXPECT_EQ(a.points[i], b.points[i]) << i;  // whole metres: exact
+  EXPECT_EQ(b.colors, rgb.pixels);
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  const PointCloud c = depthMetresToCloud(std::vector<float>{nan, -1.0f, inf, 0.5f}, 2, 2, nullptr, k, "t");
+  for (size_t i = 0; i < 3; ++i) EXPECT_TRUE(std::isnan(c.points[i].z())) << i;
+  EXPECT_FLOAT_EQ(c.points[3].z(), 0.5f);
+  EXPECT_THROW(depthMetresToCloud(m, 2, 2, nullptr, k, "t"), DataError);
+  const ImageRgb wrong{2, 3, std::vector<Rgb>(6)};
+  EXPECT_THROW(depthMetresToCloud(m, 3, 2, &wrong, k, "t"), DataError);
 }
 
 TEST(Dataset, Reads3DMatchFramesWithPoses) {
