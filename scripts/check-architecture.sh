@@ -44,6 +44,21 @@ for dir in include/chronomap/*/ src/*/; do
   fi
 done
 
+# The Python bindings (python/src) sit on top like the command line: they may include any
+# module, but only through its public headers, and no module may include them.
+while IFS=: read -r file line include; do
+  header="include/${include#\#include \"}"
+  header="${header%\"}"
+  if [ ! -f "$header" ]; then
+    echo "$file:$line: the bindings include $include, which is not a public header of a module"
+    failures=$((failures + 1))
+  fi
+done < <(grep -rnoE '#include "chronomap/[a-z_]+/[a-z_]+\.h"' python/src 2>/dev/null || true)
+if grep -rnE '#include "(python|bindings)' include src 2>/dev/null; then
+  echo "a module includes the Python bindings"
+  failures=$((failures + 1))
+fi
+
 # Functions of the command line: from a line that opens a body at column 0 to its closing brace.
 long="$(awk 'FNR == 1 { start = 0 }
   /^[A-Za-z].*\) (const )?\{$/ || /^[A-Za-z].*\) -> .*\{$/ { start = FNR; name = $0; next }

@@ -1,0 +1,124 @@
+// diff and segment: what changed between two session maps, and which objects.
+
+#include <string>
+
+#include "bindings.h"
+#include "chronomap/analysis/diff.h"
+#include "chronomap/analysis/segment.h"
+
+namespace chronomap::python {
+
+DiffSettings diffSettings(const std::string& mode, double alpha, int neighbourhood_voxels, double min_shift_voxels) {
+  DiffSettings settings;
+  settings.mode = parseDiffMode(mode);
+  settings.alpha = alpha;
+  settings.neighbourhood_voxels = neighbourhood_voxels;
+  settings.min_shift_voxels = min_shift_voxels;
+  return settings;
+}
+
+namespace {
+
+DiffMap diffPy(const SessionMap& before, const SessionMap& after, const std::string& mode, double alpha,
+               int neighbourhood_voxels, double min_shift_voxels) {
+  const DiffSettings settings = diffSettings(mode, alpha, neighbourhood_voxels, min_shift_voxels);
+  py::gil_scoped_release release;
+  return diff(before, after, settings);
+}
+
+py::list segmentPy(const DiffMap& changes, const std::string& connectivity, double color_tolerance,
+                   uint64_t min_voxels, double min_value) {
+  SegmentSettings settings;
+  settings.connectivity = parseConnectivity(connectivity);
+  settings.color_tolerance = color_tolerance;
+  settings.min_voxels = min_voxels;
+  settings.min_value = min_value;
+  Segmentation result;
+  {
+    py::gil_scoped_release release;
+    result = segment(changes, settings);
+  }
+  py::list out;
+  for (Component& c : result.components) out.append(py::cast(std::move(c)));
+  return out;
+}
+
+template <class T, class Fn>
+py::array_t<T> perCell(const DiffMap& d, Fn&& fn) {
+  std::vector<T> values;
+  values.reserve(d.cells().size());
+  for (const ChangeCell& c : d.cells()) values.push_back(static_cast<T>(fn(c)));
+  return vectorArray(std::move(values));
+}
+
+py::array_t<double> cellCenters(const DiffMap& d) {
+  std::vector<Eigen::Vector3d> centers;
+  centers.reserve(d.cells().size());
+  for (const ChangeCell& c : d.cells()) centers.push_back(d.grid().centerOf(c.key, c.level));
+  return pointsArray(std::move(centers));
+}
+
+void bindDiffMap(py::module_& m) {
+  py::class_<DiffMap>(m, "DiffMap",
+                      "What changed between two maps: cells (unit voxels or uniform cubes) in Morton order.")
+      .def_property_readonly("resolution_m", &DiffMap::resolution_m)
+      .def_property_readonly("mode", [](const DiffMap& d) { return std::string(toString(d.settings().mode)); })
+      .def("__len__", [](const DiffMap& d) { return d.cells().size(); })
+      .def("changed_centers", &cellCenters, "Centres of the cells, (N, 3) float64 metres.")
+      .def(
+          "kinds", [](const DiffMap& d) { return perCell<int8_t>(d, [](const ChangeCell& c) { return c.kind; }); },
+          "Kind of each cell, (N,) int8: APPEARED, VANISHED or UNCHANGED (continuous mode).")
+      .def(
+          "levels", [](const DiffMap& d) { return perCell<int8_t>(d, [](const ChangeCell& c) { return c.level; }); },
+          "Level of each cell, (N,) int8: 0 a voxel, k a cube of 2^k voxels per axis.")
+      .def(
+          "values", [](const DiffMap& d) { return perCell<float>(d, [](const ChangeCell& c) { return c.value; }); },
+          "|P1 - P2| of each cell, (N,) float32.")
+      .def(
+          "voxel_count",
+          [](const DiffMap& d, const py::object& kind) {
+            return kind.is_none() ? d.voxelCount() : d.voxelCount(static_cast<ChangeKind>(kind.cast<int>()));
+          },
+          py::arg("kind") = py::none(), "Unit voxels in cells of this kind (all kinds when None).");
+}
+
+void bindComponent(py::module_& m) {
+  py::class_<Component>(m, "Component", "One connected object of a diff.")
+      .def_readonly("id", &Component::id, "1.. in order of decreasing size")
+      .def_property_readonly("kind", [](const Component& c) { return std::string(toString(c.kind)); },
+                             "'appeared' or 'vanished' (or 'unchanged')")
+      .def_readonly("voxels", &Component::voxels, "unit voxels")
+      .def_readonly("volume_m3", &Component::volume_m3)
+      .def_property_readonly("bbox_min_m", [](const Component& c) { return vector3Array(c.bbox_min_m); })
+      .def_property_readonly("bbox_max_m", [](const Component& c) { return vector3Array(c.bbox_max_m); })
+      .def_property_readonly("centroid_m", [](const Component& c) { return vector3Array(c.centroid_m); })
+      .def_property_readonly("mean_color",
+                             [](const Component& c) { return py::make_tuple(c.mean_color.r, c.mean_color.g,
+                                                                            c.mean_color.b); })
+      .def_property_readonly("cells", [](const Component& c) { return vectorArray(c.cells); },
+                             "indices into the diff's cells, increasing")
+      .def("__repr__", [](const Component& c) {
+        std::string r("<Component id=");
+        r.append(std::to_string(c.id)).append(" kind=").append(toString(c.kind));
+        return r.append(" voxels=").append(std::to_string(c.voxels)).append(">");
+      });
+}
+
+}  // namespace
+
+void bindAnalysis(py::module_& m) {
+  m.attr("APPEARED") = static_cast<int>(ChangeKind::Appeared);
+  m.attr("VANISHED") = static_cast<int>(ChangeKind::Vanished);
+  m.attr("UNCHANGED") = static_cast<int>(ChangeKind::Unchanged);
+  bindDiffMap(m);
+  bindComponent(m);
+  m.def("diff", &diffPy, py::arg("before"), py::arg("after"), py::arg("mode") = "hard", py::arg("alpha") = -1.0,
+        py::arg("neighbourhood_voxels") = 0, py::arg("min_shift_voxels") = 0.0,
+        "What changed from `before` to `after` (two SessionMaps of one resolution). mode: 'hard', "
+        "'threshold', 'band' or 'continuous'; alpha < 0 takes the mode's default.");
+  m.def("segment", &segmentPy, py::arg("diff"), py::arg("connectivity") = "face", py::arg("color_tolerance") = -1.0,
+        py::arg("min_voxels") = 1, py::arg("min_value") = 0.5,
+        "Connected components of a DiffMap, largest first: a list of Component.");
+}
+
+}  // namespace chronomap::python

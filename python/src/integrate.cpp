@@ -1,0 +1,202 @@
+// integrate_dataset (pipeline::integrateDataset) and the incremental Integrator
+// (IncrementalIntegrator) fed from numpy arrays.
+
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+
+#include "bindings.h"
+#include "chronomap/core/error.h"
+#include "chronomap/core/pose.h"
+#include "chronomap/integrate/incremental.h"
+#include "chronomap/io/dataset.h"
+#include "chronomap/io/depth_image.h"
+#include "chronomap/io/png.h"
+#include "chronomap/pipeline/session.h"
+
+namespace chronomap::python {
+
+namespace {
+
+/// Forwards pipeline progress to a Python callable(label, done, total), taking the GIL for the
+/// call. An exception it raises is kept and raised again once the library call has returned.
+struct ProgressForwarder {
+  py::object callback;
+  std::shared_ptr<py::error_already_set> raised;
+
+  pipeline::Progress progress() {
+    pipeline::Progress p;
+    if (callback.is_none()) return p;
+    p.work = [this](const std::string& label, size_t done, size_t total) {
+      py::gil_scoped_acquire acquire;
+      if (raised) return;
+      try {
+        callback(label, done, total);
+      } catch (py::error_already_set& e) {
+        raised = std::make_shared<py::error_already_set>(std::move(e));
+      }
+    };
+    return p;
+  }
+  void rethrow() {
+    if (raised) throw *raised;
+  }
+};
+
+SessionMap integrateDatasetPy(const std::filesystem::path& path, double resolution_m, bool fast, double max_range_m,
+                              int threads, const std::string& format, std::optional<double> depth_scale,
+                              const py::object& progress) {
+  pipeline::SessionSettings settings;
+  settings.resolution_m = resolution_m;
+  settings.integrator.fast = fast;
+  settings.integrator.max_range_m = max_range_m;
+  settings.integrator.threads = threads;
+  settings.dataset.format = io::parseDatasetFormat(format);
+  settings.dataset.depth_scale = depth_scale;
+  ProgressForwarder forwarder{progress, nullptr};
+  std::optional<pipeline::IntegratedSession> session;
+  {
+    py::gil_scoped_release release;
+    session = pipeline::integrateDataset(path, settings, {}, forwarder.progress());
+  }
+  forwarder.rethrow();
+  return std::move(session->map);
+}
+
+/// (fx, fy, cx, cy) or a 3x3 K matrix.
+CameraIntrinsics toIntrinsics(const py::handle& h) {
+  const py::array a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(h);
+  if (!a) throw py::type_error("intrinsics: expected (fx, fy, cx, cy) or a 3x3 matrix of numbers");
+  const auto* p = static_cast<const double*>(a.data());
+  if (a.size() == 4 && a.ndim() == 1) return {p[0], p[1], p[2], p[3]};
+  if (a.ndim() == 2 && a.shape(0) == 3 && a.shape(1) == 3) return {p[0], p[4], p[2], p[5]};
+  throw py::value_error("intrinsics: expected (fx, fy, cx, cy) or a 3x3 matrix");
+}
+
+/// The depth image as an organized cloud in the camera frame: uint16 with `depth_scale` units
+/// per metre, or float32 metres.
+PointCloud depthCloud(const py::handle& h, const ImageRgb* rgb, const CameraIntrinsics& k, double depth_scale) {
+  const py::array any = py::array::ensure(h);
+  if (!any) throw py::type_error("depth: expected an (H, W) array");
+  if (any.ndim() != 2) throw py::value_error("depth: expected shape (H, W)");
+  const auto height = static_cast<uint32_t>(any.shape(0)), width = static_cast<uint32_t>(any.shape(1));
+  if (any.dtype().is(py::dtype::of<uint16_t>())) {
+    const auto a = py::array_t<uint16_t, py::array::c_style | py::array::forcecast>::ensure(any);
+    ImageU16 depth{width, height, std::vector<uint16_t>(a.data(), a.data() + a.size())};
+    py::gil_scoped_release release;
+    return io::depthToCloud(depth, rgb, k, depth_scale, "add_frame");
+  }
+  if (any.dtype().is(py::dtype::of<float>())) {
+    const auto a = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(any);
+    py::gil_scoped_release release;
+    return io::depthMetresToCloud(std::span<const float>(a.data(), static_cast<size_t>(a.size())), width, height, rgb,
+                                  k, "add_frame");
+  }
+  std::string msg("depth: expected uint16 (with depth_scale) or float32 metres, got dtype ");
+  throw py::type_error(msg.append(py::str(any.dtype()).cast<std::string>()));
+}
+
+/// Checked and re-orthonormalised as dataset readers do. @throw DataError when not rigid.
+Eigen::Isometry3d toPose(const py::handle& h, const char* name) { return poseFromMatrix(toMatrix4(h, name), name); }
+
+py::array_t<uint16_t> readDepthPng(const std::filesystem::path& path) {
+  ImageU16 img;
+  {
+    py::gil_scoped_release release;
+    img = io::readPngU16(path);
+  }
+  const auto h = static_cast<py::ssize_t>(img.height), w = static_cast<py::ssize_t>(img.width);
+  return vectorArray(std::move(img.pixels)).attr("reshape")(h, w);  // a view, no copy
+}
+
+py::array_t<uint8_t> readColorPng(const std::filesystem::path& path) {
+  ImageRgb img;
+  {
+    py::gil_scoped_release release;
+    img = io::readPngRgb(path);
+  }
+  const auto h = static_cast<py::ssize_t>(img.height), w = static_cast<py::ssize_t>(img.width);
+  return colorsArray(std::move(img.pixels)).attr("reshape")(h, w, 3);  // a view, no copy
+}
+
+void addFrame(IncrementalIntegrator& integrator, const py::handle& depth, const py::handle& intrinsics,
+              const py::handle& T_world_camera, const py::object& rgb, double depth_scale) {
+  const CameraIntrinsics k = toIntrinsics(intrinsics);
+  Frame frame;
+  frame.T_world_sensor = toPose(T_world_camera, "T_world_camera");
+  std::optional<ImageRgb> color;
+  if (!rgb.is_none()) color = toRgbImage(rgb, "rgb");
+  frame.cloud = depthCloud(depth, color ? &*color : nullptr, k, depth_scale);
+  frame.source = "add_frame";
+  py::gil_scoped_release release;
+  integrator.add(frame);
+}
+
+void addPoints(IncrementalIntegrator& integrator, const py::handle& points_world, const py::handle& origin,
+               const py::object& colors) {
+  const std::vector<Eigen::Vector3d> points = toPoints(points_world, "points_world");
+  const Eigen::Vector3d o = toVector3(origin, "origin");
+  Frame frame;
+  frame.T_world_sensor = Eigen::Translation3d(o);
+  if (!colors.is_none()) frame.cloud.colors = toColors(colors, points.size(), "colors");
+  frame.source = "add_points";
+  py::gil_scoped_release release;
+  frame.cloud.points.reserve(points.size());
+  for (const Eigen::Vector3d& p : points) frame.cloud.points.push_back((p - o).cast<float>());
+  frame.cloud.width = static_cast<uint32_t>(points.size());
+  integrator.add(frame);
+}
+
+std::unique_ptr<IncrementalIntegrator> makeIntegrator(double resolution_m, double max_range_m, bool fast,
+                                                      bool compress_free) {
+  IntegratorSettings settings;
+  settings.max_range_m = max_range_m;
+  settings.fast = fast;
+  settings.threads = 1;
+  settings.compress_free = compress_free;
+  return std::make_unique<IncrementalIntegrator>(resolution_m, settings);
+}
+
+}  // namespace
+
+void bindIntegrate(py::module_& m) {
+  m.def("read_depth_png", &readDepthPng, py::arg("path"), "A 16-bit PNG (a depth image) as an (H, W) uint16 array.");
+  m.def("read_color_png", &readColorPng, py::arg("path"), "A PNG as an (H, W, 3) uint8 RGB array.");
+  m.def("integrate_dataset", &integrateDatasetPy, py::arg("path"), py::arg("resolution_m") = 0.05,
+        py::arg("fast") = false, py::arg("max_range_m") = 3.0, py::arg("threads") = 0, py::arg("format") = "auto",
+        py::arg("depth_scale") = py::none(), py::arg("progress") = py::none(),
+        "Integrates the recording at `path` (a TUM, 3DMatch, ScanNet or cloud-list dataset, as "
+        "`chronomap integrate` reads it) into a SessionMap. `progress`, if given, is called as "
+        "progress(label, done, total) after each frame. The GIL is released while it runs.");
+
+  py::class_<IncrementalIntegrator>(m, "Integrator",
+                                    "Integrates frames one at a time; finish() gives the map integrate_dataset gives "
+                                    "for the same frames and settings.")
+      .def(py::init(&makeIntegrator), py::arg("resolution_m") = 0.05, py::arg("max_range_m") = 3.0,
+           py::arg("fast") = false, py::arg("compress_free") = true)
+      .def("add_frame", &addFrame, py::arg("depth"), py::arg("intrinsics"), py::arg("T_world_camera"),
+           py::arg("rgb") = py::none(), py::arg("depth_scale") = 1000.0,
+           "Adds a depth image: (H, W) uint16 with depth_scale units per metre, or float32 metres (0 = no "
+           "measurement); intrinsics (fx, fy, cx, cy) or a 3x3 K; T_world_camera a 4x4 camera-to-world "
+           "matrix; rgb an optional (H, W, 3) uint8 image.")
+      .def("add_points", &addPoints, py::arg("points_world"), py::arg("origin"), py::arg("colors") = py::none(),
+           "Adds (N, 3) points in the world frame seen from the sensor at `origin` (3,), with optional "
+           "(N, 3) uint8 colours.")
+      .def_property_readonly(
+          "map", [](const IncrementalIntegrator& i) { return i.map(); },
+          "A copy of the map so far (free space not yet compressed).")
+      .def_property_readonly(
+          "frames", [](const IncrementalIntegrator& i) { return i.stats().frames; }, "Frames added so far.")
+      .def_property_readonly(
+          "points", [](const IncrementalIntegrator& i) { return i.stats().points; }, "Points cast as rays so far.")
+      .def(
+          "finish",
+          [](IncrementalIntegrator& i) {
+            py::gil_scoped_release release;
+            return i.finish();
+          },
+          "The map, compressed as integrate_dataset leaves it; the integrator starts again empty.");
+}
+
+}  // namespace chronomap::python

@@ -1,0 +1,111 @@
+"""integrate_dataset against the command line, and frame by frame against integrate_dataset."""
+
+import subprocess
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import chronomap
+
+
+def frames_of(root):
+    """The 3DMatch frames as numpy arrays: (depth uint16, rgb, T_world_camera), in frame order."""
+    k = np.loadtxt(root / "camera-intrinsics.txt")
+    out = []
+    for pose_file in sorted((root / "seq-01").glob("frame-*.pose.txt")):
+        stem = str(pose_file)[: -len(".pose.txt")]
+        out.append((chronomap.read_depth_png(stem + ".depth.png"), chronomap.read_color_png(stem + ".color.png"),
+                    np.loadtxt(pose_file)))
+    return k, out
+
+
+@pytest.mark.parametrize("fast", [False, True])
+def test_integrate_dataset_equals_the_cli(tmp_path, threedmatch, cli, fast):
+    cli_file = tmp_path / "cli.cmap"
+    command = [str(cli), "integrate", str(threedmatch), "-o", str(cli_file)] + (["--fast"] if fast else [])
+    subprocess.run(command, check=True, capture_output=True)
+    ours = chronomap.integrate_dataset(threedmatch, resolution_m=0.05, fast=fast)
+    theirs = chronomap.SessionMap.open(cli_file)
+    assert ours == theirs
+    assert ours.counts()["occupied_voxels"] > 1000
+    # The same map bytes: both written by SessionMap.save.
+    ours.save(tmp_path / "ours.cmap")
+    theirs.save(tmp_path / "theirs.cmap")
+    assert (tmp_path / "ours.cmap").read_bytes() == (tmp_path / "theirs.cmap").read_bytes()
+
+
+@pytest.mark.parametrize("fast", [False, True])
+def test_add_frame_equals_integrate_dataset(threedmatch, fast):
+    k, frames = frames_of(threedmatch)
+    assert len(frames) == 5
+    integrator = chronomap.Integrator(resolution_m=0.05, max_range_m=3.0, fast=fast)
+    for depth, rgb, pose in frames:
+        integrator.add_frame(depth, k, pose, rgb=rgb, depth_scale=1000.0)
+    assert integrator.frames == 5
+    assert integrator.finish() == chronomap.integrate_dataset(threedmatch, fast=fast)
+
+
+def test_float_depth_in_metres_agrees_with_uint16(threedmatch):
+    k, frames = frames_of(threedmatch)
+    depth, rgb, pose = frames[0]
+    a = chronomap.Integrator()
+    a.add_frame(depth, k, pose, rgb=rgb)
+    b = chronomap.Integrator()
+    b.add_frame((depth / 1000.0).astype(np.float32), k, pose, rgb=rgb)
+    ma, mb = a.finish(), b.finish()
+    assert a.points == 0  # finish() starts again empty
+    ca, cb = ma.occupied_centers(), mb.occupied_centers()
+    assert len(ca) > 1000
+    # Depths differ by float rounding only: the occupied voxels are nearly all the same ones.
+    assert abs(len(ca) - len(cb)) <= 0.01 * len(ca)
+    assert (mb.state(ca) == chronomap.OCCUPIED).mean() > 0.98
+
+
+def test_non_contiguous_frames_integrate_alike(threedmatch):
+    k, frames = frames_of(threedmatch)
+    depth, rgb, pose = frames[0]
+    a = chronomap.Integrator()
+    a.add_frame(depth, k, pose, rgb=rgb)
+    b = chronomap.Integrator()
+    wide = np.zeros((depth.shape[0], depth.shape[1] * 2), dtype=np.uint16)
+    wide[:, ::2] = depth
+    bgr = rgb[:, :, ::-1].copy()
+    b.add_frame(wide[:, ::2], np.array([[k[0, 0], 0, k[0, 2]], [0, k[1, 1], k[1, 2]], [0, 0, 1]]),
+                np.asfortranarray(pose), rgb=bgr[:, :, ::-1])
+    assert a.finish() == b.finish()
+
+
+def test_progress_callback(threedmatch):
+    calls = []
+    chronomap.integrate_dataset(threedmatch, progress=lambda label, done, total: calls.append((label, done, total)))
+    assert calls == [("integrating", i, 5) for i in range(1, 6)]
+
+
+def test_progress_callback_exception_propagates(threedmatch):
+    def fail(label, done, total):
+        raise KeyError("stop here")
+
+    with pytest.raises(KeyError, match="stop here"):
+        chronomap.integrate_dataset(threedmatch, progress=fail)
+
+
+def test_gil_is_released_during_integration(threedmatch):
+    ticks = 0
+    result = {}
+
+    def work():
+        start = time.perf_counter()
+        result["map"] = chronomap.integrate_dataset(threedmatch, threads=1)
+        result["seconds"] = time.perf_counter() - start
+
+    worker = threading.Thread(target=work)
+    worker.start()
+    while worker.is_alive():
+        ticks += 1
+        time.sleep(0.001)
+    worker.join()
+    assert result["map"].counts()["occupied_voxels"] > 1000
+    # With the GIL held for the whole call this thread would tick about once.
+    assert ticks >= 10, (ticks, result["seconds"])
