@@ -6,6 +6,7 @@
 
 #include "chronomap/core/error.h"
 #include "chronomap/octree/session_map.h"
+#include "chronomap/octree/voxel_queries.h"
 #include "builders.h"
 
 namespace chronomap {
@@ -44,6 +45,26 @@ TEST(SessionMap, AddAccumulatesCounters) {
   EXPECT_EQ(m.stateOf({5, 6, 8}), VoxelState::Unknown);
   EXPECT_EQ(m.leafCount(), 1u);
   EXPECT_EQ(m.innerCount(), static_cast<size_t>(kTreeDepth));  // root + one node per level above unit
+}
+
+TEST(SessionMap, OccupiedCentresAndKnownBounds) {
+  SessionMap m(0.1);
+  EXPECT_FALSE(knownBounds(m).has_value());
+  EXPECT_TRUE(occupiedCentres(m).centers_m.empty());
+  m.add(at(1, 2, 3), occupiedVoxel(Rgb{200, 0, 0}));
+  m.add(at(0, 0, 0), occupiedVoxel(Rgb{0, 0, 0}));
+  m.add(at(-2, 0, 0), freeVoxel());
+  m.addCube(at(4, 4, 4), 2, freeVoxel(3.2f));  // a compressed free cube of 4 x 4 x 4 voxels
+  const VoxelCentres occupied = occupiedCentres(m);
+  ASSERT_EQ(occupied.centers_m.size(), 2u);
+  ASSERT_EQ(occupied.colors.size(), 2u);
+  EXPECT_TRUE(occupied.centers_m[0].isApprox(Eigen::Vector3d(0.05, 0.05, 0.05)));  // Morton order
+  EXPECT_TRUE(occupied.centers_m[1].isApprox(Eigen::Vector3d(0.15, 0.25, 0.35)));
+  EXPECT_EQ(occupied.colors[1].r, 200);
+  const auto bounds = knownBounds(m);
+  ASSERT_TRUE(bounds);
+  EXPECT_TRUE(bounds->min_m.isApprox(Eigen::Vector3d(-0.2, 0.0, 0.0)));
+  EXPECT_TRUE(bounds->max_m.isApprox(Eigen::Vector3d(0.8, 0.8, 0.8)));
 }
 
 /// Property test: random updates in random batch orders equal a plain std::map reference.
