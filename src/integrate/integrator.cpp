@@ -772,10 +772,15 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
                   b = free_buffers.back();
                   free_buffers.pop_back();
                 }
-                if (const Frame* f = source.resident(i)) {
-                  accumulators.local().accumulate(*f, buffers[b]);
-                } else {
-                  accumulators.local().accumulate(source.load(i), buffers[b]);
+                try {
+                  if (const Frame* f = source.resident(i)) {
+                    accumulators.local().accumulate(*f, buffers[b]);
+                  } else {
+                    accumulators.local().accumulate(source.load(i), buffers[b]);
+                  }
+                } catch (...) {
+                  CHRONOMAP_HAPPENS_BEFORE(&handed_over);  // to the caller, which rethrows
+                  throw;
                 }
                 CHRONOMAP_HAPPENS_BEFORE(&handed_over);  // to the merging stage
                 return b;
@@ -785,7 +790,12 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
             CHRONOMAP_HAPPENS_AFTER(&handed_over);
             CHRONOMAP_HAPPENS_AFTER(&merge_turn);  // one merge after another
             map.addMany(buffers[b].keys, buffers[b].deltas);
-            checkMapMemory(map, settings);
+            try {
+              checkMapMemory(map, settings);
+            } catch (...) {
+              CHRONOMAP_HAPPENS_BEFORE(&merge_turn);  // to the caller, which rethrows
+              throw;
+            }
             total += buffers[b].stats;
             if (progress) progress(static_cast<size_t>(total.frames), n);
             {
@@ -795,7 +805,16 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
             CHRONOMAP_HAPPENS_BEFORE(&merge_turn);
           });
       CHRONOMAP_HAPPENS_BEFORE(&setup_done);
-      tbb::parallel_pipeline(tokens, stages);
+      try {
+        tbb::parallel_pipeline(tokens, stages);
+      } catch (...) {
+        // A stage threw (a bad frame, the memory limit): TBB has waited for the others, and
+        // the stages that ran marked what they touched.
+        CHRONOMAP_HAPPENS_AFTER(&source_turn);
+        CHRONOMAP_HAPPENS_AFTER(&handed_over);
+        CHRONOMAP_HAPPENS_AFTER(&merge_turn);
+        throw;
+      }
       CHRONOMAP_HAPPENS_AFTER(&source_turn);
       CHRONOMAP_HAPPENS_AFTER(&merge_turn);
     });
