@@ -44,7 +44,6 @@ int runDiff(const DiffCmdOptions& o) {
   DiffSettings settings;
   settings.mode = parseDiffMode(o.mode);
   if (o.alpha) {
-    if (!(*o.alpha >= 0.0)) throw UsageError("--alpha must be at least 0 (leave it out for the mode's default)");
     if (settings.mode != DiffMode::Threshold && settings.mode != DiffMode::Band) {
       throw UsageError(std::string("--alpha applies to the threshold and band modes only (the ") +
                        toString(settings.mode) + " mode has none)");
