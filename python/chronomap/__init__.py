@@ -1,7 +1,9 @@
 """chronomap: 4D (temporal octree) maps of RGB-D recordings, with numpy arrays in and out.
 
 The classes and functions are those of the C++ library (built as the extension module
-``chronomap._chronomap``); names carry their units (``resolution_m``, ``time_s``).
+``chronomap._chronomap``); names carry their units (``resolution_m``, ``time_s``). Times are
+epoch seconds or ``datetime.datetime`` (naive ones are UTC). ``chronomap.o3d`` converts to
+and from Open3D when ``open3d`` is importable.
 """
 
 from ._chronomap import (  # noqa: F401
@@ -21,6 +23,8 @@ from ._chronomap import (  # noqa: F401
     SessionMap,
     TemporalMap,
     UsageError,
+    add_session,
+    build,
     diff,
     integrate_dataset,
     read_color_png,
@@ -31,6 +35,6 @@ from ._chronomap import (  # noqa: F401
 __all__ = [
     "APPEARED", "FREE", "OCCUPIED", "UNCHANGED", "UNKNOWN", "VANISHED",
     "Component", "DataError", "DiffMap", "Error", "FormatError", "Integrator", "IoError",
-    "SessionMap", "TemporalMap", "UsageError", "diff", "integrate_dataset", "read_color_png",
+    "SessionMap", "TemporalMap", "UsageError", "add_session", "build", "diff", "integrate_dataset", "read_color_png",
     "read_depth_png", "segment",
 ]

@@ -3,6 +3,7 @@
 // library calls (pipeline/ and the modules below) and add no logic of their own.
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -15,6 +16,7 @@
 #include "chronomap/analysis/diff.h"
 #include "chronomap/core/counters.h"
 #include "chronomap/core/image.h"
+#include "chronomap/pipeline/progress.h"
 
 namespace chronomap::python {
 
@@ -25,6 +27,24 @@ void bindMaps(py::module_& m);
 void bindIntegrate(py::module_& m);
 void bindTemporal(py::module_& m);
 void bindAnalysis(py::module_& m);
+void bindPipeline(py::module_& m);
+
+/// Forwards pipeline progress to a Python callable(label, done, total), taking the GIL for the
+/// call. An exception it raises is kept and raised again once the library call has returned
+/// (rethrow()); later reports are then dropped.
+struct ProgressForwarder {
+  py::object callback;
+  std::shared_ptr<py::error_already_set> raised;
+
+  pipeline::Progress progress();
+  void rethrow() const;
+};
+
+/// A time as epoch seconds: a real number, or a datetime.datetime (naive ones are taken as
+/// UTC). @throw py::type_error for anything else, naming `name`.
+double toSeconds(const py::handle& time, const char* name);
+/// Epoch seconds as an aware datetime.datetime in UTC.
+py::object toDatetime(double time_s);
 
 /// The settings of diff() and TemporalMap.diff(). @throw UsageError for an unknown mode.
 DiffSettings diffSettings(const std::string& mode, double alpha, int neighbourhood_voxels, double min_shift_voxels);

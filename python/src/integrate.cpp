@@ -19,31 +19,6 @@ namespace chronomap::python {
 
 namespace {
 
-/// Forwards pipeline progress to a Python callable(label, done, total), taking the GIL for the
-/// call. An exception it raises is kept and raised again once the library call has returned.
-struct ProgressForwarder {
-  py::object callback;
-  std::shared_ptr<py::error_already_set> raised;
-
-  pipeline::Progress progress() {
-    pipeline::Progress p;
-    if (callback.is_none()) return p;
-    p.work = [this](const std::string& label, size_t done, size_t total) {
-      py::gil_scoped_acquire acquire;
-      if (raised) return;
-      try {
-        callback(label, done, total);
-      } catch (py::error_already_set& e) {
-        raised = std::make_shared<py::error_already_set>(std::move(e));
-      }
-    };
-    return p;
-  }
-  void rethrow() {
-    if (raised) throw *raised;
-  }
-};
-
 SessionMap integrateDatasetPy(const std::filesystem::path& path, double resolution_m, bool fast, double max_range_m,
                               int threads, const std::string& format, std::optional<double> depth_scale,
                               const py::object& progress) {

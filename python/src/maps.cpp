@@ -1,6 +1,8 @@
 // SessionMap: open/save, resolution, bounds, voxel states of points, occupied voxels as arrays.
 
 #include <filesystem>
+#include <limits>
+#include <optional>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -24,6 +26,57 @@ py::array_t<int8_t> statesOf(const SessionMap& map, const py::handle& points) {
     }
   }
   return vectorArray(std::move(states));
+}
+
+/// The counters of the voxel containing each point (nothing for points outside or unobserved).
+std::vector<std::optional<VoxelCounters>> countersAt(const SessionMap& map, const std::vector<Eigen::Vector3d>& p) {
+  std::vector<std::optional<VoxelCounters>> out(p.size());
+  for (size_t i = 0; i < p.size(); ++i) {
+    if (const auto key = map.grid().keyOf(p[i])) out[i] = map.find(*key);
+  }
+  return out;
+}
+
+py::array_t<double> probabilitiesOf(const SessionMap& map, const py::handle& points) {
+  const std::vector<Eigen::Vector3d> p = toPoints(points, "points");
+  std::vector<double> out(p.size());
+  {
+    py::gil_scoped_release release;
+    const auto counters = countersAt(map, p);
+    for (size_t i = 0; i < p.size(); ++i) {
+      out[i] = counters[i] ? counters[i]->probability() : std::numeric_limits<double>::quiet_NaN();
+    }
+  }
+  return vectorArray(std::move(out));
+}
+
+py::dict countersOf(const SessionMap& map, const py::handle& points) {
+  const std::vector<Eigen::Vector3d> p = toPoints(points, "points");
+  std::vector<float> length(p.size(), 0.0f);
+  std::vector<uint32_t> hits(p.size(), 0);
+  std::vector<int8_t> states(p.size(), static_cast<int8_t>(VoxelState::Unknown));
+  std::vector<Rgb> colors(p.size());
+  std::vector<double> offsets(3 * p.size(), 0.0);
+  {
+    py::gil_scoped_release release;
+    const auto counters = countersAt(map, p);
+    for (size_t i = 0; i < p.size(); ++i) {
+      if (!counters[i]) continue;
+      const VoxelCounters& c = *counters[i];
+      length[i] = c.length_m;
+      hits[i] = c.hits;
+      states[i] = static_cast<int8_t>(c.state());
+      colors[i] = c.meanColor();
+      for (int a = 0; a < 3; ++a) offsets[3 * i + a] = c.meanOffset(a);
+    }
+  }
+  py::dict d;
+  d["length_m"] = vectorArray(std::move(length));
+  d["hits"] = vectorArray(std::move(hits));
+  d["state"] = vectorArray(std::move(states));
+  d["mean_color"] = colorsArray(std::move(colors));
+  d["mean_offset_voxels"] = vectorArray(std::move(offsets)).attr("reshape")(static_cast<py::ssize_t>(p.size()), 3);
+  return d;
 }
 
 py::object boundsOf(const SessionMap& map) {
@@ -77,6 +130,23 @@ void bindMaps(py::module_& m) {
       .def(
           "occupied_colors", [](const SessionMap& map) { return colorsArray(occupiedCentres(map).colors); },
           "Mean colours of the occupied voxels, (N, 3) uint8, in the order of occupied_centers().")
+      .def("probability", &probabilitiesOf, py::arg("points"),
+           "Occupancy probability 1 - exp(-hits / length) of the voxel containing each of the (N, 3) points: an "
+           "(N,) float64 array, NaN where the voxel was never observed (or lies outside the map).")
+      .def("counters", &countersOf, py::arg("points"),
+           "The counters of the voxel containing each of the (N, 3) points, as a dict of arrays: length_m "
+           "(N,) float32 (summed ray length), hits (N,) uint32 (rays that ended there), state (N,) int8, "
+           "mean_color (N, 3) uint8, mean_offset_voxels (N, 3) float64 (where the surface lies in the voxel, "
+           "from its centre). Zeros and UNKNOWN where never observed; a voxel inside a compressed free cube "
+           "gets its even share of the cube's sums.")
+      .def(
+          "free_centers",
+          [](const SessionMap& map) {
+            FreeLeaves free = freeLeaves(map);
+            return py::make_tuple(pointsArray(std::move(free.centers_m)), vectorArray(std::move(free.sizes_m)));
+          },
+          "The known-free leaves as (centers (N, 3) float64 metres, sizes_m (N,) float64): unit voxels and "
+          "compressed free cubes, each once with its edge length, in Morton order.")
       .def("counts", &countsOf, "Nodes and voxel states the map holds.")
       .def_property_readonly("memory_bytes", &SessionMap::memoryBytes, "Bytes of node storage in use.")
       .def("empty", &SessionMap::empty, "True when nothing was ever added.")

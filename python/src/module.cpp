@@ -25,4 +25,5 @@ PYBIND11_MODULE(_chronomap, m) {
   python::bindIntegrate(m);
   python::bindTemporal(m);
   python::bindAnalysis(m);
+  python::bindPipeline(m);
 }

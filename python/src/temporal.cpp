@@ -1,11 +1,14 @@
 // TemporalMap: the 4D map from Python.
 
 #include <filesystem>
+#include <limits>
+#include <utility>
 #include <string>
 
 #include <nlohmann/json.hpp>
 
 #include "bindings.h"
+#include "chronomap/analysis/change_frequency.h"
 #include "chronomap/analysis/diff.h"
 #include "chronomap/io/temporal_file.h"
 #include "chronomap/temporal/temporal_map.h"
@@ -25,8 +28,9 @@ py::list historyOf(const TemporalMap& map, const py::handle& point) {
   return out;
 }
 
-py::dict addSession(TemporalMap& map, const SessionMap& session, double time_s, const std::string& name,
+py::dict addSession(TemporalMap& map, const SessionMap& session, const py::handle& time, const std::string& name,
                     bool replace) {
+  const double time_s = toSeconds(time, "time");
   AddSettings options;
   options.name = name;
   options.replace = replace;
@@ -43,11 +47,44 @@ py::dict addSession(TemporalMap& map, const SessionMap& session, double time_s, 
   return d;
 }
 
-DiffMap diffTimes(const TemporalMap& map, double t1_s, double t2_s, const std::string& mode, double alpha,
+DiffMap diffTimes(const TemporalMap& map, const py::handle& t1, const py::handle& t2, const std::string& mode, double alpha,
                   int neighbourhood_voxels, double min_shift_voxels) {
   const DiffSettings settings = diffSettings(mode, alpha, neighbourhood_voxels, min_shift_voxels);
+  const double t1_s = toSeconds(t1, "t1"), t2_s = toSeconds(t2, "t2");
   py::gil_scoped_release release;
   return diff(map, t1_s, t2_s, settings);
+}
+
+/// The interval (from, to] of the change layers; None means the whole history.
+std::pair<double, double> interval(const py::object& from, const py::object& to) {
+  const double inf = std::numeric_limits<double>::infinity();
+  return {from.is_none() ? -inf : toSeconds(from, "from_time"), to.is_none() ? inf : toSeconds(to, "to_time")};
+}
+
+py::tuple changeCounts(const TemporalMap& map, const py::object& from, const py::object& to, uint32_t min_changes) {
+  const auto [from_s, to_s] = interval(from, to);
+  ChangeFrequency f;
+  {
+    py::gil_scoped_release release;
+    f = changeFrequency(map, from_s, to_s, min_changes);
+  }
+  std::vector<Eigen::Vector3d> centers(f.voxels.size());
+  std::vector<uint32_t> counts(f.voxels.size());
+  for (size_t i = 0; i < f.voxels.size(); ++i) {
+    centers[i] = map.grid().centerOf(f.voxels[i].key);
+    counts[i] = f.voxels[i].count;
+  }
+  return py::make_tuple(pointsArray(std::move(centers)), vectorArray(std::move(counts)));
+}
+
+py::array_t<uint64_t> changeHistogramPy(const TemporalMap& map, const py::object& from, const py::object& to) {
+  const auto [from_s, to_s] = interval(from, to);
+  std::vector<uint64_t> h;
+  {
+    py::gil_scoped_release release;
+    h = changeHistogram(map, from_s, to_s);
+  }
+  return vectorArray(std::move(h));
 }
 
 }  // namespace
@@ -74,22 +111,40 @@ void bindTemporal(py::module_& m) {
       .def_property_readonly(
           "times_s", [](const TemporalMap& map) { return vectorArray(map.times()); },
           "Session times (seconds since the epoch), increasing, as a float64 array.")
-      .def("add", &addSession, py::arg("session"), py::arg("time_s"), py::arg("name") = "", py::arg("replace") = false,
-           "Adds a SessionMap observed at time_s (epoch seconds); returns what changed in the map. Raises "
-           "UsageError for a time already stored unless replace=True.")
+      .def_property_readonly(
+          "times",
+          [](const TemporalMap& map) {
+            py::list out;
+            for (double t : map.times()) out.append(toDatetime(t));
+            return out;
+          },
+          "Session times as aware datetime.datetime objects in UTC, increasing.")
+      .def("add", &addSession, py::arg("session"), py::arg("time"), py::arg("name") = "", py::arg("replace") = false,
+           "Adds a SessionMap observed at `time` (epoch seconds, or a datetime; naive datetimes are UTC); returns "
+           "what changed in the map. Raises UsageError for a time already stored unless replace=True.")
       .def(
           "snapshot",
-          [](const TemporalMap& map, double time_s) {
+          [](const TemporalMap& map, const py::handle& time) {
+            const double time_s = toSeconds(time, "time");
             py::gil_scoped_release release;
             return map.snapshot(time_s);
           },
-          py::arg("time_s"), "The SessionMap as most recently observed at time_s (empty before the first session).")
+          py::arg("time"),
+          "The SessionMap as most recently observed at `time` (epoch seconds or datetime; empty before the first "
+          "session).")
       .def("history", &historyOf, py::arg("point"),
            "The history of the voxel containing `point` (3,): a list of (time_s, state), empty when never "
            "observed.")
-      .def("diff", &diffTimes, py::arg("t1_s"), py::arg("t2_s"), py::arg("mode") = "hard", py::arg("alpha") = -1.0,
+      .def("change_counts", &changeCounts, py::arg("from_time") = py::none(), py::arg("to_time") = py::none(),
+           py::arg("min_changes") = 1,
+           "How often each part changed (the thesis' Figure 6b): (centers (N, 3) float64, counts (N,) uint32) of "
+           "the unit voxels whose stored state changed at least min_changes times in (from_time, to_time] "
+           "(None: the whole history).")
+      .def("change_histogram", &changeHistogramPy, py::arg("from_time") = py::none(), py::arg("to_time") = py::none(),
+           "histogram[n]: how many unit voxels changed exactly n times in (from_time, to_time], as uint64.")
+      .def("diff", &diffTimes, py::arg("t1"), py::arg("t2"), py::arg("mode") = "hard", py::arg("alpha") = -1.0,
            py::arg("neighbourhood_voxels") = 0, py::arg("min_shift_voxels") = 0.0,
-           "What changed from the state at t1_s to the state at t2_s: the diff of the two snapshots, visiting "
+           "What changed from the state at t1 to the state at t2 (epoch seconds or datetimes): the diff of the two snapshots, visiting "
            "only what changed in between. Settings as chronomap.diff.")
       .def("__len__", &TemporalMap::sessionCount)
       .def("__eq__", [](const TemporalMap& a, const TemporalMap& b) { return a == b; });

@@ -12,6 +12,17 @@ VoxelCentres occupiedCentres(const SessionMap& map) {
   return out;
 }
 
+FreeLeaves freeLeaves(const SessionMap& map) {
+  FreeLeaves out;
+  map.forEachLeaf([&](const LeafView& leaf) {
+    if (leaf.counters.state() != VoxelState::Free) return;
+    const double size = map.resolution_m() * static_cast<double>(1u << leaf.level);
+    out.centers_m.push_back(map.grid().cornerOf(leaf.key) + Eigen::Vector3d::Constant(0.5 * size));
+    out.sizes_m.push_back(size);
+  });
+  return out;
+}
+
 std::optional<Bounds> knownBounds(const SessionMap& map) {
   std::optional<Bounds> out;
   map.forEachLeaf([&](const LeafView& leaf) {

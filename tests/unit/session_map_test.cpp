@@ -65,6 +65,14 @@ TEST(SessionMap, OccupiedCentresAndKnownBounds) {
   ASSERT_TRUE(bounds);
   EXPECT_TRUE(bounds->min_m.isApprox(Eigen::Vector3d(-0.2, 0.0, 0.0)));
   EXPECT_TRUE(bounds->max_m.isApprox(Eigen::Vector3d(0.8, 0.8, 0.8)));
+  // The free leaves: the unit voxel, then the 4-voxel cube as one entry at its centre.
+  const FreeLeaves free = freeLeaves(m);
+  ASSERT_EQ(free.centers_m.size(), 2u);
+  ASSERT_EQ(free.sizes_m.size(), 2u);
+  EXPECT_TRUE(free.centers_m[0].isApprox(Eigen::Vector3d(-0.15, 0.05, 0.05)));
+  EXPECT_NEAR(free.sizes_m[0], 0.1, 1e-12);
+  EXPECT_TRUE(free.centers_m[1].isApprox(Eigen::Vector3d(0.6, 0.6, 0.6)));
+  EXPECT_NEAR(free.sizes_m[1], 0.4, 1e-12);
 }
 
 /// Property test: random updates in random batch orders equal a plain std::map reference.

@@ -22,6 +22,14 @@ struct VoxelCentres {
 /// The occupied unit voxels of `map` (compressed nodes are free, so never among them).
 VoxelCentres occupiedCentres(const SessionMap& map);
 
+/// Known-free leaves: unit voxels and compressed cubes, each once, with its edge length.
+struct FreeLeaves {
+  std::vector<Eigen::Vector3d> centers_m;  ///< centre of each leaf's cube
+  std::vector<double> sizes_m;             ///< edge length of each leaf's cube (resolution × 2^level)
+};
+/// The free leaves of `map`, in Morton order (a compressed cube is one entry, not its voxels).
+FreeLeaves freeLeaves(const SessionMap& map);
+
 /// The box of every known leaf (lower corner of the lowest, upper corner of the highest), in
 /// metres; nothing for an empty map.
 struct Bounds {

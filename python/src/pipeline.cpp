@@ -1,0 +1,165 @@
+// The workflows on 4D map files (pipeline::build, pipeline::addSession) and what the bindings
+// share for them: progress forwarded to Python, times as epoch seconds or datetimes.
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+
+#include "bindings.h"
+#include "chronomap/pipeline/map4d.h"
+
+namespace chronomap::python {
+
+pipeline::Progress ProgressForwarder::progress() {
+  pipeline::Progress p;
+  if (callback.is_none()) return p;
+  p.work = [this](const std::string& label, size_t done, size_t total) {
+    py::gil_scoped_acquire acquire;
+    if (raised) return;
+    try {
+      callback(label, done, total);
+    } catch (py::error_already_set& e) {
+      raised = std::make_shared<py::error_already_set>(std::move(e));
+    }
+  };
+  return p;
+}
+
+void ProgressForwarder::rethrow() const {
+  if (raised) throw *raised;
+}
+
+double toSeconds(const py::handle& time, const char* name) {
+  const py::module_ datetime = py::module_::import("datetime");
+  if (py::isinstance(time, datetime.attr("datetime"))) {
+    py::object t = py::reinterpret_borrow<py::object>(time);
+    if (t.attr("tzinfo").is_none()) t = t.attr("replace")(py::arg("tzinfo") = datetime.attr("timezone").attr("utc"));
+    return t.attr("timestamp")().cast<double>();
+  }
+  if (py::isinstance<py::bool_>(time) || !(py::isinstance<py::float_>(time) || py::isinstance<py::int_>(time) ||
+                                            py::hasattr(time, "__float__"))) {
+    std::string msg(name);
+    msg.append(": expected epoch seconds or a datetime.datetime, got ");
+    throw py::type_error(msg.append(py::str(py::type::handle_of(time).attr("__name__")).cast<std::string>()));
+  }
+  return time.cast<double>();
+}
+
+py::object toDatetime(double time_s) {
+  const py::module_ datetime = py::module_::import("datetime");
+  return datetime.attr("datetime").attr("fromtimestamp")(time_s, datetime.attr("timezone").attr("utc"));
+}
+
+namespace {
+
+py::dict builtSessionDict(const pipeline::BuiltSession& b) {
+  py::dict d;
+  d["dataset"] = b.dataset;
+  d["time_s"] = b.time_s;
+  d["points"] = b.points;
+  d["nodes_added"] = b.nodes_added;
+  d["nodes_separate"] = b.nodes_separate;
+  d["entries_added"] = b.report.entries_added;
+  d["entries_removed"] = b.report.entries_removed;
+  if (b.correction) {
+    const Eigen::Isometry3d& c = b.correction->motion;
+    d["registration_m"] = vector3Array(c.translation());
+  }
+  if (b.realigned_voxels) d["realigned_voxels"] = *b.realigned_voxels;
+  return d;
+}
+
+py::dict buildPy(const std::filesystem::path& map, const std::vector<std::filesystem::path>& datasets,
+                 const py::object& times, double resolution_m, bool fast, double max_range_m, int threads,
+                 const std::string& format, bool register_sessions, int registration_rounds, bool realign,
+                 bool replace, const py::object& progress) {
+  pipeline::BuildSettings settings;
+  settings.map = map;
+  settings.datasets = datasets;
+  if (!times.is_none()) {
+    for (const py::handle t : times) {
+      settings.times_s.push_back(t.is_none() ? std::nullopt : std::optional<double>(toSeconds(t, "times")));
+    }
+  }
+  settings.session.resolution_m = resolution_m;
+  settings.session.integrator.fast = fast;
+  settings.session.integrator.max_range_m = max_range_m;
+  settings.session.integrator.threads = threads;
+  settings.session.dataset.format = io::parseDatasetFormat(format);
+  if (register_sessions) {
+    pipeline::RegistrationSettings r;
+    r.rounds = registration_rounds;
+    settings.registration = r;
+  }
+  if (realign) settings.realign = RealignSettings{};
+  settings.replace = replace;
+  ProgressForwarder forwarder{progress, nullptr};
+  settings.progress = forwarder.progress();
+  pipeline::BuildResult result;
+  {
+    py::gil_scoped_release release;
+    result = pipeline::build(settings);
+  }
+  forwarder.rethrow();
+  py::dict d;
+  d["created"] = result.created;
+  d["sessions"] = result.sessions;
+  d["nodes"] = result.nodes;
+  d["file_bytes"] = result.file_bytes;
+  py::list added;
+  for (const auto& b : result.added) added.append(builtSessionDict(b));
+  d["added"] = added;
+  return d;
+}
+
+py::dict addSessionPy(const std::filesystem::path& map, const std::filesystem::path& session, const py::object& time,
+                      bool replace, const std::string& write, bool realign) {
+  pipeline::AddSessionSettings settings;
+  settings.map = map;
+  settings.session = session;
+  if (!time.is_none()) settings.time_s = toSeconds(time, "time");
+  settings.replace = replace;
+  settings.write = pipeline::parseWritePolicy(write);
+  if (realign) settings.realign = RealignSettings{};
+  pipeline::AddSessionResult r;
+  {
+    py::gil_scoped_release release;
+    r = pipeline::addSession(settings);
+  }
+  py::dict d;
+  d["created"] = r.created;
+  d["appended"] = r.appended;
+  d["time_s"] = r.time_s;
+  d["entries_added"] = r.report.entries_added;
+  d["entries_removed"] = r.report.entries_removed;
+  d["nodes_added"] = r.nodes_added;
+  d["record_bytes"] = r.record_bytes;
+  if (r.realigned_voxels) d["realigned_voxels"] = *r.realigned_voxels;
+  d["sessions"] = r.sessions;
+  d["nodes"] = r.nodes;
+  d["file_bytes"] = r.file_bytes;
+  return d;
+}
+
+}  // namespace
+
+void bindPipeline(py::module_& m) {
+  m.def("build", &buildPy, py::arg("map"), py::arg("datasets"), py::arg("times") = py::none(),
+        py::arg("resolution_m") = 0.05, py::arg("fast") = false, py::arg("max_range_m") = 3.0, py::arg("threads") = 0,
+        py::arg("format") = "auto", py::arg("register") = false, py::arg("registration_rounds") = 3,
+        py::arg("realign") = false, py::arg("replace") = false, py::arg("progress") = py::none(),
+        "Builds or extends the 4D map file `map` from recordings, one session each, as `chronomap build` "
+        "does: integrated, ordered by time, registered to their consensus (register=True) and re-aligned "
+        "(realign=True) when asked, added and written once, atomically. `times`: one per dataset (epoch "
+        "seconds, datetime, or None for the dataset's own first timestamp), or None. `progress(label, done, "
+        "total)` is called as work advances. Returns a summary dict with one entry per added session.");
+  m.def("add_session", &addSessionPy, py::arg("map"), py::arg("session"), py::arg("time") = py::none(),
+        py::arg("replace") = false, py::arg("write") = "auto", py::arg("realign") = false,
+        "Adds the session map file `session` to the 4D map file `map` (created when missing), as `chronomap "
+        "add` does: appended or rewritten (`write`: 'auto', 'append', 'rewrite'), under the map's file "
+        "lock. `time`: epoch seconds or datetime; default the time the session file records.");
+}
+
+}  // namespace chronomap::python

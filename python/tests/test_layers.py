@@ -1,0 +1,96 @@
+"""Voxel queries (probability, counters, free leaves), times as datetimes and the change layers,
+on synthetic scenes with known answers."""
+
+import datetime
+
+import numpy as np
+import pytest
+
+import chronomap
+from scenes import RESOLUTION_M, session
+
+BOX = [0.01, 0.01, 1.525]      # inside a voxel of the box face
+WALL = [0.5, 0.5, 2.025]         # a voxel of the wall, seen in both sessions
+AIR = [0.01, 0.01, 1.01]       # between the sensor and the box, inside a voxel: free
+OUTSIDE = [0.0, 0.0, -5.0]       # behind the sensor: never observed
+
+
+@pytest.fixture(scope="module")
+def before():
+    return session(with_box=False)
+
+
+@pytest.fixture(scope="module")
+def after():
+    return session(with_box=True)
+
+
+def test_probability_and_counters_agree_with_the_counters_definition(after):
+    probes = np.array([BOX, AIR, OUTSIDE, [1e9, 0, 0]])
+    p = after.probability(probes)
+    assert p.dtype == np.float64 and p.shape == (4,)
+    c = after.counters(probes)
+    assert c["hits"].dtype == np.uint32 and c["length_m"].dtype == np.float32
+    assert c["mean_color"].shape == (4, 3) and c["mean_offset_voxels"].shape == (4, 3)
+    # P = 1 - exp(-hits / length), for every observed voxel.
+    expected = 1.0 - np.exp(-c["hits"][:2].astype(np.float64) / c["length_m"][:2].astype(np.float64))
+    assert np.allclose(p[:2], expected)
+    assert p[0] > 0.5 and c["hits"][0] > 0 and c["state"][0] == chronomap.OCCUPIED
+    assert p[1] < 0.5 and c["hits"][1] == 0 and c["length_m"][1] > 0 and c["state"][1] == chronomap.FREE
+    assert np.isnan(p[2:]).all() and (c["state"][2:] == chronomap.UNKNOWN).all() and (c["hits"][2:] == 0).all()
+    assert (np.abs(c["mean_offset_voxels"]) <= 0.5).all()
+    assert (after.state(probes) == c["state"]).all()
+
+
+def test_free_leaves_cover_exactly_the_free_space(after):
+    centers, sizes = after.free_centers()
+    assert centers.shape == (len(sizes), 3) and sizes.dtype == np.float64 and len(sizes) > 0
+    levels = np.log2(sizes / RESOLUTION_M)
+    assert np.allclose(levels, np.round(levels)) and (levels >= 0).all()
+    assert (sizes > RESOLUTION_M).any(), "free space is compressed into larger cubes"
+    # Every leaf centre is free, and the unit voxels of every leaf add up to the free count.
+    assert (after.state(centers) == chronomap.FREE).all()
+    assert int(np.round(((sizes / RESOLUTION_M) ** 3).sum())) == after.counts()["free_voxels"]
+    # A free voxel lies inside exactly one leaf; an occupied one in none.
+    def covering(point):
+        return (np.abs(centers - np.asarray(point)) <= sizes[:, None] / 2 + 1e-9).all(axis=1).sum()
+    assert covering(AIR) == 1 and covering(BOX) == 0
+
+
+def test_times_as_datetimes(before, after):
+    m = chronomap.TemporalMap(RESOLUTION_M)
+    t1 = datetime.datetime(2026, 3, 2, 8, 30, tzinfo=datetime.timezone.utc)
+    m.add(before, t1)
+    m.add(after, datetime.datetime(2026, 3, 2, 20, 30))  # naive: UTC
+    assert list(m.times_s) == [t1.timestamp(), t1.timestamp() + 12 * 3600]
+    assert m.times == [t1, t1 + datetime.timedelta(hours=12)]
+    assert m.times[0].tzinfo is not None
+    noon = datetime.datetime(2026, 3, 2, 12, 0, tzinfo=datetime.timezone.utc)
+    assert m.snapshot(noon) == m.snapshot(noon.timestamp())
+    assert np.array_equal(m.snapshot(noon).occupied_centers(), before.occupied_centers())
+    assert m.diff(t1, m.times[1]).voxel_count(chronomap.APPEARED) == 64
+    with pytest.raises(TypeError, match="time"):
+        m.snapshot("yesterday")
+    with pytest.raises(TypeError, match="time"):
+        m.snapshot(True)
+
+
+def test_change_counts_on_a_box_that_comes_and_goes(before, after):
+    m = chronomap.TemporalMap(RESOLUTION_M)
+    for i, s in enumerate([before, after, before, after, before]):
+        m.add(s, 100.0 * (i + 1))
+    centers, counts = m.change_counts()
+    assert counts.dtype == np.uint32 and centers.shape == (len(counts), 3)
+    box = np.abs(centers - BOX).max(axis=1) < 0.2
+    # The 64 box voxels changed four times (free, occupied, free, occupied, free).
+    assert box.sum() == 64 and (counts[box] == 4).all()
+    hist = m.change_histogram()
+    assert hist.dtype == np.uint64 and hist[4] >= 64 and hist[0] == 0
+    assert int(hist.sum()) == len(counts)
+    # A window (150, 350] holds two of the box's changes; min_changes filters.
+    c2, n2 = m.change_counts(150.0, 350.0, min_changes=2)
+    assert len(n2) >= 64 and (n2 >= 2).all()
+    _, n3 = m.change_counts(150.0, 350.0, min_changes=3)
+    assert len(n3) == 0
+    with pytest.raises(chronomap.UsageError):
+        m.change_counts(min_changes=0)
