@@ -3,7 +3,8 @@
 set -euo pipefail
 packages=(build-essential cmake pkg-config libeigen3-dev libtbb-dev libcli11-dev nlohmann-json3-dev
           libpng-dev libjpeg62-turbo-dev zlib1g-dev libbz2-dev libzstd-dev liblzf-dev liboctomap-dev libgtest-dev
-          libbenchmark-dev pybind11-dev python3-dev python3-numpy python3-pytest python3-open3d python3-matplotlib)
+          libbenchmark-dev pybind11-dev python3-dev python3-numpy python3-pytest python3-open3d python3-matplotlib
+          python3-pip python3-venv)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
