@@ -116,8 +116,10 @@ Command addSimulate(CLI::App& root) {
       "Simulate a building recorded many times by a patrolling robot, with ground truth: one TUM RGB-D "
       "folder per session, the true occupancy and objects per session, and every change event.\n"
       "Presets: tiny (one room, 3 sessions), office (a corridor and three rooms, 6 sessions), floor66 "
-      "(40 x 20 m, 16 rooms, 66 sessions over about 45 days).");
-  app->add_option("--preset", o->settings.preset, "tiny, office or floor66")->capture_default_str();
+      "(40 x 20 m, 16 rooms, 66 sessions over about 45 days), weeks (the office on a clock: doors, people, "
+      "meetings, lunch and cleaning follow a weekly schedule with exceptions, kept in scene.json; 56 sessions, "
+      "two a day at any hour for four weeks).");
+  app->add_option("--preset", o->settings.preset, "tiny, office, floor66 or weeks")->capture_default_str();
   app->add_option("-o,--output", o->output, "folder to write")->required();
   app->add_option("--seed", o->settings.seed, "random seed (same seed, same bytes)")
       ->check(numberIn(0, 1e19))

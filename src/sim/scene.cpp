@@ -194,13 +194,15 @@ const char* toString(ObjectKind kind) {
     case ObjectKind::Box: return "box";
     case ObjectKind::Person: return "person";
     case ObjectKind::Robot: return "robot";
+    case ObjectKind::Cart: return "cart";
   }
   return "unknown";
 }
 
 ObjectKind parseObjectKind(const std::string& name) {
   for (ObjectKind k : {ObjectKind::Floor, ObjectKind::Wall, ObjectKind::Door, ObjectKind::Desk, ObjectKind::Chair,
-                       ObjectKind::Shelf, ObjectKind::Table, ObjectKind::Box, ObjectKind::Person, ObjectKind::Robot}) {
+                       ObjectKind::Shelf, ObjectKind::Table, ObjectKind::Box, ObjectKind::Person, ObjectKind::Robot,
+                       ObjectKind::Cart}) {
     if (name == toString(k)) return k;
   }
   throw FormatError("unknown object kind '" + name + "'");
@@ -242,7 +244,7 @@ SceneState makeScene(const std::string& preset, uint64_t seed) {
     Object& door = b.add(ObjectKind::Door, 0, {solid({1.5, -0.08, 0.0}, {2.5, -0.02, kDoorHeight}, Rgb{120, 80, 50})});
     b.s.rooms[0].door_object = door.id;
     furnish(b, 0, rng);
-  } else if (preset == "office" || preset == "floor66") {
+  } else if (preset == "office" || preset == "floor66" || preset == "weeks") {
     const bool big = preset == "floor66";
     const double length = big ? 40.0 : 12.0, depth = big ? 8.9 : 5.0, width = big ? 5.0 : 4.0;
     const int per_side = static_cast<int>(length / width);
@@ -299,11 +301,27 @@ SceneState makeScene(const std::string& preset, uint64_t seed) {
       }
     }
   } else {
-    throw UsageError("unknown simulator preset '" + preset + "' (use tiny, office or floor66)");
+    throw UsageError("unknown simulator preset '" + preset + "' (use tiny, office, floor66 or weeks)");
+  }
+  if (preset == "weeks") {
+    // The people and the cart of the routines, at home and absent; applySchedule() places them.
+    for (size_t r = 1; r < b.s.rooms.size(); ++r) {
+      const Room& room = b.s.rooms[r];
+      if (room.name != "office" && room.name != "kitchen") continue;
+      const Eigen::Vector2d spot = room.name == "office" ? Eigen::Vector2d(room.area.max().x() - 0.6, room.inside_m.y() + 0.9)
+                                                         : Eigen::Vector2d(room.area.min().x() + 0.6, room.inside_m.y() + 0.9);
+      b.add(ObjectKind::Person, static_cast<int>(r), personAt(spot.x(), spot.y(), rng)).present = false;
+    }
+    const Room& corridor = b.s.rooms[0];
+    const double y = corridor.area.min().y() + 0.35;
+    b.add(ObjectKind::Cart, 0,
+          {solid({0.6, y - 0.25, 0.0}, {1.5, y + 0.25, 0.95}, Rgb{40, 90, 170}),
+           solid({0.6, y - 0.25, 0.95}, {0.7, y + 0.25, 1.1}, Rgb{60, 60, 60})})
+        .present = false;
   }
   // Most doors stand open at first.
   for (Object& o : b.s.objects) {
-    if (o.kind == ObjectKind::Door) o.present = rng.chance(0.3);
+    if (o.kind == ObjectKind::Door) o.present = preset == "weeks" || rng.chance(0.3);  // weeks: shut at home
   }
   // A person and a robot that visit in some sessions; absent at first.
   Object& person = b.add(ObjectKind::Person, -1, personAt(0, 0, rng));

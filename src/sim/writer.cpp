@@ -39,6 +39,7 @@ struct PresetPlan {
 PresetPlan presetPlan(const std::string& preset) {
   if (preset == "tiny") return {3, 2};
   if (preset == "office") return {6, 4};
+  if (preset == "weeks") return {56, 28};
   return {66, 45};
 }
 
@@ -106,11 +107,19 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
                                                   static_cast<size_t>(settings.threads));
   }
 
-  // Session times: 2 or 3 sessions on a recording day, at different hours, a day or two apart.
+  // Session times: 2 or 3 sessions on a recording day, at different hours, a day or two apart;
+  // for the rhythmic building ("weeks"), two a day every day from its first Monday, one in the
+  // morning half of the day and one in the evening half, at any hour, nights included.
   Rng time_rng(mix(settings.seed, 77));
   std::vector<double> times, hours;
-  const double start = 1330560000.0;  // 2012-03-01T00:00:00Z
+  const bool rhythmic = settings.preset == "weeks";
+  const double start = rhythmic ? kScheduleStart_s : 1330560000.0;  // 2012-03-05 / 2012-03-01 00:00 UTC
   double day = 0.0;
+  while (rhythmic && static_cast<int>(times.size()) < sessions) {
+    const double h = time_rng.uniform(0.0, 12.0) + (times.size() % 2 == 1 ? 12.0 : 0.0);
+    hours.push_back(h);
+    times.push_back(start + 86400.0 * static_cast<double>(times.size() / 2) + 3600.0 * h);
+  }
   while (static_cast<int>(times.size()) < sessions) {
     static constexpr double kHours[] = {9.0, 11.5, 14.0, 16.5, 19.0};
     const int today = settings.preset == "tiny" ? 1 : 2 + (time_rng.chance(0.5) ? 1 : 0);
@@ -127,12 +136,19 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
   nlohmann::json sessions_json = nlohmann::json::array(), events_json = nlohmann::json::array();
   std::vector<VoxelKey> previous_truth;
   SceneState previous_state;
+  const SceneState home = state;
   for (int s = 0; s < sessions; ++s) {
-    std::vector<std::pair<uint32_t, EventKind>> changes;
-    if (s > 0) changes = applyChanges(state, settings.seed, s);
+    // Each change with its cause: a routine of the schedule, or the random processes.
+    std::vector<ScheduledChange> changes;
+    if (rhythmic) {
+      changes = applySchedule(state, home, settings.seed, times[static_cast<size_t>(s)]);
+      if (s == 0) changes.clear();  // the first session's state is where the history starts
+    } else if (s > 0) {
+      for (const auto& [id, kind] : applyChanges(state, settings.seed, s)) changes.push_back({id, kind, {}});
+    }
     const std::vector<VoxelKey> truth = truthOccupancy(state, grid);
     // Change events with the truth voxels each one changes.
-    for (const auto& [id, kind] : changes) {
+    for (const auto& [id, kind, routine] : changes) {
       ChangeEvent e = detail::changeEvent(id, kind, previous_state, state, previous_truth, truth, grid);
       e.from_session = static_cast<uint32_t>(s - 1);
       if (e.voxels.empty()) continue;  // hidden by other objects: nothing a map could see
@@ -143,6 +159,8 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
                              {"object", e.object},
                              {"object_kind", toString(e.object_kind)},
                              {"kind", toString(e.kind)},
+                             {"cause", rhythmic ? "routine" : "random"},
+                             {"routine", routine},
                              {"voxel_count", e.voxels.size()},
                              {"voxels", voxels}});
       ++summary.events;
@@ -206,6 +224,7 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
                              {"hour", hours[static_cast<size_t>(s)]},
                              {"frames", frames},
                              {"changes", changes.size()},
+                             {"weekday", static_cast<int>(std::floor((times[static_cast<size_t>(s)] - kScheduleStart_s) / 86400.0 + 700.0)) % 7},
                              {"localisation_offset", {patrol.offset_x_m, patrol.offset_y_m, offset_yaw_deg}}});
     summary.session_dirs.push_back(out / name);
     summary.times_s.push_back(times[static_cast<size_t>(s)]);
@@ -236,6 +255,27 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
                           {"rooms", nlohmann::json::array()},
                           {"sessions", sessions_json},
                           {"events", events_json}};
+  if (rhythmic) {
+    // The true schedule: every routine with its rule and objects, and each day's exceptions.
+    nlohmann::json routines = nlohmann::json::array(), days = nlohmann::json::array();
+    for (const Routine& r : routinesOf(home)) {
+      routines.push_back({{"name", r.name}, {"rule", r.rule}, {"objects", r.objects}});
+    }
+    const int last_day = static_cast<int>((times.back() - kScheduleStart_s) / 86400.0);
+    for (int d = 0; d <= last_day; ++d) {
+      const ScheduleDay day_exceptions = scheduleDay(settings.seed, d);
+      days.push_back({{"day", d},
+                      {"date", formatTime(kScheduleStart_s + 86400.0 * d).substr(0, 10)},
+                      {"weekday", day_exceptions.weekday},
+                      {"worker_away", day_exceptions.worker_away},
+                      {"weekend_visit", day_exceptions.weekend_visit},
+                      {"meeting_cancelled", day_exceptions.meeting_cancelled}});
+    }
+    scene["schedule"] = {{"start", formatTime(kScheduleStart_s)},
+                         {"clock", "UTC"},
+                         {"routines", routines},
+                         {"days", days}};
+  }
   for (const Room& r : state.rooms) {
     scene["rooms"].push_back({{"name", r.name},
                               {"min", {r.area.min().x(), r.area.min().y()}},

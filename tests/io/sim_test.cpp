@@ -3,6 +3,7 @@
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <map>
 #include <set>
 
 #include "chronomap/core/error.h"
@@ -12,6 +13,7 @@
 #include "chronomap/io/file.h"
 #include "chronomap/sim/building.h"
 #include "chronomap/sim/change_truth.h"
+#include "sim/internal.h"
 #include "test_support.h"
 
 namespace chronomap {
@@ -171,6 +173,61 @@ TEST(Simulator, ChangeEventsShowInTheTruth) {
     EXPECT_EQ(toString(events[i].kind), e["kind"].get<std::string>());
     EXPECT_EQ(events[i].voxels.size(), e["voxel_count"].get<size_t>());
   }
+}
+
+TEST(Simulator, TheWeeksPresetFollowsItsScheduleAndSaysSo) {
+  test::TempDir tmp;
+  sim::SimulationSettings s;
+  s.preset = "weeks";
+  s.sessions = 14;  // the first week
+  s.resolution_scale = 0.1;
+  const sim::SimulationSummary summary = sim::simulate(s, tmp.path());
+  const auto scene = nlohmann::json::parse(io::readTextFile(tmp / "scene.json"));
+  ASSERT_EQ(scene["sessions"].size(), 14u);
+  // Two sessions a day from the first Monday, one before noon and one after.
+  for (size_t i = 0; i < 14; ++i) {
+    const double t = summary.times_s[i];
+    EXPECT_EQ(static_cast<int>((t - sim::kScheduleStart_s) / 86400.0), static_cast<int>(i / 2));
+    EXPECT_EQ(summary.hours[i] >= 12.0, i % 2 == 1);
+    EXPECT_EQ(scene["sessions"][i]["weekday"].get<int>(), static_cast<int>(i / 2) % 7);
+  }
+  // The true schedule: seven routines with their objects, and each day's exceptions.
+  const auto& schedule = scene["schedule"];
+  ASSERT_EQ(schedule["routines"].size(), 7u);
+  ASSERT_EQ(schedule["days"].size(), 7u);
+  std::map<uint32_t, std::string> routine_of;
+  for (const auto& r : schedule["routines"]) {
+    EXPECT_FALSE(r["rule"].get<std::string>().empty());
+    for (const auto& id : r["objects"]) routine_of[id.get<uint32_t>()] = r["name"];
+  }
+  for (int d = 0; d < 7; ++d) {
+    EXPECT_EQ(schedule["days"][d]["worker_away"].get<bool>(), sim::scheduleDay(s.seed, d).worker_away);
+  }
+  // Every change is a routine's, on one of that routine's objects; the true state of every
+  // session is the schedule's at its time.
+  ASSERT_FALSE(scene["events"].empty());
+  for (const auto& e : scene["events"]) {
+    EXPECT_EQ(e["cause"], "routine");
+    EXPECT_EQ(routine_of.at(e["object"].get<uint32_t>()), e["routine"]);
+  }
+  const sim::SceneState home = sim::makeScene("weeks", s.seed);
+  for (size_t i = 0; i < 14; i += 5) {
+    sim::SceneState state = home;
+    sim::applySchedule(state, home, s.seed, summary.times_s[i]);
+    char name[64];
+    std::snprintf(name, sizeof name, "occupancy_%02zu.cmap", i);
+    EXPECT_EQ(io::readSessionMap(tmp / "truth" / name), sim::detail::truthMap(sim::truthOccupancy(state, KeyGrid(0.05)),
+                                                                      KeyGrid(0.05)))
+        << "session " << i;
+  }
+  // Other presets' changes are random.
+  test::TempDir office;
+  s.preset = "office";
+  s.sessions = 3;
+  sim::simulate(s, office.path());
+  const auto office_scene = nlohmann::json::parse(io::readTextFile(office / "scene.json"));
+  EXPECT_FALSE(office_scene.contains("schedule"));
+  for (const auto& e : office_scene["events"]) EXPECT_EQ(e["cause"], "random");
 }
 
 TEST(Simulator, TinySessionWithTruePosesMatchesTheTruth) {

@@ -18,7 +18,8 @@
 namespace chronomap::sim {
 
 /// Settings of a simulation. Presets: "tiny" (one room), "office" (three rooms and a corridor,
-/// the demo), "floor66" (40 x 20 m, 16 rooms, 66 sessions over 45 days).
+/// the demo), "floor66" (40 x 20 m, 16 rooms, 66 sessions over 45 days), "weeks" (the office
+/// on a weekly schedule, 56 sessions at all hours over four weeks; see applySchedule()).
 struct SimulationSettings {
   std::string preset = "office";
   uint64_t seed = 1;

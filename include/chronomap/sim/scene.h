@@ -17,7 +17,7 @@
 namespace chronomap::sim {
 
 /// What an object is; change processes act by kind.
-enum class ObjectKind : uint8_t { Floor, Wall, Door, Desk, Chair, Shelf, Table, Box, Person, Robot };
+enum class ObjectKind : uint8_t { Floor, Wall, Door, Desk, Chair, Shelf, Table, Box, Person, Robot, Cart };
 /// "floor", "wall", "door", ...
 const char* toString(ObjectKind kind);
 /// The kind toString() names. @throw FormatError for an unknown name.
@@ -70,6 +70,37 @@ struct ChangeEvent {
   EventKind kind = EventKind::Moved;
   std::vector<VoxelKey> voxels;  ///< truth voxels whose occupancy differs because of it
 };
+
+/// A routine of the rhythmic building (preset "weeks"): objects whose state follows the clock.
+struct Routine {
+  std::string name;               ///< "office door", "office worker", "meetings", "lunch", "cleaning", ...
+  std::string rule;               ///< when, in words (scene.json states it)
+  std::vector<uint32_t> objects;  ///< the objects it moves, opens or brings
+};
+/// The day-level exceptions of the rhythmic building's schedule, day 0 being the first Monday.
+struct ScheduleDay {
+  int weekday = 0;                 ///< 0 Monday .. 6 Sunday
+  bool worker_away = false;        ///< a weekday the office worker does not come (door stays shut)
+  bool weekend_visit = false;      ///< a weekend day the worker comes in from 10:00 to 14:00
+  bool meeting_cancelled = false;  ///< the day's meeting does not take place
+};
+/// Midnight (UTC) of the rhythmic building's first day, a Monday: 2012-03-05.
+inline constexpr double kScheduleStart_s = 1330905600.0;
+/// The exceptions of day `day` (from kScheduleStart_s) for `seed`.
+ScheduleDay scheduleDay(uint64_t seed, int day);
+/// The routines of a "weeks" scene (its first state, from makeScene); empty for other presets.
+std::vector<Routine> routinesOf(const SceneState& home);
+/// One object's change between two states and the routine that made it.
+struct ScheduledChange {
+  uint32_t object = 0;
+  EventKind kind = EventKind::Moved;
+  std::string routine;
+};
+/// Sets `state` to the rhythmic building's true state at `time_s`: every routine object placed
+/// from `home` (makeScene("weeks", seed)) by the clock and the day's exceptions, everything else
+/// as at home. Returns the objects that differ from what `state` held before, with the routine
+/// responsible.
+std::vector<ScheduledChange> applySchedule(SceneState& state, const SceneState& home, uint64_t seed, double time_s);
 
 /// The building of a preset in its first session's state.
 /// @throw UsageError for an unknown preset.

@@ -1,0 +1,213 @@
+// The rhythmic building (preset "weeks"): every routine object's state as a function of the
+// clock and of the day's exceptions, and the routines as scene.json states them.
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <string>
+
+#include "chronomap/sim/scene.h"
+#include "internal.h"
+
+namespace chronomap::sim {
+
+namespace {
+
+using detail::centerOf;
+using detail::mix;
+using detail::Rng;
+
+int roomIndex(const SceneState& s, const std::string& name) {
+  for (size_t i = 0; i < s.rooms.size(); ++i) {
+    if (s.rooms[i].name == name) return static_cast<int>(i);
+  }
+  return -2;
+}
+
+/// The routine objects of a "weeks" scene, found by room and kind.
+struct WeeksObjects {
+  uint32_t office_door = 0, kitchen_door = 0, meeting_door = 0;
+  std::vector<uint32_t> office_chairs, meeting_chairs, kitchen_chairs;
+  uint32_t worker = 0, cook = 0, cart = 0;
+  bool found = false;
+};
+
+WeeksObjects weeksObjects(const SceneState& home) {
+  WeeksObjects w;
+  const int office = roomIndex(home, "office"), kitchen = roomIndex(home, "kitchen"),
+            meeting = roomIndex(home, "meeting room");
+  bool worker = false, cook = false, cart = false;
+  for (const Object& o : home.objects) {
+    if (o.kind == ObjectKind::Door) {
+      if (o.room == office) w.office_door = o.id;
+      if (o.room == kitchen) w.kitchen_door = o.id;
+      if (o.room == meeting) w.meeting_door = o.id;
+    } else if (o.kind == ObjectKind::Chair) {
+      if (o.room == office) w.office_chairs.push_back(o.id);
+      if (o.room == kitchen) w.kitchen_chairs.push_back(o.id);
+      if (o.room == meeting) w.meeting_chairs.push_back(o.id);
+    } else if (o.kind == ObjectKind::Person && o.room == office) {
+      w.worker = o.id;
+      worker = true;
+    } else if (o.kind == ObjectKind::Person && o.room == kitchen) {
+      w.cook = o.id;
+      cook = true;
+    } else if (o.kind == ObjectKind::Cart) {
+      w.cart = o.id;
+      cart = true;
+    }
+  }
+  w.found = worker && cook && cart && office >= 0 && kitchen >= 0 && meeting >= 0;
+  return w;
+}
+
+void translate(Object& o, const Eigen::Vector3d& d) {
+  for (Part& p : o.parts) p.box.translate(d);
+}
+
+/// Moves `o` (at home in `home_o`) by `d` from its home position.
+void placeFromHome(Object& o, const Object& home_o, const Eigen::Vector2d& d) {
+  o.parts = home_o.parts;
+  translate(o, Eigen::Vector3d(d.x(), d.y(), 0.0));
+}
+
+/// The unit direction in which a chair is pulled out: away from the table or desk it faces.
+Eigen::Vector2d pullDirection(const Object& chair, const SceneState& home, ObjectKind furniture) {
+  const Eigen::Vector2d c = centerOf(chair);
+  double best = 1e9;
+  Eigen::Vector2d dir(0.0, 1.0);
+  for (const Object& o : home.objects) {
+    if (o.kind != furniture || o.room != chair.room) continue;
+    const Eigen::Vector2d d = c - centerOf(o);
+    if (d.norm() < best) {
+      best = d.norm();
+      // Along y unless clearly along x: a corner chair (a tie) is pulled away from the long side.
+      const bool along_y = std::abs(d.y()) + 0.1 >= std::abs(d.x());
+      dir = along_y ? Eigen::Vector2d(0.0, d.y() > 0 ? 1.0 : -1.0) : Eigen::Vector2d(d.x() > 0 ? 1.0 : -1.0, 0.0);
+    }
+  }
+  return dir;
+}
+
+bool between(double h, double from, double to) { return h >= from && h < to; }
+
+}  // namespace
+
+ScheduleDay scheduleDay(uint64_t seed, int day) {
+  ScheduleDay d;
+  d.weekday = ((day % 7) + 7) % 7;
+  Rng rng(mix(seed, 9100 + static_cast<uint64_t>(day + 100000)));
+  const bool weekday = d.weekday < 5;
+  d.worker_away = weekday && rng.chance(0.15);
+  d.weekend_visit = !weekday && rng.chance(0.2);
+  d.meeting_cancelled = rng.chance(0.15);
+  return d;
+}
+
+std::vector<Routine> routinesOf(const SceneState& home) {
+  const WeeksObjects w = weeksObjects(home);
+  if (!w.found) return {};
+  std::vector<uint32_t> office_things = w.office_chairs;
+  office_things.push_back(w.worker);
+  std::vector<uint32_t> lunch = w.kitchen_chairs;
+  lunch.push_back(w.cook);
+  return {
+      {"office door", "open on weekdays 08:00-18:00 unless the worker is away, and 10:00-14:00 on weekend visits; "
+                      "closed otherwise",
+       {w.office_door}},
+      {"office worker", "at the desk with the chair pulled out on weekdays 09:00-17:00 unless away, and 10:00-14:00 "
+                        "on weekend visits",
+       office_things},
+      {"kitchen door", "open every day 07:00-22:00, closed at night", {w.kitchen_door}},
+      {"meeting-room door", "open on weekdays 08:00-18:00, closed otherwise", {w.meeting_door}},
+      {"meetings", "chairs pulled out from the table on Mondays and Wednesdays 10:00-11:30 and Tuesdays and "
+                   "Thursdays 14:00-15:30, unless cancelled",
+       w.meeting_chairs},
+      {"lunch", "a person in the kitchen and its chairs pulled out on weekdays 12:00-13:30", lunch},
+      {"cleaning", "a cleaning cart moving along the corridor on weekdays 19:00-20:30", {w.cart}},
+  };
+}
+
+std::vector<ScheduledChange> applySchedule(SceneState& state, const SceneState& home, uint64_t seed, double time_s) {
+  const WeeksObjects w = weeksObjects(home);
+  if (!w.found) return {};
+  const double since = time_s - kScheduleStart_s;
+  const int day = static_cast<int>(std::floor(since / 86400.0));
+  const double h = (since - 86400.0 * day) / 3600.0;
+  const ScheduleDay d = scheduleDay(seed, day);
+  const bool weekday = d.weekday < 5;
+  const bool worker_in = (weekday && !d.worker_away && between(h, 9.0, 17.0)) || (d.weekend_visit && between(h, 10.0, 14.0));
+  const bool office_open =
+      (weekday && !d.worker_away && between(h, 8.0, 18.0)) || (d.weekend_visit && between(h, 10.0, 14.0));
+  const bool meeting = weekday && !d.meeting_cancelled &&
+                       (((d.weekday == 0 || d.weekday == 2) && between(h, 10.0, 11.5)) ||
+                        ((d.weekday == 1 || d.weekday == 3) && between(h, 14.0, 15.5)));
+  const bool lunch = weekday && between(h, 12.0, 13.5);
+  const bool cleaning = weekday && between(h, 19.0, 20.5);
+
+  // Which routine each object follows, for naming the changes.
+  std::map<uint32_t, std::string> routine_of;
+  for (const Routine& r : routinesOf(home)) {
+    for (uint32_t id : r.objects) routine_of[id] = r.name;
+  }
+  // Before: presence and position of every object, by id.
+  std::map<uint32_t, std::pair<bool, Eigen::Vector2d>> before;
+  for (const Object& o : state.objects) before[o.id] = {o.present, centerOf(o)};
+
+  SceneState next = home;
+  Rng jitter(mix(seed, 9300 + static_cast<uint64_t>(day + 100000)));
+  for (size_t i = 0; i < next.objects.size(); ++i) {
+    Object& o = next.objects[i];
+    const Object& at_home = home.objects[i];
+    if (o.id == w.office_door) o.present = !office_open;  // a door present is a closed door
+    if (o.id == w.kitchen_door) o.present = !between(h, 7.0, 22.0);
+    if (o.id == w.meeting_door) o.present = !(weekday && between(h, 8.0, 18.0));
+    if (o.id == w.worker) o.present = worker_in;
+    if (o.id == w.cook) o.present = lunch;
+    const bool office_chair = std::find(w.office_chairs.begin(), w.office_chairs.end(), o.id) != w.office_chairs.end();
+    const bool kitchen_chair = std::find(w.kitchen_chairs.begin(), w.kitchen_chairs.end(), o.id) != w.kitchen_chairs.end();
+    const bool meeting_chair = std::find(w.meeting_chairs.begin(), w.meeting_chairs.end(), o.id) != w.meeting_chairs.end();
+    if (office_chair && worker_in) placeFromHome(o, at_home, 0.35 * pullDirection(at_home, home, ObjectKind::Desk));
+    if (kitchen_chair && lunch) placeFromHome(o, at_home, 0.3 * pullDirection(at_home, home, ObjectKind::Table));
+    if (meeting_chair) {
+      // Each meeting leaves the chairs a little differently: a sideways jitter drawn per day.
+      const double side = jitter.uniform(-0.12, 0.12);
+      if (meeting) {
+        placeFromHome(o, at_home, 0.4 * pullDirection(at_home, home, ObjectKind::Table) + Eigen::Vector2d(side, 0.0));
+      }
+    }
+    if (o.id == w.cart) {
+      o.present = cleaning;
+      if (cleaning) {
+        const Room& corridor = home.rooms[0];
+        const double along = (h - 19.0) / 1.5 * (corridor.area.sizes().x() - 2.5);
+        placeFromHome(o, at_home, Eigen::Vector2d(along, 0.0));
+      }
+    }
+  }
+  std::vector<ScheduledChange> changes;
+  for (const Object& o : next.objects) {
+    const auto it = before.find(o.id);
+    if (it == before.end()) continue;
+    const auto [was_present, was_at] = it->second;
+    ScheduledChange c;
+    c.object = o.id;
+    const auto r = routine_of.find(o.id);
+    c.routine = r == routine_of.end() ? std::string() : r->second;
+    if (o.kind == ObjectKind::Door) {
+      if (o.present == was_present) continue;
+      c.kind = o.present ? EventKind::DoorClosed : EventKind::DoorOpened;
+    } else if (o.present != was_present) {
+      c.kind = o.present ? EventKind::Appeared : EventKind::Left;
+    } else if (o.present && (centerOf(o) - was_at).norm() > 0.01) {
+      c.kind = EventKind::Moved;
+    } else {
+      continue;
+    }
+    changes.push_back(c);
+  }
+  state = std::move(next);
+  return changes;
+}
+
+}  // namespace chronomap::sim

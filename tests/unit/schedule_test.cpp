@@ -1,0 +1,170 @@
+// The rhythmic building's schedule (preset "weeks"): known states at known times.
+#include <gtest/gtest.h>
+
+#include <map>
+#include <set>
+#include <string>
+
+#include "chronomap/sim/scene.h"
+#include "sim/internal.h"
+
+namespace chronomap::sim {
+namespace {
+
+constexpr uint64_t kSeed = 1;
+
+/// The time `hour` o'clock (UTC) on day `day` of the schedule.
+double at(int day, double hour) { return kScheduleStart_s + 86400.0 * day + 3600.0 * hour; }
+
+/// The routine objects by routine name.
+std::map<std::string, std::vector<uint32_t>> routines(const SceneState& home) {
+  std::map<std::string, std::vector<uint32_t>> out;
+  for (const Routine& r : routinesOf(home)) out[r.name] = r.objects;
+  return out;
+}
+
+const Object& object(const SceneState& s, uint32_t id) {
+  for (const Object& o : s.objects) {
+    if (o.id == id) return o;
+  }
+  throw std::runtime_error("no object " + std::to_string(id));
+}
+
+/// The first day from `from` whose exceptions satisfy `pred`.
+template <class Pred>
+int firstDay(int from, Pred pred) {
+  for (int d = from; d < from + 400; ++d) {
+    if (pred(scheduleDay(kSeed, d))) return d;
+  }
+  throw std::runtime_error("no such day");
+}
+
+TEST(Schedule, OnlyTheWeeksPresetHasRoutines) {
+  EXPECT_TRUE(routinesOf(makeScene("office", kSeed)).empty());
+  const auto r = routines(makeScene("weeks", kSeed));
+  EXPECT_EQ(r.size(), 7u);
+  EXPECT_EQ(r.at("meetings").size(), 6u);  // the meeting room's six chairs
+  EXPECT_EQ(r.at("cleaning").size(), 1u);
+}
+
+TEST(Schedule, DaysFollowTheWeekAndExceptionsAreRare) {
+  int away = 0, visits = 0, weekdays = 0, weekends = 0;
+  for (int d = 0; d < 700; ++d) {
+    const ScheduleDay s = scheduleDay(kSeed, d);
+    EXPECT_EQ(s.weekday, d % 7);
+    EXPECT_FALSE(s.worker_away && s.weekday >= 5);
+    EXPECT_FALSE(s.weekend_visit && s.weekday < 5);
+    (s.weekday < 5 ? weekdays : weekends)++;
+    away += s.worker_away;
+    visits += s.weekend_visit;
+    EXPECT_EQ(scheduleDay(kSeed, d).worker_away, s.worker_away);  // the same every time asked
+  }
+  EXPECT_NEAR(static_cast<double>(away) / weekdays, 0.15, 0.05);
+  EXPECT_NEAR(static_cast<double>(visits) / weekends, 0.2, 0.07);
+}
+
+TEST(Schedule, AtNightEveryDoorIsShutAndNobodyIsIn) {
+  const SceneState home = makeScene("weeks", kSeed);
+  const auto r = routines(home);
+  for (int day = 0; day < 14; ++day) {
+    SceneState s = home;
+    applySchedule(s, home, kSeed, at(day, 3.0));
+    for (const char* door : {"office door", "kitchen door", "meeting-room door"}) {
+      EXPECT_TRUE(object(s, r.at(door)[0]).present) << door << " on day " << day;  // present = shut
+    }
+    EXPECT_FALSE(object(s, r.at("office worker").back()).present);
+    EXPECT_FALSE(object(s, r.at("lunch").back()).present);
+    EXPECT_FALSE(object(s, r.at("cleaning")[0]).present);
+    // Every chair at home.
+    for (const char* routine : {"meetings", "lunch", "office worker"}) {
+      for (uint32_t id : r.at(routine)) {
+        const Object& o = object(s, id);
+        if (o.kind != ObjectKind::Chair) continue;
+        EXPECT_EQ(detail::centerOf(o), detail::centerOf(object(home, id)));
+      }
+    }
+  }
+}
+
+TEST(Schedule, AWorkingDayMorningHasTheWorkerInAndTheMeetingOn) {
+  const SceneState home = makeScene("weeks", kSeed);
+  const auto r = routines(home);
+  // A Monday with the worker in and the meeting on: at 10:30 both show.
+  const int day = firstDay(0, [](const ScheduleDay& d) {
+    return d.weekday == 0 && !d.worker_away && !d.meeting_cancelled;
+  });
+  SceneState s = home;
+  const std::vector<ScheduledChange> changes = applySchedule(s, home, kSeed, at(day, 10.5));
+  EXPECT_FALSE(object(s, r.at("office door")[0]).present);       // open
+  EXPECT_FALSE(object(s, r.at("meeting-room door")[0]).present);  // open
+  EXPECT_TRUE(object(s, r.at("office worker").back()).present);
+  for (uint32_t id : r.at("meetings")) {
+    // Pulled out from the table by 0.4 m (and a sideways jitter of at most 0.12 m).
+    const Eigen::Vector2d d = detail::centerOf(object(s, id)) - detail::centerOf(object(home, id));
+    EXPECT_NEAR(std::abs(d.y()), 0.4, 1e-9);
+    EXPECT_LE(std::abs(d.x()), 0.12 + 1e-9);
+  }
+  // The changes from home name their routines and cover exactly what moved or opened.
+  std::set<std::string> named;
+  for (const ScheduledChange& c : changes) named.insert(c.routine);
+  EXPECT_EQ(named, (std::set<std::string>{"office door", "office worker", "kitchen door", "meeting-room door",
+                                          "meetings"}));
+  // The same time again changes nothing.
+  EXPECT_TRUE(applySchedule(s, home, kSeed, at(day, 10.5)).empty());
+  // On a day the meeting is cancelled, the chairs stay in.
+  const int cancelled = firstDay(0, [](const ScheduleDay& d) { return d.weekday == 2 && d.meeting_cancelled; });
+  SceneState c = home;
+  applySchedule(c, home, kSeed, at(cancelled, 10.5));
+  for (uint32_t id : r.at("meetings")) {
+    EXPECT_EQ(detail::centerOf(object(c, id)), detail::centerOf(object(home, id)));
+  }
+}
+
+TEST(Schedule, ExceptionsChangeTheDay) {
+  const SceneState home = makeScene("weeks", kSeed);
+  const auto r = routines(home);
+  const int away = firstDay(0, [](const ScheduleDay& d) { return d.worker_away; });
+  SceneState s = home;
+  applySchedule(s, home, kSeed, at(away, 11.0));
+  EXPECT_TRUE(object(s, r.at("office door")[0]).present);  // shut all day
+  EXPECT_FALSE(object(s, r.at("office worker").back()).present);
+  const int visit = firstDay(0, [](const ScheduleDay& d) { return d.weekend_visit; });
+  applySchedule(s, home, kSeed, at(visit, 11.0));
+  EXPECT_FALSE(object(s, r.at("office door")[0]).present);
+  EXPECT_TRUE(object(s, r.at("office worker").back()).present);
+  applySchedule(s, home, kSeed, at(visit, 15.0));  // the visit ends at 14:00
+  EXPECT_FALSE(object(s, r.at("office worker").back()).present);
+}
+
+TEST(Schedule, LunchAndCleaningKeepTheirHours) {
+  const SceneState home = makeScene("weeks", kSeed);
+  const auto r = routines(home);
+  const int tuesday = firstDay(0, [](const ScheduleDay& d) { return d.weekday == 1; });
+  SceneState s = home;
+  applySchedule(s, home, kSeed, at(tuesday, 12.5));
+  EXPECT_TRUE(object(s, r.at("lunch").back()).present);
+  applySchedule(s, home, kSeed, at(tuesday, 13.6));
+  EXPECT_FALSE(object(s, r.at("lunch").back()).present);
+  // The cart moves along the corridor during the cleaning hour and a half.
+  applySchedule(s, home, kSeed, at(tuesday, 19.1));
+  const Object& cart = object(s, r.at("cleaning")[0]);
+  ASSERT_TRUE(cart.present);
+  const double x_early = detail::centerOf(cart).x();
+  const auto later = applySchedule(s, home, kSeed, at(tuesday, 20.4));
+  ASSERT_EQ(later.size(), 1u);
+  EXPECT_EQ(later[0].kind, EventKind::Moved);
+  EXPECT_EQ(later[0].routine, "cleaning");
+  EXPECT_GT(detail::centerOf(object(s, r.at("cleaning")[0])).x(), x_early + 5.0);
+  const auto gone = applySchedule(s, home, kSeed, at(tuesday, 20.6));
+  ASSERT_EQ(gone.size(), 1u);
+  EXPECT_EQ(gone[0].kind, EventKind::Left);
+  // Saturday: no lunch, no cleaning.
+  const int saturday = firstDay(0, [](const ScheduleDay& d) { return d.weekday == 5; });
+  applySchedule(s, home, kSeed, at(saturday, 12.5));
+  EXPECT_FALSE(object(s, r.at("lunch").back()).present);
+  applySchedule(s, home, kSeed, at(saturday, 19.5));
+  EXPECT_FALSE(object(s, r.at("cleaning")[0]).present);
+}
+
+}  // namespace
+}  // namespace chronomap::sim
