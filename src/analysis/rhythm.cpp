@@ -1,0 +1,385 @@
+#include "chronomap/analysis/rhythm.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <numbers>
+
+#include "chronomap/core/error.h"
+#include "chronomap/temporal/coverage.h"
+
+namespace chronomap {
+
+namespace {
+
+constexpr double kHour_s = 3600.0;
+
+/// 0 for a weekday, 1 for Saturday and Sunday (UTC); the epoch's day 0 was a Thursday.
+int kindOfDay(double time_s) {
+  const auto day = static_cast<int64_t>(std::floor(time_s / 86400.0));
+  const int64_t weekday = ((day + 3) % 7 + 7) % 7;  // 0 Monday
+  return weekday >= 5 ? 1 : 0;
+}
+
+/// The two-hour bin (0..11) of the UTC hour of day.
+int hourBin(double time_s) {
+  const double in_day = time_s - 86400.0 * std::floor(time_s / 86400.0);
+  return std::clamp(static_cast<int>(in_day / (2.0 * kHour_s)), 0, 11);
+}
+
+double markov(const VoxelRhythm& v, double time_s) {
+  const double rate = static_cast<double>(v.rate_in_per_h) + static_cast<double>(v.rate_out_per_h);
+  if (rate <= 0.0) return v.last_occupied;
+  const double stationary = v.rate_in_per_h / rate;
+  const double hours = std::abs(time_s - v.last_time_s) / kHour_s;
+  return stationary + (v.last_occupied - stationary) * std::exp(-rate * hours);
+}
+
+double periodic(const VoxelRhythm& v, double time_s) {
+  double p = v.mean;
+  for (int k = 0; k < 2; ++k) {
+    if (v.period[static_cast<size_t>(k)] >= kRhythmPeriods_h.size()) continue;
+    const double w = 2.0 * std::numbers::pi / (kRhythmPeriods_h[v.period[static_cast<size_t>(k)]] * kHour_s);
+    p += v.amplitude[static_cast<size_t>(k)][0] * std::cos(w * time_s) +
+         v.amplitude[static_cast<size_t>(k)][1] * std::sin(w * time_s);
+  }
+  return std::clamp(p, 0.0, 1.0);
+}
+
+double hourly(const VoxelRhythm& v, double time_s) {
+  // Neighbouring bins of the same kind of day count less; the other kind's same bin a little;
+  // one pseudo-observation at the voxel's mean keeps bins with little evidence near it.
+  static constexpr double kNeighbour[3] = {1.0, 0.5, 0.15};
+  static constexpr double kOtherKind = 0.1, kPrior = 1.0;
+  const int kind = kindOfDay(time_s), bin = hourBin(time_s);
+  double observed = kPrior, occupied = kPrior * v.mean;
+  for (int d = -2; d <= 2; ++d) {
+    const auto b = static_cast<size_t>((bin + d + 12) % 12);
+    const double w = kNeighbour[std::abs(d)];
+    observed += w * v.hour_observed[static_cast<size_t>(kind)][b];
+    occupied += w * v.hour_occupied[static_cast<size_t>(kind)][b];
+  }
+  const auto same = static_cast<size_t>(bin);
+  observed += kOtherKind * v.hour_observed[static_cast<size_t>(1 - kind)][same];
+  occupied += kOtherKind * v.hour_occupied[static_cast<size_t>(1 - kind)][same];
+  return occupied / observed;
+}
+
+uint8_t saturating(uint32_t n) { return static_cast<uint8_t>(std::min<uint32_t>(n, 255)); }
+
+}  // namespace
+
+const char* toString(RhythmModel model) {
+  switch (model) {
+    case RhythmModel::Latest: return "latest";
+    case RhythmModel::Mean: return "mean";
+    case RhythmModel::Markov: return "markov";
+    case RhythmModel::Periodic: return "periodic";
+    case RhythmModel::Hourly: return "hourly";
+    case RhythmModel::Combined: return "combined";
+  }
+  return "unknown";
+}
+
+RhythmModel parseRhythmModel(const std::string& name) {
+  for (RhythmModel m : kRhythmModels) {
+    if (name == toString(m)) return m;
+  }
+  throw UsageError("unknown model '" + name + "' (latest, mean, markov, periodic, hourly or combined)");
+}
+
+std::vector<VoxelSeries> observedSeries(const TemporalMap& map, uint32_t first, uint32_t end, uint32_t min_changes) {
+  if (min_changes == 0) throw UsageError("the least number of changes must be at least 1");
+  end = std::min<uint32_t>(end, static_cast<uint32_t>(map.sessionCount()));
+  if (first >= end) throw UsageError("no session to learn from in the range");
+  std::vector<CoverageIndex> coverage;
+  coverage.reserve(end - first);
+  for (uint32_t r = first; r < end; ++r) coverage.emplace_back(map.sessions()[r].coverage);
+  std::vector<VoxelSeries> out;
+  map.forEachListChangedIn(first, end, [&](const VoxelKey& corner, int level,
+                                            std::span<const TemporalMap::Entry> entries) {
+    uint32_t changes = 0;
+    for (size_t i = 1; i < entries.size(); ++i) changes += entries[i].session >= first && entries[i].session < end;
+    if (changes < min_changes) return;
+    VoxelSeries s;
+    s.corner = corner;
+    s.level = level;
+    size_t e = 0;  // entries[e] is the last entry at or before rank r
+    for (uint32_t r = first; r < end; ++r) {
+      while (e + 1 < entries.size() && entries[e + 1].session <= r) ++e;
+      if (entries[e].session > r) continue;  // not yet observed
+      if (coverage[r - first].overlap(corner, level) == CoverageIndex::Overlap::None) continue;  // no evidence
+      s.ranks.push_back(r);
+      s.occupied.push_back(entries[e].value.state() == VoxelState::Occupied ? 1 : 0);
+      s.times_s.push_back(map.sessions()[r].time_s);
+    }
+    if (!s.ranks.empty()) out.push_back(std::move(s));
+  });
+  return out;
+}
+
+VoxelRhythm fitVoxel(const VoxelSeries& series) {
+  VoxelRhythm v;
+  v.corner = series.corner;
+  v.level = static_cast<uint8_t>(series.level);
+  const size_t n = series.times_s.size();
+  if (n == 0) return v;
+  v.observations = static_cast<uint16_t>(std::min<size_t>(n, 65535));
+  double occupied = 0.0;
+  for (uint8_t y : series.occupied) occupied += y;
+  const double mean = occupied / static_cast<double>(n);
+  v.mean = static_cast<float>(mean);
+  v.last_occupied = series.occupied.back();
+  v.last_time_s = series.times_s.back();
+
+  // Markov: transitions between consecutive observations over the time spent in each state,
+  // with half a transition and an hour of prior so that a voxel seen once still has rates.
+  double in = 0.5, out = 0.5, free_h = 1.0, occupied_h = 1.0;
+  for (size_t i = 0; i + 1 < n; ++i) {
+    const double dt_h = (series.times_s[i + 1] - series.times_s[i]) / kHour_s;
+    if (series.occupied[i]) {
+      occupied_h += dt_h;
+      out += series.occupied[i + 1] ? 0.0 : 1.0;
+    } else {
+      free_h += dt_h;
+      in += series.occupied[i + 1] ? 1.0 : 0.0;
+    }
+  }
+  v.rate_in_per_h = static_cast<float>(in / free_h);
+  v.rate_out_per_h = static_cast<float>(out / occupied_h);
+
+  // Periodic: greedily the two periods whose least-squares sinusoid explains most of what the
+  // mean and the components already chosen leave.
+  std::vector<double> residual(n);
+  for (size_t i = 0; i < n; ++i) residual[i] = series.occupied[i] - mean;
+  std::vector<bool> used(kRhythmPeriods_h.size(), false);
+  for (size_t k = 0; k < 2 && n >= 3; ++k) {
+    double best_gain = 1e-9;
+    int best = -1;
+    double best_a = 0.0, best_b = 0.0;
+    for (size_t p = 0; p < kRhythmPeriods_h.size(); ++p) {
+      if (used[p]) continue;
+      const double w = 2.0 * std::numbers::pi / (kRhythmPeriods_h[p] * kHour_s);
+      double cc = 0, ss = 0, cs = 0, cr = 0, sr = 0;
+      for (size_t i = 0; i < n; ++i) {
+        const double c = std::cos(w * series.times_s[i]), s = std::sin(w * series.times_s[i]);
+        cc += c * c;
+        ss += s * s;
+        cs += c * s;
+        cr += c * residual[i];
+        sr += s * residual[i];
+      }
+      const double det = cc * ss - cs * cs;
+      if (std::abs(det) < 1e-9 * std::max(1.0, cc * ss)) continue;  // the samples cannot tell this period
+      const double a = (ss * cr - cs * sr) / det, b = (cc * sr - cs * cr) / det;
+      const double gain = a * cr + b * sr;  // reduction of the squared residual
+      if (gain > best_gain) {
+        best_gain = gain;
+        best = static_cast<int>(p);
+        best_a = a;
+        best_b = b;
+      }
+    }
+    if (best < 0) break;
+    used[static_cast<size_t>(best)] = true;
+    v.period[k] = static_cast<uint8_t>(best);
+    v.amplitude[k] = {static_cast<float>(best_a), static_cast<float>(best_b)};
+    const double w = 2.0 * std::numbers::pi / (kRhythmPeriods_h[static_cast<size_t>(best)] * kHour_s);
+    for (size_t i = 0; i < n; ++i) {
+      residual[i] -= best_a * std::cos(w * series.times_s[i]) + best_b * std::sin(w * series.times_s[i]);
+    }
+  }
+
+  // Hourly: observations by kind of day and two-hour bin.
+  std::array<std::array<uint32_t, 12>, 2> seen{}, occ{};
+  for (size_t i = 0; i < n; ++i) {
+    const auto kind = static_cast<size_t>(kindOfDay(series.times_s[i]));
+    const auto bin = static_cast<size_t>(hourBin(series.times_s[i]));
+    ++seen[kind][bin];
+    occ[kind][bin] += series.occupied[i];
+  }
+  for (size_t k = 0; k < 2; ++k) {
+    for (size_t b = 0; b < 12; ++b) {
+      v.hour_observed[k][b] = saturating(seen[k][b]);
+      v.hour_occupied[k][b] = saturating(occ[k][b]);
+    }
+  }
+  return v;
+}
+
+double RhythmModels::predict(const VoxelRhythm& v, RhythmModel model, double time_s) {
+  switch (model) {
+    case RhythmModel::Latest: return v.last_occupied;
+    case RhythmModel::Mean: return v.mean;
+    case RhythmModel::Markov: return markov(v, time_s);
+    case RhythmModel::Periodic: return periodic(v, time_s);
+    case RhythmModel::Hourly: return hourly(v, time_s);
+    case RhythmModel::Combined: {
+      // The chain's memory of the last observation fades at the sum of its rates.
+      const double rate = static_cast<double>(v.rate_in_per_h) + static_cast<double>(v.rate_out_per_h);
+      const double w = std::exp(-rate * std::abs(time_s - v.last_time_s) / kHour_s);
+      return w * markov(v, time_s) + (1.0 - w) * hourly(v, time_s);
+    }
+  }
+  return v.mean;
+}
+
+const VoxelRhythm* RhythmModels::find(const VoxelKey& key) const {
+  const uint64_t code = mortonEncode(key);
+  auto it = std::upper_bound(voxels.begin(), voxels.end(), code,
+                             [](uint64_t c, const VoxelRhythm& v) { return c < mortonEncode(v.corner); });
+  if (it == voxels.begin()) return nullptr;
+  --it;
+  const uint32_t size = 1u << it->level;
+  const bool inside = key.x >= it->corner.x && key.x < it->corner.x + size && key.y >= it->corner.y &&
+                      key.y < it->corner.y + size && key.z >= it->corner.z && key.z < it->corner.z + size;
+  return inside ? &*it : nullptr;
+}
+
+RhythmModels fitRhythm(const TemporalMap& map, double from_s, double to_s, uint32_t min_changes) {
+  uint32_t first = 0;
+  while (first < map.sessionCount() && map.sessions()[first].time_s < from_s) ++first;
+  const uint32_t end = map.ranksThrough(to_s);
+  if (first >= end) throw UsageError("no session of the map lies in the learning interval");
+  RhythmModels models;
+  models.resolution_m = map.resolution_m();
+  models.from_s = map.sessions()[first].time_s;
+  models.to_s = map.sessions()[end - 1].time_s;
+  models.sessions = end - first;
+  for (const VoxelSeries& s : observedSeries(map, first, end, min_changes)) models.voxels.push_back(fitVoxel(s));
+  std::sort(models.voxels.begin(), models.voxels.end(), [](const VoxelRhythm& a, const VoxelRhythm& b) {
+    return mortonEncode(a.corner) < mortonEncode(b.corner);
+  });
+  return models;
+}
+
+// ---------------------------------------------------------------- serialisation
+
+namespace {
+
+constexpr char kMagic[4] = {'C', 'M', 'R', 'H'};
+constexpr uint32_t kVersion = 1;
+
+struct Writer {
+  std::vector<uint8_t> bytes;
+  template <class T>
+  void put(T v) {
+    const size_t at = bytes.size();
+    bytes.resize(at + sizeof(T));
+    std::memcpy(bytes.data() + at, &v, sizeof(T));  // little-endian hosts only, as the .cmap files
+  }
+};
+
+struct Reader {
+  std::span<const uint8_t> bytes;
+  size_t pos = 0;
+  const std::string& source;
+  template <class T>
+  T get() {
+    if (bytes.size() - pos < sizeof(T)) throw FormatError(source + ": the model ends early (truncated)");
+    T v;
+    std::memcpy(&v, bytes.data() + pos, sizeof(T));
+    pos += sizeof(T);
+    return v;
+  }
+};
+
+}  // namespace
+
+std::vector<uint8_t> serialize(const RhythmModels& m) {
+  Writer w;
+  for (char c : kMagic) w.put(c);
+  w.put(kVersion);
+  w.put(m.resolution_m);
+  w.put(m.from_s);
+  w.put(m.to_s);
+  w.put(m.sessions);
+  w.put(static_cast<uint64_t>(m.voxels.size()));
+  for (const VoxelRhythm& v : m.voxels) {
+    w.put(v.corner.x);
+    w.put(v.corner.y);
+    w.put(v.corner.z);
+    w.put(v.level);
+    w.put(v.last_occupied);
+    w.put(v.observations);
+    w.put(v.mean);
+    w.put(v.last_time_s);
+    w.put(v.rate_in_per_h);
+    w.put(v.rate_out_per_h);
+    for (size_t k = 0; k < 2; ++k) {
+      w.put(v.period[k]);
+      w.put(v.amplitude[k][0]);
+      w.put(v.amplitude[k][1]);
+    }
+    for (size_t k = 0; k < 2; ++k) {
+      for (size_t b = 0; b < 12; ++b) {
+        w.put(v.hour_observed[k][b]);
+        w.put(v.hour_occupied[k][b]);
+      }
+    }
+  }
+  return std::move(w.bytes);
+}
+
+RhythmModels deserializeRhythm(std::span<const uint8_t> bytes, const std::string& source) {
+  Reader r{bytes, 0, source};
+  for (char c : kMagic) {
+    if (r.get<char>() != c) throw FormatError(source + ": not a chronomap rhythm model");
+  }
+  if (const auto version = r.get<uint32_t>(); version != kVersion) {
+    throw FormatError(source + ": rhythm model version " + std::to_string(version) + " (this build reads 1)");
+  }
+  RhythmModels m;
+  m.resolution_m = r.get<double>();
+  m.from_s = r.get<double>();
+  m.to_s = r.get<double>();
+  m.sessions = r.get<uint32_t>();
+  const auto count = r.get<uint64_t>();
+  constexpr size_t kRecord = 6 + 4 + 4 + 8 + 8 + 2 * 9 + 48;
+  if (!std::isfinite(m.resolution_m) || m.resolution_m <= 0.0 || count > (bytes.size() - r.pos) / kRecord) {
+    throw FormatError(source + ": bad header (resolution or voxel count)");
+  }
+  m.voxels.resize(count);
+  uint64_t previous = 0;
+  for (uint64_t i = 0; i < count; ++i) {
+    VoxelRhythm& v = m.voxels[i];
+    v.corner.x = r.get<uint16_t>();
+    v.corner.y = r.get<uint16_t>();
+    v.corner.z = r.get<uint16_t>();
+    v.level = r.get<uint8_t>();
+    v.last_occupied = r.get<uint8_t>();
+    v.observations = r.get<uint16_t>();
+    v.mean = r.get<float>();
+    v.last_time_s = r.get<double>();
+    v.rate_in_per_h = r.get<float>();
+    v.rate_out_per_h = r.get<float>();
+    for (size_t k = 0; k < 2; ++k) {
+      v.period[k] = r.get<uint8_t>();
+      v.amplitude[k][0] = r.get<float>();
+      v.amplitude[k][1] = r.get<float>();
+      if (v.period[k] != 255 && v.period[k] >= kRhythmPeriods_h.size()) throw FormatError(source + ": bad period");
+      if (!std::isfinite(v.amplitude[k][0]) || !std::isfinite(v.amplitude[k][1])) {
+        throw FormatError(source + ": an amplitude is not a finite number");
+      }
+    }
+    for (size_t k = 0; k < 2; ++k) {
+      for (size_t b = 0; b < 12; ++b) {
+        v.hour_observed[k][b] = r.get<uint8_t>();
+        v.hour_occupied[k][b] = r.get<uint8_t>();
+        if (v.hour_occupied[k][b] > v.hour_observed[k][b]) throw FormatError(source + ": more occupied than observed");
+      }
+    }
+    if (v.level >= 16 || v.last_occupied > 1 || !(v.mean >= 0.0f && v.mean <= 1.0f) || !std::isfinite(v.last_time_s) ||
+        !(v.rate_in_per_h >= 0.0f) || !(v.rate_out_per_h >= 0.0f) || !std::isfinite(v.rate_in_per_h) ||
+        !std::isfinite(v.rate_out_per_h)) {
+      throw FormatError(source + ": voxel " + std::to_string(i) + " has values out of range");
+    }
+    const uint64_t code = mortonEncode(v.corner);
+    if (i > 0 && code <= previous) throw FormatError(source + ": voxels out of order");
+    previous = code;
+  }
+  if (r.pos != bytes.size()) throw FormatError(source + ": bytes after the last voxel");
+  return m;
+}
+
+}  // namespace chronomap
