@@ -204,6 +204,29 @@ VoxelRhythm fitVoxel(const VoxelSeries& series) {
       v.hour_occupied[k][b] = saturating(occ[k][b]);
     }
   }
+
+  // Combined: whichever of the hourly profile and the plain mean predicts the learning
+  // observations better, each left out in turn (a voxel without a daily rhythm, whose changes
+  // were noise, keeps its mean).
+  if (n >= 2) {
+    double loss_hourly = 0.0, loss_mean = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+      const auto kind = static_cast<size_t>(kindOfDay(series.times_s[i]));
+      const auto bin = static_cast<size_t>(hourBin(series.times_s[i]));
+      const double y = series.occupied[i];
+      const double mean_without = (occupied - y) / static_cast<double>(n - 1);
+      VoxelRhythm without = v;
+      without.mean = static_cast<float>(mean_without);
+      if (seen[kind][bin] <= 255) {  // saturated bins cannot be decremented exactly: keep them
+        without.hour_observed[kind][bin] = saturating(seen[kind][bin] - 1);
+        without.hour_occupied[kind][bin] = saturating(occ[kind][bin] - series.occupied[i]);
+      }
+      const double ph = hourly(without, series.times_s[i]);
+      loss_hourly += (ph - y) * (ph - y);
+      loss_mean += (mean_without - y) * (mean_without - y);
+    }
+    v.combined_uses_mean = loss_mean < loss_hourly ? 1 : 0;
+  }
   return v;
 }
 
@@ -218,7 +241,8 @@ double RhythmModels::predict(const VoxelRhythm& v, RhythmModel model, double tim
       // The chain's memory of the last observation fades at the sum of its rates.
       const double rate = static_cast<double>(v.rate_in_per_h) + static_cast<double>(v.rate_out_per_h);
       const double w = std::exp(-rate * std::abs(time_s - v.last_time_s) / kHour_s);
-      return w * markov(v, time_s) + (1.0 - w) * hourly(v, time_s);
+      const double base = v.combined_uses_mean ? static_cast<double>(v.mean) : hourly(v, time_s);
+      return w * markov(v, time_s) + (1.0 - w) * base;
     }
   }
   return v.mean;
@@ -302,6 +326,7 @@ std::vector<uint8_t> serialize(const RhythmModels& m) {
     w.put(v.level);
     w.put(v.last_occupied);
     w.put(v.observations);
+    w.put(v.combined_uses_mean);
     w.put(v.mean);
     w.put(v.last_time_s);
     w.put(v.rate_in_per_h);
@@ -335,7 +360,7 @@ RhythmModels deserializeRhythm(std::span<const uint8_t> bytes, const std::string
   m.to_s = r.get<double>();
   m.sessions = r.get<uint32_t>();
   const auto count = r.get<uint64_t>();
-  constexpr size_t kRecord = 6 + 4 + 4 + 8 + 8 + 2 * 9 + 48;
+  constexpr size_t kRecord = RhythmModels::kVoxelBytes;
   if (!std::isfinite(m.resolution_m) || m.resolution_m <= 0.0 || count > (bytes.size() - r.pos) / kRecord) {
     throw FormatError(source + ": bad header (resolution or voxel count)");
   }
@@ -349,6 +374,7 @@ RhythmModels deserializeRhythm(std::span<const uint8_t> bytes, const std::string
     v.level = r.get<uint8_t>();
     v.last_occupied = r.get<uint8_t>();
     v.observations = r.get<uint16_t>();
+    v.combined_uses_mean = r.get<uint8_t>();
     v.mean = r.get<float>();
     v.last_time_s = r.get<double>();
     v.rate_in_per_h = r.get<float>();
@@ -369,7 +395,7 @@ RhythmModels deserializeRhythm(std::span<const uint8_t> bytes, const std::string
         if (v.hour_occupied[k][b] > v.hour_observed[k][b]) throw FormatError(source + ": more occupied than observed");
       }
     }
-    if (v.level >= 16 || v.last_occupied > 1 || !(v.mean >= 0.0f && v.mean <= 1.0f) || !std::isfinite(v.last_time_s) ||
+    if (v.level >= 16 || v.last_occupied > 1 || v.combined_uses_mean > 1 || !(v.mean >= 0.0f && v.mean <= 1.0f) || !std::isfinite(v.last_time_s) ||
         !(v.rate_in_per_h >= 0.0f) || !(v.rate_out_per_h >= 0.0f) || !std::isfinite(v.rate_in_per_h) ||
         !std::isfinite(v.rate_out_per_h)) {
       throw FormatError(source + ": voxel " + std::to_string(i) + " has values out of range");

@@ -68,6 +68,18 @@ TEST(Rhythm, OfficeHoursAreLearnedByTheDailyModels) {
   EXPECT_EQ(predict(v, RhythmModel::Latest, 28, 13.0), s.occupied.back());
 }
 
+TEST(Rhythm, CombinedKeepsTheMeanForAVoxelWithoutRhythm) {
+  // Occupied at random in 60% of the observations, whatever the hour: the hourly profile only
+  // fits noise, and leaving each observation out shows it.
+  static std::mt19937_64 coin(11);
+  const VoxelRhythm noise = fitVoxel(sampled(28, 2, [](double) { return coin() % 10 < 6; }));
+  EXPECT_EQ(noise.combined_uses_mean, 1);
+  const double far = noise.last_time_s + 1000 * kHour;  // the Markov part has faded
+  EXPECT_NEAR(RhythmModels::predict(noise, RhythmModel::Combined, far), noise.mean, 1e-6);
+  const VoxelRhythm office = fitVoxel(sampled(28, 1, officeHours));
+  EXPECT_EQ(office.combined_uses_mean, 0);
+}
+
 TEST(Rhythm, MarkovRatesComeBack) {
   // A two-state chain with entry rate 0.1/h and exit rate 0.3/h, observed every half hour for
   // two years: the estimated rates are the true ones.

@@ -19,8 +19,9 @@
 /// - Hourly: a daily profile per kind of day (weekday, weekend): the observations binned by hour,
 ///   smoothed over neighbouring hours and drawn towards the voxel's mean where hours hold few
 ///   observations (an hour never observed says nothing: it gets the mean).
-/// - Combined: Markov near the last observation, Hourly further away, weighted by how fast the
-///   chain forgets its state.
+/// - Combined: Markov near the last observation; further away, per voxel the better of Hourly and
+///   Mean by their leave-one-out Brier score on the learning observations (a voxel whose changes
+///   were noise, not a rhythm, keeps its mean), weighted by how fast the chain forgets its state.
 #include <array>
 #include <cstdint>
 #include <span>
@@ -58,12 +59,13 @@ inline constexpr std::array<RhythmModel, 6> kRhythmModels = {RhythmModel::Latest
 /// Periods the periodic model chooses from, in hours.
 inline constexpr std::array<double, 6> kRhythmPeriods_h = {168.0, 84.0, 24.0, 12.0, 8.0, 6.0};
 
-/// The fitted parameters of one cube: every model's, 96 bytes in a saved model.
+/// The fitted parameters of one cube: every model's, 97 bytes in a saved model.
 struct VoxelRhythm {
   VoxelKey corner;
   uint8_t level = 0;
   uint8_t last_occupied = 0;    ///< state of the last observation
   uint16_t observations = 0;    ///< how many sessions observed it while learning (saturating)
+  uint8_t combined_uses_mean = 0;  ///< Combined: 1 when the mean beat the hourly profile
   float mean = 0.0f;            ///< occupied share of the observations
   double last_time_s = 0.0;     ///< time of the last observation
   float rate_in_per_h = 0.0f;   ///< Markov: free to occupied, per hour
@@ -90,8 +92,8 @@ struct RhythmModels {
   /// The fitted cube containing `key`, or null (binary search: voxels are sorted by Morton code
   /// of their corners, which fit() guarantees).
   const VoxelRhythm* find(const VoxelKey& key) const;
-  /// Bytes of a saved model: a 44-byte header and 96 bytes per cube.
-  static constexpr size_t kHeaderBytes = 44, kVoxelBytes = 96;
+  /// Bytes of a saved model: a 44-byte header and 97 bytes per cube.
+  static constexpr size_t kHeaderBytes = 44, kVoxelBytes = 97;
   size_t bytes() const { return kHeaderBytes + voxels.size() * kVoxelBytes; }
 };
 

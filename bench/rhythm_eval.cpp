@@ -1,0 +1,235 @@
+// How well the temporal models predict the rhythmic building (preset "weeks", issue 22): the
+// sessions of the first weeks build a 4D map and the models learn from it; each later session's
+// true occupancy (truth/occupancy_NN.cmap) then scores every model's prediction at that
+// session's time, on the voxels that changed at least once while learning. Baselines: the
+// latest snapshot of the learning weeks, and the mean occupancy over its sessions.
+//
+// Usage: rhythm_eval [--sim DIR] [--learn-days D] [--poses true|registered] [--scale S]
+//   --sim DIR      a `chronomap simulate --preset weeks` output (default: simulated here, seed 1)
+//   --learn-days   days of sessions to learn from (default 21: three weeks; the rest test)
+//   --poses        true: integrate with the true poses; registered (default): the estimated
+//                  poses registered to the consensus, as `chronomap build --register` does
+//   --scale        image size of the simulation made here (default 0.25)
+// Prints a table and, last, one JSON object (brier_* and auc_* per model and baseline).
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+
+#include "chronomap/analysis/rhythm.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/file.h"
+#include "chronomap/pipeline/map4d.h"
+#include "chronomap/sim/building.h"
+
+using namespace chronomap;
+namespace fs = std::filesystem;
+
+namespace {
+
+double seconds(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+}
+
+/// Area under the ROC curve of scores against labels (Mann-Whitney, ties counted half).
+double rocAuc(std::vector<std::pair<double, uint8_t>> scored) {
+  std::sort(scored.begin(), scored.end());
+  double positives = 0, negatives = 0, rank_sum = 0;
+  for (size_t i = 0; i < scored.size();) {
+    size_t j = i;
+    while (j < scored.size() && scored[j].first == scored[i].first) ++j;
+    const double mid_rank = 0.5 * static_cast<double>(i + 1 + j);  // ranks i+1 .. j
+    for (size_t k = i; k < j; ++k) {
+      if (scored[k].second) {
+        positives += 1;
+        rank_sum += mid_rank;
+      } else {
+        negatives += 1;
+      }
+    }
+    i = j;
+  }
+  if (positives == 0 || negatives == 0) return 0.5;
+  return (rank_sum - positives * (positives + 1) / 2) / (positives * negatives);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  fs::path sim_dir;
+  int learn_days = 21;
+  std::string poses = "registered";
+  double scale = 0.25;
+  uint32_t min_changes = 1;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) {
+        std::fprintf(stderr, "%s needs a value\n", a.c_str());
+        std::exit(2);
+      }
+      return argv[++i];
+    };
+    if (a == "--sim") sim_dir = value();
+    else if (a == "--learn-days") learn_days = std::stoi(value());
+    else if (a == "--poses") poses = value();
+    else if (a == "--scale") scale = std::stod(value());
+    else if (a == "--min-changes") min_changes = static_cast<uint32_t>(std::stoul(value()));
+    else {
+      std::fprintf(stderr, "usage: rhythm_eval [--sim DIR] [--learn-days D] [--poses true|registered] [--scale S]\n");
+      return 2;
+    }
+  }
+  if (poses != "true" && poses != "registered") {
+    std::fprintf(stderr, "--poses must be true or registered\n");
+    return 2;
+  }
+  const auto started = std::chrono::steady_clock::now();
+  fs::path tmp;
+  if (sim_dir.empty()) {
+    tmp = fs::temp_directory_path() / ("rhythm_eval_" + std::to_string(::getpid()));
+    sim::SimulationSettings s;
+    s.preset = "weeks";
+    s.resolution_scale = scale;
+    sim_dir = tmp / "weeks";
+    std::printf("simulating the weeks preset at %.2f of 640x480 ...\n", scale);
+    std::fflush(stdout);
+    sim::simulate(s, sim_dir);
+  }
+  const auto scene = nlohmann::json::parse(io::readTextFile(sim_dir / "scene.json"));
+  std::vector<double> times;
+  std::vector<fs::path> dirs;
+  for (const auto& s : scene["sessions"]) {
+    times.push_back(s["time_s"].get<double>());
+    dirs.push_back(sim_dir / s["dir"].get<std::string>());
+  }
+  const double split_s = sim::kScheduleStart_s + 86400.0 * learn_days;
+  std::vector<size_t> learn, test;
+  for (size_t i = 0; i < times.size(); ++i) (times[i] < split_s ? learn : test).push_back(i);
+  if (learn.empty() || test.empty()) {
+    std::fprintf(stderr, "--learn-days %d leaves no session to learn from or to test\n", learn_days);
+    return 2;
+  }
+
+  // The 4D map of the learning sessions, as the recommended pipeline builds it.
+  pipeline::BuildSettings build;
+  build.map = (tmp.empty() ? fs::temp_directory_path() : tmp) / ("rhythm_eval_" + std::to_string(::getpid()) + ".cmap");
+  for (size_t i : learn) {
+    build.datasets.push_back(dirs[i]);
+    build.times_s.emplace_back(times[i]);
+  }
+  build.session.integrator.fast = true;
+  if (poses == "true") {
+    build.session.dataset.trajectory = std::nullopt;
+  } else {
+    build.registration = pipeline::RegistrationSettings{};
+  }
+  const auto build_started = std::chrono::steady_clock::now();
+  if (poses == "true") {
+    // Each session with its own groundtruth.txt: build one by one through the same call.
+    TemporalMap map(0.05);
+    for (size_t i : learn) {
+      pipeline::SessionSettings ss = build.session;
+      ss.dataset.trajectory = dirs[i] / "groundtruth.txt";
+      map.add(times[i], pipeline::integrateDataset(dirs[i], ss).map);
+    }
+    io::writeTemporalMap(build.map, map, nlohmann::json::object());
+  } else {
+    pipeline::build(build);
+  }
+  const double build_s = seconds(build_started);
+  const TemporalMap map = io::readTemporalMap(build.map);
+  std::error_code ec;
+  fs::remove(build.map, ec);
+
+  const auto fit_started = std::chrono::steady_clock::now();
+  const RhythmModels models = fitRhythm(map, times[learn.front()], times[learn.back()], min_changes);
+  const double fit_s = seconds(fit_started);
+  std::printf("learned from %zu sessions (%d days, %s poses; built in %.1f s): %zu voxels changed, fitted in %.3f s, "
+              "%.1f KiB saved (%zu bytes a voxel)\n",
+              learn.size(), learn_days, poses.c_str(), build_s, models.voxels.size(), fit_s,
+              static_cast<double>(models.bytes()) / 1024.0, RhythmModels::kVoxelBytes);
+
+  // Score every unit voxel of the fitted cubes at every test session against the truth; keep
+  // apart the voxels whose truth changes during the test sessions (the routines) from those
+  // whose truth stays put (their changes in the map were the sensor's and the mapping's noise).
+  const KeyGrid grid(0.05);
+  std::vector<SessionMap> truths;
+  for (size_t i : test) {
+    char name[64];
+    std::snprintf(name, sizeof name, "occupancy_%02zu.cmap", i);
+    truths.push_back(io::readSessionMap(sim_dir / "truth" / name));
+  }
+  std::map<RhythmModel, double> brier, brier_varying, brier_static;
+  std::map<RhythmModel, std::vector<std::pair<double, uint8_t>>> scored;
+  size_t samples = 0, positives = 0, varying_samples = 0;
+  for (const VoxelRhythm& v : models.voxels) {
+    if (v.level != 0) continue;  // free cubes that changed as a whole: not voxels a robot meets
+    std::vector<uint8_t> y(test.size());
+    for (size_t k = 0; k < test.size(); ++k) y[k] = truths[k].stateOf(v.corner) == VoxelState::Occupied ? 1 : 0;
+    const bool varies = std::count(y.begin(), y.end(), y[0]) != static_cast<long>(y.size());
+    for (size_t k = 0; k < test.size(); ++k) {
+      ++samples;
+      positives += y[k];
+      varying_samples += varies;
+      for (RhythmModel m : kRhythmModels) {
+        const double p = RhythmModels::predict(v, m, times[test[k]]);
+        const double e = (p - y[k]) * (p - y[k]);
+        brier[m] += e;
+        (varies ? brier_varying : brier_static)[m] += e;
+        scored[m].emplace_back(p, y[k]);
+      }
+    }
+  }
+  std::printf("%zu of the samples are of voxels whose truth changes during the test sessions\n", varying_samples);
+  if (samples == 0) {
+    std::fprintf(stderr, "no voxel changed while learning\n");
+    return 1;
+  }
+  nlohmann::json out = {{"learn_sessions", learn.size()},
+                        {"test_sessions", test.size()},
+                        {"poses", poses},
+                        {"voxels", models.voxels.size()},
+                        {"samples", samples},
+                        {"occupied_share", static_cast<double>(positives) / static_cast<double>(samples)},
+                        {"fit_s", fit_s},
+                        {"bytes_per_voxel", RhythmModels::kVoxelBytes}};
+  std::printf("%zu test sessions x voxels = %zu samples, %.1f%% occupied\n", test.size(), samples,
+              100.0 * static_cast<double>(positives) / static_cast<double>(samples));
+  std::printf("%-10s %8s %8s %16s %16s\n", "model", "Brier", "AUC", "Brier (varying)", "Brier (static)");
+  double best_brier = 1e9, best_auc = 0;
+  std::string best_name;
+  for (RhythmModel m : kRhythmModels) {
+    const double b = brier[m] / static_cast<double>(samples), auc = rocAuc(scored[m]);
+    const double bv = brier_varying[m] / std::max<double>(1.0, static_cast<double>(varying_samples));
+    const double bs = brier_static[m] / std::max<double>(1.0, static_cast<double>(samples - varying_samples));
+    std::printf("%-10s %8.4f %8.4f %16.4f %16.4f\n", toString(m), b, auc, bv, bs);
+    out[std::string("brier_varying_") + toString(m)] = bv;
+    out[std::string("brier_") + toString(m)] = b;
+    out[std::string("auc_") + toString(m)] = auc;
+    if (m != RhythmModel::Latest && m != RhythmModel::Mean && b < best_brier) {
+      best_brier = b;
+      best_auc = auc;
+      best_name = toString(m);
+    }
+  }
+  out["best"] = best_name;
+  out["brier_best"] = best_brier;
+  out["auc_best"] = best_auc;
+  const double baseline = std::min(out["brier_latest"].get<double>(), out["brier_mean"].get<double>());
+  out["brier_best_over_baseline"] = best_brier / baseline;
+  std::printf("best: %s, Brier %.4f = %.2fx the better baseline's, AUC %.3f (%.0f s in all)\n", best_name.c_str(),
+              best_brier, best_brier / baseline, best_auc, seconds(started));
+  if (!tmp.empty()) fs::remove_all(tmp, ec);
+  std::printf("%s\n", out.dump().c_str());
+  return 0;
+}
