@@ -31,6 +31,7 @@ Command addBuild(CLI::App& root);
 Command addSnapshot(CLI::App& root);
 Command addHistory(CLI::App& root);
 Command addChanges(CLI::App& root);
+Command addPredict(CLI::App& root);
 Command addDiff(CLI::App& root);
 Command addSegment(CLI::App& root);
 Command addSimulate(CLI::App& root);

@@ -277,6 +277,60 @@ RhythmModels fitRhythm(const TemporalMap& map, double from_s, double to_s, uint3
   return models;
 }
 
+namespace {
+
+/// The colour of the latest stored state of `key` with hits, at or before `time_s` if there is
+/// one, else the earliest after it; black when it was never hit.
+Rgb lastSeenColor(const TemporalMap& map, const VoxelKey& key, double time_s) {
+  std::optional<Rgb> before, after;
+  for (const HistoryEntry& e : map.history(key)) {
+    if (e.counters.hits == 0) continue;
+    if (e.time_s <= time_s) {
+      before = e.counters.meanColor();
+    } else if (!after) {
+      after = e.counters.meanColor();
+    }
+  }
+  return before ? *before : after.value_or(Rgb{});
+}
+
+}  // namespace
+
+SessionMap predictMap(const TemporalMap& map, const RhythmModels& models, RhythmModel model, double time_s) {
+  if (std::abs(models.resolution_m - map.resolution_m()) > 1e-12 * map.resolution_m()) {
+    throw UsageError("the model was fitted at " + std::to_string(models.resolution_m) + " m, the map has " +
+                     std::to_string(map.resolution_m()) + " m voxels");
+  }
+  SessionMap out = map.snapshot(time_s);
+  for (const VoxelRhythm& v : models.voxels) {
+    const double p = std::clamp(RhythmModels::predict(v, model, time_s), 0.0, 1.0);
+    const int side = 1 << v.level;
+    for (int dz = 0; dz < side; ++dz) {
+      for (int dy = 0; dy < side; ++dy) {
+        for (int dx = 0; dx < side; ++dx) {
+          const VoxelKey key{static_cast<uint16_t>(v.corner.x + dx), static_cast<uint16_t>(v.corner.y + dy),
+                             static_cast<uint16_t>(v.corner.z + dz)};
+          const std::optional<VoxelCounters> before = out.find(key);
+          VoxelCounters c;
+          if (p <= 0.0) {
+            c.length_m = static_cast<float>(map.resolution_m());  // seen through, never hit
+          } else {
+            c.hits = 1;
+            c.length_m = p >= 1.0 ? 0.0f : static_cast<float>(-1.0 / std::log1p(-p));
+            const Rgb color = before && before->hits > 0 ? before->meanColor() : lastSeenColor(map, key, time_s);
+            c.red = color.r;
+            c.green = color.g;
+            c.blue = color.b;
+          }
+          out.assign(key, c);
+        }
+      }
+    }
+  }
+  out.compressFree();
+  return out;
+}
+
 // ---------------------------------------------------------------- serialisation
 
 namespace {

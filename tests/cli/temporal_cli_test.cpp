@@ -20,6 +20,7 @@
 #include "chronomap/io/png.h"
 #include "chronomap/io/temporal_file.h"
 #include "chronomap/octree/session_map.h"
+#include "builders.h"
 #include "test_support.h"
 
 namespace chronomap {
@@ -43,6 +44,67 @@ void writeSessions(const test::TempDir& dir, int side = 16) {
     io::writeSessionMap(sessionFile(dir, i),
                         test::randomSessionMap(static_cast<uint64_t>(10 + i), side), {});
   }
+}
+
+TEST(TemporalCli, PredictFitsSavesAndReusesTheModel) {
+  test::TempDir tmp;
+  // A voxel occupied in every other session (at 100, 300, 500 ... s), free between.
+  const std::string map = (tmp / "m.cmap").string();
+  for (int i = 0; i < 8; ++i) {
+    SessionMap s(0.05);
+    s.add(test::at(0, 0, 0), test::occupiedVoxel(Rgb{200, 10, 10}));
+    s.add(test::at(5, 5, 5), i % 2 == 0 ? test::occupiedVoxel(Rgb{}) : test::freeVoxel());
+    io::writeSessionMap(sessionFile(tmp, i), s, {});
+    ASSERT_EQ(test::runCommand(cli() + " add " + map + " " + sessionFile(tmp, i).string() + " --time " +
+                               std::to_string(100 * (i + 1)))
+                  .exit_code,
+              0);
+  }
+  const std::string rhythm = (tmp / "m.rhythm").string();
+  auto r = test::runCommand(cli() + " predict " + map + " --at 900 --model mean -o " + (tmp / "p.cmap").string() +
+                            " --save-rhythm " + rhythm + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["modelled_voxels"], 1);
+  EXPECT_EQ(j["learning_sessions"], 8);
+  EXPECT_EQ(j["model"], "mean");
+  // The mean model: occupied in half the sessions.
+  const SessionMap p = io::readSessionMap(tmp / "p.cmap");
+  EXPECT_NEAR(p.find(test::at(5, 5, 5))->probability(), 0.5, 1e-6);
+  EXPECT_EQ(p.stateOf(test::at(0, 0, 0)), VoxelState::Occupied);
+  // The saved model gives the same prediction without refitting, and learning only from the
+  // first three sessions gives two occupied of three.
+  r = test::runCommand(cli() + " predict " + map + " --at 900 --model mean --rhythm " + rhythm + " -o " +
+                       (tmp / "q.cmap").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(io::readSessionMap(tmp / "q.cmap"), p);
+  r = test::runCommand(cli() + " predict " + map + " --at 900 --model mean --learn-to 300 -o " + (tmp / "e.cmap").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NEAR(io::readSessionMap(tmp / "e.cmap").find(test::at(5, 5, 5))->probability(), 2.0 / 3.0, 1e-6);
+  // Bad input: one line naming what is wrong; nothing written.
+  const std::pair<std::string, std::string> bad[] = {
+      {" --at 900 -o " + (tmp / "x.txt").string(), "must end in"},
+      {" --at soon -o " + (tmp / "x.png").string(), "neither ISO-8601"},
+      {" --at 900 --model fourier -o " + (tmp / "x.png").string(), "unknown model"},
+      {" --at 900 --rhythm " + map + " -o " + (tmp / "x.png").string(), "not a chronomap rhythm model"},
+      {" --at 900 --rhythm " + rhythm + " --learn-to 300 -o " + (tmp / "x.png").string(), "takes no"},
+      {" --at 900 --learn-from 5000 -o " + (tmp / "x.png").string(), "no session"},
+      {" --at 900 -o " + map, "input"},
+  };
+  for (const auto& [args, message] : bad) {
+    r = test::runCommand(cli() + " predict " + map + args);
+    EXPECT_NE(r.exit_code, 0) << args;
+    EXPECT_NE(r.err.find(message), std::string::npos) << args << ": " << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
+  EXPECT_FALSE(fs::exists(tmp / "x.png"));
+  std::vector<uint8_t> truncated = io::readFileBytes(rhythm);
+  truncated.resize(truncated.size() - 5);
+  io::writeFileAtomic(tmp / "t.rhythm", truncated);
+  r = test::runCommand(cli() + " predict " + map + " --at 900 --rhythm " + (tmp / "t.rhythm").string() + " -o " +
+                       (tmp / "x.png").string());
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("t.rhythm"), std::string::npos) << r.err;
 }
 
 TEST(TemporalCli, AddRealignMovesAShiftedSessionBack) {

@@ -249,6 +249,42 @@ TEST(Rhythm, SavedModelsAnswerTheSameAndBadBytesAreRefused) {
   }
 }
 
+TEST(Rhythm, PredictedMapsCarryTheModelsProbabilities) {
+  // A voxel occupied in office hours, seen by two sessions a day for four weeks, beside a wall
+  // voxel that never changes.
+  const VoxelSeries plan = sampled(28, 4, officeHours);
+  TemporalMap map(0.05);
+  for (size_t i = 0; i < plan.times_s.size(); ++i) {
+    SessionMap s(0.05);
+    s.add(at(0, 0, 0), occupiedVoxel(Rgb{200, 10, 10}));
+    s.add(at(5, 5, 5), plan.occupied[i] ? occupiedVoxel(Rgb{10, 200, 10}) : freeVoxel());
+    map.add(plan.times_s[i], s);
+  }
+  const RhythmModels models = fitRhythm(map, 0, 1e12);
+  ASSERT_EQ(models.voxels.size(), 1u);
+  const double monday_13 = kMonday_s + 28 * 86400.0 + 13 * kHour, monday_3 = kMonday_s + 28 * 86400.0 + 3 * kHour;
+  for (RhythmModel m : kRhythmModels) {
+    for (double t : {monday_13, monday_3}) {
+      const SessionMap p = predictMap(map, models, m, t);
+      const auto c = p.find(at(5, 5, 5));
+      ASSERT_TRUE(c);
+      EXPECT_NEAR(c->probability(), RhythmModels::predict(models.voxels[0], m, t), 1e-6) << toString(m);
+      if (c->hits > 0) {
+        EXPECT_EQ(c->meanColor(), (Rgb{10, 200, 10}));  // the last colour seen there
+      }
+      // The wall is as last observed.
+      EXPECT_EQ(p.stateOf(at(0, 0, 0)), VoxelState::Occupied);
+      EXPECT_EQ(p.find(at(0, 0, 0))->meanColor(), (Rgb{200, 10, 10}));
+      EXPECT_EQ(p.stateOf(at(9, 9, 9)), VoxelState::Unknown);
+    }
+  }
+  EXPECT_EQ(predictMap(map, models, RhythmModel::Hourly, monday_13).stateOf(at(5, 5, 5)), VoxelState::Occupied);
+  EXPECT_EQ(predictMap(map, models, RhythmModel::Hourly, monday_3).stateOf(at(5, 5, 5)), VoxelState::Free);
+  RhythmModels other = models;
+  other.resolution_m = 0.1;
+  EXPECT_THROW(predictMap(map, other, RhythmModel::Hourly, monday_3), UsageError);
+}
+
 TEST(Rhythm, ModelNamesRoundTrip) {
   for (RhythmModel m : kRhythmModels) EXPECT_EQ(parseRhythmModel(toString(m)), m);
   EXPECT_THROW(parseRhythmModel("fourier"), UsageError);

@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "chronomap/core/key.h"
+#include "chronomap/octree/session_map.h"
 #include "chronomap/temporal/temporal_map.h"
 
 namespace chronomap {
@@ -103,6 +104,14 @@ struct RhythmModels {
 RhythmModels fitRhythm(const TemporalMap& map, double from_s, double to_s, uint32_t min_changes = 1);
 /// Fits one cube's models to its observations (what fitRhythm does per cube).
 VoxelRhythm fitVoxel(const VoxelSeries& series);
+
+/// The predicted map at `time_s`: the map as last observed then (TemporalMap::snapshot) with
+/// every modelled voxel's counters replaced by one hit over the length that gives the model's
+/// probability (P = 1 - exp(-hits / length)), coloured as it looked when last seen occupied.
+/// Voxels without a model keep
+/// their last observed state; unknown stays unknown.
+/// @throw UsageError when the models' resolution differs from the map's.
+SessionMap predictMap(const TemporalMap& map, const RhythmModels& models, RhythmModel model, double time_s);
 
 /// Serialises fitted models (little-endian, versioned); deserialise is its inverse.
 /// @throw FormatError naming `source` for bytes that are not a valid model.
