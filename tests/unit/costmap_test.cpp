@@ -1,0 +1,197 @@
+// Costmaps and the planner (analysis/costmap.h) and their map_server files (io/map_server.h):
+// analytic maps, a slow Dijkstra reference on random grids, file conventions, bad settings.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "builders.h"
+#include "chronomap/analysis/costmap.h"
+#include "chronomap/core/error.h"
+#include "chronomap/io/file.h"
+#include "chronomap/io/map_server.h"
+#include "test_support.h"
+
+namespace chronomap {
+namespace {
+
+using test::at;
+using test::freeVoxel;
+using test::occupiedVoxel;
+
+/// A 20 x 10 voxel floor area (z keys 2..10, about 0.1..0.55 m at 0.05 m) seen free, with a
+/// wall of occupied voxels at x = 10 for y in 0..7, leaving a gap at y = 8, 9.
+SessionMap room() {
+  SessionMap m(0.05);
+  const int z0 = 32768;  // key of z = 0
+  for (int x = 0; x < 20; ++x) {
+    for (int y = 0; y < 10; ++y) {
+      for (int z = 2; z < 10; ++z) {
+        const bool wall = x == 10 && y < 8;
+        m.add(VoxelKey{static_cast<uint16_t>(32768 + x), static_cast<uint16_t>(32768 + y), static_cast<uint16_t>(z0 + z)},
+              wall ? occupiedVoxel(Rgb{}) : freeVoxel());
+      }
+    }
+  }
+  return m;
+}
+
+TEST(Costmap, WallsAreLethalAndInflatedByTheRadius) {
+  CostmapSettings s;
+  s.z_min_m = 0.05;
+  s.z_max_m = 1.0;
+  s.robot_radius_m = 0.1;  // two cells
+  const Costmap c = costmap(room(), s);
+  ASSERT_EQ(c.width, 20);
+  ASSERT_EQ(c.height, 10);
+  EXPECT_NEAR(c.origin_m.x(), 0.0, 1e-9);
+  for (int y = 0; y < 10; ++y) {
+    for (int x = 0; x < 20; ++x) {
+      const bool wall = x == 10 && y < 8;
+      // Within two cells (centre to centre) of a wall cell.
+      bool near = false;
+      for (int wy = 0; wy < 8; ++wy) near |= (x - 10) * (x - 10) + (y - wy) * (y - wy) <= 4;
+      const int8_t expected = wall ? Costmap::kLethal : near ? Costmap::kInscribed : 0;
+      EXPECT_EQ(c.at(x, y), expected) << x << "," << y;
+    }
+  }
+  // A band above the wall's voxels sees nothing: everything unknown there is outside the map.
+  s.z_min_m = 2.0;
+  s.z_max_m = 3.0;
+  EXPECT_EQ(costmap(room(), s).width, 0);
+  s.z_max_m = 1.0;
+  EXPECT_THROW(costmap(room(), s), UsageError);
+  s = CostmapSettings{};
+  s.robot_radius_m = -1;
+  EXPECT_THROW(costmap(room(), s), UsageError);
+}
+
+TEST(Costmap, ProbabilityAndChangeRaiseTheCost) {
+  SessionMap m(0.05);
+  const auto key = [](int x) { return VoxelKey{static_cast<uint16_t>(32768 + x), 32768, 32770}; };
+  VoxelCounters quarter;  // P = 1 - exp(-hits / length) = 0.25
+  quarter.hits = 1;
+  quarter.length_m = static_cast<float>(-1.0 / std::log(0.75));
+  m.add(key(0), freeVoxel());
+  m.add(key(1), quarter);
+  CostmapSettings s;
+  s.robot_radius_m = 0.0;
+  s.change_weight = 0.5;
+  Costmap c = costmap(m, s);
+  ASSERT_EQ(c.width, 2);
+  EXPECT_EQ(c.at(0, 0), 0);
+  EXPECT_EQ(c.at(1, 0), std::lround(98 * 0.5 * (0.25 / 0.5)));  // probability half weighted
+  // A voxel that was occupied in half its observations changes most: its column costs more.
+  RhythmModels models;
+  models.resolution_m = 0.05;
+  VoxelRhythm v;
+  v.corner = key(0);
+  v.mean = 0.5f;
+  models.voxels.push_back(v);
+  c = costmap(m, s, &models);
+  EXPECT_EQ(c.at(0, 0), std::lround(98 * 0.5 * 1.0));
+}
+
+TEST(Costmap, MapServerFilesFollowTheConventions) {
+  test::TempDir tmp;
+  Costmap c;
+  c.resolution_m = 0.05;
+  c.origin_m = {1.5, -2.0};
+  c.width = 3;
+  c.height = 2;
+  c.cost = {0, 50, 100, -1, 99, 0};  // row y = 0, then y = 1
+  const auto pgm = io::writeMapServer(tmp / "cost.yaml", c);
+  EXPECT_EQ(pgm, tmp / "cost.pgm");
+  const std::string yaml = io::readTextFile(tmp / "cost.yaml");
+  for (const char* field : {"image: cost.pgm\n", "resolution: 0.050000\n", "origin: [1.500000, -2.000000, 0.0]\n",
+                            "negate: 0\n", "occupied_thresh: 0.65\n", "free_thresh: 0.196\n", "mode: scale\n"}) {
+    EXPECT_NE(yaml.find(field), std::string::npos) << field;
+  }
+  const std::vector<uint8_t> bytes = io::readFileBytes(pgm);
+  const std::string header = "P5\n3 2\n255\n";
+  ASSERT_EQ(bytes.size(), header.size() + 6);
+  EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + static_cast<long>(header.size())), header);
+  // First image row is the highest y: -1 -> 205 unknown, 99 -> 3, 0 -> 254; then 254, 127, 0.
+  const std::vector<uint8_t> pixels(bytes.begin() + static_cast<long>(header.size()), bytes.end());
+  EXPECT_EQ(pixels, (std::vector<uint8_t>{205, 3, 254, 254, 127, 0}));
+}
+
+/// The slow reference: Dijkstra over every cell with the same step costs.
+double dijkstra(const Costmap& m, const Eigen::Vector2i& s, const Eigen::Vector2i& g) {
+  std::vector<double> d(m.cost.size(), std::numeric_limits<double>::infinity());
+  std::vector<bool> done(m.cost.size(), false);
+  auto id = [&](int x, int y) { return static_cast<size_t>(y * m.width + x); };
+  d[id(s.x(), s.y())] = 0;
+  for (;;) {
+    size_t best = m.cost.size();
+    for (size_t i = 0; i < m.cost.size(); ++i) {
+      if (!done[i] && std::isfinite(d[i]) && (best == m.cost.size() || d[i] < d[best])) best = i;
+    }
+    if (best == m.cost.size()) break;
+    done[best] = true;
+    const int x = static_cast<int>(best) % m.width, y = static_cast<int>(best) / m.width;
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int nx = x + dx, ny = y + dy;
+        if ((!dx && !dy) || nx < 0 || ny < 0 || nx >= m.width || ny >= m.height) continue;
+        const int8_t c = m.at(nx, ny);
+        if (c < 0 || c >= Costmap::kInscribed) continue;
+        const double step = (dx && dy ? std::sqrt(2.0) : 1.0) * (1.0 + c / 25.0);
+        d[id(nx, ny)] = std::min(d[id(nx, ny)], d[best] + step);
+      }
+    }
+  }
+  return d[id(g.x(), g.y())];
+}
+
+double pathCost(const Costmap& m, const std::vector<Eigen::Vector2i>& p) {
+  double total = 0;
+  for (size_t i = 1; i < p.size(); ++i) {
+    const Eigen::Vector2i d = p[i] - p[i - 1];
+    EXPECT_LE(d.cwiseAbs().maxCoeff(), 1);
+    const int8_t c = m.at(p[i].x(), p[i].y());
+    EXPECT_TRUE(c >= 0 && c < Costmap::kInscribed);
+    total += (d.x() && d.y() ? std::sqrt(2.0) : 1.0) * (1.0 + c / 25.0);
+  }
+  return total;
+}
+
+TEST(Costmap, PlannerFindsTheCheapestPathOnRandomGrids) {
+  for (uint64_t seed = 0; seed < 40; ++seed) {
+    std::mt19937_64 rng(seed);
+    Costmap m;
+    m.width = 12 + static_cast<int>(rng() % 10);
+    m.height = 8 + static_cast<int>(rng() % 8);
+    m.cost.resize(static_cast<size_t>(m.width * m.height));
+    for (auto& c : m.cost) {
+      const auto r = rng() % 10;
+      c = r < 2 ? Costmap::kLethal : r < 3 ? Costmap::kUnknown : static_cast<int8_t>(rng() % 90);
+    }
+    const Eigen::Vector2i s(0, 0), g(m.width - 1, m.height - 1);
+    m.at(s.x(), s.y()) = 0;
+    m.at(g.x(), g.y()) = 0;
+    const double reference = dijkstra(m, s, g);
+    const auto path = planPath(m, s, g);
+    ASSERT_EQ(path.has_value(), std::isfinite(reference)) << "seed " << seed;
+    if (!path) continue;
+    EXPECT_EQ(path->front(), s);
+    EXPECT_EQ(path->back(), g);
+    EXPECT_NEAR(pathCost(m, *path), reference, 1e-9) << "seed " << seed;
+  }
+}
+
+TEST(Costmap, PlannerGoesThroughTheGap) {
+  CostmapSettings s;
+  s.robot_radius_m = 0.0;
+  const Costmap c = costmap(room(), s);
+  const auto path = planPath(c, {2, 2}, {17, 2});
+  ASSERT_TRUE(path);
+  bool through_gap = false;
+  for (const auto& p : *path) through_gap |= p.x() == 10 && p.y() >= 8;
+  EXPECT_TRUE(through_gap);
+  EXPECT_FALSE(planPath(c, {2, 2}, {10, 2}));   // into the wall
+  EXPECT_FALSE(planPath(c, {2, 2}, {50, 2}));   // outside
+}
+
+}  // namespace
+}  // namespace chronomap
