@@ -107,6 +107,53 @@ TEST(TemporalCli, PredictFitsSavesAndReusesTheModel) {
   EXPECT_NE(r.err.find("t.rhythm"), std::string::npos) << r.err;
 }
 
+TEST(TemporalCli, CostmapWritesMapServerFiles) {
+  test::TempDir tmp;
+  // A floor area seen free with a wall voxel column, in two sessions; a box at (5, 5) in one.
+  const std::string map = (tmp / "m.cmap").string();
+  for (int i = 0; i < 2; ++i) {
+    SessionMap s(0.05);
+    for (int x = 0; x < 10; ++x) {
+      for (int y = 0; y < 10; ++y) {
+        const bool wall = x == 0, box = i == 1 && x == 5 && y == 5;
+        s.add(VoxelKey{static_cast<uint16_t>(32768 + x), static_cast<uint16_t>(32768 + y), 32770},
+              wall || box ? test::occupiedVoxel(Rgb{}) : test::freeVoxel());
+      }
+    }
+    io::writeSessionMap(sessionFile(tmp, i), s, {});
+    ASSERT_EQ(test::runCommand(cli() + " add " + map + " " + sessionFile(tmp, i).string() + " --time " +
+                               std::to_string(100 * (i + 1)))
+                  .exit_code,
+              0);
+  }
+  const auto r = test::runCommand(cli() + " costmap " + map + " --at 200 --robot-radius 0 --model latest -o " +
+                                  (tmp / "cost.yaml").string() + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["width"], 10);
+  EXPECT_EQ(j["height"], 10);
+  EXPECT_EQ(j["blocked"], 11);  // the wall's ten cells and the box
+  EXPECT_NE(io::readTextFile(tmp / "cost.yaml").find("image: cost.pgm"), std::string::npos);
+  const std::vector<uint8_t> pgm = io::readFileBytes(tmp / "cost.pgm");
+  EXPECT_EQ(pgm.size(), std::string("P5\n10 10\n255\n").size() + 100);
+  EXPECT_TRUE(fs::exists(tmp / "cost.png"));
+  // Bad input: one line, nothing written.
+  const std::pair<std::string, std::string> bad[] = {
+      {" --at 200 -o " + (tmp / "c.pgm").string(), "must end in .yaml"},
+      {" --at 200 --z-min 1 --z-max 0.5 -o " + (tmp / "c.yaml").string(), "--z-max above --z-min"},
+      {" --at 200 --z-min 5 --z-max 6 -o " + (tmp / "c.yaml").string(), "nothing is known"},
+      {" --at 200 --robot-radius -1 -o " + (tmp / "c.yaml").string(), "--robot-radius"},
+      {" --at 200 --change-weight 2 -o " + (tmp / "c.yaml").string(), "--change-weight"},
+  };
+  for (const auto& [args, message] : bad) {
+    const auto b = test::runCommand(cli() + " costmap " + map + args);
+    EXPECT_NE(b.exit_code, 0) << args;
+    EXPECT_NE(b.err.find(message), std::string::npos) << args << ": " << b.err;
+  }
+  EXPECT_FALSE(fs::exists(tmp / "c.yaml"));
+  EXPECT_FALSE(fs::exists(tmp / "c.pgm"));
+}
+
 TEST(TemporalCli, AddRealignMovesAShiftedSessionBack) {
   test::TempDir tmp;
   for (int i = 0; i < 3; ++i) io::writeSessionMap(sessionFile(tmp, i), test::wallSession(10, 0), {});
