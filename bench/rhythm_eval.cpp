@@ -10,7 +10,10 @@
 //   --poses        true: integrate with the true poses; registered (default): the estimated
 //                  poses registered to the consensus, as `chronomap build --register` does
 //   --scale        image size of the simulation made here (default 0.25)
-// Prints a table and, last, one JSON object (brier_* and auc_* per model and baseline).
+// Then navigation: plans between every pair of rooms at each test session's time on the latest
+// snapshot, the mean map and the combined model's cost map, executed against the truth
+// (RHYTHM_EVAL_DUMP=DIR writes every grid there as map_server files, for a look).
+// Prints tables and, last, one JSON object (brier_*, auc_* per model and baseline, nav_*).
 
 #include <algorithm>
 #include <chrono>
@@ -25,9 +28,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include "chronomap/analysis/costmap.h"
 #include "chronomap/analysis/rhythm.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/file.h"
+#include "chronomap/io/map_server.h"
 #include "chronomap/pipeline/map4d.h"
 #include "chronomap/sim/building.h"
 
@@ -60,6 +65,43 @@ double rocAuc(std::vector<std::pair<double, uint8_t>> scored) {
   }
   if (positives == 0 || negatives == 0) return 0.5;
   return (rank_sum - positives * (positives + 1) / 2) / (positives * negatives);
+}
+
+/// The truth of a session as a costmap on `like`'s grid: lethal where a true voxel lies in the
+/// band, free elsewhere, inflated by the radius.
+Costmap truthCostmap(const SessionMap& truth, const Costmap& like, const CostmapSettings& s) {
+  Costmap c = like;
+  std::fill(c.cost.begin(), c.cost.end(), int8_t{0});
+  truth.forEachLeaf([&](const LeafView& leaf) {
+    const Eigen::Vector3d p = truth.grid().centerOf(leaf.key);
+    if (p.z() < s.z_min_m || p.z() > s.z_max_m || leaf.counters.state() != VoxelState::Occupied) return;
+    if (const auto cell = c.cellOf(p.head<2>())) c.at(cell->x(), cell->y()) = Costmap::kLethal;
+  });
+  inflate(c, s.robot_radius_m);
+  return c;
+}
+
+double pathLength(const std::vector<Eigen::Vector2i>& path, double resolution_m) {
+  double length = 0;
+  for (size_t i = 1; i < path.size(); ++i) length += (path[i] - path[i - 1]).cast<double>().norm() * resolution_m;
+  return length;
+}
+
+/// The free cell of `truth` nearest to `p` (by cell distance), if any.
+std::optional<Eigen::Vector2i> nearestFree(const Costmap& truth, const Eigen::Vector2d& p) {
+  std::optional<Eigen::Vector2i> best;
+  double best_d = 1e18;
+  for (int j = 0; j < truth.height; ++j) {
+    for (int i = 0; i < truth.width; ++i) {
+      if (truth.at(i, j) != 0) continue;
+      const double d = (truth.centerOf({i, j}) - p).squaredNorm();
+      if (d < best_d) {
+        best_d = d;
+        best = Eigen::Vector2i(i, j);
+      }
+    }
+  }
+  return best;
 }
 
 }  // namespace
@@ -222,6 +264,78 @@ int main(int argc, char** argv) {
       best_name = toString(m);
     }
   }
+  // Navigation: plans between every pair of rooms at each test session's time on (a) the latest
+  // snapshot of the learning weeks, (b) the mean map, (c) the cost map of the combined model
+  // with change costs, each executed against that session's true occupancy (inflated alike).
+  CostmapSettings nav;
+  nav.robot_radius_m = 0.25;
+  const SessionMap latest = map.snapshot(times[learn.back()]);
+  struct Planner {
+    const char* name;
+    size_t plans = 0, failed = 0, blocked = 0;
+    double length_ratio_sum = 0;
+    size_t feasible = 0;
+  };
+  Planner planners[3] = {{"latest"}, {"mean"}, {"costmap"}};
+  std::vector<Eigen::Vector2d> room_centres;
+  for (const auto& r : scene["rooms"]) {
+    room_centres.emplace_back(0.5 * (r["min"][0].get<double>() + r["max"][0].get<double>()),
+                              0.5 * (r["min"][1].get<double>() + r["max"][1].get<double>()));
+  }
+  CostmapSettings plain = nav;
+  plain.change_weight = 0.0;
+  const Costmap latest_cost = costmap(latest, plain);
+  for (size_t k = 0; k < test.size(); ++k) {
+    const double t = times[test[k]];
+    const Costmap maps[3] = {latest_cost, costmap(predictMap(map, models, RhythmModel::Mean, t), plain),
+                             costmap(predictMap(map, models, RhythmModel::Combined, t), nav, &models)};
+    for (int p = 0; p < 3; ++p) {
+      const Costmap truth = truthCostmap(truths[k], maps[p], nav);
+      if (std::getenv("RHYTHM_EVAL_DUMP")) {  // every test session's grids, for a look
+        io::writeMapServer(fs::path(std::getenv("RHYTHM_EVAL_DUMP")) / (std::string(planners[p].name) + std::to_string(k) + ".yaml"), maps[p]);
+        io::writeMapServer(fs::path(std::getenv("RHYTHM_EVAL_DUMP")) / (std::string(planners[p].name) + std::to_string(k) + "_truth.yaml"), truth);
+      }
+      Costmap open_truth = truth;  // the shortest feasible path: distance only
+      for (auto& c : open_truth.cost) c = c == 0 ? 0 : Costmap::kLethal;
+      for (size_t a = 0; a < room_centres.size(); ++a) {
+        for (size_t b = a + 1; b < room_centres.size(); ++b) {
+          const auto start = nearestFree(truth, room_centres[a]), goal = nearestFree(truth, room_centres[b]);
+          if (!start || !goal) continue;
+          const auto shortest = planPath(open_truth, *start, *goal);
+          if (!shortest) continue;  // no way through at that time (a shut door): nothing to score
+          Planner& pl = planners[p];
+          ++pl.plans;
+          const auto path = planPath(maps[p], *start, *goal);
+          if (!path) {
+            ++pl.failed;
+            continue;
+          }
+          bool hit = false;
+          for (const auto& c : *path) hit |= truth.at(c.x(), c.y()) != 0;
+          if (hit) {
+            ++pl.blocked;
+            continue;
+          }
+          ++pl.feasible;
+          pl.length_ratio_sum += pathLength(*path, truth.resolution_m) / pathLength(*shortest, truth.resolution_m);
+        }
+      }
+    }
+  }
+  std::printf("navigation (robot radius %.2f m, rooms' centres pairwise, %zu test sessions):\n", nav.robot_radius_m,
+              test.size());
+  std::printf("%-10s %6s %8s %8s %14s\n", "map", "plans", "no plan", "blocked", "length ratio");
+  for (const Planner& pl : planners) {
+    const double ratio = pl.feasible ? pl.length_ratio_sum / static_cast<double>(pl.feasible) : 0.0;
+    std::printf("%-10s %6zu %8zu %8zu %14.3f\n", pl.name, pl.plans, pl.failed, pl.blocked, ratio);
+    const std::string n = pl.name;
+    out["nav_plans_" + n] = pl.plans;
+    out["nav_failed_" + n] = pl.failed;
+    out["nav_blocked_" + n] = pl.plans ? static_cast<double>(pl.blocked) / static_cast<double>(pl.plans) : 0.0;
+    out["nav_length_ratio_" + n] = ratio;
+  }
+  out["nav_length_ratio"] = out["nav_length_ratio_costmap"];
+
   out["best"] = best_name;
   out["brier_best"] = best_brier;
   out["auc_best"] = best_auc;

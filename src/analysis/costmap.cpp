@@ -88,27 +88,34 @@ Costmap costmap(const SessionMap& map, const CostmapSettings& s, const RhythmMod
     const double c = (1.0 - s.change_weight) * (probability[i] / 0.5) + s.change_weight * change[i];
     out.cost[i] = static_cast<int8_t>(std::lround(98.0 * std::clamp(c, 0.0, 1.0)));
   }
-  // Inflation: every cell whose centre lies within the radius of a lethal cell's centre.
-  const int reach = static_cast<int>(std::floor(s.robot_radius_m / r + 1e-9));
+  inflate(out, s.robot_radius_m);
+  return out;
+}
+
+void inflate(Costmap& m, double radius_m) {
+  const double r = m.resolution_m;
+  const int reach = static_cast<int>(std::floor(radius_m / r + 1e-9));
   std::vector<Eigen::Vector2i> disk;
   for (int dy = -reach; dy <= reach; ++dy) {
     for (int dx = -reach; dx <= reach; ++dx) {
-      if ((dx * dx + dy * dy) * r * r <= s.robot_radius_m * s.robot_radius_m + 1e-12 && (dx || dy)) disk.emplace_back(dx, dy);
+      const bool within = (dx * dx + dy * dy) * r * r <= radius_m * radius_m + 1e-12;
+      if (within && (dx || dy)) disk.emplace_back(dx, dy);
     }
   }
-  const std::vector<int8_t> before = out.cost;
-  for (int j = 0; j < out.height; ++j) {
-    for (int i = 0; i < out.width; ++i) {
-      if (before[static_cast<size_t>(j) * static_cast<size_t>(out.width) + static_cast<size_t>(i)] != Costmap::kLethal) continue;
+  const std::vector<int8_t> before = m.cost;
+  for (int j = 0; j < m.height; ++j) {
+    for (int i = 0; i < m.width; ++i) {
+      if (before[static_cast<size_t>(j) * static_cast<size_t>(m.width) + static_cast<size_t>(i)] != Costmap::kLethal) {
+        continue;
+      }
       for (const Eigen::Vector2i& d : disk) {
         const int x = i + d.x(), y = j + d.y();
-        if (x < 0 || y < 0 || x >= out.width || y >= out.height) continue;
-        int8_t& c = out.at(x, y);
+        if (x < 0 || y < 0 || x >= m.width || y >= m.height) continue;
+        int8_t& c = m.at(x, y);
         if (c != Costmap::kLethal) c = Costmap::kInscribed;
       }
     }
   }
-  return out;
 }
 
 std::optional<std::vector<Eigen::Vector2i>> planPath(const Costmap& m, const Eigen::Vector2i& start,

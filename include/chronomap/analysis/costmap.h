@@ -49,6 +49,10 @@ struct Costmap {
 /// @throw UsageError for an empty band or a negative radius.
 Costmap costmap(const SessionMap& map, const CostmapSettings& settings, const RhythmModels* models = nullptr);
 
+/// Marks every cell whose centre lies within `radius_m` of a lethal cell's centre kInscribed
+/// (lethal cells stay lethal). costmap() ends with it.
+void inflate(Costmap& costmap, double radius_m);
+
 /// A* on the costmap between two cells: 8-connected, a step costs its length times
 /// (1 + cost / 25); unknown, inscribed and lethal cells are not entered (the start is).
 /// @return the cells from start to goal, or nothing when the goal cannot be reached.
