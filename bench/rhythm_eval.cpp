@@ -5,11 +5,14 @@
 // latest snapshot of the learning weeks, and the mean occupancy over its sessions.
 //
 // Usage: rhythm_eval [--sim DIR] [--learn-days D] [--poses true|registered] [--scale S]
+//                    [--max-range M] [--min-changes N]
 //   --sim DIR      a `chronomap simulate --preset weeks` output (default: simulated here, seed 1)
 //   --learn-days   days of sessions to learn from (default 21: three weeks; the rest test)
 //   --poses        true: integrate with the true poses; registered (default): the estimated
 //                  poses registered to the consensus, as `chronomap build --register` does
 //   --scale        image size of the simulation made here (default 0.25)
+//   --max-range    integration range, metres (default 3, as chronomap build)
+//   --min-changes  model the voxels that changed at least this often while learning (default 1)
 // Then navigation: plans between every pair of rooms at each test session's time on the latest
 // snapshot, the mean map and the combined model's cost map, executed against the truth
 // (RHYTHM_EVAL_DUMP=DIR writes every grid there as map_server files, for a look).
@@ -112,6 +115,7 @@ int main(int argc, char** argv) {
   std::string poses = "registered";
   double scale = 0.25;
   uint32_t min_changes = 1;
+  double max_range_m = 3.0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> std::string {
@@ -125,6 +129,7 @@ int main(int argc, char** argv) {
     else if (a == "--learn-days") learn_days = std::stoi(value());
     else if (a == "--poses") poses = value();
     else if (a == "--scale") scale = std::stod(value());
+    else if (a == "--max-range") max_range_m = std::stod(value());
     else if (a == "--min-changes") min_changes = static_cast<uint32_t>(std::stoul(value()));
     else {
       std::fprintf(stderr, "usage: rhythm_eval [--sim DIR] [--learn-days D] [--poses true|registered] [--scale S]\n");
@@ -170,6 +175,7 @@ int main(int argc, char** argv) {
     build.times_s.emplace_back(times[i]);
   }
   build.session.integrator.fast = true;
+  build.session.integrator.max_range_m = max_range_m;
   if (poses == "true") {
     build.session.dataset.trajectory = std::nullopt;
   } else {
