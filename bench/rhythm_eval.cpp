@@ -5,13 +5,14 @@
 // latest snapshot of the learning weeks, and the mean occupancy over its sessions.
 //
 // Usage: rhythm_eval [--sim DIR] [--learn-days D] [--poses true|registered] [--scale S]
-//                    [--max-range M] [--min-changes N]
+//                    [--max-range M] [--min-changes N] [--robot-height H]
 //   --sim DIR      a `chronomap simulate --preset weeks` output (default: simulated here, seed 1)
 //   --learn-days   days of sessions to learn from (default 21: three weeks; the rest test)
 //   --poses        true: integrate with the true poses; registered (default): the estimated
 //                  poses registered to the consensus, as `chronomap build --register` does
 //   --scale        image size of the simulation made here (default 0.25)
 //   --max-range    integration range, metres (default 3, as chronomap build)
+//   --robot-height the top of the band the costmaps read, metres (default 1.8)
 //   --min-changes  model the voxels that changed at least this often while learning (default 1)
 // Then navigation: plans between every pair of rooms at each test session's time on the latest
 // snapshot, the mean map and the combined model's cost map, executed against the truth
@@ -116,6 +117,7 @@ int main(int argc, char** argv) {
   double scale = 0.25;
   uint32_t min_changes = 1;
   double max_range_m = 3.0;
+  double robot_height_m = 1.8;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> std::string {
@@ -130,6 +132,7 @@ int main(int argc, char** argv) {
     else if (a == "--poses") poses = value();
     else if (a == "--scale") scale = std::stod(value());
     else if (a == "--max-range") max_range_m = std::stod(value());
+    else if (a == "--robot-height") robot_height_m = std::stod(value());
     else if (a == "--min-changes") min_changes = static_cast<uint32_t>(std::stoul(value()));
     else {
       std::fprintf(stderr, "usage: rhythm_eval [--sim DIR] [--learn-days D] [--poses true|registered] [--scale S]\n");
@@ -275,6 +278,7 @@ int main(int argc, char** argv) {
   // with change costs, each executed against that session's true occupancy (inflated alike).
   CostmapSettings nav;
   nav.robot_radius_m = 0.25;
+  nav.z_max_m = robot_height_m;
   const SessionMap latest = map.snapshot(times[learn.back()]);
   struct Planner {
     const char* name;
@@ -328,8 +332,8 @@ int main(int argc, char** argv) {
       }
     }
   }
-  std::printf("navigation (robot radius %.2f m, rooms' centres pairwise, %zu test sessions):\n", nav.robot_radius_m,
-              test.size());
+  std::printf("navigation (robot radius %.2f m, height %.2f m, rooms' centres pairwise, %zu test sessions):\n",
+              nav.robot_radius_m, nav.z_max_m, test.size());
   std::printf("%-10s %6s %8s %8s %14s\n", "map", "plans", "no plan", "blocked", "length ratio");
   for (const Planner& pl : planners) {
     const double ratio = pl.feasible ? pl.length_ratio_sum / static_cast<double>(pl.feasible) : 0.0;
