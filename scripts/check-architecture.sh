@@ -18,6 +18,7 @@ declare -A allowed=(
   [render]="core octree temporal analysis"
   [sim]="core octree analysis io"
   [pipeline]="core octree temporal integrate analysis align io render sim"
+  [view]="core octree temporal analysis io"
 )
 
 failures=0

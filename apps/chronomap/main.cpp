@@ -29,7 +29,7 @@ int run(int argc, char** argv) {
   const std::vector<cli::Command> commands = {cli::addIntegrate(app), cli::addAdd(app),      cli::addBuild(app),
                                               cli::addSnapshot(app),  cli::addHistory(app),  cli::addChanges(app),  cli::addDiff(app),     cli::addSegment(app),
                                               cli::addStats(app),     cli::addExport(app),   cli::addSimulate(app),
-                                              cli::addDemo(app)};
+                                              cli::addDemo(app),      cli::addView(app)};
 
   try {
     app.parse(argc, argv);

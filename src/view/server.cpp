@@ -1,0 +1,69 @@
+// The viewer's HTTP server: cpp-httplib in front of Api.
+
+#include "chronomap/view/server.h"
+
+#include <httplib.h>
+
+#include "chronomap/core/error.h"
+
+namespace chronomap::view {
+
+struct Server::Impl {
+  Impl(const TemporalMap& map, std::string name, ServerSettings s) : api(map, std::move(name), s.api), settings(std::move(s)) {}
+  Api api;
+  ServerSettings settings;
+  httplib::Server http;
+  int port = -1;
+};
+
+Server::Server(const TemporalMap& map, std::string name, ServerSettings settings)
+    : impl_(std::make_unique<Impl>(map, std::move(name), std::move(settings))) {
+  const Api& api = impl_->api;
+  auto answer = [&api](const httplib::Request& req, httplib::Response& res) {
+    Query query(req.params.begin(), req.params.end());
+    Reply r = api.get(req.path, query);
+    res.status = r.status;
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(std::move(r.body), r.content_type.c_str());
+  };
+  impl_->http.Get(R"(/.*)", answer);
+  // Other methods, and paths the router never matches, get a 404 or 405 from cpp-httplib; a
+  // handler that throws (out of memory) gets a 500 and the server keeps serving.
+  impl_->http.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr) {
+    res.status = 500;
+    res.set_content(R"({"error":"internal error"})", "application/json");
+  });
+}
+
+Server::~Server() { stop(); }
+
+int Server::bind() {
+  auto& s = impl_->settings;
+  impl_->port = s.port == 0 ? impl_->http.bind_to_any_port(s.host) : (impl_->http.bind_to_port(s.host, s.port) ? s.port : -1);
+  if (impl_->port < 0) {
+    throw IoError("cannot listen on " + s.host + ":" + std::to_string(s.port) + " (in use, or not an address of this machine)");
+  }
+  return impl_->port;
+}
+
+void Server::serve() {
+  if (impl_->port < 0) throw UsageError("Server::serve() before bind()");
+  if (!impl_->http.listen_after_bind()) {
+    // stop() makes listen return false as well; only a failure without it is an error.
+    if (impl_->http.is_running()) throw IoError("the server stopped listening on " + url());
+  }
+}
+
+void Server::stop() {
+  if (impl_ && impl_->http.is_running()) impl_->http.stop();
+}
+
+std::string Server::url() const {
+  const std::string& host = impl_->settings.host;
+  const bool v6 = host.find(':') != std::string::npos;
+  std::string u = "http://";
+  u.append(v6 ? "[" : "").append(host).append(v6 ? "]" : "").append(":").append(std::to_string(impl_->port)).append("/");
+  return u;
+}
+
+}  // namespace chronomap::view
