@@ -127,7 +127,7 @@ Reply Api::snapshot(const Query& query) const {
 
 Reply Api::diffReply(const Query& query) const {
   onlyParameters(query, {"from", "to", "t0", "t1", "min_voxels"});
-  DiffRequest r;
+  DiffRequest r{0.0, 0.0, settings_.diff, settings_.segment};
   r.t0_s = requestedTime(map_, query, "from", "t0");
   r.t1_s = requestedTime(map_, query, "to", "t1");
   if (const auto* m = find(query, "min_voxels")) r.segment.min_voxels = parseCount(*m, "min_voxels", 1, 1u << 30);

@@ -105,6 +105,16 @@ VoxelSet snapshotVoxels(const TemporalMap& map, const SnapshotRequest& request) 
   return out;
 }
 
+DiffRequest changeSettings() {
+  DiffRequest r;
+  r.diff.mode = DiffMode::Band;
+  r.diff.neighbourhood_voxels = 1;
+  r.diff.min_shift_voxels = DiffSettings::kRecommendedMinShift;
+  r.segment.connectivity = Connectivity::Vertex;
+  r.segment.min_voxels = 20;
+  return r;
+}
+
 DiffObjects diffObjects(const TemporalMap& map, const DiffRequest& request) {
   DiffObjects out{diff(map, request.t0_s, request.t1_s, request.diff), {}, {}};
   out.segmentation = segment(out.diff, request.segment);

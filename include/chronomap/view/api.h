@@ -21,6 +21,9 @@ struct ApiSettings {
   size_t max_voxels_limit = 2000000;
   /// Changed cells sent with a diff (its objects are always sent whole).
   size_t max_diff_cells = 300000;
+  /// How diffs are computed and segmented (a request may ask for another min_voxels).
+  DiffSettings diff = changeSettings().diff;
+  SegmentSettings segment = changeSettings().segment;
 };
 
 /// One answer: HTTP status, content type and body.

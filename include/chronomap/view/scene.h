@@ -73,6 +73,13 @@ struct DiffObjects {
   std::vector<uint32_t> component_of_cell;
 };
 
+/// The diff and segmentation settings the viewer uses unless told otherwise: those of `chronomap
+/// demo`, which find the simulated office's changes as objects (band mode, a neighbourhood of
+/// one voxel with the recommended minimum shift, vertex connectivity, at least 20 voxels); the
+/// same as `chronomap diff --mode band --neighbourhood 1 --min-shift 0.5` and `chronomap segment
+/// --connectivity vertex --min-voxels 20`.
+DiffRequest changeSettings();
+
 /// The diff of `map` between the two times and its segmentation (the same calls as
 /// `chronomap diff` and `chronomap segment`).
 DiffObjects diffObjects(const TemporalMap& map, const DiffRequest& request);

@@ -12,6 +12,7 @@
 #include "chronomap/analysis/diff.h"
 #include "chronomap/analysis/segment.h"
 #include "chronomap/temporal/temporal_map.h"
+#include "chronomap/view/scene.h"
 
 namespace chronomap::view {
 
@@ -23,8 +24,9 @@ struct TourSettings {
   size_t max_sessions = 64;
   /// Changed cells per diff (the objects are always kept whole).
   size_t max_diff_cells = 100000;
-  DiffSettings diff;
-  SegmentSettings segment;
+  /// How diffs are computed and segmented (view::changeSettings() by default).
+  DiffSettings diff = changeSettings().diff;
+  SegmentSettings segment = changeSettings().segment;
 };
 
 /// What a tour holds.
