@@ -3,6 +3,7 @@
 #include "chronomap/view/server.h"
 
 #include <httplib.h>
+#include <sys/socket.h>
 
 #include "chronomap/core/error.h"
 
@@ -27,6 +28,13 @@ Server::Server(const TemporalMap& map, std::string name, ServerSettings settings
     res.set_content(std::move(r.body), r.content_type.c_str());
   };
   impl_->http.Get(R"(/.*)", answer);
+  // cpp-httplib's default also sets SO_REUSEPORT, with which a second server (another `chronomap
+  // view`, or another program) could bind the same port and take some of the connections. Only
+  // SO_REUSEADDR: a restarted server may bind while old connections linger in TIME_WAIT.
+  impl_->http.set_socket_options([](socket_t sock) {
+    int yes = 1;
+    setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+  });
   // Other methods, and paths the router never matches, get a 404 or 405 from cpp-httplib; a
   // handler that throws (out of memory) gets a 500 and the server keeps serving.
   impl_->http.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr) {
