@@ -177,7 +177,6 @@ function drawSnapshot() {
   state.drawn = n;
   voxelMaterial.opacity = state.diff ? 0.28 : 1;
   voxelMaterial.depthWrite = !state.diff;
-  voxelMaterial.needsUpdate = true;
   redraw();
   updateStats();
   updateLegend();
