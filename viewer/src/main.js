@@ -493,5 +493,12 @@ state.clearDiff = () => { clearDiff(); drawSnapshot(); };
 state.selectCell = (i) => selectCell(i);
 state.setColorMode = (m) => { state.colorMode = m; $('colormode').value = m; drawSnapshot(); };
 state.toggleTopView = () => $('topview').click();
+/** Cuts at `metres` above the map's origin (the slider's value nearest to it). */
+state.setCut = (metres) => {
+  const r = state.info.resolution_m, o = state.info.key_origin, b = state.bounds;
+  const f = ((metres / r + o) - b.zmin) / Math.max(1, b.zmax - b.zmin);
+  $('cut').value = Math.round(Math.min(1, Math.max(0, f)) * 1000);
+  $('cut').dispatchEvent(new Event('input'));
+};
 
 main().catch(report);

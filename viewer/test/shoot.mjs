@@ -1,7 +1,8 @@
 // Screenshots of the viewer with headless Chromium, for docs/images and for looking at changes:
 //   node test/shoot.mjs URL OUT_PREFIX
 // writes OUT_PREFIX-map.png (last session), OUT_PREFIX-diff.png (objects between the first two
-// sessions) and OUT_PREFIX-history.png (top view, a voxel's history), and prints timings as JSON.
+// sessions), OUT_PREFIX-history.png (coloured by change count, the busiest voxel's history) and
+// OUT_PREFIX-top.png (top view, cut at 1.2 m), and prints timings as JSON (software WebGL).
 import puppeteer from 'puppeteer-core';
 
 const [url, prefix] = process.argv.slice(2);
@@ -41,14 +42,23 @@ try {
   await page.evaluate(async () => {
     const c = window.chronomap;
     c.clearDiff();
+    await c.setSession(c.info.sessions.length - 1);
     c.setColorMode('changes');
-    c.toggleTopView();
     let best = 0;
     for (let i = 0; i < c.snap.count; ++i) if (c.snap.changes[i] > c.snap.changes[best]) best = i;
     await c.selectCell(best);
+    await c.nextFrame();
   });
-  await page.evaluate(() => new Promise((r) => setTimeout(r, 300)));
   await page.screenshot({ path: `${prefix}-history.png` });
+  await page.evaluate(async () => {
+    const c = window.chronomap;
+    document.getElementById('history').style.display = 'none';
+    c.setColorMode('color');
+    c.setCut(1.2);
+    c.toggleTopView();
+    await c.nextFrame();
+  });
+  await page.screenshot({ path: `${prefix}-top.png` });
   const memory = await page.evaluate(() => (performance.memory ? performance.memory.usedJSHeapSize : null));
   console.log(JSON.stringify({ first_picture_ms: firstPicture, slider_steps_ms: steps.map(Math.round), objects,
                                js_heap_bytes: memory }));
