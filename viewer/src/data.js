@@ -33,6 +33,7 @@ async function fetchOk(url) {
 
 /** The data of `chronomap view`: asked for piece by piece. */
 export class ServerSource {
+  static kCached = 12;
   constructor() { this.kind = 'server'; this.snapshots = new Map(); }
   async info() { return (await fetchOk('api/map')).json(); }
   async snapshot(rank, budget) {
@@ -42,8 +43,13 @@ export class ServerSource {
         .then((r) => r.arrayBuffer()).then((b) => snapshotFrom(readPacket(b)));
       this.snapshots.set(id, p);
       p.catch(() => this.snapshots.delete(id));
+      // Keep the most recent few: a map of many sessions would otherwise fill the page's memory.
+      while (this.snapshots.size > ServerSource.kCached) this.snapshots.delete(this.snapshots.keys().next().value);
     }
-    return this.snapshots.get(id);
+    const p = this.snapshots.get(id);
+    this.snapshots.delete(id);  // most recently used last
+    this.snapshots.set(id, p);
+    return p;
   }
   async diff(from, to) {
     const p = readPacket(await (await fetchOk(`api/diff?from=${from}&to=${to}`)).arrayBuffer());
