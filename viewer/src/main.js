@@ -48,8 +48,8 @@ sun.position.set(-0.5, -0.8, 1.6);
 scene.add(sun);
 
 const box = new THREE.BoxGeometry(1, 1, 1);
-const voxelMaterial = new THREE.MeshLambertMaterial({ transparent: true, opacity: 1 });
-let voxels = null;  // InstancedMesh of the snapshot
+const voxelMaterial = new THREE.MeshLambertMaterial({ transparent: true, opacity: 1, vertexColors: true });
+let voxels = null;  // Mesh of the snapshot's visible faces (surfaceMesh)
 let changed = null;  // InstancedMesh of the diff's cells
 const frames = new THREE.Group();  // boxes around the objects
 scene.add(frames);
@@ -146,35 +146,79 @@ function cutHeightKey() {
   return b ? b.zmin + state.cut * (b.zmax - b.zmin) : Infinity;
 }
 
+// The six faces of a unit cube: outward normal and corners, counter-clockwise seen from outside.
+const FACES = [
+  { n: [1, 0, 0], c: [[1, 0, 0], [1, 1, 0], [1, 1, 1], [1, 0, 1]] },
+  { n: [-1, 0, 0], c: [[0, 0, 0], [0, 0, 1], [0, 1, 1], [0, 1, 0]] },
+  { n: [0, 1, 0], c: [[0, 1, 0], [0, 1, 1], [1, 1, 1], [1, 1, 0]] },
+  { n: [0, -1, 0], c: [[0, 0, 0], [1, 0, 0], [1, 0, 1], [0, 0, 1]] },
+  { n: [0, 0, 1], c: [[0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]] },
+  { n: [0, 0, -1], c: [[0, 0, 0], [0, 1, 0], [1, 1, 0], [1, 0, 0]] },
+];
+const packKey = (x, y, z) => x + 65536 * (y + 65536 * z);
+
+// The drawn cells as one mesh of the faces between a cell and no drawn cell of its level: the
+// faces inside walls and floors are never seen, and leaving them out keeps a frame cheap where
+// the browser draws in software. Each voxel's colour varies by a few percent, so that the voxels
+// of a flat wall stay visible. Returns the mesh; mesh.userData.cellOfFace maps faces to cells.
+function surfaceMesh(snap, drawn) {
+  const present = new Set();
+  for (const i of drawn) present.add(packKey(snap.keys[3 * i], snap.keys[3 * i + 1], snap.keys[3 * i + 2]) * 16 + snap.levels[i]);
+  const faces = [];  // [cell, face]
+  for (let k = 0; k < drawn.length; ++k) {
+    const i = drawn[k], l = snap.levels[i], s = 1 << l;
+    const x = snap.keys[3 * i], y = snap.keys[3 * i + 1], z = snap.keys[3 * i + 2];
+    for (let f = 0; f < 6; ++f) {
+      const n = FACES[f].n;
+      if (!present.has(packKey(x + n[0] * s, y + n[1] * s, z + n[2] * s) * 16 + l)) faces.push(k, f);
+    }
+  }
+  const count = faces.length / 2;
+  const position = new Float32Array(12 * count), normal = new Float32Array(12 * count), color = new Float32Array(12 * count);
+  const index = new Uint32Array(6 * count), cellOfFace = new Uint32Array(count);
+  const r = state.info.resolution_m, o = state.info.key_origin;
+  for (let q = 0; q < count; ++q) {
+    const k = faces[2 * q], f = FACES[faces[2 * q + 1]], i = drawn[k], s = 1 << snap.levels[i];
+    const x = snap.keys[3 * i], y = snap.keys[3 * i + 1], z = snap.keys[3 * i + 2];
+    const c = colorOf(snap, i);
+    const jitter = 0.94 + 0.06 * (((x * 73856093) ^ (y * 19349663) ^ (z * 83492791)) & 255) / 255;
+    srgb.setRGB((c[0] / 255) * jitter, (c[1] / 255) * jitter, (c[2] / 255) * jitter, THREE.SRGBColorSpace);
+    for (let v = 0; v < 4; ++v) {
+      const at = 12 * q + 3 * v;
+      position[at] = (x - o + f.c[v][0] * s) * r;
+      position[at + 1] = (y - o + f.c[v][1] * s) * r;
+      position[at + 2] = (z - o + f.c[v][2] * s) * r;
+      normal.set(f.n, at);
+      color[at] = srgb.r; color[at + 1] = srgb.g; color[at + 2] = srgb.b;
+    }
+    index.set([4 * q, 4 * q + 1, 4 * q + 2, 4 * q, 4 * q + 2, 4 * q + 3], 6 * q);
+    cellOfFace[q] = k;
+  }
+  const g = new THREE.BufferGeometry();
+  g.setAttribute('position', new THREE.BufferAttribute(position, 3));
+  g.setAttribute('normal', new THREE.BufferAttribute(normal, 3));
+  g.setAttribute('color', new THREE.BufferAttribute(color, 3));
+  g.setIndex(new THREE.BufferAttribute(index, 1));
+  g.computeBoundingSphere();
+  const mesh = new THREE.Mesh(g, voxelMaterial);
+  mesh.userData.cellOfFace = cellOfFace;
+  return mesh;
+}
+
 function drawSnapshot() {
   const snap = state.snap;
   if (!snap) return;
   computeBounds(snap);
-  if (!voxels || voxels.instanceMatrix.count < snap.count) {
-    if (voxels) { scene.remove(voxels); voxels.dispose(); }
-    voxels = instanced(Math.max(snap.count, 1024), voxelMaterial);
-    scene.add(voxels);
-  }
   state.maxChanges = 1;
   for (let i = 0; i < snap.count; ++i) state.maxChanges = Math.max(state.maxChanges, snap.changes[i]);
   const cut = cutHeightKey();
-  const colors = voxels.instanceColor.array;
-  let n = 0;
   state.visible = [];
-  for (let i = 0; i < snap.count; ++i) {
-    if (snap.keys[3 * i + 2] >= cut) continue;
-    const size = cellCenter(snap.keys, snap.levels, i, tmp) * 0.94;
-    mat.compose(tmp, quat, scl.set(size, size, size));
-    voxels.setMatrixAt(n, mat);
-    srgb.setRGB(...colorOf(snap, i).map((v) => v / 255), THREE.SRGBColorSpace);
-    colors[3 * n] = srgb.r; colors[3 * n + 1] = srgb.g; colors[3 * n + 2] = srgb.b;
-    state.visible.push(i);
-    ++n;
-  }
-  voxels.count = n;
-  voxels.instanceMatrix.needsUpdate = true;
-  voxels.instanceColor.needsUpdate = true;
-  state.drawn = n;
+  for (let i = 0; i < snap.count; ++i) if (snap.keys[3 * i + 2] < cut) state.visible.push(i);
+  if (voxels) { scene.remove(voxels); voxels.geometry.dispose(); }
+  voxels = surfaceMesh(snap, state.visible);
+  scene.add(voxels);
+  state.drawn = state.visible.length;
+  state.faces = voxels.userData.cellOfFace.length;
   voxelMaterial.opacity = state.diff ? 0.28 : 1;
   voxelMaterial.depthWrite = !state.diff;
   redraw();
@@ -318,7 +362,7 @@ async function pick(event) {
   raycaster.setFromCamera(ndc, camera);
   const hit = raycaster.intersectObject(voxels, false)[0];
   if (!hit) return;
-  await selectCell(state.visible[hit.instanceId]);
+  await selectCell(state.visible[voxels.userData.cellOfFace[hit.faceIndex >> 1]]);
 }
 
 async function selectCell(i) {
