@@ -34,12 +34,17 @@ async function fetchOk(url) {
 /** The data of `chronomap view`: asked for piece by piece. */
 export class ServerSource {
   static kCached = 12;
+  /** The server sends finer cells for the part in view. */
+  get refines() { return true; }
   constructor() { this.kind = 'server'; this.snapshots = new Map(); }
   async info() { return (await fetchOk('api/map')).json(); }
-  async snapshot(rank, budget) {
-    const id = `${rank}/${budget}`;
+  /** The occupied cells at session `rank`, at most `budget`; only in `region` (keys x0, y0, z0,
+   *  x1, y1, z1) when given. */
+  async snapshot(rank, budget, region) {
+    const where = region ? `&region=${region.join(',')}` : '';
+    const id = `${rank}/${budget}${where}`;
     if (!this.snapshots.has(id)) {
-      const p = fetchOk(`api/snapshot?session=${rank}&budget=${budget}`)
+      const p = fetchOk(`api/snapshot?session=${rank}&budget=${budget}${where}`)
         .then((r) => r.arrayBuffer()).then((b) => snapshotFrom(readPacket(b)));
       this.snapshots.set(id, p);
       p.catch(() => this.snapshots.delete(id));
@@ -77,6 +82,8 @@ function base64ToBuffer(text) {
 
 /** The data inside a tour file: every cell ever occupied with its state per session. */
 export class TourSource {
+  /** A tour holds one level of detail: no finer cells in view. */
+  get refines() { return false; }
   constructor(element) {
     this.kind = 'tour';
     this.packet = readPacket(base64ToBuffer(element.textContent));

@@ -42,6 +42,7 @@ controls.enableDamping = true;
 controls.dampingFactor = 0.12;
 controls.screenSpacePanning = true;
 controls.addEventListener('change', () => redraw());
+controls.addEventListener('end', () => scheduleRefine());
 scene.add(new THREE.HemisphereLight(0xffffff, 0x445066, 1.6));
 const sun = new THREE.DirectionalLight(0xffffff, 1.6);
 sun.position.set(-0.5, -0.8, 1.6);
@@ -205,9 +206,33 @@ function surfaceMesh(snap, drawn) {
   return mesh;
 }
 
+// The snapshot with the finer cells of the part in view in place of its coarse ones.
+function withDetail(snap, detail) {
+  if (!detail || detail.rank !== snap.rank) return snap;
+  const [x0, y0, , x1, y1] = detail.region;
+  const keep = [];
+  for (let i = 0; i < snap.count; ++i) {
+    const x = snap.keys[3 * i], y = snap.keys[3 * i + 1];
+    if (x < x0 || x > x1 || y < y0 || y > y1) keep.push(i);
+  }
+  const n = keep.length + detail.snap.count;
+  const out = { ...snap, count: n, keys: new Uint16Array(3 * n), levels: new Uint8Array(n), colors: new Uint8Array(3 * n),
+                changes: new Uint8Array(n), since: new Uint16Array(n), detailCells: detail.snap.count, detailLevel: detail.snap.level };
+  keep.forEach((i, k) => {
+    out.keys.set(snap.keys.subarray(3 * i, 3 * i + 3), 3 * k);
+    out.colors.set(snap.colors.subarray(3 * i, 3 * i + 3), 3 * k);
+    out.levels[k] = snap.levels[i]; out.changes[k] = snap.changes[i]; out.since[k] = snap.since[i];
+  });
+  const d = detail.snap, at = keep.length;
+  out.keys.set(d.keys, 3 * at); out.colors.set(d.colors, 3 * at);
+  out.levels.set(d.levels, at); out.changes.set(d.changes, at); out.since.set(d.since, at);
+  return out;
+}
+
 function drawSnapshot() {
-  const snap = state.snap;
-  if (!snap) return;
+  if (!state.snap) return;
+  const snap = withDetail(state.snap, state.detail);
+  state.shown = snap;
   computeBounds(snap);
   state.maxChanges = 1;
   for (let i = 0; i < snap.count; ++i) state.maxChanges = Math.max(state.maxChanges, snap.changes[i]);
@@ -245,7 +270,43 @@ async function setSession(rank) {
   state.lastLoadMs = performance.now() - t0;
   drawSnapshot();
   state.loadedRank = rank;
+  scheduleRefine();
 }
+
+// ---------------------------------------------------------------------------------------------
+// Finer cells where the camera looks: when the whole map comes in coarse cubes, the server is
+// asked for the cells around the orbit target, with the same budget, after each camera move.
+
+let refineTimer = null;
+function scheduleRefine() {
+  clearTimeout(refineTimer);
+  refineTimer = setTimeout(() => refine().catch(report), 250);
+}
+
+async function refine() {
+  const snap = state.snap;
+  if (!state.source.refines || !snap || snap.level === 0) { state.detail = null; return; }
+  const r = state.info.resolution_m, o = state.info.key_origin, b = state.bounds;
+  const radius = 0.7 * camera.position.distanceTo(controls.target);
+  if (2 * radius >= 0.8 * state.extent) {
+    if (state.detail) { state.detail = null; drawSnapshot(); }
+    return;
+  }
+  // Whole coarse cells, so that each is either replaced or kept.
+  const cell = 1 << snap.level;
+  const lo = (v) => Math.max(0, Math.floor((v / r + o) / cell) * cell);
+  const hi = (v) => Math.min(65535, Math.ceil((v / r + o) / cell) * cell - 1);
+  const t = controls.target;
+  const region = [lo(t.x - radius), lo(t.y - radius), b.zmin, hi(t.x + radius), hi(t.y + radius), Math.min(65535, b.zmax)];
+  if (state.detail && state.detail.rank === snap.rank && state.detail.region.join() === region.join()) return;
+  const rank = snap.rank;
+  const fine = await state.source.snapshot(rank, state.budget, region);
+  if (state.snap.rank !== rank || fine.level >= snap.level) return;
+  state.detail = { rank, region, snap: fine };
+  drawSnapshot();
+}
+state.refine = () => refine();
+state.focusOn = (c) => focusOn(c);
 
 let playTimer = null;
 function setPlaying(on) {
@@ -356,7 +417,7 @@ function placeTags() {
 
 const raycaster = new THREE.Raycaster();
 async function pick(event) {
-  if (!voxels || !state.snap) return;
+  if (!voxels || !state.shown) return;
   const rect = renderer.domElement.getBoundingClientRect();
   const ndc = new THREE.Vector2(((event.clientX - rect.left) / rect.width) * 2 - 1, -((event.clientY - rect.top) / rect.height) * 2 + 1);
   raycaster.setFromCamera(ndc, camera);
@@ -366,7 +427,7 @@ async function pick(event) {
 }
 
 async function selectCell(i) {
-  const s = state.snap;
+  const s = state.shown;
   const key = [s.keys[3 * i], s.keys[3 * i + 1], s.keys[3 * i + 2]];
   const level = s.levels[i];
   state.selected = { key, level };
@@ -411,9 +472,13 @@ function showHistory(h, level) {
 // Panels
 
 function updateStats() {
-  const s = state.snap;
+  const s = state.snap, shown = state.shown;
   const lines = [`${s.count.toLocaleString()} cells` + (s.level > 0 ? ` of ${1 << s.level}³ voxels (level ${s.level})` : ' (unit voxels)'),
     `${s.occupiedVoxels.toLocaleString()} occupied voxels`, `${state.drawn.toLocaleString()} drawn below the cut`];
+  if (shown && shown.detailCells) {
+    lines.splice(1, 0, `in view: ${shown.detailCells.toLocaleString()} cells` +
+      (shown.detailLevel > 0 ? ` of ${1 << shown.detailLevel}³ voxels` : ' (unit voxels)'));
+  }
   if (s.bytes) lines.push(`${(s.bytes / 1e6).toFixed(2)} MB, ${state.lastLoadMs.toFixed(0)} ms`);
   $('stats').textContent = lines.join('\n');
 }

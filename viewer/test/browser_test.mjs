@@ -90,7 +90,7 @@ async function checkPage(url, label) {
     const c = window.chronomap;
     c.clearDiff();
     let busiest = 0;
-    for (let i = 0; i < c.snap.count; ++i) if (c.snap.changes[i] > c.snap.changes[busiest]) busiest = i;
+    for (let i = 0; i < c.shown.count; ++i) if (c.shown.changes[i] > c.shown.changes[busiest]) busiest = i;
     const h = await c.selectCell(busiest);
     return { entries: h.entries.length, shown: getComputedStyle(document.getElementById('history')).display !== 'none',
              rows: document.querySelectorAll('#histtable tr').length };
