@@ -55,6 +55,54 @@ const coverage = () => {
   return n / (d.length / 4);
 };
 
+// The picture of the last session from the first view, against viewer/test/reference/LABEL.png
+// (written when missing, except under CI=true, or with UPDATE_REFERENCE=1): at most 3% of the pixels may differ by more
+// than 48 in a channel (software rendering of the same map, a different machine or browser build).
+async function compareWithReference(page, label) {
+  await page.evaluate(async (last) => {
+    await window.chronomap.setSession(last);
+    document.getElementById('reset').click();
+    await window.chronomap.nextFrame();
+  }, sessions.length - 1);
+  const shot = await page.screenshot({ type: 'png' });
+  const reference = path.join(path.dirname(new URL(import.meta.url).pathname), 'reference', `${label}.png`);
+  if (!fs.existsSync(reference) && process.env.CI === 'true') {
+    check(false, `${label}: no reference picture ${reference}`);
+    return;
+  }
+  if (!fs.existsSync(reference) || process.env.UPDATE_REFERENCE === '1') {
+    fs.mkdirSync(path.dirname(reference), { recursive: true });
+    fs.writeFileSync(reference, shot);
+    console.log(`wrote the reference ${reference}`);
+    return;
+  }
+  const differing = await page.evaluate(async (a, b) => {
+    const load = (data) => new Promise((resolve, reject) => {
+      const img = new Image();
+      img.onload = () => resolve(img);
+      img.onerror = reject;
+      img.src = `data:image/png;base64,${data}`;
+    });
+    const [x, y] = await Promise.all([load(a), load(b)]);
+    if (x.width !== y.width || x.height !== y.height) return 1;
+    const pixels = (img) => {
+      const c = document.createElement('canvas');
+      c.width = img.width; c.height = img.height;
+      const g = c.getContext('2d');
+      g.drawImage(img, 0, 0);
+      return g.getImageData(0, 0, c.width, c.height).data;
+    };
+    const p = pixels(x), q = pixels(y);
+    let n = 0;
+    for (let i = 0; i < p.length; i += 4) {
+      if (Math.max(Math.abs(p[i] - q[i]), Math.abs(p[i + 1] - q[i + 1]), Math.abs(p[i + 2] - q[i + 2])) > 48) ++n;
+    }
+    return n / (p.length / 4);
+  }, Buffer.from(shot).toString('base64'), fs.readFileSync(reference).toString('base64'));
+  fs.writeFileSync(path.join(work, `${label}-last.png`), shot);
+  check(differing <= 0.03, `${label}: the last session from the first view differs from the reference in ${(differing * 100).toFixed(2)}% of the pixels`);
+}
+
 async function checkPage(url, label) {
   const page = await browser.newPage();
   await page.setViewport({ width: 900, height: 600 });
@@ -75,6 +123,7 @@ async function checkPage(url, label) {
     const covered = await page.evaluate(coverage);
     check(covered > 0.03, `${label}: session ${r + 1}: ${(covered * 100).toFixed(1)}% of the picture is not background`);
   }
+  await compareWithReference(page, label);
   const diff = await page.evaluate(async () => {
     const d = await window.chronomap.showDiff(0, 1);
     await window.chronomap.nextFrame();
