@@ -66,6 +66,27 @@ TEST(ViewServer, ListensOnLoopbackByDefault) {
   EXPECT_EQ(nlohmann::json::parse(res->body)["sessions"].size(), 3u);
 }
 
+TEST(ViewServer, SendsTheScriptCompressedOnceWhenTheBrowserAcceptsGzip) {
+  const TemporalMap map = threeSessions();
+  Running r(map);
+  httplib::Client c("127.0.0.1", r.port());
+  c.set_decompress(false);
+  const auto gz = c.Get("/viewer.js", httplib::Headers{{"Accept-Encoding", "gzip, deflate, br"}});
+  ASSERT_TRUE(gz);
+  EXPECT_EQ(gz->get_header_value("Content-Encoding"), "gzip");
+  ASSERT_GT(gz->body.size(), 2u);
+  EXPECT_EQ(static_cast<uint8_t>(gz->body[0]), 0x1f);
+  EXPECT_EQ(static_cast<uint8_t>(gz->body[1]), 0x8b);
+  const auto plain = c.Get("/viewer.js", httplib::Headers{{"Accept-Encoding", "identity"}});
+  ASSERT_TRUE(plain);
+  EXPECT_FALSE(plain->has_header("Content-Encoding"));
+  EXPECT_GT(plain->body.size(), 3 * gz->body.size());  // minified JavaScript compresses about 4:1
+  c.set_decompress(true);
+  const auto decoded = c.Get("/viewer.js");
+  ASSERT_TRUE(decoded);
+  EXPECT_EQ(decoded->body, plain->body);
+}
+
 TEST(ViewServer, SnapshotPayloadDecodesToTheLibrarysVoxels) {
   const TemporalMap map = threeSessions();
   Running r(map);
