@@ -156,43 +156,82 @@ const FACES = [
   { n: [0, 0, 1], c: [[0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]] },
   { n: [0, 0, -1], c: [[0, 0, 0], [0, 1, 0], [1, 1, 0], [1, 0, 0]] },
 ];
-const packKey = (x, y, z) => x + 65536 * (y + 65536 * z);
+
+// has(x, y, z, level): whether a drawn cell of that level has its corner at the key. One byte
+// per cell of a grid over the cells' bounds for each level (a hash set of numbers is several
+// times slower), or a set when such a grid would be too large.
+function occupancy(snap, drawn) {
+  const grids = new Map();
+  for (const i of drawn) {
+    const l = snap.levels[i];
+    let g = grids.get(l);
+    if (!g) grids.set(l, g = { lo: [Infinity, Infinity, Infinity], hi: [-Infinity, -Infinity, -Infinity] });
+    for (let a = 0; a < 3; ++a) {
+      const v = snap.keys[3 * i + a] >> l;
+      if (v < g.lo[a]) g.lo[a] = v;
+      if (v > g.hi[a]) g.hi[a] = v;
+    }
+  }
+  for (const g of grids.values()) {
+    g.n = g.lo.map((v, a) => g.hi[a] - v + 1);
+    g.cells = g.n[0] * g.n[1] * g.n[2] <= 64e6 ? new Uint8Array(g.n[0] * g.n[1] * g.n[2]) : new Set();
+  }
+  const at = (g, x, y, z) => x - g.lo[0] + g.n[0] * (y - g.lo[1] + g.n[1] * (z - g.lo[2]));
+  for (const i of drawn) {
+    const l = snap.levels[i], g = grids.get(l);
+    const j = at(g, snap.keys[3 * i] >> l, snap.keys[3 * i + 1] >> l, snap.keys[3 * i + 2] >> l);
+    if (g.cells instanceof Set) g.cells.add(j); else g.cells[j] = 1;
+  }
+  return (x, y, z, l) => {
+    const g = grids.get(l);
+    x >>= l; y >>= l; z >>= l;
+    if (x < g.lo[0] || y < g.lo[1] || z < g.lo[2] || x > g.hi[0] || y > g.hi[1] || z > g.hi[2]) return false;
+    const j = at(g, x, y, z);
+    return g.cells instanceof Set ? g.cells.has(j) : g.cells[j] === 1;
+  };
+}
 
 // The drawn cells as one mesh of the faces between a cell and no drawn cell of its level: the
 // faces inside walls and floors are never seen, and leaving them out keeps a frame cheap where
 // the browser draws in software. Each voxel's colour varies by a few percent, so that the voxels
 // of a flat wall stay visible. Returns the mesh; mesh.userData.cellOfFace maps faces to cells.
 function surfaceMesh(snap, drawn) {
-  const present = new Set();
-  for (const i of drawn) present.add(packKey(snap.keys[3 * i], snap.keys[3 * i + 1], snap.keys[3 * i + 2]) * 16 + snap.levels[i]);
-  const faces = [];  // [cell, face]
+  const has = occupancy(snap, drawn);
+  const faces = new Uint32Array(6 * drawn.length);  // cell (position in drawn) * 8 + face
+  let count = 0;
   for (let k = 0; k < drawn.length; ++k) {
     const i = drawn[k], l = snap.levels[i], s = 1 << l;
     const x = snap.keys[3 * i], y = snap.keys[3 * i + 1], z = snap.keys[3 * i + 2];
     for (let f = 0; f < 6; ++f) {
       const n = FACES[f].n;
-      if (!present.has(packKey(x + n[0] * s, y + n[1] * s, z + n[2] * s) * 16 + l)) faces.push(k, f);
+      if (!has(x + n[0] * s, y + n[1] * s, z + n[2] * s, l)) faces[count++] = k * 8 + f;
     }
   }
-  const count = faces.length / 2;
   const position = new Float32Array(12 * count), normal = new Float32Array(12 * count), color = new Float32Array(12 * count);
   const index = new Uint32Array(6 * count), cellOfFace = new Uint32Array(count);
   const r = state.info.resolution_m, o = state.info.key_origin;
+  let lastCell = -1, cr = 0, cg = 0, cb = 0;
   for (let q = 0; q < count; ++q) {
-    const k = faces[2 * q], f = FACES[faces[2 * q + 1]], i = drawn[k], s = 1 << snap.levels[i];
+    const k = faces[q] >>> 3, f = FACES[faces[q] & 7], i = drawn[k], s = 1 << snap.levels[i];
     const x = snap.keys[3 * i], y = snap.keys[3 * i + 1], z = snap.keys[3 * i + 2];
-    const c = colorOf(snap, i);
-    const jitter = 0.94 + 0.06 * (((x * 73856093) ^ (y * 19349663) ^ (z * 83492791)) & 255) / 255;
-    srgb.setRGB((c[0] / 255) * jitter, (c[1] / 255) * jitter, (c[2] / 255) * jitter, THREE.SRGBColorSpace);
-    for (let v = 0; v < 4; ++v) {
-      const at = 12 * q + 3 * v;
-      position[at] = (x - o + f.c[v][0] * s) * r;
-      position[at + 1] = (y - o + f.c[v][1] * s) * r;
-      position[at + 2] = (z - o + f.c[v][2] * s) * r;
-      normal.set(f.n, at);
-      color[at] = srgb.r; color[at + 1] = srgb.g; color[at + 2] = srgb.b;
+    if (k !== lastCell) {  // a cell's faces are consecutive: its colour once
+      const c = colorOf(snap, i);
+      const jitter = 0.94 + 0.06 * (((x * 73856093) ^ (y * 19349663) ^ (z * 83492791)) & 255) / 255;
+      srgb.setRGB((c[0] / 255) * jitter, (c[1] / 255) * jitter, (c[2] / 255) * jitter, THREE.SRGBColorSpace);
+      cr = srgb.r; cg = srgb.g; cb = srgb.b;
+      lastCell = k;
     }
-    index.set([4 * q, 4 * q + 1, 4 * q + 2, 4 * q, 4 * q + 2, 4 * q + 3], 6 * q);
+    for (let v = 0; v < 4; ++v) {
+      const at = 12 * q + 3 * v, corner = f.c[v];
+      position[at] = (x - o + corner[0] * s) * r;
+      position[at + 1] = (y - o + corner[1] * s) * r;
+      position[at + 2] = (z - o + corner[2] * s) * r;
+      normal[at] = f.n[0]; normal[at + 1] = f.n[1]; normal[at + 2] = f.n[2];
+      color[at] = cr; color[at + 1] = cg; color[at + 2] = cb;
+    }
+    const base = 4 * q, at = 6 * q;
+    index[at] = base; index[at + 1] = base + 1; index[at + 2] = base + 2;
+    index[at + 3] = base; index[at + 4] = base + 2; index[at + 5] = base + 3;
     cellOfFace[q] = k;
   }
   const g = new THREE.BufferGeometry();
@@ -206,7 +245,6 @@ function surfaceMesh(snap, drawn) {
   return mesh;
 }
 
-// The snapshot with the finer cells of the part in view in place of its coarse ones.
 function withDetail(snap, detail) {
   if (!detail || detail.rank !== snap.rank) return snap;
   const [x0, y0, , x1, y1] = detail.region;
