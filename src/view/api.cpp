@@ -16,7 +16,11 @@ namespace chronomap::view {
 
 namespace {
 
-Reply json(const nlohmann::json& j, int status = 200) { return {status, "application/json", j.dump()}; }
+// Error messages quote what the request sent, which need not be UTF-8: such bytes become U+FFFD
+// rather than an exception (found by fuzz/fuzz_view_api.cpp).
+Reply json(const nlohmann::json& j, int status = 200) {
+  return {status, "application/json", j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace)};
+}
 Reply binary(std::string body) { return {200, "application/octet-stream", std::move(body)}; }
 
 // Refuses parameters other than `allowed`, and repeated ones.

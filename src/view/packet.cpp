@@ -55,7 +55,8 @@ void PacketWriter::add(const std::string& name, std::span<const float> v) {
 
 std::string PacketWriter::finish(nlohmann::json header) const {
   header["arrays"] = arrays_;
-  std::string text = header.dump();
+  // Names (of maps, sessions) need not be UTF-8: such bytes become U+FFFD.
+  std::string text = header.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
   padTo(text, 8, ' ');
   std::string out(kPacketMagic, sizeof kPacketMagic);
   const auto n = static_cast<uint32_t>(text.size());

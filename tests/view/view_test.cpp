@@ -224,6 +224,13 @@ TEST(ViewApi, AnswersAndRefusals) {
       {"/api/history", {{"key", "1,2,3"}, {"level", "2"}}},
       {"/api/map", {{"x", "1"}}},
   };
+  // Bytes that are not UTF-8 in what the error message quotes (found by fuzz_view): still JSON.
+  const Reply latin1 = get(std::string("/api/d") + "\xe9" + "ff");
+  EXPECT_EQ(latin1.status, 404);
+  EXPECT_NO_THROW(nlohmann::json::parse(latin1.body));
+  const Reply latin1_query = get("/api/snapshot", {{"session", "\xe9"}});
+  EXPECT_EQ(latin1_query.status, 400);
+  EXPECT_NO_THROW(nlohmann::json::parse(latin1_query.body));
   for (const auto& [path, query] : bad) {
     const Reply r = get(path, query);
     EXPECT_EQ(r.status, 400) << path << " " << (query.empty() ? "" : query.begin()->first);
@@ -235,6 +242,8 @@ TEST(ViewTour, HoldsEverySessionsOccupiedVoxelsAndTheBundle) {
   const TemporalMap map = fourSessions();
   TourReport report;
   const Packet p = readPacket(tourData(map, "four.cmap", TourSettings{}, &report));
+  // A map's name need not be UTF-8.
+  EXPECT_NO_THROW(readPacket(tourData(map, "f\xfcnf.cmap", TourSettings{})));
   ASSERT_EQ(report.occupied_voxels.size(), 4u);
   for (size_t s = 0; s < 4; ++s) {
     EXPECT_EQ(report.occupied_voxels[s], referenceCells(map, 1000.0 * (s + 1), 0).size());
