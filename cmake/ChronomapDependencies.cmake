@@ -25,3 +25,8 @@ target_link_libraries(chronomap_lzf INTERFACE ${LZF_LIBRARY})
 add_library(chronomap_octomap INTERFACE)
 target_include_directories(chronomap_octomap SYSTEM INTERFACE ${OCTOMAP_INCLUDE_DIRS})
 target_link_libraries(chronomap_octomap INTERFACE ${OCTOMAP_LIBRARIES})
+
+# cpp-httplib (the viewer's server): Debian builds it as a library with TLS and compression,
+# and its header must be compiled with the same definitions, which pkg-config gives.
+find_package(PkgConfig REQUIRED)
+pkg_check_modules(HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)

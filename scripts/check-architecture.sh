@@ -17,7 +17,8 @@ declare -A allowed=(
   [io]="core octree temporal analysis"
   [render]="core octree temporal analysis"
   [sim]="core octree analysis io"
-  [pipeline]="core octree temporal integrate analysis align io render sim"
+  [pipeline]="core octree temporal integrate analysis align io render sim view"
+  [view]="core octree temporal analysis io"
 )
 
 failures=0

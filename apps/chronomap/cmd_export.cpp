@@ -1,4 +1,4 @@
-// chronomap export SESSION.cmap -o OUT.ply|.ot
+// chronomap export SESSION.cmap -o OUT.ply|.ot|.png, or MAP.cmap -o TOUR.html
 
 #include <filesystem>
 #include <iostream>
@@ -6,9 +6,12 @@
 #include <nlohmann/json.hpp>
 
 #include "chronomap/core/error.h"
+#include "chronomap/core/format.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/file.h"
+#include "chronomap/io/temporal_file.h"
 #include "chronomap/pipeline/maps.h"
+#include "chronomap/view/tour.h"
 #include "commands.h"
 
 namespace chronomap::cli {
@@ -19,16 +22,36 @@ struct ExportOptions {
   std::string input;
   std::string output;
   int pixels_per_voxel = 2;
+  size_t max_voxels = view::TourSettings{}.max_voxels;
   bool json = false;
 };
 
+int runTour(const ExportOptions& o) {
+  view::TourSettings settings;
+  settings.max_voxels = o.max_voxels;
+  const TemporalMap map = io::readTemporalMap(o.input);
+  const auto r = view::writeTour(o.output, map, std::filesystem::path(o.input).filename().string(), settings);
+  if (o.json) {
+    std::cout << nlohmann::json{{"output", o.output}, {"format", "html"}, {"elements", r.cells},
+                                {"level", r.level},   {"diffs", r.diffs},  {"bytes", r.bytes}}
+                     .dump()
+              << "\n";
+  } else {
+    std::cout << "wrote " << o.output << " (" << humanBytes(static_cast<double>(r.bytes)) << ": " << map.sessionCount()
+              << " sessions, " << r.cells << " cells" << (r.level > 0 ? " of " + std::to_string(1 << r.level) + "^3 voxels" : "")
+              << ", objects of " << r.diffs << " session pairs); it opens in a browser with no server\n";
+  }
+  return 0;
+}
+
 int runExport(const ExportOptions& o) {
   const std::string ext = std::filesystem::path(o.output).extension().string();
-  if (ext != ".ply" && ext != ".ot" && ext != ".png") {
-    throw UsageError("output '" + o.output + "' must end in .ply, .ot or .png");
+  if (ext != ".ply" && ext != ".ot" && ext != ".png" && ext != ".html") {
+    throw UsageError("output '" + o.output + "' must end in .ply, .ot, .png or .html");
   }
   if (o.pixels_per_voxel < 1 || o.pixels_per_voxel > 64) throw UsageError("--scale must be 1 to 64");
   io::refuseOverwritingInputs(o.output, {o.input});
+  if (ext == ".html") return runTour(o);
   pipeline::ExportSettings settings;
   settings.pixels_per_voxel = o.pixels_per_voxel;
   const size_t n = pipeline::exportSessionMap(o.output, io::readSessionMap(o.input), settings);
@@ -51,10 +74,15 @@ Command addExport(CLI::App& root) {
       "export",
       "Export a session map: .ply writes the centres of occupied voxels with their mean colour; "
       ".ot writes an OctoMap ColorOcTree that octovis opens; .png draws the map seen from above "
-      "(highest occupied voxel per column in its colour, free space light, unobserved dark).");
-  app->add_option("SESSION", o->input, "a session map (.cmap)")->required();
-  app->add_option("-o,--output", o->output, "file to write (.ply, .ot or .png)")->required();
+      "(highest occupied voxel per column in its colour, free space light, unobserved dark). "
+      "Export a 4D map as .html: the viewer of `chronomap view` with the map inside, one file that "
+      "opens in a browser from disk (every session, the objects changed between sessions).");
+  app->add_option("MAP", o->input, "a session map (.ply, .ot, .png) or a 4D map (.html), as .cmap")->required();
+  app->add_option("-o,--output", o->output, "file to write (.ply, .ot, .png or .html)")->required();
   app->add_option("--scale", o->pixels_per_voxel, ".png: pixels per voxel edge")->capture_default_str();
+  app->add_option("--max-voxels", o->max_voxels, ".html: most cells drawn; more voxels become coarser octree cubes")
+      ->check(numberIn(1, 5e6))
+      ->capture_default_str();
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runExport(*o); }};
 }

@@ -74,7 +74,9 @@ void printDemo(const pipeline::DemoResult& r) {
             << " observed change events found as objects, " << r.false_components << " components match no event\n"
             << "  report:   " << r.report.string() << "\n"
             << "  pictures: " << r.images.string() << "/\n"
-            << "  4D map:   " << r.map.string() << "\n";
+            << "  4D map:   " << r.map.string() << "\n"
+            << "  tour:     " << r.tour.string() << " (open it in a browser; or: chronomap view " << r.map.string()
+            << ")\n";
 }
 
 int runDemo(const DemoCmdOptions& o) {

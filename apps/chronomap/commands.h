@@ -37,6 +37,7 @@ Command addDiff(CLI::App& root);
 Command addSegment(CLI::App& root);
 Command addSimulate(CLI::App& root);
 Command addDemo(CLI::App& root);
+Command addView(CLI::App& root);
 
 /// The integration flags of integrate and build, as given.
 struct IntegrateFlags {

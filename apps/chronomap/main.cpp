@@ -30,7 +30,7 @@ int run(int argc, char** argv) {
                                               cli::addSnapshot(app),  cli::addHistory(app),  cli::addChanges(app),
                                               cli::addPredict(app),   cli::addCostmap(app),  cli::addDiff(app),     cli::addSegment(app),
                                               cli::addStats(app),     cli::addExport(app),   cli::addSimulate(app),
-                                              cli::addDemo(app)};
+                                              cli::addDemo(app),      cli::addView(app)};
 
   try {
     app.parse(argc, argv);

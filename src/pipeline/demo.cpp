@@ -24,6 +24,7 @@
 #include "chronomap/render/top_view.h"
 #include "chronomap/sim/building.h"
 #include "chronomap/sim/change_truth.h"
+#include "chronomap/view/tour.h"
 #include "demo_report.h"
 
 namespace chronomap::pipeline {
@@ -237,6 +238,7 @@ DemoResult runDemo(const DemoSettings& settings) {
 
   s.progress.say("[6/6] drawing the report");
   drawPictures(simulated, map, r.images);
+  view::writeTour(s.output / "tour.html", map, "office.cmap");
   r.sessions = sessions.size();
   r.frames = simulated.frames;
   r.events = simulated.events;
@@ -248,6 +250,7 @@ DemoResult runDemo(const DemoSettings& settings) {
   r.images = settings.output / "images";
   r.map = settings.output / "office.cmap";
   r.report = settings.output / "report.md";
+  r.tour = settings.output / "tour.html";
   const std::string report =
       demoReport({settings, sim_settings, simulated, sessions, pairs, map, r, changes, map_bytes, kDriftKnots});
   io::writeFileAtomic(s.output / "report.md", std::vector<uint8_t>(report.begin(), report.end()));

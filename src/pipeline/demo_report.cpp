@@ -63,6 +63,10 @@ void mapAndPictures(std::ostream& md, const DemoReportInput& in) {
      << "- " << r.changed_voxels << " voxels changed state at least once.\n"
      << "- " << humanBytes(static_cast<double>(in.map_file_bytes)) << " on disk.\n\n"
      << "![Nodes after each session](images/storage.png)\n\n"
+     << "**[tour.html](tour.html)** opens the 4D map in a browser, from disk: drag the time slider (or "
+     << "press play) to watch the office change, show what changed between two sessions with each object "
+     << "framed and numbered, click a voxel for its history. `chronomap view " << r.map.string()
+     << "` serves the same page for any map (docs/viewer.md).\n\n"
      << "## Pictures\n\n"
      << "The map as last observed, from above (each column shows its highest occupied voxel in its mean "
      << "colour; light grey is free space, dark is never observed):\n\n"
@@ -142,6 +146,7 @@ std::string demoReport(const DemoReportInput& in) {
   changes(md, in);
   const std::string map = in.result.map.string();
   md << "## Try next\n\n```sh\n"
+     << "chronomap view " << map << "                 # the viewer at http://127.0.0.1:8765/\n"
      << "chronomap stats " << map << "\n"
      << "chronomap snapshot " << map << " --at " << formatTime(in.simulated.times_s.front()) << " -o first.ply\n"
      << "chronomap changes " << map << " --min 2 -o busy.ply\n"

@@ -658,6 +658,11 @@ TEST(SimulatorCli, SimulateAndDemo) {
     EXPECT_GT(fs::file_size(tmp / "demo" / "images" / image), 500u) << image;
   }
   EXPECT_TRUE(fs::exists(tmp / "demo" / "office.cmap"));
+  // The tour: the viewer with the map inside, linked from the report.
+  EXPECT_NE(report.find("(tour.html)"), std::string::npos);
+  const std::string tour = io::readTextFile(tmp / "demo" / "tour.html");
+  EXPECT_NE(tour.find("id=\"chronomap-data\""), std::string::npos);
+  EXPECT_GT(tour.size(), 500000u);  // the bundle and the data
 }
 
 }  // namespace

@@ -25,6 +25,7 @@ struct DemoResult {
   std::filesystem::path report;  ///< report.md
   std::filesystem::path images;  ///< the pictures' folder
   std::filesystem::path map;     ///< the 4D map
+  std::filesystem::path tour;    ///< tour.html: the 4D map in the browser (view/tour.h)
   size_t sessions = 0, frames = 0, events = 0;
   size_t nodes_4d = 0;
   uint64_t nodes_separate = 0;       ///< the session maps' nodes on their own
@@ -39,7 +40,7 @@ struct DemoResult {
 /// poses, registers them to their consensus (x, y, heading and drift fitted on points, as
 /// `chronomap build --register --register-drift 20 --register-planar --register-points`), builds
 /// the 4D map, diffs and segments consecutive sessions, scores everything against the truth and
-/// writes report.md with pictures.
+/// writes report.md with pictures and tour.html, the map in the viewer as one file.
 DemoResult runDemo(const DemoSettings& settings);
 
 }  // namespace chronomap::pipeline

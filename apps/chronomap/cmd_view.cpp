@@ -1,0 +1,54 @@
+// chronomap view MAP.cmap [--port N] [--host ADDR]: the 4D viewer in the browser.
+
+#include <iostream>
+#include <memory>
+
+#include "chronomap/io/temporal_file.h"
+#include "chronomap/view/server.h"
+#include "commands.h"
+
+namespace chronomap::cli {
+
+namespace {
+
+struct ViewOptions {
+  std::string map;
+  view::ServerSettings server;
+  size_t budget = view::ApiSettings{}.default_max_voxels;
+};
+
+int runView(ViewOptions o) {
+  requireExtension(o.map, ".cmap", "4D map");
+  const TemporalMap map = io::readTemporalMap(o.map);
+  o.server.api.default_max_voxels = o.budget;
+  view::Server server(map, std::filesystem::path(o.map).filename().string(), o.server);
+  server.bind();
+  std::cout << "chronomap view: " << o.map << " (" << map.sessionCount() << " sessions) at " << server.url()
+            << "\nopen that address in a browser; Ctrl-C stops the server" << std::endl;
+  server.serve();
+  return 0;
+}
+
+}  // namespace
+
+Command addView(CLI::App& root) {
+  auto o = std::make_shared<ViewOptions>();
+  CLI::App* app = root.add_subcommand(
+      "view",
+      "Serve a 4D map to a web browser: a local server for the map and the viewer's page (built into "
+      "chronomap), where a time slider plays the sessions, changed objects are framed and numbered, and "
+      "a click on a voxel shows its history. Listens on 127.0.0.1 unless --host names another address.");
+  app->add_option("MAP", o->map, "a 4D map (.cmap)")->required();
+  app->add_option("--port", o->server.port, "port to listen on (0: any free port)")
+      ->check(numberIn(0, 65535))
+      ->capture_default_str();
+  app->add_option("--host", o->server.host, "address to listen on (0.0.0.0: every interface, reachable from other machines)")
+      ->capture_default_str();
+  app->add_option("--budget", o->budget, "cells per snapshot unless the page asks for another number; more "
+                                         "occupied voxels are drawn as coarser octree cubes")
+      ->check(numberIn(1, static_cast<double>(view::ApiSettings{}.max_voxels_limit)))
+      ->capture_default_str();
+  return {app, [o] { return runView(*o); }};
+}
+
+}  // namespace chronomap::cli

@@ -1,0 +1,209 @@
+// The viewer's HTTP API, as a function of a request.
+
+#include "chronomap/view/api.h"
+
+#include <charconv>
+#include <cmath>
+#include <set>
+#include <sstream>
+
+#include "assets.h"
+#include "chronomap/core/error.h"
+#include "chronomap/core/time.h"
+#include "chronomap/view/packet.h"
+
+namespace chronomap::view {
+
+namespace {
+
+// Error messages quote what the request sent, which need not be UTF-8: such bytes become U+FFFD
+// rather than an exception (found by fuzz/fuzz_view_api.cpp).
+Reply json(const nlohmann::json& j, int status = 200) {
+  return {status, "application/json", j.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace)};
+}
+Reply binary(std::string body) { return {200, "application/octet-stream", std::move(body)}; }
+
+// Refuses parameters other than `allowed`, and repeated ones.
+void onlyParameters(const Query& query, const std::set<std::string>& allowed) {
+  for (const auto& [name, value] : query) {
+    if (!allowed.count(name)) throw UsageError("unknown parameter '" + name + "'");
+    if (query.count(name) > 1) throw UsageError("parameter '" + name + "' given more than once");
+  }
+}
+
+const std::string* find(const Query& query, const std::string& name) {
+  const auto it = query.find(name);
+  return it == query.end() ? nullptr : &it->second;
+}
+
+uint64_t parseCount(const std::string& text, const std::string& name, uint64_t lo, uint64_t hi) {
+  uint64_t v = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (ec != std::errc() || end != text.data() + text.size() || v < lo || v > hi) {
+    std::ostringstream m;
+    m << name << "=" << text << ": must be a whole number in [" << lo << ", " << hi << "]";
+    throw UsageError(m.str());
+  }
+  return v;
+}
+
+std::vector<uint16_t> parseKeys(const std::string& text, const std::string& name, size_t count) {
+  std::vector<uint16_t> out;
+  size_t start = 0;
+  while (out.size() < count) {
+    const size_t comma = text.find(',', start);
+    const std::string part = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    out.push_back(static_cast<uint16_t>(parseCount(part, name, 0, kKeysPerAxis - 1)));
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+    if (out.size() == count) throw UsageError(name + ": more than " + std::to_string(count) + " numbers");
+  }
+  if (out.size() != count) throw UsageError(name + ": expected " + std::to_string(count) + " numbers");
+  return out;
+}
+
+}  // namespace
+
+Api::Api(const TemporalMap& map, std::string name, ApiSettings settings)
+    : map_(map), name_(std::move(name)), settings_(settings) {
+  // The change summary behind 4D diffs is built on first use; build it now, before requests
+  // arrive from several threads.
+  map_.forEachListChangedIn(0, 1, [](const VoxelKey&, int, std::span<const TemporalMap::Entry>) {});
+}
+
+namespace {
+
+// The time a request names with `session` (a rank) or `time` (seconds or ISO-8601), which must
+// lie within the map's sessions.
+double requestedTime(const TemporalMap& map, const Query& query, const std::string& session, const std::string& time) {
+  const auto* rank = find(query, session);
+  const auto* t = find(query, time);
+  if ((rank != nullptr) == (t != nullptr)) throw UsageError("give either " + session + "= or " + time + "=");
+  if (map.sessionCount() == 0) throw UsageError("the map holds no session");
+  if (rank) return map.sessions()[parseCount(*rank, session, 0, map.sessionCount() - 1)].time_s;
+  const double s = parseTime(*t);
+  const double first = map.sessions().front().time_s, last = map.sessions().back().time_s;
+  if (s < first || s > last) {
+    throw UsageError(time + "=" + *t + ": outside the map's sessions (" + formatTime(first) + " to " + formatTime(last) + ")");
+  }
+  return s;
+}
+
+}  // namespace
+
+Reply Api::get(const std::string& path, const Query& query) const {
+  try {
+    if (path == "/" || path == "/index.html") {
+      onlyParameters(query, {});
+      return {200, "text/html; charset=utf-8", servedPage()};
+    }
+    if (path == "/viewer.js") return {200, "application/javascript", std::string(viewerScript())};
+    if (path == "/api/map") {
+      onlyParameters(query, {});
+      nlohmann::json info = mapInfoJson(map_, name_);
+      info["default_max_voxels"] = settings_.default_max_voxels;
+      info["max_voxels_limit"] = settings_.max_voxels_limit;
+      return json(info);
+    }
+    if (path == "/api/snapshot") return snapshot(query);
+    if (path == "/api/diff") return diffReply(query);
+    if (path == "/api/history") return history(query);
+  } catch (const UsageError& e) {
+    return json({{"error", e.what()}}, 400);
+  }
+  return json({{"error", "no such path: " + path}}, 404);
+}
+
+Reply Api::snapshot(const Query& query) const {
+  onlyParameters(query, {"session", "t", "budget", "level", "region"});
+  SnapshotRequest r;
+  r.time_s = requestedTime(map_, query, "session", "t");
+  r.max_voxels = settings_.default_max_voxels;
+  if (const auto* b = find(query, "budget")) r.max_voxels = parseCount(*b, "budget", 1, settings_.max_voxels_limit);
+  if (const auto* l = find(query, "level")) r.min_level = static_cast<int>(parseCount(*l, "level", 0, kMaxLevel));
+  if (const auto* region = find(query, "region")) {
+    const auto k = parseKeys(*region, "region", 6);
+    r.region = std::array<VoxelKey, 2>{VoxelKey{k[0], k[1], k[2]}, VoxelKey{k[3], k[4], k[5]}};
+    if (k[0] > k[3] || k[1] > k[4] || k[2] > k[5]) throw UsageError("region: the lower corner lies above the upper");
+  }
+  return binary(encodeSnapshot(snapshotVoxels(map_, r), map_));
+}
+
+Reply Api::diffReply(const Query& query) const {
+  onlyParameters(query, {"from", "to", "t0", "t1", "min_voxels"});
+  DiffRequest r{0.0, 0.0, settings_.diff, settings_.segment};
+  r.t0_s = requestedTime(map_, query, "from", "t0");
+  r.t1_s = requestedTime(map_, query, "to", "t1");
+  if (const auto* m = find(query, "min_voxels")) r.segment.min_voxels = parseCount(*m, "min_voxels", 1, 1u << 30);
+  return binary(encodeDiff(diffObjects(map_, r), r, settings_.max_diff_cells));
+}
+
+Reply Api::history(const Query& query) const {
+  onlyParameters(query, {"key", "level"});
+  const auto* key = find(query, "key");
+  if (!key) throw UsageError("give key=x,y,z");
+  const auto k = parseKeys(*key, "key", 3);
+  int level = 0;
+  if (const auto* l = find(query, "level")) level = static_cast<int>(parseCount(*l, "level", 0, kMaxHistoryLevel));
+  return json(historyJson(map_, VoxelKey{k[0], k[1], k[2]}, level));
+}
+
+std::string encodeSnapshot(const VoxelSet& v, const TemporalMap& map) {
+  std::vector<uint16_t> keys;
+  keys.reserve(v.keys.size() * 3);
+  for (const auto& k : v.keys) keys.insert(keys.end(), {k.x, k.y, k.z});
+  std::vector<uint8_t> colors;
+  colors.reserve(v.colors.size() * 3);
+  for (const auto& c : v.colors) colors.insert(colors.end(), {c.r, c.g, c.b});
+  PacketWriter w;
+  w.add("keys", std::span<const uint16_t>(keys));
+  w.add("levels", std::span<const uint8_t>(v.levels));
+  w.add("colors", std::span<const uint8_t>(colors));
+  w.add("changes", std::span<const uint8_t>(v.changes));
+  w.add("since", std::span<const uint16_t>(v.since));
+  w.add("members", std::span<const uint32_t>(v.members));
+  nlohmann::json header{{"level", v.level},
+                        {"cells", v.keys.size()},
+                        {"occupied_voxels", v.occupied_voxels},
+                        {"rank", v.rank ? nlohmann::json(*v.rank) : nlohmann::json()}};
+  if (v.rank) header["time_s"] = map.sessions()[*v.rank].time_s;
+  return w.finish(std::move(header));
+}
+
+std::string encodeDiff(const DiffObjects& o, const DiffRequest& request, size_t max_cells) {
+  const auto cells = o.diff.cells();
+  const size_t sent = std::min(cells.size(), max_cells);
+  std::vector<uint16_t> keys;
+  std::vector<uint8_t> levels, kinds;
+  std::vector<uint32_t> component(o.component_of_cell.begin(), o.component_of_cell.begin() + static_cast<std::ptrdiff_t>(sent));
+  keys.reserve(sent * 3);
+  for (size_t i = 0; i < sent; ++i) {
+    keys.insert(keys.end(), {cells[i].key.x, cells[i].key.y, cells[i].key.z});
+    levels.push_back(cells[i].level);
+    kinds.push_back(static_cast<uint8_t>(cells[i].kind));
+  }
+  PacketWriter w;
+  w.add("keys", std::span<const uint16_t>(keys));
+  w.add("levels", std::span<const uint8_t>(levels));
+  w.add("kinds", std::span<const uint8_t>(kinds));
+  w.add("component", std::span<const uint32_t>(component));
+  nlohmann::json components = nlohmann::json::array();
+  for (const auto& c : o.segmentation.components) components.push_back(componentJson(c));
+  return w.finish({{"t0_s", request.t0_s},
+                   {"t1_s", request.t1_s},
+                   {"cells", cells.size()},
+                   {"cells_sent", sent},
+                   {"voxels", o.diff.voxelCount()},
+                   {"components", std::move(components)},
+                   {"dropped", o.segmentation.dropped}});
+}
+
+std::string servedPage() { return assets::page(assets::scriptTag("viewer.js"), ""); }
+
+std::string_view viewerScript() { return assets::viewerScript(); }
+
+std::string selfContainedPage(const std::string& data) {
+  return assets::page(assets::inlineScript(assets::viewerScript()), assets::inlineData(data));
+}
+
+}  // namespace chronomap::view

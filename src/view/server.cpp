@@ -1,0 +1,115 @@
+// The viewer's HTTP server: cpp-httplib in front of Api.
+
+#include "chronomap/view/server.h"
+
+#include <httplib.h>
+#include <sys/socket.h>
+#include <zlib.h>
+
+#include "chronomap/core/error.h"
+
+namespace chronomap::view {
+
+namespace {
+
+// `bytes` as a gzip stream (zlib, best compression).
+std::string gzip(std::string_view bytes) {
+  z_stream z{};
+  if (deflateInit2(&z, Z_BEST_COMPRESSION, Z_DEFLATED, 15 + 16, 9, Z_DEFAULT_STRATEGY) != Z_OK) {
+    throw std::runtime_error("zlib: deflateInit2 failed");
+  }
+  std::string out(deflateBound(&z, bytes.size()), '\0');
+  z.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(bytes.data()));
+  z.avail_in = static_cast<uInt>(bytes.size());
+  z.next_out = reinterpret_cast<Bytef*>(out.data());
+  z.avail_out = static_cast<uInt>(out.size());
+  const int rc = deflate(&z, Z_FINISH);
+  out.resize(z.total_out);
+  deflateEnd(&z);
+  if (rc != Z_STREAM_END) throw std::runtime_error("zlib: deflate did not finish");
+  return out;
+}
+
+}  // namespace
+
+struct Server::Impl {
+  Impl(const TemporalMap& map, std::string name, ServerSettings s) : api(map, std::move(name), s.api), settings(std::move(s)) {}
+  Api api;
+  ServerSettings settings;
+  // The page's script, compressed once: cpp-httplib would compress it per request (with Brotli
+  // at its slowest setting: 3 s for the 0.6 MB bundle).
+  std::string script_gz = gzip(viewerScript());
+  httplib::Server http;
+  int port = -1;
+};
+
+Server::Server(const TemporalMap& map, std::string name, ServerSettings settings)
+    : impl_(std::make_unique<Impl>(map, std::move(name), std::move(settings))) {
+  const Api& api = impl_->api;
+  const std::string& script_gz = impl_->script_gz;
+  auto answer = [&api, &script_gz](const httplib::Request& req, httplib::Response& res) {
+    if (req.path == "/viewer.js" && req.params.empty()) {
+      res.set_header("Cache-Control", "no-store");
+      // A content type cpp-httplib does not compress again (it compares the whole value).
+      if (req.get_header_value("Accept-Encoding").find("gzip") != std::string::npos) {
+        res.set_header("Content-Encoding", "gzip");
+        res.set_content(script_gz, "application/javascript; charset=utf-8");
+      } else {
+        res.set_content(std::string(viewerScript()), "application/javascript; charset=utf-8");
+      }
+      return;
+    }
+    Query query(req.params.begin(), req.params.end());
+    Reply r = api.get(req.path, query);
+    res.status = r.status;
+    res.set_header("Cache-Control", "no-store");
+    res.set_content(std::move(r.body), r.content_type.c_str());
+  };
+  impl_->http.Get(R"(/.*)", answer);
+  // cpp-httplib's default also sets SO_REUSEPORT, with which a second server (another `chronomap
+  // view`, or another program) could bind the same port and take some of the connections. Only
+  // SO_REUSEADDR: a restarted server may bind while old connections linger in TIME_WAIT.
+  impl_->http.set_socket_options([](socket_t sock) {
+    int yes = 1;
+    setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
+  });
+  // Other methods, and paths the router never matches, get a 404 or 405 from cpp-httplib; a
+  // handler that throws (out of memory) gets a 500 and the server keeps serving.
+  impl_->http.set_exception_handler([](const httplib::Request&, httplib::Response& res, std::exception_ptr) {
+    res.status = 500;
+    res.set_content(R"({"error":"internal error"})", "application/json");
+  });
+}
+
+Server::~Server() { stop(); }
+
+int Server::bind() {
+  auto& s = impl_->settings;
+  impl_->port = s.port == 0 ? impl_->http.bind_to_any_port(s.host) : (impl_->http.bind_to_port(s.host, s.port) ? s.port : -1);
+  if (impl_->port < 0) {
+    throw IoError("cannot listen on " + s.host + ":" + std::to_string(s.port) + " (in use, or not an address of this machine)");
+  }
+  return impl_->port;
+}
+
+void Server::serve() {
+  if (impl_->port < 0) throw UsageError("Server::serve() before bind()");
+  if (!impl_->http.listen_after_bind()) {
+    // stop() makes listen return false as well; only a failure without it is an error.
+    if (impl_->http.is_running()) throw IoError("the server stopped listening on " + url());
+  }
+}
+
+void Server::stop() {
+  if (impl_ && impl_->http.is_running()) impl_->http.stop();
+}
+
+std::string Server::url() const {
+  const std::string& host = impl_->settings.host;
+  const bool v6 = host.find(':') != std::string::npos;
+  std::string u = "http://";
+  u.append(v6 ? "[" : "").append(host).append(v6 ? "]" : "").append(":").append(std::to_string(impl_->port)).append("/");
+  return u;
+}
+
+}  // namespace chronomap::view

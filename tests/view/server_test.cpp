@@ -1,0 +1,237 @@
+// The viewer's HTTP server over a real socket: it binds the loopback address by default,
+// answers with the same voxels as the library, refuses what is not its API and keeps serving,
+// and answers concurrent requests. Also `chronomap view` and `chronomap export -o .html`.
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <fstream>
+#include <thread>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "chronomap/core/error.h"
+#include "chronomap/io/temporal_file.h"
+#include "chronomap/view/packet.h"
+#include "chronomap/view/scene.h"
+#include "chronomap/view/server.h"
+#include "test_support.h"
+// After Eigen: httplib.h includes <resolv.h>, whose macro _res breaks Eigen's headers.
+#include <httplib.h>
+
+namespace chronomap::view {
+namespace {
+
+TemporalMap threeSessions() {
+  TemporalMap map(0.05);
+  for (int s = 0; s < 3; ++s) map.add(1000.0 * (s + 1), test::randomSessionMap(200 + s, 20, 0.2));
+  return map;
+}
+
+// A server on a free loopback port, serving on its own thread while the test runs.
+class Running {
+ public:
+  explicit Running(const TemporalMap& map, ServerSettings s = []{ ServerSettings d; d.port = 0; return d; }())
+      : server_(map, "three.cmap", s) {
+    port_ = server_.bind();
+    thread_ = std::thread([this] { server_.serve(); });
+    httplib::Client probe("127.0.0.1", port_);
+    for (int i = 0; i < 200 && !probe.Get("/api/map"); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ~Running() {
+    server_.stop();
+    thread_.join();
+  }
+  int port() const { return port_; }
+  const Server& server() const { return server_; }
+
+ private:
+  Server server_;
+  int port_ = 0;
+  std::thread thread_;
+};
+
+TEST(ViewServer, ListensOnLoopbackByDefault) {
+  EXPECT_EQ(ServerSettings{}.host, "127.0.0.1");
+  const TemporalMap map = threeSessions();
+  Running r(map);
+  EXPECT_EQ(r.server().url(), "http://127.0.0.1:" + std::to_string(r.port()) + "/");
+  httplib::Client c("127.0.0.1", r.port());
+  const auto res = c.Get("/api/map");
+  ASSERT_TRUE(res);
+  EXPECT_EQ(res->status, 200);
+  EXPECT_EQ(nlohmann::json::parse(res->body)["sessions"].size(), 3u);
+}
+
+TEST(ViewServer, SendsTheScriptCompressedOnceWhenTheBrowserAcceptsGzip) {
+  const TemporalMap map = threeSessions();
+  Running r(map);
+  httplib::Client c("127.0.0.1", r.port());
+  c.set_decompress(false);
+  const auto gz = c.Get("/viewer.js", httplib::Headers{{"Accept-Encoding", "gzip, deflate, br"}});
+  ASSERT_TRUE(gz);
+  EXPECT_EQ(gz->get_header_value("Content-Encoding"), "gzip");
+  ASSERT_GT(gz->body.size(), 2u);
+  EXPECT_EQ(static_cast<uint8_t>(gz->body[0]), 0x1f);
+  EXPECT_EQ(static_cast<uint8_t>(gz->body[1]), 0x8b);
+  const auto plain = c.Get("/viewer.js", httplib::Headers{{"Accept-Encoding", "identity"}});
+  ASSERT_TRUE(plain);
+  EXPECT_FALSE(plain->has_header("Content-Encoding"));
+  EXPECT_GT(plain->body.size(), 3 * gz->body.size());  // minified JavaScript compresses about 4:1
+  c.set_decompress(true);
+  const auto decoded = c.Get("/viewer.js");
+  ASSERT_TRUE(decoded);
+  EXPECT_EQ(decoded->body, plain->body);
+}
+
+TEST(ViewServer, SnapshotPayloadDecodesToTheLibrarysVoxels) {
+  const TemporalMap map = threeSessions();
+  Running r(map);
+  httplib::Client c("127.0.0.1", r.port());
+  for (const std::string budget : {"1000000", "300"}) {
+    const auto res = c.Get("/api/snapshot?session=2&budget=" + budget);
+    ASSERT_TRUE(res);
+    ASSERT_EQ(res->status, 200);
+    EXPECT_EQ(res->get_header_value("Content-Type"), "application/octet-stream");
+    const Packet p = readPacket(res->body);
+    const VoxelSet ref = snapshotVoxels(map, SnapshotRequest{3000, std::stoul(budget), 0, std::nullopt});
+    EXPECT_EQ(p.header["level"], ref.level);
+    const auto keys = p.values<uint16_t>("keys");
+    ASSERT_EQ(keys.size(), 3 * ref.keys.size());
+    for (size_t i = 0; i < ref.keys.size(); ++i) {
+      ASSERT_EQ((VoxelKey{keys[3 * i], keys[3 * i + 1], keys[3 * i + 2]}), ref.keys[i]);
+    }
+    const auto colors = p.values<uint8_t>("colors");
+    for (size_t i = 0; i < ref.colors.size(); ++i) EXPECT_EQ(colors[3 * i], ref.colors[i].r);
+    EXPECT_EQ(p.values<uint8_t>("levels"), ref.levels);
+    EXPECT_EQ(p.values<uint32_t>("members"), ref.members);
+  }
+  if (const auto res = c.Get("/api/snapshot?session=2&budget=300")) {
+    EXPECT_GT(readPacket(res->body).header["level"].get<int>(), 0);
+  }
+}
+
+TEST(ViewServer, RefusesWhatIsNotItsApiAndKeepsServing) {
+  const TemporalMap map = threeSessions();
+  Running r(map);
+  // Raw requests, so that no client cleans the path up first.
+  auto raw = [&](const std::string& request) {
+    httplib::Client c("127.0.0.1", r.port());
+    c.set_read_timeout(5);
+    httplib::Request req;
+    req.method = "GET";
+    req.path = request;
+    auto res = c.send(req);
+    return res ? res->status : -1;
+  };
+  for (const char* path : {"/../../etc/passwd", "/%2e%2e/%2e%2e/etc/passwd", "/etc/passwd", "/three.cmap", "/CMakeCache.txt",
+                           "/api/../../../etc/passwd", "/api/snapshot/../../x"}) {
+    EXPECT_EQ(raw(path), 404) << path;
+  }
+  for (const char* path : {"/api/snapshot?session=3", "/api/snapshot?t=5000", "/api/snapshot?session=0&budget=999999999",
+                           "/api/snapshot?session=%zz", "/api/diff?from=0", "/api/history?key=a,b,c"}) {
+    EXPECT_EQ(raw(path), 400) << path;
+  }
+  httplib::Client c("127.0.0.1", r.port());
+  const auto post = c.Post("/api/snapshot?session=0", "x", "text/plain");
+  ASSERT_TRUE(post);
+  EXPECT_GE(post->status, 400);
+  EXPECT_LT(post->status, 500);
+  const auto ok = c.Get("/api/snapshot?session=0");
+  ASSERT_TRUE(ok);
+  EXPECT_EQ(ok->status, 200);
+}
+
+TEST(ViewServer, ConcurrentRequestsGetTheSameAnswers) {
+  const TemporalMap map = threeSessions();
+  Running r(map);
+  const std::vector<std::string> paths = {"/api/snapshot?session=0", "/api/snapshot?session=2&budget=500",
+                                          "/api/diff?from=0&to=2&min_voxels=1", "/api/history?key=32770,32769,32768",
+                                          "/api/map"};
+  std::vector<std::string> expected;
+  {
+    httplib::Client c("127.0.0.1", r.port());
+    for (const auto& p : paths) expected.push_back(c.Get(p)->body);
+  }
+  std::atomic<int> wrong{0};
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 8; ++t) {
+    threads.emplace_back([&, t] {
+      httplib::Client c("127.0.0.1", r.port());
+      for (int i = 0; i < 10; ++i) {
+        const size_t k = static_cast<size_t>(t + i) % paths.size();
+        const auto res = c.Get(paths[k]);
+        if (!res || res->status != 200 || res->body != expected[k]) ++wrong;
+      }
+    });
+  }
+  for (auto& th : threads) th.join();
+  EXPECT_EQ(wrong.load(), 0);
+}
+
+TEST(ViewServer, AnAddressInUseIsAnError) {
+  const TemporalMap map = threeSessions();
+  Running r(map);
+  ServerSettings s;
+  s.port = r.port();
+  Server second(map, "three.cmap", s);
+  EXPECT_THROW(second.bind(), IoError);
+}
+
+TEST(ViewCli, ViewPrintsTheAddressAndServesTheMap) {
+  test::TempDir dir;
+  io::writeTemporalMap(dir / "three.cmap", threeSessions(), {});
+  const std::string out = (dir / "view.out").string();
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    std::freopen(out.c_str(), "w", stdout);
+    execl(test::cli().c_str(), "chronomap", "view", (dir / "three.cmap").c_str(), "--port", "0", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  std::string line;
+  for (int i = 0; i < 500 && line.find("http://") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    std::ifstream f(out);
+    std::getline(f, line);
+  }
+  const size_t at = line.find("http://127.0.0.1:");
+  ASSERT_NE(at, std::string::npos) << line;
+  const int port = std::stoi(line.substr(at + 17));
+  httplib::Client c("127.0.0.1", port);
+  const auto page = c.Get("/");
+  ASSERT_TRUE(page);
+  EXPECT_NE(page->body.find("<script src=\"viewer.js\"></script>"), std::string::npos);
+  const auto js = c.Get("/viewer.js");
+  ASSERT_TRUE(js);
+  EXPECT_GT(js->body.size(), 100000u);  // three.js and the page's code
+  kill(pid, SIGTERM);
+  int status = 0;
+  waitpid(pid, &status, 0);
+}
+
+TEST(ViewCli, ExportHtmlWritesATourAndRefusesSessionMapsForIt) {
+  test::TempDir dir;
+  io::writeTemporalMap(dir / "three.cmap", threeSessions(), {});
+  const auto r = test::runCommand(test::cli() + " export " + (dir / "three.cmap").string() + " -o " +
+                                  (dir / "tour.html").string() + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto summary = nlohmann::json::parse(r.out);
+  EXPECT_EQ(summary["format"], "html");
+  EXPECT_EQ(summary["diffs"], 3);
+  const auto bytes = test::bytesOf(dir / "tour.html");
+  const std::string html(bytes.begin(), bytes.end());
+  EXPECT_EQ(summary["bytes"], html.size());
+  EXPECT_NE(html.find("id=\"chronomap-data\">CMV1") == std::string::npos ? html.find("id=\"chronomap-data\">Q01WM") : 0,
+            std::string::npos);  // base64 of "CMV1"
+  EXPECT_NE(html.find("chronomap 4D viewer"), std::string::npos);
+  const auto bad = test::runCommand(test::cli() + " export " + (dir / "three.cmap").string() + " -o " +
+                                    (dir / "tour.htm").string());
+  EXPECT_EQ(bad.exit_code, 2);
+}
+
+}  // namespace
+}  // namespace chronomap::view
