@@ -20,11 +20,13 @@ from ._chronomap import (  # noqa: F401
     FormatError,
     Integrator,
     IoError,
+    RhythmModels,
     SessionMap,
     TemporalMap,
     UsageError,
     add_session,
     build,
+    costmap,
     diff,
     integrate_dataset,
     read_color_png,
@@ -34,7 +36,7 @@ from ._chronomap import (  # noqa: F401
 
 __all__ = [
     "APPEARED", "FREE", "OCCUPIED", "UNCHANGED", "UNKNOWN", "VANISHED",
-    "Component", "DataError", "DiffMap", "Error", "FormatError", "Integrator", "IoError",
-    "SessionMap", "TemporalMap", "UsageError", "add_session", "build", "diff", "integrate_dataset", "read_color_png",
+    "Component", "DataError", "DiffMap", "Error", "FormatError", "Integrator", "IoError", "RhythmModels",
+    "SessionMap", "TemporalMap", "UsageError", "add_session", "build", "costmap", "diff", "integrate_dataset", "read_color_png",
     "read_depth_png", "segment",
 ]

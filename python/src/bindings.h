@@ -28,6 +28,7 @@ void bindIntegrate(py::module_& m);
 void bindTemporal(py::module_& m);
 void bindAnalysis(py::module_& m);
 void bindPipeline(py::module_& m);
+void bindRhythm(py::module_& m);
 
 /// Forwards pipeline progress to a Python callable(label, done, total), taking the GIL for the
 /// call. An exception it raises is kept and raised again once the library call has returned

@@ -26,4 +26,5 @@ PYBIND11_MODULE(_chronomap, m) {
   python::bindTemporal(m);
   python::bindAnalysis(m);
   python::bindPipeline(m);
+  python::bindRhythm(m);
 }

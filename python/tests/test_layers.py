@@ -94,3 +94,37 @@ def test_change_counts_on_a_box_that_comes_and_goes(before, after):
     assert len(n3) == 0
     with pytest.raises(chronomap.UsageError):
         m.change_counts(min_changes=0)
+
+
+def test_rhythm_models_predict_and_costmap(tmp_path, before, after):
+    # A box that is there every afternoon (14:00) and gone every morning (08:00) for two weeks.
+    m = chronomap.TemporalMap(RESOLUTION_M)
+    day0 = datetime.datetime(2026, 3, 2, tzinfo=datetime.timezone.utc)  # a Monday
+    for d in range(14):
+        m.add(before, day0 + datetime.timedelta(days=d, hours=8))
+        m.add(after, day0 + datetime.timedelta(days=d, hours=14))
+    models = chronomap.RhythmModels.fit(m)
+    assert len(models) >= 64 and models.sessions == 28
+    assert models.bytes == 44 + 97 * len(models)
+    afternoon = day0 + datetime.timedelta(days=15, hours=14)
+    morning = day0 + datetime.timedelta(days=15, hours=8)
+    p = models.predict(np.array([BOX, OUTSIDE]), afternoon, model="hourly")
+    assert p[0] > 0.9 and np.isnan(p[1])
+    assert models.predict(np.array([BOX]), morning, model="hourly")[0] < 0.1
+    # Saved and read back, it answers the same.
+    models.save(tmp_path / "m.rhythm")
+    back = chronomap.RhythmModels.open(tmp_path / "m.rhythm")
+    for model in ("latest", "mean", "markov", "periodic", "hourly", "combined"):
+        assert np.array_equal(back.predict(np.array([BOX]), afternoon, model), models.predict(np.array([BOX]), afternoon, model))
+    predicted = models.predict_map(m, afternoon, model="hourly")
+    assert predicted.state(np.array([BOX]))[0] == chronomap.OCCUPIED
+    assert models.predict_map(m, morning, model="hourly").state(np.array([BOX]))[0] == chronomap.FREE
+    with pytest.raises(chronomap.UsageError):
+        models.predict(np.array([BOX]), afternoon, model="fourier")
+    # The costmap over the box's height: its cells lethal in the afternoon.
+    cost, origin, resolution = chronomap.costmap(predicted, z_min_m=1.4, z_max_m=1.6, robot_radius_m=0.0)
+    assert cost.dtype == np.int8 and cost.ndim == 2 and resolution == pytest.approx(RESOLUTION_M)
+    i, j = int((BOX[0] - origin[0]) / resolution), int((BOX[1] - origin[1]) / resolution)
+    assert cost[j, i] == 100
+    with pytest.raises(chronomap.UsageError):
+        chronomap.costmap(predicted, z_min_m=2.0, z_max_m=1.0)
