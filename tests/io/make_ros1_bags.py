@@ -2,6 +2,7 @@
 """Writes ROS 1 bags from a TUM RGB-D folder with Debian's python3-rosbag, for the bag tests.
 
     /usr/bin/python3 make_ros1_bags.py TUM_FOLDER OUT_FOLDER
+    /usr/bin/python3 make_ros1_bags.py --3dmatch SEQUENCE_FOLDER INTRINSICS_FILE OUT.bag
 
 Every bag holds the folder's frames with the header stamps of depth.txt; what differs is how
 (see the table in main()). Depth stays in the TUM PNG's units (5000 per metre) in 16UC1 bags,
@@ -201,7 +202,62 @@ def write(path, intr, frames, compression='none', pose='pose_stamped', depth='16
         bag.close()
 
 
+def quaternion_of(r):
+    """(x, y, z, w) of a rotation matrix, by the branches Eigen's Quaternion(Matrix3) takes."""
+    q = [0.0, 0.0, 0.0, 0.0]
+    t = r[0][0] + r[1][1] + r[2][2]
+    if t > 0:
+        t = math.sqrt(t + 1.0)
+        q[3] = 0.5 * t
+        t = 0.5 / t
+        q[0] = (r[2][1] - r[1][2]) * t
+        q[1] = (r[0][2] - r[2][0]) * t
+        q[2] = (r[1][0] - r[0][1]) * t
+    else:
+        i = 0
+        if r[1][1] > r[0][0]:
+            i = 1
+        if r[2][2] > r[i][i]:
+            i = 2
+        j, k = (i + 1) % 3, (i + 2) % 3
+        t = math.sqrt(r[i][i] - r[j][j] - r[k][k] + 1.0)
+        q[i] = 0.5 * t
+        t = 0.5 / t
+        q[3] = (r[k][j] - r[j][k]) * t
+        q[j] = (r[j][i] + r[i][j]) * t
+        q[k] = (r[k][i] + r[i][k]) * t
+    return tuple(q)
+
+
+def write_3dmatch(seq, intrinsics, out):
+    """A 3DMatch sequence as a bag: depth 16UC1 in millimetres (as REP 118 and 3DMatch store it),
+    colour rgb8, CameraInfo, and the camera-to-world matrices as PoseStamped."""
+    k = [float(v) for v in open(intrinsics).read().split()]
+    intr = (k[0], k[4], k[2], k[5])
+    names = sorted(n[:-len('.depth.png')] for n in os.listdir(seq) if n.endswith('.depth.png'))
+    camera = 'camera_depth_optical_frame'
+    bag = rosbag.Bag(out, 'w', compression='lz4')
+    try:
+        for i, name in enumerate(names):
+            s = genpy.Time(1000 + i, 0)
+            depth = np.array(PilImage.open(os.path.join(seq, name + '.depth.png'))).astype(np.uint16)
+            rgb = np.array(PilImage.open(os.path.join(seq, name + '.color.png')).convert('RGB')).astype(np.uint8)
+            m = [[float(v) for v in line.split()] for line in open(os.path.join(seq, name + '.pose.txt')) if line.strip()]
+            bag.write('/camera/depth/image_raw', image(s, camera, depth, '16UC1'), s)
+            bag.write('/camera/depth/camera_info', info(s, camera, intr, depth.shape), s)
+            bag.write('/camera/rgb/image_raw', image(s, camera, rgb, 'rgb8'), s)
+            p = header(PoseStamped(), s, 'map')
+            (p.pose.position.x, p.pose.position.y, p.pose.position.z) = (m[0][3], m[1][3], m[2][3])
+            (p.pose.orientation.x, p.pose.orientation.y, p.pose.orientation.z, p.pose.orientation.w) = quaternion_of(m)
+            bag.write('/camera_pose', p, s)
+    finally:
+        bag.close()
+
+
 def main():
+    if sys.argv[1] == '--3dmatch':
+        write_3dmatch(sys.argv[2], sys.argv[3], sys.argv[4])
+        return
     tum, out = sys.argv[1], sys.argv[2]
     os.makedirs(out, exist_ok=True)
     intr, frames = load(tum)

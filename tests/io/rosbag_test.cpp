@@ -310,6 +310,33 @@ TEST_F(RosBagTest, TheCommandLineListsAndIntegratesABag) {
   EXPECT_NE(missing.err.find("--fixed-frame"), std::string::npos) << missing.err;
 }
 
+// The 3DMatch frames of ../shared/data as a bag (depth in millimetres, the bag's default units;
+// poses as quaternions computed like Eigen does from the matrices): the same frames and map.
+TEST_F(RosBagTest, RealThreeDMatchFramesFromABagGiveTheFoldersMap) {
+  CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
+  const fs::path real = *dir_ / "3dmatch.bag";
+  const auto made = test::runCommand(std::string(kDebianPython) + " " + CHRONOMAP_SOURCE_DIR +
+                                     "/tests/io/make_ros1_bags.py --3dmatch " + (root / "seq-01").string() + " " +
+                                     (root / "camera-intrinsics.txt").string() + " " + real.string());
+  ASSERT_EQ(made.exit_code, 0) << made.err;
+  const auto from_folder = openDataset(root);
+  const auto from_bag = openDataset(real);
+  ASSERT_EQ(from_bag->size(), from_folder->size());
+  for (size_t i = 0; i < from_folder->size(); ++i) {
+    const Eigen::Isometry3d a = from_folder->poseOf(i), b = from_bag->poseOf(i);
+    EXPECT_LT((a.matrix() - b.matrix()).cwiseAbs().maxCoeff(), 1e-12) << i;
+  }
+  const Frame a = from_folder->load(1), b = from_bag->load(1);
+  EXPECT_EQ(std::memcmp(a.cloud.points.data(), b.cloud.points.data(), a.cloud.size() * sizeof(a.cloud.points[0])), 0);
+  EXPECT_TRUE(a.cloud.colors == b.cloud.colors);
+  pipeline::SessionSettings s;
+  const auto folder_map = pipeline::integrateDataset(root, s).map;
+  const auto bag_map = pipeline::integrateDataset(real, s).map;
+  EXPECT_EQ(bag_map.counts().occupied_voxels, folder_map.counts().occupied_voxels);
+  EXPECT_EQ(bag_map.counts().free_voxels, folder_map.counts().free_voxels);
+  RecordProperty("byte_identical", encodeSessionMap(bag_map, {}) == encodeSessionMap(folder_map, {}) ? "yes" : "no");
+}
+
 // ---------------------------------------------------------------- messages and poses, analytic
 
 TEST(RosMessages, ReadsBigEndianDepthAndPaddedRows) {
