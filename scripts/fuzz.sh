@@ -18,7 +18,8 @@ if ! command -v clang++ >/dev/null || [ ! -d /usr/lib/llvm-14/lib/clang ]; then
 fi
 cmake --preset fuzz >/dev/null
 # Only the fuzz targets and the modules they link (not the command line or the simulator).
-cmake --build --preset fuzz -j"$(nproc)" --target fuzz_cmap fuzz_pcd fuzz_ply fuzz_xyz fuzz_png fuzz_text fuzz_make_seeds
+cmake --build --preset fuzz -j"$(nproc)" --target fuzz_cmap fuzz_pcd fuzz_ply fuzz_xyz fuzz_png fuzz_text fuzz_bag fuzz_rosmsg \
+  fuzz_make_seeds
 bin=build/fuzz/fuzz
 data="${CHRONOMAP_DATA_DIR:-../shared/data}"
 seeds=build/fuzz/seeds
@@ -28,6 +29,8 @@ copy_seed() { [ -f "$1" ] && cp "$1" "$seeds/$2/" || true; }
 copy_seed "$data/rgbd-formats/TUM_depth.png" png
 copy_seed "$data/3dmatch/3dmatch/seq-01/frame-000000.depth.png" png
 copy_seed "$data/pcl-kinect/grabber_sequences/pcd/frame_20121214T142255.814212.pcd" pcd
+# ROS 1 bags written by Debian's python3-rosbag, as the tests write them.
+/usr/bin/python3 tests/io/make_ros1_bags.py --seeds "$seeds/bag"
 summary=build/fuzz/summary.txt
 : >"$summary"
 # One target per core at a time; each writes its own log and result line.
@@ -45,7 +48,7 @@ fuzz_one() {
 }
 jobs="$(nproc)"
 rm -f build/fuzz/*.result
-targets=(cmap pcd ply xyz png text)
+targets=(cmap pcd ply xyz png text bag rosmsg)
 for target in "${targets[@]}"; do
   while [ "$(jobs -rp | wc -l)" -ge "$jobs" ]; do wait -n || true; done
   fuzz_one "$target" &

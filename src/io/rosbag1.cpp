@@ -85,6 +85,7 @@ void openBag(rosbag::Bag& bag, const fs::path& path) {
   console_bridge::setLogLevel(console_bridge::CONSOLE_BRIDGE_LOG_NONE);
   std::error_code ec;
   if (!fs::exists(path, ec)) throw UsageError(path.string() + ": no such file");
+  checkBagStructure(path);
   try {
     bag.open(path.string(), rosbag::bagmode::Read);
   } catch (const std::exception& e) {

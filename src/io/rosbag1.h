@@ -12,3 +12,14 @@ namespace chronomap::io {
 std::unique_ptr<Dataset> openRosBag(const std::filesystem::path& path, const DatasetSettings& settings);
 
 }  // namespace chronomap::io
+
+namespace chronomap::io {
+
+/// Walks every record of a ROS 1 bag (format 2.0), decompressing each chunk, and checks what
+/// librosbag trusts without checking: record and header lengths inside the file and inside each
+/// chunk, the chunk's stated uncompressed size, and that every index entry points at a message
+/// record of its chunk. librosbag reads past its buffers on such input (found by fuzz_bag).
+/// @throw FormatError naming the file, the record's offset and the problem.
+void checkBagStructure(const std::filesystem::path& path);
+
+}  // namespace chronomap::io

@@ -3,6 +3,7 @@
 
     /usr/bin/python3 make_ros1_bags.py TUM_FOLDER OUT_FOLDER
     /usr/bin/python3 make_ros1_bags.py --3dmatch SEQUENCE_FOLDER INTRINSICS_FILE OUT.bag
+    /usr/bin/python3 make_ros1_bags.py --seeds OUT_FOLDER   (tiny bags: the fuzz target's seeds)
 
 Every bag holds the folder's frames with the header stamps of depth.txt; what differs is how
 (see the table in main()). Depth stays in the TUM PNG's units (5000 per metre) in 16UC1 bags,
@@ -254,7 +255,27 @@ def write_3dmatch(seq, intrinsics, out):
         bag.close()
 
 
+def write_seeds(out):
+    """Bags of three 8 x 6 frames (a wall 1 m away), small enough for the fuzzer's 64 KiB."""
+    os.makedirs(out, exist_ok=True)
+    frames = []
+    for i in range(3):
+        depth = np.full((6, 8), 5000, dtype=np.uint16)
+        depth[0, 0] = 0
+        rgb = np.full((6, 8, 3), 40 * i, dtype=np.uint8)
+        frames.append({'stamp': genpy.Time(100 + i, 0), 'depth': depth, 'rgb': rgb,
+                       'pose': ((0.1 * i, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))})
+    intr = (8.0, 8.0, 3.5, 2.5)
+    for name, options in {'none.bag': {}, 'bz2.bag': dict(compression='bz2'), 'lz4.bag': dict(compression='lz4'),
+                          'tf.bag': dict(pose='tf'), 'float.bag': dict(depth='32FC1', color='bgr8'),
+                          'points.bag': dict(points=True, pose='odometry')}.items():
+        write(os.path.join(out, name), intr, frames, **options)
+
+
 def main():
+    if sys.argv[1] == '--seeds':
+        write_seeds(sys.argv[2])
+        return
     if sys.argv[1] == '--3dmatch':
         write_3dmatch(sys.argv[2], sys.argv[3], sys.argv[4])
         return
