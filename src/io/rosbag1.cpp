@@ -241,26 +241,18 @@ Eigen::Isometry3d poseOf(const Point& p, const Quaternion& q, const std::string&
   return poseFromTranslationQuaternion({p.x, p.y, p.z}, q.x, q.y, q.z, q.w, context);
 }
 
-/// Every transform of /tf and /tf_static.
-TransformTree readTransforms(const rosbag::Bag& bag, const fs::path& path) {
-  TransformTree tree;
-  for (const char* topic : {"/tf", "/tf_static"}) {
-    const bool is_static = std::string(topic) == "/tf_static";
-    for (const rosbag::MessageInstance& m : rosbag::View(bag, rosbag::TopicQuery(topic))) {
-      const auto tf = m.instantiate<TFMessage>();
-      if (!tf) throw DataError(path.string() + ": " + topic + " is a " + m.getDataType() + ", not tf2_msgs/TFMessage");
-      for (const auto& ts : tf->transforms) {
-        const auto& tr = ts.transform.translation;
-        const auto& q = ts.transform.rotation;
-        std::string context = path.string();
-        context.append(": ").append(topic).append(" ").append(ts.header.frame_id).append(" -> ").append(ts.child_frame_id);
-        tree.add(frameName(ts.header.frame_id), frameName(ts.child_frame_id), seconds(ts.header.stamp),
-                 poseFromTranslationQuaternion({tr.x, tr.y, tr.z}, q.x, q.y, q.z, q.w, context), is_static);
-      }
-    }
+/// The transforms of one /tf or /tf_static message.
+void addTransforms(TransformTree& tree, const rosbag::MessageInstance& m, bool is_static, const fs::path& path) {
+  const auto tf = m.instantiate<TFMessage>();
+  if (!tf) throw DataError(path.string() + ": " + m.getTopic() + " is a " + m.getDataType() + ", not tf2_msgs/TFMessage");
+  for (const auto& ts : tf->transforms) {
+    const auto& tr = ts.transform.translation;
+    const auto& q = ts.transform.rotation;
+    std::string context = path.string();
+    context.append(": ").append(m.getTopic()).append(" ").append(ts.header.frame_id).append(" -> ").append(ts.child_frame_id);
+    tree.add(frameName(ts.header.frame_id), frameName(ts.child_frame_id), seconds(ts.header.stamp),
+             poseFromTranslationQuaternion({tr.x, tr.y, tr.z}, q.x, q.y, q.z, q.w, context), is_static);
   }
-  tree.finish();
-  return tree;
 }
 
 /// The poses of a pose topic: the trajectory and the frame it gives the pose of.
@@ -269,22 +261,16 @@ struct PoseTrack {
   std::string child_frame;  ///< nav_msgs/Odometry's child frame; empty: the sensor's
 };
 
-PoseTrack readPoseTopic(const rosbag::Bag& bag, const std::string& topic, const fs::path& path) {
-  PoseTrack track;
-  for (const rosbag::MessageInstance& m : rosbag::View(bag, rosbag::TopicQuery(topic))) {
-    const std::string context = path.string() + ": " + topic;
-    if (auto odom = m.instantiate<Odometry>()) {
-      track.child_frame = frameName(odom->child_frame_id);
-      track.poses.push_back(
-          {seconds(odom->header.stamp), poseOf(odom->pose.pose.position, odom->pose.pose.orientation, context)});
-    } else if (auto ps = m.instantiate<PoseStamped>()) {
-      track.poses.push_back({seconds(ps->header.stamp), poseOf(ps->pose.position, ps->pose.orientation, context)});
-    }
+/// The pose of one Odometry or PoseStamped message.
+void addPose(PoseTrack& track, const rosbag::MessageInstance& m, const fs::path& path) {
+  const std::string context = path.string() + ": " + m.getTopic();
+  if (auto odom = m.instantiate<Odometry>()) {
+    track.child_frame = frameName(odom->child_frame_id);
+    track.poses.push_back(
+        {seconds(odom->header.stamp), poseOf(odom->pose.pose.position, odom->pose.pose.orientation, context)});
+  } else if (auto ps = m.instantiate<PoseStamped>()) {
+    track.poses.push_back({seconds(ps->header.stamp), poseOf(ps->pose.position, ps->pose.orientation, context)});
   }
-  std::stable_sort(track.poses.begin(), track.poses.end(),
-                   [](const TimedPose& a, const TimedPose& b) { return a.t < b.t; });
-  if (track.poses.empty()) throw DataError(path.string() + ": pose topic " + topic + " has no messages");
-  return track;
 }
 
 std::optional<CameraIntrinsics> readInfo(const rosbag::Bag& bag, const std::string& topic, const fs::path& path) {
@@ -410,18 +396,13 @@ class RosBagDataset : public Dataset {
     return msg;
   }
 
-  /// The header stamps and frames of a topic's messages, sorted by time; remembers the messages.
+  /// Remembers a message with its header's stamp and frame.
   template <class T>
-  std::vector<Stamped> stamps(const std::string& topic) {
-    std::vector<Stamped> out;
-    for (const rosbag::MessageInstance& m : rosbag::View(bag_, rosbag::TopicQuery(topic))) {
-      const auto msg = m.instantiate<T>();
-      if (!msg) continue;
-      out.push_back({seconds(msg->header.stamp), messages_.size(), frameName(msg->header.frame_id)});
-      messages_.push_back(m);
-    }
-    std::stable_sort(out.begin(), out.end(), [](const Stamped& a, const Stamped& b) { return a.t < b.t; });
-    return out;
+  void addStamped(std::vector<Stamped>& out, const rosbag::MessageInstance& m) {
+    const auto msg = m.instantiate<T>();
+    if (!msg) return;
+    out.push_back({seconds(msg->header.stamp), messages_.size(), frameName(msg->header.frame_id)});
+    messages_.push_back(m);
   }
 
   void read(const DatasetSettings& s) {
@@ -443,13 +424,37 @@ class RosBagDataset : public Dataset {
       k_ = *k;
       color_k_ = readInfo(bag_, t.color_info, path_);
     }
-    const std::vector<Stamped> depths =
-        cloud_ ? stamps<PointCloud2>(t.cloud) : stamps<Image>(t.depth);
-    const std::vector<Stamped> colors = t.color.empty() ? std::vector<Stamped>{} : stamps<Image>(t.color);
-    const bool have_tf = topics.count("/tf") || topics.count("/tf_static");
-    const TransformTree tree = have_tf ? readTransforms(bag_, path_) : TransformTree{};
+    // One pass over the topics in time order, so that each chunk is decompressed once.
+    const std::string frames_topic = cloud_ ? t.cloud : t.depth;
+    std::vector<std::string> wanted{frames_topic};
+    for (const std::string& topic : {t.color, t.pose, std::string("/tf"), std::string("/tf_static")}) {
+      if (!topic.empty() && topics.count(topic)) wanted.push_back(topic);
+    }
+    std::vector<Stamped> depths, colors;
+    TransformTree tree;
     std::optional<PoseTrack> track;
-    if (!t.pose.empty()) track = readPoseTopic(bag_, t.pose, path_);
+    if (!t.pose.empty()) track.emplace();
+    for (const rosbag::MessageInstance& m : rosbag::View(bag_, rosbag::TopicQuery(wanted))) {
+      const std::string& topic = m.getTopic();
+      if (topic == frames_topic) {
+        cloud_ ? addStamped<PointCloud2>(depths, m) : addStamped<Image>(depths, m);
+      } else if (topic == t.color) {
+        addStamped<Image>(colors, m);
+      } else if (topic == t.pose) {
+        addPose(*track, m, path_);
+      } else if (topic == "/tf" || topic == "/tf_static") {
+        addTransforms(tree, m, topic == "/tf_static", path_);
+      }
+    }
+    const auto by_time = [](const Stamped& a, const Stamped& b) { return a.t < b.t; };
+    std::stable_sort(depths.begin(), depths.end(), by_time);
+    std::stable_sort(colors.begin(), colors.end(), by_time);
+    tree.finish();
+    if (track) {
+      std::stable_sort(track->poses.begin(), track->poses.end(),
+                       [](const TimedPose& a, const TimedPose& b) { return a.t < b.t; });
+      if (track->poses.empty()) throw DataError(path_.string() + ": pose topic " + t.pose + " has no messages");
+    }
     for (const Stamped& d : depths) {
       const std::optional<Eigen::Isometry3d> pose = poseAt(d, tree, track, s);
       if (!pose) {

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Writes ROS 1 bags from a TUM RGB-D folder with Debian's python3-rosbag, for the bag tests.
 
-    /usr/bin/python3 make_ros1_bags.py TUM_FOLDER OUT_FOLDER
+    /usr/bin/python3 make_ros1_bags.py TUM_FOLDER OUT_FOLDER [NAME.bag ...]   (only these)
     /usr/bin/python3 make_ros1_bags.py --3dmatch SEQUENCE_FOLDER INTRINSICS_FILE OUT.bag
     /usr/bin/python3 make_ros1_bags.py --seeds OUT_FOLDER   (tiny bags: the fuzz target's seeds)
 
@@ -296,8 +296,10 @@ def main():
         'two_depths.bag': dict(extra_depth=True),
         'no_pose.bag': dict(pose='none'),
     }
+    only = sys.argv[3:]
     for name, options in bags.items():
-        write(os.path.join(out, name), intr, frames, **options)
+        if not only or name in only:
+            write(os.path.join(out, name), intr, frames, **options)
 
 
 if __name__ == '__main__':
