@@ -224,7 +224,8 @@ Topics chooseTopics(const std::map<std::string, TopicInfo>& topics, const BagSet
   } else if (s.fixed_frame.empty()) {
     std::vector<std::string> poses = topicsOfType(topics, kOdometry);
     for (const auto& n : topicsOfType(topics, kPoseStamped)) poses.push_back(n);
-    const bool has_tf = topics.count("/tf") || topics.count("/tf_static");
+    // /tf_static alone cannot move the sensor: a pose topic beside it is the trajectory.
+    const bool has_tf = topics.count("/tf") > 0;
     if (poses.size() == 1 && !has_tf) {
       t.pose = poses.front();
     } else if (poses.empty() && !has_tf) {

@@ -157,7 +157,7 @@ def write(path, intr, frames, compression='none', pose='pose_stamped', depth='16
     bag = rosbag.Bag(path, 'w', compression=compression)
     camera = 'camera_depth_optical_frame'
     try:
-        if pose == 'tf':
+        if pose in ('tf', 'odometry_base'):
             static = TFMessage([transform(frames[0]['stamp'], 'base_link', camera, T_BASE_CAMERA),
                                 transform(frames[0]['stamp'], 'map', 'odom', T_MAP_ODOM)])
             bag.write('/tf_static', static, frames[0]['stamp'])
@@ -191,6 +191,15 @@ def write(path, intr, frames, compression='none', pose='pose_stamped', depth='16
                 (m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z) = f['pose'][0]
                 (m.pose.pose.orientation.x, m.pose.pose.orientation.y, m.pose.pose.orientation.z,
                  m.pose.pose.orientation.w) = f['pose'][1]
+                bag.write('/odom', m, s)
+            elif pose == 'odometry_base':
+                # The robot's body in the map; the camera hangs off it through /tf_static.
+                T_map_base = compose(normalized(f['pose']), inverse(T_BASE_CAMERA))
+                m = header(Odometry(), s, 'map')
+                m.child_frame_id = 'base_link'
+                (m.pose.pose.position.x, m.pose.pose.position.y, m.pose.pose.position.z) = T_map_base[0]
+                (m.pose.pose.orientation.x, m.pose.pose.orientation.y, m.pose.pose.orientation.z,
+                 m.pose.pose.orientation.w) = T_map_base[1]
                 bag.write('/odom', m, s)
             elif pose == 'tf':
                 # map -> odom is static; odom -> base_link from the camera's pose, sampled 10 ms
@@ -289,6 +298,7 @@ def main():
         'pose_lz4.bag': dict(compression='lz4'),
         'odometry.bag': dict(pose='odometry', compression='lz4'),
         'tf.bag': dict(pose='tf', compression='lz4'),
+        'odometry_base.bag': dict(pose='odometry_base'),
         'tf_gaps.bag': dict(pose='tf', drop_pose=(3, 7, 8)),
         'float_bgr.bag': dict(depth='32FC1', color='bgr8'),
         'float_nan.bag': dict(depth='32FC1', nan_rows=frames[0]['depth'].shape[0] // 2),

@@ -148,6 +148,19 @@ TEST_F(RosBagTest, TfPosesAreInterpolatedWithinATolerance) {
   EXPECT_EQ(bag_map.counts().free_voxels, tum_map.counts().free_voxels);
 }
 
+// An odometry of the robot's base_link, the camera fixed to it through /tf_static: the pose of
+// the base carried to the camera's frame.
+TEST_F(RosBagTest, OdometryOfTheBaseIsCarriedToTheSensorThroughTf) {
+  const auto from_tum = openDataset(tum());
+  const auto from_bag = openDataset(bag("odometry_base.bag"), bagSettings());
+  ASSERT_EQ(from_bag->size(), from_tum->size());
+  for (size_t i = 0; i < from_tum->size(); ++i) {
+    const Eigen::Isometry3d a = from_tum->poseOf(i), b = from_bag->poseOf(i);
+    EXPECT_LT((a.translation() - b.translation()).norm(), 1e-8) << i;
+    EXPECT_LT(Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle(), 1e-8) << i;
+  }
+}
+
 TEST_F(RosBagTest, FramesWithoutAPoseAreDroppedAndCounted) {
   DatasetSettings s = bagSettings();
   s.bag.fixed_frame = "map";
