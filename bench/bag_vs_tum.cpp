@@ -73,7 +73,8 @@ int main(int argc, char** argv) {
     }
   }
   if (paths.size() < 2) {
-    std::fprintf(stderr, "usage: bag_vs_tum TUM_FOLDER BAG [BAG...] [--rounds N] [--depth-scale S] [--fixed-frame F]\n");
+    std::fprintf(stderr,
+                 "usage: bag_vs_tum TUM_FOLDER BAG [BAG...] [--rounds N] [--depth-scale S] [--fixed-frame F]\n");
     return 2;
   }
   const Timing tum = measure(paths[0], {}, rounds);

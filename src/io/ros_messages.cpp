@@ -103,7 +103,8 @@ PointCloud depthCloud(const ImageView& im, const ImageRgb* rgb, const CameraIntr
   ImageU16 units{im.width, im.height, std::vector<uint16_t>(size_t{im.width} * im.height)};
   for (uint32_t v = 0; v < im.height; ++v) {
     const uint8_t* row = im.data.data() + size_t{v} * im.step;
-    for (uint32_t u = 0; u < im.width; ++u) units.pixels[size_t{v} * im.width + u] = readScalar<uint16_t>(row + 2 * u, swap);
+    for (uint32_t u = 0; u < im.width; ++u)
+      units.pixels[size_t{v} * im.width + u] = readScalar<uint16_t>(row + 2 * u, swap);
   }
   return depthToCloud(units, rgb, k, depth_scale, source);
 }
@@ -113,15 +114,24 @@ namespace {
 /// Reads a field of one of the numeric PointField types as a double.
 double readField(const uint8_t* p, uint8_t datatype, bool swap) {
   switch (datatype) {
-    case 1: return static_cast<int8_t>(p[0]);
-    case 2: return p[0];
-    case 3: return readScalar<int16_t>(p, swap);
-    case 4: return readScalar<uint16_t>(p, swap);
-    case 5: return readScalar<int32_t>(p, swap);
-    case 6: return readScalar<uint32_t>(p, swap);
-    case 7: return readScalar<float>(p, swap);
-    case 8: return readScalar<double>(p, swap);
-    default: return std::numeric_limits<double>::quiet_NaN();
+    case 1:
+      return static_cast<int8_t>(p[0]);
+    case 2:
+      return p[0];
+    case 3:
+      return readScalar<int16_t>(p, swap);
+    case 4:
+      return readScalar<uint16_t>(p, swap);
+    case 5:
+      return readScalar<int32_t>(p, swap);
+    case 6:
+      return readScalar<uint32_t>(p, swap);
+    case 7:
+      return readScalar<float>(p, swap);
+    case 8:
+      return readScalar<double>(p, swap);
+    default:
+      return std::numeric_limits<double>::quiet_NaN();
   }
 }
 
@@ -167,9 +177,10 @@ PointCloud pointCloud(const CloudView& c, const std::string& source) {
     for (uint32_t u = 0; u < c.width; ++u) {
       const uint8_t* p = c.data.data() + size_t{v} * c.row_step + size_t{u} * c.point_step;
       const size_t i = size_t{v} * c.width + u;
-      out.points[i] = Eigen::Vector3d(readField(p + x->offset, x->datatype, swap), readField(p + y->offset, y->datatype, swap),
-                                      readField(p + z->offset, z->datatype, swap))
-                          .cast<float>();
+      out.points[i] =
+          Eigen::Vector3d(readField(p + x->offset, x->datatype, swap), readField(p + y->offset, y->datatype, swap),
+                          readField(p + z->offset, z->datatype, swap))
+              .cast<float>();
       if (color) {
         // PCL packs 0x00RRGGBB into the four bytes, whether the field says FLOAT32 or UINT32.
         const uint32_t packed = readScalar<uint32_t>(p + color->offset, swap);

@@ -3,17 +3,6 @@
 
 #include "rosbag1.h"
 
-#include <algorithm>
-#include <cmath>
-#include <map>
-#include <mutex>
-#include <optional>
-#include <set>
-#include <sstream>
-
-#include <cstddef>
-#include <memory>
-
 #include <console_bridge/console.h>
 #include <geometry_msgs/PoseStamped.h>
 #include <nav_msgs/Odometry.h>
@@ -23,6 +12,16 @@
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <tf2_msgs/TFMessage.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <sstream>
 
 #include "chronomap/core/error.h"
 #include "chronomap/core/pose.h"
@@ -192,8 +191,8 @@ Topics chooseTopics(const std::map<std::string, TopicInfo>& topics, const BagSet
   } else if (!s.depth_topic.empty()) {
     requireTopic(topics, s.depth_topic, {kImage}, "--depth-topic", path);
     t.depth = s.depth_topic;
-  } else if (auto depth = theOnly(topicsOfType(topics, kImage, rosmsg::isDepthEncoding), "depth image",
-                                  "--depth-topic", path)) {
+  } else if (auto depth =
+                 theOnly(topicsOfType(topics, kImage, rosmsg::isDepthEncoding), "depth image", "--depth-topic", path)) {
     t.depth = *depth;  // depth images first: a cloud topic beside them is usually made from them
   } else if (auto cloud = theOnly(topicsOfType(topics, kPointCloud2), "point cloud", "--cloud-topic", path)) {
     t.cloud = *cloud;
@@ -214,7 +213,8 @@ Topics chooseTopics(const std::map<std::string, TopicInfo>& topics, const BagSet
       t.info = s.info_topic;
     } else {
       t.info = infoBeside(topics, t.depth);
-      if (t.info.empty()) t.info = theOnly(topicsOfType(topics, kCameraInfo), "camera info", "--info-topic", path).value_or("");
+      if (t.info.empty())
+        t.info = theOnly(topicsOfType(topics, kCameraInfo), "camera info", "--info-topic", path).value_or("");
     }
     if (!t.color.empty()) t.color_info = infoBeside(topics, t.color);
   }
@@ -229,7 +229,8 @@ Topics chooseTopics(const std::map<std::string, TopicInfo>& topics, const BagSet
     if (poses.size() == 1 && !has_tf) {
       t.pose = poses.front();
     } else if (poses.empty() && !has_tf) {
-      throw DataError(path.string() + ": no poses: no /tf, no nav_msgs/Odometry and no geometry_msgs/PoseStamped topic");
+      throw DataError(path.string() +
+                      ": no poses: no /tf, no nav_msgs/Odometry and no geometry_msgs/PoseStamped topic");
     } else {
       throw UsageError(path.string() + ": where do the poses come from? Give --fixed-frame FRAME (poses from /tf)" +
                        (poses.empty() ? std::string() : " or --pose-topic (" + joinNames(poses) + ")"));
@@ -245,12 +246,18 @@ Eigen::Isometry3d poseOf(const Point& p, const Quaternion& q, const std::string&
 /// The transforms of one /tf or /tf_static message.
 void addTransforms(TransformTree& tree, const rosbag::MessageInstance& m, bool is_static, const fs::path& path) {
   const auto tf = m.instantiate<TFMessage>();
-  if (!tf) throw DataError(path.string() + ": " + m.getTopic() + " is a " + m.getDataType() + ", not tf2_msgs/TFMessage");
+  if (!tf)
+    throw DataError(path.string() + ": " + m.getTopic() + " is a " + m.getDataType() + ", not tf2_msgs/TFMessage");
   for (const auto& ts : tf->transforms) {
     const auto& tr = ts.transform.translation;
     const auto& q = ts.transform.rotation;
     std::string context = path.string();
-    context.append(": ").append(m.getTopic()).append(" ").append(ts.header.frame_id).append(" -> ").append(ts.child_frame_id);
+    context.append(": ")
+        .append(m.getTopic())
+        .append(" ")
+        .append(ts.header.frame_id)
+        .append(" -> ")
+        .append(ts.child_frame_id);
     tree.add(frameName(ts.header.frame_id), frameName(ts.child_frame_id), seconds(ts.header.stamp),
              poseFromTranslationQuaternion({tr.x, tr.y, tr.z}, q.x, q.y, q.z, q.w, context), is_static);
   }
@@ -344,8 +351,12 @@ class RosBagDataset : public Dataset {
     try {
       if (cloud_) {
         const auto msg = instantiate<PointCloud2>(f.depth);
-        rosmsg::CloudView view{msg->height,     msg->width,     {},
-                               msg->is_bigendian != 0, msg->point_step, msg->row_step,
+        rosmsg::CloudView view{msg->height,
+                               msg->width,
+                               {},
+                               msg->is_bigendian != 0,
+                               msg->point_step,
+                               msg->row_step,
                                std::span<const uint8_t>(msg->data.data(), msg->data.size())};
         for (const auto& field : msg->fields) {
           view.fields.push_back({std::string_view(field.name), field.offset, field.datatype, field.count});
@@ -380,7 +391,11 @@ class RosBagDataset : public Dataset {
 
  private:
   static rosmsg::ImageView viewOf(const Image& im) {
-    return {im.height, im.width, std::string_view(im.encoding), im.is_bigendian != 0, im.step,
+    return {im.height,
+            im.width,
+            std::string_view(im.encoding),
+            im.is_bigendian != 0,
+            im.step,
             std::span<const uint8_t>(im.data.data(), im.data.size())};
   }
 
@@ -392,8 +407,9 @@ class RosBagDataset : public Dataset {
       std::lock_guard<std::mutex> lock(mutex_);
       msg = messages_.at(i).instantiate<T>();
     }
-    if (!msg) throw DataError(path_.string() + ": message " + std::to_string(i) + " is not a " +
-                              ros::message_traits::datatype<T>());
+    if (!msg)
+      throw DataError(path_.string() + ": message " + std::to_string(i) + " is not a " +
+                      ros::message_traits::datatype<T>());
     return msg;
   }
 
@@ -479,8 +495,8 @@ class RosBagDataset : public Dataset {
           << " can be used (" << droppedReasons() << ")";
       const std::set<std::string> frames = tree.frames();
       if (!track && !frames.empty() && !depths.empty()) {
-        msg << "; /tf holds the frames " << joinNames({frames.begin(), frames.end()})
-            << ", the images are in '" << depths.front().frame_id << "'";
+        msg << "; /tf holds the frames " << joinNames({frames.begin(), frames.end()}) << ", the images are in '"
+            << depths.front().frame_id << "'";
       }
       throw DataError(msg.str());
     }

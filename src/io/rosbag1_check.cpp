@@ -23,7 +23,7 @@ namespace {
 
 constexpr char kMagic[] = "#ROSBAG V2.0\n";
 constexpr size_t kMagicBytes = sizeof(kMagic) - 1;
-constexpr uint8_t kOpMessage = 0x02, kOpIndex = 0x04, kOpChunk = 0x05, kOpChunkInfo = 0x06;
+constexpr uint8_t kOpMessage = 0x02, kOpBagHeader = 0x03, kOpIndex = 0x04, kOpChunk = 0x05, kOpChunkInfo = 0x06;
 /// Larger headers mean a broken length: real ones hold a few named fields and a message definition.
 constexpr uint32_t kMaxHeaderBytes = 16u << 20;
 /// librosbag holds a chunk in memory; real recorders write chunks of about 768 KiB.
@@ -46,7 +46,7 @@ struct Fields {
   std::optional<uint8_t> op;
   std::string compression;
   std::optional<uint32_t> size, count;
-  std::optional<uint64_t> chunk_pos;
+  std::optional<uint64_t> chunk_pos, index_pos;
 };
 
 Fields parseFields(const uint8_t* p, uint32_t n, const fs::path& path, uint64_t offset) {
@@ -67,10 +67,10 @@ Fields parseFields(const uint8_t* p, uint32_t n, const fs::path& path, uint64_t 
       f.op = static_cast<uint8_t>(value[0]);
     } else if (name == "compression") {
       f.compression = std::string(value);
-    } else if (name == "chunk_pos" && value.size() == 8) {
+    } else if ((name == "chunk_pos" || name == "index_pos") && value.size() == 8) {
       uint64_t v;
       std::memcpy(&v, value.data(), 8);
-      f.chunk_pos = v;
+      (name == "chunk_pos" ? f.chunk_pos : f.index_pos) = v;
     } else if ((name == "size" || name == "count") && value.size() == 4) {
       (name == "size" ? f.size : f.count) = u32(reinterpret_cast<const uint8_t*>(value.data()));
     }
@@ -143,6 +143,8 @@ void checkBagStructure(const fs::path& path) {
   std::vector<uint8_t> header, data;
   std::set<uint32_t> last_chunk;  // message records of the last chunk, for its index records
   std::set<uint64_t> chunks;      // where chunk records start, for the chunk infos
+  std::set<uint64_t> records;     // where top-level records start, for the bag header's index_pos
+  std::optional<uint64_t> index_pos;
   const auto read = [&](std::vector<uint8_t>& into, uint64_t n, const char* what) {
     if (n > file_size - at) fail(path, at, std::string(what) + " runs past the end of the file (truncated?)");
     into.resize(n);
@@ -155,9 +157,15 @@ void checkBagStructure(const fs::path& path) {
     const uint64_t record = at;
     read(len, 4, "a record length");
     const uint32_t header_len = u32(len.data());
-    if (header_len > kMaxHeaderBytes) fail(path, record, "a record header claims " + std::to_string(header_len) + " bytes");
+    if (header_len > kMaxHeaderBytes)
+      fail(path, record, "a record header claims " + std::to_string(header_len) + " bytes");
     read(header, header_len, "a record header");
     const Fields f = parseFields(header.data(), header_len, path, record);
+    records.insert(record);
+    if (*f.op == kOpBagHeader) {
+      if (!f.index_pos) fail(path, record, "the bag header has no index_pos");
+      index_pos = f.index_pos;
+    }
     read(len, 4, "a record's data length");
     const uint32_t data_len = u32(len.data());
     if (*f.op == kOpChunkInfo && (!f.chunk_pos || !chunks.count(*f.chunk_pos))) {
@@ -170,7 +178,8 @@ void checkBagStructure(const fs::path& path) {
       last_chunk = chunkMessages(decompress(f.compression, data, *f.size, path, record), path, record);
     } else if (*f.op == kOpIndex) {
       read(data, data_len, "an index record");
-      if (!f.count || uint64_t{*f.count} * 12 != data_len) fail(path, record, "an index record's count does not match its data");
+      if (!f.count || uint64_t{*f.count} * 12 != data_len)
+        fail(path, record, "an index record's count does not match its data");
       for (uint32_t i = 0; i < *f.count; ++i) {
         if (!last_chunk.count(u32(data.data() + 12 * i + 8))) {
           fail(path, record, "an index entry points at no message record of its chunk");
@@ -182,6 +191,10 @@ void checkBagStructure(const fs::path& path) {
       at += data_len;
     }
   }
+  // librosbag starts reading at index_pos; an unindexed bag (index_pos 0) it refuses itself.
+  if (!index_pos) fail(path, kMagicBytes, "the bag has no bag header record");
+  if (*index_pos != 0 && !records.count(*index_pos))
+    fail(path, kMagicBytes, "the bag header's index_pos points at no record");
 }
 
 }  // namespace chronomap::io

@@ -47,7 +47,8 @@ void TransformTree::add(const std::string& parent, const std::string& child, dou
 
 void TransformTree::finish() {
   for (auto& [child, e] : parents_) {
-    std::stable_sort(e.samples.begin(), e.samples.end(), [](const TimedPose& a, const TimedPose& b) { return a.t < b.t; });
+    std::stable_sort(e.samples.begin(), e.samples.end(),
+                     [](const TimedPose& a, const TimedPose& b) { return a.t < b.t; });
   }
 }
 
@@ -84,8 +85,7 @@ std::optional<Eigen::Isometry3d> TransformTree::along(const std::vector<std::str
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();  // T_path[i]_path[0]
   for (size_t i = 0; i < to; ++i) {
     const Edge& e = parents_.at(path[i]);
-    std::optional<Eigen::Isometry3d> step =
-        !e.samples.empty() ? poseAt(e.samples, t, tolerance_s) : e.fixed;
+    std::optional<Eigen::Isometry3d> step = !e.samples.empty() ? poseAt(e.samples, t, tolerance_s) : e.fixed;
     if (!step) return std::nullopt;
     T = *step * T;
   }

@@ -1,6 +1,8 @@
 // ROS 1 bags: written by Debian's python3-rosbag (tests/io/make_ros1_bags.py) from a simulated
 // TUM session, read back through librosbag, and compared with the TUM reader's frames and map.
 
+#include "chronomap/io/rosbag.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -13,7 +15,6 @@
 #include "chronomap/core/error.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/dataset.h"
-#include "chronomap/io/rosbag.h"
 #include "chronomap/io/transform_tree.h"
 #include "chronomap/pipeline/session.h"
 #include "io/ros_messages.h"
@@ -37,13 +38,14 @@ class RosBagTest : public ::testing::Test {
   static void SetUpTestSuite() {
     dir_ = new test::TempDir();
     const fs::path sim = *dir_ / "sim";
-    const auto simulated = test::runCommand(test::cli() + " simulate --preset tiny --sessions 1 --resolution-scale 0.25 -o " +
-                                            sim.string());
+    const auto simulated = test::runCommand(
+        test::cli() + " simulate --preset tiny --sessions 1 --resolution-scale 0.25 -o " + sim.string());
     ASSERT_EQ(simulated.exit_code, 0) << simulated.err;
     const std::string script = std::string(CHRONOMAP_SOURCE_DIR) + "/tests/io/make_ros1_bags.py";
-    const auto made = test::runCommand(std::string(kDebianPython) + " " + script + " " + tum().string() + " " +
-                                       bags().string());
-    const auto seeds = test::runCommand(std::string(kDebianPython) + " " + script + " --seeds " + (bags() / "tiny").string());
+    const auto made =
+        test::runCommand(std::string(kDebianPython) + " " + script + " " + tum().string() + " " + bags().string());
+    const auto seeds =
+        test::runCommand(std::string(kDebianPython) + " " + script + " --seeds " + (bags() / "tiny").string());
     generator_error_ = made.exit_code == 0 ? seeds.err : made.err;
     if (seeds.exit_code == 0) generator_error_.clear();
   }
@@ -323,7 +325,8 @@ TEST_F(RosBagTest, CorruptChunksAreFormatErrorsNotCrashes) {
     const auto seed = test::bytesOf(bag(name));
     for (int round = 0; round < 100; ++round) {
       auto mutated = seed;
-      for (int flip = 0; flip < 4; ++flip) mutated[(next() >> 33) % mutated.size()] ^= static_cast<uint8_t>(1u << ((next() >> 33) % 8));
+      for (int flip = 0; flip < 4; ++flip)
+        mutated[(next() >> 33) % mutated.size()] ^= static_cast<uint8_t>(1u << ((next() >> 33) % 8));
       // Every other round, four 0xff bytes somewhere: a length or offset far past its buffer.
       const size_t at = (next() >> 33) % mutated.size();
       for (size_t k = at; k < at + 4 && k < mutated.size() && round % 2 == 0; ++k) mutated[k] = 0xff;
@@ -353,9 +356,9 @@ TEST_F(RosBagTest, TheCommandLineListsAndIntegratesABag) {
   EXPECT_NE(run.out.find("3 frame(s) dropped (3 without a pose within 0.1 s)"), std::string::npos) << run.out;
   // build takes bags as it takes folders, the topic flags applying to each.
   const fs::path map = *dir_ / "two.cmap";
-  const auto built = test::runCommand(test::cli() + " build " + map.string() + " " + bag("tf_gaps.bag").string() + " " +
-                                      bag("tf.bag").string() +
-                                      " --fixed-frame map --depth-scale 5000 --times 1000000000,1000086400");
+  const auto built =
+      test::runCommand(test::cli() + " build " + map.string() + " " + bag("tf_gaps.bag").string() + " " +
+                       bag("tf.bag").string() + " --fixed-frame map --depth-scale 5000 --times 1000000000,1000086400");
   ASSERT_EQ(built.exit_code, 0) << built.err;
   EXPECT_TRUE(fs::exists(map));
   const auto missing = test::runCommand(test::cli() + " integrate " + bag("tf.bag").string() + " -o " + out.string());
@@ -428,8 +431,8 @@ TEST(PoseAt, InterpolatesBetweenSamplesWithinTheTolerance) {
   ASSERT_TRUE(mid);
   EXPECT_NEAR(mid->translation().x(), 0.75, 1e-12);
   EXPECT_NEAR(Eigen::AngleAxisd(mid->linear()).angle(), 0.15, 1e-12);
-  EXPECT_TRUE(poseAt(samples, 1.1, 0.0)->matrix() == samples[1].pose.matrix());  // exact time: the sample's numbers
-  EXPECT_FALSE(poseAt(samples, 2.0, 0.1));                                       // in a 1.9 s gap
+  EXPECT_TRUE(poseAt(samples, 1.1, 0.0)->matrix() == samples[1].pose.matrix());   // exact time: the sample's numbers
+  EXPECT_FALSE(poseAt(samples, 2.0, 0.1));                                        // in a 1.9 s gap
   EXPECT_TRUE(poseAt(samples, 3.05, 0.1)->matrix() == samples[2].pose.matrix());  // just after the last
   EXPECT_FALSE(poseAt(samples, 3.2, 0.1));
   EXPECT_FALSE(poseAt(samples, 0.8, 0.1));

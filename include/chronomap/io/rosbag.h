@@ -13,7 +13,7 @@ namespace chronomap::io {
 /// One topic of a bag.
 struct BagTopic {
   std::string name;
-  std::string type;      ///< e.g. "sensor_msgs/Image"
+  std::string type;  ///< e.g. "sensor_msgs/Image"
   uint64_t messages = 0;
   std::string encoding;  ///< sensor_msgs/Image: the first message's encoding ("16UC1", "rgb8"); else empty
 };

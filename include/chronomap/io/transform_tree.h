@@ -4,13 +4,12 @@
 /// /tf_static hold them) and stamped poses of one frame (an odometry or pose topic), looked up
 /// at a frame's time with the recording's tolerance.
 
+#include <Eigen/Geometry>
 #include <map>
 #include <optional>
 #include <set>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 namespace chronomap::io {
 
