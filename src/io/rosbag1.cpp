@@ -201,6 +201,7 @@ Topics chooseTopics(const std::map<std::string, TopicInfo>& topics, const BagSet
   }
   if (!t.depth.empty()) {
     if (s.color_topic == "none") {
+      // no colour, as asked
     } else if (!s.color_topic.empty()) {
       requireTopic(topics, s.color_topic, {kImage}, "--color-topic", path);
       t.color = s.color_topic;
