@@ -30,3 +30,40 @@ target_link_libraries(chronomap_octomap INTERFACE ${OCTOMAP_LIBRARIES})
 # and its header must be compiled with the same definitions, which pkg-config gives.
 find_package(PkgConfig REQUIRED)
 pkg_check_modules(HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
+
+# ROS 1 bags: Debian's librosbag (rosbag_storage) and the generated headers of the message
+# packages. Only src/io/rosbag1.cpp includes them; the include folders are SYSTEM so that the
+# ROS headers' own warnings do not fail the build.
+option(CHRONOMAP_ROSBAG "Read ROS 1 bags through librosbag (scripts/install-deps.sh installs it)" ON)
+if(CHRONOMAP_ROSBAG)
+  find_path(ROSBAG_INCLUDE_DIR rosbag/bag.h)
+  find_path(ROS_SENSOR_MSGS_INCLUDE_DIR sensor_msgs/Image.h)
+  find_path(ROS_TF2_MSGS_INCLUDE_DIR tf2_msgs/TFMessage.h)
+  find_path(ROS_NAV_MSGS_INCLUDE_DIR nav_msgs/Odometry.h)
+  find_path(PLUGINLIB_INCLUDE_DIR pluginlib/class_loader.hpp PATH_SUFFIXES pluginlib)
+  find_path(CLASS_LOADER_INCLUDE_DIR class_loader/class_loader.hpp PATH_SUFFIXES class_loader)
+  find_path(RCUTILS_INCLUDE_DIR rcutils/types.h PATH_SUFFIXES rcutils)
+  find_path(RCPPUTILS_INCLUDE_DIR rcpputils/shared_library.hpp PATH_SUFFIXES rcpputils)
+  find_path(AMENT_INDEX_CPP_INCLUDE_DIR ament_index_cpp/get_resource.hpp PATH_SUFFIXES ament_index_cpp)
+  set(_chronomap_ros_libraries)
+  foreach(lib rosbag_storage roslz4 rostime cpp_common roscpp_serialization console_bridge boost_filesystem)
+    find_library(CHRONOMAP_ROS_${lib}_LIBRARY ${lib})
+    list(APPEND _chronomap_ros_libraries CHRONOMAP_ROS_${lib}_LIBRARY)
+  endforeach()
+  foreach(var ROSBAG_INCLUDE_DIR ROS_SENSOR_MSGS_INCLUDE_DIR ROS_TF2_MSGS_INCLUDE_DIR ROS_NAV_MSGS_INCLUDE_DIR
+              PLUGINLIB_INCLUDE_DIR CLASS_LOADER_INCLUDE_DIR RCUTILS_INCLUDE_DIR RCPPUTILS_INCLUDE_DIR
+              AMENT_INDEX_CPP_INCLUDE_DIR ${_chronomap_ros_libraries})
+    if(NOT ${var})
+      message(FATAL_ERROR "ROS 1 bag support needs ${var}: run scripts/install-deps.sh "
+                          "(librosbag-dev, libsensor-msgs-dev, libnav-msgs-dev, libtf2-msgs-dev), "
+                          "or configure with -DCHRONOMAP_ROSBAG=OFF")
+    endif()
+  endforeach()
+  add_library(chronomap_rosbag INTERFACE)
+  target_include_directories(chronomap_rosbag SYSTEM INTERFACE ${ROSBAG_INCLUDE_DIR} ${ROS_SENSOR_MSGS_INCLUDE_DIR}
+    ${ROS_TF2_MSGS_INCLUDE_DIR} ${ROS_NAV_MSGS_INCLUDE_DIR} ${PLUGINLIB_INCLUDE_DIR} ${CLASS_LOADER_INCLUDE_DIR}
+    ${RCUTILS_INCLUDE_DIR} ${RCPPUTILS_INCLUDE_DIR} ${AMENT_INDEX_CPP_INCLUDE_DIR})
+  foreach(var ${_chronomap_ros_libraries})
+    target_link_libraries(chronomap_rosbag INTERFACE ${${var}})
+  endforeach()
+endif()

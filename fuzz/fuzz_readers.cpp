@@ -19,6 +19,17 @@
 #include "chronomap/io/dataset.h"
 #include "chronomap/io/jpeg.h"
 #include "chronomap/io/png.h"
+#if defined(FUZZ_BAG)
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "chronomap/io/rosbag.h"
+#endif
+#if defined(FUZZ_ROSMSG)
+#include "io/ros_messages.h"
+#endif
 
 namespace {
 
@@ -92,6 +103,58 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
     case 2: io::parseStampedList(text, name); break;
     case 3: io::parseTumTrajectory(text, name); break;
     default: io::parseCloudList(text, name); break;
+  }
+#elif defined(FUZZ_BAG)
+  // librosbag reads files only: the input goes to a file of this process, then through the
+  // listing and the dataset reader (topics detected, poses from a pose topic or /tf into "map"),
+  // loading the first frames.
+  static const std::filesystem::path path =
+      std::filesystem::temp_directory_path() / ("chronomap-fuzz-" + std::to_string(::getpid()) + ".bag");
+  std::ofstream(path, std::ios::binary | std::ios::trunc)
+      .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  io::listBag(path);
+  for (const char* fixed_frame : {"", "map"}) {
+    try {
+      io::DatasetSettings settings;
+      settings.format = io::DatasetFormat::RosBag;
+      settings.bag.fixed_frame = fixed_frame;
+      const auto dataset = io::openDataset(path, settings);
+      for (size_t i = 0; i < dataset->size() && i < 4; ++i) dataset->load(i);
+    } catch (const Error&) {
+    }
+  }
+#elif defined(FUZZ_ROSMSG)
+  // The message decoders behind every bag reader: a 12-byte head picks the message's shape
+  // (kind, encoding or fields, size, row bytes, byte order), the rest is its data.
+  if (bytes.size() < 12) return;
+  static const char* const kEncodings[] = {"16UC1", "32FC1", "mono16", "rgb8", "bgr8", "mono8", "rgba8", "bgra8", "yuv422"};
+  const std::span<const uint8_t> data(bytes.data() + 12, bytes.size() - 12);
+  const uint32_t width = bytes[1] % 64u, height = bytes[2] % 64u, step = bytes[3] + 256u * (bytes[4] % 4u);
+  const bool big_endian = bytes[5] & 1u;
+  const CameraIntrinsics k{100.0, 100.0, 32.0, 24.0};
+  switch (bytes[0] % 3) {
+    case 0: {
+      const io::rosmsg::ImageView im{height, width, kEncodings[bytes[6] % 9], big_endian, step, data};
+      io::rosmsg::depthCloud(im, nullptr, k, 1000.0, name);
+      break;
+    }
+    case 1: {
+      const io::rosmsg::ImageView im{height, width, kEncodings[bytes[6] % 9], big_endian, step, data};
+      io::rosmsg::colorImage(im, name);
+      break;
+    }
+    default: {
+      io::rosmsg::CloudView cloud{height, width, {}, big_endian, bytes[7] % 64u, step, data};
+      static const char* const kNames[] = {"x", "y", "z", "rgb", "rgba", "intensity"};
+      for (size_t f = 8; f < 12; ++f) {
+        cloud.fields.push_back({kNames[bytes[f] % 6], (bytes[f] >> 3) % 32u, static_cast<uint8_t>(bytes[f] % 10), 1});
+      }
+      // x, y and z as FLOAT32 after the random fields, so that most inputs get past the field check.
+      const char* const axes[] = {"x", "y", "z"};
+      for (uint32_t a = 0; a < 3; ++a) cloud.fields.push_back({axes[a], 4 * a + bytes[7 + a] % 4u, 7, 1});
+      io::rosmsg::pointCloud(cloud, name);
+      break;
+    }
   }
 #else
 #error "define one FUZZ_* target"

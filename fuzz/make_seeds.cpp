@@ -24,7 +24,18 @@ int main(int argc, char** argv) {
     return 2;
   }
   const fs::path root = argv[1];
-  for (const char* t : {"cmap", "pcd", "ply", "xyz", "png", "text"}) fs::create_directories(root / t);
+  for (const char* t : {"cmap", "pcd", "ply", "xyz", "png", "text", "bag", "rosmsg"}) fs::create_directories(root / t);
+  // Message decoder heads (fuzz_readers.cpp, FUZZ_ROSMSG): 16UC1 depth 4 x 2, rgb8 colour 2 x 2,
+  // a 2 x 1 cloud of 16-byte points; then their data.
+  {
+    auto head = [](std::initializer_list<int> v) { return std::string(v.begin(), v.end()); };
+    std::ofstream(root / "rosmsg" / "depth", std::ios::binary) << head({0, 4, 2, 8, 0, 0, 0, 0, 0, 0, 0, 0})
+                                                               << std::string(16, '\x10');
+    std::ofstream(root / "rosmsg" / "color", std::ios::binary) << head({1, 2, 2, 6, 0, 0, 3, 0, 0, 0, 0, 0})
+                                                               << std::string(12, '\x40');
+    std::ofstream(root / "rosmsg" / "cloud", std::ios::binary) << head({2, 2, 1, 32, 0, 0, 0, 16, 0, 0, 0, 27})
+                                                               << std::string(32, '\x3f');
+  }
   PointCloud cloud;
   cloud.width = 4;
   cloud.height = 3;

@@ -18,7 +18,8 @@ if ! command -v clang++ >/dev/null || [ ! -d /usr/lib/llvm-14/lib/clang ]; then
 fi
 cmake --preset fuzz >/dev/null
 # Only the fuzz targets and the modules they link (not the command line or the simulator).
-cmake --build --preset fuzz -j"$(nproc)" --target fuzz_cmap fuzz_pcd fuzz_ply fuzz_xyz fuzz_png fuzz_text fuzz_view fuzz_make_seeds
+cmake --build --preset fuzz -j"$(nproc)" --target fuzz_cmap fuzz_pcd fuzz_ply fuzz_xyz fuzz_png fuzz_text fuzz_view fuzz_bag \
+  fuzz_rosmsg fuzz_make_seeds
 bin=build/fuzz/fuzz
 data="${CHRONOMAP_DATA_DIR:-../shared/data}"
 seeds=build/fuzz/seeds
@@ -35,6 +36,8 @@ printf '/api/snapshot?t=1970-01-01T00:25:00Z' >"$seeds/view/snapshot_t"
 printf '/api/diff?from=0&to=2&min_voxels=1' >"$seeds/view/diff"
 printf '/api/history?key=32768,32768,32768&level=2' >"$seeds/view/history"
 printf '/api/map' >"$seeds/view/map"
+# ROS 1 bags written by Debian's python3-rosbag, as the tests write them.
+/usr/bin/python3 tests/io/make_ros1_bags.py --seeds "$seeds/bag"
 summary=build/fuzz/summary.txt
 : >"$summary"
 # One target per core at a time; each writes its own log and result line.
@@ -52,7 +55,7 @@ fuzz_one() {
 }
 jobs="$(nproc)"
 rm -f build/fuzz/*.result
-targets=(cmap pcd ply xyz png text view)
+targets=(cmap pcd ply xyz png text view bag rosmsg)
 for target in "${targets[@]}"; do
   while [ "$(jobs -rp | wc -l)" -ge "$jobs" ]; do wait -n || true; done
   fuzz_one "$target" &

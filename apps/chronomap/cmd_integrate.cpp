@@ -14,6 +14,7 @@
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/dataset.h"
 #include "chronomap/io/file.h"
+#include "chronomap/io/rosbag.h"
 #include "chronomap/pipeline/session.h"
 #include "commands.h"
 #include "progress.h"
@@ -27,7 +28,28 @@ struct IntegrateCmdOptions {
   std::string output;
   IntegrateFlags flags;
   bool json = false;
+  bool list = false;
 };
+
+/// `integrate run.bag --list`: the bag's topics, types and message counts.
+int listBagTopics(const IntegrateCmdOptions& o) {
+  const std::vector<io::BagTopic> topics = io::listBag(o.dataset);
+  if (o.json) {
+    nlohmann::json out = nlohmann::json::array();
+    for (const auto& t : topics) {
+      out.push_back({{"topic", t.name}, {"type", t.type}, {"messages", t.messages}, {"encoding", t.encoding}});
+    }
+    std::cout << out.dump() << "\n";
+    return 0;
+  }
+  std::cout << o.dataset << ": " << topics.size() << " topic(s)\n";
+  for (const auto& t : topics) {
+    std::cout << "  " << t.name << "  " << t.type << "  " << t.messages << " message(s)";
+    if (!t.encoding.empty()) std::cout << "  " << t.encoding;
+    std::cout << "\n";
+  }
+  return 0;
+}
 
 nlohmann::json integrateJson(const IntegrateCmdOptions& o, const pipeline::IntegratedSession& session,
                              uint64_t file_bytes) {
@@ -57,7 +79,10 @@ void printIntegrated(const IntegrateCmdOptions& o, const pipeline::IntegratedSes
   const SessionMap& map = session.map;
   const SessionMapCounts counts = map.counts();
   std::cout << "integrated " << stats.frames << " frame(s) of " << o.dataset << " (" << session.format << ")";
-  if (session.frames_dropped) std::cout << ", " << session.frames_dropped << " frame(s) without pose or colour dropped";
+  if (session.frames_dropped) {
+    std::cout << ", " << session.frames_dropped << " frame(s) dropped ("
+              << (session.dropped_reasons.empty() ? "without pose or colour" : session.dropped_reasons) << ")";
+  }
   std::cout << "\n  points:  " << stats.points << " cast, " << stats.pointsSkipped() << " skipped ("
             << stats.points_invalid << " invalid, " << stats.points_out_of_range << " beyond " << max_range_m
             << " m, " << stats.points_outside_map << " outside the map)\n"
@@ -72,6 +97,8 @@ void printIntegrated(const IntegrateCmdOptions& o, const pipeline::IntegratedSes
 }
 
 int runIntegrate(const IntegrateCmdOptions& o) {
+  if (o.list) return listBagTopics(o);
+  if (o.output.empty()) throw UsageError("integrate: --output is required");
   requireExtension(o.output, ".cmap", "output");
   io::refuseOverwritingInputs(o.output, {o.dataset});
   const pipeline::SessionSettings settings = sessionSettings(o.flags);
@@ -128,6 +155,8 @@ pipeline::SessionSettings sessionSettings(const IntegrateFlags& f) {
     }
   }
   if (!f.trajectory.empty()) s.dataset.trajectory = f.trajectory;
+  s.dataset.bag = f.bag;
+  if (f.pose_tolerance_s) s.dataset.bag.pose_tolerance_s = *f.pose_tolerance_s;
   s.integrator.max_range_m = f.max_range_m;
   s.integrator.fast = f.fast;
   s.integrator.threads = f.threads;
@@ -155,6 +184,27 @@ std::string memoryLimitHelp() {
 
 }  // namespace
 
+namespace {
+
+void addBagFlags(CLI::App* app, IntegrateFlags& f) {
+  const std::string detected = " (detected when the bag has only one)";
+  app->add_option("--depth-topic", f.bag.depth_topic, "ROS bag: depth image topic, 16UC1 mm or 32FC1 m" + detected);
+  app->add_option("--color-topic", f.bag.color_topic, "ROS bag: colour image topic; 'none' for no colour" + detected);
+  app->add_option("--info-topic", f.bag.info_topic,
+                  "ROS bag: CameraInfo of the depth camera (default: camera_info beside the depth topic)");
+  app->add_option("--cloud-topic", f.bag.cloud_topic, "ROS bag: PointCloud2 topic, read instead of depth images");
+  app->add_option("--pose-topic", f.bag.pose_topic,
+                  "ROS bag: nav_msgs/Odometry or geometry_msgs/PoseStamped topic with the sensor's pose");
+  app->add_option("--fixed-frame", f.bag.fixed_frame,
+                  "ROS bag: poses from /tf and /tf_static, of each message's frame in this frame (e.g. map)");
+  app->add_option("--pose-tolerance", f.pose_tolerance_s,
+                  "ROS bag: most seconds between a frame and the poses it is interpolated from (default 0.1); "
+                  "frames without are dropped and counted")
+      ->check(numberIn(0.0, 3600.0));
+}
+
+}  // namespace
+
 void addIntegrateFlags(CLI::App* app, IntegrateFlags& f) {
   std::ostringstream extent;
   extent << "edge of a unit voxel, metres (" << kMinResolution_m << " to " << kMaxResolution_m << "; a map spans "
@@ -166,7 +216,7 @@ void addIntegrateFlags(CLI::App* app, IntegrateFlags& f) {
                   "points farther from the sensor are discarded, metres (any positive range; beyond the map's "
                   "diagonal, sqrt(3) * 65536 voxels, it keeps every point in the map)")
       ->capture_default_str();
-  app->add_option("--format", f.format, "auto, tum, 3dmatch, scannet or clouds")->capture_default_str();
+  app->add_option("--format", f.format, "auto, tum, 3dmatch, scannet, clouds or rosbag")->capture_default_str();
   app->add_flag("--fast", f.fast,
                 "bundle the points of a frame that end in the same voxel into one weighted ray "
                 "(much faster; see docs/integration.md for how far the counters may differ)");
@@ -182,6 +232,7 @@ void addIntegrateFlags(CLI::App* app, IntegrateFlags& f) {
   app->add_option("--intrinsics", f.intrinsics, "camera intrinsics fx,fy,cx,cy in pixels");
   app->add_option("--pose", f.pose, "pose of a single cloud: tx,ty,tz,qx,qy,qz,qw (sensor to map)");
   app->add_option("--trajectory", f.trajectory, "TUM: pose file to use instead of trajectory.txt/groundtruth.txt");
+  addBagFlags(app, f);
 }
 
 Command addIntegrate(CLI::App& root) {
@@ -191,12 +242,13 @@ Command addIntegrate(CLI::App& root) {
       "Integrate one recording into a session map (.cmap).\n"
       "DATASET is a TUM RGB-D folder (depth.txt, rgb.txt, trajectory.txt or groundtruth.txt), a "
       "3DMatch/7-Scenes folder (frame-*.depth.png, frame-*.pose.txt, camera-intrinsics.txt), a ScanNet export "
-      "(color/N.jpg, depth/N.png, pose/N.txt, intrinsic/), a single "
+      "(color/N.jpg, depth/N.png, pose/N.txt, intrinsic/), a ROS 1 bag (.bag; --list shows its topics), a single "
       "PCD/PLY/XYZ cloud (seen from the origin unless --pose), or a text list of clouds with poses "
       "('cloud.pcd tx ty tz qx qy qz qw' per line).");
   app->add_option("DATASET", o->dataset, "dataset folder or file")->required();
-  app->add_option("-o,--output", o->output, "session map to write (.cmap)")->required();
+  app->add_option("-o,--output", o->output, "session map to write (.cmap)");
   addIntegrateFlags(app, o->flags);
+  app->add_flag("--list", o->list, "ROS bag: list its topics, their types and message counts, and stop");
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runIntegrate(*o); }};
 }

@@ -53,6 +53,8 @@ struct IntegrateFlags {
   std::string intrinsics;
   std::string pose;
   std::string trajectory;
+  io::BagSettings bag;                      ///< ROS bags: topics and frames
+  std::optional<double> pose_tolerance_s;  ///< unset: BagSettings' default
 };
 /// Registers the integration flags on a subcommand.
 void addIntegrateFlags(CLI::App* app, IntegrateFlags& flags);

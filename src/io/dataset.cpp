@@ -11,6 +11,7 @@
 #include "chronomap/io/file.h"
 #include "chronomap/io/jpeg.h"
 #include "chronomap/io/png.h"
+#include "rosbag1.h"
 #include "text_util.h"
 
 namespace chronomap::io {
@@ -24,6 +25,7 @@ const char* toString(DatasetFormat format) {
     case DatasetFormat::ThreeDMatch: return "3dmatch";
     case DatasetFormat::Clouds: return "clouds";
     case DatasetFormat::ScanNet: return "scannet";
+    case DatasetFormat::RosBag: return "rosbag";
   }
   return "unknown";
 }
@@ -34,7 +36,8 @@ DatasetFormat parseDatasetFormat(const std::string& name) {
   if (name == "3dmatch" || name == "7scenes") return DatasetFormat::ThreeDMatch;
   if (name == "clouds") return DatasetFormat::Clouds;
   if (name == "scannet") return DatasetFormat::ScanNet;
-  throw UsageError("unknown dataset format '" + name + "' (expected auto, tum, 3dmatch or clouds)");
+  if (name == "rosbag" || name == "bag") return DatasetFormat::RosBag;
+  throw UsageError("unknown dataset format '" + name + "' (expected auto, tum, 3dmatch, scannet, clouds or rosbag)");
 }
 
 CameraIntrinsics parseIntrinsics(const std::string& text) {
@@ -547,6 +550,7 @@ DatasetFormat detect(const fs::path& path) {
                      "intrinsic/ folders); use --format");
   }
   if (isCloudFile(path) || dataExtension(path) == ".txt") return DatasetFormat::Clouds;
+  if (path.extension() == ".bag") return DatasetFormat::RosBag;
   throw UsageError(path.string() + ": cannot tell the dataset format from the extension; use --format");
 }
 
@@ -580,6 +584,9 @@ std::unique_ptr<Dataset> openDataset(const fs::path& path, const DatasetSettings
         throw UsageError(path.string() + ": for clouds give one cloud file or a list file, not a folder");
       }
       return openClouds(path, options);
+    case DatasetFormat::RosBag:
+      if (fs::is_directory(path, ec)) throw UsageError(path.string() + ": a ROS 1 bag is a file (.bag)");
+      return openRosBag(path, options);
     case DatasetFormat::Auto:
       break;
   }

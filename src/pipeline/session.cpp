@@ -12,7 +12,7 @@ IntegratedSession integrateDataset(const std::filesystem::path& path, const Sess
                                    const std::string& label) {
   auto dataset = io::openDataset(path, settings.dataset);
   IntegratedSession out{SessionMap(settings.resolution_m), {}, dataset->recordedAt(), io::toString(dataset->format()),
-                        dataset->framesDropped(), {}};
+                        dataset->framesDropped(), {}, dataset->droppedReasons()};
   out.sensor_positions.reserve(dataset->size());
   for (size_t i = 0; i < dataset->size(); ++i) out.sensor_positions.push_back(dataset->poseOf(i).translation());
   // Without a correction the dataset is read directly (frames already in memory are not copied).

@@ -21,9 +21,10 @@ enum class DatasetFormat {
   ThreeDMatch,  ///< 3DMatch / 7-Scenes: frame-*.{color,depth}.png, frame-*.pose.txt
   Clouds,       ///< one cloud file, or a text list of "cloud tx ty tz qx qy qz qw"
   ScanNet,      ///< ScanNet's exported folder: color/N.jpg, depth/N.png, pose/N.txt, intrinsic/
+  RosBag,       ///< a ROS 1 bag (.bag): depth or cloud topic, colour, camera info, poses from /tf or a topic
 };
 
-/// "tum", "3dmatch", "scannet", "clouds" or "auto".
+/// "tum", "3dmatch", "scannet", "clouds", "rosbag" or "auto".
 const char* toString(DatasetFormat format);
 /// Inverse of toString. @throw UsageError for an unknown name.
 DatasetFormat parseDatasetFormat(const std::string& name);
@@ -63,6 +64,22 @@ struct CloudListEntry {
 };
 std::vector<CloudListEntry> parseCloudList(const std::string& text, const std::string& source);
 
+/// Which topics and frames of a ROS bag make the frames. Empty topics are detected from the bag
+/// when only one topic fits; an ambiguous bag is refused with the candidates named.
+struct BagSettings {
+  std::string depth_topic;  ///< sensor_msgs/Image, 16UC1 (millimetres) or 32FC1 (metres)
+  std::string color_topic;  ///< sensor_msgs/Image, rgb8, bgr8, mono8, rgba8 or bgra8; "none": no colour
+  std::string info_topic;   ///< sensor_msgs/CameraInfo of the depth camera (default: beside the depth topic)
+  std::string cloud_topic;  ///< sensor_msgs/PointCloud2, read instead of depth images
+  /// nav_msgs/Odometry or geometry_msgs/PoseStamped: the sensor's pose in the map frame (an
+  /// odometry's child frame is carried to the sensor's frame through /tf when they differ).
+  std::string pose_topic;
+  /// Poses from /tf and /tf_static: the sensor frame (each message's header) in this frame.
+  std::string fixed_frame;
+  /// Largest time between a frame and the pose samples it is interpolated from (seconds).
+  double pose_tolerance_s = 0.1;
+};
+
 /// Settings of openDataset; unset values take the format's defaults.
 struct DatasetSettings {
   DatasetFormat format = DatasetFormat::Auto;
@@ -74,8 +91,11 @@ struct DatasetSettings {
   std::optional<Eigen::Isometry3d> pose;
   /// TUM: pose file to use instead of trajectory.txt or groundtruth.txt.
   std::optional<std::filesystem::path> trajectory;
-  /// TUM: largest time difference accepted when associating depth, colour and pose.
+  /// TUM: largest time difference accepted when associating depth, colour and pose; ROS bags:
+  /// between depth and colour.
   double max_time_difference_s = 0.02;
+  /// ROS bags: topics and frames.
+  BagSettings bag;
 };
 
 /// Frames of one recording. load() reads and decodes one frame; safe from several threads.
@@ -85,6 +105,8 @@ class Dataset : public FrameSource {
   virtual DatasetFormat format() const = 0;
   /// Frames listed but left out (no colour or pose within the time tolerance).
   virtual size_t framesDropped() const { return 0; }
+  /// Why frames were left out, for people ("12 without a pose within 0.1 s"); empty when none were.
+  virtual std::string droppedReasons() const { return {}; }
   /// When the recording started (seconds since the epoch), if its files say so: the first
   /// frame's timestamp of a TUM folder. Nothing for formats without times.
   virtual std::optional<double> recordedAt() const { return std::nullopt; }

@@ -37,6 +37,7 @@ struct IntegratedSession {
   std::string format;                 ///< the layout that was read ("tum", "3dmatch", "clouds")
   size_t frames_dropped = 0;
   std::vector<Eigen::Vector3d> sensor_positions;  ///< of every frame, as recorded (before the correction)
+  std::string dropped_reasons;  ///< why frames were dropped, when the reader says (io::Dataset::droppedReasons)
 };
 
 /// Opens and integrates the recording at `path`, every pose corrected by `correction`; reports
