@@ -12,6 +12,7 @@
 #include "chronomap/io/jpeg.h"
 #include "chronomap/io/png.h"
 #include "rosbag1.h"
+#include "stamped.h"
 #include "text_util.h"
 
 namespace chronomap::io {
@@ -434,19 +435,6 @@ std::vector<StampedPose> parseTumTrajectory(const std::string& text, const std::
 
 namespace {
 
-template <class T>
-const T* nearest(const std::vector<T>& sorted, double t, double tolerance) {
-  auto it = std::lower_bound(sorted.begin(), sorted.end(), t, [](const T& a, double v) { return a.t < v; });
-  const T* best = nullptr;
-  double best_dt = tolerance;
-  if (it != sorted.end() && std::abs(it->t - t) <= best_dt) {
-    best = &*it;
-    best_dt = std::abs(it->t - t);
-  }
-  if (it != sorted.begin() && std::abs(std::prev(it)->t - t) <= best_dt) best = &*std::prev(it);
-  return best;
-}
-
 std::unique_ptr<Dataset> openTum(const fs::path& root, const DatasetSettings& o) {
   std::error_code ec;
   const fs::path depth_list = root / "depth.txt";
@@ -482,8 +470,8 @@ std::unique_ptr<Dataset> openTum(const fs::path& root, const DatasetSettings& o)
   std::vector<ImageFrame> frames;
   size_t dropped = 0;
   for (const StampedName& d : depths) {
-    const StampedPose* pose = nearest(poses, d.t, o.max_time_difference_s);
-    const StampedName* color = have_rgb ? nearest(colors, d.t, o.max_time_difference_s) : nullptr;
+    const StampedPose* pose = nearestInTime(poses, d.t, o.max_time_difference_s);
+    const StampedName* color = have_rgb ? nearestInTime(colors, d.t, o.max_time_difference_s) : nullptr;
     if (!pose || (have_rgb && !color)) {
       ++dropped;
       continue;

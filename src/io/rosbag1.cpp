@@ -2,6 +2,7 @@
 // geometry_msgs, nav_msgs and tf2_msgs. The only file of chronomap that includes ROS headers.
 
 #include "rosbag1.h"
+#include "stamped.h"
 
 #include <console_bridge/console.h>
 #include <geometry_msgs/PoseStamped.h>
@@ -481,7 +482,7 @@ class RosBagDataset : public Dataset {
       }
       BagFrame f{d.message, std::nullopt, *pose, d.t};
       if (!t.color.empty()) {
-        const Stamped* c = nearest(colors, d.t, s.max_time_difference_s);
+        const Stamped* c = nearestInTime(colors, d.t, s.max_time_difference_s);
         if (!c) {
           ++without_color_;
           continue;
@@ -514,18 +515,6 @@ class RosBagDataset : public Dataset {
     const auto T_body_sensor = tree.lookup(track->child_frame, d.frame_id, d.t, tol);
     if (!T_body_sensor) return std::nullopt;
     return *T_map_body * *T_body_sensor;
-  }
-
-  static const Stamped* nearest(const std::vector<Stamped>& sorted, double t, double tolerance) {
-    auto it = std::lower_bound(sorted.begin(), sorted.end(), t, [](const Stamped& a, double v) { return a.t < v; });
-    const Stamped* best = nullptr;
-    double best_dt = tolerance;
-    if (it != sorted.end() && std::abs(it->t - t) <= best_dt) {
-      best = &*it;
-      best_dt = std::abs(it->t - t);
-    }
-    if (it != sorted.begin() && std::abs(std::prev(it)->t - t) <= best_dt) best = &*std::prev(it);
-    return best;
   }
 
   fs::path path_;
