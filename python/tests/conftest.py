@@ -11,6 +11,8 @@ import shutil
 
 import pytest
 
+import scenes
+
 REPO = pathlib.Path(__file__).resolve().parents[2]
 
 
@@ -44,3 +46,15 @@ def cli():
     if not path:
         pytest.fail("CHRONOMAP_CLI is not set (ctest sets it) and chronomap is not on PATH")
     return pathlib.Path(path)
+
+
+@pytest.fixture(scope="session")
+def before():
+    """The synthetic room of scenes.py without the box (a SessionMap; tests only read it)."""
+    return scenes.session(with_box=False)
+
+
+@pytest.fixture(scope="session")
+def after():
+    """The same room with the box."""
+    return scenes.session(with_box=True)

@@ -4,20 +4,9 @@ import numpy as np
 import pytest
 
 import chronomap
-from scenes import session
 
 BOX_MIN = np.array([-0.2, -0.2, 1.5])
 BOX_MAX = np.array([0.2, 0.2, 1.55])
-
-
-@pytest.fixture(scope="module")
-def before():
-    return session(with_box=False)
-
-
-@pytest.fixture(scope="module")
-def after():
-    return session(with_box=True)
 
 
 def test_diff_finds_the_box(before, after):

@@ -7,22 +7,12 @@ import numpy as np
 import pytest
 
 import chronomap
-from scenes import RESOLUTION_M, session
+from scenes import RESOLUTION_M
 
 BOX = [0.01, 0.01, 1.525]      # inside a voxel of the box face
 WALL = [0.5, 0.5, 2.025]         # a voxel of the wall, seen in both sessions
 AIR = [0.01, 0.01, 1.01]       # between the sensor and the box, inside a voxel: free
 OUTSIDE = [0.0, 0.0, -5.0]       # behind the sensor: never observed
-
-
-@pytest.fixture(scope="module")
-def before():
-    return session(with_box=False)
-
-
-@pytest.fixture(scope="module")
-def after():
-    return session(with_box=True)
 
 
 def test_probability_and_counters_agree_with_the_counters_definition(after):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import chronomap
-from scenes import RESOLUTION_M, session, wall
+from scenes import RESOLUTION_M, wall
 
 try:
     import open3d as o3d
@@ -15,11 +15,6 @@ except ImportError:
         raise
     pytest.skip("open3d is not importable", allow_module_level=True)
 import chronomap.o3d as co3d  # noqa: E402
-
-
-@pytest.fixture(scope="module")
-def after():
-    return session(with_box=True)
 
 
 def sort_rows(a):
@@ -59,8 +54,7 @@ def test_open3d_cloud_in_gives_the_map_of_the_same_arrays():
     assert co3d.from_point_cloud(uncoloured)[1] is None
 
 
-def test_diff_and_components_as_geometry(after):
-    before = session(with_box=False)
+def test_diff_and_components_as_geometry(before, after):
     changes = chronomap.diff(before, after)
     cloud = co3d.diff_to_point_cloud(changes)
     assert len(cloud.points) == 64 and np.allclose(np.asarray(cloud.colors)[:, 1], 200 / 255)
