@@ -104,8 +104,9 @@ ScheduleDay scheduleDay(uint64_t seed, int day) {
   return d;
 }
 
-std::vector<Routine> routinesOf(const SceneState& home) {
-  const WeeksObjects w = weeksObjects(home);
+namespace {
+
+std::vector<Routine> routinesOf(const WeeksObjects& w) {
   if (!w.found) return {};
   std::vector<uint32_t> office_things = w.office_chairs;
   office_things.push_back(w.worker);
@@ -128,6 +129,10 @@ std::vector<Routine> routinesOf(const SceneState& home) {
   };
 }
 
+}  // namespace
+
+std::vector<Routine> routinesOf(const SceneState& home) { return routinesOf(weeksObjects(home)); }
+
 std::vector<ScheduledChange> applySchedule(SceneState& state, const SceneState& home, uint64_t seed, double time_s) {
   const WeeksObjects w = weeksObjects(home);
   if (!w.found) return {};
@@ -147,7 +152,7 @@ std::vector<ScheduledChange> applySchedule(SceneState& state, const SceneState& 
 
   // Which routine each object follows, for naming the changes.
   std::map<uint32_t, std::string> routine_of;
-  for (const Routine& r : routinesOf(home)) {
+  for (const Routine& r : routinesOf(w)) {
     for (uint32_t id : r.objects) routine_of[id] = r.name;
   }
   // Before: presence and position of every object, by id.

@@ -224,7 +224,9 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
                              {"hour", hours[static_cast<size_t>(s)]},
                              {"frames", frames},
                              {"changes", changes.size()},
-                             {"weekday", static_cast<int>(std::floor((times[static_cast<size_t>(s)] - kScheduleStart_s) / 86400.0 + 700.0)) % 7},
+                             {"weekday", scheduleDay(settings.seed, static_cast<int>(std::floor((times[static_cast<size_t>(s)] -
+                                                                                   kScheduleStart_s) / 86400.0)))
+                                            .weekday},
                              {"localisation_offset", {patrol.offset_x_m, patrol.offset_y_m, offset_yaw_deg}}});
     summary.session_dirs.push_back(out / name);
     summary.times_s.push_back(times[static_cast<size_t>(s)]);
