@@ -179,28 +179,28 @@ int main(int argc, char** argv) {
   }
   build.session.integrator.fast = true;
   build.session.integrator.max_range_m = max_range_m;
-  if (poses == "true") {
-    build.session.dataset.trajectory = std::nullopt;
-  } else {
-    build.registration = pipeline::RegistrationSettings{};
-  }
+  build.registration = pipeline::RegistrationSettings{};
   const auto build_started = std::chrono::steady_clock::now();
-  if (poses == "true") {
-    // Each session with its own groundtruth.txt: build one by one through the same call.
-    TemporalMap map(0.05);
-    for (size_t i : learn) {
-      pipeline::SessionSettings ss = build.session;
-      ss.dataset.trajectory = dirs[i] / "groundtruth.txt";
-      map.add(times[i], pipeline::integrateDataset(dirs[i], ss).map);
+  // With true poses: each session integrated with its own groundtruth.txt and added in memory;
+  // else chronomap build --register, written and read back.
+  auto buildMap = [&]() -> TemporalMap {
+    if (poses == "true") {
+      TemporalMap m(0.05);
+      for (size_t i : learn) {
+        pipeline::SessionSettings ss = build.session;
+        ss.dataset.trajectory = dirs[i] / "groundtruth.txt";
+        m.add(times[i], pipeline::integrateDataset(dirs[i], ss).map);
+      }
+      return m;
     }
-    io::writeTemporalMap(build.map, map, nlohmann::json::object());
-  } else {
     pipeline::build(build);
-  }
+    TemporalMap m = io::readTemporalMap(build.map);
+    std::error_code ec;
+    fs::remove(build.map, ec);
+    return m;
+  };
+  const TemporalMap map = buildMap();
   const double build_s = seconds(build_started);
-  const TemporalMap map = io::readTemporalMap(build.map);
-  std::error_code ec;
-  fs::remove(build.map, ec);
 
   const auto fit_started = std::chrono::steady_clock::now();
   const RhythmModels models = fitRhythm(map, times[learn.front()], times[learn.back()], min_changes);
@@ -353,6 +353,7 @@ int main(int argc, char** argv) {
   out["brier_best_over_baseline"] = best_brier / baseline;
   std::printf("best: %s, Brier %.4f = %.2fx the better baseline's, AUC %.3f (%.0f s in all)\n", best_name.c_str(),
               best_brier, best_brier / baseline, best_auc, seconds(started));
+  std::error_code ec;
   if (!tmp.empty()) fs::remove_all(tmp, ec);
   std::printf("%s\n", out.dump().c_str());
   return 0;
