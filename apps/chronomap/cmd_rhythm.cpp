@@ -3,21 +3,17 @@
 
 #include <filesystem>
 #include <iostream>
-#include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
-#include <optional>
 
 #include "chronomap/analysis/costmap.h"
 #include "chronomap/analysis/rhythm.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
 #include "chronomap/io/file.h"
-#include "chronomap/io/map_server.h"
-#include "chronomap/io/png.h"
-#include "chronomap/io/rhythm_file.h"
 #include "chronomap/io/temporal_file.h"
 #include "chronomap/pipeline/maps.h"
+#include "chronomap/pipeline/rhythm.h"
 #include "commands.h"
 
 namespace chronomap::cli {
@@ -26,25 +22,23 @@ namespace fs = std::filesystem;
 
 namespace {
 
-/// Fits the models to the flags' learning range, or reads a saved model, and saves it when asked.
-RhythmModels modelsFor(const TemporalMap& map, const std::string& rhythm_in, const std::string& rhythm_out,
-                       const std::string& learn_from, const std::string& learn_to, uint32_t min_changes) {
-  if (!rhythm_in.empty() && (!learn_from.empty() || !learn_to.empty() || !rhythm_out.empty())) {
-    throw UsageError("--rhythm reads a fitted model: it takes no --learn-from, --learn-to or --save-rhythm");
-  }
-  if (!rhythm_in.empty()) return io::readRhythmModels(rhythm_in);
-  const double from = learn_from.empty() ? -std::numeric_limits<double>::infinity() : parseTime(learn_from);
-  const double to = learn_to.empty() ? std::numeric_limits<double>::infinity() : parseTime(learn_to);
-  RhythmModels models = fitRhythm(map, from, to, min_changes);
-  if (!rhythm_out.empty()) io::writeRhythmModels(rhythm_out, models);
-  return models;
-}
-
 /// The learning flags shared by predict and costmap.
 struct LearnFlags {
   std::string model = "combined", learn_from, learn_to, rhythm_in, rhythm_out;
   uint32_t min_changes = 1;
 };
+
+/// The flags as the library's learning settings (times parsed).
+pipeline::LearnSettings learnSettings(const LearnFlags& f) {
+  pipeline::LearnSettings s;
+  if (!f.rhythm_in.empty()) s.saved = f.rhythm_in;
+  if (!f.rhythm_out.empty()) s.save = f.rhythm_out;
+  if (!f.learn_from.empty()) s.from_s = parseTime(f.learn_from);
+  if (!f.learn_to.empty()) s.to_s = parseTime(f.learn_to);
+  s.range_given = !f.learn_from.empty() || !f.learn_to.empty();
+  s.min_changes = f.min_changes;
+  return s;
+}
 
 void addLearnFlags(CLI::App* app, LearnFlags& f) {
   app->add_option("--model", f.model, "latest, mean, markov, periodic, hourly or combined")->capture_default_str();
@@ -75,8 +69,7 @@ int runPredict(const PredictCmdOptions& o) {
   const RhythmModel model = parseRhythmModel(o.learn.model);
   const double t = parseTime(o.at);
   const TemporalMap map = io::readTemporalMap(o.map);
-  const RhythmModels models =
-      modelsFor(map, o.learn.rhythm_in, o.learn.rhythm_out, o.learn.learn_from, o.learn.learn_to, o.learn.min_changes);
+  const RhythmModels models = pipeline::learnRhythm(map, learnSettings(o.learn));
   const SessionMap predicted = predictMap(map, models, model, t);
   pipeline::ExportSettings settings;
   settings.metadata = {{"created_by", "chronomap predict"}, {"prediction_of", o.map}, {"time_s", t},
@@ -112,58 +105,28 @@ struct CostmapCmdOptions {
   bool json = false;
 };
 
-/// The costmap as a picture: unknown grey, free white to cost red, inscribed dark red, lethal black.
-ImageRgb costImage(const Costmap& c) {
-  ImageRgb img{static_cast<uint32_t>(c.width), static_cast<uint32_t>(c.height), {}};
-  img.pixels.reserve(c.cost.size());
-  for (int j = c.height - 1; j >= 0; --j) {
-    for (int i = 0; i < c.width; ++i) {
-      const int8_t v = c.at(i, j);
-      if (v < 0) {
-        img.pixels.push_back({128, 128, 128});
-      } else if (v == Costmap::kLethal) {
-        img.pixels.push_back({0, 0, 0});
-      } else if (v == Costmap::kInscribed) {
-        img.pixels.push_back({110, 20, 20});
-      } else {
-        const auto fade = static_cast<uint8_t>(255 - v * 2);
-        img.pixels.push_back({255, fade, fade});
-      }
-    }
-  }
-  return img;
-}
-
 int runCostmap(const CostmapCmdOptions& o) {
-  if (fs::path(o.output).extension() != ".yaml") throw UsageError("output '" + o.output + "' must end in .yaml");
-  fs::path pgm = o.output, png = o.output;
-  pgm.replace_extension(".pgm");
-  png.replace_extension(".png");
+  const pipeline::CostmapFiles files = pipeline::costmapFiles(o.output);
   std::vector<std::filesystem::path> inputs = {o.map};
   if (!o.learn.rhythm_in.empty()) inputs.emplace_back(o.learn.rhythm_in);
-  for (const fs::path& out : {fs::path(o.output), pgm, png}) io::refuseOverwritingInputs(out, inputs);
+  for (const fs::path& out : {files.yaml, files.pgm, files.png}) io::refuseOverwritingInputs(out, inputs);
   const RhythmModel model = parseRhythmModel(o.learn.model);
   const double t = parseTime(o.at);
   const TemporalMap map = io::readTemporalMap(o.map);
-  const RhythmModels models =
-      modelsFor(map, o.learn.rhythm_in, o.learn.rhythm_out, o.learn.learn_from, o.learn.learn_to, o.learn.min_changes);
+  const RhythmModels models = pipeline::learnRhythm(map, learnSettings(o.learn));
   const Costmap c = costmap(predictMap(map, models, model, t), o.settings, &models);
-  if (c.width == 0) throw DataError(o.map + ": nothing is known between --z-min and --z-max");
-  io::writeMapServer(o.output, c);
-  io::writePng(png, costImage(c));
-  size_t counts[4] = {0, 0, 0, 0};  // unknown, free (0), costly, blocked (inscribed or lethal)
-  for (int8_t v : c.cost) ++counts[v < 0 ? 0 : v == 0 ? 1 : v < Costmap::kInscribed ? 2 : 3];
-  const nlohmann::json summary = {{"output", o.output}, {"pgm", pgm.string()}, {"png", png.string()},
+  const pipeline::CostmapCounts n = pipeline::writeCostmap(files, c, o.map);
+  const nlohmann::json summary = {{"output", o.output}, {"pgm", files.pgm.string()}, {"png", files.png.string()},
                                   {"time", formatTime(t)}, {"time_s", t}, {"model", toString(model)},
                                   {"width", c.width}, {"height", c.height}, {"resolution_m", c.resolution_m},
-                                  {"origin_m", {c.origin_m.x(), c.origin_m.y()}}, {"unknown", counts[0]},
-                                  {"free", counts[1]}, {"costly", counts[2]}, {"blocked", counts[3]}};
+                                  {"origin_m", {c.origin_m.x(), c.origin_m.y()}}, {"unknown", n.unknown},
+                                  {"free", n.free}, {"costly", n.costly}, {"blocked", n.blocked}};
   if (o.json) {
     std::cout << summary.dump() << "\n";
   } else {
-    std::cout << "wrote " << o.output << ", " << pgm.string() << " and " << png.string() << ": " << c.width << " x "
-              << c.height << " cells of " << c.resolution_m << " m at " << formatTime(t) << " (" << counts[1]
-              << " free, " << counts[2] << " costly, " << counts[3] << " blocked, " << counts[0] << " unknown)\n";
+    std::cout << "wrote " << o.output << ", " << files.pgm.string() << " and " << files.png.string() << ": " << c.width
+              << " x " << c.height << " cells of " << c.resolution_m << " m at " << formatTime(t) << " (" << n.free
+              << " free, " << n.costly << " costly, " << n.blocked << " blocked, " << n.unknown << " unknown)\n";
   }
   return 0;
 }

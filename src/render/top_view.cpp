@@ -10,6 +10,27 @@
 
 namespace chronomap::render {
 
+ImageRgb renderCostmap(const Costmap& c) {
+  ImageRgb img{static_cast<uint32_t>(c.width), static_cast<uint32_t>(c.height), {}};
+  img.pixels.reserve(c.cost.size());
+  for (int j = c.height - 1; j >= 0; --j) {
+    for (int i = 0; i < c.width; ++i) {
+      const int8_t v = c.at(i, j);
+      if (v < 0) {
+        img.pixels.push_back({128, 128, 128});
+      } else if (v == Costmap::kLethal) {
+        img.pixels.push_back({0, 0, 0});
+      } else if (v == Costmap::kInscribed) {
+        img.pixels.push_back({110, 20, 20});
+      } else {
+        const auto fade = static_cast<uint8_t>(255 - v * 2);
+        img.pixels.push_back({255, fade, fade});
+      }
+    }
+  }
+  return img;
+}
+
 ImageRgb renderTopView(const SessionMap& map, const TopViewSettings& settings) {
   if (map.empty()) throw DataError("the map is empty: nothing to draw");
   int lo[2] = {kKeysPerAxis, kKeysPerAxis}, hi[2] = {-1, -1};

@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 
+#include "chronomap/analysis/costmap.h"
 #include "chronomap/analysis/diff.h"
 #include "chronomap/analysis/segment.h"
 #include "chronomap/core/image.h"
@@ -28,6 +29,10 @@ struct TopViewSettings {
 /// only free voxels are light, unobserved ones dark.
 /// @throw DataError when the map is empty or the picture would exceed 8192 pixels a side.
 ImageRgb renderTopView(const SessionMap& map, const TopViewSettings& settings = {});
+
+/// A costmap as a picture, one pixel a cell, the highest y at the top: unknown grey, free white
+/// through red with the cost, inscribed dark red, lethal black.
+ImageRgb renderCostmap(const Costmap& costmap);
 
 /// The top view of `background`, faded, with the changed cells of `diff` drawn over it from above
 /// (appeared green, vanished red) and each component of `segmentation` framed and labelled with

@@ -1,0 +1,48 @@
+#pragma once
+/// @file
+/// Workflows of the temporal models: where a command's models come from (fitted to a range of
+/// sessions, or a saved .rhythm), and a costmap written as files.
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <limits>
+#include <optional>
+#include <string>
+
+#include "chronomap/analysis/costmap.h"
+#include "chronomap/analysis/rhythm.h"
+#include "chronomap/temporal/temporal_map.h"
+
+namespace chronomap::pipeline {
+
+/// Where learnRhythm() takes the models from.
+struct LearnSettings {
+  std::optional<std::filesystem::path> saved;  ///< read this .rhythm instead of fitting
+  std::optional<std::filesystem::path> save;   ///< also write the fitted models here
+  double from_s = -std::numeric_limits<double>::infinity();  ///< learning sessions' times
+  double to_s = std::numeric_limits<double>::infinity();
+  bool range_given = false;  ///< from_s or to_s was set by the user
+  uint32_t min_changes = 1;
+};
+
+/// The models of `map`: read from `saved`, or fitted (fitRhythm) and written to `save` if set.
+/// @throw UsageError for `saved` with a learning range or `save`; what fitRhythm and the
+/// .rhythm reader and writer throw.
+RhythmModels learnRhythm(const TemporalMap& map, const LearnSettings& settings);
+
+/// The files of a costmap: the map_server YAML and, beside it, its PGM and a PNG picture.
+struct CostmapFiles {
+  std::filesystem::path yaml, pgm, png;
+};
+/// The file names for `yaml`. @throw UsageError when it does not end in .yaml.
+CostmapFiles costmapFiles(const std::filesystem::path& yaml);
+
+/// How many cells of a costmap are unknown, free (cost 0), costly, and blocked (inscribed or lethal).
+struct CostmapCounts {
+  size_t unknown = 0, free = 0, costly = 0, blocked = 0;
+};
+/// Writes `costmap` as `files` (io::writeMapServer and render::renderCostmap), each atomically.
+/// @throw DataError naming `source` when the costmap is empty (nothing known in its band).
+CostmapCounts writeCostmap(const CostmapFiles& files, const Costmap& costmap, const std::string& source);
+
+}  // namespace chronomap::pipeline

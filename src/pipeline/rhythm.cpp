@@ -1,0 +1,40 @@
+#include "chronomap/pipeline/rhythm.h"
+
+#include "chronomap/core/error.h"
+#include "chronomap/io/map_server.h"
+#include "chronomap/io/png.h"
+#include "chronomap/io/rhythm_file.h"
+#include "chronomap/render/top_view.h"
+
+namespace chronomap::pipeline {
+
+RhythmModels learnRhythm(const TemporalMap& map, const LearnSettings& s) {
+  if (s.saved) {
+    if (s.range_given || s.save) {
+      throw UsageError("--rhythm reads a fitted model: it takes no --learn-from, --learn-to or --save-rhythm");
+    }
+    return io::readRhythmModels(*s.saved);
+  }
+  RhythmModels models = fitRhythm(map, s.from_s, s.to_s, s.min_changes);
+  if (s.save) io::writeRhythmModels(*s.save, models);
+  return models;
+}
+
+CostmapFiles costmapFiles(const std::filesystem::path& yaml) {
+  if (yaml.extension() != ".yaml") throw UsageError("output '" + yaml.string() + "' must end in .yaml");
+  CostmapFiles f{yaml, yaml, yaml};
+  f.pgm.replace_extension(".pgm");
+  f.png.replace_extension(".png");
+  return f;
+}
+
+CostmapCounts writeCostmap(const CostmapFiles& files, const Costmap& c, const std::string& source) {
+  if (c.width == 0) throw DataError(source + ": nothing is known between --z-min and --z-max");
+  io::writeMapServer(files.yaml, c);
+  io::writePng(files.png, render::renderCostmap(c));
+  CostmapCounts n;
+  for (int8_t v : c.cost) ++(v < 0 ? n.unknown : v == 0 ? n.free : v < Costmap::kInscribed ? n.costly : n.blocked);
+  return n;
+}
+
+}  // namespace chronomap::pipeline
