@@ -12,7 +12,11 @@
 //                  poses registered to the consensus, as `chronomap build --register` does
 //   --scale        image size of the simulation made here (default 0.25)
 //   --max-range    integration range, metres (default 3, as chronomap build)
+//   --no-carve     drop points beyond the range whole (default: free space carved along their
+//                  rays up to the range, --carve-beyond-range)
 //   --robot-height the top of the band the costmaps read, metres (default 1.8)
+//   --z-min        its bottom, metres (default 0.05, as chronomap costmap)
+//   --lethal       probability above which a cell is an obstacle (default 0.5, as chronomap costmap)
 //   --min-changes  model the voxels that changed at least this often while learning (default 1)
 // Then navigation: plans between every pair of rooms at each test session's time on the latest
 // snapshot, the mean map and the combined model's cost map, executed against the truth
@@ -117,6 +121,9 @@ int main(int argc, char** argv) {
   double scale = 0.25;
   uint32_t min_changes = 1;
   double max_range_m = 3.0;
+  bool carve = true;
+  double floor_clearance_m = CostmapSettings{}.z_min_m;
+  double lethal = CostmapSettings{}.lethal_probability;
   double robot_height_m = 1.8;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -132,10 +139,13 @@ int main(int argc, char** argv) {
     else if (a == "--poses") poses = value();
     else if (a == "--scale") scale = std::stod(value());
     else if (a == "--max-range") max_range_m = std::stod(value());
+    else if (a == "--no-carve") carve = false;
+    else if (a == "--z-min") floor_clearance_m = std::stod(value());
+    else if (a == "--lethal") lethal = std::stod(value());
     else if (a == "--robot-height") robot_height_m = std::stod(value());
     else if (a == "--min-changes") min_changes = static_cast<uint32_t>(std::stoul(value()));
     else {
-      std::fprintf(stderr, "usage: rhythm_eval [--sim DIR] [--learn-days D] [--poses true|registered] [--scale S]\n");
+      std::fprintf(stderr, "usage: rhythm_eval [--sim DIR] [--learn-days D] [--poses true|registered] [--scale S] [--no-carve]\n");
       return 2;
     }
   }
@@ -179,6 +189,7 @@ int main(int argc, char** argv) {
   }
   build.session.integrator.fast = true;
   build.session.integrator.max_range_m = max_range_m;
+  build.session.integrator.carve_beyond_range = carve;
   build.registration = pipeline::RegistrationSettings{};
   const auto build_started = std::chrono::steady_clock::now();
   // With true poses: each session integrated with its own groundtruth.txt and added in memory;
@@ -279,6 +290,8 @@ int main(int argc, char** argv) {
   CostmapSettings nav;
   nav.robot_radius_m = 0.25;
   nav.z_max_m = robot_height_m;
+  nav.z_min_m = floor_clearance_m;
+  nav.lethal_probability = lethal;
   const SessionMap latest = map.snapshot(times[learn.back()]);
   struct Planner {
     const char* name;

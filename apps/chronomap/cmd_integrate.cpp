@@ -158,6 +158,7 @@ pipeline::SessionSettings sessionSettings(const IntegrateFlags& f) {
   s.dataset.bag = f.bag;
   if (f.pose_tolerance_s) s.dataset.bag.pose_tolerance_s = *f.pose_tolerance_s;
   s.integrator.max_range_m = f.max_range_m;
+  s.integrator.carve_beyond_range = f.carve_beyond_range;
   s.integrator.fast = f.fast;
   s.integrator.threads = f.threads;
   s.integrator.compress_free = !f.no_compress;
@@ -216,6 +217,10 @@ void addIntegrateFlags(CLI::App* app, IntegrateFlags& f) {
                   "points farther from the sensor are discarded, metres (any positive range; beyond the map's "
                   "diagonal, sqrt(3) * 65536 voxels, it keeps every point in the map)")
       ->capture_default_str();
+  app->add_flag("--carve-beyond-range", f.carve_beyond_range,
+                "carve free space along the rays of points beyond --max-range, up to the range, instead of discarding "
+                "them whole (as OctoMap does): space seen through, such as an open doorway before a far wall, is then "
+                "observed free");
   app->add_option("--format", f.format, "auto, tum, 3dmatch, scannet, clouds or rosbag")->capture_default_str();
   app->add_flag("--fast", f.fast,
                 "bundle the points of a frame that end in the same voxel into one weighted ray "

@@ -157,6 +157,11 @@ Command addCostmap(CLI::App& root) {
                   "weight of how often a place changes against its probability of occupancy (0 to 1)")
       ->check(numberIn(0, 1))
       ->capture_default_str();
+  app->add_option("--lethal", o->settings.lethal_probability,
+                  "probability of occupancy above which a cell is an obstacle; below it the cost rises with it "
+                  "(above 0.5, space as likely free as not stays passable at a high cost)")
+      ->check(numberIn(0.01, 0.99))
+      ->capture_default_str();
   addLearnFlags(app, o->learn);
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runCostmap(*o); }};

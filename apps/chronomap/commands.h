@@ -43,6 +43,7 @@ Command addView(CLI::App& root);
 struct IntegrateFlags {
   double resolution_m = 0.05;
   double max_range_m = IntegratorSettings{}.max_range_m;
+  bool carve_beyond_range = false;
   std::string format = "auto";
   bool fast = false;
   int threads = 0;

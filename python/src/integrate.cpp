@@ -21,11 +21,12 @@ namespace {
 
 SessionMap integrateDatasetPy(const std::filesystem::path& path, double resolution_m, bool fast, double max_range_m,
                               int threads, const std::string& format, std::optional<double> depth_scale,
-                              const py::object& progress) {
+                              const py::object& progress, bool carve_beyond_range) {
   pipeline::SessionSettings settings;
   settings.resolution_m = resolution_m;
   settings.integrator.fast = fast;
   settings.integrator.max_range_m = max_range_m;
+  settings.integrator.carve_beyond_range = carve_beyond_range;
   settings.integrator.threads = threads;
   settings.dataset.format = io::parseDatasetFormat(format);
   settings.dataset.depth_scale = depth_scale;
@@ -124,9 +125,10 @@ void addPoints(IncrementalIntegrator& integrator, const py::handle& points_world
 }
 
 std::unique_ptr<IncrementalIntegrator> makeIntegrator(double resolution_m, double max_range_m, bool fast,
-                                                      bool compress_free) {
+                                                      bool compress_free, bool carve_beyond_range) {
   IntegratorSettings settings;
   settings.max_range_m = max_range_m;
+  settings.carve_beyond_range = carve_beyond_range;
   settings.fast = fast;
   settings.threads = 1;
   settings.compress_free = compress_free;
@@ -140,16 +142,18 @@ void bindIntegrate(py::module_& m) {
   m.def("read_color_png", &readColorPng, py::arg("path"), "A PNG as an (H, W, 3) uint8 RGB array.");
   m.def("integrate_dataset", &integrateDatasetPy, py::arg("path"), py::arg("resolution_m") = 0.05,
         py::arg("fast") = false, py::arg("max_range_m") = 3.0, py::arg("threads") = 0, py::arg("format") = "auto",
-        py::arg("depth_scale") = py::none(), py::arg("progress") = py::none(),
+        py::arg("depth_scale") = py::none(), py::arg("progress") = py::none(), py::arg("carve_beyond_range") = false,
         "Integrates the recording at `path` (a TUM, 3DMatch, ScanNet or cloud-list dataset, as "
         "`chronomap integrate` reads it) into a SessionMap. `progress`, if given, is called as "
-        "progress(label, done, total) after each frame. The GIL is released while it runs.");
+        "progress(label, done, total) after each frame. The GIL is released while it runs. "
+        "carve_beyond_range=True carves free space along the rays of points beyond max_range_m, up to the "
+        "range (`--carve-beyond-range`).");
 
   py::class_<IncrementalIntegrator>(m, "Integrator",
                                     "Integrates frames one at a time; finish() gives the map integrate_dataset gives "
                                     "for the same frames and settings.")
       .def(py::init(&makeIntegrator), py::arg("resolution_m") = 0.05, py::arg("max_range_m") = 3.0,
-           py::arg("fast") = false, py::arg("compress_free") = true)
+           py::arg("fast") = false, py::arg("compress_free") = true, py::arg("carve_beyond_range") = false)
       .def("add_frame", &addFrame, py::arg("depth"), py::arg("intrinsics"), py::arg("T_world_camera"),
            py::arg("rgb") = py::none(), py::arg("depth_scale") = 1000.0,
            "Adds a depth image: (H, W) uint16 with depth_scale units per metre, or float32 metres (0 = no "

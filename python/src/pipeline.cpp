@@ -74,7 +74,7 @@ py::dict builtSessionDict(const pipeline::BuiltSession& b) {
 py::dict buildPy(const std::filesystem::path& map, const std::vector<std::filesystem::path>& datasets,
                  const py::object& times, double resolution_m, bool fast, double max_range_m, int threads,
                  const std::string& format, bool register_sessions, int registration_rounds, bool realign,
-                 bool replace, const py::object& progress) {
+                 bool replace, const py::object& progress, bool carve_beyond_range) {
   pipeline::BuildSettings settings;
   settings.map = map;
   settings.datasets = datasets;
@@ -86,6 +86,7 @@ py::dict buildPy(const std::filesystem::path& map, const std::vector<std::filesy
   settings.session.resolution_m = resolution_m;
   settings.session.integrator.fast = fast;
   settings.session.integrator.max_range_m = max_range_m;
+  settings.session.integrator.carve_beyond_range = carve_beyond_range;
   settings.session.integrator.threads = threads;
   settings.session.dataset.format = io::parseDatasetFormat(format);
   if (register_sessions) {
@@ -150,6 +151,7 @@ void bindPipeline(py::module_& m) {
         py::arg("resolution_m") = 0.05, py::arg("fast") = false, py::arg("max_range_m") = 3.0, py::arg("threads") = 0,
         py::arg("format") = "auto", py::arg("register") = false, py::arg("registration_rounds") = 3,
         py::arg("realign") = false, py::arg("replace") = false, py::arg("progress") = py::none(),
+        py::arg("carve_beyond_range") = false,
         "Builds or extends the 4D map file `map` from recordings, one session each, as `chronomap build` "
         "does: integrated, ordered by time, registered to their consensus (register=True) and re-aligned "
         "(realign=True) when asked, added and written once, atomically. `times`: one per dataset (epoch "

@@ -47,6 +47,21 @@ def test_add_frame_equals_integrate_dataset(threedmatch, fast):
     assert integrator.finish() == chronomap.integrate_dataset(threedmatch, fast=fast)
 
 
+def test_carving_beyond_the_range_equals_the_cli_and_adds_free_space(tmp_path, threedmatch, cli):
+    cli_file = tmp_path / "cli.cmap"
+    subprocess.run([str(cli), "integrate", str(threedmatch), "-o", str(cli_file), "--fast", "--max-range", "1.5",
+                    "--carve-beyond-range"], check=True, capture_output=True)
+    carved = chronomap.integrate_dataset(threedmatch, fast=True, max_range_m=1.5, carve_beyond_range=True)
+    assert carved == chronomap.SessionMap.open(cli_file)
+    plain = chronomap.integrate_dataset(threedmatch, fast=True, max_range_m=1.5)
+    assert carved.counts()["free_voxels"] > plain.counts()["free_voxels"]
+    k, frames = frames_of(threedmatch)
+    integrator = chronomap.Integrator(resolution_m=0.05, max_range_m=1.5, fast=True, carve_beyond_range=True)
+    for depth, rgb, pose in frames:
+        integrator.add_frame(depth, k, pose, rgb=rgb, depth_scale=1000.0)
+    assert integrator.finish() == carved
+
+
 def test_float_depth_in_metres_agrees_with_uint16(threedmatch):
     k, frames = frames_of(threedmatch)
     depth, rgb, pose = frames[0]

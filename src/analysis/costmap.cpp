@@ -25,6 +25,9 @@ Costmap costmap(const SessionMap& map, const CostmapSettings& s, const RhythmMod
   }
   if (!(s.robot_radius_m >= 0.0) || !std::isfinite(s.robot_radius_m)) throw UsageError("the robot radius must be >= 0");
   if (!(s.change_weight >= 0.0 && s.change_weight <= 1.0)) throw UsageError("the change weight must lie in [0, 1]");
+  if (!(s.lethal_probability > 0.0 && s.lethal_probability < 1.0)) {
+    throw UsageError("the lethal probability must lie in (0, 1)");
+  }
   const KeyGrid& grid = map.grid();
   const double r = map.resolution_m();
   // The band in keys: voxels whose z range meets [z_min, z_max].
@@ -79,13 +82,14 @@ Costmap costmap(const SessionMap& map, const CostmapSettings& s, const RhythmMod
     }
   }
   out.cost.assign(cells, Costmap::kUnknown);
+  const auto lethal = static_cast<float>(s.lethal_probability);
   for (size_t i = 0; i < cells; ++i) {
     if (!known[i]) continue;
-    if (probability[i] > 0.5f) {
+    if (probability[i] > lethal) {
       out.cost[i] = Costmap::kLethal;
       continue;
     }
-    const double c = (1.0 - s.change_weight) * (probability[i] / 0.5) + s.change_weight * change[i];
+    const double c = (1.0 - s.change_weight) * (probability[i] / lethal) + s.change_weight * change[i];
     out.cost[i] = static_cast<int8_t>(std::lround(98.0 * std::clamp(c, 0.0, 1.0)));
   }
   inflate(out, s.robot_radius_m);

@@ -2,6 +2,7 @@
 #include "chronomap/integrate/incremental.h"
 
 #include <algorithm>
+#include <array>
 #if defined(__SSE2__)
 #include <immintrin.h>
 #endif
@@ -12,6 +13,7 @@
 #include <cmath>
 #include <sstream>
 #include <thread>
+#include <unordered_map>
 
 #include <unistd.h>
 
@@ -295,6 +297,7 @@ struct RayAccumulator::Impl {
   double origin[3] = {0.0, 0.0, 0.0};
   double rotation[9] = {};
   std::vector<EndEntry> ends;  // ends[0] unused so that index 0 means "none"
+  std::vector<std::array<double, 3>> beyond_ends;  // carveBeyondRange(): the pulled-back ends
   DenseStore dense;
   HashStore hash;
   CubeStore cube;
@@ -411,6 +414,118 @@ struct RayAccumulator::Impl {
     });
   }
 
+  /// Free space along the rays of points beyond the range, up to the range
+  /// (IntegratorSettings::carve_beyond_range): each such point is pulled back along its ray to
+  /// `max_range` and cast without a hit, one ray per point (exact) or one weighted ray per end
+  /// voxel to its centre (fast). Cast apart from the frame's other rays and then added to its
+  /// deltas, so that every scratch path gives the same sums. `R`, `of` transform sensor points
+  /// into the working frame, whose cell 0 has key `oc`.
+  void carveBeyondRange(const float* R, const float* of, const int64_t oc[3], bool cube_inside, float max_range,
+                        float max_range_sq, VoxelDeltas& out) {
+    const PointCloud& c = *cloud;
+    std::vector<std::array<double, 3>>& ends_u = beyond_ends;
+    ends_u.clear();
+    for (const Eigen::Vector3f& p : c.points) {
+      const float r2 = p.squaredNorm();
+      if (!(r2 > max_range_sq && r2 <= FLT_MAX)) continue;
+      const Eigen::Vector3f q = p * (max_range / std::sqrt(r2));
+      float u[3];
+      transformPoint(R, of, q, u);
+      bool inside = true;
+      if (!cube_inside) {
+        for (int a = 0; a < 3; ++a) {
+          inside = inside && u[a] >= static_cast<float>(-oc[a]) && u[a] < static_cast<float>(kKeysPerAxis - oc[a]);
+        }
+      }
+      if (inside) ends_u.push_back({u[0], u[1], u[2]});
+    }
+    if (ends_u.empty()) return;
+    std::vector<float> weights(ends_u.size(), 1.0f);
+    if (settings.fast) {
+      // One ray per end voxel, to its centre, weighted by its points; in key order.
+      std::vector<uint64_t> cells(ends_u.size());
+      for (size_t i = 0; i < ends_u.size(); ++i) {
+        const auto& u = ends_u[i];
+        cells[i] = static_cast<uint64_t>(u[0]) | (static_cast<uint64_t>(u[1]) << 21) |
+                   (static_cast<uint64_t>(u[2]) << 42);
+      }
+      std::sort(cells.begin(), cells.end());
+      ends_u.clear();
+      weights.clear();
+      for (size_t i = 0; i < cells.size();) {
+        size_t j = i;
+        while (j < cells.size() && cells[j] == cells[i]) ++j;
+        const uint64_t m = (uint64_t{1} << 21) - 1;
+        ends_u.push_back({static_cast<double>(cells[i] & m) + 0.5, static_cast<double>((cells[i] >> 21) & m) + 0.5,
+                          static_cast<double>(cells[i] >> 42) + 0.5});
+        weights.push_back(static_cast<float>(j - i));
+        i = j;
+      }
+    }
+    out.stats.rays += ends_u.size();
+    // Lengths over the bounding box of the origin and the ends when it is small enough, else
+    // in a hash map; either way summed ray by ray in the same order.
+    int64_t lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) lo[a] = hi[a] = floorInt(origin[a]);
+    for (const auto& u : ends_u) {
+      for (int a = 0; a < 3; ++a) {
+        lo[a] = std::min(lo[a], floorInt(u[a]));
+        hi[a] = std::max(hi[a], floorInt(u[a]));
+      }
+    }
+    std::vector<std::pair<uint64_t, float>> cells;  // packed working cell, length in voxels
+    const double box = static_cast<double>(hi[0] - lo[0] + 1) * static_cast<double>(hi[1] - lo[1] + 1) *
+                       static_cast<double>(hi[2] - lo[2] + 1);
+    auto pack = [](int64_t x, int64_t y, int64_t z) {
+      return static_cast<uint64_t>(x) | (static_cast<uint64_t>(y) << 21) | (static_cast<uint64_t>(z) << 42);
+    };
+    if (box <= static_cast<double>(settings.dense_grid_max_cells)) {
+      const int64_t nx = hi[0] - lo[0] + 1, ny = hi[1] - lo[1] + 1;
+      std::vector<float> length(static_cast<size_t>(box), 0.0f);
+      for (size_t i = 0; i < ends_u.size(); ++i) castDense(origin, ends_u[i].data(), weights[i], length.data(), lo, nx, nx * ny);
+      size_t idx = 0;
+      for (int64_t z = lo[2]; z <= hi[2]; ++z) {
+        for (int64_t y = lo[1]; y <= hi[1]; ++y) {
+          for (int64_t x = lo[0]; x <= hi[0]; ++x, ++idx) {
+            if (length[idx] > 0.0f) cells.emplace_back(pack(x, y, z), length[idx]);
+          }
+        }
+      }
+    } else {
+      std::unordered_map<uint64_t, float> length;
+      for (size_t i = 0; i < ends_u.size(); ++i) {
+        const float w = weights[i];
+        traverseRay(origin, ends_u[i].data(), [&](int64_t x, int64_t y, int64_t z, double len, bool) {
+          length[pack(x, y, z)] += w * static_cast<float>(len);
+        });
+      }
+      cells.assign(length.begin(), length.end());
+      std::sort(cells.begin(), cells.end());
+    }
+    // Added to the frame's deltas: to a voxel they already hold, or as a voxel only crossed.
+    std::unordered_map<uint64_t, size_t> index;
+    index.reserve(out.keys.size());
+    for (size_t i = 0; i < out.keys.size(); ++i) {
+      const VoxelKey& k = out.keys[i];
+      index.emplace(pack(k.x - oc[0], k.y - oc[1], k.z - oc[2]), i);
+    }
+    const float res = static_cast<float>(grid.resolution_m());
+    constexpr uint64_t kMask = (uint64_t{1} << 21) - 1;
+    for (const auto& [cell, len] : cells) {
+      if (len <= 0.0f) continue;
+      const auto it = index.find(cell);
+      if (it != index.end()) {
+        out.deltas[it->second].length_m += len * res;
+        continue;
+      }
+      const int64_t x = static_cast<int64_t>(cell & kMask), y = static_cast<int64_t>((cell >> 21) & kMask),
+                    z = static_cast<int64_t>(cell >> 42);
+      out.keys.push_back(VoxelKey{static_cast<uint16_t>(x + oc[0]), static_cast<uint16_t>(y + oc[1]),
+                                  static_cast<uint16_t>(z + oc[2])});
+      out.deltas.emplace_back().length_m = len * res;
+    }
+  }
+
   void emitCell(int64_t x, int64_t y, int64_t z, float length, uint32_t end, VoxelDeltas& out) const {
     out.keys.push_back(VoxelKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)});
     // Written in place, field by field: a copy of a counter built on the stack measured a
@@ -485,6 +600,7 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
   }
   const float of[3] = {static_cast<float>(o[0]), static_cast<float>(o[1]), static_cast<float>(o[2])};
   // Squared in double, then saturated: a range past float's reach keeps every finite point.
+  const float max_range = static_cast<float>(std::min(s.settings.max_range_m, double{std::numeric_limits<float>::max()}));
   const float max_range_sq = static_cast<float>(
       std::min(s.settings.max_range_m * s.settings.max_range_m, double{std::numeric_limits<float>::max()}));
 
@@ -590,6 +706,9 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
         }
       }
     }
+    if (s.settings.carve_beyond_range && out_of_range > 0) {
+      s.carveBeyondRange(Rm, of, oc, cube_inside, max_range, max_range_sq, out);
+    }
     st.voxel_updates = out.keys.size();
     return;
   }
@@ -635,7 +754,12 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
   }
   st.points = s.points.size();
   st.rays = st.points;
-  if (st.points == 0) return;
+  const bool carve = s.settings.carve_beyond_range && st.points_out_of_range > 0;
+  if (st.points == 0) {
+    if (carve) s.carveBeyondRange(Rm, of, oc, cube_inside, max_range, max_range_sq, out);
+    st.voxel_updates = out.keys.size();
+    return;
+  }
 
   const double cells = static_cast<double>(hi[0] - lo[0] + 1) * static_cast<double>(hi[1] - lo[1] + 1) *
                        static_cast<double>(hi[2] - lo[2] + 1);
@@ -673,6 +797,7 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
     }
   }
   if (s.settings.fast) st.rays = s.ends.size() - 1;
+  if (carve) s.carveBeyondRange(Rm, of, oc, cube_inside, max_range, max_range_sq, out);
   st.voxel_updates = out.keys.size();
 }
 

@@ -92,6 +92,28 @@ TEST(Costmap, ProbabilityAndChangeRaiseTheCost) {
   EXPECT_EQ(c.at(0, 0), std::lround(98 * 0.5 * 1.0));
 }
 
+TEST(Costmap, TheLethalProbabilityMovesTheObstacleThreshold) {
+  // A voxel occupied with P = 0.6: an obstacle at the default threshold of 0.5; at 0.7 passable,
+  // costing 98 x 0.6 / 0.7 (no change weight).
+  SessionMap m(0.05);
+  VoxelCounters six_tenths;
+  six_tenths.hits = 1;
+  six_tenths.length_m = static_cast<float>(-1.0 / std::log(0.4));
+  m.add(VoxelKey{32768, 32768, 32770}, six_tenths);
+  CostmapSettings s;
+  s.robot_radius_m = 0.0;
+  s.change_weight = 0.0;
+  EXPECT_EQ(costmap(m, s).at(0, 0), Costmap::kLethal);
+  s.lethal_probability = 0.7;
+  EXPECT_EQ(costmap(m, s).at(0, 0), std::lround(98 * 0.6 / 0.7));
+  s.lethal_probability = 0.55;
+  EXPECT_EQ(costmap(m, s).at(0, 0), Costmap::kLethal);
+  for (double bad : {0.0, 1.0, -0.5, std::nan("")}) {
+    s.lethal_probability = bad;
+    EXPECT_THROW(costmap(m, s), UsageError) << bad;
+  }
+}
+
 TEST(Costmap, MapServerFilesFollowTheConventions) {
   test::TempDir tmp;
   Costmap c;

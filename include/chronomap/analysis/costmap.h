@@ -23,6 +23,10 @@ struct CostmapSettings {
   /// Weight of how often a column's voxels changed (0..1 of their observations) against the
   /// probability of occupancy.
   double change_weight = 0.5;
+  /// A column is lethal where a voxel's probability of occupancy exceeds this; below it, the
+  /// probability raises the cost in proportion. Above 0.5, space that is as likely free as not
+  /// (a door open half the time at that hour) stays passable at a high cost.
+  double lethal_probability = 0.5;
 };
 
 /// A 2D grid of costs in the map_server convention: -1 unknown, 0 free .. 100 lethal. Cell (i, j)
@@ -42,7 +46,7 @@ struct Costmap {
 };
 
 /// The costs of `map` over the settings' band: a column is lethal when a voxel in the band is
-/// occupied (P > 0.5), else it costs its highest probability and its voxels' change share
+/// likely occupied (P > lethal_probability), else it costs its highest probability and its voxels' change share
 /// (`models`, when given: the share of each voxel's learning observations that differ from the
 /// one before), scaled into 0..98; unknown when the band holds no known voxel; then every cell
 /// within the robot's radius of a lethal cell becomes kInscribed.

@@ -21,8 +21,12 @@ size_t defaultMemoryLimitBytes();
 
 /// Settings of the integrator. Defaults follow the thesis.
 struct IntegratorSettings {
-  /// Points farther than this from their sensor origin are discarded entirely.
+  /// Points farther than this from their sensor origin are discarded entirely ...
   double max_range_m = 3.0;
+  /// ... unless this is set: then free space is carved along their rays up to the range, with no
+  /// hit (as OctoMap's insertPointCloud does with its maxrange). Shows space seen through, such as
+  /// an open doorway in front of a far wall, that would otherwise stay unknown.
+  bool carve_beyond_range = false;
   /// Fast mode: all points of a frame that end in the same voxel are cast as one ray to that
   /// voxel's centre, weighted by their count (docs/integration.md states how far it differs).
   bool fast = false;
