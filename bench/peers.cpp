@@ -8,14 +8,27 @@
 #include <ufo/map/occupancy_map_color.h>
 
 #include <chrono>
+#include <ctime>
 #include <sstream>
 
 namespace chronomap::bench::peers {
 
 namespace {
 
-double since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+double cpuNow() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+/// Adds the wall and CPU time of fn() to r.
+template <class Fn>
+void timed(PeerResult& r, Fn&& fn) {
+  const double c0 = cpuNow();
+  const auto t0 = std::chrono::steady_clock::now();
+  fn();
+  r.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  r.cpu_seconds += cpuNow() - c0;
 }
 
 }  // namespace
@@ -29,9 +42,7 @@ PeerResult runBonxai(const std::vector<PeerFrame>& frames, double resolution, do
     points.reserve(f.xyz.size() / 3);
     for (size_t i = 0; i + 2 < f.xyz.size(); i += 3) points.emplace_back(f.xyz[i], f.xyz[i + 1], f.xyz[i + 2]);
     const Eigen::Vector3f origin(f.origin[0], f.origin[1], f.origin[2]);
-    const auto t0 = std::chrono::steady_clock::now();
-    map.insertPointCloud(points, origin, max_range);
-    r.seconds += since(t0);
+    timed(r, [&] { map.insertPointCloud(points, origin, max_range); });
   }
   r.memory_bytes = static_cast<double>(map.grid().memUsage());
   std::ostringstream out(std::ios::binary);
@@ -52,9 +63,7 @@ PeerResult runUfomap(const std::vector<PeerFrame>& frames, double resolution, do
                                             f.rgb[3 * i + 1], f.rgb[3 * i + 2]));
     }
     const ufo::map::Point3 origin(f.origin[0], f.origin[1], f.origin[2]);
-    const auto t0 = std::chrono::steady_clock::now();
-    map.insertPointCloudDiscrete(origin, cloud, max_range, static_cast<ufo::map::DepthType>(depth));
-    r.seconds += since(t0);
+    timed(r, [&] { map.insertPointCloudDiscrete(origin, cloud, max_range, static_cast<ufo::map::DepthType>(depth)); });
   }
   r.memory_bytes = static_cast<double>(map.memoryUsage());
   std::ostringstream out(std::ios::binary);

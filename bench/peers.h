@@ -17,7 +17,8 @@ struct PeerFrame {
 };
 
 struct PeerResult {
-  double seconds = 0;     // the insertion calls only (conversion to the peer's types excluded)
+  double seconds = 0;      // wall time of the insertion calls only (conversion to the peer's types excluded)
+  double cpu_seconds = 0;  // the process's CPU time over the same calls
   double memory_bytes = 0;  // as the peer reports it
   double disk_bytes = 0;    // the map written in the peer's own format
 };
