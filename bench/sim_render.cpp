@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 #include <string>
+#include <sys/resource.h>
 #include <vector>
 
 #include "chronomap/io/dataset.h"
@@ -33,6 +34,14 @@ namespace {
 
 double since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Processor seconds (user and system) used by this process so far.
+double cpuSeconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
+         1e-6 * static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec);
 }
 
 }  // namespace
@@ -59,6 +68,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   const fs::path tmp = fs::temp_directory_path() / ("chronomap_sim_render_" + std::to_string(::getpid()));
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);  // progress shows line by line in a log
   nlohmann::json out;
   out["sessions"] = sessions;
   out["scale"] = scale;
@@ -74,12 +84,15 @@ int main(int argc, char** argv) {
       s.threads = threads;
       const fs::path dir = tmp / (preset + "_" + std::to_string(threads));
       const auto t0 = std::chrono::steady_clock::now();
+      const double c0 = cpuSeconds();
       const sim::SimulationSummary summary = sim::simulate(s, dir);
       const double sec = since(t0);
+      const double cpu = (cpuSeconds() - c0) / sessions;
       const double per = sec / sessions;
-      std::printf("%-8s %d thread(s): %d sessions, %zu frames in %.2f s: %.2f s/session\n", preset.c_str(), threads,
-                  sessions, summary.frames, sec, per);
+      std::printf("%-8s %d thread(s): %d sessions, %zu frames in %.2f s: %.2f s/session (%.2f processor s/session)\n",
+                  preset.c_str(), threads, sessions, summary.frames, sec, per, cpu);
       r["s_per_session_" + std::to_string(threads) + "t"] = per;
+      r["cpu_s_per_session_" + std::to_string(threads) + "t"] = cpu;
       r["frames"] = summary.frames;
     }
     // The renderer alone: session 0's poses, the first scene state, one thread.
@@ -92,16 +105,21 @@ int main(int argc, char** argv) {
     const sim::Renderer renderer(state);
     const double build_s = since(t0);
     const auto t1 = std::chrono::steady_clock::now();
+    const double c1 = cpuSeconds();
     size_t hits = 0;
     for (size_t i = 0; i < poses.size(); ++i) {
       const sim::RenderedFrame f = renderer.render(cam, poses[i].pose, sensor, 12.0, i);
       for (float z : f.true_depth_m) hits += z > 0.0f;
     }
     const double render_s = since(t1);
+    const double render_cpu = cpuSeconds() - c1;
     const double fps = static_cast<double>(poses.size()) / render_s;
     const double rays = fps * cam.width * cam.height;
-    std::printf("%-8s renderer alone: %zu frames of %ux%u in %.2f s: %.1f frames/s, %.2f Mrays/s (build %.1f ms, %zu hits)\n",
-                preset.c_str(), poses.size(), cam.width, cam.height, render_s, fps, rays / 1e6, build_s * 1e3, hits);
+    std::printf("%-8s renderer alone: %zu frames of %ux%u in %.2f s (%.2f processor s): %.1f frames/s, %.2f Mrays/s "
+                "(build %.1f ms, %zu hits)\n",
+                preset.c_str(), poses.size(), cam.width, cam.height, render_s, render_cpu, fps, rays / 1e6, build_s * 1e3,
+                hits);
+    r["render_fps_1t_processor"] = static_cast<double>(poses.size()) / render_cpu;
     r["render_fps_1t"] = fps;
     r["render_mrays_per_s_1t"] = rays / 1e6;
     out[preset] = r;
@@ -109,5 +127,6 @@ int main(int argc, char** argv) {
   std::error_code ec;
   fs::remove_all(tmp, ec);
   std::printf("%s\n", out.dump().c_str());
+  std::fflush(stdout);
   return 0;
 }
