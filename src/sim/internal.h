@@ -29,8 +29,12 @@ struct Rng {
   bool chance(double p) { return uniform() < p; }
   int below(int n) { return static_cast<int>(next() % static_cast<uint64_t>(n)); }
   double normal() {  // Box-Muller
-    const double u1 = std::max(uniform(), 1e-300), u2 = uniform();
-    return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * std::numbers::pi * u2);
+    const double u1 = uniform(), u2 = uniform();
+    return normalOf(u1, u2);
+  }
+  // The normal() drawn from its two uniforms, for callers that draw them and may not need it.
+  static double normalOf(double u1, double u2) {
+    return std::sqrt(-2.0 * std::log(std::max(u1, 1e-300))) * std::cos(2.0 * std::numbers::pi * u2);
   }
 };
 

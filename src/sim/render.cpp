@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 #include "internal.h"
@@ -29,52 +30,196 @@ Eigen::Vector3d lightingAt(double hour) {
   return Eigen::Vector3d(1.0 + 0.12 * warm - 0.05 * cool, 1.0 + 0.02 * warm, 1.0 - 0.18 * warm + 0.08 * cool);
 }
 
-Renderer::Renderer(const SceneState& state) {
-  for (const Object& o : state.objects) {
-    if (!o.present) continue;
-    parts_.insert(parts_.end(), o.parts.begin(), o.parts.end());
-  }
-  nodes_.reserve(2 * parts_.size() + 1);
-  nodes_.push_back({});
-  if (!parts_.empty()) build(0, 0, static_cast<uint32_t>(parts_.size()));
-}
+namespace {
 
-void Renderer::build(uint32_t node, uint32_t begin, uint32_t end) {
-  Eigen::AlignedBox3d box, centers;
-  for (uint32_t i = begin; i < end; ++i) {
-    box.extend(parts_[i].box);
-    centers.extend(parts_[i].box.center());
-  }
-  nodes_[node].box = box;
+// The order in which the first renderer met the parts: a hierarchy split at the median of the
+// part centres along their longest extent down to 4 parts per leaf, walked depth first, second
+// child first. Ties between equally near parts went to the one met first, so this order keeps
+// every image as that renderer drew it.
+void legacyOrder(std::vector<Part>& parts, uint32_t begin, uint32_t end, std::vector<Part>& out) {
   if (end - begin <= 4) {
-    nodes_[node].first = begin;
-    nodes_[node].count = end - begin;
+    out.insert(out.end(), parts.begin() + begin, parts.begin() + end);
     return;
   }
+  Eigen::AlignedBox3d centers;
+  for (uint32_t i = begin; i < end; ++i) centers.extend(parts[i].box.center());
   int axis = 0;
   centers.sizes().maxCoeff(&axis);
   const uint32_t mid = begin + (end - begin) / 2;
-  std::nth_element(parts_.begin() + begin, parts_.begin() + mid, parts_.begin() + end,
+  std::nth_element(parts.begin() + begin, parts.begin() + mid, parts.begin() + end,
                    [axis](const Part& a, const Part& b) { return a.box.center()[axis] < b.box.center()[axis]; });
+  legacyOrder(parts, mid, end, out);
+  legacyOrder(parts, begin, mid, out);
+}
+
+constexpr int kBins = 16;
+constexpr uint32_t kMaxLeaf = 4;
+constexpr int kMedianDepth = 64;
+constexpr int kStack = kMedianDepth + 40;  // the median splits below add at most 32 levels
+
+double halfArea(const double lo[3], const double hi[3]) {
+  const double x = hi[0] - lo[0], y = hi[1] - lo[1], z = hi[2] - lo[2];
+  return x * y + y * z + z * x;
+}
+
+}  // namespace
+
+Renderer::Renderer(const SceneState& state) {
+  std::vector<Part> present;
+  for (const Object& o : state.objects) {
+    if (!o.present) continue;
+    present.insert(present.end(), o.parts.begin(), o.parts.end());
+  }
+  parts_.reserve(present.size());
+  legacyOrder(present, 0, static_cast<uint32_t>(present.size()), parts_);
+  std::vector<Box> boxes(parts_.size());
+  for (size_t i = 0; i < parts_.size(); ++i) {
+    for (int a = 0; a < 3; ++a) {
+      boxes[i].lo[a] = parts_[i].box.min()[a];
+      boxes[i].hi[a] = parts_[i].box.max()[a];
+    }
+    boxes[i].part = static_cast<uint32_t>(i);
+  }
+  nodes_.reserve(2 * boxes.size() + 1);
+  nodes_.push_back({});
+  if (!boxes.empty()) build(boxes, 0, 0, static_cast<uint32_t>(boxes.size()), 0);
+  boxes_ = std::move(boxes);
+}
+
+// Fills node `index` over boxes [begin, end): a binned surface-area-heuristic split, children
+// adjacent; below depth kMedianDepth the split is at the median centre, which bounds the depth.
+void Renderer::build(std::vector<Box>& boxes, uint32_t index, uint32_t begin, uint32_t end, int depth) {
+  Node n;
+  double clo[3], chi[3];
+  for (int a = 0; a < 3; ++a) {
+    n.lo[a] = clo[a] = std::numeric_limits<double>::max();
+    n.hi[a] = chi[a] = std::numeric_limits<double>::lowest();
+  }
+  for (uint32_t i = begin; i < end; ++i) {
+    for (int a = 0; a < 3; ++a) {
+      n.lo[a] = std::min(n.lo[a], boxes[i].lo[a]);
+      n.hi[a] = std::max(n.hi[a], boxes[i].hi[a]);
+      const double c = 0.5 * (boxes[i].lo[a] + boxes[i].hi[a]);
+      clo[a] = std::min(clo[a], c);
+      chi[a] = std::max(chi[a], c);
+    }
+  }
+  const uint32_t count = end - begin;
+  // The cheapest split over kBins bins of the centres along each axis: cost of a leaf is one
+  // box test per part, of a split one node test plus the parts weighted by the children's areas.
+  double best_cost = std::numeric_limits<double>::max();
+  int best_axis = -1, best_bin = 0;
+  const double area = std::max(halfArea(n.lo, n.hi), 1e-30);
+  for (int a = 0; a < 3 && count > 1 && depth < kMedianDepth; ++a) {
+    const double extent = chi[a] - clo[a];
+    if (!(extent > 0.0)) continue;
+    struct Bin {
+      double lo[3], hi[3];
+      uint32_t count = 0;
+    } bins[kBins];
+    for (Bin& b : bins) {
+      for (int k = 0; k < 3; ++k) {
+        b.lo[k] = std::numeric_limits<double>::max();
+        b.hi[k] = std::numeric_limits<double>::lowest();
+      }
+    }
+    const double scale = kBins / extent;
+    for (uint32_t i = begin; i < end; ++i) {
+      const double c = 0.5 * (boxes[i].lo[a] + boxes[i].hi[a]);
+      const int k = std::min(kBins - 1, static_cast<int>((c - clo[a]) * scale));
+      Bin& b = bins[k];
+      ++b.count;
+      for (int j = 0; j < 3; ++j) {
+        b.lo[j] = std::min(b.lo[j], boxes[i].lo[j]);
+        b.hi[j] = std::max(b.hi[j], boxes[i].hi[j]);
+      }
+    }
+    // Sweep from the right, then from the left.
+    double right_cost[kBins];
+    Bin acc;
+    for (int k = 0; k < 3; ++k) {
+      acc.lo[k] = std::numeric_limits<double>::max();
+      acc.hi[k] = std::numeric_limits<double>::lowest();
+    }
+    for (int k = kBins - 1; k > 0; --k) {
+      acc.count += bins[k].count;
+      for (int j = 0; j < 3; ++j) {
+        acc.lo[j] = std::min(acc.lo[j], bins[k].lo[j]);
+        acc.hi[j] = std::max(acc.hi[j], bins[k].hi[j]);
+      }
+      right_cost[k] = acc.count ? acc.count * halfArea(acc.lo, acc.hi) : 0.0;
+    }
+    Bin left;
+    for (int k = 0; k < 3; ++k) {
+      left.lo[k] = std::numeric_limits<double>::max();
+      left.hi[k] = std::numeric_limits<double>::lowest();
+    }
+    for (int k = 0; k < kBins - 1; ++k) {
+      left.count += bins[k].count;
+      for (int j = 0; j < 3; ++j) {
+        left.lo[j] = std::min(left.lo[j], bins[k].lo[j]);
+        left.hi[j] = std::max(left.hi[j], bins[k].hi[j]);
+      }
+      if (left.count == 0 || left.count == count) continue;
+      const double cost = 1.0 + (left.count * halfArea(left.lo, left.hi) + right_cost[k + 1]) / area;
+      if (cost < best_cost) {
+        best_cost = cost;
+        best_axis = a;
+        best_bin = k;
+      }
+    }
+  }
+  if (count <= kMaxLeaf && (best_axis < 0 || best_cost >= static_cast<double>(count))) {
+    n.first = begin;
+    n.count = count;
+    nodes_[index] = n;
+    return;
+  }
+  uint32_t mid;
+  if (best_axis >= 0) {
+    const int a = best_axis;
+    const double scale = kBins / (chi[a] - clo[a]);
+    const double lo = clo[a];
+    mid = static_cast<uint32_t>(
+        std::partition(boxes.begin() + begin, boxes.begin() + end,
+                       [&](const Box& b) {
+                         return std::min(kBins - 1, static_cast<int>((0.5 * (b.lo[a] + b.hi[a]) - lo) * scale)) <=
+                                best_bin;
+                       }) -
+        boxes.begin());
+  } else {  // too deep, or every centre in one place: halve the list along the widest spread
+    int a = 0;
+    double widest = -1.0;
+    for (int k = 0; k < 3; ++k) {
+      if (chi[k] - clo[k] > widest) {
+        widest = chi[k] - clo[k];
+        a = k;
+      }
+    }
+    mid = begin + count / 2;
+    std::nth_element(boxes.begin() + begin, boxes.begin() + mid, boxes.begin() + end,
+                     [a](const Box& x, const Box& y) { return x.lo[a] + x.hi[a] < y.lo[a] + y.hi[a]; });
+  }
   const auto left = static_cast<uint32_t>(nodes_.size());
+  n.first = left;
+  n.count = 0;
+  nodes_[index] = n;
   nodes_.push_back({});
   nodes_.push_back({});
-  nodes_[node].first = left;
-  nodes_[node].count = 0;
-  build(left, begin, mid);
-  build(left + 1, mid, end);
+  build(boxes, left, begin, mid, depth + 1);
+  build(boxes, left + 1, mid, end, depth + 1);
 }
 
 namespace {
 
 // Slab test: entry distance and the face it enters through, or false.
-bool slab(const Eigen::AlignedBox3d& box, const Eigen::Vector3d& o, const Eigen::Vector3d& inv, double t_max,
+bool slab(const double lo[3], const double hi[3], const Eigen::Vector3d& o, const Eigen::Vector3d& inv, double t_max,
           double& t_enter, int& face) {
   double t0 = 0.0, t1 = t_max;
   face = -1;
   for (int a = 0; a < 3; ++a) {
-    double tn = (box.min()[a] - o[a]) * inv[a];
-    double tf = (box.max()[a] - o[a]) * inv[a];
+    double tn = (lo[a] - o[a]) * inv[a];
+    double tf = (hi[a] - o[a]) * inv[a];
     int fn = 2 * a;  // entering through the min face
     if (tn > tf) {
       std::swap(tn, tf);
@@ -96,35 +241,194 @@ bool slab(const Eigen::AlignedBox3d& box, const Eigen::Vector3d& o, const Eigen:
 bool Renderer::cast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double& t, Rgb& color) const {
   if (parts_.empty()) return false;
   const Eigen::Vector3d inv(1.0 / dir.x(), 1.0 / dir.y(), 1.0 / dir.z());
+  // Nodes are tested with the near and far planes picked by the ray's direction.
+  const double ox = origin.x(), oy = origin.y(), oz = origin.z();
+  const double ix = inv.x(), iy = inv.y(), iz = inv.z();
+  const bool nx = ix < 0.0, ny = iy < 0.0, nz = iz < 0.0;
   double best = 1e30;
   int best_face = -1;
-  const Part* best_part = nullptr;
-  uint32_t stack[64];
+  uint32_t best_part = std::numeric_limits<uint32_t>::max();
+  double te = 0.0;
+  auto enter = [&](const Node& n, double& t_node) {
+    const double x0 = ((nx ? n.hi[0] : n.lo[0]) - ox) * ix, x1 = ((nx ? n.lo[0] : n.hi[0]) - ox) * ix;
+    const double y0 = ((ny ? n.hi[1] : n.lo[1]) - oy) * iy, y1 = ((ny ? n.lo[1] : n.hi[1]) - oy) * iy;
+    const double z0 = ((nz ? n.hi[2] : n.lo[2]) - oz) * iz, z1 = ((nz ? n.lo[2] : n.hi[2]) - oz) * iz;
+    double t0 = 0.0, t1 = best;
+    t0 = x0 > t0 ? x0 : t0;
+    t0 = y0 > t0 ? y0 : t0;
+    t0 = z0 > t0 ? z0 : t0;
+    t1 = x1 < t1 ? x1 : t1;
+    t1 = y1 < t1 ? y1 : t1;
+    t1 = z1 < t1 ? z1 : t1;
+    t_node = t0;
+    return t0 <= t1;
+  };
+  // Near child first; a node farther than the nearest hit so far is skipped (an equally far one
+  // is not: it may hold a part that wins the tie).
+  struct Entry {
+    uint32_t node;
+    double t;
+  } stack[kStack];
   int top = 0;
-  stack[top++] = 0;
+  if (!enter(nodes_[0], te)) return false;
+  stack[top++] = {0, te};
   while (top > 0) {
-    const Node& n = nodes_[stack[--top]];
-    double te = 0.0;
-    int face = 0;
-    if (!slab(n.box, origin, inv, best, te, face)) continue;
+    const Entry e = stack[--top];
+    if (e.t > best) continue;
+    const Node& n = nodes_[e.node];
     if (n.count == 0) {
-      stack[top++] = n.first;
-      stack[top++] = n.first + 1;
+      double ta = 0.0, tb = 0.0;
+      const bool ha = enter(nodes_[n.first], ta), hb = enter(nodes_[n.first + 1], tb);
+      if (ha && hb) {
+        if (ta <= tb) {
+          stack[top++] = {n.first + 1, tb};
+          stack[top++] = {n.first, ta};
+        } else {
+          stack[top++] = {n.first, ta};
+          stack[top++] = {n.first + 1, tb};
+        }
+      } else if (ha) {
+        stack[top++] = {n.first, ta};
+      } else if (hb) {
+        stack[top++] = {n.first + 1, tb};
+      }
       continue;
     }
     for (uint32_t i = n.first; i < n.first + n.count; ++i) {
-      if (slab(parts_[i].box, origin, inv, best, te, face) && face >= 0 && te < best) {
+      const Box& b = boxes_[i];
+      int face = 0;
+      if (slab(b.lo, b.hi, origin, inv, best, te, face) && face >= 0 &&
+          (te < best || (te == best && b.part < best_part))) {
         best = te;
         best_face = face;
-        best_part = &parts_[i];
+        best_part = b.part;
       }
     }
   }
-  if (!best_part) return false;
+  if (best_face < 0) return false;
   t = best;
-  color = best_part->face_colors[static_cast<size_t>(best_face)];
+  color = parts_[best_part].face_colors[static_cast<size_t>(best_face)];
   return true;
 }
+
+namespace {
+
+// The parts each tile of a frame can see. Every ray of a frame starts at the camera, so a part
+// can only be hit by the pixels that its box projects onto: each part goes into the list of
+// every 16 x 16 tile its projection (padded by a pixel) covers, or of every tile when part of
+// the box lies behind the camera. The lists are sorted by the distance from the camera to the
+// box, a lower bound of where any ray meets it, so that a pixel stops at the first part farther
+// than its nearest hit. A pixel's answer is that of every part tested: the nearest, and at equal
+// distance the earlier in parts().
+class Tiles {
+ public:
+  static constexpr uint32_t kSize = 16;
+
+  Tiles(const std::vector<Part>& parts, const Camera& cam, const Eigen::Matrix3d& R, const Eigen::Vector3d& o)
+      : across_((cam.width + kSize - 1) / kSize), down_((cam.height + kSize - 1) / kSize) {
+    struct Seen {
+      double near;
+      uint32_t part, u0, u1, v0, v1;  // tiles [u0, u1] x [v0, v1]
+    };
+    std::vector<Seen> seen;
+    seen.reserve(parts.size());
+    const Eigen::Matrix3d Rt = R.transpose();
+    for (uint32_t i = 0; i < parts.size(); ++i) {
+      const Eigen::AlignedBox3d& b = parts[i].box;
+      const Eigen::Vector3d outside = (b.min() - o).cwiseMax(o - b.max()).cwiseMax(0.0);
+      Seen s{outside.norm(), i, 0, across_ - 1, 0, down_ - 1};
+      double umin = std::numeric_limits<double>::max(), umax = std::numeric_limits<double>::lowest();
+      double vmin = umin, vmax = umax;
+      bool behind = false;
+      for (int k = 0; k < 8; ++k) {
+        const Eigen::Vector3d c = Rt * (b.corner(static_cast<Eigen::AlignedBox3d::CornerType>(k)) - o);
+        if (c.z() <= 1e-6) {
+          behind = true;
+          break;
+        }
+        const double u = cam.fx * c.x() / c.z() + cam.cx, v = cam.fy * c.y() / c.z() + cam.cy;
+        umin = std::min(umin, u);
+        umax = std::max(umax, u);
+        vmin = std::min(vmin, v);
+        vmax = std::max(vmax, v);
+      }
+      if (!behind) {
+        // Pixels [umin - 1, umax + 1] x [vmin - 1, vmax + 1], clipped to the image.
+        if (umax + 1.0 < 0.0 || vmax + 1.0 < 0.0 || umin - 1.0 > cam.width - 1.0 || vmin - 1.0 > cam.height - 1.0) {
+          continue;
+        }
+        auto tile = [](double p, uint32_t last) {
+          return static_cast<uint32_t>(std::clamp(std::floor(p / kSize), 0.0, static_cast<double>(last)));
+        };
+        s.u0 = tile(umin - 1.0, across_ - 1);
+        s.u1 = tile(umax + 1.0, across_ - 1);
+        s.v0 = tile(vmin - 1.0, down_ - 1);
+        s.v1 = tile(vmax + 1.0, down_ - 1);
+      }
+      // A little below the distance, so that rounding can never put it above a ray's entry.
+      s.near = s.near * (1.0 - 1e-9) - 1e-9;
+      seen.push_back(s);
+    }
+    std::sort(seen.begin(), seen.end(),
+              [](const Seen& a, const Seen& b) { return a.near < b.near || (a.near == b.near && a.part < b.part); });
+    start_.assign(size_t{across_} * down_ + 1, 0);
+    for (const Seen& s : seen) {
+      for (uint32_t tv = s.v0; tv <= s.v1; ++tv) {
+        for (uint32_t tu = s.u0; tu <= s.u1; ++tu) ++start_[size_t{tv} * across_ + tu + 1];
+      }
+    }
+    for (size_t k = 1; k < start_.size(); ++k) start_[k] += start_[k - 1];
+    entries_.resize(start_.back());
+    std::vector<uint32_t> fill(start_.begin(), start_.end() - 1);
+    for (const Seen& s : seen) {
+      const Box box{{parts[s.part].box.min().x(), parts[s.part].box.min().y(), parts[s.part].box.min().z()},
+                    {parts[s.part].box.max().x(), parts[s.part].box.max().y(), parts[s.part].box.max().z()},
+                    s.near,
+                    s.part};
+      for (uint32_t tv = s.v0; tv <= s.v1; ++tv) {
+        for (uint32_t tu = s.u0; tu <= s.u1; ++tu) entries_[fill[size_t{tv} * across_ + tu]++] = box;
+      }
+    }
+  }
+
+  // The nearest part along the ray of pixel (u, v), from the camera at `o` along unit `dir`.
+  bool cast(const std::vector<Part>& parts, uint32_t u, uint32_t v, const Eigen::Vector3d& o,
+            const Eigen::Vector3d& dir, double& t, Rgb& color) const {
+    const Eigen::Vector3d inv(1.0 / dir.x(), 1.0 / dir.y(), 1.0 / dir.z());
+    const size_t tile = size_t{v / kSize} * across_ + u / kSize;
+    double best = 1e30;
+    int best_face = -1;
+    uint32_t best_part = 0;
+    for (uint32_t k = start_[tile]; k < start_[tile + 1]; ++k) {
+      const Box& b = entries_[k];
+      if (b.near > best) break;  // this part and all after it are farther than the hit
+      double te = 0.0;
+      int face = 0;
+      if (slab(b.lo, b.hi, o, inv, best, te, face) && face >= 0 &&
+          (te < best || (te == best && b.part < best_part))) {
+        best = te;
+        best_face = face;
+        best_part = b.part;
+      }
+    }
+    if (best_face < 0) return false;
+    t = best;
+    color = parts[best_part].face_colors[static_cast<size_t>(best_face)];
+    return true;
+  }
+
+ private:
+  struct Box {
+    double lo[3], hi[3];
+    double near;
+    uint32_t part;
+  };
+  uint32_t across_, down_;
+  std::vector<uint32_t> start_;  // tile k's parts: entries_[start_[k], start_[k + 1])
+  std::vector<Box> entries_;
+};
+
+}  // namespace
 
 RenderedFrame Renderer::render(const Camera& cam, const Eigen::Isometry3d& T, const SensorModel& sensor, double hour,
                                uint64_t seed) const {
@@ -139,6 +443,7 @@ RenderedFrame Renderer::render(const Camera& cam, const Eigen::Isometry3d& T, co
   const Eigen::Vector3d light = lightingAt(hour);
   const Eigen::Matrix3d R = T.rotation();
   const Eigen::Vector3d o = T.translation();
+  const Tiles tiles(parts_, cam, R, o);
   for (uint32_t v = 0; v < cam.height; ++v) {
     for (uint32_t u = 0; u < cam.width; ++u) {
       const Eigen::Vector3d d_cam((u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, 1.0);
@@ -146,7 +451,7 @@ RenderedFrame Renderer::render(const Camera& cam, const Eigen::Isometry3d& T, co
       const Eigen::Vector3d d = R * (d_cam / norm);
       double t = 0.0;
       Rgb c;
-      if (!cast(o, d, t, c)) continue;
+      if (!tiles.cast(parts_, u, v, o, d, t, c)) continue;
       const size_t i = size_t{v} * cam.width + u;
       const double z = t / norm;
       f.true_depth_m[i] = static_cast<float>(z);
@@ -167,7 +472,8 @@ RenderedFrame Renderer::render(const Camera& cam, const Eigen::Isometry3d& T, co
     for (uint32_t u = 0; u < cam.width; ++u) {
       const size_t i = size_t{v} * cam.width + u;
       const double z = f.true_depth_m[i];
-      const double noise = rng.normal();
+      // Three draws per pixel whatever happens to it; the noise is worked out only if needed.
+      const double u1 = rng.uniform(), u2 = rng.uniform();
       const double drop = rng.uniform();
       if (z < sensor.min_range_m || z > sensor.max_range_m) continue;
       bool edge = false;
@@ -180,7 +486,7 @@ RenderedFrame Renderer::render(const Camera& cam, const Eigen::Isometry3d& T, co
       }
       if (edge && drop < sensor.edge_dropout) continue;
       if (dark[i] && drop < sensor.dark_dropout) continue;
-      const double measured = z + sensor.noise_per_m2 * z * z * noise;
+      const double measured = z + sensor.noise_per_m2 * z * z * Rng::normalOf(u1, u2);
       const double units = std::round(measured * sensor.depth_scale);
       if (units >= 1.0 && units <= 65535.0) f.depth.pixels[i] = static_cast<uint16_t>(units);
     }

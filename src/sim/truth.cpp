@@ -3,10 +3,27 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "internal.h"
 
 namespace chronomap::sim {
+
+namespace {
+
+// Sorts keys in Morton order and drops repeats: the codes are computed once per key, not per
+// comparison (the order is the same: a key's code is unique to it).
+void sortMortonUnique(std::vector<VoxelKey>& keys) {
+  std::vector<std::pair<uint64_t, VoxelKey>> coded(keys.size());
+  for (size_t i = 0; i < keys.size(); ++i) coded[i] = {mortonEncode(keys[i]), keys[i]};
+  std::sort(coded.begin(), coded.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  keys.clear();
+  for (size_t i = 0; i < coded.size(); ++i) {
+    if (i == 0 || coded[i].first != coded[i - 1].first) keys.push_back(coded[i].second);
+  }
+}
+
+}  // namespace
 
 std::vector<VoxelKey> objectVoxels(const Object& object, const KeyGrid& grid) {
   std::vector<VoxelKey> keys;
@@ -32,8 +49,7 @@ std::vector<VoxelKey> objectVoxels(const Object& object, const KeyGrid& grid) {
       }
     }
   }
-  std::sort(keys.begin(), keys.end(), [](const VoxelKey& a, const VoxelKey& b) { return mortonEncode(a) < mortonEncode(b); });
-  keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+  sortMortonUnique(keys);
   return keys;
 }
 
@@ -43,8 +59,7 @@ std::vector<VoxelKey> truthOccupancy(const SceneState& state, const KeyGrid& gri
     const auto k = objectVoxels(o, grid);
     all.insert(all.end(), k.begin(), k.end());
   }
-  std::sort(all.begin(), all.end(), [](const VoxelKey& a, const VoxelKey& b) { return mortonEncode(a) < mortonEncode(b); });
-  all.erase(std::unique(all.begin(), all.end()), all.end());
+  sortMortonUnique(all);
   return all;
 }
 

@@ -39,6 +39,11 @@ struct RenderedFrame {
 };
 
 /// Ray caster over a scene state: a bounding-volume hierarchy over the present parts.
+///
+/// cast() returns the nearest part along the ray; at exactly equal distances the part that
+/// comes first in parts() wins. parts() is in the order in which the first renderer (a
+/// median-split hierarchy walked in a fixed order) met them, so that every image stays
+/// byte-identical to what that renderer drew.
 class Renderer {
  public:
   explicit Renderer(const SceneState& state);
@@ -47,15 +52,22 @@ class Renderer {
   /// Renders one frame. `hour` (0..24) sets the lighting colour; `seed` the noise.
   RenderedFrame render(const Camera& camera, const Eigen::Isometry3d& T_world_camera, const SensorModel& sensor,
                        double hour, uint64_t seed) const;
+  /// The present parts in tie-breaking order (see above).
+  const std::vector<Part>& parts() const { return parts_; }
 
  private:
   struct Node {
-    Eigen::AlignedBox3d box;
-    uint32_t first = 0, count = 0;  // parts (leaf) or, when count == 0, children first, first + 1
+    double lo[3], hi[3];
+    uint32_t first = 0, count = 0;  // boxes_[first, first + count) (leaf) or, when count == 0, children first, first + 1
+  };
+  struct Box {
+    double lo[3], hi[3];
+    uint32_t part = 0;  // index into parts_
   };
   std::vector<Part> parts_;
+  std::vector<Box> boxes_;
   std::vector<Node> nodes_;
-  void build(uint32_t node, uint32_t begin, uint32_t end);
+  void build(std::vector<Box>& boxes, uint32_t index, uint32_t begin, uint32_t end, int depth);
 };
 
 /// The lighting colour multiplier at an hour of the day (warm mornings, cool evenings).
