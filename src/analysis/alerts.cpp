@@ -141,7 +141,7 @@ AlertReport findAlerts(const TemporalMap& map, double time_s, const AlertSetting
   const auto& sessions = map.sessions();
   size_t rank = sessions.size();
   for (size_t i = 0; i < sessions.size(); ++i) {
-    if (std::abs(sessions[i].time_s - time_s) < 1e-6 * std::max(1.0, std::abs(time_s))) rank = i;
+    if (std::abs(sessions[i].time_s - time_s) < 1e-6) rank = i;  // to the microsecond
   }
   if (rank == sessions.size()) {
     std::string msg = "no session of the map lies at " + formatTime(time_s);

@@ -202,6 +202,8 @@ TEST(Alerts, BadInputIsRefusedClearly) {
         << e.what();
     EXPECT_NE(std::string(e.what()).find("the nearest is 2012-03-05T09:00:00"), std::string::npos) << e.what();
   }
+  EXPECT_THROW(findAlerts(map, when(0, 15.0) + 0.01), UsageError);  // times match to the microsecond
+  EXPECT_NO_THROW(findAlerts(map, when(0, 15.0) + 1e-7));
   EXPECT_THROW(findAlerts(map, when(0, 9.0)), UsageError);  // the first session: no history
   AlertSettings s = plain();
   s.neighbourhood_voxels = 7;
