@@ -11,7 +11,12 @@
 #include <unistd.h>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "chronomap/align/register.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/file.h"
+#include "chronomap/pipeline/map4d.h"
 #include "chronomap/io/dataset.h"
 #include "chronomap/pipeline/session.h"
 #include "chronomap/sim/building.h"
@@ -152,6 +157,103 @@ inline std::filesystem::path simulateTemporary(const std::string& preset, const 
   std::fprintf(stderr, "simulating %s into %s\n", preset.c_str(), dir.c_str());
   sim::simulate(s, dir, {});
   return dir;
+}
+
+/// Area under the ROC curve of scores against labels (Mann-Whitney, ties counted half).
+inline double rocAuc(std::vector<std::pair<double, uint8_t>> scored) {
+  std::sort(scored.begin(), scored.end());
+  double positives = 0, negatives = 0, rank_sum = 0;
+  for (size_t i = 0; i < scored.size();) {
+    size_t j = i;
+    while (j < scored.size() && scored[j].first == scored[i].first) ++j;
+    const double mid_rank = 0.5 * static_cast<double>(i + 1 + j);  // ranks i+1 .. j
+    for (size_t k = i; k < j; ++k) {
+      if (scored[k].second) {
+        positives += 1;
+        rank_sum += mid_rank;
+      } else {
+        negatives += 1;
+      }
+    }
+    i = j;
+  }
+  if (positives == 0 || negatives == 0) return 0.5;
+  return (rank_sum - positives * (positives + 1) / 2) / (positives * negatives);
+}
+
+// ---- The rhythmic building (preset "weeks"): rhythm_eval and alerts_eval ----
+
+// A weeks simulation's sessions, split into learning days and test days.
+struct WeeksSim {
+  std::filesystem::path dir;
+  nlohmann::json scene;
+  std::vector<double> times;
+  std::vector<std::filesystem::path> dirs;
+  std::vector<size_t> learn, test;  // session indices: before the split, and from it on
+  double split_s = 0.0;
+};
+
+// Simulates the weeks preset (seed 1) at `scale` into `tmp`/weeks, with rare events if asked.
+inline std::filesystem::path simulateWeeks(const std::filesystem::path& tmp, double scale, bool rare_events) {
+  sim::SimulationSettings s;
+  s.preset = "weeks";
+  s.resolution_scale = scale;
+  s.rare_events = rare_events;
+  std::printf("simulating the weeks preset at %.2f of 640x480%s ...\n", scale, rare_events ? " with rare events" : "");
+  std::fflush(stdout);
+  sim::simulate(s, tmp / "weeks");
+  return tmp / "weeks";
+}
+
+// Reads a weeks simulation and splits its sessions after `learn_days` days. Exits with a message
+// when either side is empty.
+inline WeeksSim readWeeks(const std::filesystem::path& dir, int learn_days) {
+  WeeksSim w;
+  w.dir = dir;
+  w.scene = nlohmann::json::parse(io::readTextFile(dir / "scene.json"));
+  for (const auto& s : w.scene["sessions"]) {
+    w.times.push_back(s["time_s"].get<double>());
+    w.dirs.push_back(dir / s["dir"].get<std::string>());
+  }
+  w.split_s = sim::kScheduleStart_s + 86400.0 * learn_days;
+  for (size_t i = 0; i < w.times.size(); ++i) (w.times[i] < w.split_s ? w.learn : w.test).push_back(i);
+  if (w.learn.empty() || w.test.empty()) {
+    std::fprintf(stderr, "--learn-days %d leaves no session to learn from or to test\n", learn_days);
+    std::exit(2);
+  }
+  return w;
+}
+
+// The 4D map of the sessions `which` of `w`, fast mode at 0.05 m with `max_range_m`: with true
+// poses each session integrated with its groundtruth.txt and added in memory; else as
+// `chronomap build --register` does it, written to `scratch` (a .cmap path) and read back.
+inline TemporalMap buildWeeksMap(const WeeksSim& w, const std::vector<size_t>& which, bool true_poses,
+                                 double max_range_m, const std::filesystem::path& scratch,
+                                 bool carve_beyond_range = false) {
+  pipeline::BuildSettings build;
+  build.map = scratch;
+  for (size_t i : which) {
+    build.datasets.push_back(w.dirs[i]);
+    build.times_s.emplace_back(w.times[i]);
+  }
+  build.session.integrator.fast = true;
+  build.session.integrator.max_range_m = max_range_m;
+  build.session.integrator.carve_beyond_range = carve_beyond_range;
+  build.registration = pipeline::RegistrationSettings{};
+  if (true_poses) {
+    TemporalMap m(0.05);
+    for (size_t i : which) {
+      pipeline::SessionSettings ss = build.session;
+      ss.dataset.trajectory = w.dirs[i] / "groundtruth.txt";
+      m.add(w.times[i], pipeline::integrateDataset(w.dirs[i], ss).map);
+    }
+    return m;
+  }
+  pipeline::build(build);
+  TemporalMap m = io::readTemporalMap(build.map);
+  std::error_code ec;
+  std::filesystem::remove(build.map, ec);
+  return m;
 }
 
 }  // namespace chronomap::bench

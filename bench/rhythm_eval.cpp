@@ -43,37 +43,15 @@
 #include "chronomap/io/map_server.h"
 #include "chronomap/pipeline/map4d.h"
 #include "chronomap/sim/building.h"
+#include "bench_sim.h"
 
 using namespace chronomap;
 namespace fs = std::filesystem;
 
 namespace {
 
-double seconds(std::chrono::steady_clock::time_point since) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
-}
-
-/// Area under the ROC curve of scores against labels (Mann-Whitney, ties counted half).
-double rocAuc(std::vector<std::pair<double, uint8_t>> scored) {
-  std::sort(scored.begin(), scored.end());
-  double positives = 0, negatives = 0, rank_sum = 0;
-  for (size_t i = 0; i < scored.size();) {
-    size_t j = i;
-    while (j < scored.size() && scored[j].first == scored[i].first) ++j;
-    const double mid_rank = 0.5 * static_cast<double>(i + 1 + j);  // ranks i+1 .. j
-    for (size_t k = i; k < j; ++k) {
-      if (scored[k].second) {
-        positives += 1;
-        rank_sum += mid_rank;
-      } else {
-        negatives += 1;
-      }
-    }
-    i = j;
-  }
-  if (positives == 0 || negatives == 0) return 0.5;
-  return (rank_sum - positives * (positives + 1) / 2) / (positives * negatives);
-}
+using bench::rocAuc;
+using bench::seconds;
 
 /// The truth of a session as a costmap on `like`'s grid: lethal where a true voxel lies in the
 /// band, free elsewhere, inflated by the radius.
@@ -157,60 +135,19 @@ int main(int argc, char** argv) {
   fs::path tmp;
   if (sim_dir.empty()) {
     tmp = fs::temp_directory_path() / ("rhythm_eval_" + std::to_string(::getpid()));
-    sim::SimulationSettings s;
-    s.preset = "weeks";
-    s.resolution_scale = scale;
-    sim_dir = tmp / "weeks";
-    std::printf("simulating the weeks preset at %.2f of 640x480 ...\n", scale);
-    std::fflush(stdout);
-    sim::simulate(s, sim_dir);
+    sim_dir = bench::simulateWeeks(tmp, scale, false);
   }
-  const auto scene = nlohmann::json::parse(io::readTextFile(sim_dir / "scene.json"));
-  std::vector<double> times;
-  std::vector<fs::path> dirs;
-  for (const auto& s : scene["sessions"]) {
-    times.push_back(s["time_s"].get<double>());
-    dirs.push_back(sim_dir / s["dir"].get<std::string>());
-  }
-  const double split_s = sim::kScheduleStart_s + 86400.0 * learn_days;
-  std::vector<size_t> learn, test;
-  for (size_t i = 0; i < times.size(); ++i) (times[i] < split_s ? learn : test).push_back(i);
-  if (learn.empty() || test.empty()) {
-    std::fprintf(stderr, "--learn-days %d leaves no session to learn from or to test\n", learn_days);
-    return 2;
-  }
+  const bench::WeeksSim weeks = bench::readWeeks(sim_dir, learn_days);
+  const auto& scene = weeks.scene;
+  const std::vector<double>& times = weeks.times;
+  const std::vector<size_t>&learn = weeks.learn, &test = weeks.test;
 
   // The 4D map of the learning sessions, as the recommended pipeline builds it.
-  pipeline::BuildSettings build;
-  build.map = (tmp.empty() ? fs::temp_directory_path() : tmp) / ("rhythm_eval_" + std::to_string(::getpid()) + ".cmap");
-  for (size_t i : learn) {
-    build.datasets.push_back(dirs[i]);
-    build.times_s.emplace_back(times[i]);
-  }
-  build.session.integrator.fast = true;
-  build.session.integrator.max_range_m = max_range_m;
-  build.session.integrator.carve_beyond_range = carve;
-  build.registration = pipeline::RegistrationSettings{};
   const auto build_started = std::chrono::steady_clock::now();
-  // With true poses: each session integrated with its own groundtruth.txt and added in memory;
-  // else chronomap build --register, written and read back.
-  auto buildMap = [&]() -> TemporalMap {
-    if (poses == "true") {
-      TemporalMap m(0.05);
-      for (size_t i : learn) {
-        pipeline::SessionSettings ss = build.session;
-        ss.dataset.trajectory = dirs[i] / "groundtruth.txt";
-        m.add(times[i], pipeline::integrateDataset(dirs[i], ss).map);
-      }
-      return m;
-    }
-    pipeline::build(build);
-    TemporalMap m = io::readTemporalMap(build.map);
-    std::error_code ec;
-    fs::remove(build.map, ec);
-    return m;
-  };
-  const TemporalMap map = buildMap();
+  const TemporalMap map = bench::buildWeeksMap(
+      weeks, learn, poses == "true", max_range_m,
+      (tmp.empty() ? fs::temp_directory_path() : tmp) / ("rhythm_eval_" + std::to_string(::getpid()) + ".cmap"),
+      carve);
   const double build_s = seconds(build_started);
 
   const auto fit_started = std::chrono::steady_clock::now();

@@ -136,6 +136,10 @@ Command addSimulate(CLI::App& root) {
   app->add_option("--threads", o->settings.threads, "rendering threads, 0 = all cores (output does not depend on it)")
       ->check(numberIn(0, kMaxThreads))
       ->capture_default_str();
+  app->add_flag("--rare-events", o->settings.rare_events,
+                "weeks only: rare events on top of the routines in the last quarter of the sessions (a parcel left "
+                "in the corridor at night, an item taken from a shelf, a door open at night, a chair in the "
+                "corridor, a person at night), labelled \"rare\" in scene.json");
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runSimulate(*o); }};
 }

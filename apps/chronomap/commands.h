@@ -33,6 +33,7 @@ Command addHistory(CLI::App& root);
 Command addChanges(CLI::App& root);
 Command addPredict(CLI::App& root);
 Command addCostmap(CLI::App& root);
+Command addAlerts(CLI::App& root);
 Command addDiff(CLI::App& root);
 Command addSegment(CLI::App& root);
 Command addSimulate(CLI::App& root);

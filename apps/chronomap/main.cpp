@@ -28,9 +28,10 @@ int run(int argc, char** argv) {
   app.set_version_flag("--version", "chronomap 0.1.0");
   const std::vector<cli::Command> commands = {cli::addIntegrate(app), cli::addAdd(app),      cli::addBuild(app),
                                               cli::addSnapshot(app),  cli::addHistory(app),  cli::addChanges(app),
-                                              cli::addPredict(app),   cli::addCostmap(app),  cli::addDiff(app),     cli::addSegment(app),
-                                              cli::addStats(app),     cli::addExport(app),   cli::addSimulate(app),
-                                              cli::addDemo(app),      cli::addView(app)};
+                                              cli::addPredict(app),   cli::addCostmap(app),  cli::addAlerts(app),
+                                              cli::addDiff(app),      cli::addSegment(app),  cli::addStats(app),
+                                              cli::addExport(app),    cli::addSimulate(app), cli::addDemo(app),
+                                              cli::addView(app)};
 
   try {
     app.parse(argc, argv);

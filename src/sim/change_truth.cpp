@@ -20,6 +20,8 @@ std::vector<ChangeEvent> readTruthEvents(const std::filesystem::path& scene_json
       t.object = e.at("object").get<uint32_t>();
       t.object_kind = parseObjectKind(e.at("object_kind").get<std::string>());
       t.kind = parseEventKind(e.at("kind").get<std::string>());
+      t.cause = e.value("cause", std::string());
+      t.routine = e.value("routine", std::string());
       for (const auto& v : e.at("voxels")) {
         t.voxels.push_back(VoxelKey{v.at(0).get<uint16_t>(), v.at(1).get<uint16_t>(), v.at(2).get<uint16_t>()});
       }

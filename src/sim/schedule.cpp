@@ -4,9 +4,11 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <optional>
 #include <string>
 
 #include "chronomap/sim/scene.h"
+#include "chronomap/core/error.h"
 #include "internal.h"
 
 namespace chronomap::sim {
@@ -155,10 +157,6 @@ std::vector<ScheduledChange> applySchedule(SceneState& state, const SceneState& 
   for (const Routine& r : routinesOf(w)) {
     for (uint32_t id : r.objects) routine_of[id] = r.name;
   }
-  // Before: presence and position of every object, by id.
-  std::map<uint32_t, std::pair<bool, Eigen::Vector2d>> before;
-  for (const Object& o : state.objects) before[o.id] = {o.present, centerOf(o)};
-
   SceneState next = home;
   Rng jitter(mix(seed, 9300 + static_cast<uint64_t>(day + 100000)));
   for (size_t i = 0; i < next.objects.size(); ++i) {
@@ -190,15 +188,26 @@ std::vector<ScheduledChange> applySchedule(SceneState& state, const SceneState& 
       }
     }
   }
+  std::vector<ScheduledChange> changes = objectChanges(state, next);
+  for (ScheduledChange& c : changes) {
+    const auto r = routine_of.find(c.object);
+    c.routine = r == routine_of.end() ? std::string() : r->second;
+  }
+  state = std::move(next);
+  return changes;
+}
+
+std::vector<ScheduledChange> objectChanges(const SceneState& before_state, const SceneState& after) {
+  // Before: presence and position of every object, by id.
+  std::map<uint32_t, std::pair<bool, Eigen::Vector2d>> before;
+  for (const Object& o : before_state.objects) before[o.id] = {o.present, centerOf(o)};
   std::vector<ScheduledChange> changes;
-  for (const Object& o : next.objects) {
+  for (const Object& o : after.objects) {
     const auto it = before.find(o.id);
     if (it == before.end()) continue;
     const auto [was_present, was_at] = it->second;
     ScheduledChange c;
     c.object = o.id;
-    const auto r = routine_of.find(o.id);
-    c.routine = r == routine_of.end() ? std::string() : r->second;
     if (o.kind == ObjectKind::Door) {
       if (o.present == was_present) continue;
       c.kind = o.present ? EventKind::DoorClosed : EventKind::DoorOpened;
@@ -211,8 +220,169 @@ std::vector<ScheduledChange> applySchedule(SceneState& state, const SceneState& 
     }
     changes.push_back(c);
   }
-  state = std::move(next);
   return changes;
+}
+
+// ---- Rare events ----
+
+namespace {
+
+Part rareBox(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, Rgb c) {
+  Part p;
+  p.box = Eigen::AlignedBox3d(lo, hi);
+  auto shade = [&](double f) {
+    auto v = [f](uint8_t x) { return static_cast<uint8_t>(std::clamp(std::lround(x * f), 0L, 255L)); };
+    return Rgb{v(c.r), v(c.g), v(c.b)};
+  };
+  p.face_colors = {shade(0.85), shade(0.9), shade(0.8), shade(0.95), shade(0.6), c};
+  return p;
+}
+
+/// The objects of the rare events in a home scene from addRareObjects.
+struct RareObjects {
+  const Object* parcel = nullptr;
+  const Object* shelf_item = nullptr;
+  const Object* meeting_door = nullptr;
+  const Object* kitchen_chair = nullptr;
+  const Object* visitor = nullptr;  ///< the person who belongs to no routine
+};
+
+RareObjects rareObjects(const SceneState& home) {
+  RareObjects r;
+  const WeeksObjects w = weeksObjects(home);
+  if (!w.found) throw UsageError("rare events need the weeks preset");
+  for (const Object& o : home.objects) {
+    if (o.id == w.meeting_door) r.meeting_door = &o;
+    if (!w.kitchen_chairs.empty() && o.id == w.kitchen_chairs.front()) r.kitchen_chair = &o;
+    if (o.kind == ObjectKind::Person && o.room == -1) r.visitor = &o;
+  }
+  // The two objects addRareObjects added, the last two.
+  if (home.objects.size() >= 2 && home.objects.back().kind == ObjectKind::Box &&
+      home.objects[home.objects.size() - 2].kind == ObjectKind::Box) {
+    r.shelf_item = &home.objects[home.objects.size() - 2];
+    r.parcel = &home.objects.back();
+  }
+  if (!r.parcel || !r.meeting_door || !r.kitchen_chair || !r.visitor) {
+    throw UsageError("rare events need a weeks scene with addRareObjects applied");
+  }
+  return r;
+}
+
+}  // namespace
+
+const char* describe(RareKind kind) {
+  switch (kind) {
+    case RareKind::Parcel: return "a parcel left in the corridor at night";
+    case RareKind::ShelfItem: return "the box on the corridor shelf taken";
+    case RareKind::DoorAtNight: return "the meeting-room door open at night";
+    case RareKind::ChairInCorridor: return "a kitchen chair standing in the corridor";
+    case RareKind::PersonAtNight: return "a person in the corridor at night";
+  }
+  return "rare event";
+}
+
+void addRareObjects(SceneState& home, uint64_t seed) {
+  if (home.rooms.empty() || !weeksObjects(home).found) throw UsageError("rare events need the weeks preset");
+  uint32_t next_id = 0;
+  for (const Object& o : home.objects) next_id = std::max(next_id, o.id + 1);
+  Rng rng(mix(seed, 9600));
+  // A low shelf against the corridor's north wall near its east end, which never changes, with a
+  // box on it; the patrol passes it every session.
+  const Eigen::AlignedBox2d& corridor = home.rooms[0].area;
+  const double x0 = corridor.max().x() - 1.3, y1 = corridor.max().y();
+  Object shelf;
+  shelf.id = next_id++;
+  shelf.kind = ObjectKind::Shelf;
+  shelf.room = 0;
+  shelf.parts = {rareBox({x0, y1 - 0.35, 0.0}, {x0 + 0.9, y1, 0.9}, Rgb{110, 110, 120})};
+  home.objects.push_back(shelf);
+  const double x = x0 + 0.45 + rng.uniform(-0.15, 0.15);
+  Object item;
+  item.id = next_id++;
+  item.kind = ObjectKind::Box;
+  item.room = 0;
+  item.parts = {rareBox({x - 0.18, y1 - 0.3, 0.9}, {x + 0.18, y1 - 0.05, 1.2}, Rgb{200, 60, 40})};
+  home.objects.push_back(item);
+  // The parcel, absent at home; rareEventOf's sessions place it.
+  Object parcel;
+  parcel.id = next_id++;
+  parcel.kind = ObjectKind::Box;
+  parcel.room = 0;
+  parcel.parts = {rareBox({corridor.min().x() + 1.0, corridor.min().y() + 0.1, 0.0},
+                          {corridor.min().x() + 1.5, corridor.min().y() + 0.5, 0.45}, Rgb{170, 130, 80})};
+  parcel.present = false;
+  home.objects.push_back(parcel);
+}
+
+std::optional<RareKind> rareEventOf(uint64_t seed, int session, const std::vector<double>& times_s) {
+  const int sessions = static_cast<int>(times_s.size());
+  const int first = sessions - sessions / 4;
+  // 0 night (22:00-06:00), 1 day (07:00-22:00), -1 neither; a session has an event by chance.
+  auto slot = [&](int s) {
+    Rng rng(mix(seed, 9700 + static_cast<uint64_t>(s)));
+    if (!rng.chance(0.75)) return -1;
+    const double since = times_s[static_cast<size_t>(s)] - kScheduleStart_s;
+    const double h = (since - 86400.0 * std::floor(since / 86400.0)) / 3600.0;
+    if (h >= 22.0 || h < 6.0) return 0;
+    return h >= 7.0 ? 1 : -1;
+  };
+  if (session < std::max(first, 1) || session >= sessions) return std::nullopt;
+  const int mine = slot(session);
+  if (mine < 0) return std::nullopt;
+  // The kinds in turn: the n-th night (day) event of the last quarter takes the n-th night (day) kind.
+  int turn = 0;
+  for (int s = std::max(first, 1); s < session; ++s) turn += slot(s) == mine;
+  static constexpr RareKind kNight[3] = {RareKind::Parcel, RareKind::DoorAtNight, RareKind::PersonAtNight};
+  static constexpr RareKind kDay[2] = {RareKind::ShelfItem, RareKind::ChairInCorridor};
+  return mine == 0 ? kNight[turn % 3] : kDay[turn % 2];
+}
+
+std::vector<uint32_t> applyRareEvent(SceneState& state, const SceneState& home, uint64_t seed, int session, RareKind kind) {
+  const RareObjects r = rareObjects(home);
+  Rng rng(mix(seed, 9800 + static_cast<uint64_t>(session)));
+  const Eigen::AlignedBox2d& corridor = home.rooms[0].area;
+  // Somewhere along the corridor, clear of its ends.
+  const double along = rng.uniform(corridor.min().x() + 1.5, corridor.max().x() - 2.0);
+  auto find = [&](uint32_t id) -> Object& {
+    for (Object& o : state.objects) {
+      if (o.id == id) return o;
+    }
+    throw UsageError("rare events: object " + std::to_string(id) + " missing");
+  };
+  auto placeAt = [&](Object& o, const Object& at_home, const Eigen::Vector2d& where) {
+    o.parts = at_home.parts;
+    const Eigen::Vector2d d = where - centerOf(at_home);
+    translate(o, Eigen::Vector3d(d.x(), d.y(), 0.0));
+    o.present = true;
+  };
+  switch (kind) {
+    case RareKind::Parcel: {
+      Object& o = find(r.parcel->id);
+      placeAt(o, *r.parcel, {along, corridor.min().y() + 0.3});
+      return {o.id};
+    }
+    case RareKind::ShelfItem: {
+      Object& o = find(r.shelf_item->id);
+      o.present = false;
+      return {o.id};
+    }
+    case RareKind::DoorAtNight: {
+      Object& o = find(r.meeting_door->id);
+      o.present = false;  // a door present is a closed door
+      return {o.id};
+    }
+    case RareKind::ChairInCorridor: {
+      Object& o = find(r.kitchen_chair->id);
+      placeAt(o, *r.kitchen_chair, {along, corridor.max().y() - 0.35});
+      return {o.id};
+    }
+    case RareKind::PersonAtNight: {
+      Object& o = find(r.visitor->id);
+      placeAt(o, *r.visitor, {along, corridor.center().y() + 0.45});
+      return {o.id};
+    }
+  }
+  return {};
 }
 
 }  // namespace chronomap::sim

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -136,19 +137,54 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
   nlohmann::json sessions_json = nlohmann::json::array(), events_json = nlohmann::json::array();
   std::vector<VoxelKey> previous_truth;
   SceneState previous_state;
+  if (settings.rare_events) {
+    if (!rhythmic) throw UsageError("--rare-events needs the weeks preset");
+    addRareObjects(state, settings.seed);
+  }
   const SceneState home = state;
+  std::vector<uint32_t> rare_before;  // the objects the previous session's rare event changed
+  nlohmann::json rare_json = nlohmann::json::array();
   for (int s = 0; s < sessions; ++s) {
     // Each change with its cause: a routine of the schedule, or the random processes.
     std::vector<ScheduledChange> changes;
     if (rhythmic) {
+      const SceneState before = state;
       changes = applySchedule(state, home, settings.seed, times[static_cast<size_t>(s)]);
+      if (settings.rare_events) {
+        // The schedule, then the session's rare event on top; each change labelled with its cause.
+        std::map<uint32_t, std::string> routine_of;
+        for (const Routine& r : routinesOf(home)) {
+          for (uint32_t id : r.objects) routine_of[id] = r.name;
+        }
+        std::vector<uint32_t> rare_now;
+        const auto rare = rareEventOf(settings.seed, s, times);
+        if (rare) {
+          rare_now = applyRareEvent(state, home, settings.seed, s, *rare);
+          rare_json.push_back({{"session", s}, {"what", describe(*rare)}, {"objects", rare_now}});
+        }
+        changes = objectChanges(before, state);
+        for (ScheduledChange& c : changes) {
+          const auto in = [&](const std::vector<uint32_t>& ids) {
+            return std::find(ids.begin(), ids.end(), c.object) != ids.end();
+          };
+          const auto r = routine_of.find(c.object);
+          c.routine = r == routine_of.end() ? std::string() : r->second;
+          if (in(rare_now)) {
+            c.cause = "rare";
+            c.routine = describe(*rare);
+          } else if (in(rare_before)) {
+            c.cause = "after_rare";
+          }
+        }
+        rare_before = rare_now;
+      }
       if (s == 0) changes.clear();  // the first session's state is where the history starts
     } else if (s > 0) {
       for (const auto& [id, kind] : applyChanges(state, settings.seed, s)) changes.push_back({id, kind, {}});
     }
     const std::vector<VoxelKey> truth = truthOccupancy(state, grid);
     // Change events with the truth voxels each one changes.
-    for (const auto& [id, kind, routine] : changes) {
+    for (const auto& [id, kind, routine, cause] : changes) {
       ChangeEvent e = detail::changeEvent(id, kind, previous_state, state, previous_truth, truth, grid);
       e.from_session = static_cast<uint32_t>(s - 1);
       if (e.voxels.empty()) continue;  // hidden by other objects: nothing a map could see
@@ -159,7 +195,7 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
                              {"object", e.object},
                              {"object_kind", toString(e.object_kind)},
                              {"kind", toString(e.kind)},
-                             {"cause", rhythmic ? "routine" : "random"},
+                             {"cause", rhythmic ? cause : "random"},
                              {"routine", routine},
                              {"voxel_count", e.voxels.size()},
                              {"voxels", voxels}});
@@ -277,6 +313,7 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
                          {"clock", "UTC"},
                          {"routines", routines},
                          {"days", days}};
+    if (settings.rare_events) scene["schedule"]["rare_events"] = rare_json;
   }
   for (const Room& r : state.rooms) {
     scene["rooms"].push_back({{"name", r.name},

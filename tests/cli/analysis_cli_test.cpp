@@ -189,3 +189,74 @@ TEST(AnalysisCli, BadInputGetsOneClearMessage) {
 
 }  // namespace
 }  // namespace chronomap
+
+namespace chronomap {
+namespace {
+
+/// A session observing a 16 x 8 x 4 block, free but for a 3 x 3 x 3 box at x0 (none when < 0).
+SessionMap blockWithBox(int x0) {
+  SessionMap s(0.05);
+  for (int z = 0; z < 4; ++z) {
+    for (int y = 0; y < 8; ++y) {
+      for (int x = 0; x < 16; ++x) {
+        const bool box = x0 >= 0 && x >= x0 && x < x0 + 3 && y >= 2 && y < 5 && z >= 1;
+        s.add(at(x, y, z), box ? occupied() : freeVoxel());
+      }
+    }
+  }
+  return s;
+}
+
+TEST(AnalysisCli, AlertsRankTheSessionsChangesWithReasons) {
+  test::TempDir tmp;
+  // Twelve sessions, twice a day: a box at x 2 every morning, gone every evening; in the last
+  // (a morning) it comes back and a second box stands at x 10, where nothing ever stood.
+  TemporalMap map(0.05);
+  const double monday = 1330905600.0;
+  for (int i = 0; i < 12; ++i) map.add(monday + 86400.0 * (i / 2) + 3600.0 * (i % 2 ? 20.0 : 9.0), blockWithBox(i % 2 ? -1 : 2));
+  const double last = monday + 86400.0 * 6 + 3600.0 * 9.0;
+  SessionMap both = blockWithBox(2);
+  both.merge(blockWithBox(10));
+  map.add(last, both);
+  io::writeTemporalMap(tmp / "m.cmap", map, {});
+  const std::string m = (tmp / "m.cmap").string();
+  auto r = test::runCommand(cli() + " alerts " + m + " --at 2012-03-11T09:00:00Z --json --min-voxels 5");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["alerts"].size(), 2u);
+  EXPECT_EQ(j["history_sessions"], 12);
+  EXPECT_EQ(j["alerts"][0]["rank"], 1);
+  EXPECT_EQ(j["alerts"][0]["reason"], "this space was free in all 12 earlier observations");
+  EXPECT_GT(j["alerts"][0]["centroid"][0].get<double>(), j["alerts"][1]["centroid"][0].get<double>());
+  EXPECT_GT(j["alerts"][0]["score_bits"].get<double>(), j["alerts"][1]["score_bits"].get<double>() + 2.0);
+  // --top 1 lists one; -o writes the pictures and a PLY per object.
+  r = test::runCommand(cli() + " alerts " + m + " --at 2012-03-11T09:00:00Z --top 1 --min-voxels 5 -o " +
+                       (tmp / "out").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("2 changed objects"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("  2. "), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("free in all 12 earlier observations"), std::string::npos) << r.out;
+  for (const char* f : {"alerts.json", "alerts.png", "alert_01.png", "alert_01.ply"}) {
+    EXPECT_TRUE(fs::exists(tmp / "out" / f)) << f;
+  }
+  EXPECT_FALSE(fs::exists(tmp / "out" / "alert_02.ply"));
+  // Bad input: one line naming what is wrong.
+  io::writeFileAtomic(tmp / "bad.cmap", std::vector<uint8_t>{'n', 'o', 'p', 'e'});
+  const std::pair<std::string, std::string> bad[] = {
+      {m + " --at 2012-03-11T10:00:00Z", "no session of the map lies at 2012-03-11T10:00:00"},
+      {m + " --at 2012-03-05T09:00:00Z", "first session"},
+      {m + " --at never", "neither ISO-8601"},
+      {(tmp / "bad.cmap").string() + " --at 2012-03-11T09:00:00Z", "bad.cmap"},
+      {(tmp / "missing.cmap").string() + " --at 2012-03-11T09:00:00Z", "missing.cmap"},
+      {m + " --at 2012-03-11T09:00:00Z --neighbourhood 9", "--neighbourhood"},
+  };
+  for (const auto& [args, message] : bad) {
+    r = test::runCommand(cli() + " alerts " + args);
+    EXPECT_NE(r.exit_code, 0) << args;
+    EXPECT_NE(r.err.find(message), std::string::npos) << args << ": " << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
+}
+
+}  // namespace
+}  // namespace chronomap

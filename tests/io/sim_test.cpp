@@ -230,6 +230,57 @@ TEST(Simulator, TheWeeksPresetFollowsItsScheduleAndSaysSo) {
   for (const auto& e : office_scene["events"]) EXPECT_EQ(e["cause"], "random");
 }
 
+TEST(Simulator, RareEventsAreLabelledInTheTruth) {
+  // Eight sessions of the weeks preset with rare events: the last quarter (sessions 6 and 7)
+  // holds them, as rareEventOf() says; each is an event labelled rare, with its voxels, and the
+  // next session's undoing of it is labelled after_rare.
+  test::TempDir tmp;
+  sim::SimulationSettings s;
+  s.preset = "weeks";
+  s.sessions = 8;
+  s.resolution_scale = 0.1;
+  s.rare_events = true;
+  const sim::SimulationSummary summary = sim::simulate(s, tmp.path());
+  const auto scene = nlohmann::json::parse(io::readTextFile(tmp / "scene.json"));
+  const auto& rare = scene["schedule"]["rare_events"];
+  size_t expected = 0;
+  for (int i = 0; i < 8; ++i) {
+    const auto kind = sim::rareEventOf(s.seed, i, summary.times_s);
+    if (!kind) continue;
+    ASSERT_LT(expected, rare.size());
+    EXPECT_EQ(rare[expected]["session"], i);
+    EXPECT_EQ(rare[expected]["what"], sim::describe(*kind));
+    ++expected;
+  }
+  EXPECT_EQ(rare.size(), expected);
+  ASSERT_GE(expected, 1u);
+  std::set<int> rare_sessions;
+  size_t labelled = 0;
+  for (const auto& e : scene["events"]) {
+    const std::string cause = e["cause"];
+    EXPECT_TRUE(cause == "routine" || cause == "rare" || cause == "after_rare") << cause;
+    if (cause != "rare") continue;
+    ++labelled;
+    EXPECT_GT(e["voxel_count"].get<size_t>(), 100u);
+    EXPECT_EQ(e["voxels"].size(), e["voxel_count"].get<size_t>());
+    rare_sessions.insert(e["to_session"].get<int>());
+  }
+  EXPECT_GE(labelled, 1u);
+  for (const auto& e : scene["events"]) {
+    if (e["cause"] == "after_rare") {
+      EXPECT_TRUE(rare_sessions.count(e["to_session"].get<int>() - 1)) << e.dump();
+    }
+  }
+  // readTruthEvents keeps the cause and what happened.
+  size_t read_rare = 0;
+  for (const sim::ChangeEvent& e : sim::readTruthEvents(tmp / "scene.json")) read_rare += e.cause == "rare";
+  EXPECT_EQ(read_rare, labelled);
+  // Not for the other presets.
+  s.preset = "office";
+  test::TempDir office;
+  EXPECT_THROW(sim::simulate(s, office.path()), UsageError);
+}
+
 TEST(Simulator, TinySessionWithTruePosesMatchesTheTruth) {
   test::TempDir tmp;
   sim::SimulationSettings s;

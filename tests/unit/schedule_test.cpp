@@ -1,10 +1,12 @@
 // The rhythmic building's schedule (preset "weeks"): known states at known times.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <map>
 #include <set>
 #include <string>
 
+#include "chronomap/core/error.h"
 #include "chronomap/sim/scene.h"
 #include "sim/internal.h"
 
@@ -164,6 +166,99 @@ TEST(Schedule, LunchAndCleaningKeepTheirHours) {
   EXPECT_FALSE(object(s, r.at("lunch").back()).present);
   applySchedule(s, home, kSeed, at(saturday, 19.5));
   EXPECT_FALSE(object(s, r.at("cleaning")[0]).present);
+}
+
+}  // namespace
+}  // namespace chronomap::sim
+
+namespace chronomap::sim {
+namespace {
+
+bool inCorridor(const SceneState& home, const Object& o) {
+  return home.rooms[0].area.contains(detail::centerOf(o));
+}
+
+TEST(Schedule, RareEventsChangeWhatTheyName) {
+  const SceneState plain = makeScene("weeks", kSeed);
+  SceneState home = plain;
+  addRareObjects(home, kSeed);
+  ASSERT_EQ(home.objects.size(), plain.objects.size() + 3);
+  EXPECT_EQ(home.objects[home.objects.size() - 3].kind, ObjectKind::Shelf);
+  const Object& item = home.objects[home.objects.size() - 2];
+  const Object& parcel = home.objects.back();
+  EXPECT_TRUE(item.present);  // on the corridor shelf, always
+  EXPECT_FALSE(parcel.present);
+  EXPECT_TRUE(inCorridor(home, item));
+  const auto r = routines(home);
+  struct Case {
+    RareKind kind;
+    uint32_t object;
+    EventKind event;
+    bool corridor;  // ends up in the corridor
+  };
+  const Case cases[] = {{RareKind::Parcel, parcel.id, EventKind::Appeared, true},
+                        {RareKind::ShelfItem, item.id, EventKind::Left, false},
+                        {RareKind::DoorAtNight, r.at("meeting-room door")[0], EventKind::DoorOpened, false},
+                        {RareKind::ChairInCorridor, r.at("lunch")[0], EventKind::Moved, true},
+                        {RareKind::PersonAtNight, 0, EventKind::Appeared, true}};
+  for (const Case& c : cases) {
+    SceneState s = home;
+    applySchedule(s, home, kSeed, at(2, 3.0));  // a Wednesday, 03:00: every door shut
+    const SceneState before = s;
+    const std::vector<uint32_t> changed = applyRareEvent(s, home, kSeed, 50, c.kind);
+    const std::vector<ScheduledChange> changes = objectChanges(before, s);
+    ASSERT_EQ(changes.size(), 1u) << describe(c.kind);
+    ASSERT_EQ(changed, std::vector<uint32_t>{changes[0].object}) << describe(c.kind);
+    if (c.object != 0) {
+      EXPECT_EQ(changes[0].object, c.object) << describe(c.kind);
+    }
+    EXPECT_EQ(changes[0].kind, c.event) << describe(c.kind);
+    const Object& o = object(s, changes[0].object);
+    if (c.kind == RareKind::PersonAtNight) {
+      EXPECT_EQ(o.kind, ObjectKind::Person);
+    }
+    if (c.corridor) {
+      EXPECT_TRUE(inCorridor(home, o)) << describe(c.kind);
+    }
+    // The next session's schedule undoes it.
+    SceneState next = s;
+    const auto undone = applySchedule(next, home, kSeed, at(2, 4.0));
+    ASSERT_EQ(undone.size(), 1u) << describe(c.kind);
+    EXPECT_EQ(undone[0].object, changes[0].object);
+  }
+  // The same seed and session place it the same; a plain weeks scene has no rare objects.
+  SceneState a = home, b = home;
+  applyRareEvent(a, home, kSeed, 50, RareKind::Parcel);
+  applyRareEvent(b, home, kSeed, 50, RareKind::Parcel);
+  EXPECT_EQ(detail::centerOf(object(a, parcel.id)), detail::centerOf(object(b, parcel.id)));
+  SceneState no_rare = plain;
+  EXPECT_THROW(applyRareEvent(no_rare, plain, kSeed, 50, RareKind::Parcel), UsageError);
+  SceneState office = makeScene("office", kSeed);
+  EXPECT_THROW(addRareObjects(office, kSeed), UsageError);
+}
+
+TEST(Schedule, RareEventsFallInTheLastQuarterAtFittingHours) {
+  // Two sessions a day for four weeks at varied hours.
+  std::vector<double> times;
+  for (int i = 0; i < 56; ++i) times.push_back(at(i / 2, std::fmod(5.3 * i, 12.0) + (i % 2 ? 12.0 : 0.0)));
+  int night = 0, day = 0;
+  std::set<RareKind> kinds;
+  for (int s = 0; s < 56; ++s) {
+    const auto k = rareEventOf(kSeed, s, times);
+    EXPECT_EQ(k, rareEventOf(kSeed, s, times));  // deterministic
+    if (!k) continue;
+    EXPECT_GE(s, 42) << "session " << s;
+    kinds.insert(*k);
+    const double h = std::fmod((times[static_cast<size_t>(s)] - kScheduleStart_s) / 3600.0, 24.0);
+    const bool at_night = *k == RareKind::Parcel || *k == RareKind::DoorAtNight || *k == RareKind::PersonAtNight;
+    EXPECT_EQ(at_night, h >= 22.0 || h < 6.0) << describe(*k) << " at " << h;
+    if (!at_night) {
+      EXPECT_GE(h, 7.0);
+    }
+    (at_night ? night : day) += 1;
+  }
+  EXPECT_GE(night + day, 5);
+  EXPECT_GE(kinds.size(), 4u);
 }
 
 }  // namespace

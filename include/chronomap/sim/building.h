@@ -31,6 +31,9 @@ struct SimulationSettings {
   double localisation_yaw_deg = 0.3;     ///< sigma of the per-session heading offset
   double drift_per_frame_m = 0.002;      ///< sigma of the position random walk per frame
   int threads = 0;                ///< 0: all cores
+  /// "weeks" only: rare events on top of the routines (sim::rareEventOf), labelled "rare" in
+  /// scene.json. Off, the simulation is what it was before rare events existed.
+  bool rare_events = false;
 };
 
 /// What simulate() wrote.

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -69,6 +70,12 @@ struct ChangeEvent {
   ObjectKind object_kind = ObjectKind::Box;
   EventKind kind = EventKind::Moved;
   std::vector<VoxelKey> voxels;  ///< truth voxels whose occupancy differs because of it
+  /// Why it happened (scene.json "cause"): "random" (the random processes), "routine" (the
+  /// rhythmic building's schedule), "rare" (a rare event, SimulationSettings::rare_events) or
+  /// "after_rare" (the schedule undoing a rare event at the next session). Empty in scenes
+  /// written before causes were recorded.
+  std::string cause;
+  std::string routine;  ///< the routine or the rare event, in words ("meetings", "a parcel left ...")
 };
 
 /// A routine of the rhythmic building (preset "weeks"): objects whose state follows the clock.
@@ -95,12 +102,36 @@ struct ScheduledChange {
   uint32_t object = 0;
   EventKind kind = EventKind::Moved;
   std::string routine;
+  std::string cause = "routine";  ///< "routine", "rare" or "after_rare" (see ChangeEvent::cause)
 };
 /// Sets `state` to the rhythmic building's true state at `time_s`: every routine object placed
 /// from `home` (makeScene("weeks", seed)) by the clock and the day's exceptions, everything else
 /// as at home. Returns the objects that differ from what `state` held before, with the routine
 /// responsible.
 std::vector<ScheduledChange> applySchedule(SceneState& state, const SceneState& home, uint64_t seed, double time_s);
+
+/// The changes of every object from `before` to `after` (the same scene in two states): a door
+/// opened or closed, an object that appeared, left or moved by more than a centimetre.
+std::vector<ScheduledChange> objectChanges(const SceneState& before, const SceneState& after);
+
+/// The rare events of the rhythmic building (SimulationSettings::rare_events), each lasting one
+/// session on top of the schedule: a parcel left in the corridor at night, the box on the
+/// corridor shelf taken (it never moves otherwise), the meeting-room door open at night, a kitchen
+/// chair standing in the corridor, a person in the corridor at night.
+enum class RareKind : uint8_t { Parcel, ShelfItem, DoorAtNight, ChairInCorridor, PersonAtNight };
+/// "parcel left in the corridor at night", ...
+const char* describe(RareKind kind);
+/// Adds the objects the rare events need to a "weeks" home scene, with new ids after every other
+/// object: a shelf against the corridor's north wall and the box on it (present), and the parcel
+/// (absent). @throw UsageError for a scene that is not the weeks preset's.
+void addRareObjects(SceneState& home, uint64_t seed);
+/// The rare event of session `session` (of the sessions at `times_s`), if any: one in most
+/// sessions of the last quarter (the test week of four), of a kind that fits the hour (the night
+/// kinds between 22:00 and 06:00, the others between 07:00 and 22:00), each kind in turn.
+std::optional<RareKind> rareEventOf(uint64_t seed, int session, const std::vector<double>& times_s);
+/// Applies a rare event to a state the schedule made (on a home from addRareObjects); returns
+/// the objects it changed.
+std::vector<uint32_t> applyRareEvent(SceneState& state, const SceneState& home, uint64_t seed, int session, RareKind kind);
 
 /// The building of a preset in its first session's state.
 /// @throw UsageError for an unknown preset.
