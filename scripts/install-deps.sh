@@ -8,7 +8,9 @@ packages=(build-essential cmake pkg-config libeigen3-dev libtbb-dev libcli11-dev
           # ROS 1 bags: librosbag and the generated message headers; the tests write bags with
           # Debian's python3-rosbag and read the simulator's PNGs with python3-pil.
           librosbag-dev libsensor-msgs-dev libgeometry-msgs-dev libnav-msgs-dev libtf2-msgs-dev
-          python3-rosbag python3-sensor-msgs python3-geometry-msgs python3-nav-msgs python3-tf2-msgs python3-pil)
+          python3-rosbag python3-sensor-msgs python3-geometry-msgs python3-nav-msgs python3-tf2-msgs python3-pil
+          # ROS 2 bags: MCAP chunks in lz4 (zstd above), and the SQLite storage (.db3).
+          liblz4-dev libsqlite3-dev)
 # The viewer's tests run node (three.js, esbuild and puppeteer-core come from npm, viewer/
 # package-lock.json); any node 18 or newer will do, Debian's when none is installed.
 command -v node >/dev/null || packages+=(nodejs)
