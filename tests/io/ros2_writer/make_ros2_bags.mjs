@@ -3,7 +3,9 @@
 // frames) and @bokuweb/zstd-wasm (zstd), or stored without chunks.
 //
 //   node make_ros2_bags.mjs TUM_FOLDER OUT_FOLDER   (the bags the tests read)
-//   node make_ros2_bags.mjs --seeds OUT_FOLDER      (tiny bags: the fuzz target's seeds)
+//   node make_ros2_bags.mjs --seeds MCAP_FOLDER CDR_FOLDER
+//       (the fuzz targets' seeds: tiny bags for fuzz_mcap; for fuzz_cdr one message of each type
+//       behind the byte that picks its decoder, as fuzz/fuzz_readers.cpp reads them)
 //
 // Like tests/io/make_ros1_bags.py: depth stays in the TUM PNG's units (5000 per metre) in 16UC1
 // images, header stamps are depth.txt's, poses are trajectory.txt's numbers.
@@ -321,6 +323,17 @@ async function main() {
     await write(path.join(out, "lz4.mcap"), intr, frames, { storage: "lz4", chunkSize: 512 });
     await write(path.join(out, "zstd.mcap"), intr, frames, { storage: "zstd", pose: "tf" });
     await write(path.join(out, "odometry.mcap"), intr, frames, { storage: "none", pose: "odometry" });
+    const cdr = args[2];
+    fs.mkdirSync(cdr, { recursive: true });
+    const f = frames[1], s = f.stamp;
+    const seed = (name, selector, type, msg) =>
+      fs.writeFileSync(path.join(cdr, name), Buffer.concat([Buffer.from([selector]), writers[type].writeMessage(msg)]));
+    seed("color", 0, "sensor_msgs/msg/Image", image(s, "cam", 8, 6, "rgb8", 3, f.rgb));
+    seed("depth", 1, "sensor_msgs/msg/Image", image(s, "cam", 8, 6, "16UC1", 2, f.depth));
+    seed("info", 3, "sensor_msgs/msg/CameraInfo", info(s, "cam", intr, 8, 6));
+    seed("tf", 4, "tf2_msgs/msg/TFMessage", { transforms: [transform(s, "map", "cam", f.pose), transform(s, "odom", "base", f.pose)] });
+    seed("odometry", 5, "nav_msgs/msg/Odometry", odometry(s, "cam", f.pose));
+    seed("pose", 6, "geometry_msgs/msg/PoseStamped", { header: header(s, "map"), pose: { position: point(f.pose[0]), orientation: quat(f.pose[1]) } });
     return;
   }
   const [tum, out] = args;
