@@ -236,6 +236,27 @@ TEST_F(Ros2BagTest, FramesMatchTheTumReadersAndAFrameDecodesTheSameFromEveryStor
   }
 }
 
+// PointCloud2 (x, y, z FLOAT32 computed from the depth image in JavaScript, packed rgb): the
+// TUM reader's points within 1e-6 m and its colours exactly.
+TEST_F(Ros2BagTest, PointCloud2TopicsGiveTheSamePointsAndColours) {
+  const auto from_tum = openDataset(tum());
+  const auto from_bag = openDataset(bag("points.mcap"));
+  ASSERT_EQ(from_bag->size(), from_tum->size());
+  const Frame a = from_tum->load(4), b = from_bag->load(4);
+  ASSERT_EQ(b.cloud.width, a.cloud.width);
+  ASSERT_EQ(b.cloud.height, a.cloud.height);
+  EXPECT_TRUE(a.cloud.colors == b.cloud.colors);
+  size_t finite = 0;
+  for (size_t p = 0; p < a.cloud.size(); ++p) {
+    EXPECT_EQ(std::isfinite(a.cloud.points[p].z()), std::isfinite(b.cloud.points[p].z())) << p;
+    if (std::isfinite(a.cloud.points[p].z())) {
+      ++finite;
+      ASSERT_LT((a.cloud.points[p] - b.cloud.points[p]).norm(), 1e-6f) << p;
+    }
+  }
+  EXPECT_GT(finite, a.cloud.size() / 2);
+}
+
 // The ROS 1 bag of the same frames (Debian's python3-rosbag) gives the same map as well.
 TEST_F(Ros2BagTest, TheRos1BagOfTheSameFramesGivesTheSameMap) {
   if (!rosBagSupported()) GTEST_SKIP() << "built without ROS 1 bags";

@@ -39,6 +39,11 @@ const DEFS = {
     "float64[9] r\nfloat64[12] p\nuint32 binning_x\nuint32 binning_y\nsensor_msgs/RegionOfInterest roi" +
     TIME_HEADER +
     dep("sensor_msgs/RegionOfInterest", "uint32 x_offset\nuint32 y_offset\nuint32 height\nuint32 width\nbool do_rectify"),
+  "sensor_msgs/msg/PointCloud2":
+    "std_msgs/Header header\nuint32 height\nuint32 width\nPointField[] fields\nbool is_bigendian\n" +
+    "uint32 point_step\nuint32 row_step\nuint8[] data\nbool is_dense" +
+    TIME_HEADER +
+    dep("sensor_msgs/PointField", "uint8 FLOAT32 = 7\nuint8 UINT32 = 6\nstring name\nuint32 offset\nuint8 datatype\nuint32 count"),
   "geometry_msgs/msg/PoseStamped": "std_msgs/Header header\ngeometry_msgs/Pose pose" + TIME_HEADER + POSE,
   "nav_msgs/msg/Odometry":
     "std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/PoseWithCovariance pose\n" +
@@ -227,6 +232,33 @@ const odometry = (stamp, child, [t, q]) => ({
   twist: { twist: { linear: point([0, 0, 0]), angular: point([0, 0, 0]) }, covariance: zeros36 },
 });
 
+/// The depth image back-projected as the TUM reader does (x, y, z FLOAT32, NaN without depth),
+/// with colour packed as 0x00RRGGBB in an `rgb` field, as make_ros1_bags.py writes it.
+function cloud(stamp, frame, f, [fx, fy, cx, cy]) {
+  const n = f.width * f.height, data = new Uint8Array(16 * n), view = new DataView(data.buffer);
+  for (let v = 0; v < f.height; v++) {
+    for (let u = 0; u < f.width; u++) {
+      const i = v * f.width + u, raw = f.depth[2 * i] | (f.depth[2 * i + 1] << 8), z = raw / 5000.0;
+      view.setFloat32(16 * i, raw > 0 ? ((u - cx) * z) / fx : NaN, true);
+      view.setFloat32(16 * i + 4, raw > 0 ? ((v - cy) * z) / fy : NaN, true);
+      view.setFloat32(16 * i + 8, raw > 0 ? z : NaN, true);
+      view.setUint32(16 * i + 12, (f.rgb[3 * i] << 16) | (f.rgb[3 * i + 1] << 8) | f.rgb[3 * i + 2], true);
+    }
+  }
+  const field = (name, offset) => ({ name, offset, datatype: 7, count: 1 });
+  return {
+    header: header(stamp, frame),
+    height: f.height,
+    width: f.width,
+    fields: [field("x", 0), field("y", 4), field("z", 8), field("rgb", 12)],
+    is_bigendian: false,
+    point_step: 16,
+    row_step: 16 * f.width,
+    data,
+    is_dense: false,
+  };
+}
+
 /// An in-memory IWritable.
 class Sink {
   constructor() {
@@ -248,7 +280,7 @@ const COMPRESSORS = {
   zstd: (data) => ({ compression: "zstd", compressedData: zstdCompress(data, 3) }),
 };
 
-async function write(file, intr, frames, { storage = "lz4", pose = "pose_stamped", summary = true, chunkSize = 64 * 1024 } = {}) {
+async function write(file, intr, frames, { storage = "lz4", pose = "pose_stamped", summary = true, chunkSize = 64 * 1024, points = false } = {}) {
   const sink = new Sink();
   const chunked = storage !== "unchunked";
   const writer = new McapWriter({
@@ -281,9 +313,13 @@ async function write(file, intr, frames, { storage = "lz4", pose = "pose_stamped
   }
   for (const f of frames) {
     const s = f.stamp;
-    await publish("/camera/depth/image_raw", "sensor_msgs/msg/Image", image(s, camera, f.width, f.height, "16UC1", 2, f.depth), s);
-    await publish("/camera/depth/camera_info", "sensor_msgs/msg/CameraInfo", info(s, camera, intr, f.width, f.height), s);
-    await publish("/camera/rgb/image_raw", "sensor_msgs/msg/Image", image(s, "camera_rgb_optical_frame", f.width, f.height, "rgb8", 3, f.rgb), s);
+    if (points) {
+      await publish("/camera/depth/points", "sensor_msgs/msg/PointCloud2", cloud(s, camera, f, intr), s);
+    } else {
+      await publish("/camera/depth/image_raw", "sensor_msgs/msg/Image", image(s, camera, f.width, f.height, "16UC1", 2, f.depth), s);
+      await publish("/camera/depth/camera_info", "sensor_msgs/msg/CameraInfo", info(s, camera, intr, f.width, f.height), s);
+      await publish("/camera/rgb/image_raw", "sensor_msgs/msg/Image", image(s, "camera_rgb_optical_frame", f.width, f.height, "rgb8", 3, f.rgb), s);
+    }
     if (pose === "pose_stamped") {
       await publish("/camera_pose", "geometry_msgs/msg/PoseStamped", {
         header: header(s, "map"),
@@ -323,6 +359,7 @@ async function main() {
     await write(path.join(out, "lz4.mcap"), intr, frames, { storage: "lz4", chunkSize: 512 });
     await write(path.join(out, "zstd.mcap"), intr, frames, { storage: "zstd", pose: "tf" });
     await write(path.join(out, "odometry.mcap"), intr, frames, { storage: "none", pose: "odometry" });
+    await write(path.join(out, "points.mcap"), intr, frames, { storage: "lz4", points: true });
     const cdr = args[2];
     fs.mkdirSync(cdr, { recursive: true });
     const f = frames[1], s = f.stamp;
@@ -330,6 +367,7 @@ async function main() {
       fs.writeFileSync(path.join(cdr, name), Buffer.concat([Buffer.from([selector]), writers[type].writeMessage(msg)]));
     seed("color", 0, "sensor_msgs/msg/Image", image(s, "cam", 8, 6, "rgb8", 3, f.rgb));
     seed("depth", 1, "sensor_msgs/msg/Image", image(s, "cam", 8, 6, "16UC1", 2, f.depth));
+    seed("cloud", 2, "sensor_msgs/msg/PointCloud2", cloud(s, "cam", f, intr));
     seed("info", 3, "sensor_msgs/msg/CameraInfo", info(s, "cam", intr, 8, 6));
     seed("tf", 4, "tf2_msgs/msg/TFMessage", { transforms: [transform(s, "map", "cam", f.pose), transform(s, "odom", "base", f.pose)] });
     seed("odometry", 5, "nav_msgs/msg/Odometry", odometry(s, "cam", f.pose));
@@ -348,6 +386,7 @@ async function main() {
     "pose_zstd_nosummary.mcap": { storage: "zstd", summary: false },
     "odometry.mcap": { storage: "zstd", pose: "odometry" },
     "tf.mcap": { storage: "lz4", pose: "tf" },
+    "points.mcap": { storage: "zstd", points: true },
   };
   for (const [name, options] of Object.entries(bags)) await write(path.join(out, name), intr, frames, options);
 }
