@@ -524,5 +524,30 @@ TEST(Cdr, TruncatedAndForeignMessagesAreFormatErrors) {
   EXPECT_THROW(cdr::header(str.bytes, "h"), FormatError);
 }
 
+// Found by fuzz_cdr: a cloud of 4 billion rows of width 0 (fits any data: 0 bytes) walked every
+// row. It is an empty cloud, returned at once.
+TEST(Cdr, AnEmptyCloudWithBillionsOfRowsIsEmptyAtOnce) {
+  CdrBuilder c;
+  c.header(1, 0, "cam");
+  c.put<uint32_t>(0xfa000000u);  // height
+  c.put<uint32_t>(0);            // width
+  c.put<uint32_t>(3);            // fields
+  for (const char* name : {"x", "y", "z"}) {
+    c.str(name);
+    c.put<uint32_t>(static_cast<uint32_t>(4 * (name[0] - 'x')));
+    c.put<uint8_t>(7);
+    c.put<uint32_t>(1);
+  }
+  c.put<uint8_t>(0);
+  c.put<uint32_t>(12);  // point_step
+  c.put<uint32_t>(0);   // row_step
+  c.put<uint32_t>(0);   // data
+  c.put<uint8_t>(1);
+  const cdr::Cloud cloud = cdr::cloud(c.bytes, "cloud");
+  EXPECT_EQ(cloud.view.height, 0xfa000000u);
+  const PointCloud points = rosmsg::pointCloud(cloud.view, "cloud");
+  EXPECT_EQ(points.size(), 0u);
+}
+
 }  // namespace
 }  // namespace chronomap::io
