@@ -22,6 +22,14 @@ add_library(chronomap_lzf INTERFACE)
 target_include_directories(chronomap_lzf SYSTEM INTERFACE ${LZF_INCLUDE_DIR})
 target_link_libraries(chronomap_lzf INTERFACE ${LZF_LIBRARY})
 
+# ROS 2 bags: lz4 frames inside MCAP chunks, and SQLite for the .db3 storage.
+find_path(LZ4_INCLUDE_DIR lz4frame.h REQUIRED)
+find_library(LZ4_LIBRARY lz4 REQUIRED)
+add_library(chronomap_lz4 INTERFACE)
+target_include_directories(chronomap_lz4 SYSTEM INTERFACE ${LZ4_INCLUDE_DIR})
+target_link_libraries(chronomap_lz4 INTERFACE ${LZ4_LIBRARY})
+find_package(SQLite3 REQUIRED)
+
 add_library(chronomap_octomap INTERFACE)
 target_include_directories(chronomap_octomap SYSTEM INTERFACE ${OCTOMAP_INCLUDE_DIRS})
 target_link_libraries(chronomap_octomap INTERFACE ${OCTOMAP_LIBRARIES})

@@ -30,6 +30,17 @@
 #if defined(FUZZ_ROSMSG)
 #include "io/ros_messages.h"
 #endif
+#if defined(FUZZ_MCAP)
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "chronomap/io/rosbag.h"
+#endif
+#if defined(FUZZ_CDR)
+#include "io/cdr.h"
+#endif
 
 namespace {
 
@@ -155,6 +166,47 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
       io::rosmsg::pointCloud(cloud, name);
       break;
     }
+  }
+#elif defined(FUZZ_MCAP)
+  // The ROS 2 MCAP reader (chronomap's own, src/io/mcap.cpp) reads files: the input goes to a
+  // file of this process, then through the listing and the dataset reader (topics detected,
+  // poses from a pose topic or /tf into "map"), loading the first frames.
+  static const std::filesystem::path path =
+      std::filesystem::temp_directory_path() / ("chronomap-fuzz-" + std::to_string(::getpid()) + ".mcap");
+  std::ofstream(path, std::ios::binary | std::ios::trunc)
+      .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  io::listBag(path);
+  for (const char* fixed_frame : {"", "map"}) {
+    try {
+      io::DatasetSettings settings;
+      settings.format = io::DatasetFormat::Ros2Bag;
+      settings.bag.fixed_frame = fixed_frame;
+      const auto dataset = io::openDataset(path, settings);
+      for (size_t i = 0; i < dataset->size() && i < 4; ++i) dataset->load(i);
+    } catch (const Error&) {
+    }
+  }
+#elif defined(FUZZ_CDR)
+  // The CDR decoders of ROS 2 messages: the first byte picks the message type, the rest is the
+  // message (encapsulation header first); images and clouds go on through ros_messages.
+  if (bytes.empty()) return;
+  const std::span<const uint8_t> msg(bytes.data() + 1, bytes.size() - 1);
+  switch (bytes[0] % 7) {
+    case 0: {
+      const auto im = io::cdr::image(msg, name);
+      io::rosmsg::colorImage(im.view, name);
+      break;
+    }
+    case 1: {
+      const auto im = io::cdr::image(msg, name);
+      io::rosmsg::depthCloud(im.view, nullptr, CameraIntrinsics{100.0, 100.0, 32.0, 24.0}, 1000.0, name);
+      break;
+    }
+    case 2: io::rosmsg::pointCloud(io::cdr::cloud(msg, name).view, name); break;
+    case 3: io::cdr::cameraInfo(msg, name); break;
+    case 4: io::cdr::tfMessage(msg, name); break;
+    case 5: io::cdr::odometry(msg, name); break;
+    default: io::cdr::poseStamped(msg, name); break;
   }
 #else
 #error "define one FUZZ_* target"

@@ -19,7 +19,7 @@ fi
 cmake --preset fuzz >/dev/null
 # Only the fuzz targets and the modules they link (not the command line or the simulator).
 cmake --build --preset fuzz -j"$(nproc)" --target fuzz_cmap fuzz_pcd fuzz_ply fuzz_xyz fuzz_png fuzz_text fuzz_view fuzz_bag \
-  fuzz_rosmsg fuzz_make_seeds
+  fuzz_rosmsg fuzz_mcap fuzz_cdr fuzz_make_seeds
 bin=build/fuzz/fuzz
 data="${CHRONOMAP_DATA_DIR:-../shared/data}"
 seeds=build/fuzz/seeds
@@ -38,6 +38,13 @@ printf '/api/history?key=32768,32768,32768&level=2' >"$seeds/view/history"
 printf '/api/map' >"$seeds/view/map"
 # ROS 1 bags written by Debian's python3-rosbag, as the tests write them.
 /usr/bin/python3 tests/io/make_ros1_bags.py --seeds "$seeds/bag"
+# ROS 2 bags written by npm's @mcap/core (tests/io/ros2_writer, as the tests write them); the CDR
+# target's seeds are their messages, each behind the byte that picks its decoder.
+writer=build/fuzz/ros2_writer
+mkdir -p "$writer"
+cp tests/io/ros2_writer/package.json tests/io/ros2_writer/package-lock.json tests/io/ros2_writer/make_ros2_bags.mjs "$writer/"
+[ -d "$writer/node_modules/@mcap/core" ] || (cd "$writer" && npm ci --no-audit --no-fund >/dev/null)
+node "$writer/make_ros2_bags.mjs" --seeds "$seeds/mcap" "$seeds/cdr"
 summary=build/fuzz/summary.txt
 : >"$summary"
 # One target per core at a time; each writes its own log and result line.
@@ -55,7 +62,7 @@ fuzz_one() {
 }
 jobs="$(nproc)"
 rm -f build/fuzz/*.result
-targets=(cmap pcd ply xyz png text view bag rosmsg)
+targets=(cmap pcd ply xyz png text view bag rosmsg mcap cdr)
 for target in "${targets[@]}"; do
   while [ "$(jobs -rp | wc -l)" -ge "$jobs" ]; do wait -n || true; done
   fuzz_one "$target" &

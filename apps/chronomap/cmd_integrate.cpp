@@ -221,7 +221,7 @@ void addIntegrateFlags(CLI::App* app, IntegrateFlags& f) {
                 "carve free space along the rays of points beyond --max-range, up to the range, instead of discarding "
                 "them whole (as OctoMap does): space seen through, such as an open doorway before a far wall, is then "
                 "observed free");
-  app->add_option("--format", f.format, "auto, tum, 3dmatch, scannet, clouds or rosbag")->capture_default_str();
+  app->add_option("--format", f.format, "auto, tum, 3dmatch, scannet, clouds, rosbag (ROS 1) or ros2bag")->capture_default_str();
   app->add_flag("--fast", f.fast,
                 "bundle the points of a frame that end in the same voxel into one weighted ray "
                 "(much faster; see docs/integration.md for how far the counters may differ)");
@@ -247,7 +247,8 @@ Command addIntegrate(CLI::App& root) {
       "Integrate one recording into a session map (.cmap).\n"
       "DATASET is a TUM RGB-D folder (depth.txt, rgb.txt, trajectory.txt or groundtruth.txt), a "
       "3DMatch/7-Scenes folder (frame-*.depth.png, frame-*.pose.txt, camera-intrinsics.txt), a ScanNet export "
-      "(color/N.jpg, depth/N.png, pose/N.txt, intrinsic/), a ROS 1 bag (.bag; --list shows its topics), a single "
+      "(color/N.jpg, depth/N.png, pose/N.txt, intrinsic/), a ROS 1 bag (.bag) or a ROS 2 bag (.mcap or .db3 storage, or its folder with "
+      "metadata.yaml; --list shows a bag's topics), a single "
       "PCD/PLY/XYZ cloud (seen from the origin unless --pose), or a text list of clouds with poses "
       "('cloud.pcd tx ty tz qx qy qz qw' per line).");
   app->add_option("DATASET", o->dataset, "dataset folder or file")->required();

@@ -12,6 +12,7 @@
 #include "chronomap/io/jpeg.h"
 #include "chronomap/io/png.h"
 #include "rosbag1.h"
+#include "rosbag2.h"
 #include "stamped.h"
 #include "text_util.h"
 
@@ -27,6 +28,7 @@ const char* toString(DatasetFormat format) {
     case DatasetFormat::Clouds: return "clouds";
     case DatasetFormat::ScanNet: return "scannet";
     case DatasetFormat::RosBag: return "rosbag";
+    case DatasetFormat::Ros2Bag: return "ros2bag";
   }
   return "unknown";
 }
@@ -38,7 +40,9 @@ DatasetFormat parseDatasetFormat(const std::string& name) {
   if (name == "clouds") return DatasetFormat::Clouds;
   if (name == "scannet") return DatasetFormat::ScanNet;
   if (name == "rosbag" || name == "bag") return DatasetFormat::RosBag;
-  throw UsageError("unknown dataset format '" + name + "' (expected auto, tum, 3dmatch, scannet, clouds or rosbag)");
+  if (name == "ros2bag" || name == "mcap" || name == "db3") return DatasetFormat::Ros2Bag;
+  throw UsageError("unknown dataset format '" + name +
+                   "' (expected auto, tum, 3dmatch, scannet, clouds, rosbag or ros2bag)");
 }
 
 CameraIntrinsics parseIntrinsics(const std::string& text) {
@@ -531,6 +535,7 @@ DatasetFormat detect(const fs::path& path) {
   std::error_code ec;
   if (fs::is_directory(path, ec)) {
     if (fs::exists(path / "depth.txt", ec)) return DatasetFormat::Tum;
+    if (fs::exists(path / "metadata.yaml", ec)) return DatasetFormat::Ros2Bag;
     if (!threeDMatchSequences(path).empty()) return DatasetFormat::ThreeDMatch;
     if (isScanNet(path)) return DatasetFormat::ScanNet;
     throw UsageError(path.string() +
@@ -539,6 +544,7 @@ DatasetFormat detect(const fs::path& path) {
   }
   if (isCloudFile(path) || dataExtension(path) == ".txt") return DatasetFormat::Clouds;
   if (path.extension() == ".bag") return DatasetFormat::RosBag;
+  if (isRos2Bag(path)) return DatasetFormat::Ros2Bag;
   throw UsageError(path.string() + ": cannot tell the dataset format from the extension; use --format");
 }
 
@@ -575,6 +581,8 @@ std::unique_ptr<Dataset> openDataset(const fs::path& path, const DatasetSettings
     case DatasetFormat::RosBag:
       if (fs::is_directory(path, ec)) throw UsageError(path.string() + ": a ROS 1 bag is a file (.bag)");
       return openRosBag(path, options);
+    case DatasetFormat::Ros2Bag:
+      return openRos2Bag(path, options);
     case DatasetFormat::Auto:
       break;
   }

@@ -5,11 +5,14 @@
 #include <memory>
 
 #include "chronomap/io/dataset.h"
+#include "chronomap/io/rosbag.h"
 
 namespace chronomap::io {
 
 /// @throw UsageError for topics that do not fit, DataError / FormatError naming the bag.
 std::unique_ptr<Dataset> openRosBag(const std::filesystem::path& path, const DatasetSettings& settings);
+/// The topics of a ROS 1 bag (listBag dispatches here). @throw as listBag.
+std::vector<BagTopic> listRosBag1(const std::filesystem::path& path);
 
 }  // namespace chronomap::io
 

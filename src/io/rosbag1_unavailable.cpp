@@ -15,7 +15,7 @@ namespace {
 }  // namespace
 
 std::unique_ptr<Dataset> openRosBag(const std::filesystem::path& path, const DatasetSettings&) { refuse(path); }
-std::vector<BagTopic> listBag(const std::filesystem::path& path) { refuse(path); }
+std::vector<BagTopic> listRosBag1(const std::filesystem::path& path) { refuse(path); }
 bool rosBagSupported() { return false; }
 
 }  // namespace chronomap::io

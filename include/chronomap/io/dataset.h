@@ -22,9 +22,10 @@ enum class DatasetFormat {
   Clouds,       ///< one cloud file, or a text list of "cloud tx ty tz qx qy qz qw"
   ScanNet,      ///< ScanNet's exported folder: color/N.jpg, depth/N.png, pose/N.txt, intrinsic/
   RosBag,       ///< a ROS 1 bag (.bag): depth or cloud topic, colour, camera info, poses from /tf or a topic
+  Ros2Bag,      ///< a ROS 2 bag: .mcap or .db3 storage, or its folder with metadata.yaml; as RosBag
 };
 
-/// "tum", "3dmatch", "scannet", "clouds", "rosbag" or "auto".
+/// "tum", "3dmatch", "scannet", "clouds", "rosbag", "ros2bag" or "auto".
 const char* toString(DatasetFormat format);
 /// Inverse of toString. @throw UsageError for an unknown name.
 DatasetFormat parseDatasetFormat(const std::string& name);

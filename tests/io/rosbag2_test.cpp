@@ -1,0 +1,553 @@
+// ROS 2 bags: MCAP files written by npm's @mcap/core with @foxglove/rosmsg2-serialization's CDR
+// (tests/io/ros2_writer/make_ros2_bags.mjs) from a simulated TUM session, SQLite .db3 bags
+// written here through SQLite with rosbag2's schema, read back and compared with the TUM
+// reader's frames and map (and a ROS 1 bag's, where this build reads them).
+
+#include <gtest/gtest.h>
+#include <sqlite3.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <memory>
+
+#include "chronomap/core/error.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/dataset.h"
+#include "chronomap/io/rosbag.h"
+#include "chronomap/pipeline/session.h"
+#include "io/cdr.h"
+#include "io/mcap.h"
+#include "test_support.h"
+
+#ifndef CHRONOMAP_SOURCE_DIR
+#error "CHRONOMAP_SOURCE_DIR must name the project's source folder"
+#endif
+#ifndef CHRONOMAP_ROS2_WRITER_DIR
+#error "CHRONOMAP_ROS2_WRITER_DIR must name the build folder of the npm writer"
+#endif
+
+namespace chronomap::io {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// The message of the exception `body` throws as `E`, or a failure.
+template <class E, class F>
+std::string messageOf(F body) {
+  try {
+    body();
+  } catch (const E& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "no exception of the expected type";
+  return {};
+}
+
+/// Copies the messages of an MCAP bag into a rosbag2 SQLite bag (schema of rosbag2's sqlite3
+/// storage: topics and messages tables); `formats` overrides a topic's serialisation format.
+void writeDb3(const fs::path& mcap_path, const fs::path& db3, const std::map<std::string, std::string>& formats = {}) {
+  fs::remove(db3);
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(db3.c_str(), &db), SQLITE_OK);
+  const auto exec = [&](const std::string& sql) {
+    char* err = nullptr;
+    ASSERT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &err), SQLITE_OK) << (err ? err : "") << "\n" << sql;
+  };
+  exec("CREATE TABLE schema(schema_version INTEGER PRIMARY KEY, ros_distro TEXT NOT NULL);"
+       "INSERT INTO schema VALUES (4, 'iron');"
+       "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL, "
+       "serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL, type_description_hash TEXT NOT NULL);"
+       "CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL, timestamp INTEGER NOT NULL, "
+       "data BLOB NOT NULL);"
+       "CREATE INDEX timestamp_idx ON messages (timestamp ASC);"
+       "BEGIN;");
+  mcap::Reader reader(mcap_path);
+  std::map<uint16_t, int> topic_ids;
+  sqlite3_stmt* topic = nullptr;
+  sqlite3_stmt* message = nullptr;
+  ASSERT_EQ(sqlite3_prepare_v2(db, "INSERT INTO topics VALUES (?, ?, ?, ?, '', '')", -1, &topic, nullptr), SQLITE_OK);
+  ASSERT_EQ(sqlite3_prepare_v2(db, "INSERT INTO messages (topic_id, timestamp, data) VALUES (?, ?, ?)", -1, &message,
+                               nullptr),
+            SQLITE_OK);
+  reader.forEachMessage([&](const mcap::Message& m) {
+    auto it = topic_ids.find(m.channel);
+    if (it == topic_ids.end()) {
+      const mcap::Channel& ch = reader.channels().at(m.channel);
+      const int id = static_cast<int>(topic_ids.size()) + 1;
+      const std::string type = reader.schemas().at(ch.schema_id).name;
+      const std::string format = formats.count(ch.topic) ? formats.at(ch.topic) : ch.message_encoding;
+      sqlite3_bind_int(topic, 1, id);
+      sqlite3_bind_text(topic, 2, ch.topic.c_str(), -1, SQLITE_TRANSIENT);
+      sqlite3_bind_text(topic, 3, type.c_str(), -1, SQLITE_TRANSIENT);
+      sqlite3_bind_text(topic, 4, format.c_str(), -1, SQLITE_TRANSIENT);
+      EXPECT_EQ(sqlite3_step(topic), SQLITE_DONE);
+      sqlite3_reset(topic);
+      it = topic_ids.emplace(m.channel, id).first;
+    }
+    sqlite3_bind_int(message, 1, it->second);
+    sqlite3_bind_int64(message, 2, static_cast<sqlite3_int64>(m.log_time));
+    sqlite3_bind_blob(message, 3, m.data.data(), static_cast<int>(m.data.size()), SQLITE_TRANSIENT);
+    EXPECT_EQ(sqlite3_step(message), SQLITE_DONE);
+    sqlite3_reset(message);
+  });
+  sqlite3_finalize(topic);
+  sqlite3_finalize(message);
+  exec("COMMIT;");
+  sqlite3_close(db);
+}
+
+/// A rosbag2 bag folder: the storage file and metadata.yaml naming it.
+void writeBagFolder(const fs::path& folder, const fs::path& storage, const std::string& identifier) {
+  fs::create_directories(folder);
+  fs::copy_file(storage, folder / storage.filename(), fs::copy_options::overwrite_existing);
+  std::ofstream(folder / "metadata.yaml") << "rosbag2_bagfile_information:\n"
+                                          << "  version: 8\n"
+                                          << "  storage_identifier: " << identifier << "\n"
+                                          << "  relative_file_paths:\n"
+                                          << "    - " << storage.filename().string() << "\n"
+                                          << "  message_count: 128\n";
+}
+
+/// The simulated session (the tiny preset at 160 x 120) and the bags made from it, once.
+class Ros2BagTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new test::TempDir();
+    const fs::path sim = *dir_ / "sim";
+    const auto simulated = test::runCommand(
+        test::cli() + " simulate --preset tiny --sessions 1 --resolution-scale 0.25 -o " + sim.string());
+    ASSERT_EQ(simulated.exit_code, 0) << simulated.err;
+    // The npm writers, installed once into the build folder (npm ci from the committed lock).
+    const fs::path src = fs::path(CHRONOMAP_SOURCE_DIR) / "tests/io/ros2_writer";
+    const fs::path writer = CHRONOMAP_ROS2_WRITER_DIR;
+    fs::create_directories(writer);
+    for (const char* file : {"package.json", "package-lock.json", "make_ros2_bags.mjs"})
+      fs::copy_file(src / file, writer / file, fs::copy_options::update_existing);
+    const auto installed = test::runCommand("cd " + writer.string() + " && flock .npm-lock sh -c " +
+                                            "'[ -d node_modules/@mcap/core ] || npm ci --no-audit --no-fund'");
+    std::string error = installed.exit_code == 0 ? std::string() : "npm ci: " + installed.err;
+    if (error.empty()) {
+      const auto made = test::runCommand("node " + (writer / "make_ros2_bags.mjs").string() + " " + tum().string() +
+                                         " " + bags().string());
+      if (made.exit_code != 0) error = "make_ros2_bags.mjs: " + made.err;
+    }
+    if (error.empty()) {
+      writeDb3(bag("pose_lz4.mcap"), bag("pose.db3"));
+      writeDb3(bag("tf.mcap"), bag("tf.db3"));
+      writeBagFolder(bags() / "pose_db3_folder", bag("pose.db3"), "sqlite3");
+      writeBagFolder(bags() / "pose_mcap_folder", bag("pose_zstd.mcap"), "mcap");
+    }
+    generator_error_ = error;
+  }
+  static void TearDownTestSuite() {
+    delete dir_;
+    dir_ = nullptr;
+  }
+  void SetUp() override {
+    if (generator_error_.empty()) return;
+    if (test::underCi()) FAIL() << "writing the test bags failed: " << generator_error_;
+    GTEST_SKIP() << "writing the test bags failed (node or npm missing?): " << generator_error_;
+  }
+
+  static fs::path tum() { return *dir_ / "sim" / "session_00"; }
+  static fs::path bags() { return *dir_ / "bags"; }
+  static fs::path bag(const std::string& name) { return bags() / name; }
+
+  /// The bags keep the TUM PNG's units (5000 per metre) in their 16UC1 images.
+  static DatasetSettings bagSettings() {
+    DatasetSettings s;
+    s.depth_scale = 5000.0;
+    return s;
+  }
+  static std::vector<uint8_t> mapBytes(const fs::path& path, const DatasetSettings& dataset) {
+    pipeline::SessionSettings s;
+    s.dataset = dataset;
+    s.integrator.threads = 2;
+    return encodeSessionMap(pipeline::integrateDataset(path, s).map, nlohmann::json::object());
+  }
+
+  static test::TempDir* dir_;
+  static std::string generator_error_;
+};
+
+test::TempDir* Ros2BagTest::dir_ = nullptr;
+std::string Ros2BagTest::generator_error_;
+
+TEST_F(Ros2BagTest, ListsTopicsWithRos2TypesCountsAndEncodings) {
+  for (const char* name : {"pose_lz4.mcap", "pose_unchunked_nosummary.mcap", "pose.db3", "pose_db3_folder"}) {
+    SCOPED_TRACE(name);
+    const std::vector<BagTopic> topics = listBag(bag(name));
+    ASSERT_EQ(topics.size(), 4u);
+    EXPECT_EQ(topics[0].name, "/camera/depth/camera_info");
+    EXPECT_EQ(topics[0].type, "sensor_msgs/msg/CameraInfo");
+    EXPECT_EQ(topics[1].name, "/camera/depth/image_raw");
+    EXPECT_EQ(topics[1].type, "sensor_msgs/msg/Image");
+    EXPECT_EQ(topics[1].encoding, "16UC1");
+    EXPECT_EQ(topics[1].messages, 32u);
+    EXPECT_EQ(topics[2].encoding, "rgb8");
+    EXPECT_EQ(topics[3].name, "/camera_pose");
+    EXPECT_EQ(topics[3].type, "geometry_msgs/msg/PoseStamped");
+  }
+  const std::vector<BagTopic> tf = listBag(bag("tf.mcap"));
+  ASSERT_EQ(tf.size(), 5u);
+  EXPECT_EQ(tf[3].name, "/tf");
+  EXPECT_EQ(tf[3].messages, 64u);  // two samples around every frame
+  EXPECT_EQ(tf[4].type, "tf2_msgs/msg/TFMessage");
+}
+
+// The same depth numbers, colour and pose numbers give the same map, byte for byte, whatever
+// the storage (MCAP unchunked, chunks stored plain, lz4 or zstd, with or without the summary;
+// SQLite; a bag folder) and from an Odometry as from a PoseStamped topic.
+TEST_F(Ros2BagTest, PoseTopicBagsGiveTheTumFoldersMapByteForByte) {
+  const auto expected = mapBytes(tum(), {});
+  for (const char* name : {"pose_unchunked.mcap", "pose_unchunked_nosummary.mcap", "pose_none.mcap", "pose_lz4.mcap",
+                           "pose_zstd.mcap", "pose_zstd_nosummary.mcap", "odometry.mcap", "pose.db3",
+                           "pose_db3_folder", "pose_mcap_folder"}) {
+    SCOPED_TRACE(name);
+    const auto dataset = openDataset(bag(name), bagSettings());
+    EXPECT_EQ(dataset->format(), DatasetFormat::Ros2Bag);
+    EXPECT_EQ(dataset->size(), 32u);
+    EXPECT_EQ(dataset->framesDropped(), 0u);
+    EXPECT_TRUE(mapBytes(bag(name), bagSettings()) == expected);
+  }
+}
+
+TEST_F(Ros2BagTest, FramesMatchTheTumReadersAndAFrameDecodesTheSameFromEveryStorage) {
+  const auto from_tum = openDataset(tum());
+  const auto from_mcap = openDataset(bag("pose_zstd.mcap"), bagSettings());
+  const auto from_db3 = openDataset(bag("pose.db3"), bagSettings());
+  ASSERT_EQ(from_mcap->size(), from_tum->size());
+  for (size_t i = 0; i < from_tum->size(); i += 7) {
+    const Frame a = from_tum->load(i), b = from_mcap->load(i), c = from_db3->load(i);
+    EXPECT_TRUE(a.T_world_sensor.matrix() == b.T_world_sensor.matrix());
+    EXPECT_NEAR(a.timestamp_s, b.timestamp_s, 1e-6);
+    ASSERT_EQ(a.cloud.size(), b.cloud.size());
+    ASSERT_EQ(b.cloud.size(), c.cloud.size());
+    // Compared as bytes: invalid depth pixels are NaN points in both.
+    const size_t bytes = a.cloud.size() * sizeof(a.cloud.points[0]);
+    EXPECT_EQ(std::memcmp(a.cloud.points.data(), b.cloud.points.data(), bytes), 0);
+    EXPECT_EQ(std::memcmp(b.cloud.points.data(), c.cloud.points.data(), bytes), 0);
+    EXPECT_TRUE(b.cloud.colors == c.cloud.colors);
+    EXPECT_NE(b.source.find("pose_zstd.mcap: /camera/depth/image_raw at "), std::string::npos) << b.source;
+    EXPECT_TRUE(a.cloud.colors == b.cloud.colors);
+  }
+}
+
+// PointCloud2 (x, y, z FLOAT32 computed from the depth image in JavaScript, packed rgb): the
+// TUM reader's points within 1e-6 m and its colours exactly.
+TEST_F(Ros2BagTest, PointCloud2TopicsGiveTheSamePointsAndColours) {
+  const auto from_tum = openDataset(tum());
+  const auto from_bag = openDataset(bag("points.mcap"));
+  ASSERT_EQ(from_bag->size(), from_tum->size());
+  const Frame a = from_tum->load(4), b = from_bag->load(4);
+  ASSERT_EQ(b.cloud.width, a.cloud.width);
+  ASSERT_EQ(b.cloud.height, a.cloud.height);
+  EXPECT_TRUE(a.cloud.colors == b.cloud.colors);
+  size_t finite = 0;
+  for (size_t p = 0; p < a.cloud.size(); ++p) {
+    EXPECT_EQ(std::isfinite(a.cloud.points[p].z()), std::isfinite(b.cloud.points[p].z())) << p;
+    if (std::isfinite(a.cloud.points[p].z())) {
+      ++finite;
+      ASSERT_LT((a.cloud.points[p] - b.cloud.points[p]).norm(), 1e-6f) << p;
+    }
+  }
+  EXPECT_GT(finite, a.cloud.size() / 2);
+}
+
+// The ROS 1 bag of the same frames (Debian's python3-rosbag) gives the same map as well.
+TEST_F(Ros2BagTest, TheRos1BagOfTheSameFramesGivesTheSameMap) {
+  if (!rosBagSupported()) GTEST_SKIP() << "built without ROS 1 bags";
+  const std::string script = std::string(CHRONOMAP_SOURCE_DIR) + "/tests/io/make_ros1_bags.py";
+  const auto made = test::runCommand("/usr/bin/python3 " + script + " " + tum().string() + " " + bags().string() +
+                                     " pose_lz4.bag");
+  ASSERT_EQ(made.exit_code, 0) << made.err;
+  EXPECT_TRUE(mapBytes(bag("pose_lz4.bag"), bagSettings()) == mapBytes(bag("pose_lz4.mcap"), bagSettings()));
+}
+
+// /tf: map -> odom static, odom -> base_link sampled 10 ms either side of each frame, base_link
+// -> camera static; the composed, interpolated pose agrees with the TUM pose to 1e-8 (m, rad).
+TEST_F(Ros2BagTest, TfPosesAreInterpolatedWithinATolerance) {
+  const auto from_tum = openDataset(tum());
+  DatasetSettings s = bagSettings();
+  s.bag.fixed_frame = "map";
+  for (const char* name : {"tf.mcap", "tf.db3"}) {
+    SCOPED_TRACE(name);
+    const auto from_bag = openDataset(bag(name), s);
+    ASSERT_EQ(from_bag->size(), from_tum->size());
+    for (size_t i = 0; i < from_tum->size(); ++i) {
+      const Eigen::Isometry3d a = from_tum->poseOf(i), b = from_bag->poseOf(i);
+      EXPECT_LT((a.translation() - b.translation()).norm(), 1e-8) << i;
+      EXPECT_LT(Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle(), 1e-8) << i;
+    }
+  }
+  // Outside the tolerance (the samples lie 10 ms from each frame), no frame has a pose.
+  s.bag.pose_tolerance_s = 0.005;
+  const std::string what = messageOf<DataError>([&] { openDataset(bag("tf.mcap"), s); });
+  EXPECT_NE(what.find("none of the 32 frames"), std::string::npos) << what;
+  EXPECT_NE(what.find("32 without a pose within 0.005 s"), std::string::npos) << what;
+}
+
+// The summary's chunk indexes lead the reading when present; without them the data section is
+// scanned; both meet the same messages with the same bytes.
+TEST_F(Ros2BagTest, TheSummaryIsUsedWhenPresentAndTheFileScannedOtherwise) {
+  const auto contents = [](const fs::path& path, bool expect_indexed) {
+    mcap::Reader reader(path);
+    EXPECT_EQ(reader.indexed(), expect_indexed) << path;
+    std::vector<std::pair<std::string, std::vector<uint8_t>>> out;
+    std::vector<mcap::MessageRef> refs;
+    reader.forEachMessage([&](const mcap::Message& m) {
+      out.emplace_back(reader.channels().at(m.channel).topic, std::vector<uint8_t>(m.data.begin(), m.data.end()));
+      refs.push_back(m.ref);
+    });
+    // Reading a message again by its reference gives its bytes.
+    for (size_t i = 0; i < refs.size(); i += 11) {
+      const auto again = reader.message(refs[i]);
+      EXPECT_TRUE(std::vector<uint8_t>(again.data.begin(), again.data.end()) == out[i].second) << i;
+    }
+    return out;
+  };
+  const auto reference = contents(bag("pose_unchunked_nosummary.mcap"), false);
+  EXPECT_EQ(reference.size(), 128u);
+  EXPECT_TRUE(contents(bag("pose_unchunked.mcap"), false) == reference);  // a summary without chunk indexes
+  EXPECT_TRUE(contents(bag("pose_none.mcap"), true) == reference);
+  EXPECT_TRUE(contents(bag("pose_lz4.mcap"), true) == reference);
+  EXPECT_TRUE(contents(bag("pose_zstd.mcap"), true) == reference);
+  EXPECT_TRUE(contents(bag("pose_zstd_nosummary.mcap"), false) == reference);
+}
+
+/// The offset of the first chunk record (opcode 0x06) of an MCAP file, found by walking the
+/// data section's records.
+size_t firstChunk(const std::vector<uint8_t>& bytes) {
+  size_t pos = 8;
+  while (pos + 9 <= bytes.size()) {
+    uint64_t len = 0;
+    std::memcpy(&len, &bytes[pos + 1], 8);
+    if (bytes[pos] == 0x06) return pos;
+    pos += 9 + len;
+  }
+  ADD_FAILURE() << "no chunk";
+  return 0;
+}
+
+TEST_F(Ros2BagTest, TruncatedAndCorruptFilesAreOneLineFormatErrorsNamingTheFile) {
+  const auto expectError = [&](const fs::path& path, const std::string& problem) {
+    SCOPED_TRACE(path.filename().string() + ": " + problem);
+    const std::string what = messageOf<FormatError>([&] { openDataset(path, bagSettings()); });
+    EXPECT_EQ(what.rfind(path.string() + ": ", 0), 0u) << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    EXPECT_NE(what.find(problem), std::string::npos) << what;
+  };
+  for (const char* name : {"pose_none.mcap", "pose_lz4.mcap", "pose_zstd_nosummary.mcap", "pose_unchunked.mcap"}) {
+    const auto bytes = test::bytesOf(bag(name));
+    for (const size_t keep : {size_t{0}, size_t{13}, size_t{4096}, bytes.size() / 2, bytes.size() - 100}) {
+      const fs::path cut = *dir_ / "cut.mcap";
+      test::writeBytes(cut, std::vector<uint8_t>(bytes.begin(), bytes.begin() + static_cast<long>(keep)));
+      SCOPED_TRACE(std::string(name) + " cut to " + std::to_string(keep));
+      const std::string what = messageOf<FormatError>([&] { openDataset(cut, bagSettings()); });
+      EXPECT_EQ(what.rfind(cut.string() + ": ", 0), 0u) << what;
+      EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    }
+  }
+  // One byte of an uncompressed chunk's data changed: its CRC no longer matches.
+  {
+    auto bytes = test::bytesOf(bag("pose_none.mcap"));
+    bytes[firstChunk(bytes) + 2000] ^= 0x10;
+    test::writeBytes(*dir_ / "bad_crc.mcap", bytes);
+    expectError(*dir_ / "bad_crc.mcap", "the chunk's CRC does not match its data");
+  }
+  // A chunk whose stated uncompressed size is one byte off, and one whose records' length runs
+  // past the record.
+  {
+    const auto good = test::bytesOf(bag("pose_none.mcap"));
+    const size_t chunk = firstChunk(good);
+    auto bytes = good;
+    bytes[chunk + 9 + 16] ^= 0x01;  // uncompressed_size
+    test::writeBytes(*dir_ / "bad_size.mcap", bytes);
+    expectError(*dir_ / "bad_size.mcap", "states");
+    bytes = good;
+    uint32_t compression_len = 0;
+    std::memcpy(&compression_len, &bytes[chunk + 9 + 28], 4);
+    bytes[chunk + 9 + 32 + compression_len + 7] = 0x7f;  // records length: far past the file
+    test::writeBytes(*dir_ / "bad_length.mcap", bytes);
+    expectError(*dir_ / "bad_length.mcap", "a field needs");
+  }
+  // An lz4 chunk with a claim no lz4 frame can reach (refused before allocating), and an
+  // unknown compression.
+  {
+    auto bytes = test::bytesOf(bag("pose_lz4.mcap"));
+    const size_t chunk = firstChunk(bytes);
+    bytes[chunk + 9 + 16 + 5] = 0x7f;  // uncompressed_size around 500 TB
+    test::writeBytes(*dir_ / "bomb.mcap", bytes);
+    expectError(*dir_ / "bomb.mcap", "more than lz4 can pack");
+    bytes = test::bytesOf(bag("pose_lz4.mcap"));
+    bytes[chunk + 9 + 32 + 2] = '5';  // "lz4" -> "lz5"
+    test::writeBytes(*dir_ / "lz5.mcap", bytes);
+    expectError(*dir_ / "lz5.mcap", "unknown chunk compression 'lz5'");
+  }
+  // A messages table in another serialisation than CDR.
+  writeDb3(bag("pose_lz4.mcap"), *dir_ / "json.db3", {{"/camera_pose", "json"}});
+  expectError(*dir_ / "json.db3", "/camera_pose is encoded as 'json'; chronomap decodes ROS 2 messages in CDR only");
+  // Neither MCAP nor SQLite.
+  test::writeBytes(*dir_ / "text.mcap", std::string("not an mcap file at all, but long enough to look at it"));
+  expectError(*dir_ / "text.mcap", "not an MCAP file");
+  EXPECT_THROW(listBag(*dir_ / "missing.mcap"), UsageError);
+}
+
+TEST_F(Ros2BagTest, MissingTopicsAndBadFoldersAreNamed) {
+  DatasetSettings s = bagSettings();
+  s.bag.depth_topic = "/nope";
+  std::string what = messageOf<UsageError>([&] { openDataset(bag("pose.db3"), s); });
+  EXPECT_NE(what.find(bag("pose.db3").string() + ": --depth-topic: no topic '/nope' in the bag (candidates: "),
+            std::string::npos)
+      << what;
+  s = bagSettings();
+  s.bag.fixed_frame = "world";
+  what = messageOf<DataError>([&] { openDataset(bag("tf.mcap"), s); });
+  EXPECT_NE(what.find("none of the 32 frames"), std::string::npos) << what;
+  EXPECT_NE(what.find("/tf holds the frames base_link, camera_depth_optical_frame, map, odom"), std::string::npos)
+      << what;
+  // A folder whose metadata.yaml names a missing file, or several.
+  const fs::path folder = *dir_ / "folder";
+  fs::create_directories(folder);
+  std::ofstream(folder / "metadata.yaml") << "rosbag2_bagfile_information:\n  relative_file_paths:\n    - gone.mcap\n";
+  what = messageOf<DataError>([&] { openDataset(folder, bagSettings()); });
+  EXPECT_NE(what.find("names gone.mcap, which is missing"), std::string::npos) << what;
+  std::ofstream(folder / "metadata.yaml") << "rosbag2_bagfile_information:\n  relative_file_paths:\n    - a_0.mcap\n"
+                                          << "    - a_1.mcap\n  duration:\n    nanoseconds: 5\n";
+  what = messageOf<UsageError>([&] { openDataset(folder, bagSettings()); });
+  EXPECT_NE(what.find("split into 2 storage files"), std::string::npos) << what;
+}
+
+TEST_F(Ros2BagTest, TheCommandLineListsAndIntegratesARos2Bag) {
+  const auto list = test::runCommand(test::cli() + " integrate " + bag("tf.db3").string() + " --list");
+  ASSERT_EQ(list.exit_code, 0) << list.err;
+  EXPECT_NE(list.out.find("/tf  tf2_msgs/msg/TFMessage  64 message(s)"), std::string::npos) << list.out;
+  const fs::path out = *dir_ / "cli.cmap";
+  const auto run = test::runCommand(test::cli() + " integrate " + bag("tf.mcap").string() +
+                                    " --fixed-frame map --depth-scale 5000 -o " + out.string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_TRUE(fs::exists(out));
+  const auto missing = test::runCommand(test::cli() + " integrate " + bag("tf.mcap").string() +
+                                        " --depth-topic /nope -o " + out.string());
+  EXPECT_NE(missing.exit_code, 0);
+  EXPECT_NE(missing.err.find("no topic '/nope'"), std::string::npos) << missing.err;
+}
+
+// ---- CDR, by hand: alignment counted from the end of the encapsulation header ----
+
+/// A CDR message being built, little- or big-endian.
+struct CdrBuilder {
+  explicit CdrBuilder(bool little = true) : little_(little) { bytes = {0, static_cast<uint8_t>(little ? 1 : 0), 0, 0}; }
+  void align(size_t n) {
+    while ((bytes.size() - 4) % n) bytes.push_back(0xAA);  // padding (any value)
+  }
+  template <class T>
+  void put(T v) {
+    align(sizeof(T));
+    uint8_t b[sizeof(T)];
+    std::memcpy(b, &v, sizeof(T));
+    for (size_t i = 0; i < sizeof(T); ++i) bytes.push_back(b[little_ ? i : sizeof(T) - 1 - i]);
+  }
+  void str(const std::string& s) {
+    put<uint32_t>(static_cast<uint32_t>(s.size() + 1));
+    bytes.insert(bytes.end(), s.begin(), s.end());
+    bytes.push_back(0);
+  }
+  void header(int32_t sec, uint32_t nsec, const std::string& frame) {
+    put(sec);
+    put(nsec);
+    str(frame);
+  }
+  std::vector<uint8_t> bytes;
+  bool little_;
+};
+
+TEST(Cdr, ImagesAndPosesDecodeWithTheirAlignment) {
+  for (const bool little : {true, false}) {
+    SCOPED_TRACE(little ? "little-endian" : "big-endian");
+    CdrBuilder im(little);
+    im.header(7, 500000000, "cam");  // frame "cam\0": 12 + 4 = 16 bytes, then 4-byte fields
+    im.put<uint32_t>(2);             // height
+    im.put<uint32_t>(3);             // width
+    im.str("mono16");                // 4 + 7 bytes: the next u8 lands unaligned, fine for one byte
+    im.put<uint8_t>(0);
+    im.put<uint32_t>(6);  // step: padded to 4
+    im.put<uint32_t>(12);
+    for (uint8_t i = 0; i < 12; ++i) im.bytes.push_back(i);
+    const cdr::Image decoded = cdr::image(im.bytes, "test");
+    EXPECT_EQ(decoded.header.stamp, 7.5);
+    EXPECT_EQ(decoded.header.frame_id, "cam");
+    EXPECT_EQ(decoded.view.height, 2u);
+    EXPECT_EQ(decoded.view.width, 3u);
+    EXPECT_EQ(decoded.view.encoding, "mono16");
+    EXPECT_EQ(decoded.view.step, 6u);
+    ASSERT_EQ(decoded.view.data.size(), 12u);
+    EXPECT_EQ(decoded.view.data[11], 11);
+
+    CdrBuilder ps(little);
+    ps.header(1, 2, "ab");  // 8 + 4 + 3 = 15 bytes: the doubles start at 16
+    const double values[7] = {1.5, -2.25, 3.0, 0.0, 0.0, std::sqrt(0.5), std::sqrt(0.5)};
+    for (double v : values) ps.put(v);
+    const cdr::Transform pose = cdr::poseStamped(ps.bytes, "test");
+    EXPECT_EQ(pose.header.stamp, 1.0 + 2e-9);
+    EXPECT_EQ(pose.header.frame_id, "ab");
+    EXPECT_EQ(pose.xyz[0], 1.5);
+    EXPECT_EQ(pose.xyz[1], -2.25);
+    EXPECT_EQ(pose.q[3], std::sqrt(0.5));
+  }
+}
+
+TEST(Cdr, TruncatedAndForeignMessagesAreFormatErrors) {
+  CdrBuilder ps;
+  ps.header(1, 2, "map");
+  for (int i = 0; i < 7; ++i) ps.put(1.0);
+  for (size_t keep = 0; keep < ps.bytes.size(); keep += 5) {
+    const std::vector<uint8_t> cut(ps.bytes.begin(), ps.bytes.begin() + static_cast<long>(keep));
+    EXPECT_THROW(cdr::poseStamped(cut, "cut"), FormatError) << keep;
+  }
+  auto xcdr2 = ps.bytes;
+  xcdr2[1] = 0x07;  // XCDR2 little-endian: not what ROS 2 writes, refused
+  const std::string what = messageOf<FormatError>([&] { cdr::poseStamped(xcdr2, "/odom"); });
+  EXPECT_EQ(what, "/odom: CDR: unknown CDR encapsulation 0,7 (read: plain CDR, big- or little-endian)");
+  // A sequence longer than the message: refused before anything is allocated.
+  CdrBuilder tf;
+  tf.put<uint32_t>(0x7fffffff);
+  EXPECT_THROW(cdr::tfMessage(tf.bytes, "tf"), FormatError);
+  CdrBuilder str;
+  str.put<uint32_t>(0);
+  str.put<uint32_t>(0);
+  str.put<uint32_t>(3);
+  str.bytes.insert(str.bytes.end(), {'a', 'b', 'c'});  // no terminating NUL
+  EXPECT_THROW(cdr::header(str.bytes, "h"), FormatError);
+}
+
+// Found by fuzz_cdr: a cloud of 4 billion rows of width 0 (fits any data: 0 bytes) walked every
+// row. It is an empty cloud, returned at once.
+TEST(Cdr, AnEmptyCloudWithBillionsOfRowsIsEmptyAtOnce) {
+  CdrBuilder c;
+  c.header(1, 0, "cam");
+  c.put<uint32_t>(0xfa000000u);  // height
+  c.put<uint32_t>(0);            // width
+  c.put<uint32_t>(3);            // fields
+  for (const char* name : {"x", "y", "z"}) {
+    c.str(name);
+    c.put<uint32_t>(static_cast<uint32_t>(4 * (name[0] - 'x')));
+    c.put<uint8_t>(7);
+    c.put<uint32_t>(1);
+  }
+  c.put<uint8_t>(0);
+  c.put<uint32_t>(12);  // point_step
+  c.put<uint32_t>(0);   // row_step
+  c.put<uint32_t>(0);   // data
+  c.put<uint8_t>(1);
+  const cdr::Cloud cloud = cdr::cloud(c.bytes, "cloud");
+  EXPECT_EQ(cloud.view.height, 0xfa000000u);
+  const PointCloud points = rosmsg::pointCloud(cloud.view, "cloud");
+  EXPECT_EQ(points.size(), 0u);
+}
+
+}  // namespace
+}  // namespace chronomap::io
