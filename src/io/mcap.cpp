@@ -327,36 +327,45 @@ void Reader::chunkRecords(uint64_t chunk_at, const std::vector<uint8_t>& records
     const uint8_t op = head.u8();
     const uint64_t len = head.u64();
     if (len > all.size() - pos - kRecordHead) throw FormatError(where + ": the record runs past the chunk's end");
-    Cursor c(head.bytes(len), where);
+    const std::span<const uint8_t> body = head.bytes(len);
     const uint64_t body_at = pos + kRecordHead;
     pos += kRecordHead + len;
-    if (op == kSchema) {
-      Schema s;
-      s.id = c.u16();
-      s.name = c.str();
-      s.encoding = c.str();
-      schemas_[s.id] = s;
-    } else if (op == kChannel) {
-      Channel ch;
-      ch.id = c.u16();
-      ch.schema_id = c.u16();
-      ch.topic = c.str();
-      ch.message_encoding = c.str();
-      channels_[ch.id] = ch;
-    } else if (op == kMessage) {
-      Message m;
-      m.channel = c.u16();
-      c.u32();  // sequence
-      m.log_time = c.u64();
-      c.u64();  // publish_time
-      m.data = c.rest();
-      if (!channels_.count(m.channel)) {
-        throw FormatError(where + ": a message on channel " + std::to_string(m.channel) + ", which no channel record defines");
-      }
-      m.ref = {chunk_at, body_at + 22, m.data.size()};
-      fn(m);
-    }
+    record(op, body, where, chunk_at, body_at, fn);
   }
+}
+
+bool Reader::record(uint8_t op, std::span<const uint8_t> body, const std::string& where, uint64_t chunk_at,
+                    uint64_t body_at, const std::function<void(const Message&)>& fn) {
+  Cursor c(body, where);
+  if (op == kSchema) {
+    Schema s;
+    s.id = c.u16();
+    s.name = c.str();
+    s.encoding = c.str();
+    schemas_[s.id] = s;
+  } else if (op == kChannel) {
+    Channel ch;
+    ch.id = c.u16();
+    ch.schema_id = c.u16();
+    ch.topic = c.str();
+    ch.message_encoding = c.str();
+    channels_[ch.id] = ch;
+  } else if (op == kMessage) {
+    Message m;
+    m.channel = c.u16();
+    c.u32();  // sequence
+    m.log_time = c.u64();
+    c.u64();  // publish_time
+    m.data = c.rest();
+    if (!channels_.count(m.channel)) {
+      throw FormatError(where + ": a message on channel " + std::to_string(m.channel) + ", which no channel record defines");
+    }
+    m.ref = {chunk_at, body_at + 22, m.data.size()};
+    fn(m);
+  } else {
+    return false;
+  }
+  return true;
 }
 
 void Reader::forEachMessage(const std::function<void(const Message&)>& fn) {
@@ -392,33 +401,8 @@ void Reader::forEachMessage(const std::function<void(const Message&)>& fn) {
     crc = crcOf(body, crc);
     pos += kRecordHead + len;
     const std::string where = path_.string() + ": " + offsetText(at);
-    Cursor c(body, where);
-    if (op == kSchema) {
-      Schema s;
-      s.id = c.u16();
-      s.name = c.str();
-      s.encoding = c.str();
-      schemas_[s.id] = s;
-    } else if (op == kChannel) {
-      Channel ch;
-      ch.id = c.u16();
-      ch.schema_id = c.u16();
-      ch.topic = c.str();
-      ch.message_encoding = c.str();
-      channels_[ch.id] = ch;
-    } else if (op == kMessage) {
-      Message m;
-      m.channel = c.u16();
-      c.u32();
-      m.log_time = c.u64();
-      c.u64();
-      m.data = c.rest();
-      if (!channels_.count(m.channel)) {
-        fail(at, "a message on channel " + std::to_string(m.channel) + ", which no channel record defines");
-      }
-      m.ref = {MessageRef::kNoChunk, at + kRecordHead + 22, m.data.size()};
-      fn(m);
-    } else if (op == kChunk) {
+    if (record(op, body, where, MessageRef::kNoChunk, at + kRecordHead, fn)) continue;
+    if (op == kChunk) {
       const auto records = chunk(at);
       chunkRecords(at, *records, fn);
     } else if (op == kHeader && at != 8) {

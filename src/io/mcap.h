@@ -91,6 +91,10 @@ class Reader {
   /// The records of a decompressed chunk: schemas, channels and messages.
   void chunkRecords(uint64_t chunk_at, const std::vector<uint8_t>& records,
                     const std::function<void(const Message&)>& fn);
+  /// Reads a schema, channel or message record (of the chunk at `chunk_at`, or kNoChunk) whose
+  /// body lies at `body_at`; false for any other kind of record.
+  bool record(uint8_t op, std::span<const uint8_t> body, const std::string& where, uint64_t chunk_at,
+              uint64_t body_at, const std::function<void(const Message&)>& fn);
   [[noreturn]] void fail(uint64_t offset, const std::string& problem) const;
 
   std::filesystem::path path_;
