@@ -252,22 +252,13 @@ void Reader::readSummary(uint64_t start, uint64_t end, uint64_t footer_at, uint3
     const uint8_t op = head.u8();
     const uint64_t len = head.u64();
     if (len > summary.size() - pos - kRecordHead) fail(at, "a summary record runs past the summary section");
-    Cursor c(head.bytes(len), path_.string() + ": summary " + offsetText(at));
+    const std::span<const uint8_t> body = head.bytes(len);
+    const std::string where = path_.string() + ": summary " + offsetText(at);
     pos += kRecordHead + len;
-    if (op == kSchema) {
-      Schema s;
-      s.id = c.u16();
-      s.name = c.str();
-      s.encoding = c.str();
-      schemas_[s.id] = s;
-    } else if (op == kChannel) {
-      Channel ch;
-      ch.id = c.u16();
-      ch.schema_id = c.u16();
-      ch.topic = c.str();
-      ch.message_encoding = c.str();
-      channels_[ch.id] = ch;
+    if (op == kSchema || op == kChannel) {
+      record(op, body, where, MessageRef::kNoChunk, 0, {});
     } else if (op == kChunkIndex) {
+      Cursor c(body, where);
       c.u64();  // message_start_time
       c.u64();  // message_end_time
       const uint64_t chunk_at = c.u64(), chunk_length = c.u64();
