@@ -70,8 +70,12 @@ std::string reasonFor(const Alert& a, bool occupied_now, double time_s, double r
     return buf;
   }
   if (e.in_state == 0) {
-    std::snprintf(buf, sizeof buf, "this space was %s in all %u earlier observations", stateName(old_state),
-                  e.observations);
+    if (e.observations == 1) {
+      std::snprintf(buf, sizeof buf, "this space was %s in its one earlier observation", stateName(old_state));
+    } else {
+      std::snprintf(buf, sizeof buf, "this space was %s in all %u earlier observations", stateName(old_state),
+                    e.observations);
+    }
     return buf;
   }
   if (e.window_observations == 0) {
