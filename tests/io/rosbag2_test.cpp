@@ -20,6 +20,7 @@
 #include "chronomap/pipeline/session.h"
 #include "io/cdr.h"
 #include "io/mcap.h"
+#include "bag_fixture.h"
 #include "test_support.h"
 
 #ifndef CHRONOMAP_SOURCE_DIR
@@ -112,14 +113,14 @@ void writeBagFolder(const fs::path& folder, const fs::path& storage, const std::
 }
 
 /// The simulated session (the tiny preset at 160 x 120) and the bags made from it, once.
-class Ros2BagTest : public ::testing::Test {
+class Ros2BagTest : public BagFixture<Ros2BagTest> {
+ public:
+  static constexpr const char* kWriters = "node or npm";
+
  protected:
   static void SetUpTestSuite() {
-    dir_ = new test::TempDir();
-    const fs::path sim = *dir_ / "sim";
-    const auto simulated = test::runCommand(
-        test::cli() + " simulate --preset tiny --sessions 1 --resolution-scale 0.25 -o " + sim.string());
-    ASSERT_EQ(simulated.exit_code, 0) << simulated.err;
+    simulate();
+    if (HasFatalFailure()) return;
     // The npm writers, installed once into the build folder (npm ci from the committed lock).
     const fs::path src = fs::path(CHRONOMAP_SOURCE_DIR) / "tests/io/ros2_writer";
     const fs::path writer = CHRONOMAP_ROS2_WRITER_DIR;
@@ -142,39 +143,8 @@ class Ros2BagTest : public ::testing::Test {
     }
     generator_error_ = error;
   }
-  static void TearDownTestSuite() {
-    delete dir_;
-    dir_ = nullptr;
-  }
-  void SetUp() override {
-    if (generator_error_.empty()) return;
-    if (test::underCi()) FAIL() << "writing the test bags failed: " << generator_error_;
-    GTEST_SKIP() << "writing the test bags failed (node or npm missing?): " << generator_error_;
-  }
-
-  static fs::path tum() { return *dir_ / "sim" / "session_00"; }
-  static fs::path bags() { return *dir_ / "bags"; }
-  static fs::path bag(const std::string& name) { return bags() / name; }
-
-  /// The bags keep the TUM PNG's units (5000 per metre) in their 16UC1 images.
-  static DatasetSettings bagSettings() {
-    DatasetSettings s;
-    s.depth_scale = 5000.0;
-    return s;
-  }
-  static std::vector<uint8_t> mapBytes(const fs::path& path, const DatasetSettings& dataset) {
-    pipeline::SessionSettings s;
-    s.dataset = dataset;
-    s.integrator.threads = 2;
-    return encodeSessionMap(pipeline::integrateDataset(path, s).map, nlohmann::json::object());
-  }
-
-  static test::TempDir* dir_;
-  static std::string generator_error_;
 };
 
-test::TempDir* Ros2BagTest::dir_ = nullptr;
-std::string Ros2BagTest::generator_error_;
 
 TEST_F(Ros2BagTest, ListsTopicsWithRos2TypesCountsAndEncodings) {
   for (const char* name : {"pose_lz4.mcap", "pose_unchunked_nosummary.mcap", "pose.db3", "pose_db3_folder"}) {

@@ -18,6 +18,7 @@
 #include "chronomap/io/transform_tree.h"
 #include "chronomap/pipeline/session.h"
 #include "io/ros_messages.h"
+#include "bag_fixture.h"
 #include "test_support.h"
 
 #ifndef CHRONOMAP_SOURCE_DIR
@@ -33,14 +34,14 @@ namespace fs = std::filesystem;
 constexpr const char* kDebianPython = "/usr/bin/python3";
 
 /// The simulated session (the tiny preset at 160 x 120) and the bags made from it, once.
-class RosBagTest : public ::testing::Test {
+class RosBagTest : public BagFixture<RosBagTest> {
+ public:
+  static constexpr const char* kWriters = "python3-rosbag";
+
  protected:
   static void SetUpTestSuite() {
-    dir_ = new test::TempDir();
-    const fs::path sim = *dir_ / "sim";
-    const auto simulated = test::runCommand(
-        test::cli() + " simulate --preset tiny --sessions 1 --resolution-scale 0.25 -o " + sim.string());
-    ASSERT_EQ(simulated.exit_code, 0) << simulated.err;
+    simulate();
+    if (HasFatalFailure()) return;
     const std::string script = std::string(CHRONOMAP_SOURCE_DIR) + "/tests/io/make_ros1_bags.py";
     const auto made =
         test::runCommand(std::string(kDebianPython) + " " + script + " " + tum().string() + " " + bags().string());
@@ -49,39 +50,8 @@ class RosBagTest : public ::testing::Test {
     generator_error_ = made.exit_code == 0 ? seeds.err : made.err;
     if (seeds.exit_code == 0) generator_error_.clear();
   }
-  static void TearDownTestSuite() {
-    delete dir_;
-    dir_ = nullptr;
-  }
-  void SetUp() override {
-    if (generator_error_.empty()) return;
-    if (test::underCi()) FAIL() << "writing the test bags failed: " << generator_error_;
-    GTEST_SKIP() << "writing the test bags failed (python3-rosbag missing?): " << generator_error_;
-  }
-
-  static fs::path tum() { return *dir_ / "sim" / "session_00"; }
-  static fs::path bags() { return *dir_ / "bags"; }
-  static fs::path bag(const std::string& name) { return bags() / name; }
-
-  /// The bags keep the TUM PNG's units (5000 per metre) in their 16UC1 images.
-  static DatasetSettings bagSettings() {
-    DatasetSettings s;
-    s.depth_scale = 5000.0;
-    return s;
-  }
-  static std::vector<uint8_t> mapBytes(const fs::path& path, const DatasetSettings& dataset) {
-    pipeline::SessionSettings s;
-    s.dataset = dataset;
-    s.integrator.threads = 2;
-    return encodeSessionMap(pipeline::integrateDataset(path, s).map, nlohmann::json::object());
-  }
-
-  static test::TempDir* dir_;
-  static std::string generator_error_;
 };
 
-test::TempDir* RosBagTest::dir_ = nullptr;
-std::string RosBagTest::generator_error_;
 
 TEST_F(RosBagTest, ListsTopicsTypesCountsAndEncodings) {
   const std::vector<BagTopic> topics = listBag(bag("tf.bag"));
