@@ -19,7 +19,7 @@
 #include "chronomap/io/dataset.h"
 #include "chronomap/io/jpeg.h"
 #include "chronomap/io/png.h"
-#if defined(FUZZ_BAG)
+#if defined(FUZZ_BAG) || defined(FUZZ_MCAP)
 #include <unistd.h>
 
 #include <filesystem>
@@ -30,14 +30,6 @@
 #if defined(FUZZ_ROSMSG)
 #include "io/ros_messages.h"
 #endif
-#if defined(FUZZ_MCAP)
-#include <unistd.h>
-
-#include <filesystem>
-#include <fstream>
-
-#include "chronomap/io/rosbag.h"
-#endif
 #if defined(FUZZ_CDR)
 #include "io/cdr.h"
 #endif
@@ -45,6 +37,29 @@
 namespace {
 
 using namespace chronomap;
+
+#if defined(FUZZ_BAG) || defined(FUZZ_MCAP)
+/// Both bag readers read files: the input goes to a file of this process (named with
+/// `extension`), then through the listing and the dataset reader (topics detected, poses from a
+/// pose topic or /tf into "map"), loading the first frames.
+void fuzzBagFile(const std::vector<uint8_t>& bytes, const char* extension, io::DatasetFormat format) {
+  static const std::filesystem::path path =
+      std::filesystem::temp_directory_path() / ("chronomap-fuzz-" + std::to_string(::getpid()) + extension);
+  std::ofstream(path, std::ios::binary | std::ios::trunc)
+      .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  io::listBag(path);
+  for (const char* fixed_frame : {"", "map"}) {
+    try {
+      io::DatasetSettings settings;
+      settings.format = format;
+      settings.bag.fixed_frame = fixed_frame;
+      const auto dataset = io::openDataset(path, settings);
+      for (size_t i = 0; i < dataset->size() && i < 4; ++i) dataset->load(i);
+    } catch (const Error&) {
+    }
+  }
+}
+#endif
 
 void fuzzOne(const std::vector<uint8_t>& bytes) {
   const std::string name = "fuzz-input";
@@ -116,24 +131,7 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
     default: io::parseCloudList(text, name); break;
   }
 #elif defined(FUZZ_BAG)
-  // librosbag reads files only: the input goes to a file of this process, then through the
-  // listing and the dataset reader (topics detected, poses from a pose topic or /tf into "map"),
-  // loading the first frames.
-  static const std::filesystem::path path =
-      std::filesystem::temp_directory_path() / ("chronomap-fuzz-" + std::to_string(::getpid()) + ".bag");
-  std::ofstream(path, std::ios::binary | std::ios::trunc)
-      .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
-  io::listBag(path);
-  for (const char* fixed_frame : {"", "map"}) {
-    try {
-      io::DatasetSettings settings;
-      settings.format = io::DatasetFormat::RosBag;
-      settings.bag.fixed_frame = fixed_frame;
-      const auto dataset = io::openDataset(path, settings);
-      for (size_t i = 0; i < dataset->size() && i < 4; ++i) dataset->load(i);
-    } catch (const Error&) {
-    }
-  }
+  fuzzBagFile(bytes, ".bag", io::DatasetFormat::RosBag);  // through librosbag
 #elif defined(FUZZ_ROSMSG)
   // The message decoders behind every bag reader: a 12-byte head picks the message's shape
   // (kind, encoding or fields, size, row bytes, byte order), the rest is its data.
@@ -168,24 +166,7 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
     }
   }
 #elif defined(FUZZ_MCAP)
-  // The ROS 2 MCAP reader (chronomap's own, src/io/mcap.cpp) reads files: the input goes to a
-  // file of this process, then through the listing and the dataset reader (topics detected,
-  // poses from a pose topic or /tf into "map"), loading the first frames.
-  static const std::filesystem::path path =
-      std::filesystem::temp_directory_path() / ("chronomap-fuzz-" + std::to_string(::getpid()) + ".mcap");
-  std::ofstream(path, std::ios::binary | std::ios::trunc)
-      .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
-  io::listBag(path);
-  for (const char* fixed_frame : {"", "map"}) {
-    try {
-      io::DatasetSettings settings;
-      settings.format = io::DatasetFormat::Ros2Bag;
-      settings.bag.fixed_frame = fixed_frame;
-      const auto dataset = io::openDataset(path, settings);
-      for (size_t i = 0; i < dataset->size() && i < 4; ++i) dataset->load(i);
-    } catch (const Error&) {
-    }
-  }
+  fuzzBagFile(bytes, ".mcap", io::DatasetFormat::Ros2Bag);  // chronomap's own MCAP reader
 #elif defined(FUZZ_CDR)
   // The CDR decoders of ROS 2 messages: the first byte picks the message type, the rest is the
   // message (encapsulation header first); images and clouds go on through ros_messages.
