@@ -236,6 +236,25 @@ bool slab(const double lo[3], const double hi[3], const Eigen::Vector3d& o, cons
   return true;
 }
 
+/// The nearest part a ray has hit so far: its distance, the face it entered through and its
+/// index. At equal distances the lower index wins, the order the renderer always kept.
+struct NearestHit {
+  double t = 1e30;
+  int face = -1;
+  uint32_t part = std::numeric_limits<uint32_t>::max();
+
+  void consider(const double lo[3], const double hi[3], uint32_t p, const Eigen::Vector3d& o,
+                const Eigen::Vector3d& inv) {
+    double te = 0.0;
+    int f = 0;
+    if (slab(lo, hi, o, inv, t, te, f) && f >= 0 && (te < t || (te == t && p < part))) {
+      t = te;
+      face = f;
+      part = p;
+    }
+  }
+};
+
 }  // namespace
 
 bool Renderer::cast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double& t, Rgb& color) const {
@@ -245,15 +264,13 @@ bool Renderer::cast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, d
   const double ox = origin.x(), oy = origin.y(), oz = origin.z();
   const double ix = inv.x(), iy = inv.y(), iz = inv.z();
   const bool nx = ix < 0.0, ny = iy < 0.0, nz = iz < 0.0;
-  double best = 1e30;
-  int best_face = -1;
-  uint32_t best_part = std::numeric_limits<uint32_t>::max();
+  NearestHit hit;
   double te = 0.0;
   auto enter = [&](const Node& n, double& t_node) {
     const double x0 = ((nx ? n.hi[0] : n.lo[0]) - ox) * ix, x1 = ((nx ? n.lo[0] : n.hi[0]) - ox) * ix;
     const double y0 = ((ny ? n.hi[1] : n.lo[1]) - oy) * iy, y1 = ((ny ? n.lo[1] : n.hi[1]) - oy) * iy;
     const double z0 = ((nz ? n.hi[2] : n.lo[2]) - oz) * iz, z1 = ((nz ? n.lo[2] : n.hi[2]) - oz) * iz;
-    double t0 = 0.0, t1 = best;
+    double t0 = 0.0, t1 = hit.t;
     t0 = x0 > t0 ? x0 : t0;
     t0 = y0 > t0 ? y0 : t0;
     t0 = z0 > t0 ? z0 : t0;
@@ -274,7 +291,7 @@ bool Renderer::cast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, d
   stack[top++] = {0, te};
   while (top > 0) {
     const Entry e = stack[--top];
-    if (e.t > best) continue;
+    if (e.t > hit.t) continue;
     const Node& n = nodes_[e.node];
     if (n.count == 0) {
       double ta = 0.0, tb = 0.0;
@@ -294,20 +311,11 @@ bool Renderer::cast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, d
       }
       continue;
     }
-    for (uint32_t i = n.first; i < n.first + n.count; ++i) {
-      const Box& b = boxes_[i];
-      int face = 0;
-      if (slab(b.lo, b.hi, origin, inv, best, te, face) && face >= 0 &&
-          (te < best || (te == best && b.part < best_part))) {
-        best = te;
-        best_face = face;
-        best_part = b.part;
-      }
-    }
+    for (uint32_t i = n.first; i < n.first + n.count; ++i) hit.consider(boxes_[i].lo, boxes_[i].hi, boxes_[i].part, origin, inv);
   }
-  if (best_face < 0) return false;
-  t = best;
-  color = parts_[best_part].face_colors[static_cast<size_t>(best_face)];
+  if (hit.face < 0) return false;
+  t = hit.t;
+  color = parts_[hit.part].face_colors[static_cast<size_t>(hit.face)];
   return true;
 }
 
@@ -396,24 +404,15 @@ class Tiles {
             const Eigen::Vector3d& dir, double& t, Rgb& color) const {
     const Eigen::Vector3d inv(1.0 / dir.x(), 1.0 / dir.y(), 1.0 / dir.z());
     const size_t tile = size_t{v / kSize} * across_ + u / kSize;
-    double best = 1e30;
-    int best_face = -1;
-    uint32_t best_part = 0;
+    NearestHit hit;
     for (uint32_t k = start_[tile]; k < start_[tile + 1]; ++k) {
       const Box& b = entries_[k];
-      if (b.near > best) break;  // this part and all after it are farther than the hit
-      double te = 0.0;
-      int face = 0;
-      if (slab(b.lo, b.hi, o, inv, best, te, face) && face >= 0 &&
-          (te < best || (te == best && b.part < best_part))) {
-        best = te;
-        best_face = face;
-        best_part = b.part;
-      }
+      if (b.near > hit.t) break;  // this part and all after it are farther than the hit
+      hit.consider(b.lo, b.hi, b.part, o, inv);
     }
-    if (best_face < 0) return false;
-    t = best;
-    color = parts[best_part].face_colors[static_cast<size_t>(best_face)];
+    if (hit.face < 0) return false;
+    t = hit.t;
+    color = parts[hit.part].face_colors[static_cast<size_t>(hit.face)];
     return true;
   }
 
