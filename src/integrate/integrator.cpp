@@ -480,9 +480,13 @@ struct RayAccumulator::Impl {
       return static_cast<uint64_t>(x) | (static_cast<uint64_t>(y) << 21) | (static_cast<uint64_t>(z) << 42);
     };
     if (box <= static_cast<double>(settings.dense_grid_max_cells)) {
-      const int64_t nx = hi[0] - lo[0] + 1, ny = hi[1] - lo[1] + 1;
-      std::vector<float> length(static_cast<size_t>(box), 0.0f);
-      for (size_t i = 0; i < ends_u.size(); ++i) castDense(origin, ends_u[i].data(), weights[i], length.data(), lo, nx, nx * ny);
+      // The frame's own rays are emitted by now: their store is free to reuse.
+      DenseStore& d = dense;
+      d.reset(lo, hi, /*with_end=*/false);
+      const std::vector<float>& length = d.length;
+      for (size_t i = 0; i < ends_u.size(); ++i) {
+        castDense(origin, ends_u[i].data(), weights[i], d.length.data(), d.lo, d.n[0], d.n[0] * d.n[1]);
+      }
       size_t idx = 0;
       for (int64_t z = lo[2]; z <= hi[2]; ++z) {
         for (int64_t y = lo[1]; y <= hi[1]; ++y) {
