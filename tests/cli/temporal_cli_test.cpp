@@ -553,7 +553,7 @@ TEST(TemporalCli, AddAppendsWithoutRewriting) {
 namespace chronomap {
 namespace {
 
-TEST(SimulatorCli, SimulateAndDemo) {
+TEST(SimulatorCli, SimulateAndBuildWithRegistration) {
   test::TempDir tmp;
   auto r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " simulate --preset tiny --sessions 2 --resolution-scale 0.2 -o " +
                             (tmp / "sim").string() + " --json");
@@ -640,8 +640,13 @@ TEST(SimulatorCli, SimulateAndDemo) {
   r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " simulate --preset castle -o " + (tmp / "x").string());
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("unknown simulator preset 'castle'"), std::string::npos) << r.err;
+}
 
-  r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " demo --resolution-scale 0.2 -o " + (tmp / "demo").string() +
+/// The main job, at a fifth of the resolution: its figures, its report's pictures and the tour.
+/// (Apart from the test above so that the two long runs can go in parallel.)
+TEST(SimulatorCli, Demo) {
+  test::TempDir tmp;
+  const auto r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " demo --resolution-scale 0.2 -o " + (tmp / "demo").string() +
                        " --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto d = nlohmann::json::parse(r.out);
