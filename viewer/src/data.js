@@ -36,6 +36,8 @@ export class ServerSource {
   static kCached = 12;
   /** The server sends finer cells for the part in view. */
   get refines() { return true; }
+  /** Snapshots come over the network: worth asking for the next one early. */
+  get prefetches() { return true; }
   constructor() { this.kind = 'server'; this.snapshots = new Map(); }
   async info() { return (await fetchOk('api/map')).json(); }
   /** The occupied cells at session `rank`, at most `budget`; only in `region` (keys x0, y0, z0,
