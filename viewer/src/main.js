@@ -83,6 +83,49 @@ function cellCenter(keys, levels, i, out) {
 // Colours
 
 const srgb = new THREE.Color();
+const NO_MODEL = [120, 128, 140];
+
+// Per drawn cell of `snap`, the predicted probability of occupancy (the most probable modelled
+// cube inside it, or the modelled cube it lies in), NaN where no cube is modelled (it never
+// changed: it stays as observed).
+function cellPredictions(snap, pred) {
+  const out = new Float32Array(snap.count).fill(NaN);
+  const cellKey = (x, y, z, l) => (x >> l) + 65536 * ((y >> l) + 65536 * (z >> l));
+  const byLevel = new Map();  // level of the snapshot's cells -> Map(key -> cell)
+  for (let i = 0; i < snap.count; ++i) {
+    const l = snap.levels[i];
+    if (!byLevel.has(l)) byLevel.set(l, new Map());
+    byLevel.get(l).set(cellKey(snap.keys[3 * i], snap.keys[3 * i + 1], snap.keys[3 * i + 2], l), i);
+  }
+  const coarse = new Map();  // cubes larger than some cells: level -> Map(key -> p)
+  for (let c = 0; c < pred.levels.length; ++c) {
+    const x = pred.keys[3 * c], y = pred.keys[3 * c + 1], z = pred.keys[3 * c + 2], lc = pred.levels[c], p = pred.p[c];
+    for (const [l, cells] of byLevel) {
+      if (lc > l) {
+        if (!coarse.has(lc)) coarse.set(lc, new Map());
+        coarse.get(lc).set(cellKey(x, y, z, lc), p);
+        continue;
+      }
+      const i = cells.get(cellKey(x, y, z, l));
+      if (i !== undefined && !(out[i] >= p)) out[i] = p;
+    }
+  }
+  for (const [lc, cubes] of coarse) {
+    for (let i = 0; i < snap.count; ++i) {
+      if (snap.levels[i] >= lc) continue;
+      const p = cubes.get(cellKey(snap.keys[3 * i], snap.keys[3 * i + 1], snap.keys[3 * i + 2], lc));
+      if (p !== undefined && !(out[i] >= p)) out[i] = p;
+    }
+  }
+  return out;
+}
+
+async function loadPrediction(rank) {
+  if (state.colorMode !== 'predicted' || !state.source.predicts) return;
+  const t0 = performance.now();
+  const pred = await state.source.prediction(rank);
+  if (state.rank === rank) { state.prediction = pred; state.lastPredictionMs = performance.now() - t0; }
+}
 function colorOf(snap, i) {
   switch (state.colorMode) {
     case 'height': {
@@ -93,6 +136,10 @@ function colorOf(snap, i) {
     case 'age': {
       const age = snap.rank - snap.since[i];
       return age === 0 && snap.rank > 0 ? [255, 140, 40] : viridis(1 - age / Math.max(1, snap.rank));
+    }
+    case 'predicted': {
+      const p = state.cellP ? state.cellP[i] : NaN;
+      return Number.isNaN(p) ? NO_MODEL : viridis(p);
     }
     default: return [snap.colors[3 * i], snap.colors[3 * i + 1], snap.colors[3 * i + 2]];
   }
@@ -428,6 +475,8 @@ function drawSnapshot() {
   const snap = withDetail(state.snap, state.detail);
   state.shown = snap;
   computeBounds(snap);
+  state.cellP = state.colorMode === 'predicted' && state.prediction && state.prediction.rank === snap.rank ?
+    cellPredictions(snap, state.prediction) : null;
   state.maxChanges = 1;
   for (let i = 0; i < snap.count; ++i) state.maxChanges = Math.max(state.maxChanges, snap.changes[i]);
   const cut = cutHeightKey();
@@ -459,7 +508,7 @@ async function setSession(rank) {
   $('time').value = rank;
   $('timelabel').textContent = sessionLabel(rank);
   const t0 = performance.now();
-  const snap = await state.source.snapshot(rank, state.budget);
+  const [snap] = await Promise.all([state.source.snapshot(rank, state.budget), loadPrediction(rank)]);
   if (state.rank !== rank) return;  // a later move of the slider won
   state.snap = snap;
   state.lastLoadMs = performance.now() - t0;
@@ -701,6 +750,13 @@ function updateLegend() {
     html = `<div>stored state changes up to this session</div><div class="ramp" style="background:${gradientCss(heat)}"></div>` +
       `<div class="ends"><span>1</span><span>${state.maxChanges}</span></div><div class="key"><span class="sw" style="background:rgb(120,128,140)"></span>never changed</div>`;
   }
+  if (mode === 'predicted') {
+    const p = state.prediction;
+    html = `<div>predicted probability of occupancy at this time (${p ? p.model : 'combined'} model, docs/rhythm.md)</div>` +
+      `<div class="ramp" style="background:${gradientCss(viridis)}"></div><div class="ends"><span>0</span><span>1</span></div>` +
+      `<div class="key"><span class="sw" style="background:${css(NO_MODEL)}"></span>never changed: no model</div>`;
+    if (p && p.fit_s > 0) html += `<div class="dim">models fitted on the server in ${p.fit_s.toFixed(1)} s</div>`;
+  }
   if (mode === 'age') {
     html = `<div>sessions since the voxel took its state</div><div class="ramp" style="background:${gradientCss((t) => viridis(1 - t))}"></div>` +
       `<div class="ends"><span>1</span><span>${state.rank}</span></div><div class="key"><span class="sw" style="background:rgb(255,140,40)"></span>set by this session</div>`;
@@ -732,7 +788,7 @@ function report(e) {
 function wire() {
   $('time').addEventListener('input', () => setSession(Number($('time').value)).catch(report));
   $('play').addEventListener('click', () => setPlaying(!state.playing));
-  $('colormode').addEventListener('change', () => { state.colorMode = $('colormode').value; drawSnapshot(); });
+  $('colormode').addEventListener('change', () => setColorMode($('colormode').value).catch(report));
   $('cut').addEventListener('input', () => {
     state.cut = Number($('cut').value) / 1000;
     const r = state.info.resolution_m, o = state.info.key_origin;
@@ -803,6 +859,7 @@ async function main() {
     (state.source.kind === 'tour' ? ' · tour file' : '');
   $('time').max = state.info.sessions.length - 1;
   fillSessionSelects();
+  if (!state.source.predicts) $('predictedmode').remove();
   wire();
   animate();
   const last = state.info.sessions.length - 1;
@@ -811,13 +868,24 @@ async function main() {
   state.ready = true;
 }
 
+async function setColorMode(mode) {
+  state.colorMode = mode;
+  $('colormode').value = mode;
+  if (mode === 'predicted') {
+    $('busy').style.display = 'block';
+    $('busy').textContent = 'predicting occupancy (the first time, the server fits the temporal models)';
+    try { await loadPrediction(state.rank); } finally { $('busy').style.display = 'none'; }
+  }
+  drawSnapshot();
+}
+
 // Test hooks: the same calls the controls make.
 state.setSession = (rank) => setSession(rank);
 state.nextFrame = () => nextFrame();
 state.showDiff = (from, to) => showDiff(from, to);
 state.clearDiff = () => { clearDiff(); drawSnapshot(); };
 state.selectCell = (i) => selectCell(i);
-state.setColorMode = (m) => { state.colorMode = m; $('colormode').value = m; drawSnapshot(); };
+state.setColorMode = (m) => setColorMode(m);
 state.toggleTopView = () => $('topview').click();
 /** Cuts at `metres` above the map's origin (the slider's value nearest to it). */
 state.setCut = (metres) => {
