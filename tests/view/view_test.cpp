@@ -274,11 +274,24 @@ TEST(ViewApi, PredictionsAreTheTemporalModels) {
   ApiSettings given;
   given.rhythm = std::make_shared<const RhythmModels>(models);
   check(Api(map, "four.cmap", given), "hourly", RhythmModel::Hourly, false);
+  // The cost map is costmap() of the prediction, with the defaults of `chronomap costmap`.
+  const Reply c = fitting.get("/api/costmap", {{"session", "2"}});
+  ASSERT_EQ(c.status, 200) << c.body;
+  const Packet cp = readPacket(c.body);
+  const Costmap expected = costmap(predictMap(map, models, RhythmModel::Combined, 3000.0), CostmapSettings{}, &models);
+  EXPECT_EQ(cp.header["width"], expected.width);
+  EXPECT_EQ(cp.header["height"], expected.height);
+  EXPECT_DOUBLE_EQ(cp.header["origin_m"][0].get<double>(), expected.origin_m.x());
+  const auto cost = cp.values<uint8_t>("cost");
+  ASSERT_EQ(cost.size(), expected.cost.size());
+  for (size_t i = 0; i < cost.size(); ++i) ASSERT_EQ(static_cast<int8_t>(cost[i]), expected.cost[i]) << i;
+  EXPECT_EQ(fitting.get("/api/costmap", {{"session", "9"}}).status, 400);
   // Models of another resolution are refused.
   RhythmModels other = models;
   other.resolution_m = 0.1;
   given.rhythm = std::make_shared<const RhythmModels>(other);
   EXPECT_EQ(Api(map, "four.cmap", given).get("/api/predict", {{"session", "0"}}).status, 400);
+  EXPECT_EQ(Api(map, "four.cmap", given).get("/api/costmap", {{"session", "0"}}).status, 400);
 }
 
 TEST(ViewTour, HoldsEverySessionsOccupiedVoxelsAndTheBundle) {

@@ -66,6 +66,12 @@ export class ServerSource {
   async history(key, level) {
     return (await fetchOk(`api/history?key=${key.join(',')}&level=${level}`)).json();
   }
+  /** The navigation cost map at session `rank` (chronomap costmap's defaults): width, height,
+   *  resolution_m, origin_m, z band, cost (u8, 255 unknown). */
+  async costmap(rank, model = 'combined') {
+    const q = readPacket(await (await fetchOk(`api/costmap?session=${rank}&model=${model}`)).arrayBuffer());
+    return { ...q.header, rank, cost: q.arrays.cost, bytes: q.bytes };
+  }
   /** The server fits temporal models (or has them from --rhythm). */
   get predicts() { return true; }
   /** Every modelled cube's predicted probability of occupancy at session `rank`: keys (corners),

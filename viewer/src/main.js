@@ -508,7 +508,7 @@ async function setSession(rank) {
   $('time').value = rank;
   $('timelabel').textContent = sessionLabel(rank);
   const t0 = performance.now();
-  const [snap] = await Promise.all([state.source.snapshot(rank, state.budget), loadPrediction(rank)]);
+  const [snap] = await Promise.all([state.source.snapshot(rank, state.budget), loadPrediction(rank), loadCostmap(rank)]);
   if (state.rank !== rank) return;  // a later move of the slider won
   state.snap = snap;
   state.lastLoadMs = performance.now() - t0;
@@ -755,11 +755,18 @@ function updateLegend() {
     html = `<div>predicted probability of occupancy at this time (${p ? p.model : 'combined'} model, docs/rhythm.md)</div>` +
       `<div class="ramp" style="background:${gradientCss(viridis)}"></div><div class="ends"><span>0</span><span>1</span></div>` +
       `<div class="key"><span class="sw" style="background:${css(NO_MODEL)}"></span>never changed: no model</div>`;
-    if (p && p.fit_s > 0) html += `<div class="dim">models fitted on the server in ${p.fit_s.toFixed(1)} s</div>`;
+    if (p && p.fit_s > 0) html += `<div class="dim">models fitted on the server in ${p.fit_s.toFixed(p.fit_s < 1 ? 2 : 1)} s</div>`;
   }
   if (mode === 'age') {
     html = `<div>sessions since the voxel took its state</div><div class="ramp" style="background:${gradientCss((t) => viridis(1 - t))}"></div>` +
       `<div class="ends"><span>1</span><span>${state.rank}</span></div><div class="key"><span class="sw" style="background:rgb(255,140,40)"></span>set by this session</div>`;
+  }
+  if (state.costmap) {
+    const c = state.costmap;
+    html += `<div style="margin-top:6px">navigation cost (${c.z_min_m}–${c.z_max_m} m above the floor, ${c.model} model)</div>` +
+      `<div class="ramp" style="background:${gradientCss(heat)}"></div><div class="ends"><span>low</span><span>high</span></div>` +
+      [[0, 'free'], [99, 'too close for the robot'], [100, 'obstacle']].map(([v, t]) =>
+        `<div class="key"><span class="sw" style="background:${css(costColor(v).slice(0, 3))}"></span>${t}</div>`).join('');
   }
   if (state.diff) {
     html += `<div class="key"><span class="sw appeared"></span>appeared (numbered, framed)</div>` +
@@ -805,6 +812,7 @@ function wire() {
     $('topview').classList.add('on');
   });
   $('reset').addEventListener('click', resetCamera);
+  if ($('costmap')) $('costmap').addEventListener('click', () => setCostmap(!state.costmapOn).catch(report));
   $('showdiff').addEventListener('click', () => {
     if (state.diff) { clearDiff(); drawSnapshot(); return; }
     showDiff(Number($('from').value), Number($('to').value)).catch(report);
@@ -859,13 +867,62 @@ async function main() {
     (state.source.kind === 'tour' ? ' · tour file' : '');
   $('time').max = state.info.sessions.length - 1;
   fillSessionSelects();
-  if (!state.source.predicts) $('predictedmode').remove();
+  if (!state.source.predicts) { $('predictedmode').remove(); $('costmaprow').remove(); }
   wire();
   animate();
   const last = state.info.sessions.length - 1;
   await setSession(last);
   $('busy').style.display = 'none';
   state.ready = true;
+}
+
+// The navigation cost map (chronomap costmap at the slider's time) as a layer on the floor:
+// free green, costly from blue to red by cost, orange where the robot's centre cannot be
+// (within its radius of an obstacle), red for obstacles; unknown is not drawn.
+let costLayer = null;
+function costColor(c) {
+  if (c === 255) return [0, 0, 0, 0];
+  if (c === 0) return [60, 180, 90, 110];
+  if (c === 100) return [220, 30, 40, 235];
+  if (c === 99) return [245, 150, 40, 210];
+  return [...heat(c / 98), 210];
+}
+async function loadCostmap(rank) {
+  if (!state.costmapOn || !state.source.predicts) return;
+  const cm = await state.source.costmap(rank);
+  if (state.rank !== rank || !state.costmapOn) return;
+  state.costmap = cm;
+  if (costLayer) { scene.remove(costLayer); costLayer.geometry.dispose(); costLayer.material.map.dispose(); costLayer.material.dispose(); }
+  const rgba = new Uint8Array(4 * cm.width * cm.height);
+  for (let i = 0; i < cm.cost.length; ++i) rgba.set(costColor(cm.cost[i]), 4 * i);
+  const texture = new THREE.DataTexture(rgba, cm.width, cm.height);
+  texture.magFilter = THREE.NearestFilter;
+  texture.colorSpace = THREE.SRGBColorSpace;
+  texture.needsUpdate = true;
+  const w = cm.width * cm.resolution_m, h = cm.height * cm.resolution_m;
+  costLayer = new THREE.Mesh(new THREE.PlaneGeometry(w, h),
+                             new THREE.MeshBasicMaterial({ map: texture, transparent: true, depthWrite: false }));
+  const r = state.info.resolution_m, o = state.info.key_origin;
+  const floor = state.bounds ? (state.bounds.zmin - o) * r : 0;
+  costLayer.position.set(cm.origin_m[0] + w / 2, cm.origin_m[1] + h / 2, floor + cm.z_min_m);
+  costLayer.renderOrder = 1;
+  scene.add(costLayer);
+  updateLegend();
+  redraw();
+}
+async function setCostmap(on) {
+  state.costmapOn = on;
+  $('costmap').classList.toggle('on', on);
+  if (!on) {
+    if (costLayer) { scene.remove(costLayer); costLayer = null; }
+    state.costmap = null;
+    updateLegend();
+    redraw();
+    return;
+  }
+  $('busy').style.display = 'block';
+  $('busy').textContent = 'computing the cost map (the first time, the server fits the temporal models)';
+  try { await loadCostmap(state.rank); } finally { $('busy').style.display = 'none'; }
 }
 
 async function setColorMode(mode) {
@@ -886,6 +943,7 @@ state.showDiff = (from, to) => showDiff(from, to);
 state.clearDiff = () => { clearDiff(); drawSnapshot(); };
 state.selectCell = (i) => selectCell(i);
 state.setColorMode = (m) => setColorMode(m);
+state.setCostmap = (on) => setCostmap(on);
 state.toggleTopView = () => $('topview').click();
 /** Cuts at `metres` above the map's origin (the slider's value nearest to it). */
 state.setCut = (metres) => {

@@ -137,7 +137,20 @@ async function checkPrediction(page) {
     worst = Math.max(worst, Number.isNaN(cli) ? Infinity : Math.abs(cli - v.p));
   }
   check(worst < 1e-3, `server: the page's predicted probabilities of ${shown.picks.length} voxels equal chronomap predict's (largest difference ${worst})`);
-  await page.evaluate(() => window.chronomap.setColorMode('color'));
+  // The cost map layer: the server's grid, drawn on the floor, in the legend.
+  const cost = await page.evaluate(async () => {
+    const c = window.chronomap;
+    await c.setCostmap(true);
+    await c.nextFrame();
+    const m = c.costmap;
+    let known = 0;
+    for (const v of m.cost) if (v !== 255) ++known;
+    return { cells: m.width * m.height, known, rank: m.rank, legend: document.getElementById('legend').textContent };
+  });
+  check(cost.rank === rank && cost.known > 0 && /navigation cost/.test(cost.legend),
+        `server: the cost map layer at session ${rank + 1}: ${cost.known} of ${cost.cells} cells known`);
+  await page.screenshot({ path: path.join(work, 'server-predicted.png') });
+  await page.evaluate(async () => { await window.chronomap.setCostmap(false); await window.chronomap.setColorMode('color'); });
 }
 
 async function checkPage(url, label) {
