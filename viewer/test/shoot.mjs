@@ -2,7 +2,8 @@
 //   node test/shoot.mjs URL OUT_PREFIX
 // writes OUT_PREFIX-map.png (last session), OUT_PREFIX-diff.png (objects between the first two
 // sessions), OUT_PREFIX-history.png (coloured by change count, the busiest voxel's history) and
-// OUT_PREFIX-top.png (top view, cut at 1.2 m), and prints timings as JSON (software WebGL): a
+// OUT_PREFIX-top.png (top view, cut at 1.2 m), OUT_PREFIX-zoom.png (a coarse map zoomed in),
+// OUT_PREFIX-predicted.png (predicted occupancy and the cost map, `chronomap view` only), and prints timings as JSON (software WebGL): a
 // slider step's wall time split into fetch, building the mesh and drawing, and the processor
 // time Chromium spent per step (all its processes).
 import fs from 'node:fs';
@@ -101,10 +102,37 @@ try {
     return { ms: performance.now() - t, cells: c.shown.detailCells, level: c.shown.detailLevel };
   });
   if (zoom) await page.screenshot({ path: `${prefix}-zoom.png` });
+  // Colouring by predicted occupancy (the first request fits the models on the server) and the
+  // cost map layer, where the server has them.
+  const rhythm = await page.evaluate(async () => {
+    const c = window.chronomap;
+    if (!c.source.predicts || !c.setCostmap) return null;
+    if (c.topView) c.toggleTopView();
+    c.setCut(100);
+    document.getElementById('reset').click();
+    let t = performance.now();
+    await c.setColorMode('predicted');
+    await c.nextFrame();
+    const first = performance.now() - t;
+    const steps = [];
+    for (let r = 0; r < Math.min(6, c.info.sessions.length); ++r) {
+      t = performance.now();
+      await c.setSession(r);
+      await c.nextFrame();
+      steps.push(Math.round(performance.now() - t));
+    }
+    t = performance.now();
+    await c.setCostmap(true);
+    await c.nextFrame();
+    return { first_ms: Math.round(first), fit_s: c.prediction.fit_s, cubes: c.prediction.levels.length,
+             prediction_bytes: c.prediction.bytes, steps_ms: steps, costmap_ms: Math.round(performance.now() - t),
+             costmap_bytes: c.costmap.bytes };
+  });
+  if (rhythm) await page.screenshot({ path: `${prefix}-predicted.png` });
   const memory = await page.evaluate(() => (performance.memory ? performance.memory.usedJSHeapSize : null));
   console.log(JSON.stringify({ first_picture_ms: firstPicture, slider_steps_ms: steps.map((x) => Math.round(x.total)),
                                step_parts_ms: steps.map((x) => [x.fetch, x.build, x.draw].map(Math.round)),
-                               step_cpu_ms: Math.round(stepCpuMs), objects, zoom,
+                               step_cpu_ms: Math.round(stepCpuMs), objects, zoom, rhythm,
                                js_heap_bytes: memory }));
 } finally {
   await browser.close();
