@@ -526,7 +526,8 @@ async function setSession(rank) {
 
 // ---------------------------------------------------------------------------------------------
 // Finer cells where the camera looks: when the whole map comes in coarse cubes, the server is
-// asked for the cells around the orbit target, with the same budget, after each camera move.
+// asked, after each camera move, for the cells of the part of the map in view (footprint) with
+// the same budget.
 
 let refineTimer = null;
 function scheduleRefine() {
@@ -534,12 +535,43 @@ function scheduleRefine() {
   refineTimer = setTimeout(() => refine().catch(report), 250);
 }
 
+// The part of the map on screen, up to twice the distance to the orbit target (farther cells
+// look small enough in coarse cubes): the box in x, y (metres) around the camera (when within
+// the map's heights) and the parts of the rays through the picture's corners within those
+// heights, each cut at that reach.
+function footprint() {
+  const r = state.info.resolution_m, o = state.info.key_origin, b = state.bounds;
+  camera.updateMatrixWorld();  // the camera may have moved since the last frame
+  const z0 = (b.zmin - o) * r, z1 = (b.zmax - o) * r, p = camera.position;
+  const reach = 2 * p.distanceTo(controls.target);
+  const xs = [], ys = [];
+  if (p.z >= z0 && p.z <= z1) { xs.push(p.x); ys.push(p.y); }
+  for (const [u, v] of [[-1, -1], [1, -1], [1, 1], [-1, 1]]) {
+    const d = new THREE.Vector3(u, v, 0.5).unproject(camera).sub(p).normalize();
+    // The ray's part within the heights, cut at the reach: a ray that meets the heights only
+    // beyond it (or never: it rises above them) bounds the view at the reach.
+    let t0 = 0, t1 = reach;
+    if (Math.abs(d.z) > 1e-9) {
+      const a = (z0 - p.z) / d.z, c = (z1 - p.z) / d.z;
+      t0 = Math.min(reach, Math.max(0, Math.min(a, c)));
+      t1 = Math.max(a, c) < 0 ? reach : Math.min(reach, Math.max(a, c));
+    }
+    for (const t of [t0, t1]) { xs.push(p.x + t * d.x); ys.push(p.y + t * d.y); }
+  }
+  if (!xs.length) return null;
+  const clip = (v, k0, k1) => Math.min((k1 - o) * r, Math.max((k0 - o) * r, v));
+  return [clip(Math.min(...xs), b.xmin, b.xmax), clip(Math.min(...ys), b.ymin, b.ymax),
+          clip(Math.max(...xs), b.xmin, b.xmax), clip(Math.max(...ys), b.ymin, b.ymax)];
+}
+
 async function refine() {
   const snap = state.snap;
   if (!state.source.refines || !snap || snap.level === 0) { state.detail = null; return; }
   const r = state.info.resolution_m, o = state.info.key_origin, b = state.bounds;
-  const radius = 0.7 * camera.position.distanceTo(controls.target);
-  if (2 * radius >= 0.8 * state.extent) {
+  const f = footprint();
+  // Most of the map in view: the whole map's cells are as fine as the budget allows.
+  const area = f ? (f[2] - f[0]) * (f[3] - f[1]) : 0, whole = (b.xmax - b.xmin) * (b.ymax - b.ymin) * r * r;
+  if (!f || area <= 0 || area >= 0.6 * whole) {
     if (state.detail) { state.detail = null; drawSnapshot(); }
     return;
   }
@@ -547,8 +579,7 @@ async function refine() {
   const cell = 1 << snap.level;
   const lo = (v) => Math.max(0, Math.floor((v / r + o) / cell) * cell);
   const hi = (v) => Math.min(65535, Math.ceil((v / r + o) / cell) * cell - 1);
-  const t = controls.target;
-  const region = [lo(t.x - radius), lo(t.y - radius), b.zmin, hi(t.x + radius), hi(t.y + radius), Math.min(65535, b.zmax)];
+  const region = [lo(f[0]), lo(f[1]), b.zmin, hi(f[2]), hi(f[3]), Math.min(65535, b.zmax)];
   if (state.detail && state.detail.rank === snap.rank && state.detail.region.join() === region.join()) return;
   const rank = snap.rank;
   const fine = await state.source.snapshot(rank, state.budget, region);
