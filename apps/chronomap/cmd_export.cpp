@@ -23,17 +23,19 @@ struct ExportOptions {
   std::string output;
   int pixels_per_voxel = 2;
   size_t max_voxels = view::TourSettings{}.max_voxels;
+  size_t max_diff_cells = view::TourSettings{}.max_diff_cells;
   bool json = false;
 };
 
 int runTour(const ExportOptions& o) {
   view::TourSettings settings;
   settings.max_voxels = o.max_voxels;
+  settings.max_diff_cells = o.max_diff_cells;
   const TemporalMap map = io::readTemporalMap(o.input);
   const auto r = view::writeTour(o.output, map, std::filesystem::path(o.input).filename().string(), settings);
   if (o.json) {
     std::cout << nlohmann::json{{"output", o.output}, {"format", "html"}, {"elements", r.cells},
-                                {"level", r.level},   {"diffs", r.diffs},  {"bytes", r.bytes}}
+                                {"level", r.level},   {"diffs", r.diffs},  {"diff_cells", r.diff_cells}, {"bytes", r.bytes}}
                      .dump()
               << "\n";
   } else {
@@ -82,6 +84,11 @@ Command addExport(CLI::App& root) {
   app->add_option("--scale", o->pixels_per_voxel, ".png: pixels per voxel edge")->capture_default_str();
   app->add_option("--max-voxels", o->max_voxels, ".html: most cells drawn; more voxels become coarser octree cubes")
       ->check(numberIn(1, 5e6))
+      ->capture_default_str();
+  app->add_option("--max-diff-cells", o->max_diff_cells,
+                  ".html: most changed cells drawn per pair of sessions (the objects' list is always whole); "
+                  "the file holds at most 48 MiB of map data")
+      ->check(numberIn(0, 5e6))
       ->capture_default_str();
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runExport(*o); }};

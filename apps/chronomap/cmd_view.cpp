@@ -1,8 +1,11 @@
 // chronomap view MAP.cmap [--port N] [--host ADDR]: the 4D viewer in the browser.
 
+#include <cmath>
 #include <iostream>
 #include <memory>
 
+#include "chronomap/core/error.h"
+#include "chronomap/io/rhythm_file.h"
 #include "chronomap/io/temporal_file.h"
 #include "chronomap/view/server.h"
 #include "commands.h"
@@ -15,12 +18,20 @@ struct ViewOptions {
   std::string map;
   view::ServerSettings server;
   size_t budget = view::ApiSettings{}.default_max_voxels;
+  std::string rhythm;
 };
 
 int runView(ViewOptions o) {
   requireExtension(o.map, ".cmap", "4D map");
   const TemporalMap map = io::readTemporalMap(o.map);
   o.server.api.default_max_voxels = o.budget;
+  if (!o.rhythm.empty()) {
+    o.server.api.rhythm = std::make_shared<const RhythmModels>(io::readRhythmModels(o.rhythm));
+    if (std::abs(o.server.api.rhythm->resolution_m - map.resolution_m()) > 1e-9) {
+      throw UsageError(o.rhythm + ": models of " + std::to_string(o.server.api.rhythm->resolution_m) +
+                       " m voxels; the map has " + std::to_string(map.resolution_m()) + " m");
+    }
+  }
   view::Server server(map, std::filesystem::path(o.map).filename().string(), o.server);
   server.bind();
   std::cout << "chronomap view: " << o.map << " (" << map.sessionCount() << " sessions) at " << server.url()
@@ -48,6 +59,9 @@ Command addView(CLI::App& root) {
                                          "occupied voxels are drawn as coarser octree cubes")
       ->check(numberIn(1, static_cast<double>(view::ApiSettings{}.max_voxels_limit)))
       ->capture_default_str();
+  app->add_option("--rhythm", o->rhythm,
+                  "temporal models saved by `chronomap predict --save-rhythm`, for colouring by predicted "
+                  "occupancy (without it, the models are fitted to every session when the page first asks)");
   return {app, [o] { return runView(*o); }};
 }
 

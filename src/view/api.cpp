@@ -3,7 +3,9 @@
 #include "chronomap/view/api.h"
 
 #include <charconv>
+#include <chrono>
 #include <cmath>
+#include <limits>
 #include <set>
 #include <sstream>
 
@@ -108,6 +110,8 @@ Reply Api::get(const std::string& path, const Query& query) const {
     if (path == "/api/snapshot") return snapshot(query);
     if (path == "/api/diff") return diffReply(query);
     if (path == "/api/history") return history(query);
+    if (path == "/api/predict") return predict(query);
+    if (path == "/api/costmap") return costmapReply(query);
   } catch (const UsageError& e) {
     return json({{"error", e.what()}}, 400);
   }
@@ -146,6 +150,74 @@ Reply Api::history(const Query& query) const {
   int level = 0;
   if (const auto* l = find(query, "level")) level = static_cast<int>(parseCount(*l, "level", 0, kMaxHistoryLevel));
   return json(historyJson(map_, VoxelKey{k[0], k[1], k[2]}, level));
+}
+
+const RhythmModels& Api::rhythm() const {
+  if (settings_.rhythm) {
+    if (std::abs(settings_.rhythm->resolution_m - map_.resolution_m()) > 1e-9) {
+      throw UsageError("the temporal models are for " + std::to_string(settings_.rhythm->resolution_m) +
+                       " m voxels, the map has " + std::to_string(map_.resolution_m()) + " m");
+    }
+    return *settings_.rhythm;
+  }
+  std::call_once(fitted_->once, [this] {
+    const auto start = std::chrono::steady_clock::now();
+    const double inf = std::numeric_limits<double>::infinity();
+    fitted_->models = std::make_shared<const RhythmModels>(fitRhythm(map_, -inf, inf));
+    fitted_->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  });
+  return *fitted_->models;
+}
+
+Reply Api::predict(const Query& query) const {
+  onlyParameters(query, {"session", "t", "model"});
+  const double time_s = requestedTime(map_, query, "session", "t");
+  RhythmModel model = RhythmModel::Combined;
+  if (const auto* m = find(query, "model")) model = parseRhythmModel(*m);
+  const RhythmModels& models = rhythm();
+  return binary(encodePrediction(models, model, time_s, settings_.rhythm ? 0.0 : fitted_->seconds));
+}
+
+Reply Api::costmapReply(const Query& query) const {
+  onlyParameters(query, {"session", "t", "model"});
+  const double time_s = requestedTime(map_, query, "session", "t");
+  RhythmModel model = RhythmModel::Combined;
+  if (const auto* m = find(query, "model")) model = parseRhythmModel(*m);
+  const RhythmModels& models = rhythm();
+  const CostmapSettings settings;
+  return binary(encodeCostmap(costmap(predictMap(map_, models, model, time_s), settings, &models), settings, model, time_s));
+}
+
+std::string encodeCostmap(const Costmap& c, const CostmapSettings& settings, RhythmModel model, double time_s) {
+  std::vector<uint8_t> cost(c.cost.size());
+  for (size_t i = 0; i < cost.size(); ++i) cost[i] = static_cast<uint8_t>(c.cost[i]);
+  PacketWriter w;
+  w.add("cost", std::span<const uint8_t>(cost));
+  return w.finish({{"time_s", time_s},
+                   {"model", toString(model)},
+                   {"width", c.width},
+                   {"height", c.height},
+                   {"resolution_m", c.resolution_m},
+                   {"origin_m", {c.origin_m.x(), c.origin_m.y()}},
+                   {"z_min_m", settings.z_min_m},
+                   {"z_max_m", settings.z_max_m}});
+}
+
+std::string encodePrediction(const RhythmModels& models, RhythmModel model, double time_s, double fit_s) {
+  std::vector<uint16_t> keys;
+  std::vector<uint8_t> levels;
+  std::vector<float> p;
+  keys.reserve(3 * models.voxels.size());
+  for (const auto& v : models.voxels) {
+    keys.insert(keys.end(), {v.corner.x, v.corner.y, v.corner.z});
+    levels.push_back(v.level);
+    p.push_back(static_cast<float>(RhythmModels::predict(v, model, time_s)));
+  }
+  PacketWriter w;
+  w.add("keys", std::span<const uint16_t>(keys));
+  w.add("levels", std::span<const uint8_t>(levels));
+  w.add("p", std::span<const float>(p));
+  return w.finish({{"time_s", time_s}, {"model", toString(model)}, {"cubes", levels.size()}, {"fit_s", fit_s}});
 }
 
 std::string encodeSnapshot(const VoxelSet& v, const TemporalMap& map) {

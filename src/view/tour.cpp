@@ -147,20 +147,30 @@ nlohmann::json addDiffs(PacketWriter& w, const TemporalMap& map, const TourSetti
 
 std::string tourData(const TemporalMap& map, const std::string& name, const TourSettings& settings, TourReport* report) {
   if (map.sessionCount() == 0) throw UsageError("the map holds no session");
-  if (map.sessionCount() > settings.max_sessions) {
-    throw UsageError("the map holds " + std::to_string(map.sessionCount()) + " sessions; a tour holds at most " +
-                     std::to_string(settings.max_sessions) + " (chronomap view serves any map)");
-  }
   if (settings.max_voxels == 0) throw UsageError("the voxel budget must be at least 1");
   const Timeline timeline = everOccupied(map);
   const int level = lod::chooseLevel(timeline.items, 0, settings.max_voxels);
   PacketWriter w;
   const size_t cells = addCells(w, timeline, level, map.sessionCount());
+  const auto tooLarge = [&](size_t bytes, const std::string& what) {
+    std::string m = "a tour of this map would hold ";
+    m.append(std::to_string(bytes)).append(" bytes of ").append(what).append(", more than its budget of ");
+    m.append(std::to_string(settings.max_bytes)).append(" (fewer cells with --max-voxels or --max-diff-cells; ");
+    m.append("chronomap view serves any map)");
+    throw UsageError(m);
+  };
+  // The cells' bytes are known before the diffs, which take most of the time: refuse early.
+  const size_t cell_bytes = cells * (11 + (map.sessionCount() + 3) / 4);
+  if (cell_bytes > settings.max_bytes) tooLarge(cell_bytes, "voxel timeline");
   nlohmann::json diffs = addDiffs(w, map, settings);
+  size_t diff_cells = 0;
+  for (const auto& d : diffs) diff_cells += d["count"].get<size_t>();
+  if (cell_bytes + 12 * diff_cells > settings.max_bytes) tooLarge(cell_bytes + 12 * diff_cells, "voxels and diffs");
   if (report) {
     report->cells = cells;
     report->level = level;
     report->diffs = diffs.size();
+    report->diff_cells = diff_cells;
     report->occupied_voxels = timeline.occupied_voxels;
   }
   return w.finish({{"map", mapInfoJson(map, name)},

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <map>
 #include <set>
 
@@ -223,6 +224,9 @@ TEST(ViewApi, AnswersAndRefusals) {
       {"/api/history", {{"key", "1,2,3"}, {"level", "7"}}},
       {"/api/history", {{"key", "1,2,3"}, {"level", "2"}}},
       {"/api/map", {{"x", "1"}}},
+      {"/api/predict", {}},
+      {"/api/predict", {{"session", "4"}}},
+      {"/api/predict", {{"session", "1"}, {"model", "crystal-ball"}}},
   };
   // Bytes that are not UTF-8 in what the error message quotes (found by fuzz_view): still JSON.
   const Reply latin1 = get(std::string("/api/d") + "\xe9" + "ff");
@@ -236,6 +240,58 @@ TEST(ViewApi, AnswersAndRefusals) {
     EXPECT_EQ(r.status, 400) << path << " " << (query.empty() ? "" : query.begin()->first);
     EXPECT_TRUE(nlohmann::json::parse(r.body).contains("error"));
   }
+}
+
+// /api/predict: every modelled cube with the probability RhythmModels::predict gives it, from
+// models fitted on the first request (to every session) or given in the settings.
+TEST(ViewApi, PredictionsAreTheTemporalModels) {
+  const TemporalMap map = fourSessions();
+  const double inf = std::numeric_limits<double>::infinity();
+  const RhythmModels models = fitRhythm(map, -inf, inf);
+  ASSERT_GT(models.voxels.size(), 100u);
+  auto check = [&](const Api& api, const std::string& model, RhythmModel which, bool fitted) {
+    const Reply r = api.get("/api/predict", {{"t", "2500"}, {"model", model}});
+    ASSERT_EQ(r.status, 200) << r.body;
+    const Packet p = readPacket(r.body);
+    EXPECT_EQ(p.header["model"], model);
+    EXPECT_EQ(p.header["fit_s"].get<double>() > 0, fitted);
+    const auto keys = p.values<uint16_t>("keys");
+    const auto levels = p.values<uint8_t>("levels");
+    const auto prob = p.values<float>("p");
+    ASSERT_EQ(levels.size(), models.voxels.size());
+    ASSERT_EQ(keys.size(), 3 * levels.size());
+    ASSERT_EQ(prob.size(), levels.size());
+    for (size_t i = 0; i < levels.size(); ++i) {
+      const VoxelRhythm& v = models.voxels[i];
+      ASSERT_EQ((VoxelKey{keys[3 * i], keys[3 * i + 1], keys[3 * i + 2]}), v.corner);
+      ASSERT_EQ(levels[i], v.level);
+      ASSERT_FLOAT_EQ(prob[i], static_cast<float>(RhythmModels::predict(v, which, 2500.0))) << i;
+    }
+  };
+  const Api fitting(map, "four.cmap");
+  check(fitting, "combined", RhythmModel::Combined, true);
+  check(fitting, "mean", RhythmModel::Mean, true);
+  ApiSettings given;
+  given.rhythm = std::make_shared<const RhythmModels>(models);
+  check(Api(map, "four.cmap", given), "hourly", RhythmModel::Hourly, false);
+  // The cost map is costmap() of the prediction, with the defaults of `chronomap costmap`.
+  const Reply c = fitting.get("/api/costmap", {{"session", "2"}});
+  ASSERT_EQ(c.status, 200) << c.body;
+  const Packet cp = readPacket(c.body);
+  const Costmap expected = costmap(predictMap(map, models, RhythmModel::Combined, 3000.0), CostmapSettings{}, &models);
+  EXPECT_EQ(cp.header["width"], expected.width);
+  EXPECT_EQ(cp.header["height"], expected.height);
+  EXPECT_DOUBLE_EQ(cp.header["origin_m"][0].get<double>(), expected.origin_m.x());
+  const auto cost = cp.values<uint8_t>("cost");
+  ASSERT_EQ(cost.size(), expected.cost.size());
+  for (size_t i = 0; i < cost.size(); ++i) ASSERT_EQ(static_cast<int8_t>(cost[i]), expected.cost[i]) << i;
+  EXPECT_EQ(fitting.get("/api/costmap", {{"session", "9"}}).status, 400);
+  // Models of another resolution are refused.
+  RhythmModels other = models;
+  other.resolution_m = 0.1;
+  given.rhythm = std::make_shared<const RhythmModels>(other);
+  EXPECT_EQ(Api(map, "four.cmap", given).get("/api/predict", {{"session", "0"}}).status, 400);
+  EXPECT_EQ(Api(map, "four.cmap", given).get("/api/costmap", {{"session", "0"}}).status, 400);
 }
 
 TEST(ViewTour, HoldsEverySessionsOccupiedVoxelsAndTheBundle) {
@@ -265,8 +321,17 @@ TEST(ViewTour, HoldsEverySessionsOccupiedVoxelsAndTheBundle) {
   small.max_voxels = 50;
   tourData(map, "four.cmap", small, &report);
   EXPECT_GT(report.level, 0);
-  small.max_sessions = 3;
-  EXPECT_THROW(tourData(map, "four.cmap", small), UsageError);
+  // A byte budget below the timeline's size (cells x (11 bytes + 2 bits a session)) is refused,
+  // one that holds the timeline and the diffs' cells (12 bytes each) is not.
+  TourReport full;
+  tourData(map, "four.cmap", TourSettings{}, &full);
+  TourSettings tight;
+  tight.max_bytes = full.cells * (11 + 1) - 1;
+  EXPECT_THROW(tourData(map, "four.cmap", tight), UsageError);
+  tight.max_bytes = full.cells * (11 + 1) + 12 * full.diff_cells;
+  EXPECT_NO_THROW(tourData(map, "four.cmap", tight));
+  tight.max_bytes -= 1;
+  EXPECT_THROW(tourData(map, "four.cmap", tight), UsageError);
 
   test::TempDir dir;
   const auto r = writeTour(dir / "tour.html", map, "four.cmap");

@@ -36,6 +36,8 @@ export class ServerSource {
   static kCached = 12;
   /** The server sends finer cells for the part in view. */
   get refines() { return true; }
+  /** Snapshots come over the network: worth asking for the next one early. */
+  get prefetches() { return true; }
   constructor() { this.kind = 'server'; this.snapshots = new Map(); }
   async info() { return (await fetchOk('api/map')).json(); }
   /** The occupied cells at session `rank`, at most `budget`; only in `region` (keys x0, y0, z0,
@@ -64,6 +66,30 @@ export class ServerSource {
   async history(key, level) {
     return (await fetchOk(`api/history?key=${key.join(',')}&level=${level}`)).json();
   }
+  /** The navigation cost map at session `rank` (chronomap costmap's defaults): width, height,
+   *  resolution_m, origin_m, z band, cost (u8, 255 unknown). */
+  async costmap(rank, model = 'combined') {
+    const q = readPacket(await (await fetchOk(`api/costmap?session=${rank}&model=${model}`)).arrayBuffer());
+    return { ...q.header, rank, cost: q.arrays.cost, bytes: q.bytes };
+  }
+  /** The server fits temporal models (or has them from --rhythm). */
+  get predicts() { return true; }
+  /** Every modelled cube's predicted probability of occupancy at session `rank`: keys (corners),
+   *  levels and p. The first request fits the models on the server (seconds on a large map). */
+  async prediction(rank, model = 'combined') {
+    const id = `${rank}/${model}`;
+    if (!this.predictions) this.predictions = new Map();
+    if (!this.predictions.has(id)) {
+      const p = fetchOk(`api/predict?session=${rank}&model=${model}`).then((r) => r.arrayBuffer()).then((b) => {
+        const q = readPacket(b);
+        return { ...q.header, rank, keys: q.arrays.keys, levels: q.arrays.levels, p: q.arrays.p, bytes: q.bytes };
+      });
+      this.predictions.set(id, p);
+      p.catch(() => this.predictions.delete(id));
+      while (this.predictions.size > 4) this.predictions.delete(this.predictions.keys().next().value);
+    }
+    return this.predictions.get(id);
+  }
 }
 
 function snapshotFrom(p) {
@@ -84,6 +110,8 @@ function base64ToBuffer(text) {
 export class TourSource {
   /** A tour holds one level of detail: no finer cells in view. */
   get refines() { return false; }
+  /** A tour holds no temporal models. */
+  get predicts() { return false; }
   constructor(element) {
     this.kind = 'tour';
     this.packet = readPacket(base64ToBuffer(element.textContent));

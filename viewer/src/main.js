@@ -9,7 +9,7 @@ import { viridis, heat, gradientCss, APPEARED, VANISHED, css } from './colors.js
 const $ = (id) => document.getElementById(id);
 const state = {
   info: null, source: null, snap: null, rank: 0, budget: 0, colorMode: 'color', cut: 1, diff: null,
-  playing: false, visible: [], drawn: 0, errors: [], ready: false, lastLoadMs: 0, selected: null,
+  playing: false, cullFaces: true, visible: [], drawn: 0, errors: [], ready: false, lastLoadMs: 0, selected: null,
 };
 // For tests and for people at the console: what the page shows.
 window.chronomap = state;
@@ -49,8 +49,6 @@ sun.position.set(-0.5, -0.8, 1.6);
 scene.add(sun);
 
 const box = new THREE.BoxGeometry(1, 1, 1);
-const voxelMaterial = new THREE.MeshLambertMaterial({ transparent: true, opacity: 1, vertexColors: true });
-let voxels = null;  // Mesh of the snapshot's visible faces (surfaceMesh)
 let changed = null;  // InstancedMesh of the diff's cells
 const frames = new THREE.Group();  // boxes around the objects
 scene.add(frames);
@@ -85,6 +83,49 @@ function cellCenter(keys, levels, i, out) {
 // Colours
 
 const srgb = new THREE.Color();
+const NO_MODEL = [120, 128, 140];
+
+// Per drawn cell of `snap`, the predicted probability of occupancy (the most probable modelled
+// cube inside it, or the modelled cube it lies in), NaN where no cube is modelled (it never
+// changed: it stays as observed).
+function cellPredictions(snap, pred) {
+  const out = new Float32Array(snap.count).fill(NaN);
+  const cellKey = (x, y, z, l) => (x >> l) + 65536 * ((y >> l) + 65536 * (z >> l));
+  const byLevel = new Map();  // level of the snapshot's cells -> Map(key -> cell)
+  for (let i = 0; i < snap.count; ++i) {
+    const l = snap.levels[i];
+    if (!byLevel.has(l)) byLevel.set(l, new Map());
+    byLevel.get(l).set(cellKey(snap.keys[3 * i], snap.keys[3 * i + 1], snap.keys[3 * i + 2], l), i);
+  }
+  const coarse = new Map();  // cubes larger than some cells: level -> Map(key -> p)
+  for (let c = 0; c < pred.levels.length; ++c) {
+    const x = pred.keys[3 * c], y = pred.keys[3 * c + 1], z = pred.keys[3 * c + 2], lc = pred.levels[c], p = pred.p[c];
+    for (const [l, cells] of byLevel) {
+      if (lc > l) {
+        if (!coarse.has(lc)) coarse.set(lc, new Map());
+        coarse.get(lc).set(cellKey(x, y, z, lc), p);
+        continue;
+      }
+      const i = cells.get(cellKey(x, y, z, l));
+      if (i !== undefined && !(out[i] >= p)) out[i] = p;
+    }
+  }
+  for (const [lc, cubes] of coarse) {
+    for (let i = 0; i < snap.count; ++i) {
+      if (snap.levels[i] >= lc) continue;
+      const p = cubes.get(cellKey(snap.keys[3 * i], snap.keys[3 * i + 1], snap.keys[3 * i + 2], lc));
+      if (p !== undefined && !(out[i] >= p)) out[i] = p;
+    }
+  }
+  return out;
+}
+
+async function loadPrediction(rank) {
+  if (state.colorMode !== 'predicted' || !state.source.predicts) return;
+  const t0 = performance.now();
+  const pred = await state.source.prediction(rank);
+  if (state.rank === rank) { state.prediction = pred; state.lastPredictionMs = performance.now() - t0; }
+}
 function colorOf(snap, i) {
   switch (state.colorMode) {
     case 'height': {
@@ -95,6 +136,10 @@ function colorOf(snap, i) {
     case 'age': {
       const age = snap.rank - snap.since[i];
       return age === 0 && snap.rank > 0 ? [255, 140, 40] : viridis(1 - age / Math.max(1, snap.rank));
+    }
+    case 'predicted': {
+      const p = state.cellP ? state.cellP[i] : NaN;
+      return Number.isNaN(p) ? NO_MODEL : viridis(p);
     }
     default: return [snap.colors[3 * i], snap.colors[3 * i + 1], snap.colors[3 * i + 2]];
   }
@@ -157,92 +202,250 @@ const FACES = [
   { n: [0, 0, -1], c: [[0, 0, 0], [0, 1, 0], [1, 1, 0], [1, 0, 0]] },
 ];
 
-// has(x, y, z, level): whether a drawn cell of that level has its corner at the key. One byte
-// per cell of a grid over the cells' bounds for each level (a hash set of numbers is several
-// times slower), or a set when such a grid would be too large.
-function occupancy(snap, drawn) {
-  const grids = new Map();
-  for (const i of drawn) {
-    const l = snap.levels[i];
-    let g = grids.get(l);
-    if (!g) grids.set(l, g = { lo: [Infinity, Infinity, Infinity], hi: [-Infinity, -Infinity, -Infinity] });
-    for (let a = 0; a < 3; ++a) {
-      const v = snap.keys[3 * i + a] >> l;
-      if (v < g.lo[a]) g.lo[a] = v;
-      if (v > g.hi[a]) g.hi[a] = v;
+// The shading the scene's lights (the hemisphere light and the sun, as a Lambert material shades
+// them) give each face direction, per linear channel: a face of the mesh is flat, so its shade is
+// one colour, computed here once instead of for every pixel. SKY and SUN are the lights' intensities.
+const SKY = 1.6, SUN = 1.6;
+const GROUND = new THREE.Color(0x445066), SUN_DIR = new THREE.Vector3(-0.5, -0.8, 1.6).normalize();
+const SHADE = FACES.map(({ n }) => {
+  const w = 0.5 * n[2] + 0.5, d = Math.max(0, n[0] * SUN_DIR.x + n[1] * SUN_DIR.y + n[2] * SUN_DIR.z);
+  return new THREE.Vector3(...[GROUND.r, GROUND.g, GROUND.b].map((g) => (SKY * (g * (1 - w) + w) + SUN * d) / Math.PI));
+});
+
+// The mesh's shader. A face of the mesh may span many voxels (see surfaceLayer); the colour of the
+// voxel under a pixel comes from a 3D texture of the cells' colours (sRGB, one texel per cell of the
+// level's grid), lit by the face's shade in linear light and shown in sRGB.
+const vertexShader = `
+uniform vec3 uToCell;
+uniform float uPerKey;
+out vec3 vCell;
+void main() {
+  vCell = position * uPerKey + uToCell;
+  gl_Position = projectionMatrix * modelViewMatrix * vec4(position, 1.0);
+}`;
+const fragmentShader = `
+uniform highp sampler3D uColors;
+uniform vec3 uNormal;
+uniform vec3 uShade;
+uniform float opacity;
+in vec3 vCell;
+out highp vec4 outColor;
+void main() {
+  vec4 texel = texelFetch(uColors, ivec3(floor(vCell - 0.5 * uNormal)), 0);
+  if (texel.a == 0.0) discard;
+  vec3 srgb = texel.rgb;
+  vec3 lit = pow(srgb, vec3(2.2)) * uShade;
+  outColor = vec4(pow(lit, vec3(1.0 / 2.2)), opacity);
+}`;
+const voxelUniforms = { opacity: { value: 1 } };
+
+// Each voxel's colour varies by a few percent, so that the voxels of a flat wall stay visible.
+const JITTER = Float32Array.from({ length: 256 }, (_, h) => 0.94 + (0.06 * h) / 255);
+
+// A layer draws the drawn cells of one level: its mesh (the faces of each direction grouped, one
+// material per direction), the 3D texture of its cells' colours, and buffers kept from one
+// snapshot to the next (written into, grown by a quarter when a snapshot does not fit).
+const layers = new Map();
+const scratch = { grid: new Uint8Array(0), mask: new Uint8Array(0) };
+function layerFor(level) {
+  let layer = layers.get(level);
+  if (layer) return layer;
+  const shared = { uColors: { value: null }, uToCell: { value: new THREE.Vector3() }, uPerKey: { value: 1 } };
+  const materials = FACES.map((f, i) => new THREE.ShaderMaterial({
+    glslVersion: THREE.GLSL3, vertexShader, fragmentShader,
+    uniforms: { ...shared, opacity: voxelUniforms.opacity, uNormal: { value: new THREE.Vector3(...f.n) }, uShade: { value: SHADE[i] } },
+  }));
+  layer = { level, materials, shared, capacity: 0, position: null, geometry: null, mesh: null, texture: null, colors: null, plane: [] };
+  layers.set(level, layer);
+  return layer;
+}
+function reserveQuads(layer, count) {
+  if (count <= layer.capacity) return;
+  const cap = Math.max(count, Math.ceil(layer.capacity * 1.25), 1024);
+  const position = new Float32Array(12 * cap);
+  if (layer.position) position.set(layer.position);
+  layer.position = position;
+  layer.capacity = cap;
+  layer.resized = true;
+}
+function setVoxelMaterials(fn) { for (const layer of layers.values()) layer.materials.forEach(fn); }
+
+// Draws the drawn cells of level l (bounds b: least and greatest cell coordinates) as the faces
+// between a cell and no drawn cell of that level, merged into rectangles where they lie in one
+// plane (greedy meshing: a wall is a few rectangles rather than a quad per voxel face). Returns
+// the number of rectangles.
+function surfaceLayer(snap, drawn, n, l, b) {
+  const layer = layerFor(l), keys = snap.keys, levels = snap.levels, s = 1 << l, o = state.info.key_origin;
+  const N = [b[3] - b[0] + 3, b[4] - b[1] + 3, b[5] - b[2] + 3], nxy = N[0] * N[1], total = nxy * N[2];
+  if (total > 64e6) throw new Error(`a level-${l} grid of ${N.join(' x ')} cells is too large to draw`);
+  if (scratch.grid.length < total) scratch.grid = new Uint8Array(Math.ceil(total * 1.25));
+  const grid = scratch.grid;
+  grid.fill(0, 0, total);
+  if (!layer.colors || layer.colors.length !== 4 * total) layer.colors = new Uint8Array(4 * total);
+  const colors = layer.colors;
+  colors.fill(0);  // alpha 0: no drawn cell
+  // Cells per slice along each axis: empty slices are skipped.
+  const slices = [new Uint32Array(N[0]), new Uint32Array(N[1]), new Uint32Array(N[2])];
+  for (let k = 0; k < n; ++k) {
+    const i = drawn[k];
+    if (levels[i] !== l) continue;
+    const x = (keys[3 * i] >> l) - b[0] + 1, y = (keys[3 * i + 1] >> l) - b[1] + 1, z = (keys[3 * i + 2] >> l) - b[2] + 1;
+    const j = x + N[0] * y + nxy * z;
+    grid[j] = 1;
+    ++slices[0][x]; ++slices[1][y]; ++slices[2][z];
+    const c = colorOf(snap, i);
+    const jitter = JITTER[((keys[3 * i] * 73856093) ^ (keys[3 * i + 1] * 19349663) ^ (keys[3 * i + 2] * 83492791)) & 255];
+    colors[4 * j] = c[0] * jitter; colors[4 * j + 1] = c[1] * jitter; colors[4 * j + 2] = c[2] * jitter; colors[4 * j + 3] = 255;
+  }
+  const stride = [1, N[0], nxy];
+  // The faces of each direction (grid index of the cell), found in one pass over the grid in its
+  // order (z, y, x), then sorted stably by the slice along the direction's axis: within a slice,
+  // they come row by row.
+  const faces = FACES.map(() => []);
+  for (let z = 1; z < N[2] - 1; ++z) {
+    if (slices[2][z] === 0) continue;
+    for (let y = 1; y < N[1] - 1; ++y) {
+      let j = 1 + N[0] * y + nxy * z;
+      for (let x = 1; x < N[0] - 1; ++x, ++j) {
+        if (grid[j] === 0) continue;
+        if (grid[j + 1] === 0) faces[0].push(j);
+        if (grid[j - 1] === 0) faces[1].push(j);
+        if (grid[j + N[0]] === 0) faces[2].push(j);
+        if (grid[j - N[0]] === 0) faces[3].push(j);
+        if (grid[j + nxy] === 0) faces[4].push(j);
+        if (grid[j - nxy] === 0) faces[5].push(j);
+      }
     }
   }
-  for (const g of grids.values()) {
-    g.n = g.lo.map((v, a) => g.hi[a] - v + 1);
-    g.cells = g.n[0] * g.n[1] * g.n[2] <= 64e6 ? new Uint8Array(g.n[0] * g.n[1] * g.n[2]) : new Set();
+  // Grid coordinate g along axis a to the mesh's units (keys relative to the origin); rectangles
+  // reach a 64th of a cell beyond their edges so that no pixel falls between two of them (the
+  // part beyond a drawn cell finds no colour and is not drawn).
+  const toKey = (a, g) => (g - 1 + b[a]) * s - o;
+  const EPS = 1 / 64;
+  reserveQuads(layer, layer.capacity || 1024);
+  let q = 0;
+  const groups = [];
+  const coord = (j, a) => (a === 0 ? j % N[0] : a === 1 ? Math.floor(j / N[0]) % N[1] : Math.floor(j / nxy));
+  for (let f = 0; f < 6; ++f) {
+    const a = f >> 1, u = a === 0 ? 1 : 0, v = a === 2 ? 1 : 2;
+    const nu = N[u], list = faces[f], first = q, corners = FACES[f].c;
+    // Stable counting sort by slice.
+    const start = new Uint32Array(N[a] + 1);
+    for (const j of list) ++start[coord(j, a) + 1];
+    for (let w = 1; w <= N[a]; ++w) start[w] += start[w - 1];
+    const sorted = new Int32Array(list.length), fill = start.slice();
+    for (const j of list) sorted[fill[coord(j, a)]++] = j;
+    if (scratch.mask.length < nu * N[v]) scratch.mask = new Uint8Array(nu * N[v]);
+    const mask = scratch.mask;
+    let plane = f % 2 ? -Infinity : Infinity;
+    for (let w = 1; w < N[a] - 1; ++w) {
+      if (start[w] === start[w + 1]) continue;
+      const at = toKey(a, w + (f % 2 ? 0 : 1));
+      if (f % 2 ? at > plane : at < plane) plane = at;
+      for (let k = start[w]; k < start[w + 1]; ++k) mask[coord(sorted[k], u) + nu * coord(sorted[k], v)] = 1;
+      for (let k = start[w]; k < start[w + 1]; ++k) {
+        const uu = coord(sorted[k], u), vv = coord(sorted[k], v);
+        if (!mask[uu + nu * vv]) continue;
+        let du = 1;
+        while (mask[uu + du + nu * vv]) ++du;
+        let dv = 1;
+        for (; ; ++dv) {
+          let full = true;
+          for (let x = 0; x < du && full; ++x) full = mask[uu + x + nu * (vv + dv)] === 1;
+          if (!full) break;
+        }
+        for (let y = 0; y < dv; ++y) mask.fill(0, uu + nu * (vv + y), uu + du + nu * (vv + y));
+        if (q === layer.capacity) reserveQuads(layer, q + 1);
+        const p = layer.position;
+        for (let c = 0; c < 4; ++c) {
+          const corner = corners[c], e = 12 * q + 3 * c;
+          p[e + a] = at;
+          p[e + u] = toKey(u, uu + corner[u] * (du + 2 * EPS) - EPS);
+          p[e + v] = toKey(v, vv + corner[v] * (dv + 2 * EPS) - EPS);
+        }
+        ++q;
+      }
+    }
+    groups.push([first, q - first]);
+    layer.plane[f] = plane;
   }
-  const at = (g, x, y, z) => x - g.lo[0] + g.n[0] * (y - g.lo[1] + g.n[1] * (z - g.lo[2]));
-  for (const i of drawn) {
-    const l = snap.levels[i], g = grids.get(l);
-    const j = at(g, snap.keys[3 * i] >> l, snap.keys[3 * i + 1] >> l, snap.keys[3 * i + 2] >> l);
-    if (g.cells instanceof Set) g.cells.add(j); else g.cells[j] = 1;
+  if (layer.resized || !layer.geometry) {
+    if (layer.geometry) layer.geometry.dispose();
+    const index = new Uint32Array(6 * layer.capacity);  // the same two triangles for every rectangle
+    for (let r = 0, base = 0, at = 0; r < layer.capacity; ++r, base += 4, at += 6) {
+      index[at] = base; index[at + 1] = base + 1; index[at + 2] = base + 2;
+      index[at + 3] = base; index[at + 4] = base + 2; index[at + 5] = base + 3;
+    }
+    const g = new THREE.BufferGeometry();
+    g.setAttribute('position', new THREE.BufferAttribute(layer.position, 3).setUsage(THREE.DynamicDrawUsage));
+    g.setIndex(new THREE.BufferAttribute(index, 1));
+    // For picking: a sphere around the whole key space (the ray test is per triangle anyway).
+    g.boundingSphere = new THREE.Sphere(new THREE.Vector3(), 2 * 65536);
+    layer.geometry = g;
+    layer.resized = false;
+    if (layer.mesh) layer.mesh.geometry = g;
+  } else {
+    const attribute = layer.geometry.getAttribute('position');
+    attribute.clearUpdateRanges();
+    attribute.addUpdateRange(0, 12 * q);
+    attribute.needsUpdate = true;
   }
-  return (x, y, z, l) => {
-    const g = grids.get(l);
-    x >>= l; y >>= l; z >>= l;
-    if (x < g.lo[0] || y < g.lo[1] || z < g.lo[2] || x > g.hi[0] || y > g.hi[1] || z > g.hi[2]) return false;
-    const j = at(g, x, y, z);
-    return g.cells instanceof Set ? g.cells.has(j) : g.cells[j] === 1;
-  };
+  const g = layer.geometry;
+  g.clearGroups();
+  groups.forEach(([first, count], f) => g.addGroup(6 * first, 6 * count, f));
+  g.setDrawRange(0, 6 * q);
+  if (layer.texture && (layer.texture.image.width !== N[0] || layer.texture.image.height !== N[1] || layer.texture.image.depth !== N[2])) {
+    layer.texture.dispose();
+    layer.texture = null;
+  }
+  if (!layer.texture) {
+    layer.texture = new THREE.Data3DTexture(colors, N[0], N[1], N[2]);
+    layer.texture.magFilter = layer.texture.minFilter = THREE.NearestFilter;
+    layer.texture.unpackAlignment = 1;
+  }
+  layer.texture.image.data = colors;
+  layer.texture.needsUpdate = true;
+  layer.shared.uColors.value = layer.texture;
+  layer.shared.uPerKey.value = 1 / s;
+  layer.shared.uToCell.value.set(o / s - b[0] + 1, o / s - b[1] + 1, o / s - b[2] + 1);
+  if (!layer.mesh) {
+    layer.mesh = new THREE.Mesh(g, layer.materials);
+    layer.mesh.frustumCulled = false;
+    layer.mesh.userData.level = l;
+  }
+  layer.mesh.scale.setScalar(state.info.resolution_m);
+  if (!layer.mesh.parent) scene.add(layer.mesh);
+  return q;
 }
 
-// The drawn cells as one mesh of the faces between a cell and no drawn cell of its level: the
-// faces inside walls and floors are never seen, and leaving them out keeps a frame cheap where
-// the browser draws in software. Each voxel's colour varies by a few percent, so that the voxels
-// of a flat wall stay visible. Returns the mesh; mesh.userData.cellOfFace maps faces to cells.
-function surfaceMesh(snap, drawn) {
-  const has = occupancy(snap, drawn);
-  const faces = new Uint32Array(6 * drawn.length);  // cell (position in drawn) * 8 + face
-  let count = 0;
-  for (let k = 0; k < drawn.length; ++k) {
-    const i = drawn[k], l = snap.levels[i], s = 1 << l;
-    const x = snap.keys[3 * i], y = snap.keys[3 * i + 1], z = snap.keys[3 * i + 2];
-    for (let f = 0; f < 6; ++f) {
-      const n = FACES[f].n;
-      if (!has(x + n[0] * s, y + n[1] * s, z + n[2] * s, l)) faces[count++] = k * 8 + f;
-    }
+// The drawn cells, one layer per level of detail among them. Returns the number of rectangles.
+function surfaceMesh(snap, drawn, n) {
+  const bounds = new Map(), keys = snap.keys, levels = snap.levels;
+  for (let k = 0; k < n; ++k) {
+    const i = drawn[k], l = levels[i];
+    let b = bounds.get(l);
+    if (!b) bounds.set(l, b = [Infinity, Infinity, Infinity, -Infinity, -Infinity, -Infinity]);
+    const x = keys[3 * i] >> l, y = keys[3 * i + 1] >> l, z = keys[3 * i + 2] >> l;
+    if (x < b[0]) b[0] = x; if (x > b[3]) b[3] = x;
+    if (y < b[1]) b[1] = y; if (y > b[4]) b[4] = y;
+    if (z < b[2]) b[2] = z; if (z > b[5]) b[5] = z;
   }
-  const position = new Float32Array(12 * count), normal = new Float32Array(12 * count), color = new Float32Array(12 * count);
-  const index = new Uint32Array(6 * count), cellOfFace = new Uint32Array(count);
-  const r = state.info.resolution_m, o = state.info.key_origin;
-  let lastCell = -1, cr = 0, cg = 0, cb = 0;
-  for (let q = 0; q < count; ++q) {
-    const k = faces[q] >>> 3, f = FACES[faces[q] & 7], i = drawn[k], s = 1 << snap.levels[i];
-    const x = snap.keys[3 * i], y = snap.keys[3 * i + 1], z = snap.keys[3 * i + 2];
-    if (k !== lastCell) {  // a cell's faces are consecutive: its colour once
-      const c = colorOf(snap, i);
-      const jitter = 0.94 + 0.06 * (((x * 73856093) ^ (y * 19349663) ^ (z * 83492791)) & 255) / 255;
-      srgb.setRGB((c[0] / 255) * jitter, (c[1] / 255) * jitter, (c[2] / 255) * jitter, THREE.SRGBColorSpace);
-      cr = srgb.r; cg = srgb.g; cb = srgb.b;
-      lastCell = k;
-    }
-    for (let v = 0; v < 4; ++v) {
-      const at = 12 * q + 3 * v, corner = f.c[v];
-      position[at] = (x - o + corner[0] * s) * r;
-      position[at + 1] = (y - o + corner[1] * s) * r;
-      position[at + 2] = (z - o + corner[2] * s) * r;
-      normal[at] = f.n[0]; normal[at + 1] = f.n[1]; normal[at + 2] = f.n[2];
-      color[at] = cr; color[at + 1] = cg; color[at + 2] = cb;
-    }
-    const base = 4 * q, at = 6 * q;
-    index[at] = base; index[at + 1] = base + 1; index[at + 2] = base + 2;
-    index[at + 3] = base; index[at + 4] = base + 2; index[at + 5] = base + 3;
-    cellOfFace[q] = k;
+  let quads = 0;
+  for (const [l, b] of bounds) quads += surfaceLayer(snap, drawn, n, l, b);
+  for (const layer of layers.values()) if (!bounds.has(layer.level) && layer.mesh) scene.remove(layer.mesh);
+  return quads;
+}
+
+/** The drawn cell (its index in the shown snapshot) behind a point of a face with normal n. */
+function cellAt(point, normal) {
+  const r = state.info.resolution_m, o = state.info.key_origin, snap = state.shown;
+  const key = [point.x, point.y, point.z].map((v, a) => Math.floor(v / r - 0.5 * normal.getComponent(a)) + o);
+  for (let k = 0; k < state.drawn; ++k) {
+    const i = state.visible[k], l = snap.levels[i];
+    if ((snap.keys[3 * i] >> l) === (key[0] >> l) && (snap.keys[3 * i + 1] >> l) === (key[1] >> l) &&
+        (snap.keys[3 * i + 2] >> l) === (key[2] >> l)) return i;
   }
-  const g = new THREE.BufferGeometry();
-  g.setAttribute('position', new THREE.BufferAttribute(position, 3));
-  g.setAttribute('normal', new THREE.BufferAttribute(normal, 3));
-  g.setAttribute('color', new THREE.BufferAttribute(color, 3));
-  g.setIndex(new THREE.BufferAttribute(index, 1));
-  g.computeBoundingSphere();
-  const mesh = new THREE.Mesh(g, voxelMaterial);
-  mesh.userData.cellOfFace = cellOfFace;
-  return mesh;
+  return -1;
 }
 
 function withDetail(snap, detail) {
@@ -272,18 +475,21 @@ function drawSnapshot() {
   const snap = withDetail(state.snap, state.detail);
   state.shown = snap;
   computeBounds(snap);
+  state.cellP = state.colorMode === 'predicted' && state.prediction && state.prediction.rank === snap.rank ?
+    cellPredictions(snap, state.prediction) : null;
   state.maxChanges = 1;
   for (let i = 0; i < snap.count; ++i) state.maxChanges = Math.max(state.maxChanges, snap.changes[i]);
   const cut = cutHeightKey();
-  state.visible = [];
-  for (let i = 0; i < snap.count; ++i) if (snap.keys[3 * i + 2] < cut) state.visible.push(i);
-  if (voxels) { scene.remove(voxels); voxels.geometry.dispose(); }
-  voxels = surfaceMesh(snap, state.visible);
-  scene.add(voxels);
-  state.drawn = state.visible.length;
-  state.faces = voxels.userData.cellOfFace.length;
-  voxelMaterial.opacity = state.diff ? 0.28 : 1;
-  voxelMaterial.depthWrite = !state.diff;
+  const t0 = performance.now();
+  if (state.visible.length < snap.count) state.visible = new Uint32Array(Math.ceil(snap.count * 1.25));
+  let n = 0;
+  for (let i = 0; i < snap.count; ++i) if (snap.keys[3 * i + 2] < cut) state.visible[n++] = i;
+  state.drawn = n;
+  state.faces = surfaceMesh(snap, state.visible, n);
+  state.lastBuildMs = performance.now() - t0;
+  // Opaque unless a diff is shown over it (blending costs a software renderer every pixel).
+  voxelUniforms.opacity.value = state.diff ? 0.28 : 1;
+  setVoxelMaterials((m) => { m.transparent = !!state.diff; m.depthWrite = !state.diff; });
   redraw();
   updateStats();
   updateLegend();
@@ -302,18 +508,26 @@ async function setSession(rank) {
   $('time').value = rank;
   $('timelabel').textContent = sessionLabel(rank);
   const t0 = performance.now();
-  const snap = await state.source.snapshot(rank, state.budget);
+  const [snap] = await Promise.all([state.source.snapshot(rank, state.budget), loadPrediction(rank), loadCostmap(rank)]);
   if (state.rank !== rank) return;  // a later move of the slider won
   state.snap = snap;
   state.lastLoadMs = performance.now() - t0;
   drawSnapshot();
   state.loadedRank = rank;
   scheduleRefine();
+  // The neighbouring sessions, fetched and decoded while this one is looked at: the slider and
+  // play usually move by one.
+  if (state.source.prefetches) {
+    for (const next of [rank + 1, rank - 1]) {
+      if (next >= 0 && next < state.info.sessions.length) state.source.snapshot(next, state.budget).catch(() => {});
+    }
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
 // Finer cells where the camera looks: when the whole map comes in coarse cubes, the server is
-// asked for the cells around the orbit target, with the same budget, after each camera move.
+// asked, after each camera move, for the cells of the part of the map in view (footprint) with
+// the same budget.
 
 let refineTimer = null;
 function scheduleRefine() {
@@ -321,12 +535,43 @@ function scheduleRefine() {
   refineTimer = setTimeout(() => refine().catch(report), 250);
 }
 
+// The part of the map on screen, up to twice the distance to the orbit target (farther cells
+// look small enough in coarse cubes): the box in x, y (metres) around the camera (when within
+// the map's heights) and the parts of the rays through the picture's corners within those
+// heights, each cut at that reach.
+function footprint() {
+  const r = state.info.resolution_m, o = state.info.key_origin, b = state.bounds;
+  camera.updateMatrixWorld();  // the camera may have moved since the last frame
+  const z0 = (b.zmin - o) * r, z1 = (b.zmax - o) * r, p = camera.position;
+  const reach = 2 * p.distanceTo(controls.target);
+  const xs = [], ys = [];
+  if (p.z >= z0 && p.z <= z1) { xs.push(p.x); ys.push(p.y); }
+  for (const [u, v] of [[-1, -1], [1, -1], [1, 1], [-1, 1]]) {
+    const d = new THREE.Vector3(u, v, 0.5).unproject(camera).sub(p).normalize();
+    // The ray's part within the heights, cut at the reach: a ray that meets the heights only
+    // beyond it (or never: it rises above them) bounds the view at the reach.
+    let t0 = 0, t1 = reach;
+    if (Math.abs(d.z) > 1e-9) {
+      const a = (z0 - p.z) / d.z, c = (z1 - p.z) / d.z;
+      t0 = Math.min(reach, Math.max(0, Math.min(a, c)));
+      t1 = Math.max(a, c) < 0 ? reach : Math.min(reach, Math.max(a, c));
+    }
+    for (const t of [t0, t1]) { xs.push(p.x + t * d.x); ys.push(p.y + t * d.y); }
+  }
+  if (!xs.length) return null;
+  const clip = (v, k0, k1) => Math.min((k1 - o) * r, Math.max((k0 - o) * r, v));
+  return [clip(Math.min(...xs), b.xmin, b.xmax), clip(Math.min(...ys), b.ymin, b.ymax),
+          clip(Math.max(...xs), b.xmin, b.xmax), clip(Math.max(...ys), b.ymin, b.ymax)];
+}
+
 async function refine() {
   const snap = state.snap;
   if (!state.source.refines || !snap || snap.level === 0) { state.detail = null; return; }
   const r = state.info.resolution_m, o = state.info.key_origin, b = state.bounds;
-  const radius = 0.7 * camera.position.distanceTo(controls.target);
-  if (2 * radius >= 0.8 * state.extent) {
+  const f = footprint();
+  // Most of the map in view: the whole map's cells are as fine as the budget allows.
+  const area = f ? (f[2] - f[0]) * (f[3] - f[1]) : 0, whole = (b.xmax - b.xmin) * (b.ymax - b.ymin) * r * r;
+  if (!f || area <= 0 || area >= 0.6 * whole) {
     if (state.detail) { state.detail = null; drawSnapshot(); }
     return;
   }
@@ -334,8 +579,7 @@ async function refine() {
   const cell = 1 << snap.level;
   const lo = (v) => Math.max(0, Math.floor((v / r + o) / cell) * cell);
   const hi = (v) => Math.min(65535, Math.ceil((v / r + o) / cell) * cell - 1);
-  const t = controls.target;
-  const region = [lo(t.x - radius), lo(t.y - radius), b.zmin, hi(t.x + radius), hi(t.y + radius), Math.min(65535, b.zmax)];
+  const region = [lo(f[0]), lo(f[1]), b.zmin, hi(f[2]), hi(f[3]), Math.min(65535, b.zmax)];
   if (state.detail && state.detail.rank === snap.rank && state.detail.region.join() === region.join()) return;
   const rank = snap.rank;
   const fine = await state.source.snapshot(rank, state.budget, region);
@@ -455,13 +699,15 @@ function placeTags() {
 
 const raycaster = new THREE.Raycaster();
 async function pick(event) {
-  if (!voxels || !state.shown) return;
+  if (!state.shown) return;
   const rect = renderer.domElement.getBoundingClientRect();
   const ndc = new THREE.Vector2(((event.clientX - rect.left) / rect.width) * 2 - 1, -((event.clientY - rect.top) / rect.height) * 2 + 1);
   raycaster.setFromCamera(ndc, camera);
-  const hit = raycaster.intersectObject(voxels, false)[0];
+  const meshes = [...layers.values()].filter((layer) => layer.mesh && layer.mesh.parent).map((layer) => layer.mesh);
+  const hit = raycaster.intersectObjects(meshes, false)[0];
   if (!hit) return;
-  await selectCell(state.visible[voxels.userData.cellOfFace[hit.faceIndex >> 1]]);
+  const cell = cellAt(hit.point, hit.face.normal);
+  if (cell >= 0) await selectCell(cell);
 }
 
 async function selectCell(i) {
@@ -535,9 +781,23 @@ function updateLegend() {
     html = `<div>stored state changes up to this session</div><div class="ramp" style="background:${gradientCss(heat)}"></div>` +
       `<div class="ends"><span>1</span><span>${state.maxChanges}</span></div><div class="key"><span class="sw" style="background:rgb(120,128,140)"></span>never changed</div>`;
   }
+  if (mode === 'predicted') {
+    const p = state.prediction;
+    html = `<div>predicted probability of occupancy at this time (${p ? p.model : 'combined'} model, docs/rhythm.md)</div>` +
+      `<div class="ramp" style="background:${gradientCss(viridis)}"></div><div class="ends"><span>0</span><span>1</span></div>` +
+      `<div class="key"><span class="sw" style="background:${css(NO_MODEL)}"></span>never changed: no model</div>`;
+    if (p && p.fit_s > 0) html += `<div class="dim">models fitted on the server in ${p.fit_s.toFixed(p.fit_s < 1 ? 2 : 1)} s</div>`;
+  }
   if (mode === 'age') {
     html = `<div>sessions since the voxel took its state</div><div class="ramp" style="background:${gradientCss((t) => viridis(1 - t))}"></div>` +
       `<div class="ends"><span>1</span><span>${state.rank}</span></div><div class="key"><span class="sw" style="background:rgb(255,140,40)"></span>set by this session</div>`;
+  }
+  if (state.costmap) {
+    const c = state.costmap;
+    html += `<div style="margin-top:6px">navigation cost (${c.z_min_m}–${c.z_max_m} m above the floor, ${c.model} model)</div>` +
+      `<div class="ramp" style="background:${gradientCss(heat)}"></div><div class="ends"><span>low</span><span>high</span></div>` +
+      [[0, 'free'], [99, 'too close for the robot'], [100, 'obstacle']].map(([v, t]) =>
+        `<div class="key"><span class="sw" style="background:${css(costColor(v).slice(0, 3))}"></span>${t}</div>`).join('');
   }
   if (state.diff) {
     html += `<div class="key"><span class="sw appeared"></span>appeared (numbered, framed)</div>` +
@@ -566,7 +826,7 @@ function report(e) {
 function wire() {
   $('time').addEventListener('input', () => setSession(Number($('time').value)).catch(report));
   $('play').addEventListener('click', () => setPlaying(!state.playing));
-  $('colormode').addEventListener('change', () => { state.colorMode = $('colormode').value; drawSnapshot(); });
+  $('colormode').addEventListener('change', () => setColorMode($('colormode').value).catch(report));
   $('cut').addEventListener('input', () => {
     state.cut = Number($('cut').value) / 1000;
     const r = state.info.resolution_m, o = state.info.key_origin;
@@ -583,6 +843,7 @@ function wire() {
     $('topview').classList.add('on');
   });
   $('reset').addEventListener('click', resetCamera);
+  if ($('costmap')) $('costmap').addEventListener('click', () => setCostmap(!state.costmapOn).catch(report));
   $('showdiff').addEventListener('click', () => {
     if (state.diff) { clearDiff(); drawSnapshot(); return; }
     showDiff(Number($('from').value), Number($('to').value)).catch(report);
@@ -594,6 +855,18 @@ function wire() {
   });
 }
 
+// A direction's faces are drawn only when the camera is beyond the plane of one of them.
+function cullFaceDirections() {
+  const r = state.info.resolution_m, p = camera.position;
+  const cam = [p.x / r, p.y / r, p.z / r];
+  for (const layer of layers.values()) {
+    for (let f = 0; f < 6; ++f) {
+      const c = cam[f >> 1];
+      layer.materials[f].visible = !state.cullFaces || (f % 2 ? c < layer.plane[f] : c > layer.plane[f]);
+    }
+  }
+}
+
 // Frames are drawn only when something moved or changed, so an idle page costs nothing.
 let dirty = true;
 function redraw() { dirty = true; }
@@ -602,6 +875,7 @@ function animate() {
   if (!controls.update() && !dirty) return;
   dirty = false;
   placeTags();
+  cullFaceDirections();
   renderer.render(scene, camera);
   state.frames = (state.frames || 0) + 1;
 }
@@ -624,6 +898,7 @@ async function main() {
     (state.source.kind === 'tour' ? ' · tour file' : '');
   $('time').max = state.info.sessions.length - 1;
   fillSessionSelects();
+  if (!state.source.predicts) { $('predictedmode').remove(); $('costmaprow').remove(); }
   wire();
   animate();
   const last = state.info.sessions.length - 1;
@@ -632,13 +907,74 @@ async function main() {
   state.ready = true;
 }
 
+// The navigation cost map (chronomap costmap at the slider's time) as a layer on the floor:
+// free green, costly from blue to red by cost, orange where the robot's centre cannot be
+// (within its radius of an obstacle), red for obstacles; unknown is not drawn.
+let costLayer = null;
+function costColor(c) {
+  if (c === 255) return [0, 0, 0, 0];
+  if (c === 0) return [60, 180, 90, 110];
+  if (c === 100) return [220, 30, 40, 235];
+  if (c === 99) return [245, 150, 40, 210];
+  return [...heat(c / 98), 210];
+}
+async function loadCostmap(rank) {
+  if (!state.costmapOn || !state.source.predicts) return;
+  const cm = await state.source.costmap(rank);
+  if (state.rank !== rank || !state.costmapOn) return;
+  state.costmap = cm;
+  if (costLayer) { scene.remove(costLayer); costLayer.geometry.dispose(); costLayer.material.map.dispose(); costLayer.material.dispose(); }
+  const rgba = new Uint8Array(4 * cm.width * cm.height);
+  for (let i = 0; i < cm.cost.length; ++i) rgba.set(costColor(cm.cost[i]), 4 * i);
+  const texture = new THREE.DataTexture(rgba, cm.width, cm.height);
+  texture.magFilter = THREE.NearestFilter;
+  texture.colorSpace = THREE.SRGBColorSpace;
+  texture.needsUpdate = true;
+  const w = cm.width * cm.resolution_m, h = cm.height * cm.resolution_m;
+  costLayer = new THREE.Mesh(new THREE.PlaneGeometry(w, h),
+                             new THREE.MeshBasicMaterial({ map: texture, transparent: true, depthWrite: false }));
+  const r = state.info.resolution_m, o = state.info.key_origin;
+  const floor = state.bounds ? (state.bounds.zmin - o) * r : 0;
+  costLayer.position.set(cm.origin_m[0] + w / 2, cm.origin_m[1] + h / 2, floor + cm.z_min_m);
+  costLayer.renderOrder = 1;
+  scene.add(costLayer);
+  updateLegend();
+  redraw();
+}
+async function setCostmap(on) {
+  state.costmapOn = on;
+  $('costmap').classList.toggle('on', on);
+  if (!on) {
+    if (costLayer) { scene.remove(costLayer); costLayer = null; }
+    state.costmap = null;
+    updateLegend();
+    redraw();
+    return;
+  }
+  $('busy').style.display = 'block';
+  $('busy').textContent = 'computing the cost map (the first time, the server fits the temporal models)';
+  try { await loadCostmap(state.rank); } finally { $('busy').style.display = 'none'; }
+}
+
+async function setColorMode(mode) {
+  state.colorMode = mode;
+  $('colormode').value = mode;
+  if (mode === 'predicted') {
+    $('busy').style.display = 'block';
+    $('busy').textContent = 'predicting occupancy (the first time, the server fits the temporal models)';
+    try { await loadPrediction(state.rank); } finally { $('busy').style.display = 'none'; }
+  }
+  drawSnapshot();
+}
+
 // Test hooks: the same calls the controls make.
 state.setSession = (rank) => setSession(rank);
 state.nextFrame = () => nextFrame();
 state.showDiff = (from, to) => showDiff(from, to);
 state.clearDiff = () => { clearDiff(); drawSnapshot(); };
 state.selectCell = (i) => selectCell(i);
-state.setColorMode = (m) => { state.colorMode = m; $('colormode').value = m; drawSnapshot(); };
+state.setColorMode = (m) => setColorMode(m);
+state.setCostmap = (on) => setCostmap(on);
 state.toggleTopView = () => $('topview').click();
 /** Cuts at `metres` above the map's origin (the slider's value nearest to it). */
 state.setCut = (metres) => {

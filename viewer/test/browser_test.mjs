@@ -103,6 +103,56 @@ async function compareWithReference(page, label) {
   check(differing <= 0.03, `${label}: the last session from the first view differs from the reference in ${(differing * 100).toFixed(2)}% of the pixels`);
 }
 
+// Colour by predicted occupancy at session 2: the page's probabilities of a few modelled voxels
+// equal those of `chronomap predict` at that time (its map, added to a 4D map of its own, read
+// back with `chronomap history`), and every drawn cell with a model is coloured by one.
+async function checkPrediction(page) {
+  const rank = 1;
+  const shown = await page.evaluate(async (r) => {
+    const c = window.chronomap;
+    await c.setSession(r);
+    await c.setColorMode('predicted');
+    await c.nextFrame();
+    const p = c.prediction, picks = [];
+    // Unit voxels spread over the list, some predicted occupied and some free.
+    for (let k = 0; k < p.levels.length && picks.length < 6; k += Math.max(1, Math.floor(p.levels.length / 6))) {
+      if (p.levels[k] === 0) picks.push({ key: Array.from(p.keys.subarray(3 * k, 3 * k + 3)), p: p.p[k] });
+    }
+    let coloured = 0;
+    for (let i = 0; i < c.shown.count; ++i) if (!Number.isNaN(c.cellP[i])) ++coloured;
+    return { rank: p.rank, cubes: p.levels.length, picks, coloured, origin: c.info.key_origin, res: c.info.resolution_m,
+             legend: document.getElementById('legend').textContent };
+  }, rank);
+  check(shown.rank === rank && shown.cubes > 0 && shown.picks.length >= 3 && shown.coloured > 0 && /predicted/.test(shown.legend),
+        `server: predicted occupancy at session ${rank + 1}: ${shown.cubes} modelled cubes, ${shown.coloured} drawn cells coloured by one`);
+  const predicted = path.join(work, 'predicted.cmap'), single = path.join(work, 'predicted4d.cmap');
+  fs.rmSync(single, { force: true });
+  run('predict', map, '--at', String(sessions[rank].time_s), '-o', predicted);
+  run('add', single, predicted, '--time', String(sessions[rank].time_s));
+  let worst = 0;
+  for (const v of shown.picks) {
+    const point = v.key.map((k) => ((k - shown.origin + 0.5) * shown.res).toFixed(4)).join(',');
+    const h = json('history', single, '--point', point);
+    const cli = h.entries.length ? h.entries[h.entries.length - 1].probability : NaN;
+    worst = Math.max(worst, Number.isNaN(cli) ? Infinity : Math.abs(cli - v.p));
+  }
+  check(worst < 1e-3, `server: the page's predicted probabilities of ${shown.picks.length} voxels equal chronomap predict's (largest difference ${worst})`);
+  // The cost map layer: the server's grid, drawn on the floor, in the legend.
+  const cost = await page.evaluate(async () => {
+    const c = window.chronomap;
+    await c.setCostmap(true);
+    await c.nextFrame();
+    const m = c.costmap;
+    let known = 0;
+    for (const v of m.cost) if (v !== 255) ++known;
+    return { cells: m.width * m.height, known, rank: m.rank, legend: document.getElementById('legend').textContent };
+  });
+  check(cost.rank === rank && cost.known > 0 && /navigation cost/.test(cost.legend),
+        `server: the cost map layer at session ${rank + 1}: ${cost.known} of ${cost.cells} cells known`);
+  await page.screenshot({ path: path.join(work, 'server-predicted.png') });
+  await page.evaluate(async () => { await window.chronomap.setCostmap(false); await window.chronomap.setColorMode('color'); });
+}
+
 async function checkPage(url, label) {
   const page = await browser.newPage();
   await page.setViewport({ width: 900, height: 600 });
@@ -164,6 +214,7 @@ async function checkPage(url, label) {
     if (clicked) break;
   }
   check(clicked !== null, `${label}: a click on the canvas picks voxel ${clicked} and shows its history`);
+  if (label === 'server') await checkPrediction(page);
   check(errors.length === 0, `${label}: no console errors${errors.length ? `: ${errors.join(' | ')}` : ''}`);
   await page.close();
 }

@@ -6,8 +6,12 @@
 
 #include <cstddef>
 #include <map>
+#include <memory>
+#include <mutex>
 #include <string>
 
+#include "chronomap/analysis/costmap.h"
+#include "chronomap/analysis/rhythm.h"
 #include "chronomap/temporal/temporal_map.h"
 #include "chronomap/view/scene.h"
 
@@ -24,6 +28,9 @@ struct ApiSettings {
   /// How diffs are computed and segmented (a request may ask for another min_voxels).
   DiffSettings diff = changeSettings().diff;
   SegmentSettings segment = changeSettings().segment;
+  /// Temporal models for /api/predict (a saved .rhythm, `chronomap view --rhythm`); when null,
+  /// they are fitted to every session of the map on the first such request.
+  std::shared_ptr<const RhythmModels> rhythm;
 };
 
 /// One answer: HTTP status, content type and body.
@@ -43,7 +50,12 @@ using Query = std::multimap<std::string, std::string>;
 ///    the occupied cells (snapshotVoxels);
 ///  - `/api/diff?from=R|t0=T&to=R|t1=T[&min_voxels=N]` a packet of the changed cells and, in its
 ///    header, the objects (diffObjects);
-///  - `/api/history?key=x,y,z[&level=L]` JSON (historyJson).
+///  - `/api/history?key=x,y,z[&level=L]` JSON (historyJson);
+///  - `/api/predict?session=R|t=T[&model=M]` a packet of every modelled cube's predicted
+///    probability of occupancy at that time (encodePrediction; model: rhythm.h's names,
+///    default combined);
+///  - `/api/costmap?session=R|t=T[&model=M]` a packet of the navigation cost map at that time
+///    (costmap() of predictMap(), the default CostmapSettings of `chronomap costmap`).
 /// Anything else is 404; a malformed or unknown parameter, a time outside the map's sessions or
 /// a budget above the limit is 400 with a JSON {"error": ...}. Safe to call from several threads
 /// at once (the map is only read; the constructor prepares its lazily built summaries).
@@ -56,10 +68,30 @@ class Api {
   Reply snapshot(const Query& query) const;
   Reply diffReply(const Query& query) const;
   Reply history(const Query& query) const;
+  Reply predict(const Query& query) const;
+  Reply costmapReply(const Query& query) const;
+  const RhythmModels& rhythm() const;
   const TemporalMap& map_;
   std::string name_;
   ApiSettings settings_;
+  // Models fitted on the first /api/predict (when settings_.rhythm is null), once for all threads.
+  struct Fitted {
+    std::once_flag once;
+    std::shared_ptr<const RhythmModels> models;
+    double seconds = 0.0;
+  };
+  std::shared_ptr<Fitted> fitted_ = std::make_shared<Fitted>();
 };
+
+/// The modelled cubes' probabilities at `time_s` under `model` as a packet: header {"time_s",
+/// "model", "cubes", "fit_s" (seconds the models took to fit, 0 when loaded)}, arrays "keys"
+/// (u16 x, y, z of each cube's corner), "levels", "p" (f32, RhythmModels::predict).
+std::string encodePrediction(const RhythmModels& models, RhythmModel model, double time_s, double fit_s);
+
+/// A cost map as a packet: header {"time_s", "model", "width", "height", "resolution_m",
+/// "origin_m": [x, y], "z_min_m", "z_max_m"}, array "cost" (u8: the int8 costs, 255 = -1 unknown,
+/// row-major from the lowest y).
+std::string encodeCostmap(const Costmap& costmap, const CostmapSettings& settings, RhythmModel model, double time_s);
 
 /// A snapshot's cells as a packet: header {"level", "rank", "time_s", "occupied_voxels",
 /// "cells"}, arrays "keys" (u16 x, y, z per cell), "levels", "colors" (u8 r, g, b), "changes",

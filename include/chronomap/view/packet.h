@@ -3,9 +3,11 @@
 /// The binary answers of the viewer: a JSON header followed by little-endian typed arrays, so
 /// that the page reads millions of voxels without parsing text (docs/viewer.md, "Protocol").
 
+#include <bit>
 #include <cstdint>
 #include <span>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -54,11 +56,17 @@ std::vector<T> Packet::values(const std::string& name) const {
   const auto b = bytes(name);
   std::vector<T> out(b.size() / sizeof(T));
   for (size_t i = 0; i < out.size(); ++i) {
-    T v{};
-    for (size_t k = 0; k < sizeof(T); ++k) {
-      v = static_cast<T>(v | static_cast<T>(static_cast<uint64_t>(b[i * sizeof(T) + k]) << (8 * k)));
+    if constexpr (std::is_same_v<T, float>) {  // little-endian IEEE 754 bits
+      uint32_t bits = 0;
+      for (size_t k = 0; k < 4; ++k) bits |= static_cast<uint32_t>(b[i * 4 + k]) << (8 * k);
+      out[i] = std::bit_cast<float>(bits);
+    } else {
+      T v{};
+      for (size_t k = 0; k < sizeof(T); ++k) {
+        v = static_cast<T>(v | static_cast<T>(static_cast<uint64_t>(b[i * sizeof(T) + k]) << (8 * k)));
+      }
+      out[i] = v;
     }
-    out[i] = v;
   }
   return out;
 }

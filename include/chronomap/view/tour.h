@@ -20,8 +20,11 @@ namespace chronomap::view {
 struct TourSettings {
   /// Cells drawn: every voxel ever occupied, coarsened to the finest level of detail that fits.
   size_t max_voxels = 400000;
-  /// Sessions a tour holds; a map with more is refused (use `chronomap view`).
-  size_t max_sessions = 64;
+  /// Bytes of map data a tour may hold (before base64, which adds a third): the voxel timeline
+  /// (11 bytes a cell, and 2 bits a session) and the diffs' cells (12 bytes each). A map whose
+  /// tour would be larger is refused (use `chronomap view`, or a smaller max_voxels or
+  /// max_diff_cells). Any number of sessions fits.
+  size_t max_bytes = size_t{48} << 20;
   /// Changed cells per diff (the objects are always kept whole).
   size_t max_diff_cells = 100000;
   /// How diffs are computed and segmented (view::changeSettings() by default).
@@ -34,6 +37,7 @@ struct TourReport {
   size_t cells = 0;   ///< cells of the voxel timeline
   int level = 0;      ///< their level of detail (0 = unit voxels)
   size_t diffs = 0;   ///< session pairs with their objects (consecutive ones, and first to last)
+  size_t diff_cells = 0;  ///< changed cells of those diffs held (at most max_diff_cells each)
   size_t bytes = 0;   ///< size of the HTML file
   /// Occupied unit voxels per session (as `chronomap snapshot` counts them).
   std::vector<uint64_t> occupied_voxels;
@@ -46,7 +50,7 @@ struct TourReport {
 /// session in session order, 4 sessions a byte, lowest bits first: 0 unknown, 1 free,
 /// 2 occupied; the cell's most occupied state), then the diffs' cells one diff after another:
 /// "diff_keys", "diff_levels", "diff_kinds", "diff_component".
-/// @throw UsageError when the map holds no session or more than max_sessions.
+/// @throw UsageError when the map holds no session or its data would exceed max_bytes.
 std::string tourData(const TemporalMap& map, const std::string& name, const TourSettings& settings,
                      TourReport* report = nullptr);
 
