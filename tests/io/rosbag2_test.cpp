@@ -23,13 +23,6 @@
 #include "bag_fixture.h"
 #include "test_support.h"
 
-#ifndef CHRONOMAP_SOURCE_DIR
-#error "CHRONOMAP_SOURCE_DIR must name the project's source folder"
-#endif
-#ifndef CHRONOMAP_ROS2_WRITER_DIR
-#error "CHRONOMAP_ROS2_WRITER_DIR must name the build folder of the npm writer"
-#endif
-
 namespace chronomap::io {
 namespace {
 
@@ -112,39 +105,27 @@ void writeBagFolder(const fs::path& folder, const fs::path& storage, const std::
                                           << "  message_count: 128\n";
 }
 
-/// The simulated session (the tiny preset at 160 x 120) and the bags made from it, once.
+/// The shared recordings (bag_fixture.h; the MCAP bags need node and npm) and, in the suite's
+/// scratch folder, the SQLite bags and bag folders this file writes from them.
 class Ros2BagTest : public BagFixture<Ros2BagTest> {
  public:
   static constexpr const char* kWriters = "node or npm";
+  static constexpr const char* kErrorFile = "ros2.error";
 
  protected:
   static void SetUpTestSuite() {
-    simulate();
-    if (HasFatalFailure()) return;
-    // The npm writers, installed once into the build folder (npm ci from the committed lock).
-    const fs::path src = fs::path(CHRONOMAP_SOURCE_DIR) / "tests/io/ros2_writer";
-    const fs::path writer = CHRONOMAP_ROS2_WRITER_DIR;
-    fs::create_directories(writer);
-    for (const char* file : {"package.json", "package-lock.json", "make_ros2_bags.mjs"})
-      fs::copy_file(src / file, writer / file, fs::copy_options::update_existing);
-    const auto installed = test::runCommand("cd " + writer.string() + " && flock .npm-lock sh -c " +
-                                            "'[ -d node_modules/@mcap/core ] || npm ci --no-audit --no-fund'");
-    std::string error = installed.exit_code == 0 ? std::string() : "npm ci: " + installed.err;
-    if (error.empty()) {
-      const auto made = test::runCommand("node " + (writer / "make_ros2_bags.mjs").string() + " " + tum().string() +
-                                         " " + bags().string());
-      if (made.exit_code != 0) error = "make_ros2_bags.mjs: " + made.err;
-    }
-    if (error.empty()) {
-      writeDb3(bag("pose_lz4.mcap"), bag("pose.db3"));
-      writeDb3(bag("tf.mcap"), bag("tf.db3"));
-      writeBagFolder(bags() / "pose_db3_folder", bag("pose.db3"), "sqlite3");
-      writeBagFolder(bags() / "pose_mcap_folder", bag("pose_zstd.mcap"), "mcap");
-    }
-    generator_error_ = error;
+    BagFixture::SetUpTestSuite();
+    if (!generator_error_.empty()) return;
+    writeDb3(bag("pose_lz4.mcap"), *dir_ / "pose.db3");
+    writeDb3(bag("tf.mcap"), *dir_ / "tf.db3");
+    writeBagFolder(*dir_ / "pose_db3_folder", *dir_ / "pose.db3", "sqlite3");
+    writeBagFolder(*dir_ / "pose_mcap_folder", bag("pose_zstd.mcap"), "mcap");
+  }
+  /// A bag this suite wrote, or else one of the shared recordings.
+  static fs::path bag(const std::string& name) {
+    return fs::exists(*dir_ / name) ? *dir_ / name : BagFixture::bag(name);
   }
 };
-
 
 TEST_F(Ros2BagTest, ListsTopicsWithRos2TypesCountsAndEncodings) {
   for (const char* name : {"pose_lz4.mcap", "pose_unchunked_nosummary.mcap", "pose.db3", "pose_db3_folder"}) {
@@ -230,10 +211,7 @@ TEST_F(Ros2BagTest, PointCloud2TopicsGiveTheSamePointsAndColours) {
 // The ROS 1 bag of the same frames (Debian's python3-rosbag) gives the same map as well.
 TEST_F(Ros2BagTest, TheRos1BagOfTheSameFramesGivesTheSameMap) {
   if (!rosBagSupported()) GTEST_SKIP() << "built without ROS 1 bags";
-  const std::string script = std::string(CHRONOMAP_SOURCE_DIR) + "/tests/io/make_ros1_bags.py";
-  const auto made = test::runCommand("/usr/bin/python3 " + script + " " + tum().string() + " " + bags().string() +
-                                     " pose_lz4.bag");
-  ASSERT_EQ(made.exit_code, 0) << made.err;
+  ASSERT_TRUE(fs::exists(bag("pose_lz4.bag"))) << "the shared ROS 1 bags are missing: see " << recordings();
   EXPECT_TRUE(mapBytes(bag("pose_lz4.bag"), bagSettings()) == mapBytes(bag("pose_lz4.mcap"), bagSettings()));
 }
 
