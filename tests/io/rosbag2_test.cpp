@@ -363,10 +363,50 @@ TEST_F(Ros2BagTest, MissingTopicsAndBadFoldersAreNamed) {
   std::ofstream(folder / "metadata.yaml") << "rosbag2_bagfile_information:\n  relative_file_paths:\n    - gone.mcap\n";
   what = messageOf<DataError>([&] { openDataset(folder, bagSettings()); });
   EXPECT_NE(what.find("names gone.mcap, which is missing"), std::string::npos) << what;
-  std::ofstream(folder / "metadata.yaml") << "rosbag2_bagfile_information:\n  relative_file_paths:\n    - a_0.mcap\n"
-                                          << "    - a_1.mcap\n  duration:\n    nanoseconds: 5\n";
-  what = messageOf<UsageError>([&] { openDataset(folder, bagSettings()); });
-  EXPECT_NE(what.find("split into 2 storage files"), std::string::npos) << what;
+  // A split bag whose second file is missing, and one whose second file is cut short.
+  const fs::path split = *dir_ / "split_cut";
+  fs::create_directories(split);
+  fs::copy_file(bag("split_tf/metadata.yaml"), split / "metadata.yaml");
+  fs::copy_file(bag("split_tf/split_tf_0.mcap"), split / "split_tf_0.mcap");
+  fs::copy_file(bag("split_tf/split_tf_2.mcap"), split / "split_tf_2.mcap");
+  what = messageOf<DataError>([&] { openDataset(split, bagSettings()); });
+  EXPECT_NE(what.find((split / "metadata.yaml").string() + ": names split_tf_1.mcap, which is missing"),
+            std::string::npos)
+      << what;
+  const auto second = test::bytesOf(bag("split_tf/split_tf_1.mcap"));
+  test::writeBytes(split / "split_tf_1.mcap", std::vector<uint8_t>(second.begin(), second.begin() + 5000));
+  what = messageOf<FormatError>([&] { openDataset(split, bagSettings()); });
+  EXPECT_EQ(what.rfind((split / "split_tf_1.mcap").string() + ": ", 0), 0u) << what;
+  EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+}
+
+// A bag rosbag2 split into three storage files (lz4, zstd, lz4; /tf_static only in the first):
+// read as one, it lists the whole bag's counts and gives the poses and the map of the same
+// recording in one file.
+TEST_F(Ros2BagTest, ASplitBagReadsAsOneRecording) {
+  const std::vector<BagTopic> topics = listBag(bag("split_tf"));
+  const std::vector<BagTopic> whole = listBag(bag("tf.mcap"));
+  ASSERT_EQ(topics.size(), whole.size());
+  for (size_t i = 0; i < topics.size(); ++i) {
+    EXPECT_EQ(topics[i].name, whole[i].name);
+    EXPECT_EQ(topics[i].type, whole[i].type);
+    EXPECT_EQ(topics[i].messages, whole[i].messages) << topics[i].name;
+    EXPECT_EQ(topics[i].encoding, whole[i].encoding);
+  }
+  DatasetSettings s = bagSettings();
+  s.bag.fixed_frame = "map";
+  const auto from_split = openDataset(bag("split_tf"), s);
+  const auto from_one = openDataset(bag("tf.mcap"), s);
+  ASSERT_EQ(from_split->size(), 32u);
+  EXPECT_EQ(from_split->framesDropped(), 0u);
+  for (size_t i = 0; i < from_one->size(); ++i) {
+    EXPECT_TRUE(from_split->poseOf(i).matrix() == from_one->poseOf(i).matrix()) << i;
+  }
+  // Frames of the last file are decoded from it.
+  const Frame last = from_split->load(31), same = from_one->load(31);
+  EXPECT_EQ(last.cloud.colors, same.cloud.colors);
+  EXPECT_NE(last.source.find("split_tf: /camera/depth/image_raw at "), std::string::npos) << last.source;
+  EXPECT_TRUE(mapBytes(bag("split_tf"), s) == mapBytes(bag("tf.mcap"), s));
 }
 
 TEST_F(Ros2BagTest, TheCommandLineListsAndIntegratesARos2Bag) {

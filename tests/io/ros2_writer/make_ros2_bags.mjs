@@ -280,7 +280,7 @@ const COMPRESSORS = {
   zstd: (data) => ({ compression: "zstd", compressedData: zstdCompress(data, 3) }),
 };
 
-async function write(file, intr, frames, { storage = "lz4", pose = "pose_stamped", summary = true, chunkSize = 64 * 1024, points = false } = {}) {
+async function write(file, intr, frames, { storage = "lz4", pose = "pose_stamped", summary = true, chunkSize = 64 * 1024, points = false, tfStatic = true } = {}) {
   const sink = new Sink();
   const chunked = storage !== "unchunked";
   const writer = new McapWriter({
@@ -306,7 +306,7 @@ async function write(file, intr, frames, { storage = "lz4", pose = "pose_stamped
     await writer.addMessage({ channelId: channels[topic], sequence: 0, logTime: t, publishTime: t, data: writers[type].writeMessage(msg) });
   }
   const camera = "camera_depth_optical_frame";
-  if (pose === "tf") {
+  if (pose === "tf" && tfStatic) {
     await publish("/tf_static", "tf2_msgs/msg/TFMessage", {
       transforms: [transform(frames[0].stamp, "base_link", camera, T_BASE_CAMERA), transform(frames[0].stamp, "map", "odom", T_MAP_ODOM)],
     }, frames[0].stamp);
@@ -389,6 +389,26 @@ async function main() {
     "points.mcap": { storage: "zstd", points: true },
   };
   for (const [name, options] of Object.entries(bags)) await write(path.join(out, name), intr, frames, options);
+  // A bag split as rosbag2 splits a recording (--max-bag-size): a folder of three storage files
+  // in time order, each with its own schemas and channels, /tf_static only in the first, and
+  // metadata.yaml listing them.
+  const split = path.join(out, "split_tf");
+  fs.mkdirSync(split, { recursive: true });
+  const parts = [frames.slice(0, 11), frames.slice(11, 22), frames.slice(22)];
+  const names = parts.map((_, i) => `split_tf_${i}.mcap`);
+  for (let i = 0; i < parts.length; i++) {
+    await write(path.join(split, names[i]), intr, parts[i], { storage: i === 1 ? "zstd" : "lz4", pose: "tf", tfStatic: i === 0 });
+  }
+  fs.writeFileSync(path.join(split, "metadata.yaml"), [
+    "rosbag2_bagfile_information:",
+    "  version: 8",
+    "  storage_identifier: mcap",
+    "  relative_file_paths:",
+    ...names.map((n) => `    - ${n}`),
+    "  duration:",
+    "    nanoseconds: 3100000000",
+    "",
+  ].join("\n"));
 }
 
 main().catch((e) => {
