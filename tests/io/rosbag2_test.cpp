@@ -21,6 +21,7 @@
 #include "io/cdr.h"
 #include "io/mcap.h"
 #include "bag_fixture.h"
+#include "db3_writer.h"
 #include "test_support.h"
 
 namespace chronomap::io {
@@ -40,57 +41,13 @@ std::string messageOf(F body) {
   return {};
 }
 
-/// Copies the messages of an MCAP bag into a rosbag2 SQLite bag (schema of rosbag2's sqlite3
-/// storage: topics and messages tables); `formats` overrides a topic's serialisation format.
+/// A rosbag2 SQLite bag with the messages of an MCAP bag (db3_writer.h), or a failure.
 void writeDb3(const fs::path& mcap_path, const fs::path& db3, const std::map<std::string, std::string>& formats = {}) {
-  fs::remove(db3);
-  sqlite3* db = nullptr;
-  ASSERT_EQ(sqlite3_open(db3.c_str(), &db), SQLITE_OK);
-  const auto exec = [&](const std::string& sql) {
-    char* err = nullptr;
-    ASSERT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &err), SQLITE_OK) << (err ? err : "") << "\n" << sql;
-  };
-  exec("CREATE TABLE schema(schema_version INTEGER PRIMARY KEY, ros_distro TEXT NOT NULL);"
-       "INSERT INTO schema VALUES (4, 'iron');"
-       "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL, "
-       "serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL, type_description_hash TEXT NOT NULL);"
-       "CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL, timestamp INTEGER NOT NULL, "
-       "data BLOB NOT NULL);"
-       "CREATE INDEX timestamp_idx ON messages (timestamp ASC);"
-       "BEGIN;");
-  mcap::Reader reader(mcap_path);
-  std::map<uint16_t, int> topic_ids;
-  sqlite3_stmt* topic = nullptr;
-  sqlite3_stmt* message = nullptr;
-  ASSERT_EQ(sqlite3_prepare_v2(db, "INSERT INTO topics VALUES (?, ?, ?, ?, '', '')", -1, &topic, nullptr), SQLITE_OK);
-  ASSERT_EQ(sqlite3_prepare_v2(db, "INSERT INTO messages (topic_id, timestamp, data) VALUES (?, ?, ?)", -1, &message,
-                               nullptr),
-            SQLITE_OK);
-  reader.forEachMessage([&](const mcap::Message& m) {
-    auto it = topic_ids.find(m.channel);
-    if (it == topic_ids.end()) {
-      const mcap::Channel& ch = reader.channels().at(m.channel);
-      const int id = static_cast<int>(topic_ids.size()) + 1;
-      const std::string type = reader.schemas().at(ch.schema_id).name;
-      const std::string format = formats.count(ch.topic) ? formats.at(ch.topic) : ch.message_encoding;
-      sqlite3_bind_int(topic, 1, id);
-      sqlite3_bind_text(topic, 2, ch.topic.c_str(), -1, SQLITE_TRANSIENT);
-      sqlite3_bind_text(topic, 3, type.c_str(), -1, SQLITE_TRANSIENT);
-      sqlite3_bind_text(topic, 4, format.c_str(), -1, SQLITE_TRANSIENT);
-      EXPECT_EQ(sqlite3_step(topic), SQLITE_DONE);
-      sqlite3_reset(topic);
-      it = topic_ids.emplace(m.channel, id).first;
-    }
-    sqlite3_bind_int(message, 1, it->second);
-    sqlite3_bind_int64(message, 2, static_cast<sqlite3_int64>(m.log_time));
-    sqlite3_bind_blob(message, 3, m.data.data(), static_cast<int>(m.data.size()), SQLITE_TRANSIENT);
-    EXPECT_EQ(sqlite3_step(message), SQLITE_DONE);
-    sqlite3_reset(message);
-  });
-  sqlite3_finalize(topic);
-  sqlite3_finalize(message);
-  exec("COMMIT;");
-  sqlite3_close(db);
+  try {
+    test::writeDb3(mcap_path, db3, formats);
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << e.what();
+  }
 }
 
 /// A rosbag2 bag folder: the storage file and metadata.yaml naming it.
@@ -338,6 +295,25 @@ TEST_F(Ros2BagTest, TruncatedAndCorruptFilesAreOneLineFormatErrorsNamingTheFile)
   // A messages table in another serialisation than CDR.
   writeDb3(bag("pose_lz4.mcap"), *dir_ / "json.db3", {{"/camera_pose", "json"}});
   expectError(*dir_ / "json.db3", "/camera_pose is encoded as 'json'; chronomap decodes ROS 2 messages in CDR only");
+  // A .db3 cut short (SQLite's own checks name the damage), and an SQLite file that is no bag.
+  {
+    const auto bytes = test::bytesOf(bag("pose.db3"));
+    for (const size_t keep : {size_t{100}, size_t{4096}, bytes.size() / 2}) {
+      SCOPED_TRACE("pose.db3 cut to " + std::to_string(keep));
+      const fs::path cut = *dir_ / "cut.db3";
+      test::writeBytes(cut, std::vector<uint8_t>(bytes.begin(), bytes.begin() + static_cast<long>(keep)));
+      const std::string what = messageOf<FormatError>([&] { openDataset(cut, bagSettings()); });
+      EXPECT_EQ(what.rfind(cut.string() + ": ", 0), 0u) << what;
+      EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    }
+    const fs::path other = *dir_ / "other.db3";
+    fs::copy_file(bag("pose.db3"), other);
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(other.c_str(), &db), SQLITE_OK);
+    EXPECT_EQ(sqlite3_exec(db, "DROP TABLE topics", nullptr, nullptr, nullptr), SQLITE_OK);
+    sqlite3_close(db);
+    expectError(other, "not a rosbag2 SQLite bag (no table 'topics')");
+  }
   // Neither MCAP nor SQLite.
   test::writeBytes(*dir_ / "text.mcap", std::string("not an mcap file at all, but long enough to look at it"));
   expectError(*dir_ / "text.mcap", "not an MCAP file");
