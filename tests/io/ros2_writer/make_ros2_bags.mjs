@@ -2,7 +2,8 @@
 // and @foxglove/rosmsg2-serialization's CDR MessageWriter, chunks compressed with lz4js (lz4
 // frames) and @bokuweb/zstd-wasm (zstd), or stored without chunks.
 //
-//   node make_ros2_bags.mjs TUM_FOLDER OUT_FOLDER   (the bags the tests read)
+//   node make_ros2_bags.mjs TUM_FOLDER OUT_FOLDER [NAME ...]   (the bags the tests read; only
+//       these when named, as for bench/bag_vs_tum)
 //   node make_ros2_bags.mjs --seeds MCAP_FOLDER CDR_FOLDER
 //       (the fuzz targets' seeds: tiny bags for fuzz_mcap; for fuzz_cdr one message of each type
 //       behind the byte that picks its decoder, as fuzz/fuzz_readers.cpp reads them)
@@ -374,7 +375,7 @@ async function main() {
     seed("pose", 6, "geometry_msgs/msg/PoseStamped", { header: header(s, "map"), pose: { position: point(f.pose[0]), orientation: quat(f.pose[1]) } });
     return;
   }
-  const [tum, out] = args;
+  const [tum, out, ...only] = args;
   fs.mkdirSync(out, { recursive: true });
   const { intr, frames } = load(tum);
   const bags = {
@@ -388,7 +389,10 @@ async function main() {
     "tf.mcap": { storage: "lz4", pose: "tf" },
     "points.mcap": { storage: "zstd", points: true },
   };
-  for (const [name, options] of Object.entries(bags)) await write(path.join(out, name), intr, frames, options);
+  for (const [name, options] of Object.entries(bags)) {
+    if (only.length === 0 || only.includes(name)) await write(path.join(out, name), intr, frames, options);
+  }
+  if (only.length > 0 && !only.includes("split_tf")) return;
   // A bag split as rosbag2 splits a recording (--max-bag-size): a folder of three storage files
   // in time order, each with its own schemas and channels, /tf_static only in the first, and
   // metadata.yaml listing them.
