@@ -320,6 +320,34 @@ TEST_F(Ros2BagTest, TruncatedAndCorruptFilesAreOneLineFormatErrorsNamingTheFile)
   EXPECT_THROW(listBag(*dir_ / "missing.mcap"), UsageError);
 }
 
+// Bit flips anywhere in a .db3 (fuzz_db3's kind of input, with a fixed seed): each reads, or
+// is refused with a chronomap error; none may crash or throw anything else.
+TEST_F(Ros2BagTest, CorruptSqliteBagsAreErrorsNotCrashes) {
+  const auto seed = test::bytesOf(bag("pose.db3"));
+  ASSERT_GT(seed.size(), 4096u);
+  uint64_t state = 2026;
+  const auto next = [&] { return state = state * 6364136223846793005ull + 1442695040888963407ull; };
+  size_t refused = 0;
+  for (int round = 0; round < 60; ++round) {
+    auto mutated = seed;
+    // The first 8 KiB hold SQLite's header and the schema and topics pages; flip there often.
+    for (int flip = 0; flip < 4; ++flip) {
+      const size_t span = flip % 2 == 0 ? size_t{8192} : mutated.size();
+      mutated[(next() >> 33) % span] ^= static_cast<uint8_t>(1u << ((next() >> 33) % 8));
+    }
+    const fs::path path = *dir_ / "mutated.db3";
+    test::writeBytes(path, mutated);
+    try {
+      listBag(path);
+      const auto dataset = openDataset(path, bagSettings());
+      for (size_t i = 0; i < dataset->size() && i < 4; ++i) dataset->load(i);
+    } catch (const Error&) {
+      ++refused;
+    }
+  }
+  RecordProperty("refused", std::to_string(refused));
+}
+
 TEST_F(Ros2BagTest, MissingTopicsAndBadFoldersAreNamed) {
   DatasetSettings s = bagSettings();
   s.bag.depth_topic = "/nope";
