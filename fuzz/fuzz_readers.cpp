@@ -19,7 +19,7 @@
 #include "chronomap/io/dataset.h"
 #include "chronomap/io/jpeg.h"
 #include "chronomap/io/png.h"
-#if defined(FUZZ_BAG) || defined(FUZZ_MCAP)
+#if defined(FUZZ_BAG) || defined(FUZZ_MCAP) || defined(FUZZ_DB3)
 #include <unistd.h>
 
 #include <filesystem>
@@ -38,7 +38,7 @@ namespace {
 
 using namespace chronomap;
 
-#if defined(FUZZ_BAG) || defined(FUZZ_MCAP)
+#if defined(FUZZ_BAG) || defined(FUZZ_MCAP) || defined(FUZZ_DB3)
 /// Both bag readers read files: the input goes to a file of this process (named with
 /// `extension`), then through the listing and the dataset reader (topics detected, poses from a
 /// pose topic or /tf into "map"), loading the first frames.
@@ -167,6 +167,8 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
   }
 #elif defined(FUZZ_MCAP)
   fuzzBagFile(bytes, ".mcap", io::DatasetFormat::Ros2Bag);  // chronomap's own MCAP reader
+#elif defined(FUZZ_DB3)
+  fuzzBagFile(bytes, ".db3", io::DatasetFormat::Ros2Bag);  // rosbag2's SQLite storage through libsqlite3
 #elif defined(FUZZ_CDR)
   // The CDR decoders of ROS 2 messages: the first byte picks the message type, the rest is the
   // message (encapsulation header first); images and clouds go on through ros_messages.

@@ -1,6 +1,8 @@
 // Writes small valid inputs for every fuzz target, made by chronomap's own writers, into
 // DIR/<target>/. Usage: make_seeds DIR
+// With --db3 MCAP_DIR OUT_DIR: each MCAP seed's messages as a rosbag2 SQLite bag (fuzz_db3).
 #include <cstdio>
+#include <string>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -14,11 +16,20 @@
 #include "chronomap/io/file.h"
 #include "chronomap/io/jpeg.h"
 #include "chronomap/io/png.h"
+#include "db3_writer.h"
 
 using namespace chronomap;
 namespace fs = std::filesystem;
 
 int main(int argc, char** argv) {
+  if (argc == 4 && std::string(argv[1]) == "--db3") {
+    fs::create_directories(argv[3]);
+    for (const auto& entry : fs::directory_iterator(argv[2])) {
+      if (entry.path().extension() != ".mcap") continue;
+      test::writeDb3(entry.path(), fs::path(argv[3]) / entry.path().filename().replace_extension(".db3"));
+    }
+    return 0;
+  }
   if (argc != 2) {
     std::fprintf(stderr, "usage: make_seeds DIR\n");
     return 2;

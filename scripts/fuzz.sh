@@ -19,7 +19,7 @@ fi
 cmake --preset fuzz >/dev/null
 # Only the fuzz targets and the modules they link (not the command line or the simulator).
 cmake --build --preset fuzz -j"$(nproc)" --target fuzz_cmap fuzz_pcd fuzz_ply fuzz_xyz fuzz_png fuzz_text fuzz_view fuzz_bag \
-  fuzz_rosmsg fuzz_mcap fuzz_cdr fuzz_make_seeds
+  fuzz_rosmsg fuzz_mcap fuzz_cdr fuzz_db3 fuzz_make_seeds
 bin=build/fuzz/fuzz
 data="${CHRONOMAP_DATA_DIR:-../shared/data}"
 seeds=build/fuzz/seeds
@@ -45,6 +45,8 @@ mkdir -p "$writer"
 cp tests/io/ros2_writer/package.json tests/io/ros2_writer/package-lock.json tests/io/ros2_writer/make_ros2_bags.mjs "$writer/"
 [ -d "$writer/node_modules/@mcap/core" ] || (cd "$writer" && npm ci --no-audit --no-fund >/dev/null)
 node "$writer/make_ros2_bags.mjs" --seeds "$seeds/mcap" "$seeds/cdr"
+# SQLite bags (rosbag2's .db3) of the same messages, written as the tests write theirs.
+"$bin/fuzz_make_seeds" --db3 "$seeds/mcap" "$seeds/db3"
 summary=build/fuzz/summary.txt
 : >"$summary"
 # One target per core at a time; each writes its own log and result line.
@@ -62,7 +64,7 @@ fuzz_one() {
 }
 jobs="$(nproc)"
 rm -f build/fuzz/*.result
-targets=(cmap pcd ply xyz png text view bag rosmsg mcap cdr)
+targets=(cmap pcd ply xyz png text view bag rosmsg mcap cdr db3)
 for target in "${targets[@]}"; do
   while [ "$(jobs -rp | wc -l)" -ge "$jobs" ]; do wait -n || true; done
   fuzz_one "$target" &

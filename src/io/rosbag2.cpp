@@ -56,11 +56,12 @@ std::string trim(std::string s) {
   return b == std::string::npos ? std::string() : s.substr(b, e - b + 1);
 }
 
-/// The storage file of a bag: the file itself, or the one metadata.yaml names in a folder.
-fs::path storageFile(const fs::path& path) {
+/// The storage files of a bag: the file itself, or those metadata.yaml names in a folder (more
+/// than one when rosbag2 split the recording), in the order it lists them.
+std::vector<fs::path> storageFiles(const fs::path& path) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw UsageError(path.string() + ": no such file or folder");
-  if (!fs::is_directory(path, ec)) return path;
+  if (!fs::is_directory(path, ec)) return {path};
   const fs::path meta = path / "metadata.yaml";
   std::ifstream in(meta);
   if (!in) throw UsageError(path.string() + ": a ROS 2 bag folder holds metadata.yaml; this one does not");
@@ -89,13 +90,13 @@ fs::path storageFile(const fs::path& path) {
   if (files.empty()) {
     throw FormatError(meta.string() + ": no relative_file_paths (which storage file holds the messages?)");
   }
-  if (files.size() > 1) {
-    throw UsageError(meta.string() + ": the bag is split into " + std::to_string(files.size()) +
-                     " storage files; chronomap reads one: give one of them (" + bag::joinNames(files) + ")");
+  std::vector<fs::path> out;
+  for (const std::string& name : files) {
+    const fs::path file = path / name;
+    if (!fs::exists(file, ec)) throw DataError(meta.string() + ": names " + name + ", which is missing");
+    out.push_back(file);
   }
-  const fs::path file = path / files.front();
-  if (!fs::exists(file, ec)) throw DataError(meta.string() + ": names " + files.front() + ", which is missing");
-  return file;
+  return out;
 }
 
 /// "sensor_msgs/msg/Image" -> "sensor_msgs/Image", the names bag_dataset.h knows.
@@ -286,6 +287,63 @@ std::unique_ptr<MessageStore> openStore(const fs::path& file) {
   return std::make_unique<SqliteStore>(file);
 }
 
+/// A bag split over several storage files (rosbag2 --max-bag-size or --max-bag-duration): their
+/// messages one file after the other, as the metadata lists them; a handle is an index into the
+/// messages this store has visited, each remembered as (file, that file's handle).
+class SplitStore : public MessageStore {
+ public:
+  explicit SplitStore(const std::vector<fs::path>& files) {
+    for (const fs::path& file : files) parts_.push_back(openStore(file));
+  }
+
+  void forEach(const std::set<std::string>* wanted, const Visit& fn) override {
+    refs_.clear();
+    for (size_t p = 0; p < parts_.size(); ++p) {
+      parts_[p]->forEach(wanted, [&](const Incoming& m) {
+        const uint64_t handle = refs_.size();
+        refs_.emplace_back(p, m.handle);
+        fn(Incoming{m.topic, m.type, m.encoding, handle, m.data});
+      });
+    }
+  }
+
+  std::map<std::string, std::pair<std::string, uint64_t>> topics(const std::set<std::string>& types_first,
+                                                                 const Visit& first) override {
+    std::map<std::string, std::pair<std::string, uint64_t>> out;
+    std::set<std::string> seen;  // the first message of a topic is in the first file that has one
+    for (const auto& part : parts_) {
+      const auto topics = part->topics(types_first, [&](const Incoming& m) {
+        if (seen.insert(m.topic).second) first(m);
+      });
+      for (const auto& [name, entry] : topics) {
+        auto& merged = out[name];
+        if (merged.first.empty()) merged.first = entry.first;
+        merged.second += entry.second;
+      }
+    }
+    return out;
+  }
+
+  mcap::MessageBytes message(uint64_t handle) const override {
+    const auto& [part, inner] = refs_.at(handle);
+    return parts_[part]->message(inner);
+  }
+
+ private:
+  std::vector<std::unique_ptr<MessageStore>> parts_;
+  std::vector<std::pair<size_t, uint64_t>> refs_;
+};
+
+std::unique_ptr<MessageStore> openStore(const std::vector<fs::path>& files) {
+  if (files.size() == 1) return openStore(files.front());
+  return std::make_unique<SplitStore>(files);
+}
+
+/// The name errors give a bag: its storage file, or the folder of a split bag.
+fs::path bagName(const fs::path& given, const std::vector<fs::path>& files) {
+  return files.size() == 1 ? files.front() : given;
+}
+
 /// "topic (encoding 'json')" refused: only CDR is decoded.
 void requireCdr(const Incoming& m, const fs::path& file) {
   if (m.encoding != "cdr") {
@@ -320,9 +378,10 @@ Eigen::Isometry3d transformOf(const cdr::Transform& t, const std::string& contex
 class Ros2BagDataset : public bag::BagDataset {
  public:
   Ros2BagDataset(const fs::path& path, const DatasetSettings& s) : BagDataset(path, DatasetFormat::Ros2Bag) {
-    file_ = storageFile(path);
+    const std::vector<fs::path> files = storageFiles(path);
+    file_ = bagName(path, files);
     path_ = file_;
-    store_ = openStore(file_);
+    store_ = openStore(files);
     const bag::TopicMap topics = topicMap(*store_, file_, nullptr);
     const bag::Topics t = bag::chooseTopics(topics, s.bag, file_);
     const std::string frames_topic = t.cloud.empty() ? t.depth : t.cloud;
@@ -401,8 +460,9 @@ std::unique_ptr<Dataset> openRos2Bag(const fs::path& path, const DatasetSettings
 }
 
 std::vector<BagTopic> listRos2Bag(const fs::path& path) {
-  const fs::path file = storageFile(path);
-  const auto store = openStore(file);
+  const std::vector<fs::path> files = storageFiles(path);
+  const fs::path file = bagName(path, files);
+  const auto store = openStore(files);
   std::map<std::string, std::string> ros2_types;
   const bag::TopicMap topics = topicMap(*store, file, &ros2_types);
   std::vector<BagTopic> out;

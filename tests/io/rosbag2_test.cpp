@@ -21,14 +21,8 @@
 #include "io/cdr.h"
 #include "io/mcap.h"
 #include "bag_fixture.h"
+#include "db3_writer.h"
 #include "test_support.h"
-
-#ifndef CHRONOMAP_SOURCE_DIR
-#error "CHRONOMAP_SOURCE_DIR must name the project's source folder"
-#endif
-#ifndef CHRONOMAP_ROS2_WRITER_DIR
-#error "CHRONOMAP_ROS2_WRITER_DIR must name the build folder of the npm writer"
-#endif
 
 namespace chronomap::io {
 namespace {
@@ -47,57 +41,13 @@ std::string messageOf(F body) {
   return {};
 }
 
-/// Copies the messages of an MCAP bag into a rosbag2 SQLite bag (schema of rosbag2's sqlite3
-/// storage: topics and messages tables); `formats` overrides a topic's serialisation format.
+/// A rosbag2 SQLite bag with the messages of an MCAP bag (db3_writer.h), or a failure.
 void writeDb3(const fs::path& mcap_path, const fs::path& db3, const std::map<std::string, std::string>& formats = {}) {
-  fs::remove(db3);
-  sqlite3* db = nullptr;
-  ASSERT_EQ(sqlite3_open(db3.c_str(), &db), SQLITE_OK);
-  const auto exec = [&](const std::string& sql) {
-    char* err = nullptr;
-    ASSERT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, &err), SQLITE_OK) << (err ? err : "") << "\n" << sql;
-  };
-  exec("CREATE TABLE schema(schema_version INTEGER PRIMARY KEY, ros_distro TEXT NOT NULL);"
-       "INSERT INTO schema VALUES (4, 'iron');"
-       "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL, "
-       "serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL, type_description_hash TEXT NOT NULL);"
-       "CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL, timestamp INTEGER NOT NULL, "
-       "data BLOB NOT NULL);"
-       "CREATE INDEX timestamp_idx ON messages (timestamp ASC);"
-       "BEGIN;");
-  mcap::Reader reader(mcap_path);
-  std::map<uint16_t, int> topic_ids;
-  sqlite3_stmt* topic = nullptr;
-  sqlite3_stmt* message = nullptr;
-  ASSERT_EQ(sqlite3_prepare_v2(db, "INSERT INTO topics VALUES (?, ?, ?, ?, '', '')", -1, &topic, nullptr), SQLITE_OK);
-  ASSERT_EQ(sqlite3_prepare_v2(db, "INSERT INTO messages (topic_id, timestamp, data) VALUES (?, ?, ?)", -1, &message,
-                               nullptr),
-            SQLITE_OK);
-  reader.forEachMessage([&](const mcap::Message& m) {
-    auto it = topic_ids.find(m.channel);
-    if (it == topic_ids.end()) {
-      const mcap::Channel& ch = reader.channels().at(m.channel);
-      const int id = static_cast<int>(topic_ids.size()) + 1;
-      const std::string type = reader.schemas().at(ch.schema_id).name;
-      const std::string format = formats.count(ch.topic) ? formats.at(ch.topic) : ch.message_encoding;
-      sqlite3_bind_int(topic, 1, id);
-      sqlite3_bind_text(topic, 2, ch.topic.c_str(), -1, SQLITE_TRANSIENT);
-      sqlite3_bind_text(topic, 3, type.c_str(), -1, SQLITE_TRANSIENT);
-      sqlite3_bind_text(topic, 4, format.c_str(), -1, SQLITE_TRANSIENT);
-      EXPECT_EQ(sqlite3_step(topic), SQLITE_DONE);
-      sqlite3_reset(topic);
-      it = topic_ids.emplace(m.channel, id).first;
-    }
-    sqlite3_bind_int(message, 1, it->second);
-    sqlite3_bind_int64(message, 2, static_cast<sqlite3_int64>(m.log_time));
-    sqlite3_bind_blob(message, 3, m.data.data(), static_cast<int>(m.data.size()), SQLITE_TRANSIENT);
-    EXPECT_EQ(sqlite3_step(message), SQLITE_DONE);
-    sqlite3_reset(message);
-  });
-  sqlite3_finalize(topic);
-  sqlite3_finalize(message);
-  exec("COMMIT;");
-  sqlite3_close(db);
+  try {
+    test::writeDb3(mcap_path, db3, formats);
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << e.what();
+  }
 }
 
 /// A rosbag2 bag folder: the storage file and metadata.yaml naming it.
@@ -112,39 +62,27 @@ void writeBagFolder(const fs::path& folder, const fs::path& storage, const std::
                                           << "  message_count: 128\n";
 }
 
-/// The simulated session (the tiny preset at 160 x 120) and the bags made from it, once.
+/// The shared recordings (bag_fixture.h; the MCAP bags need node and npm) and, in the suite's
+/// scratch folder, the SQLite bags and bag folders this file writes from them.
 class Ros2BagTest : public BagFixture<Ros2BagTest> {
  public:
   static constexpr const char* kWriters = "node or npm";
+  static constexpr const char* kErrorFile = "ros2.error";
 
  protected:
   static void SetUpTestSuite() {
-    simulate();
-    if (HasFatalFailure()) return;
-    // The npm writers, installed once into the build folder (npm ci from the committed lock).
-    const fs::path src = fs::path(CHRONOMAP_SOURCE_DIR) / "tests/io/ros2_writer";
-    const fs::path writer = CHRONOMAP_ROS2_WRITER_DIR;
-    fs::create_directories(writer);
-    for (const char* file : {"package.json", "package-lock.json", "make_ros2_bags.mjs"})
-      fs::copy_file(src / file, writer / file, fs::copy_options::update_existing);
-    const auto installed = test::runCommand("cd " + writer.string() + " && flock .npm-lock sh -c " +
-                                            "'[ -d node_modules/@mcap/core ] || npm ci --no-audit --no-fund'");
-    std::string error = installed.exit_code == 0 ? std::string() : "npm ci: " + installed.err;
-    if (error.empty()) {
-      const auto made = test::runCommand("node " + (writer / "make_ros2_bags.mjs").string() + " " + tum().string() +
-                                         " " + bags().string());
-      if (made.exit_code != 0) error = "make_ros2_bags.mjs: " + made.err;
-    }
-    if (error.empty()) {
-      writeDb3(bag("pose_lz4.mcap"), bag("pose.db3"));
-      writeDb3(bag("tf.mcap"), bag("tf.db3"));
-      writeBagFolder(bags() / "pose_db3_folder", bag("pose.db3"), "sqlite3");
-      writeBagFolder(bags() / "pose_mcap_folder", bag("pose_zstd.mcap"), "mcap");
-    }
-    generator_error_ = error;
+    BagFixture::SetUpTestSuite();
+    if (!generator_error_.empty()) return;
+    writeDb3(bag("pose_lz4.mcap"), *dir_ / "pose.db3");
+    writeDb3(bag("tf.mcap"), *dir_ / "tf.db3");
+    writeBagFolder(*dir_ / "pose_db3_folder", *dir_ / "pose.db3", "sqlite3");
+    writeBagFolder(*dir_ / "pose_mcap_folder", bag("pose_zstd.mcap"), "mcap");
+  }
+  /// A bag this suite wrote, or else one of the shared recordings.
+  static fs::path bag(const std::string& name) {
+    return fs::exists(*dir_ / name) ? *dir_ / name : BagFixture::bag(name);
   }
 };
-
 
 TEST_F(Ros2BagTest, ListsTopicsWithRos2TypesCountsAndEncodings) {
   for (const char* name : {"pose_lz4.mcap", "pose_unchunked_nosummary.mcap", "pose.db3", "pose_db3_folder"}) {
@@ -230,10 +168,7 @@ TEST_F(Ros2BagTest, PointCloud2TopicsGiveTheSamePointsAndColours) {
 // The ROS 1 bag of the same frames (Debian's python3-rosbag) gives the same map as well.
 TEST_F(Ros2BagTest, TheRos1BagOfTheSameFramesGivesTheSameMap) {
   if (!rosBagSupported()) GTEST_SKIP() << "built without ROS 1 bags";
-  const std::string script = std::string(CHRONOMAP_SOURCE_DIR) + "/tests/io/make_ros1_bags.py";
-  const auto made = test::runCommand("/usr/bin/python3 " + script + " " + tum().string() + " " + bags().string() +
-                                     " pose_lz4.bag");
-  ASSERT_EQ(made.exit_code, 0) << made.err;
+  ASSERT_TRUE(fs::exists(bag("pose_lz4.bag"))) << "the shared ROS 1 bags are missing: see " << recordings();
   EXPECT_TRUE(mapBytes(bag("pose_lz4.bag"), bagSettings()) == mapBytes(bag("pose_lz4.mcap"), bagSettings()));
 }
 
@@ -360,10 +295,57 @@ TEST_F(Ros2BagTest, TruncatedAndCorruptFilesAreOneLineFormatErrorsNamingTheFile)
   // A messages table in another serialisation than CDR.
   writeDb3(bag("pose_lz4.mcap"), *dir_ / "json.db3", {{"/camera_pose", "json"}});
   expectError(*dir_ / "json.db3", "/camera_pose is encoded as 'json'; chronomap decodes ROS 2 messages in CDR only");
+  // A .db3 cut short (SQLite's own checks name the damage), and an SQLite file that is no bag.
+  {
+    const auto bytes = test::bytesOf(bag("pose.db3"));
+    for (const size_t keep : {size_t{100}, size_t{4096}, bytes.size() / 2}) {
+      SCOPED_TRACE("pose.db3 cut to " + std::to_string(keep));
+      const fs::path cut = *dir_ / "cut.db3";
+      test::writeBytes(cut, std::vector<uint8_t>(bytes.begin(), bytes.begin() + static_cast<long>(keep)));
+      const std::string what = messageOf<FormatError>([&] { openDataset(cut, bagSettings()); });
+      EXPECT_EQ(what.rfind(cut.string() + ": ", 0), 0u) << what;
+      EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    }
+    const fs::path other = *dir_ / "other.db3";
+    fs::copy_file(bag("pose.db3"), other);
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(other.c_str(), &db), SQLITE_OK);
+    EXPECT_EQ(sqlite3_exec(db, "DROP TABLE topics", nullptr, nullptr, nullptr), SQLITE_OK);
+    sqlite3_close(db);
+    expectError(other, "not a rosbag2 SQLite bag (no table 'topics')");
+  }
   // Neither MCAP nor SQLite.
   test::writeBytes(*dir_ / "text.mcap", std::string("not an mcap file at all, but long enough to look at it"));
   expectError(*dir_ / "text.mcap", "not an MCAP file");
   EXPECT_THROW(listBag(*dir_ / "missing.mcap"), UsageError);
+}
+
+// Bit flips anywhere in a .db3 (fuzz_db3's kind of input, with a fixed seed): each reads, or
+// is refused with a chronomap error; none may crash or throw anything else.
+TEST_F(Ros2BagTest, CorruptSqliteBagsAreErrorsNotCrashes) {
+  const auto seed = test::bytesOf(bag("pose.db3"));
+  ASSERT_GT(seed.size(), 4096u);
+  uint64_t state = 2026;
+  const auto next = [&] { return state = state * 6364136223846793005ull + 1442695040888963407ull; };
+  size_t refused = 0;
+  for (int round = 0; round < 60; ++round) {
+    auto mutated = seed;
+    // The first 8 KiB hold SQLite's header and the schema and topics pages; flip there often.
+    for (int flip = 0; flip < 4; ++flip) {
+      const size_t span = flip % 2 == 0 ? size_t{8192} : mutated.size();
+      mutated[(next() >> 33) % span] ^= static_cast<uint8_t>(1u << ((next() >> 33) % 8));
+    }
+    const fs::path path = *dir_ / "mutated.db3";
+    test::writeBytes(path, mutated);
+    try {
+      listBag(path);
+      const auto dataset = openDataset(path, bagSettings());
+      for (size_t i = 0; i < dataset->size() && i < 4; ++i) dataset->load(i);
+    } catch (const Error&) {
+      ++refused;
+    }
+  }
+  RecordProperty("refused", std::to_string(refused));
 }
 
 TEST_F(Ros2BagTest, MissingTopicsAndBadFoldersAreNamed) {
@@ -385,10 +367,50 @@ TEST_F(Ros2BagTest, MissingTopicsAndBadFoldersAreNamed) {
   std::ofstream(folder / "metadata.yaml") << "rosbag2_bagfile_information:\n  relative_file_paths:\n    - gone.mcap\n";
   what = messageOf<DataError>([&] { openDataset(folder, bagSettings()); });
   EXPECT_NE(what.find("names gone.mcap, which is missing"), std::string::npos) << what;
-  std::ofstream(folder / "metadata.yaml") << "rosbag2_bagfile_information:\n  relative_file_paths:\n    - a_0.mcap\n"
-                                          << "    - a_1.mcap\n  duration:\n    nanoseconds: 5\n";
-  what = messageOf<UsageError>([&] { openDataset(folder, bagSettings()); });
-  EXPECT_NE(what.find("split into 2 storage files"), std::string::npos) << what;
+  // A split bag whose second file is missing, and one whose second file is cut short.
+  const fs::path split = *dir_ / "split_cut";
+  fs::create_directories(split);
+  fs::copy_file(bag("split_tf/metadata.yaml"), split / "metadata.yaml");
+  fs::copy_file(bag("split_tf/split_tf_0.mcap"), split / "split_tf_0.mcap");
+  fs::copy_file(bag("split_tf/split_tf_2.mcap"), split / "split_tf_2.mcap");
+  what = messageOf<DataError>([&] { openDataset(split, bagSettings()); });
+  EXPECT_NE(what.find((split / "metadata.yaml").string() + ": names split_tf_1.mcap, which is missing"),
+            std::string::npos)
+      << what;
+  const auto second = test::bytesOf(bag("split_tf/split_tf_1.mcap"));
+  test::writeBytes(split / "split_tf_1.mcap", std::vector<uint8_t>(second.begin(), second.begin() + 5000));
+  what = messageOf<FormatError>([&] { openDataset(split, bagSettings()); });
+  EXPECT_EQ(what.rfind((split / "split_tf_1.mcap").string() + ": ", 0), 0u) << what;
+  EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+}
+
+// A bag rosbag2 split into three storage files (lz4, zstd, lz4; /tf_static only in the first):
+// read as one, it lists the whole bag's counts and gives the poses and the map of the same
+// recording in one file.
+TEST_F(Ros2BagTest, ASplitBagReadsAsOneRecording) {
+  const std::vector<BagTopic> topics = listBag(bag("split_tf"));
+  const std::vector<BagTopic> whole = listBag(bag("tf.mcap"));
+  ASSERT_EQ(topics.size(), whole.size());
+  for (size_t i = 0; i < topics.size(); ++i) {
+    EXPECT_EQ(topics[i].name, whole[i].name);
+    EXPECT_EQ(topics[i].type, whole[i].type);
+    EXPECT_EQ(topics[i].messages, whole[i].messages) << topics[i].name;
+    EXPECT_EQ(topics[i].encoding, whole[i].encoding);
+  }
+  DatasetSettings s = bagSettings();
+  s.bag.fixed_frame = "map";
+  const auto from_split = openDataset(bag("split_tf"), s);
+  const auto from_one = openDataset(bag("tf.mcap"), s);
+  ASSERT_EQ(from_split->size(), 32u);
+  EXPECT_EQ(from_split->framesDropped(), 0u);
+  for (size_t i = 0; i < from_one->size(); ++i) {
+    EXPECT_TRUE(from_split->poseOf(i).matrix() == from_one->poseOf(i).matrix()) << i;
+  }
+  // Frames of the last file are decoded from it.
+  const Frame last = from_split->load(31), same = from_one->load(31);
+  EXPECT_EQ(last.cloud.colors, same.cloud.colors);
+  EXPECT_NE(last.source.find("split_tf: /camera/depth/image_raw at "), std::string::npos) << last.source;
+  EXPECT_TRUE(mapBytes(bag("split_tf"), s) == mapBytes(bag("tf.mcap"), s));
 }
 
 TEST_F(Ros2BagTest, TheCommandLineListsAndIntegratesARos2Bag) {

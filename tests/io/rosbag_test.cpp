@@ -21,10 +21,6 @@
 #include "bag_fixture.h"
 #include "test_support.h"
 
-#ifndef CHRONOMAP_SOURCE_DIR
-#error "CHRONOMAP_SOURCE_DIR must name the project's source folder"
-#endif
-
 namespace chronomap::io {
 namespace {
 
@@ -33,25 +29,12 @@ namespace fs = std::filesystem;
 /// Debian's interpreter, which has python3-rosbag (the first python3 on PATH may not).
 constexpr const char* kDebianPython = "/usr/bin/python3";
 
-/// The simulated session (the tiny preset at 160 x 120) and the bags made from it, once.
+/// The shared recordings (bag_fixture.h); the ROS 1 bags need Debian's python3-rosbag.
 class RosBagTest : public BagFixture<RosBagTest> {
  public:
   static constexpr const char* kWriters = "python3-rosbag";
-
- protected:
-  static void SetUpTestSuite() {
-    simulate();
-    if (HasFatalFailure()) return;
-    const std::string script = std::string(CHRONOMAP_SOURCE_DIR) + "/tests/io/make_ros1_bags.py";
-    const auto made =
-        test::runCommand(std::string(kDebianPython) + " " + script + " " + tum().string() + " " + bags().string());
-    const auto seeds =
-        test::runCommand(std::string(kDebianPython) + " " + script + " --seeds " + (bags() / "tiny").string());
-    generator_error_ = made.exit_code == 0 ? seeds.err : made.err;
-    if (seeds.exit_code == 0) generator_error_.clear();
-  }
+  static constexpr const char* kErrorFile = "ros1.error";
 };
-
 
 TEST_F(RosBagTest, ListsTopicsTypesCountsAndEncodings) {
   const std::vector<BagTopic> topics = listBag(bag("tf.bag"));

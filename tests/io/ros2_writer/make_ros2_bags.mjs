@@ -2,7 +2,8 @@
 // and @foxglove/rosmsg2-serialization's CDR MessageWriter, chunks compressed with lz4js (lz4
 // frames) and @bokuweb/zstd-wasm (zstd), or stored without chunks.
 //
-//   node make_ros2_bags.mjs TUM_FOLDER OUT_FOLDER   (the bags the tests read)
+//   node make_ros2_bags.mjs TUM_FOLDER OUT_FOLDER [NAME ...]   (the bags the tests read; only
+//       these when named, as for bench/bag_vs_tum)
 //   node make_ros2_bags.mjs --seeds MCAP_FOLDER CDR_FOLDER
 //       (the fuzz targets' seeds: tiny bags for fuzz_mcap; for fuzz_cdr one message of each type
 //       behind the byte that picks its decoder, as fuzz/fuzz_readers.cpp reads them)
@@ -280,7 +281,7 @@ const COMPRESSORS = {
   zstd: (data) => ({ compression: "zstd", compressedData: zstdCompress(data, 3) }),
 };
 
-async function write(file, intr, frames, { storage = "lz4", pose = "pose_stamped", summary = true, chunkSize = 64 * 1024, points = false } = {}) {
+async function write(file, intr, frames, { storage = "lz4", pose = "pose_stamped", summary = true, chunkSize = 64 * 1024, points = false, tfStatic = true } = {}) {
   const sink = new Sink();
   const chunked = storage !== "unchunked";
   const writer = new McapWriter({
@@ -306,7 +307,7 @@ async function write(file, intr, frames, { storage = "lz4", pose = "pose_stamped
     await writer.addMessage({ channelId: channels[topic], sequence: 0, logTime: t, publishTime: t, data: writers[type].writeMessage(msg) });
   }
   const camera = "camera_depth_optical_frame";
-  if (pose === "tf") {
+  if (pose === "tf" && tfStatic) {
     await publish("/tf_static", "tf2_msgs/msg/TFMessage", {
       transforms: [transform(frames[0].stamp, "base_link", camera, T_BASE_CAMERA), transform(frames[0].stamp, "map", "odom", T_MAP_ODOM)],
     }, frames[0].stamp);
@@ -374,7 +375,7 @@ async function main() {
     seed("pose", 6, "geometry_msgs/msg/PoseStamped", { header: header(s, "map"), pose: { position: point(f.pose[0]), orientation: quat(f.pose[1]) } });
     return;
   }
-  const [tum, out] = args;
+  const [tum, out, ...only] = args;
   fs.mkdirSync(out, { recursive: true });
   const { intr, frames } = load(tum);
   const bags = {
@@ -388,7 +389,30 @@ async function main() {
     "tf.mcap": { storage: "lz4", pose: "tf" },
     "points.mcap": { storage: "zstd", points: true },
   };
-  for (const [name, options] of Object.entries(bags)) await write(path.join(out, name), intr, frames, options);
+  for (const [name, options] of Object.entries(bags)) {
+    if (only.length === 0 || only.includes(name)) await write(path.join(out, name), intr, frames, options);
+  }
+  if (only.length > 0 && !only.includes("split_tf")) return;
+  // A bag split as rosbag2 splits a recording (--max-bag-size): a folder of three storage files
+  // in time order, each with its own schemas and channels, /tf_static only in the first, and
+  // metadata.yaml listing them.
+  const split = path.join(out, "split_tf");
+  fs.mkdirSync(split, { recursive: true });
+  const parts = [frames.slice(0, 11), frames.slice(11, 22), frames.slice(22)];
+  const names = parts.map((_, i) => `split_tf_${i}.mcap`);
+  for (let i = 0; i < parts.length; i++) {
+    await write(path.join(split, names[i]), intr, parts[i], { storage: i === 1 ? "zstd" : "lz4", pose: "tf", tfStatic: i === 0 });
+  }
+  fs.writeFileSync(path.join(split, "metadata.yaml"), [
+    "rosbag2_bagfile_information:",
+    "  version: 8",
+    "  storage_identifier: mcap",
+    "  relative_file_paths:",
+    ...names.map((n) => `    - ${n}`),
+    "  duration:",
+    "    nanoseconds: 3100000000",
+    "",
+  ].join("\n"));
 }
 
 main().catch((e) => {
