@@ -353,18 +353,19 @@ void ColourDiffSettings::validate() const {
   if (!std::isfinite(distance) || distance <= 0.0) throw UsageError("the colour distance must be a positive number");
 }
 
-std::pair<double, Rgb> lightingDistance(const Rgb& before, const Rgb& after, const std::array<double, 3>& gain) {
+std::pair<double, Rgb> lightingDistance(const Rgb& before, const Rgb& after, const std::array<double, 3>& gain,
+                                        double uncertainty) {
   const double b[3] = {double(before.r), double(before.g), double(before.b)};
   const double a[3] = {double(after.r), double(after.g), double(after.b)};
   const double mean_gain = (gain[0] + gain[1] + gain[2]) / 3.0;
-  double sq = 0.0, slack_sq = 0.0;
+  double sq = 0.0, scale = 0.0;
   double e[3];
   for (size_t c = 0; c < 3; ++c) e[c] = std::clamp(b[c] * gain[c], 0.0, 255.0);
   if (mean_gain >= 1.0) {
-    // The second hour is brighter: the first colour scaled up (its rounding too).
+    // The second hour is brighter: the first colour scaled up (its uncertainty too).
     for (size_t c = 0; c < 3; ++c) {
       sq += (a[c] - e[c]) * (a[c] - e[c]);
-      slack_sq += 0.25 * gain[c] * gain[c];
+      scale = std::max(scale, gain[c]);
     }
   } else {
     // The first hour is brighter: the second colour scaled up to it.
@@ -372,12 +373,12 @@ std::pair<double, Rgb> lightingDistance(const Rgb& before, const Rgb& after, con
       const double inv = gain[c] > 1e-6 ? 1.0 / gain[c] : 1e6;
       const double up = std::clamp(a[c] * inv, 0.0, 255.0);
       sq += (b[c] - up) * (b[c] - up);
-      slack_sq += 0.25 * inv * inv;
+      scale = std::max(scale, inv);
     }
   }
   const Rgb expected{static_cast<uint8_t>(std::lround(e[0])), static_cast<uint8_t>(std::lround(e[1])),
                      static_cast<uint8_t>(std::lround(e[2]))};
-  return {std::max(0.0, std::sqrt(sq) - std::sqrt(slack_sq)), expected};
+  return {std::max(0.0, std::sqrt(sq) - uncertainty * (1.0 + scale)), expected};
 }
 
 ColourDiff colourChanges(const TemporalMap& map, double t1_s, double t2_s, const ColourModel* model,
@@ -395,6 +396,8 @@ ColourDiff colourChanges(const TemporalMap& map, double t1_s, double t2_s, const
     const std::array<double, 3> p1 = model->predictMean(h1), p2 = model->predictMean(h2);
     for (size_t c = 0; c < 3; ++c) mean_gain[c] = p1[c] > 1e-3 ? std::clamp(p2[c] / p1[c], 0.0, 100.0) : 1.0;
   }
+  // A stored colour lags the observed one by up to the map's colour distance, plus rounding.
+  const double uncertainty = map.criterion().color_distance + 0.87;
   ColourDiff out;
   const auto at = [](std::span<const TemporalMap::Entry> entries, uint32_t r) -> const TemporalMap::Entry* {
     const TemporalMap::Entry* found = nullptr;
@@ -425,7 +428,7 @@ ColourDiff colourChanges(const TemporalMap& map, double t1_s, double t2_s, const
           if (p1[c] > 1.0 && p2[c] > 0.0) gain[c] = std::clamp(p2[c] / p1[c], 0.0, 100.0);
         }
       }
-      const auto [d, expected] = lightingDistance(ch.before, ch.after, gain);
+      const auto [d, expected] = lightingDistance(ch.before, ch.after, gain, uncertainty);
       dist = d;
       ch.expected = expected;
     } else {

@@ -140,14 +140,21 @@ struct ColourDiff {
 
 /// The light alone: is `after` (at hour h2) what `before` (at hour h1) becomes when the light
 /// changes by `gain` (per channel, colour at h2 over colour at h1)? Compared in the brighter
-/// hour's light (the darker colour scaled up, with half an 8-bit step of slack per channel for
-/// its rounding): returns that distance and the expected colour.
-std::pair<double, Rgb> lightingDistance(const Rgb& before, const Rgb& after, const std::array<double, 3>& gain);
+/// hour's light (the darker colour scaled up), less the slack that the colours' own uncertainty
+/// allows: `uncertainty` (8-bit RGB distance, e.g. rounding plus the 4D map's colour distance, by
+/// which a stored colour may lag the observed one) on the brighter side, and the same scaled by
+/// the largest gain on the darker side. Returns that distance (never negative) and the expected
+/// colour `before` x gain.
+std::pair<double, Rgb> lightingDistance(const Rgb& before, const Rgb& after, const std::array<double, 3>& gain,
+                                        double uncertainty = 0.87);
 
 /// The voxels of `map` whose colour changed from time t1 to time t2 (the states valid then). With
 /// settings.lighting_invariant, a change the model's light explains is none: each voxel's
 /// expected colour is its colour at t1 times its model's colour at hour(t2) over that at
-/// hour(t1) (the map's mean model for voxels without one).
+/// hour(t1) (the map's mean model for voxels without one), compared by lightingDistance() with
+/// the uncertainty of the map's stored colours: its colour distance plus rounding. A night's
+/// colours are so dark that, scaled up to daylight, that uncertainty is large: between a night
+/// and a day only large changes count.
 /// @throw UsageError for times that are not finite or before the map's first session, a
 /// lighting-invariant diff without a model, or bad settings.
 ColourDiff colourChanges(const TemporalMap& map, double t1_s, double t2_s, const ColourModel* model,
