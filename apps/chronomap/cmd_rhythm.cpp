@@ -53,6 +53,22 @@ void addLearnFlags(CLI::App* app, LearnFlags& f) {
   app->add_option("--save-rhythm", f.rhythm_out, "also save the fitted model (.rhythm) for later use");
 }
 
+/// What predict --colour learned, for --json.
+nlohmann::json colourSummary(const ColourModel& c, double t) {
+  return {{"voxels", c.keys.size()},         {"components", c.components},
+          {"observations", c.observations},  {"rms_error", c.rms_error},
+          {"bytes", c.bytes()},              {"bytes_per_voxel", c.bytesPerVoxel()},
+          {"hour", hourOfDay(t)}};
+}
+
+/// The same for people.
+void printColourSummary(const ColourModel& c, double t) {
+  std::cout << "colour model: " << c.keys.size() << " voxel(s) from " << c.observations << " observation(s) in "
+            << c.sessions << " session(s), " << c.components << " light curve(s), fit RMS " << c.rms_error
+            << " per channel, " << c.bytes() << " bytes (" << c.bytesPerVoxel()
+            << " per voxel); colours predicted at hour " << hourOfDay(t) << " UTC\n";
+}
+
 struct PredictCmdOptions {
   std::string map, at, output;
   LearnFlags learn;
@@ -97,25 +113,11 @@ int runPredict(const PredictCmdOptions& o) {
                                   {"occupied", c.occupied_voxels},
                                   {"free", c.free_voxels}};
   nlohmann::json out = summary;
-  if (colours) {
-    out["colour"] = {{"voxels", colours->keys.size()},
-                     {"components", colours->components},
-                     {"observations", colours->observations},
-                     {"rms_error", colours->rms_error},
-                     {"bytes", colours->bytes()},
-                     {"bytes_per_voxel", colours->bytesPerVoxel()},
-                     {"hour", hourOfDay(t)}};
-  }
+  if (colours) out["colour"] = colourSummary(*colours, t);
   if (o.json) {
     std::cout << out.dump() << "\n";
   } else {
-    if (colours) {
-      std::cout << "colour model: " << colours->keys.size() << " voxel(s) from " << colours->observations
-                << " observation(s) in " << colours->sessions << " session(s), " << colours->components
-                << " light curve(s), fit RMS " << colours->rms_error << " per channel, " << colours->bytes()
-                << " bytes (" << colours->bytesPerVoxel() << " per voxel); colours predicted at hour "
-                << hourOfDay(t) << " UTC\n";
-    }
+    if (colours) printColourSummary(*colours, t);
     std::cout << "wrote " << o.output << ": the place predicted at " << formatTime(t) << " by the " << toString(model)
               << " model (" << models.voxels.size() << " voxel(s) that changed in " << models.sessions
               << " session(s) from " << formatTime(models.from_s) << " to " << formatTime(models.to_s) << "; "
