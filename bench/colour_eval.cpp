@@ -13,6 +13,7 @@
 //   --distance D     the 4D map's colour distance for the model (default 10)
 //   --diff-distance  colour distance of the diff (default 30)
 //   --components K   light curves of the model (default 2)
+//   --bins B         knots per day of each curve (default 24)
 //   --out DIR        top views (observed, predicted, latest) at the test sessions nearest 08:00
 //                    and 20:00, for the docs' picture
 // Sessions are integrated with their true poses (groundtruth.txt), fast mode at 0.05 m, so that
@@ -111,7 +112,7 @@ std::array<double, 3> clamp255(std::array<double, 3> a) {
 int main(int argc, char** argv) {
   std::string weeks_dir, floor_dir, out_dir;
   double scale = 0.25, distance = 10.0, diff_distance = 30.0;
-  int learn_days = 21, components = 2;
+  int learn_days = 21, components = 2, bins = 24;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> std::string {
@@ -128,10 +129,11 @@ int main(int argc, char** argv) {
     else if (a == "--distance") distance = std::stod(value());
     else if (a == "--diff-distance") diff_distance = std::stod(value());
     else if (a == "--components") components = std::stoi(value());
+    else if (a == "--bins") bins = std::stoi(value());
     else if (a == "--out") out_dir = value();
     else {
       std::fprintf(stderr, "usage: colour_eval [--weeks DIR] [--floor66 DIR] [--scale S] [--learn-days D] "
-                           "[--distance D] [--diff-distance D] [--components K] [--out DIR]\n");
+                           "[--distance D] [--diff-distance D] [--components K] [--bins B] [--out DIR]\n");
       return 2;
     }
   }
@@ -186,6 +188,7 @@ int main(int argc, char** argv) {
   const double last_learn = weeks.times[test.front() - 1];
   ColourSettings cs;
   cs.components = components;
+  cs.bins = bins;
   const auto fit_start = std::chrono::steady_clock::now();
   const ColourData data = colourObservations(map, -1e300, last_learn);
   ColourModel model = fitColourObservations(data.observations, data.keys.size(), cs);
@@ -373,6 +376,7 @@ int main(int argc, char** argv) {
 
   result["colour_distance"] = distance;
   result["colour_components"] = components;
+  result["colour_bins"] = bins;
   result["colour_error_model"] = err_model;
   result["colour_error_mean"] = err_mean;
   result["colour_error_latest"] = err_latest;

@@ -143,7 +143,7 @@ Command addSimulate(CLI::App& root) {
       ->check(CLI::IsMember({"fixed", "daylight"}))
       ->capture_default_str();
   app->add_flag("--repaint", o->settings.repaint,
-                "repaint a desk that never moves a quarter of the sessions before the end (labelled in scene.json "
+                "repaint a table (else a desk) that no routine moves a quarter of the sessions before the end (labelled in scene.json "
                 "\"repaints\" with its voxels; the occupancy does not change)");
   app->add_flag("--rare-events", o->settings.rare_events,
                 "weeks only: rare events on top of the routines in the last quarter of the sessions (a parcel left "

@@ -390,14 +390,22 @@ ColourDiff colourChanges(const TemporalMap& map, double t1_s, double t2_s, const
   }
   const auto r1 = map.rankAtOrBefore(t1_s), r2 = map.rankAtOrBefore(t2_s);
   if (!r1 || !r2) throw UsageError("colour diff: a time lies before the map's first session");
-  const double h1 = hourOfDay(t1_s), h2 = hourOfDay(t2_s);
-  std::array<double, 3> mean_gain{1.0, 1.0, 1.0};
-  if (model != nullptr && !model->keys.empty()) {
-    const std::array<double, 3> p1 = model->predictMean(h1), p2 = model->predictMean(h2);
-    for (size_t c = 0; c < 3; ++c) mean_gain[c] = p1[c] > 1e-3 ? std::clamp(p2[c] / p1[c], 0.0, 100.0) : 1.0;
-  }
   // A stored colour lags the observed one by up to the map's colour distance, plus rounding.
   const double uncertainty = map.criterion().color_distance + 0.87;
+  // Each voxel's colour at a time is the one its last observation up to then left (the entry
+  // valid then, within the map's colour distance), seen at that observation's hour: a voxel no
+  // session observed between the two times has nothing new to compare.
+  const std::vector<double> times = map.times();
+  const uint32_t last = std::max(*r1, *r2);
+  std::vector<CoverageIndex> coverage;
+  coverage.reserve(last + 1);
+  for (uint32_t r = 0; r <= last; ++r) coverage.emplace_back(map.sessions()[r].coverage);
+  const auto lastObserver = [&](const VoxelKey& key, uint32_t r) -> std::optional<uint32_t> {
+    for (int64_t q = r; q >= 0; --q) {
+      if (coverage[static_cast<size_t>(q)].contains(key)) return static_cast<uint32_t>(q);
+    }
+    return std::nullopt;
+  };
   ColourDiff out;
   const auto at = [](std::span<const TemporalMap::Entry> entries, uint32_t r) -> const TemporalMap::Entry* {
     const TemporalMap::Entry* found = nullptr;
@@ -414,6 +422,8 @@ ColourDiff colourChanges(const TemporalMap& map, double t1_s, double t2_s, const
     if (!e1 || !e2) return;
     const VoxelCounters &a = e1->value, &b = e2->value;
     if (a.hits == 0 || b.hits == 0 || a.state() != VoxelState::Occupied || b.state() != VoxelState::Occupied) return;
+    const auto o1 = lastObserver(corner, *r1), o2 = lastObserver(corner, *r2);
+    if (!o1 || !o2 || *o1 == *o2) return;
     ++out.compared;
     ColourChange ch;
     ch.key = corner;
@@ -421,12 +431,13 @@ ColourDiff colourChanges(const TemporalMap& map, double t1_s, double t2_s, const
     ch.after = b.meanColor();
     double dist = 0.0;
     if (settings.lighting_invariant) {
-      std::array<double, 3> gain = mean_gain;
-      if (const auto v = model->find(corner)) {
-        const std::array<double, 3> p1 = model->predict(*v, h1), p2 = model->predict(*v, h2);
-        for (size_t c = 0; c < 3; ++c) {
-          if (p1[c] > 1.0 && p2[c] > 0.0) gain[c] = std::clamp(p2[c] / p1[c], 0.0, 100.0);
-        }
+      const double h1 = hourOfDay(times[*o1]), h2 = hourOfDay(times[*o2]);
+      std::array<double, 3> gain{1.0, 1.0, 1.0};
+      const auto v = model->find(corner);
+      const std::array<double, 3> p1 = v ? model->predict(*v, h1) : model->predictMean(h1);
+      const std::array<double, 3> p2 = v ? model->predict(*v, h2) : model->predictMean(h2);
+      for (size_t c = 0; c < 3; ++c) {
+        if (p1[c] > 0.5 && p2[c] > 0.0) gain[c] = std::clamp(p2[c] / p1[c], 0.0, 100.0);
       }
       const auto [d, expected] = lightingDistance(ch.before, ch.after, gain, uncertainty);
       dist = d;

@@ -148,21 +148,23 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
   Daylight daylight;
   daylight.building = state.bounds;
   const bool use_daylight = settings.lighting == "daylight";
-  // The repainted object: the first desk no routine moves, repainted from session repaint_at on.
+  // The repainted object: the first table no routine moves (else the first such desk), repainted
+  // from session repaint_at on.
   const int repaint_at = settings.repaint ? std::max(1, sessions - sessions / 4) : -1;
   uint32_t repaint_object = 0;
   if (settings.repaint) {
     std::vector<uint32_t> routine_objects;
     for (const Routine& r : routinesOf(home)) routine_objects.insert(routine_objects.end(), r.objects.begin(), r.objects.end());
     bool found = false;
-    for (const Object& o : home.objects) {
-      if (o.kind != ObjectKind::Desk || !o.present) continue;
-      if (std::find(routine_objects.begin(), routine_objects.end(), o.id) != routine_objects.end()) continue;
-      repaint_object = o.id;
-      found = true;
-      break;
+    for (const ObjectKind kind : {ObjectKind::Table, ObjectKind::Desk}) {
+      for (const Object& o : home.objects) {
+        if (found || o.kind != kind || !o.present) continue;
+        if (std::find(routine_objects.begin(), routine_objects.end(), o.id) != routine_objects.end()) continue;
+        repaint_object = o.id;
+        found = true;
+      }
     }
-    if (!found) throw UsageError("--repaint: the " + settings.preset + " preset has no desk to repaint");
+    if (!found) throw UsageError("--repaint: the " + settings.preset + " preset has no table or desk to repaint");
     if (sessions < 2) throw UsageError("--repaint needs at least 2 sessions");
   }
   const Rgb repaint_colour{196, 52, 44};  // a red unlike any face colour of the presets

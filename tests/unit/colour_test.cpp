@@ -271,6 +271,42 @@ TEST(Colour, LightingInvariantDiffEndToEnd) {
             24u);
 }
 
+TEST(Colour, OnlyVoxelsObservedAnewAreCompared) {
+  // A wall seen at noon, then only its left half at sunset: the right half keeps its noon colour
+  // in the map, which is no observation at sunset, so neither diff compares it (the invariant one
+  // would otherwise read the unchanged noon colour as a change against the sunset's light).
+  TemporalMap map(0.05, ChangeCriterion{0.0, 4.0});
+  std::vector<double> times;
+  for (int d = 0; d < 3; ++d) {
+    for (double h : {12.0, 19.5}) {
+      const bool half = d == 2 && h > 12.0;
+      SessionMap s(0.05);
+      const auto l = sunsetLight(h);
+      for (int y = 0; y < 8; ++y) {
+        for (int x = 0; x < (half ? 4 : 8); ++x) {
+          s.add(at(x, y, 0), occupiedVoxel(Rgb{static_cast<uint8_t>(std::lround(150 * l[0])),
+                                               static_cast<uint8_t>(std::lround(120 * l[1])),
+                                               static_cast<uint8_t>(std::lround(100 * l[2]))}));
+        }
+      }
+      times.push_back(kMonday_s + 86400.0 * d + 3600.0 * h);
+      map.add(times.back(), s);
+    }
+  }
+  const ColourModel m = fitColour(map, times.front(), times[4]);
+  ColourDiffSettings plain;
+  plain.distance = 10.0;
+  ColourDiffSettings inv = plain;
+  inv.lighting_invariant = true;
+  const ColourDiff a = colourChanges(map, times[4], times[5], &m, plain), b = colourChanges(map, times[4], times[5], &m, inv);
+  EXPECT_EQ(a.compared, 32u);
+  EXPECT_EQ(a.changes.size(), 32u);  // the sunset
+  EXPECT_EQ(b.compared, 32u);
+  EXPECT_EQ(b.changes.size(), 0u);
+  // The same time twice: nothing observed in between.
+  EXPECT_EQ(colourChanges(map, times[5], times[5], &m, plain).compared, 0u);
+}
+
 TEST(Colour, RecolourPaintsThePredictedColour) {
   std::vector<double> times;
   TemporalMap map = wallMap(5, {8.0, 13.0, 19.0}, 1000, times);

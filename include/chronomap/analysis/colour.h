@@ -134,7 +134,7 @@ struct ColourChange {
 
 /// What colourChanges() compared.
 struct ColourDiff {
-  size_t compared = 0;  ///< voxels occupied with hits at both times
+  size_t compared = 0;  ///< voxels occupied with hits at both times, observed anew in between
   std::vector<ColourChange> changes;
 };
 
@@ -148,10 +148,12 @@ struct ColourDiff {
 std::pair<double, Rgb> lightingDistance(const Rgb& before, const Rgb& after, const std::array<double, 3>& gain,
                                         double uncertainty = 0.87);
 
-/// The voxels of `map` whose colour changed from time t1 to time t2 (the states valid then). With
+/// The voxels of `map` whose colour changed from time t1 to time t2: the states valid then, each
+/// seen at the hour of the last session up to that time that observed the voxel (its coverage);
+/// a voxel that no session observed between the two is not compared. With
 /// settings.lighting_invariant, a change the model's light explains is none: each voxel's
-/// expected colour is its colour at t1 times its model's colour at hour(t2) over that at
-/// hour(t1) (the map's mean model for voxels without one), compared by lightingDistance() with
+/// expected colour is its colour at t1 times its model's colour at the second observation's hour
+/// over that at the first's (the map's mean model for voxels without one), compared by lightingDistance() with
 /// the uncertainty of the map's stored colours: its colour distance plus rounding. A night's
 /// colours are so dark that, scaled up to daylight, that uncertainty is large: between a night
 /// and a day only large changes count.

@@ -39,7 +39,7 @@ struct SimulationSettings {
   /// sunrise and sunset, none at night; its true curves go into scene.json ("lighting"). Only
   /// the colour images change with it.
   std::string lighting = "fixed";
-  /// Repaint one object that never moves (a desk) in the session a quarter of the way before
+  /// Repaint one object that never moves (the first table no routine moves, else a desk) in the session a quarter of the way before
   /// the end: from then on all its faces have another colour. Labelled in scene.json
   /// ("repaints", with the object's voxels); the occupancy does not change. Off, nothing does.
   bool repaint = false;
