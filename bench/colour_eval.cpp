@@ -14,8 +14,8 @@
 //   --diff-distance  colour distance of the diff (default 30)
 //   --components K   light curves of the model (default 2)
 //   --bins B         knots per day of each curve (default 24)
-//   --out DIR        top views (observed, predicted, latest) at the test sessions nearest 08:00
-//                    and 20:00, for the docs' picture
+//   --out DIR        top views (observed, predicted, latest) at the test sessions nearest 09:30
+//                    and 20:30 (observed_morning.png, ...), for the docs' picture
 // Sessions are integrated with their true poses (groundtruth.txt), fast mode at 0.05 m, so that
 // colour errors are the model's, not the registration's. Last line: one JSON object.
 #include <cmath>
@@ -314,7 +314,7 @@ int main(int argc, char** argv) {
               double(all.false_raw) / std::max<size_t>(all.pairs, 1), double(all.false_inv) / std::max<size_t>(all.pairs, 1));
 
   // The repaint: the last session before it against the first later session that observed the
-  // desk again (its voxels with an entry stored after the repaint): how many of those the diff
+  // table again (its voxels with an entry stored after the repaint): how many of those the diff
   // finds, and its false changes there (voxels no truth change or repaint explains).
   const size_t repaint_session = weeks.scene["repaints"][0]["to_session"].get<size_t>();
   size_t repaint_voxels = 0, repaint_found_raw = 0, repaint_found_inv = 0, repaint_false_raw = 0, repaint_false_inv = 0;
@@ -347,7 +347,7 @@ int main(int argc, char** argv) {
     repaint_voxels = seen_again.size();
     repaint_seen_at = i;
     std::printf("\nthe repaint (session %zu): sessions %zu (%.1f h) -> %zu (%.1f h), the first to see the desk again: "
-                "%zu desk voxels seen again; found plain %zu, lighting-invariant %zu; false changes plain %zu, "
+                "%zu repainted voxels seen again; found plain %zu, lighting-invariant %zu; false changes plain %zu, "
                 "lighting-invariant %zu\n",
                 repaint_session, repaint_session - 1, hourOfDay(t1), i, hourOfDay(t2), repaint_voxels, repaint_found_raw,
                 repaint_found_inv, repaint_false_raw, repaint_false_inv);
@@ -356,17 +356,16 @@ int main(int argc, char** argv) {
   if (!out_dir.empty()) {
     // Top views at the test sessions nearest 08:00 and 20:00: observed, predicted, latest colour.
     fs::create_directories(out_dir);
-    for (double want : {8.0, 20.0}) {
+    for (double want : {9.5, 20.5}) {
       size_t best = test.front();
       for (size_t i : test) {
         if (std::abs(hourOfDay(weeks.times[i]) - want) < std::abs(hourOfDay(weeks.times[best]) - want)) best = i;
       }
-      char tag[64];
-      std::snprintf(tag, sizeof tag, "%02d", static_cast<int>(want));
-      pipeline::exportSessionMap(fs::path(out_dir) / (std::string("observed_") + tag + ".png"), weeks.maps[best]);
-      pipeline::exportSessionMap(fs::path(out_dir) / (std::string("predicted_") + tag + ".png"),
+      const std::string tag = want < 12.0 ? "morning" : "evening";
+      pipeline::exportSessionMap(fs::path(out_dir) / ("observed_" + tag + ".png"), weeks.maps[best]);
+      pipeline::exportSessionMap(fs::path(out_dir) / ("predicted_" + tag + ".png"),
                                  recolour(weeks.maps[best], model, weeks.times[best]));
-      pipeline::exportSessionMap(fs::path(out_dir) / (std::string("latest_") + tag + ".png"), latest_map);
+      pipeline::exportSessionMap(fs::path(out_dir) / ("latest_" + tag + ".png"), latest_map);
       std::printf("top views at session %zu (%s, hour %.2f) in %s\n", best, formatTime(weeks.times[best]).c_str(),
                   hourOfDay(weeks.times[best]), out_dir.c_str());
     }
