@@ -10,12 +10,14 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "chronomap/analysis/colour.h"
 #include "chronomap/analysis/segment.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/diff_file.h"
 #include "chronomap/io/file.h"
+#include "chronomap/io/temporal_file.h"
 #include "chronomap/pipeline/maps.h"
 #include "commands.h"
 
@@ -37,8 +39,37 @@ struct DiffCmdOptions {
   double min_shift_voxels = 0.0;
   std::string output;
   std::string ply;
+  std::optional<double> colour_distance;  ///< set: also compare colours
+  bool lighting_invariant = false;
   bool json = false;
 };
+
+/// The colour part of a diff: two times of one 4D map, their colours compared.
+nlohmann::json colourDiff(const DiffCmdOptions& o, const pipeline::MapRef& before, const pipeline::MapRef& after) {
+  if (!before.time_s || !after.time_s || before.path != after.path) {
+    throw UsageError("--colour compares two times of one 4D map: give A and B as MAP.cmap@TIME");
+  }
+  ColourDiffSettings cs;
+  cs.distance = *o.colour_distance;
+  cs.lighting_invariant = o.lighting_invariant;
+  cs.validate();
+  const TemporalMap map = io::readTemporalMap(before.path);
+  std::optional<ColourModel> model;
+  nlohmann::json j;
+  if (o.lighting_invariant) {
+    // The light is learned from the history before the later time, so that a repaint at that
+    // time is not part of what the model learned.
+    const double later = std::max(*before.time_s, *after.time_s);
+    model = fitColour(map, -std::numeric_limits<double>::infinity(), std::nextafter(later, -1e300));
+    j["colour_model"] = {{"voxels", model->keys.size()}, {"sessions", model->sessions}, {"rms_error", model->rms_error}};
+  }
+  const ColourDiff d = colourChanges(map, *before.time_s, *after.time_s, model ? &*model : nullptr, cs);
+  j["colour_distance"] = cs.distance;
+  j["lighting_invariant"] = cs.lighting_invariant;
+  j["colour_compared"] = d.compared;
+  j["colour_changed"] = d.changes.size();
+  return j;
+}
 
 int runDiff(const DiffCmdOptions& o) {
   DiffSettings settings;
@@ -60,6 +91,8 @@ int runDiff(const DiffCmdOptions& o) {
   io::refuseOverwritingInputs(o.output, inputs);
   if (!o.ply.empty()) io::refuseOverwritingInputs(o.ply, inputs);
   const auto start = std::chrono::steady_clock::now();
+  if (o.lighting_invariant && !o.colour_distance) throw UsageError("--lighting-invariant applies to --colour");
+  const nlohmann::json colour = o.colour_distance ? colourDiff(o, before, after) : nlohmann::json::object();
   const DiffMap d = pipeline::diffMaps(before, after, settings);
   io::writeDiffMap(o.output, d, {{"created_by", "chronomap diff"}, {"before", o.before}, {"after", o.after}});
   std::vector<ChangeCell> changed;
@@ -70,17 +103,22 @@ int runDiff(const DiffCmdOptions& o) {
   const uint64_t appeared = d.voxelCount(ChangeKind::Appeared), vanished = d.voxelCount(ChangeKind::Vanished);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (o.json) {
-    std::cout << nlohmann::json{{"mode", toString(settings.mode)},
-                                {"alpha", settings.effectiveAlpha()},
-                                {"changed_voxels", appeared + vanished},
-                                {"appeared", appeared},
-                                {"vanished", vanished},
-                                {"cells", d.cells().size()},
-                                {"output", o.output},
-                                {"seconds", seconds}}
-                     .dump()
-              << "\n";
+    nlohmann::json j{{"mode", toString(settings.mode)},
+                     {"alpha", settings.effectiveAlpha()},
+                     {"changed_voxels", appeared + vanished},
+                     {"appeared", appeared},
+                     {"vanished", vanished},
+                     {"cells", d.cells().size()},
+                     {"output", o.output},
+                     {"seconds", seconds}};
+    j.update(colour);
+    std::cout << j.dump() << "\n";
   } else {
+    if (o.colour_distance) {
+      std::cout << "colour: " << colour["colour_changed"].get<size_t>() << " of " << colour["colour_compared"].get<size_t>()
+                << " voxels occupied at both times changed colour by more than " << *o.colour_distance
+                << (o.lighting_invariant ? " beyond what the change of light explains" : "") << "\n";
+    }
     std::cout << toString(settings.mode) << " diff: " << appeared + vanished << " voxels changed (" << appeared
               << " appeared, " << vanished << " vanished)";
     if (settings.mode == DiffMode::Continuous) {
@@ -177,6 +215,14 @@ Command addDiff(CLI::App& root) {
       ->capture_default_str();
   app->add_option("-o,--output", o->output, "the diff to write (.cmap)")->required();
   app->add_option("--ply", o->ply, "also write the changed voxels as a PLY, coloured by what they show");
+  app->add_option("--colour,--color", o->colour_distance,
+                  "also count the voxels occupied at both times whose mean colour moved farther than this (8-bit RGB "
+                  "units); A and B must be two times of one 4D map")
+      ->check(numberIn(0.001, 442));
+  app->add_flag("--lighting-invariant", o->lighting_invariant,
+                "with --colour: a colour change that the change of light between the two hours explains is none "
+                "(a sunset is not a change, a repainted box is). The light is a colour model learned from the map's "
+                "sessions before the later time (chronomap predict --colour, docs/colour.md)");
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runDiff(*o); }};
 }

@@ -4,8 +4,10 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <nlohmann/json.hpp>
 
+#include "chronomap/analysis/colour.h"
 #include "chronomap/analysis/costmap.h"
 #include "chronomap/analysis/rhythm.h"
 #include "chronomap/core/error.h"
@@ -51,9 +53,27 @@ void addLearnFlags(CLI::App* app, LearnFlags& f) {
   app->add_option("--save-rhythm", f.rhythm_out, "also save the fitted model (.rhythm) for later use");
 }
 
+/// What predict --colour learned, for --json.
+nlohmann::json colourSummary(const ColourModel& c, double t) {
+  return {{"voxels", c.keys.size()},         {"components", c.components},
+          {"observations", c.observations},  {"rms_error", c.rms_error},
+          {"bytes", c.bytes()},              {"bytes_per_voxel", c.bytesPerVoxel()},
+          {"hour", hourOfDay(t)}};
+}
+
+/// The same for people.
+void printColourSummary(const ColourModel& c, double t) {
+  std::cout << "colour model: " << c.keys.size() << " voxel(s) from " << c.observations << " observation(s) in "
+            << c.sessions << " session(s), " << c.components << " light curve(s), fit RMS " << c.rms_error
+            << " per channel, " << c.bytes() << " bytes (" << c.bytesPerVoxel()
+            << " per voxel); colours predicted at hour " << hourOfDay(t) << " UTC\n";
+}
+
 struct PredictCmdOptions {
   std::string map, at, output;
   LearnFlags learn;
+  bool colour = false;
+  ColourSettings colour_settings;
   bool json = false;
 };
 
@@ -70,7 +90,13 @@ int runPredict(const PredictCmdOptions& o) {
   const double t = parseTime(o.at);
   const TemporalMap map = io::readTemporalMap(o.map);
   const RhythmModels models = pipeline::learnRhythm(map, learnSettings(o.learn));
-  const SessionMap predicted = predictMap(map, models, model, t);
+  SessionMap predicted = predictMap(map, models, model, t);
+  std::optional<ColourModel> colours;
+  if (o.colour) {
+    const pipeline::LearnSettings range = learnSettings(o.learn);
+    colours = fitColour(map, range.from_s, range.to_s, o.colour_settings);
+    predicted = recolour(predicted, *colours, t);
+  }
   pipeline::ExportSettings settings;
   settings.metadata = {{"created_by", "chronomap predict"}, {"prediction_of", o.map}, {"time_s", t},
                        {"model", toString(model)}};
@@ -86,9 +112,12 @@ int runPredict(const PredictCmdOptions& o) {
                                   {"model_bytes", models.bytes()},
                                   {"occupied", c.occupied_voxels},
                                   {"free", c.free_voxels}};
+  nlohmann::json out = summary;
+  if (colours) out["colour"] = colourSummary(*colours, t);
   if (o.json) {
-    std::cout << summary.dump() << "\n";
+    std::cout << out.dump() << "\n";
   } else {
+    if (colours) printColourSummary(*colours, t);
     std::cout << "wrote " << o.output << ": the place predicted at " << formatTime(t) << " by the " << toString(model)
               << " model (" << models.voxels.size() << " voxel(s) that changed in " << models.sessions
               << " session(s) from " << formatTime(models.from_s) << " to " << formatTime(models.to_s) << "; "
@@ -179,6 +208,14 @@ Command addPredict(CLI::App& root) {
   app->add_option("--at", o->at, "time to predict: ISO-8601 or seconds since the epoch")->required();
   app->add_option("-o,--output", o->output, "file to write (.cmap, .ply, .ot or .png)")->required();
   addLearnFlags(app, o->learn);
+  app->add_flag("--colour,--color", o->colour,
+                "also predict each surface's colour at the hour of --at: per voxel weights under a few light curves "
+                "of the day shared by the map, learned from the colour changes the map keeps (it must have been "
+                "created with --color-distance; docs/colour.md); the learning range is --learn-from/--learn-to");
+  app->add_option("--colour-components", o->colour_settings.components,
+                  "light curves of the colour model (1: one light, albedo per voxel; 2: two lights mixed per voxel)")
+      ->check(numberIn(1, 3))
+      ->capture_default_str();
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runPredict(*o); }};
 }

@@ -136,6 +136,15 @@ Command addSimulate(CLI::App& root) {
   app->add_option("--threads", o->settings.threads, "rendering threads, 0 = all cores (output does not depend on it)")
       ->check(numberIn(0, kMaxThreads))
       ->capture_default_str();
+  app->add_option("--lighting", o->settings.lighting,
+                  "fixed (one light colour per hour, the same everywhere) or daylight (lamps in working hours, "
+                  "sun through the windows, warm at sunrise and sunset, none at night; the true curves go into "
+                  "scene.json); only the colour images change")
+      ->check(CLI::IsMember({"fixed", "daylight"}))
+      ->capture_default_str();
+  app->add_flag("--repaint", o->settings.repaint,
+                "repaint a table (else a desk) that no routine moves a quarter of the sessions before the end (labelled in scene.json "
+                "\"repaints\" with its voxels; the occupancy does not change)");
   app->add_flag("--rare-events", o->settings.rare_events,
                 "weeks only: rare events on top of the routines in the last quarter of the sessions (a parcel left "
                 "in the corridor at night, an item taken from a shelf, a door open at night, a chair in the "

@@ -13,6 +13,7 @@ from ._chronomap import (  # noqa: F401
     UNCHANGED,
     UNKNOWN,
     VANISHED,
+    ColourModel,
     Component,
     DataError,
     DiffMap,
@@ -36,7 +37,7 @@ from ._chronomap import (  # noqa: F401
 
 __all__ = [
     "APPEARED", "FREE", "OCCUPIED", "UNCHANGED", "UNKNOWN", "VANISHED",
-    "Component", "DataError", "DiffMap", "Error", "FormatError", "Integrator", "IoError", "RhythmModels",
+    "ColourModel", "Component", "DataError", "DiffMap", "Error", "FormatError", "Integrator", "IoError", "RhythmModels",
     "SessionMap", "TemporalMap", "UsageError", "add_session", "build", "costmap", "diff", "integrate_dataset", "read_color_png",
     "read_depth_png", "segment",
 ]

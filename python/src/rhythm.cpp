@@ -4,6 +4,7 @@
 #include <string>
 
 #include "bindings.h"
+#include "chronomap/analysis/colour.h"
 #include "chronomap/analysis/costmap.h"
 #include "chronomap/analysis/rhythm.h"
 #include "chronomap/io/rhythm_file.h"
@@ -55,6 +56,39 @@ py::tuple costmapPy(const SessionMap& map, double z_min_m, double z_max_m, doubl
   return py::make_tuple(cost, py::make_tuple(c.origin_m.x(), c.origin_m.y()), c.resolution_m);
 }
 
+/// A colour model with the resolution of the map it was fitted to, for point queries.
+struct PyColourModel {
+  ColourModel model;
+  double resolution_m = 0.05;
+};
+
+ColourModel fitColourPy(const TemporalMap& map, const py::object& from, const py::object& to, int components) {
+  const double inf = std::numeric_limits<double>::infinity();
+  const double from_s = from.is_none() ? -inf : toSeconds(from, "from_time");
+  const double to_s = to.is_none() ? inf : toSeconds(to, "to_time");
+  ColourSettings s;
+  s.components = components;
+  py::gil_scoped_release release;
+  return fitColour(map, from_s, to_s, s);
+}
+
+py::array_t<double> predictColours(const ColourModel& model, double resolution_m, const py::handle& points,
+                                   const py::handle& time) {
+  const std::vector<Eigen::Vector3d> p = toPoints(points, "points");
+  const double hour = hourOfDay(toSeconds(time, "time"));
+  const KeyGrid grid(resolution_m);
+  std::vector<double> out(p.size() * 3, std::numeric_limits<double>::quiet_NaN());
+  for (size_t i = 0; i < p.size(); ++i) {
+    const auto key = grid.keyOf(p[i]);
+    if (!key) continue;
+    const auto v = model.find(*key);
+    if (!v) continue;
+    const std::array<double, 3> c = model.predict(*v, hour);
+    for (size_t k = 0; k < 3; ++k) out[i * 3 + k] = c[k];
+  }
+  return vectorArray(std::move(out)).attr("reshape")(static_cast<py::ssize_t>(p.size()), 3);
+}
+
 }  // namespace
 
 void bindRhythm(py::module_& m) {
@@ -98,6 +132,51 @@ void bindRhythm(py::module_& m) {
           py::arg("map"), py::arg("time"), py::arg("model") = "combined",
           "The SessionMap predicted at `time`, as `chronomap predict` writes it: modelled voxels carry the "
           "model's probability, the rest their last observed state.");
+  py::class_<PyColourModel>(m, "ColourModel",
+                            "Colour by time of day (docs/colour.md): per voxel weights under a few light curves of the "
+                            "day shared by the map, learned from the colour changes a 4D map keeps.")
+      .def_static(
+          "fit",
+          [](const TemporalMap& map, const py::object& from, const py::object& to, int components) {
+            return PyColourModel{fitColourPy(map, from, to, components), map.resolution_m()};
+          },
+          py::arg("map"), py::arg("from_time") = py::none(), py::arg("to_time") = py::none(), py::arg("components") = 2,
+          "Fits the model to the sessions of `map` (a TemporalMap made with color_distance > 0) in [from_time, "
+          "to_time] (None: all).")
+      .def("__len__", [](const PyColourModel& c) { return c.model.keys.size(); })
+      .def_property_readonly("components", [](const PyColourModel& c) { return c.model.components; })
+      .def_property_readonly("bytes", [](const PyColourModel& c) { return c.model.bytes(); },
+                             "Bytes of the model: per voxel its key and weights, and the curves.")
+      .def_property_readonly("rms_error", [](const PyColourModel& c) { return c.model.rms_error; },
+                             "RMS of the fit per channel over the learning observations, 8-bit units.")
+      .def(
+          "curves",
+          [](const PyColourModel& c, double hour) {
+            std::vector<double> out;
+            for (int j = 0; j < c.model.components; ++j) {
+              for (int k = 0; k < 3; ++k) out.push_back(c.model.curve(j, k, hour));
+            }
+            return vectorArray(std::move(out)).attr("reshape")(c.model.components, 3);
+          },
+          py::arg("hour"), "The light curves at `hour` (0..24): (components, 3) float64, each curve's peak 1.")
+      .def(
+          "predict",
+          [](const PyColourModel& c, const py::handle& points, const py::handle& time) {
+            return predictColours(c.model, c.resolution_m, points, time);
+          },
+          py::arg("points"), py::arg("time"),
+          "Colour (0..255, not clamped) at the hour of `time` of the voxel containing each of the (N, 3) points: (N, "
+          "3) float64, NaN where the voxel has no model.")
+      .def(
+          "recolour",
+          [](const PyColourModel& c, const SessionMap& map, const py::handle& time) {
+            const double t = toSeconds(time, "time");
+            py::gil_scoped_release release;
+            return recolour(map, c.model, t);
+          },
+          py::arg("session_map"), py::arg("time"),
+          "`session_map` with every modelled voxel's colour set to the model's at the hour of `time` (as "
+          "`chronomap predict --colour`).");
   m.def(
       "costmap",
       [](const SessionMap& map, double z_min_m, double z_max_m, double robot_radius_m, double change_weight,

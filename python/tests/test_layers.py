@@ -118,3 +118,31 @@ def test_rhythm_models_predict_and_costmap(tmp_path, before, after):
     assert cost[j, i] == 100
     with pytest.raises(chronomap.UsageError):
         chronomap.costmap(predicted, z_min_m=2.0, z_max_m=1.0)
+
+
+def test_colour_model_predicts_colours_by_hour():
+    # An 8 x 8 wall under lamps (09:00, 13:00) and a warm sunset (19:00) for five days.
+    light = {9: (0.8, 0.8, 0.75), 13: (1.0, 1.0, 1.0), 19: (0.9, 0.55, 0.3)}
+    m = chronomap.TemporalMap(RESOLUTION_M, color_distance=4.0)
+    day0 = datetime.datetime(2026, 3, 2, tzinfo=datetime.timezone.utc)
+    xs, ys = np.meshgrid(np.arange(8), np.arange(8))
+    points = np.stack([xs.ravel(), ys.ravel(), np.zeros(64)], axis=1) * RESOLUTION_M + RESOLUTION_M / 2
+    albedo = np.stack([120 + 10 * xs.ravel(), 100 + 8 * ys.ravel(), np.full(64, 90)], axis=1).astype(float)
+    for d in range(5):
+        for h, l in light.items():
+            colours = np.round(albedo * np.array(l)).astype(np.uint8)
+            integ = chronomap.Integrator(RESOLUTION_M)
+            integ.add_points(points, origin=points.mean(axis=0) + [0, 0, 1.0], colors=colours)
+            m.add(integ.finish(), day0 + datetime.timedelta(days=d, hours=h))
+    model = chronomap.ColourModel.fit(m)
+    assert len(model) >= 64 and model.components == 2
+    later = day0 + datetime.timedelta(days=9, hours=19)
+    p = model.predict(points, later)
+    assert p.shape == (64, 3)
+    assert np.abs(p - albedo * np.array(light[19])).max() < 6.0
+    assert np.isnan(model.predict(np.array([[5.0, 5.0, 5.0]]), later)).all()
+    assert model.curves(12.0).shape == (2, 3)
+    painted = model.recolour(m.snapshot(later), later)
+    assert isinstance(painted, chronomap.SessionMap)
+    with pytest.raises(chronomap.UsageError):
+        chronomap.ColourModel.fit(chronomap.TemporalMap(RESOLUTION_M))

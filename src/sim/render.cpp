@@ -32,6 +32,40 @@ Eigen::Vector3d lightingAt(double hour) {
 
 namespace {
 
+double smoothStep(double x) {
+  x = std::clamp(x, 0.0, 1.0);
+  return x * x * (3.0 - 2.0 * x);
+}
+
+double hourOfDay(double hour) {
+  const double h = std::fmod(hour, 24.0);
+  return h < 0.0 ? h + 24.0 : h;
+}
+
+}  // namespace
+
+Eigen::Vector3d Daylight::ceiling(double hour) {
+  const double h = hourOfDay(hour);
+  const double on = smoothStep((h - 6.75) / 0.5) * (1.0 - smoothStep((h - 18.75) / 0.5));
+  return Eigen::Vector3d(0.06, 0.06, 0.07) + on * Eigen::Vector3d(0.50, 0.49, 0.44);
+}
+
+Eigen::Vector3d Daylight::daylight(double hour) {
+  const double h = hourOfDay(hour);
+  if (h <= 6.5 || h >= 19.0) return Eigen::Vector3d::Zero();
+  const double e = std::sin(std::numbers::pi * (h - 6.5) / 12.5);  // the sun's height, 0..1
+  const double strength = 0.75 * std::pow(e, 0.6);
+  return strength * Eigen::Vector3d(1.0, 0.70 + 0.30 * e, 0.40 + 0.60 * e);
+}
+
+double Daylight::window(const Eigen::Vector3d& p) const {
+  const double d = std::max(0.0, std::min({p.x() - building.min().x(), building.max().x() - p.x(),
+                                           p.y() - building.min().y(), building.max().y() - p.y()}));
+  return std::exp(-d / 2.0);
+}
+
+namespace {
+
 // The order in which the first renderer met the parts: a hierarchy split at the median of the
 // part centres along their longest extent down to 4 parts per leaf, walked depth first, second
 // child first. Ties between equally near parts went to the one met first, so this order keeps
@@ -430,7 +464,7 @@ class Tiles {
 }  // namespace
 
 RenderedFrame Renderer::render(const Camera& cam, const Eigen::Isometry3d& T, const SensorModel& sensor, double hour,
-                               uint64_t seed) const {
+                               uint64_t seed, const Daylight* daylight) const {
   RenderedFrame f;
   const size_t n = size_t{cam.width} * cam.height;
   f.rgb.width = f.depth.width = cam.width;
@@ -463,7 +497,8 @@ RenderedFrame Renderer::render(const Camera& cam, const Eigen::Isometry3d& T, co
       auto ch = [&](uint8_t base, double l) {
         return static_cast<uint8_t>(std::clamp(std::lround(base * tex * l), 0L, 255L));
       };
-      f.rgb.pixels[i] = Rgb{ch(c.r, light.x()), ch(c.g, light.y()), ch(c.b, light.z())};
+      const Eigen::Vector3d l = daylight ? daylight->at(hour, p) : light;
+      f.rgb.pixels[i] = Rgb{ch(c.r, l.x()), ch(c.g, l.y()), ch(c.b, l.z())};
     }
   }
   Rng rng(seed);

@@ -92,6 +92,9 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
       !(settings.localisation_yaw_deg >= 0.0) || !(settings.drift_per_frame_m >= 0.0)) {
     throw UsageError("noise and localisation errors must be non-negative");
   }
+  if (settings.lighting != "fixed" && settings.lighting != "daylight") {
+    throw UsageError("--lighting must be fixed or daylight, not '" + settings.lighting + "'");
+  }
   const KeyGrid grid(settings.voxel_resolution_m);
   const Camera camera = kinectCamera(settings.resolution_scale);
   SensorModel sensor;
@@ -142,6 +145,30 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
     addRareObjects(state, settings.seed);
   }
   const SceneState home = state;
+  Daylight daylight;
+  daylight.building = state.bounds;
+  const bool use_daylight = settings.lighting == "daylight";
+  // The repainted object: the first table no routine moves (else the first such desk), repainted
+  // from session repaint_at on.
+  const int repaint_at = settings.repaint ? std::max(1, sessions - sessions / 4) : -1;
+  uint32_t repaint_object = 0;
+  if (settings.repaint) {
+    std::vector<uint32_t> routine_objects;
+    for (const Routine& r : routinesOf(home)) routine_objects.insert(routine_objects.end(), r.objects.begin(), r.objects.end());
+    bool found = false;
+    for (const ObjectKind kind : {ObjectKind::Table, ObjectKind::Desk}) {
+      for (const Object& o : home.objects) {
+        if (found || o.kind != kind || !o.present) continue;
+        if (std::find(routine_objects.begin(), routine_objects.end(), o.id) != routine_objects.end()) continue;
+        repaint_object = o.id;
+        found = true;
+      }
+    }
+    if (!found) throw UsageError("--repaint: the " + settings.preset + " preset has no table or desk to repaint");
+    if (sessions < 2) throw UsageError("--repaint needs at least 2 sessions");
+  }
+  const Rgb repaint_colour{196, 52, 44};  // a red unlike any face colour of the presets
+  nlohmann::json repaints_json = nlohmann::json::array();
   std::vector<uint32_t> rare_before;  // the objects the previous session's rare event changed
   nlohmann::json rare_json = nlohmann::json::array();
   for (int s = 0; s < sessions; ++s) {
@@ -182,6 +209,27 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
     } else if (s > 0) {
       for (const auto& [id, kind] : applyChanges(state, settings.seed, s)) changes.push_back({id, kind, {}});
     }
+    if (s >= repaint_at && repaint_at >= 0) {
+      // Applied after the session's changes, so that a schedule restoring objects from home
+      // cannot undo it.
+      for (Object& o : state.objects) {
+        if (o.id != repaint_object) continue;
+        if (s == repaint_at) {
+          nlohmann::json voxels = nlohmann::json::array();
+          for (const VoxelKey& k : objectVoxels(o, grid)) voxels.push_back({k.x, k.y, k.z});
+          const Rgb was = o.parts.front().face_colors[5];
+          repaints_json.push_back({{"from_session", s - 1},
+                                   {"to_session", s},
+                                   {"object", o.id},
+                                   {"object_kind", toString(o.kind)},
+                                   {"from", {was.r, was.g, was.b}},
+                                   {"to", {repaint_colour.r, repaint_colour.g, repaint_colour.b}},
+                                   {"voxel_count", voxels.size()},
+                                   {"voxels", voxels}});
+        }
+        for (Part& part : o.parts) part.face_colors.fill(repaint_colour);
+      }
+    }
     const std::vector<VoxelKey> truth = truthOccupancy(state, grid);
     // Change events with the truth voxels each one changes.
     for (const auto& [id, kind, routine, cause] : changes) {
@@ -221,7 +269,8 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
     }
     parallelFor(frames, settings.threads, [&](size_t i) {
       const RenderedFrame f = renderer.render(camera, patrol.true_poses[i], sensor, hours[static_cast<size_t>(s)],
-                                              mix(settings.seed, (static_cast<uint64_t>(s) << 20) + i));
+                                              mix(settings.seed, (static_cast<uint64_t>(s) << 20) + i),
+                                              use_daylight ? &daylight : nullptr);
       io::writePng(dir / "rgb" / (stamps[i] + ".png"), f.rgb);
       io::writePng(dir / "depth" / (stamps[i] + ".png"), f.depth);
     });
@@ -315,6 +364,27 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
                          {"days", days}};
     if (settings.rare_events) scene["schedule"]["rare_events"] = rare_json;
   }
+  if (use_daylight) {
+    // The true illumination: the curves sampled every quarter hour, and the rule for the place.
+    nlohmann::json hours_json = nlohmann::json::array(), ceiling = nlohmann::json::array(),
+                   sun = nlohmann::json::array();
+    for (int q = 0; q <= 96; ++q) {
+      const double h = 0.25 * q;
+      const Eigen::Vector3d c = Daylight::ceiling(h), d = Daylight::daylight(h);
+      hours_json.push_back(h);
+      ceiling.push_back({c.x(), c.y(), c.z()});
+      sun.push_back({d.x(), d.y(), d.z()});
+    }
+    scene["lighting"] = {{"model", "daylight"},
+                         {"rule", "colour = albedo * (ceiling(hour) + window(p) * daylight(hour)), per channel"},
+                         {"window", "exp(-d / 2 m), d = horizontal distance to the nearest outer wall"},
+                         {"building_min", {state.bounds.min().x(), state.bounds.min().y(), state.bounds.min().z()}},
+                         {"building_max", {state.bounds.max().x(), state.bounds.max().y(), state.bounds.max().z()}},
+                         {"hours", hours_json},
+                         {"ceiling", ceiling},
+                         {"daylight", sun}};
+  }
+  if (settings.repaint) scene["repaints"] = repaints_json;
   for (const Room& r : state.rooms) {
     scene["rooms"].push_back({{"name", r.name},
                               {"min", {r.area.min().x(), r.area.min().y()}},

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -256,6 +257,90 @@ TEST(AnalysisCli, AlertsRankTheSessionsChangesWithReasons) {
     EXPECT_NE(r.err.find(message), std::string::npos) << args << ": " << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
   }
+}
+
+/// A 4D map with colour changes: an 8 x 8 wall lit by lamps by day and a warm sun at 19:00, three
+/// sessions a day (09:00, 13:00, 19:00) for five days; the last session repaints the columns x < 3.
+/// Also a voxel that comes and goes, so that the occupancy has something to model.
+std::vector<double> writeLitWall(const fs::path& path, double colour_distance) {
+  TemporalMap map(0.05, ChangeCriterion{0.0, colour_distance});
+  std::vector<double> times;
+  const double hours[] = {9.0, 13.0, 19.0};
+  const double light[3][3] = {{0.8, 0.8, 0.75}, {1.0, 1.0, 1.0}, {0.9, 0.55, 0.3}};
+  for (int d = 0; d < 5; ++d) {
+    for (int k = 0; k < 3; ++k) {
+      const bool repaint = d == 4 && k == 2;
+      SessionMap s(0.05);
+      for (int y = 0; y < 8; ++y) {
+        for (int x = 0; x < 8; ++x) {
+          const double albedo[3] = {120.0 + 10 * x, 100.0 + 8 * y, 90.0};
+          const double paint[3] = {40.0, 160.0, 60.0};
+          const double* a = repaint && x < 3 ? paint : albedo;
+          VoxelCounters c;
+          c.length_m = 0.1f;
+          c.hits = 4;
+          c.red = 4 * static_cast<uint32_t>(std::lround(a[0] * light[k][0]));
+          c.green = 4 * static_cast<uint32_t>(std::lround(a[1] * light[k][1]));
+          c.blue = 4 * static_cast<uint32_t>(std::lround(a[2] * light[k][2]));
+          s.add(at(x, y, 0), c);
+        }
+      }
+      s.add(at(12, 12, 0), (d + k) % 2 ? occupied() : freeVoxel());
+      const double t = 1330905600.0 + 86400.0 * d + 3600.0 * hours[k];
+      map.add(t, s);
+      times.push_back(t);
+    }
+  }
+  io::writeTemporalMap(path, map, {});
+  return times;
+}
+
+TEST(AnalysisCli, ColourPredictionAndLightingInvariantDiff) {
+  test::TempDir tmp;
+  const std::vector<double> times = writeLitWall(tmp / "m.cmap", 4.0);
+  const std::string m = (tmp / "m.cmap").string();
+  auto ref = [&](size_t i) { return m + "@" + std::to_string(static_cast<int64_t>(times[i])); };
+  // predict --colour: a PLY coloured at 19:00 of a later day.
+  const auto p = test::runCommand(cli() + " predict " + m + " --at 2012-03-12T19:00:00Z --colour -o " +
+                                  (tmp / "p.ply").string() + " --json");
+  ASSERT_EQ(p.exit_code, 0) << p.err;
+  const auto pj = nlohmann::json::parse(p.out);
+  EXPECT_EQ(pj["colour"]["voxels"], 65);  // the wall and the voxel that comes and goes
+  EXPECT_DOUBLE_EQ(pj["colour"]["hour"].get<double>(), 19.0);
+  EXPECT_EQ(pj["colour"]["bytes_per_voxel"], 30);
+  EXPECT_TRUE(fs::exists(tmp / "p.ply"));
+  // The 13:00 -> 19:00 light of day 3: every colour moves, the light explains all of it.
+  auto diff = [&](size_t a, size_t b, const std::string& flags) {
+    const auto r = test::runCommand(cli() + " diff " + ref(a) + " " + ref(b) + " -o " + (tmp / "d.cmap").string() +
+                                    " --json " + flags);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return r.exit_code == 0 ? nlohmann::json::parse(r.out) : nlohmann::json{};
+  };
+  const auto plain = diff(10, 11, "--colour 20");
+  EXPECT_EQ(plain["colour_compared"], 64);
+  EXPECT_EQ(plain["colour_changed"], 64);
+  EXPECT_EQ(diff(10, 11, "--colour 20 --lighting-invariant")["colour_changed"], 0);
+  // The last day's 13:00 -> 19:00 with the repaint: the 24 repainted voxels only.
+  EXPECT_EQ(diff(13, 14, "--colour 20 --lighting-invariant")["colour_changed"], 24);
+  // Bad input: no colour in the map, --lighting-invariant alone, session maps, a time before the map.
+  writeLitWall(tmp / "plain.cmap", 0.0);
+  const auto none = test::runCommand(cli() + " predict " + (tmp / "plain.cmap").string() +
+                                     " --at 2012-03-12T19:00:00Z --colour -o " + (tmp / "q.ply").string());
+  EXPECT_NE(none.exit_code, 0);
+  EXPECT_NE(none.err.find("--color-distance"), std::string::npos) << none.err;
+  const auto alone = test::runCommand(cli() + " diff " + ref(10) + " " + ref(11) + " --lighting-invariant -o " +
+                                      (tmp / "e.cmap").string());
+  EXPECT_NE(alone.exit_code, 0);
+  EXPECT_NE(alone.err.find("--colour"), std::string::npos) << alone.err;
+  writePair(tmp / "a.cmap", tmp / "b.cmap");
+  const auto sessions = test::runCommand(cli() + " diff " + (tmp / "a.cmap").string() + " " + (tmp / "b.cmap").string() +
+                                         " --colour 20 -o " + (tmp / "f.cmap").string());
+  EXPECT_NE(sessions.exit_code, 0);
+  EXPECT_NE(sessions.err.find("MAP.cmap@TIME"), std::string::npos) << sessions.err;
+  const auto early = test::runCommand(cli() + " diff " + m + "@2012-03-01T00:00:00Z " + ref(11) +
+                                      " --colour 20 --lighting-invariant -o " + (tmp / "g.cmap").string());
+  EXPECT_NE(early.exit_code, 0);
+  EXPECT_NE(early.err.find("before"), std::string::npos) << early.err;
 }
 
 }  // namespace

@@ -281,6 +281,89 @@ TEST(Simulator, RareEventsAreLabelledInTheTruth) {
   EXPECT_THROW(sim::simulate(s, office.path()), UsageError);
 }
 
+TEST(Simulator, DaylightAndRepaintChangeOnlyColoursAndAreLabelled) {
+  // Four sessions of the weeks preset, with and without the daylight and the repaint: depth,
+  // poses, truth and change events are the same bytes; colour images differ; scene.json holds
+  // the true light curves and the repaint with the desk's voxels.
+  test::TempDir tmp;
+  sim::SimulationSettings s;
+  s.preset = "weeks";
+  s.sessions = 4;
+  s.resolution_scale = 0.1;
+  s.threads = 1;
+  sim::simulate(s, tmp / "plain");
+  s.lighting = "daylight";
+  s.repaint = true;
+  const sim::SimulationSummary summary = sim::simulate(s, tmp / "lit");
+  const auto files = filesBelow(tmp / "plain");
+  ASSERT_EQ(files, filesBelow(tmp / "lit"));
+  size_t rgb_differ = 0, repainted_objects_files = 0;
+  for (const auto& f : files) {
+    const std::string name = f.string();
+    const bool same = bytesOf(tmp / "plain" / f) == bytesOf(tmp / "lit" / f);
+    if (name.find("/rgb/") != std::string::npos) {
+      rgb_differ += !same;
+    } else if (name.find("objects_") != std::string::npos) {
+      repainted_objects_files += !same;  // the desk's colour, from the repaint on
+    } else if (name != "scene.json") {
+      EXPECT_TRUE(same) << name;
+    }
+  }
+  EXPECT_GT(rgb_differ, 0u);
+  EXPECT_EQ(repainted_objects_files, 1u);  // session 3 of 4: 4 - 4 / 4
+  const auto plain = nlohmann::json::parse(io::readTextFile(tmp / "plain" / "scene.json"));
+  auto lit = nlohmann::json::parse(io::readTextFile(tmp / "lit" / "scene.json"));
+  EXPECT_FALSE(plain.contains("lighting"));
+  EXPECT_FALSE(plain.contains("repaints"));
+  ASSERT_TRUE(lit.contains("lighting"));
+  const auto& light = lit["lighting"];
+  ASSERT_EQ(light["hours"].size(), 97u);
+  for (size_t q = 0; q < 97; q += 7) {
+    const double h = light["hours"][q];
+    EXPECT_DOUBLE_EQ(light["ceiling"][q][0].get<double>(), sim::Daylight::ceiling(h).x());
+    EXPECT_DOUBLE_EQ(light["daylight"][q][2].get<double>(), sim::Daylight::daylight(h).z());
+  }
+  ASSERT_EQ(lit["repaints"].size(), 1u);
+  const auto& r = lit["repaints"][0];
+  EXPECT_EQ(r["to_session"], 3);
+  EXPECT_EQ(r["object_kind"], "table");  // the kitchen table: no routine moves it
+  EXPECT_GT(r["voxel_count"].get<size_t>(), 100u);
+  EXPECT_EQ(r["voxels"].size(), r["voxel_count"].get<size_t>());
+  const auto objects = nlohmann::json::parse(io::readTextFile(tmp / "lit" / "truth" / "objects_03.json"));
+  bool found = false;
+  for (const auto& o : objects) {
+    if (o["id"] != r["object"]) continue;
+    found = true;
+    EXPECT_EQ(o["parts"][0]["color"], r["to"]);
+  }
+  EXPECT_TRUE(found);
+  lit.erase("lighting");
+  lit.erase("repaints");
+  EXPECT_EQ(lit, plain);  // the rest of scene.json is the same
+  EXPECT_EQ(summary.times_s.size(), 4u);
+  s.lighting = "moonlight";
+  test::TempDir bad;
+  EXPECT_THROW(sim::simulate(s, bad.path()), UsageError);
+}
+
+TEST(Simulator, DaylightCurves) {
+  // Night: only the dim night light; working hours: the lamps; the sun warm when low.
+  EXPECT_EQ(sim::Daylight::daylight(3.0), Eigen::Vector3d::Zero());
+  EXPECT_EQ(sim::Daylight::daylight(21.0), Eigen::Vector3d::Zero());
+  EXPECT_LT(sim::Daylight::ceiling(3.0).x(), 0.1);
+  EXPECT_GT(sim::Daylight::ceiling(12.0).x(), 0.5);
+  const Eigen::Vector3d dusk = sim::Daylight::daylight(18.5), noon = sim::Daylight::daylight(12.75);
+  EXPECT_GT(dusk.x(), 2.0 * dusk.z());             // warm at sunset
+  EXPECT_NEAR(noon.x(), noon.z(), 1e-3);            // white when high
+  EXPECT_EQ(sim::Daylight::daylight(12.0 + 24.0), sim::Daylight::daylight(12.0));
+  sim::Daylight d;
+  d.building = Eigen::AlignedBox3d(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(10, 6, 3));
+  EXPECT_DOUBLE_EQ(d.window(Eigen::Vector3d(5, 0, 1)), 1.0);
+  EXPECT_NEAR(d.window(Eigen::Vector3d(5, 3, 1)), std::exp(-1.5), 1e-12);
+  const Eigen::Vector3d at = d.at(18.5, Eigen::Vector3d(5, 3, 1));
+  EXPECT_TRUE(at.isApprox(sim::Daylight::ceiling(18.5) + std::exp(-1.5) * dusk));
+}
+
 TEST(Simulator, TinySessionWithTruePosesMatchesTheTruth) {
   test::TempDir tmp;
   sim::SimulationSettings s;

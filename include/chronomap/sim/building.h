@@ -34,6 +34,15 @@ struct SimulationSettings {
   /// "weeks" only: rare events on top of the routines (sim::rareEventOf), labelled "rare" in
   /// scene.json. Off, the simulation is what it was before rare events existed.
   bool rare_events = false;
+  /// "fixed" (the default): lightingAt(hour), the same everywhere, as before lighting could be
+  /// chosen. "daylight": Daylight's lamps in working hours and sun through the windows, warm at
+  /// sunrise and sunset, none at night; its true curves go into scene.json ("lighting"). Only
+  /// the colour images change with it.
+  std::string lighting = "fixed";
+  /// Repaint one object that never moves (the first table no routine moves, else a desk) in the session a quarter of the way before
+  /// the end: from then on all its faces have another colour. Labelled in scene.json
+  /// ("repaints", with the object's voxels); the occupancy does not change. Off, nothing does.
+  bool repaint = false;
 };
 
 /// What simulate() wrote.

@@ -38,6 +38,23 @@ struct RenderedFrame {
   std::vector<float> true_depth_m;
 };
 
+/// Lighting that depends on the hour and the place (SimulationSettings::lighting "daylight"):
+/// a surface's colour is its albedo (face colour and texture) times
+/// illumination(hour, p) = ceiling(hour) + window(p) * daylight(hour), per channel.
+/// ceiling: the lamps, on from 07:00 to 19:00 (half-hour ramps), a dim night light otherwise;
+/// daylight: the sun through the windows, from 06:30 to 19:00, warm when low (morning, sunset),
+/// none at night; window(p): exp(-d / 2 m), d the horizontal distance to the nearest outer wall
+/// of the building, so rooms on the facade get more daylight than the corridor.
+struct Daylight {
+  Eigen::AlignedBox3d building;  ///< the building's bounds (outer walls)
+  static Eigen::Vector3d ceiling(double hour);
+  static Eigen::Vector3d daylight(double hour);
+  double window(const Eigen::Vector3d& p) const;
+  Eigen::Vector3d at(double hour, const Eigen::Vector3d& p) const {
+    return ceiling(hour) + window(p) * daylight(hour);
+  }
+};
+
 /// Ray caster over a scene state: a bounding-volume hierarchy over the present parts.
 ///
 /// cast() returns the nearest part along the ray; at exactly equal distances the part that
@@ -49,9 +66,11 @@ class Renderer {
   explicit Renderer(const SceneState& state);
   /// Distance along a unit ray to the nearest part, its face colour; false when nothing is hit.
   bool cast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double& t, Rgb& color) const;
-  /// Renders one frame. `hour` (0..24) sets the lighting colour; `seed` the noise.
+  /// Renders one frame. `hour` (0..24) sets the lighting colour (lightingAt(), the same
+  /// everywhere, or `daylight`'s when given); `seed` the noise. The lighting changes the colour
+  /// image only: depth, its noise and its dropouts do not depend on it.
   RenderedFrame render(const Camera& camera, const Eigen::Isometry3d& T_world_camera, const SensorModel& sensor,
-                       double hour, uint64_t seed) const;
+                       double hour, uint64_t seed, const Daylight* daylight = nullptr) const;
   /// The present parts in tie-breaking order (see above).
   const std::vector<Part>& parts() const { return parts_; }
 
@@ -72,5 +91,6 @@ class Renderer {
 
 /// The lighting colour multiplier at an hour of the day (warm mornings, cool evenings).
 Eigen::Vector3d lightingAt(double hour);
+
 
 }  // namespace chronomap::sim
