@@ -33,6 +33,7 @@
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/io/dataset.h"
 #include "chronomap/render/plot.h"
+#include "chronomap/io/png.h"
 #include "chronomap/io/temporal_file.h"
 #include "chronomap/temporal/temporal_map.h"
 
