@@ -704,7 +704,16 @@ TemporalMap::Parts TemporalMap::parts() const {
   p.inner.reserve(inner_.size());
   p.list_sizes.reserve(live_lists_);
   p.entries.reserve(live_entries_);
-  auto copy = [&](auto&& self, uint32_t node) -> void {
+  // Depth first, in two layers: first what a snapshot of the latest time reads, then the
+  // subtrees that a coarse entry shadows at that time (each depth first), so that this
+  // snapshot walks a dense prefix of the pools however much refined history lies behind it.
+  const bool layered = !sessions_.empty();
+  const auto latest = static_cast<uint32_t>(layered ? sessions_.size() - 1 : 0);
+  struct Deferred {
+    uint32_t parent, slot, node;
+  };
+  std::vector<Deferred> shadowed;
+  auto copy = [&](auto&& self, uint32_t node, bool defer) -> void {
     const auto me = static_cast<uint32_t>(p.inner.size());
     p.inner.emplace_back();
     for (int slot = 0; slot < 8; ++slot) {
@@ -716,13 +725,20 @@ TemporalMap::Parts TemporalMap::parts() const {
         p.inner[me][slot] = static_cast<uint32_t>(p.list_sizes.size()) | kListBit;
         p.list_sizes.push_back(l.size);
         p.entries.insert(p.entries.end(), entriesOf(l), entriesOf(l) + l.size);
+      } else if (defer && coarseAt(r, latest)) {
+        p.inner[me][slot] = kEmpty;  // set when the subtree is copied
+        shadowed.push_back(Deferred{me, static_cast<uint32_t>(slot), r});
       } else {
         p.inner[me][slot] = static_cast<uint32_t>(p.inner.size());
-        self(self, r);
+        self(self, r, defer);
       }
     }
   };
-  copy(copy, 0);
+  copy(copy, 0, layered);
+  for (const Deferred& d : shadowed) {
+    p.inner[d.parent][d.slot] = static_cast<uint32_t>(p.inner.size());
+    copy(copy, d.node, false);
+  }
   return p;
 }
 
