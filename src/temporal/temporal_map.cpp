@@ -204,8 +204,14 @@ std::optional<std::pair<uint32_t, CoverageIndex::Overlap>> TemporalMap::nextObse
 
 void TemporalMap::apply(uint32_t node, int level, const VoxelKey& corner, int target_level,
                         const VoxelCounters& value, uint32_t rank, AddReport& report) {
+  // The path down to here, for markPath(); restored however this returns.
+  struct Restore {
+    std::vector<uint32_t>& path;
+    size_t size;
+    ~Restore() { path.resize(size); }
+  } restore{path_, path_.size()};
   while (true) {
-    coarse_dirty_[node] = 1;
+    path_.push_back(node);
     const int child_level = level - 1;
     const int slot = childSlot(corner, child_level);
     const Ref r = inner_[node][slot];
@@ -214,6 +220,7 @@ void TemporalMap::apply(uint32_t node, int level, const VoxelKey& corner, int ta
         const uint32_t child = newInner();
         ++report.inner_added;
         inner_[node][slot] = child;
+        markPath();
         node = child;
       } else if (isInner(r)) {
         node = r;
@@ -222,6 +229,7 @@ void TemporalMap::apply(uint32_t node, int level, const VoxelKey& corner, int ta
         const List& l = lists_[index(r)];
         const size_t pos = lowerBound(l, rank);
         if (pos > 0 && !criterion_.differs(entriesOf(l)[pos - 1].value, value)) return;
+        markPath();
         node = refine(node, slot);
         report.inner_added += 1;
       }
@@ -233,6 +241,7 @@ void TemporalMap::apply(uint32_t node, int level, const VoxelKey& corner, int ta
       // Nobody observed any of this cube before, so no later session did either.
       inner_[node][slot] = newList(Entry{rank, value}) | kListBit;
       ++report.entries_added;
+      markPath();
       return;
     }
     if (isList(r)) {
@@ -250,12 +259,13 @@ void TemporalMap::apply(uint32_t node, int level, const VoxelKey& corner, int ta
 
 void TemporalMap::applyToList(uint32_t node, int slot, int level, const VoxelKey& corner,
                               const VoxelCounters& value, uint32_t rank, AddReport& report) {
-  coarse_dirty_[node] = 1;
   const uint32_t list = index(inner_[node][slot]);
   const size_t pos = lowerBound(lists_[list], rank);
   std::optional<VoxelCounters> before;
   if (pos > 0) before = entriesOf(lists_[list])[pos - 1].value;
   if (before && !criterion_.differs(*before, value)) return;  // no change: nothing to store
+  coarse_dirty_[node] = 1;  // `node` may lie below path_ (a cube refined here)
+  markPath();
 
   const auto next = nextObserver(rank, corner, level);
   if (next && next->second == CoverageIndex::Overlap::Partial && level > 0) {
@@ -575,6 +585,10 @@ bool TemporalMap::compactBelow(Ref& r, int level) {
   if (merged.size >= 2) merged.first = entriesOf(merged)[merged.size - 1];
   r = keep | kListBit;  // the inner node becomes garbage that the re-layout drops
   return true;
+}
+
+void TemporalMap::markPath() {
+  for (const uint32_t node : path_) coarse_dirty_[node] = 1;
 }
 
 void TemporalMap::markAllCoarseDirty() { std::fill(coarse_dirty_.begin(), coarse_dirty_.end(), uint8_t{1}); }

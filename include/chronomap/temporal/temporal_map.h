@@ -256,6 +256,9 @@ class TemporalMap {
   std::vector<uint8_t> coarse_dirty_;     // per inner node: recompute its span
   size_t coarse_garbage_ = 0;
   std::vector<Coarse> coarse_scratch_;
+  std::vector<uint32_t> path_;  // inner nodes from the root to where apply() is, while it runs
+  /// Marks the nodes of path_ for recomputation (called where apply() changes something).
+  void markPath();
   void markAllCoarseDirty();
   void updateCoarse();
   void rebuildCoarse(uint32_t node);
