@@ -13,7 +13,9 @@
 // `chronomap simulate` (e.g. the floor66 preset), each integrated in fast mode with its
 // estimated poses and added at its recorded time: the thesis' storage study replayed.
 //
-// Usage: temporal [--sessions N] [--move F] [--plot storage.png] [--quick] [--sim DIR]
+// Usage: temporal [--sessions N] [--move F] [--plot storage.png] [--quick] [--sim DIR] [--octomap-every N]
+// (--octomap-every N: convert only every Nth session to OctoMap, reusing its size for the others;
+// 0 never, for long runs such as --sessions 365 whose OctoMap figures are then not measured)
 // The last line of output is one JSON object.
 
 #include <octomap/OcTree.h>
@@ -33,6 +35,7 @@
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/io/dataset.h"
 #include "chronomap/render/plot.h"
+#include "chronomap/io/png.h"
 #include "chronomap/io/temporal_file.h"
 #include "chronomap/temporal/temporal_map.h"
 
@@ -171,20 +174,25 @@ double seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_cloc
   return std::chrono::duration<double>(b - a).count();
 }
 
+// One snapshot of the latest time, in seconds; prints what it holds and visited when `describe`.
+double snapshotOnce(const TemporalMap& map, bool describe) {
+  TemporalMap::SnapshotVisits visits;
+  const auto a = std::chrono::steady_clock::now();
+  const SessionMap s = map.snapshot(map.times().back(), &visits);
+  const auto b = std::chrono::steady_clock::now();
+  if (describe) {
+    const SessionMapCounts c = s.counts();
+    std::printf("  snapshot: %zu leaves (%zu compressed), %llu voxels known; 4D map: %zu slot lists, %zu inner nodes; "
+                "visited %zu inner nodes, %zu lists, %zu coarse entries\n",
+                c.leaves, c.compressed_leaves, static_cast<unsigned long long>(c.occupied_voxels + c.free_voxels),
+                map.counts().slots, map.counts().inner_nodes, visits.inner, visits.lists, visits.coarse);
+  }
+  return seconds(a, b);
+}
+
 double timeSnapshot(const TemporalMap& map) {
   double best = 1e9;
-  for (int r = 0; r < 3; ++r) {
-    const auto a = std::chrono::steady_clock::now();
-    const SessionMap s = map.snapshot(map.times().back());
-    const auto b = std::chrono::steady_clock::now();
-    if (r == 0) {
-      const SessionMapCounts c = s.counts();
-      std::printf("  snapshot: %zu leaves (%zu compressed), %llu voxels known; 4D map: %zu slot lists\n", c.leaves,
-                  c.compressed_leaves, static_cast<unsigned long long>(c.occupied_voxels + c.free_voxels),
-                  map.counts().slots);
-    }
-    best = std::min(best, seconds(a, b));
-  }
+  for (int r = 0; r < 3; ++r) best = std::min(best, snapshotOnce(map, r == 0));
   return best;
 }
 
@@ -205,11 +213,15 @@ int main(int argc, char** argv) {
       plot = argv[++i];
     } else if (!std::strcmp(argv[i], "--sim") && i + 1 < argc) {
       sim_dir = argv[++i];
+    } else if (!std::strcmp(argv[i], "--octomap-every") && i + 1 < argc) {
+      octomap_every = std::atoi(argv[++i]);
     } else if (!std::strcmp(argv[i], "--quick")) {
       sessions = 12;
       octomap_every = 4;
     } else {
-      std::fprintf(stderr, "usage: temporal [--sessions N] [--move F] [--plot storage.png] [--quick] [--sim DIR]\n");
+      std::fprintf(stderr,
+                   "usage: temporal [--sessions N] [--move F] [--plot storage.png] [--quick] [--sim DIR] "
+                   "[--octomap-every N]\n");
       return 2;
     }
   }
@@ -238,6 +250,10 @@ int main(int argc, char** argv) {
   double separate = 0.0, octomap_total = 0.0, add_seconds = 0.0, octo_last = 0.0;
   uint64_t separate_bytes = 0;
   double snap8 = 0.0, snap33 = 0.0, snap66 = 0.0;
+  // The maps after 8 sessions, kept to time their snapshots interleaved with the last one's
+  // (this machine's speed drifts over minutes): as built in memory, and compacted (as read
+  // from a file: depth-first pools, mergeable lists merged).
+  TemporalMap map8(kResolution), map8_compacted(kResolution);
   size_t bytes_after_first = 0, entries_after_first = 0;
   std::printf("session  nodes_separate  nodes_4d  bytes_4d  octomap_separate_MiB  add_ms\n");
   for (int s = 0; s < sessions; ++s) {
@@ -264,7 +280,7 @@ int main(int argc, char** argv) {
     }
     separate += static_cast<double>(session.innerCount() + session.leafCount());
     separate_bytes += session.memoryBytes();
-    if (s % octomap_every == 0) octo_last = static_cast<double>(octomapBytes(session));
+    if (octomap_every > 0 && s % octomap_every == 0) octo_last = static_cast<double>(octomapBytes(session));
     octomap_total += octo_last;
     const auto a = std::chrono::steady_clock::now();
     map.add(time_s, session);
@@ -280,11 +296,30 @@ int main(int argc, char** argv) {
     octo_bytes.push_back(octomap_total);
     std::printf("%7d  %14.0f  %8zu  %8zu  %20.1f  %6.1f\n", s + 1, separate, c.nodes(), map.memoryBytes(),
                 octomap_total / 1048576.0, 1e3 * seconds(a, b));
-    if (s + 1 == 8) snap8 = timeSnapshot(map);
+    if (s + 1 == 8) {
+      snap8 = timeSnapshot(map);
+      map8 = map;
+      map8_compacted = map;
+      map8_compacted.compact();
+    }
     if (s + 1 == 33) snap33 = timeSnapshot(map);
     if (s + 1 == sessions) snap66 = timeSnapshot(map);
   }
-  if (sessions < 8) snap8 = snap66;
+  if (sessions < 8) {
+    snap8 = snap66;
+    map8 = map;
+    map8_compacted = map;
+    map8_compacted.compact();
+  }
+  // Interleaved: 9 rounds of (after 8, last) in memory and compacted; best of each.
+  TemporalMap last_compacted = map;
+  last_compacted.compact();
+  double best[4] = {1e9, 1e9, 1e9, 1e9};
+  const TemporalMap* timed[4] = {&map8, &map, &map8_compacted, &last_compacted};
+  for (int round = 0; round < 9; ++round) {
+    for (int i = 0; i < 4; ++i) best[i] = std::min(best[i], snapshotOnce(*timed[i], round == 0 && i >= 2));
+  }
+  const double ratio = best[1] / best[0], ratio_compacted = best[3] / best[2];
 
   // History latency: random voxels inside the map's known region, many times.
   std::vector<VoxelKey> probes;
@@ -343,6 +378,9 @@ int main(int argc, char** argv) {
               (static_cast<double>(c.nodes()) - nodes_4d.front()) / std::max(1, sessions - 1));
   std::printf("snapshot of the latest time: %.1f ms after 8, %.1f ms after 33, %.1f ms after %d sessions (%.2fx)\n",
               1e3 * snap8, 1e3 * snap33, 1e3 * snap66, sessions, snap66 / snap8);
+  std::printf("snapshot interleaved, best of 9: in memory %.2f ms after 8, %.2f ms after %d sessions (%.2fx); "
+              "compacted %.2f / %.2f ms (%.2fx)\n",
+              1e3 * best[0], 1e3 * best[1], sessions, ratio, 1e3 * best[2], 1e3 * best[3], ratio_compacted);
   std::printf("history: %.3f us per voxel (%zu entries over %zu probes)\n", history_us, entries_seen, probes.size());
   std::printf("add: %.1f ms per session on average; write %.1f ms, read %.1f ms\n", 1e3 * add_seconds / sessions,
               1e3 * seconds(w0, w1), 1e3 * seconds(w1, w2));
@@ -359,7 +397,10 @@ int main(int argc, char** argv) {
                             {"bytes_4d", map.memoryBytes()},
                             {"file_bytes_4d", file_bytes},
                             {"octomap_bytes_separate", static_cast<uint64_t>(octomap_total)},
-                            {"snapshot_66_vs_8", snap66 / snap8},
+                            {"snapshot_66_vs_8", ratio},
+                            {"snapshot_last_vs_8_compacted", ratio_compacted},
+                            {"snapshot_8_ms", 1e3 * best[0]},
+                            {"snapshot_last_ms", 1e3 * best[1]},
                             {"history_us", history_us},
                             {"add_ms_per_session", 1e3 * add_seconds / sessions},
                             {"bytes_per_change", bytes_per_change}};

@@ -51,12 +51,16 @@ TemporalMap::TemporalMap(double resolution_m, ChangeCriterion criterion) : grid_
   criterion_.validate();
   inner_.emplace_back();
   inner_[0].fill(kEmpty);
+  coarse_span_.emplace_back();
+  coarse_dirty_.push_back(1);
 }
 
 uint32_t TemporalMap::newInner() {
   if (inner_.size() >= kMaxIndex) throw DataError("4D map too large: more than 2^31 inner nodes");
   inner_.emplace_back();
   inner_.back().fill(kEmpty);
+  coarse_span_.emplace_back();
+  coarse_dirty_.push_back(1);
   return static_cast<uint32_t>(inner_.size() - 1);
 }
 
@@ -169,6 +173,7 @@ size_t TemporalMap::lowerBound(const List& l, uint32_t session) const {
 
 uint32_t TemporalMap::refine(uint32_t node, int slot) {
   const uint32_t list = index(inner_[node][slot]);
+  coarse_dirty_[node] = 1;
   const uint32_t child = newInner();
   const List source = lists_[list];
   std::vector<Entry> history(entriesOf(source), entriesOf(source) + source.size);
@@ -199,7 +204,14 @@ std::optional<std::pair<uint32_t, CoverageIndex::Overlap>> TemporalMap::nextObse
 
 void TemporalMap::apply(uint32_t node, int level, const VoxelKey& corner, int target_level,
                         const VoxelCounters& value, uint32_t rank, AddReport& report) {
+  // The path down to here, for markPath(); restored however this returns.
+  struct Restore {
+    std::vector<uint32_t>& path;
+    size_t size;
+    ~Restore() { path.resize(size); }
+  } restore{path_, path_.size()};
   while (true) {
+    path_.push_back(node);
     const int child_level = level - 1;
     const int slot = childSlot(corner, child_level);
     const Ref r = inner_[node][slot];
@@ -208,6 +220,7 @@ void TemporalMap::apply(uint32_t node, int level, const VoxelKey& corner, int ta
         const uint32_t child = newInner();
         ++report.inner_added;
         inner_[node][slot] = child;
+        markPath();
         node = child;
       } else if (isInner(r)) {
         node = r;
@@ -216,6 +229,7 @@ void TemporalMap::apply(uint32_t node, int level, const VoxelKey& corner, int ta
         const List& l = lists_[index(r)];
         const size_t pos = lowerBound(l, rank);
         if (pos > 0 && !criterion_.differs(entriesOf(l)[pos - 1].value, value)) return;
+        markPath();
         node = refine(node, slot);
         report.inner_added += 1;
       }
@@ -227,6 +241,7 @@ void TemporalMap::apply(uint32_t node, int level, const VoxelKey& corner, int ta
       // Nobody observed any of this cube before, so no later session did either.
       inner_[node][slot] = newList(Entry{rank, value}) | kListBit;
       ++report.entries_added;
+      markPath();
       return;
     }
     if (isList(r)) {
@@ -249,6 +264,8 @@ void TemporalMap::applyToList(uint32_t node, int slot, int level, const VoxelKey
   std::optional<VoxelCounters> before;
   if (pos > 0) before = entriesOf(lists_[list])[pos - 1].value;
   if (before && !criterion_.differs(*before, value)) return;  // no change: nothing to store
+  coarse_dirty_[node] = 1;  // `node` may lie below path_ (a cube refined here)
+  markPath();
 
   const auto next = nextObserver(rank, corner, level);
   if (next && next->second == CoverageIndex::Overlap::Partial && level > 0) {
@@ -280,6 +297,7 @@ void TemporalMap::applyToList(uint32_t node, int slot, int level, const VoxelKey
 }
 
 void TemporalMap::shiftSessions(uint32_t from, int delta) {
+  markAllCoarseDirty();
   auto shift = [&](Entry& e) {
     if (e.session >= from) e.session = static_cast<uint32_t>(static_cast<int64_t>(e.session) + delta);
   };
@@ -334,6 +352,7 @@ AddReport TemporalMap::add(double time_s, const SessionMap& session, const AddSe
     apply(0, kTreeDepth, leaf.key, leaf.level, leaf.counters, rank, report);
   });
   coverage_cache_.clear();
+  updateCoarse();
   sessions_[rank].nodes_added = static_cast<int64_t>(inner_.size() + live_entries_) - static_cast<int64_t>(nodes_before);
   return report;
 }
@@ -351,9 +370,11 @@ void TemporalMap::remove(double time_s) {
   coverage_cache_.clear();
   sessions_.erase(sessions_.begin() + rank);
   shiftSessions(rank + 1, -1);
+  updateCoarse();
 }
 
 void TemporalMap::removeBelow(uint32_t node, int level, const VoxelKey& base, uint32_t rank) {
+  coarse_dirty_[node] = 1;
   for (int slot = 0; slot < 8; ++slot) {
     const Ref r = inner_[node][slot];
     if (r == kEmpty) continue;
@@ -367,6 +388,7 @@ void TemporalMap::removeBelow(uint32_t node, int level, const VoxelKey& base, ui
 }
 
 void TemporalMap::removeFromList(uint32_t node, int slot, int level, const VoxelKey& corner, uint32_t rank) {
+  coarse_dirty_[node] = 1;
   const uint32_t list = index(inner_[node][slot]);
   const size_t pos = lowerBound(lists_[list], rank);
   if (pos >= lists_[list].size || entriesOf(lists_[list])[pos].session != rank) return;
@@ -402,7 +424,9 @@ std::vector<double> TemporalMap::times() const {
   return t;
 }
 
-SessionMap TemporalMap::snapshot(double time_s) const {
+SessionMap TemporalMap::snapshot(double time_s, SnapshotVisits* visits) const {
+  SnapshotVisits seen;
+  if (visits) *visits = seen;
   SessionMap out(resolution_m());
   const auto rank = rankAtOrBefore(time_s);
   if (!rank) return out;
@@ -416,13 +440,24 @@ SessionMap TemporalMap::snapshot(double time_s) const {
   auto build = [&](auto&& self, uint32_t node) -> SessionMap::Ref {
     const auto me = static_cast<uint32_t>(inner.size());
     inner.emplace_back();
+    ++seen.inner;
     bool any = false;
     for (int slot = 0; slot < 8; ++slot) {
       const Ref r = inner_[node][slot];
       SessionMap::Ref out_ref = SessionMap::kEmpty;
       if (isInner(r)) {
-        out_ref = self(self, r);
+        if (const Coarse* c = coarseAt(r, last)) {
+          // The whole cube reads free without hits now: one leaf, as compressFree() makes it.
+          VoxelCounters v;
+          v.length_m = c->length_m;
+          leaves.push_back(v);
+          out_ref = static_cast<uint32_t>(leaves.size() - 1) | SessionMap::kLeafBit;
+          ++seen.coarse;
+        } else {
+          out_ref = self(self, r);
+        }
       } else if (isList(r)) {
+        ++seen.lists;
         const List& l = lists_[index(r)];
         if (l.first.session <= last) {
           // The newest entry is valid: it is kept in the list record itself, so the snapshot of
@@ -456,6 +491,7 @@ SessionMap TemporalMap::snapshot(double time_s) const {
   };
   build(build, 0);
   out.adoptPools(std::move(inner), std::move(leaves));
+  if (visits) *visits = seen;
   return out;
 }
 
@@ -504,6 +540,7 @@ TemporalCounts TemporalMap::counts() const {
 
 size_t TemporalMap::memoryBytes() const {
   size_t bytes = inner_.size() * sizeof(Children) + lists_.size() * sizeof(List) + arena_.size() * sizeof(Entry);
+  bytes += coarse_.capacity() * sizeof(Coarse) + coarse_span_.capacity() * sizeof(CoarseSpan) + coarse_dirty_.capacity();
   for (const auto& s : sessions_) bytes += s.coverage.memoryBytes() + sizeof(SessionRecord) + s.name.capacity();
   bytes += change_masks_.capacity() * sizeof(uint64_t);
   return bytes;
@@ -550,6 +587,102 @@ bool TemporalMap::compactBelow(Ref& r, int level) {
   return true;
 }
 
+void TemporalMap::markPath() {
+  for (const uint32_t node : path_) coarse_dirty_[node] = 1;
+}
+
+void TemporalMap::markAllCoarseDirty() { std::fill(coarse_dirty_.begin(), coarse_dirty_.end(), uint8_t{1}); }
+
+void TemporalMap::updateCoarse() {
+  rebuildCoarse(0);
+  // Drop the garbage once it outweighs the live entries: copy the spans in node order.
+  if (coarse_garbage_ > 4096 && coarse_garbage_ > coarse_.size() / 2) {
+    std::vector<Coarse> live;
+    live.reserve(coarse_.size() - coarse_garbage_);
+    for (CoarseSpan& span : coarse_span_) {
+      const auto begin = static_cast<uint32_t>(live.size());
+      live.insert(live.end(), coarse_.begin() + span.begin, coarse_.begin() + span.begin + span.count);
+      span.begin = span.count ? begin : 0;
+    }
+    coarse_ = std::move(live);
+    coarse_garbage_ = 0;
+  }
+}
+
+void TemporalMap::rebuildCoarse(uint32_t node) {
+  if (!coarse_dirty_[node]) return;
+  coarse_dirty_[node] = 0;
+  for (const Ref r : inner_[node]) {
+    if (isInner(r)) rebuildCoarse(r);
+  }
+  coarse_garbage_ += coarse_span_[node].count;
+  coarse_span_[node] = CoarseSpan{};
+  if (node == 0) return;  // the root is never one leaf (compressFree never replaces it)
+  // Each child's intervals of "reads free without hits", one run per child in `scratch`.
+  std::vector<Coarse>& scratch = coarse_scratch_;
+  scratch.clear();
+  std::array<size_t, 9> run{};
+  for (int slot = 0; slot < 8; ++slot) {
+    const Ref r = inner_[node][slot];
+    run[static_cast<size_t>(slot)] = scratch.size();
+    if (r == kEmpty) return;
+    if (isInner(r)) {
+      const CoarseSpan span = coarse_span_[r];
+      if (span.count == 0) return;
+      scratch.insert(scratch.end(), coarse_.begin() + span.begin, coarse_.begin() + span.begin + span.count);
+    } else {
+      const List& l = lists_[index(r)];
+      const Entry* e = entriesOf(l);
+      const size_t before = scratch.size();
+      for (size_t i = 0; i < l.size; ++i) {
+        if (!e[i].value.isKnownFreeWithoutHits()) continue;
+        scratch.push_back(Coarse{e[i].session, i + 1 < l.size ? e[i + 1].session : kForever, e[i].value.length_m});
+      }
+      if (scratch.size() == before) return;
+    }
+  }
+  run[8] = scratch.size();
+  // Intersect the 8 runs: where all children read free, the cube does, with their lengths summed
+  // in slot order (as compressFree() sums them).
+  std::array<size_t, 8> at{};
+  for (size_t i = 0; i < 8; ++i) at[i] = run[i];
+  const auto begin = static_cast<uint32_t>(coarse_.size());
+  while (true) {
+    uint32_t lo = 0, hi = kForever;
+    for (size_t i = 0; i < 8; ++i) {
+      lo = std::max(lo, scratch[at[i]].from);
+      hi = std::min(hi, scratch[at[i]].to);
+    }
+    if (lo < hi) {
+      float sum = 0.0f;
+      for (size_t i = 0; i < 8; ++i) sum += scratch[at[i]].length_m;
+      if (coarse_.size() > begin && coarse_.back().to == lo && coarse_.back().length_m == sum) {
+        coarse_.back().to = hi;
+      } else {
+        coarse_.push_back(Coarse{lo, hi, sum});
+      }
+    }
+    if (hi == kForever) break;
+    bool done = false;
+    for (size_t i = 0; i < 8; ++i) {
+      if (scratch[at[i]].to == hi && ++at[i] == run[i + 1]) done = true;
+    }
+    if (done) break;
+  }
+  coarse_span_[node] = CoarseSpan{begin, static_cast<uint32_t>(coarse_.size() - begin)};
+}
+
+const TemporalMap::Coarse* TemporalMap::coarseAt(uint32_t node, uint32_t rank) const {
+  const CoarseSpan span = coarse_span_[node];
+  if (span.count == 0) return nullptr;
+  const Coarse* first = coarse_.data() + span.begin;
+  const Coarse* last = first + span.count;
+  const Coarse* it = std::upper_bound(first, last, rank, [](uint32_t r, const Coarse& c) { return r < c.from; });
+  if (it == first) return nullptr;
+  --it;
+  return rank < it->to ? it : nullptr;
+}
+
 void TemporalMap::buildChangeMasks() const {
   change_masks_.assign(inner_.size(), 0);
   auto build = [&](auto&& self, uint32_t node) -> uint64_t {
@@ -585,7 +718,16 @@ TemporalMap::Parts TemporalMap::parts() const {
   p.inner.reserve(inner_.size());
   p.list_sizes.reserve(live_lists_);
   p.entries.reserve(live_entries_);
-  auto copy = [&](auto&& self, uint32_t node) -> void {
+  // Depth first, in two layers: first what a snapshot of the latest time reads, then the
+  // subtrees that a coarse entry shadows at that time (each depth first), so that this
+  // snapshot walks a dense prefix of the pools however much refined history lies behind it.
+  const bool layered = !sessions_.empty();
+  const auto latest = static_cast<uint32_t>(layered ? sessions_.size() - 1 : 0);
+  struct Deferred {
+    uint32_t parent, slot, node;
+  };
+  std::vector<Deferred> shadowed;
+  auto copy = [&](auto&& self, uint32_t node, bool defer) -> void {
     const auto me = static_cast<uint32_t>(p.inner.size());
     p.inner.emplace_back();
     for (int slot = 0; slot < 8; ++slot) {
@@ -597,13 +739,20 @@ TemporalMap::Parts TemporalMap::parts() const {
         p.inner[me][slot] = static_cast<uint32_t>(p.list_sizes.size()) | kListBit;
         p.list_sizes.push_back(l.size);
         p.entries.insert(p.entries.end(), entriesOf(l), entriesOf(l) + l.size);
+      } else if (defer && coarseAt(r, latest)) {
+        p.inner[me][slot] = kEmpty;  // set when the subtree is copied
+        shadowed.push_back(Deferred{me, static_cast<uint32_t>(slot), r});
       } else {
         p.inner[me][slot] = static_cast<uint32_t>(p.inner.size());
-        self(self, r);
+        self(self, r, defer);
       }
     }
   };
-  copy(copy, 0);
+  copy(copy, 0, layered);
+  for (const Deferred& d : shadowed) {
+    p.inner[d.parent][d.slot] = static_cast<uint32_t>(p.inner.size());
+    copy(copy, d.node, false);
+  }
   return p;
 }
 
@@ -674,6 +823,8 @@ TemporalMap TemporalMap::fromParts(double resolution_m, ChangeCriterion criterio
     }
   }
   m.inner_ = std::move(parts.inner);
+  m.coarse_span_.assign(m.inner_.size(), CoarseSpan{});
+  m.coarse_dirty_.assign(m.inner_.size(), 1);
   m.lists_.resize(parts.list_sizes.size());
   for (size_t i = 0; i < parts.list_sizes.size(); ++i) {
     const Entry* e = parts.entries.data() + offsets[i];
@@ -686,6 +837,7 @@ TemporalMap TemporalMap::fromParts(double resolution_m, ChangeCriterion criterio
     for (uint32_t k = 1; k < n; ++k) m.insertEntry(static_cast<uint32_t>(i), k, e[k]);
   }
   m.sessions_ = std::move(sessions);
+  m.updateCoarse();
   return m;
 }
 

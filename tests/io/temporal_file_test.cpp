@@ -213,6 +213,56 @@ TEST(TemporalFile, AppendedSessionsReadBackAsTheMapThatAddedThem) {
   EXPECT_EQ(whole.appended_sessions, 0u);
 }
 
+// Snapshots bit for bit: the same pools in the same layout (compaction, which every whole
+// write does, merges lists but changes no snapshot).
+void expectSameSnapshot(const TemporalMap& a, const TemporalMap& b, double t) {
+  const SessionMap sa = a.snapshot(t), sb = b.snapshot(t);
+  ASSERT_EQ(sa.innerPool(), sb.innerPool()) << "t=" << t;
+  ASSERT_EQ(sa.leafPool().size(), sb.leafPool().size()) << "t=" << t;
+  for (size_t i = 0; i < sa.leafPool().size(); ++i) ASSERT_EQ(sa.leafPool()[i], sb.leafPool()[i]) << "t=" << t;
+}
+
+// The block of test::randomSessionMap, every voxel free, compressed.
+SessionMap allFree() {
+  SessionMap m(0.05);
+  for (int z = 0; z < 16; ++z) {
+    for (int y = 0; y < 16; ++y) {
+      for (int x = 0; x < 16; ++x) m.add(test::at(x, y, z), test::freeVoxel(0.25f));
+    }
+  }
+  m.compressFree();
+  return m;
+}
+
+TEST(TemporalFile, CoarseEntriesAreRebuiltOnRead) {
+  // Random sessions alternate with all-free ones (cubes uniform again), some added out of
+  // order, one replaced; the file holds only the lists (the format is unchanged), and the map
+  // read back, whole or with appended sessions, answers every snapshot bit for bit.
+  test::TempDir tmp;
+  TemporalMap map(0.05);
+  const double times[] = {1000, 3000, 2000, 5000, 4000, 6000};
+  for (int i = 0; i < 6; ++i) {
+    map.add(times[i], i % 2 ? allFree() : test::randomSessionMap(static_cast<uint64_t>(10 + i)));
+  }
+  map.add(2000, allFree(), AddSettings{true, "replaced"});
+  io::writeTemporalMap(tmp / "m.cmap", map, {});
+  const TemporalMap back = io::readTemporalMap(tmp / "m.cmap");
+  size_t coarse_total = 0;
+  for (double t : map.times()) {
+    expectSameSnapshot(map, back, t);
+    expectSameSnapshot(map, back, t + 1.0);
+    TemporalMap::SnapshotVisits v;
+    back.snapshot(t, &v);
+    coarse_total += v.coarse;
+  }
+  EXPECT_GT(coarse_total, 0u) << "the all-free sessions make cubes uniform again";
+  EXPECT_EQ(back.snapshot(2000).leafCount(), 1u) << "at 2000 the whole block reads free";
+
+  const AppendedFile f = writeAppended(tmp / "a.cmap");
+  const TemporalMap appended = io::readTemporalMap(tmp / "a.cmap");
+  for (double t : appended.times()) expectSameSnapshot(appended, f.stages.back(), t);
+}
+
 TEST(TemporalFile, AnInterruptedAppendLeavesThePreviousMap) {
   // A kill during an append leaves the bytes before it and a prefix of the record: every such
   // prefix reads as the map before that record, and the next append replaces it.

@@ -121,9 +121,20 @@ class TemporalMap {
   const std::vector<SessionRecord>& sessions() const { return sessions_; }
   size_t sessionCount() const { return sessions_.size(); }
 
+  /// What one snapshot visited (for tests and benchmarks).
+  struct SnapshotVisits {
+    size_t inner = 0;   ///< inner nodes entered
+    size_t lists = 0;   ///< slot lists read
+    size_t coarse = 0;  ///< subtrees answered by one coarse entry without descending
+  };
   /// The map as most recently observed at `time_s`: every voxel observed by a session at or
-  /// before `time_s` carries the entry valid then. Empty before the first session.
-  SessionMap snapshot(double time_s) const;
+  /// before `time_s` carries the entry valid then. Empty before the first session. Known-free
+  /// space is compressed as SessionMap::compressFree() compresses it: a cube whose voxels all
+  /// read free without hits at `time_s` is one leaf (lengths summed), read from the cube's
+  /// coarse entry without visiting the refined subtree below it, so the cost follows the
+  /// snapshot's size, not every refinement ever made. The result is bit for bit the expanded
+  /// snapshot after compressFree().
+  SessionMap snapshot(double time_s, SnapshotVisits* visits = nullptr) const;
   /// The entries of the voxel `key` in time order (empty when it was never observed).
   std::vector<HistoryEntry> history(const VoxelKey& key) const;
   /// Entries valid in the voxel `key` at `time_s`, if any.
@@ -227,6 +238,32 @@ class TemporalMap {
   /// Adds `delta` to every entry's session number that is >= `from`.
   void shiftSessions(uint32_t from, int delta);
   bool compactBelow(Ref& r, int level);
+
+  // Coarse entries (the versioned inner slots): per inner node, the rank intervals [from, to)
+  // in which every voxel of its cube reads free without hits, with the cube's summed length as
+  // compressFree() would sum it. Derived from the lists (never stored in files), kept up to date
+  // at the end of every add, remove and read: nodes touched are marked and recomputed bottom up.
+  struct Coarse {
+    uint32_t from = 0, to = 0;  // ranks; to == kForever: still valid
+    float length_m = 0.0f;
+  };
+  static constexpr uint32_t kForever = 0xffffffffu;
+  struct CoarseSpan {
+    uint32_t begin = 0, count = 0;
+  };
+  std::vector<Coarse> coarse_;            // arena; spans of rebuilt nodes leave garbage behind
+  std::vector<CoarseSpan> coarse_span_;   // per inner node
+  std::vector<uint8_t> coarse_dirty_;     // per inner node: recompute its span
+  size_t coarse_garbage_ = 0;
+  std::vector<Coarse> coarse_scratch_;
+  std::vector<uint32_t> path_;  // inner nodes from the root to where apply() is, while it runs
+  /// Marks the nodes of path_ for recomputation (called where apply() changes something).
+  void markPath();
+  void markAllCoarseDirty();
+  void updateCoarse();
+  void rebuildCoarse(uint32_t node);
+  /// The coarse entry of inner node `node` valid at rank `rank`, if any.
+  const Coarse* coarseAt(uint32_t node, uint32_t rank) const;
 
   KeyGrid grid_;
   ChangeCriterion criterion_;
