@@ -74,13 +74,7 @@ int main(int argc, char** argv) {
   double scale = 0.25, max_range_m = 3.0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "%s needs a value\n", a.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
+    auto value = [&] { return bench::argValue(i, argc, argv); };
     if (a == "--sim") sim_dir = value();
     else if (a == "--learn-days") learn_days = std::stoi(value());
     else if (a == "--poses") poses = value();

@@ -115,13 +115,7 @@ int main(int argc, char** argv) {
   int learn_days = 21, components = 2, bins = 24;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) {
-        std::fprintf(stderr, "%s needs a value\n", a.c_str());
-        std::exit(2);
-      }
-      return argv[++i];
-    };
+    auto value = [&] { return bench::argValue(i, argc, argv); };
     if (a == "--weeks") weeks_dir = value();
     else if (a == "--floor66") floor_dir = value();
     else if (a == "--scale") scale = std::stod(value());

@@ -476,26 +476,6 @@ TEST(Diff, NeighbourhoodRuleEqualsReferenceOnRandomMaps) {
   EXPECT_GT(dropped, 50u);
 }
 
-// The cells of a diff as unit voxels: what each voxel reads (kind, colour, value).
-std::map<VoxelKey, ChangeCell> voxelsOf(const DiffMap& d) {
-  std::map<VoxelKey, ChangeCell> out;
-  for (const ChangeCell& c : d.cells()) {
-    const int side = 1 << c.level;
-    for (int dz = 0; dz < side; ++dz) {
-      for (int dy = 0; dy < side; ++dy) {
-        for (int dx = 0; dx < side; ++dx) {
-          ChangeCell v = c;
-          v.key = VoxelKey{static_cast<uint16_t>(c.key.x + dx), static_cast<uint16_t>(c.key.y + dy),
-                           static_cast<uint16_t>(c.key.z + dz)};
-          v.level = 0;
-          out[v.key] = v;
-        }
-      }
-    }
-  }
-  return out;
-}
-
 TEST(Diff, FourDimensionalDiffEqualsDiffOfSnapshots) {
   for (uint64_t seed = 1; seed <= 8; ++seed) {
     std::mt19937_64 rng(seed * 7919);
@@ -525,7 +505,7 @@ TEST(Diff, FourDimensionalDiffEqualsDiffOfSnapshots) {
           // Snapshots compress free space (one leaf where the 4D map holds several lists), and
           // continuous mode reports unchanged free space per leaf pair: the same voxels with the
           // same kinds and values, in cells of other sizes.
-          ASSERT_TRUE(voxelsOf(fast) == voxelsOf(slow)) << "seed " << seed << " t1 " << t1 << " t2 " << t2;
+          ASSERT_TRUE(unitCells(fast) == unitCells(slow)) << "seed " << seed << " t1 " << t1 << " t2 " << t2;
           continue;
         }
         ASSERT_TRUE(fast == slow) << "seed " << seed << " mode " << toString(m) << " t1 " << t1 << " t2 " << t2

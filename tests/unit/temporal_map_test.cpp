@@ -167,6 +167,20 @@ void expectChangeCountsMatch(const TemporalMap& map, const Reference& ref, doubl
 
 double sessionTime(int i) { return 1000.0 + 100.0 * i; }
 
+// Replaces one of the n sessions (the world changed) and removes the next, in the map and the
+// reference alike.
+void replaceOneRemoveAnother(std::mt19937_64& rng, World& world, int n, TemporalMap& map, Reference& ref) {
+  world.change(rng, 200);
+  const SessionMap replacement = randomSession(rng, world);
+  const int replaced = static_cast<int>(rng() % static_cast<uint64_t>(n));
+  map.add(sessionTime(replaced), replacement, AddSettings{true, ""});
+  ref.remove(sessionTime(replaced));
+  ref.add(sessionTime(replaced), replacement);
+  const int removed = (replaced + 1) % n;
+  map.remove(sessionTime(removed));
+  ref.remove(sessionTime(removed));
+}
+
 // ---------------------------------------------------------------------------------------------
 // Analytic cases.
 
@@ -383,15 +397,7 @@ TEST_P(TemporalProperty, AnyInsertionOrderGivesTheSameStates) {
   expectChangeCountsMatch(map, ref, sessionTime(2), sessionTime(n - 1));
 
   // Replace one session, then remove another: still the reference's states.
-  world.change(rng, 200);
-  const SessionMap replacement = randomSession(rng, world);
-  const int replaced = static_cast<int>(rng() % static_cast<uint64_t>(n));
-  map.add(sessionTime(replaced), replacement, AddSettings{true, ""});
-  ref.remove(sessionTime(replaced));
-  ref.add(sessionTime(replaced), replacement);
-  const int removed = (replaced + 1) % n;
-  map.remove(sessionTime(removed));
-  ref.remove(sessionTime(removed));
+  replaceOneRemoveAnother(rng, world, n, map, ref);
   for (int i = 0; i < n; ++i) expectStatesMatch(map, ref, sessionTime(i));
   expectHistoriesMatch(map, ref, /*exact=*/false);
 }
@@ -609,15 +615,7 @@ TEST_P(TemporalProperty, SnapshotsAtEveryTimeAreTheDenseModelInAnyOrder) {
   expectHistoriesMatch(map, ref, /*exact=*/GetParam() % 3 == 0);
 
   // Replace one session (with a changed world), remove another, add one more in the middle.
-  world.change(rng, 200);
-  const SessionMap replacement = randomSession(rng, world);
-  const int replaced = static_cast<int>(rng() % static_cast<uint64_t>(n));
-  map.add(sessionTime(replaced), replacement, AddSettings{true, ""});
-  ref.remove(sessionTime(replaced));
-  ref.add(sessionTime(replaced), replacement);
-  const int removed = (replaced + 1) % n;
-  map.remove(sessionTime(removed));
-  ref.remove(sessionTime(removed));
+  replaceOneRemoveAnother(rng, world, n, map, ref);
   const SessionMap late = randomSession(rng, world);
   map.add(sessionTime(n / 2) + 30.0, late);
   ref.add(sessionTime(n / 2) + 30.0, late);
