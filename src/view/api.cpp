@@ -8,6 +8,7 @@
 #include <limits>
 #include <set>
 #include <sstream>
+#include <utility>
 
 #include "assets.h"
 #include "chronomap/core/error.h"
@@ -91,6 +92,16 @@ double requestedTime(const TemporalMap& map, const Query& query, const std::stri
   return s;
 }
 
+// What a prediction or cost-map request names: its time (as requestedTime) and the temporal
+// model (`model`, the combined one by default).
+std::pair<double, RhythmModel> predictionRequest(const TemporalMap& map, const Query& query) {
+  onlyParameters(query, {"session", "t", "model"});
+  const double time_s = requestedTime(map, query, "session", "t");
+  RhythmModel model = RhythmModel::Combined;
+  if (const auto* m = find(query, "model")) model = parseRhythmModel(*m);
+  return {time_s, model};
+}
+
 }  // namespace
 
 Reply Api::get(const std::string& path, const Query& query) const {
@@ -170,19 +181,13 @@ const RhythmModels& Api::rhythm() const {
 }
 
 Reply Api::predict(const Query& query) const {
-  onlyParameters(query, {"session", "t", "model"});
-  const double time_s = requestedTime(map_, query, "session", "t");
-  RhythmModel model = RhythmModel::Combined;
-  if (const auto* m = find(query, "model")) model = parseRhythmModel(*m);
+  const auto [time_s, model] = predictionRequest(map_, query);
   const RhythmModels& models = rhythm();
   return binary(encodePrediction(models, model, time_s, settings_.rhythm ? 0.0 : fitted_->seconds));
 }
 
 Reply Api::costmapReply(const Query& query) const {
-  onlyParameters(query, {"session", "t", "model"});
-  const double time_s = requestedTime(map_, query, "session", "t");
-  RhythmModel model = RhythmModel::Combined;
-  if (const auto* m = find(query, "model")) model = parseRhythmModel(*m);
+  const auto [time_s, model] = predictionRequest(map_, query);
   const RhythmModels& models = rhythm();
   const CostmapSettings settings;
   return binary(encodeCostmap(costmap(predictMap(map_, models, model, time_s), settings, &models), settings, model, time_s));
