@@ -10,14 +10,12 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "chronomap/analysis/colour.h"
 #include "chronomap/analysis/segment.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/diff_file.h"
 #include "chronomap/io/file.h"
-#include "chronomap/io/temporal_file.h"
 #include "chronomap/pipeline/maps.h"
 #include "commands.h"
 
@@ -46,28 +44,18 @@ struct DiffCmdOptions {
 
 /// The colour part of a diff: two times of one 4D map, their colours compared.
 nlohmann::json colourDiff(const DiffCmdOptions& o, const pipeline::MapRef& before, const pipeline::MapRef& after) {
-  if (!before.time_s || !after.time_s || before.path != after.path) {
-    throw UsageError("--colour compares two times of one 4D map: give A and B as MAP.cmap@TIME");
-  }
   ColourDiffSettings cs;
   cs.distance = *o.colour_distance;
   cs.lighting_invariant = o.lighting_invariant;
-  cs.validate();
-  const TemporalMap map = io::readTemporalMap(before.path);
-  std::optional<ColourModel> model;
+  const pipeline::ColourDiffReport r = pipeline::colourDiffMaps(before, after, cs);
   nlohmann::json j;
-  if (o.lighting_invariant) {
-    // The light is learned from the history before the later time, so that a repaint at that
-    // time is not part of what the model learned.
-    const double later = std::max(*before.time_s, *after.time_s);
-    model = fitColour(map, -std::numeric_limits<double>::infinity(), std::nextafter(later, -1e300));
-    j["colour_model"] = {{"voxels", model->keys.size()}, {"sessions", model->sessions}, {"rms_error", model->rms_error}};
+  if (r.model) {
+    j["colour_model"] = {{"voxels", r.model->keys.size()}, {"sessions", r.model->sessions}, {"rms_error", r.model->rms_error}};
   }
-  const ColourDiff d = colourChanges(map, *before.time_s, *after.time_s, model ? &*model : nullptr, cs);
   j["colour_distance"] = cs.distance;
   j["lighting_invariant"] = cs.lighting_invariant;
-  j["colour_compared"] = d.compared;
-  j["colour_changed"] = d.changes.size();
+  j["colour_compared"] = r.diff.compared;
+  j["colour_changed"] = r.diff.changes.size();
   return j;
 }
 

@@ -1,7 +1,9 @@
 #include "chronomap/pipeline/maps.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <limits>
 #include <vector>
 
 #include "chronomap/core/error.h"
@@ -48,6 +50,21 @@ DiffMap diffMaps(const MapRef& a, const MapRef& b, const DiffSettings& settings)
   const SessionMap ma = loadSessionMap(a, fa);
   const SessionMap mb = loadSessionMap(b, io::readCmap(b.path));
   return diff(ma, mb, settings);
+}
+
+ColourDiffReport colourDiffMaps(const MapRef& before, const MapRef& after, const ColourDiffSettings& settings) {
+  if (!before.time_s || !after.time_s || before.path != after.path) {
+    throw UsageError("--colour compares two times of one 4D map: give A and B as MAP.cmap@TIME");
+  }
+  settings.validate();
+  const TemporalMap map = io::readTemporalMap(before.path);
+  ColourDiffReport r;
+  if (settings.lighting_invariant) {
+    const double later = std::max(*before.time_s, *after.time_s);
+    r.model = fitColour(map, -std::numeric_limits<double>::infinity(), std::nextafter(later, -1e300));
+  }
+  r.diff = colourChanges(map, *before.time_s, *after.time_s, r.model ? &*r.model : nullptr, settings);
+  return r;
 }
 
 SessionMap snapshotAt(const TemporalMap& map, double time_s, const std::string& name) {

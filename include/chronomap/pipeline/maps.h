@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "chronomap/analysis/change_frequency.h"
+#include "chronomap/analysis/colour.h"
 #include "chronomap/analysis/diff.h"
 #include "chronomap/analysis/segment.h"
 #include "chronomap/io/cmap.h"
@@ -38,6 +39,19 @@ SessionMap loadSessionMap(const MapRef& ref, const io::CmapFile& file);
 /// What changed from `before` to `after`. Two times of one 4D map visit only what changed in
 /// between.
 DiffMap diffMaps(const MapRef& before, const MapRef& after, const DiffSettings& settings);
+
+/// The colour part of a diff between two times of one 4D map.
+struct ColourDiffReport {
+  ColourDiff diff;
+  /// With settings.lighting_invariant: the light, learned from the sessions before the later
+  /// time (so that a repaint at that time is not part of what it learned).
+  std::optional<ColourModel> model;
+};
+
+/// The voxels occupied at both times whose colour moved by more than settings.distance (beyond
+/// what the change of light explains, with settings.lighting_invariant). @throw UsageError unless
+/// `before` and `after` are two times of one file, or for bad settings.
+ColourDiffReport colourDiffMaps(const MapRef& before, const MapRef& after, const ColourDiffSettings& settings);
 
 /// The 4D map's snapshot at `time_s`. @throw UsageError when no session lies at or before it.
 SessionMap snapshotAt(const TemporalMap& map, double time_s, const std::string& name);
