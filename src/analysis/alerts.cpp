@@ -21,8 +21,6 @@ int kindOfDay(double time_s) {
   return weekday >= 5 ? 1 : 0;
 }
 
-double hourOfDay(double time_s) { return (time_s - kDay_s * std::floor(time_s / kDay_s)) / 3600.0; }
-
 /// Distance between two hours of the day, around midnight.
 double hourDistance(double a, double b) {
   const double d = std::abs(a - b);

@@ -13,8 +13,6 @@ namespace chronomap {
 
 namespace {
 
-constexpr double kDay_s = 86400.0;
-
 /// Knots and weights of the piecewise linear, circular curve at `hour`.
 struct Knots {
   int i0 = 0, i1 = 0;
@@ -140,12 +138,6 @@ void normalise(ColourModel& m, std::vector<float>& weights, size_t voxels) {
 }
 
 }  // namespace
-
-double hourOfDay(double time_s) {
-  double s = std::fmod(time_s, kDay_s);
-  if (s < 0.0) s += kDay_s;
-  return std::min(s / 3600.0, std::nextafter(24.0, 0.0));
-}
 
 void ColourSettings::validate() const {
   if (components < 1 || components > 3) throw UsageError("colour model: components must be 1, 2 or 3");

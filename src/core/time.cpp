@@ -1,5 +1,6 @@
 #include "chronomap/core/time.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
@@ -174,6 +175,13 @@ std::string formatTime(double seconds) {
     std::snprintf(buffer, sizeof buffer, "%04lld-%02u-%02uT%02d:%02d:%02dZ", static_cast<long long>(y), m, d, h, mi, se);
   }
   return buffer;
+}
+
+double hourOfDay(double time_s) {
+  constexpr double kDay_s = 86400.0;
+  double s = std::fmod(time_s, kDay_s);
+  if (s < 0.0) s += kDay_s;
+  return std::min(s / 3600.0, std::nextafter(24.0, 0.0));
 }
 
 }  // namespace chronomap

@@ -33,12 +33,10 @@
 #include "chronomap/core/counters.h"
 #include "chronomap/core/key.h"
 #include "chronomap/octree/session_map.h"
+#include "chronomap/core/time.h"  // hourOfDay
 #include "chronomap/temporal/temporal_map.h"
 
 namespace chronomap {
-
-/// The hour of the day (UTC, 0 <= h < 24) of a time in seconds since the epoch.
-double hourOfDay(double time_s);
 
 /// One observed colour of one voxel (channels 0..255).
 struct ColourObservation {

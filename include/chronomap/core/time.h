@@ -23,4 +23,7 @@ inline constexpr double kLatestTime_s = 253402300799.0;
 /// seconds to the millisecond when present); "invalid-time" outside [kEarliestTime_s, kLatestTime_s].
 std::string formatTime(double seconds);
 
+/// The hour of the day (UTC, 0 <= h < 24) of a time in seconds since the epoch.
+double hourOfDay(double time_s);
+
 }  // namespace chronomap
