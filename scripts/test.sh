@@ -17,7 +17,7 @@ if [ "${CHRONOMAP_SKIP_SANITIZERS:-0}" != 1 ]; then
   cmake --build --preset asan -j"$jobs"
   ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 ctest --preset asan -j"$jobs"
   cmake --preset tsan >/dev/null
-  cmake --build --preset tsan -j"$jobs" --target chronomap_unit_tests chronomap_io_tests
+  cmake --build --preset tsan -j"$jobs" --target chronomap_threaded_tests
   TSAN_OPTIONS="halt_on_error=1 suppressions=$PWD/tests/tsan.supp" \
     ctest --preset tsan -j"$jobs" -R '^(Integrator|RegisterSessions|Simulator)\.' \
       -E '^Simulator\.(TheWeeksPreset|ChangeEvents|RareEvents)'

@@ -425,9 +425,9 @@ void killAtRandom(const std::vector<std::string>& argv, const fs::path& old_copy
 /// unfinished record after it, which reads as the old map and which the next add replaces.
 TEST(TemporalCli, KilledAddLeavesOldOrNewMap) {
   test::TempDir tmp;
-  io::writeSessionMap(tmp / "big.cmap", test::randomSessionMap(99, 64, 0.2), {});
+  io::writeSessionMap(tmp / "big.cmap", test::randomSessionMap(99, 48, 0.2), {});
   TemporalMap old_map(0.05);
-  old_map.add(1000, test::randomSessionMap(98, 64, 0.2));
+  old_map.add(1000, test::randomSessionMap(98, 48, 0.2));
   io::writeTemporalMap(tmp / "old.cmap", old_map, {});
   const auto old_bytes = bytesOf(tmp / "old.cmap");
   const fs::path map = tmp / "m.cmap";
@@ -447,7 +447,7 @@ TEST(TemporalCli, KilledAddLeavesOldOrNewMap) {
       ASSERT_TRUE(std::equal(old_bytes.begin(), old_bytes.end(), new_bytes.begin())) << "append rewrote bytes";
     }
     int old_seen = 0, new_seen = 0, interrupted = 0;
-    const int rounds = 30;
+    const int rounds = test::underSanitizer() ? 10 : 30;
     killAtRandom(argv, tmp / "old.cmap", map, old_bytes, new_bytes, rounds, 2 * full_us, 5, old_seen, new_seen,
                  write == "append" ? &interrupted : nullptr);
     std::cout << "killed add --write " << write << ": " << old_seen << " old, " << new_seen << " new, " << interrupted
@@ -457,7 +457,8 @@ TEST(TemporalCli, KilledAddLeavesOldOrNewMap) {
       // file starts to grow.
       const TemporalMap before = io::readTemporalMap(tmp / "old.cmap");
       int cut = 0;
-      for (int round = 0; round < 10; ++round) {
+      const int write_rounds = test::underSanitizer() ? 4 : 10;
+      for (int round = 0; round < write_rounds; ++round) {
         fs::copy_file(tmp / "old.cmap", map, fs::copy_options::overwrite_existing);
         const pid_t pid = spawnCli(argv);
         ASSERT_GE(pid, 0);
@@ -473,7 +474,8 @@ TEST(TemporalCli, KilledAddLeavesOldOrNewMap) {
           ASSERT_TRUE(io::readTemporalMap(map) == before) << "an interrupted append does not read as the old map";
         }
       }
-      std::cout << "killed add --write append while writing: " << cut << " of 10 left part of the record\n";
+      std::cout << "killed add --write append while writing: " << cut << " of " << write_rounds
+                << " left part of the record\n";
     }
     // The next add finishes the job: temporaries of killed writers are removed and an unfinished
     // record (here half of one) is replaced.

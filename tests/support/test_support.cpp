@@ -136,6 +136,8 @@ int exitCodeUnderMemoryLimit(uint64_t extra_bytes, const std::function<int()>& b
 
 bool memoryLimitsApply() { return !kUnderSanitizer; }
 
+bool underSanitizer() { return kUnderSanitizer; }
+
 fs::path writeWallDataset(const fs::path& dir, const std::string& name, float wall_x) {
   PointCloud cloud;
   for (float y = -0.5f; y <= 0.5f; y += 0.02f) {

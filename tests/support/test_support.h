@@ -67,6 +67,11 @@ int exitCodeUnderMemoryLimit(uint64_t extra_bytes, const std::function<int()>& b
 /// False under AddressSanitizer or ThreadSanitizer, where exitCodeUnderMemoryLimit sets no limit.
 bool memoryLimitsApply();
 
+/// True in the AddressSanitizer and ThreadSanitizer builds, where every process runs several
+/// times slower: tests that repeat a random trial many times run fewer rounds there (the Release
+/// run keeps the full count).
+bool underSanitizer();
+
 /// A cloud-list dataset `dir/name.txt` of one cloud `dir/name.ply`: a 1 x 1 m wall of points
 /// 0.02 m apart in the plane x = wall_x, seen from the origin. @return the list's path.
 std::filesystem::path writeWallDataset(const std::filesystem::path& dir, const std::string& name, float wall_x);
