@@ -141,12 +141,22 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
   const uint32_t width = bytes[1] % 64u, height = bytes[2] % 64u, step = bytes[3] + 256u * (bytes[4] % 4u);
   const bool big_endian = bytes[5] & 1u;
   const CameraIntrinsics k{100.0, 100.0, 32.0, 24.0};
-  switch (bytes[0] % 3) {
+  static const char* const kFormats[] = {"16UC1; compressedDepth png", "32FC1; compressedDepth",
+                                         "16UC1; compressedDepth rvl", "rgb8; jpeg compressed bgr8", "png", "8UC3; compressedDepth"};
+  switch (bytes[0] % 5) {
     case 0: {
       const io::rosmsg::ImageView im{height, width, kEncodings[bytes[6] % 9], big_endian, step, data};
       io::rosmsg::depthCloud(im, nullptr, k, 1000.0, name);
       break;
     }
+    case 3: {
+      // sensor_msgs/CompressedImage: compressedDepth (a header and a PNG) or a JPEG/PNG colour image.
+      const io::rosmsg::CompressedView im{kFormats[bytes[6] % 6], data};
+      const io::rosmsg::OwnedImage depth = io::rosmsg::compressedDepthImage(im, name);
+      io::rosmsg::depthCloud(depth.view, nullptr, k, 1000.0, name);
+      break;
+    }
+    case 4: io::rosmsg::compressedColorImage({kFormats[bytes[6] % 6], data}, name); break;
     case 1: {
       const io::rosmsg::ImageView im{height, width, kEncodings[bytes[6] % 9], big_endian, step, data};
       io::rosmsg::colorImage(im, name);
@@ -174,7 +184,7 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
   // message (encapsulation header first); images and clouds go on through ros_messages.
   if (bytes.empty()) return;
   const std::span<const uint8_t> msg(bytes.data() + 1, bytes.size() - 1);
-  switch (bytes[0] % 7) {
+  switch (bytes[0] % 9) {
     case 0: {
       const auto im = io::cdr::image(msg, name);
       io::rosmsg::colorImage(im.view, name);
@@ -189,6 +199,12 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
     case 3: io::cdr::cameraInfo(msg, name); break;
     case 4: io::cdr::tfMessage(msg, name); break;
     case 5: io::cdr::odometry(msg, name); break;
+    case 7: io::rosmsg::compressedColorImage(io::cdr::compressedImage(msg, name).view, name); break;
+    case 8: {
+      const auto depth = io::rosmsg::compressedDepthImage(io::cdr::compressedImage(msg, name).view, name);
+      io::rosmsg::depthCloud(depth.view, nullptr, CameraIntrinsics{100.0, 100.0, 32.0, 24.0}, 1000.0, name);
+      break;
+    }
     default: io::cdr::poseStamped(msg, name); break;
   }
 #else

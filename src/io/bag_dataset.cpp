@@ -65,13 +65,45 @@ std::optional<std::string> theOnly(const std::vector<std::string>& candidates, c
   return candidates.front();
 }
 
-/// The CameraInfo beside an image topic (/cam/depth/image_raw -> /cam/depth/camera_info).
+/// An image_transport topic's base: /cam/rgb/image_raw/compressed -> /cam/rgb/image_raw (the
+/// same for compressedDepth); other names unchanged.
+std::string transportBase(const std::string& topic) {
+  for (const std::string suffix : {"/compressed", "/compressedDepth"}) {
+    if (topic.size() > suffix.size() && topic.compare(topic.size() - suffix.size(), suffix.size(), suffix) == 0)
+      return topic.substr(0, topic.size() - suffix.size());
+  }
+  return topic;
+}
+
+/// The CameraInfo beside an image topic (/cam/depth/image_raw -> /cam/depth/camera_info; the
+/// same for its /compressed or /compressedDepth transport).
 std::string infoBeside(const TopicMap& topics, const std::string& image_topic) {
-  const auto slash = image_topic.rfind('/');
+  const std::string base = transportBase(image_topic);
+  const auto slash = base.rfind('/');
   if (slash == std::string::npos) return {};
-  const std::string candidate = image_topic.substr(0, slash + 1) + "camera_info";
+  const std::string candidate = base.substr(0, slash + 1) + "camera_info";
   auto it = topics.find(candidate);
   return it != topics.end() && it->second.type == kCameraInfo ? candidate : std::string();
+}
+
+/// Image topics (raw images passing `raw_ok`, compressed ones passing `compressed_ok`); a
+/// compressed transport is left out when its raw topic is there too (the same images, stored
+/// twice: the raw ones are read, lossless and without decoding).
+std::vector<std::string> imageTopics(const TopicMap& topics, bool (*raw_ok)(std::string_view),
+                                     bool (*compressed_ok)(std::string_view)) {
+  std::vector<std::string> out = topicsOfType(topics, kImage, raw_ok);
+  for (const std::string& name : topicsOfType(topics, kCompressedImage, compressed_ok)) {
+    const std::string base = transportBase(name);
+    const auto raw = topics.find(base);
+    if (base != name && raw != topics.end() && raw->second.type == kImage && raw->second.messages > 0) continue;
+    out.push_back(name);
+  }
+  return out;
+}
+
+bool isCompressed(const TopicMap& topics, const std::string& name) {
+  const auto it = topics.find(name);
+  return it != topics.end() && it->second.type == kCompressedImage;
 }
 
 }  // namespace
@@ -82,26 +114,28 @@ Topics chooseTopics(const TopicMap& topics, const BagSettings& s, const fs::path
     requireTopic(topics, s.cloud_topic, {kPointCloud2}, "--cloud-topic", path);
     t.cloud = s.cloud_topic;
   } else if (!s.depth_topic.empty()) {
-    requireTopic(topics, s.depth_topic, {kImage}, "--depth-topic", path);
+    requireTopic(topics, s.depth_topic, {kImage, kCompressedImage}, "--depth-topic", path);
     t.depth = s.depth_topic;
-  } else if (auto depth =
-                 theOnly(topicsOfType(topics, kImage, rosmsg::isDepthEncoding), "depth image", "--depth-topic", path)) {
+  } else if (auto depth = theOnly(imageTopics(topics, rosmsg::isDepthEncoding, rosmsg::isCompressedDepthFormat),
+                                  "depth image", "--depth-topic", path)) {
     t.depth = *depth;  // depth images first: a cloud topic beside them is usually made from them
   } else if (auto cloud = theOnly(topicsOfType(topics, kPointCloud2), "point cloud", "--cloud-topic", path)) {
     t.cloud = *cloud;
   } else {
-    throw DataError(path.string() + ": no depth image (16UC1, 32FC1) or PointCloud2 topic");
+    throw DataError(path.string() + ": no depth image (16UC1, 32FC1, compressedDepth) or PointCloud2 topic");
   }
   if (!t.depth.empty()) {
     if (s.color_topic == "none") {
       // no colour, as asked
     } else if (!s.color_topic.empty()) {
-      requireTopic(topics, s.color_topic, {kImage}, "--color-topic", path);
+      requireTopic(topics, s.color_topic, {kImage, kCompressedImage}, "--color-topic", path);
       t.color = s.color_topic;
-    } else if (auto color = theOnly(topicsOfType(topics, kImage, rosmsg::isColorEncoding), "colour image",
-                                    "--color-topic (or --color-topic none)", path)) {
+    } else if (auto color = theOnly(imageTopics(topics, rosmsg::isColorEncoding, rosmsg::isCompressedColorFormat),
+                                    "colour image", "--color-topic (or --color-topic none)", path)) {
       t.color = *color;
     }
+    t.depth_compressed = isCompressed(topics, t.depth);
+    t.color_compressed = isCompressed(topics, t.color);
     if (!s.info_topic.empty()) {
       requireTopic(topics, s.info_topic, {kCameraInfo}, "--info-topic", path);
       t.info = s.info_topic;
@@ -159,6 +193,8 @@ void BagDataset::assemble(const Topics& t, const DatasetSettings& s, Gathered g)
   color_tolerance_s_ = s.max_time_difference_s;
   depth_scale_ = s.depth_scale.value_or(kDefaultDepthScale);
   cloud_ = !t.cloud.empty();
+  depth_compressed_ = t.depth_compressed;
+  color_compressed_ = t.color_compressed;
   depth_topic_ = t.depth;
   cloud_topic_ = t.cloud;
   color_topic_ = t.color;
@@ -238,23 +274,27 @@ Frame BagDataset::load(size_t i) const {
       frame.cloud = rosmsg::pointCloud(msg.view, frame.source);
       return frame;
     }
-    const ImageMessage depth = image(f.depth);
+    const ImageMessage depth = image(f.depth, depth_compressed_);
+    rosmsg::OwnedImage decoded;
+    if (depth.compressed) decoded = rosmsg::compressedDepthImage(*depth.compressed, frame.source);
+    const rosmsg::ImageView& depth_view = depth.compressed ? decoded.view : depth.view;
     std::optional<ImageRgb> rgb;
     if (f.color) {
-      const ImageMessage color = image(*f.color);
-      rgb = rosmsg::colorImage(color.view, frame.source);
-      if (rgb->width != depth.view.width || rgb->height != depth.view.height) {
+      const ImageMessage color = image(*f.color, color_compressed_);
+      rgb = color.compressed ? rosmsg::compressedColorImage(*color.compressed, frame.source)
+                             : rosmsg::colorImage(color.view, frame.source);
+      if (rgb->width != depth_view.width || rgb->height != depth_view.height) {
         if (!color_k_) {
           std::ostringstream msg;
           msg << frame.source << ": the colour image is " << rgb->width << "x" << rgb->height << ", the depth image "
-              << depth.view.width << "x" << depth.view.height << ", and " << color_topic_
+              << depth_view.width << "x" << depth_view.height << ", and " << color_topic_
               << " has no camera_info beside it to look colour up with";
           throw DataError(msg.str());
         }
-        rgb = colorInDepthView(*rgb, *color_k_, k_, depth.view.width, depth.view.height);
+        rgb = colorInDepthView(*rgb, *color_k_, k_, depth_view.width, depth_view.height);
       }
     }
-    frame.cloud = rosmsg::depthCloud(depth.view, rgb ? &*rgb : nullptr, k_, depth_scale_, frame.source);
+    frame.cloud = rosmsg::depthCloud(depth_view, rgb ? &*rgb : nullptr, k_, depth_scale_, frame.source);
   } catch (const Error&) {
     throw;
   } catch (const std::exception& e) {

@@ -21,6 +21,7 @@ namespace chronomap::io::bag {
 
 /// Message types, by their ROS 1 names (a ROS 2 reader maps "sensor_msgs/msg/Image" to these).
 inline constexpr const char* kImage = "sensor_msgs/Image";
+inline constexpr const char* kCompressedImage = "sensor_msgs/CompressedImage";
 inline constexpr const char* kCameraInfo = "sensor_msgs/CameraInfo";
 inline constexpr const char* kPointCloud2 = "sensor_msgs/PointCloud2";
 inline constexpr const char* kTfMessage = "tf2_msgs/TFMessage";
@@ -30,7 +31,7 @@ inline constexpr const char* kPoseStamped = "geometry_msgs/PoseStamped";
 inline constexpr double kDefaultDepthScale = 1000.0;
 
 /// One topic: its type (ROS 1 name), message count and, for images, the first message's
-/// encoding and frame.
+/// encoding (a CompressedImage's format) and frame.
 struct TopicInfo {
   std::string type;
   uint64_t messages = 0;
@@ -52,6 +53,8 @@ struct Topics {
   std::string info;
   std::string color_info;
   std::string pose;  ///< empty: /tf and /tf_static
+  /// The depth or colour topic holds sensor_msgs/CompressedImage (compressedDepth, JPEG or PNG).
+  bool depth_compressed = false, color_compressed = false;
 };
 
 /// The topics for `s`: named ones checked, the others detected when only one fits.
@@ -82,9 +85,11 @@ struct Gathered {
   std::optional<CameraIntrinsics> k, color_k;  ///< the first CameraInfo of each info topic
 };
 
-/// A decoded message with what keeps its bytes alive.
+/// A decoded message with what keeps its bytes alive: a sensor_msgs/Image (`view`) or a
+/// sensor_msgs/CompressedImage (`compressed`).
 struct ImageMessage {
   rosmsg::ImageView view;
+  std::optional<rosmsg::CompressedView> compressed;
   std::shared_ptr<const void> owner;
 };
 struct CloudMessage {
@@ -109,8 +114,9 @@ class BagDataset : public Dataset {
   /// Pairs what the reader's pass gathered into frames. @throw DataError when no frame is left
   /// or the depth camera has no intrinsics.
   void assemble(const Topics& t, const DatasetSettings& s, Gathered g);
-  /// The message behind a handle of Stamped::message, decoded. @throw Error naming the bag.
-  virtual ImageMessage image(uint64_t message) const = 0;
+  /// The message behind a handle of Stamped::message, decoded (a CompressedImage when
+  /// `compressed`). @throw Error naming the bag.
+  virtual ImageMessage image(uint64_t message, bool compressed) const = 0;
   virtual CloudMessage cloud(uint64_t message) const = 0;
 
   std::filesystem::path path_;
@@ -128,6 +134,7 @@ class BagDataset : public Dataset {
   DatasetFormat format_;
   std::vector<Pair> frames_;
   bool cloud_ = false;
+  bool depth_compressed_ = false, color_compressed_ = false;
   std::string depth_topic_, cloud_topic_, color_topic_;
   CameraIntrinsics k_;
   std::optional<CameraIntrinsics> color_k_;

@@ -112,6 +112,15 @@ Image image(std::span<const uint8_t> msg, const std::string& source) {
   return im;
 }
 
+CompressedImage compressedImage(std::span<const uint8_t> msg, const std::string& source) {
+  Reader r(msg, source);
+  CompressedImage im;
+  im.header = r.header();
+  im.view.format = r.str();
+  im.view.data = r.bytes(r.u32(), "compressed image");
+  return im;
+}
+
 Cloud cloud(std::span<const uint8_t> msg, const std::string& source) {
   Reader r(msg, source);
   Cloud c;

@@ -27,6 +27,12 @@ struct Image {
   rosmsg::ImageView view;
 };
 
+/// sensor_msgs/msg/CompressedImage.
+struct CompressedImage {
+  Header header;
+  rosmsg::CompressedView view;
+};
+
 struct Cloud {
   Header header;
   rosmsg::CloudView view;
@@ -50,6 +56,7 @@ struct Transform {
 /// The header every stamped message starts with.
 Header header(std::span<const uint8_t> msg, const std::string& source);
 Image image(std::span<const uint8_t> msg, const std::string& source);
+CompressedImage compressedImage(std::span<const uint8_t> msg, const std::string& source);
 Cloud cloud(std::span<const uint8_t> msg, const std::string& source);
 CameraInfo cameraInfo(std::span<const uint8_t> msg, const std::string& source);
 /// tf2_msgs/msg/TFMessage.

@@ -1,6 +1,8 @@
 #include "ros_messages.h"
 
 #include <algorithm>
+#include <cctype>
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <optional>
@@ -9,6 +11,8 @@
 #include "chronomap/core/error.h"
 #include "chronomap/io/dataset.h"
 #include "chronomap/io/depth_image.h"
+#include "chronomap/io/jpeg.h"
+#include "chronomap/io/png.h"
 
 namespace chronomap::io::rosmsg {
 
@@ -54,6 +58,104 @@ T readScalar(const uint8_t* p, bool swap) {
 constexpr bool kHostBigEndian = false;  // chronomap builds for little-endian machines only
 
 }  // namespace
+
+namespace {
+
+std::string lowered(std::string_view s) {
+  std::string out(s);
+  std::transform(out.begin(), out.end(), out.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return out;
+}
+
+bool contains(const std::string& s, const char* part) { return s.find(part) != std::string::npos; }
+
+/// The part of an image_transport format before ';' (the original encoding), trimmed.
+std::string_view encodingOf(std::string_view format) {
+  std::string_view e = format.substr(0, format.find(';'));
+  while (!e.empty() && e.front() == ' ') e.remove_prefix(1);
+  while (!e.empty() && e.back() == ' ') e.remove_suffix(1);
+  return e;
+}
+
+bool isPng(std::span<const uint8_t> d) {
+  static constexpr uint8_t kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  return d.size() >= 8 && std::equal(kSignature, kSignature + 8, d.begin());
+}
+
+/// compressedDepth's header before the PNG: the compression (an int32) and the two floats of
+/// the inverse-depth quantisation (compressed_depth_image_transport's ConfigHeader).
+constexpr size_t kDepthHeaderBytes = 12;
+
+}  // namespace
+
+bool isCompressedColorFormat(std::string_view format) {
+  const std::string f = lowered(format);
+  return !contains(f, "compresseddepth") && (contains(f, "jpeg") || contains(f, "jpg") || contains(f, "png"));
+}
+
+bool isCompressedDepthFormat(std::string_view format) { return contains(lowered(format), "compresseddepth"); }
+
+ImageRgb compressedColorImage(const CompressedView& im, const std::string& source) {
+  if (isCompressedDepthFormat(im.format)) {
+    throw DataError(source + ": a compressedDepth image ('" + std::string(im.format) + "') is not a colour image");
+  }
+  const std::vector<uint8_t> bytes(im.data.begin(), im.data.end());
+  if (looksLikeJpeg(bytes)) return decodeJpegRgb(bytes, source);
+  if (isPng(im.data)) return decodePngRgb(bytes, source);
+  throw DataError(source + ": compressed image of format '" + std::string(im.format) +
+                  "' is neither a JPEG nor a PNG (the compressions read)");
+}
+
+OwnedImage compressedDepthImage(const CompressedView& im, const std::string& source) {
+  const std::string f = lowered(im.format);
+  if (!contains(f, "compresseddepth")) {
+    throw DataError(source + ": compressed image of format '" + std::string(im.format) +
+                    "' is not compressedDepth (a depth topic of sensor_msgs/CompressedImage must be)");
+  }
+  if (contains(f, "rvl")) {
+    throw DataError(source + ": compressedDepth with RVL compression ('" + std::string(im.format) +
+                    "') is not read (PNG only)");
+  }
+  const std::string_view encoding = encodingOf(im.format);
+  const bool metres = encoding == "32FC1";
+  if (!metres && encoding != "16UC1" && encoding != "mono16") {
+    throw DataError(source + ": compressedDepth of encoding '" + std::string(encoding) + "' is not read (16UC1, 32FC1)");
+  }
+  if (im.data.size() < kDepthHeaderBytes || !isPng(im.data.subspan(kDepthHeaderBytes))) {
+    throw FormatError(source + ": compressedDepth data is not a 12-byte header followed by a PNG");
+  }
+  const std::vector<uint8_t> png(im.data.begin() + kDepthHeaderBytes, im.data.end());
+  const ImageU16 units = decodePngU16(png, source);
+  OwnedImage out;
+  out.view.width = units.width;
+  out.view.height = units.height;
+  out.view.big_endian = false;
+  const size_t n = units.pixels.size();
+  if (!metres) {
+    out.bytes.resize(2 * n);
+    std::memcpy(out.bytes.data(), units.pixels.data(), 2 * n);  // little-endian host
+    out.view.encoding = "16UC1";
+    out.view.step = 2 * units.width;
+  } else {
+    float a = 0.0f, b = 0.0f;
+    std::memcpy(&a, im.data.data() + 4, 4);
+    std::memcpy(&b, im.data.data() + 8, 4);
+    if (!std::isfinite(a) || !std::isfinite(b) || a == 0.0f) {
+      throw FormatError(source + ": compressedDepth's quantisation parameters are not finite and non-zero");
+    }
+    std::vector<float> depth(n);
+    for (size_t i = 0; i < n; ++i) {
+      const float v = static_cast<float>(units.pixels[i]);
+      depth[i] = units.pixels[i] == 0 ? std::numeric_limits<float>::quiet_NaN() : a / (v - b);
+    }
+    out.bytes.resize(4 * n);
+    std::memcpy(out.bytes.data(), depth.data(), 4 * n);
+    out.view.encoding = "32FC1";
+    out.view.step = 4 * units.width;
+  }
+  out.view.data = std::span<const uint8_t>(out.bytes.data(), out.bytes.size());
+  return out;
+}
 
 bool isDepthEncoding(std::string_view e) { return e == "16UC1" || e == "mono16" || e == "32FC1"; }
 bool isColorEncoding(std::string_view e) {

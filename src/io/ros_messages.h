@@ -41,6 +41,42 @@ struct CloudView {
   std::span<const uint8_t> data;
 };
 
+/// sensor_msgs/CompressedImage, as image_transport's plugins write it.
+struct CompressedView {
+  /// "jpeg", "png", "rgb8; jpeg compressed bgr8" (the compressed transport: a JPEG or PNG file)
+  /// or "16UC1; compressedDepth png", "32FC1; compressedDepth" (the compressedDepth transport: a
+  /// 12-byte header, then a 16-bit PNG).
+  std::string_view format;
+  std::span<const uint8_t> data;
+};
+
+/// A decoded image that owns its bytes (`view` points into `bytes`); move it, never copy it.
+struct OwnedImage {
+  std::vector<uint8_t> bytes;
+  ImageView view;
+  OwnedImage() = default;
+  OwnedImage(OwnedImage&&) = default;
+  OwnedImage& operator=(OwnedImage&&) = default;
+  OwnedImage(const OwnedImage&) = delete;
+  OwnedImage& operator=(const OwnedImage&) = delete;
+};
+
+/// True for the compressed colour formats read: a JPEG or PNG (not compressedDepth).
+bool isCompressedColorFormat(std::string_view format);
+/// True for compressedDepth formats (whether their compression is read or not: RVL is refused
+/// when decoded, with a message that says so).
+bool isCompressedDepthFormat(std::string_view format);
+
+/// The colour image in a JPEG or PNG CompressedImage. @throw DataError or FormatError naming
+/// `source` for another compression or a corrupt file.
+ImageRgb compressedColorImage(const CompressedView& image, const std::string& source);
+
+/// The depth image in a compressedDepth CompressedImage, as a little-endian 16UC1 image (its
+/// units as written) or, for 32FC1, metres from the inverse-depth quantisation (a stored value
+/// v is depth A / (v - B), with A and B from the header; 0 is no measurement, NaN).
+/// @throw DataError or FormatError naming `source`.
+OwnedImage compressedDepthImage(const CompressedView& image, const std::string& source);
+
 /// True for the depth encodings read (16UC1, 32FC1, and "mono16" as some drivers write 16UC1).
 bool isDepthEncoding(std::string_view encoding);
 /// True for the colour encodings read (rgb8, bgr8, mono8, rgba8, bgra8).

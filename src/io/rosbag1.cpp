@@ -9,6 +9,7 @@
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 #include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/CompressedImage.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <tf2_msgs/TFMessage.h>
@@ -56,6 +57,7 @@ struct RosAllocator {
   }
 };
 using Image = sensor_msgs::Image_<RosAllocator<void>>;
+using CompressedImage = sensor_msgs::CompressedImage_<RosAllocator<void>>;
 using CameraInfo = sensor_msgs::CameraInfo_<RosAllocator<void>>;
 using PointCloud2 = sensor_msgs::PointCloud2_<RosAllocator<void>>;
 using TFMessage = tf2_msgs::TFMessage_<RosAllocator<void>>;
@@ -93,6 +95,11 @@ bag::TopicMap topicsOf(const rosbag::Bag& bag) {
     if (info.type == bag::kImage && info.messages > 0) {
       if (auto im = view.begin()->instantiate<Image>()) {
         info.encoding = text(im->encoding);
+        info.frame_id = text(im->header.frame_id);
+      }
+    } else if (info.type == bag::kCompressedImage && info.messages > 0) {
+      if (auto im = view.begin()->instantiate<CompressedImage>()) {
+        info.encoding = text(im->format);
         info.frame_id = text(im->header.frame_id);
       }
     }
@@ -163,10 +170,18 @@ class RosBagDataset : public bag::BagDataset {
   }
 
  protected:
-  bag::ImageMessage image(uint64_t message) const override {
+  bag::ImageMessage image(uint64_t message, bool compressed) const override {
+    if (compressed) {
+      const auto im = instantiate<CompressedImage>(message);
+      return {{},
+              rosmsg::CompressedView{std::string_view(im->format),
+                                     std::span<const uint8_t>(im->data.data(), im->data.size())},
+              std::shared_ptr<const void>(im)};
+    }
     const auto im = instantiate<Image>(message);
     return {{im->height, im->width, std::string_view(im->encoding), im->is_bigendian != 0, im->step,
              std::span<const uint8_t>(im->data.data(), im->data.size())},
+            std::nullopt,
             std::shared_ptr<const void>(im)};
   }
 
@@ -229,9 +244,13 @@ class RosBagDataset : public bag::BagDataset {
     for (const rosbag::MessageInstance& m : rosbag::View(bag_, rosbag::TopicQuery(wanted))) {
       const std::string& topic = m.getTopic();
       if (topic == frames_topic) {
-        cloud ? addStamped<PointCloud2>(g.depths, m) : addStamped<Image>(g.depths, m);
+        if (cloud) {
+          addStamped<PointCloud2>(g.depths, m);
+        } else {
+          t.depth_compressed ? addStamped<CompressedImage>(g.depths, m) : addStamped<Image>(g.depths, m);
+        }
       } else if (topic == t.color) {
-        addStamped<Image>(g.colors, m);
+        t.color_compressed ? addStamped<CompressedImage>(g.colors, m) : addStamped<Image>(g.colors, m);
       } else if (topic == t.pose) {
         addPose(*g.track, m, path_);
       } else if (topic == "/tf" || topic == "/tf_static") {

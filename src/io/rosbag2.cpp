@@ -355,13 +355,20 @@ void requireCdr(const Incoming& m, const fs::path& file) {
 /// The topics with their ROS 1 type names and, for images, the first message's encoding.
 bag::TopicMap topicMap(MessageStore& store, const fs::path& file, std::map<std::string, std::string>* ros2_types) {
   bag::TopicMap out;
-  const auto topics = store.topics({"sensor_msgs/msg/Image"}, [&](const Incoming& m) {
-    if (m.encoding != "cdr") return;
-    const auto im = cdr::image(m.data, file.string() + ": " + m.topic);
-    auto& info = out[m.topic];
-    info.encoding = std::string(im.view.encoding);
-    info.frame_id = bag::frameName(im.header.frame_id);
-  });
+  const auto topics =
+      store.topics({"sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage"}, [&](const Incoming& m) {
+        if (m.encoding != "cdr") return;
+        auto& info = out[m.topic];
+        if (m.type == "sensor_msgs/msg/CompressedImage") {
+          const auto im = cdr::compressedImage(m.data, file.string() + ": " + m.topic);
+          info.encoding = std::string(im.view.format);
+          info.frame_id = bag::frameName(im.header.frame_id);
+        } else {
+          const auto im = cdr::image(m.data, file.string() + ": " + m.topic);
+          info.encoding = std::string(im.view.encoding);
+          info.frame_id = bag::frameName(im.header.frame_id);
+        }
+      });
   for (const auto& [name, entry] : topics) {
     auto& info = out[name];
     info.type = ros1Type(entry.first);
@@ -430,10 +437,11 @@ class Ros2BagDataset : public bag::BagDataset {
   }
 
  protected:
-  bag::ImageMessage image(uint64_t message) const override {
+  bag::ImageMessage image(uint64_t message, bool compressed) const override {
     auto bytes = store_->message(message);
-    const auto im = cdr::image(bytes.data, file_.string() + ": message " + std::to_string(message));
-    return {im.view, bytes.owner};
+    const std::string source = file_.string() + ": message " + std::to_string(message);
+    if (compressed) return {{}, cdr::compressedImage(bytes.data, source).view, bytes.owner};
+    return {cdr::image(bytes.data, source).view, std::nullopt, bytes.owner};
   }
   bag::CloudMessage cloud(uint64_t message) const override {
     auto bytes = store_->message(message);

@@ -9,8 +9,10 @@ Every bag holds the folder's frames with the header stamps of depth.txt; what di
 (see the table in main()). Depth stays in the TUM PNG's units (5000 per metre) in 16UC1 bags,
 so the tests read them with --depth-scale 5000 and get the TUM reader's numbers exactly.
 """
+import io
 import math
 import os
+import struct
 import sys
 
 import numpy as np
@@ -19,7 +21,7 @@ import genpy
 from PIL import Image as PilImage
 from geometry_msgs.msg import PoseStamped, TransformStamped
 from nav_msgs.msg import Odometry
-from sensor_msgs.msg import CameraInfo, Image, PointCloud2, PointField
+from sensor_msgs.msg import CameraInfo, CompressedImage, Image, PointCloud2, PointField
 from tf2_msgs.msg import TFMessage
 
 
@@ -81,7 +83,10 @@ def load(tum):
     for t, name in depths:
         depth = np.array(PilImage.open(os.path.join(tum, name))).astype(np.uint16)
         rgb = np.array(PilImage.open(os.path.join(tum, colors[t])).convert('RGB')).astype(np.uint8)
-        frames.append({'text': t, 'stamp': stamp_of(t), 'depth': depth, 'rgb': rgb, 'pose': poses[t]})
+        frames.append({'text': t, 'stamp': stamp_of(t), 'depth': depth, 'rgb': rgb, 'pose': poses[t],
+                       # the PNG files themselves, for the CompressedImage bags (lossless: the same map)
+                       'depth_png': open(os.path.join(tum, name), 'rb').read(),
+                       'rgb_png': open(os.path.join(tum, colors[t]), 'rb').read()})
     return intr, frames
 
 
@@ -99,6 +104,25 @@ def image(stamp, frame, array, encoding):
     m.step = array.strides[0]
     m.data = array.tobytes()
     return m
+
+
+def compressed(stamp, frame, fmt, data):
+    """sensor_msgs/CompressedImage as image_transport's plugins write it."""
+    m = header(CompressedImage(), stamp, frame)
+    m.format = fmt
+    m.data = data
+    return m
+
+
+# compressedDepth's header before its PNG: the compression (0) and two quantisation floats,
+# unused for 16UC1.
+DEPTH_HEADER = struct.pack('<iff', 0, 0.0, 0.0)
+
+
+def jpeg(rgb):
+    out = io.BytesIO()
+    PilImage.fromarray(rgb, 'RGB').save(out, format='JPEG', quality=90)
+    return out.getvalue()
 
 
 def info(stamp, frame, intr, shape):
@@ -153,7 +177,7 @@ TF_OFFSET_NS = 10_000_000  # /tf samples 10 ms before and after each frame
 
 
 def write(path, intr, frames, compression='none', pose='pose_stamped', depth='16UC1', color='rgb8',
-          drop_pose=(), nan_rows=0, points=False, extra_depth=False):
+          drop_pose=(), nan_rows=0, points=False, extra_depth=False, both_colors=False):
     bag = rosbag.Bag(path, 'w', compression=compression)
     camera = 'camera_depth_optical_frame'
     try:
@@ -168,6 +192,9 @@ def write(path, intr, frames, compression='none', pose='pose_stamped', depth='16
             else:
                 if depth == '16UC1':
                     bag.write('/camera/depth/image_raw', image(s, camera, f['depth'], '16UC1'), s)
+                elif depth == 'compressedDepth':
+                    bag.write('/camera/depth/image_raw/compressedDepth',
+                              compressed(s, camera, '16UC1; compressedDepth png', DEPTH_HEADER + f['depth_png']), s)
                 else:
                     metres = (f['depth'].astype(np.float32) / np.float32(5000.0)).astype('<f4')
                     metres[metres == 0] = np.nan
@@ -176,8 +203,16 @@ def write(path, intr, frames, compression='none', pose='pose_stamped', depth='16
                 if extra_depth:
                     bag.write('/camera2/depth/image_raw', image(s, camera, f['depth'], '16UC1'), s)
                 bag.write('/camera/depth/camera_info', info(s, camera, intr, f['depth'].shape), s)
-                rgb = f['rgb'] if color == 'rgb8' else np.ascontiguousarray(f['rgb'][:, :, ::-1])
-                bag.write('/camera/rgb/image_raw', image(s, 'camera_rgb_optical_frame', rgb, color), s)
+                rgb_frame = 'camera_rgb_optical_frame'
+                if color in ('png', 'jpeg'):
+                    data = f['rgb_png'] if color == 'png' else jpeg(f['rgb'])
+                    bag.write('/camera/rgb/image_raw/compressed',
+                              compressed(s, rgb_frame, 'rgb8; %s compressed bgr8' % color, data), s)
+                if color != 'png' and color != 'jpeg' or both_colors:
+                    # raw colour (beside the compressed transport when both_colors)
+                    raw = color if color in ('rgb8', 'bgr8') else 'rgb8'
+                    rgb = f['rgb'] if raw == 'rgb8' else np.ascontiguousarray(f['rgb'][:, :, ::-1])
+                    bag.write('/camera/rgb/image_raw', image(s, rgb_frame, rgb, raw), s)
             if i in drop_pose:
                 continue
             if pose == 'pose_stamped':
@@ -277,7 +312,7 @@ def write_seeds(out):
     intr = (8.0, 8.0, 3.5, 2.5)
     for name, options in {'none.bag': {}, 'bz2.bag': dict(compression='bz2'), 'lz4.bag': dict(compression='lz4'),
                           'tf.bag': dict(pose='tf'), 'float.bag': dict(depth='32FC1', color='bgr8'),
-                          'points.bag': dict(points=True, pose='odometry')}.items():
+                          'points.bag': dict(points=True, pose='odometry'), 'jpeg.bag': dict(color='jpeg')}.items():
         write(os.path.join(out, name), intr, frames, **options)
 
 
@@ -305,6 +340,11 @@ def main():
         'points.bag': dict(points=True),
         'two_depths.bag': dict(extra_depth=True),
         'no_pose.bag': dict(pose='none'),
+        # sensor_msgs/CompressedImage: compressedDepth and PNG colour (lossless), JPEG colour,
+        # and JPEG colour beside the raw topic (the raw one is read)
+        'compressed_png.bag': dict(depth='compressedDepth', color='png', compression='lz4'),
+        'compressed_jpeg.bag': dict(color='jpeg'),
+        'raw_and_jpeg.bag': dict(color='jpeg', both_colors=True),
     }
     only = sys.argv[3:]
     for name, options in bags.items():

@@ -18,7 +18,10 @@
 #include "chronomap/io/dataset.h"
 #include "chronomap/io/rosbag.h"
 #include "chronomap/pipeline/session.h"
+#include "chronomap/io/jpeg.h"
+#include "chronomap/io/png.h"
 #include "io/cdr.h"
+#include "io/ros_messages.h"
 #include "io/mcap.h"
 #include "bag_fixture.h"
 #include "db3_writer.h"
@@ -121,6 +124,23 @@ TEST_F(Ros2BagTest, PoseTopicBagsGiveTheTumFoldersMapByteForByte) {
     EXPECT_EQ(dataset->framesDropped(), 0u);
     EXPECT_TRUE(mapBytes(bag(name), bagSettings()) == expected);
   }
+}
+
+// sensor_msgs/CompressedImage: compressedDepth (a 12-byte header and the TUM folder's 16-bit
+// PNG) and PNG colour (the folder's file) are lossless, so the map is the folder's, byte for byte;
+// the CameraInfo is found beside the transports' base topics.
+TEST_F(Ros2BagTest, CompressedImageTopicsGiveTheTumFoldersMapByteForByte) {
+  const std::vector<BagTopic> topics = listBag(bag("compressed.mcap"));
+  ASSERT_EQ(topics.size(), 4u);
+  EXPECT_EQ(topics[1].name, "/camera/depth/image_raw/compressedDepth");
+  EXPECT_EQ(topics[1].type, "sensor_msgs/msg/CompressedImage");
+  EXPECT_EQ(topics[1].encoding, "16UC1; compressedDepth png");
+  EXPECT_EQ(topics[2].name, "/camera/rgb/image_raw/compressed");
+  EXPECT_EQ(topics[2].encoding, "rgb8; png compressed bgr8");
+  const auto dataset = openDataset(bag("compressed.mcap"), bagSettings());
+  EXPECT_EQ(dataset->size(), 32u);
+  EXPECT_EQ(dataset->framesDropped(), 0u);
+  EXPECT_TRUE(mapBytes(bag("compressed.mcap"), bagSettings()) == mapBytes(tum(), {}));
 }
 
 TEST_F(Ros2BagTest, FramesMatchTheTumReadersAndAFrameDecodesTheSameFromEveryStorage) {
@@ -514,6 +534,120 @@ TEST(Cdr, TruncatedAndForeignMessagesAreFormatErrors) {
   str.put<uint32_t>(3);
   str.bytes.insert(str.bytes.end(), {'a', 'b', 'c'});  // no terminating NUL
   EXPECT_THROW(cdr::header(str.bytes, "h"), FormatError);
+}
+
+// ---------------------------------------------------------------- CompressedImage, analytic
+
+/// The bytes of a PNG file of `image`.
+template <class Image>
+std::vector<uint8_t> pngBytes(const Image& image) {
+  test::TempDir tmp;
+  writePng(tmp / "x.png", image);
+  return test::bytesOf(tmp / "x.png");
+}
+
+/// compressedDepth's 12-byte header (compression 0, quantisation A and B) before `png`.
+std::vector<uint8_t> compressedDepth(const std::vector<uint8_t>& png, float a = 0.0f, float b = 0.0f) {
+  std::vector<uint8_t> out(12, 0);
+  std::memcpy(out.data() + 4, &a, 4);
+  std::memcpy(out.data() + 8, &b, 4);
+  out.insert(out.end(), png.begin(), png.end());
+  return out;
+}
+
+TEST(CompressedImage, FormatsAreToldApart) {
+  for (const char* f : {"jpeg", "png", "rgb8; jpeg compressed bgr8", "bgr8; png compressed bgr8", "JPEG"}) {
+    EXPECT_TRUE(rosmsg::isCompressedColorFormat(f)) << f;
+    EXPECT_FALSE(rosmsg::isCompressedDepthFormat(f)) << f;
+  }
+  for (const char* f : {"16UC1; compressedDepth", "16UC1; compressedDepth png", "32FC1; compressedDepth",
+                        "16UC1; compressedDepth rvl"}) {
+    EXPECT_TRUE(rosmsg::isCompressedDepthFormat(f)) << f;
+    EXPECT_FALSE(rosmsg::isCompressedColorFormat(f)) << f;
+  }
+  EXPECT_FALSE(rosmsg::isCompressedColorFormat("webp"));
+}
+
+// 16UC1: the PNG's numbers as they are; 32FC1: the inverse-depth quantisation undone,
+// depth = A / (v - B), with 0 as no measurement.
+TEST(CompressedImage, DepthDecodesToTheWrittenUnitsAndTheQuantisedMetres) {
+  const ImageU16 units{3, 2, {0, 1000, 2000, 3000, 65535, 7}};
+  const auto png = pngBytes(units);
+  const auto bytes = compressedDepth(png);
+  rosmsg::OwnedImage d16 = rosmsg::compressedDepthImage({"16UC1; compressedDepth png", bytes}, "t");
+  EXPECT_EQ(d16.view.encoding, "16UC1");
+  ASSERT_EQ(d16.view.width, 3u);
+  ASSERT_EQ(d16.view.height, 2u);
+  EXPECT_EQ(d16.view.step, 6u);
+  for (size_t i = 0; i < units.pixels.size(); ++i) {
+    uint16_t v = 0;
+    std::memcpy(&v, d16.view.data.data() + 2 * i, 2);
+    EXPECT_EQ(v, units.pixels[i]) << i;
+  }
+  const PointCloud cloud = rosmsg::depthCloud(d16.view, nullptr, {1, 1, 0, 0}, 1000.0, "t");
+  EXPECT_TRUE(std::isnan(cloud.points[0].z()));
+  EXPECT_FLOAT_EQ(cloud.points[1].z(), 1.0f);
+
+  const float a = 10100.0f, b = -1009.0f;  // image_transport's defaults: quantisation 100, 10 m
+  const rosmsg::OwnedImage d32 = rosmsg::compressedDepthImage({"32FC1; compressedDepth", compressedDepth(png, a, b)}, "t");
+  EXPECT_EQ(d32.view.encoding, "32FC1");
+  EXPECT_EQ(d32.view.step, 12u);
+  for (size_t i = 0; i < units.pixels.size(); ++i) {
+    float m = 0.0f;
+    std::memcpy(&m, d32.view.data.data() + 4 * i, 4);
+    if (units.pixels[i] == 0) {
+      EXPECT_TRUE(std::isnan(m));
+    } else {
+      EXPECT_FLOAT_EQ(m, a / (static_cast<float>(units.pixels[i]) - b)) << i;
+    }
+  }
+  // Moving the decoded image keeps its view on its bytes.
+  const rosmsg::OwnedImage moved = std::move(d16);
+  EXPECT_EQ(moved.view.data.data(), moved.bytes.data());
+}
+
+TEST(CompressedImage, ColourDecodesFromJpegAndPng) {
+  ImageRgb rgb{4, 2, std::vector<Rgb>(8)};
+  for (size_t i = 0; i < 8; ++i) rgb.pixels[i] = {static_cast<uint8_t>(120 + 4 * i), 100, static_cast<uint8_t>(80 - 4 * i)};
+  const auto png = pngBytes(rgb);
+  const ImageRgb from_png = rosmsg::compressedColorImage({"rgb8; png compressed bgr8", png}, "t");
+  EXPECT_TRUE(from_png.pixels == rgb.pixels);
+  const auto jpeg = encodeJpeg(rgb, {95});
+  const ImageRgb from_jpeg = rosmsg::compressedColorImage({"jpeg", jpeg}, "t");
+  ASSERT_EQ(from_jpeg.width, 4u);
+  ASSERT_EQ(from_jpeg.height, 2u);
+  // JPEG's loss: chroma is averaged over 2 x 2 pixels, so single pixels move by up to a dozen
+  // units where the colour varies, the image's mean colour by very little.
+  double mean_error[3] = {0.0, 0.0, 0.0};
+  for (size_t i = 0; i < 8; ++i) {
+    EXPECT_NEAR(from_jpeg.pixels[i].r, rgb.pixels[i].r, 16) << i;
+    EXPECT_NEAR(from_jpeg.pixels[i].g, rgb.pixels[i].g, 16) << i;
+    EXPECT_NEAR(from_jpeg.pixels[i].b, rgb.pixels[i].b, 16) << i;
+    mean_error[0] += (from_jpeg.pixels[i].r - rgb.pixels[i].r) / 8.0;
+    mean_error[1] += (from_jpeg.pixels[i].g - rgb.pixels[i].g) / 8.0;
+    mean_error[2] += (from_jpeg.pixels[i].b - rgb.pixels[i].b) / 8.0;
+  }
+  for (double e : mean_error) EXPECT_LT(std::abs(e), 3.0);
+}
+
+TEST(CompressedImage, OtherCompressionsAndBrokenDataAreOneLineErrors) {
+  const auto png = pngBytes(ImageU16{2, 2, {1, 2, 3, 4}});
+  const auto bytes = compressedDepth(png);
+  EXPECT_EQ(messageOf<DataError>([&] { rosmsg::compressedDepthImage({"16UC1; compressedDepth rvl", bytes}, "/d"); }),
+            "/d: compressedDepth with RVL compression ('16UC1; compressedDepth rvl') is not read (PNG only)");
+  EXPECT_THROW(rosmsg::compressedDepthImage({"8UC3; compressedDepth", bytes}, "/d"), DataError);
+  EXPECT_THROW(rosmsg::compressedDepthImage({"rgb8; jpeg compressed bgr8", bytes}, "/d"), DataError);
+  EXPECT_THROW(rosmsg::compressedDepthImage({"16UC1; compressedDepth", png}, "/d"), FormatError);  // no header
+  const std::vector<uint8_t> cut(bytes.begin(), bytes.begin() + static_cast<long>(bytes.size() / 2));
+  EXPECT_THROW(rosmsg::compressedDepthImage({"16UC1; compressedDepth", cut}, "/d"), Error);
+  EXPECT_THROW(rosmsg::compressedDepthImage({"32FC1; compressedDepth", compressedDepth(png, 0.0f, 1.0f)}, "/d"),
+               FormatError);
+  EXPECT_THROW(rosmsg::compressedColorImage({"16UC1; compressedDepth", bytes}, "/c"), DataError);
+  const std::vector<uint8_t> webp{'R', 'I', 'F', 'F', 0, 0, 0, 0, 'W', 'E', 'B', 'P'};
+  EXPECT_EQ(messageOf<DataError>([&] { rosmsg::compressedColorImage({"webp", webp}, "/c"); }),
+            "/c: compressed image of format 'webp' is neither a JPEG nor a PNG (the compressions read)");
+  const std::vector<uint8_t> half_png(png.begin(), png.begin() + static_cast<long>(png.size() / 2));
+  EXPECT_THROW(rosmsg::compressedColorImage({"png", half_png}, "/c"), Error);
 }
 
 // Found by fuzz_cdr: a cloud of 4 billion rows of width 0 (fits any data: 0 bytes) walked every

@@ -64,6 +64,42 @@ TEST_F(RosBagTest, PoseTopicBagsGiveTheTumFoldersMapByteForByte) {
   }
 }
 
+// sensor_msgs/CompressedImage, as image_transport records it: compressedDepth with PNG colour is
+// lossless (the folder's map, byte for byte); JPEG colour keeps every point and moves colours by
+// JPEG's loss only; beside the raw colour topic, its compressed transport is not a second
+// candidate (the raw one is read).
+TEST_F(RosBagTest, CompressedImageTopicsAreReadAsImageTransportWritesThem) {
+  const auto expected = mapBytes(tum(), {});
+  const std::vector<BagTopic> topics = listBag(bag("compressed_png.bag"));
+  ASSERT_EQ(topics.size(), 4u);
+  EXPECT_EQ(topics[1].name, "/camera/depth/image_raw/compressedDepth");
+  EXPECT_EQ(topics[1].type, "sensor_msgs/CompressedImage");
+  EXPECT_EQ(topics[1].encoding, "16UC1; compressedDepth png");
+  EXPECT_EQ(topics[2].name, "/camera/rgb/image_raw/compressed");
+  EXPECT_EQ(topics[2].encoding, "rgb8; png compressed bgr8");
+  EXPECT_TRUE(mapBytes(bag("compressed_png.bag"), bagSettings()) == expected);
+  EXPECT_TRUE(mapBytes(bag("raw_and_jpeg.bag"), bagSettings()) == expected);
+
+  const auto from_tum = openDataset(tum());
+  const auto from_jpeg = openDataset(bag("compressed_jpeg.bag"), bagSettings());
+  ASSERT_EQ(from_jpeg->size(), from_tum->size());
+  double error = 0.0;
+  size_t n = 0;
+  for (size_t i = 0; i < from_tum->size(); i += 10) {
+    const Frame a = from_tum->load(i), b = from_jpeg->load(i);
+    ASSERT_EQ(a.cloud.size(), b.cloud.size());
+    EXPECT_EQ(std::memcmp(a.cloud.points.data(), b.cloud.points.data(), a.cloud.size() * sizeof(a.cloud.points[0])), 0);
+    ASSERT_EQ(a.cloud.colors.size(), b.cloud.colors.size());
+    for (size_t p = 0; p < a.cloud.colors.size(); ++p, ++n) {
+      error += std::abs(a.cloud.colors[p].r - b.cloud.colors[p].r) + std::abs(a.cloud.colors[p].g - b.cloud.colors[p].g) +
+               std::abs(a.cloud.colors[p].b - b.cloud.colors[p].b);
+    }
+  }
+  ASSERT_GT(n, 0u);
+  EXPECT_LT(error / (3.0 * static_cast<double>(n)), 8.0);  // mean error per channel, 8-bit units, JPEG at quality 90
+  EXPECT_GT(error, 0.0);                                    // it was the JPEG that was read
+}
+
 TEST_F(RosBagTest, FramesMatchTheTumReadersFrames) {
   const auto from_tum = openDataset(tum());
   const auto from_bag = openDataset(bag("pose_lz4.bag"), bagSettings());

@@ -35,6 +35,7 @@ const DEFS = {
   "sensor_msgs/msg/Image":
     "std_msgs/Header header\nuint32 height\nuint32 width\nstring encoding\nuint8 is_bigendian\nuint32 step\nuint8[] data" +
     TIME_HEADER,
+  "sensor_msgs/msg/CompressedImage": "std_msgs/Header header\nstring format\nuint8[] data" + TIME_HEADER,
   "sensor_msgs/msg/CameraInfo":
     "std_msgs/Header header\nuint32 height\nuint32 width\nstring distortion_model\nfloat64[] d\nfloat64[9] k\n" +
     "float64[9] r\nfloat64[12] p\nuint32 binning_x\nuint32 binning_y\nsensor_msgs/RegionOfInterest roi" +
@@ -111,6 +112,39 @@ function readPng(file) {
   return { width, height, depth, channels, data: out };
 }
 
+/// A PNG file of raw samples (no filter): 8-bit RGB (type 2) or 16-bit grey (type 0, big-endian
+/// samples), for the fuzz targets' CompressedImage seeds.
+function makePng(width, height, bitDepth, colorType, samples) {
+  const crcTable = Array.from({ length: 256 }, (_, n) => {
+    let c = n;
+    for (let k = 0; k < 8; k++) c = c & 1 ? 0xedb88320 ^ (c >>> 1) : c >>> 1;
+    return c >>> 0;
+  });
+  const crc = (buf) => {
+    let c = 0xffffffff;
+    for (const b of buf) c = crcTable[(c ^ b) & 0xff] ^ (c >>> 8);
+    return (c ^ 0xffffffff) >>> 0;
+  };
+  const chunk = (kind, body) => {
+    const head = Buffer.alloc(8);
+    head.writeUInt32BE(body.length, 0);
+    head.write(kind, 4, "latin1");
+    const tail = Buffer.alloc(4);
+    tail.writeUInt32BE(crc(Buffer.concat([head.subarray(4), body])), 0);
+    return Buffer.concat([head, body, tail]);
+  };
+  const ihdr = Buffer.alloc(13);
+  ihdr.writeUInt32BE(width, 0);
+  ihdr.writeUInt32BE(height, 4);
+  ihdr[8] = bitDepth;
+  ihdr[9] = colorType;
+  const stride = samples.length / height;
+  const rows = [];
+  for (let y = 0; y < height; y++) rows.push(Buffer.from([0]), Buffer.from(samples.subarray(y * stride, (y + 1) * stride)));
+  return Buffer.concat([Buffer.from([0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a]), chunk("IHDR", ihdr),
+    chunk("IDAT", zlib.deflateSync(Buffer.concat(rows))), chunk("IEND", Buffer.alloc(0))]);
+}
+
 /// 16-bit grey as little-endian 16UC1 bytes.
 function depth16(png) {
   if (png.depth !== 16 || png.channels !== 1) throw new Error("depth PNG is not 16-bit grey");
@@ -163,6 +197,9 @@ function load(tum) {
       height: depth.height,
       depth: depth16(depth),
       rgb: rgb8(rgb),
+      // The PNG files themselves, for the CompressedImage bags (lossless: the same map).
+      depthPng: fs.readFileSync(path.join(tum, name)),
+      rgbPng: fs.readFileSync(path.join(tum, colors.get(t))),
       pose: [p.slice(0, 3), p.slice(3, 7)],
     };
   });
@@ -218,6 +255,11 @@ const info = (stamp, frame, [fx, fy, cx, cy], width, height) => ({
   binning_y: 0,
   roi: { x_offset: 0, y_offset: 0, height: 0, width: 0, do_rectify: false },
 });
+/// sensor_msgs/CompressedImage as image_transport's plugins write it: the compressed transport's
+/// PNG, and compressedDepth's 12-byte header (compression 0, two quantisation floats unused for
+/// 16UC1) before a 16-bit PNG.
+const compressed = (stamp, frame, format, data) => ({ header: header(stamp, frame), format, data });
+const depthHeader = Buffer.alloc(12);
 const point = ([x, y, z]) => ({ x, y, z });
 const quat = ([x, y, z, w]) => ({ x, y, z, w });
 const transform = (stamp, parent, child, [t, q]) => ({
@@ -281,7 +323,7 @@ const COMPRESSORS = {
   zstd: (data) => ({ compression: "zstd", compressedData: zstdCompress(data, 3) }),
 };
 
-async function write(file, intr, frames, { storage = "lz4", pose = "pose_stamped", summary = true, chunkSize = 64 * 1024, points = false, tfStatic = true } = {}) {
+async function write(file, intr, frames, { storage = "lz4", pose = "pose_stamped", summary = true, chunkSize = 64 * 1024, points = false, tfStatic = true, compressedImages = false } = {}) {
   const sink = new Sink();
   const chunked = storage !== "unchunked";
   const writer = new McapWriter({
@@ -316,6 +358,12 @@ async function write(file, intr, frames, { storage = "lz4", pose = "pose_stamped
     const s = f.stamp;
     if (points) {
       await publish("/camera/depth/points", "sensor_msgs/msg/PointCloud2", cloud(s, camera, f, intr), s);
+    } else if (compressedImages) {
+      await publish("/camera/depth/image_raw/compressedDepth", "sensor_msgs/msg/CompressedImage",
+        compressed(s, camera, "16UC1; compressedDepth png", Buffer.concat([depthHeader, f.depthPng])), s);
+      await publish("/camera/depth/camera_info", "sensor_msgs/msg/CameraInfo", info(s, camera, intr, f.width, f.height), s);
+      await publish("/camera/rgb/image_raw/compressed", "sensor_msgs/msg/CompressedImage",
+        compressed(s, "camera_rgb_optical_frame", "rgb8; png compressed bgr8", f.rgbPng), s);
     } else {
       await publish("/camera/depth/image_raw", "sensor_msgs/msg/Image", image(s, camera, f.width, f.height, "16UC1", 2, f.depth), s);
       await publish("/camera/depth/camera_info", "sensor_msgs/msg/CameraInfo", info(s, camera, intr, f.width, f.height), s);
@@ -373,6 +421,11 @@ async function main() {
     seed("tf", 4, "tf2_msgs/msg/TFMessage", { transforms: [transform(s, "map", "cam", f.pose), transform(s, "odom", "base", f.pose)] });
     seed("odometry", 5, "nav_msgs/msg/Odometry", odometry(s, "cam", f.pose));
     seed("pose", 6, "geometry_msgs/msg/PoseStamped", { header: header(s, "map"), pose: { position: point(f.pose[0]), orientation: quat(f.pose[1]) } });
+    const bigEndian = Buffer.from(f.depth);
+    for (let i = 0; i < bigEndian.length; i += 2) [bigEndian[i], bigEndian[i + 1]] = [bigEndian[i + 1], bigEndian[i]];
+    seed("compressed_color", 7, "sensor_msgs/msg/CompressedImage", compressed(s, "cam", "rgb8; png compressed bgr8", makePng(8, 6, 8, 2, f.rgb)));
+    seed("compressed_depth", 8, "sensor_msgs/msg/CompressedImage",
+      compressed(s, "cam", "16UC1; compressedDepth png", Buffer.concat([depthHeader, makePng(8, 6, 16, 0, bigEndian)])));
     return;
   }
   const [tum, out, ...only] = args;
@@ -388,6 +441,7 @@ async function main() {
     "odometry.mcap": { storage: "zstd", pose: "odometry" },
     "tf.mcap": { storage: "lz4", pose: "tf" },
     "points.mcap": { storage: "zstd", points: true },
+    "compressed.mcap": { storage: "lz4", compressedImages: true },
   };
   for (const [name, options] of Object.entries(bags)) {
     if (only.length === 0 || only.includes(name)) await write(path.join(out, name), intr, frames, options);
