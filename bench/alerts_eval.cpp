@@ -46,7 +46,7 @@ namespace fs = std::filesystem;
 namespace {
 
 struct Scored {
-  double score = 0, size = 0, count = 0;
+  double score = 0, own = 0, size = 0, count = 0;
   int label = -1;  // 1 rare, 0 routine, -1 matched no event or an event's undoing
   std::string what;
 };
@@ -122,7 +122,8 @@ int main(int argc, char** argv) {
   std::vector<Scored> scored;
   size_t unmatched = 0, undoing = 0, rare_events = 0, rare_found = 0;
   double alert_s = 0;
-  std::printf("| session | time | rank | score (bits) | voxels | kind | truth | reason |\n|---:|---|---:|---:|---:|---|---|---|\n");
+  std::printf("| session | time | rank | score (bits) | own (bits) | voxels | kind | truth | reason |\n"
+              "|---:|---|---:|---:|---:|---:|---|---|---|\n");
   for (size_t t : weeks.test) {
     const double time_s = weeks.times[t];
     const auto alert_started = std::chrono::steady_clock::now();
@@ -142,6 +143,7 @@ int main(int argc, char** argv) {
       const int ev = ci < truth.component_event.size() ? truth.component_event[ci] : -1;
       Scored s;
       s.score = a.score_bits;
+      s.own = a.own_score_bits;
       s.size = static_cast<double>(a.component.voxels);
       // Change count: the mean number of stored changes of its voxels within the history.
       double changes = 0;
@@ -173,8 +175,8 @@ int main(int argc, char** argv) {
       }
       s.what = label;
       scored.push_back(s);
-      std::printf("| %zu | %s | %zu | %.1f | %llu | %s | %s | %s |\n", t, formatTime(time_s).substr(5, 11).c_str(),
-                  rank + 1, a.score_bits, static_cast<unsigned long long>(a.component.voxels),
+      std::printf("| %zu | %s | %zu | %.1f | %.1f | %llu | %s | %s | %s |\n", t, formatTime(time_s).substr(5, 11).c_str(),
+                  rank + 1, a.score_bits, a.own_score_bits, static_cast<unsigned long long>(a.component.voxels),
                   toString(a.component.kind), label.c_str(), a.reason.c_str());
     }
     for (size_t i = 0; i < here.size(); ++i) rare_found += rare_seen[i];
@@ -205,6 +207,8 @@ int main(int argc, char** argv) {
                         {"rare_events_found", rare_found},
                         {"alerts_auc", auc(labelled, &Scored::score)},
                         {"alerts_precision_at_k", precisionAtK(labelled, &Scored::score, k)},
+                        {"alerts_auc_unpaired", auc(labelled, &Scored::own)},
+                        {"alerts_precision_at_k_unpaired", precisionAtK(labelled, &Scored::own, k)},
                         {"alerts_auc_size_only", auc(labelled, &Scored::size)},
                         {"alerts_precision_at_k_size_only", precisionAtK(labelled, &Scored::size, k)},
                         {"alerts_auc_count_only", auc(labelled, &Scored::count)},
@@ -220,6 +224,8 @@ int main(int argc, char** argv) {
   std::printf("| scoring | AUC rare vs routine | precision at k=%zu |\n|---|---:|---:|\n", k);
   std::printf("| unusualness | %.3f | %.3f |\n", out["alerts_auc"].get<double>(),
               out["alerts_precision_at_k"].get<double>());
+  std::printf("| unusualness, moves not paired | %.3f | %.3f |\n", out["alerts_auc_unpaired"].get<double>(),
+              out["alerts_precision_at_k_unpaired"].get<double>());
   std::printf("| size only | %.3f | %.3f |\n", out["alerts_auc_size_only"].get<double>(),
               out["alerts_precision_at_k_size_only"].get<double>());
   std::printf("| change count only | %.3f | %.3f |\n", out["alerts_auc_count_only"].get<double>(),
