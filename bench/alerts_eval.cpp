@@ -16,6 +16,8 @@
 //   --scale        image size of the simulation made here (default 0.25)
 //   --max-range    integration range, metres (default 3, as chronomap build)
 //   --out DIR      also write `chronomap alerts -o` output per test session (DIR/session_NN)
+//   --free-share S, --all-hours-observations K, --no-moves: AlertSettings other than the
+//                  defaults (to see what each rule does)
 //   --map FILE     keep the 4D map of every session there: read it when it exists, else build
 //                  and write it (the registered build takes most of the time)
 // Prints a table per scored object and, last, one JSON object (alerts_auc,
@@ -72,6 +74,9 @@ int main(int argc, char** argv) {
   int learn_days = 21;
   std::string poses = "registered";
   double scale = 0.25, max_range_m = 3.0;
+  AlertSettings defaults;
+  double free_share = defaults.free_share, all_hours = defaults.evidence.all_hours_observations;
+  bool pair_moves = defaults.moves.pair;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&] { return bench::argValue(i, argc, argv); };
@@ -82,9 +87,13 @@ int main(int argc, char** argv) {
     else if (a == "--max-range") max_range_m = std::stod(value());
     else if (a == "--out") out_dir = value();
     else if (a == "--map") map_file = value();
+    else if (a == "--free-share") free_share = std::stod(value());
+    else if (a == "--all-hours-observations") all_hours = std::stod(value());
+    else if (a == "--no-moves") pair_moves = false;
     else {
       std::fprintf(stderr, "usage: alerts_eval [--sim DIR] [--learn-days D] [--poses true|registered] [--scale S] "
-                           "[--max-range M] [--out DIR]\n");
+                           "[--max-range M] [--out DIR] [--map FILE] [--free-share S] [--all-hours-observations K] "
+                           "[--no-moves]\n");
       return 2;
     }
   }
@@ -119,6 +128,9 @@ int main(int argc, char** argv) {
 
   AlertSettings settings;
   settings.history_to_s = weeks.split_s;
+  settings.free_share = free_share;
+  settings.evidence.all_hours_observations = all_hours;
+  settings.moves.pair = pair_moves;
   std::vector<Scored> scored;
   size_t unmatched = 0, undoing = 0, rare_events = 0, rare_found = 0;
   double alert_s = 0;
@@ -196,6 +208,8 @@ int main(int argc, char** argv) {
   std::vector<Scored> every = scored;
   for (Scored& s : every) s.label = s.label == 1 ? 1 : 0;
   nlohmann::json out = {{"poses", poses},
+                        {"free_share", free_share},
+                        {"all_hours_observations", all_hours},
                         {"learn_sessions", weeks.learn.size()},
                         {"test_sessions", weeks.test.size()},
                         {"objects", scored.size()},

@@ -177,7 +177,7 @@ void AlertSettings::validate() const {
     throw UsageError("the alerts' neighbourhood must lie between 0 and 6 voxels");
   }
   if (max_voxels_per_object == 0) throw UsageError("at least one voxel per object must be scored");
-  if (!(free_share >= 0.0 && free_share < 0.5)) {
+  if (!(free_share >= 0.0 && free_share <= 0.5)) {
     throw UsageError("the share of a free space's voxels that may be occupied must lie in 0..0.5");
   }
   if (std::isnan(history_to_s)) throw UsageError("the end of the history must be a time");

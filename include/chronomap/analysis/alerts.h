@@ -87,7 +87,7 @@ struct AlertSettings {
   /// of it was occupied, and as free when at most this share was; in between it was partly
   /// occupied (the space shifted half off a box: part surface, part air) and says nothing
   /// either way. Default a quarter: a shifted copy of an object that stood still is near a half,
-  /// an object's own space when it is gone near none.
+  /// an object's own space when it is gone near none. 0.5: no band (every session counts).
   double free_share = 0.25;
   /// How the history's observations are weighed.
   EvidenceSettings evidence;
