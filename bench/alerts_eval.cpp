@@ -16,6 +16,8 @@
 //   --scale        image size of the simulation made here (default 0.25)
 //   --max-range    integration range, metres (default 3, as chronomap build)
 //   --out DIR      also write `chronomap alerts -o` output per test session (DIR/session_NN)
+//   --free-share S, --all-hours-observations K, --no-moves: AlertSettings other than the
+//                  defaults (to see what each rule does)
 //   --map FILE     keep the 4D map of every session there: read it when it exists, else build
 //                  and write it (the registered build takes most of the time)
 // Prints a table per scored object and, last, one JSON object (alerts_auc,
@@ -46,7 +48,7 @@ namespace fs = std::filesystem;
 namespace {
 
 struct Scored {
-  double score = 0, size = 0, count = 0;
+  double score = 0, own = 0, size = 0, count = 0;
   int label = -1;  // 1 rare, 0 routine, -1 matched no event or an event's undoing
   std::string what;
 };
@@ -72,6 +74,9 @@ int main(int argc, char** argv) {
   int learn_days = 21;
   std::string poses = "registered";
   double scale = 0.25, max_range_m = 3.0;
+  AlertSettings defaults;
+  double free_share = defaults.free_share, all_hours = defaults.evidence.all_hours_observations;
+  bool pair_moves = defaults.moves.pair;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&] { return bench::argValue(i, argc, argv); };
@@ -82,9 +87,13 @@ int main(int argc, char** argv) {
     else if (a == "--max-range") max_range_m = std::stod(value());
     else if (a == "--out") out_dir = value();
     else if (a == "--map") map_file = value();
+    else if (a == "--free-share") free_share = std::stod(value());
+    else if (a == "--all-hours-observations") all_hours = std::stod(value());
+    else if (a == "--no-moves") pair_moves = false;
     else {
       std::fprintf(stderr, "usage: alerts_eval [--sim DIR] [--learn-days D] [--poses true|registered] [--scale S] "
-                           "[--max-range M] [--out DIR]\n");
+                           "[--max-range M] [--out DIR] [--map FILE] [--free-share S] [--all-hours-observations K] "
+                           "[--no-moves]\n");
       return 2;
     }
   }
@@ -119,10 +128,14 @@ int main(int argc, char** argv) {
 
   AlertSettings settings;
   settings.history_to_s = weeks.split_s;
+  settings.free_share = free_share;
+  settings.evidence.all_hours_observations = all_hours;
+  settings.moves.pair = pair_moves;
   std::vector<Scored> scored;
   size_t unmatched = 0, undoing = 0, rare_events = 0, rare_found = 0;
   double alert_s = 0;
-  std::printf("| session | time | rank | score (bits) | voxels | kind | truth | reason |\n|---:|---|---:|---:|---:|---|---|---|\n");
+  std::printf("| session | time | rank | score (bits) | own (bits) | voxels | kind | truth | reason |\n"
+              "|---:|---|---:|---:|---:|---:|---|---|---|\n");
   for (size_t t : weeks.test) {
     const double time_s = weeks.times[t];
     const auto alert_started = std::chrono::steady_clock::now();
@@ -142,6 +155,7 @@ int main(int argc, char** argv) {
       const int ev = ci < truth.component_event.size() ? truth.component_event[ci] : -1;
       Scored s;
       s.score = a.score_bits;
+      s.own = a.own_score_bits;
       s.size = static_cast<double>(a.component.voxels);
       // Change count: the mean number of stored changes of its voxels within the history.
       double changes = 0;
@@ -173,8 +187,8 @@ int main(int argc, char** argv) {
       }
       s.what = label;
       scored.push_back(s);
-      std::printf("| %zu | %s | %zu | %.1f | %llu | %s | %s | %s |\n", t, formatTime(time_s).substr(5, 11).c_str(),
-                  rank + 1, a.score_bits, static_cast<unsigned long long>(a.component.voxels),
+      std::printf("| %zu | %s | %zu | %.1f | %.1f | %llu | %s | %s | %s |\n", t, formatTime(time_s).substr(5, 11).c_str(),
+                  rank + 1, a.score_bits, a.own_score_bits, static_cast<unsigned long long>(a.component.voxels),
                   toString(a.component.kind), label.c_str(), a.reason.c_str());
     }
     for (size_t i = 0; i < here.size(); ++i) rare_found += rare_seen[i];
@@ -194,6 +208,8 @@ int main(int argc, char** argv) {
   std::vector<Scored> every = scored;
   for (Scored& s : every) s.label = s.label == 1 ? 1 : 0;
   nlohmann::json out = {{"poses", poses},
+                        {"free_share", free_share},
+                        {"all_hours_observations", all_hours},
                         {"learn_sessions", weeks.learn.size()},
                         {"test_sessions", weeks.test.size()},
                         {"objects", scored.size()},
@@ -205,6 +221,8 @@ int main(int argc, char** argv) {
                         {"rare_events_found", rare_found},
                         {"alerts_auc", auc(labelled, &Scored::score)},
                         {"alerts_precision_at_k", precisionAtK(labelled, &Scored::score, k)},
+                        {"alerts_auc_unpaired", auc(labelled, &Scored::own)},
+                        {"alerts_precision_at_k_unpaired", precisionAtK(labelled, &Scored::own, k)},
                         {"alerts_auc_size_only", auc(labelled, &Scored::size)},
                         {"alerts_precision_at_k_size_only", precisionAtK(labelled, &Scored::size, k)},
                         {"alerts_auc_count_only", auc(labelled, &Scored::count)},
@@ -220,6 +238,8 @@ int main(int argc, char** argv) {
   std::printf("| scoring | AUC rare vs routine | precision at k=%zu |\n|---|---:|---:|\n", k);
   std::printf("| unusualness | %.3f | %.3f |\n", out["alerts_auc"].get<double>(),
               out["alerts_precision_at_k"].get<double>());
+  std::printf("| unusualness, moves not paired | %.3f | %.3f |\n", out["alerts_auc_unpaired"].get<double>(),
+              out["alerts_precision_at_k_unpaired"].get<double>());
   std::printf("| size only | %.3f | %.3f |\n", out["alerts_auc_size_only"].get<double>(),
               out["alerts_precision_at_k_size_only"].get<double>());
   std::printf("| change count only | %.3f | %.3f |\n", out["alerts_auc_count_only"].get<double>(),

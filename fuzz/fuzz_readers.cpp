@@ -15,6 +15,8 @@
 #include "chronomap/io/diff_file.h"
 #include "chronomap/align/consensus.h"
 #include "chronomap/align/realign.h"
+#include "chronomap/analysis/colour.h"
+#include "chronomap/analysis/rhythm.h"
 #include "chronomap/analysis/segment.h"
 #include "chronomap/io/dataset.h"
 #include "chronomap/io/jpeg.h"
@@ -207,6 +209,18 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
     }
     default: io::cdr::poseStamped(msg, name); break;
   }
+#elif defined(FUZZ_MODEL)
+  // Saved models: a .rhythm or a .colour (their magic tells them apart; both readers see every
+  // input). A colour model that reads must also predict.
+  try {
+    volatile size_t voxels = deserializeRhythm(bytes, name).voxels.size();
+    (void)voxels;
+  } catch (const Error&) {
+  }
+  const ColourModel m = deserializeColour(bytes, name);
+  volatile double c = m.predictMean(7.5)[0];
+  if (!m.keys.empty()) c = m.predict(m.keys.size() - 1, 23.9)[2];
+  (void)c;
 #else
 #error "define one FUZZ_* target"
 #endif

@@ -8,6 +8,8 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 
+#include "chronomap/analysis/colour.h"
+#include "chronomap/analysis/rhythm.h"
 #include "chronomap/io/cloud_io.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/file.h"
@@ -35,7 +37,27 @@ int main(int argc, char** argv) {
     return 2;
   }
   const fs::path root = argv[1];
-  for (const char* t : {"cmap", "pcd", "ply", "xyz", "png", "text", "bag", "rosmsg"}) fs::create_directories(root / t);
+  for (const char* t : {"cmap", "pcd", "ply", "xyz", "png", "text", "model", "bag", "rosmsg"}) {
+    fs::create_directories(root / t);
+  }
+  // Saved models (fuzz_model): a colour model of two voxels under one light, and an empty rhythm model.
+  {
+    ColourModel colour;
+    colour.components = 1;
+    colour.bins = 4;
+    colour.curves.assign(3 * 4, 0.5);
+    colour.keys = {VoxelKey{1, 2, 3}, VoxelKey{4, 5, 6}};
+    colour.weights = {100.0f, 50.0f, 20.0f, 10.0f, 200.0f, 30.0f};
+    colour.resolution_m = 0.05;
+    colour.from_s = 0.0;
+    colour.to_s = 86400.0;
+    colour.sessions = 2;
+    colour.observations = 4;
+    io::writeFileAtomic(root / "model/two.colour", serialize(colour));
+    RhythmModels rhythm;
+    rhythm.resolution_m = 0.05;
+    io::writeFileAtomic(root / "model/empty.rhythm", serialize(rhythm));
+  }
   // Message decoder heads (fuzz_readers.cpp, FUZZ_ROSMSG): 16UC1 depth 4 x 2, rgb8 colour 2 x 2,
   // a 2 x 1 cloud of 16-byte points; then their data.
   {

@@ -18,7 +18,7 @@ if ! command -v clang++ >/dev/null || [ ! -d /usr/lib/llvm-14/lib/clang ]; then
 fi
 cmake --preset fuzz >/dev/null
 # Only the fuzz targets and the modules they link (not the command line or the simulator).
-cmake --build --preset fuzz -j"$(nproc)" --target fuzz_cmap fuzz_pcd fuzz_ply fuzz_xyz fuzz_png fuzz_text fuzz_view fuzz_bag \
+cmake --build --preset fuzz -j"$(nproc)" --target fuzz_cmap fuzz_pcd fuzz_ply fuzz_xyz fuzz_png fuzz_text fuzz_model fuzz_view fuzz_bag \
   fuzz_rosmsg fuzz_mcap fuzz_cdr fuzz_db3 fuzz_make_seeds
 bin=build/fuzz/fuzz
 data="${CHRONOMAP_DATA_DIR:-../shared/data}"
@@ -64,7 +64,7 @@ fuzz_one() {
 }
 jobs="$(nproc)"
 rm -f build/fuzz/*.result
-targets=(cmap pcd ply xyz png text view bag rosmsg mcap cdr db3)
+targets=(cmap pcd ply xyz png text model view bag rosmsg mcap cdr db3)
 for target in "${targets[@]}"; do
   while [ "$(jobs -rp | wc -l)" -ge "$jobs" ]; do wait -n || true; done
   fuzz_one "$target" &

@@ -74,6 +74,7 @@ struct PredictCmdOptions {
   LearnFlags learn;
   bool colour = false;
   ColourSettings colour_settings;
+  std::string colour_in, colour_out;
   bool json = false;
 };
 
@@ -84,17 +85,27 @@ int runPredict(const PredictCmdOptions& o) {
   }
   std::vector<std::filesystem::path> inputs = {o.map};
   if (!o.learn.rhythm_in.empty()) inputs.emplace_back(o.learn.rhythm_in);
+  if (!o.colour_in.empty()) inputs.emplace_back(o.colour_in);
   io::refuseOverwritingInputs(o.output, inputs);
   if (!o.learn.rhythm_out.empty()) io::refuseOverwritingInputs(o.learn.rhythm_out, inputs);
+  if (!o.colour_out.empty()) io::refuseOverwritingInputs(o.colour_out, inputs);
+  const bool colour = o.colour || !o.colour_in.empty() || !o.colour_out.empty();
   const RhythmModel model = parseRhythmModel(o.learn.model);
   const double t = parseTime(o.at);
   const TemporalMap map = io::readTemporalMap(o.map);
   const RhythmModels models = pipeline::learnRhythm(map, learnSettings(o.learn));
   SessionMap predicted = predictMap(map, models, model, t);
   std::optional<ColourModel> colours;
-  if (o.colour) {
+  if (colour) {
     const pipeline::LearnSettings range = learnSettings(o.learn);
-    colours = fitColour(map, range.from_s, range.to_s, o.colour_settings);
+    pipeline::ColourLearnSettings c;
+    if (!o.colour_in.empty()) c.saved = o.colour_in;
+    if (!o.colour_out.empty()) c.save = o.colour_out;
+    c.from_s = range.from_s;
+    c.to_s = range.to_s;
+    c.range_given = range.range_given;
+    c.fit = o.colour_settings;
+    colours = pipeline::learnColour(map, c);
     predicted = recolour(predicted, *colours, t);
   }
   pipeline::ExportSettings settings;
@@ -123,6 +134,7 @@ int runPredict(const PredictCmdOptions& o) {
               << " session(s) from " << formatTime(models.from_s) << " to " << formatTime(models.to_s) << "; "
               << c.occupied_voxels << " occupied, " << c.free_voxels << " free voxels)\n";
     if (!o.learn.rhythm_out.empty()) std::cout << "wrote " << o.learn.rhythm_out << " (" << models.bytes() << " bytes)\n";
+    if (!o.colour_out.empty()) std::cout << "wrote " << o.colour_out << " (the colour model)\n";
   }
   return 0;
 }
@@ -216,6 +228,10 @@ Command addPredict(CLI::App& root) {
                   "light curves of the colour model (1: one light, albedo per voxel; 2: two lights mixed per voxel)")
       ->check(numberIn(1, 3))
       ->capture_default_str();
+  app->add_option("--colour-model,--color-model", o->colour_in,
+                  "predict colours with a model saved by --save-colour instead of fitting one (implies --colour)");
+  app->add_option("--save-colour,--save-color", o->colour_out,
+                  "also save the fitted colour model (.colour) for later use (implies --colour)");
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runPredict(*o); }};
 }

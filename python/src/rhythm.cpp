@@ -7,6 +7,7 @@
 #include "chronomap/analysis/colour.h"
 #include "chronomap/analysis/costmap.h"
 #include "chronomap/analysis/rhythm.h"
+#include "chronomap/io/colour_file.h"
 #include "chronomap/io/rhythm_file.h"
 
 namespace chronomap::python {
@@ -143,6 +144,22 @@ void bindRhythm(py::module_& m) {
           py::arg("map"), py::arg("from_time") = py::none(), py::arg("to_time") = py::none(), py::arg("components") = 2,
           "Fits the model to the sessions of `map` (a TemporalMap made with color_distance > 0) in [from_time, "
           "to_time] (None: all).")
+      .def_static(
+          "open",
+          [](const std::filesystem::path& path) {
+            py::gil_scoped_release release;
+            ColourModel model = io::readColourModel(path);
+            const double resolution_m = model.resolution_m;
+            return PyColourModel{std::move(model), resolution_m};
+          },
+          py::arg("path"), "Reads a model saved by save() or `chronomap predict --save-colour`.")
+      .def(
+          "save",
+          [](const PyColourModel& c, const std::filesystem::path& path) {
+            py::gil_scoped_release release;
+            io::writeColourModel(path, c.model);
+          },
+          py::arg("path"), "Writes the model (.colour), atomically.")
       .def("__len__", [](const PyColourModel& c) { return c.model.keys.size(); })
       .def_property_readonly("components", [](const PyColourModel& c) { return c.model.components; })
       .def_property_readonly("bytes", [](const PyColourModel& c) { return c.model.bytes(); },

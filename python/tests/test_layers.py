@@ -120,7 +120,7 @@ def test_rhythm_models_predict_and_costmap(tmp_path, before, after):
         chronomap.costmap(predicted, z_min_m=2.0, z_max_m=1.0)
 
 
-def test_colour_model_predicts_colours_by_hour():
+def test_colour_model_predicts_colours_by_hour(tmp_path):
     # An 8 x 8 wall under lamps (09:00, 13:00) and a warm sunset (19:00) for five days.
     light = {9: (0.8, 0.8, 0.75), 13: (1.0, 1.0, 1.0), 19: (0.9, 0.55, 0.3)}
     m = chronomap.TemporalMap(RESOLUTION_M, color_distance=4.0)
@@ -144,5 +144,12 @@ def test_colour_model_predicts_colours_by_hour():
     assert model.curves(12.0).shape == (2, 3)
     painted = model.recolour(m.snapshot(later), later)
     assert isinstance(painted, chronomap.SessionMap)
+    model.save(tmp_path / "wall.colour")
+    back = chronomap.ColourModel.open(tmp_path / "wall.colour")
+    assert len(back) == len(model) and back.bytes == model.bytes
+    assert np.array_equal(back.predict(points, later), p)
+    (tmp_path / "cut.colour").write_bytes((tmp_path / "wall.colour").read_bytes()[:-3])
+    with pytest.raises(chronomap.FormatError, match="truncated"):
+        chronomap.ColourModel.open(tmp_path / "cut.colour")
     with pytest.raises(chronomap.UsageError):
         chronomap.ColourModel.fit(chronomap.TemporalMap(RESOLUTION_M))

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
@@ -95,6 +96,80 @@ std::string reasonFor(const Alert& a, bool occupied_now, double time_s, double r
   return buf;
 }
 
+double colourDistance(const Rgb& a, const Rgb& b) {
+  const double dr = a.r - b.r, dg = a.g - b.g, db = a.b - b.b;
+  return std::sqrt(dr * dr + dg * dg + db * db);
+}
+
+/// How unlike two objects are, or nothing when they cannot be the halves of one move.
+std::optional<double> moveDissimilarity(const Component& gone, const Component& come, const MoveSettings& s) {
+  if (gone.kind != ChangeKind::Vanished || come.kind != ChangeKind::Appeared) return std::nullopt;
+  const double small = static_cast<double>(std::min(gone.voxels, come.voxels));
+  const double large = static_cast<double>(std::max(gone.voxels, come.voxels));
+  const double height = std::abs((gone.bbox_max_m.z() - gone.bbox_min_m.z()) - (come.bbox_max_m.z() - come.bbox_min_m.z()));
+  const double colour = colourDistance(gone.mean_color, come.mean_color);
+  if (small <= 0.0 || large > s.max_size_ratio * small || height > s.max_height_difference_m ||
+      colour > s.max_colour_distance) {
+    return std::nullopt;
+  }
+  // Each difference as a share of what it may be, summed: the likeliest pairs are matched first.
+  const double size = s.max_size_ratio > 1.0 ? std::log(large / small) / std::log(s.max_size_ratio) : 0.0;
+  const double h = s.max_height_difference_m > 0.0 ? height / s.max_height_difference_m : 0.0;
+  const double c = s.max_colour_distance > 0.0 ? colour / s.max_colour_distance : 0.0;
+  return size + h + c;
+}
+
+std::string place(const Eigen::Vector3d& p) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "(%.2f, %.2f, %.2f)", p.x(), p.y(), p.z());
+  return buf;
+}
+
+/// Joins the vanished and appeared objects that look alike into moves, the likeliest pairs first
+/// (each object in one move at most). A move is at most as likely as its less likely half (the
+/// largest joint probability its two halves allow, whatever ties them), so both halves get the
+/// larger score, and a reason that names the other half.
+void pairMoves(std::vector<Alert>& alerts, const MoveSettings& settings) {
+  struct Candidate {
+    double dissimilarity;
+    size_t gone, come;
+  };
+  std::vector<Candidate> candidates;
+  for (size_t i = 0; i < alerts.size(); ++i) {
+    for (size_t j = 0; j < alerts.size(); ++j) {
+      if (auto d = moveDissimilarity(alerts[i].component, alerts[j].component, settings)) {
+        candidates.push_back({*d, i, j});
+      }
+    }
+  }
+  std::stable_sort(candidates.begin(), candidates.end(),
+                   [](const Candidate& x, const Candidate& y) { return x.dissimilarity < y.dissimilarity; });
+  for (const Candidate& m : candidates) {
+    Alert& gone = alerts[m.gone];
+    Alert& come = alerts[m.come];
+    if (gone.moved_with != 0 || come.moved_with != 0) continue;
+    gone.moved_with = come.component.id;
+    come.moved_with = gone.component.id;
+    const double distance_m = (come.component.centroid_m - gone.component.centroid_m).norm();
+    char far[32];
+    std::snprintf(far, sizeof far, "%.1f m away at ", distance_m);
+    const bool come_decides = come.own_score_bits >= gone.own_score_bits;
+    const std::string gone_reason = gone.reason, come_reason = come.reason;
+    if (come_decides) {
+      gone.reason = "moved: it appeared " + std::string(far) + place(come.component.centroid_m) + ", where " + come_reason;
+      come.reason = "moved from " + std::string(far) + place(gone.component.centroid_m) + ": " + come_reason;
+    } else {
+      come.reason = "moved: it vanished " + std::string(far) + place(gone.component.centroid_m) + ", where " + gone_reason;
+      gone.reason = "moved to " + std::string(far) + place(come.component.centroid_m) + ": " + gone_reason;
+    }
+    const double bits = std::max(gone.own_score_bits, come.own_score_bits);
+    for (Alert* a : {&gone, &come}) {
+      a->score_bits = bits;
+      a->probability = std::exp2(-bits);
+    }
+  }
+}
+
 }  // namespace
 
 void AlertSettings::validate() const {
@@ -102,16 +177,39 @@ void AlertSettings::validate() const {
     throw UsageError("the alerts' neighbourhood must lie between 0 and 6 voxels");
   }
   if (max_voxels_per_object == 0) throw UsageError("at least one voxel per object must be scored");
+  if (!(free_share >= 0.0 && free_share <= 0.5)) {
+    throw UsageError("the share of a free space's voxels that may be occupied must lie in 0..0.5");
+  }
   if (std::isnan(history_to_s)) throw UsageError("the end of the history must be a time");
   diff.validate();
   segment.validate();
+  evidence.validate();
+  moves.validate();
+}
+
+void EvidenceSettings::validate() const {
+  if (!(other_kind_weight >= 0.0 && other_kind_weight <= 1.0)) {
+    throw UsageError("the weight of the other kind of day must lie between 0 and 1");
+  }
+  if (!(all_hours_observations > 0.0) || !std::isfinite(all_hours_observations)) {
+    throw UsageError("the strength of the all-hours evidence must be a positive number of observations");
+  }
+}
+
+void MoveSettings::validate() const {
+  if (!(max_size_ratio >= 1.0) || !std::isfinite(max_size_ratio)) {
+    throw UsageError("the size ratio of a move's halves must be a number of at least 1");
+  }
+  if (!(max_height_difference_m >= 0.0) || !std::isfinite(max_height_difference_m) || !(max_colour_distance >= 0.0) ||
+      !std::isfinite(max_colour_distance)) {
+    throw UsageError("a move's height and colour differences must be numbers of at least 0");
+  }
 }
 
 StateEvidence stateEvidence(const std::vector<double>& times_s, const std::vector<uint8_t>& occupied,
-                            bool occupied_now, double time_s) {
-  // Weights: the same kind of day within the window 1, the other kind within it 0.25, any other
-  // time 0.03; one pseudo-observation at the overall share (with half an observation added).
-  static constexpr double kOtherKind = 0.25, kOtherTime = 0.03, kPrior = 1.0;
+                            bool occupied_now, double time_s, const EvidenceSettings& settings) {
+  // The window's evidence shrunk towards the all-hours share (a Beta prior of strength
+  // all_hours_observations): few observations at the hour fall back to the space's whole history.
   StateEvidence e;
   const double hour = hourOfDay(time_s);
   const int kind = kindOfDay(time_s);
@@ -120,21 +218,19 @@ StateEvidence stateEvidence(const std::vector<double>& times_s, const std::vecto
     const bool match = (occupied[i] != 0) == occupied_now;
     ++e.observations;
     e.in_state += match;
-    const bool in_window = hourDistance(hourOfDay(times_s[i]), hour) <= kAlertWindow_h;
-    const bool same_kind = kindOfDay(times_s[i]) == kind;
-    double w = kOtherTime;
-    if (in_window && same_kind) {
+    if (hourDistance(hourOfDay(times_s[i]), hour) > kAlertWindow_h) continue;
+    double w = settings.other_kind_weight;
+    if (kindOfDay(times_s[i]) == kind) {
       w = 1.0;
       ++e.window_observations;
       e.window_in_state += match;
-    } else if (in_window) {
-      w = kOtherKind;
     }
     weight += w;
     in_state += w * match;
   }
-  const double prior = (e.in_state + 0.5) / (e.observations + 1.0);
-  e.probability = (in_state + kPrior * prior) / (weight + kPrior);
+  e.all_hours_probability = (e.in_state + 0.5) / (e.observations + 1.0);
+  const double k = settings.all_hours_observations;
+  e.probability = (in_state + k * e.all_hours_probability) / (weight + k);
   return e;
 }
 
@@ -228,8 +324,12 @@ AlertReport findAlerts(const TemporalMap& map, double time_s, const AlertSetting
       if (!inside) return out;
       for (size_t j = 0; j < history.times_s.size(); ++j) {
         if (4 * seen[j] < voxels.size() || seen[j] == 0) continue;
+        // Occupied from a half of what was seen, free up to free_share; in between the space
+        // was partly occupied (a copy shifted half off a box): no evidence either way.
+        const double share = static_cast<double>(occupied[j]) / static_cast<double>(seen[j]);
+        if (share < 0.5 && share > settings.free_share) continue;
         out.times_s.push_back(history.times_s[j]);
-        out.occupied.push_back(2 * occupied[j] >= seen[j] ? 1 : 0);
+        out.occupied.push_back(share >= 0.5 ? 1 : 0);
       }
       const auto n_occupied = std::count(out.occupied.begin(), out.occupied.end(), uint8_t{1});
       out.both_states = n_occupied > 0 && n_occupied < static_cast<long>(out.occupied.size());
@@ -238,7 +338,7 @@ AlertReport findAlerts(const TemporalMap& map, double time_s, const AlertSetting
     const Series own = objectSeries(0, 0);
     Alert a;
     a.component = c;
-    a.evidence = stateEvidence(own.times_s, own.occupied, occupied_now, t);
+    a.evidence = stateEvidence(own.times_s, own.occupied, occupied_now, t, settings.evidence);
     // The same shape nearby: where it stood at this time of day before, the change is ordinary.
     // A shifted copy counts when it was seen in both states within the window: in the new one
     // (it stood there at this hour) and in the old one (a space that is always free at this hour
@@ -248,7 +348,7 @@ AlertReport findAlerts(const TemporalMap& map, double time_s, const AlertSetting
         if (dx == 0 && dy == 0) continue;
         const Series shifted = objectSeries(dx, dy);
         if (!shifted.both_states) continue;
-        const StateEvidence e = stateEvidence(shifted.times_s, shifted.occupied, occupied_now, t);
+        const StateEvidence e = stateEvidence(shifted.times_s, shifted.occupied, occupied_now, t, settings.evidence);
         if (e.window_in_state == 0 || e.window_observations == e.window_in_state) continue;
         if (e.probability > a.evidence.probability) {
           a.evidence = e;
@@ -258,9 +358,11 @@ AlertReport findAlerts(const TemporalMap& map, double time_s, const AlertSetting
     }
     a.score_bits = -std::log2(std::max(a.evidence.probability, 1e-12));
     a.probability = std::exp2(-a.score_bits);
+    a.own_score_bits = a.score_bits;
     a.reason = reasonFor(a, occupied_now, t, map.resolution_m());
     report.alerts.push_back(std::move(a));
   }
+  if (settings.moves.pair) pairMoves(report.alerts, settings.moves);
   std::stable_sort(report.alerts.begin(), report.alerts.end(),
                    [](const Alert& x, const Alert& y) { return x.score_bits > y.score_bits; });
   return report;

@@ -1,6 +1,7 @@
 #include "chronomap/pipeline/rhythm.h"
 
 #include "chronomap/core/error.h"
+#include "chronomap/io/colour_file.h"
 #include "chronomap/io/map_server.h"
 #include "chronomap/io/png.h"
 #include "chronomap/io/rhythm_file.h"
@@ -18,6 +19,24 @@ RhythmModels learnRhythm(const TemporalMap& map, const LearnSettings& s) {
   RhythmModels models = fitRhythm(map, s.from_s, s.to_s, s.min_changes);
   if (s.save) io::writeRhythmModels(*s.save, models);
   return models;
+}
+
+ColourModel learnColour(const TemporalMap& map, const ColourLearnSettings& s) {
+  if (s.saved) {
+    if (s.range_given || s.save) {
+      throw UsageError("--colour-model reads a fitted model: it takes no --learn-from, --learn-to or --save-colour");
+    }
+    ColourModel model = io::readColourModel(*s.saved);
+    if (model.resolution_m != map.resolution_m()) {
+      throw UsageError(s.saved->string() + ": the colour model was learned on a map of " +
+                       std::to_string(model.resolution_m) + " m voxels; this map's are " +
+                       std::to_string(map.resolution_m()) + " m");
+    }
+    return model;
+  }
+  ColourModel model = fitColour(map, s.from_s, s.to_s, s.fit);
+  if (s.save) io::writeColourModel(*s.save, model);
+  return model;
 }
 
 CostmapFiles costmapFiles(const std::filesystem::path& yaml) {

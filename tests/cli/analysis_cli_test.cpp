@@ -309,6 +309,27 @@ TEST(AnalysisCli, ColourPredictionAndLightingInvariantDiff) {
   EXPECT_DOUBLE_EQ(pj["colour"]["hour"].get<double>(), 19.0);
   EXPECT_EQ(pj["colour"]["bytes_per_voxel"], 30);
   EXPECT_TRUE(fs::exists(tmp / "p.ply"));
+  // --save-colour keeps the model; --colour-model predicts the same colours without refitting.
+  const std::string model = (tmp / "wall.colour").string();
+  const auto saved = test::runCommand(cli() + " predict " + m + " --at 2012-03-12T19:00:00Z --save-colour " + model +
+                                      " -o " + (tmp / "s.ply").string() + " --json");
+  ASSERT_EQ(saved.exit_code, 0) << saved.err;
+  EXPECT_EQ(nlohmann::json::parse(saved.out)["colour"], pj["colour"]);
+  const auto loaded = test::runCommand(cli() + " predict " + m + " --at 2012-03-12T19:00:00Z --colour-model " + model +
+                                       " -o " + (tmp / "l.ply").string() + " --json");
+  ASSERT_EQ(loaded.exit_code, 0) << loaded.err;
+  EXPECT_EQ(nlohmann::json::parse(loaded.out)["colour"], pj["colour"]);
+  EXPECT_EQ(test::bytesOf(tmp / "l.ply"), test::bytesOf(tmp / "p.ply"));
+  // A saved model takes no learning range; a truncated one is refused with one clear line.
+  const auto ranged = test::runCommand(cli() + " predict " + m + " --at 2012-03-12T19:00:00Z --colour-model " + model +
+                                       " --learn-to 2012-03-08T00:00:00Z -o " + (tmp / "r.ply").string());
+  EXPECT_EQ(ranged.exit_code, 2);
+  EXPECT_NE(ranged.err.find("--colour-model reads a fitted model"), std::string::npos) << ranged.err;
+  fs::resize_file(model, fs::file_size(model) - 3);
+  const auto cut = test::runCommand(cli() + " predict " + m + " --at 2012-03-12T19:00:00Z --colour-model " + model +
+                                    " -o " + (tmp / "c.ply").string());
+  EXPECT_EQ(cut.exit_code, 1);
+  EXPECT_NE(cut.err.find("wall.colour: the colour model ends early (truncated)"), std::string::npos) << cut.err;
   // The 13:00 -> 19:00 light of day 3: every colour moves, the light explains all of it.
   auto diff = [&](size_t a, size_t b, const std::string& flags) {
     const auto r = test::runCommand(cli() + " diff " + ref(a) + " " + ref(b) + " -o " + (tmp / "d.cmap").string() +

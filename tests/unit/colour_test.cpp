@@ -329,6 +329,77 @@ TEST(Colour, RecolourPaintsThePredictedColour) {
   EXPECT_EQ(m.bytes(), 64u * 30u + 8u * 2u * 3u * 24u);
 }
 
+TEST(Colour, SavedModelsAnswerTheSameColoursAndBadBytesAreRefused) {
+  std::vector<double> times;
+  const TemporalMap map = wallMap(5, {8.0, 13.0, 19.0}, 1000, times);
+  const ColourModel m = fitColour(map, times.front(), times.back());
+  EXPECT_EQ(m.resolution_m, map.resolution_m());
+  const std::vector<uint8_t> bytes = serialize(m);
+  // A 68-byte header (magic, version, kind, shape, resolution, range, counts, fit error), the
+  // curves, then the voxels: what bytes() counts.
+  EXPECT_EQ(bytes.size(), 68u + m.bytes());
+  const ColourModel back = deserializeColour(bytes, "m.colour");
+  EXPECT_EQ(back.components, m.components);
+  EXPECT_EQ(back.bins, m.bins);
+  EXPECT_EQ(back.sessions, m.sessions);
+  EXPECT_EQ(back.observations, m.observations);
+  EXPECT_EQ(back.resolution_m, m.resolution_m);
+  EXPECT_EQ(back.from_s, m.from_s);
+  EXPECT_EQ(back.to_s, m.to_s);
+  EXPECT_EQ(back.rms_error, m.rms_error);
+  ASSERT_EQ(back.keys.size(), m.keys.size());
+  for (size_t v = 0; v < m.keys.size(); ++v) {
+    EXPECT_EQ(back.keys[v], m.keys[v]);
+    for (double h : {0.0, 6.5, 13.0, 23.9}) EXPECT_EQ(back.predict(v, h), m.predict(v, h)) << v << " " << h;
+  }
+  EXPECT_EQ(back.predictMean(19.0), m.predictMean(19.0));
+  const double t = kMonday_s + 86400.0 * 9 + 3600.0 * 19.0;
+  const SessionMap snap = map.snapshot(times.back());
+  const SessionMap a = recolour(snap, m, t), b = recolour(snap, back, t);
+  for (int x = 0; x < 8; ++x) EXPECT_EQ(a.find(at(x, 2, 0))->meanColor(), b.find(at(x, 2, 0))->meanColor()) << x;
+  EXPECT_EQ(serialize(back), bytes);
+
+  // Every truncation, a wrong magic, a newer version and an unknown kind are refused, naming the file.
+  for (size_t n = 0; n < bytes.size(); n += 5) {
+    EXPECT_THROW(deserializeColour(std::span(bytes.data(), n), "m.colour"), FormatError) << n;
+  }
+  auto message = [](const std::vector<uint8_t>& input) {
+    try {
+      deserializeColour(input, "m.colour");
+    } catch (const FormatError& e) {
+      return std::string(e.what());
+    }
+    return std::string("read");
+  };
+  std::vector<uint8_t> bad = bytes;
+  bad[0] = 'X';
+  EXPECT_EQ(message(bad), "m.colour: not a chronomap colour model");
+  bad = bytes;
+  bad[4] = 2;
+  EXPECT_EQ(message(bad), "m.colour: colour model version 2 (this build reads 1)");
+  bad = bytes;
+  bad[8] = 7;
+  EXPECT_EQ(message(bad), "m.colour: colour model of unknown kind 7");
+  bad = bytes;
+  bad[9] = 9;  // nine light curves
+  EXPECT_EQ(message(bad), "m.colour: bad header (9 light curves of 24 knots)");
+  bad = bytes;
+  bad.push_back(0);
+  EXPECT_EQ(message(bad), "m.colour: bytes after the last voxel");
+  EXPECT_EQ(message(std::vector<uint8_t>(bytes.begin(), bytes.begin() + 60)),
+            "m.colour: the colour model ends early (truncated)");
+  // Random corruption either is refused or reads as a model that serialises back to those bytes.
+  std::mt19937_64 rng(5);
+  for (int trial = 0; trial < 500; ++trial) {
+    std::vector<uint8_t> c = bytes;
+    c[rng() % c.size()] ^= static_cast<uint8_t>(1 + rng() % 255);
+    try {
+      EXPECT_EQ(serialize(deserializeColour(c, "c")), c);
+    } catch (const FormatError&) {
+    }
+  }
+}
+
 TEST(Colour, BadInput) {
   // A map without colour changes.
   TemporalMap plain(0.05);

@@ -8,15 +8,18 @@
 /// diff of the two snapshots, then its connected components: the changed objects). The evidence
 /// for an object is the history of its space: in every earlier session that observed at least a
 /// quarter of its voxels (its coverage; a session that did not observe them says nothing), the
-/// space counts as occupied when at least half of what was observed of it was occupied. The
-/// probability of its new state at T is the share of those observations in that state, weighted
-/// towards observations at the same time of day (within 1.5 h, the same kind of day: weekday or
-/// weekend), with one pseudo-observation at the overall share (plus half an observation, so a
-/// state never seen keeps a small probability). The neighbourhood counts too: the same space
-/// shifted by up to `neighbourhood_voxels` in x and y, when it was seen in both states within the
-/// window, can make the change ordinary (a chair moved a
-/// few centimetres from where it stood at this hour before). The score is -log2 of the larger
-/// probability, in bits.
+/// space counts as occupied when at least half of what was observed of it was occupied, free when at
+/// most `free_share` was (in between: partly occupied, no evidence). The
+/// probability of its new state at T is the share of the observations at that time of day
+/// (within 1.5 h, the same kind of day: weekday or weekend) in that state, shrunk towards the
+/// share over all hours by as many observations as EvidenceSettings::all_hours_observations: few
+/// observations at that hour fall back to the all-hours evidence, many speak for themselves.
+/// The neighbourhood counts too: the same space shifted by up to `neighbourhood_voxels` in x and
+/// y, when it was seen in both states within the window, can make the change ordinary (a chair
+/// moved a few centimetres from where it stood at this hour before). The score is -log2 of the
+/// larger probability, in bits. A vanished and an appeared object of the session that look
+/// alike (size, height, colour: MoveSettings) are one object moved, scored as one: the move is
+/// at most as likely as its less likely half, and both halves get that score.
 
 #include <cstdint>
 #include <limits>
@@ -28,6 +31,35 @@
 #include "chronomap/temporal/temporal_map.h"
 
 namespace chronomap {
+
+/// How a space's history is weighed (stateEvidence()).
+struct EvidenceSettings {
+  /// Weight of an observation within the window of the hour but on the other kind of day
+  /// (a weekend's at a weekday's hour): routines differ between the two, yet not entirely.
+  double other_kind_weight = 0.25;
+  /// Strength of the all-hours evidence, in observations (a Beta prior centred on the share of
+  /// the state over all hours): the window's share weighs as much as the all-hours share when
+  /// the window holds this many observations, more beyond. Default 3: about what the window of
+  /// an hour holds on average in three weeks of two sessions a day (42 * 3 h / 24 h * 5 / 7).
+  double all_hours_observations = 3.0;
+  /// @throw UsageError for a weight outside 0..1 or a strength that is not positive and finite.
+  void validate() const;
+};
+
+/// When a vanished and an appeared object of one session are one object moved.
+struct MoveSettings {
+  bool pair = true;  ///< look for moves at all
+  /// The larger object holds at most this many times the voxels of the smaller one (the two
+  /// halves are seen from different places, so rarely in full both times).
+  double max_size_ratio = 2.0;
+  /// Their heights (bounding boxes' z extents) differ by at most this, metres.
+  double max_height_difference_m = 0.15;
+  /// Their mean colours differ by at most this (8-bit RGB distance; the light of the two
+  /// sessions differs, so a chair's two halves are not quite the same colour).
+  double max_colour_distance = 60.0;
+  /// @throw UsageError for a ratio below 1 or a distance that is negative or not finite.
+  void validate() const;
+};
 
 /// Settings of findAlerts().
 struct AlertSettings {
@@ -51,9 +83,20 @@ struct AlertSettings {
   double history_to_s = std::numeric_limits<double>::infinity();
   /// Voxels read per object at most (evenly spaced among its voxels), for speed.
   size_t max_voxels_per_object = 800;
+  /// In an earlier session, a space counts as occupied when at least half of what was observed
+  /// of it was occupied, and as free when at most this share was; in between it was partly
+  /// occupied (the space shifted half off a box: part surface, part air) and says nothing
+  /// either way. Default a quarter: a shifted copy of an object that stood still is near a half,
+  /// an object's own space when it is gone near none. 0.5: no band (every session counts).
+  double free_share = 0.25;
+  /// How the history's observations are weighed.
+  EvidenceSettings evidence;
+  /// Which objects are the two halves of a move.
+  MoveSettings moves;
 
-  /// @throw UsageError for a neighbourhood outside 0..6, a zero max_voxels_per_object, bad diff
-  /// or segment settings.
+  /// @throw UsageError for a neighbourhood outside 0..6, a zero max_voxels_per_object, a
+  /// free_share outside 0..0.5, bad diff,
+  /// segment, evidence or move settings.
   void validate() const;
 };
 
@@ -66,13 +109,18 @@ struct StateEvidence {
   uint32_t in_state = 0;          ///< of those, in the state asked about
   uint32_t window_observations = 0;  ///< earlier observations within the window of the hour, same kind of day
   uint32_t window_in_state = 0;      ///< of those, in the state asked about
+  double all_hours_probability = 0.0;  ///< of the state at any time: (in_state + 0.5) / (observations + 1)
   double probability = 0.0;          ///< of the state at that time
 };
 
 /// The evidence of observations (`times_s`, `occupied`) for the state `occupied_now` at `time_s`,
-/// as findAlerts() weighs it (see the file comment). Exposed for tests.
+/// as findAlerts() weighs it: with W the window's weight (1 per observation within the window on
+/// the same kind of day, other_kind_weight on the other kind) and K the weight of those in the
+/// state, p_all the all-hours share and k = all_hours_observations,
+///   probability = (K + k * p_all) / (W + k).
+/// Exposed for tests.
 StateEvidence stateEvidence(const std::vector<double>& times_s, const std::vector<uint8_t>& occupied,
-                            bool occupied_now, double time_s);
+                            bool occupied_now, double time_s, const EvidenceSettings& settings = {});
 
 /// One changed object of the session, scored.
 struct Alert {
@@ -83,6 +131,11 @@ struct Alert {
   /// `neighbour_distance_voxels` (0: its own) that made the change likelier.
   StateEvidence evidence;
   int neighbour_distance_voxels = 0;
+  /// The score of its own change, before a move joined it with its other half.
+  double own_score_bits = 0.0;
+  /// The id of the other half of its move (the vanished object for an appeared one and back);
+  /// 0: no move.
+  uint32_t moved_with = 0;
   /// "this space was free in all 41 earlier observations", ...
   std::string reason;
 };

@@ -28,6 +28,7 @@
 #include <cstdint>
 #include <optional>
 #include <span>
+#include <string>
 #include <vector>
 
 #include "chronomap/core/counters.h"
@@ -69,6 +70,7 @@ struct ColourModel {
   size_t sessions = 0;              ///< sessions learned from
   size_t observations = 0;          ///< colour observations used
   double rms_error = 0.0;           ///< RMS of the fit over those observations, per channel, 8-bit units
+  double resolution_m = 0.0;        ///< of the map it was learned from (fitColour()); 0: not from a map
 
   /// Curve j, channel c at `hour` (any real: taken modulo 24).
   double curve(int j, int c, double hour) const;
@@ -83,6 +85,15 @@ struct ColourModel {
   /// Stored bytes in all: the voxels and the curves.
   size_t bytes() const { return keys.size() * bytesPerVoxel() + 8 * curves.size(); }
 };
+
+/// Serialises a colour model (little-endian, versioned; docs/colour.md, "Saving a model"): magic
+/// "CMCO", version, kind (1: per-voxel weights under shared light curves), the curves, then per
+/// voxel its key and weights. deserializeColour() is its inverse.
+std::vector<uint8_t> serialize(const ColourModel& model);
+/// @throw FormatError naming `source` for bytes that are not a valid colour model (wrong magic,
+/// a newer version, an unknown kind, truncated, values out of range, voxels out of order, bytes
+/// after the last voxel).
+ColourModel deserializeColour(std::span<const uint8_t> bytes, const std::string& source);
 
 /// Fits the curves and weights of `voxels` voxels to observations (any order).
 /// @throw UsageError for bad settings; DataError when there is no observation, a voxel index

@@ -9,6 +9,7 @@
 #include <optional>
 #include <string>
 
+#include "chronomap/analysis/colour.h"
 #include "chronomap/analysis/costmap.h"
 #include "chronomap/analysis/rhythm.h"
 #include "chronomap/temporal/temporal_map.h"
@@ -29,6 +30,22 @@ struct LearnSettings {
 /// @throw UsageError for `saved` with a learning range or `save`; what fitRhythm and the
 /// .rhythm reader and writer throw.
 RhythmModels learnRhythm(const TemporalMap& map, const LearnSettings& settings);
+
+/// Where learnColour() takes the colour model from.
+struct ColourLearnSettings {
+  std::optional<std::filesystem::path> saved;  ///< read this .colour instead of fitting
+  std::optional<std::filesystem::path> save;   ///< also write the fitted model here
+  double from_s = -std::numeric_limits<double>::infinity();  ///< learning sessions' times
+  double to_s = std::numeric_limits<double>::infinity();
+  bool range_given = false;  ///< from_s or to_s was set by the user
+  ColourSettings fit;        ///< how a model is fitted (not used with `saved`)
+};
+
+/// The colour model of `map`: read from `saved` (it must have been learned at the map's
+/// resolution), or fitted (fitColour) and written to `save` if set.
+/// @throw UsageError for `saved` with a learning range or `save`, or learned at another
+/// resolution; what fitColour and the .colour reader and writer throw.
+ColourModel learnColour(const TemporalMap& map, const ColourLearnSettings& settings);
 
 /// The files of a costmap: the map_server YAML and, beside it, its PGM and a PNG picture.
 struct CostmapFiles {
