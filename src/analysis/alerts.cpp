@@ -13,6 +13,11 @@ namespace chronomap {
 
 namespace {
 
+/// How near a time must lie to a session's to name it: half a millisecond, the rounding of the
+/// printed times, plus what the decimal digits lose.
+constexpr double kSessionMatch_s = 0.0005 + 1e-6;
+
+
 constexpr double kDay_s = 86400.0;
 
 /// 0 for a weekday, 1 for Saturday and Sunday (UTC); the epoch's day 0 was a Thursday.
@@ -237,9 +242,12 @@ StateEvidence stateEvidence(const std::vector<double>& times_s, const std::vecto
 AlertReport findAlerts(const TemporalMap& map, double time_s, const AlertSettings& settings) {
   settings.validate();
   const auto& sessions = map.sessions();
+  // The session at `time_s` to the half millisecond: the times chronomap prints (formatTime,
+  // ISO-8601 to the millisecond) name their session when given back.
   size_t rank = sessions.size();
   for (size_t i = 0; i < sessions.size(); ++i) {
-    if (std::abs(sessions[i].time_s - time_s) < 1e-6) rank = i;  // to the microsecond
+    const double off = std::abs(sessions[i].time_s - time_s);
+    if (off <= kSessionMatch_s && (rank == sessions.size() || off < std::abs(sessions[rank].time_s - time_s))) rank = i;
   }
   if (rank == sessions.size()) {
     std::string msg = "no session of the map lies at " + formatTime(time_s);

@@ -8,6 +8,7 @@
 #include "builders.h"
 #include "chronomap/analysis/alerts.h"
 #include "chronomap/core/error.h"
+#include "chronomap/core/time.h"
 
 namespace chronomap {
 namespace {
@@ -308,8 +309,16 @@ TEST(Alerts, BadInputIsRefusedClearly) {
         << e.what();
     EXPECT_NE(std::string(e.what()).find("the nearest is 2012-03-05T09:00:00"), std::string::npos) << e.what();
   }
-  EXPECT_THROW(findAlerts(map, when(0, 15.0) + 0.01), UsageError);  // times match to the microsecond
+  EXPECT_THROW(findAlerts(map, when(0, 15.0) + 0.01), UsageError);  // times match to the half millisecond
   EXPECT_NO_THROW(findAlerts(map, when(0, 15.0) + 1e-7));
+  // A session at a time with sub-millisecond digits is found from its printed (rounded) time.
+  TemporalMap odd(0.05);
+  odd.add(when(0, 9.0), sessionWith({}));
+  const double t = when(0, 15.0) + 0.9501126;
+  odd.add(t, sessionWith({{4, 4}}));
+  const std::string printed = formatTime(t);
+  EXPECT_EQ(printed.substr(printed.size() - 5), ".950Z");
+  EXPECT_EQ(findAlerts(odd, parseTime(printed)).time_s, t);
   EXPECT_THROW(findAlerts(map, when(0, 9.0)), UsageError);  // the first session: no history
   AlertSettings s = plain();
   s.neighbourhood_voxels = 7;

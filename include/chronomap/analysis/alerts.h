@@ -151,8 +151,9 @@ struct AlertReport {
   std::vector<Alert> alerts;
 };
 
-/// The changed objects of the session at `time_s` (a session of the map, to the microsecond),
-/// scored against the history before it.
+/// The changed objects of the session at `time_s` (a session of the map, to the half millisecond:
+/// a time as chronomap prints it, ISO-8601 to the millisecond, names its session), scored against
+/// the history before it.
 /// @throw UsageError when no session lies at `time_s`, it is the first session, no session lies
 /// before history_to_s, or for bad settings.
 AlertReport findAlerts(const TemporalMap& map, double time_s, const AlertSettings& settings = {});
