@@ -13,6 +13,9 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <numbers>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "chronomap/core/error.h"
 #include "chronomap/core/parallel.h"
@@ -70,6 +73,73 @@ void writeStaged(const fs::path& path, const uint8_t* data, size_t size) {
 void writeText(const fs::path& path, const std::string& text) {
   writeStaged(path, reinterpret_cast<const uint8_t*>(text.data()), text.size());
 }
+
+// scene.json's change events, spooled to a file: each one as nlohmann::json::dump(1) would
+// write it as an element of the top-level "events" array (its lines indented by two more), so
+// that the spliced file is byte for byte scene.dump(1) with the events in it.
+class EventSpool {
+ public:
+  static constexpr const char* kMarker = "@@chronomap events@@";
+
+  explicit EventSpool(fs::path path) : path_(std::move(path)), file_(std::fopen(path_.c_str(), "wb+")) {
+    if (!file_) throw IoError(path_.string() + ": cannot create (" + std::strerror(errno) + ")");
+  }
+  ~EventSpool() {
+    if (file_) std::fclose(file_);
+    std::error_code ignored;
+    fs::remove(path_, ignored);
+  }
+  EventSpool(const EventSpool&) = delete;
+  EventSpool& operator=(const EventSpool&) = delete;
+
+  void add(const nlohmann::json& event) {
+    std::string text = count_ == 0 ? "\n  " : ",\n  ";
+    const std::string element = event.dump(1);
+    for (const char c : element) {
+      text += c;
+      if (c == '\n') text += "  ";
+    }
+    put(text.data(), text.size());
+    ++count_;
+  }
+
+  // Writes `scene` (scene.dump(1) with "events" set to kMarker) with the events in place of
+  // the marker, and removes the spool.
+  void writeScene(const fs::path& out, const std::string& scene) {
+    const std::string marker = std::string("\"") + kMarker + "\"";
+    const size_t at = scene.find(marker);
+    if (at == std::string::npos) throw IoError(out.string() + ": the events' place is missing");
+    std::FILE* f = std::fopen(out.c_str(), "wb");
+    if (!f) throw IoError(out.string() + ": cannot create (" + std::strerror(errno) + ")");
+    bool ok = std::fwrite(scene.data(), 1, at, f) == at;
+    if (count_ == 0) {
+      ok = ok && std::fputs("[]", f) >= 0;
+    } else {
+      ok = ok && std::fputc('[', f) != EOF && std::fflush(file_) == 0 && std::fseek(file_, 0, SEEK_SET) == 0;
+      std::vector<char> buffer(1 << 20);
+      size_t n = 0;
+      while (ok && (n = std::fread(buffer.data(), 1, buffer.size(), file_)) > 0) ok = std::fwrite(buffer.data(), 1, n, f) == n;
+      ok = ok && !std::ferror(file_) && std::fputs("\n ]", f) >= 0;
+    }
+    const size_t rest = scene.size() - at - marker.size();
+    ok = ok && std::fwrite(scene.data() + at + marker.size(), 1, rest, f) == rest;
+    ok = std::fclose(f) == 0 && ok;
+    if (!ok) throw IoError(out.string() + ": write failed (" + std::strerror(errno) + ")");
+    std::fclose(file_);
+    file_ = nullptr;
+    fs::remove(path_);
+  }
+
+ private:
+  void put(const char* data, size_t size) {
+    if (std::fwrite(data, 1, size, file_) != size) {
+      throw IoError(path_.string() + ": write failed (" + std::strerror(errno) + ")");
+    }
+  }
+  fs::path path_;
+  std::FILE* file_;
+  size_t count_ = 0;
+};
 
 template <class Image>
 void writePngStaged(const fs::path& path, const Image& image) {
@@ -168,7 +238,11 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
   }
 
   SimulationSummary summary;
-  nlohmann::json sessions_json = nlohmann::json::array(), events_json = nlohmann::json::array();
+  nlohmann::json sessions_json = nlohmann::json::array();
+  // The change events go to a file in the staging folder as they come, already formatted as
+  // elements of scene.json's "events" (their voxels make them most of scene.json: about 4 MB a
+  // night on the site, far more than memory should hold for a year); writeScene() splices them.
+  EventSpool events(root / ".events.tmp");
   std::vector<VoxelKey> previous_truth;
   SceneState previous_state;
   if (settings.rare_events) {
@@ -283,7 +357,7 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
       if (e.voxels.empty()) continue;  // hidden by other objects: nothing a map could see
       nlohmann::json voxels = nlohmann::json::array();
       for (const VoxelKey& k : e.voxels) voxels.push_back({k.x, k.y, k.z});
-      events_json.push_back({{"from_session", e.from_session},
+      events.add({{"from_session", e.from_session},
                              {"to_session", s},
                              {"object", e.object},
                              {"object_kind", toString(e.object_kind)},
@@ -415,7 +489,7 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
                             {"max_range_m", sensor.max_range_m}}},
                           {"rooms", nlohmann::json::array()},
                           {"sessions", sessions_json},
-                          {"events", events_json}};
+                          {"events", EventSpool::kMarker}};
   if (rhythmic) {
     // The true schedule: every routine with its rule and objects, and each day's exceptions.
     nlohmann::json routines = nlohmann::json::array(), days = nlohmann::json::array();
@@ -471,7 +545,7 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
                               {"min", {r.area.min().x(), r.area.min().y()}},
                               {"max", {r.area.max().x(), r.area.max().y()}}});
   }
-  writeText(root / "scene.json", scene.dump(1) + "\n");
+  events.writeScene(root / "scene.json", scene.dump(1) + "\n");
   staged.commit();
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   return summary;

@@ -79,6 +79,9 @@ TEST(SimSite, NightlyPatrolsOfEveryFloorAndTheFirstSessionsOfALongerRun) {
   sim::simulate(s, tmp / "one");
 
   const auto scene = nlohmann::json::parse(io::readTextFile(tmp / "two" / "scene.json"));
+  // The change events, spooled to a file while simulating, are spliced in as dump(1) puts them.
+  EXPECT_EQ(scene.dump(1) + "\n", io::readTextFile(tmp / "two" / "scene.json"));
+  EXPECT_FALSE(fs::exists(tmp / "two" / ".events.tmp"));
   EXPECT_EQ(scene["preset"], "site");
   EXPECT_EQ(scene["site"]["floors"], 2);
   ASSERT_EQ(scene["sessions"].size(), 2u);
