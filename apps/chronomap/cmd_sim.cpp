@@ -120,13 +120,17 @@ Command addSimulate(CLI::App& root) {
       "Presets: tiny (one room, 3 sessions), office (a corridor and three rooms, 6 sessions), floor66 "
       "(40 x 20 m, 16 rooms, 66 sessions over about 45 days), weeks (the office on a clock: doors, people, "
       "meetings, lunch and cleaning follow a weekly schedule with exceptions, kept in scene.json; 56 sessions, "
-      "two a day at any hour for four weeks).");
-  app->add_option("--preset", o->settings.preset, "tiny, office, floor66 or weeks")->capture_default_str();
+      "two a day at any hour for four weeks), site (three floors of floor66 patrolled every night for a year, "
+      "365 sessions; --sessions N takes the first N).");
+  app->add_option("--preset", o->settings.preset, "tiny, office, floor66, weeks or site")->capture_default_str();
   app->add_option("-o,--output", o->output, "folder to write")->required();
   app->add_option("--seed", o->settings.seed, "random seed (same seed, same bytes)")
       ->check(numberIn(0, 1e19))
       ->capture_default_str();
   app->add_option("--sessions", o->settings.sessions, "number of sessions (0 = the preset's)")->capture_default_str();
+  app->add_option("--floors", o->settings.floors, "site only: floors stacked and patrolled (1 to 50)")
+      ->check(numberIn(1, 50))
+      ->capture_default_str();
   app->add_option("--resolution-scale", o->settings.resolution_scale,
                   "image size relative to 640 x 480 (0.1 .. 1; smaller is faster)")
       ->capture_default_str();

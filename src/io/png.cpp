@@ -207,24 +207,31 @@ ImageU16 decodePngU16(const std::vector<uint8_t>& file, const std::string& name)
   return img;
 }
 
-void writePng(const std::filesystem::path& path, const ImageRgb& image) {
+namespace {
+
+template <class Image>
+std::vector<uint8_t> encodeImage(const Image& image, bool sixteen, const std::string& name) {
   if (image.pixels.size() != size_t{image.width} * image.height) throw UsageError("writePng: size mismatch");
   std::vector<uint8_t> out;
   std::string error;
-  if (!encode(image.width, image.height, false, reinterpret_cast<const uint8_t*>(image.pixels.data()), out, error)) {
-    throw IoError(path.string() + ": " + error);
+  if (!encode(image.width, image.height, sixteen, reinterpret_cast<const uint8_t*>(image.pixels.data()), out, error)) {
+    throw IoError(name + ": " + error);
   }
-  writeFileAtomic(path, out);
+  return out;
+}
+
+}  // namespace
+
+std::vector<uint8_t> encodePng(const ImageRgb& image) { return encodeImage(image, false, "PNG"); }
+
+std::vector<uint8_t> encodePng(const ImageU16& image) { return encodeImage(image, true, "PNG"); }
+
+void writePng(const std::filesystem::path& path, const ImageRgb& image) {
+  writeFileAtomic(path, encodeImage(image, false, path.string()));
 }
 
 void writePng(const std::filesystem::path& path, const ImageU16& image) {
-  if (image.pixels.size() != size_t{image.width} * image.height) throw UsageError("writePng: size mismatch");
-  std::vector<uint8_t> out;
-  std::string error;
-  if (!encode(image.width, image.height, true, reinterpret_cast<const uint8_t*>(image.pixels.data()), out, error)) {
-    throw IoError(path.string() + ": " + error);
-  }
-  writeFileAtomic(path, out);
+  writeFileAtomic(path, encodeImage(image, true, path.string()));
 }
 
 }  // namespace chronomap::io

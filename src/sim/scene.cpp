@@ -229,7 +229,43 @@ EventKind parseEventKind(const std::string& name) {
   throw FormatError("unknown change event kind '" + name + "'");
 }
 
+uint64_t siteFloorSeed(uint64_t seed, int floor) { return mix(seed, 0x517e0000ULL + static_cast<uint64_t>(floor)); }
+
+SceneState siteFloor(uint64_t seed, int floor) { return makeScene("floor66", siteFloorSeed(seed, floor)); }
+
+SceneState stackFloors(const std::vector<SceneState>& floors) {
+  SceneState site;
+  for (size_t f = 0; f < floors.size(); ++f) {
+    const uint32_t id_offset = static_cast<uint32_t>(f) * kSiteIdStride;
+    const int room_offset = static_cast<int>(site.rooms.size());
+    const Eigen::Vector3d up(0.0, 0.0, static_cast<double>(f) * kSiteFloorHeight_m);
+    for (const Room& r : floors[f].rooms) {
+      Room room = r;
+      room.name += " (floor " + std::to_string(f) + ")";
+      room.door_object += id_offset;
+      site.rooms.push_back(std::move(room));
+    }
+    for (const Object& o : floors[f].objects) {
+      Object object = o;
+      object.id += id_offset;
+      if (object.room >= 0) object.room += room_offset;
+      translate(object, up);
+      site.objects.push_back(std::move(object));
+    }
+    if (!floors[f].bounds.isEmpty()) {
+      site.bounds.extend(floors[f].bounds.min() + up);
+      site.bounds.extend(floors[f].bounds.max() + up);
+    }
+  }
+  return site;
+}
+
 SceneState makeScene(const std::string& preset, uint64_t seed) {
+  if (preset == "site") {
+    std::vector<SceneState> floors;
+    for (int f = 0; f < kSiteFloors; ++f) floors.push_back(siteFloor(seed, f));
+    return stackFloors(floors);
+  }
   Rng rng(mix(seed, 0x5ce4e));
   Builder b;
   const Rgb wall_color = randomColor(rng, 190, 235);
@@ -301,7 +337,7 @@ SceneState makeScene(const std::string& preset, uint64_t seed) {
       }
     }
   } else {
-    throw UsageError("unknown simulator preset '" + preset + "' (use tiny, office, floor66 or weeks)");
+    throw UsageError("unknown simulator preset '" + preset + "' (use tiny, office, floor66, weeks or site)");
   }
   if (preset == "weeks") {
     // The people and the cart of the routines, at home and absent; applySchedule() places them.

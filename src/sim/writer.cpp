@@ -6,11 +6,16 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cerrno>
 #include <cstdio>
+#include <cstring>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <numbers>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "chronomap/core/error.h"
 #include "chronomap/core/parallel.h"
@@ -41,6 +46,7 @@ PresetPlan presetPlan(const std::string& preset) {
   if (preset == "tiny") return {3, 2};
   if (preset == "office") return {6, 4};
   if (preset == "weeks") return {56, 28};
+  if (preset == "site") return {365, 365};
   return {66, 45};
 }
 
@@ -52,8 +58,93 @@ std::string poseLine(double stamp, const Eigen::Isometry3d& T) {
   return buf;
 }
 
+// A file inside the staging folder: written plainly, without writeFileAtomic's temporary, flush
+// to disk and scan of the folder for stale temporaries (which cost more than rendering on a
+// session of hundreds of frames), since nothing is visible until the whole folder is moved into
+// place.
+void writeStaged(const fs::path& path, const uint8_t* data, size_t size) {
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  if (!f) throw IoError(path.string() + ": cannot create (" + std::strerror(errno) + ")");
+  const bool written = std::fwrite(data, 1, size, f) == size;
+  const bool closed = std::fclose(f) == 0;
+  if (!written || !closed) throw IoError(path.string() + ": write failed (" + std::strerror(errno) + ")");
+}
+
 void writeText(const fs::path& path, const std::string& text) {
-  io::writeFileAtomic(path, std::vector<uint8_t>(text.begin(), text.end()));
+  writeStaged(path, reinterpret_cast<const uint8_t*>(text.data()), text.size());
+}
+
+// scene.json's change events, spooled to a file: each one as nlohmann::json::dump(1) would
+// write it as an element of the top-level "events" array (its lines indented by two more), so
+// that the spliced file is byte for byte scene.dump(1) with the events in it.
+class EventSpool {
+ public:
+  static constexpr const char* kMarker = "@@chronomap events@@";
+
+  explicit EventSpool(fs::path path) : path_(std::move(path)), file_(std::fopen(path_.c_str(), "wb+")) {
+    if (!file_) throw IoError(path_.string() + ": cannot create (" + std::strerror(errno) + ")");
+  }
+  ~EventSpool() {
+    if (file_) std::fclose(file_);
+    std::error_code ignored;
+    fs::remove(path_, ignored);
+  }
+  EventSpool(const EventSpool&) = delete;
+  EventSpool& operator=(const EventSpool&) = delete;
+
+  void add(const nlohmann::json& event) {
+    std::string text = count_ == 0 ? "\n  " : ",\n  ";
+    const std::string element = event.dump(1);
+    for (const char c : element) {
+      text += c;
+      if (c == '\n') text += "  ";
+    }
+    put(text.data(), text.size());
+    ++count_;
+  }
+
+  // Writes `scene` (scene.dump(1) with "events" set to kMarker) with the events in place of
+  // the marker, and removes the spool.
+  void writeScene(const fs::path& out, const std::string& scene) {
+    const std::string marker = std::string("\"") + kMarker + "\"";
+    const size_t at = scene.find(marker);
+    if (at == std::string::npos) throw IoError(out.string() + ": the events' place is missing");
+    std::FILE* f = std::fopen(out.c_str(), "wb");
+    if (!f) throw IoError(out.string() + ": cannot create (" + std::strerror(errno) + ")");
+    bool ok = std::fwrite(scene.data(), 1, at, f) == at;
+    if (count_ == 0) {
+      ok = ok && std::fputs("[]", f) >= 0;
+    } else {
+      ok = ok && std::fputc('[', f) != EOF && std::fflush(file_) == 0 && std::fseek(file_, 0, SEEK_SET) == 0;
+      std::vector<char> buffer(1 << 20);
+      size_t n = 0;
+      while (ok && (n = std::fread(buffer.data(), 1, buffer.size(), file_)) > 0) ok = std::fwrite(buffer.data(), 1, n, f) == n;
+      ok = ok && !std::ferror(file_) && std::fputs("\n ]", f) >= 0;
+    }
+    const size_t rest = scene.size() - at - marker.size();
+    ok = ok && std::fwrite(scene.data() + at + marker.size(), 1, rest, f) == rest;
+    ok = std::fclose(f) == 0 && ok;
+    if (!ok) throw IoError(out.string() + ": write failed (" + std::strerror(errno) + ")");
+    std::fclose(file_);
+    file_ = nullptr;
+    fs::remove(path_);
+  }
+
+ private:
+  void put(const char* data, size_t size) {
+    if (std::fwrite(data, 1, size, file_) != size) {
+      throw IoError(path_.string() + ": write failed (" + std::strerror(errno) + ")");
+    }
+  }
+  fs::path path_;
+  std::FILE* file_;
+  size_t count_ = 0;
+};
+
+template <class Image>
+void writePngStaged(const fs::path& path, const Image& image) {
+  const std::vector<uint8_t> bytes = io::encodePng(image);
+  writeStaged(path, bytes.data(), bytes.size());
 }
 
 nlohmann::json objectsJson(const SceneState& state) {
@@ -92,6 +183,9 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
       !(settings.localisation_yaw_deg >= 0.0) || !(settings.drift_per_frame_m >= 0.0)) {
     throw UsageError("noise and localisation errors must be non-negative");
   }
+  if (settings.preset == "site" && (settings.floors < 1 || settings.floors > 50)) {
+    throw UsageError("--floors must lie between 1 and 50");
+  }
   if (settings.lighting != "fixed" && settings.lighting != "daylight") {
     throw UsageError("--lighting must be fixed or daylight, not '" + settings.lighting + "'");
   }
@@ -117,8 +211,15 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
   Rng time_rng(mix(settings.seed, 77));
   std::vector<double> times, hours;
   const bool rhythmic = settings.preset == "weeks";
-  const double start = rhythmic ? kScheduleStart_s : 1330560000.0;  // 2012-03-05 / 2012-03-01 00:00 UTC
+  const bool site = settings.preset == "site";
+  const double start = rhythmic || site ? kScheduleStart_s : 1330560000.0;  // 2012-03-05 / 2012-03-01 00:00 UTC
   double day = 0.0;
+  // The site: one patrol a night, starting between 22:00 and 03:00, every night.
+  while (site && static_cast<int>(times.size()) < sessions) {
+    const double h = time_rng.uniform(22.0, 27.0);
+    hours.push_back(h >= 24.0 ? h - 24.0 : h);
+    times.push_back(start + 86400.0 * static_cast<double>(times.size()) + 3600.0 * h);
+  }
   while (rhythmic && static_cast<int>(times.size()) < sessions) {
     const double h = time_rng.uniform(0.0, 12.0) + (times.size() % 2 == 1 ? 12.0 : 0.0);
     hours.push_back(h);
@@ -137,7 +238,11 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
   }
 
   SimulationSummary summary;
-  nlohmann::json sessions_json = nlohmann::json::array(), events_json = nlohmann::json::array();
+  nlohmann::json sessions_json = nlohmann::json::array();
+  // The change events go to a file in the staging folder as they come, already formatted as
+  // elements of scene.json's "events" (their voxels make them most of scene.json: about 4 MB a
+  // night on the site, far more than memory should hold for a year); writeScene() splices them.
+  EventSpool events(root / ".events.tmp");
   std::vector<VoxelKey> previous_truth;
   SceneState previous_state;
   if (settings.rare_events) {
@@ -145,6 +250,13 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
     addRareObjects(state, settings.seed);
   }
   const SceneState home = state;
+  // The site's floors, each in its own frame with its own change processes and patrol.
+  std::vector<SceneState> floors;
+  for (int f = 0; site && f < settings.floors; ++f) floors.push_back(siteFloor(settings.seed, f));
+  // Numbered with three digits where there can be more than 100 sessions, so that names sort.
+  const char* const session_format = site ? "session_%03d" : "session_%02d";
+  const char* const occupancy_format = site ? "occupancy_%03d.cmap" : "occupancy_%02d.cmap";
+  const char* const objects_format = site ? "objects_%03d.json" : "objects_%02d.json";
   Daylight daylight;
   daylight.building = state.bounds;
   const bool use_daylight = settings.lighting == "daylight";
@@ -206,6 +318,13 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
         rare_before = rare_now;
       }
       if (s == 0) changes.clear();  // the first session's state is where the history starts
+    } else if (site) {
+      for (size_t f = 0; f < floors.size() && s > 0; ++f) {
+        for (const auto& [id, kind] : applyChanges(floors[f], siteFloorSeed(settings.seed, static_cast<int>(f)), s)) {
+          changes.push_back({static_cast<uint32_t>(f) * kSiteIdStride + id, kind, {}});
+        }
+      }
+      state = stackFloors(floors);
     } else if (s > 0) {
       for (const auto& [id, kind] : applyChanges(state, settings.seed, s)) changes.push_back({id, kind, {}});
     }
@@ -238,7 +357,7 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
       if (e.voxels.empty()) continue;  // hidden by other objects: nothing a map could see
       nlohmann::json voxels = nlohmann::json::array();
       for (const VoxelKey& k : e.voxels) voxels.push_back({k.x, k.y, k.z});
-      events_json.push_back({{"from_session", e.from_session},
+      events.add({{"from_session", e.from_session},
                              {"to_session", s},
                              {"object", e.object},
                              {"object_kind", toString(e.object_kind)},
@@ -251,11 +370,39 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
     }
 
     // The patrol, true and estimated poses.
-    const detail::Patrol patrol = detail::patrolSession(state, settings, s);
+    detail::Patrol patrol;
+    nlohmann::json floors_json = nlohmann::json::array();
+    if (site) {
+      // One patrol per floor, one after the other, each with its own localisation error.
+      for (size_t f = 0; f < floors.size(); ++f) {
+        SimulationSettings floor_settings = settings;
+        floor_settings.seed = siteFloorSeed(settings.seed, static_cast<int>(f));
+        detail::Patrol p = detail::patrolSession(floors[f], floor_settings, s);
+        const Eigen::Vector3d up(0.0, 0.0, static_cast<double>(f) * kSiteFloorHeight_m);
+        floors_json.push_back({{"floor", f},
+                               {"first_frame", patrol.true_poses.size()},
+                               {"frames", p.true_poses.size()},
+                               {"localisation_offset",
+                                {p.offset_x_m, p.offset_y_m, p.offset_yaw_rad * 180.0 / std::numbers::pi}}});
+        if (f == 0) {
+          patrol.offset_x_m = p.offset_x_m;
+          patrol.offset_y_m = p.offset_y_m;
+          patrol.offset_yaw_rad = p.offset_yaw_rad;
+        }
+        for (size_t i = 0; i < p.true_poses.size(); ++i) {
+          p.true_poses[i].translation() += up;
+          p.estimated[i].translation() += up;
+          patrol.true_poses.push_back(p.true_poses[i]);
+          patrol.estimated.push_back(p.estimated[i]);
+        }
+      }
+    } else {
+      patrol = detail::patrolSession(state, settings, s);
+    }
     const size_t frames = patrol.true_poses.size();
 
     char name[32];
-    std::snprintf(name, sizeof name, "session_%02d", s);
+    std::snprintf(name, sizeof name, session_format, s);
     const fs::path dir = root / name;
     fs::create_directories(dir / "rgb", ec);
     fs::create_directories(dir / "depth", ec);
@@ -271,8 +418,8 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
       const RenderedFrame f = renderer.render(camera, patrol.true_poses[i], sensor, hours[static_cast<size_t>(s)],
                                               mix(settings.seed, (static_cast<uint64_t>(s) << 20) + i),
                                               use_daylight ? &daylight : nullptr);
-      io::writePng(dir / "rgb" / (stamps[i] + ".png"), f.rgb);
-      io::writePng(dir / "depth" / (stamps[i] + ".png"), f.depth);
+      writePngStaged(dir / "rgb" / (stamps[i] + ".png"), f.rgb);
+      writePngStaged(dir / "depth" / (stamps[i] + ".png"), f.depth);
     });
     std::string rgb_txt = "# color images\n# timestamp filename\n", depth_txt = "# depth maps\n# timestamp filename\n";
     std::string gt = "# true camera poses\n# timestamp tx ty tz qx qy qz qw\n";
@@ -295,10 +442,10 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
     // Ground truth of this session.
     const SessionMap occupancy = detail::truthMap(truth, grid);
     char truth_name[64];
-    std::snprintf(truth_name, sizeof truth_name, "occupancy_%02d.cmap", s);
+    std::snprintf(truth_name, sizeof truth_name, occupancy_format, s);
     io::writeSessionMap(root / "truth" / truth_name,
                         occupancy, {{"created_by", "chronomap simulate"}, {"truth", true}, {"session", s}});
-    std::snprintf(truth_name, sizeof truth_name, "objects_%02d.json", s);
+    std::snprintf(truth_name, sizeof truth_name, objects_format, s);
     writeText(root / "truth" / truth_name, objectsJson(state).dump(1) + "\n");
 
     const double offset_yaw_deg = patrol.offset_yaw_rad * 180.0 / std::numbers::pi;
@@ -313,6 +460,7 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
                                                                                    kScheduleStart_s) / 86400.0)))
                                             .weekday},
                              {"localisation_offset", {patrol.offset_x_m, patrol.offset_y_m, offset_yaw_deg}}});
+    if (site) sessions_json.back()["floors"] = floors_json;
     summary.session_dirs.push_back(out / name);
     summary.times_s.push_back(times[static_cast<size_t>(s)]);
     summary.hours.push_back(hours[static_cast<size_t>(s)]);
@@ -341,7 +489,7 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
                             {"max_range_m", sensor.max_range_m}}},
                           {"rooms", nlohmann::json::array()},
                           {"sessions", sessions_json},
-                          {"events", events_json}};
+                          {"events", EventSpool::kMarker}};
   if (rhythmic) {
     // The true schedule: every routine with its rule and objects, and each day's exceptions.
     nlohmann::json routines = nlohmann::json::array(), days = nlohmann::json::array();
@@ -385,12 +533,19 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
                          {"daylight", sun}};
   }
   if (settings.repaint) scene["repaints"] = repaints_json;
+  if (site) {
+    scene["site"] = {{"floors", settings.floors},
+                     {"floor_height_m", kSiteFloorHeight_m},
+                     {"object_id_stride", kSiteIdStride},
+                     {"building", "each floor a floor66 building of its own seed, floor f raised by f * floor_height_m"},
+                     {"patrols", "one a night from 22:00 to 03:00 (UTC), the floors one after the other"}};
+  }
   for (const Room& r : state.rooms) {
     scene["rooms"].push_back({{"name", r.name},
                               {"min", {r.area.min().x(), r.area.min().y()}},
                               {"max", {r.area.max().x(), r.area.max().y()}}});
   }
-  writeText(root / "scene.json", scene.dump(1) + "\n");
+  events.writeScene(root / "scene.json", scene.dump(1) + "\n");
   staged.commit();
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   return summary;

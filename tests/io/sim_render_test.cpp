@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <string>
 
 #include "chronomap/sim/render.h"
 #include "chronomap/sim/scene.h"
@@ -221,7 +222,7 @@ void compareOnRays(const sim::SceneState& scene, const Eigen::AlignedBox3d& box,
 }
 
 TEST(Renderer, NearestHitEqualsEveryPartTestedAndTheFirstRenderer) {
-  for (const char* preset : {"tiny", "office", "floor66", "weeks"}) {
+  for (const char* preset : {"tiny", "office", "floor66", "weeks", "site"}) {
     SCOPED_TRACE(preset);
     const sim::SceneState scene = sim::makeScene(preset, 5);
     compareOnRays(scene, scene.bounds, 3000, 11);
@@ -275,9 +276,10 @@ TEST(Renderer, TwoPartsInTheSamePlaceShowTheEarlierOne) {
 TEST(Renderer, FramesEqualThoseOfEveryPartTested) {
   // Whole frames: render()'s depth (noise-free) and colour against the same pixels cast by
   // testing every part, with render()'s ray directions, texture and lighting.
-  for (const char* preset : {"office", "floor66"}) {
+  for (const char* preset : {"office", "floor66", "site"}) {
     SCOPED_TRACE(preset);
     const sim::SceneState scene = sim::makeScene(preset, 2);
+    const bool site = std::string(preset) == "site";  // views on every floor, the floors above in sight
     const sim::Renderer renderer(scene);
     const sim::Camera cam = sim::kinectCamera(0.25);
     const sim::SensorModel sensor;
@@ -288,7 +290,7 @@ TEST(Renderer, FramesEqualThoseOfEveryPartTested) {
     // Views along the building, looking down, level and up, one from inside a part.
     const int views = 5;
     for (int view = 0; view < views; ++view) {
-      Eigen::Vector3d at(c.x() + 0.7 * view, c.y() - 0.3, 1.2);
+      Eigen::Vector3d at(c.x() + 0.7 * view, c.y() - 0.3, 1.2 + (site ? sim::kSiteFloorHeight_m * (view % sim::kSiteFloors) : 0.0));
       if (view == views - 1) at = renderer.parts()[renderer.parts().size() / 2].box.center();
       const Eigen::Isometry3d T = lookingAt(at, 1.3 * view + 0.2, view % 3 == 0 ? -0.2 : (view % 3 == 1 ? -0.9 : 0.5));
       const sim::RenderedFrame f = renderer.render(cam, T, sensor, hour, 7 + view);

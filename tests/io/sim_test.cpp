@@ -74,6 +74,9 @@ TEST(Simulator, SameSeedSameBytesWhateverTheThreads) {
   ASSERT_EQ(files, filesBelow(tmp / "b"));
   ASSERT_GT(files.size(), 20u);
   for (const auto& f : files) EXPECT_EQ(bytesOf(tmp / "a" / f), bytesOf(tmp / "b" / f)) << f;
+  // scene.json, its change events spliced in from a spool, is what nlohmann::json writes.
+  const std::string scene = io::readTextFile(tmp / "a" / "scene.json");
+  EXPECT_EQ(nlohmann::json::parse(scene).dump(1) + "\n", scene);
   s.seed = 2;
   sim::simulate(s, tmp / "c");
   EXPECT_NE(bytesOf(tmp / "a" / "scene.json"), bytesOf(tmp / "c" / "scene.json"));

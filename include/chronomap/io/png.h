@@ -25,6 +25,11 @@ ImageU16 readPngU16(const std::filesystem::path& path);
 ImageRgb decodePngRgb(const std::vector<uint8_t>& bytes, const std::string& name);
 ImageU16 decodePngU16(const std::vector<uint8_t>& bytes, const std::string& name);
 
+/// The PNG file's bytes of an 8-bit RGB image (what writePng writes), for callers that write
+/// them their own way. @throw IoError when encoding fails, UsageError when the size is wrong.
+std::vector<uint8_t> encodePng(const ImageRgb& image);
+/// The PNG file's bytes of a 16-bit greyscale image (what writePng writes).
+std::vector<uint8_t> encodePng(const ImageU16& image);
 /// Writes an 8-bit RGB PNG atomically.
 void writePng(const std::filesystem::path& path, const ImageRgb& image);
 /// Writes a 16-bit greyscale PNG atomically.

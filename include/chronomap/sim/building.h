@@ -19,7 +19,9 @@ namespace chronomap::sim {
 
 /// Settings of a simulation. Presets: "tiny" (one room), "office" (three rooms and a corridor,
 /// the demo), "floor66" (40 x 20 m, 16 rooms, 66 sessions over 45 days), "weeks" (the office
-/// on a weekly schedule, 56 sessions at all hours over four weeks; see applySchedule()).
+/// on a weekly schedule, 56 sessions at all hours over four weeks; see applySchedule()), "site"
+/// (floors of floor66 stacked, patrolled every night for a year: 365 sessions; a run of N sessions
+/// is the first N of the year, byte for byte).
 struct SimulationSettings {
   std::string preset = "office";
   uint64_t seed = 1;
@@ -43,6 +45,8 @@ struct SimulationSettings {
   /// the end: from then on all its faces have another colour. Labelled in scene.json
   /// ("repaints", with the object's voxels); the occupancy does not change. Off, nothing does.
   bool repaint = false;
+  /// "site" only: how many floors are stacked and patrolled (1 .. 50; kSiteFloors by default).
+  int floors = kSiteFloors;
 };
 
 /// What simulate() wrote.

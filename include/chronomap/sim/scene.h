@@ -133,6 +133,24 @@ std::optional<RareKind> rareEventOf(uint64_t seed, int session, const std::vecto
 /// the objects it changed.
 std::vector<uint32_t> applyRareEvent(SceneState& state, const SceneState& home, uint64_t seed, int session, RareKind kind);
 
+/// The site preset ("site"): kSiteFloors floors, each a floor66 building of its own (drawn from
+/// siteFloorSeed()), stacked kSiteFloorHeight_m apart. Each floor keeps its own state and change
+/// processes in its own frame (siteFloor(), applyChanges()); stackFloors() puts them together.
+inline constexpr int kSiteFloors = 3;
+/// Height from one floor's walking surface to the next one's.
+inline constexpr double kSiteFloorHeight_m = 3.0;
+/// An object of floor f has id f * kSiteIdStride + its id on the floor.
+inline constexpr uint32_t kSiteIdStride = 10000;
+/// The seed of floor `floor` of the site: its building, its changes and its patrol.
+uint64_t siteFloorSeed(uint64_t seed, int floor);
+/// Floor `floor` of the site in its first session's state, in its own frame (walking surface at
+/// z = 0 as in floor66): makeScene("floor66", siteFloorSeed(seed, floor)).
+SceneState siteFloor(uint64_t seed, int floor);
+/// The site's floors as one scene: floor f raised by f * kSiteFloorHeight_m, its object ids
+/// offset by f * kSiteIdStride, its rooms named "office 3 (floor 1)" and indexed after the floors
+/// below.
+SceneState stackFloors(const std::vector<SceneState>& floors);
+
 /// The building of a preset in its first session's state.
 /// @throw UsageError for an unknown preset.
 SceneState makeScene(const std::string& preset, uint64_t seed);
