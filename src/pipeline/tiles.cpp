@@ -9,6 +9,7 @@
 #include "chronomap/core/time.h"
 #include "chronomap/io/file.h"
 #include "chronomap/io/temporal_file.h"
+#include "chronomap/pipeline/maps.h"
 
 namespace chronomap::pipeline {
 
@@ -194,6 +195,41 @@ Segmentation segmentTiledDiff(TiledMap& map, double t1_s, double t2_s, const Dif
   Segmentation s = segment(d, segment_settings);
   if (diff_out) *diff_out = std::move(d);
   return s;
+}
+
+MapSnapshot snapshotOfMap(const fs::path& path, double time_s, const std::optional<BoxMetres>& box_m,
+                          const TileCacheSettings& cache) {
+  const std::string name = path.string();
+  if (!isTiledMapFolder(path)) {
+    if (box_m) throw UsageError("a box applies to a tiled map (chronomap tile); " + name + " is not one");
+    return MapSnapshot{snapshotAt(io::readTemporalMap(path), time_s, name), std::nullopt};
+  }
+  TiledMap map(path, cache);
+  std::optional<VoxelBox> box;
+  if (box_m) box = voxelBoxOf(map.grid(), box_m->first, box_m->second);
+  SessionMap snap = tiledSnapshotAt(map, time_s, box, name);
+  return MapSnapshot{std::move(snap), map.cacheStats()};
+}
+
+VoxelHistory historyOfMap(const fs::path& path, const Eigen::Vector3d& point_m, const TileCacheSettings& cache) {
+  auto fill = [&](const KeyGrid& grid, auto&& map) {
+    VoxelHistory h;
+    const auto key = grid.keyOf(point_m);
+    if (!key) throw UsageError("point lies outside the map");
+    h.key = *key;
+    h.center_m = grid.centerOf(*key);
+    h.entries = map.history(*key);
+    h.sessions = map.sessions().size();
+    return h;
+  };
+  if (!isTiledMapFolder(path)) {
+    const TemporalMap map = io::readTemporalMap(path);
+    return fill(map.grid(), map);
+  }
+  TiledMap map(path, cache);
+  VoxelHistory h = fill(map.grid(), map);
+  h.tiles = map.cacheStats();
+  return h;
 }
 
 }  // namespace chronomap::pipeline

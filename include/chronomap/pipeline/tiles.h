@@ -11,6 +11,8 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include "chronomap/analysis/diff.h"
@@ -155,5 +157,31 @@ SessionMap tiledSnapshotAt(TiledMap& map, double time_s, const std::optional<Vox
 Segmentation segmentTiledDiff(TiledMap& map, double t1_s, double t2_s, const DiffSettings& diff_settings,
                               const SegmentSettings& segment_settings, const std::optional<VoxelBox>& box = {},
                               DiffMap* diff_out = nullptr);
+
+/// A box in metres (map frame): lower and upper corner.
+using BoxMetres = std::pair<Eigen::Vector3d, Eigen::Vector3d>;
+
+/// A snapshot read from a 4D map file or a tiled map folder.
+struct MapSnapshot {
+  SessionMap map;
+  std::optional<TileCacheStats> tiles;  ///< for a tiled map: what its cache did
+};
+/// The snapshot at `time_s` of the 4D map file or tiled map folder `path`; with `box_m` (tiled
+/// maps only) the tiles that meet the box. @throw UsageError when no session lies at or before
+/// the time, or for a box on an untiled map; what the readers throw.
+MapSnapshot snapshotOfMap(const std::filesystem::path& path, double time_s, const std::optional<BoxMetres>& box_m,
+                          const TileCacheSettings& cache = {});
+
+/// The history of the voxel that holds a point, from a 4D map file or a tiled map folder.
+struct VoxelHistory {
+  VoxelKey key;
+  Eigen::Vector3d center_m = Eigen::Vector3d::Zero();
+  std::vector<HistoryEntry> entries;
+  size_t sessions = 0;  ///< in the map
+  std::optional<TileCacheStats> tiles;
+};
+/// @throw UsageError when the point lies outside the map; what the readers throw.
+VoxelHistory historyOfMap(const std::filesystem::path& path, const Eigen::Vector3d& point_m,
+                          const TileCacheSettings& cache = {});
 
 }  // namespace chronomap::pipeline
