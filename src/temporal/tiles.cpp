@@ -198,7 +198,13 @@ void checkTileFits(const TemporalMap& top, int tile_level, const TileKey& key, c
     throw FormatError(source + ": its sessions (" + std::to_string(tile.sessionCount()) +
                       ") do not match the index's sessions table (" + std::to_string(top.sessionCount()) + ")");
   }
-  tileRoot(tile.parts(), tileCorner(key, tile_level), tile_level, source);
+  // Every history list inside the cube, below tile level (a walk, not a copy of the pools; the
+  // join checks the shape of the path as it grafts).
+  bool inside = true;
+  tile.forEachList([&](const VoxelKey& corner, int level, std::span<const TemporalMap::Entry>) {
+    inside = inside && level < tile_level && tileOf(corner, tile_level) == key;
+  });
+  if (!inside) throw FormatError(source + " holds nodes outside its tile");
 }
 
 TemporalMap joinTiles(const TemporalMap& top, int tile_level, const std::vector<const Tile*>& tiles) {

@@ -322,6 +322,19 @@ TEST(Tiles, BadInputGivesOneClearError) {
   } catch (const FormatError& e) {
     EXPECT_NE(std::string(e.what()).find("sessions"), std::string::npos) << e.what();
   }
+
+  // A tile filed under another tile's key.
+  SplitMap moved{3, split.top, {}};
+  moved.tiles.push_back(Tile{split.tiles[1].key, split.tiles[0].map});
+  io::writeTiledMap(dir / "moved", moved, nlohmann::json::object());
+  const io::TileIndex moved_index = io::readTileIndex(dir / "moved");
+  try {
+    io::readTile(dir / "moved", moved_index, moved_index.tiles[0]);
+    FAIL() << "no error";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("outside its tile"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(joinTiles(split.top, 3, {&moved.tiles[0]}), FormatError);
 }
 
 }  // namespace
