@@ -215,7 +215,11 @@ VoxelHistory historyOfMap(const fs::path& path, const Eigen::Vector3d& point_m, 
   auto fill = [&](const KeyGrid& grid, auto&& map) {
     VoxelHistory h;
     const auto key = grid.keyOf(point_m);
-    if (!key) throw UsageError("point lies outside the map");
+    if (!key) {
+      std::ostringstream msg;
+      msg << "point " << point_m.x() << "," << point_m.y() << "," << point_m.z() << " lies outside the map";
+      throw UsageError(msg.str());
+    }
     h.key = *key;
     h.center_m = grid.centerOf(*key);
     h.entries = map.history(*key);
