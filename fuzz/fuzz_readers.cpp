@@ -12,6 +12,7 @@
 #include "chronomap/io/cloud_io.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/temporal_file.h"
+#include "chronomap/io/tiled_file.h"
 #include "chronomap/io/diff_file.h"
 #include "chronomap/align/consensus.h"
 #include "chronomap/align/realign.h"
@@ -95,6 +96,17 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
       (void)cells;
     }
     map.compact();
+  } else if (file.header.kind == io::MapKind::Tiled) {
+    // A tile index (the top of a tiled map and its table of tiles) that reads must also answer
+    // the queries a tiled map asks of its top.
+    const io::TileIndex index = io::decodeTileIndex(bytes, name);
+    index.top.history(VoxelKey{32768, 32768, 32768});
+    for (const io::TileEntry& e : index.tiles) index.find(e.key);
+    if (index.top.sessionCount() > 1) {
+      volatile size_t cells =
+          diff(index.top, index.top.sessions().front().time_s, index.top.sessions().back().time_s).cells().size();
+      (void)cells;
+    }
   } else if (file.header.kind == io::MapKind::Diff) {
     // A diff that reads must also segment without crashing.
     const DiffMap d = io::diffMapFrom(file, name);

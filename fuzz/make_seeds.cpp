@@ -14,6 +14,7 @@
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/file.h"
 #include "chronomap/io/temporal_file.h"
+#include "chronomap/io/tiled_file.h"
 #include "chronomap/io/diff_file.h"
 #include "chronomap/io/file.h"
 #include "chronomap/io/jpeg.h"
@@ -124,6 +125,10 @@ int main(int argc, char** argv) {
     four_d.add(1000.0, shifted);
     io::writeTemporalMap(root / "cmap/four_d.cmap", four_d, {{"seed", true}});
     io::writeDiffMap(root / "cmap/diff.cmap", diff(four_d, 1000.0, 2000.0), {{"seed", true}});
+    // The same 4D map cut into tiles of 2 voxels: its index (fuzz_cmap reads kind "tiled" too).
+    io::writeTiledMap(root / "tiled", splitIntoTiles(four_d, 1), {{"seed", true}});
+    fs::copy_file(root / "tiled" / io::kTileIndexName, root / "cmap/tile_index.cmap", fs::copy_options::overwrite_existing);
+    fs::remove_all(root / "tiled");
     // The same 4D map with a third session appended as `chronomap add` appends it.
     io::writeTemporalMap(root / "cmap/four_d_appended.cmap", four_d, {{"seed", true}});
     const AddSettings options{false, "appended"};

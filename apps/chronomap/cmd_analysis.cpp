@@ -39,6 +39,7 @@ struct DiffCmdOptions {
   std::string ply;
   std::optional<double> colour_distance;  ///< set: also compare colours
   bool lighting_invariant = false;
+  std::optional<double> memory_limit_gib;
   bool json = false;
 };
 
@@ -81,7 +82,7 @@ int runDiff(const DiffCmdOptions& o) {
   const auto start = std::chrono::steady_clock::now();
   if (o.lighting_invariant && !o.colour_distance) throw UsageError("--lighting-invariant applies to --colour");
   const nlohmann::json colour = o.colour_distance ? colourDiff(o, before, after) : nlohmann::json::object();
-  const DiffMap d = pipeline::diffMaps(before, after, settings);
+  const DiffMap d = pipeline::diffMaps(before, after, settings, tileCacheSettings(o.memory_limit_gib));
   io::writeDiffMap(o.output, d, {{"created_by", "chronomap diff"}, {"before", o.before}, {"after", o.after}});
   std::vector<ChangeCell> changed;
   for (const ChangeCell& c : d.cells()) {
@@ -185,8 +186,8 @@ Command addDiff(CLI::App& root) {
       "time; two times of one map compare only what changed in between). Unknown on either side is never "
       "a change. Modes: hard (occupied <-> free), threshold (|P1 - P2| > alpha, default 0.4), band (hard "
       "with P in 0.5 +- alpha unknown, default 0.1), continuous (|P1 - P2| for every voxel known in both).");
-  app->add_option("A", o->before, "the earlier map: SESSION.cmap or MAP.cmap@TIME")->required();
-  app->add_option("B", o->after, "the later map: SESSION.cmap or MAP.cmap@TIME")->required();
+  app->add_option("A", o->before, "the earlier map: SESSION.cmap, MAP.cmap@TIME or TILED_FOLDER@TIME")->required();
+  app->add_option("B", o->after, "the later map: SESSION.cmap, MAP.cmap@TIME or TILED_FOLDER@TIME")->required();
   app->add_option("--mode", o->mode, "hard, threshold, band or continuous")->capture_default_str();
   app->add_option("--alpha", o->alpha,
                   "threshold (threshold mode, 0 to 1) or half band width (band mode, 0 to 0.5); other modes have none")
@@ -207,6 +208,7 @@ Command addDiff(CLI::App& root) {
                   "also count the voxels occupied at both times whose mean colour moved farther than this (8-bit RGB "
                   "units); A and B must be two times of one 4D map")
       ->check(numberIn(0.001, 442));
+  app->add_option("--memory-limit", o->memory_limit_gib, kTileMemoryHelp)->check(numberIn(0, 1e6));
   app->add_flag("--lighting-invariant", o->lighting_invariant,
                 "with --colour: a colour change that the change of light between the two hours explains is none "
                 "(a sunset is not a change, a repainted box is). The light is a colour model learned from the map's "

@@ -6,6 +6,7 @@
 #include <iostream>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <nlohmann/json.hpp>
 
 #include "chronomap/analysis/change_frequency.h"
@@ -29,8 +30,33 @@ struct SnapshotCmdOptions {
   std::string map;
   std::string at;
   std::string output;
+  std::string box;
+  std::optional<double> memory_limit_gib;
   bool json = false;
 };
+
+/// "X0,Y0,Z0,X1,Y1,Z1" in metres.
+pipeline::BoxMetres parseBox(const std::string& text) {
+  const std::vector<std::string> parts = splitCommas(text);
+  double v[6];
+  bool ok = parts.size() == 6;
+  for (size_t i = 0; ok && i < 6; ++i) {
+    try {
+      size_t used = 0;
+      v[i] = std::stod(parts[i], &used);
+      ok = used == parts[i].size() && std::isfinite(v[i]);
+    } catch (const std::exception&) {
+      ok = false;
+    }
+  }
+  if (!ok) throw UsageError("--box must be X0,Y0,Z0,X1,Y1,Z1 in metres, got '" + text + "'");
+  return {Eigen::Vector3d(v[0], v[1], v[2]), Eigen::Vector3d(v[3], v[4], v[5])};
+}
+
+nlohmann::json tileStatsJson(const std::optional<pipeline::TileCacheStats>& s) {
+  if (!s) return nullptr;
+  return {{"tiles_loaded", s->loads}, {"tiles_evicted", s->evictions}, {"peak_tile_bytes", s->peak_resident_bytes}};
+}
 
 int runSnapshot(const SnapshotCmdOptions& o) {
   const std::string ext = fs::path(o.output).extension().string();
@@ -39,14 +65,17 @@ int runSnapshot(const SnapshotCmdOptions& o) {
   }
   io::refuseOverwritingInputs(o.output, {o.map});
   const double t = parseTime(o.at);
-  const SessionMap snap = pipeline::snapshotAt(io::readTemporalMap(o.map), t, o.map);
+  const std::optional<pipeline::BoxMetres> box = o.box.empty() ? std::nullopt : std::optional(parseBox(o.box));
+  const pipeline::MapSnapshot r = pipeline::snapshotOfMap(o.map, t, box, tileCacheSettings(o.memory_limit_gib));
+  const SessionMap& snap = r.map;
   pipeline::ExportSettings settings;
   settings.metadata = {{"created_by", "chronomap snapshot"}, {"snapshot_of", o.map}, {"time_s", t}};
   const size_t n = pipeline::exportSessionMap(o.output, snap, settings);
   const SessionMapCounts c = snap.counts();
   if (o.json) {
     std::cout << nlohmann::json{{"output", o.output},   {"time", formatTime(t)},       {"time_s", t},
-                                {"occupied", c.occupied_voxels}, {"free", c.free_voxels}, {"elements", n}}
+                                {"occupied", c.occupied_voxels}, {"free", c.free_voxels}, {"elements", n},
+                                {"tiles", tileStatsJson(r.tiles)}}
                      .dump()
               << "\n";
   } else {
@@ -62,6 +91,7 @@ int runSnapshot(const SnapshotCmdOptions& o) {
 struct HistoryCmdOptions {
   std::string map;
   std::string point;
+  std::optional<double> memory_limit_gib;
   bool json = false;
 };
 
@@ -125,15 +155,11 @@ void printHistory(const Eigen::Vector3d& c, const VoxelKey& key, const std::vect
 
 int runHistory(const HistoryCmdOptions& o) {
   const Eigen::Vector3d p = parsePoint(o.point);
-  const TemporalMap map = io::readTemporalMap(o.map);
-  const auto key = map.grid().keyOf(p);
-  if (!key) throw UsageError("point " + o.point + " lies outside the map");
-  const auto history = map.history(*key);
-  const Eigen::Vector3d c = map.grid().centerOf(*key);
+  const pipeline::VoxelHistory h = pipeline::historyOfMap(o.map, p, tileCacheSettings(o.memory_limit_gib));
   if (o.json) {
-    printHistoryJson(p, c, *key, history);
+    printHistoryJson(p, h.center_m, h.key, h.entries);
   } else {
-    printHistory(c, *key, history, map.sessionCount());
+    printHistory(h.center_m, h.key, h.entries, h.sessions);
   }
   return 0;
 }
@@ -196,9 +222,12 @@ Command addSnapshot(CLI::App& root) {
       "snapshot",
       "The map as most recently observed at a time: every voxel carries its latest state at or before "
       "--at. Output by extension: .cmap (a session map), .ply (occupied voxels), .ot (OctoMap), .png (top view).");
-  app->add_option("MAP", o->map, "the 4D map (.cmap)")->required();
+  app->add_option("MAP", o->map, "the 4D map (.cmap) or a tiled map folder (chronomap tile)")->required();
   app->add_option("--at", o->at, "time: ISO-8601 or seconds since the epoch")->required();
   app->add_option("-o,--output", o->output, "file to write (.cmap, .ply, .ot or .png)")->required();
+  app->add_option("--box", o->box,
+                  "tiled maps: X0,Y0,Z0,X1,Y1,Z1 in metres; only the tiles that meet the box are read and written");
+  app->add_option("--memory-limit", o->memory_limit_gib, kTileMemoryHelp)->check(numberIn(0, 1e6));
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runSnapshot(*o); }};
 }
@@ -207,8 +236,9 @@ Command addHistory(CLI::App& root) {
   auto o = std::make_shared<HistoryCmdOptions>();
   CLI::App* app = root.add_subcommand(
       "history", "Every stored state of the voxel that contains a point: time, state, probability, colour.");
-  app->add_option("MAP", o->map, "the 4D map (.cmap)")->required();
+  app->add_option("MAP", o->map, "the 4D map (.cmap) or a tiled map folder (one tile is read)")->required();
   app->add_option("--point", o->point, "X,Y,Z in metres, map frame")->required();
+  app->add_option("--memory-limit", o->memory_limit_gib, kTileMemoryHelp)->check(numberIn(0, 1e6));
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runHistory(*o); }};
 }

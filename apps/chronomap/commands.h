@@ -11,6 +11,7 @@
 
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/pipeline/session.h"
+#include "chronomap/pipeline/tiles.h"
 
 namespace chronomap::cli {
 
@@ -39,6 +40,14 @@ Command addSegment(CLI::App& root);
 Command addSimulate(CLI::App& root);
 Command addDemo(CLI::App& root);
 Command addView(CLI::App& root);
+Command addTile(CLI::App& root);
+Command addUntile(CLI::App& root);
+
+/// Help of the --memory-limit flag of the commands that read tiled maps.
+inline constexpr const char* kTileMemoryHelp =
+    "tiled maps: GiB of tiles held at once (least recently used tiles are dropped whole); 0: no limit; default 1";
+/// The tile cache a --memory-limit flag (GiB; 0: none; unset: the default) asks for.
+pipeline::TileCacheSettings tileCacheSettings(const std::optional<double>& gib);
 
 /// The integration flags of integrate and build, as given.
 struct IntegrateFlags {

@@ -258,6 +258,13 @@ auto countersOf(const SessionMap& m) {
 
 }  // namespace
 
+void applyNeighbourhoodRule(std::vector<ChangeCell>& cells, const DiffSettings& settings,
+                            const std::function<VoxelCounters(const VoxelKey&)>& before,
+                            const std::function<VoxelCounters(const VoxelKey&)>& after) {
+  if (settings.mode == DiffMode::Continuous) return;
+  dropNearSurfaces(cells, settings, before, after);
+}
+
 DiffMap diff(const SessionMap& before, const SessionMap& after, const DiffSettings& settings) {
   if (before.resolution_m() != after.resolution_m()) {
     throw UsageError("cannot compare maps of different resolutions (" + std::to_string(before.resolution_m()) +

@@ -172,6 +172,7 @@ const char* toString(MapKind kind) {
     case MapKind::Session: return "session";
     case MapKind::Temporal: return "4d";
     case MapKind::Diff: return "diff";
+    case MapKind::Tiled: return "tiled";
   }
   return "unknown";
 }
@@ -249,7 +250,7 @@ CmapFile decodeCmap(const std::vector<uint8_t>& bytes, const std::string& source
     throw FormatError(source + ": the header is corrupt (checksum mismatch)");
   }
   const uint32_t kind = get<uint32_t>(p + 12);
-  if (kind < 1 || kind > 3) throw FormatError(source + ": unknown map kind " + std::to_string(kind));
+  if (kind < 1 || kind > 4) throw FormatError(source + ": unknown map kind " + std::to_string(kind));
   f.header.kind = static_cast<MapKind>(kind);
   f.header.resolution_m = get<double>(p + 16);
   for (int a = 0; a < 3; ++a) f.header.bounds_min_m[a] = get<double>(p + 24 + 8 * a);

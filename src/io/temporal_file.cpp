@@ -67,12 +67,17 @@ std::vector<TemporalMap::Entry> entriesOf(const CmapFile& file, const std::strin
 }  // namespace
 
 void writeTemporalMap(const std::filesystem::path& path, const TemporalMap& map, const nlohmann::json& meta) {
+  writeFileAtomic(path, encodeTemporalMap(map, meta));
+}
+
+std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::json& meta, MapKind kind,
+                                       const nlohmann::json* extra) {
   TemporalMap compacted = map;
   compacted.compact();
   const TemporalMap::Parts parts = compacted.parts();
 
   CmapHeader header;
-  header.kind = MapKind::Temporal;
+  header.kind = kind;
   header.resolution_m = map.resolution_m();
   bool any = false;
   Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();
@@ -100,6 +105,9 @@ void writeTemporalMap(const std::filesystem::path& path, const TemporalMap& map,
     coverage.insert(coverage.end(), s.coverage.encoded().begin(), s.coverage.encoded().end());
   }
   j["sessions"] = std::move(sessions);
+  if (extra && extra->is_object()) {
+    for (const auto& [key, value] : extra->items()) j[key] = value;
+  }
   const std::string text = j.dump();
 
   std::vector<CmapBlock> blocks(6);
@@ -109,13 +117,10 @@ void writeTemporalMap(const std::filesystem::path& path, const TemporalMap& map,
   blocks[3] = {"ENTR", entryBytes(parts.entries)};
   blocks[4] = {"COVR", std::move(coverage)};
   blocks[5] = {"EPOS", entryOffsetBytes(parts.entries)};
-  writeFileAtomic(path, encodeCmap(header, blocks));
+  return encodeCmap(header, blocks);
 }
 
-TemporalMap temporalMapFrom(const CmapFile& file, const std::string& source) {
-  if (file.header.kind != MapKind::Temporal) {
-    throw FormatError(source + ": holds a " + std::string(toString(file.header.kind)) + " map, not a 4D map");
-  }
+TemporalMap decodeTemporalBlocks(const CmapFile& file, const std::string& source) {
   const CmapBlock& meta_block = file.block("META", source);
   const nlohmann::json j = nlohmann::json::parse(meta_block.data.begin(), meta_block.data.end(), nullptr, false);
   if (j.is_discarded() || !j.is_object() || !j.contains("sessions") || !j["sessions"].is_array()) {
@@ -157,14 +162,20 @@ TemporalMap temporalMapFrom(const CmapFile& file, const std::string& source) {
   parts.inner = vectorOf<TemporalMap::Children>(file.block("INNR", source), source);
   parts.list_sizes = vectorOf<uint32_t>(file.block("LSTS", source), source);
   parts.entries = entriesOf(file, source);
-  TemporalMap map(file.header.resolution_m);
   try {
-    map = TemporalMap::fromParts(file.header.resolution_m, criterion, std::move(parts), std::move(sessions));
+    return TemporalMap::fromParts(file.header.resolution_m, criterion, std::move(parts), std::move(sessions));
   } catch (const FormatError& e) {
     throw FormatError(source + ": " + e.what());
   } catch (const UsageError& e) {
     throw FormatError(source + ": " + e.what());
   }
+}
+
+TemporalMap temporalMapFrom(const CmapFile& file, const std::string& source) {
+  if (file.header.kind != MapKind::Temporal) {
+    throw FormatError(source + ": holds a " + std::string(toString(file.header.kind)) + " map, not a 4D map");
+  }
+  TemporalMap map = decodeTemporalBlocks(file, source);
   for (size_t i = 0; i < file.appended.size(); ++i) {
     const std::string what = source + ": appended session " + std::to_string(i + 1);
     const CmapBlock& record = file.appended[i];

@@ -41,7 +41,14 @@ SessionMap loadSessionMap(const MapRef& ref, const io::CmapFile& file) {
                    " map; diff compares session maps and 4D maps");
 }
 
-DiffMap diffMaps(const MapRef& a, const MapRef& b, const DiffSettings& settings) {
+DiffMap diffMaps(const MapRef& a, const MapRef& b, const DiffSettings& settings, const TileCacheSettings& cache) {
+  if (isTiledMapFolder(a.path) || isTiledMapFolder(b.path)) {
+    if (!a.time_s || !b.time_s || !fs::exists(b.path) || !fs::equivalent(a.path, b.path)) {
+      throw UsageError("a tiled map is compared with itself at two times: give DIR@TIME and DIR@TIME");
+    }
+    TiledMap map(a.path, cache);
+    return map.diff(*a.time_s, *b.time_s, settings);
+  }
   const io::CmapFile fa = io::readCmap(a.path);
   if (fa.header.kind == io::MapKind::Temporal && a.time_s && b.time_s && fs::exists(b.path) &&
       fs::equivalent(a.path, b.path)) {

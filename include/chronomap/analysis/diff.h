@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <span>
 #include <string>
@@ -148,6 +149,15 @@ std::optional<double> surfaceShift(const SessionMap& before, const SessionMap& a
 /// What changed from `before` to `after` (two session maps of the same resolution).
 /// @throw UsageError for different resolutions or bad settings.
 DiffMap diff(const SessionMap& before, const SessionMap& after, const DiffSettings& settings = {});
+
+/// The neighbourhood rule of `settings` (neighbourhood_voxels, min_shift_voxels) applied to the
+/// cells of a diff found with neighbourhood_voxels = 0, reading each side's unit voxels through
+/// `before` and `after` (zero counters where unknown). Lets a diff assembled from parts (the
+/// tiles of a tiled map) drop the same cells as the diff of the whole. Does nothing in
+/// Continuous mode or without a neighbourhood.
+void applyNeighbourhoodRule(std::vector<ChangeCell>& cells, const DiffSettings& settings,
+                            const std::function<VoxelCounters(const VoxelKey&)>& before,
+                            const std::function<VoxelCounters(const VoxelKey&)>& after);
 
 /// What changed in a 4D map from its state at t1_s to its state at t2_s: equal to the diff of
 /// the two snapshots. Except in Continuous mode, which must report unchanged voxels too, only

@@ -16,8 +16,8 @@
 namespace chronomap::io {
 
 /// What a .cmap file holds.
-enum class MapKind : uint32_t { Session = 1, Temporal = 2, Diff = 3 };
-/// "session", "4d", "diff".
+enum class MapKind : uint32_t { Session = 1, Temporal = 2, Diff = 3, Tiled = 4 };
+/// "session", "4d", "diff", "tiled".
 const char* toString(MapKind kind);
 
 /// The format version this build writes and the newest it reads.

@@ -15,6 +15,10 @@ namespace chronomap::io {
 /// Writes a 4D map atomically (temporary file, then rename): a crash leaves the previous
 /// file as it was. Compacts a copy of the map first; `meta` (a JSON object) is stored as is.
 void writeTemporalMap(const std::filesystem::path& path, const TemporalMap& map, const nlohmann::json& meta);
+/// The bytes writeTemporalMap writes, under header kind `kind` (4d, or tiled for a tile index),
+/// with the members of `*extra` (a JSON object, when given) added to the metadata block.
+std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::json& meta,
+                                       MapKind kind = MapKind::Temporal, const nlohmann::json* extra = nullptr);
 /// How a 4D map file is laid out: a base written in one piece (writeTemporalMap), then the
 /// sessions that `chronomap add` appended as records since (docs/file-format.md).
 struct TemporalFileLayout {
@@ -33,6 +37,10 @@ TemporalFileLayout layoutOf(const CmapFile& file);
 TemporalMap readTemporalMap(const std::filesystem::path& path, TemporalFileLayout* layout = nullptr);
 /// The 4D map stored in a decoded file, appended sessions included. @throw FormatError naming `source`.
 TemporalMap temporalMapFrom(const CmapFile& file, const std::string& source);
+
+/// The map stored in the base blocks of a decoded 4d or tiled file, without its appended
+/// sessions and whatever its header's kind. @throw FormatError naming `source`.
+TemporalMap decodeTemporalBlocks(const CmapFile& file, const std::string& source);
 
 /// The append record (tag `ADDS`) of one session added to a 4D map: reading it back means
 /// TemporalMap::add(time_s, session, options) on the map stored before it, which gives the

@@ -17,6 +17,7 @@
 #include "chronomap/analysis/segment.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/octree/session_map.h"
+#include "chronomap/pipeline/tiles.h"
 #include "chronomap/temporal/temporal_map.h"
 
 namespace chronomap::pipeline {
@@ -37,8 +38,10 @@ MapRef parseMapRef(const std::string& text);
 SessionMap loadSessionMap(const MapRef& ref, const io::CmapFile& file);
 
 /// What changed from `before` to `after`. Two times of one 4D map visit only what changed in
-/// between.
-DiffMap diffMaps(const MapRef& before, const MapRef& after, const DiffSettings& settings);
+/// between; two times of one tiled map folder read its tiles through a cache under `cache`.
+/// @throw UsageError when a tiled map is compared with anything but another time of itself.
+DiffMap diffMaps(const MapRef& before, const MapRef& after, const DiffSettings& settings,
+                 const TileCacheSettings& cache = {});
 
 /// The colour part of a diff between two times of one 4D map.
 struct ColourDiffReport {

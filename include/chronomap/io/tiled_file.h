@@ -1,0 +1,64 @@
+#pragma once
+/// @file
+/// A tiled 4D map on disk (docs/file-format.md, "Tiled 4D maps"): a folder holding `index.cmap`
+/// (a .cmap of kind "tiled": the top of the octree, the sessions' table once, and the table of
+/// tiles) and `tiles/X_Y_Z.cmap`, one 4D map per tile.
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json_fwd.hpp>
+
+#include "chronomap/temporal/tiles.h"
+
+namespace chronomap::io {
+
+/// The index's file name inside a tiled map's folder.
+inline constexpr const char* kTileIndexName = "index.cmap";
+
+/// One row of the tile table.
+struct TileEntry {
+  TileKey key;
+  std::string file;     ///< relative to the folder: tiles/X_Y_Z.cmap
+  uint64_t bytes = 0;   ///< size of the tile's file
+  uint32_t crc32 = 0;   ///< CRC-32 of the tile's file
+};
+
+/// A decoded tile index.
+struct TileIndex {
+  int tile_level = 0;
+  TemporalMap top;               ///< see SplitMap::top
+  std::vector<TileEntry> tiles;  ///< sorted by key
+  /// The row of tile `key`, or null when the map holds nothing there.
+  const TileEntry* find(const TileKey& key) const;
+};
+
+/// The file name a tile gets: tiles/X_Y_Z.cmap (tile coordinates, decimal).
+std::string tileFileName(const TileKey& key);
+
+/// What writeTiledMap wrote.
+struct TiledWriteResult {
+  uint64_t index_bytes = 0;
+  uint64_t tile_bytes = 0;  ///< all tiles together
+  size_t tiles = 0;
+};
+
+/// Writes `split` into the folder `folder` as a whole (staged, then moved into place: an
+/// error leaves the folder as it was). `meta` (a JSON object) is stored in the index.
+TiledWriteResult writeTiledMap(const std::filesystem::path& folder, const SplitMap& split, const nlohmann::json& meta);
+
+/// Decodes an index file image. @throw FormatError naming `source`.
+TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& source);
+/// Reads `folder`/index.cmap. @throw IoError, FormatError.
+TileIndex readTileIndex(const std::filesystem::path& folder);
+/// Reads one tile, checking its size and checksum against the index and that it fits it
+/// (resolution, criterion, the sessions' times, nothing outside its cube).
+/// @throw IoError (missing file), FormatError naming the tile's file.
+TemporalMap readTile(const std::filesystem::path& folder, const TileIndex& index, const TileEntry& entry);
+
+/// True when `path` is a folder holding an index.cmap.
+bool isTiledMap(const std::filesystem::path& path);
+
+}  // namespace chronomap::io

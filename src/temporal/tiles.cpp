@@ -1,0 +1,254 @@
+#include "chronomap/temporal/tiles.h"
+
+#include <algorithm>
+#include <map>
+#include <string>
+
+#include "chronomap/core/error.h"
+
+namespace chronomap {
+
+namespace {
+
+using Parts = TemporalMap::Parts;
+using Ref = TemporalMap::Ref;
+constexpr Ref kEmpty = TemporalMap::kEmpty;
+constexpr Ref kListBit = TemporalMap::kListBit;
+
+int slotOf(const VoxelKey& key, int child_level) {
+  return ((key.x >> child_level) & 1) | (((key.y >> child_level) & 1) << 1) | (((key.z >> child_level) & 1) << 2);
+}
+
+std::string tileName(const TileKey& t) {
+  return "tile (" + std::to_string(t.x) + ", " + std::to_string(t.y) + ", " + std::to_string(t.z) + ")";
+}
+
+/// Copies nodes and lists of one Parts into another, keeping the source's list offsets.
+class PartsCopier {
+ public:
+  explicit PartsCopier(const Parts& src) : src_(src), offsets_(src.list_sizes.size() + 1, 0) {
+    for (size_t i = 0; i < src.list_sizes.size(); ++i) offsets_[i + 1] = offsets_[i] + src.list_sizes[i];
+  }
+  const Parts& source() const { return src_; }
+
+  Ref copyList(Parts& out, Ref r) const {
+    const uint32_t i = r & ~kListBit;
+    const Ref mine = static_cast<Ref>(out.list_sizes.size()) | kListBit;
+    out.list_sizes.push_back(src_.list_sizes[i]);
+    out.entries.insert(out.entries.end(), src_.entries.begin() + static_cast<std::ptrdiff_t>(offsets_[i]),
+                       src_.entries.begin() + static_cast<std::ptrdiff_t>(offsets_[i + 1]));
+    return mine;
+  }
+  /// Copies the subtree of inner node `node` depth first; @return its index in `out`.
+  uint32_t copySubtree(Parts& out, uint32_t node) const {
+    const auto me = static_cast<uint32_t>(out.inner.size());
+    out.inner.emplace_back();
+    out.inner[me].fill(kEmpty);
+    for (int slot = 0; slot < 8; ++slot) {
+      const Ref r = src_.inner[node][static_cast<size_t>(slot)];
+      Ref mine = kEmpty;
+      if (r == kEmpty) {
+        mine = kEmpty;
+      } else if (r & kListBit) {
+        mine = copyList(out, r);
+      } else {
+        mine = copySubtree(out, r);
+      }
+      out.inner[me][static_cast<size_t>(slot)] = mine;
+    }
+    return me;
+  }
+
+ private:
+  const Parts& src_;
+  std::vector<uint64_t> offsets_;
+};
+
+/// The inner node of `p` that holds the tile at `corner`, after checking that the path to it
+/// holds nothing else. @throw FormatError.
+uint32_t tileRoot(const Parts& p, const VoxelKey& corner, int tile_level, const std::string& source) {
+  uint32_t node = 0;
+  for (int level = kTreeDepth; level > tile_level; --level) {
+    const int want = slotOf(corner, level - 1);
+    const TemporalMap::Children children = p.inner[node];
+    for (int slot = 0; slot < 8; ++slot) {
+      const Ref r = children[static_cast<size_t>(slot)];
+      if (slot == want) {
+        if (r == kEmpty || (r & kListBit)) throw FormatError(source + " does not hold its tile's subtree");
+        node = r;
+      } else if (r != kEmpty) {
+        throw FormatError(source + " holds nodes outside its tile");
+      }
+    }
+  }
+  return node;
+}
+
+/// Builds the Parts of a map holding only the subtree `node` of `copier`'s source, hung at
+/// `corner` (a cube of 2^tile_level voxels per axis).
+Parts tileParts(const PartsCopier& copier, uint32_t node, const VoxelKey& corner, int tile_level) {
+  Parts out;
+  out.inner.emplace_back();
+  out.inner[0].fill(kEmpty);
+  uint32_t at = 0;
+  for (int level = kTreeDepth; level > tile_level + 1; --level) {
+    const auto next = static_cast<uint32_t>(out.inner.size());
+    out.inner.emplace_back();
+    out.inner[next].fill(kEmpty);
+    out.inner[at][static_cast<size_t>(slotOf(corner, level - 1))] = next;
+    at = next;
+  }
+  const uint32_t sub = copier.copySubtree(out, node);
+  out.inner[at][static_cast<size_t>(slotOf(corner, tile_level))] = sub;
+  return out;
+}
+
+void checkTileLevel(int tile_level) {
+  if (tile_level < kMinTileLevel || tile_level > kMaxTileLevel) {
+    throw UsageError("tile level must lie in [" + std::to_string(kMinTileLevel) + ", " + std::to_string(kMaxTileLevel) +
+                     "], got " + std::to_string(tile_level));
+  }
+}
+
+}  // namespace
+
+Coverage clipCoverage(const Coverage& coverage, const VoxelKey& corner, int level) {
+  const uint64_t lo = mortonEncode(corner);
+  const uint64_t hi = lo + (uint64_t{1} << (3 * level));
+  const std::vector<uint64_t> all = coverage.ranges();
+  std::vector<uint64_t> kept;
+  for (size_t i = 0; i + 1 < all.size(); i += 2) {
+    const uint64_t b = std::max(all[i], lo), e = std::min(all[i + 1], hi);
+    if (b < e) {
+      kept.push_back(b);
+      kept.push_back(e);
+    }
+  }
+  return Coverage::fromRanges(kept);
+}
+
+SplitMap splitIntoTiles(const TemporalMap& map, int tile_level) {
+  checkTileLevel(tile_level);
+  const Parts p = map.parts();
+  const PartsCopier copier(p);
+  struct Found {
+    TileKey key;
+    uint32_t node;
+  };
+  std::vector<Found> found;
+  Parts top;
+  auto copyTop = [&](auto&& self, uint32_t node, int level, const VoxelKey& corner) -> uint32_t {
+    const auto me = static_cast<uint32_t>(top.inner.size());
+    top.inner.emplace_back();
+    top.inner[me].fill(kEmpty);
+    for (int slot = 0; slot < 8; ++slot) {
+      const Ref r = p.inner[node][static_cast<size_t>(slot)];
+      const int child_level = level - 1;
+      const VoxelKey child = childCorner(corner, slot, child_level);
+      Ref mine = kEmpty;
+      if (r == kEmpty) {
+        mine = kEmpty;
+      } else if (r & kListBit) {
+        mine = copier.copyList(top, r);  // a cube of tile size or larger: kept whole in the top
+      } else if (child_level == tile_level) {
+        found.push_back(Found{tileOf(child, tile_level), r});
+      } else {
+        mine = self(self, r, child_level, child);
+      }
+      top.inner[me][static_cast<size_t>(slot)] = mine;
+    }
+    return me;
+  };
+  copyTop(copyTop, 0, kTreeDepth, VoxelKey{});
+
+  SplitMap out{tile_level, TemporalMap::fromParts(map.resolution_m(), map.criterion(), std::move(top), map.sessions()),
+               {}};
+  out.tiles.reserve(found.size());
+  for (const Found& f : found) {
+    const VoxelKey corner = tileCorner(f.key, tile_level);
+    std::vector<SessionRecord> sessions;
+    sessions.reserve(map.sessionCount());
+    for (const SessionRecord& s : map.sessions()) {
+      SessionRecord r;
+      r.time_s = s.time_s;
+      r.name = s.name;
+      r.coverage = clipCoverage(s.coverage, corner, tile_level);
+      sessions.push_back(std::move(r));
+    }
+    out.tiles.push_back(Tile{f.key, TemporalMap::fromParts(map.resolution_m(), map.criterion(),
+                                                           tileParts(copier, f.node, corner, tile_level),
+                                                           std::move(sessions))});
+  }
+  return out;
+}
+
+void checkTileFits(const TemporalMap& top, int tile_level, const TileKey& key, const TemporalMap& tile,
+                   const std::string& source) {
+  if (tile.resolution_m() != top.resolution_m()) {
+    throw FormatError(source + ": resolution " + std::to_string(tile.resolution_m()) + " m differs from the index's " +
+                      std::to_string(top.resolution_m()) + " m");
+  }
+  if (tile.criterion().probability_threshold != top.criterion().probability_threshold ||
+      tile.criterion().color_distance != top.criterion().color_distance) {
+    throw FormatError(source + ": its change criterion differs from the index's");
+  }
+  bool same = tile.sessionCount() == top.sessionCount();
+  for (size_t i = 0; same && i < tile.sessionCount(); ++i) same = tile.sessions()[i].time_s == top.sessions()[i].time_s;
+  if (!same) {
+    throw FormatError(source + ": its sessions (" + std::to_string(tile.sessionCount()) +
+                      ") do not match the index's sessions table (" + std::to_string(top.sessionCount()) + ")");
+  }
+  // Every history list inside the cube, below tile level (a walk, not a copy of the pools; the
+  // join checks the shape of the path as it grafts).
+  bool inside = true;
+  tile.forEachList([&](const VoxelKey& corner, int level, std::span<const TemporalMap::Entry>) {
+    inside = inside && level < tile_level && tileOf(corner, tile_level) == key;
+  });
+  if (!inside) throw FormatError(source + " holds nodes outside its tile");
+}
+
+TemporalMap joinTiles(const TemporalMap& top, int tile_level, const std::vector<const Tile*>& tiles) {
+  checkTileLevel(tile_level);
+  std::map<TileKey, const Tile*> by_key;
+  for (const Tile* t : tiles) {
+    if (!by_key.emplace(t->key, t).second) throw FormatError(tileName(t->key) + " is given twice");
+  }
+  const Parts p = top.parts();
+  const PartsCopier copier(p);
+  Parts out;
+  size_t grafted = 0;
+  auto copy = [&](auto&& self, uint32_t node, int level, const VoxelKey& corner) -> uint32_t {
+    const auto me = static_cast<uint32_t>(out.inner.size());
+    out.inner.emplace_back();
+    out.inner[me].fill(kEmpty);
+    for (int slot = 0; slot < 8; ++slot) {
+      const Ref r = p.inner[node][static_cast<size_t>(slot)];
+      const int child_level = level - 1;
+      const VoxelKey child = childCorner(corner, slot, child_level);
+      Ref mine = kEmpty;
+      if (r != kEmpty && (r & kListBit)) {
+        mine = copier.copyList(out, r);
+      } else if (r != kEmpty) {
+        mine = self(self, r, child_level, child);
+      } else if (child_level == tile_level) {
+        const auto it = by_key.find(tileOf(child, tile_level));
+        if (it != by_key.end()) {
+          const std::string name = tileName(it->first);
+          checkTileFits(top, tile_level, it->first, it->second->map, name);
+          const Parts tp = it->second->map.parts();
+          mine = PartsCopier(tp).copySubtree(out, tileRoot(tp, child, tile_level, name));
+          ++grafted;
+        }
+      }
+      out.inner[me][static_cast<size_t>(slot)] = mine;
+    }
+    return me;
+  };
+  copy(copy, 0, kTreeDepth, VoxelKey{});
+  if (grafted != by_key.size()) {
+    throw FormatError(std::to_string(by_key.size() - grafted) + " tile(s) have no place in the index's tree");
+  }
+  return TemporalMap::fromParts(top.resolution_m(), top.criterion(), std::move(out), top.sessions());
+}
+
+}  // namespace chronomap

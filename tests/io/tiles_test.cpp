@@ -1,0 +1,341 @@
+// Tiled 4D maps: split and join, the index file, and queries through tiles against the whole map.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "chronomap/analysis/segment.h"
+#include "chronomap/core/error.h"
+#include "chronomap/io/temporal_file.h"
+#include "chronomap/io/tiled_file.h"
+#include "chronomap/pipeline/tiles.h"
+#include "chronomap/temporal/tiles.h"
+#include "test_support.h"
+
+namespace chronomap {
+namespace {
+
+using test::at;
+using test::freeVoxel;
+namespace fs = std::filesystem;
+
+// The test region: voxels [kLo, kHi) per axis around the map origin, so that tiles of every
+// level cut through it (the origin is a corner of every tile level).
+constexpr int kLo = -6, kHi = 10;
+
+double sessionTime(int i) { return 1.7e9 + 3600.0 * i; }
+
+VoxelCounters occupied(uint32_t hits, uint8_t red) {
+  VoxelCounters c;
+  c.length_m = 0.0625f * static_cast<float>(hits);
+  c.hits = hits;
+  c.red = uint32_t{red} * hits;
+  c.green = 10 * hits;
+  c.blue = 20 * hits;
+  return c;
+}
+
+// A random session over a random box of the region: drifting occupied voxels, holes, free
+// space with binary-fraction lengths (sums stay exact), sometimes compressed; now and then a
+// large known-free cube as well, so that uniform cubes of tile size and larger occur.
+SessionMap randomSession(std::mt19937_64& rng, std::vector<uint8_t>& world) {
+  const int side = kHi - kLo;
+  for (int i = 0; i < 40; ++i) world[rng() % world.size()] ^= 1;
+  SessionMap m(0.05);
+  int lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = kLo + static_cast<int>(rng() % 6);
+    hi[a] = std::min(kHi, lo[a] + 4 + static_cast<int>(rng() % 12));
+  }
+  for (int z = lo[2]; z < hi[2]; ++z) {
+    for (int y = lo[1]; y < hi[1]; ++y) {
+      for (int x = lo[0]; x < hi[0]; ++x) {
+        if (rng() % 12 == 0) continue;
+        const bool occ = world[static_cast<size_t>(((z - kLo) * side + (y - kLo)) * side + (x - kLo))] != 0;
+        m.add(at(x, y, z), occ ? occupied(1 + static_cast<uint32_t>(rng() % 3), static_cast<uint8_t>(rng() % 256))
+                               : freeVoxel(0.125f * static_cast<float>(1 + rng() % 4)));
+      }
+    }
+  }
+  if (rng() % 3 == 0) m.addCube(at(16, 0, 0), 4, freeVoxel(0.25f * static_cast<float>(1 + rng() % 3)));
+  if (rng() % 2 == 0) m.compressFree();
+  return m;
+}
+
+TemporalMap randomMap(uint64_t seed, int sessions) {
+  std::mt19937_64 rng(seed);
+  std::vector<uint8_t> world(static_cast<size_t>((kHi - kLo) * (kHi - kLo) * (kHi - kLo)));
+  for (auto& w : world) w = rng() % 8 == 0;
+  TemporalMap map(0.05);
+  for (int i = 0; i < sessions; ++i) map.add(sessionTime(i), randomSession(rng, world), {false, "s" + std::to_string(i)});
+  map.compact();
+  return map;
+}
+
+std::vector<VoxelKey> regionKeys() {
+  std::vector<VoxelKey> keys;
+  for (int z = kLo - 1; z <= kHi; ++z) {
+    for (int y = kLo - 1; y <= kHi; ++y) {
+      for (int x = kLo - 1; x <= kHi; ++x) keys.push_back(at(x, y, z));
+    }
+  }
+  keys.push_back(at(20, 3, 5));  // inside the large free cube
+  return keys;
+}
+
+bool sameHistory(const std::vector<HistoryEntry>& a, const std::vector<HistoryEntry>& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (a[i].time_s != b[i].time_s || !(a[i].counters == b[i].counters) || a[i].level != b[i].level) return false;
+  }
+  return true;
+}
+
+std::vector<const Tile*> refsOf(const SplitMap& s) {
+  std::vector<const Tile*> refs;
+  for (const Tile& t : s.tiles) refs.push_back(&t);
+  return refs;
+}
+
+class TilesProperty : public ::testing::TestWithParam<uint64_t> {};
+
+TEST_P(TilesProperty, SplitAndJoinGiveTheMapBack) {
+  const TemporalMap map = randomMap(GetParam(), 6);
+  for (int level = 1; level <= 6; ++level) {
+    const SplitMap split = splitIntoTiles(map, level);
+    EXPECT_FALSE(split.tiles.empty());
+    for (const Tile& t : split.tiles) {
+      ASSERT_EQ(t.map.sessionCount(), map.sessionCount());
+      for (size_t i = 0; i < map.sessionCount(); ++i) EXPECT_EQ(t.map.sessions()[i].time_s, map.sessions()[i].time_s);
+    }
+    EXPECT_TRUE(joinTiles(split.top, level, refsOf(split)) == map) << "level " << level;
+  }
+}
+
+TEST_P(TilesProperty, QueriesThroughTilesAnswerAsTheWholeMap) {
+  std::mt19937_64 rng(GetParam() + 100);
+  const TemporalMap map = randomMap(GetParam(), 6);
+  // Levels 1 and 2 write tens to hundreds of files (each flushed to disk): the split test covers them.
+  const int level = 3 + static_cast<int>(rng() % 3);
+  test::TempDir dir;
+  io::writeTiledMap(dir / "tiled", splitIntoTiles(map, level), nlohmann::json::object());
+  pipeline::TiledMap tiled(dir / "tiled", {0});
+  ASSERT_EQ(tiled.sessions().size(), map.sessionCount());
+
+  std::vector<double> times{sessionTime(0) - 1.0};
+  for (int i = 0; i < 6; ++i) times.push_back(sessionTime(i) + (i % 2 ? 0.0 : 10.0));
+  for (const double t : times) EXPECT_TRUE(tiled.snapshot(t) == map.snapshot(t)) << "level " << level << " t " << t;
+
+  // A region: every voxel in the box reads as in the whole snapshot.
+  const pipeline::VoxelBox box{at(kLo + static_cast<int>(rng() % 8), kLo + static_cast<int>(rng() % 8), kLo),
+                     at(kLo + 8 + static_cast<int>(rng() % 8), kHi - 1, kLo + 4 + static_cast<int>(rng() % 8))};
+  const pipeline::VoxelBox& region = box;
+  const double t = times[1 + rng() % 6];
+  const SessionMap whole = map.snapshot(t);
+  const SessionMap part = tiled.snapshot(t, region);
+  for (uint16_t z = box.min.z; z <= box.max.z; ++z) {
+    for (uint16_t y = box.min.y; y <= box.max.y; ++y) {
+      for (uint16_t x = box.min.x; x <= box.max.x; ++x) {
+        const VoxelKey k{x, y, z};
+        ASSERT_EQ(part.find(k), whole.find(k)) << "level " << level;
+      }
+    }
+  }
+
+  for (const VoxelKey& k : regionKeys()) {
+    ASSERT_TRUE(sameHistory(tiled.history(k), map.history(k))) << "level " << level;
+  }
+
+  for (DiffMode mode : {DiffMode::Hard, DiffMode::Threshold, DiffMode::Continuous}) {
+    DiffSettings s;
+    s.mode = mode;
+    s.neighbourhood_voxels = mode == DiffMode::Threshold ? 1 : 0;
+    const double t1 = times[rng() % times.size()], t2 = times[rng() % times.size()];
+    EXPECT_TRUE(tiled.diff(t1, t2, s) == diff(map, t1, t2, s)) << toString(mode) << " level " << level;
+    // A region's diff is the whole diff's cells that meet the box.
+    const DiffMap d = diff(map, t1, t2, s);
+    std::vector<ChangeCell> in;
+    for (const ChangeCell& c : d.cells()) {
+      if (region.meets(c.key, c.level)) in.push_back(c);
+    }
+    EXPECT_TRUE(tiled.diff(t1, t2, s, region) == DiffMap::fromCells(0.05, s, in));
+  }
+}
+
+TEST_P(TilesProperty, AFolderJoinsBackToTheSameFile) {
+  const TemporalMap map = randomMap(GetParam(), 4);
+  test::TempDir dir;
+  io::writeTemporalMap(dir / "map.cmap", map, {{"k", 1}});
+  pipeline::TileSettings s;
+  s.map = dir / "map.cmap";
+  s.folder = dir / "tiled";
+  s.tile_size_m = 0.05 * (8 << (GetParam() % 3));
+  const pipeline::TileResult r = pipeline::tileMap(s);
+  EXPECT_GT(r.tiles, 0u);
+  EXPECT_EQ(pipeline::untileMap(dir / "tiled", dir / "back.cmap"), map.sessionCount());
+  EXPECT_TRUE(io::readTemporalMap(dir / "back.cmap") == map);
+  io::writeTemporalMap(dir / "again.cmap", io::readTemporalMap(dir / "back.cmap"), {{"k", 1}});
+  io::writeTemporalMap(dir / "orig.cmap", map, {{"k", 1}});
+  EXPECT_EQ(test::bytesOf(dir / "again.cmap"), test::bytesOf(dir / "orig.cmap"));
+}
+
+TEST_P(TilesProperty, ASmallBudgetIsRespectedAndAnswersStayTheSame) {
+  const TemporalMap map = randomMap(GetParam(), 5);
+  test::TempDir dir;
+  io::writeTiledMap(dir / "tiled", splitIntoTiles(map, 3), nlohmann::json::object());
+  size_t largest = 0;
+  {
+    pipeline::TiledMap all(dir / "tiled", {0});
+    for (const TileKey& k : all.tilesMeeting(std::nullopt)) largest = std::max(largest, all.tile(k)->memoryBytes());
+    EXPECT_EQ(all.cacheStats().evictions, 0u);
+  }
+  const size_t limit = 3 * largest;
+  pipeline::TiledMap tiled(dir / "tiled", {limit});
+  const double t = sessionTime(3);
+  EXPECT_TRUE(tiled.snapshot(t) == map.snapshot(t));
+  DiffSettings s;
+  s.neighbourhood_voxels = 1;
+  EXPECT_TRUE(tiled.diff(sessionTime(1), t, s) == diff(map, sessionTime(1), t, s));
+  for (const VoxelKey& k : regionKeys()) ASSERT_TRUE(sameHistory(tiled.history(k), map.history(k)));
+  const pipeline::TileCacheStats& c = tiled.cacheStats();
+  EXPECT_LE(c.peak_resident_bytes, limit);
+  EXPECT_LE(c.resident_bytes, limit);
+  EXPECT_GT(c.evictions, 0u);
+  EXPECT_GT(c.loads, tiled.index().tiles.size());  // tiles were read again after being dropped
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, TilesProperty, ::testing::Range<uint64_t>(0, 6));
+
+TEST(Tiles, AnObjectAcrossATileBorderIsOneObject) {
+  // Free space, then a 4 x 4 x 4 box that straddles the borders of tiles of 4 voxels on all axes.
+  TemporalMap map(0.05);
+  SessionMap before(0.05), after(0.05);
+  for (int z = -6; z < 6; ++z) {
+    for (int y = -6; y < 6; ++y) {
+      for (int x = -6; x < 6; ++x) {
+        before.add(at(x, y, z), freeVoxel(0.125f));
+        const bool box = x >= -2 && x < 2 && y >= -2 && y < 2 && z >= -2 && z < 2;
+        after.add(at(x, y, z), box ? occupied(2, 200) : freeVoxel(0.125f));
+      }
+    }
+  }
+  map.add(sessionTime(0), before);
+  map.add(sessionTime(1), after);
+  test::TempDir dir;
+  io::writeTiledMap(dir / "tiled", splitIntoTiles(map, 2), nlohmann::json::object());
+  pipeline::TiledMap tiled(dir / "tiled", {0});
+  DiffMap d;
+  const Segmentation seg = pipeline::segmentTiledDiff(tiled, sessionTime(0), sessionTime(1), {}, {}, std::nullopt, &d);
+  std::vector<TileKey> touched;
+  for (const ChangeCell& c : d.cells()) touched.push_back(tileOf(c.key, 2));
+  std::sort(touched.begin(), touched.end());
+  touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+  EXPECT_EQ(touched.size(), 8u);  // the object lies in 8 tiles
+  ASSERT_EQ(seg.components.size(), 1u);
+  EXPECT_EQ(seg.components[0].voxels, 64u);
+  EXPECT_EQ(seg.components[0].kind, ChangeKind::Appeared);
+  const Segmentation whole = segment(diff(map, sessionTime(0), sessionTime(1)));
+  ASSERT_EQ(whole.components.size(), 1u);
+  EXPECT_EQ(whole.components[0].voxels, seg.components[0].voxels);
+  EXPECT_EQ(whole.components[0].centroid_m, seg.components[0].centroid_m);
+}
+
+TEST(Tiles, ARegionTouchesOnlyTheTilesItNeeds) {
+  const TemporalMap map = randomMap(3, 4);
+  test::TempDir dir;
+  io::writeTiledMap(dir / "tiled", splitIntoTiles(map, 3), nlohmann::json::object());
+  pipeline::TiledMap tiled(dir / "tiled", {0});
+  const pipeline::VoxelBox box{at(0, 0, 0), at(7, 7, 7)};  // exactly one tile
+  tiled.snapshot(sessionTime(3), box);
+  EXPECT_EQ(tiled.cacheStats().loads, 1u);
+  const TileKey first = tileOf(at(0, 0, 0), 3);
+  const auto other = std::find_if(tiled.index().tiles.begin(), tiled.index().tiles.end(),
+                                  [&](const io::TileEntry& e) { return !(e.key == first); });
+  ASSERT_NE(other, tiled.index().tiles.end());
+  tiled.history(tileCorner(other->key, 3));  // a voxel of another tile: that tile alone
+  EXPECT_EQ(tiled.cacheStats().loads, 2u);
+  EXPECT_GT(tiled.index().tiles.size(), 8u);
+}
+
+TEST(Tiles, TileSizesArePowersOfTwoVoxels) {
+  EXPECT_EQ(pipeline::tileLevelFor(6.4, 0.05), 7);
+  EXPECT_EQ(pipeline::tileLevelFor(0.1, 0.05), 1);
+  EXPECT_THROW(pipeline::tileLevelFor(5.0, 0.05), UsageError);
+  EXPECT_THROW(pipeline::tileLevelFor(0.05, 0.05), UsageError);  // one voxel
+  EXPECT_THROW(pipeline::tileLevelFor(-1.0, 0.05), UsageError);
+  EXPECT_THROW(splitIntoTiles(TemporalMap(0.05), 0), UsageError);
+}
+
+TEST(Tiles, BadInputGivesOneClearError) {
+  const TemporalMap map = randomMap(5, 3);
+  test::TempDir dir;
+  const SplitMap split = splitIntoTiles(map, 3);
+  io::writeTiledMap(dir / "tiled", split, nlohmann::json::object());
+  const io::TileIndex index = io::readTileIndex(dir / "tiled");
+  ASSERT_GE(index.tiles.size(), 2u);
+
+  // A missing tile: the index opens, the query that needs the tile fails naming it.
+  fs::remove(dir / "tiled" / index.tiles[0].file);
+  pipeline::TiledMap tiled(dir / "tiled", {0});
+  try {
+    tiled.snapshot(sessionTime(2));
+    FAIL() << "no error";
+  } catch (const IoError& e) {
+    EXPECT_NE(std::string(e.what()).find(index.tiles[0].file), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(pipeline::untileMap(dir / "tiled", dir / "x.cmap"), IoError);
+
+  // A tile changed after the index was written.
+  std::vector<uint8_t> bytes = test::bytesOf(dir / "tiled" / index.tiles[1].file);
+  bytes[bytes.size() / 2] ^= 0x40;
+  test::writeBytes(dir / "tiled" / index.tiles[1].file, bytes);
+  EXPECT_THROW(io::readTile(dir / "tiled", index, index.tiles[1]), FormatError);
+
+  // A corrupt index.
+  std::vector<uint8_t> idx = test::bytesOf(dir / "tiled" / io::kTileIndexName);
+  for (size_t at_byte : {size_t{5}, size_t{14}, idx.size() / 2, idx.size() - 3}) {
+    std::vector<uint8_t> bad = idx;
+    bad[at_byte] ^= 0x21;
+    EXPECT_THROW(io::decodeTileIndex(bad, "index"), FormatError) << at_byte;
+  }
+  idx.resize(idx.size() - 7);
+  EXPECT_THROW(io::decodeTileIndex(idx, "index"), FormatError);
+  // A 4D map is not an index, nor is a folder without one.
+  io::writeTemporalMap(dir / "map.cmap", map, {});
+  EXPECT_THROW(io::decodeTileIndex(test::bytesOf(dir / "map.cmap"), "map"), FormatError);
+  EXPECT_THROW(io::readTileIndex(dir.path()), IoError);
+
+  // A tile whose sessions' table disagrees with the index's: one session fewer.
+  TemporalMap shorter = map;
+  shorter.remove(sessionTime(2));
+  shorter.compact();
+  const SplitMap other = splitIntoTiles(shorter, 3);
+  SplitMap mixed{3, split.top, {}};
+  mixed.tiles.push_back(other.tiles[0]);
+  io::writeTiledMap(dir / "mixed", mixed, nlohmann::json::object());
+  const io::TileIndex mixed_index = io::readTileIndex(dir / "mixed");
+  try {
+    io::readTile(dir / "mixed", mixed_index, mixed_index.tiles[0]);
+    FAIL() << "no error";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("sessions"), std::string::npos) << e.what();
+  }
+
+  // A tile filed under another tile's key.
+  SplitMap moved{3, split.top, {}};
+  moved.tiles.push_back(Tile{split.tiles[1].key, split.tiles[0].map});
+  io::writeTiledMap(dir / "moved", moved, nlohmann::json::object());
+  const io::TileIndex moved_index = io::readTileIndex(dir / "moved");
+  try {
+    io::readTile(dir / "moved", moved_index, moved_index.tiles[0]);
+    FAIL() << "no error";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("outside its tile"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(joinTiles(split.top, 3, {&moved.tiles[0]}), FormatError);
+}
+
+}  // namespace
+}  // namespace chronomap
