@@ -180,14 +180,14 @@ void requireExactly(const CmapFile& file, const std::string& source, std::initia
 }
 
 uint8_t quantiseOffset(float sum, uint32_t hits) {
-  if (hits == 0) return 128;
+  if (hits == 0) return kOffsetLevels;
   const double mean = static_cast<double>(sum) / static_cast<double>(hits);
-  const double q = std::round((mean + 0.5) * 255.0);
-  return static_cast<uint8_t>(std::clamp(q, 0.0, 255.0));
+  const double q = std::round(mean * (2 * kOffsetLevels));
+  return static_cast<uint8_t>(std::clamp(q, -double{kOffsetLevels}, double{kOffsetLevels}) + kOffsetLevels);
 }
 
 float dequantiseOffset(uint8_t q, uint32_t hits) {
-  return static_cast<float>((static_cast<double>(q) / 255.0 - 0.5) * static_cast<double>(hits));
+  return static_cast<float>((static_cast<double>(q) - kOffsetLevels) / (2 * kOffsetLevels) * static_cast<double>(hits));
 }
 
 namespace {
@@ -271,7 +271,9 @@ void decodeCounters(const CmapFile& file, const std::string& source, size_t n,
       const int64_t sum = int64_t{means.data[ch * with_hits + k]} * c.hits + residual;
       if (sum < 0 || sum > 0xffffffffll) residuals.fail("holds an impossible colour sum");
       channel(c, ch) = static_cast<uint32_t>(sum);
-      c.offset[ch] = dequantiseOffset(positions.data[ch * with_hits + k], c.hits);
+      const uint8_t q = positions.data[ch * with_hits + k];
+      if (q > 2 * kOffsetLevels) throw FormatError(blockName(source, kPositions) + " holds an impossible position");
+      c.offset[ch] = dequantiseOffset(q, c.hits);
       ++k;
     }
   }

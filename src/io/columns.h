@@ -102,10 +102,13 @@ void decodeCounters(const CmapFile& file, const std::string& source, size_t n,
 /// @throw FormatError naming `source` and the block.
 void requireExactly(const CmapFile& file, const std::string& source, std::initializer_list<const char*> tags);
 
-/// A hit position as version 2 stores it: the mean offset from the voxel centre along one axis
-/// (in [-0.5, 0.5] voxels), as round((mean + 0.5) * 255), clamped to 0..255.
+/// Hit positions in version 2: a mean offset from the voxel centre (in [-0.5, 0.5] voxels) is
+/// kept as q = round(mean * 254) in -127..127, stored as the byte q + 127 (0..254; 255 is
+/// refused). Zero, a hit at the centre (maps made without positions), is kept exactly.
+inline constexpr int kOffsetLevels = 127;
+/// The stored byte of an offset sum `sum` over `hits` hits (127 without hits).
 uint8_t quantiseOffset(float sum, uint32_t hits);
-/// The offset sum that code `q` stands for with `hits` hits: (q / 255 - 0.5) * hits.
+/// The offset sum that byte `q` stands for with `hits` hits: (q - 127) / 254 * hits.
 float dequantiseOffset(uint8_t q, uint32_t hits);
 
 }  // namespace chronomap::io::columns

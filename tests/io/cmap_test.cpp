@@ -326,6 +326,16 @@ TEST(Cmap, RandomMapsRoundTripExactlyButPositionsWithinTheirBound) {
   }
 }
 
+TEST(Cmap, HitsAtTheCentreStayThereExactly) {
+  // Maps made without positions (every hit at its voxel's centre) round trip bit for bit.
+  SessionMap m = randomCounters(7, 0.05);
+  std::vector<VoxelCounters> leaves = m.leafPool();
+  for (VoxelCounters& c : leaves) c.offset[0] = c.offset[1] = c.offset[2] = 0.0f;
+  m.assignPools(m.innerPool(), leaves);
+  const SessionMap back = sessionMapFrom(decodeCmap(encodeSessionMap(m, nullptr), "c.cmap"), "c.cmap");
+  EXPECT_EQ(back.leafPool(), m.leafPool());
+}
+
 TEST(Cmap, VersionOneFilesStillReadExactly) {
   // Written by the previous format's writer (pools and float records as they lie in memory).
   const SessionMap m = randomCounters(11, 0.05);
@@ -389,6 +399,7 @@ TEST(Cmap, CraftedVersionTwoBlocksGiveOneClearError) {
           << e.what();
     }
   }
+  expectError("CPOS", [](std::vector<uint8_t>& d) { d[0] = 255; }, "a position code past 254");
   // References out of range, repeated, or past what a number can hold.
   expectError("TREF", [](std::vector<uint8_t>& d) { d[0] = 0x7e; }, "a reference past the pools");
   expectError("TREF", [](std::vector<uint8_t>& d) { d.assign(d.size(), 0xff); }, "an overlong number");

@@ -25,9 +25,10 @@ const char* toString(MapKind kind);
 inline constexpr uint32_t kCmapFormatVersion = 2;
 
 /// Hit positions in version 2 files are mean offsets from the voxel centre quantised in steps of
-/// 1/255 voxel: each axis of a voxel's mean hit position is kept to within half a step,
-/// resolution / 510 (plus float rounding), under the resolution / 256 that tests check.
-inline constexpr double kPositionStepVoxels = 1.0 / 255.0;
+/// 1/254 voxel, zero (the centre) exact: each axis of a voxel's mean hit position is kept to
+/// within half a step, resolution / 508 (plus float rounding), under the resolution / 256 that
+/// the tests check.
+inline constexpr double kPositionStepVoxels = 1.0 / 254.0;
 
 /// Fixed-size header of a .cmap file.
 struct CmapHeader {
