@@ -9,6 +9,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <type_traits>
 
 #include "chronomap/core/error.h"
 #include "chronomap/io/file.h"
@@ -18,6 +19,9 @@
 namespace chronomap::io {
 
 static_assert(std::endian::native == std::endian::little, "the .cmap writer assumes a little-endian host");
+static_assert(SessionMap::kLeafBit == columns::kLeafBit && SessionMap::kEmpty == columns::kEmptyRef &&
+                  std::is_same_v<SessionMap::Children, columns::Children>,
+              "version 2 stores session map references as the column codec's");
 
 namespace {
 

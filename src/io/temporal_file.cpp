@@ -1,6 +1,7 @@
 #include "chronomap/io/temporal_file.h"
 
 #include <cstring>
+#include <type_traits>
 #include <nlohmann/json.hpp>
 
 #include "chronomap/core/error.h"
@@ -12,6 +13,9 @@ namespace chronomap::io {
 /// An entry as ENTR stores it: the session number, then the counters as a LEAF record.
 constexpr size_t kEntryRecordBytes = 4 + kCounterRecordBytes;
 static_assert(sizeof(TemporalMap::Children) == 32, "inner nodes are stored as 32 bytes");
+static_assert(TemporalMap::kListBit == columns::kLeafBit && TemporalMap::kEmpty == columns::kEmptyRef &&
+                  std::is_same_v<TemporalMap::Children, columns::Children>,
+              "version 2 stores 4D map references (lists as leaves) as the column codec's");
 
 namespace {
 
