@@ -114,6 +114,8 @@ int main(int argc, char** argv) {
   }
   map.compressFree();
   io::writeSessionMap(root / "cmap/session.cmap", map, {{"seed", true}});
+  // The previous format version, which readers still read.
+  io::writeFileAtomic(root / "cmap/session_v1.cmap", io::encodeSessionMap(map, {{"seed", true}}, 3, 1));
   {
     // A small 4D map: the session, then the same session shifted by a voxel, added out of order.
     TemporalMap four_d(map.resolution_m());
@@ -124,6 +126,7 @@ int main(int argc, char** argv) {
     });
     four_d.add(1000.0, shifted);
     io::writeTemporalMap(root / "cmap/four_d.cmap", four_d, {{"seed", true}});
+    io::writeFileAtomic(root / "cmap/four_d_v1.cmap", io::encodeTemporalMap(four_d, {{"seed", true}}, 1));
     io::writeDiffMap(root / "cmap/diff.cmap", diff(four_d, 1000.0, 2000.0), {{"seed", true}});
     // The same 4D map cut into tiles of 2 voxels: its index (fuzz_cmap reads kind "tiled" too).
     io::writeTiledMap(root / "tiled", splitIntoTiles(four_d, 1), {{"seed", true}});

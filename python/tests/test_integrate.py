@@ -28,12 +28,13 @@ def test_integrate_dataset_equals_the_cli(tmp_path, threedmatch, cli, fast):
     subprocess.run(command, check=True, capture_output=True)
     ours = chronomap.integrate_dataset(threedmatch, resolution_m=0.05, fast=fast)
     theirs = chronomap.SessionMap.open(cli_file)
-    assert ours == theirs
     assert ours.counts()["occupied_voxels"] > 1000
-    # The same map bytes: both written by SessionMap.save.
+    # The same map bytes: both written by SessionMap.save; and the same map once read (a file
+    # keeps hit positions quantised, docs/file-format.md).
     ours.save(tmp_path / "ours.cmap")
     theirs.save(tmp_path / "theirs.cmap")
     assert (tmp_path / "ours.cmap").read_bytes() == (tmp_path / "theirs.cmap").read_bytes()
+    assert chronomap.SessionMap.open(tmp_path / "ours.cmap") == theirs
 
 
 @pytest.mark.parametrize("fast", [False, True])
@@ -52,7 +53,8 @@ def test_carving_beyond_the_range_equals_the_cli_and_adds_free_space(tmp_path, t
     subprocess.run([str(cli), "integrate", str(threedmatch), "-o", str(cli_file), "--fast", "--max-range", "1.5",
                     "--carve-beyond-range"], check=True, capture_output=True)
     carved = chronomap.integrate_dataset(threedmatch, fast=True, max_range_m=1.5, carve_beyond_range=True)
-    assert carved == chronomap.SessionMap.open(cli_file)
+    carved.save(tmp_path / "carved.cmap")  # files keep hit positions quantised
+    assert chronomap.SessionMap.open(tmp_path / "carved.cmap") == chronomap.SessionMap.open(cli_file)
     plain = chronomap.integrate_dataset(threedmatch, fast=True, max_range_m=1.5)
     assert carved.counts()["free_voxels"] > plain.counts()["free_voxels"]
     k, frames = frames_of(threedmatch)

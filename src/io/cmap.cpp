@@ -9,14 +9,19 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <type_traits>
 
 #include "chronomap/core/error.h"
 #include "chronomap/io/file.h"
 #include "chronomap/octree/voxel_queries.h"
+#include "columns.h"
 
 namespace chronomap::io {
 
 static_assert(std::endian::native == std::endian::little, "the .cmap writer assumes a little-endian host");
+static_assert(SessionMap::kLeafBit == columns::kLeafBit && SessionMap::kEmpty == columns::kEmptyRef &&
+                  std::is_same_v<SessionMap::Children, columns::Children>,
+              "version 2 stores session map references as the column codec's");
 
 namespace {
 
@@ -310,7 +315,9 @@ CmapFile readCmap(const std::filesystem::path& path) {
   return readNamingMemory(path, [&] { return decodeCmap(readFileBytes(path), path.string()); });
 }
 
-std::vector<uint8_t> encodeSessionMap(const SessionMap& map, const nlohmann::json& meta, int zstd_level) {
+std::vector<uint8_t> encodeSessionMap(const SessionMap& map, const nlohmann::json& meta, int zstd_level,
+                                      uint32_t version) {
+  if (version != 1 && version != kCmapFormatVersion) throw UsageError("session maps are written in format version 1 or 2");
   CmapHeader header;
   header.kind = MapKind::Session;
   header.resolution_m = map.resolution_m();
@@ -318,23 +325,28 @@ std::vector<uint8_t> encodeSessionMap(const SessionMap& map, const nlohmann::jso
     header.bounds_min_m = bounds->min_m;
     header.bounds_max_m = bounds->max_m;
   }
-  std::vector<CmapBlock> blocks(4);
+  std::vector<CmapBlock> blocks(1);
   blocks[0].tag = "META";
   const std::string text = meta.is_null() ? "{}" : meta.dump();
   blocks[0].data.assign(text.begin(), text.end());
-  blocks[1].tag = "INNR";
-  const auto& inner = map.innerPool();
-  blocks[1].data.resize(inner.size() * sizeof(SessionMap::Children));
-  copyBytes(blocks[1].data.data(), inner.data(), blocks[1].data.size());
-  blocks[2].tag = "LEAF";
-  blocks[3].tag = "HPOS";
   const auto& leaves = map.leafPool();
-  blocks[2].data.resize(leaves.size() * kCounterRecordBytes);
-  blocks[3].data.resize(leaves.size() * kOffsetRecordBytes);
-  for (size_t i = 0; i < leaves.size(); ++i) {
-    putCounterRecord(blocks[2].data.data() + i * kCounterRecordBytes, leaves[i]);
-    putOffsetRecord(blocks[3].data.data() + i * kOffsetRecordBytes, leaves[i]);
+  if (version == 1) {
+    header.version = 1;
+    const auto& inner = map.innerPool();
+    CmapBlock& tree = blocks.emplace_back(CmapBlock{"INNR", std::vector<uint8_t>(inner.size() * sizeof(SessionMap::Children))});
+    copyBytes(tree.data.data(), inner.data(), tree.data.size());
+    CmapBlock counters{"LEAF", std::vector<uint8_t>(leaves.size() * kCounterRecordBytes)};
+    CmapBlock positions{"HPOS", std::vector<uint8_t>(leaves.size() * kOffsetRecordBytes)};
+    for (size_t i = 0; i < leaves.size(); ++i) {
+      putCounterRecord(counters.data.data() + i * kCounterRecordBytes, leaves[i]);
+      putOffsetRecord(positions.data.data() + i * kOffsetRecordBytes, leaves[i]);
+    }
+    blocks.push_back(std::move(counters));
+    blocks.push_back(std::move(positions));
+    return encodeCmap(header, blocks, zstd_level);
   }
+  columns::encodeTree(map.innerPool(), blocks);
+  columns::encodeCounters(leaves.size(), [&](size_t i) -> const VoxelCounters& { return leaves[i]; }, blocks);
   return encodeCmap(header, blocks, zstd_level);
 }
 
@@ -342,22 +354,44 @@ void writeSessionMap(const std::filesystem::path& path, const SessionMap& map, c
   writeFileAtomic(path, encodeSessionMap(map, meta));
 }
 
-SessionMap sessionMapFrom(const CmapFile& file, const std::string& source) {
-  if (file.header.kind != MapKind::Session) {
-    throw FormatError(source + ": holds a " + std::string(toString(file.header.kind)) + " map, not a session map");
-  }
+namespace {
+
+/// The pools of a version 1 session map: INNR, LEAF and the optional HPOS.
+void poolsOfVersion1(const CmapFile& file, const std::string& source, std::vector<SessionMap::Children>& inner,
+                     std::vector<VoxelCounters>& leaves) {
   const CmapBlock& inner_block = file.block("INNR", source);
   const CmapBlock& leaf_block = file.block("LEAF", source);
   if (inner_block.data.size() % sizeof(SessionMap::Children) != 0 || leaf_block.data.size() % kCounterRecordBytes != 0) {
     throw FormatError(source + ": node blocks have impossible sizes");
   }
-  std::vector<SessionMap::Children> inner(inner_block.data.size() / sizeof(SessionMap::Children));
+  inner.resize(inner_block.data.size() / sizeof(SessionMap::Children));
   copyBytes(inner.data(), inner_block.data.data(), inner_block.data.size());
-  std::vector<VoxelCounters> leaves(leaf_block.data.size() / kCounterRecordBytes);
+  leaves.resize(leaf_block.data.size() / kCounterRecordBytes);
   for (size_t i = 0; i < leaves.size(); ++i) getCounterRecord(leaf_block.data.data() + i * kCounterRecordBytes, leaves[i]);
   // Hit positions: absent in files written before them (then every surface sits at its centre).
   if (const CmapBlock* positions = offsetBlock(file, "HPOS", leaves.size(), source)) {
     for (size_t i = 0; i < leaves.size(); ++i) getOffsetRecord(positions->data.data() + i * kOffsetRecordBytes, leaves[i]);
+  }
+}
+
+}  // namespace
+
+SessionMap sessionMapFrom(const CmapFile& file, const std::string& source) {
+  if (file.header.kind != MapKind::Session) {
+    throw FormatError(source + ": holds a " + std::string(toString(file.header.kind)) + " map, not a session map");
+  }
+  std::vector<SessionMap::Children> inner;
+  std::vector<VoxelCounters> leaves;
+  if (file.header.version == 1) {
+    poolsOfVersion1(file, source, inner, leaves);
+  } else {
+    columns::requireExactly(file, source, {"META", columns::kTreeMasks, columns::kTreeRefs, columns::kLengths,
+                                           columns::kHits, columns::kColours, columns::kColourResiduals,
+                                           columns::kPositions});
+    size_t n = 0;
+    inner = columns::decodeTree(file, source, n);
+    leaves.resize(n);
+    columns::decodeCounters(file, source, n, [&](size_t i) -> VoxelCounters& { return leaves[i]; });
   }
   SessionMap map(file.header.resolution_m);
   try {
@@ -366,6 +400,22 @@ SessionMap sessionMapFrom(const CmapFile& file, const std::string& source) {
     throw FormatError(source + ": " + e.what());
   }
   return map;
+}
+
+VoxelCounters asStored(const VoxelCounters& c) {
+  VoxelCounters out = c;
+  for (int a = 0; a < 3; ++a) {
+    out.offset[a] = c.hits > 0 ? columns::dequantiseOffset(columns::quantiseOffset(c.offset[a], c.hits), c.hits) : 0.0f;
+  }
+  return out;
+}
+
+SessionMap asStored(const SessionMap& map) {
+  std::vector<VoxelCounters> leaves = map.leafPool();
+  for (VoxelCounters& c : leaves) c = asStored(c);
+  SessionMap out(map.resolution_m());
+  out.assignPools(map.innerPool(), std::move(leaves));
+  return out;
 }
 
 SessionMap readSessionMap(const std::filesystem::path& path) {

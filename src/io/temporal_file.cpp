@@ -1,16 +1,21 @@
 #include "chronomap/io/temporal_file.h"
 
 #include <cstring>
+#include <type_traits>
 #include <nlohmann/json.hpp>
 
 #include "chronomap/core/error.h"
 #include "chronomap/io/file.h"
+#include "columns.h"
 
 namespace chronomap::io {
 
 /// An entry as ENTR stores it: the session number, then the counters as a LEAF record.
 constexpr size_t kEntryRecordBytes = 4 + kCounterRecordBytes;
 static_assert(sizeof(TemporalMap::Children) == 32, "inner nodes are stored as 32 bytes");
+static_assert(TemporalMap::kListBit == columns::kLeafBit && TemporalMap::kEmpty == columns::kEmptyRef &&
+                  std::is_same_v<TemporalMap::Children, columns::Children>,
+              "version 2 stores 4D map references (lists as leaves) as the column codec's");
 
 namespace {
 
@@ -64,14 +69,80 @@ std::vector<TemporalMap::Entry> entriesOf(const CmapFile& file, const std::strin
   return entries;
 }
 
+/// Version 2: list sizes (LSIZ) as varints; each list's session numbers (ESES) as the first,
+/// then the gaps less one, varints.
+constexpr const char* kListSizes = "LSIZ";
+constexpr const char* kEntrySessions = "ESES";
+
+std::vector<uint8_t> listSizeBytes(const std::vector<uint32_t>& sizes) {
+  columns::ByteWriter w;
+  for (uint32_t s : sizes) w.varint(s);
+  return std::move(w.bytes());
+}
+
+std::vector<uint8_t> sessionBytes(const std::vector<uint32_t>& sizes, const std::vector<TemporalMap::Entry>& entries) {
+  columns::ByteWriter w;
+  size_t at = 0;
+  for (uint32_t s : sizes) {
+    for (uint32_t k = 0; k < s; ++k, ++at) {
+      w.varint(k == 0 ? entries[at].session : entries[at].session - entries[at - 1].session - 1);
+    }
+  }
+  return std::move(w.bytes());
+}
+
+/// The parts of a version 2 file (their consistency is checked by TemporalMap::fromParts).
+TemporalMap::Parts partsOfVersion2(const CmapFile& file, const std::string& source) {
+  columns::requireExactly(file, source, {"META", columns::kTreeMasks, columns::kTreeRefs, kListSizes, kEntrySessions,
+                                         columns::kLengths, columns::kHits, columns::kColours,
+                                         columns::kColourResiduals, columns::kPositions, "COVR"});
+  TemporalMap::Parts parts;
+  size_t lists = 0;
+  parts.inner = columns::decodeTree(file, source, lists);
+  columns::ByteReader sizes(file.block(kListSizes, source).data, source + ": block '" + kListSizes + "'");
+  parts.list_sizes.resize(lists);
+  uint64_t total = 0;
+  for (uint32_t& s : parts.list_sizes) {
+    const uint64_t v = sizes.varint();
+    if (v == 0 || v > 0xffffu) sizes.fail("holds a history list of impossible length");
+    s = static_cast<uint32_t>(v);
+    total += v;
+  }
+  sizes.expectEnd();
+  // Every entry takes at least one byte of ESES: a crafted total cannot allocate more than that.
+  const CmapBlock& session_block = file.block(kEntrySessions, source);
+  columns::ByteReader sessions(session_block.data, source + ": block '" + kEntrySessions + "'");
+  if (total > session_block.data.size()) sessions.fail("is truncated");
+  parts.entries.resize(total);
+  size_t at = 0;
+  for (uint32_t s : parts.list_sizes) {
+    for (uint32_t k = 0; k < s; ++k, ++at) {
+      const uint64_t gap = sessions.varint();
+      if (gap > 0xffffffffu) sessions.fail("holds an impossible session number");
+      const uint64_t v = gap + (k == 0 ? 0 : uint64_t{parts.entries[at - 1].session} + 1);
+      if (v > 0xffffffffu) sessions.fail("holds an impossible session number");
+      parts.entries[at].session = static_cast<uint32_t>(v);
+    }
+  }
+  sessions.expectEnd();
+  columns::decodeCounters(file, source, parts.entries.size(),
+                          [&](size_t i) -> VoxelCounters& { return parts.entries[i].value; });
+  return parts;
+}
+
 }  // namespace
 
 void writeTemporalMap(const std::filesystem::path& path, const TemporalMap& map, const nlohmann::json& meta) {
   writeFileAtomic(path, encodeTemporalMap(map, meta));
 }
 
+std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::json& meta, uint32_t version) {
+  return encodeTemporalMap(map, meta, MapKind::Temporal, nullptr, version);
+}
+
 std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::json& meta, MapKind kind,
-                                       const nlohmann::json* extra) {
+                                       const nlohmann::json* extra, uint32_t version) {
+  if (version != 1 && version != kCmapFormatVersion) throw UsageError("4D maps are written in format version 1 or 2");
   TemporalMap compacted = map;
   compacted.compact();
   const TemporalMap::Parts parts = compacted.parts();
@@ -110,13 +181,23 @@ std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::j
   }
   const std::string text = j.dump();
 
-  std::vector<CmapBlock> blocks(6);
-  blocks[0] = {"META", std::vector<uint8_t>(text.begin(), text.end())};
-  blocks[1] = {"INNR", bytesOf(parts.inner)};
-  blocks[2] = {"LSTS", bytesOf(parts.list_sizes)};
-  blocks[3] = {"ENTR", entryBytes(parts.entries)};
-  blocks[4] = {"COVR", std::move(coverage)};
-  blocks[5] = {"EPOS", entryOffsetBytes(parts.entries)};
+  std::vector<CmapBlock> blocks;
+  blocks.push_back({"META", std::vector<uint8_t>(text.begin(), text.end())});
+  if (version == 1) {
+    header.version = 1;
+    blocks.push_back({"INNR", bytesOf(parts.inner)});
+    blocks.push_back({"LSTS", bytesOf(parts.list_sizes)});
+    blocks.push_back({"ENTR", entryBytes(parts.entries)});
+    blocks.push_back({"COVR", std::move(coverage)});
+    blocks.push_back({"EPOS", entryOffsetBytes(parts.entries)});
+    return encodeCmap(header, blocks);
+  }
+  columns::encodeTree(parts.inner, blocks);
+  blocks.push_back({kListSizes, listSizeBytes(parts.list_sizes)});
+  blocks.push_back({kEntrySessions, sessionBytes(parts.list_sizes, parts.entries)});
+  columns::encodeCounters(
+      parts.entries.size(), [&](size_t i) -> const VoxelCounters& { return parts.entries[i].value; }, blocks);
+  blocks.push_back({"COVR", std::move(coverage)});
   return encodeCmap(header, blocks);
 }
 
@@ -159,9 +240,13 @@ TemporalMap decodeTemporalBlocks(const CmapFile& file, const std::string& source
   if (pos != cov.data.size()) throw FormatError(source + ": coverage block has trailing bytes");
 
   TemporalMap::Parts parts;
-  parts.inner = vectorOf<TemporalMap::Children>(file.block("INNR", source), source);
-  parts.list_sizes = vectorOf<uint32_t>(file.block("LSTS", source), source);
-  parts.entries = entriesOf(file, source);
+  if (file.header.version == 1) {
+    parts.inner = vectorOf<TemporalMap::Children>(file.block("INNR", source), source);
+    parts.list_sizes = vectorOf<uint32_t>(file.block("LSTS", source), source);
+    parts.entries = entriesOf(file, source);
+  } else {
+    parts = partsOfVersion2(file, source);
+  }
   try {
     return TemporalMap::fromParts(file.header.resolution_m, criterion, std::move(parts), std::move(sessions));
   } catch (const FormatError& e) {
@@ -202,6 +287,12 @@ TemporalMap temporalMapFrom(const CmapFile& file, const std::string& source) {
     }
   }
   return map;
+}
+
+TemporalMap asStored(const TemporalMap& map) {
+  TemporalMap::Parts parts = map.parts();
+  for (TemporalMap::Entry& e : parts.entries) e.value = asStored(e.value);
+  return TemporalMap::fromParts(map.resolution_m(), map.criterion(), std::move(parts), map.sessions());
 }
 
 TemporalFileLayout layoutOf(const CmapFile& file) {

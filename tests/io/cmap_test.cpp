@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 #include <zlib.h>
 
+#include <cmath>
+#include <cstddef>
 #include <cstring>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -50,7 +52,7 @@ TEST(Cmap, SessionMapRoundTripsWithMetadata) {
   EXPECT_DOUBLE_EQ(f.header.resolution_m, 0.05);
   EXPECT_EQ(metadataOf(f)["frames"], 3);
   const SessionMap back = sessionMapFrom(f, "m.cmap");
-  EXPECT_TRUE(back == m);
+  EXPECT_TRUE(back == asStored(m));
   EXPECT_EQ(back.innerPool(), m.innerPool());
   EXPECT_EQ(back.counts().compressed_leaves, 1u);
   // Bounds cover the known voxels.
@@ -129,6 +131,7 @@ TEST(Cmap, RejectsAValidContainerWithAnInvalidTree) {
   blocks[0].data.resize(sizeof(root));
   std::memcpy(blocks[0].data.data(), &root, sizeof(root));
   blocks[1].tag = "LEAF";
+  h.version = 1;
   const auto bytes = encodeCmap(h, blocks);
   EXPECT_THROW(sessionMapFrom(decodeCmap(bytes, "crafted.cmap"), "crafted.cmap"), FormatError);
   h.kind = MapKind::Diff;
@@ -219,7 +222,7 @@ TEST(Cmap, RefusesZstdBlocksClaimingMoreThanTheyCanHold) {
 TEST(Cmap, FilesWithoutHitPositionsReadWithHitsAtTheCentres) {
   // Files written before the hit positions were kept have no HPOS block.
   const SessionMap m = sampleMap();
-  CmapFile f = decodeCmap(encodeSessionMap(m, nullptr), "m.cmap");
+  CmapFile f = decodeCmap(encodeSessionMap(m, nullptr, 3, 1), "m.cmap");
   ASSERT_NE(f.find("HPOS"), nullptr);
   std::erase_if(f.blocks, [](const CmapBlock& b) { return b.tag == "HPOS"; });
   const SessionMap old = sessionMapFrom(decodeCmap(encodeCmap(f.header, f.blocks), "old.cmap"), "old.cmap");
@@ -236,8 +239,8 @@ TEST(Cmap, FilesWithoutHitPositionsReadWithHitsAtTheCentres) {
 
 TEST(Cmap, RejectsImpossibleHitPositions) {
   const SessionMap m = sampleMap();
-  const CmapFile f = decodeCmap(encodeSessionMap(m, nullptr), "m.cmap");
-  // The first leaf with hits, and one without.
+  const CmapFile f = decodeCmap(encodeSessionMap(m, nullptr, 3, 1), "m.cmap");
+  // The first leaf with hits, and one without (format version 1 stores the sums as floats).
   size_t hit = 0, empty = 0;
   while (m.leafPool()[hit].hits == 0) ++hit;
   while (m.leafPool()[empty].hits != 0) ++empty;
@@ -260,6 +263,159 @@ TEST(Cmap, RejectsImpossibleHitPositions) {
   EXPECT_THROW(sessionMapFrom(withPositions([&](auto& d) { setFloat(d, empty * 12, 0.1f); }), "crafted.cmap"),
                FormatError)
       << "a position without hits";
+}
+
+/// A map of random counters: random keys in a 64-voxel cube, lengths of any magnitude, hit counts
+/// up to 2000, colour sums up to 255 per hit, offsets anywhere in the voxel (the extremes
+/// included), and a block of free space that compresses.
+SessionMap randomCounters(uint32_t seed, double resolution_m) {
+  SessionMap m(resolution_m);
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> key(20000, 20063);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  for (int i = 0; i < 1500; ++i) {
+    VoxelCounters d;
+    d.length_m = std::ldexp(unit(rng), static_cast<int>(rng() % 20) - 10);
+    if (rng() % 2) {
+      d.hits = 1 + static_cast<uint32_t>(rng() % 2000);
+      for (uint32_t* c : {&d.red, &d.green, &d.blue}) *c = static_cast<uint32_t>(rng() % (255 * d.hits + 1));
+      for (float& o : d.offset) {
+        const uint32_t pick = rng() % 10;
+        const float mean = pick == 0 ? -0.5f : pick == 1 ? 0.5f : unit(rng) - 0.5f;
+        o = mean * static_cast<float>(d.hits);
+      }
+    }
+    m.add({static_cast<uint16_t>(key(rng)), static_cast<uint16_t>(key(rng)), static_cast<uint16_t>(key(rng))}, d);
+  }
+  for (uint16_t x = 0; x < 16; ++x)
+    for (uint16_t y = 0; y < 16; ++y)
+      for (uint16_t z = 0; z < 4; ++z) {
+        VoxelCounters f;
+        f.length_m = 0.01f * static_cast<float>(1 + (x + y + z) % 5);
+        m.add({static_cast<uint16_t>(21000 + x), static_cast<uint16_t>(21000 + y), static_cast<uint16_t>(21000 + z)}, f);
+      }
+  m.compressFree();
+  return m;
+}
+
+TEST(Cmap, RandomMapsRoundTripExactlyButPositionsWithinTheirBound) {
+  for (uint32_t seed = 1; seed <= 6; ++seed) {
+    const double resolution_m = seed % 2 ? 0.05 : 0.02;
+    const SessionMap m = randomCounters(seed, resolution_m);
+    const std::vector<uint8_t> bytes = encodeSessionMap(m, {{"seed", seed}});
+    const SessionMap back = sessionMapFrom(decodeCmap(bytes, "r.cmap"), "r.cmap");
+    ASSERT_EQ(back.innerPool(), m.innerPool()) << "seed " << seed;
+    ASSERT_EQ(back.leafCount(), m.leafCount());
+    double worst_m = 0.0;
+    for (size_t i = 0; i < m.leafCount(); ++i) {
+      const VoxelCounters& a = m.leafPool()[i];
+      const VoxelCounters& b = back.leafPool()[i];
+      ASSERT_EQ(std::memcmp(&a, &b, offsetof(VoxelCounters, offset)), 0) << "leaf " << i << ": length, hits, colour exact";
+      for (int axis = 0; axis < 3; ++axis) {
+        // The mean hit position, in metres, within resolution / 256 of the one written.
+        const double error_m = std::abs(a.meanOffset(axis) - b.meanOffset(axis)) * resolution_m;
+        EXPECT_LE(error_m, resolution_m / 256) << "leaf " << i << " axis " << axis;
+        // Tighter: half a quantisation step, with room for float rounding of the sums.
+        EXPECT_LE(error_m, resolution_m * (kPositionStepVoxels / 2 + 1e-5)) << "leaf " << i << " axis " << axis;
+        worst_m = std::max(worst_m, error_m);
+      }
+      EXPECT_TRUE(b.offsetsValid());
+    }
+    EXPECT_GT(worst_m, resolution_m / 2000) << "positions are quantised, not kept as floats";
+    EXPECT_TRUE(back == asStored(m));
+    // Quantising twice changes nothing: a map read and written again gives the same bytes.
+    EXPECT_EQ(encodeSessionMap(back, {{"seed", seed}}), bytes);
+  }
+}
+
+TEST(Cmap, HitsAtTheCentreStayThereExactly) {
+  // Maps made without positions (every hit at its voxel's centre) round trip bit for bit.
+  SessionMap m = randomCounters(7, 0.05);
+  std::vector<VoxelCounters> leaves = m.leafPool();
+  for (VoxelCounters& c : leaves) c.offset[0] = c.offset[1] = c.offset[2] = 0.0f;
+  m.assignPools(m.innerPool(), leaves);
+  const SessionMap back = sessionMapFrom(decodeCmap(encodeSessionMap(m, nullptr), "c.cmap"), "c.cmap");
+  EXPECT_EQ(back.leafPool(), m.leafPool());
+}
+
+TEST(Cmap, VersionOneFilesStillReadExactly) {
+  // Written by the previous format's writer (pools and float records as they lie in memory).
+  const SessionMap m = randomCounters(11, 0.05);
+  const std::vector<uint8_t> old = encodeSessionMap(m, {{"old", true}}, 3, 1);
+  const CmapFile f = decodeCmap(old, "old.cmap");
+  EXPECT_EQ(f.header.version, 1u);
+  ASSERT_NE(f.find("INNR"), nullptr);
+  const SessionMap back = sessionMapFrom(f, "old.cmap");
+  EXPECT_EQ(back.innerPool(), m.innerPool());
+  EXPECT_EQ(back.leafPool(), m.leafPool()) << "version 1 keeps positions as floats";
+  EXPECT_EQ(metadataOf(f)["old"], true);
+  // Written again, it takes the current version, smaller even for these random counters.
+  const std::vector<uint8_t> now = encodeSessionMap(back, {{"old", true}});
+  EXPECT_EQ(decodeCmap(now, "new.cmap").header.version, kCmapFormatVersion);
+  EXPECT_LT(now.size(), old.size());
+}
+
+TEST(Cmap, CraftedVersionTwoBlocksGiveOneClearError) {
+  const SessionMap m = randomCounters(5, 0.05);
+  const CmapFile f = decodeCmap(encodeSessionMap(m, nullptr), "m.cmap");
+  auto readWith = [&](const std::string& tag, auto&& mutate) {
+    CmapFile g = f;
+    for (CmapBlock& b : g.blocks) {
+      if (b.tag == tag) mutate(b.data);
+    }
+    return sessionMapFrom(decodeCmap(encodeCmap(g.header, g.blocks), "crafted.cmap"), "crafted.cmap");
+  };
+  auto expectError = [&](const std::string& tag, auto&& mutate, const std::string& what) {
+    try {
+      readWith(tag, mutate);
+      ADD_FAILURE() << tag << ": " << what << " was read";
+    } catch (const FormatError& e) {
+      EXPECT_NE(std::string(e.what()).find("crafted.cmap"), std::string::npos) << e.what();
+    }
+  };
+  EXPECT_TRUE(readWith("META", [](auto&) {}) == asStored(m));
+  for (const char* tag : {"TMSK", "TREF", "CLEN", "CHIT", "CRGB", "CRES", "CPOS"}) {
+    expectError(tag, [](std::vector<uint8_t>& d) { d.pop_back(); }, "a block one byte short");
+    expectError(tag, [](std::vector<uint8_t>& d) { d.push_back(0); }, "a block one byte long");
+    expectError(tag, [](std::vector<uint8_t>& d) { d.clear(); }, "an empty block");
+    CmapFile g = f;
+    std::erase_if(g.blocks, [&](const CmapBlock& b) { return b.tag == tag; });
+    EXPECT_THROW(sessionMapFrom(decodeCmap(encodeCmap(g.header, g.blocks), "crafted.cmap"), "crafted.cmap"), FormatError)
+        << "without " << tag;
+  }
+  // A block the version does not have (a damaged tag: no checksum covers the tags), or twice.
+  for (const char* change : {"rename", "twice"}) {
+    CmapFile g = f;
+    if (std::string(change) == "rename") {
+      g.blocks[0].tag = "MEUA";
+    } else {
+      g.blocks.push_back(g.blocks[0]);
+    }
+    try {
+      sessionMapFrom(decodeCmap(encodeCmap(g.header, g.blocks), "crafted.cmap"), "crafted.cmap");
+      ADD_FAILURE() << change << " was read";
+    } catch (const FormatError& e) {
+      EXPECT_NE(std::string(e.what()).find("crafted.cmap"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(std::string(change) == "rename" ? "'MEUA' is not part" : "more than one"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+  expectError("CPOS", [](std::vector<uint8_t>& d) { d[0] = 255; }, "a position code past 254");
+  // References out of range, repeated, or past what a number can hold.
+  expectError("TREF", [](std::vector<uint8_t>& d) { d[0] = 0x7e; }, "a reference past the pools");
+  expectError("TREF", [](std::vector<uint8_t>& d) { d.assign(d.size(), 0xff); }, "an overlong number");
+  // A child marked as a leaf that is not there, and an inner node at unit level.
+  expectError("TMSK", [](std::vector<uint8_t>& d) { d[1] = static_cast<uint8_t>(~d[0]); }, "a leaf mask beyond the children");
+  expectError("TMSK", [](std::vector<uint8_t>& d) { d.assign(d.size(), 0xff); }, "every slot filled");
+  // Hit counts that change which records have colours and positions, lengths that are not
+  // lengths, colour sums beyond 32 bits.
+  expectError("CHIT", [](std::vector<uint8_t>& d) { d[0] = d[0] == 0 ? 1 : 0; }, "one hit record more or less");
+  expectError("CLEN", [](std::vector<uint8_t>& d) { d[3 * d.size() / 4] = 0xff; }, "a negative NaN length");
+  expectError("CRES", [](std::vector<uint8_t>& d) {
+    d.insert(d.begin(), {0xfe, 0xff, 0xff, 0xff, 0x7f});
+    d.pop_back();
+  }, "a colour sum beyond 32 bits");
 }
 
 TEST(Cmap, FailedWriteLeavesTheOldFileIntact) {

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstddef>
 #include <cstring>
 #include <fstream>
 #include <random>
@@ -33,9 +34,12 @@ TEST(TemporalFile, RoundTripReadsBackIdentically) {
   const TemporalMap back = io::readTemporalMap(tmp / "m.cmap");
   TemporalMap compacted = map;
   compacted.compact();
-  EXPECT_TRUE(back == compacted);
+  // Everything exact but the hit positions, which the file keeps quantised (io::asStored).
+  const TemporalMap stored = io::asStored(compacted);
+  EXPECT_FALSE(stored == compacted) << "the sample map has positions to quantise";
+  EXPECT_TRUE(back == stored);
   EXPECT_EQ(back.times(), map.times());
-  for (double t : map.times()) EXPECT_TRUE(back.snapshot(t) == compacted.snapshot(t));
+  for (double t : map.times()) EXPECT_TRUE(back.snapshot(t) == stored.snapshot(t));
   // Writing what was read gives the same bytes: the format is deterministic.
   io::writeTemporalMap(tmp / "again.cmap", back, {{"note", "test"}});
   EXPECT_EQ(bytesOf(tmp / "m.cmap"), bytesOf(tmp / "again.cmap"));
@@ -104,32 +108,97 @@ TEST(TemporalFile, SessionFilesAreNotFourDimensional) {
 }
 
 TEST(TemporalFile, CraftedBlocksAreRejected) {
-  // Valid container, invalid content: every block is checked, not just the checksums.
+  // Valid container, invalid content: every block is checked, not just the checksums; in the
+  // current format version and in version 1.
   test::TempDir tmp;
   const TemporalMap map = sampleMap(2);
-  io::writeTemporalMap(tmp / "m.cmap", map, {});
-  const io::CmapFile file = io::readCmap(tmp / "m.cmap");
-  auto rewrite = [&](const std::string& tag, auto&& mutate) {
-    io::CmapFile f = file;
-    for (auto& b : f.blocks) {
-      if (b.tag == tag) mutate(b.data);
+  for (uint32_t version : {io::kCmapFormatVersion, 1u}) {
+    const io::CmapFile file = io::decodeCmap(io::encodeTemporalMap(map, {}, version), "m.cmap");
+    auto rewrite = [&](const std::string& tag, auto&& mutate) {
+      io::CmapFile f = file;
+      size_t found = 0;
+      for (auto& b : f.blocks) {
+        if (b.tag == tag) mutate(b.data), ++found;
+      }
+      EXPECT_EQ(found, 1u) << tag;
+      io::writeFileAtomic(tmp / "x.cmap", io::encodeCmap(f.header, f.blocks));
+      return tmp / "x.cmap";
+    };
+    auto expectRejected = [&](const fs::path& path, const std::string& what) {
+      try {
+        io::readTemporalMap(path);
+        ADD_FAILURE() << "version " << version << ": " << what << " was read";
+      } catch (const FormatError& e) {
+        EXPECT_NE(std::string(e.what()).find("x.cmap"), std::string::npos) << e.what();
+      }
+    };
+    expectRejected(rewrite("COVR", [](auto& d) { d.push_back(1); }), "coverage with a byte more");
+    expectRejected(rewrite("COVR", [](auto& d) { std::fill(d.begin(), d.end(), uint8_t{0xff}); }), "overlong coverage");
+    expectRejected(rewrite("META", [](auto& d) { d = std::vector<uint8_t>{'{', '}'}; }), "metadata without sessions");
+    if (version == 1) {
+      expectRejected(rewrite("LSTS", [](auto& d) { d.erase(d.end() - std::min<std::ptrdiff_t>(4, std::ssize(d)), d.end()); }),
+                     "a list size short");
+      expectRejected(rewrite("ENTR", [](auto& d) { d[0] = 0xff; d[1] = 0xff; }), "a session past the sessions");
+      expectRejected(rewrite("INNR", [](auto& d) { d[3] = 0x12; }), "a reference past the pools");
+      continue;
     }
-    io::writeFileAtomic(tmp / "x.cmap", io::encodeCmap(f.header, f.blocks));
-    return tmp / "x.cmap";
-  };
-  EXPECT_THROW(io::readTemporalMap(rewrite("LSTS", [](auto& d) { d.erase(d.end() - std::min<std::ptrdiff_t>(4, std::ssize(d)), d.end()); })), FormatError);
-  EXPECT_THROW(io::readTemporalMap(rewrite("ENTR", [](auto& d) { d[0] = 0xff; d[1] = 0xff; })), FormatError);
-  EXPECT_THROW(io::readTemporalMap(rewrite("COVR", [](auto& d) { d.push_back(1); })), FormatError);
-  EXPECT_THROW(io::readTemporalMap(rewrite("COVR", [](auto& d) { std::fill(d.begin(), d.end(), uint8_t{0xff}); })), FormatError);
-  EXPECT_THROW(io::readTemporalMap(rewrite("META", [](auto& d) { d = std::vector<uint8_t>{'{', '}'}; })), FormatError);
-  EXPECT_THROW(io::readTemporalMap(rewrite("INNR", [](auto& d) { d[3] = 0x12; })), FormatError);
+    for (const char* tag : {"TMSK", "TREF", "LSIZ", "ESES", "CLEN", "CHIT", "CRGB", "CRES", "CPOS"}) {
+      expectRejected(rewrite(tag, [](auto& d) { d.pop_back(); }), std::string(tag) + " a byte short");
+      expectRejected(rewrite(tag, [](auto& d) { d.push_back(0); }), std::string(tag) + " a byte long");
+    }
+    expectRejected(rewrite("LSIZ", [](auto& d) { d[0] = 0; }), "an empty list");
+    expectRejected(rewrite("ESES", [](auto& d) { d[0] = 9; }), "a session past the sessions");
+    expectRejected(rewrite("ESES", [](auto& d) { std::fill(d.begin(), d.end(), uint8_t{0xff}); }), "overlong sessions");
+    expectRejected(rewrite("TREF", [](auto& d) { d[1] = 0x41; }), "a reference past the pools");
+  }
+}
+
+TEST(TemporalFile, VersionOneFilesStillReadExactly) {
+  // Written by the previous format's writer: read back exactly, positions as floats included,
+  // pools in the writer's layout; written again they take the current version.
+  TemporalMap map = sampleMap(4);
+  map.compact();
+  const std::vector<uint8_t> old = io::encodeTemporalMap(map, {{"old", true}}, 1);
+  const io::CmapFile f = io::decodeCmap(old, "old.cmap");
+  EXPECT_EQ(f.header.version, 1u);
+  const TemporalMap back = io::temporalMapFrom(f, "old.cmap");
+  EXPECT_TRUE(back == map);
+  EXPECT_EQ(back.parts().inner, map.parts().inner);
+  EXPECT_EQ(back.parts().entries, map.parts().entries);
+  const std::vector<uint8_t> now = io::encodeTemporalMap(back, {{"old", true}});
+  EXPECT_EQ(io::decodeCmap(now, "new.cmap").header.version, io::kCmapFormatVersion);
+  EXPECT_LT(now.size(), old.size());
+  // The current version keeps the writer's two-layer pool order too.
+  const TemporalMap again = io::temporalMapFrom(io::decodeCmap(now, "new.cmap"), "new.cmap");
+  EXPECT_EQ(again.parts().inner, map.parts().inner);
+  EXPECT_EQ(again.parts().list_sizes, map.parts().list_sizes);
+}
+
+TEST(TemporalFile, RandomMapsKeepPositionsWithinTheirBound) {
+  for (uint64_t seed = 1; seed <= 4; ++seed) {
+    TemporalMap map = sampleMap(3, 10 * seed);
+    map.compact();
+    const TemporalMap back = io::temporalMapFrom(io::decodeCmap(io::encodeTemporalMap(map, {}), "r.cmap"), "r.cmap");
+    const TemporalMap::Parts a = map.parts(), b = back.parts();
+    ASSERT_EQ(a.inner, b.inner);
+    ASSERT_EQ(a.list_sizes, b.list_sizes);
+    ASSERT_EQ(a.entries.size(), b.entries.size());
+    for (size_t i = 0; i < a.entries.size(); ++i) {
+      const VoxelCounters &x = a.entries[i].value, &y = b.entries[i].value;
+      ASSERT_EQ(a.entries[i].session, b.entries[i].session);
+      ASSERT_EQ(std::memcmp(&x, &y, offsetof(VoxelCounters, offset)), 0) << "entry " << i;
+      for (int axis = 0; axis < 3; ++axis) {
+        EXPECT_LE(std::abs(x.meanOffset(axis) - y.meanOffset(axis)) * map.resolution_m(), map.resolution_m() / 256);
+      }
+    }
+  }
 }
 
 TEST(TemporalFile, FilesWithoutHitPositionsReadWithHitsAtTheCentres) {
   test::TempDir tmp;
   TemporalMap map = sampleMap(3);
   map.compact();
-  io::writeTemporalMap(tmp / "m.cmap", map, {});
+  io::writeFileAtomic(tmp / "m.cmap", io::encodeTemporalMap(map, {}, 1));  // format version 1
   io::CmapFile f = io::readCmap(tmp / "m.cmap");
   ASSERT_NE(f.find("EPOS"), nullptr);
   std::erase_if(f.blocks, [](const io::CmapBlock& b) { return b.tag == "EPOS"; });
@@ -193,7 +262,8 @@ TEST(TemporalFile, AppendedSessionsReadBackAsTheMapThatAddedThem) {
   const AppendedFile f = writeAppended(tmp / "m.cmap");
   io::TemporalFileLayout layout;
   const TemporalMap back = io::readTemporalMap(tmp / "m.cmap", &layout);
-  EXPECT_TRUE(back == f.stages.back());
+  // As the add that wrote the last record held it, but for the positions the file quantises.
+  EXPECT_TRUE(back == io::asStored(f.stages.back()));
   EXPECT_EQ(back.times(), (std::vector<double>{1000.0, 1500.0, 2000.0, 3000.0}));
   EXPECT_EQ(layout.appended_sessions, 3u);
   EXPECT_EQ(layout.base_bytes, f.ends.front());
@@ -204,12 +274,12 @@ TEST(TemporalFile, AppendedSessionsReadBackAsTheMapThatAddedThem) {
   direct.add(3000.0, test::randomSessionMap(3), {false, "seed 3"});
   direct.add(1500.0, test::randomSessionMap(4), {false, "seed 4"});
   direct.add(3000.0, test::randomSessionMap(5), {true, "seed 5"});
-  EXPECT_TRUE(back == direct);
+  EXPECT_TRUE(back == io::asStored(direct));
   io::writeTemporalMap(tmp / "whole.cmap", back, {});
   io::TemporalFileLayout whole;
   TemporalMap compacted = direct;
   compacted.compact();  // as every whole write does
-  EXPECT_TRUE(io::readTemporalMap(tmp / "whole.cmap", &whole) == compacted);
+  EXPECT_TRUE(io::readTemporalMap(tmp / "whole.cmap", &whole) == io::asStored(compacted));
   EXPECT_EQ(whole.appended_sessions, 0u);
 }
 
@@ -247,10 +317,11 @@ TEST(TemporalFile, CoarseEntriesAreRebuiltOnRead) {
   map.add(2000, allFree(), AddSettings{true, "replaced"});
   io::writeTemporalMap(tmp / "m.cmap", map, {});
   const TemporalMap back = io::readTemporalMap(tmp / "m.cmap");
+  const TemporalMap stored = io::asStored(map);
   size_t coarse_total = 0;
   for (double t : map.times()) {
-    expectSameSnapshot(map, back, t);
-    expectSameSnapshot(map, back, t + 1.0);
+    expectSameSnapshot(stored, back, t);
+    expectSameSnapshot(stored, back, t + 1.0);
     TemporalMap::SnapshotVisits v;
     back.snapshot(t, &v);
     coarse_total += v.coarse;
@@ -260,7 +331,8 @@ TEST(TemporalFile, CoarseEntriesAreRebuiltOnRead) {
 
   const AppendedFile f = writeAppended(tmp / "a.cmap");
   const TemporalMap appended = io::readTemporalMap(tmp / "a.cmap");
-  for (double t : appended.times()) expectSameSnapshot(appended, f.stages.back(), t);
+  const TemporalMap stored_stage = io::asStored(f.stages.back());
+  for (double t : appended.times()) expectSameSnapshot(appended, stored_stage, t);
 }
 
 TEST(TemporalFile, AnInterruptedAppendLeavesThePreviousMap) {
@@ -278,13 +350,13 @@ TEST(TemporalFile, AnInterruptedAppendLeavesThePreviousMap) {
       writeBytes(tmp / "t.cmap", std::vector<uint8_t>(good.begin(), good.begin() + static_cast<long>(cut)));
       io::TemporalFileLayout layout;
       const TemporalMap back = io::readTemporalMap(tmp / "t.cmap", &layout);
-      ASSERT_TRUE(back == f.stages[k]) << "record " << k + 1 << " cut after " << cut - begin << " bytes";
+      ASSERT_TRUE(back == io::asStored(f.stages[k])) << "record " << k + 1 << " cut after " << cut - begin << " bytes";
       EXPECT_EQ(layout.appended_sessions, k);
       EXPECT_EQ(layout.incomplete_tail_bytes, cut - begin);
       // Appending the record again cuts the interrupted one off first.
       const std::vector<uint8_t> record(good.begin() + static_cast<long>(begin), good.begin() + static_cast<long>(end));
       io::appendToFile(tmp / "t.cmap", layout.completeBytes(), record);
-      ASSERT_TRUE(io::readTemporalMap(tmp / "t.cmap") == f.stages[k + 1]);
+      ASSERT_TRUE(io::readTemporalMap(tmp / "t.cmap") == io::asStored(f.stages[k + 1]));
     }
   }
 }

@@ -20,8 +20,15 @@ enum class MapKind : uint32_t { Session = 1, Temporal = 2, Diff = 3, Tiled = 4 }
 /// "session", "4d", "diff", "tiled".
 const char* toString(MapKind kind);
 
-/// The format version this build writes and the newest it reads.
-inline constexpr uint32_t kCmapFormatVersion = 1;
+/// The format version this build writes and the newest it reads. Version 2 stores session and
+/// 4D maps field by field, hit positions quantised (see asStored); version 1 files still read.
+inline constexpr uint32_t kCmapFormatVersion = 2;
+
+/// Hit positions in version 2 files are mean offsets from the voxel centre quantised in steps of
+/// 1/254 voxel, zero (the centre) exact: each axis of a voxel's mean hit position is kept to
+/// within half a step, resolution / 508 (plus float rounding), under the resolution / 256 that
+/// the tests check.
+inline constexpr double kPositionStepVoxels = 1.0 / 254.0;
 
 /// Fixed-size header of a .cmap file.
 struct CmapHeader {
@@ -65,17 +72,26 @@ CmapFile decodeCmap(const std::vector<uint8_t>& bytes, const std::string& source
 /// Reads and decodes a .cmap file. @throw IoError, FormatError.
 CmapFile readCmap(const std::filesystem::path& path);
 
-/// The bytes of a session map file (see writeSessionMap).
-std::vector<uint8_t> encodeSessionMap(const SessionMap& map, const nlohmann::json& meta, int zstd_level = 3);
+/// The bytes of a session map file (see writeSessionMap). `version` 1 gives the previous format's
+/// layout (kept for tests that old files still read, and for benchmarks that compare sizes).
+/// @throw UsageError for a version other than 1 and kCmapFormatVersion.
+std::vector<uint8_t> encodeSessionMap(const SessionMap& map, const nlohmann::json& meta, int zstd_level = 3,
+                                      uint32_t version = kCmapFormatVersion);
 /// Writes a session map with optional metadata (a JSON object) atomically.
 void writeSessionMap(const std::filesystem::path& path, const SessionMap& map, const nlohmann::json& meta);
 /// Reads a session map. @throw FormatError when the file is not a valid session map.
 SessionMap readSessionMap(const std::filesystem::path& path);
 /// The session map stored in a decoded file. @throw FormatError.
 SessionMap sessionMapFrom(const CmapFile& file, const std::string& source);
+/// `c` as a file keeps it: the hit positions quantised (kPositionStepVoxels), the rest exact.
+/// Reading a written map gives asStored of every counter; asStored(asStored(c)) == asStored(c).
+VoxelCounters asStored(const VoxelCounters& c);
+/// `map` with every leaf asStored: what writing and reading it back gives.
+SessionMap asStored(const SessionMap& map);
 /// The metadata block of a file, or an empty object.
 nlohmann::json metadataOf(const CmapFile& file);
 
+/// Version 1 records (read, no longer written).
 /// Size of the counters as a LEAF or ENTR record stores them: length, hits, colour sums.
 inline constexpr size_t kCounterRecordBytes = 20;
 /// Size of the hit offsets as an HPOS or EPOS record stores them: three f32 sums. They have a

@@ -15,10 +15,17 @@ namespace chronomap::io {
 /// Writes a 4D map atomically (temporary file, then rename): a crash leaves the previous
 /// file as it was. Compacts a copy of the map first; `meta` (a JSON object) is stored as is.
 void writeTemporalMap(const std::filesystem::path& path, const TemporalMap& map, const nlohmann::json& meta);
-/// The bytes writeTemporalMap writes, under header kind `kind` (4d, or tiled for a tile index),
-/// with the members of `*extra` (a JSON object, when given) added to the metadata block.
+/// The bytes writeTemporalMap writes. `version` 1 gives the previous format's layout (kept for
+/// tests that old files still read, and for benchmarks that compare sizes); the default, the
+/// current one. @throw UsageError for another version.
+std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::json& meta, uint32_t version);
+/// The same under header kind `kind` (4d, or tiled for a tile index), with the members of
+/// `*extra` (a JSON object, when given) added to the metadata block.
 std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::json& meta,
-                                       MapKind kind = MapKind::Temporal, const nlohmann::json* extra = nullptr);
+                                       MapKind kind = MapKind::Temporal, const nlohmann::json* extra = nullptr,
+                                       uint32_t version = kCmapFormatVersion);
+/// `map` with every entry's counters asStored (io/cmap.h): what writing and reading it gives.
+TemporalMap asStored(const TemporalMap& map);
 /// How a 4D map file is laid out: a base written in one piece (writeTemporalMap), then the
 /// sessions that `chronomap add` appended as records since (docs/file-format.md).
 struct TemporalFileLayout {

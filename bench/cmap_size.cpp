@@ -1,0 +1,201 @@
+// Where the bytes of a .cmap go: for each map, every block of the file in format version 1 (the
+// previous layout: pools and records as they lie in memory) and in the current version (field by
+// field), raw and as stored (zstd), the CPU time to encode and to decode each, and the largest
+// error of the hit positions read back.
+//
+// Usage: cmap_size [--synthetic] [--level N] [FILE.cmap ...]
+//   --synthetic: the session maps of integrate_vs_peers' synthetic sequence (30 frames of
+//                640x480 within 3 m, fast mode, hit positions on) at 0.05 m and 0.02 m
+//   FILE.cmap:   a session or 4D map file of any version (appended sessions folded in)
+// The last line is one JSON object with each map's bytes in both versions. With the environment
+// variable CMAP_SIZE_DUMP=DIR, each session map's version 2 blocks are also written raw to DIR
+// (NAME.TAG), for trying other encodings on them.
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <ctime>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "chronomap/integrate/integrator.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/file.h"
+#include "chronomap/io/temporal_file.h"
+#include "chronomap/sim/box_room.h"
+
+using namespace chronomap;
+
+namespace {
+
+double cpuNow() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+/// Best CPU seconds of `rounds` calls of fn.
+double bestOf(int rounds, const std::function<void()>& fn) {
+  double best = 1e300;
+  for (int i = 0; i < rounds; ++i) {
+    const double t0 = cpuNow();
+    fn();
+    best = std::min(best, cpuNow() - t0);
+  }
+  return best;
+}
+
+/// Tag, raw and stored bytes of each block of an encoded file (docs/file-format.md).
+struct BlockSize {
+  std::string tag;
+  uint64_t raw = 0, stored = 0;
+};
+std::vector<BlockSize> blockSizes(const std::vector<uint8_t>& bytes) {
+  std::vector<BlockSize> out;
+  uint32_t n = 0;
+  std::memcpy(&n, bytes.data() + 76, 4);
+  size_t pos = 84;
+  for (uint32_t i = 0; i < n; ++i) {
+    BlockSize b;
+    b.tag.assign(reinterpret_cast<const char*>(bytes.data() + pos), 4);
+    std::memcpy(&b.raw, bytes.data() + pos + 8, 8);
+    std::memcpy(&b.stored, bytes.data() + pos + 16, 8);
+    pos += 32 + b.stored;
+    out.push_back(b);
+  }
+  return out;
+}
+
+void printBlocks(const char* title, const std::vector<uint8_t>& bytes, size_t records) {
+  std::printf("%s: %zu bytes (%.2f MiB), %.2f bytes per record\n", title, bytes.size(),
+              static_cast<double>(bytes.size()) / (1 << 20), static_cast<double>(bytes.size()) / std::max<size_t>(1, records));
+  std::printf("| block | raw bytes | stored bytes | share | stored bytes per record |\n|---|---:|---:|---:|---:|\n");
+  for (const BlockSize& b : blockSizes(bytes)) {
+    std::printf("| %s | %llu | %llu | %.1f%% | %.3f |\n", b.tag.c_str(), static_cast<unsigned long long>(b.raw),
+                static_cast<unsigned long long>(b.stored), 100.0 * static_cast<double>(b.stored) / static_cast<double>(bytes.size()),
+                static_cast<double>(b.stored) / static_cast<double>(std::max<size_t>(1, records)));
+  }
+}
+
+/// Largest |mean offset written - mean offset read| over the counters, in voxels.
+double positionError(const std::vector<VoxelCounters>& a, const std::vector<VoxelCounters>& b) {
+  double worst = 0;
+  for (size_t i = 0; i < std::min(a.size(), b.size()); ++i) {
+    for (int axis = 0; axis < 3; ++axis) worst = std::max(worst, std::abs(a[i].meanOffset(axis) - b[i].meanOffset(axis)));
+  }
+  return worst;
+}
+
+nlohmann::json measureSession(const std::string& name, const SessionMap& map, int rounds) {
+  std::printf("\n## %s: session map, %zu inner nodes, %zu leaves\n\n", name.c_str(), map.innerCount(), map.leafCount());
+  std::vector<uint8_t> v1, v2;
+  const double enc1 = bestOf(rounds, [&] { v1 = io::encodeSessionMap(map, nlohmann::json::object(), 3, 1); });
+  const double enc2 = bestOf(rounds, [&] { v2 = io::encodeSessionMap(map, nlohmann::json::object()); });
+  SessionMap back1, back2;
+  const double dec1 = bestOf(rounds, [&] { back1 = io::sessionMapFrom(io::decodeCmap(v1, "v1"), "v1"); });
+  const double dec2 = bestOf(rounds, [&] { back2 = io::sessionMapFrom(io::decodeCmap(v2, "v2"), "v2"); });
+  printBlocks("version 1", v1, map.leafCount());
+  std::printf("\n");
+  printBlocks("version 2", v2, map.leafCount());
+  if (const char* dump = std::getenv("CMAP_SIZE_DUMP")) {
+    for (const io::CmapBlock& b : io::decodeCmap(v2, "v2").blocks) {
+      std::FILE* f = std::fopen((std::string(dump) + "/" + name + "." + b.tag).c_str(), "wb");
+      std::fwrite(b.data.data(), 1, b.data.size(), f);
+      std::fclose(f);
+    }
+  }
+  const double err = positionError(map.leafPool(), back2.leafPool());
+  std::printf("\nversion 2 / version 1: %.3f; encode %.2f / %.2f ms, decode %.2f / %.2f ms (CPU, best of %d); "
+              "round trip equal but positions: %s; largest position error %.5f voxel\n",
+              static_cast<double>(v2.size()) / static_cast<double>(v1.size()), 1e3 * enc1, 1e3 * enc2, 1e3 * dec1,
+              1e3 * dec2, rounds, back2 == io::asStored(map) ? "yes" : "NO", err);
+  return {{"bytes_v1", v1.size()}, {"bytes_v2", v2.size()}, {"encode_ms_v1", 1e3 * enc1}, {"encode_ms_v2", 1e3 * enc2},
+          {"decode_ms_v1", 1e3 * dec1}, {"decode_ms_v2", 1e3 * dec2}, {"position_error_voxels", err}};
+}
+
+std::vector<VoxelCounters> entryValues(const TemporalMap& map) {
+  std::vector<VoxelCounters> v;
+  map.forEachList([&](const VoxelKey&, int, std::span<const TemporalMap::Entry> entries) {
+    for (const auto& e : entries) v.push_back(e.value);
+  });
+  return v;
+}
+
+nlohmann::json measureTemporal(const std::string& name, const TemporalMap& map, int rounds) {
+  const TemporalCounts counts = map.counts();
+  const size_t records = entryValues(map).size();
+  std::printf("\n## %s: 4D map, %zu sessions, %zu entries\n\n", name.c_str(), map.sessionCount(), records);
+  (void)counts;
+  std::vector<uint8_t> v1, v2;
+  const double enc1 = bestOf(rounds, [&] { v1 = io::encodeTemporalMap(map, nlohmann::json::object(), 1); });
+  const double enc2 = bestOf(rounds, [&] { v2 = io::encodeTemporalMap(map, nlohmann::json::object()); });
+  TemporalMap back1, back2;
+  const double dec1 = bestOf(rounds, [&] { back1 = io::temporalMapFrom(io::decodeCmap(v1, "v1"), "v1"); });
+  const double dec2 = bestOf(rounds, [&] { back2 = io::temporalMapFrom(io::decodeCmap(v2, "v2"), "v2"); });
+  printBlocks("version 1", v1, records);
+  std::printf("\n");
+  printBlocks("version 2", v2, records);
+  const double err = positionError(entryValues(back1), entryValues(back2));
+  std::printf("\nversion 2 / version 1: %.3f; encode %.0f / %.0f ms, decode %.0f / %.0f ms (CPU, best of %d); "
+              "largest position error %.5f voxel; memory %.1f MiB\n",
+              static_cast<double>(v2.size()) / static_cast<double>(v1.size()), 1e3 * enc1, 1e3 * enc2, 1e3 * dec1,
+              1e3 * dec2, rounds, err, static_cast<double>(map.memoryBytes()) / (1 << 20));
+  return {{"bytes_v1", v1.size()}, {"bytes_v2", v2.size()}, {"encode_ms_v1", 1e3 * enc1}, {"encode_ms_v2", 1e3 * enc2},
+          {"decode_ms_v1", 1e3 * dec1}, {"decode_ms_v2", 1e3 * dec2}, {"position_error_voxels", err},
+          {"memory_bytes", map.memoryBytes()}};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  nlohmann::json summary = nlohmann::json::object();
+  int rounds = 3;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--rounds" && i + 1 < argc) {
+      rounds = std::max(1, std::atoi(argv[++i]));
+    } else if (arg == "--synthetic") {
+      // As integrate_vs_peers prepares them: points within 3 m only.
+      std::vector<Frame> frames = sim::benchmarkSequence(30);
+      for (Frame& f : frames) {
+        PointCloud kept;
+        for (size_t k = 0; k < f.cloud.size(); ++k) {
+          const Eigen::Vector3f& p = f.cloud.points[k];
+          if (!p.allFinite() || p.norm() > 3.0f || p.norm() == 0.0f) continue;
+          kept.points.push_back(p);
+          if (f.cloud.hasColors()) kept.colors.push_back(f.cloud.colors[k]);
+        }
+        kept.width = static_cast<uint32_t>(kept.points.size());
+        f.cloud = std::move(kept);
+      }
+      for (double res : {0.05, 0.02}) {
+        IntegratorSettings s;
+        s.max_range_m = 3.0;
+        s.fast = true;
+        s.hit_positions = true;
+        SessionMap map(res);
+        integrate(FrameVector(frames), map, s);
+        const std::string name = res == 0.05 ? "synthetic_5cm" : "synthetic_2cm";
+        summary[name] = measureSession(name, map, rounds);
+      }
+    } else if (arg.rfind("--", 0) == 0) {
+      std::fprintf(stderr, "usage: cmap_size [--rounds N] [--synthetic] [FILE.cmap ...]\n");
+      return 2;
+    } else {
+      const io::CmapFile file = io::readCmap(arg);
+      if (file.header.kind == io::MapKind::Session) {
+        summary[arg] = measureSession(arg, io::sessionMapFrom(file, arg), rounds);
+      } else if (file.header.kind == io::MapKind::Temporal) {
+        summary[arg] = measureTemporal(arg, io::temporalMapFrom(file, arg), rounds);
+      }
+      summary[arg]["file_bytes"] = file.file_bytes;
+      summary[arg]["file_version"] = file.header.version;
+    }
+  }
+  std::printf("%s\n", summary.dump().c_str());
+  return 0;
+}

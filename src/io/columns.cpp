@@ -1,0 +1,283 @@
+#include "columns.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "chronomap/core/error.h"
+#include "chronomap/core/key.h"
+
+namespace chronomap::io::columns {
+
+uint64_t ByteReader::varint() {
+  uint64_t v = 0;
+  for (int shift = 0; shift < 64; shift += 7) {
+    if (p_ == end_) fail("is truncated");
+    const uint8_t b = *p_++;
+    v |= static_cast<uint64_t>(b & 0x7f) << shift;
+    if ((b & 0x80) == 0) return v;
+  }
+  fail("has an overlong number");
+}
+
+uint8_t ByteReader::byte() {
+  if (p_ == end_) fail("is truncated");
+  return *p_++;
+}
+
+void ByteReader::expectEnd() const {
+  if (p_ != end_) fail("has bytes left over");
+}
+
+void ByteReader::fail(const std::string& problem) const { throw FormatError(what_ + " " + problem); }
+
+namespace {
+
+std::string blockName(const std::string& source, const char* tag) { return source + ": block '" + tag + "'"; }
+
+/// Larger than any pool index or colour sum a valid file holds, small enough that adding two
+/// cannot overflow: decoded numbers beyond it are refused before any arithmetic.
+constexpr int64_t kMaxDelta = int64_t{1} << 40;
+constexpr int64_t kMaxResidual = int64_t{1} << 40;
+
+/// Level of the children of a node at `level`.
+int childLevel(int level) { return level - 1; }
+
+}  // namespace
+
+void encodeTree(const std::vector<Children>& inner, std::vector<CmapBlock>& blocks) {
+  ByteWriter masks, refs;
+  // Previous index of each kind in visit order; the root (inner 0) counts as visited.
+  int64_t prev_inner = 0, prev_leaf = -1;
+  struct Frame {
+    uint32_t node;
+    int level;
+    int slot;
+  };
+  std::vector<Frame> stack;
+  auto enter = [&](uint32_t node, int level) {
+    const Children& c = inner[node];
+    uint8_t present = 0, leaf = 0;
+    for (int i = 0; i < 8; ++i) {
+      if (c[i] == kEmptyRef) continue;
+      present |= static_cast<uint8_t>(1u << i);
+      if (c[i] & kLeafBit) leaf |= static_cast<uint8_t>(1u << i);
+    }
+    masks.byte(present);
+    if (level > 1) masks.byte(leaf);  // at level 1 every child is a unit leaf
+    stack.push_back({node, level, 0});
+  };
+  if (!inner.empty()) enter(0, kTreeDepth);
+  while (!stack.empty()) {
+    Frame& f = stack.back();
+    if (f.slot == 8) {
+      stack.pop_back();
+      continue;
+    }
+    const uint32_t r = inner[f.node][f.slot++];
+    if (r == kEmptyRef) continue;
+    if (r & kLeafBit) {
+      const int64_t i = r & ~kLeafBit;
+      refs.svarint(i - (prev_leaf + 1));
+      prev_leaf = i;
+    } else {
+      refs.svarint(static_cast<int64_t>(r) - (prev_inner + 1));
+      prev_inner = r;
+      enter(r, childLevel(f.level));  // invalidates f
+    }
+  }
+  blocks.push_back({kTreeMasks, std::move(masks.bytes())});
+  blocks.push_back({kTreeRefs, std::move(refs.bytes())});
+}
+
+std::vector<Children> decodeTree(const CmapFile& file, const std::string& source, size_t& leaves) {
+  const CmapBlock& mask_block = file.block(kTreeMasks, source);
+  const CmapBlock& ref_block = file.block(kTreeRefs, source);
+  ByteReader masks(mask_block.data, blockName(source, kTreeMasks));
+  ByteReader refs(ref_block.data, blockName(source, kTreeRefs));
+  auto fail = [&](const std::string& problem) { throw FormatError(source + ": the tree " + problem); };
+  if (mask_block.data.empty()) fail("has no root node");
+  // Each inner node takes at least one mask byte and each child at least one reference byte, so
+  // the block sizes bound the pools: a crafted file cannot make the reader allocate more.
+  std::vector<uint8_t> inner_seen(mask_block.data.size(), 0), leaf_seen(ref_block.data.size(), 0);
+  std::vector<Children> inner;
+  size_t inner_count = 0, leaf_count = 0;
+  int64_t prev_inner = 0, prev_leaf = -1, max_inner = 0, max_leaf = -1;
+  auto place = [&](int64_t index, std::vector<uint8_t>& seen) {
+    if (index < 0 || static_cast<uint64_t>(index) >= seen.size()) fail("refers to an impossible node index");
+    if (seen[static_cast<size_t>(index)]) fail("refers to a node twice");
+    seen[static_cast<size_t>(index)] = 1;
+  };
+  struct Frame {
+    uint32_t node;
+    int level;
+    int slot;
+    uint8_t present, leaf;
+  };
+  std::vector<Frame> stack;
+  auto enter = [&](uint32_t node, int level) {
+    const uint8_t present = masks.byte();
+    const uint8_t leaf = level > 1 ? masks.byte() : present;  // at level 1 every child is a leaf
+    if ((leaf & ~present) != 0) fail("marks a missing child as a leaf");
+    if (node >= inner.size()) inner.resize(node + 1);
+    inner[node].fill(kEmptyRef);
+    ++inner_count;
+    stack.push_back({node, level, 0, present, leaf});
+  };
+  place(0, inner_seen);
+  enter(0, kTreeDepth);
+  while (!stack.empty()) {
+    Frame& f = stack.back();
+    if (f.slot == 8) {
+      stack.pop_back();
+      continue;
+    }
+    const int slot = f.slot++;
+    if (!(f.present & (1u << slot))) continue;
+    const int64_t delta = refs.svarint();
+    if (delta > kMaxDelta || delta < -kMaxDelta) fail("refers to an impossible node index");
+    if (f.leaf & (1u << slot)) {
+      const int64_t i = prev_leaf + 1 + delta;
+      place(i, leaf_seen);
+      prev_leaf = i;
+      max_leaf = std::max(max_leaf, i);
+      ++leaf_count;
+      inner[f.node][slot] = static_cast<uint32_t>(i) | kLeafBit;
+    } else {
+      if (childLevel(f.level) == 0) fail("has an inner node below unit level");
+      const int64_t i = prev_inner + 1 + delta;
+      place(i, inner_seen);
+      prev_inner = i;
+      max_inner = std::max(max_inner, i);
+      inner[f.node][slot] = static_cast<uint32_t>(i);
+      enter(static_cast<uint32_t>(i), childLevel(f.level));  // invalidates f
+    }
+  }
+  masks.expectEnd();
+  refs.expectEnd();
+  // Indices are distinct, so they fill each pool without gaps exactly when the largest is the
+  // count less one.
+  if (max_inner + 1 != static_cast<int64_t>(inner_count) || max_leaf + 1 != static_cast<int64_t>(leaf_count)) {
+    fail("leaves gaps in its node indices");
+  }
+  leaves = leaf_count;
+  return inner;
+}
+
+void requireExactly(const CmapFile& file, const std::string& source, std::initializer_list<const char*> tags) {
+  for (const CmapBlock& b : file.blocks) {
+    if (std::none_of(tags.begin(), tags.end(), [&](const char* t) { return b.tag == t; })) {
+      throw FormatError(source + ": block '" + b.tag + "' is not part of a format version " +
+                        std::to_string(file.header.version) + " " + toString(file.header.kind) +
+                        " map (the file is damaged or from a newer chronomap)");
+    }
+  }
+  for (const char* t : tags) {
+    const auto n = std::count_if(file.blocks.begin(), file.blocks.end(), [&](const CmapBlock& b) { return b.tag == t; });
+    if (n == 0) throw FormatError(source + ": the file has no '" + t + "' block");
+    if (n > 1) throw FormatError(source + ": the file has more than one '" + t + "' block");
+  }
+}
+
+uint8_t quantiseOffset(float sum, uint32_t hits) {
+  if (hits == 0) return kOffsetLevels;
+  const double mean = static_cast<double>(sum) / static_cast<double>(hits);
+  const double q = std::round(mean * (2 * kOffsetLevels));
+  return static_cast<uint8_t>(std::clamp(q, -double{kOffsetLevels}, double{kOffsetLevels}) + kOffsetLevels);
+}
+
+float dequantiseOffset(uint8_t q, uint32_t hits) {
+  return static_cast<float>((static_cast<double>(q) - kOffsetLevels) / (2 * kOffsetLevels) * static_cast<double>(hits));
+}
+
+namespace {
+
+uint32_t& channel(VoxelCounters& c, int i) { return i == 0 ? c.red : i == 1 ? c.green : c.blue; }
+uint32_t channel(const VoxelCounters& c, int i) { return i == 0 ? c.red : i == 1 ? c.green : c.blue; }
+
+/// The mean colour channel that a sum stands for: round(sum / hits), at most 255 (a sum above
+/// 255 per hit, which no integration makes, is kept exactly by its residual).
+uint8_t meanChannel(uint32_t sum, uint32_t hits) {
+  return static_cast<uint8_t>(std::min<uint64_t>(255, (uint64_t{sum} + hits / 2) / hits));
+}
+
+}  // namespace
+
+void encodeCounters(size_t n, const std::function<const VoxelCounters&(size_t)>& at, std::vector<CmapBlock>& blocks) {
+  std::vector<uint8_t> lengths(4 * n);
+  ByteWriter hits, residuals;
+  size_t with_hits = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const VoxelCounters& c = at(i);
+    uint32_t bits;
+    std::memcpy(&bits, &c.length_m, 4);
+    for (int b = 0; b < 4; ++b) lengths[b * n + i] = static_cast<uint8_t>(bits >> (8 * b));
+    hits.varint(c.hits);
+    with_hits += c.hits > 0;
+  }
+  // Colours: the mean (a byte, as smooth as the surfaces) and the sum's remainder beyond
+  // mean * hits (small, often zero), each channel's stream after the other's.
+  std::vector<uint8_t> means(3 * with_hits), positions(3 * with_hits);
+  for (int ch = 0; ch < 3; ++ch) {
+    size_t k = 0;
+    for (size_t i = 0; i < n; ++i) {
+      const VoxelCounters& c = at(i);
+      if (c.hits == 0) continue;
+      const uint8_t mean = meanChannel(channel(c, ch), c.hits);
+      means[ch * with_hits + k] = mean;
+      residuals.svarint(static_cast<int64_t>(channel(c, ch)) - static_cast<int64_t>(mean) * c.hits);
+      positions[ch * with_hits + k] = quantiseOffset(c.offset[ch], c.hits);
+      ++k;
+    }
+  }
+  blocks.push_back({kLengths, std::move(lengths)});
+  blocks.push_back({kHits, std::move(hits.bytes())});
+  blocks.push_back({kColours, std::move(means)});
+  blocks.push_back({kColourResiduals, std::move(residuals.bytes())});
+  blocks.push_back({kPositions, std::move(positions)});
+}
+
+void decodeCounters(const CmapFile& file, const std::string& source, size_t n,
+                    const std::function<VoxelCounters&(size_t)>& at) {
+  const CmapBlock& lengths = file.block(kLengths, source);
+  if (lengths.data.size() != 4 * n) throw FormatError(blockName(source, kLengths) + " does not match the tree");
+  ByteReader hits(file.block(kHits, source).data, blockName(source, kHits));
+  size_t with_hits = 0;
+  for (size_t i = 0; i < n; ++i) {
+    VoxelCounters& c = at(i);
+    uint32_t bits = 0;
+    for (int b = 0; b < 4; ++b) bits |= static_cast<uint32_t>(lengths.data[b * n + i]) << (8 * b);
+    std::memcpy(&c.length_m, &bits, 4);
+    const uint64_t h = hits.varint();
+    if (h > 0xffffffffu) hits.fail("holds an impossible hit count");
+    c.hits = static_cast<uint32_t>(h);
+    with_hits += c.hits > 0;
+  }
+  hits.expectEnd();
+  const CmapBlock& means = file.block(kColours, source);
+  const CmapBlock& positions = file.block(kPositions, source);
+  if (means.data.size() != 3 * with_hits) throw FormatError(blockName(source, kColours) + " does not match the hit counts");
+  if (positions.data.size() != 3 * with_hits) {
+    throw FormatError(blockName(source, kPositions) + " does not match the hit counts");
+  }
+  ByteReader residuals(file.block(kColourResiduals, source).data, blockName(source, kColourResiduals));
+  for (int ch = 0; ch < 3; ++ch) {
+    size_t k = 0;
+    for (size_t i = 0; i < n; ++i) {
+      VoxelCounters& c = at(i);
+      if (c.hits == 0) continue;
+      const int64_t residual = residuals.svarint();
+      if (residual > kMaxResidual || residual < -kMaxResidual) residuals.fail("holds an impossible colour sum");
+      const int64_t sum = int64_t{means.data[ch * with_hits + k]} * c.hits + residual;
+      if (sum < 0 || sum > 0xffffffffll) residuals.fail("holds an impossible colour sum");
+      channel(c, ch) = static_cast<uint32_t>(sum);
+      const uint8_t q = positions.data[ch * with_hits + k];
+      if (q > 2 * kOffsetLevels) throw FormatError(blockName(source, kPositions) + " holds an impossible position");
+      c.offset[ch] = dequantiseOffset(q, c.hits);
+      ++k;
+    }
+  }
+  residuals.expectEnd();
+}
+
+}  // namespace chronomap::io::columns

@@ -1,0 +1,114 @@
+#pragma once
+/// @file
+/// The column encoding of format version 2 (docs/file-format.md): a tree's shape as child masks
+/// and reference deltas, and voxel counters one field at a time (lengths as byte planes, hits
+/// and colour sums as varints, hit positions as quantised mean offsets), each its own block so
+/// that zstd sees one kind of value at a time. Internal to chronomap_io.
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <initializer_list>
+#include <string>
+#include <vector>
+
+#include "chronomap/core/counters.h"
+#include "chronomap/io/cmap.h"
+
+namespace chronomap::io::columns {
+
+/// Appends unsigned LEB128 varints and bytes.
+class ByteWriter {
+ public:
+  void varint(uint64_t v) {
+    while (v >= 0x80) {
+      bytes_.push_back(static_cast<uint8_t>(v | 0x80));
+      v >>= 7;
+    }
+    bytes_.push_back(static_cast<uint8_t>(v));
+  }
+  /// Signed values, zigzag-coded so that small magnitudes take one byte.
+  void svarint(int64_t v) { varint((static_cast<uint64_t>(v) << 1) ^ static_cast<uint64_t>(v >> 63)); }
+  void byte(uint8_t b) { bytes_.push_back(b); }
+  std::vector<uint8_t>& bytes() { return bytes_; }
+
+ private:
+  std::vector<uint8_t> bytes_;
+};
+
+/// Reads what ByteWriter wrote; every read past the end or malformed varint throws
+/// FormatError("<what> is truncated" / "... has an overlong number").
+class ByteReader {
+ public:
+  ByteReader(const std::vector<uint8_t>& bytes, std::string what)
+      : p_(bytes.data()), end_(bytes.data() + bytes.size()), what_(std::move(what)) {}
+  uint64_t varint();
+  int64_t svarint() {
+    const uint64_t u = varint();
+    return static_cast<int64_t>(u >> 1) ^ -static_cast<int64_t>(u & 1);
+  }
+  uint8_t byte();
+  bool atEnd() const { return p_ == end_; }
+  /// @throw FormatError when bytes are left over.
+  void expectEnd() const;
+  [[noreturn]] void fail(const std::string& problem) const;
+
+ private:
+  const uint8_t* p_;
+  const uint8_t* end_;
+  std::string what_;
+};
+
+/// Block tags of version 2 (both kinds share the tree and counter blocks).
+inline constexpr const char* kTreeMasks = "TMSK";
+inline constexpr const char* kTreeRefs = "TREF";
+inline constexpr const char* kLengths = "CLEN";
+inline constexpr const char* kHits = "CHIT";
+inline constexpr const char* kColours = "CRGB";
+inline constexpr const char* kColourResiduals = "CRES";
+inline constexpr const char* kPositions = "CPOS";
+
+/// A tree as both map kinds store it: 8 references per inner node, kEmpty (all ones), an inner
+/// index, or kLeafBit | leaf index (a leaf, or a 4D map's slot list); node 0 is the root at
+/// level kTreeDepth.
+using Children = std::array<uint32_t, 8>;
+inline constexpr uint32_t kEmptyRef = 0xffffffffu;
+inline constexpr uint32_t kLeafBit = 0x80000000u;
+
+/// Appends the shape of `inner` as two blocks: TMSK (per inner node in depth-first order, slots
+/// in order: a byte whose bit i says slot i has a child, then, above level 1, a byte whose bit i
+/// says that child is a leaf) and TREF (per child, same order: its index minus one more than the
+/// previous index of its kind, zigzag varint; all zeros for pools laid out depth first).
+void encodeTree(const std::vector<Children>& inner, std::vector<CmapBlock>& blocks);
+/// The inner pool and the number of leaves that TMSK and TREF describe, indices as written.
+/// @throw FormatError naming `source` for a malformed shape (indices out of range or repeated,
+/// an inner node at unit level, bytes missing or left over).
+std::vector<Children> decodeTree(const CmapFile& file, const std::string& source, size_t& leaves);
+
+/// The counters of `n` records, `at(i)` giving record i: appends CLEN (the f32 lengths' bits as
+/// 4 byte planes, lowest byte first), CHIT (hits, varints), and for the records with hits, each
+/// as a red, then a green, then a blue plane: CRGB (mean colour, round(sum / hits), a byte), CRES
+/// (sum - mean * hits, zigzag varints) and CPOS (the quantised mean offsets, see quantiseOffset;
+/// x, y, z planes).
+void encodeCounters(size_t n, const std::function<const VoxelCounters&(size_t)>& at, std::vector<CmapBlock>& blocks);
+/// Fills the counters of `n` records (`at(i)` giving record i) from those blocks.
+/// @throw FormatError naming `source` when a block is missing or its size does not match.
+void decodeCounters(const CmapFile& file, const std::string& source, size_t n,
+                    const std::function<VoxelCounters&(size_t)>& at);
+
+/// Checks that `file` holds exactly the blocks `tags`, each once. Version 2 readers refuse other
+/// blocks (a block the format gains comes with a new version), so that a damaged tag, which no
+/// checksum covers, is an error rather than a block silently missing.
+/// @throw FormatError naming `source` and the block.
+void requireExactly(const CmapFile& file, const std::string& source, std::initializer_list<const char*> tags);
+
+/// Hit positions in version 2: a mean offset from the voxel centre (in [-0.5, 0.5] voxels) is
+/// kept as q = round(mean * 254) in -127..127, stored as the byte q + 127 (0..254; 255 is
+/// refused). Zero, a hit at the centre (maps made without positions), is kept exactly.
+inline constexpr int kOffsetLevels = 127;
+/// The stored byte of an offset sum `sum` over `hits` hits (127 without hits).
+uint8_t quantiseOffset(float sum, uint32_t hits);
+/// The offset sum that byte `q` stands for with `hits` hits: (q - 127) / 254 * hits.
+float dequantiseOffset(uint8_t q, uint32_t hits);
+
+}  // namespace chronomap::io::columns
