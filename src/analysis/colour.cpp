@@ -8,6 +8,7 @@
 
 #include <Eigen/Dense>
 
+#include "chronomap/core/byte_buffer.h"
 #include "chronomap/core/error.h"
 
 namespace chronomap {
@@ -330,34 +331,10 @@ constexpr uint32_t kColourVersion = 1;
 constexpr uint8_t kColourKindLightCurves = 1;  ///< per-voxel weights under shared light curves
 constexpr size_t kColourHeaderBytes = 68;
 
-struct ColourWriter {
-  std::vector<uint8_t> bytes;
-  template <class T>
-  void put(T v) {
-    const size_t at = bytes.size();
-    bytes.resize(at + sizeof(T));
-    std::memcpy(bytes.data() + at, &v, sizeof(T));  // little-endian hosts only, as the .cmap files
-  }
-};
-
-struct ColourReader {
-  std::span<const uint8_t> bytes;
-  size_t pos = 0;
-  const std::string& source;
-  template <class T>
-  T get() {
-    if (bytes.size() - pos < sizeof(T)) throw FormatError(source + ": the colour model ends early (truncated)");
-    T v;
-    std::memcpy(&v, bytes.data() + pos, sizeof(T));
-    pos += sizeof(T);
-    return v;
-  }
-};
-
 }  // namespace
 
 std::vector<uint8_t> serialize(const ColourModel& m) {
-  ColourWriter w;
+  ByteWriter w;
   w.bytes.reserve(kColourHeaderBytes + m.bytes());
   for (char c : kColourMagic) w.put(c);
   w.put(kColourVersion);
@@ -383,7 +360,7 @@ std::vector<uint8_t> serialize(const ColourModel& m) {
 }
 
 ColourModel deserializeColour(std::span<const uint8_t> bytes, const std::string& source) {
-  ColourReader r{bytes, 0, source};
+  ByteReader r{bytes, 0, source, "the colour model"};
   for (char c : kColourMagic) {
     if (r.get<char>() != c) throw FormatError(source + ": not a chronomap colour model");
   }

@@ -5,6 +5,7 @@
 #include <cstring>
 #include <numbers>
 
+#include "chronomap/core/byte_buffer.h"
 #include "chronomap/core/error.h"
 #include "chronomap/temporal/coverage.h"
 
@@ -338,34 +339,10 @@ namespace {
 constexpr char kMagic[4] = {'C', 'M', 'R', 'H'};
 constexpr uint32_t kVersion = 1;
 
-struct Writer {
-  std::vector<uint8_t> bytes;
-  template <class T>
-  void put(T v) {
-    const size_t at = bytes.size();
-    bytes.resize(at + sizeof(T));
-    std::memcpy(bytes.data() + at, &v, sizeof(T));  // little-endian hosts only, as the .cmap files
-  }
-};
-
-struct Reader {
-  std::span<const uint8_t> bytes;
-  size_t pos = 0;
-  const std::string& source;
-  template <class T>
-  T get() {
-    if (bytes.size() - pos < sizeof(T)) throw FormatError(source + ": the model ends early (truncated)");
-    T v;
-    std::memcpy(&v, bytes.data() + pos, sizeof(T));
-    pos += sizeof(T);
-    return v;
-  }
-};
-
 }  // namespace
 
 std::vector<uint8_t> serialize(const RhythmModels& m) {
-  Writer w;
+  ByteWriter w;
   for (char c : kMagic) w.put(c);
   w.put(kVersion);
   w.put(m.resolution_m);
@@ -401,7 +378,7 @@ std::vector<uint8_t> serialize(const RhythmModels& m) {
 }
 
 RhythmModels deserializeRhythm(std::span<const uint8_t> bytes, const std::string& source) {
-  Reader r{bytes, 0, source};
+  ByteReader r{bytes, 0, source, "the model"};
   for (char c : kMagic) {
     if (r.get<char>() != c) throw FormatError(source + ": not a chronomap rhythm model");
   }
