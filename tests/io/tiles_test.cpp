@@ -19,6 +19,7 @@ namespace {
 
 using test::at;
 using test::freeVoxel;
+using test::occupiedVoxelExact;
 namespace fs = std::filesystem;
 
 // The test region: voxels [kLo, kHi) per axis around the map origin, so that tiles of every
@@ -26,16 +27,6 @@ namespace fs = std::filesystem;
 constexpr int kLo = -6, kHi = 10;
 
 double sessionTime(int i) { return 1.7e9 + 3600.0 * i; }
-
-VoxelCounters occupied(uint32_t hits, uint8_t red) {
-  VoxelCounters c;
-  c.length_m = 0.0625f * static_cast<float>(hits);
-  c.hits = hits;
-  c.red = uint32_t{red} * hits;
-  c.green = 10 * hits;
-  c.blue = 20 * hits;
-  return c;
-}
 
 // A random session over a random box of the region: drifting occupied voxels, holes, free
 // space with binary-fraction lengths (sums stay exact), sometimes compressed; now and then a
@@ -54,8 +45,9 @@ SessionMap randomSession(std::mt19937_64& rng, std::vector<uint8_t>& world) {
       for (int x = lo[0]; x < hi[0]; ++x) {
         if (rng() % 12 == 0) continue;
         const bool occ = world[static_cast<size_t>(((z - kLo) * side + (y - kLo)) * side + (x - kLo))] != 0;
-        m.add(at(x, y, z), occ ? occupied(1 + static_cast<uint32_t>(rng() % 3), static_cast<uint8_t>(rng() % 256))
-                               : freeVoxel(0.125f * static_cast<float>(1 + rng() % 4)));
+        m.add(at(x, y, z),
+              occ ? occupiedVoxelExact(1 + static_cast<uint32_t>(rng() % 3), static_cast<uint8_t>(rng() % 256))
+                  : freeVoxel(0.125f * static_cast<float>(1 + rng() % 4)));
       }
     }
   }
@@ -217,7 +209,7 @@ TEST(Tiles, AnObjectAcrossATileBorderIsOneObject) {
       for (int x = -6; x < 6; ++x) {
         before.add(at(x, y, z), freeVoxel(0.125f));
         const bool box = x >= -2 && x < 2 && y >= -2 && y < 2 && z >= -2 && z < 2;
-        after.add(at(x, y, z), box ? occupied(2, 200) : freeVoxel(0.125f));
+        after.add(at(x, y, z), box ? occupiedVoxelExact(2, 200) : freeVoxel(0.125f));
       }
     }
   }

@@ -27,6 +27,16 @@ VoxelCounters occupiedVoxel(Rgb color, uint32_t hits) {
   return c;
 }
 
+VoxelCounters occupiedVoxelExact(uint32_t hits, uint8_t red) {
+  VoxelCounters c;
+  c.length_m = 0.0625f * static_cast<float>(hits);
+  c.hits = hits;
+  c.red = uint32_t{red} * hits;
+  c.green = 10 * hits;
+  c.blue = 20 * hits;
+  return c;
+}
+
 bool nearlyEqual(const VoxelCounters& a, const VoxelCounters& b) {
   return std::abs(a.length_m - b.length_m) <= 1e-5f * std::max(1.0f, std::abs(a.length_m)) && a.hits == b.hits &&
          a.red == b.red && a.green == b.green && a.blue == b.blue;

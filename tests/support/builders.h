@@ -21,6 +21,10 @@ VoxelCounters freeVoxel(float length = 0.05f);
 /// A voxel where `hits` rays of the given colour ended, 0.025 m of ray per hit.
 VoxelCounters occupiedVoxel(Rgb color, uint32_t hits = 10);
 
+/// A voxel where `hits` rays ended, 1/16 m of ray per hit (a binary fraction, so that sums of
+/// such counters stay exact in float), colour (red, 10, 20).
+VoxelCounters occupiedVoxelExact(uint32_t hits, uint8_t red = 200);
+
 /// Counters equal but for rounding in the summed length.
 bool nearlyEqual(const VoxelCounters& a, const VoxelCounters& b);
 

@@ -16,16 +16,7 @@ constexpr int kSide = 16;  // the test region: kSide^3 voxels from the map origi
 
 using test::at;
 using test::freeVoxel;
-
-VoxelCounters occupiedVoxel(uint32_t hits, uint8_t red = 200) {
-  VoxelCounters c;
-  c.length_m = 0.0625f * static_cast<float>(hits);
-  c.hits = hits;
-  c.red = uint32_t{red} * hits;
-  c.green = 10 * hits;
-  c.blue = 20 * hits;
-  return c;
-}
+using test::occupiedVoxelExact;
 
 // ---------------------------------------------------------------------------------------------
 // The slow reference: a plain list of session maps, kept in time order.
@@ -92,7 +83,7 @@ SessionMap randomSession(std::mt19937_64& rng, const World& world) {
         if (rng() % 40 == 0) occ = !occ;  // sensor noise
         VoxelCounters c;
         if (occ) {
-          c = occupiedVoxel(1 + static_cast<uint32_t>(rng() % 3), static_cast<uint8_t>(rng() % 256));
+          c = occupiedVoxelExact(1 + static_cast<uint32_t>(rng() % 3), static_cast<uint8_t>(rng() % 256));
         } else if (rng() % 50 == 0) {
           c = freeVoxel(4.0f);  // free, but with a hit: never compressed
           c.hits = 1;
@@ -187,10 +178,10 @@ void replaceOneRemoveAnother(std::mt19937_64& rng, World& world, int n, Temporal
 TEST(TemporalMap, OnlyChangesCreateEntries) {
   TemporalMap map(0.05);
   SessionMap a(0.05), b(0.05), c(0.05);
-  a.add(at(1, 1, 1), occupiedVoxel(2));
+  a.add(at(1, 1, 1), occupiedVoxelExact(2));
   a.add(at(2, 1, 1), freeVoxel(0.25f));
-  b.add(at(1, 1, 1), occupiedVoxel(3));  // still occupied: no entry
-  b.add(at(2, 1, 1), occupiedVoxel(1));  // free -> occupied: one entry
+  b.add(at(1, 1, 1), occupiedVoxelExact(3));  // still occupied: no entry
+  b.add(at(2, 1, 1), occupiedVoxelExact(1));  // free -> occupied: one entry
   map.add(10, a);
   const size_t nodes_after_a = map.counts().nodes();
   map.add(20, b);
@@ -206,21 +197,21 @@ TEST(TemporalMap, OnlyChangesCreateEntries) {
   EXPECT_EQ(map.snapshot(1e9).stateOf(at(2, 1, 1)), VoxelState::Occupied);
   EXPECT_EQ(map.snapshot(1e9).stateOf(at(3, 1, 1)), VoxelState::Unknown);
   // The unchanged voxel keeps the counters of the observation that set its state.
-  EXPECT_EQ(*map.snapshot(25).find(at(1, 1, 1)), occupiedVoxel(2));
+  EXPECT_EQ(*map.snapshot(25).find(at(1, 1, 1)), occupiedVoxelExact(2));
 
   const auto h = map.history(at(2, 1, 1));
   ASSERT_EQ(h.size(), 2u);
   EXPECT_EQ(h[0].time_s, 10);
   EXPECT_EQ(h[0].counters.state(), VoxelState::Free);
   EXPECT_EQ(h[1].time_s, 20);
-  EXPECT_EQ(h[1].counters, occupiedVoxel(1));
+  EXPECT_EQ(h[1].counters, occupiedVoxelExact(1));
   EXPECT_TRUE(map.history(at(9, 9, 9)).empty());
 }
 
 TEST(TemporalMap, UnobservedSpaceIsNeverAChange) {
   TemporalMap map(0.05);
   SessionMap a(0.05), b(0.05);
-  a.add(at(0, 0, 0), occupiedVoxel(1));
+  a.add(at(0, 0, 0), occupiedVoxelExact(1));
   b.add(at(5, 5, 5), freeVoxel(0.5f));
   map.add(1, a);
   map.add(2, b);
@@ -233,7 +224,7 @@ TEST(TemporalMap, UnobservedSpaceIsNeverAChange) {
 TEST(TemporalMap, RejectsDuplicateTimesUnlessReplacing) {
   TemporalMap map(0.05);
   SessionMap a(0.05), b(0.05);
-  a.add(at(0, 0, 0), occupiedVoxel(1));
+  a.add(at(0, 0, 0), occupiedVoxelExact(1));
   b.add(at(0, 0, 0), freeVoxel(1.0f));
   map.add(1, a);
   EXPECT_THROW(map.add(1, b), UsageError);
@@ -257,7 +248,7 @@ TEST(TemporalMap, ChangeInsideACompressedCubeRefinesIt) {
   a.compressFree();
   ASSERT_EQ(a.leafCount(), 1u);
   SessionMap b(0.05);
-  b.add(at(3, 4, 5), occupiedVoxel(2));
+  b.add(at(3, 4, 5), occupiedVoxelExact(2));
   TemporalMap map(0.05);
   map.add(1, a);
   EXPECT_EQ(map.counts().entries, 1u) << "a compressed free cube is one entry";
@@ -285,7 +276,7 @@ TEST(TemporalMap, ChangeInsideACompressedCubeRefinesIt) {
 TEST(TemporalMap, SessionAddedBeforeLaterOnesRestoresTheirStates) {
   // t=1 occupied, t=3 occupied again (not stored: no change); t=2 arrives late saying free.
   SessionMap occ(0.05), fre(0.05);
-  occ.add(at(0, 0, 0), occupiedVoxel(1));
+  occ.add(at(0, 0, 0), occupiedVoxelExact(1));
   fre.add(at(0, 0, 0), freeVoxel(1.0f));
   TemporalMap map(0.05);
   map.add(1, occ);
@@ -304,10 +295,10 @@ TEST(TemporalMap, SessionAddedBeforeLaterOnesRestoresTheirStates) {
 
 TEST(TemporalMap, CriterionThresholds) {
   ChangeCriterion c;
-  EXPECT_FALSE(c.differs(occupiedVoxel(1, 0), occupiedVoxel(1, 255)));
+  EXPECT_FALSE(c.differs(occupiedVoxelExact(1, 0), occupiedVoxelExact(1, 255)));
   c.color_distance = 100;
-  EXPECT_TRUE(c.differs(occupiedVoxel(1, 0), occupiedVoxel(1, 255)));
-  EXPECT_FALSE(c.differs(occupiedVoxel(1, 100), occupiedVoxel(1, 150)));
+  EXPECT_TRUE(c.differs(occupiedVoxelExact(1, 0), occupiedVoxelExact(1, 255)));
+  EXPECT_FALSE(c.differs(occupiedVoxelExact(1, 100), occupiedVoxelExact(1, 150)));
   EXPECT_FALSE(c.differs(freeVoxel(1.0f), freeVoxel(2.0f))) << "no colour without hits";
   ChangeCriterion p;
   p.probability_threshold = 0.2;
@@ -508,7 +499,7 @@ SessionMap freeCube(float length, std::optional<VoxelKey> occupied = std::nullop
     for (int y = 0; y < kSide; ++y) {
       for (int x = 0; x < kSide; ++x) {
         const VoxelKey k = at(x, y, z);
-        m.add(k, occupied && k == *occupied ? occupiedVoxel(3) : freeVoxel(length));
+        m.add(k, occupied && k == *occupied ? occupiedVoxelExact(3) : freeVoxel(length));
       }
     }
   }
@@ -700,7 +691,7 @@ TEST(Coverage, KnowsWhichCubesASessionSaw) {
       for (int x = 0; x < 4; ++x) m.add(at(x, y, z), freeVoxel(0.5f));
     }
   }
-  m.add(at(9, 9, 9), occupiedVoxel(1));
+  m.add(at(9, 9, 9), occupiedVoxelExact(1));
   m.compressFree();
   const Coverage c(m);
   EXPECT_EQ(c.voxelCount(), 65u);
