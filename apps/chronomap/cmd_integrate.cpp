@@ -168,7 +168,7 @@ pipeline::SessionSettings sessionSettings(const IntegrateFlags& f) {
     if (!std::isfinite(gib) || gib < 0.0 || gib > 1e6) {
       throw UsageError("--memory-limit must be a number of GiB (0 for no limit), not " + std::to_string(gib));
     }
-    s.integrator.memory_limit_bytes = static_cast<size_t>(gib * 1073741824.0);
+    s.integrator.memory_limit_bytes = gibToBytes(gib);
   }
   return s;
 }

@@ -13,7 +13,7 @@ namespace chronomap::cli {
 
 pipeline::TileCacheSettings tileCacheSettings(const std::optional<double>& gib) {
   pipeline::TileCacheSettings s;
-  if (gib) s.memory_limit_bytes = static_cast<size_t>(std::llround(*gib * 1073741824.0));
+  if (gib) s.memory_limit_bytes = gibToBytes(*gib);
   return s;
 }
 

@@ -4,6 +4,8 @@
 // (pipeline/, or one library function) and prints what it returned.
 
 #include <CLI/CLI.hpp>
+#include <cmath>
+#include <cstddef>
 #include <functional>
 #include <optional>
 #include <string>
@@ -43,6 +45,8 @@ Command addView(CLI::App& root);
 Command addTile(CLI::App& root);
 Command addUntile(CLI::App& root);
 
+/// Bytes of a --memory-limit given in GiB (already checked to be finite and within 0..1e6), rounded.
+inline size_t gibToBytes(double gib) { return static_cast<size_t>(std::llround(gib * 1073741824.0)); }
 /// Help of the --memory-limit flag of the commands that read tiled maps.
 inline constexpr const char* kTileMemoryHelp =
     "tiled maps: GiB of tiles held at once (least recently used tiles are dropped whole); 0: no limit; default 1";
