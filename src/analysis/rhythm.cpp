@@ -47,13 +47,13 @@ double periodic(const VoxelRhythm& v, double time_s) {
   return std::clamp(p, 0.0, 1.0);
 }
 
-double hourly(const VoxelRhythm& v, double time_s) {
+double hourly(const VoxelRhythm& v, double time_s, double prior) {
   // Neighbouring bins of the same kind of day count less; the other kind's same bin a little;
   // one pseudo-observation at the voxel's mean keeps bins with little evidence near it.
   static constexpr double kNeighbour[3] = {1.0, 0.5, 0.15};
   static constexpr double kOtherKind = 0.1, kPrior = 1.0;
   const int kind = kindOfDay(time_s), bin = hourBin(time_s);
-  double observed = kPrior, occupied = kPrior * v.mean;
+  double observed = kPrior, occupied = kPrior * prior;
   for (int d = -2; d <= 2; ++d) {
     const auto b = static_cast<size_t>((bin + d + 12) % 12);
     const double w = kNeighbour[std::abs(d)];
@@ -113,13 +113,14 @@ std::vector<VoxelSeries> observedSeries(const TemporalMap& map, uint32_t first, 
       s.ranks.push_back(r);
       s.occupied.push_back(entries[e].value.state() == VoxelState::Occupied ? 1 : 0);
       s.times_s.push_back(map.sessions()[r].time_s);
+      s.counters.push_back(entries[e].value);
     }
     if (!s.ranks.empty()) out.push_back(std::move(s));
   });
   return out;
 }
 
-VoxelRhythm fitVoxel(const VoxelSeries& series) {
+VoxelRhythm fitVoxel(const VoxelSeries& series, double voxel_m) {
   VoxelRhythm v;
   v.corner = series.corner;
   v.level = static_cast<uint8_t>(series.level);
@@ -132,6 +133,18 @@ VoxelRhythm fitVoxel(const VoxelSeries& series) {
   v.mean = static_cast<float>(mean);
   v.last_occupied = series.occupied.back();
   v.last_time_s = series.times_s.back();
+
+  // Surface evidence: hits per voxel length of ray, over the counters of every observation.
+  if (series.counters.size() == n) {
+    double hits = 0.0, length_m = 0.0;
+    for (const VoxelCounters& c : series.counters) {
+      hits += c.hits;
+      length_m += c.length_m;
+    }
+    const double edge_m = voxel_m * static_cast<double>(1 << series.level);
+    const double x = length_m > 0.0 ? hits * edge_m / length_m : (hits > 0.0 ? 1e6 : 0.0);
+    v.hits_per_voxel = static_cast<float>(std::min(x, 1e6));
+  }
 
   // Markov: transitions between consecutive observations over the time spent in each state,
   // with half a transition and an hour of prior so that a voxel seen once still has rates.
@@ -222,7 +235,7 @@ VoxelRhythm fitVoxel(const VoxelSeries& series) {
         without.hour_observed[kind][bin] = saturating(seen[kind][bin] - 1);
         without.hour_occupied[kind][bin] = saturating(occ[kind][bin] - series.occupied[i]);
       }
-      const double ph = hourly(without, series.times_s[i]);
+      const double ph = hourly(without, series.times_s[i], without.mean);
       loss_hourly += (ph - y) * (ph - y);
       loss_mean += (mean_without - y) * (mean_without - y);
     }
@@ -231,18 +244,24 @@ VoxelRhythm fitVoxel(const VoxelSeries& series) {
   return v;
 }
 
+double surfaceEvidence(const VoxelRhythm& v) {
+  if (!(v.hits_per_voxel >= 0.0f)) return v.mean;
+  const double x = v.hits_per_voxel;
+  return x * x / (x * x + kSurfaceHitsPerVoxel * kSurfaceHitsPerVoxel);
+}
+
 double RhythmModels::predict(const VoxelRhythm& v, RhythmModel model, double time_s) {
   switch (model) {
     case RhythmModel::Latest: return v.last_occupied;
     case RhythmModel::Mean: return v.mean;
     case RhythmModel::Markov: return markov(v, time_s);
     case RhythmModel::Periodic: return periodic(v, time_s);
-    case RhythmModel::Hourly: return hourly(v, time_s);
+    case RhythmModel::Hourly: return hourly(v, time_s, v.mean);
     case RhythmModel::Combined: {
       // The chain's memory of the last observation fades at the sum of its rates.
       const double rate = static_cast<double>(v.rate_in_per_h) + static_cast<double>(v.rate_out_per_h);
       const double w = std::exp(-rate * std::abs(time_s - v.last_time_s) / kHour_s);
-      const double base = v.combined_uses_mean ? static_cast<double>(v.mean) : hourly(v, time_s);
+      const double base = v.combined_uses_mean ? surfaceEvidence(v) : hourly(v, time_s, surfaceEvidence(v));
       return w * markov(v, time_s) + (1.0 - w) * base;
     }
   }
@@ -271,7 +290,9 @@ RhythmModels fitRhythm(const TemporalMap& map, double from_s, double to_s, uint3
   models.from_s = map.sessions()[first].time_s;
   models.to_s = map.sessions()[end - 1].time_s;
   models.sessions = end - first;
-  for (const VoxelSeries& s : observedSeries(map, first, end, min_changes)) models.voxels.push_back(fitVoxel(s));
+  for (const VoxelSeries& s : observedSeries(map, first, end, min_changes)) {
+    models.voxels.push_back(fitVoxel(s, map.resolution_m()));
+  }
   std::sort(models.voxels.begin(), models.voxels.end(), [](const VoxelRhythm& a, const VoxelRhythm& b) {
     return mortonEncode(a.corner) < mortonEncode(b.corner);
   });
@@ -337,7 +358,7 @@ SessionMap predictMap(const TemporalMap& map, const RhythmModels& models, Rhythm
 namespace {
 
 constexpr char kMagic[4] = {'C', 'M', 'R', 'H'};
-constexpr uint32_t kVersion = 1;
+constexpr uint32_t kVersion = 2;  // 2: hits_per_voxel after the hour bins
 
 }  // namespace
 
@@ -373,6 +394,7 @@ std::vector<uint8_t> serialize(const RhythmModels& m) {
         w.put(v.hour_occupied[k][b]);
       }
     }
+    w.put(v.hits_per_voxel);
   }
   return std::move(w.bytes);
 }
@@ -382,8 +404,9 @@ RhythmModels deserializeRhythm(std::span<const uint8_t> bytes, const std::string
   for (char c : kMagic) {
     if (r.get<char>() != c) throw FormatError(source + ": not a chronomap rhythm model");
   }
-  if (const auto version = r.get<uint32_t>(); version != kVersion) {
-    throw FormatError(source + ": rhythm model version " + std::to_string(version) + " (this build reads 1)");
+  const auto version = r.get<uint32_t>();
+  if (version != 1 && version != kVersion) {
+    throw FormatError(source + ": rhythm model version " + std::to_string(version) + " (this build reads 1 and 2)");
   }
   RhythmModels m;
   m.resolution_m = r.get<double>();
@@ -391,7 +414,7 @@ RhythmModels deserializeRhythm(std::span<const uint8_t> bytes, const std::string
   m.to_s = r.get<double>();
   m.sessions = r.get<uint32_t>();
   const auto count = r.get<uint64_t>();
-  constexpr size_t kRecord = RhythmModels::kVoxelBytes;
+  const size_t kRecord = version == 1 ? RhythmModels::kVoxelBytes - 4 : RhythmModels::kVoxelBytes;
   if (!std::isfinite(m.resolution_m) || m.resolution_m <= 0.0 || count > (bytes.size() - r.pos) / kRecord) {
     throw FormatError(source + ": bad header (resolution or voxel count)");
   }
@@ -424,6 +447,12 @@ RhythmModels deserializeRhythm(std::span<const uint8_t> bytes, const std::string
         v.hour_observed[k][b] = r.get<uint8_t>();
         v.hour_occupied[k][b] = r.get<uint8_t>();
         if (v.hour_occupied[k][b] > v.hour_observed[k][b]) throw FormatError(source + ": more occupied than observed");
+      }
+    }
+    if (version >= 2) {
+      v.hits_per_voxel = r.get<float>();
+      if (!(v.hits_per_voxel == -1.0f || (v.hits_per_voxel >= 0.0f && v.hits_per_voxel <= 1e6f))) {
+        throw FormatError(source + ": bad hit density");
       }
     }
     if (v.level >= 16 || v.last_occupied > 1 || v.combined_uses_mean > 1 || !(v.mean >= 0.0f && v.mean <= 1.0f) || !std::isfinite(v.last_time_s) ||

@@ -80,6 +80,54 @@ TEST(Rhythm, CombinedKeepsTheMeanForAVoxelWithoutRhythm) {
   EXPECT_EQ(office.combined_uses_mean, 0);
 }
 
+/// `s` with counters for every observation: `hits` over `occupied_m` of ray where it was
+/// occupied, no hit over `free_m` where it was free.
+VoxelSeries withCounters(VoxelSeries s, uint32_t hits, float occupied_m, float free_m) {
+  for (uint8_t y : s.occupied) {
+    VoxelCounters c;
+    c.hits = y ? hits : 0;
+    c.length_m = y ? occupied_m : free_m;
+    s.counters.push_back(c);
+  }
+  return s;
+}
+
+TEST(Rhythm, CombinedGivesAVoxelWithoutRhythmTheSurfaceEvidenceOfItsCounters) {
+  // Both voxels are occupied in a random 40% of the sessions, whatever the hour (the mean wins).
+  // One holds a surface that only clips it: 2 hits over 1 cm of ray when the viewpoint sees the
+  // surface, 30 cm of rays through its empty part when not. The other lies in front of a
+  // surface and catches a noisy hit among 1 m of rays now and then (still P > 0.5 that time).
+  static std::mt19937_64 coin(5);
+  const VoxelSeries noise = sampled(28, 4, [](double) { return coin() % 10 < 4; });
+  double occupied = 0;
+  for (uint8_t y : noise.occupied) occupied += y;
+  const double n = static_cast<double>(noise.occupied.size());
+  const double far = noise.times_s.back() + 1000 * kHour;  // the Markov part has faded
+  const VoxelRhythm clipped = fitVoxel(withCounters(noise, 2, 0.01f, 0.3f), 0.05);
+  const VoxelRhythm spill = fitVoxel(withCounters(noise, 1, 1.0f, 1.0f), 0.05);
+  ASSERT_EQ(clipped.combined_uses_mean, 1);
+  ASSERT_EQ(spill.combined_uses_mean, 1);
+  // Hits per voxel length of ray: hits x 0.05 m / length, pooled over the observations.
+  const double x_clipped = 2 * occupied * 0.05 / (0.01 * occupied + 0.3 * (n - occupied));
+  const double x_spill = occupied * 0.05 / n;
+  EXPECT_NEAR(clipped.hits_per_voxel, x_clipped, 1e-5);
+  EXPECT_NEAR(spill.hits_per_voxel, x_spill, 1e-6);
+  auto evidence = [](double x) { return x * x / (x * x + kSurfaceHitsPerVoxel * kSurfaceHitsPerVoxel); };
+  EXPECT_NEAR(RhythmModels::predict(clipped, RhythmModel::Combined, far), evidence(x_clipped), 1e-5);
+  EXPECT_NEAR(RhythmModels::predict(spill, RhythmModel::Combined, far), evidence(x_spill), 1e-5);
+  EXPECT_GT(RhythmModels::predict(clipped, RhythmModel::Combined, far), 0.8);  // the mean is 0.4
+  EXPECT_LT(RhythmModels::predict(spill, RhythmModel::Combined, far), 0.1);
+  // The other models do not read the counters; a cube's ray length is in its own edges.
+  EXPECT_FLOAT_EQ(clipped.mean, spill.mean);
+  EXPECT_EQ(RhythmModels::predict(clipped, RhythmModel::Hourly, far),
+            RhythmModels::predict(spill, RhythmModel::Hourly, far));
+  VoxelSeries cube = withCounters(noise, 1, 1.0f, 1.0f);
+  cube.level = 1;
+  EXPECT_NEAR(fitVoxel(cube, 0.05).hits_per_voxel, 2 * x_spill, 1e-6);
+  // Hits on a ray that ended on the entry face (no length): certainly a surface.
+  EXPECT_NEAR(surfaceEvidence(fitVoxel(withCounters(noise, 1, 0.0f, 0.0f), 0.05)), 1.0, 1e-9);
+}
+
 TEST(Rhythm, MarkovRatesComeBack) {
   // A two-state chain with entry rate 0.1/h and exit rate 0.3/h, observed every half hour for
   // two years: the estimated rates are the true ones.
@@ -174,6 +222,10 @@ TEST(Rhythm, SessionsThatDidNotObserveAVoxelAreNoEvidence) {
   EXPECT_EQ(series[0].corner, at(5, 5, 5));
   EXPECT_EQ(series[0].ranks, (std::vector<uint32_t>{0, 1, 3, 5}));
   EXPECT_EQ(series[0].occupied, (std::vector<uint8_t>{0, 1, 1, 0}));
+  ASSERT_EQ(series[0].counters.size(), 4u);  // the counters stored for each observation
+  for (size_t i = 0; i < 4; ++i) {
+    EXPECT_EQ(series[0].counters[i].state() == VoxelState::Occupied, series[0].occupied[i] == 1) << i;
+  }
   // The same observations without the blind sessions fit the same model.
   const TemporalMap seen_only = mapOf({true, true, true, true}, {false, true, true, false},
                                       {times[0], times[1], times[3], times[5]});
@@ -225,6 +277,21 @@ TEST(Rhythm, SavedModelsAnswerTheSameAndBadBytesAreRefused) {
     }
   }
   EXPECT_EQ(serialize(back), bytes);
+  // A version 1 model (97 bytes a voxel, no hit density) still reads; Combined keeps the mean.
+  {
+    VoxelSeries s = withCounters(sampled(28, 9, officeHours), 3, 0.02f, 0.5f);
+    RhythmModels one;
+    one.voxels.push_back(fitVoxel(s));
+    std::vector<uint8_t> v1 = serialize(one);
+    ASSERT_EQ(v1.size(), RhythmModels::kHeaderBytes + RhythmModels::kVoxelBytes);
+    v1.resize(v1.size() - 4);  // hits_per_voxel is the record's last field
+    v1[4] = 1;                 // the version, little-endian after the magic
+    const RhythmModels old = deserializeRhythm(v1, "v1.rhythm");
+    ASSERT_EQ(old.voxels.size(), 1u);
+    EXPECT_EQ(old.voxels[0].hits_per_voxel, -1.0f);
+    EXPECT_EQ(old.voxels[0].mean, one.voxels[0].mean);
+    EXPECT_EQ(surfaceEvidence(old.voxels[0]), static_cast<double>(one.voxels[0].mean));
+  }
   // Every truncation and a wrong magic are refused with the name; random corruption either is
   // refused or reads as a model that serialises back to those bytes.
   for (size_t n = 0; n < bytes.size(); n += 7) {

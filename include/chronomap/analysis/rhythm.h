@@ -20,8 +20,12 @@
 ///   smoothed over neighbouring hours and drawn towards the voxel's mean where hours hold few
 ///   observations (an hour never observed says nothing: it gets the mean).
 /// - Combined: Markov near the last observation; further away, per voxel the better of Hourly and
-///   Mean by their leave-one-out Brier score on the learning observations (a voxel whose changes
-///   were noise, not a rhythm, keeps its mean), weighted by how fast the chain forgets its state.
+///   Mean by their leave-one-out Brier score on the learning observations, weighted by how fast
+///   the chain forgets its state. A voxel whose changes were noise, not a rhythm (the mean won),
+///   gets the surface evidence of its counters instead of its mean: x² / (x² + x0²), x the hits
+///   per voxel length of ray pooled over its observations and x0 = kSurfaceHitsPerVoxel (a static
+///   surface that only clips a voxel is hit whenever seen, however many rays pass by its empty
+///   part; a free voxel in front of one gets a few noisy hits among many rays through it).
 #include <array>
 #include <cstdint>
 #include <span>
@@ -41,6 +45,7 @@ struct VoxelSeries {
   std::vector<uint32_t> ranks;     ///< sessions (ranks in time order) that observed it
   std::vector<uint8_t> occupied;   ///< 1 where it was occupied in that session
   std::vector<double> times_s;     ///< those sessions' times
+  std::vector<VoxelCounters> counters;  ///< the counters stored for it then (for a cube: its own)
 };
 
 /// The observations, by the sessions of rank in [first, end), of every stored cube whose state
@@ -60,7 +65,11 @@ inline constexpr std::array<RhythmModel, 6> kRhythmModels = {RhythmModel::Latest
 /// Periods the periodic model chooses from, in hours.
 inline constexpr std::array<double, 6> kRhythmPeriods_h = {168.0, 84.0, 24.0, 12.0, 8.0, 6.0};
 
-/// The fitted parameters of one cube: every model's, 97 bytes in a saved model.
+/// Where Combined's surface evidence is 0.5: hits per voxel length of ray (0.1: one hit per ten
+/// rays crossing the voxel).
+inline constexpr double kSurfaceHitsPerVoxel = 0.1;
+
+/// The fitted parameters of one cube: every model's, 101 bytes in a saved model.
 struct VoxelRhythm {
   VoxelKey corner;
   uint8_t level = 0;
@@ -78,6 +87,9 @@ struct VoxelRhythm {
   /// ones, saturating at 255 (12 two-hour bins per kind of day).
   std::array<std::array<uint8_t, 12>, 2> hour_observed = {};
   std::array<std::array<uint8_t, 12>, 2> hour_occupied = {};
+  /// Hits per voxel length of ray, summed over the counters of the observations (capped at 1e6;
+  /// -1 in models saved before chronomap kept it: Combined then keeps the mean).
+  float hits_per_voxel = -1.0f;
 };
 
 /// The fitted models of a map: one VoxelRhythm per cube that changed while learning, in the
@@ -93,8 +105,8 @@ struct RhythmModels {
   /// The fitted cube containing `key`, or null (binary search: voxels are sorted by Morton code
   /// of their corners, which fit() guarantees).
   const VoxelRhythm* find(const VoxelKey& key) const;
-  /// Bytes of a saved model: a 44-byte header and 97 bytes per cube.
-  static constexpr size_t kHeaderBytes = 44, kVoxelBytes = 97;
+  /// Bytes of a saved model: a 44-byte header and 101 bytes per cube (97 in version 1).
+  static constexpr size_t kHeaderBytes = 44, kVoxelBytes = 101;
   size_t bytes() const { return kHeaderBytes + voxels.size() * kVoxelBytes; }
 };
 
@@ -102,8 +114,11 @@ struct RhythmModels {
 /// cubes that changed at least `min_changes` times among them.
 /// @throw UsageError when no session lies in the range, or min_changes is 0.
 RhythmModels fitRhythm(const TemporalMap& map, double from_s, double to_s, uint32_t min_changes = 1);
-/// Fits one cube's models to its observations (what fitRhythm does per cube).
-VoxelRhythm fitVoxel(const VoxelSeries& series);
+/// Fits one cube's models to its observations (what fitRhythm does per cube); `voxel_m`: the
+/// map's resolution (the unit voxel's edge), for the surface evidence.
+VoxelRhythm fitVoxel(const VoxelSeries& series, double voxel_m = 0.05);
+/// Combined's surface evidence of a cube: x² / (x² + x0²) as above; its mean when unknown.
+double surfaceEvidence(const VoxelRhythm& rhythm);
 
 /// The predicted map at `time_s`: the map as last observed then (TemporalMap::snapshot) with
 /// every modelled voxel's counters replaced by one hit over the length that gives the model's
