@@ -6,7 +6,6 @@
 #include <numbers>
 #include <optional>
 #include <utility>
-#include <unordered_map>
 #include <vector>
 
 #include <Eigen/Cholesky>
@@ -111,8 +110,8 @@ std::vector<Eigen::Vector3d> observersOf(const std::vector<Eigen::Vector3d>& poi
   return out;
 }
 
-using HitMap = std::unordered_map<uint64_t, uint32_t>;
-using PointSums = std::unordered_map<uint64_t, Eigen::Vector4d>;
+using HitMap = VoxelTable<uint32_t>;
+using PointSums = VoxelTable<Eigen::Vector4d>;
 
 /// A frame point the registration uses: finite, not at the sensor, within `range2` (squared
 /// metres) of it.
@@ -123,7 +122,7 @@ bool usablePoint(const Eigen::Vector3f& q, double range2) {
 /// Adds the world point `w` to the sums (x, y, z, count) of the voxel `code`.
 void addPointSum(PointSums& sums, uint64_t code, const Eigen::Vector3d& w) {
   // try_emplace with a zero: a default-constructed Eigen vector is uninitialised.
-  sums.try_emplace(code, Eigen::Vector4d::Zero()).first->second += Eigen::Vector4d(w.x(), w.y(), w.z(), 1.0);
+  sums.tryEmplace(code, Eigen::Vector4d::Zero()) += Eigen::Vector4d(w.x(), w.y(), w.z(), 1.0);
 }
 
 /// Occupied unit voxels of a map and their hits; their centres, in Morton order, go to `centres`
@@ -132,7 +131,7 @@ HitMap surfaceOf(const SessionMap& map, std::vector<Eigen::Vector3d>* centres = 
   HitMap out;
   map.forEachLeaf([&](const LeafView& l) {
     if (l.level != 0 || l.counters.state() != VoxelState::Occupied) return;
-    out.emplace(mortonEncode(l.key), l.counters.hits);
+    out.tryEmplace(mortonEncode(l.key), l.counters.hits);
     if (centres) centres->push_back(map.grid().centerOf(l.key));
   });
   return out;
@@ -156,18 +155,18 @@ bool forEachKeyAround(const KeyGrid& grid, const Eigen::Vector3d& p, double radi
 }
 
 /// Calls fn(centre, hits, d2) for every voxel of `surface` within `radius_voxels` of `p`
-/// (d2: squared distance of its centre from `p`, in m^2). Returns the radius in metres, or a
-/// negative value when `p` lies outside the grid.
+/// (d2: squared distance of its centre from `p`, in m^2), in the order of forEachKeyAround().
+/// Returns the radius in metres, or a negative value when `p` lies outside the grid.
 template <typename Fn>
 double forEachNear(const HitMap& surface, const KeyGrid& grid, const Eigen::Vector3d& p, double radius_voxels, Fn fn) {
   const double radius_m = radius_voxels * grid.resolution_m();
   const bool inside = forEachKeyAround(grid, p, radius_voxels, [&](const VoxelKey& n) {
-    const auto found = surface.find(mortonEncode(n));
-    if (found == surface.end()) return;
+    // The distance first: most of the cube lies outside the sphere, and a lookup costs more.
     const Eigen::Vector3d c = grid.centerOf(n);
     const double d2 = (c - p).squaredNorm();
     if (d2 > radius_m * radius_m) return;
-    fn(c, found->second, d2);
+    const uint32_t* hits = surface.find(mortonEncode(n));
+    if (hits) fn(c, *hits, d2);
   });
   return inside ? radius_m : -1.0;
 }
@@ -208,7 +207,7 @@ void RegistrationTarget::addPoints(const FrameSource& frames, double max_range_m
       const auto k = grid_.keyOf(w);
       if (!k) continue;
       const uint64_t code = mortonEncode(*k);
-      if (surface_.count(code)) addPointSum(points_, code, w);
+      if (surface_.contains(code)) addPointSum(points_, code, w);
     }
   }
 }
@@ -362,13 +361,24 @@ std::optional<PlaneNear> pointPlaneNear(const PointSums& points, const KeyGrid& 
   Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
   double weight = 0.0;
   int count = 0;
+  // A voxel's mean lies inside the voxel: voxels whose box lies farther than the radius (with a
+  // margin for rounding) are not looked up.
+  const double reach2 = radius_m * radius_m * (1.0 + 1e-6);
+  const double res = grid.resolution_m();
   const bool inside = forEachKeyAround(grid, p, radius_voxels, [&](const VoxelKey& n) {
-    const auto found = points.find(mortonEncode(n));
-    if (found == points.end() || found->second.w() <= 0.0) return;
-    const Eigen::Vector3d m = found->second.head<3>() / found->second.w() - p;
+    const Eigen::Vector3d lo = grid.cornerOf(n) - p;
+    double box2 = 0.0;
+    for (int a = 0; a < 3; ++a) {
+      const double gap = lo[a] > 0.0 ? lo[a] : std::max(0.0, -(lo[a] + res));
+      box2 += gap * gap;
+    }
+    if (box2 > reach2) return;
+    const Eigen::Vector4d* found = points.find(mortonEncode(n));
+    if (!found || found->w() <= 0.0) return;
+    const Eigen::Vector3d m = found->head<3>() / found->w() - p;
     const double d2 = m.squaredNorm();
     if (d2 > radius_m * radius_m) return;
-    const double w = found->second.w() * std::exp(-2.0 * d2 / (radius_m * radius_m));
+    const double w = found->w() * std::exp(-2.0 * d2 / (radius_m * radius_m));
     sum += w * m;
     outer += w * m * m.transpose();
     weight += w;
@@ -451,10 +461,10 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
     for (const Eigen::Vector3f& q : f.cloud.points) {
       if (!usablePoint(q, range2)) continue;
       const auto k = grid.keyOf(f.T_world_sensor * q.cast<double>());
-      if (k) ++frame_surface[mortonEncode(*k)];
+      if (k) ++frame_surface.tryEmplace(mortonEncode(*k), 0);
     }
     codes.clear();
-    for (const auto& [code, hits] : frame_surface) codes.push_back(code);
+    frame_surface.forEach([&](uint64_t code, uint32_t) { codes.push_back(code); });
     std::sort(codes.begin(), codes.end());
     const size_t take = std::min(codes.size(), settings.drift_samples_per_frame);
     for (size_t j = 0; j < take; ++j) {

@@ -1,10 +1,12 @@
 #include <gtest/gtest.h>
 
 #include <random>
+#include <unordered_map>
 
 #include "chronomap/core/counters.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/key.h"
+#include "chronomap/core/voxel_table.h"
 
 namespace chronomap {
 namespace {
@@ -24,6 +26,50 @@ TEST(Morton, InterleavesXLowest) {
   EXPECT_EQ(mortonEncode({0, 0, 1}), 4u);
   EXPECT_EQ(mortonEncode({2, 0, 0}), 8u);
   EXPECT_EQ(mortonEncode({65535, 65535, 65535}), (uint64_t{1} << 48) - 1);
+}
+
+TEST(VoxelTable, HoldsWhatAnUnorderedMapHoldsThroughGrowthAndClears) {
+  // The registration's fast table against the std::unordered_map it replaced: the same random
+  // mix of insertions (clustered codes, as a surface's are, and repeats), lookups of present
+  // and absent codes, and clears that keep the memory.
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> near(0, 40), op(0, 9);
+  VoxelTable<uint32_t> table;
+  std::unordered_map<uint64_t, uint32_t> reference;
+  const auto code = [&] {
+    return mortonEncode(VoxelKey{static_cast<uint16_t>(32000 + near(rng)), static_cast<uint16_t>(32000 + near(rng)),
+                                 static_cast<uint16_t>(32760 + near(rng) / 8)});
+  };
+  for (int round = 0; round < 3; ++round) {
+    for (int i = 0; i < 20000; ++i) {
+      const uint64_t c = code();
+      if (op(rng) < 6) {
+        ++table.tryEmplace(c, 10);
+        ++reference.try_emplace(c, 10).first->second;
+      } else {
+        const uint32_t* found = table.find(c);
+        const auto expected = reference.find(c);
+        ASSERT_EQ(found != nullptr, expected != reference.end());
+        if (found) {
+          EXPECT_EQ(*found, expected->second);
+        }
+        EXPECT_EQ(table.contains(c), found != nullptr);
+      }
+    }
+    ASSERT_EQ(table.size(), reference.size());
+    size_t visited = 0;
+    table.forEach([&](uint64_t c, uint32_t v) {
+      ++visited;
+      const auto expected = reference.find(c);
+      ASSERT_NE(expected, reference.end());
+      EXPECT_EQ(v, expected->second);
+    });
+    EXPECT_EQ(visited, reference.size());
+    table.clear();
+    reference.clear();
+    EXPECT_TRUE(table.empty());
+    EXPECT_EQ(table.find(code()), nullptr);
+  }
 }
 
 TEST(KeyGrid, MapsPointsToVoxelsAroundTheOrigin) {
