@@ -13,6 +13,7 @@
 
 #include "chronomap/align/consensus.h"
 #include "chronomap/core/error.h"
+#include "chronomap/core/key_ball.h"
 #include "chronomap/core/parallel.h"
 
 namespace chronomap {
@@ -119,11 +120,28 @@ bool usablePoint(const Eigen::Vector3f& q, double range2) {
   return q.allFinite() && q.squaredNorm() != 0.0f && q.cast<double>().squaredNorm() <= range2;
 }
 
-/// Adds the world point `w` to the sums (x, y, z, count) of the voxel `code`.
-void addPointSum(PointSums& sums, uint64_t code, const Eigen::Vector3d& w) {
-  // try_emplace with a zero: a default-constructed Eigen vector is uninitialised.
-  sums.tryEmplace(code, Eigen::Vector4d::Zero()) += Eigen::Vector4d(w.x(), w.y(), w.z(), 1.0);
-}
+/// Adds world points to the sums (x, y, z, count) of their voxels, remembering the last voxel:
+/// consecutive points of a depth image mostly end in the same one, and then need no lookup.
+/// With `only`, points in voxels it lacks are left out. Valid while nothing else changes `sums`.
+class PointAdder {
+ public:
+  explicit PointAdder(PointSums& sums, const HitMap* only = nullptr) : sums_(sums), only_(only) {}
+  void add(uint64_t code, const Eigen::Vector3d& w) {
+    if (code != last_) {
+      last_ = code;
+      // The pointer stays valid until the next insertion, which only this line makes. A zero to
+      // start from: a default-constructed Eigen vector is uninitialised.
+      sum_ = only_ && !only_->contains(code) ? nullptr : &sums_.tryEmplace(code, Eigen::Vector4d::Zero());
+    }
+    if (sum_) *sum_ += Eigen::Vector4d(w.x(), w.y(), w.z(), 1.0);
+  }
+
+ private:
+  PointSums& sums_;
+  const HitMap* only_;
+  uint64_t last_ = PointSums::kEmpty;
+  Eigen::Vector4d* sum_ = nullptr;
+};
 
 /// Occupied unit voxels of a map and their hits; their centres, in Morton order, go to `centres`
 /// when given.
@@ -137,30 +155,13 @@ HitMap surfaceOf(const SessionMap& map, std::vector<Eigen::Vector3d>* centres = 
   return out;
 }
 
-/// Calls fn(key) for every voxel of the cube of ceil(radius_voxels) voxels around the voxel of
-/// `p` that lies inside the grid. False when `p` itself lies outside.
-template <typename Fn>
-bool forEachKeyAround(const KeyGrid& grid, const Eigen::Vector3d& p, double radius_voxels, Fn fn) {
-  const auto k = grid.keyOf(p);
-  if (!k) return false;
-  const int r = static_cast<int>(std::ceil(radius_voxels));
-  for (int dz = -r; dz <= r; ++dz) {
-    for (int dy = -r; dy <= r; ++dy) {
-      for (int dx = -r; dx <= r; ++dx) {
-        if (const auto n = offsetKey(*k, dx, dy, dz)) fn(*n);
-      }
-    }
-  }
-  return true;
-}
-
 /// Calls fn(centre, hits, d2) for every voxel of `surface` within `radius_voxels` of `p`
-/// (d2: squared distance of its centre from `p`, in m^2), in the order of forEachKeyAround().
+/// (d2: squared distance of its centre from `p`, in m^2), in the order of forEachKeyWithin().
 /// Returns the radius in metres, or a negative value when `p` lies outside the grid.
 template <typename Fn>
 double forEachNear(const HitMap& surface, const KeyGrid& grid, const Eigen::Vector3d& p, double radius_voxels, Fn fn) {
   const double radius_m = radius_voxels * grid.resolution_m();
-  const bool inside = forEachKeyAround(grid, p, radius_voxels, [&](const VoxelKey& n) {
+  const bool inside = forEachKeyWithin(grid, p, radius_voxels, false, [&](const VoxelKey& n) {
     // The distance first: most of the cube lies outside the sphere, and a lookup costs more.
     const Eigen::Vector3d c = grid.centerOf(n);
     const double d2 = (c - p).squaredNorm();
@@ -201,13 +202,11 @@ void RegistrationTarget::addPoints(const FrameSource& frames, double max_range_m
   for (size_t i = 0; i < frames.size(); ++i) {
     const Frame f = frames.load(i);
     if (!f.T_world_sensor.matrix().allFinite()) throw UsageError(f.source + ": the pose is not finite");
+    PointAdder adder(points_, &surface_);
     for (const Eigen::Vector3f& q : f.cloud.points) {
       if (!usablePoint(q, range2)) continue;
       const Eigen::Vector3d w = f.T_world_sensor * q.cast<double>();
-      const auto k = grid_.keyOf(w);
-      if (!k) continue;
-      const uint64_t code = mortonEncode(*k);
-      if (surface_.contains(code)) addPointSum(points_, code, w);
+      if (const auto k = grid_.keyOf(w)) adder.add(mortonEncode(*k), w);
     }
   }
 }
@@ -361,18 +360,9 @@ std::optional<PlaneNear> pointPlaneNear(const PointSums& points, const KeyGrid& 
   Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
   double weight = 0.0;
   int count = 0;
-  // A voxel's mean lies inside the voxel: voxels whose box lies farther than the radius (with a
-  // margin for rounding) are not looked up.
-  const double reach2 = radius_m * radius_m * (1.0 + 1e-6);
-  const double res = grid.resolution_m();
-  const bool inside = forEachKeyAround(grid, p, radius_voxels, [&](const VoxelKey& n) {
-    const Eigen::Vector3d lo = grid.cornerOf(n) - p;
-    double box2 = 0.0;
-    for (int a = 0; a < 3; ++a) {
-      const double gap = lo[a] > 0.0 ? lo[a] : std::max(0.0, -(lo[a] + res));
-      box2 += gap * gap;
-    }
-    if (box2 > reach2) return;
+  // A voxel's mean lies inside the voxel: voxels whose box lies beyond the radius are not
+  // looked up.
+  const bool inside = forEachKeyWithin(grid, p, radius_voxels, true, [&](const VoxelKey& n) {
     const Eigen::Vector4d* found = points.find(mortonEncode(n));
     if (!found || found->w() <= 0.0) return;
     const Eigen::Vector3d m = found->head<3>() / found->w() - p;
@@ -428,12 +418,13 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
     if (use_points) {
       // The frame's own points by voxel (sums and counts), for the pull of its own surface.
       frame_points.clear();
+      PointAdder adder(frame_points);
       size_t valid = 0;
       for (const Eigen::Vector3f& q : f.cloud.points) {
         if (!usablePoint(q, range2)) continue;
         ++valid;
         const Eigen::Vector3d w = f.T_world_sensor * q.cast<double>();
-        if (const auto k = grid.keyOf(w)) addPointSum(frame_points, mortonEncode(*k), w);
+        if (const auto k = grid.keyOf(w)) adder.add(mortonEncode(*k), w);
       }
       // Frame points, evenly thinned, as integrated (sub-voxel positions).
       const size_t take = std::min(valid, settings.drift_samples_per_frame);

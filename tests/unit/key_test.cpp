@@ -1,11 +1,14 @@
 #include <gtest/gtest.h>
 
+#include <array>
 #include <random>
 #include <unordered_map>
+#include <vector>
 
 #include "chronomap/core/counters.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/key.h"
+#include "chronomap/core/key_ball.h"
 #include "chronomap/core/voxel_table.h"
 
 namespace chronomap {
@@ -70,6 +73,58 @@ TEST(VoxelTable, HoldsWhatAnUnorderedMapHoldsThroughGrowthAndClears) {
     EXPECT_TRUE(table.empty());
     EXPECT_EQ(table.find(code()), nullptr);
   }
+}
+
+TEST(ForEachKeyWithin, VisitsEveryVoxelOfTheCubeWithinTheRadiusInOrderAndFewOthers) {
+  // The registration's filter against the whole cube it replaced, tested exactly as the
+  // registration tests after it: centres (box false) or boxes (box true) within the radius.
+  std::mt19937 rng(3);
+  for (const double res : {0.05, 0.0001}) {
+    const KeyGrid grid(res);
+    std::uniform_real_distribution<double> coordinate(-1000.0 * res, 1000.0 * res);
+    size_t visited_total = 0, cube_total = 0;
+    for (int trial = 0; trial < 400; ++trial) {
+      const Eigen::Vector3d p(coordinate(rng), coordinate(rng), coordinate(rng));
+      const double radius = std::array<double, 5>{1.0, 1.5, 2.0, 3.7, 8.0}[trial % 5];
+      const bool box = trial % 2 == 1;
+      std::vector<VoxelKey> visited;
+      ASSERT_TRUE(forEachKeyWithin(grid, p, radius, box, [&](const VoxelKey& k) { visited.push_back(k); }));
+      const VoxelKey k = *grid.keyOf(p);
+      const int r = static_cast<int>(std::ceil(radius));
+      const double r2 = radius * res * radius * res;
+      std::vector<VoxelKey> cube;  // z, y, x ascending, as visited
+      for (int dz = -r; dz <= r; ++dz) {
+        for (int dy = -r; dy <= r; ++dy) {
+          for (int dx = -r; dx <= r; ++dx) cube.push_back(*offsetKey(k, dx, dy, dz));
+        }
+      }
+      size_t next = 0;  // the visited keys, a subsequence of the cube
+      for (const VoxelKey& n : cube) {
+        const bool seen = next < visited.size() && visited[next] == n;
+        if (seen) ++next;
+        double d2 = 0.0;
+        if (box) {
+          const Eigen::Vector3d lo = grid.cornerOf(n) - p, hi = lo + Eigen::Vector3d::Constant(res);
+          for (int a = 0; a < 3; ++a) {
+            const double gap = lo[a] > 0.0 ? lo[a] : (hi[a] < 0.0 ? -hi[a] : 0.0);
+            d2 += gap * gap;
+          }
+        } else {
+          d2 = (grid.centerOf(n) - p).squaredNorm();
+        }
+        if (d2 <= r2) {
+          EXPECT_TRUE(seen) << "left out a voxel " << std::sqrt(d2) / res << " voxels away, radius " << radius;
+        }
+      }
+      EXPECT_EQ(next, visited.size()) << "visited a key outside the cube or out of order";
+      visited_total += visited.size();
+      cube_total += cube.size();
+    }
+    // The point of it: most of the cube is never visited.
+    EXPECT_LT(visited_total, cube_total * 2 / 3);
+  }
+  // Outside the grid: nothing.
+  EXPECT_FALSE(forEachKeyWithin(KeyGrid(0.05), Eigen::Vector3d(1e9, 0, 0), 2.0, false, [](const VoxelKey&) {}));
 }
 
 TEST(KeyGrid, MapsPointsToVoxelsAroundTheOrigin) {
