@@ -6,7 +6,6 @@
 #include <numbers>
 #include <optional>
 #include <utility>
-#include <unordered_map>
 #include <vector>
 
 #include <Eigen/Cholesky>
@@ -14,6 +13,7 @@
 
 #include "chronomap/align/consensus.h"
 #include "chronomap/core/error.h"
+#include "chronomap/core/key_ball.h"
 #include "chronomap/core/parallel.h"
 
 namespace chronomap {
@@ -111,8 +111,8 @@ std::vector<Eigen::Vector3d> observersOf(const std::vector<Eigen::Vector3d>& poi
   return out;
 }
 
-using HitMap = std::unordered_map<uint64_t, uint32_t>;
-using PointSums = std::unordered_map<uint64_t, Eigen::Vector4d>;
+using HitMap = VoxelTable<uint32_t>;
+using PointSums = VoxelTable<Eigen::Vector4d>;
 
 /// A frame point the registration uses: finite, not at the sensor, within `range2` (squared
 /// metres) of it.
@@ -120,11 +120,28 @@ bool usablePoint(const Eigen::Vector3f& q, double range2) {
   return q.allFinite() && q.squaredNorm() != 0.0f && q.cast<double>().squaredNorm() <= range2;
 }
 
-/// Adds the world point `w` to the sums (x, y, z, count) of the voxel `code`.
-void addPointSum(PointSums& sums, uint64_t code, const Eigen::Vector3d& w) {
-  // try_emplace with a zero: a default-constructed Eigen vector is uninitialised.
-  sums.try_emplace(code, Eigen::Vector4d::Zero()).first->second += Eigen::Vector4d(w.x(), w.y(), w.z(), 1.0);
-}
+/// Adds world points to the sums (x, y, z, count) of their voxels, remembering the last voxel:
+/// consecutive points of a depth image mostly end in the same one, and then need no lookup.
+/// With `only`, points in voxels it lacks are left out. Valid while nothing else changes `sums`.
+class PointAdder {
+ public:
+  explicit PointAdder(PointSums& sums, const HitMap* only = nullptr) : sums_(sums), only_(only) {}
+  void add(uint64_t code, const Eigen::Vector3d& w) {
+    if (code != last_) {
+      last_ = code;
+      // The pointer stays valid until the next insertion, which only this line makes. A zero to
+      // start from: a default-constructed Eigen vector is uninitialised.
+      sum_ = only_ && !only_->contains(code) ? nullptr : &sums_.tryEmplace(code, Eigen::Vector4d::Zero());
+    }
+    if (sum_) *sum_ += Eigen::Vector4d(w.x(), w.y(), w.z(), 1.0);
+  }
+
+ private:
+  PointSums& sums_;
+  const HitMap* only_;
+  uint64_t last_ = PointSums::kEmpty;
+  Eigen::Vector4d* sum_ = nullptr;
+};
 
 /// Occupied unit voxels of a map and their hits; their centres, in Morton order, go to `centres`
 /// when given.
@@ -132,42 +149,25 @@ HitMap surfaceOf(const SessionMap& map, std::vector<Eigen::Vector3d>* centres = 
   HitMap out;
   map.forEachLeaf([&](const LeafView& l) {
     if (l.level != 0 || l.counters.state() != VoxelState::Occupied) return;
-    out.emplace(mortonEncode(l.key), l.counters.hits);
+    out.tryEmplace(mortonEncode(l.key), l.counters.hits);
     if (centres) centres->push_back(map.grid().centerOf(l.key));
   });
   return out;
 }
 
-/// Calls fn(key) for every voxel of the cube of ceil(radius_voxels) voxels around the voxel of
-/// `p` that lies inside the grid. False when `p` itself lies outside.
-template <typename Fn>
-bool forEachKeyAround(const KeyGrid& grid, const Eigen::Vector3d& p, double radius_voxels, Fn fn) {
-  const auto k = grid.keyOf(p);
-  if (!k) return false;
-  const int r = static_cast<int>(std::ceil(radius_voxels));
-  for (int dz = -r; dz <= r; ++dz) {
-    for (int dy = -r; dy <= r; ++dy) {
-      for (int dx = -r; dx <= r; ++dx) {
-        if (const auto n = offsetKey(*k, dx, dy, dz)) fn(*n);
-      }
-    }
-  }
-  return true;
-}
-
 /// Calls fn(centre, hits, d2) for every voxel of `surface` within `radius_voxels` of `p`
-/// (d2: squared distance of its centre from `p`, in m^2). Returns the radius in metres, or a
-/// negative value when `p` lies outside the grid.
+/// (d2: squared distance of its centre from `p`, in m^2), in the order of forEachKeyWithin().
+/// Returns the radius in metres, or a negative value when `p` lies outside the grid.
 template <typename Fn>
 double forEachNear(const HitMap& surface, const KeyGrid& grid, const Eigen::Vector3d& p, double radius_voxels, Fn fn) {
   const double radius_m = radius_voxels * grid.resolution_m();
-  const bool inside = forEachKeyAround(grid, p, radius_voxels, [&](const VoxelKey& n) {
-    const auto found = surface.find(mortonEncode(n));
-    if (found == surface.end()) return;
+  const bool inside = forEachKeyWithin(grid, p, radius_voxels, false, [&](const VoxelKey& n) {
+    // The distance first: most of the cube lies outside the sphere, and a lookup costs more.
     const Eigen::Vector3d c = grid.centerOf(n);
     const double d2 = (c - p).squaredNorm();
     if (d2 > radius_m * radius_m) return;
-    fn(c, found->second, d2);
+    const uint32_t* hits = surface.find(mortonEncode(n));
+    if (hits) fn(c, *hits, d2);
   });
   return inside ? radius_m : -1.0;
 }
@@ -202,13 +202,11 @@ void RegistrationTarget::addPoints(const FrameSource& frames, double max_range_m
   for (size_t i = 0; i < frames.size(); ++i) {
     const Frame f = frames.load(i);
     if (!f.T_world_sensor.matrix().allFinite()) throw UsageError(f.source + ": the pose is not finite");
+    PointAdder adder(points_, &surface_);
     for (const Eigen::Vector3f& q : f.cloud.points) {
       if (!usablePoint(q, range2)) continue;
       const Eigen::Vector3d w = f.T_world_sensor * q.cast<double>();
-      const auto k = grid_.keyOf(w);
-      if (!k) continue;
-      const uint64_t code = mortonEncode(*k);
-      if (surface_.count(code)) addPointSum(points_, code, w);
+      if (const auto k = grid_.keyOf(w)) adder.add(mortonEncode(*k), w);
     }
   }
 }
@@ -362,13 +360,15 @@ std::optional<PlaneNear> pointPlaneNear(const PointSums& points, const KeyGrid& 
   Eigen::Matrix3d outer = Eigen::Matrix3d::Zero();
   double weight = 0.0;
   int count = 0;
-  const bool inside = forEachKeyAround(grid, p, radius_voxels, [&](const VoxelKey& n) {
-    const auto found = points.find(mortonEncode(n));
-    if (found == points.end() || found->second.w() <= 0.0) return;
-    const Eigen::Vector3d m = found->second.head<3>() / found->second.w() - p;
+  // A voxel's mean lies inside the voxel: voxels whose box lies beyond the radius are not
+  // looked up.
+  const bool inside = forEachKeyWithin(grid, p, radius_voxels, true, [&](const VoxelKey& n) {
+    const Eigen::Vector4d* found = points.find(mortonEncode(n));
+    if (!found || found->w() <= 0.0) return;
+    const Eigen::Vector3d m = found->head<3>() / found->w() - p;
     const double d2 = m.squaredNorm();
     if (d2 > radius_m * radius_m) return;
-    const double w = found->second.w() * std::exp(-2.0 * d2 / (radius_m * radius_m));
+    const double w = found->w() * std::exp(-2.0 * d2 / (radius_m * radius_m));
     sum += w * m;
     outer += w * m * m.transpose();
     weight += w;
@@ -418,12 +418,13 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
     if (use_points) {
       // The frame's own points by voxel (sums and counts), for the pull of its own surface.
       frame_points.clear();
+      PointAdder adder(frame_points);
       size_t valid = 0;
       for (const Eigen::Vector3f& q : f.cloud.points) {
         if (!usablePoint(q, range2)) continue;
         ++valid;
         const Eigen::Vector3d w = f.T_world_sensor * q.cast<double>();
-        if (const auto k = grid.keyOf(w)) addPointSum(frame_points, mortonEncode(*k), w);
+        if (const auto k = grid.keyOf(w)) adder.add(mortonEncode(*k), w);
       }
       // Frame points, evenly thinned, as integrated (sub-voxel positions).
       const size_t take = std::min(valid, settings.drift_samples_per_frame);
@@ -451,10 +452,10 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
     for (const Eigen::Vector3f& q : f.cloud.points) {
       if (!usablePoint(q, range2)) continue;
       const auto k = grid.keyOf(f.T_world_sensor * q.cast<double>());
-      if (k) ++frame_surface[mortonEncode(*k)];
+      if (k) ++frame_surface.tryEmplace(mortonEncode(*k), 0);
     }
     codes.clear();
-    for (const auto& [code, hits] : frame_surface) codes.push_back(code);
+    frame_surface.forEach([&](uint64_t code, uint32_t) { codes.push_back(code); });
     std::sort(codes.begin(), codes.end());
     const size_t take = std::min(codes.size(), settings.drift_samples_per_frame);
     for (size_t j = 0; j < take; ++j) {

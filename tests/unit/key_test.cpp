@@ -1,10 +1,15 @@
 #include <gtest/gtest.h>
 
+#include <array>
 #include <random>
+#include <unordered_map>
+#include <vector>
 
 #include "chronomap/core/counters.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/key.h"
+#include "chronomap/core/key_ball.h"
+#include "chronomap/core/voxel_table.h"
 
 namespace chronomap {
 namespace {
@@ -24,6 +29,102 @@ TEST(Morton, InterleavesXLowest) {
   EXPECT_EQ(mortonEncode({0, 0, 1}), 4u);
   EXPECT_EQ(mortonEncode({2, 0, 0}), 8u);
   EXPECT_EQ(mortonEncode({65535, 65535, 65535}), (uint64_t{1} << 48) - 1);
+}
+
+TEST(VoxelTable, HoldsWhatAnUnorderedMapHoldsThroughGrowthAndClears) {
+  // The registration's fast table against the std::unordered_map it replaced: the same random
+  // mix of insertions (clustered codes, as a surface's are, and repeats), lookups of present
+  // and absent codes, and clears that keep the memory.
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> near(0, 40), op(0, 9);
+  VoxelTable<uint32_t> table;
+  std::unordered_map<uint64_t, uint32_t> reference;
+  const auto code = [&] {
+    return mortonEncode(VoxelKey{static_cast<uint16_t>(32000 + near(rng)), static_cast<uint16_t>(32000 + near(rng)),
+                                 static_cast<uint16_t>(32760 + near(rng) / 8)});
+  };
+  for (int round = 0; round < 3; ++round) {
+    for (int i = 0; i < 20000; ++i) {
+      const uint64_t c = code();
+      if (op(rng) < 6) {
+        ++table.tryEmplace(c, 10);
+        ++reference.try_emplace(c, 10).first->second;
+      } else {
+        const uint32_t* found = table.find(c);
+        const auto expected = reference.find(c);
+        ASSERT_EQ(found != nullptr, expected != reference.end());
+        if (found) {
+          EXPECT_EQ(*found, expected->second);
+        }
+        EXPECT_EQ(table.contains(c), found != nullptr);
+      }
+    }
+    ASSERT_EQ(table.size(), reference.size());
+    size_t visited = 0;
+    table.forEach([&](uint64_t c, uint32_t v) {
+      ++visited;
+      const auto expected = reference.find(c);
+      ASSERT_NE(expected, reference.end());
+      EXPECT_EQ(v, expected->second);
+    });
+    EXPECT_EQ(visited, reference.size());
+    table.clear();
+    reference.clear();
+    EXPECT_TRUE(table.empty());
+    EXPECT_EQ(table.find(code()), nullptr);
+  }
+}
+
+TEST(ForEachKeyWithin, VisitsEveryVoxelOfTheCubeWithinTheRadiusInOrderAndFewOthers) {
+  // The registration's filter against the whole cube it replaced, tested exactly as the
+  // registration tests after it: centres (box false) or boxes (box true) within the radius.
+  std::mt19937 rng(3);
+  for (const double res : {0.05, 0.0001}) {
+    const KeyGrid grid(res);
+    std::uniform_real_distribution<double> coordinate(-1000.0 * res, 1000.0 * res);
+    size_t visited_total = 0, cube_total = 0;
+    for (int trial = 0; trial < 400; ++trial) {
+      const Eigen::Vector3d p(coordinate(rng), coordinate(rng), coordinate(rng));
+      const double radius = std::array<double, 5>{1.0, 1.5, 2.0, 3.7, 8.0}[trial % 5];
+      const bool box = trial % 2 == 1;
+      std::vector<VoxelKey> visited;
+      ASSERT_TRUE(forEachKeyWithin(grid, p, radius, box, [&](const VoxelKey& k) { visited.push_back(k); }));
+      const VoxelKey k = *grid.keyOf(p);
+      const int r = static_cast<int>(std::ceil(radius));
+      const double r2 = radius * res * radius * res;
+      std::vector<VoxelKey> cube;  // z, y, x ascending, as visited
+      for (int dz = -r; dz <= r; ++dz) {
+        for (int dy = -r; dy <= r; ++dy) {
+          for (int dx = -r; dx <= r; ++dx) cube.push_back(*offsetKey(k, dx, dy, dz));
+        }
+      }
+      size_t next = 0;  // the visited keys, a subsequence of the cube
+      for (const VoxelKey& n : cube) {
+        const bool seen = next < visited.size() && visited[next] == n;
+        if (seen) ++next;
+        double d2 = 0.0;
+        if (box) {
+          const Eigen::Vector3d lo = grid.cornerOf(n) - p, hi = lo + Eigen::Vector3d::Constant(res);
+          for (int a = 0; a < 3; ++a) {
+            const double gap = lo[a] > 0.0 ? lo[a] : (hi[a] < 0.0 ? -hi[a] : 0.0);
+            d2 += gap * gap;
+          }
+        } else {
+          d2 = (grid.centerOf(n) - p).squaredNorm();
+        }
+        if (d2 <= r2) {
+          EXPECT_TRUE(seen) << "left out a voxel " << std::sqrt(d2) / res << " voxels away, radius " << radius;
+        }
+      }
+      EXPECT_EQ(next, visited.size()) << "visited a key outside the cube or out of order";
+      visited_total += visited.size();
+      cube_total += cube.size();
+    }
+    // The point of it: most of the cube is never visited.
+    EXPECT_LT(visited_total, cube_total * 2 / 3);
+  }
+  // Outside the grid: nothing.
+  EXPECT_FALSE(forEachKeyWithin(KeyGrid(0.05), Eigen::Vector3d(1e9, 0, 0), 2.0, false, [](const VoxelKey&) {}));
 }
 
 TEST(KeyGrid, MapsPointsToVoxelsAroundTheOrigin) {

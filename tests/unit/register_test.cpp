@@ -349,7 +349,9 @@ TEST(RegistrationTarget, AddsThePointsThatFallIntoItsSurface) {
   f.cloud.points.push_back(Eigen::Vector3f(std::nanf(""), 0.0f, 0.0f));
   target.addPoints(FrameVector({f}), 3.0);
   ASSERT_EQ(target.points().size(), 1u);
-  const Eigen::Vector4d sum = target.points().begin()->second;
+  const Eigen::Vector4d* found = target.points().find(mortonEncode(at(100, 100, 100)));
+  ASSERT_NE(found, nullptr);
+  const Eigen::Vector4d sum = *found;
   EXPECT_EQ(sum.w(), 2.0);
   EXPECT_TRUE((sum.head<3>() / 2.0).isApprox(centre + Eigen::Vector3d(0.0, 0.01, 0.0), 1e-6));
 }

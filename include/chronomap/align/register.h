@@ -7,12 +7,12 @@
 #include <functional>
 #include <memory>
 #include <span>
-#include <unordered_map>
 #include <vector>
 
 #include <Eigen/Geometry>
 
 #include "chronomap/align/pose_correction.h"
+#include "chronomap/core/voxel_table.h"
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/octree/session_map.h"
 
@@ -83,18 +83,18 @@ class RegistrationTarget {
   double resolution_m() const { return grid_.resolution_m(); }
   const KeyGrid& grid() const { return grid_; }
   /// Hits of the occupied unit voxels, by Morton code.
-  const std::unordered_map<uint64_t, uint32_t>& surface() const { return surface_; }
+  const VoxelTable<uint32_t>& surface() const { return surface_; }
   /// Adds the points of `frames` (within `max_range_m` of their sensor) that fall into the
   /// surface's voxels to those voxels' point sums (for RegisterSettings::drift_points).
   /// @throw whatever frames.load throws.
   void addPoints(const FrameSource& frames, double max_range_m);
   /// Sum of the added points (x, y, z) and their number (w), by Morton code.
-  const std::unordered_map<uint64_t, Eigen::Vector4d>& points() const { return points_; }
+  const VoxelTable<Eigen::Vector4d>& points() const { return points_; }
 
  private:
   KeyGrid grid_;
-  std::unordered_map<uint64_t, uint32_t> surface_;
-  std::unordered_map<uint64_t, Eigen::Vector4d> points_;
+  VoxelTable<uint32_t> surface_;
+  VoxelTable<Eigen::Vector4d> points_;
 };
 
 /// The correction that moves the session's occupied voxels onto the consensus' surfaces:
