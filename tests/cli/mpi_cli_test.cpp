@@ -18,9 +18,11 @@ using test::runCommand;
 
 /// mpirun with N ranks (as root in containers, more ranks than cores allowed), each process
 /// limited to 60 s so that a hang fails the test instead of stalling the suite. LeakSanitizer
-/// would report Open MPI's own allocations that it keeps to the end: off under MPI.
+/// would report Open MPI's own allocations that it keeps to the end: off under MPI. Shared
+/// memory without the kernel's cross-process copy, which containers often forbid.
 std::string mpirun(int ranks) {
-  return "ASAN_OPTIONS=detect_leaks=0 timeout 60 " + std::string(CHRONOMAP_MPIEXEC) +
+  return "ASAN_OPTIONS=detect_leaks=0 OMPI_MCA_btl_vader_single_copy_mechanism=none timeout 60 " +
+         std::string(CHRONOMAP_MPIEXEC) +
          " --allow-run-as-root --oversubscribe -np " + std::to_string(ranks) + " ";
 }
 
