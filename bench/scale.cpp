@@ -22,6 +22,7 @@
 #include <fstream>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <random>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -163,10 +164,10 @@ int main(int argc, char** argv) {
   out["snapshot_room_ms_cold"] = msSince(start);
   out["snapshot_room_tiles"] = map.cacheStats().loads;
   std::vector<VoxelKey> keys;
+  std::mt19937 random(1);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
   for (int i = 0; i < 20000; ++i) {
-    const Eigen::Vector3d p = lo + (hi - lo).cwiseProduct(Eigen::Vector3d(((i * 7919) % 1000) / 1000.0,
-                                                                          ((i * 104729) % 997) / 997.0,
-                                                                          ((i * 1299709) % 991) / 991.0));
+    const Eigen::Vector3d p = lo + (hi - lo).cwiseProduct(Eigen::Vector3d(unit(random), unit(random), unit(random)));
     if (const auto k = map.grid().keyOf(p)) keys.push_back(*k);
   }
   size_t entries = 0;
