@@ -110,7 +110,8 @@ int main(int argc, char** argv) {
   }
   std::vector<std::string> folders;
   for (const auto& e : fs::directory_iterator(sim)) {
-    if (e.is_directory() && e.path().filename().string().rfind("session_", 0) == 0) folders.push_back(e.path().string());
+    const bool session = e.path().filename().string().rfind("session_", 0) == 0;
+    if (e.is_directory() && session) folders.push_back(e.path().string());
   }
   std::sort(folders.begin(), folders.end());
   out["sessions"] = folders.size();

@@ -239,14 +239,22 @@ std::optional<BuildResult> buildOnRanks(const BuildSettings& settings, const Ran
   // Every size-th dataset from this rank's number.
   std::vector<Pending> mine;
   for (size_t i = static_cast<size_t>(ranks.rank()); i < n; i += size) {
-    if (!steps.run(static_cast<int>(std::min<size_t>(i, INT_MAX - 1)), [&] { mine.push_back(detail::integrateOne(s, i)); })) {
-      break;
-    }
+    const int key = static_cast<int>(std::min<size_t>(i, INT_MAX - 1));
+    if (!steps.run(key, [&] { mine.push_back(detail::integrateOne(s, i)); })) break;
   }
   steps.agree();
 
+  // Encoded before anything is sent, so that a failure here is agreed on too.
+  std::vector<std::vector<uint8_t>> encoded;
   if (!root) {
-    for (const Pending& p : mine) sendBytes(encodePending(p), 0);
+    steps.run(0, [&] {
+      for (const Pending& p : mine) encoded.push_back(encodePending(p));
+    });
+    mine.clear();
+  }
+  steps.agree();
+  if (!root) {
+    for (const auto& bytes : encoded) sendBytes(bytes, 0);
     steps.agree();  // rank 0's adding and writing
     return std::nullopt;
   }

@@ -109,9 +109,9 @@ TEST(MpiBuild, KilledRankLeavesThePreviousMap) {
   // Rank 1 is killed once rank 0 has begun integrating (every rank is past its checks then, and
   // integrating its share): mpirun ends the job and the map is the one before, not a part.
   const std::string log = (tmp / "log").string();
-  const std::string script = "( " + mpirun(2) + cli() + " build " + map.string() + " --replace" + sessions + " 2>" + log +
-                             " & m=$!; "
-                             "for k in $(seq 1000); do grep -q '^\\[1/' " + log + " 2>/dev/null && break; sleep 0.01; done; "
+  const std::string build = mpirun(2) + cli() + " build " + map.string() + " --replace" + sessions;
+  const std::string script = "( " + build + " 2>" + log + " & m=$!; for k in $(seq 1000); do grep -q '^\\[1/' " + log +
+                             " 2>/dev/null && break; sleep 0.01; done; "
                              "for c in $(pgrep -P $m) $(for p in $(pgrep -P $m); do pgrep -P $p; done); do "
                              "  tr '\\0' '\\n' < /proc/$c/environ 2>/dev/null | grep -qx OMPI_COMM_WORLD_RANK=1 && "
                              "kill -9 $c && echo killed; "
