@@ -75,3 +75,21 @@ if(CHRONOMAP_ROSBAG)
     target_link_libraries(chronomap_rosbag INTERFACE ${${var}})
   endforeach()
 endif()
+
+# MPI (Open MPI from Debian, scripts/install-deps.sh): `mpirun -np N chronomap build` spreads the
+# integration over processes (pipeline/distributed.h, the only file that calls MPI). Optional:
+# AUTO uses it when found; without it the same command runs on one process. Under CI=true it
+# must be found, so that its tests run rather than vanish.
+set(CHRONOMAP_MPI AUTO CACHE STRING "Build with MPI: AUTO (when found), ON (required) or OFF")
+set_property(CACHE CHRONOMAP_MPI PROPERTY STRINGS AUTO ON OFF)
+set(CHRONOMAP_HAVE_MPI OFF)
+if(NOT CHRONOMAP_MPI STREQUAL "OFF")
+  find_package(MPI COMPONENTS CXX)
+  if(MPI_CXX_FOUND AND MPIEXEC_EXECUTABLE)
+    set(CHRONOMAP_HAVE_MPI ON)
+  elseif(CHRONOMAP_MPI STREQUAL "ON" OR "$ENV{CI}" STREQUAL "true")
+    message(FATAL_ERROR "MPI (C++ and mpirun) not found: run scripts/install-deps.sh (libopenmpi-dev, openmpi-bin), "
+                        "or configure with -DCHRONOMAP_MPI=OFF")
+  endif()
+endif()
+message(STATUS "chronomap: MPI ${CHRONOMAP_HAVE_MPI}")

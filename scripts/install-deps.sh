@@ -11,7 +11,9 @@ packages=(build-essential cmake pkg-config libeigen3-dev libtbb-dev libcli11-dev
           python3-rosbag python3-sensor-msgs python3-geometry-msgs python3-nav-msgs python3-tf2-msgs python3-pil
           # ROS 2 bags: MCAP chunks in lz4 (zstd above), and the SQLite storage (.db3); lz4 also
           # builds UFOMap inside bench/integrate_vs_peers (../shared/peers).
-          liblz4-dev libsqlite3-dev)
+          liblz4-dev libsqlite3-dev
+          # MPI: `mpirun -np N chronomap build` (optional at build time; CI builds and tests it).
+          libopenmpi-dev openmpi-bin)
 # The viewer's tests run node (three.js, esbuild and puppeteer-core come from npm, viewer/
 # package-lock.json); any node 18 or newer will do, Debian's when none is installed.
 command -v node >/dev/null || packages+=(nodejs)

@@ -11,6 +11,7 @@
 #include "chronomap/core/error.h"
 #include "chronomap/core/format.h"
 #include "chronomap/core/time.h"
+#include "chronomap/pipeline/distributed.h"
 #include "chronomap/pipeline/map4d.h"
 #include "commands.h"
 #include "progress.h"
@@ -236,8 +237,14 @@ int runBuild(const BuildCmdOptions& o) {
   s.replace = o.replace;
   s.criterion = o.criterion;
   s.session = sessionSettings(o.integrate);
-  s.progress = terminalProgress(o.json);
-  printBuilt(o, pipeline::build(s));
+  // Under mpirun the ranks share the recordings out and rank 0 writes and reports; alone, one process.
+  const pipeline::Ranks ranks;
+  s.progress = terminalProgress(o.json || ranks.rank() != 0);
+  try {
+    if (const auto result = pipeline::buildOnRanks(s, ranks)) printBuilt(o, *result);
+  } catch (const pipeline::RankStopped& stopped) {
+    return stopped.exitCode();  // rank 0 says why
+  }
   return 0;
 }
 
@@ -272,7 +279,8 @@ Command addBuild(CLI::App& root) {
   CLI::App* app = root.add_subcommand(
       "build",
       "Integrate several recordings and add them to a 4D map in time order (the map is created when "
-      "missing and written once, atomically, at the end).");
+      "missing and written once, atomically, at the end). Under mpirun -np N the recordings are shared out "
+      "over the N processes; the map is the same, byte for byte (docs/scale.md).");
   app->add_option("MAP", o->map, "the 4D map (.cmap)")->required();
   app->add_option("DATASET", o->datasets, "dataset folders or files, one per session")->required();
   app->add_option("--times", o->times,

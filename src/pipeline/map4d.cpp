@@ -10,6 +10,7 @@
 #include "chronomap/core/time.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/file.h"
+#include "build_steps.h"
 
 namespace chronomap::pipeline {
 
@@ -24,12 +25,13 @@ int64_t nodesAddedAt(const TemporalMap& map, double time_s) {
   return 0;
 }
 
-/// A recording integrated, waiting to be added.
-struct Pending {
-  size_t index;  // into the settings' datasets
-  double time_s;
-  IntegratedSession session;
-};
+std::optional<double> givenTime(const BuildSettings& s, size_t i) {
+  return s.times_s.empty() ? std::nullopt : s.times_s[i];
+}
+
+}  // namespace
+
+namespace detail {
 
 void checkInputs(const BuildSettings& s) {
   if (s.realign) s.realign->validate();  // bad settings fail before integrating
@@ -43,11 +45,6 @@ void checkInputs(const BuildSettings& s) {
   io::refuseOverwritingInputs(s.map, s.datasets);
 }
 
-std::optional<double> givenTime(const BuildSettings& s, size_t i) {
-  return s.times_s.empty() ? std::nullopt : s.times_s[i];
-}
-
-/// Refuses known clashes with stored sessions before the long integration.
 void refuseClashes(const BuildSettings& s, const TemporalMap& map) {
   if (s.replace) return;
   for (size_t i = 0; i < s.datasets.size(); ++i) {
@@ -62,22 +59,21 @@ void refuseClashes(const BuildSettings& s, const TemporalMap& map) {
   }
 }
 
-/// Integrates every dataset (times may come from the datasets) and sorts them by time.
-std::vector<Pending> integrateAll(const BuildSettings& s) {
-  std::vector<Pending> pending;
-  for (size_t i = 0; i < s.datasets.size(); ++i) {
-    std::ostringstream step;  // (a chain of string + trips GCC 12's -Wrestrict)
-    step << "[" << i + 1 << "/" << s.datasets.size() << "] " << s.datasets[i].string();
-    s.progress.say(step.str());
-    IntegratedSession session = integrateDataset(s.datasets[i], s.session, {}, s.progress);
-    const std::optional<double> given = givenTime(s, i);
-    const std::optional<double> t = given ? given : session.recorded_at;
-    if (!t) {
-      throw UsageError(s.datasets[i].string() + " has no timestamps (" + session.format +
-                       " datasets do not carry times); give one per dataset with --times");
-    }
-    pending.push_back({i, *t, std::move(session)});
+Pending integrateOne(const BuildSettings& s, size_t i) {
+  std::ostringstream step;  // (a chain of string + trips GCC 12's -Wrestrict)
+  step << "[" << i + 1 << "/" << s.datasets.size() << "] " << s.datasets[i].string();
+  s.progress.say(step.str());
+  IntegratedSession session = integrateDataset(s.datasets[i], s.session, {}, s.progress);
+  const std::optional<double> given = givenTime(s, i);
+  const std::optional<double> t = given ? given : session.recorded_at;
+  if (!t) {
+    throw UsageError(s.datasets[i].string() + " has no timestamps (" + session.format +
+                     " datasets do not carry times); give one per dataset with --times");
   }
+  return {i, *t, std::move(session)};
+}
+
+void sortByTime(const BuildSettings& s, std::vector<Pending>& pending) {
   std::stable_sort(pending.begin(), pending.end(), [](const Pending& a, const Pending& b) { return a.time_s < b.time_s; });
   for (size_t i = 1; i < pending.size(); ++i) {
     if (pending[i].time_s == pending[i - 1].time_s) {
@@ -85,8 +81,13 @@ std::vector<Pending> integrateAll(const BuildSettings& s) {
                        " have the same time " + formatTime(pending[i].time_s));
     }
   }
-  return pending;
 }
+
+}  // namespace detail
+
+namespace {
+
+using detail::Pending;
 
 /// Each session's correction against the consensus of all given; the sessions become the
 /// recordings integrated again with it.
@@ -136,14 +137,22 @@ TemporalMap openOrCreate(const fs::path& path, double resolution_m, const Change
 }
 
 BuildResult build(const BuildSettings& s) {
-  checkInputs(s);
+  detail::checkInputs(s);
   // Held to the end: an add to the same map meanwhile would otherwise be lost by the rewrite. A
   // map that does not exist yet locks its folder: two commands creating it run one after the other.
   const io::FileLock lock(s.map, io::FileLock::Missing::LockFolder);
+  bool created = false;
+  TemporalMap map = openOrCreate(s.map, s.session.resolution_m, s.criterion, created);
+  detail::refuseClashes(s, map);
+  std::vector<Pending> pending;
+  for (size_t i = 0; i < s.datasets.size(); ++i) pending.push_back(detail::integrateOne(s, i));
+  detail::sortByTime(s, pending);
+  return detail::finishBuild(s, map, created, pending);
+}
+
+BuildResult detail::finishBuild(const BuildSettings& s, TemporalMap& map, bool created, std::vector<Pending>& pending) {
   BuildResult result;
-  TemporalMap map = openOrCreate(s.map, s.session.resolution_m, s.criterion, result.created);
-  refuseClashes(s, map);
-  std::vector<Pending> pending = integrateAll(s);
+  result.created = created;
   std::vector<PoseCorrection> corrections;
   if (s.registration) corrections = registerPending(s, pending);
   std::vector<size_t> moved;

@@ -1,0 +1,182 @@
+// bench/scale: a site's sessions built into a 4D map, by one process and by two MPI ranks, then
+// tiled and queried (issue 28). A partial benchmark: the build holds the whole map (there is no
+// streaming build yet, so no memory budget applies to it), and the sessions are what one run
+// allows (--sessions), not the preset's year.
+//
+//   scale [--sessions N] [--floors F] [--scale S] [--sim DIR] [--work DIR]
+//
+// --sim reuses simulated sessions (any TUM session folders session_*), else `chronomap simulate
+// --preset site` writes them. Last line: one JSON object.
+
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <spawn.h>
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "chronomap/pipeline/tiles.h"
+
+extern char** environ;
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace chronomap;
+
+/// One child process: wall and processor seconds, peak RSS, exit code.
+struct Run {
+  double wall_s = 0.0, user_s = 0.0, sys_s = 0.0, max_rss_mib = 0.0;
+  int exit_code = -1;
+  double cpu() const { return user_s + sys_s; }
+};
+
+Run run(const std::vector<std::string>& args, const fs::path& out) {
+  std::vector<char*> argv;
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  const auto start = std::chrono::steady_clock::now();
+  pid_t pid = 0;
+  Run r;
+  if (posix_spawnp(&pid, argv[0], &actions, nullptr, argv.data(), environ) != 0) return r;
+  posix_spawn_file_actions_destroy(&actions);
+  int status = 0;
+  rusage usage{};
+  wait4(pid, &status, 0, &usage);
+  r.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  r.user_s = static_cast<double>(usage.ru_utime.tv_sec) + static_cast<double>(usage.ru_utime.tv_usec) * 1e-6;
+  r.sys_s = static_cast<double>(usage.ru_stime.tv_sec) + static_cast<double>(usage.ru_stime.tv_usec) * 1e-6;
+  r.max_rss_mib = static_cast<double>(usage.ru_maxrss) / 1024.0;
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::string loadAverage() {
+  std::ifstream in("/proc/loadavg");
+  std::string one;
+  in >> one;
+  return one;
+}
+
+double msSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int sessions = 4, floors = 3;
+  double scale = 0.5;
+  fs::path sim, work = fs::temp_directory_path() / "chronomap_bench_scale";
+  for (int i = 1; i + 1 < argc; i += 2) {
+    const std::string a = argv[i];
+    if (a == "--sessions") sessions = std::atoi(argv[i + 1]);
+    else if (a == "--floors") floors = std::atoi(argv[i + 1]);
+    else if (a == "--scale") scale = std::atof(argv[i + 1]);
+    else if (a == "--sim") sim = argv[i + 1];
+    else if (a == "--work") work = argv[i + 1];
+    else {
+      std::cerr << "unknown option " << a << "\n";
+      return 2;
+    }
+  }
+  const std::string cli = CHRONOMAP_CLI_PATH, mpirun = CHRONOMAP_MPIEXEC;
+  fs::remove_all(work);
+  fs::create_directories(work);
+  const fs::path log = work / "log.txt";
+  nlohmann::json out;
+  if (sim.empty()) {
+    sim = work / "sim";
+    const Run r = run({cli, "simulate", "--preset", "site", "--floors", std::to_string(floors), "--sessions",
+                       std::to_string(sessions), "--resolution-scale", std::to_string(scale), "-o", sim.string()},
+                      log);
+    if (r.exit_code != 0) return 1;
+    out["simulate_cpu_s"] = r.cpu();
+  }
+  std::vector<std::string> folders;
+  for (const auto& e : fs::directory_iterator(sim)) {
+    const bool session = e.path().filename().string().rfind("session_", 0) == 0;
+    if (e.is_directory() && session) folders.push_back(e.path().string());
+  }
+  std::sort(folders.begin(), folders.end());
+  out["sessions"] = folders.size();
+
+  // One process, one thread; then two ranks of one thread each (the same file).
+  auto buildArgs = [&](const fs::path& map) {
+    std::vector<std::string> a = {cli, "build", map.string(), "--threads", "1", "--json"};
+    a.insert(a.end(), folders.begin(), folders.end());
+    return a;
+  };
+  const std::string load_before = loadAverage();
+  const Run one = run(buildArgs(work / "one.cmap"), work / "one.json");
+  if (one.exit_code != 0) return 1;
+  out["build_1rank"] = {{"wall_s", one.wall_s}, {"cpu_s", one.cpu()}, {"peak_rss_mib", one.max_rss_mib}};
+  out["peak_rss_mib"] = one.max_rss_mib;
+  out["bytes_on_disk"] = fs::file_size(work / "one.cmap");
+  if (!mpirun.empty()) {
+    std::vector<std::string> a = {mpirun, "--allow-run-as-root", "-np", "2", "/usr/bin/time", "-a", "-o",
+                                  (work / "ranks.txt").string(), "-f", "%e %U %S %M"};
+    const std::vector<std::string> b = buildArgs(work / "two.cmap");
+    a.insert(a.end(), b.begin(), b.end());
+    const Run two = run(a, work / "two.json");
+    if (two.exit_code != 0) return 1;
+    std::ifstream ranks(work / "ranks.txt");
+    double wall = 0, user = 0, sys = 0, rss = 0, largest = 0;
+    while (ranks >> wall >> user >> sys >> rss) largest = std::max(largest, user + sys);
+    const bool same = fs::file_size(work / "one.cmap") == fs::file_size(work / "two.cmap") &&
+                      std::system(("cmp -s " + (work / "one.cmap").string() + " " + (work / "two.cmap").string())
+                                      .c_str()) == 0;
+    out["build_2ranks"] = {{"wall_s", two.wall_s}, {"cpu_s", two.cpu()}, {"largest_rank_cpu_s", largest},
+                           {"same_bytes", same}};
+    out["mpi2_speedup"] = one.wall_s / two.wall_s;
+    out["mpi2_speedup_cpu_bound"] = largest > 0 ? one.cpu() / largest : 0.0;
+  }
+  out["load_average"] = {load_before, loadAverage()};
+
+  // Tiles of 3.2 m; a cold snapshot of one room of the first floor (office 2 of floor66), and
+  // voxel histories in it once its tiles are held.
+  pipeline::TileSettings ts;
+  ts.map = work / "one.cmap";
+  ts.folder = work / "tiles";
+  ts.tile_size_m = 3.2;
+  const pipeline::TileResult tiled = pipeline::tileMap(ts);
+  out["tiles"] = tiled.tiles;
+  out["tiled_bytes_on_disk"] = tiled.index_bytes + tiled.tile_bytes;
+  const Eigen::Vector3d lo(5.1, 2.2, -0.5), hi(9.9, 11.0, 3.0);
+  auto start = std::chrono::steady_clock::now();
+  pipeline::TiledMap map(ts.folder);
+  const pipeline::VoxelBox box = pipeline::voxelBoxOf(map.grid(), lo, hi);
+  const SessionMap room = map.snapshot(map.sessions().back().time_s, box);
+  out["snapshot_room_ms_cold"] = msSince(start);
+  out["snapshot_room_tiles"] = map.cacheStats().loads;
+  std::vector<VoxelKey> keys;
+  std::mt19937 random(1);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  for (int i = 0; i < 20000; ++i) {
+    const Eigen::Vector3d p = lo + (hi - lo).cwiseProduct(Eigen::Vector3d(unit(random), unit(random), unit(random)));
+    if (const auto k = map.grid().keyOf(p)) keys.push_back(*k);
+  }
+  size_t entries = 0;
+  start = std::chrono::steady_clock::now();
+  for (const VoxelKey& k : keys) entries += map.history(k).size();
+  out["history_us"] = msSince(start) * 1000.0 / static_cast<double>(keys.size());
+  out["history_entries"] = entries;
+  out["room_nodes"] = room.innerCount() + room.leafCount();
+  std::cout << out.dump() << "\n";
+  return 0;
+}

@@ -1,0 +1,31 @@
+#pragma once
+// The steps of pipeline::build(), shared by the one-process build (map4d.cpp) and the build
+// spread over MPI ranks (distributed.cpp), so that both run the same code in the same order.
+
+#include <cstddef>
+#include <vector>
+
+#include "chronomap/pipeline/map4d.h"
+
+namespace chronomap::pipeline::detail {
+
+/// A recording integrated, waiting to be added.
+struct Pending {
+  size_t index;  // into the settings' datasets
+  double time_s;
+  IntegratedSession session;
+};
+
+/// Refuses bad settings, missing datasets and a map that would overwrite an input.
+void checkInputs(const BuildSettings& s);
+/// Refuses known clashes with stored sessions before the long integration.
+void refuseClashes(const BuildSettings& s, const TemporalMap& map);
+/// Integrates dataset `i` (saying so) and finds its time. @throw UsageError when it has none.
+Pending integrateOne(const BuildSettings& s, size_t i);
+/// Sorts the sessions by time. @throw UsageError when two have the same time.
+void sortByTime(const BuildSettings& s, std::vector<Pending>& pending);
+/// Registers and re-aligns the sorted sessions when asked, adds them to `map` and writes it once,
+/// atomically.
+BuildResult finishBuild(const BuildSettings& s, TemporalMap& map, bool created, std::vector<Pending>& pending);
+
+}  // namespace chronomap::pipeline::detail

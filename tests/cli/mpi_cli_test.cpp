@@ -1,0 +1,126 @@
+// `mpirun -np N chronomap build`: the same bytes as one process whatever N, the previous map kept
+// when a rank is killed, and bad input refused on every rank without a hang. Registered only
+// when chronomap was built with MPI (always under CI=true: CMake fails without it).
+
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "test_support.h"
+
+namespace chronomap {
+namespace {
+
+namespace fs = std::filesystem;
+using test::cli;
+using test::runCommand;
+
+/// mpirun with N ranks (as root in containers, more ranks than cores allowed), each process
+/// limited to 60 s so that a hang fails the test instead of stalling the suite. LeakSanitizer
+/// would report Open MPI's own allocations that it keeps to the end: off under MPI. Shared
+/// memory without the kernel's cross-process copy, which containers often forbid.
+std::string mpirun(int ranks) {
+  return "ASAN_OPTIONS=detect_leaks=0 OMPI_MCA_btl_vader_single_copy_mechanism=none timeout 60 " +
+         std::string(CHRONOMAP_MPIEXEC) +
+         " --allow-run-as-root --oversubscribe -np " + std::to_string(ranks) + " ";
+}
+
+/// A tiny simulated scene of `sessions` TUM folders. @return their paths, space-separated.
+std::string simulate(const test::TempDir& tmp, int sessions, double scale) {
+  const test::CommandResult r = runCommand(cli() + " simulate --preset tiny --sessions " + std::to_string(sessions) +
+                                           " --resolution-scale " + std::to_string(scale) + " -o " +
+                                           (tmp / "sim").string());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  std::string paths;
+  for (int i = 0; i < sessions; ++i) {
+    char name[32];
+    std::snprintf(name, sizeof name, "session_%02d", i);
+    paths += " " + (tmp / "sim" / name).string();
+  }
+  return paths;
+}
+
+nlohmann::json withoutMap(const std::string& out) {
+  nlohmann::json j = nlohmann::json::parse(out);
+  j.erase("map");
+  return j;
+}
+
+TEST(MpiBuild, AnyNumberOfRanksWritesTheSameBytes) {
+  test::TempDir tmp;
+  const std::string sessions = simulate(tmp, 3, 0.1);
+  const fs::path plain = tmp / "plain.cmap";
+  const test::CommandResult one = runCommand(cli() + " build " + plain.string() + sessions + " --json");
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  const std::vector<uint8_t> expected = test::bytesOf(plain);
+  ASSERT_FALSE(expected.empty());
+  for (int n = 1; n <= 3; ++n) {
+    const fs::path map = tmp / ("ranks" + std::to_string(n) + ".cmap");
+    const test::CommandResult r = runCommand(mpirun(n) + cli() + " build " + map.string() + sessions + " --json");
+    ASSERT_EQ(r.exit_code, 0) << n << " rank(s): " << r.err;
+    EXPECT_TRUE(test::bytesOf(map) == expected) << n << " rank(s)";
+    // One report (rank 0's), the same as the process alone gives.
+    EXPECT_EQ(withoutMap(r.out), withoutMap(one.out)) << n << " rank(s)";
+  }
+  // Adding to an existing map: the sessions read from it stay as they are.
+  const fs::path grown = tmp / "grown.cmap";
+  fs::copy_file(plain, grown);
+  fs::copy_file(plain, tmp / "grown_plain.cmap");
+  const std::string more = " --replace" + sessions;
+  ASSERT_EQ(runCommand(cli() + " build " + (tmp / "grown_plain.cmap").string() + more).exit_code, 0);
+  ASSERT_EQ(runCommand(mpirun(2) + cli() + " build " + grown.string() + more).exit_code, 0);
+  EXPECT_TRUE(test::bytesOf(grown) == test::bytesOf(tmp / "grown_plain.cmap"));
+}
+
+TEST(MpiBuild, BadInputFailsOnEveryRankWithoutWaiting) {
+  test::TempDir tmp;
+  const std::string sessions = simulate(tmp, 2, 0.1);
+  const std::string map = (tmp / "m.cmap").string();
+  // A missing folder: every rank refuses it before integrating; rank 0 says so.
+  const std::string missing = (tmp / "no_such_session").string();
+  test::CommandResult r = runCommand(mpirun(3) + cli() + " build " + map + sessions + " " + missing);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.exit_code, 124) << "timed out: a rank waited for another";
+  EXPECT_NE(r.err.find("dataset '" + missing + "' does not exist"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(map));
+  // An empty folder found bad only by the rank that integrates it (the second of three, on rank
+  // 1): rank 0 gives the error the process alone gives.
+  fs::create_directories(tmp / "empty");
+  const std::string with_bad = " " + (tmp / "sim" / "session_00").string() + " " + (tmp / "empty").string() + " " +
+                               (tmp / "sim" / "session_01").string();
+  const test::CommandResult alone = runCommand(cli() + " build " + map + with_bad);
+  ASSERT_NE(alone.exit_code, 0);
+  r = runCommand(mpirun(3) + cli() + " build " + map + with_bad);
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.exit_code, 124) << "timed out: a rank waited for another";
+  const std::string message = alone.err.substr(0, alone.err.find('\n'));
+  EXPECT_NE(r.err.find(message), std::string::npos) << "alone: " << alone.err << "\nranks: " << r.err;
+  EXPECT_FALSE(fs::exists(map));
+}
+
+TEST(MpiBuild, KilledRankLeavesThePreviousMap) {
+  test::TempDir tmp;
+  const std::string sessions = simulate(tmp, 4, 0.3);
+  const fs::path map = tmp / "m.cmap";
+  const std::string first = " " + (tmp / "sim" / "session_00").string();
+  ASSERT_EQ(runCommand(cli() + " build " + map.string() + first).exit_code, 0);
+  const std::vector<uint8_t> before = test::bytesOf(map);
+  // Rank 1 is killed once rank 0 has begun integrating (every rank is past its checks then, and
+  // integrating its share): mpirun ends the job and the map is the one before, not a part.
+  const std::string log = (tmp / "log").string();
+  const std::string build = mpirun(2) + cli() + " build " + map.string() + " --replace" + sessions;
+  const std::string script = "( " + build + " 2>" + log + " & m=$!; for k in $(seq 1000); do grep -q '^\\[1/' " + log +
+                             " 2>/dev/null && break; sleep 0.01; done; "
+                             "for c in $(pgrep -P $m) $(for p in $(pgrep -P $m); do pgrep -P $p; done); do "
+                             "  tr '\\0' '\\n' < /proc/$c/environ 2>/dev/null | grep -qx OMPI_COMM_WORLD_RANK=1 && "
+                             "kill -9 $c && echo killed; "
+                             "done; wait $m; echo rc=$? )";
+  const test::CommandResult r = runCommand(script);
+  EXPECT_NE(r.out.find("killed"), std::string::npos) << r.out << r.err;
+  EXPECT_EQ(r.out.find("rc=0"), std::string::npos) << "the build ended before the kill: " << r.out;
+  EXPECT_TRUE(test::bytesOf(map) == before);
+}
+
+}  // namespace
+}  // namespace chronomap
