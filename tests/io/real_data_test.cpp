@@ -4,6 +4,8 @@
 
 #include <octomap/ColorOcTree.h>
 
+#include "chronomap/analysis/diff.h"
+#include "chronomap/analysis/segment.h"
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/io/cloud_io.h"
 #include "chronomap/io/dataset.h"
@@ -41,6 +43,36 @@ TEST(RealData, ThreeDMatchFramesAgreeWithEachOther) {
   RecordProperty("within_one_voxel_fraction", std::to_string(within_one));
   EXPECT_GT(exact, 0.9) << "frame 1 surface voxels occupied in the map of frames 0 and 2";
   EXPECT_GT(within_one, 0.99);
+}
+
+// The real-data control (docs/changes.md): a static room split into two sessions, frames 0, 2
+// and 422 against 1 and 116, diffed with the recommended settings: every object found is false.
+// Frame 116 measures part of a dark leather sofa 13 cm nearer than frame 0 while frame 1, in the
+// same session, still sees it where frame 0 does: two false objects (about 100 and 30 voxels)
+// without the weak-change rule, none with it. (Registration, which the recommended pipeline
+// adds, moves these sessions by under a centimetre and gives the same counts; left out here for
+// time.)
+TEST(RealData, StaticRoomSplitInTwoSessionsGivesNoFalseObject) {
+  CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
+  auto ds = openDataset(root);
+  IntegratorSettings s;
+  s.fast = true;
+  SessionMap a(0.05), b(0.05);
+  integrate(FrameVector({ds->load(0), ds->load(2), ds->load(4)}), a, s);
+  integrate(FrameVector({ds->load(1), ds->load(3)}), b, s);
+  DiffSettings d;
+  d.mode = DiffMode::Band;
+  d.neighbourhood_voxels = 1;
+  d.min_shift_voxels = DiffSettings::kRecommendedMinShift;
+  SegmentSettings g;
+  g.connectivity = Connectivity::Vertex;
+  g.min_voxels = 20;
+  const Segmentation without = segment(diff(a, b, d), g);
+  EXPECT_EQ(without.components.size(), 2u) << "the sofa, without the weak-change rule";
+  d.kept_surface_radius_voxels = DiffSettings::kRecommendedKeptSurfaceRadius;
+  const Segmentation with = segment(diff(a, b, d), g);
+  EXPECT_LE(with.components.size(), 1u) << "the issue's target: at most one false object";
+  EXPECT_EQ(with.components.size(), 0u);
 }
 
 TEST(RealData, OctomapScanIntegratesAsALaserScanFromTheOrigin) {
