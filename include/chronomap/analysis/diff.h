@@ -58,13 +58,15 @@ struct DiffSettings {
   static constexpr double kRecommendedMinShift = 0.5;
   /// > 0: the weak-change rule. A voxel that appeared is no change when the first map holds
   /// occupied voxels within this many voxels (Chebyshev) and at least kept_surface_share of
-  /// them are occupied in the second map as well (and a voxel that vanished likewise, the maps'
-  /// roles swapped): the surface that was there is still seen, unchanged, by the later session,
+  /// them are occupied in the second map as well, with the mean position of their hits less than
+  /// half a voxel from where it was (and a voxel that vanished likewise, the maps' roles
+  /// swapped): the surface that was there is still seen, unchanged, by the later session,
   /// so the new "surface" in front of it is the same surface measured at another depth by part
   /// of that session's frames (dark, glossy materials: docs/changes.md), not an object. An
   /// object put in front of a surface hides part of it from the later session (unknown there)
-  /// and one that moved leaves free space behind, so either keeps its voxels. Applied after the
-  /// neighbourhood rule, to unit cells; Continuous mode ignores it. 0 (the default): off.
+  /// and one that moved leaves free space behind or moves its hits, so each keeps its voxels.
+  /// Applied after the neighbourhood rule, to unit cells; Continuous mode ignores it. 0 (the
+  /// default): off.
   int kept_surface_radius_voxels = 0;
   /// The share of the first map's occupied voxels around a voxel that the weak-change rule needs
   /// still occupied in the second map, in (0, 1].
