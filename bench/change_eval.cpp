@@ -516,7 +516,8 @@ int main(int argc, char** argv) {
       std::fprintf(stderr,
                    "usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] "
                    "[--register-model world|per-pose] [--drift-knots FRAMES] [--register-rounds N] "
-                   "[--register-radius VOXELS] [--drift-rounds N] [--not-planar] [--drift-voxels] [--kept-surface R] [--kept-share F]\n");
+                   "[--register-radius VOXELS] [--drift-rounds N] [--not-planar] [--drift-voxels] [--kept-surface R] "
+                   "[--kept-share F]\n");
       return 2;
     }
   }

@@ -133,7 +133,8 @@ TEST(AnalysisCli, DiffKeepsItsNeighbourhoodSettings) {
   test::TempDir tmp;
   writePair(tmp / "a.cmap", tmp / "b.cmap");
   const auto r = test::runCommand(cli() + " diff " + (tmp / "a.cmap").string() + " " + (tmp / "b.cmap").string() +
-                                  " --mode band --neighbourhood 1 --min-shift 0.5 --kept-surface 3 --kept-share 0.8 -o " +
+                                  " --mode band --neighbourhood 1 --min-shift 0.5 --kept-surface 3 --kept-share 0.8" +
+                                  " -o " +
                                   (tmp / "d.cmap").string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const DiffMap d = io::readDiffMap(tmp / "d.cmap");
