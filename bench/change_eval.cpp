@@ -12,7 +12,7 @@
 //
 // Usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] [--register-model M] [--drift-knots N]
 //                    [--register-rounds N] [--register-radius R] [--drift-rounds N] [--not-planar]
-//                    [--drift-voxels]
+//                    [--drift-voxels] [--kept-surface R] [--kept-share F]
 //   --office DIR   a `chronomap simulate --preset office` output (default: simulate one at half
 //                  resolution into a temporary folder)
 //   --floor66 DIR  also evaluate a floor66 simulation (not simulated by default: ~7 minutes)
@@ -28,6 +28,9 @@
 //                  default registration, as --register-planar, uses)
 //   --drift-voxels  the drift fit on voxel centres (without RegisterSettings::drift_points, which
 //                  the default registration, as --register-points, uses)
+//   --kept-surface R  the weak-change rule's radius in the recommended diff (DiffSettings::
+//                  kept_surface_radius_voxels; default 3, as `diff --kept-surface 3`; 0: off)
+//   --kept-share F  its share (DiffSettings::kept_surface_share; default 0.9)
 // The last line of output is one JSON object with the headline figures: the office sessions
 // registered to their consensus (as `chronomap build --register --register-drift 20
 // --register-planar --register-points`) at the recommended settings (band mode, neighbourhood 1,
@@ -71,12 +74,18 @@ using bench::seconds;
 
 // The settings the documentation recommends for registered robot sessions (see
 // docs/changes.md): band mode, a surface within one voxel is no change unless it moved by half a
-// voxel or more (the shift test), vertex connectivity, components of at least 20 voxels.
+// voxel or more (the shift test), the weak-change rule at 3 voxels, vertex connectivity,
+// components of at least 20 voxels.
+int g_kept_surface = DiffSettings::kRecommendedKeptSurfaceRadius;  // --kept-surface
+double g_kept_share = DiffSettings::kDefaultKeptSurfaceShare;       // --kept-share
+
 DiffSettings defaultDiff() {
   DiffSettings d;
   d.mode = DiffMode::Band;
   d.neighbourhood_voxels = 1;
   d.min_shift_voxels = DiffSettings::kRecommendedMinShift;
+  d.kept_surface_radius_voxels = g_kept_surface;
+  d.kept_surface_share = g_kept_share;
   return d;
 }
 
@@ -483,6 +492,10 @@ int main(int argc, char** argv) {
       reg.radius_voxels = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--drift-rounds") && i + 1 < argc) {
       reg.drift_rounds = std::atoi(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--kept-surface") && i + 1 < argc) {
+      g_kept_surface = std::atoi(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--kept-share") && i + 1 < argc) {
+      g_kept_share = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--not-planar")) {
       reg.planar = false;
     } else if (!std::strcmp(argv[i], "--drift-voxels")) {
@@ -503,7 +516,8 @@ int main(int argc, char** argv) {
       std::fprintf(stderr,
                    "usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] "
                    "[--register-model world|per-pose] [--drift-knots FRAMES] [--register-rounds N] "
-                   "[--register-radius VOXELS] [--drift-rounds N] [--not-planar] [--drift-voxels]\n");
+                   "[--register-radius VOXELS] [--drift-rounds N] [--not-planar] [--drift-voxels] [--kept-surface R] "
+                   "[--kept-share F]\n");
       return 2;
     }
   }

@@ -35,6 +35,8 @@ struct DiffCmdOptions {
   std::optional<double> alpha;  ///< unset: the mode's default
   int neighbourhood = 0;
   double min_shift_voxels = 0.0;
+  int kept_surface = 0;
+  double kept_share = DiffSettings::kDefaultKeptSurfaceShare;
   std::string output;
   std::string ply;
   std::optional<double> colour_distance;  ///< set: also compare colours
@@ -72,6 +74,8 @@ int runDiff(const DiffCmdOptions& o) {
   }
   settings.neighbourhood_voxels = o.neighbourhood;
   settings.min_shift_voxels = o.min_shift_voxels;
+  settings.kept_surface_radius_voxels = o.kept_surface;
+  settings.kept_surface_share = o.kept_share;
   settings.validate();
   requireExtension(o.output, ".cmap", "output");
   if (!o.ply.empty()) requireExtension(o.ply, ".ply", "--ply");
@@ -201,6 +205,15 @@ Command addDiff(CLI::App& root) {
                   "(the mean position of the hits around it, from where in each voxel the rays ended); 0 drops them "
                   "all. 0.5 tells a chair pushed by 4 cm from a centimetre of pose error, in sessions registered with "
                   "build --register --register-drift 20 --register-planar --register-points (docs/changes.md)")
+      ->capture_default_str();
+  app->add_option("--kept-surface", o->kept_surface,
+                  "voxels: a voxel that appeared (vanished) is no change when the surface the other map holds within "
+                  "this many voxels is still seen, unchanged, by this map (--kept-share of its occupied voxels): "
+                  "the same surface measured at another depth by some of a session's frames, as dark glossy "
+                  "materials give on real depth cameras (0..3; 0: off; 3 in the recommended pipeline, "
+                  "docs/changes.md)")
+      ->capture_default_str();
+  app->add_option("--kept-share", o->kept_share, "the share --kept-surface needs still occupied, in (0, 1]")
       ->capture_default_str();
   app->add_option("-o,--output", o->output, "the diff to write (.cmap)")->required();
   app->add_option("--ply", o->ply, "also write the changed voxels as a PLY, coloured by what they show");

@@ -9,6 +9,8 @@ namespace chronomap {
 
 namespace {
 constexpr int kMaxNeighbourhood = 3;
+// The weak-change rule's "same surface": mean hit positions less than half a voxel apart.
+constexpr double kKeptSurfaceOffset = 0.5;
 }  // namespace
 
 const char* toString(DiffMode mode) {
@@ -56,6 +58,13 @@ void DiffSettings::validate() const {
   }
   if (!std::isfinite(min_shift_voxels) || min_shift_voxels < 0.0) {
     throw UsageError("diff min shift must be a number of voxels >= 0, got " + std::to_string(min_shift_voxels));
+  }
+  if (kept_surface_radius_voxels < 0 || kept_surface_radius_voxels > kMaxNeighbourhood) {
+    throw UsageError("diff kept-surface radius must lie in 0.." + std::to_string(kMaxNeighbourhood) +
+                     " voxels, got " + std::to_string(kept_surface_radius_voxels));
+  }
+  if (!(kept_surface_share > 0.0 && kept_surface_share <= 1.0)) {
+    throw UsageError("diff kept-surface share must lie in (0, 1], got " + std::to_string(kept_surface_share));
   }
   const double a = effectiveAlpha();
   if (mode == DiffMode::Threshold && !(a < 1.0)) {
@@ -252,6 +261,48 @@ void dropNearSurfaces(std::vector<ChangeCell>& cells, const DiffSettings& settin
   });
 }
 
+// The weak-change rule (DiffSettings::kept_surface_radius_voxels): drops an appeared cell when
+// the first map's occupied voxels within the radius are (almost) all still occupied in the
+// second map, and a vanished one when the second map's are all occupied in the first.
+template <class CountersBefore, class CountersAfter>
+void dropKeptSurfaces(std::vector<ChangeCell>& cells, const DiffSettings& settings, CountersBefore before,
+                      CountersAfter after) {
+  const int r = settings.kept_surface_radius_voxels;
+  if (r <= 0) return;
+  // `near` holds the surface around k; is it still there, as it was, in `other`?
+  auto kept = [&](const VoxelKey& k, auto&& near, auto&& other) {
+    int surface = 0, still = 0;
+    for (int dz = -r; dz <= r; ++dz) {
+      for (int dy = -r; dy <= r; ++dy) {
+        for (int dx = -r; dx <= r; ++dx) {
+          const auto n = offsetKey(k, dx, dy, dz);
+          if (!n) continue;
+          const VoxelCounters was = near(*n);
+          if (was.state() != VoxelState::Occupied) continue;
+          ++surface;
+          const VoxelCounters is = other(*n);
+          if (is.state() != VoxelState::Occupied) continue;
+          // Where in the voxel the rays ended: a surface moved by a fraction of a voxel (a chair
+          // pushed by 4 cm) is not the same surface.
+          double d2 = 0.0;
+          for (int i = 0; i < 3; ++i) {
+            const double d = is.meanOffset(i) - was.meanOffset(i);
+            d2 += d * d;
+          }
+          still += d2 < kKeptSurfaceOffset * kKeptSurfaceOffset;
+        }
+      }
+    }
+    return surface > 0 && still >= settings.kept_surface_share * surface;
+  };
+  std::erase_if(cells, [&](const ChangeCell& c) {
+    if (c.level != 0) return false;
+    if (c.kind == ChangeKind::Appeared) return kept(c.key, before, after);
+    if (c.kind == ChangeKind::Vanished) return kept(c.key, after, before);
+    return false;
+  });
+}
+
 auto countersOf(const SessionMap& m) {
   return [&m](const VoxelKey& k) { return m.find(k).value_or(VoxelCounters{}); };
 }
@@ -263,6 +314,7 @@ void applyNeighbourhoodRule(std::vector<ChangeCell>& cells, const DiffSettings& 
                             const std::function<VoxelCounters(const VoxelKey&)>& after) {
   if (settings.mode == DiffMode::Continuous) return;
   dropNearSurfaces(cells, settings, before, after);
+  dropKeptSurfaces(cells, settings, before, after);
 }
 
 DiffMap diff(const SessionMap& before, const SessionMap& after, const DiffSettings& settings) {
@@ -275,6 +327,7 @@ DiffMap diff(const SessionMap& before, const SessionMap& after, const DiffSettin
   w.walk(0, 0, kTreeDepth, VoxelKey{});  // inner node 0 is the root of both
   if (settings.mode != DiffMode::Continuous) {
     dropNearSurfaces(d.cells_, settings, countersOf(before), countersOf(after));
+    dropKeptSurfaces(d.cells_, settings, countersOf(before), countersOf(after));
   }
   return d;
 }
@@ -329,6 +382,7 @@ DiffMap diff(const TemporalMap& map, double t1_s, double t2_s, const DiffSetting
       return [&map, t](const VoxelKey& k) { return map.valueAt(k, t).value_or(VoxelCounters{}); };
     };
     dropNearSurfaces(d.cells_, settings, countersAt(t1_s), countersAt(t2_s));
+    dropKeptSurfaces(d.cells_, settings, countersAt(t1_s), countersAt(t2_s));
   }
   // Both walks visit lists in slot order, which is Morton order: the cells are sorted already.
   if (stats) *stats = local;

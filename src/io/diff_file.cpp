@@ -52,6 +52,8 @@ void writeDiffMap(const std::filesystem::path& path, const DiffMap& diff, const 
   j["alpha"] = diff.settings().effectiveAlpha();
   j["neighbourhood_voxels"] = diff.settings().neighbourhood_voxels;
   j["min_shift_voxels"] = diff.settings().min_shift_voxels;
+  j["kept_surface_radius_voxels"] = diff.settings().kept_surface_radius_voxels;
+  j["kept_surface_share"] = diff.settings().kept_surface_share;
   const std::string text = j.dump();
   std::vector<CmapBlock> blocks(2);
   blocks[0] = {"META", std::vector<uint8_t>(text.begin(), text.end())};
@@ -70,6 +72,8 @@ DiffMap diffMapFrom(const CmapFile& file, const std::string& source) {
     settings.alpha = j.at("alpha").get<double>();
     settings.neighbourhood_voxels = j.value("neighbourhood_voxels", 0);
     settings.min_shift_voxels = j.value("min_shift_voxels", 0.0);
+    settings.kept_surface_radius_voxels = j.value("kept_surface_radius_voxels", 0);
+    settings.kept_surface_share = j.value("kept_surface_share", DiffSettings::kDefaultKeptSurfaceShare);
     settings.validate();
   } catch (const std::exception& e) {
     throw FormatError(source + ": invalid diff settings (" + e.what() + ")");

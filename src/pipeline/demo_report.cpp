@@ -117,7 +117,8 @@ void changes(std::ostream& md, const DemoReportInput& in) {
      << "Each pair of consecutive registered session maps was compared (`chronomap diff`, band mode: "
      << "probabilities within 0.5 ± 0.1 count as unknown; a voxel is no change when the other session saw a "
      << "surface within one voxel, unless that surface moved by half a voxel or more, measured from where in "
-     << "the voxels the rays ended: `--neighbourhood 1 --min-shift 0.5`) and the changed voxels split into objects "
+     << "the voxels the rays ended, nor when the surface the other session saw within three voxels is still seen "
+     << "there: `--neighbourhood 1 --min-shift 0.5 --kept-surface 3`) and the changed voxels split into objects "
      << "(`chronomap segment`, vertex connectivity, at least " << segment.min_voxels << " voxels). "
      << "Green appeared, red vanished; each object is framed and numbered. Over all pairs: " << total.events_found
      << " of " << total.events_observable << " observable change events found, " << total.false_components
@@ -133,6 +134,7 @@ DemoChangeSettings demoChangeSettings() {
   s.diff.mode = DiffMode::Band;
   s.diff.neighbourhood_voxels = 1;
   s.diff.min_shift_voxels = DiffSettings::kRecommendedMinShift;
+  s.diff.kept_surface_radius_voxels = DiffSettings::kRecommendedKeptSurfaceRadius;
   s.segment.connectivity = Connectivity::Vertex;
   s.segment.min_voxels = 20;
   return s;

@@ -110,6 +110,7 @@ DiffRequest changeSettings() {
   r.diff.mode = DiffMode::Band;
   r.diff.neighbourhood_voxels = 1;
   r.diff.min_shift_voxels = DiffSettings::kRecommendedMinShift;
+  r.diff.kept_surface_radius_voxels = DiffSettings::kRecommendedKeptSurfaceRadius;
   r.segment.connectivity = Connectivity::Vertex;
   r.segment.min_voxels = 20;
   return r;

@@ -2,12 +2,16 @@
 
 #include <gtest/gtest.h>
 
+#include <nlohmann/json.hpp>
 #include <octomap/ColorOcTree.h>
 
+#include "chronomap/analysis/diff.h"
+#include "chronomap/analysis/segment.h"
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/io/cloud_io.h"
 #include "chronomap/io/dataset.h"
 #include "chronomap/io/export.h"
+#include "chronomap/io/temporal_file.h"
 #include "test_support.h"
 
 namespace chronomap::io {
@@ -41,6 +45,47 @@ TEST(RealData, ThreeDMatchFramesAgreeWithEachOther) {
   RecordProperty("within_one_voxel_fraction", std::to_string(within_one));
   EXPECT_GT(exact, 0.9) << "frame 1 surface voxels occupied in the map of frames 0 and 2";
   EXPECT_GT(within_one, 0.99);
+}
+
+// The real-data control (docs/changes.md): a static room split into two sessions, frames 0, 2
+// and 422 against 1 and 116, diffed with the recommended settings: every object found is false.
+// Frame 116 measures part of a dark leather sofa 13 cm nearer than frame 0 while frame 1, in the
+// same session, still sees it where frame 0 does: two false objects (about 100 and 30 voxels)
+// without the weak-change rule, none with it. (Registration, which the recommended pipeline
+// adds, moves these sessions by under a centimetre and gives the same counts; left out here for
+// time.)
+TEST(RealData, StaticRoomSplitInTwoSessionsGivesNoFalseObject) {
+  CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
+  auto ds = openDataset(root);
+  IntegratorSettings s;
+  s.fast = true;
+  SessionMap a(0.05), b(0.05);
+  integrate(FrameVector({ds->load(0), ds->load(2), ds->load(4)}), a, s);
+  integrate(FrameVector({ds->load(1), ds->load(3)}), b, s);
+  // As `chronomap build` and `diff MAP@T1 MAP@T2` do: the sessions in a 4D map file.
+  TemporalMap built(0.05);
+  built.add(1000, a);
+  built.add(2000, b);
+  test::TempDir tmp;
+  writeTemporalMap(tmp / "m.cmap", built, {});
+  const TemporalMap map = readTemporalMap(tmp / "m.cmap");
+  DiffSettings d;
+  d.mode = DiffMode::Band;
+  d.neighbourhood_voxels = 1;
+  d.min_shift_voxels = DiffSettings::kRecommendedMinShift;
+  SegmentSettings g;
+  g.connectivity = Connectivity::Vertex;
+  g.min_voxels = 20;
+  auto objects = [&](const DiffSettings& settings) {
+    const Segmentation file = segment(diff(map, 1000, 2000, settings), g);
+    const Segmentation sessions = segment(diff(a, b, settings), g);
+    RecordProperty("session_map_objects", static_cast<int>(sessions.components.size()));
+    return file.components.size();
+  };
+  EXPECT_EQ(objects(d), 2u) << "the sofa, without the weak-change rule";
+  d.kept_surface_radius_voxels = DiffSettings::kRecommendedKeptSurfaceRadius;
+  EXPECT_LE(objects(d), 1u) << "the issue's target: at most one false object";
+  EXPECT_EQ(objects(d), 0u);
 }
 
 TEST(RealData, OctomapScanIntegratesAsALaserScanFromTheOrigin) {

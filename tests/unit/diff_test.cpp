@@ -279,6 +279,88 @@ TEST(Diff, MinShiftSeesAMoveWithinOneVoxel) {
   EXPECT_TRUE(diff(before_c, after_c, s).empty()) << "at the centres the move is a sixth of a voxel";
 }
 
+// The weak-change rule. A wall at x = 6, free space in front of it. In b, part of a session's
+// frames measure a 2 x 2 patch of the wall two voxels nearer (x = 4) while the others still see
+// the whole wall where a saw it: the patch "appeared" in front of a surface that is still there.
+// A box put at the same place instead hides the wall's 2 x 2 voxels behind it (unknown in b), and
+// a wall that moved leaves free space where it stood: both stay changes.
+SessionMap wallScene(int patch_x, bool wall_behind_patch, bool wall_at_6) {
+  SessionMap m(0.05);
+  for (int z = 0; z < 6; ++z) {
+    for (int y = 0; y < 6; ++y) {
+      const bool in_patch = y >= 2 && y < 4 && z >= 2 && z < 4;
+      for (int x = 0; x < 7; ++x) {
+        if (in_patch && x == patch_x) {
+          m.add(at(x, y, z), withProbability(0.9));
+        } else if (x == 6) {
+          if (!wall_at_6) m.add(at(x, y, z), freeVoxel());
+          else if (!in_patch || wall_behind_patch) m.add(at(x, y, z), withProbability(0.9));
+        } else if (!(in_patch && x > patch_x && patch_x >= 0)) {
+          m.add(at(x, y, z), freeVoxel());
+        }
+      }
+    }
+  }
+  return m;
+}
+
+TEST(Diff, KeptSurfaceDropsADepthErrorInFrontOfASurfaceStillSeen) {
+  const SessionMap a = wallScene(-1, true, true);
+  DiffSettings s = mode(DiffMode::Band);
+  s.neighbourhood_voxels = 1;
+  s.min_shift_voxels = DiffSettings::kRecommendedMinShift;
+  // The patch two voxels before the wall is beyond the neighbourhood rule's reach.
+  const SessionMap error = wallScene(4, true, true);
+  EXPECT_EQ(diff(a, error, s).voxelCount(ChangeKind::Appeared), 4u);
+  s.kept_surface_radius_voxels = 1;
+  EXPECT_EQ(diff(a, error, s).voxelCount(), 4u) << "the wall lies two voxels away: radius 1 does not see it";
+  s.kept_surface_radius_voxels = DiffSettings::kRecommendedKeptSurfaceRadius;
+  EXPECT_EQ(diff(a, error, s).voxelCount(), 0u) << "all 36 wall voxels within 3 are still occupied";
+  // The same from b to a: the patch vanished in front of a wall both saw.
+  EXPECT_EQ(diff(error, a, s).voxelCount(), 0u);
+
+  // A box in front of the wall: a's 36 wall voxels within 3 of each box voxel, 4 of them hidden
+  // behind the box in b (unknown): 32 / 36 = 0.89 still seen, under the default share of 0.9.
+  const SessionMap box = wallScene(4, false, true);
+  EXPECT_EQ(diff(a, box, s).voxelCount(ChangeKind::Appeared), 4u);
+  s.kept_surface_share = 0.85;
+  EXPECT_EQ(diff(a, box, s).voxelCount(), 0u) << "32 / 36 >= 0.85";
+  s.kept_surface_share = DiffSettings::kDefaultKeptSurfaceShare;
+
+  // The wall still occupied in b but its hits 0.6 voxel farther back in every voxel (a surface
+  // pushed by less than a voxel): not the same surface, the patch stays.
+  auto moveWallHits = [](SessionMap& m, float offset) {
+    std::vector<std::pair<VoxelKey, VoxelCounters>> deltas;
+    m.forEachLeaf([&](const LeafView& l) {
+      if (l.key.x != at(6, 0, 0).x || l.counters.hits == 0) return;
+      VoxelCounters d;
+      d.offset[0] = offset * static_cast<float>(l.counters.hits);
+      deltas.emplace_back(l.key, d);
+    });
+    for (const auto& [k, d] : deltas) m.add(k, d);
+  };
+  SessionMap pushed = error, was = a;
+  moveWallHits(pushed, 0.3f);
+  EXPECT_EQ(diff(a, pushed, s).voxelCount(ChangeKind::Appeared), 0u) << "0.3 voxel: the same surface";
+  moveWallHits(was, -0.3f);
+  EXPECT_EQ(diff(was, pushed, s).voxelCount(ChangeKind::Appeared), 4u);
+
+  // The wall moved from x = 6 to x = 4 over the patch... and everywhere: free where it stood.
+  const SessionMap moved = wallScene(4, true, false);
+  EXPECT_EQ(diff(a, moved, s).voxelCount(ChangeKind::Appeared), 4u);
+  EXPECT_EQ(diff(a, moved, s).voxelCount(ChangeKind::Vanished), 36u);
+
+  // Off by default; checked.
+  EXPECT_EQ(DiffSettings{}.kept_surface_radius_voxels, 0);
+  s.kept_surface_radius_voxels = 4;
+  EXPECT_THROW(s.validate(), UsageError);
+  s.kept_surface_radius_voxels = 3;
+  s.kept_surface_share = 0.0;
+  EXPECT_THROW(s.validate(), UsageError);
+  s.kept_surface_share = 1.5;
+  EXPECT_THROW(s.validate(), UsageError);
+}
+
 TEST(Diff, SettingsAreChecked) {
   EXPECT_THROW(parseDiffMode("soft"), UsageError);
   EXPECT_EQ(parseDiffMode("band"), DiffMode::Band);
@@ -499,6 +581,7 @@ TEST(Diff, FourDimensionalDiffEqualsDiffOfSnapshots) {
         DiffSettings s = mode(m);
         s.neighbourhood_voxels = trial % 3 == 0 ? 1 : 0;
         if (trial % 6 == 0) s.min_shift_voxels = 0.4;
+        if (trial % 4 == 1) s.kept_surface_radius_voxels = 2;
         const DiffMap fast = diff(map, t1, t2, s);
         const DiffMap slow = diff(map.snapshot(t1), map.snapshot(t2), s);
         if (m == DiffMode::Continuous) {

@@ -30,7 +30,7 @@ const sessions = json('stats', map).per_session;
 const occupied = sessions.map((s, i) => json('snapshot', map, '--at', String(s.time_s), '-o', path.join(work, `snap${i}.cmap`)).occupied);
 const diffFile = path.join(work, 'diff01.cmap');
 run('diff', `${map}@${sessions[0].time_s}`, `${map}@${sessions[1].time_s}`, '--mode', 'band', '--neighbourhood', '1',
-    '--min-shift', '0.5', '-o', diffFile);
+    '--min-shift', '0.5', '--kept-surface', '3', '-o', diffFile);
 const objects = json('segment', diffFile, '--connectivity', 'vertex', '--min-voxels', '20').components;
 
 const tour = path.join(work, 'tour.html');

@@ -56,6 +56,25 @@ struct DiffSettings {
   double min_shift_voxels = 0.0;
   /// The recommended min_shift_voxels for registered sessions: a surface moved by half a voxel.
   static constexpr double kRecommendedMinShift = 0.5;
+  /// > 0: the weak-change rule. A voxel that appeared is no change when the first map holds
+  /// occupied voxels within this many voxels (Chebyshev) and at least kept_surface_share of
+  /// them are occupied in the second map as well, with the mean position of their hits less than
+  /// half a voxel from where it was (and a voxel that vanished likewise, the maps' roles
+  /// swapped): the surface that was there is still seen, unchanged, by the later session,
+  /// so the new "surface" in front of it is the same surface measured at another depth by part
+  /// of that session's frames (dark, glossy materials: docs/changes.md), not an object. An
+  /// object put in front of a surface hides part of it from the later session (unknown there)
+  /// and one that moved leaves free space behind or moves its hits, so each keeps its voxels.
+  /// Applied after the neighbourhood rule, to unit cells; Continuous mode ignores it. 0 (the
+  /// default): off.
+  int kept_surface_radius_voxels = 0;
+  /// The share of the first map's occupied voxels around a voxel that the weak-change rule needs
+  /// still occupied in the second map, in (0, 1].
+  double kept_surface_share = kDefaultKeptSurfaceShare;
+  static constexpr double kDefaultKeptSurfaceShare = 0.9;
+  /// The recommended kept_surface_radius_voxels: 3 voxels (15 cm at 5 cm), the depth errors
+  /// seen on the real frames are up to 13 cm.
+  static constexpr int kRecommendedKeptSurfaceRadius = 3;
 
   /// Threshold mode's default: a voxel must move by more than 0.4 in probability, so a free
   /// voxel (P near 0) must become clearly occupied (P > 0.4) to count.
@@ -66,8 +85,8 @@ struct DiffSettings {
   /// alpha with the default applied.
   double effectiveAlpha() const;
   /// @throw UsageError for an alpha that is not finite, or not in [0, 1) (threshold) or
-  /// [0, 0.5) (band), a neighbourhood outside 0..3, or a min_shift_voxels that is not finite or is
-  /// negative.
+  /// [0, 0.5) (band), a neighbourhood outside 0..3, a min_shift_voxels that is not finite or is
+  /// negative, a kept_surface_radius_voxels outside 0..3 or a kept_surface_share outside (0, 1].
   void validate() const;
 };
 
@@ -150,11 +169,12 @@ std::optional<double> surfaceShift(const SessionMap& before, const SessionMap& a
 /// @throw UsageError for different resolutions or bad settings.
 DiffMap diff(const SessionMap& before, const SessionMap& after, const DiffSettings& settings = {});
 
-/// The neighbourhood rule of `settings` (neighbourhood_voxels, min_shift_voxels) applied to the
+/// The neighbourhood rule of `settings` (neighbourhood_voxels, min_shift_voxels, then the
+/// weak-change rule, kept_surface_radius_voxels) applied to the
 /// cells of a diff found with neighbourhood_voxels = 0, reading each side's unit voxels through
 /// `before` and `after` (zero counters where unknown). Lets a diff assembled from parts (the
 /// tiles of a tiled map) drop the same cells as the diff of the whole. Does nothing in
-/// Continuous mode or without a neighbourhood.
+/// Continuous mode or without a neighbourhood and a kept-surface radius.
 void applyNeighbourhoodRule(std::vector<ChangeCell>& cells, const DiffSettings& settings,
                             const std::function<VoxelCounters(const VoxelKey&)>& before,
                             const std::function<VoxelCounters(const VoxelKey&)>& after);
