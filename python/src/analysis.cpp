@@ -8,20 +8,25 @@
 
 namespace chronomap::python {
 
-DiffSettings diffSettings(const std::string& mode, double alpha, int neighbourhood_voxels, double min_shift_voxels) {
+DiffSettings diffSettings(const std::string& mode, double alpha, int neighbourhood_voxels, double min_shift_voxels,
+                          int kept_surface_radius_voxels, double kept_surface_share) {
   DiffSettings settings;
   settings.mode = parseDiffMode(mode);
   settings.alpha = alpha;
   settings.neighbourhood_voxels = neighbourhood_voxels;
   settings.min_shift_voxels = min_shift_voxels;
+  settings.kept_surface_radius_voxels = kept_surface_radius_voxels;
+  settings.kept_surface_share = kept_surface_share;
   return settings;
 }
 
 namespace {
 
 DiffMap diffPy(const SessionMap& before, const SessionMap& after, const std::string& mode, double alpha,
-               int neighbourhood_voxels, double min_shift_voxels) {
-  const DiffSettings settings = diffSettings(mode, alpha, neighbourhood_voxels, min_shift_voxels);
+               int neighbourhood_voxels, double min_shift_voxels, int kept_surface_radius_voxels,
+               double kept_surface_share) {
+  const DiffSettings settings = diffSettings(mode, alpha, neighbourhood_voxels, min_shift_voxels,
+                                             kept_surface_radius_voxels, kept_surface_share);
   py::gil_scoped_release release;
   return diff(before, after, settings);
 }
@@ -114,8 +119,11 @@ void bindAnalysis(py::module_& m) {
   bindComponent(m);
   m.def("diff", &diffPy, py::arg("before"), py::arg("after"), py::arg("mode") = "hard", py::arg("alpha") = -1.0,
         py::arg("neighbourhood_voxels") = 0, py::arg("min_shift_voxels") = 0.0,
+        py::arg("kept_surface_radius_voxels") = 0, py::arg("kept_surface_share") = DiffSettings::kDefaultKeptSurfaceShare,
         "What changed from `before` to `after` (two SessionMaps of one resolution). mode: 'hard', "
-        "'threshold', 'band' or 'continuous'; alpha < 0 takes the mode's default.");
+        "'threshold', 'band' or 'continuous'; alpha < 0 takes the mode's default. kept_surface_radius_voxels "
+        "(0: off; 3 recommended) drops a change in front of a surface the other map still sees unchanged "
+        "(docs/changes.md, the weak-change rule).");
   m.def("segment", &segmentPy, py::arg("diff"), py::arg("connectivity") = "face", py::arg("color_tolerance") = -1.0,
         py::arg("min_voxels") = 1, py::arg("min_value") = 0.5,
         "Connected components of a DiffMap, largest first: a list of Component.");

@@ -48,8 +48,10 @@ py::dict addSession(TemporalMap& map, const SessionMap& session, const py::handl
 }
 
 DiffMap diffTimes(const TemporalMap& map, const py::handle& t1, const py::handle& t2, const std::string& mode, double alpha,
-                  int neighbourhood_voxels, double min_shift_voxels) {
-  const DiffSettings settings = diffSettings(mode, alpha, neighbourhood_voxels, min_shift_voxels);
+                  int neighbourhood_voxels, double min_shift_voxels, int kept_surface_radius_voxels,
+                  double kept_surface_share) {
+  const DiffSettings settings = diffSettings(mode, alpha, neighbourhood_voxels, min_shift_voxels,
+                                             kept_surface_radius_voxels, kept_surface_share);
   const double t1_s = toSeconds(t1, "t1"), t2_s = toSeconds(t2, "t2");
   py::gil_scoped_release release;
   return diff(map, t1_s, t2_s, settings);
@@ -148,6 +150,8 @@ void bindTemporal(py::module_& m) {
            "histogram[n]: how many unit voxels changed exactly n times in (from_time, to_time], as uint64.")
       .def("diff", &diffTimes, py::arg("t1"), py::arg("t2"), py::arg("mode") = "hard", py::arg("alpha") = -1.0,
            py::arg("neighbourhood_voxels") = 0, py::arg("min_shift_voxels") = 0.0,
+           py::arg("kept_surface_radius_voxels") = 0,
+           py::arg("kept_surface_share") = DiffSettings::kDefaultKeptSurfaceShare,
            "What changed from the state at t1 to the state at t2 (epoch seconds or datetimes): the diff of the two snapshots, visiting "
            "only what changed in between. Settings as chronomap.diff.")
       .def("__len__", &TemporalMap::sessionCount)

@@ -22,6 +22,19 @@ def test_diff_finds_the_box(before, after):
     assert back.voxel_count(chronomap.VANISHED) == 64 and back.voxel_count(chronomap.APPEARED) == 0
 
 
+def test_weak_change_rule_keeps_an_object_that_hides_the_surface_behind_it(before, after):
+    # The box hides the part of the room behind it, so the room's surface is not "still seen
+    # unchanged" there: the rule (docs/changes.md) keeps every one of its voxels, both ways.
+    d = chronomap.diff(before, after, kept_surface_radius_voxels=3)
+    assert d.voxel_count(chronomap.APPEARED) == 64
+    assert chronomap.diff(after, before, kept_surface_radius_voxels=3, kept_surface_share=0.8).voxel_count(
+        chronomap.VANISHED) == 64
+    with pytest.raises(chronomap.UsageError, match="kept-surface radius"):
+        chronomap.diff(before, after, kept_surface_radius_voxels=7)
+    with pytest.raises(chronomap.UsageError):
+        chronomap.diff(before, after, kept_surface_radius_voxels=3, kept_surface_share=1.5)
+
+
 def test_segment_gives_one_object(before, after):
     components = chronomap.segment(chronomap.diff(before, after))
     assert len(components) == 1
@@ -51,6 +64,7 @@ def test_temporal_map(tmp_path, before, after):
     assert m.snapshot(250.0).state(np.array([box]))[0] == chronomap.OCCUPIED
     assert m.snapshot(50.0).empty()
     changes = m.diff(100.0, 200.0)
+    assert len(m.diff(100.0, 200.0, kept_surface_radius_voxels=3)) == 64
     direct = chronomap.diff(m.snapshot(100.0), m.snapshot(200.0))
     assert len(changes) == len(direct) == 64 and changes.voxel_count(chronomap.APPEARED) == 64
     assert np.array_equal(changes.changed_centers(), direct.changed_centers())
