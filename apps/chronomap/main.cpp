@@ -2,9 +2,7 @@
 // (2 for bad usage, 1 for bad data or a failed operation).
 
 #include <cstdio>
-#include <filesystem>
 #include <iostream>
-#include <new>
 #include <vector>
 
 #include "chronomap/core/error.h"
@@ -49,18 +47,9 @@ int run(int argc, char** argv) {
       if (command.app->parsed()) return command.run();
     }
     return fail(2, "no command given (see chronomap --help)");
-  } catch (const UsageError& e) {
-    return fail(2, e.what());
-  } catch (const Error& e) {
-    return fail(1, e.what());
-  } catch (const std::filesystem::filesystem_error& e) {
-    // The file and the system's word for the problem, not the library's own wording.
-    const std::string path = e.path1().empty() ? std::string() : e.path1().string() + ": ";
-    return fail(1, path + e.code().message());
-  } catch (const std::bad_alloc&) {
-    return fail(1, "out of memory");
-  } catch (const std::exception& e) {
-    return fail(1, std::string("internal error: ") + e.what());
+  } catch (...) {
+    const chronomap::ErrorReport report = chronomap::describeError(std::current_exception());
+    return fail(report.exit_code, report.message);
   }
 }
 

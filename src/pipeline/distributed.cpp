@@ -10,8 +10,6 @@
 #include <climits>
 #include <cstdint>
 #include <cstdlib>
-#include <filesystem>
-#include <new>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -55,25 +53,6 @@ void waitGently(MPI_Request& request) {
   }
 }
 
-/// What the command line would say about an exception: its exit code and message.
-std::pair<int, std::string> describe(const std::exception_ptr& e) {
-  try {
-    std::rethrow_exception(e);
-  } catch (const UsageError& x) {
-    return {2, x.what()};
-  } catch (const Error& x) {
-    return {1, x.what()};
-  } catch (const std::filesystem::filesystem_error& x) {
-    return {1, (x.path1().empty() ? std::string() : x.path1().string() + ": ") + x.code().message()};
-  } catch (const std::bad_alloc&) {
-    return {1, "out of memory"};
-  } catch (const std::exception& x) {
-    return {1, std::string("internal error: ") + x.what()};
-  } catch (...) {
-    return {1, "internal error"};
-  }
-}
-
 /// The failures of one step of the job, agreed on by every rank at the step's end.
 class Steps {
  public:
@@ -105,7 +84,7 @@ class Steps {
     waitGently(request);
     if (out[0] == INT_MAX) return;
     const int owner = out[1];
-    auto [code, message] = ranks_.rank() == owner ? describe(error_) : std::pair<int, std::string>{0, ""};
+    auto [code, message] = ranks_.rank() == owner ? describeError(error_) : ErrorReport{0, ""};
     int length = static_cast<int>(message.size());
     MPI_Bcast(&code, 1, MPI_INT, owner, MPI_COMM_WORLD);
     MPI_Bcast(&length, 1, MPI_INT, owner, MPI_COMM_WORLD);

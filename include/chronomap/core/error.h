@@ -3,6 +3,7 @@
 /// The one exception hierarchy of chronomap. The library never prints and never exits:
 /// it throws one of these, and the command line turns them into a message and an exit code.
 
+#include <exception>
 #include <stdexcept>
 #include <string>
 
@@ -37,5 +38,15 @@ class IoError : public Error {
  public:
   using Error::Error;
 };
+
+/// What the command line says about a failure: its exit code and its one-line message.
+struct ErrorReport {
+  int exit_code = 1;  ///< 2 for bad usage (UsageError), 1 for everything else
+  std::string message;
+};
+/// The report of an exception (non-null): a chronomap Error's own message; for a file operation the
+/// operating system refused, the file and the system's word for the problem; "out of memory";
+/// "internal error: ..." for anything else.
+ErrorReport describeError(const std::exception_ptr& error);
 
 }  // namespace chronomap
