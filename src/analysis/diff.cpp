@@ -272,27 +272,21 @@ void dropKeptSurfaces(std::vector<ChangeCell>& cells, const DiffSettings& settin
   // `near` holds the surface around k; is it still there, as it was, in `other`?
   auto kept = [&](const VoxelKey& k, auto&& near, auto&& other) {
     int surface = 0, still = 0;
-    for (int dz = -r; dz <= r; ++dz) {
-      for (int dy = -r; dy <= r; ++dy) {
-        for (int dx = -r; dx <= r; ++dx) {
-          const auto n = offsetKey(k, dx, dy, dz);
-          if (!n) continue;
-          const VoxelCounters was = near(*n);
-          if (was.state() != VoxelState::Occupied) continue;
-          ++surface;
-          const VoxelCounters is = other(*n);
-          if (is.state() != VoxelState::Occupied) continue;
-          // Where in the voxel the rays ended: a surface moved by a fraction of a voxel (a chair
-          // pushed by 4 cm) is not the same surface.
-          double d2 = 0.0;
-          for (int i = 0; i < 3; ++i) {
-            const double d = is.meanOffset(i) - was.meanOffset(i);
-            d2 += d * d;
-          }
-          still += d2 < kKeptSurfaceOffset * kKeptSurfaceOffset;
-        }
+    forEachKeyInCube(k, r, [&](const VoxelKey& n) {
+      const VoxelCounters was = near(n);
+      if (was.state() != VoxelState::Occupied) return;
+      ++surface;
+      const VoxelCounters is = other(n);
+      if (is.state() != VoxelState::Occupied) return;
+      // Where in the voxel the rays ended: a surface moved by a fraction of a voxel (a chair
+      // pushed by 4 cm) is not the same surface.
+      double d2 = 0.0;
+      for (int i = 0; i < 3; ++i) {
+        const double d = is.meanOffset(i) - was.meanOffset(i);
+        d2 += d * d;
       }
-    }
+      still += d2 < kKeptSurfaceOffset * kKeptSurfaceOffset;
+    });
     return surface > 0 && still >= settings.kept_surface_share * surface;
   };
   std::erase_if(cells, [&](const ChangeCell& c) {
@@ -301,6 +295,16 @@ void dropKeptSurfaces(std::vector<ChangeCell>& cells, const DiffSettings& settin
     if (c.kind == ChangeKind::Vanished) return kept(c.key, after, before);
     return false;
   });
+}
+
+// The rules that read the voxels around each cell, in order: the neighbourhood rule, then the
+// weak-change rule. Continuous mode keeps every cell.
+template <class CountersBefore, class CountersAfter>
+void applyRules(std::vector<ChangeCell>& cells, const DiffSettings& settings, CountersBefore before,
+                CountersAfter after) {
+  if (settings.mode == DiffMode::Continuous) return;
+  dropNearSurfaces(cells, settings, before, after);
+  dropKeptSurfaces(cells, settings, before, after);
 }
 
 auto countersOf(const SessionMap& m) {
@@ -312,9 +316,7 @@ auto countersOf(const SessionMap& m) {
 void applyNeighbourhoodRule(std::vector<ChangeCell>& cells, const DiffSettings& settings,
                             const std::function<VoxelCounters(const VoxelKey&)>& before,
                             const std::function<VoxelCounters(const VoxelKey&)>& after) {
-  if (settings.mode == DiffMode::Continuous) return;
-  dropNearSurfaces(cells, settings, before, after);
-  dropKeptSurfaces(cells, settings, before, after);
+  applyRules(cells, settings, before, after);
 }
 
 DiffMap diff(const SessionMap& before, const SessionMap& after, const DiffSettings& settings) {
@@ -325,10 +327,7 @@ DiffMap diff(const SessionMap& before, const SessionMap& after, const DiffSettin
   DiffMap d(before.resolution_m(), settings);
   SessionWalk w{before, after, settings, d.cells_};
   w.walk(0, 0, kTreeDepth, VoxelKey{});  // inner node 0 is the root of both
-  if (settings.mode != DiffMode::Continuous) {
-    dropNearSurfaces(d.cells_, settings, countersOf(before), countersOf(after));
-    dropKeptSurfaces(d.cells_, settings, countersOf(before), countersOf(after));
-  }
+  applyRules(d.cells_, settings, countersOf(before), countersOf(after));
   return d;
 }
 
@@ -377,13 +376,10 @@ DiffMap diff(const TemporalMap& map, double t1_s, double t2_s, const DiffSetting
     const uint32_t lo = std::min(n1, n2), hi = std::max(n1, n2);
     local.inner_nodes_visited = map.forEachListChangedIn(lo, hi, compare);
   }
-  if (settings.mode != DiffMode::Continuous) {
-    auto countersAt = [&map](double t) {
-      return [&map, t](const VoxelKey& k) { return map.valueAt(k, t).value_or(VoxelCounters{}); };
-    };
-    dropNearSurfaces(d.cells_, settings, countersAt(t1_s), countersAt(t2_s));
-    dropKeptSurfaces(d.cells_, settings, countersAt(t1_s), countersAt(t2_s));
-  }
+  auto countersAt = [&map](double t) {
+    return [&map, t](const VoxelKey& k) { return map.valueAt(k, t).value_or(VoxelCounters{}); };
+  };
+  applyRules(d.cells_, settings, countersAt(t1_s), countersAt(t2_s));
   // Both walks visit lists in slot order, which is Morton order: the cells are sorted already.
   if (stats) *stats = local;
   return d;

@@ -127,6 +127,30 @@ TEST(ForEachKeyWithin, VisitsEveryVoxelOfTheCubeWithinTheRadiusInOrderAndFewOthe
   EXPECT_FALSE(forEachKeyWithin(KeyGrid(0.05), Eigen::Vector3d(1e9, 0, 0), 2.0, false, [](const VoxelKey&) {}));
 }
 
+TEST(ForEachKeyInCube, VisitsTheCubeInOrderAndStopsAtTheKeySpace) {
+  const VoxelKey centre{100, 200, 300};
+  for (int r : {0, 1, 3}) {
+    std::vector<VoxelKey> seen;
+    forEachKeyInCube(centre, r, [&](const VoxelKey& k) { seen.push_back(k); });
+    ASSERT_EQ(seen.size(), static_cast<size_t>((2 * r + 1) * (2 * r + 1) * (2 * r + 1))) << r;
+    size_t i = 0;
+    for (int dz = -r; dz <= r; ++dz)
+      for (int dy = -r; dy <= r; ++dy)
+        for (int dx = -r; dx <= r; ++dx, ++i) {
+          const VoxelKey want{static_cast<uint16_t>(100 + dx), static_cast<uint16_t>(200 + dy),
+                              static_cast<uint16_t>(300 + dz)};
+          EXPECT_EQ(seen[i], want) << r << " " << i;
+        }
+  }
+  // At the corner of the key space only the octant inside: 2 x 2 x 2 of the 27 at r = 1.
+  size_t corner = 0;
+  forEachKeyInCube(VoxelKey{0, 0, 0}, 1, [&](const VoxelKey& k) {
+    ++corner;
+    EXPECT_TRUE(k.x <= 1 && k.y <= 1 && k.z <= 1);
+  });
+  EXPECT_EQ(corner, 8u);
+}
+
 TEST(KeyGrid, MapsPointsToVoxelsAroundTheOrigin) {
   KeyGrid g(0.05);
   EXPECT_EQ(*g.keyOf({0.0, 0.0, 0.0}), (VoxelKey{32768, 32768, 32768}));

@@ -78,6 +78,19 @@ inline std::optional<VoxelKey> offsetKey(const VoxelKey& key, int dx, int dy, in
   return VoxelKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)};
 }
 
+/// Calls fn(const VoxelKey&) for every key within Chebyshev distance r of `key` (itself
+/// included) that lies inside the key space: z, then y, then x ascending.
+template <class Fn>
+void forEachKeyInCube(const VoxelKey& key, int r, Fn&& fn) {
+  for (int dz = -r; dz <= r; ++dz) {
+    for (int dy = -r; dy <= r; ++dy) {
+      for (int dx = -r; dx <= r; ++dx) {
+        if (const auto k = offsetKey(key, dx, dy, dz)) fn(*k);
+      }
+    }
+  }
+}
+
 /// Calls pred(const VoxelKey&) for every key within Chebyshev distance r of `key` (itself
 /// included) that lies inside the key space, until it returns true.
 /// @return whether pred returned true for one of them.
