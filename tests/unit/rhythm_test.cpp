@@ -4,6 +4,8 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <cstring>
+#include <limits>
 #include <numbers>
 #include <random>
 
@@ -291,6 +293,19 @@ TEST(Rhythm, SavedModelsAnswerTheSameAndBadBytesAreRefused) {
     EXPECT_EQ(old.voxels[0].hits_per_voxel, -1.0f);
     EXPECT_EQ(old.voxels[0].mean, one.voxels[0].mean);
     EXPECT_EQ(surfaceEvidence(old.voxels[0]), static_cast<double>(one.voxels[0].mean));
+    // A hit density that is not a number, negative (other than version 1's -1) or beyond the cap
+    // is refused.
+    const std::vector<uint8_t> v2 = serialize(one);
+    for (float bad : {std::numeric_limits<float>::quiet_NaN(), -0.5f, 2e6f, std::numeric_limits<float>::infinity()}) {
+      std::vector<uint8_t> c = v2;
+      std::memcpy(c.data() + c.size() - 4, &bad, 4);
+      try {
+        deserializeRhythm(c, "bad.rhythm");
+        ADD_FAILURE() << bad;
+      } catch (const FormatError& e) {
+        EXPECT_NE(std::string(e.what()).find("bad.rhythm: bad hit density"), std::string::npos) << e.what();
+      }
+    }
   }
   // Every truncation and a wrong magic are refused with the name; random corruption either is
   // refused or reads as a model that serialises back to those bytes.
