@@ -38,8 +38,26 @@ const TileEntry* TileIndex::find(const TileKey& key) const {
   return it != tiles.end() && it->key == key ? &*it : nullptr;
 }
 
-std::string tileFileName(const TileKey& key) {
-  return "tiles/" + std::to_string(key.x) + "_" + std::to_string(key.y) + "_" + std::to_string(key.z) + ".cmap";
+std::string tileFileName(const TileKey& key, uint64_t generation) {
+  std::string name = "tiles/" + std::to_string(key.x) + "_" + std::to_string(key.y) + "_" + std::to_string(key.z);
+  if (generation > 0) name += ".g" + std::to_string(generation);
+  return name + ".cmap";
+}
+
+std::optional<uint64_t> tileGeneration(const TileKey& key, const std::string& file) {
+  if (file == tileFileName(key)) return 0;
+  const std::string stem = tileFileName(key);
+  const std::string head = stem.substr(0, stem.size() - 5) + ".g";
+  if (file.size() <= head.size() + 5 || file.compare(0, head.size(), head) != 0 ||
+      file.compare(file.size() - 5, 5, ".cmap") != 0) {
+    return std::nullopt;
+  }
+  const std::string digits = file.substr(head.size(), file.size() - head.size() - 5);
+  if (digits.empty() || digits.size() > 18 || digits[0] == '0' ||
+      !std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+    return std::nullopt;
+  }
+  return std::stoull(digits);
 }
 
 TiledWriteResult writeTiledMap(const fs::path& folder, const SplitMap& split, const nlohmann::json& meta) {
@@ -63,6 +81,26 @@ TiledWriteResult writeTiledMap(const fs::path& folder, const SplitMap& split, co
   r.index_bytes = index.size();
   staged.commit();
   return r;
+}
+
+TileEntry writeTileFile(const fs::path& folder, const TileKey& key, uint64_t generation, const TemporalMap& tile) {
+  const std::vector<uint8_t> bytes = encodeTemporalMap(tile, nlohmann::json::object());
+  TileEntry e{key, tileFileName(key, generation), bytes.size(), crc32Of(bytes)};
+  writeFileAtomic(folder / e.file, bytes);
+  return e;
+}
+
+uint64_t writeTileIndex(const fs::path& folder, const TemporalMap& top, int tile_level, const std::vector<TileEntry>& tiles,
+                        const nlohmann::json& meta) {
+  nlohmann::json table = nlohmann::json::array();
+  for (const TileEntry& t : tiles) {
+    table.push_back({{"key", {t.key.x, t.key.y, t.key.z}}, {"file", t.file}, {"bytes", t.bytes}, {"crc32", t.crc32}});
+  }
+  const nlohmann::json extra = {
+      {"tiles", {{"version", kTileTableVersion}, {"level", tile_level}, {"list", std::move(table)}}}};
+  const std::vector<uint8_t> index = encodeTemporalMap(top, meta, MapKind::Tiled, &extra);
+  writeFileAtomic(folder / kTileIndexName, index);
+  return index.size();
 }
 
 TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& source) {
@@ -94,7 +132,7 @@ TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& 
       e.key = TileKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)};
       e.file = row.at("file").get<std::string>();
       // The name is derived from the key: nothing else (no other folder) is ever opened.
-      if (e.file != tileFileName(e.key)) throw FormatError(source + ": tile file name '" + e.file + "' does not match its key");
+      if (!tileGeneration(e.key, e.file)) throw FormatError(source + ": tile file name '" + e.file + "' does not match its key");
       e.bytes = row.at("bytes").get<uint64_t>();
       e.crc32 = row.at("crc32").get<uint32_t>();
       index.tiles.push_back(std::move(e));

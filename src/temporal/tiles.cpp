@@ -251,4 +251,100 @@ TemporalMap joinTiles(const TemporalMap& top, int tile_level, const std::vector<
   return TemporalMap::fromParts(top.resolution_m(), top.criterion(), std::move(out), top.sessions());
 }
 
+namespace {
+
+/// The reference `p` holds in the slot of `cube` (kEmpty when the path to it ends first), and
+/// whether a list above the cube holds it (then *inside_list is set).
+Ref refAt(const Parts& p, const Cube& cube, bool* inside_list = nullptr) {
+  uint32_t node = 0;
+  for (int level = kTreeDepth; level > cube.level; --level) {
+    const Ref r = p.inner[node][static_cast<size_t>(slotOf(cube.corner, level - 1))];
+    if (level - 1 == cube.level) return r;
+    if (r == kEmpty) return kEmpty;
+    if (r & kListBit) {
+      if (inside_list) *inside_list = true;
+      return kEmpty;
+    }
+    node = r;
+  }
+  return kEmpty;
+}
+
+}  // namespace
+
+TemporalMap restrictToCube(const TemporalMap& map, const Cube& cube, std::vector<SessionRecord> sessions) {
+  if (cube.level < 0 || cube.level >= kTreeDepth) throw UsageError("cube level out of range");
+  const Parts p = map.parts();
+  const PartsCopier copier(p);
+  Parts out;
+  out.inner.emplace_back();
+  out.inner[0].fill(kEmpty);
+  uint32_t at = 0;
+  for (int level = kTreeDepth; level > cube.level + 1; --level) {
+    const auto next = static_cast<uint32_t>(out.inner.size());
+    out.inner.emplace_back();
+    out.inner[next].fill(kEmpty);
+    out.inner[at][static_cast<size_t>(slotOf(cube.corner, level - 1))] = next;
+    at = next;
+  }
+  bool inside_list = false;
+  const Ref r = refAt(p, cube, &inside_list);
+  if (inside_list) throw FormatError("a cube to restrict to lies inside a uniform cube of the map");
+  Ref mine = kEmpty;
+  if (r != kEmpty) mine = (r & kListBit) ? copier.copyList(out, r) : copier.copySubtree(out, r);
+  out.inner[at][static_cast<size_t>(slotOf(cube.corner, cube.level))] = mine;
+  return TemporalMap::fromParts(map.resolution_m(), map.criterion(), std::move(out), std::move(sessions));
+}
+
+TemporalMap replaceCubes(const TemporalMap& top, const std::vector<CubePart>& parts,
+                         std::vector<SessionRecord> sessions) {
+  const Parts p = top.parts();
+  const PartsCopier copier(p);
+  std::vector<Parts> from_parts;
+  from_parts.reserve(parts.size());
+  for (const CubePart& c : parts) from_parts.push_back(c.from->parts());
+  Parts out;
+  size_t placed = 0;
+  // Index of the part whose cube is `cube`, -1 if none; -2 when a part lies strictly inside.
+  auto find = [&](const Cube& cube) -> int {
+    int inside = -1;
+    for (size_t i = 0; i < parts.size(); ++i) {
+      if (parts[i].cube == cube) return static_cast<int>(i);
+      if (cube.contains(parts[i].cube)) inside = -2;
+    }
+    return inside;
+  };
+  auto copy = [&](auto&& self, uint32_t node, bool exists, int level, const VoxelKey& corner) -> uint32_t {
+    const auto me = static_cast<uint32_t>(out.inner.size());
+    out.inner.emplace_back();
+    out.inner[me].fill(kEmpty);
+    for (int slot = 0; slot < 8; ++slot) {
+      const Ref r = exists ? p.inner[node][static_cast<size_t>(slot)] : kEmpty;
+      const int child_level = level - 1;
+      const Cube child{childCorner(corner, slot, child_level), child_level};
+      const int which = find(child);
+      Ref mine = kEmpty;
+      if (which >= 0) {
+        const Parts& fp = from_parts[static_cast<size_t>(which)];
+        const Ref fr = refAt(fp, child);
+        if (fr != kEmpty) {
+          const PartsCopier from_copier(fp);
+          mine = (fr & kListBit) ? from_copier.copyList(out, fr) : from_copier.copySubtree(out, fr);
+        }
+        ++placed;
+      } else if (which == -2) {
+        if (r != kEmpty && (r & kListBit)) throw FormatError("a cube to replace lies inside a uniform cube");
+        mine = self(self, r, r != kEmpty, child_level, child.corner);
+      } else if (r != kEmpty) {
+        mine = (r & kListBit) ? copier.copyList(out, r) : copier.copySubtree(out, r);
+      }
+      out.inner[me][static_cast<size_t>(slot)] = mine;
+    }
+    return me;
+  };
+  copy(copy, 0, true, kTreeDepth, VoxelKey{});
+  if (placed != parts.size()) throw FormatError("cubes to replace overlap");
+  return TemporalMap::fromParts(top.resolution_m(), top.criterion(), std::move(out), std::move(sessions));
+}
+
 }  // namespace chronomap

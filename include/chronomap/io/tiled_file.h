@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -35,8 +36,13 @@ struct TileIndex {
   const TileEntry* find(const TileKey& key) const;
 };
 
-/// The file name a tile gets: tiles/X_Y_Z.cmap (tile coordinates, decimal).
-std::string tileFileName(const TileKey& key);
+/// The file name a tile gets: tiles/X_Y_Z.cmap (tile coordinates, decimal), or, for a tile
+/// written by the streaming build's generation `generation` > 0, tiles/X_Y_Z.gN.cmap (so that
+/// new tiles never overwrite the files the current index names).
+std::string tileFileName(const TileKey& key, uint64_t generation = 0);
+/// The generation in a tile's file name when it is tileFileName(key, generation) for some
+/// generation; nothing otherwise.
+std::optional<uint64_t> tileGeneration(const TileKey& key, const std::string& file);
 
 /// What writeTiledMap wrote.
 struct TiledWriteResult {
@@ -48,6 +54,15 @@ struct TiledWriteResult {
 /// Writes `split` into the folder `folder` as a whole (staged, then moved into place: an
 /// error leaves the folder as it was). `meta` (a JSON object) is stored in the index.
 TiledWriteResult writeTiledMap(const std::filesystem::path& folder, const SplitMap& split, const nlohmann::json& meta);
+
+/// Writes one tile's file (atomically) into the folder as tileFileName(key, generation).
+/// @return its row of the tile table.
+TileEntry writeTileFile(const std::filesystem::path& folder, const TileKey& key, uint64_t generation,
+                        const TemporalMap& tile);
+/// Writes the index of a tiled map (atomically: the previous index stays until the rename).
+/// @return the bytes written.
+uint64_t writeTileIndex(const std::filesystem::path& folder, const TemporalMap& top, int tile_level,
+                        const std::vector<TileEntry>& tiles, const nlohmann::json& meta);
 
 /// Decodes an index file image. @throw FormatError naming `source`.
 TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& source);

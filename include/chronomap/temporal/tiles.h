@@ -70,4 +70,33 @@ TemporalMap joinTiles(const TemporalMap& top, int tile_level, const std::vector<
 void checkTileFits(const TemporalMap& top, int tile_level, const TileKey& key, const TemporalMap& tile,
                    const std::string& source);
 
+/// An aligned cube of the octree: its lowest voxel and its level (2^level voxels per axis).
+struct Cube {
+  VoxelKey corner;
+  int level = 0;
+  friend bool operator==(const Cube&, const Cube&) = default;
+  /// True when `inner` lies inside this cube (or is it).
+  bool contains(const Cube& inner) const {
+    return inner.level <= level && (inner.corner.x >> level) == (corner.x >> level) &&
+           (inner.corner.y >> level) == (corner.y >> level) && (inner.corner.z >> level) == (corner.z >> level);
+  }
+};
+
+/// A map holding only what `map` holds in `cube` (the path from the root to it, then the cube's
+/// list or subtree), with `sessions` as its sessions' table. Used by the streaming build to
+/// take a part of a tiled map's top out, graft its tiles in (joinTiles) and add sessions to it.
+TemporalMap restrictToCube(const TemporalMap& map, const Cube& cube, std::vector<SessionRecord> sessions);
+
+/// `top` with the content of each of `parts`' cubes replaced by what `from` holds there (a map
+/// with nothing outside the cube, as restrictToCube makes); inner nodes are created on the
+/// way to cubes that lie where `top` holds nothing. The cubes must be disjoint and must not lie
+/// inside one of `top`'s lists. The result has `sessions` as its sessions' table (the parts may
+/// hold entries of sessions `top` does not have yet). @throw FormatError otherwise.
+struct CubePart {
+  Cube cube;
+  const TemporalMap* from = nullptr;
+};
+TemporalMap replaceCubes(const TemporalMap& top, const std::vector<CubePart>& parts,
+                         std::vector<SessionRecord> sessions);
+
 }  // namespace chronomap

@@ -1,0 +1,85 @@
+#pragma once
+/// @file
+/// The streaming build of a tiled 4D map (docs/scale.md, "Streaming build"): sessions are cut
+/// to the tile grid as they are integrated (their parts held under a memory budget, spilled to
+/// disk beyond it), then each tile, or each group of tiles that a uniform cube above tile level
+/// ties together, is read, has the sessions added in time order, and is written under new file
+/// names; the index is swapped in last. The result is the tiled map that building the whole
+/// map then `tile` would give, byte for byte after `untile`, while memory holds one session map,
+/// the budget's parts and one group of tiles.
+
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "chronomap/octree/session_map.h"
+#include "chronomap/pipeline/map4d.h"
+#include "chronomap/temporal/temporal_map.h"
+
+namespace chronomap::pipeline {
+
+/// One session for streamIntoTiles.
+struct StreamSession {
+  double time_s = 0.0;
+  std::string name;
+  SessionMap map;
+};
+
+/// What streamIntoTiles does.
+struct StreamSettings {
+  std::filesystem::path folder;  ///< the tiled map, created when missing
+  double resolution_m = 0.05;    ///< for a new map (an existing one must have it)
+  ChangeCriterion criterion;     ///< for a new map
+  /// Tile edge in metres for a new map (unset: 2^kDefaultTileLevel voxels); an existing map
+  /// keeps its own, and a different size given is refused.
+  std::optional<double> tile_size_m;
+  /// Most bytes of session parts held in memory before they are spilled to files in the
+  /// folder (then read back one group at a time). 0: no limit.
+  size_t memory_limit_bytes = size_t{1} << 30;
+  Progress progress;
+};
+
+/// The budget's own accounting and what the build did.
+struct StreamStats {
+  size_t groups = 0;            ///< tiles or groups of tiles processed
+  size_t largest_group_tiles = 0;
+  size_t tiles_read = 0;
+  size_t tiles_written = 0;
+  size_t spills = 0;               ///< times the parts were written out to make room
+  uint64_t spilled_bytes = 0;
+  size_t peak_parts_bytes = 0;     ///< most bytes of session parts held at once (<= the limit)
+  size_t peak_group_bytes = 0;     ///< largest working map (a group's tiles and sessions)
+};
+
+/// What streamIntoTiles did.
+struct StreamResult {
+  bool created = false;
+  int tile_level = 0;
+  size_t sessions = 0;  ///< in the map now
+  size_t tiles = 0;     ///< in the map now
+  uint64_t index_bytes = 0;
+  uint64_t tile_bytes = 0;
+  std::vector<double> added_times;      ///< in time order
+  std::vector<int64_t> nodes_added;     ///< per added session, as TemporalMap::add counts them
+  StreamStats stats;
+};
+
+/// Adds `count` sessions, made one at a time by `produce(i)`, to the tiled map in
+/// `settings.folder`. Sessions must come after the map's last session (in any order among
+/// themselves) at distinct times. Holds the folder's lock; a failure (or a kill) at any point
+/// leaves the previous tiled map readable and unchanged.
+/// @throw UsageError for clashing or earlier times, another resolution or tile size, a folder
+/// that is not a tiled map; what the readers throw.
+StreamResult streamIntoTiles(const StreamSettings& settings, size_t count,
+                             const std::function<StreamSession(size_t)>& produce);
+
+/// build() into a tiled map folder: each recording integrated and cut to the tiles in turn,
+/// then streamIntoTiles. Registration, re-alignment and replacing are not supported (they need
+/// every session at once). @throw UsageError for them; what build() throws.
+StreamResult streamBuild(const BuildSettings& settings, std::optional<double> tile_size_m, size_t memory_limit_bytes);
+
+}  // namespace chronomap::pipeline

@@ -1,0 +1,248 @@
+// The streaming build of tiled 4D maps: sessions added tile by tile give the tiled map that
+// building the whole map and cutting it gives, under a memory budget, and a failure leaves the
+// previous tiled map as it was.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "chronomap/core/error.h"
+#include "chronomap/io/cmap.h"
+#include "chronomap/io/file.h"
+#include "chronomap/io/temporal_file.h"
+#include "chronomap/io/tiled_file.h"
+#include "chronomap/pipeline/stream.h"
+#include "chronomap/pipeline/tiles.h"
+#include "chronomap/temporal/tiles.h"
+#include "test_support.h"
+
+namespace chronomap::stream_test {
+
+using test::at;
+using test::freeVoxel;
+using test::occupiedVoxelExact;
+namespace fs = std::filesystem;
+
+// Voxels [kLo, kHi) per axis around the origin (a corner of every tile level), so tiles cut
+// through the sessions; now and then a large free cube far off, of tile size and more.
+constexpr int kLo = -6, kHi = 10;
+
+double timeOf(int i) { return 1.8e9 + 3600.0 * i; }
+
+SessionMap randomSession(std::mt19937_64& rng, std::vector<uint8_t>& world) {
+  const int side = kHi - kLo;
+  for (int i = 0; i < 40; ++i) world[rng() % world.size()] ^= 1;
+  SessionMap m(0.05);
+  int lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = kLo + static_cast<int>(rng() % 6);
+    hi[a] = std::min(kHi, lo[a] + 4 + static_cast<int>(rng() % 12));
+  }
+  for (int z = lo[2]; z < hi[2]; ++z) {
+    for (int y = lo[1]; y < hi[1]; ++y) {
+      for (int x = lo[0]; x < hi[0]; ++x) {
+        if (rng() % 12 == 0) continue;
+        const bool occ = world[static_cast<size_t>(((z - kLo) * side + (y - kLo)) * side + (x - kLo))] != 0;
+        m.add(at(x, y, z),
+              occ ? occupiedVoxelExact(1 + static_cast<uint32_t>(rng() % 3), static_cast<uint8_t>(rng() % 256))
+                  : freeVoxel(0.125f * static_cast<float>(1 + rng() % 4)));
+      }
+    }
+  }
+  // Large free cubes: a session may refine them below tile level later (a voxel seen there).
+  if (rng() % 3 == 0) m.addCube(at(16, 0, 0), 4, freeVoxel(0.25f * static_cast<float>(1 + rng() % 3)));
+  if (rng() % 3 == 0) m.addCube(at(32, 0, 0), 5, freeVoxel(0.5f));
+  if (rng() % 3 == 0) m.add(at(40 + static_cast<int>(rng() % 8), 3, 5), occupiedVoxelExact(2, 9));
+  if (rng() % 2 == 0) m.compressFree();
+  return m;
+}
+
+std::vector<SessionMap> randomSessions(uint64_t seed, int n) {
+  std::mt19937_64 rng(seed);
+  std::vector<uint8_t> world(static_cast<size_t>((kHi - kLo) * (kHi - kLo) * (kHi - kLo)));
+  for (auto& w : world) w = rng() % 8 == 0;
+  std::vector<SessionMap> out;
+  for (int i = 0; i < n; ++i) out.push_back(randomSession(rng, world));
+  return out;
+}
+
+std::string nameOf(int i) { return "s" + std::to_string(i); }
+
+// What `chronomap build` of each batch into one .cmap does: the sessions added in time order,
+// then the map written (compacted) and read back for the next batch.
+TemporalMap wholeBuild(const std::vector<SessionMap>& sessions, const std::vector<std::vector<int>>& batches) {
+  TemporalMap map(0.05);
+  for (const auto& batch : batches) {
+    std::vector<int> sorted = batch;
+    std::sort(sorted.begin(), sorted.end());
+    for (const int i : sorted) map.add(timeOf(i), sessions[static_cast<size_t>(i)], {false, nameOf(i)});
+    const std::vector<uint8_t> bytes = io::encodeTemporalMap(map, nlohmann::json::object());
+    map = io::temporalMapFrom(io::decodeCmap(bytes, "whole"), "whole");
+  }
+  return map;
+}
+
+pipeline::StreamResult stream(const fs::path& folder, const std::vector<SessionMap>& sessions,
+                              const std::vector<int>& batch, int tile_level, size_t limit) {
+  pipeline::StreamSettings s;
+  s.folder = folder;
+  s.tile_size_m = std::ldexp(0.05, tile_level);
+  s.memory_limit_bytes = limit;
+  return pipeline::streamIntoTiles(s, batch.size(), [&](size_t k) {
+    const int i = batch[k];
+    return pipeline::StreamSession{timeOf(i), nameOf(i), sessions[static_cast<size_t>(i)]};
+  });
+}
+
+TemporalMap joined(const fs::path& folder) {
+  const io::TileIndex index = io::readTileIndex(folder);
+  std::vector<Tile> tiles;
+  for (const io::TileEntry& e : index.tiles) tiles.push_back(Tile{e.key, io::readTile(folder, index, e)});
+  std::vector<const Tile*> refs;
+  for (const Tile& t : tiles) refs.push_back(&t);
+  return joinTiles(index.top, index.tile_level, refs);
+}
+
+std::map<std::string, std::vector<uint8_t>> filesOf(const fs::path& folder) {
+  std::map<std::string, std::vector<uint8_t>> out;
+  for (const auto& f : fs::recursive_directory_iterator(folder)) {
+    if (f.is_regular_file()) out[fs::relative(f.path(), folder).string()] = io::readFileBytes(f.path());
+  }
+  return out;
+}
+
+class StreamProperty : public ::testing::TestWithParam<uint64_t> {};
+
+// Random sessions streamed in random batches (each batch in shuffled order) at a random tile
+// size and budget: the joined tiles are the whole map built batch by batch, to the byte, and
+// the tiles are those `tile` cuts from it.
+TEST_P(StreamProperty, StreamingGivesTheWholeBuildCut) {
+  std::mt19937_64 rng(GetParam());
+  const int n = 7;
+  const std::vector<SessionMap> sessions = randomSessions(GetParam() * 7919, n);
+  std::vector<std::vector<int>> batches(1);
+  for (int i = 0; i < n; ++i) {
+    if (i > 0 && rng() % 3 == 0) batches.emplace_back();
+    batches.back().push_back(i);
+  }
+  for (auto& b : batches) std::shuffle(b.begin(), b.end(), rng);
+  const int level = 3 + static_cast<int>(rng() % 3);  // level 2 writes hundreds of files, each flushed
+  const size_t limit = rng() % 2 ? 0 : 800 + rng() % 4000;
+  test::TempDir dir;
+  const fs::path folder = dir / "tiled";
+  for (const auto& b : batches) {
+    const pipeline::StreamResult r = stream(folder, sessions, b, level, limit);
+    if (limit) {
+      EXPECT_LE(r.stats.peak_parts_bytes, limit);
+    }
+  }
+  TemporalMap whole = wholeBuild(sessions, batches);
+  const TemporalMap streamed = joined(folder);
+  ASSERT_TRUE(streamed == whole) << "level " << level << ", " << batches.size() << " batches";
+  EXPECT_EQ(io::encodeTemporalMap(streamed, nlohmann::json::object()),
+            io::encodeTemporalMap(whole, nlohmann::json::object()));
+  whole.compact();
+  const SplitMap cut = splitIntoTiles(whole, level);
+  const io::TileIndex index = io::readTileIndex(folder);
+  ASSERT_EQ(index.tiles.size(), cut.tiles.size());
+  for (const Tile& t : cut.tiles) {
+    const io::TileEntry* e = index.find(t.key);
+    ASSERT_NE(e, nullptr);
+    EXPECT_TRUE(io::readTile(folder, index, *e) == t.map);
+  }
+  EXPECT_TRUE(index.top == cut.top);
+  // Only the files the index names remain (older generations and parts are gone).
+  EXPECT_EQ(filesOf(folder).size(), index.tiles.size() + 1);
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, StreamProperty, ::testing::Values(1, 2, 3, 4, 5, 6, 7, 8));
+
+TEST(Stream, ABudgetBoundsThePartsHeldAndSpillsTheRest) {
+  const std::vector<SessionMap> sessions = randomSessions(77, 4);
+  test::TempDir dir;
+  const pipeline::StreamResult small = stream(dir / "small", sessions, {0, 1, 2, 3}, 3, 4096);
+  EXPECT_LE(small.stats.peak_parts_bytes, 4096u);
+  EXPECT_GT(small.stats.spills, 0u);
+  EXPECT_GT(small.stats.spilled_bytes, 0u);
+  const pipeline::StreamResult large = stream(dir / "large", sessions, {0, 1, 2, 3}, 3, 0);
+  EXPECT_EQ(large.stats.spills, 0u);
+  EXPECT_GT(large.stats.peak_parts_bytes, 4096u);
+  EXPECT_TRUE(joined(dir / "small") == joined(dir / "large"));
+  EXPECT_EQ(small.nodes_added, large.nodes_added);
+  EXPECT_FALSE(fs::exists(dir / "small" / ".parts-0"));
+}
+
+TEST(Stream, AFailedAddLeavesThePreviousTiledMap) {
+  const std::vector<SessionMap> sessions = randomSessions(5, 5);
+  test::TempDir dir;
+  const fs::path folder = dir / "tiled";
+  stream(folder, sessions, {0, 1}, 3, 0);
+  const auto before = filesOf(folder);
+  pipeline::StreamSettings s;
+  s.folder = folder;
+  s.memory_limit_bytes = 2000;  // parts spilled into the folder before the failure
+  EXPECT_THROW(pipeline::streamIntoTiles(s, 3,
+                                         [&](size_t k) -> pipeline::StreamSession {
+                                           if (k == 2) throw IoError("recording 4 cannot be read");
+                                           return {timeOf(2 + static_cast<int>(k)), nameOf(2), sessions[2 + k]};
+                                         }),
+               IoError);
+  EXPECT_EQ(filesOf(folder), before);
+  // A failure while the tiles are being written: new tiles exist, the index is the old one.
+  io::writeFileAtomic(folder / "tiles" / "0_0_0.g7.cmap", {1, 2, 3});  // what a killed run leaves
+  fs::create_directories(folder / ".parts-99999");
+  EXPECT_TRUE(joined(folder) == wholeBuild(sessions, {{0, 1}}));  // still readable
+  stream(folder, sessions, {2, 3, 4}, 3, 0);
+  EXPECT_TRUE(joined(folder) == wholeBuild(sessions, {{0, 1}, {2, 3, 4}}));
+  EXPECT_FALSE(fs::exists(folder / "tiles" / "0_0_0.g7.cmap"));
+  EXPECT_FALSE(fs::exists(folder / ".parts-99999"));
+  // A first build that fails leaves no folder.
+  EXPECT_THROW(pipeline::streamIntoTiles(
+                   [&] {
+                     pipeline::StreamSettings n;
+                     n.folder = dir / "new";
+                     return n;
+                   }(),
+                   1, [&](size_t) -> pipeline::StreamSession { throw IoError("unreadable"); }),
+               IoError);
+  EXPECT_FALSE(fs::exists(dir / "new"));
+}
+
+TEST(Stream, BadInputIsRefused) {
+  const std::vector<SessionMap> sessions = randomSessions(9, 4);
+  test::TempDir dir;
+  const fs::path folder = dir / "tiled";
+  stream(folder, sessions, {1, 2}, 3, 0);
+  const auto before = filesOf(folder);
+  // Earlier than the map's last session, or at its time.
+  EXPECT_THROW(stream(folder, sessions, {0}, 3, 0), UsageError);
+  EXPECT_THROW(stream(folder, sessions, {2}, 3, 0), UsageError);
+  // Two sessions at one time.
+  EXPECT_THROW(stream(folder, sessions, {3, 3}, 3, 0), UsageError);
+  // Another tile size, another resolution.
+  EXPECT_THROW(stream(folder, sessions, {3}, 4, 0), UsageError);
+  pipeline::StreamSettings s;
+  s.folder = folder;
+  s.resolution_m = 0.1;
+  EXPECT_THROW(pipeline::streamIntoTiles(s, 1, [&](size_t) { return pipeline::StreamSession{timeOf(3), "x", SessionMap(0.1)}; }),
+               UsageError);
+  s.resolution_m = 0.05;
+  EXPECT_THROW(pipeline::streamIntoTiles(s, 1, [&](size_t) { return pipeline::StreamSession{timeOf(3), "x", SessionMap(0.1)}; }),
+               UsageError);
+  EXPECT_EQ(filesOf(folder), before);
+  // A folder that is not a tiled map, a file, a tile size that is no power of two.
+  fs::create_directories(dir / "other");
+  io::writeFileAtomic(dir / "other" / "notes.txt", {1});
+  EXPECT_THROW(stream(dir / "other", sessions, {0}, 3, 0), UsageError);
+  EXPECT_THROW(stream(dir / "other" / "notes.txt", sessions, {0}, 3, 0), UsageError);
+  s.folder = dir / "odd";
+  s.tile_size_m = 0.3;
+  EXPECT_THROW(pipeline::streamIntoTiles(s, 1, [&](size_t) { return pipeline::StreamSession{timeOf(0), "x", sessions[0]}; }),
+               UsageError);
+  EXPECT_FALSE(fs::exists(dir / "odd"));
+}
+
+}  // namespace chronomap::stream_test
