@@ -13,6 +13,8 @@
 #include "chronomap/core/time.h"
 #include "chronomap/pipeline/distributed.h"
 #include "chronomap/pipeline/map4d.h"
+#include "chronomap/pipeline/stream.h"
+#include "chronomap/pipeline/tiles.h"
 #include "commands.h"
 #include "progress.h"
 
@@ -137,6 +139,8 @@ struct BuildCmdOptions {
   double register_radius = RegisterSettings{}.radius_voxels;
   bool register_planar = false;
   bool register_points = false;
+  bool tiles = false;
+  std::optional<double> tile_size_m;
   bool json = false;
 };
 
@@ -226,8 +230,60 @@ void printBuilt(const BuildCmdOptions& o, const pipeline::BuildResult& r) {
             << " nodes, " << humanBytes(static_cast<double>(r.file_bytes)) << " on disk\n";
 }
 
+/// The streaming build's budget for session parts: --memory-limit, else 256 MiB.
+constexpr double kDefaultPartsGib = 0.25;
+
+int runStreamBuild(const BuildCmdOptions& o, pipeline::BuildSettings& s) {
+  const pipeline::Ranks ranks;
+  if (ranks.size() > 1) throw UsageError("--tiles (the streaming build) runs in one process, not under mpirun");
+  s.progress = terminalProgress(o.json);
+  const double gib = o.integrate.memory_limit_gib.value_or(kDefaultPartsGib);
+  // --memory-limit is the parts' budget here; integration keeps its own default limit.
+  s.session.integrator.memory_limit_bytes = defaultMemoryLimitBytes();
+  const pipeline::StreamResult r = pipeline::streamBuild(s, o.tile_size_m, gibToBytes(gib));
+  nlohmann::json added = nlohmann::json::array();
+  for (size_t i = 0; i < r.added_times.size(); ++i) {
+    added.push_back({{"time", formatTime(r.added_times[i])}, {"time_s", r.added_times[i]},
+                     {"nodes_added", r.nodes_added[i]}});
+  }
+  const nlohmann::json j = {{"map", o.map},
+                            {"created", r.created},
+                            {"sessions", r.sessions},
+                            {"tiles", r.tiles},
+                            {"tile_size_m", std::ldexp(s.session.resolution_m, r.tile_level)},
+                            {"index_bytes", r.index_bytes},
+                            {"tile_bytes", r.tile_bytes},
+                            {"groups", r.stats.groups},
+                            {"largest_group_tiles", r.stats.largest_group_tiles},
+                            {"tiles_read", r.stats.tiles_read},
+                            {"tiles_written", r.stats.tiles_written},
+                            {"spills", r.stats.spills},
+                            {"spilled_bytes", r.stats.spilled_bytes},
+                            {"peak_parts_bytes", r.stats.peak_parts_bytes},
+                            {"peak_group_bytes", r.stats.peak_group_bytes},
+                            {"added", added}};
+  if (o.json) {
+    std::cout << j.dump() << "\n";
+    return 0;
+  }
+  for (const auto& a : added) {
+    std::cout << "  " << a["time"].get<std::string>() << ": " << a["nodes_added"].get<int64_t>() << " nodes added\n";
+  }
+  std::cout << (r.created ? "created " : "updated ") << o.map << ": " << r.sessions << " session(s), " << r.tiles
+            << " tiles of " << j["tile_size_m"].get<double>() << " m, "
+            << humanBytes(static_cast<double>(r.index_bytes + r.tile_bytes)) << " on disk; " << r.stats.groups
+            << " tile group(s) added to, parts held at most " << humanBytes(static_cast<double>(r.stats.peak_parts_bytes))
+            << " (" << r.stats.spills << " spill(s)), largest working map "
+            << humanBytes(static_cast<double>(r.stats.peak_group_bytes)) << "\n";
+  return 0;
+}
+
 int runBuild(const BuildCmdOptions& o) {
-  requireExtension(o.map, ".cmap", "4D map");
+  const bool tiled = o.tiles || pipeline::isTiledMapFolder(o.map);
+  if (!tiled) {
+    requireExtension(o.map, ".cmap", "4D map");
+    if (o.tile_size_m) throw UsageError("--tile-size needs --tiles");
+  }
   pipeline::BuildSettings s;
   s.realign = realignSettings(o.realign);
   s.registration = registrationSettings(o);
@@ -237,6 +293,7 @@ int runBuild(const BuildCmdOptions& o) {
   s.replace = o.replace;
   s.criterion = o.criterion;
   s.session = sessionSettings(o.integrate);
+  if (tiled) return runStreamBuild(o, s);
   // Under mpirun the ranks share the recordings out and rank 0 writes and reports; alone, one process.
   const pipeline::Ranks ranks;
   s.progress = terminalProgress(o.json || ranks.rank() != 0);
@@ -280,8 +337,9 @@ Command addBuild(CLI::App& root) {
       "build",
       "Integrate several recordings and add them to a 4D map in time order (the map is created when "
       "missing and written once, atomically, at the end). Under mpirun -np N the recordings are shared out "
-      "over the N processes; the map is the same, byte for byte (docs/scale.md).");
-  app->add_option("MAP", o->map, "the 4D map (.cmap)")->required();
+      "over the N processes; the map is the same, byte for byte (docs/scale.md). With --tiles (or a tiled map "
+      "folder as MAP) the sessions are added tile by tile in bounded memory (the streaming build).");
+  app->add_option("MAP", o->map, "the 4D map (.cmap), or with --tiles a tiled map folder")->required();
   app->add_option("DATASET", o->datasets, "dataset folders or files, one per session")->required();
   app->add_option("--times", o->times,
                   "comma-separated times, one per dataset (ISO-8601 or epoch seconds); default: the datasets' "
@@ -315,6 +373,16 @@ Command addBuild(CLI::App& root) {
                 "fit the drift against the sessions' points rather than voxel centres, which resolves offsets "
                 "below a voxel (docs/realign.md has the office figures)");
   addRealignFlags(app, o->realign);
+  app->add_flag("--tiles", o->tiles,
+                "build into a tiled map folder (created when missing), tile by tile: memory holds one session, "
+                "the session parts up to --memory-limit (default 0.25 GiB; the rest spilled to files; integration then "
+                "keeps its default limit) and one tile "
+                "or group of tiles; sessions must come after the map's last; no --register, --realign or --replace "
+                "(docs/scale.md)");
+  app->add_option("--tile-size", o->tile_size_m,
+                  "with --tiles, for a new tiled map: tile edge in metres, a power-of-two number of voxels "
+                  "(default 128 voxels)")
+      ->check(numberIn(1e-6, 1e6));
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runBuild(*o); }};
 }

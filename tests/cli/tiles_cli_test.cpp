@@ -89,5 +89,69 @@ TEST(TilesCli, BadInputGivesOneLine) {
   EXPECT_FALSE(fs::exists(tmp / "s.cmap"));
 }
 
+/// The tiny scene's sessions (TUM folders), 4 of them.
+std::vector<std::string> tinySessions(const test::TempDir& tmp) {
+  const test::CommandResult r = runCommand(cli() + " simulate --preset tiny --sessions 4 --resolution-scale 0.1 -o " +
+                                           (tmp / "sim").string());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  std::vector<std::string> out;
+  for (int i = 0; i < 4; ++i) out.push_back(" " + (tmp / "sim" / ("session_0" + std::to_string(i))).string());
+  return out;
+}
+
+/// `untile` of `folder` into `out`, from a copy named "m" (untile records the folder's name).
+std::vector<uint8_t> untiled(const test::TempDir& tmp, const fs::path& folder) {
+  fs::remove_all(tmp / "m");
+  fs::copy(folder, tmp / "m", fs::copy_options::recursive);
+  const test::CommandResult r = runCommand("cd " + tmp.path().string() + " && " + cli() + " untile m -o u.cmap");
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  return test::bytesOf(tmp / "u.cmap");
+}
+
+TEST(TilesCli, StreamingBuildGivesTheWholeBuildTiled) {
+  test::TempDir tmp;
+  const std::vector<std::string> s = tinySessions(tmp);
+  const std::string w = (tmp / "w.cmap").string(), wt = (tmp / "wt").string(), st = (tmp / "st").string();
+  ASSERT_EQ(runCommand(cli() + " build " + w + s[0] + s[1]).exit_code, 0);
+  ASSERT_EQ(runCommand(cli() + " build " + w + s[2] + s[3]).exit_code, 0);
+  ASSERT_EQ(runCommand(cli() + " tile " + w + " -o " + wt + " --tile-size 1.6").exit_code, 0);
+  const std::vector<uint8_t> expected = untiled(tmp, wt);
+
+  // The same batches streamed (given out of order), the second with a tiny budget.
+  const test::CommandResult first = runCommand(cli() + " build " + st + s[1] + s[0] + " --tiles --tile-size 1.6 --json");
+  ASSERT_EQ(first.exit_code, 0) << first.err;
+  EXPECT_TRUE(nlohmann::json::parse(first.out)["created"].get<bool>());
+  const std::vector<uint8_t> half = untiled(tmp, st);
+  const test::CommandResult second = runCommand(cli() + " build " + st + s[2] + s[3] + " --memory-limit 0.001 --json");
+  ASSERT_EQ(second.exit_code, 0) << second.err;
+  const nlohmann::json j = nlohmann::json::parse(second.out);
+  EXPECT_EQ(j["sessions"], 4);
+  EXPECT_GT(j["spills"].get<size_t>(), 0u);
+  EXPECT_LE(j["peak_parts_bytes"].get<size_t>(), 1073742u);
+  EXPECT_TRUE(untiled(tmp, st) == expected);
+
+  // Bad input leaves the tiled map as it was: an earlier session, registration, another tile size.
+  const auto before = untiled(tmp, st);
+  const test::CommandResult earlier = runCommand(cli() + " build " + st + s[1]);
+  EXPECT_EQ(earlier.exit_code, 2);
+  EXPECT_NE(earlier.err.find("not after the tiled map's last session"), std::string::npos) << earlier.err;
+  const test::CommandResult reg = runCommand(cli() + " build " + (tmp / "r").string() + s[0] + " --tiles --register");
+  EXPECT_EQ(reg.exit_code, 2);
+  EXPECT_NE(reg.err.find("--register cannot be used with --tiles"), std::string::npos) << reg.err;
+  EXPECT_FALSE(fs::exists(tmp / "r"));
+  EXPECT_EQ(runCommand(cli() + " build " + st + s[3] + " --tile-size 0.8").exit_code, 2);
+  EXPECT_TRUE(untiled(tmp, st) == before);
+
+  // Killed at any moment of an add: the folder reads as before the add or after it, never broken.
+  for (const char* after : {"0.1", "0.4"}) {
+    fs::remove_all(tmp / "k");
+    ASSERT_EQ(runCommand(cli() + " build " + (tmp / "k").string() + s[0] + s[1] + " --tiles --tile-size 1.6").exit_code,
+              0);
+    runCommand("timeout -s KILL " + std::string(after) + " " + cli() + " build " + (tmp / "k").string() + s[2] + s[3]);
+    const std::vector<uint8_t> now = untiled(tmp, tmp / "k");
+    EXPECT_TRUE(now == half || now == expected) << "killed after " << after << " s";
+  }
+}
+
 }  // namespace
 }  // namespace chronomap
