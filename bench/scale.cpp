@@ -1,12 +1,12 @@
-// bench/scale: a site's sessions built into a 4D map, by one process and by two MPI ranks, then
-// tiled and queried (issue 28). A partial benchmark: the build holds the whole map (there is no
-// streaming build yet, so no memory budget applies to it), and the sessions are what one run
+// bench/scale: a site's sessions built into a tiled 4D map by the streaming build, one night at a
+// time under a memory budget (peak RSS per night), then queried; and the first --whole nights
+// built whole by one process and by two MPI ranks (issue 28). The nights are what one run
 // allows (--sessions), not the preset's year.
 //
-//   scale [--sessions N] [--floors F] [--scale S] [--sim DIR] [--work DIR]
+//   scale [--sessions N] [--whole W] [--floors F] [--scale S] [--memory-limit GIB] [--sim DIR] [--work DIR]
 //
 // --sim reuses simulated sessions (any TUM session folders session_*), else `chronomap simulate
-// --preset site` writes them. Last line: one JSON object.
+// --preset site` writes them. --whole 0 skips the whole-map builds. Last line: one JSON object.
 
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -80,13 +80,16 @@ double msSince(std::chrono::steady_clock::time_point start) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  int sessions = 4, floors = 3;
+  int sessions = 4, floors = 3, whole = 4;
   double scale = 0.5;
+  std::string memory_limit = "0.25";
   fs::path sim, work = fs::temp_directory_path() / "chronomap_bench_scale";
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string a = argv[i];
     if (a == "--sessions") sessions = std::atoi(argv[i + 1]);
     else if (a == "--floors") floors = std::atoi(argv[i + 1]);
+    else if (a == "--whole") whole = std::atoi(argv[i + 1]);
+    else if (a == "--memory-limit") memory_limit = argv[i + 1];
     else if (a == "--scale") scale = std::atof(argv[i + 1]);
     else if (a == "--sim") sim = argv[i + 1];
     else if (a == "--work") work = argv[i + 1];
@@ -115,6 +118,33 @@ int main(int argc, char** argv) {
   }
   std::sort(folders.begin(), folders.end());
   out["sessions"] = folders.size();
+  const std::string load_before = loadAverage();
+
+  // The streaming build: one `chronomap build --tiles` a night, as a site would run it.
+  nlohmann::json nights = nlohmann::json::array();
+  double stream_peak = 0.0, stream_cpu = 0.0;
+  const fs::path stream_folder = work / "stream";
+  for (size_t k = 0; k < folders.size(); ++k) {
+    const Run r = run({cli, "build", stream_folder.string(), folders[k], "--tiles", "--tile-size", "3.2",
+                       "--memory-limit", memory_limit, "--threads", "1", "--json"},
+                      work / "night.json");
+    if (r.exit_code != 0) return 1;
+    std::ifstream in(work / "night.json");
+    const nlohmann::json j = nlohmann::json::parse(in);
+    nights.push_back({{"night", k + 1}, {"peak_rss_mib", r.max_rss_mib}, {"cpu_s", r.cpu()}, {"wall_s", r.wall_s},
+                      {"tiles", j["tiles"]}, {"bytes", j["index_bytes"].get<uint64_t>() + j["tile_bytes"].get<uint64_t>()},
+                      {"peak_parts_mib", j["peak_parts_bytes"].get<double>() / 1048576.0},
+                      {"peak_group_mib", j["peak_group_bytes"].get<double>() / 1048576.0}, {"spills", j["spills"]}});
+    std::cerr << nights.back().dump() << "\n";
+    stream_peak = std::max(stream_peak, r.max_rss_mib);
+    stream_cpu += r.cpu();
+  }
+  out["stream_nights"] = nights;
+  out["stream_memory_limit_gib"] = memory_limit;
+  out["peak_rss_mib"] = stream_peak;
+  out["stream_cpu_s"] = stream_cpu;
+  out["bytes_on_disk"] = nights.empty() ? 0 : nights.back()["bytes"].get<uint64_t>();
+  folders.resize(std::min<size_t>(folders.size(), static_cast<size_t>(std::max(whole, 0))));
 
   // One process, one thread; then two ranks of one thread each (the same file).
   auto buildArgs = [&](const fs::path& map) {
@@ -122,13 +152,15 @@ int main(int argc, char** argv) {
     a.insert(a.end(), folders.begin(), folders.end());
     return a;
   };
-  const std::string load_before = loadAverage();
-  const Run one = run(buildArgs(work / "one.cmap"), work / "one.json");
-  if (one.exit_code != 0) return 1;
-  out["build_1rank"] = {{"wall_s", one.wall_s}, {"cpu_s", one.cpu()}, {"peak_rss_mib", one.max_rss_mib}};
-  out["peak_rss_mib"] = one.max_rss_mib;
-  out["bytes_on_disk"] = fs::file_size(work / "one.cmap");
-  if (!mpirun.empty()) {
+  Run one;
+  if (!folders.empty()) {
+    one = run(buildArgs(work / "one.cmap"), work / "one.json");
+    if (one.exit_code != 0) return 1;
+    out["whole_nights"] = folders.size();
+    out["build_1rank"] = {{"wall_s", one.wall_s}, {"cpu_s", one.cpu()}, {"peak_rss_mib", one.max_rss_mib}};
+    out["whole_bytes_on_disk"] = fs::file_size(work / "one.cmap");
+  }
+  if (!mpirun.empty() && !folders.empty()) {
     std::vector<std::string> a = {mpirun, "--allow-run-as-root", "-np", "2", "/usr/bin/time", "-a", "-o",
                                   (work / "ranks.txt").string(), "-f", "%e %U %S %M"};
     const std::vector<std::string> b = buildArgs(work / "two.cmap");
@@ -148,18 +180,12 @@ int main(int argc, char** argv) {
   }
   out["load_average"] = {load_before, loadAverage()};
 
-  // Tiles of 3.2 m; a cold snapshot of one room of the first floor (office 2 of floor66), and
-  // voxel histories in it once its tiles are held.
-  pipeline::TileSettings ts;
-  ts.map = work / "one.cmap";
-  ts.folder = work / "tiles";
-  ts.tile_size_m = 3.2;
-  const pipeline::TileResult tiled = pipeline::tileMap(ts);
-  out["tiles"] = tiled.tiles;
-  out["tiled_bytes_on_disk"] = tiled.index_bytes + tiled.tile_bytes;
+  // The streamed tiles (3.2 m): a cold snapshot of one room of the first floor (office 2 of
+  // floor66), and voxel histories in it once its tiles are held.
+  out["tiles"] = nights.empty() ? 0 : nights.back()["tiles"].get<size_t>();
   const Eigen::Vector3d lo(5.1, 2.2, -0.5), hi(9.9, 11.0, 3.0);
   auto start = std::chrono::steady_clock::now();
-  pipeline::TiledMap map(ts.folder);
+  pipeline::TiledMap map(stream_folder);
   const pipeline::VoxelBox box = pipeline::voxelBoxOf(map.grid(), lo, hi);
   const SessionMap room = map.snapshot(map.sessions().back().time_s, box);
   out["snapshot_room_ms_cold"] = msSince(start);

@@ -160,6 +160,35 @@ TEST_P(StreamProperty, StreamingGivesTheWholeBuildCut) {
 
 INSTANTIATE_TEST_SUITE_P(Seeds, StreamProperty, ::testing::Values(1, 2, 3, 4, 5, 6, 7, 8));
 
+// The hard case: a free cube larger than a tile (held in the index's top), then a session that
+// sees an occupied voxel inside it: the cube is refined below tile level, and the new tile
+// takes the cube's history over.
+TEST(Stream, AUniformCubeAboveTileLevelRefinedByALaterSession) {
+  std::vector<SessionMap> sessions(3, SessionMap(0.05));
+  sessions[0].addCube(at(32, 0, 0), 5, freeVoxel(0.5f));
+  sessions[1].addCube(at(32, 0, 0), 5, freeVoxel(0.25f));
+  sessions[2].add(at(37, 3, 5), occupiedVoxelExact(2, 9));
+  sessions[2].add(at(36, 3, 5), freeVoxel(0.125f));
+  test::TempDir dir;
+  const fs::path folder = dir / "tiled";
+  stream(folder, sessions, {0, 1}, 3, 0);
+  const io::TileIndex before = io::readTileIndex(folder);
+  EXPECT_TRUE(before.tiles.empty());  // the whole cube is one list of the top
+  const pipeline::StreamResult r = stream(folder, sessions, {2}, 3, 0);
+  EXPECT_EQ(r.tiles, 1u);
+  const TemporalMap whole = wholeBuild(sessions, {{0, 1}, {2}});
+  const TemporalMap streamed = joined(folder);
+  EXPECT_TRUE(streamed == whole);
+  const std::vector<HistoryEntry> h = streamed.history(at(37, 3, 5));
+  ASSERT_EQ(h.size(), 2u);  // the cube's state (free twice: no change), then the voxel's own
+  EXPECT_EQ(h[0].time_s, timeOf(0));
+  EXPECT_EQ(h[1].time_s, timeOf(2));
+  EXPECT_EQ(h[1].counters, occupiedVoxelExact(2, 9));
+  const std::vector<HistoryEntry> far = streamed.history(at(50, 20, 20));  // elsewhere the cube stays whole
+  ASSERT_EQ(far.size(), 1u);
+  EXPECT_GE(far[0].level, 3);
+}
+
 TEST(Stream, ABudgetBoundsThePartsHeldAndSpillsTheRest) {
   const std::vector<SessionMap> sessions = randomSessions(77, 4);
   test::TempDir dir;
