@@ -343,7 +343,11 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count, const std::f
       }
     }
     result.stats.largest_group_tiles = std::max(result.stats.largest_group_tiles, tiles.size());
-    TemporalMap work = restrictToCube(top, g, clipped(top.sessions(), g));
+    // The stored sessions' records clipped to the group: a single tile has them already (so a
+    // run does not clip every stored session's coverage for every tile).
+    std::vector<SessionRecord> records =
+        tiles.size() == 1 && g.level == level ? tiles.front().map.sessions() : clipped(top.sessions(), g);
+    TemporalMap work = restrictToCube(top, g, records);
     if (!tiles.empty()) {
       std::vector<const Tile*> refs;
       for (const Tile& t : tiles) refs.push_back(&t);
@@ -371,7 +375,10 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count, const std::f
       nodes_added[k] += work.sessions()[base_rank + k].nodes_added;
     }
     result.stats.peak_group_bytes = std::max(result.stats.peak_group_bytes, work.memoryBytes());
-    work = TemporalMap::fromParts(work.resolution_m(), work.criterion(), work.parts(), clipped(all, g));
+    for (SessionRecord& r : clipped(std::vector<SessionRecord>(all.begin() + base_rank, all.end()), g)) {
+      records.push_back(std::move(r));
+    }
+    work = TemporalMap::fromParts(work.resolution_m(), work.criterion(), work.parts(), std::move(records));
     work.compact();
     SplitMap split = splitIntoTiles(work, level);
     for (const Tile& t : split.tiles) {
