@@ -132,7 +132,8 @@ int main(int argc, char** argv) {
     std::ifstream in(work / "night.json");
     const nlohmann::json j = nlohmann::json::parse(in);
     nights.push_back({{"night", k + 1}, {"peak_rss_mib", r.max_rss_mib}, {"cpu_s", r.cpu()}, {"wall_s", r.wall_s},
-                      {"tiles", j["tiles"]}, {"bytes", j["index_bytes"].get<uint64_t>() + j["tile_bytes"].get<uint64_t>()},
+                      {"tiles", j["tiles"]},
+                      {"bytes", j["index_bytes"].get<uint64_t>() + j["tile_bytes"].get<uint64_t>()},
                       {"peak_parts_mib", j["peak_parts_bytes"].get<double>() / 1048576.0},
                       {"peak_group_mib", j["peak_group_bytes"].get<double>() / 1048576.0}, {"spills", j["spills"]}});
     std::cerr << nights.back().dump() << "\n";

@@ -272,7 +272,8 @@ int runStreamBuild(const BuildCmdOptions& o, pipeline::BuildSettings& s) {
   std::cout << (r.created ? "created " : "updated ") << o.map << ": " << r.sessions << " session(s), " << r.tiles
             << " tiles of " << j["tile_size_m"].get<double>() << " m, "
             << humanBytes(static_cast<double>(r.index_bytes + r.tile_bytes)) << " on disk; " << r.stats.groups
-            << " tile group(s) added to, parts held at most " << humanBytes(static_cast<double>(r.stats.peak_parts_bytes))
+            << " tile group(s) added to, parts held at most "
+            << humanBytes(static_cast<double>(r.stats.peak_parts_bytes))
             << " (" << r.stats.spills << " spill(s)), largest working map "
             << humanBytes(static_cast<double>(r.stats.peak_group_bytes)) << "\n";
   return 0;

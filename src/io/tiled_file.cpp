@@ -90,8 +90,8 @@ TileEntry writeTileFile(const fs::path& folder, const TileKey& key, uint64_t gen
   return e;
 }
 
-uint64_t writeTileIndex(const fs::path& folder, const TemporalMap& top, int tile_level, const std::vector<TileEntry>& tiles,
-                        const nlohmann::json& meta) {
+uint64_t writeTileIndex(const fs::path& folder, const TemporalMap& top, int tile_level,
+                        const std::vector<TileEntry>& tiles, const nlohmann::json& meta) {
   nlohmann::json table = nlohmann::json::array();
   for (const TileEntry& t : tiles) {
     table.push_back({{"key", {t.key.x, t.key.y, t.key.z}}, {"file", t.file}, {"bytes", t.bytes}, {"crc32", t.crc32}});
@@ -132,7 +132,9 @@ TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& 
       e.key = TileKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)};
       e.file = row.at("file").get<std::string>();
       // The name is derived from the key: nothing else (no other folder) is ever opened.
-      if (!tileGeneration(e.key, e.file)) throw FormatError(source + ": tile file name '" + e.file + "' does not match its key");
+      if (!tileGeneration(e.key, e.file)) {
+        throw FormatError(source + ": tile file name '" + e.file + "' does not match its key");
+      }
       e.bytes = row.at("bytes").get<uint64_t>();
       e.crc32 = row.at("crc32").get<uint32_t>();
       index.tiles.push_back(std::move(e));

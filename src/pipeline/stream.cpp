@@ -58,7 +58,8 @@ std::string cubeFile(const Cube& c) {
 /// The session parts by cube, in memory under a budget, spilled to files beyond it.
 class PartStore {
  public:
-  PartStore(fs::path folder, size_t limit, StreamStats& stats) : folder_(std::move(folder)), limit_(limit), stats_(stats) {}
+  PartStore(fs::path folder, size_t limit, StreamStats& stats)
+      : folder_(std::move(folder)), limit_(limit), stats_(stats) {}
   ~PartStore() {
     std::error_code ec;
     if (created_) fs::remove_all(folder_, ec);
@@ -195,7 +196,8 @@ bool onlyLeftovers(const fs::path& folder) {
 
 }  // namespace
 
-StreamResult streamIntoTiles(const StreamSettings& s, size_t count, const std::function<StreamSession(size_t)>& produce) {
+StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
+                             const std::function<StreamSession(size_t)>& produce) {
   s.criterion.validate();
   if (fs::exists(s.folder) && !fs::is_directory(s.folder)) {
     throw UsageError("'" + s.folder.string() + "' exists and is not a folder (a tiled map is a folder)");
@@ -255,7 +257,8 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count, const std::f
     }
     if (!std::isfinite(session.time_s)) throw UsageError(session.name + ": session time must be finite");
     if (top.sessionCount() && session.time_s <= top.sessions().back().time_s) {
-      throw UsageError(session.name + " (" + formatTime(session.time_s) + ") is not after the tiled map's last session (" +
+      throw UsageError(session.name + " (" + formatTime(session.time_s) +
+                       ") is not after the tiled map's last session (" +
                        formatTime(top.sessions().back().time_s) +
                        "): the streaming build only adds later sessions (join with `untile` to add earlier ones)");
     }
@@ -269,10 +272,12 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count, const std::f
       if (who.empty() || who.back() != i) who.push_back(static_cast<uint32_t>(i));
     });
   }
-  std::stable_sort(added.begin(), added.end(), [](const NewSession& a, const NewSession& b) { return a.time_s < b.time_s; });
+  std::stable_sort(added.begin(), added.end(),
+                   [](const NewSession& a, const NewSession& b) { return a.time_s < b.time_s; });
   for (size_t k = 1; k < added.size(); ++k) {
     if (added[k].time_s == added[k - 1].time_s) {
-      throw UsageError(added[k - 1].name + " and " + added[k].name + " have the same time " + formatTime(added[k].time_s));
+      throw UsageError(added[k - 1].name + " and " + added[k].name + " have the same time " +
+                       formatTime(added[k].time_s));
     }
   }
   const auto base_rank = static_cast<uint32_t>(top.sessionCount());
@@ -405,7 +410,8 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count, const std::f
         r.coverage = Coverage::fromRanges({});
         records.push_back(std::move(r));
       }
-      const TemporalMap tile = TemporalMap::fromParts(old.resolution_m(), old.criterion(), old.parts(), std::move(records));
+      const TemporalMap tile =
+          TemporalMap::fromParts(old.resolution_m(), old.criterion(), old.parts(), std::move(records));
       entries.push_back(io::writeTileFile(s.folder, e.key, generation, tile));
       result.tile_bytes += entries.back().bytes;
       ++result.stats.tiles_written;
@@ -420,7 +426,8 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count, const std::f
   TemporalMap new_top = replaceCubes(top, replaced, std::move(all));
   group_tops.clear();
   new_top.compact();
-  std::sort(entries.begin(), entries.end(), [](const io::TileEntry& a, const io::TileEntry& b) { return a.key < b.key; });
+  std::sort(entries.begin(), entries.end(),
+            [](const io::TileEntry& a, const io::TileEntry& b) { return a.key < b.key; });
   const nlohmann::json meta = {{"created_by", "chronomap build --tiles"}};
   result.index_bytes = io::writeTileIndex(s.folder, new_top, level, entries, meta);
   cleanup.armed = false;

@@ -118,7 +118,8 @@ TEST(TilesCli, StreamingBuildGivesTheWholeBuildTiled) {
   const std::vector<uint8_t> expected = untiled(tmp, wt);
 
   // The same batches streamed (given out of order), the second with a tiny budget.
-  const test::CommandResult first = runCommand(cli() + " build " + st + s[1] + s[0] + " --tiles --tile-size 1.6 --json");
+  const test::CommandResult first =
+      runCommand(cli() + " build " + st + s[1] + s[0] + " --tiles --tile-size 1.6 --json");
   ASSERT_EQ(first.exit_code, 0) << first.err;
   EXPECT_TRUE(nlohmann::json::parse(first.out)["created"].get<bool>());
   const std::vector<uint8_t> half = untiled(tmp, st);

@@ -256,11 +256,10 @@ TEST(Stream, BadInputIsRefused) {
   pipeline::StreamSettings s;
   s.folder = folder;
   s.resolution_m = 0.1;
-  EXPECT_THROW(pipeline::streamIntoTiles(s, 1, [&](size_t) { return pipeline::StreamSession{timeOf(3), "x", SessionMap(0.1)}; }),
-               UsageError);
-  s.resolution_m = 0.05;
-  EXPECT_THROW(pipeline::streamIntoTiles(s, 1, [&](size_t) { return pipeline::StreamSession{timeOf(3), "x", SessionMap(0.1)}; }),
-               UsageError);
+  const auto coarse = [&](size_t) { return pipeline::StreamSession{timeOf(3), "x", SessionMap(0.1)}; };
+  EXPECT_THROW(pipeline::streamIntoTiles(s, 1, coarse), UsageError);
+  s.resolution_m = 0.05;  // the map's, but not the session's
+  EXPECT_THROW(pipeline::streamIntoTiles(s, 1, coarse), UsageError);
   EXPECT_EQ(filesOf(folder), before);
   // A folder that is not a tiled map, a file, a tile size that is no power of two.
   fs::create_directories(dir / "other");
@@ -269,8 +268,8 @@ TEST(Stream, BadInputIsRefused) {
   EXPECT_THROW(stream(dir / "other" / "notes.txt", sessions, {0}, 3, 0), UsageError);
   s.folder = dir / "odd";
   s.tile_size_m = 0.3;
-  EXPECT_THROW(pipeline::streamIntoTiles(s, 1, [&](size_t) { return pipeline::StreamSession{timeOf(0), "x", sessions[0]}; }),
-               UsageError);
+  const auto first = [&](size_t) { return pipeline::StreamSession{timeOf(0), "x", sessions[0]}; };
+  EXPECT_THROW(pipeline::streamIntoTiles(s, 1, first), UsageError);
   EXPECT_FALSE(fs::exists(dir / "odd"));
 }
 
