@@ -132,7 +132,7 @@ TEST(TilesCli, StreamingBuildGivesTheWholeBuildTiled) {
   EXPECT_TRUE(untiled(tmp, st) == expected);
 
   // Bad input leaves the tiled map as it was: an earlier session, registration, another tile size.
-  const auto before = untiled(tmp, st);
+  const std::vector<uint8_t>& before = expected;  // what st holds now
   const test::CommandResult earlier = runCommand(cli() + " build " + st + s[1]);
   EXPECT_EQ(earlier.exit_code, 2);
   EXPECT_NE(earlier.err.find("not after the tiled map's last session"), std::string::npos) << earlier.err;
@@ -143,8 +143,9 @@ TEST(TilesCli, StreamingBuildGivesTheWholeBuildTiled) {
   EXPECT_EQ(runCommand(cli() + " build " + st + s[3] + " --tile-size 0.8").exit_code, 2);
   EXPECT_TRUE(untiled(tmp, st) == before);
 
-  // Killed at any moment of an add: the folder reads as before the add or after it, never broken.
-  for (const char* after : {"0.1", "0.4"}) {
+  // Killed during an add: the folder reads as before the add or after it, never broken (the
+  // library test fails an add at a chosen point; here the moment is the scheduler's).
+  for (const char* after : {"0.25"}) {
     fs::remove_all(tmp / "k");
     ASSERT_EQ(runCommand(cli() + " build " + (tmp / "k").string() + s[0] + s[1] + " --tiles --tile-size 1.6").exit_code,
               0);
