@@ -81,6 +81,7 @@ struct AddCmdOptions {
   std::string write = "auto";
   ChangeCriterion criterion;
   RealignFlags realign;
+  std::optional<double> memory_limit_gib;  ///< a tiled map: the streaming build's parts budget
   bool json = false;
 };
 
@@ -108,7 +109,31 @@ void printAdded(const AddCmdOptions& o, const pipeline::AddSessionResult& r) {
 }
 
 int runAdd(const AddCmdOptions& o) {
+  if (pipeline::isTiledMapFolder(o.map)) {
+    // A tiled map: the session streamed in tile by tile (docs/scale.md).
+    pipeline::AddSessionSettings s;
+    s.map = o.map;
+    s.session = o.session;
+    if (!o.time.empty()) s.time_s = parseTime(o.time);
+    s.replace = o.replace;
+    s.write = pipeline::parseWritePolicy(o.write);
+    s.realign = realignSettings(o.realign);
+    const pipeline::StreamResult r = pipeline::streamAddSession(s, gibToBytes(o.memory_limit_gib.value_or(0.25)));
+    const nlohmann::json j = {{"map", o.map},           {"time", formatTime(r.added_times.at(0))},
+                              {"time_s", r.added_times.at(0)}, {"nodes_added", r.nodes_added.at(0)},
+                              {"sessions", r.sessions}, {"tiles", r.tiles},
+                              {"file_bytes", r.index_bytes + r.tile_bytes}};
+    if (o.json) {
+      std::cout << j.dump() << "\n";
+    } else {
+      std::cout << "updated " << o.map << ": session " << formatTime(r.added_times.at(0)) << " added, "
+                << r.nodes_added.at(0) << " nodes added; " << r.sessions << " session(s), " << r.tiles << " tiles, "
+                << humanBytes(static_cast<double>(r.index_bytes + r.tile_bytes)) << " on disk\n";
+    }
+    return 0;
+  }
   requireExtension(o.map, ".cmap", "4D map");
+  if (o.memory_limit_gib) throw UsageError("--memory-limit applies to a tiled map folder only");
   pipeline::AddSessionSettings s;
   s.map = o.map;
   s.session = o.session;
@@ -314,7 +339,7 @@ Command addAdd(CLI::App& root) {
       "add",
       "Add a session map to a 4D map (created when missing). Only voxels the session observed and whose "
       "state changed are stored; adding a session older than stored ones is allowed.");
-  app->add_option("MAP", o->map, "the 4D map (.cmap)")->required();
+  app->add_option("MAP", o->map, "the 4D map (.cmap), or a tiled map folder")->required();
   app->add_option("SESSION", o->session, "a session map from chronomap integrate (.cmap)")->required();
   app->add_option("--time", o->time,
                   "when the session was recorded: ISO-8601 (2012-03-01T10:00:00Z) or seconds since the epoch; "
@@ -328,6 +353,10 @@ Command addAdd(CLI::App& root) {
       ->capture_default_str();
   addCriterionFlags(app, o->criterion);
   addRealignFlags(app, o->realign);
+  app->add_option("--memory-limit", o->memory_limit_gib,
+                  "MAP a tiled map folder: the session is added tile by tile (the streaming build, docs/scale.md), "
+                  "holding its parts up to this many GiB (default 0.25)")
+      ->check(numberIn(0, 1e6));
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runAdd(*o); }};
 }

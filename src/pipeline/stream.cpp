@@ -14,6 +14,7 @@
 #include "build_steps.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
+#include "chronomap/io/cmap.h"
 #include "chronomap/io/file.h"
 #include "chronomap/io/tiled_file.h"
 #include "chronomap/pipeline/tiles.h"
@@ -457,6 +458,33 @@ StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size
   return streamIntoTiles(s, b.datasets.size(), [&](size_t i) {
     detail::Pending p = detail::integrateOne(b, i);
     return StreamSession{p.time_s, b.datasets[i].filename().string(), std::move(p.session.map)};
+  });
+}
+
+StreamResult streamAddSession(const AddSessionSettings& a, size_t memory_limit_bytes) {
+  if (a.replace) throw UsageError("--replace cannot be used on a tiled map");
+  if (a.realign) throw UsageError("--realign cannot be used on a tiled map");
+  if (a.write != WritePolicy::Auto) throw UsageError("--write does not apply to a tiled map");
+  if (!io::isTiledMap(a.map)) throw UsageError("'" + a.map.string() + "' is not a tiled 4D map");
+  const io::CmapFile file = io::readCmap(a.session);
+  SessionMap session = io::sessionMapFrom(file, a.session.string());
+  double time_s = 0.0;
+  if (a.time_s) {
+    time_s = *a.time_s;
+  } else {
+    const nlohmann::json meta = io::metadataOf(file);
+    if (!meta.contains("recorded_at") || !meta["recorded_at"].is_number()) {
+      throw UsageError(a.session.string() + " does not say when it was recorded; give --time");
+    }
+    time_s = meta["recorded_at"].get<double>();
+  }
+  StreamSettings s;
+  s.folder = a.map;
+  s.resolution_m = session.resolution_m();
+  s.criterion = a.criterion;
+  s.memory_limit_bytes = memory_limit_bytes;
+  return streamIntoTiles(s, 1, [&](size_t) {
+    return StreamSession{time_s, a.session.filename().string(), std::move(session)};
   });
 }
 

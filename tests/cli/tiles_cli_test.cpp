@@ -155,5 +155,28 @@ TEST(TilesCli, StreamingBuildGivesTheWholeBuildTiled) {
   }
 }
 
+TEST(TilesCli, AddToATiledFolderStreamsTheSession) {
+  test::TempDir tmp;
+  TemporalMap map(0.05);
+  for (int i = 0; i < 2; ++i) map.add(1000.0 * (i + 1), test::randomSessionMap(static_cast<uint64_t>(40 + i), 12));
+  io::writeTemporalMap(tmp / "m.cmap", map, {});
+  io::writeSessionMap(tmp / "s.cmap", test::randomSessionMap(42, 12), {{"recorded_at", 3000.0}});
+  const std::string m = (tmp / "m.cmap").string(), s = (tmp / "s.cmap").string();
+  ASSERT_EQ(runCommand(cli() + " tile " + m + " -o " + (tmp / "t").string() + " --tile-size 0.2").exit_code, 0);
+  // The whole map: add, then tile; the tiled folder: add (streamed).
+  ASSERT_EQ(runCommand(cli() + " add " + m + " " + s).exit_code, 0);
+  ASSERT_EQ(runCommand(cli() + " tile " + m + " -o " + (tmp / "w").string() + " --tile-size 0.2").exit_code, 0);
+  const test::CommandResult r = runCommand(cli() + " add " + (tmp / "t").string() + " " + s + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["sessions"], 3);
+  EXPECT_TRUE(untiled(tmp, tmp / "t") == untiled(tmp, tmp / "w"));
+  // Options that do not apply: refused, the folder unchanged.
+  const std::vector<uint8_t> before = untiled(tmp, tmp / "t");
+  EXPECT_EQ(runCommand(cli() + " add " + (tmp / "t").string() + " " + s + " --time 4000 --replace").exit_code, 2);
+  EXPECT_EQ(runCommand(cli() + " add " + (tmp / "t").string() + " " + s + " --time 2500").exit_code, 2);
+  EXPECT_EQ(runCommand(cli() + " add " + m + " " + s + " --time 4000 --memory-limit 1").exit_code, 2);
+  EXPECT_TRUE(untiled(tmp, tmp / "t") == before);
+}
+
 }  // namespace
 }  // namespace chronomap

@@ -82,4 +82,10 @@ StreamResult streamIntoTiles(const StreamSettings& settings, size_t count,
 /// every session at once). @throw UsageError for them; what build() throws.
 StreamResult streamBuild(const BuildSettings& settings, std::optional<double> tile_size_m, size_t memory_limit_bytes);
 
+/// addSession() into an existing tiled map folder: the session map file streamed in
+/// (streamIntoTiles), at the time given or the one its file records.
+/// @throw UsageError for replace, re-alignment or a write policy other than Auto, a time that is
+/// neither given nor recorded; what streamIntoTiles throws.
+StreamResult streamAddSession(const AddSessionSettings& settings, size_t memory_limit_bytes);
+
 }  // namespace chronomap::pipeline
