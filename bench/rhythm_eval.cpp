@@ -18,6 +18,15 @@
 //   --z-min        its bottom, metres (default 0.05, as chronomap costmap)
 //   --lethal       probability above which a cell is an obstacle (default 0.5, as chronomap costmap)
 //   --min-changes  model the voxels that changed at least this often while learning (default 1)
+//   --no-groups    fit without grouping co-changing voxels into objects (RhythmGroupSettings)
+//   --group-correlation C, --group-common N, --group-voxels N, --group-gain G: the grouping's
+//                  settings
+//   --endpoint-clearance M  plan from and to the truth's free cell nearest each room's centre
+//                  that has only free cells within M metres (default 0: the nearest free cell, at
+//                  the edge of an obstacle's inflation, where a map one voxel thicker shuts it)
+//   --save-map F   write the learning weeks' 4D map to F; --map F reads it instead of building it
+//                  (the registered build takes minutes: this lets model changes be compared on
+//                  the same map; F must come from the same simulation, poses and integration flags)
 // Then navigation: plans between every pair of rooms at each test session's time on the latest
 // snapshot, the mean map and the combined model's cost map, executed against the truth
 // (RHYTHM_EVAL_DUMP=DIR writes every grid there as map_server files, for a look).
@@ -41,6 +50,7 @@
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/file.h"
 #include "chronomap/io/map_server.h"
+#include "chronomap/io/temporal_file.h"
 #include "chronomap/pipeline/map4d.h"
 #include "chronomap/sim/building.h"
 #include "bench_sim.h"
@@ -73,15 +83,27 @@ double pathLength(const std::vector<Eigen::Vector2i>& path, double resolution_m)
   return length;
 }
 
-/// The free cell of `truth` nearest to `p` (by cell distance), if any.
-std::optional<Eigen::Vector2i> nearestFree(const Costmap& truth, const Eigen::Vector2d& p) {
+/// The free cell of `truth` nearest to `p` (by cell distance) whose cells within `clearance_m`
+/// are free too, if any.
+std::optional<Eigen::Vector2i> nearestFree(const Costmap& truth, const Eigen::Vector2d& p, double clearance_m) {
+  const int reach = static_cast<int>(std::floor(clearance_m / truth.resolution_m + 1e-9));
+  auto clear = [&](int i, int j) {
+    for (int dy = -reach; dy <= reach; ++dy) {
+      for (int dx = -reach; dx <= reach; ++dx) {
+        if (dx * dx + dy * dy > reach * reach) continue;
+        const int x = i + dx, y = j + dy;
+        if (x < 0 || y < 0 || x >= truth.width || y >= truth.height || truth.at(x, y) != 0) return false;
+      }
+    }
+    return true;
+  };
   std::optional<Eigen::Vector2i> best;
   double best_d = 1e18;
   for (int j = 0; j < truth.height; ++j) {
     for (int i = 0; i < truth.width; ++i) {
       if (truth.at(i, j) != 0) continue;
       const double d = (truth.centerOf({i, j}) - p).squaredNorm();
-      if (d < best_d) {
+      if (d < best_d && clear(i, j)) {
         best_d = d;
         best = Eigen::Vector2i(i, j);
       }
@@ -103,6 +125,9 @@ int main(int argc, char** argv) {
   double floor_clearance_m = CostmapSettings{}.z_min_m;
   double lethal = CostmapSettings{}.lethal_probability;
   double robot_height_m = 1.8;
+  fs::path load_map, save_map;
+  RhythmGroupSettings grouping;
+  double endpoint_clearance_m = 0.0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&] { return bench::argValue(i, argc, argv); };
@@ -115,6 +140,14 @@ int main(int argc, char** argv) {
     else if (a == "--z-min") floor_clearance_m = std::stod(value());
     else if (a == "--lethal") lethal = std::stod(value());
     else if (a == "--robot-height") robot_height_m = std::stod(value());
+    else if (a == "--no-groups") grouping.enabled = false;
+    else if (a == "--group-correlation") grouping.min_correlation = std::stod(value());
+    else if (a == "--group-common") grouping.min_common = static_cast<uint32_t>(std::stoul(value()));
+    else if (a == "--group-gain") grouping.min_gain = std::stod(value());
+    else if (a == "--group-voxels") grouping.min_voxels = static_cast<uint32_t>(std::stoul(value()));
+    else if (a == "--endpoint-clearance") endpoint_clearance_m = std::stod(value());
+    else if (a == "--map") load_map = value();
+    else if (a == "--save-map") save_map = value();
     else if (a == "--min-changes") min_changes = static_cast<uint32_t>(std::stoul(value()));
     else {
       std::fprintf(stderr, "usage: rhythm_eval [--sim DIR] [--learn-days D] [--poses true|registered] [--scale S] [--no-carve]\n");
@@ -138,19 +171,25 @@ int main(int argc, char** argv) {
 
   // The 4D map of the learning sessions, as the recommended pipeline builds it.
   const auto build_started = std::chrono::steady_clock::now();
-  const TemporalMap map = bench::buildWeeksMap(
-      weeks, learn, poses == "true", max_range_m,
-      (tmp.empty() ? fs::temp_directory_path() : tmp) / ("rhythm_eval_" + std::to_string(::getpid()) + ".cmap"),
-      carve);
+  const TemporalMap map =
+      !load_map.empty()
+          ? io::readTemporalMap(load_map)
+          : bench::buildWeeksMap(weeks, learn, poses == "true", max_range_m,
+                                 (tmp.empty() ? fs::temp_directory_path() : tmp) /
+                                     ("rhythm_eval_" + std::to_string(::getpid()) + ".cmap"),
+                                 carve);
   const double build_s = seconds(build_started);
+  if (!save_map.empty()) io::writeTemporalMap(save_map, map, nlohmann::json{{"poses", poses}});
 
   const auto fit_started = std::chrono::steady_clock::now();
-  const RhythmModels models = fitRhythm(map, times[learn.front()], times[learn.back()], min_changes);
+  const RhythmModels models = fitRhythm(map, times[learn.front()], times[learn.back()], min_changes, grouping);
   const double fit_s = seconds(fit_started);
+  size_t grouped = 0;
+  for (const VoxelRhythm& v : models.voxels) grouped += v.group != VoxelRhythm::kNoGroup;
   std::printf("learned from %zu sessions (%d days, %s poses; built in %.1f s): %zu voxels changed, fitted in %.3f s, "
-              "%.1f KiB saved (%zu bytes a voxel)\n",
+              "%.1f KiB saved (%zu bytes a voxel); %zu voxels predicted by %zu objects' profiles\n",
               learn.size(), learn_days, poses.c_str(), build_s, models.voxels.size(), fit_s,
-              static_cast<double>(models.bytes()) / 1024.0, RhythmModels::kVoxelBytes);
+              static_cast<double>(models.bytes()) / 1024.0, RhythmModels::kVoxelBytes, grouped, models.groups.size());
 
   // Score every unit voxel of the fitted cubes at every test session against the truth; keep
   // apart the voxels whose truth changes during the test sessions (the routines) from those
@@ -195,7 +234,9 @@ int main(int argc, char** argv) {
                         {"samples", samples},
                         {"occupied_share", static_cast<double>(positives) / static_cast<double>(samples)},
                         {"fit_s", fit_s},
-                        {"bytes_per_voxel", RhythmModels::kVoxelBytes}};
+                        {"bytes_per_voxel", RhythmModels::kVoxelBytes},
+                        {"grouped_voxels", grouped},
+                        {"groups", models.groups.size()}};
   std::printf("%zu test sessions x voxels = %zu samples, %.1f%% occupied\n", test.size(), samples,
               100.0 * static_cast<double>(positives) / static_cast<double>(samples));
   std::printf("%-10s %8s %8s %16s %16s\n", "model", "Brier", "AUC", "Brier (varying)", "Brier (static)");
@@ -226,7 +267,7 @@ int main(int argc, char** argv) {
   const SessionMap latest = map.snapshot(times[learn.back()]);
   struct Planner {
     const char* name;
-    size_t plans = 0, failed = 0, blocked = 0;
+    size_t plans = 0, failed = 0, blocked = 0, endpoint_closed = 0;
     double length_ratio_sum = 0;
     size_t feasible = 0;
   };
@@ -253,7 +294,8 @@ int main(int argc, char** argv) {
       for (auto& c : open_truth.cost) c = c == 0 ? 0 : Costmap::kLethal;
       for (size_t a = 0; a < room_centres.size(); ++a) {
         for (size_t b = a + 1; b < room_centres.size(); ++b) {
-          const auto start = nearestFree(truth, room_centres[a]), goal = nearestFree(truth, room_centres[b]);
+          const auto start = nearestFree(truth, room_centres[a], endpoint_clearance_m),
+                     goal = nearestFree(truth, room_centres[b], endpoint_clearance_m);
           if (!start || !goal) continue;
           const auto shortest = planPath(open_truth, *start, *goal);
           if (!shortest) continue;  // no way through at that time (a shut door): nothing to score
@@ -262,6 +304,12 @@ int main(int argc, char** argv) {
           const auto path = planPath(maps[p], *start, *goal);
           if (!path) {
             ++pl.failed;
+            // The usual reason: the start or goal (the truth's free cell nearest the room's centre,
+            // often at the edge of a table's inflation) is inscribed or lethal on this map.
+            const auto closed = [&](const Eigen::Vector2i& c) {
+              return maps[p].at(c.x(), c.y()) >= Costmap::kInscribed;
+            };
+            pl.endpoint_closed += closed(*start) || closed(*goal);
             continue;
           }
           bool hit = false;
@@ -278,17 +326,21 @@ int main(int argc, char** argv) {
   }
   std::printf("navigation (robot radius %.2f m, height %.2f m, rooms' centres pairwise, %zu test sessions):\n",
               nav.robot_radius_m, nav.z_max_m, test.size());
-  std::printf("%-10s %6s %8s %8s %14s\n", "map", "plans", "no plan", "blocked", "length ratio");
+  std::printf("%-10s %6s %8s %18s %8s %14s\n", "map", "plans", "no plan", "(endpoint closed)", "blocked",
+              "length ratio");
   for (const Planner& pl : planners) {
     const double ratio = pl.feasible ? pl.length_ratio_sum / static_cast<double>(pl.feasible) : 0.0;
-    std::printf("%-10s %6zu %8zu %8zu %14.3f\n", pl.name, pl.plans, pl.failed, pl.blocked, ratio);
+    std::printf("%-10s %6zu %8zu %18zu %8zu %14.3f\n", pl.name, pl.plans, pl.failed, pl.endpoint_closed, pl.blocked,
+                ratio);
     const std::string n = pl.name;
     out["nav_plans_" + n] = pl.plans;
     out["nav_failed_" + n] = pl.failed;
+    out["nav_failed_endpoint_" + n] = pl.endpoint_closed;
     out["nav_blocked_" + n] = pl.plans ? static_cast<double>(pl.blocked) / static_cast<double>(pl.plans) : 0.0;
     out["nav_length_ratio_" + n] = ratio;
   }
   out["nav_length_ratio"] = out["nav_length_ratio_costmap"];
+  out["nav_endpoint_clearance_m"] = endpoint_clearance_m;
 
   out["best"] = best_name;
   out["brier_best"] = best_brier;

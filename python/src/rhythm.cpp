@@ -119,6 +119,9 @@ void bindRhythm(py::module_& m) {
       .def("__len__", [](const RhythmModels& r) { return r.voxels.size(); })
       .def_property_readonly("sessions", [](const RhythmModels& r) { return r.sessions; }, "Learning sessions.")
       .def_property_readonly("bytes", &RhythmModels::bytes, "Bytes of the saved model.")
+      .def_property_readonly(
+          "groups", [](const RhythmModels& r) { return r.groups.size(); },
+          "Objects (voxels that change together) whose pooled hourly profile some voxel's combined model uses.")
       .def("predict", &predictPoints, py::arg("points"), py::arg("time"), py::arg("model") = "combined",
            "Probability of occupancy at `time` of the voxel containing each of the (N, 3) points: (N,) float64, NaN "
            "where no model was fitted (the voxel never changed while learning).")

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <numbers>
+#include <unordered_map>
 
 #include "chronomap/core/byte_buffer.h"
 #include "chronomap/core/error.h"
@@ -47,7 +48,10 @@ double periodic(const VoxelRhythm& v, double time_s) {
   return std::clamp(p, 0.0, 1.0);
 }
 
-double hourly(const VoxelRhythm& v, double time_s, double prior) {
+/// The hourly profile of bins `seen` and `occ` (per kind of day and two-hour bin) at `time_s`.
+template <typename Count>
+double hourlyOf(const std::array<std::array<Count, 12>, 2>& seen, const std::array<std::array<Count, 12>, 2>& occ,
+                double time_s, double prior) {
   // Neighbouring bins of the same kind of day count less; the other kind's same bin a little;
   // one pseudo-observation at the voxel's mean keeps bins with little evidence near it.
   static constexpr double kNeighbour[3] = {1.0, 0.5, 0.15};
@@ -57,13 +61,17 @@ double hourly(const VoxelRhythm& v, double time_s, double prior) {
   for (int d = -2; d <= 2; ++d) {
     const auto b = static_cast<size_t>((bin + d + 12) % 12);
     const double w = kNeighbour[std::abs(d)];
-    observed += w * v.hour_observed[static_cast<size_t>(kind)][b];
-    occupied += w * v.hour_occupied[static_cast<size_t>(kind)][b];
+    observed += w * seen[static_cast<size_t>(kind)][b];
+    occupied += w * occ[static_cast<size_t>(kind)][b];
   }
   const auto same = static_cast<size_t>(bin);
-  observed += kOtherKind * v.hour_observed[static_cast<size_t>(1 - kind)][same];
-  occupied += kOtherKind * v.hour_occupied[static_cast<size_t>(1 - kind)][same];
+  observed += kOtherKind * seen[static_cast<size_t>(1 - kind)][same];
+  occupied += kOtherKind * occ[static_cast<size_t>(1 - kind)][same];
   return occupied / observed;
+}
+
+double hourly(const VoxelRhythm& v, double time_s, double prior) {
+  return hourlyOf(v.hour_observed, v.hour_occupied, time_s, prior);
 }
 
 uint8_t saturating(uint32_t n) { return static_cast<uint8_t>(std::min<uint32_t>(n, 255)); }
@@ -120,7 +128,12 @@ std::vector<VoxelSeries> observedSeries(const TemporalMap& map, uint32_t first, 
   return out;
 }
 
-VoxelRhythm fitVoxel(const VoxelSeries& series, double voxel_m) {
+namespace {
+
+/// fitVoxel, also giving the leave-one-out Brier sums of the hourly profile and of the mean on
+/// the learning observations (0 with fewer than two).
+VoxelRhythm fitOne(const VoxelSeries& series, double voxel_m, double& loss_hourly, double& loss_mean) {
+  loss_hourly = loss_mean = 0.0;
   VoxelRhythm v;
   v.corner = series.corner;
   v.level = static_cast<uint8_t>(series.level);
@@ -223,7 +236,6 @@ VoxelRhythm fitVoxel(const VoxelSeries& series, double voxel_m) {
   // observations better, each left out in turn (a voxel without a daily rhythm, whose changes
   // were noise, keeps its mean).
   if (n >= 2) {
-    double loss_hourly = 0.0, loss_mean = 0.0;
     for (size_t i = 0; i < n; ++i) {
       const auto kind = static_cast<size_t>(kindOfDay(series.times_s[i]));
       const auto bin = static_cast<size_t>(hourBin(series.times_s[i]));
@@ -244,6 +256,171 @@ VoxelRhythm fitVoxel(const VoxelSeries& series, double voxel_m) {
   return v;
 }
 
+constexpr size_t kNoIndex = static_cast<size_t>(-1);
+
+size_t findRoot(std::vector<size_t>& parent, size_t i) {
+  while (parent[i] != i) {
+    parent[i] = parent[parent[i]];
+    i = parent[i];
+  }
+  return i;
+}
+
+/// The phi coefficient of two series' states over the sessions that observed both, and how
+/// many those are; 0 when either state is constant over them.
+double correlation(const VoxelSeries& a, const VoxelSeries& b, uint32_t& common) {
+  double n11 = 0, n10 = 0, n01 = 0, n00 = 0;
+  size_t i = 0, j = 0;
+  while (i < a.ranks.size() && j < b.ranks.size()) {
+    if (a.ranks[i] < b.ranks[j]) {
+      ++i;
+    } else if (b.ranks[j] < a.ranks[i]) {
+      ++j;
+    } else {
+      const bool x = a.occupied[i] != 0, y = b.occupied[j] != 0;
+      (x ? (y ? n11 : n10) : (y ? n01 : n00)) += 1.0;
+      ++i;
+      ++j;
+    }
+  }
+  common = static_cast<uint32_t>(n11 + n10 + n01 + n00);
+  const double d = (n11 + n10) * (n01 + n00) * (n11 + n01) * (n10 + n00);
+  return d > 0.0 ? (n11 * n00 - n10 * n01) / std::sqrt(d) : 0.0;
+}
+
+using Bins = std::array<std::array<uint32_t, 12>, 2>;
+
+/// Groups the unit voxels of `series` that change together into objects (RhythmGroupSettings);
+/// every voxel of an object with a rhythm whose pooled profile predicts its own observations
+/// better (leave-one-out) than its own profile and its mean uses the object's profile.
+void groupVoxels(const std::vector<VoxelSeries>& series, std::vector<VoxelRhythm>& fitted,
+                 const std::vector<double>& loss_hourly, const std::vector<double>& loss_mean,
+                 const RhythmGroupSettings& settings, std::vector<RhythmGroup>& groups) {
+  const size_t n = series.size();
+  std::unordered_map<uint64_t, size_t> index;
+  index.reserve(n);
+  for (size_t i = 0; i < n; ++i) {
+    if (series[i].level == 0 && series[i].ranks.size() >= settings.min_common) {
+      index[mortonEncode(series[i].corner)] = i;
+    }
+  }
+  std::vector<size_t> parent(n);
+  for (size_t i = 0; i < n; ++i) parent[i] = i;
+  for (const auto& [code, i] : index) {
+    const VoxelKey k = series[i].corner;
+    for (int dz = 0; dz <= 1; ++dz) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          if (dz == 0 && (dy < 0 || (dy == 0 && dx <= 0))) continue;  // each pair once
+          const int x = k.x + dx, y = k.y + dy, z = k.z + dz;
+          if (x < 0 || y < 0 || x > 0xffff || y > 0xffff || z > 0xffff) continue;
+          const auto it = index.find(mortonEncode(VoxelKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y),
+                                                           static_cast<uint16_t>(z)}));
+          if (it == index.end()) continue;
+          uint32_t common = 0;
+          const double phi = correlation(series[i], series[it->second], common);
+          if (common >= settings.min_common && phi >= settings.min_correlation) {
+            parent[findRoot(parent, i)] = findRoot(parent, it->second);
+          }
+        }
+      }
+    }
+  }
+  // Members of each component, in the series' order (deterministic).
+  std::vector<size_t> slot(n, kNoIndex);
+  std::vector<std::vector<size_t>> members;
+  for (size_t i = 0; i < n; ++i) {
+    if (series[i].level != 0 || series[i].ranks.size() < settings.min_common) continue;
+    const size_t root = findRoot(parent, i);
+    if (slot[root] == kNoIndex) {
+      slot[root] = members.size();
+      members.emplace_back();
+    }
+    members[slot[root]].push_back(i);
+  }
+  for (const std::vector<size_t>& group : members) {
+    if (group.size() < std::max<uint32_t>(settings.min_voxels, 2)) continue;
+    Bins seen{}, occ{};
+    double total = 0, occupied_total = 0;
+    for (size_t i : group) {
+      const VoxelSeries& s = series[i];
+      for (size_t o = 0; o < s.times_s.size(); ++o) {
+        const auto kind = static_cast<size_t>(kindOfDay(s.times_s[o]));
+        const auto bin = static_cast<size_t>(hourBin(s.times_s[o]));
+        ++seen[kind][bin];
+        occ[kind][bin] += s.occupied[o];
+        total += 1;
+        occupied_total += s.occupied[o];
+      }
+    }
+    // Leave one observation out: the pooled profile without it against the pooled mean without it.
+    auto without = [&](const VoxelSeries& s, size_t o, Bins& seen_without, Bins& occ_without) {
+      const auto kind = static_cast<size_t>(kindOfDay(s.times_s[o]));
+      const auto bin = static_cast<size_t>(hourBin(s.times_s[o]));
+      seen_without = seen;
+      occ_without = occ;
+      --seen_without[kind][bin];
+      occ_without[kind][bin] -= s.occupied[o];
+    };
+    double group_hourly = 0, group_mean = 0;
+    std::vector<double> own(group.size(), 0.0);
+    Bins seen_without{}, occ_without{};
+    for (size_t m = 0; m < group.size(); ++m) {
+      const VoxelSeries& s = series[group[m]];
+      for (size_t o = 0; o < s.times_s.size(); ++o) {
+        const double y = s.occupied[o];
+        const double mean_without = (occupied_total - y) / (total - 1);
+        without(s, o, seen_without, occ_without);
+        const double p = hourlyOf(seen_without, occ_without, s.times_s[o], mean_without);
+        group_hourly += (p - y) * (p - y);
+        group_mean += (mean_without - y) * (mean_without - y);
+        own[m] += (p - y) * (p - y);
+      }
+    }
+    // Without enough gain the object's changes were noise, not a rhythm.
+    if (!(group_hourly < (1.0 - settings.min_gain) * group_mean)) continue;
+    RhythmGroup g;
+    for (size_t k = 0; k < 2; ++k) {
+      for (size_t b = 0; b < 12; ++b) {
+        g.observed[k][b] = static_cast<uint16_t>(std::min<uint32_t>(seen[k][b], 65535));
+        g.occupied[k][b] = static_cast<uint16_t>(std::min<uint32_t>(occ[k][b], 65535));
+      }
+    }
+    bool used = false;
+    for (size_t m = 0; m < group.size(); ++m) {
+      const size_t i = group[m];
+      if (!(own[m] < loss_hourly[i] && own[m] < loss_mean[i])) continue;
+      VoxelRhythm& v = fitted[i];
+      v.group = static_cast<uint32_t>(groups.size());
+      v.group_observed = g.observed;
+      v.group_occupied = g.occupied;
+      used = true;
+    }
+    if (used) groups.push_back(g);
+  }
+}
+
+}  // namespace
+
+VoxelRhythm fitVoxel(const VoxelSeries& series, double voxel_m) {
+  double loss_hourly = 0.0, loss_mean = 0.0;
+  return fitOne(series, voxel_m, loss_hourly, loss_mean);
+}
+
+RhythmModels fitSeries(const std::vector<VoxelSeries>& series, double voxel_m, const RhythmGroupSettings& grouping) {
+  RhythmModels models;
+  models.resolution_m = voxel_m;
+  std::vector<VoxelRhythm> fitted(series.size());
+  std::vector<double> loss_hourly(series.size()), loss_mean(series.size());
+  for (size_t i = 0; i < series.size(); ++i) fitted[i] = fitOne(series[i], voxel_m, loss_hourly[i], loss_mean[i]);
+  if (grouping.enabled) groupVoxels(series, fitted, loss_hourly, loss_mean, grouping, models.groups);
+  std::sort(fitted.begin(), fitted.end(), [](const VoxelRhythm& a, const VoxelRhythm& b) {
+    return mortonEncode(a.corner) < mortonEncode(b.corner);
+  });
+  models.voxels = std::move(fitted);
+  return models;
+}
+
 double surfaceEvidence(const VoxelRhythm& v) {
   if (!(v.hits_per_voxel >= 0.0f)) return v.mean;
   const double x = v.hits_per_voxel;
@@ -261,7 +438,10 @@ double RhythmModels::predict(const VoxelRhythm& v, RhythmModel model, double tim
       // The chain's memory of the last observation fades at the sum of its rates.
       const double rate = static_cast<double>(v.rate_in_per_h) + static_cast<double>(v.rate_out_per_h);
       const double w = std::exp(-rate * std::abs(time_s - v.last_time_s) / kHour_s);
-      const double base = v.combined_uses_mean ? surfaceEvidence(v) : hourly(v, time_s, surfaceEvidence(v));
+      const double base = v.group != VoxelRhythm::kNoGroup
+                              ? hourlyOf(v.group_observed, v.group_occupied, time_s, v.mean)
+                          : v.combined_uses_mean ? surfaceEvidence(v)
+                                                 : hourly(v, time_s, surfaceEvidence(v));
       return w * markov(v, time_s) + (1.0 - w) * base;
     }
   }
@@ -280,22 +460,16 @@ const VoxelRhythm* RhythmModels::find(const VoxelKey& key) const {
   return inside ? &*it : nullptr;
 }
 
-RhythmModels fitRhythm(const TemporalMap& map, double from_s, double to_s, uint32_t min_changes) {
+RhythmModels fitRhythm(const TemporalMap& map, double from_s, double to_s, uint32_t min_changes,
+                       const RhythmGroupSettings& grouping) {
   uint32_t first = 0;
   while (first < map.sessionCount() && map.sessions()[first].time_s < from_s) ++first;
   const uint32_t end = map.ranksThrough(to_s);
   if (first >= end) throw UsageError("no session of the map lies in the learning interval");
-  RhythmModels models;
-  models.resolution_m = map.resolution_m();
+  RhythmModels models = fitSeries(observedSeries(map, first, end, min_changes), map.resolution_m(), grouping);
   models.from_s = map.sessions()[first].time_s;
   models.to_s = map.sessions()[end - 1].time_s;
   models.sessions = end - first;
-  for (const VoxelSeries& s : observedSeries(map, first, end, min_changes)) {
-    models.voxels.push_back(fitVoxel(s, map.resolution_m()));
-  }
-  std::sort(models.voxels.begin(), models.voxels.end(), [](const VoxelRhythm& a, const VoxelRhythm& b) {
-    return mortonEncode(a.corner) < mortonEncode(b.corner);
-  });
   return models;
 }
 
@@ -358,7 +532,9 @@ SessionMap predictMap(const TemporalMap& map, const RhythmModels& models, Rhythm
 namespace {
 
 constexpr char kMagic[4] = {'C', 'M', 'R', 'H'};
-constexpr uint32_t kVersion = 2;  // 2: hits_per_voxel after the hour bins
+// 2: hits_per_voxel after the hour bins; 3: each voxel's group after it, and the groups' table
+// after the voxels.
+constexpr uint32_t kVersion = 3;
 
 }  // namespace
 
@@ -395,6 +571,16 @@ std::vector<uint8_t> serialize(const RhythmModels& m) {
       }
     }
     w.put(v.hits_per_voxel);
+    w.put(v.group);
+  }
+  w.put(static_cast<uint64_t>(m.groups.size()));
+  for (const RhythmGroup& g : m.groups) {
+    for (size_t k = 0; k < 2; ++k) {
+      for (size_t b = 0; b < 12; ++b) {
+        w.put(g.observed[k][b]);
+        w.put(g.occupied[k][b]);
+      }
+    }
   }
   return std::move(w.bytes);
 }
@@ -405,8 +591,8 @@ RhythmModels deserializeRhythm(std::span<const uint8_t> bytes, const std::string
     if (r.get<char>() != c) throw FormatError(source + ": not a chronomap rhythm model");
   }
   const auto version = r.get<uint32_t>();
-  if (version != 1 && version != kVersion) {
-    throw FormatError(source + ": rhythm model version " + std::to_string(version) + " (this build reads 1 and 2)");
+  if (version < 1 || version > kVersion) {
+    throw FormatError(source + ": rhythm model version " + std::to_string(version) + " (this build reads 1 to 3)");
   }
   RhythmModels m;
   m.resolution_m = r.get<double>();
@@ -414,7 +600,7 @@ RhythmModels deserializeRhythm(std::span<const uint8_t> bytes, const std::string
   m.to_s = r.get<double>();
   m.sessions = r.get<uint32_t>();
   const auto count = r.get<uint64_t>();
-  const size_t kRecord = version == 1 ? RhythmModels::kVoxelBytes - 4 : RhythmModels::kVoxelBytes;
+  const size_t kRecord = RhythmModels::kVoxelBytes - (version == 1 ? 8 : version == 2 ? 4 : 0);
   if (!std::isfinite(m.resolution_m) || m.resolution_m <= 0.0 || count > (bytes.size() - r.pos) / kRecord) {
     throw FormatError(source + ": bad header (resolution or voxel count)");
   }
@@ -455,6 +641,7 @@ RhythmModels deserializeRhythm(std::span<const uint8_t> bytes, const std::string
         throw FormatError(source + ": bad hit density");
       }
     }
+    if (version >= 3) v.group = r.get<uint32_t>();
     if (v.level >= 16 || v.last_occupied > 1 || v.combined_uses_mean > 1 || !(v.mean >= 0.0f && v.mean <= 1.0f) || !std::isfinite(v.last_time_s) ||
         !(v.rate_in_per_h >= 0.0f) || !(v.rate_out_per_h >= 0.0f) || !std::isfinite(v.rate_in_per_h) ||
         !std::isfinite(v.rate_out_per_h)) {
@@ -463,6 +650,29 @@ RhythmModels deserializeRhythm(std::span<const uint8_t> bytes, const std::string
     const uint64_t code = mortonEncode(v.corner);
     if (i > 0 && code <= previous) throw FormatError(source + ": voxels out of order");
     previous = code;
+  }
+  if (version >= 3) {
+    const auto groups = r.get<uint64_t>();
+    if (groups > (bytes.size() - r.pos) / RhythmModels::kGroupBytes) throw FormatError(source + ": bad group count");
+    m.groups.resize(groups);
+    for (RhythmGroup& g : m.groups) {
+      for (size_t k = 0; k < 2; ++k) {
+        for (size_t b = 0; b < 12; ++b) {
+          g.observed[k][b] = r.get<uint16_t>();
+          g.occupied[k][b] = r.get<uint16_t>();
+          if (g.occupied[k][b] > g.observed[k][b]) {
+            throw FormatError(source + ": a group has more occupied than observed");
+          }
+        }
+      }
+    }
+    for (size_t i = 0; i < m.voxels.size(); ++i) {
+      VoxelRhythm& v = m.voxels[i];
+      if (v.group == VoxelRhythm::kNoGroup) continue;
+      if (v.group >= m.groups.size()) throw FormatError(source + ": voxel " + std::to_string(i) + " names no group");
+      v.group_observed = m.groups[v.group].observed;
+      v.group_occupied = m.groups[v.group].occupied;
+    }
   }
   if (r.pos != bytes.size()) throw FormatError(source + ": bytes after the last voxel");
   return m;

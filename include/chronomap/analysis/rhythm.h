@@ -26,6 +26,12 @@
 ///   per voxel length of ray pooled over its observations and x0 = kSurfaceHitsPerVoxel (a static
 ///   surface that only clips a voxel is hit whenever seen, however many rays pass by its empty
 ///   part; a free voxel in front of one gets a few noisy hits among many rays through it).
+///   Voxels change together when they belong to one object (a door's panel, a chair):
+///   neighbouring voxels whose states correlate are grouped (RhythmGroupSettings), and a voxel of
+///   an object with a rhythm whose pooled hourly profile predicts the voxel's own observations
+///   better than its own profile and its mean (leave-one-out) is predicted from the object's
+///   profile. A door voxel whose own profile pose error blurs is then predicted as the door, not
+///   as the static surface its counters suggest.
 #include <array>
 #include <cstdint>
 #include <span>
@@ -69,7 +75,7 @@ inline constexpr std::array<double, 6> kRhythmPeriods_h = {168.0, 84.0, 24.0, 12
 /// rays crossing the voxel).
 inline constexpr double kSurfaceHitsPerVoxel = 0.1;
 
-/// The fitted parameters of one cube: every model's, 101 bytes in a saved model.
+/// The fitted parameters of one cube: every model's, 105 bytes in a saved model (and 96 per object it uses).
 struct VoxelRhythm {
   VoxelKey corner;
   uint8_t level = 0;
@@ -90,6 +96,35 @@ struct VoxelRhythm {
   /// Hits per voxel length of ray, summed over the counters of the observations (capped at 1e6;
   /// -1 in models saved before chronomap kept it: Combined then keeps the mean).
   float hits_per_voxel = -1.0f;
+  /// Combined, for a voxel of a co-changing object whose pooled profile predicts it best: the
+  /// object's index in RhythmModels::groups (kNoGroup: none), and a copy of that object's hour
+  /// bins so that predict() needs only the voxel.
+  static constexpr uint32_t kNoGroup = 0xffffffffu;
+  uint32_t group = kNoGroup;
+  std::array<std::array<uint16_t, 12>, 2> group_observed = {};
+  std::array<std::array<uint16_t, 12>, 2> group_occupied = {};
+};
+
+/// A co-changing object's pooled hourly profile: the hour bins of its voxels summed
+/// (observations and occupied ones, saturating at 65535).
+struct RhythmGroup {
+  std::array<std::array<uint16_t, 12>, 2> observed = {};
+  std::array<std::array<uint16_t, 12>, 2> occupied = {};
+};
+
+/// How fitRhythm groups voxels into objects: two neighbouring unit voxels (sharing a face, an
+/// edge or a corner) join when at least `min_common` sessions observed both and their states in
+/// those sessions correlate at least `min_correlation` (phi coefficient); the connected
+/// components of that relation with at least `min_voxels` voxels whose pooled hourly profile
+/// beats their pooled mean (leave-one-out) are objects with a rhythm (a door's panel, a chair).
+struct RhythmGroupSettings {
+  bool enabled = true;
+  uint32_t min_common = 6;
+  double min_correlation = 0.5;
+  uint32_t min_voxels = 3;
+  /// An object has a rhythm when its pooled profile's leave-one-out Brier score is at most
+  /// (1 - min_gain) times its pooled mean's.
+  double min_gain = 0.5;
 };
 
 /// The fitted models of a map: one VoxelRhythm per cube that changed while learning, in the
@@ -99,21 +134,28 @@ struct RhythmModels {
   double from_s = 0.0, to_s = 0.0;  ///< the learning sessions' times
   uint32_t sessions = 0;            ///< learning sessions
   std::vector<VoxelRhythm> voxels;
+  std::vector<RhythmGroup> groups;  ///< objects whose pooled profile some voxel's Combined uses
 
   /// Probability that the cube of `rhythm` is occupied at `time_s` under `model`.
   static double predict(const VoxelRhythm& rhythm, RhythmModel model, double time_s);
   /// The fitted cube containing `key`, or null (binary search: voxels are sorted by Morton code
   /// of their corners, which fit() guarantees).
   const VoxelRhythm* find(const VoxelKey& key) const;
-  /// Bytes of a saved model: a 44-byte header and 101 bytes per cube (97 in version 1).
-  static constexpr size_t kHeaderBytes = 44, kVoxelBytes = 101;
-  size_t bytes() const { return kHeaderBytes + voxels.size() * kVoxelBytes; }
+  /// Bytes of a saved model: a 44-byte header, 105 bytes per cube (97 in version 1, 101 in
+  /// version 2), then (version 3) an 8-byte group count and 96 bytes per group.
+  static constexpr size_t kHeaderBytes = 44, kVoxelBytes = 105, kGroupBytes = 96;
+  size_t bytes() const { return kHeaderBytes + voxels.size() * kVoxelBytes + 8 + groups.size() * kGroupBytes; }
 };
 
 /// Fits every model to the observations of the sessions with times in [from_s, to_s], for the
 /// cubes that changed at least `min_changes` times among them.
 /// @throw UsageError when no session lies in the range, or min_changes is 0.
-RhythmModels fitRhythm(const TemporalMap& map, double from_s, double to_s, uint32_t min_changes = 1);
+RhythmModels fitRhythm(const TemporalMap& map, double from_s, double to_s, uint32_t min_changes = 1,
+                       const RhythmGroupSettings& grouping = {});
+/// Fits the models of a set of cubes' observations (what fitRhythm does once it has them): each
+/// cube alone, then the co-changing objects among them (`grouping`); sorted by Morton code.
+RhythmModels fitSeries(const std::vector<VoxelSeries>& series, double voxel_m,
+                       const RhythmGroupSettings& grouping = {});
 /// Fits one cube's models to its observations (what fitRhythm does per cube); `voxel_m`: the
 /// map's resolution (the unit voxel's edge), for the surface evidence.
 VoxelRhythm fitVoxel(const VoxelSeries& series, double voxel_m = 0.05);
