@@ -327,6 +327,12 @@ int runBuild(const BuildCmdOptions& o) {
     if (const auto result = pipeline::buildOnRanks(s, ranks)) printBuilt(o, *result);
   } catch (const pipeline::RankStopped& stopped) {
     return stopped.exitCode();  // rank 0 says why
+  } catch (...) {
+    if (ranks.size() < 2) throw;
+    // Rank 0 says why before the ranks' destructor finalises MPI: the other ranks exit (non-zero) as
+    // soon as every rank has finalised, and mpirun may end the job before a message printed later.
+    const ErrorReport report = describeError(std::current_exception());
+    return printError(report.exit_code, report.message);
   }
   return 0;
 }

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstddef>
 #include <functional>
+#include <iostream>
 #include <optional>
 #include <string>
 #include <vector>
@@ -46,6 +47,12 @@ Command addTile(CLI::App& root);
 Command addUntile(CLI::App& root);
 
 /// Bytes of a --memory-limit given in GiB (already checked to be finite and within 0..1e6), rounded.
+/// Prints one error the way every command does ("chronomap: error: ..." on stderr). @return code
+inline int printError(int code, const std::string& message) {
+  std::cerr << "chronomap: error: " << message << "\n" << std::flush;
+  return code;
+}
+
 inline size_t gibToBytes(double gib) { return static_cast<size_t>(std::llround(gib * 1073741824.0)); }
 /// Help of the --memory-limit flag of the commands that read tiled maps.
 inline constexpr const char* kTileMemoryHelp =

@@ -10,10 +10,7 @@
 
 namespace {
 
-int fail(int code, const std::string& message) {
-  std::cerr << "chronomap: error: " << message << "\n";
-  return code;
-}
+int fail(int code, const std::string& message) { return chronomap::cli::printError(code, message); }
 
 int run(int argc, char** argv) {
   using namespace chronomap;

@@ -189,7 +189,11 @@ Ranks::Ranks() {
 }
 
 Ranks::~Ranks() {
-  if (started_) MPI_Finalize();
+  if (!started_) return;
+  // No rank leaves before every rank is done (rank 0 says why a job failed just before this: a rank
+  // that exits non-zero earlier may make mpirun end the job before that message is out).
+  MPI_Barrier(MPI_COMM_WORLD);
+  MPI_Finalize();
 }
 
 std::optional<BuildResult> buildOnRanks(const BuildSettings& settings, const Ranks& ranks) {
