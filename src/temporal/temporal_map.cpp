@@ -15,10 +15,11 @@ constexpr uint32_t kMaxIndex = 0x7ffffff0u;
 constexpr size_t kMaxListSize = 0xffff;
 // add() and remove() re-lay the pools out once the nodes that the latest snapshot reads outside
 // the block where the last layout put them reach 1/kRelayoutShare of that snapshot's nodes (and
-// at least kMinRelayout nodes). At 8 a snapshot of the latest time stayed within 1.2x of a
-// freshly laid-out map's on bench/temporal's stress case, and add() took 24% more processor
-// time over 365 sessions (each re-layout costs about as much as copying the pools).
-constexpr size_t kRelayoutShare = 8;
+// at least kMinRelayout nodes). Each node read out of place costs about a cache miss: at 16 a
+// snapshot of the latest time stayed within 1.15x of a freshly laid-out map's on
+// bench/temporal's stress case (at 8: 1.4x), and add() took about 1.6x the processor time at
+// 365 sessions (each re-layout costs about as much as copying the pools; docs/temporal.md).
+constexpr size_t kRelayoutShare = 16;
 constexpr size_t kMinRelayout = 1024;
 
 // Counters of one of the 8 children of a uniform cube. Lists above unit level only ever hold

@@ -181,9 +181,10 @@ class TemporalMap {
   /// Re-lays the inner nodes and list records out in place in the order files hold them (see
   /// parts()): what a snapshot of the latest time reads first, depth first, then the subtrees
   /// that coarse entries shadow. Answers stay the same; only the memory layout changes.
-  /// add() and remove() call it on their own once the nodes created since the last layout
-  /// reach a quarter of what that snapshot reads, so that the snapshot keeps walking a dense
-  /// prefix of the pools however many sessions a map grows through in memory.
+  /// add() and remove() call it on their own once the nodes that snapshot reads outside the
+  /// block where the last layout put them (created since, or no longer shadowed) reach 1/16 of
+  /// what it reads, so that it keeps walking a dense prefix of the pools however many sessions
+  /// a map grows through in memory. Costs about a copy of the inner nodes and list records.
   void relayout();
   /// How many times the pools were re-laid out (by relayout(), compact() or add()).
   size_t relayouts() const { return relayouts_; }
