@@ -14,11 +14,14 @@
 // estimated poses and added at its recorded time: the thesis' storage study replayed.
 //
 // Usage: temporal [--sessions N] [--move F] [--plot storage.png] [--quick] [--sim DIR] [--octomap-every N]
+// [--rounds N] (--rounds: rounds of the interleaved snapshot timing, best of each; 9 by default)
 // (--octomap-every N: convert only every Nth session to OctoMap, reusing its size for the others;
 // 0 never, for long runs such as --sessions 365 whose OctoMap figures are then not measured)
 // The last line of output is one JSON object.
 
 #include <octomap/OcTree.h>
+#include <sys/resource.h>
+#include <time.h>
 
 #include <algorithm>
 #include <chrono>
@@ -174,12 +177,29 @@ double seconds(std::chrono::steady_clock::time_point a, std::chrono::steady_cloc
   return std::chrono::duration<double>(b - a).count();
 }
 
-// One snapshot of the latest time, in seconds; prints what it holds and visited when `describe`.
-double snapshotOnce(const TemporalMap& map, bool describe) {
+// Processor time of this thread, in seconds (robust to other jobs on the machine).
+double threadCpuSeconds() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
+}
+
+// Minor page faults of the process so far.
+long minorFaults() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return u.ru_minflt;
+}
+
+// One snapshot of the latest time, in seconds; prints what it holds and visited when `describe`;
+// adds the page faults it took to `faults`.
+double snapshotOnce(const TemporalMap& map, bool describe, long* faults = nullptr) {
   TemporalMap::SnapshotVisits visits;
+  const long f0 = minorFaults();
   const auto a = std::chrono::steady_clock::now();
   const SessionMap s = map.snapshot(map.times().back(), &visits);
   const auto b = std::chrono::steady_clock::now();
+  if (faults) *faults += minorFaults() - f0;
   if (describe) {
     const SessionMapCounts c = s.counts();
     std::printf("  snapshot: %zu leaves (%zu compressed), %llu voxels known; 4D map: %zu slot lists, %zu inner nodes; "
@@ -203,6 +223,7 @@ int main(int argc, char** argv) {
   double move = 0.1;
   std::string plot;
   int octomap_every = 1;
+  int rounds = 9;
   std::string sim_dir;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--sessions") && i + 1 < argc) {
@@ -213,6 +234,8 @@ int main(int argc, char** argv) {
       plot = argv[++i];
     } else if (!std::strcmp(argv[i], "--sim") && i + 1 < argc) {
       sim_dir = argv[++i];
+    } else if (!std::strcmp(argv[i], "--rounds") && i + 1 < argc) {
+      rounds = std::max(1, std::atoi(argv[++i]));
     } else if (!std::strcmp(argv[i], "--octomap-every") && i + 1 < argc) {
       octomap_every = std::atoi(argv[++i]);
     } else if (!std::strcmp(argv[i], "--quick")) {
@@ -247,7 +270,7 @@ int main(int argc, char** argv) {
 
   TemporalMap map(kResolution);
   std::vector<double> sep_nodes, nodes_4d, octo_bytes;
-  double separate = 0.0, octomap_total = 0.0, add_seconds = 0.0, octo_last = 0.0;
+  double separate = 0.0, octomap_total = 0.0, add_seconds = 0.0, add_cpu_seconds = 0.0, octo_last = 0.0;
   uint64_t separate_bytes = 0;
   double snap8 = 0.0, snap33 = 0.0, snap66 = 0.0;
   // The maps after 8 sessions, kept to time their snapshots interleaved with the last one's
@@ -283,7 +306,9 @@ int main(int argc, char** argv) {
     if (octomap_every > 0 && s % octomap_every == 0) octo_last = static_cast<double>(octomapBytes(session));
     octomap_total += octo_last;
     const auto a = std::chrono::steady_clock::now();
+    const double cpu0 = threadCpuSeconds();
     map.add(time_s, session);
+    add_cpu_seconds += threadCpuSeconds() - cpu0;
     const auto b = std::chrono::steady_clock::now();
     add_seconds += seconds(a, b);
     const TemporalCounts c = map.counts();
@@ -315,10 +340,16 @@ int main(int argc, char** argv) {
   TemporalMap last_compacted = map;
   last_compacted.compact();
   double best[4] = {1e9, 1e9, 1e9, 1e9};
+  long faults[4] = {0, 0, 0, 0};
   const TemporalMap* timed[4] = {&map8, &map, &map8_compacted, &last_compacted};
-  for (int round = 0; round < 9; ++round) {
-    for (int i = 0; i < 4; ++i) best[i] = std::min(best[i], snapshotOnce(*timed[i], round == 0 && i >= 2));
+  for (int round = 0; round < rounds; ++round) {
+    for (int i = 0; i < 4; ++i) {
+      best[i] = std::min(best[i], snapshotOnce(*timed[i], round == 0 && i >= 2, &faults[i]));
+    }
   }
+  std::printf("page faults per snapshot: in memory %.0f / %.0f, compacted %.0f / %.0f\n",
+              static_cast<double>(faults[0]) / rounds, static_cast<double>(faults[1]) / rounds,
+              static_cast<double>(faults[2]) / rounds, static_cast<double>(faults[3]) / rounds);
   const double ratio = best[1] / best[0], ratio_compacted = best[3] / best[2];
 
   // History latency: random voxels inside the map's known region, many times.
@@ -378,13 +409,24 @@ int main(int argc, char** argv) {
               (static_cast<double>(c.nodes()) - nodes_4d.front()) / std::max(1, sessions - 1));
   std::printf("snapshot of the latest time: %.1f ms after 8, %.1f ms after 33, %.1f ms after %d sessions (%.2fx)\n",
               1e3 * snap8, 1e3 * snap33, 1e3 * snap66, sessions, snap66 / snap8);
-  std::printf("snapshot interleaved, best of 9: in memory %.2f ms after 8, %.2f ms after %d sessions (%.2fx); "
+  std::printf("snapshot interleaved, best of %d: in memory %.2f ms after 8, %.2f ms after %d sessions (%.2fx); "
               "compacted %.2f / %.2f ms (%.2fx)\n",
-              1e3 * best[0], 1e3 * best[1], sessions, ratio, 1e3 * best[2], 1e3 * best[3], ratio_compacted);
+              rounds, 1e3 * best[0], 1e3 * best[1], sessions, ratio, 1e3 * best[2], 1e3 * best[3], ratio_compacted);
   std::printf("history: %.3f us per voxel (%zu entries over %zu probes)\n", history_us, entries_seen, probes.size());
-  std::printf("add: %.1f ms per session on average; write %.1f ms, read %.1f ms\n", 1e3 * add_seconds / sessions,
-              1e3 * seconds(w0, w1), 1e3 * seconds(w1, w2));
+  std::printf("add: %.1f ms per session on average (%.1f ms of processor time); write %.1f ms, read %.1f ms\n",
+              1e3 * add_seconds / sessions, 1e3 * add_cpu_seconds / sessions, 1e3 * seconds(w0, w1),
+              1e3 * seconds(w1, w2));
   std::printf("bytes per stored change: %.1f\n", bytes_per_change);
+  double relayout_ms = 0.0;
+  {
+    TemporalMap copy = map;
+    const double cpu0 = threadCpuSeconds();
+    copy.relayout();
+    relayout_ms = 1e3 * (threadCpuSeconds() - cpu0);
+  }
+  std::printf("pools re-laid out in memory by add: %zu times in %d sessions; one re-layout of the last map: %.1f ms "
+              "of CPU time\n",
+              map.relayouts(), sessions, relayout_ms);
   if (!(back.counts().nodes() == compacted.counts().nodes())) std::printf("WARNING: read-back differs\n");
 
   if (!plot.empty()) {
@@ -403,6 +445,8 @@ int main(int argc, char** argv) {
                             {"snapshot_last_ms", 1e3 * best[1]},
                             {"history_us", history_us},
                             {"add_ms_per_session", 1e3 * add_seconds / sessions},
+                            {"add_cpu_ms_per_session", 1e3 * add_cpu_seconds / sessions},
+                            {"relayouts", map.relayouts()},
                             {"bytes_per_change", bytes_per_change}};
   std::printf("%s\n", j.dump().c_str());
   return 0;

@@ -4,6 +4,7 @@
 #include <map>
 #include <optional>
 #include <random>
+#include <tuple>
 
 #include "chronomap/core/error.h"
 #include "chronomap/temporal/temporal_map.h"
@@ -628,6 +629,95 @@ TEST_P(TemporalProperty, SnapshotsAtEveryTimeAreTheDenseModelInAnyOrder) {
   }
 }
 
+
+// Re-laying the pools out in memory (relayout(), and add() on its own) moves nodes, never answers.
+
+void expectSameAnswers(const TemporalMap& a, const TemporalMap& b) {
+  ASSERT_EQ(a.times(), b.times());
+  std::vector<double> probes{a.times().front() - 1.0};
+  for (double t : a.times()) {
+    probes.push_back(t);
+    probes.push_back(t + 1.0);
+  }
+  for (double t : probes) {
+    TemporalMap::SnapshotVisits va, vb;
+    const SessionMap sa = a.snapshot(t, &va), sb = b.snapshot(t, &vb);
+    ASSERT_EQ(sa.innerPool(), sb.innerPool()) << "t=" << t;
+    ASSERT_EQ(sa.leafPool().size(), sb.leafPool().size()) << "t=" << t;
+    for (size_t i = 0; i < sa.leafPool().size(); ++i) ASSERT_EQ(sa.leafPool()[i], sb.leafPool()[i]) << "t=" << t;
+    EXPECT_EQ(va.inner, vb.inner);
+    EXPECT_EQ(va.lists, vb.lists);
+    EXPECT_EQ(va.coarse, vb.coarse);
+  }
+  for (int z = 0; z < kSide; ++z) {
+    for (int y = 0; y < kSide; ++y) {
+      for (int x = 0; x < kSide; ++x) {
+        const auto ha = a.history(at(x, y, z)), hb = b.history(at(x, y, z));
+        ASSERT_EQ(ha.size(), hb.size());
+        for (size_t i = 0; i < ha.size(); ++i) {
+          ASSERT_EQ(ha[i].time_s, hb[i].time_s);
+          ASSERT_EQ(ha[i].level, hb[i].level);
+          ASSERT_EQ(ha[i].counters, hb[i].counters);
+        }
+      }
+    }
+  }
+  auto changes = [](const TemporalMap& m, double t0, double t1) {
+    std::vector<std::tuple<VoxelKey, int, uint32_t>> out;
+    m.forEachChangeCount(t0, t1, [&](const VoxelKey& k, int level, uint32_t n) { out.emplace_back(k, level, n); });
+    return out;
+  };
+  EXPECT_EQ(changes(a, 0, 1e9), changes(b, 0, 1e9));
+  if (a.times().size() >= 2) {
+    EXPECT_EQ(changes(a, a.times()[1], a.times().back()), changes(b, b.times()[1], b.times().back()));
+  }
+  EXPECT_TRUE(a == b);
+  EXPECT_EQ(a.counts().nodes(), b.counts().nodes());
+}
+
+TEST_P(TemporalProperty, RelayoutChangesNoAnswer) {
+  std::mt19937_64 rng(GetParam() + 4000);
+  World world;
+  world.init(rng);
+  const int n = 8;
+  std::vector<SessionMap> sessions;
+  for (int i = 0; i < n; ++i) {
+    if (rng() % 2 == 0) world.change(rng, 60);
+    sessions.push_back(randomSession(rng, world));
+  }
+  std::vector<int> order(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) order[static_cast<size_t>(i)] = i;
+  if (GetParam() % 2 != 0) std::shuffle(order.begin(), order.end(), rng);
+  // `map` re-lays itself out when add() decides; `relaid` is re-laid out after every change.
+  TemporalMap map(0.05), relaid(0.05);
+  Reference ref;
+  for (int i : order) {
+    map.add(sessionTime(i), sessions[static_cast<size_t>(i)]);
+    relaid.add(sessionTime(i), sessions[static_cast<size_t>(i)]);
+    ref.add(sessionTime(i), sessions[static_cast<size_t>(i)]);
+    relaid.relayout();
+    TemporalMap copy = map;
+    copy.relayout();
+    expectSameAnswers(map, copy);
+  }
+  EXPECT_GT(map.relayouts(), 0u) << "add() re-laid the pools out on its own";
+  EXPECT_GE(relaid.relayouts(), static_cast<size_t>(n));
+  expectSameAnswers(map, relaid);
+  // Later changes land in re-laid pools as in the others: replace one session, remove another.
+  world.change(rng, 200);
+  const SessionMap replacement = randomSession(rng, world);
+  const int replaced = static_cast<int>(rng() % static_cast<uint64_t>(n)), removed = (replaced + 1) % n;
+  for (TemporalMap* m : {&map, &relaid}) {
+    m->add(sessionTime(replaced), replacement, AddSettings{true, ""});
+    m->remove(sessionTime(removed));
+  }
+  ref.remove(sessionTime(replaced));
+  ref.add(sessionTime(replaced), replacement);
+  ref.remove(sessionTime(removed));
+  relaid.relayout();
+  expectSameAnswers(map, relaid);
+  expectEverySnapshotMatches(relaid, ref);
+}
 
 TEST(TemporalMap, PartsInThePlainDepthFirstOrderReadTheSame) {
   // Files written before the two-layer order hold the pools plainly depth first: re-lay a map's

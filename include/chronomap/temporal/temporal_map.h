@@ -174,9 +174,20 @@ class TemporalMap {
   size_t memoryBytes() const;
 
   /// Merges 8 sibling lists with the same sessions and no hits into one (states stay exact;
-  /// lengths are summed, as in §2.1's compression) and re-lays the pools out depth first.
+  /// lengths are summed, as in §2.1's compression) and re-lays the pools out as files hold them.
   /// @return the number of lists removed.
   size_t compact();
+
+  /// Re-lays the inner nodes and list records out in place in the order files hold them (see
+  /// parts()): what a snapshot of the latest time reads first, depth first, then the subtrees
+  /// that coarse entries shadow. Answers stay the same; only the memory layout changes.
+  /// add() and remove() call it on their own once the nodes that snapshot reads outside the
+  /// block where the last layout put them (created since, or no longer shadowed) reach 1/16 of
+  /// what it reads, so that it keeps walking a dense prefix of the pools however many sessions
+  /// a map grows through in memory. Costs about a copy of the inner nodes and list records.
+  void relayout();
+  /// How many times the pools were re-laid out (by relayout(), compact() or add()).
+  size_t relayouts() const { return relayouts_; }
 
   /// A depth-first, gap-free copy of the pools for serialisation.
   struct Parts {
@@ -250,6 +261,8 @@ class TemporalMap {
   static constexpr uint32_t kForever = 0xffffffffu;
   struct CoarseSpan {
     uint32_t begin = 0, count = 0;
+    Coarse newest;  // a copy of the last interval (count > 0): a snapshot of a late time reads
+                    // it here, next to the span, instead of in the arena
   };
   std::vector<Coarse> coarse_;            // arena; spans of rebuilt nodes leave garbage behind
   std::vector<CoarseSpan> coarse_span_;   // per inner node
@@ -262,8 +275,31 @@ class TemporalMap {
   void markAllCoarseDirty();
   void updateCoarse();
   void rebuildCoarse(uint32_t node);
+  /// Copies the live spans into a fresh arena in node order (drops the garbage).
+  void packCoarse();
   /// The coarse entry of inner node `node` valid at rank `rank`, if any.
-  const Coarse* coarseAt(uint32_t node, uint32_t rank) const;
+  const Coarse* coarseAt(uint32_t node, uint32_t rank) const {
+    const CoarseSpan& span = coarse_span_[node];
+    if (span.count == 0 || rank >= span.newest.to) return nullptr;
+    if (rank >= span.newest.from) return &span.newest;
+    return coarseBefore(span, rank);
+  }
+  const Coarse* coarseBefore(const CoarseSpan& span, uint32_t rank) const;
+
+  // The layout of the pools (parts(), relayout()): old inner node and list indices in their new
+  // order, and how many of each the latest snapshot reads (they come first).
+  struct Layout {
+    std::vector<uint32_t> inner, lists;
+    size_t hot_inner = 0, hot_lists = 0;
+  };
+  Layout layout() const;
+  /// Re-lays the pools out when scatteredHot() reaches a share of the block.
+  void relayoutIfScattered();
+  /// How many nodes the latest snapshot reads outside the block where the last layout put
+  /// its nodes (created since, or no longer shadowed), and how many it reads in all.
+  std::pair<size_t, Layout> scatteredHot() const;
+  size_t hot_inner_at_layout_ = 0, hot_lists_at_layout_ = 0;  // the block: the first of each pool
+  size_t relayouts_ = 0;
 
   KeyGrid grid_;
   ChangeCriterion criterion_;
