@@ -789,7 +789,8 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
         (*reports)[k].mean_shift_after_m = r.mean_shift_after_m;
       }
     }
-    parallelFor(sessions.size(), 0, [&](size_t k) { sessions[k] = reintegrate(k, corrections[k]); });
+    const bool last = round + 1 == rounds && settings.drift_knot_frames == 0;
+    parallelFor(sessions.size(), 0, [&](size_t k) { sessions[k] = reintegrate(k, corrections[k], last); });
   }
   if (settings.drift_knot_frames > 0) {
     for (int round = 0; round < settings.drift_rounds; ++round) {
@@ -819,7 +820,8 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
           (*reports)[k].mean_shift_after_m = found[k].mean_shift_after_m;
         }
       }
-      parallelFor(sessions.size(), 0, [&](size_t k) { sessions[k] = reintegrate(k, corrections[k]); });
+      const bool last = round + 1 == settings.drift_rounds;
+      parallelFor(sessions.size(), 0, [&](size_t k) { sessions[k] = reintegrate(k, corrections[k], last); });
     }
   }
   return corrections;

@@ -102,17 +102,19 @@ TEST(RegisterSessions, BringsTheOddSessionToTheOthersAndReintegratesIt) {
                                                 Eigen::Isometry3d::Identity(), shift};
   std::vector<SessionMap> sessions;
   for (const auto& p : poses) sessions.push_back(room(p));
-  std::atomic<size_t> calls = 0;  // sessions are integrated again in parallel
+  std::atomic<size_t> calls = 0, last_calls = 0;  // sessions are integrated again in parallel
   std::vector<RegisterReport> reports;
   const auto corrections = registerSessions(
       sessions,
-      [&](size_t k, const PoseCorrection& c) {
+      [&](size_t k, const PoseCorrection& c, bool last) {
         ++calls;
+        last_calls += last;
         EXPECT_EQ(c.model, CorrectionModel::World);
         return room(c.motion * poses[k]);
       },
       3, {}, &reports);
   EXPECT_EQ(calls, 3 * poses.size());
+  EXPECT_EQ(last_calls, poses.size());  // the last round's, once per session
   ASSERT_EQ(corrections.size(), poses.size());
   // Any correction that puts the shifted walls back into the others' voxels is exact at this
   // resolution: x in (-0.0626, -0.0126) m.
@@ -409,7 +411,9 @@ TEST(RegisterSessions, CorrectsDriftFromTheFramesAndReintegrates) {
   settings.max_points = 5000;
   settings.drift_knot_frames = 4;
   settings.drift_rounds = 1;
-  const auto reintegrate = [&](size_t k, const PoseCorrection& c) { return DriftingHall::seen(*sources[k], c); };
+  const auto reintegrate = [&](size_t k, const PoseCorrection& c, bool) {
+    return DriftingHall::seen(*sources[k], c);
+  };
   const auto frames = [&](size_t k) -> std::unique_ptr<FrameSource> {
     return std::make_unique<FrameVector>(static_cast<const FrameVector*>(sources[k])->frames());
   };
@@ -449,7 +453,9 @@ TEST(RegisterSessions, OnePassForPointsAndSamplesGivesTheCorrectionsOfSeparatePa
   settings.drift_rounds = 2;
   settings.drift_points = true;
   settings.planar = true;
-  const auto reintegrate = [&](size_t k, const PoseCorrection& c) { return DriftingHall::seen(*sources[k], c); };
+  const auto reintegrate = [&](size_t k, const PoseCorrection& c, bool) {
+    return DriftingHall::seen(*sources[k], c);
+  };
   const auto frames = [&](size_t k) -> std::unique_ptr<FrameSource> {
     return std::make_unique<FrameVector>(sources[k]->frames());
   };
@@ -462,7 +468,7 @@ TEST(RegisterSessions, OnePassForPointsAndSamplesGivesTheCorrectionsOfSeparatePa
     for (size_t k = 0; k < reference.size(); ++k) {
       expected[k] = expected[k].then({registerToConsensus(reference[k], target, settings), settings.model, {}});
     }
-    for (size_t k = 0; k < reference.size(); ++k) reference[k] = reintegrate(k, expected[k]);
+    for (size_t k = 0; k < reference.size(); ++k) reference[k] = reintegrate(k, expected[k], false);
   }
   for (int round = 0; round < settings.drift_rounds; ++round) {
     RegistrationTarget target(consensus(std::span<const SessionMap>(reference)));
@@ -476,7 +482,7 @@ TEST(RegisterSessions, OnePassForPointsAndSamplesGivesTheCorrectionsOfSeparatePa
     }
     for (size_t k = 0; k < reference.size(); ++k) {
       expected[k] = expected[k].then(drift[k]);
-      reference[k] = reintegrate(k, expected[k]);
+      reference[k] = reintegrate(k, expected[k], round + 1 == settings.drift_rounds);
     }
   }
   ASSERT_EQ(found.size(), expected.size());

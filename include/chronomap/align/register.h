@@ -147,9 +147,11 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
 /// The recording of session `index` as first read (poses uncorrected), for the drift correction.
 using SessionFrames = std::function<std::unique_ptr<FrameSource>(size_t index)>;
 
-/// Integrates session `index` again with every pose corrected by `correction`.
-/// Called from several threads at once, for different sessions.
-using Reintegrate = std::function<SessionMap(size_t index, const PoseCorrection& correction)>;
+/// Integrates session `index` again with every pose corrected by `correction`. `last`: the
+/// session's last re-integration, the map registerSessions() leaves; of the maps before it only
+/// the occupancy and the hits are used (the next round's consensus and fit), so they may be
+/// integrated without colour. Called from several threads at once, for different sessions.
+using Reintegrate = std::function<SessionMap(size_t index, const PoseCorrection& correction, bool last)>;
 
 /// Registers every session to the consensus of all of them, `rounds` times (each round against
 /// the consensus of the sessions as the previous round left them), integrating each session
