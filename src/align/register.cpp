@@ -161,14 +161,15 @@ HitMap surfaceOf(const SessionMap& map, std::vector<Eigen::Vector3d>* centres = 
 template <typename Fn>
 double forEachNear(const HitMap& surface, const KeyGrid& grid, const Eigen::Vector3d& p, double radius_voxels, Fn fn) {
   const double radius_m = radius_voxels * grid.resolution_m();
-  const bool inside = forEachKeyWithin(grid, p, radius_voxels, false, [&](const VoxelKey& n) {
-    // The distance first: most of the cube lies outside the sphere, and a lookup costs more.
-    const Eigen::Vector3d c = grid.centerOf(n);
-    const double d2 = (c - p).squaredNorm();
-    if (d2 > radius_m * radius_m) return;
-    const uint32_t* hits = surface.find(mortonEncode(n));
-    if (hits) fn(c, *hits, d2);
-  });
+  const double radius2 = radius_m * radius_m;
+  // The distance first: most of the cube lies outside the sphere, and a lookup costs more.
+  const bool inside = forEachFoundWithin(
+      surface, grid, p, radius_voxels, false,
+      [&](const VoxelKey& n) { return !((grid.centerOf(n) - p).squaredNorm() > radius2); },
+      [&](const VoxelKey& n, uint32_t hits) {
+        const Eigen::Vector3d c = grid.centerOf(n);
+        fn(c, hits, (c - p).squaredNorm());
+      });
   return inside ? radius_m : -1.0;
 }
 
@@ -198,17 +199,37 @@ RegistrationTarget::RegistrationTarget(const SessionMap& consensus)
     : grid_(consensus.grid()), surface_(surfaceOf(consensus)) {}
 
 void RegistrationTarget::addPoints(const FrameSource& frames, double max_range_m) {
-  const double range2 = max_range_m * max_range_m;
+  std::vector<KeyedPoint> keyed;
   for (size_t i = 0; i < frames.size(); ++i) {
-    const Frame f = frames.load(i);
-    if (!f.T_world_sensor.matrix().allFinite()) throw UsageError(f.source + ": the pose is not finite");
-    PointAdder adder(points_, &surface_);
-    for (const Eigen::Vector3f& q : f.cloud.points) {
-      if (!usablePoint(q, range2)) continue;
-      const Eigen::Vector3d w = f.T_world_sensor * q.cast<double>();
-      if (const auto k = grid_.keyOf(w)) adder.add(mortonEncode(*k), w);
-    }
+    keyPoints(frames.load(i), max_range_m, keyed);
+    addKeyedPoints(keyed);
   }
+}
+
+void RegistrationTarget::keyPoints(const Frame& f, double max_range_m, std::vector<KeyedPoint>& out) const {
+  if (!f.T_world_sensor.matrix().allFinite()) throw UsageError(f.source + ": the pose is not finite");
+  const double range2 = max_range_m * max_range_m;
+  out.clear();
+  // Consecutive points mostly share a voxel: one lookup for a run of them.
+  uint64_t last = HitMap::kEmpty;
+  bool last_in = false;
+  for (const Eigen::Vector3f& q : f.cloud.points) {
+    if (!usablePoint(q, range2)) continue;
+    const Eigen::Vector3d w = f.T_world_sensor * q.cast<double>();
+    const auto k = grid_.keyOf(w);
+    if (!k) continue;
+    const uint64_t code = mortonEncode(*k);
+    if (code != last) {
+      last = code;
+      last_in = surface_.contains(code);
+    }
+    if (last_in) out.push_back({code, w});
+  }
+}
+
+void RegistrationTarget::addKeyedPoints(std::span<const KeyedPoint> points) {
+  PointAdder adder(points_, &surface_);
+  for (const KeyedPoint& p : points) adder.add(p.code, p.point);
 }
 
 Eigen::Isometry3d registerToConsensus(const SessionMap& session, const SessionMap& consensus,
@@ -362,18 +383,19 @@ std::optional<PlaneNear> pointPlaneNear(const PointSums& points, const KeyGrid& 
   int count = 0;
   // A voxel's mean lies inside the voxel: voxels whose box lies beyond the radius are not
   // looked up.
-  const bool inside = forEachKeyWithin(grid, p, radius_voxels, true, [&](const VoxelKey& n) {
-    const Eigen::Vector4d* found = points.find(mortonEncode(n));
-    if (!found || found->w() <= 0.0) return;
-    const Eigen::Vector3d m = found->head<3>() / found->w() - p;
+  const auto all = [](const VoxelKey&) { return true; };
+  const auto add = [&](const VoxelKey&, const Eigen::Vector4d& found) {
+    if (found.w() <= 0.0) return;
+    const Eigen::Vector3d m = found.head<3>() / found.w() - p;
     const double d2 = m.squaredNorm();
     if (d2 > radius_m * radius_m) return;
-    const double w = found->w() * std::exp(-2.0 * d2 / (radius_m * radius_m));
+    const double w = found.w() * std::exp(-2.0 * d2 / (radius_m * radius_m));
     sum += w * m;
     outer += w * m * m.transpose();
     weight += w;
     ++count;
-  });
+  };
+  const bool inside = forEachFoundWithin(points, grid, p, radius_voxels, true, all, add);
   if (!inside || count < 6 || weight <= 0.0) return std::nullopt;
   const Eigen::Vector3d mean = sum / weight;
   const Eigen::Matrix3d cov = outer / weight - mean * mean.transpose();
@@ -383,92 +405,137 @@ std::optional<PlaneNear> pointPlaneNear(const PointSums& points, const KeyGrid& 
   return PlaneNear{p + mean, eig.eigenvectors().col(0)};
 }
 
-}  // namespace
-
-std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const SessionMap& session,
-                                        const RegistrationTarget& target, const RegisterSettings& settings,
-                                        RegisterReport* report) {
-  settings.validate();
-  if (settings.drift_knot_frames < 1) throw UsageError("registration: the drift knot spacing must be >= 1 frame");
-  if (session.resolution_m() != target.resolution_m()) {
-    throw UsageError("registration: the session and the consensus have different resolutions");
-  }
-  const size_t n_frames = frames.size();
-  std::vector<Eigen::Isometry3d> out(n_frames, Eigen::Isometry3d::Identity());
-  RegisterReport rep;
-  if (n_frames == 0) {
-    if (report) *report = rep;
-    return out;
-  }
-  const KeyGrid& grid = session.grid();
-  // Samples: the voxels each frame's points end in, evenly thinned, each with the pull of that
-  // frame's own voxels on it (the frame's surface quantised exactly as the consensus is, so
-  // that a frame that fits pulls nowhere) and the normal of the frame's surface there.
-  std::vector<DriftSample> samples;
-  std::vector<Eigen::Vector3d> sensors(n_frames);
-  std::vector<uint64_t> codes;
+/// Tables driftSamplesOf() fills for each frame, kept between frames for their memory.
+struct DriftScratch {
   HitMap frame_surface;
   PointSums frame_points;
+  std::vector<uint64_t> codes;
+  std::vector<Eigen::Vector3d> usable;
+};
+
+/// Appends the drift samples of frame `index` (`f`, as integrated) to `out`: the voxels its
+/// points end in (with `use_points`, its points), evenly thinned, each with the pull of that
+/// frame's own voxels (points) on it (the frame's surface quantised exactly as the consensus is,
+/// so that a frame that fits pulls nowhere) and the normal of the frame's surface there.
+/// @throw UsageError for a pose that is not finite.
+void driftSamplesOf(const Frame& f, uint32_t index, const KeyGrid& grid, const RegisterSettings& settings,
+                    bool use_points, DriftScratch& scratch, std::vector<DriftSample>& out) {
+  if (!f.T_world_sensor.matrix().allFinite()) throw UsageError(f.source + ": the pose is not finite");
   const double range2 = settings.drift_max_range_m * settings.drift_max_range_m;
-  const bool use_points = settings.drift_points && !target.points().empty();
-  for (size_t i = 0; i < n_frames; ++i) {
-    const Frame f = frames.load(i);
-    sensors[i] = f.T_world_sensor.translation();
-    if (!f.T_world_sensor.matrix().allFinite()) throw UsageError(f.source + ": the pose is not finite");
-    if (use_points) {
-      // The frame's own points by voxel (sums and counts), for the pull of its own surface.
-      frame_points.clear();
-      PointAdder adder(frame_points);
-      size_t valid = 0;
-      for (const Eigen::Vector3f& q : f.cloud.points) {
-        if (!usablePoint(q, range2)) continue;
-        ++valid;
-        const Eigen::Vector3d w = f.T_world_sensor * q.cast<double>();
-        if (const auto k = grid.keyOf(w)) adder.add(mortonEncode(*k), w);
-      }
-      // Frame points, evenly thinned, as integrated (sub-voxel positions).
-      const size_t take = std::min(valid, settings.drift_samples_per_frame);
-      size_t seen = 0, next_index = 0, taken = 0;
-      for (const Eigen::Vector3f& q : f.cloud.points) {
-        if (taken >= take) break;
-        if (!usablePoint(q, range2)) continue;
-        if (seen++ != next_index) continue;
-        DriftSample d;
-        d.point = f.T_world_sensor * q.cast<double>();
-        // Where the frame's own points put the plane near the point: a frame that fits its
-        // target pulls nowhere, at edges and corners too.
-        const auto own = pointPlaneNear(frame_points, grid, d.point, settings.radius_voxels);
-        ++taken;
-        next_index = taken * valid / take;
-        if (!own) continue;
-        d.own_pull = own->point - d.point;
-        d.normal = own->normal;
-        d.frame = static_cast<uint32_t>(i);
-        samples.push_back(d);
-      }
-      continue;
-    }
-    frame_surface.clear();
+  if (use_points) {
+    // The frame's own points by voxel (sums and counts), for the pull of its own surface.
+    PointSums& frame_points = scratch.frame_points;
+    frame_points.clear();
+    PointAdder adder(frame_points);
+    size_t valid = 0;
     for (const Eigen::Vector3f& q : f.cloud.points) {
       if (!usablePoint(q, range2)) continue;
-      const auto k = grid.keyOf(f.T_world_sensor * q.cast<double>());
-      if (k) ++frame_surface.tryEmplace(mortonEncode(*k), 0);
+      ++valid;
+      const Eigen::Vector3d w = f.T_world_sensor * q.cast<double>();
+      if (const auto k = grid.keyOf(w)) adder.add(mortonEncode(*k), w);
     }
-    codes.clear();
-    frame_surface.forEach([&](uint64_t code, uint32_t) { codes.push_back(code); });
-    std::sort(codes.begin(), codes.end());
-    const size_t take = std::min(codes.size(), settings.drift_samples_per_frame);
-    for (size_t j = 0; j < take; ++j) {
-      const uint64_t code = codes[j * codes.size() / take];
+    // Frame points, evenly thinned, as integrated (sub-voxel positions).
+    const size_t take = std::min(valid, settings.drift_samples_per_frame);
+    size_t seen = 0, next_index = 0, taken = 0;
+    for (const Eigen::Vector3f& q : f.cloud.points) {
+      if (taken >= take) break;
+      if (!usablePoint(q, range2)) continue;
+      if (seen++ != next_index) continue;
       DriftSample d;
-      d.point = grid.centerOf(mortonDecode(code));
-      d.own_pull =
-          centroidNear(frame_surface, grid, d.point, settings.radius_voxels, true).value_or(d.point) - d.point;
-      d.normal = normalNear(frame_surface, grid, d.point, settings.radius_voxels);
-      d.frame = static_cast<uint32_t>(i);
-      samples.push_back(d);
+      d.point = f.T_world_sensor * q.cast<double>();
+      // Where the frame's own points put the plane near the point: a frame that fits its
+      // target pulls nowhere, at edges and corners too.
+      const auto own = pointPlaneNear(frame_points, grid, d.point, settings.radius_voxels);
+      ++taken;
+      next_index = taken * valid / take;
+      if (!own) continue;
+      d.own_pull = own->point - d.point;
+      d.normal = own->normal;
+      d.frame = index;
+      out.push_back(d);
     }
+    return;
   }
+  HitMap& frame_surface = scratch.frame_surface;
+  frame_surface.clear();
+  for (const Eigen::Vector3f& q : f.cloud.points) {
+    if (!usablePoint(q, range2)) continue;
+    const auto k = grid.keyOf(f.T_world_sensor * q.cast<double>());
+    if (k) ++frame_surface.tryEmplace(mortonEncode(*k), 0);
+  }
+  std::vector<uint64_t>& codes = scratch.codes;
+  codes.clear();
+  frame_surface.forEach([&](uint64_t code, uint32_t) { codes.push_back(code); });
+  std::sort(codes.begin(), codes.end());
+  const size_t take = std::min(codes.size(), settings.drift_samples_per_frame);
+  for (size_t j = 0; j < take; ++j) {
+    const uint64_t code = codes[j * codes.size() / take];
+    DriftSample d;
+    d.point = grid.centerOf(mortonDecode(code));
+    d.own_pull = centroidNear(frame_surface, grid, d.point, settings.radius_voxels, true).value_or(d.point) - d.point;
+    d.normal = normalNear(frame_surface, grid, d.point, settings.radius_voxels);
+    d.frame = index;
+    out.push_back(d);
+  }
+}
+
+/// What RegistrationTarget::keyPoints() and driftSamplesOf() with points give for one frame (in
+/// `keyed` and appended to `samples`), in one walk over its points: each point's world position
+/// and voxel once for both (the session's grid is the target's: the same resolution).
+/// @throw UsageError for a pose that is not finite.
+void keyPointsAndSamplesOf(const Frame& f, uint32_t index, const RegistrationTarget& target,
+                           const RegisterSettings& settings, DriftScratch& scratch,
+                           std::vector<RegistrationTarget::KeyedPoint>& keyed, std::vector<DriftSample>& samples) {
+  if (!f.T_world_sensor.matrix().allFinite()) throw UsageError(f.source + ": the pose is not finite");
+  const double range2 = settings.drift_max_range_m * settings.drift_max_range_m;
+  const KeyGrid& grid = target.grid();
+  const HitMap& surface = target.surface();
+  keyed.clear();
+  std::vector<Eigen::Vector3d>& usable = scratch.usable;
+  usable.clear();
+  PointSums& frame_points = scratch.frame_points;
+  frame_points.clear();
+  PointAdder adder(frame_points);
+  uint64_t last = HitMap::kEmpty;
+  bool last_in = false;
+  for (const Eigen::Vector3f& q : f.cloud.points) {
+    if (!usablePoint(q, range2)) continue;
+    const Eigen::Vector3d w = f.T_world_sensor * q.cast<double>();
+    usable.push_back(w);
+    const auto k = grid.keyOf(w);
+    if (!k) continue;
+    const uint64_t code = mortonEncode(*k);
+    adder.add(code, w);
+    if (code != last) {
+      last = code;
+      last_in = surface.contains(code);
+    }
+    if (last_in) keyed.push_back({code, w});
+  }
+  // The usable points at t * valid / take, t = 0 .. take - 1: those driftSamplesOf() takes.
+  const size_t valid = usable.size();
+  const size_t take = std::min(valid, settings.drift_samples_per_frame);
+  for (size_t t = 0; t < take; ++t) {
+    DriftSample d;
+    d.point = usable[t * valid / take];
+    const auto own = pointPlaneNear(frame_points, grid, d.point, settings.radius_voxels);
+    if (!own) continue;
+    d.own_pull = own->point - d.point;
+    d.normal = own->normal;
+    d.frame = index;
+    samples.push_back(d);
+  }
+}
+
+/// The drift of one session from its samples (driftSamplesOf(), in frame order) and its
+/// `sensors` (one position per frame, as integrated): fitDrift() without the frames.
+std::vector<Eigen::Isometry3d> solveDrift(const std::vector<Eigen::Vector3d>& sensors,
+                                          const std::vector<DriftSample>& samples, bool use_points,
+                                          const KeyGrid& grid, const RegistrationTarget& target,
+                                          const RegisterSettings& settings, RegisterReport* report) {
+  const size_t n_frames = sensors.size();
+  std::vector<Eigen::Isometry3d> out(n_frames, Eigen::Isometry3d::Identity());
+  RegisterReport rep;
   rep.points = samples.size();
   // Knots: frame i lies at u = i / spacing between knots floor(u) and floor(u) + 1.
   const size_t spacing = static_cast<size_t>(settings.drift_knot_frames);
@@ -591,6 +658,95 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
   return out;
 }
 
+}  // namespace
+
+std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const SessionMap& session,
+                                        const RegistrationTarget& target, const RegisterSettings& settings,
+                                        RegisterReport* report) {
+  settings.validate();
+  if (settings.drift_knot_frames < 1) throw UsageError("registration: the drift knot spacing must be >= 1 frame");
+  if (session.resolution_m() != target.resolution_m()) {
+    throw UsageError("registration: the session and the consensus have different resolutions");
+  }
+  const size_t n_frames = frames.size();
+  if (n_frames == 0) {
+    if (report) *report = RegisterReport{};
+    return {};
+  }
+  std::vector<DriftSample> samples;
+  std::vector<Eigen::Vector3d> sensors(n_frames);
+  DriftScratch scratch;
+  const bool use_points = settings.drift_points && !target.points().empty();
+  for (size_t i = 0; i < n_frames; ++i) {
+    const Frame f = frames.load(i);
+    sensors[i] = f.T_world_sensor.translation();
+    driftSamplesOf(f, static_cast<uint32_t>(i), session.grid(), settings, use_points, scratch, samples);
+  }
+  return solveDrift(sensors, samples, use_points, session.grid(), target, settings, report);
+}
+
+namespace {
+
+/// What the drift fit of one session needs from its frames (driftSamplesOf()).
+struct SessionDriftInput {
+  std::vector<Eigen::Vector3d> sensors;  ///< one per frame
+  std::vector<DriftSample> samples;      ///< in frame order
+};
+
+/// One pass over every frame of every session (as corrected by `corrections`) for both the
+/// target's point sums (RegistrationTarget::addPoints(), session after session: the same sums)
+/// and each session's drift samples with points (what fitDrift() would take). Frames are read
+/// and prepared in parallel, a batch at a time; their points are added to `target` in order.
+/// @throw UsageError for missing frames, resolutions that differ or poses that are not finite;
+/// whatever the frames' load throws.
+std::vector<SessionDriftInput> pointsAndSamples(const std::vector<SessionMap>& sessions, const SessionFrames& frames,
+                                                const std::vector<PoseCorrection>& corrections,
+                                                RegistrationTarget& target, const RegisterSettings& settings) {
+  std::vector<std::unique_ptr<FrameSource>> sources(sessions.size());
+  std::vector<std::unique_ptr<CorrectedFrames>> corrected(sessions.size());
+  std::vector<SessionDriftInput> inputs(sessions.size());
+  std::vector<std::pair<uint32_t, uint32_t>> items;  // (session, frame), in the order of addPoints()
+  for (size_t k = 0; k < sessions.size(); ++k) {
+    sources[k] = frames(k);
+    if (!sources[k]) throw UsageError("registration with drift: no frames for session " + std::to_string(k));
+    if (sessions[k].resolution_m() != target.resolution_m()) {
+      throw UsageError("registration: the session and the consensus have different resolutions");
+    }
+    corrected[k] = std::make_unique<CorrectedFrames>(*sources[k], corrections[k]);
+    inputs[k].sensors.resize(sources[k]->size());
+    for (size_t i = 0; i < sources[k]->size(); ++i) items.emplace_back(k, i);
+  }
+  struct Slot {
+    std::vector<RegistrationTarget::KeyedPoint> points;
+    std::vector<DriftSample> samples;
+    Eigen::Vector3d sensor;
+    DriftScratch scratch;
+  };
+  // A few frames per core in flight: each holds up to one point per pixel.
+  constexpr size_t kBatch = 16;
+  std::vector<Slot> slots(std::min(kBatch, items.size()));
+  for (size_t begin = 0; begin < items.size(); begin += kBatch) {
+    const size_t n = std::min(kBatch, items.size() - begin);
+    parallelFor(n, 0, [&](size_t j) {
+      const auto [k, i] = items[begin + j];
+      Slot& slot = slots[j];
+      const Frame f = corrected[k]->load(i);
+      slot.sensor = f.T_world_sensor.translation();
+      slot.samples.clear();
+      keyPointsAndSamplesOf(f, i, target, settings, slot.scratch, slot.points, slot.samples);
+    });
+    for (size_t j = 0; j < n; ++j) {
+      const auto [k, i] = items[begin + j];
+      target.addKeyedPoints(slots[j].points);
+      inputs[k].sensors[i] = slots[j].sensor;
+      inputs[k].samples.insert(inputs[k].samples.end(), slots[j].samples.begin(), slots[j].samples.end());
+    }
+  }
+  return inputs;
+}
+
+}  // namespace
+
 std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, const Reintegrate& reintegrate,
                                              int rounds, const RegisterSettings& settings,
                                              std::vector<RegisterReport>* reports,
@@ -633,26 +789,29 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
         (*reports)[k].mean_shift_after_m = r.mean_shift_after_m;
       }
     }
-    parallelFor(sessions.size(), 0, [&](size_t k) { sessions[k] = reintegrate(k, corrections[k]); });
+    const bool last = round + 1 == rounds && settings.drift_knot_frames == 0;
+    parallelFor(sessions.size(), 0, [&](size_t k) { sessions[k] = reintegrate(k, corrections[k], last); });
   }
   if (settings.drift_knot_frames > 0) {
     for (int round = 0; round < settings.drift_rounds; ++round) {
       RegistrationTarget target(consensus(std::span<const SessionMap>(sessions)));
-      if (settings.drift_points) {
-        // Every session's points, as corrected so far (serially: one target).
-        for (size_t k = 0; k < sessions.size(); ++k) {
+      std::vector<RegisterReport> found(sessions.size());
+      std::vector<SessionDriftInput> inputs;
+      if (settings.drift_points) inputs = pointsAndSamples(sessions, frames, corrections, target, settings);
+      // The samples were taken for the points' surface; without points they are the voxels'.
+      const bool prepared = !inputs.empty() && !target.points().empty();
+      parallelFor(sessions.size(), 0, [&](size_t k) {
+        std::vector<Eigen::Isometry3d> per_frame;
+        if (prepared) {
+          per_frame = inputs[k].sensors.empty() ? std::vector<Eigen::Isometry3d>{}
+                                                : solveDrift(inputs[k].sensors, inputs[k].samples, true,
+                                                             sessions[k].grid(), target, settings, &found[k]);
+        } else {
           const std::unique_ptr<FrameSource> source = frames(k);
           if (!source) throw UsageError("registration with drift: no frames for session " + std::to_string(k));
-          target.addPoints(CorrectedFrames(*source, corrections[k]), settings.drift_max_range_m);
+          per_frame = fitDrift(CorrectedFrames(*source, corrections[k]), sessions[k], target, settings, &found[k]);
         }
-      }
-      std::vector<RegisterReport> found(sessions.size());
-      parallelFor(sessions.size(), 0, [&](size_t k) {
-        const std::unique_ptr<FrameSource> source = frames(k);
-        if (!source) throw UsageError("registration with drift: no frames for session " + std::to_string(k));
-        const CorrectedFrames corrected(*source, corrections[k]);
-        PoseCorrection drift{Eigen::Isometry3d::Identity(), settings.model,
-                             fitDrift(corrected, sessions[k], target, settings, &found[k])};
+        PoseCorrection drift{Eigen::Isometry3d::Identity(), settings.model, std::move(per_frame)};
         corrections[k] = corrections[k].then(drift);
       });
       if (reports) {
@@ -661,7 +820,8 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
           (*reports)[k].mean_shift_after_m = found[k].mean_shift_after_m;
         }
       }
-      parallelFor(sessions.size(), 0, [&](size_t k) { sessions[k] = reintegrate(k, corrections[k]); });
+      const bool last = round + 1 == settings.drift_rounds;
+      parallelFor(sessions.size(), 0, [&](size_t k) { sessions[k] = reintegrate(k, corrections[k], last); });
     }
   }
   return corrections;

@@ -163,8 +163,14 @@ constexpr double kPlausibleMedianDepthMax_m = 50.0;
 class ImageDataset : public Dataset {
  public:
   ImageDataset(DatasetFormat format, std::vector<ImageFrame> frames, CameraIntrinsics k, double scale, size_t dropped,
-               std::optional<CameraIntrinsics> color_k = std::nullopt)
-      : format_(format), frames_(std::move(frames)), k_(k), scale_(scale), dropped_(dropped), color_k_(color_k) {}
+               std::optional<CameraIntrinsics> color_k = std::nullopt, bool colour = true)
+      : format_(format),
+        frames_(std::move(frames)),
+        k_(k),
+        scale_(scale),
+        dropped_(dropped),
+        color_k_(color_k),
+        colour_(colour) {}
   size_t size() const override { return frames_.size(); }
   DatasetFormat format() const override { return format_; }
   std::optional<double> recordedAt() const override {
@@ -199,7 +205,7 @@ class ImageDataset : public Dataset {
     const ImageU16 depth = readPngU16(f.depth);
     checkDepthScale(depth, f.depth.string());
     std::optional<ImageRgb> rgb;
-    if (f.color) rgb = readColorImage(*f.color);
+    if (f.color && colour_) rgb = readColorImage(*f.color);
     // A colour camera with intrinsics of its own (ScanNet): looked up along each depth ray.
     if (rgb && color_k_) rgb = colorInDepthView(*rgb, *color_k_, k_, depth.width, depth.height);
     Frame frame;
@@ -217,6 +223,7 @@ class ImageDataset : public Dataset {
   double scale_;
   size_t dropped_;
   std::optional<CameraIntrinsics> color_k_;
+  bool colour_;
 };
 
 class CloudDataset : public Dataset {
@@ -336,7 +343,8 @@ std::unique_ptr<Dataset> openThreeDMatch(const fs::path& root, const DatasetSett
     }
   }
   if (frames.empty()) throw DataError(root.string() + ": no frame-*.depth.png files found");
-  return std::make_unique<ImageDataset>(DatasetFormat::ThreeDMatch, std::move(frames), k, checkedScale(o, 1000.0), 0);
+  return std::make_unique<ImageDataset>(DatasetFormat::ThreeDMatch, std::move(frames), k, checkedScale(o, 1000.0), 0,
+                                        std::nullopt, o.colour);
 }
 
 // ---------------------------------------------------------------- ScanNet
@@ -401,7 +409,7 @@ std::unique_ptr<Dataset> openScanNet(const fs::path& root, const DatasetSettings
                     " with invalid poses)");
   }
   return std::make_unique<ImageDataset>(DatasetFormat::ScanNet, std::move(frames), k, checkedScale(o, 1000.0), dropped,
-                                        color_k);
+                                        color_k, o.colour);
 }
 
 // ---------------------------------------------------------------- TUM RGB-D
@@ -491,7 +499,8 @@ std::unique_ptr<Dataset> openTum(const fs::path& root, const DatasetSettings& o)
     throw DataError(root.string() + ": none of the " + std::to_string(depths.size()) +
                     " depth frames has a pose (and colour) within " + std::to_string(o.max_time_difference_s) + " s");
   }
-  return std::make_unique<ImageDataset>(DatasetFormat::Tum, std::move(frames), k, checkedScale(o, 5000.0), dropped);
+  return std::make_unique<ImageDataset>(DatasetFormat::Tum, std::move(frames), k, checkedScale(o, 5000.0), dropped,
+                                        std::nullopt, o.colour);
 }
 
 // ---------------------------------------------------------------- clouds

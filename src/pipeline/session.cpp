@@ -47,11 +47,17 @@ std::vector<PoseCorrection> registerDatasets(std::vector<SessionMap>& maps, std:
                                              std::span<const std::vector<Eigen::Vector3d>> sensor_positions,
                                              const SessionSettings& settings, const RegistrationSettings& registration,
                                              std::vector<RegisterReport>* reports) {
+  // The drift fit needs the frames' points only, and the maps before each session's last
+  // re-integration their occupancy only: there the colour images are left unread.
+  SessionSettings geometry = settings;
+  geometry.dataset.colour = false;
   return registerSessions(
       maps,
-      [&](size_t k, const PoseCorrection& c) { return integrateDataset(paths[k], settings, c, {}, "").map; },
+      [&](size_t k, const PoseCorrection& c, bool last) {
+        return integrateDataset(paths[k], last ? settings : geometry, c, {}, "").map;
+      },
       registration.rounds, registration.align, reports, sensor_positions,
-      [&](size_t k) -> std::unique_ptr<FrameSource> { return io::openDataset(paths[k], settings.dataset); });
+      [&](size_t k) -> std::unique_ptr<FrameSource> { return io::openDataset(paths[k], geometry.dataset); });
 }
 
 }  // namespace chronomap::pipeline

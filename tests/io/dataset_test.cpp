@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <limits>
 #include <sstream>
@@ -110,6 +111,30 @@ TEST(Dataset, ReadsTumWithAssociationAndIntrinsics) {
   EXPECT_NEAR(f.cloud.points[5].z(), 1.0, 1e-6);                    // 5000 units = 1 m
   EXPECT_NEAR(f.cloud.points[5].x(), (1 - 1.5) * 1.0 / 2.0, 1e-6);  // intrinsics file used
   EXPECT_TRUE(std::isnan(f.cloud.points[0].z()));
+}
+
+TEST(Dataset, WithoutColourGivesTheSamePointsAndPosesWithoutColours) {
+  test::TempDir tmp;
+  makeTum(tmp.path(), 3);
+  DatasetSettings geometry;
+  geometry.colour = false;
+  auto with = openDataset(tmp.path()), without = openDataset(tmp.path(), geometry);
+  ASSERT_EQ(without->size(), with->size());
+  for (size_t i = 0; i < with->size(); ++i) {
+    const Frame a = with->load(i), b = without->load(i);
+    EXPECT_TRUE(a.cloud.hasColors());
+    EXPECT_FALSE(b.cloud.hasColors());
+    ASSERT_EQ(b.cloud.points.size(), a.cloud.points.size());
+    for (size_t j = 0; j < a.cloud.points.size(); ++j) {
+      // Bitwise (NaN for the invalid pixel in both).
+      EXPECT_EQ(std::memcmp(a.cloud.points[j].data(), b.cloud.points[j].data(), sizeof(float) * 3), 0) << i << j;
+    }
+    EXPECT_TRUE(a.T_world_sensor.matrix() == b.T_world_sensor.matrix());
+  }
+  // The colour images are not even opened: a missing one does not matter.
+  fs::remove(tmp.path() / "rgb/1.png");
+  EXPECT_FALSE(openDataset(tmp.path(), geometry)->load(1).cloud.hasColors());
+  EXPECT_THROW(openDataset(tmp.path())->load(1), Error);
 }
 
 TEST(Dataset, TumDropsFramesWithoutPoseAndFailsWithNone) {

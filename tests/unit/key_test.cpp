@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <cmath>
+#include <optional>
 #include <random>
 #include <unordered_map>
 #include <vector>
@@ -125,6 +127,65 @@ TEST(ForEachKeyWithin, VisitsEveryVoxelOfTheCubeWithinTheRadiusInOrderAndFewOthe
   }
   // Outside the grid: nothing.
   EXPECT_FALSE(forEachKeyWithin(KeyGrid(0.05), Eigen::Vector3d(1e9, 0, 0), 2.0, false, [](const VoxelKey&) {}));
+}
+
+TEST(ForEachFoundWithin, FindsWhatLookingUpEachVisitedVoxelFindsInTheSameOrder) {
+  // The batched, prefetched lookups against one lookup per visited voxel.
+  std::mt19937 rng(5);
+  const KeyGrid grid(0.05);
+  VoxelTable<uint32_t> table;
+  std::uniform_int_distribution<int> offset(-12, 12);
+  for (uint32_t i = 0; i < 4000; ++i) {
+    table.tryEmplace(mortonEncode(*offsetKey(VoxelKey{32768, 32768, 32768}, offset(rng), offset(rng), offset(rng))), i);
+  }
+  std::uniform_real_distribution<double> coordinate(-0.6, 0.6);
+  size_t found_total = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    const Eigen::Vector3d p(coordinate(rng), coordinate(rng), coordinate(rng));
+    const double radius = std::array<double, 4>{1.0, 2.0, 3.7, 8.0}[trial % 4];
+    const bool box = trial % 2 == 1;
+    // Every other key (by its x) is refused, so that `keep` matters too.
+    const auto keep = [](const VoxelKey& k) { return k.x % 2 == 0; };
+    std::vector<std::pair<VoxelKey, uint32_t>> expected, found;
+    const bool inside = forEachKeyWithin(grid, p, radius, box, [&](const VoxelKey& k) {
+      if (!keep(k)) return;
+      if (const uint32_t* v = table.find(mortonEncode(k))) expected.emplace_back(k, *v);
+    });
+    EXPECT_EQ(forEachFoundWithin(table, grid, p, radius, box, keep,
+                                 [&](const VoxelKey& k, uint32_t v) { found.emplace_back(k, v); }),
+              inside);
+    EXPECT_EQ(found, expected) << trial;
+    found_total += found.size();
+  }
+  EXPECT_GT(found_total, 10000u);  // many voxels found, and batches of 32 filled many times
+  EXPECT_FALSE(forEachFoundWithin(table, grid, Eigen::Vector3d(1e9, 0, 0), 2.0, false,
+                                  [](const VoxelKey&) { return true; }, [](const VoxelKey&, uint32_t) {}));
+}
+
+TEST(KeyGrid, KeyOfEqualsFlooringTheKeySpaceCoordinate) {
+  // keyOf truncates instead of calling floor: the same keys, and the same points refused.
+  std::mt19937 rng(7);
+  for (const double res : {0.05, 0.0001, 1000.0}) {
+    const KeyGrid g(res);
+    std::uniform_real_distribution<double> coordinate(-1.2 * g.halfExtent_m(), 1.2 * g.halfExtent_m());
+    std::uniform_real_distribution<double> near(-3.0 * res, 3.0 * res);
+    for (int i = 0; i < 20000; ++i) {
+      Eigen::Vector3d p(coordinate(rng), near(rng), i % 2 ? near(rng) : -g.halfExtent_m() + near(rng));
+      if (i % 7 == 0) p.y() = std::nextafter(0.0, i % 14 == 0 ? 1.0 : -1.0);
+      std::optional<VoxelKey> reference = VoxelKey{};
+      const Eigen::Vector3d u = g.toKeySpace(p);
+      uint16_t* out[3] = {&reference->x, &reference->y, &reference->z};
+      for (int a = 0; a < 3 && reference; ++a) {
+        const double f = std::floor(u[a]);
+        if (!(f >= 0.0 && f < kKeysPerAxis)) {
+          reference.reset();
+        } else {
+          *out[a] = static_cast<uint16_t>(f);
+        }
+      }
+      EXPECT_EQ(g.keyOf(p), reference) << p.transpose();
+    }
+  }
 }
 
 TEST(ForEachKeyInCube, VisitsTheCubeInOrderAndStopsAtTheKeySpace) {

@@ -9,6 +9,7 @@
 #include <numbers>
 #include <vector>
 
+#include "chronomap/align/consensus.h"
 #include "chronomap/align/register.h"
 #include "chronomap/core/error.h"
 #include "builders.h"
@@ -101,17 +102,19 @@ TEST(RegisterSessions, BringsTheOddSessionToTheOthersAndReintegratesIt) {
                                                 Eigen::Isometry3d::Identity(), shift};
   std::vector<SessionMap> sessions;
   for (const auto& p : poses) sessions.push_back(room(p));
-  std::atomic<size_t> calls = 0;  // sessions are integrated again in parallel
+  std::atomic<size_t> calls = 0, last_calls = 0;  // sessions are integrated again in parallel
   std::vector<RegisterReport> reports;
   const auto corrections = registerSessions(
       sessions,
-      [&](size_t k, const PoseCorrection& c) {
+      [&](size_t k, const PoseCorrection& c, bool last) {
         ++calls;
+        last_calls += last;
         EXPECT_EQ(c.model, CorrectionModel::World);
         return room(c.motion * poses[k]);
       },
       3, {}, &reports);
   EXPECT_EQ(calls, 3 * poses.size());
+  EXPECT_EQ(last_calls, poses.size());  // the last round's, once per session
   ASSERT_EQ(corrections.size(), poses.size());
   // Any correction that puts the shifted walls back into the others' voxels is exact at this
   // resolution: x in (-0.0626, -0.0126) m.
@@ -408,7 +411,9 @@ TEST(RegisterSessions, CorrectsDriftFromTheFramesAndReintegrates) {
   settings.max_points = 5000;
   settings.drift_knot_frames = 4;
   settings.drift_rounds = 1;
-  const auto reintegrate = [&](size_t k, const PoseCorrection& c) { return DriftingHall::seen(*sources[k], c); };
+  const auto reintegrate = [&](size_t k, const PoseCorrection& c, bool) {
+    return DriftingHall::seen(*sources[k], c);
+  };
   const auto frames = [&](size_t k) -> std::unique_ptr<FrameSource> {
     return std::make_unique<FrameVector>(static_cast<const FrameVector*>(sources[k])->frames());
   };
@@ -420,4 +425,79 @@ TEST(RegisterSessions, CorrectsDriftFromTheFramesAndReintegrates) {
   EXPECT_EQ(sessions[2], DriftingHall::seen(d.frames, corrections[2]));  // re-integrated with it
   // Drift needs the frames.
   EXPECT_THROW(registerSessions(sessions, reintegrate, 1, settings), UsageError);
+}
+
+TEST(RegisterSessions, OnePassForPointsAndSamplesGivesTheCorrectionsOfSeparatePasses) {
+  // registerSessions reads every frame once per drift round for both the target's point sums and
+  // the drift samples, in parallel batches; the reference reads them twice, serially
+  // (RegistrationTarget::addPoints session after session, then fitDrift). Bit for bit the same.
+  const DriftingHall d;
+  // Every sixth point of the hall's frames: enough for the fit, in a fraction of the time.
+  const auto thinned = [](const FrameVector& frames) {
+    std::vector<Frame> out = frames.frames();
+    for (Frame& f : out) {
+      std::vector<Eigen::Vector3f> kept;
+      for (size_t j = 0; j < f.cloud.points.size(); j += 6) kept.push_back(f.cloud.points[j]);
+      f.cloud.points = std::move(kept);
+      f.cloud.width = static_cast<uint32_t>(f.cloud.points.size());
+    }
+    return FrameVector(std::move(out));
+  };
+  const FrameVector truth = thinned(d.true_frames), drifting = thinned(d.frames);
+  const std::vector<const FrameVector*> sources = {&truth, &drifting, &drifting};
+  std::vector<SessionMap> sessions;
+  for (const FrameSource* s : sources) sessions.push_back(DriftingHall::seen(*s));
+  RegisterSettings settings;
+  settings.max_points = 2000;
+  settings.drift_knot_frames = 4;
+  settings.drift_rounds = 2;
+  settings.drift_points = true;
+  settings.planar = true;
+  const auto reintegrate = [&](size_t k, const PoseCorrection& c, bool) {
+    return DriftingHall::seen(*sources[k], c);
+  };
+  const auto frames = [&](size_t k) -> std::unique_ptr<FrameSource> {
+    return std::make_unique<FrameVector>(sources[k]->frames());
+  };
+  std::vector<SessionMap> reference = sessions;
+  const auto found = registerSessions(sessions, reintegrate, 1, settings, nullptr, {}, frames);
+  // The reference: one rigid round, then the drift rounds with two passes over the frames.
+  std::vector<PoseCorrection> expected(reference.size(), PoseCorrection{});
+  {
+    const RegistrationTarget target(consensus(std::span<const SessionMap>(reference)));
+    for (size_t k = 0; k < reference.size(); ++k) {
+      expected[k] = expected[k].then({registerToConsensus(reference[k], target, settings), settings.model, {}});
+    }
+    for (size_t k = 0; k < reference.size(); ++k) reference[k] = reintegrate(k, expected[k], false);
+  }
+  for (int round = 0; round < settings.drift_rounds; ++round) {
+    RegistrationTarget target(consensus(std::span<const SessionMap>(reference)));
+    for (size_t k = 0; k < reference.size(); ++k) {
+      target.addPoints(CorrectedFrames(*sources[k], expected[k]), settings.drift_max_range_m);
+    }
+    std::vector<PoseCorrection> drift;
+    for (size_t k = 0; k < reference.size(); ++k) {
+      drift.push_back({Eigen::Isometry3d::Identity(), settings.model,
+                       fitDrift(CorrectedFrames(*sources[k], expected[k]), reference[k], target, settings)});
+    }
+    for (size_t k = 0; k < reference.size(); ++k) {
+      expected[k] = expected[k].then(drift[k]);
+      reference[k] = reintegrate(k, expected[k], round + 1 == settings.drift_rounds);
+    }
+  }
+  ASSERT_EQ(found.size(), expected.size());
+  for (size_t k = 0; k < found.size(); ++k) {
+    EXPECT_TRUE(found[k].motion.matrix() == expected[k].motion.matrix()) << k;
+    ASSERT_EQ(found[k].per_frame.size(), d.frames.size());
+    ASSERT_EQ(expected[k].per_frame.size(), d.frames.size());
+    for (size_t i = 0; i < d.frames.size(); ++i) {
+      EXPECT_TRUE(found[k].per_frame[i].matrix() == expected[k].per_frame[i].matrix()) << k << " " << i;
+    }
+    EXPECT_EQ(sessions[k], reference[k]);
+  }
+  // The drifting sessions were corrected (the test compares a fit, not identities).
+  EXPECT_LT(d.meanError(found[1]), 0.8 * d.meanError({}));
+  EXPECT_LT(d.meanError(found[2]), 0.8 * d.meanError({}));
+  // More frames than one batch of the pass.
+  EXPECT_GT(sources.size() * d.frames.size(), 16u);
 }

@@ -4,6 +4,7 @@
 /// that is one offset for the whole session, estimated before the per-voxel re-alignment.
 
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <span>
@@ -88,6 +89,17 @@ class RegistrationTarget {
   /// surface's voxels to those voxels' point sums (for RegisterSettings::drift_points).
   /// @throw whatever frames.load throws.
   void addPoints(const FrameSource& frames, double max_range_m);
+  /// A world point and the Morton code of its voxel in grid().
+  struct KeyedPoint {
+    uint64_t code;
+    Eigen::Vector3d point;
+  };
+  /// addPoints() in two steps, the first safe from several threads at once: the points of one
+  /// frame that addPoints() would add, in order, with their voxels (`out` is replaced); then
+  /// adding them. Adding every frame's points in the order addPoints() reads them gives the same
+  /// sums, bit for bit. @throw UsageError for a pose that is not finite.
+  void keyPoints(const Frame& frame, double max_range_m, std::vector<KeyedPoint>& out) const;
+  void addKeyedPoints(std::span<const KeyedPoint> points);
   /// Sum of the added points (x, y, z) and their number (w), by Morton code.
   const VoxelTable<Eigen::Vector4d>& points() const { return points_; }
 
@@ -135,9 +147,11 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
 /// The recording of session `index` as first read (poses uncorrected), for the drift correction.
 using SessionFrames = std::function<std::unique_ptr<FrameSource>(size_t index)>;
 
-/// Integrates session `index` again with every pose corrected by `correction`.
-/// Called from several threads at once, for different sessions.
-using Reintegrate = std::function<SessionMap(size_t index, const PoseCorrection& correction)>;
+/// Integrates session `index` again with every pose corrected by `correction`. `last`: the
+/// session's last re-integration, the map registerSessions() leaves; of the maps before it only
+/// the occupancy and the hits are used (the next round's consensus and fit), so they may be
+/// integrated without colour. Called from several threads at once, for different sessions.
+using Reintegrate = std::function<SessionMap(size_t index, const PoseCorrection& correction, bool last)>;
 
 /// Registers every session to the consensus of all of them, `rounds` times (each round against
 /// the consensus of the sessions as the previous round left them), integrating each session

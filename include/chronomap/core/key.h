@@ -123,11 +123,28 @@ class KeyGrid {
     return p_m * inv_resolution_ + Eigen::Vector3d::Constant(kKeyOrigin);
   }
   /// The key of the voxel that contains p_m, or nothing if p_m lies outside the map.
-  std::optional<VoxelKey> keyOf(const Eigen::Vector3d& p_m) const;
+  /// (Inline: it runs for every point of every frame.)
+  std::optional<VoxelKey> keyOf(const Eigen::Vector3d& p_m) const {
+    const Eigen::Vector3d u = toKeySpace(p_m);
+    // floor(u) lies in [0, kKeysPerAxis) exactly when u does (false for NaN), and then equals
+    // the truncation.
+    for (int a = 0; a < 3; ++a) {
+      if (!(u[a] >= 0.0 && u[a] < kKeysPerAxis)) return std::nullopt;
+    }
+    const auto axis = [&](int a) { return static_cast<uint16_t>(static_cast<int32_t>(u[a])); };
+    return VoxelKey{axis(0), axis(1), axis(2)};
+  }
   /// Centre of a voxel at the given level (0 = unit voxel) whose lower corner key is `key`.
-  Eigen::Vector3d centerOf(const VoxelKey& key, int level = 0) const;
+  Eigen::Vector3d centerOf(const VoxelKey& key, int level = 0) const {
+    const double half = 0.5 * static_cast<double>(1 << level);
+    return cornerOf(key) + Eigen::Vector3d::Constant(half * resolution_m_);
+  }
   /// Lower corner of the voxel `key`.
-  Eigen::Vector3d cornerOf(const VoxelKey& key) const;
+  Eigen::Vector3d cornerOf(const VoxelKey& key) const {
+    return Eigen::Vector3d(static_cast<double>(key.x) - kKeyOrigin, static_cast<double>(key.y) - kKeyOrigin,
+                           static_cast<double>(key.z) - kKeyOrigin) *
+           resolution_m_;
+  }
 
  private:
   double resolution_m_;

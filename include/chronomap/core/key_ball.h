@@ -3,11 +3,15 @@
 /// The voxels around a point that may lie within a radius of it (align/register.cpp).
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstddef>
+#include <cstdint>
 
 #include <Eigen/Core>
 
 #include "chronomap/core/key.h"
+#include "chronomap/core/voxel_table.h"
 
 namespace chronomap {
 
@@ -45,6 +49,35 @@ bool forEachKeyWithin(const KeyGrid& grid, const Eigen::Vector3d& p, double radi
     }
   }
   return true;
+}
+
+/// forEachKeyWithin() with lookups in `table`: calls fn(key, value) for the visited voxels that
+/// `keep(key)` accepts and `table` holds, in the same order, as looking each up in turn would.
+/// The table's slots for a batch of them are prefetched before they are looked up: in a table
+/// larger than the cache the lookups then wait on memory together instead of one after another.
+/// @return false when `p` lies outside the grid (and fn is never called).
+template <typename V, typename Keep, typename Fn>
+bool forEachFoundWithin(const VoxelTable<V>& table, const KeyGrid& grid, const Eigen::Vector3d& p,
+                        double radius_voxels, bool box, Keep keep, Fn fn) {
+  constexpr size_t kBatch = 32;
+  std::array<VoxelKey, kBatch> keys;
+  std::array<uint64_t, kBatch> codes;
+  size_t n = 0;
+  const auto lookUp = [&] {
+    for (size_t j = 0; j < n; ++j) {
+      if (const V* value = table.find(codes[j])) fn(keys[j], *value);
+    }
+    n = 0;
+  };
+  const bool inside = forEachKeyWithin(grid, p, radius_voxels, box, [&](const VoxelKey& key) {
+    if (!keep(key)) return;
+    keys[n] = key;
+    codes[n] = mortonEncode(key);
+    table.prefetch(codes[n]);
+    if (++n == kBatch) lookUp();
+  });
+  lookUp();
+  return inside;
 }
 
 }  // namespace chronomap

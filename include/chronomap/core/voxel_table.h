@@ -33,6 +33,14 @@ class VoxelTable {
   }
   V* find(uint64_t code) { return const_cast<V*>(std::as_const(*this).find(code)); }
   bool contains(uint64_t code) const { return find(code) != nullptr; }
+  /// Asks the processor to fetch the slot where find(code) starts (a hint; nothing changes):
+  /// lookups in a table larger than the cache can then overlap instead of waiting in turn.
+  void prefetch(uint64_t code) const {
+    if (codes_.empty()) return;
+    const size_t i = slotOf(code);
+    __builtin_prefetch(&codes_[i]);
+    __builtin_prefetch(&values_[i]);
+  }
 
   /// The value of `code`, inserted as `init` when missing. The reference stays valid until the
   /// next insertion.

@@ -97,6 +97,9 @@ struct DatasetSettings {
   double max_time_difference_s = 0.02;
   /// ROS bags: topics and frames.
   BagSettings bag;
+  /// False: image datasets (TUM, 3DMatch, ScanNet) leave the colour images unread and give
+  /// frames without colours (the same points), for passes that need only the geometry.
+  bool colour = true;
 };
 
 /// Frames of one recording. load() reads and decodes one frame; safe from several threads.
