@@ -37,6 +37,9 @@ struct DiffCmdOptions {
   double min_shift_voxels = 0.0;
   int kept_surface = 0;
   double kept_share = DiffSettings::kDefaultKeptSurfaceShare;
+  int dark_surface = 0;
+  double dark_below = DiffSettings::kDefaultDarkSurfaceBrightness;
+  double dark_contrast = DiffSettings::kDefaultDarkSurfaceContrast;
   std::string output;
   std::string ply;
   std::optional<double> colour_distance;  ///< set: also compare colours
@@ -76,6 +79,9 @@ int runDiff(const DiffCmdOptions& o) {
   settings.min_shift_voxels = o.min_shift_voxels;
   settings.kept_surface_radius_voxels = o.kept_surface;
   settings.kept_surface_share = o.kept_share;
+  settings.dark_surface_radius_voxels = o.dark_surface;
+  settings.dark_surface_brightness = o.dark_below;
+  settings.dark_surface_contrast = o.dark_contrast;
   settings.validate();
   requireExtension(o.output, ".cmap", "output");
   if (!o.ply.empty()) requireExtension(o.ply, ".ply", "--ply");
@@ -214,6 +220,19 @@ Command addDiff(CLI::App& root) {
                   "docs/changes.md)")
       ->capture_default_str();
   app->add_option("--kept-share", o->kept_share, "the share --kept-surface needs still occupied, in (0, 1]")
+      ->capture_default_str();
+  app->add_option("--dark-surface", o->dark_surface,
+                  "voxels: a voxel that appeared (vanished) whose surface is dark (colour darker than --dark-below) "
+                  "is no change when the other map is occupied within this many voxels: active depth cameras "
+                  "measure dark surfaces centimetres off (0..3; 0: off; 3 in the recommended pipeline, "
+                  "docs/changes.md)")
+      ->capture_default_str();
+  app->add_option("--dark-below", o->dark_below,
+                  "the mean colour (0..255) below which --dark-surface calls a surface dark")
+      ->capture_default_str();
+  app->add_option("--dark-contrast", o->dark_contrast,
+                  "--dark-surface needs the surface darker than this share of the other map's surface around it, "
+                  "in (0, 1]")
       ->capture_default_str();
   app->add_option("-o,--output", o->output, "the diff to write (.cmap)")->required();
   app->add_option("--ply", o->ply, "also write the changed voxels as a PLY, coloured by what they show");

@@ -9,7 +9,8 @@
 namespace chronomap::python {
 
 DiffSettings diffSettings(const std::string& mode, double alpha, int neighbourhood_voxels, double min_shift_voxels,
-                          int kept_surface_radius_voxels, double kept_surface_share) {
+                          int kept_surface_radius_voxels, double kept_surface_share, int dark_surface_radius_voxels,
+                          double dark_surface_brightness, double dark_surface_contrast) {
   DiffSettings settings;
   settings.mode = parseDiffMode(mode);
   settings.alpha = alpha;
@@ -17,6 +18,9 @@ DiffSettings diffSettings(const std::string& mode, double alpha, int neighbourho
   settings.min_shift_voxels = min_shift_voxels;
   settings.kept_surface_radius_voxels = kept_surface_radius_voxels;
   settings.kept_surface_share = kept_surface_share;
+  settings.dark_surface_radius_voxels = dark_surface_radius_voxels;
+  settings.dark_surface_brightness = dark_surface_brightness;
+  settings.dark_surface_contrast = dark_surface_contrast;
   return settings;
 }
 
@@ -24,9 +28,11 @@ namespace {
 
 DiffMap diffPy(const SessionMap& before, const SessionMap& after, const std::string& mode, double alpha,
                int neighbourhood_voxels, double min_shift_voxels, int kept_surface_radius_voxels,
-               double kept_surface_share) {
-  const DiffSettings settings = diffSettings(mode, alpha, neighbourhood_voxels, min_shift_voxels,
-                                             kept_surface_radius_voxels, kept_surface_share);
+               double kept_surface_share, int dark_surface_radius_voxels, double dark_surface_brightness,
+               double dark_surface_contrast) {
+  const DiffSettings settings =
+      diffSettings(mode, alpha, neighbourhood_voxels, min_shift_voxels, kept_surface_radius_voxels, kept_surface_share,
+                   dark_surface_radius_voxels, dark_surface_brightness, dark_surface_contrast);
   py::gil_scoped_release release;
   return diff(before, after, settings);
 }
@@ -120,10 +126,14 @@ void bindAnalysis(py::module_& m) {
   m.def("diff", &diffPy, py::arg("before"), py::arg("after"), py::arg("mode") = "hard", py::arg("alpha") = -1.0,
         py::arg("neighbourhood_voxels") = 0, py::arg("min_shift_voxels") = 0.0,
         py::arg("kept_surface_radius_voxels") = 0, py::arg("kept_surface_share") = DiffSettings::kDefaultKeptSurfaceShare,
+        py::arg("dark_surface_radius_voxels") = 0,
+        py::arg("dark_surface_brightness") = DiffSettings::kDefaultDarkSurfaceBrightness,
+        py::arg("dark_surface_contrast") = DiffSettings::kDefaultDarkSurfaceContrast,
         "What changed from `before` to `after` (two SessionMaps of one resolution). mode: 'hard', "
         "'threshold', 'band' or 'continuous'; alpha < 0 takes the mode's default. kept_surface_radius_voxels "
         "(0: off; 3 recommended) drops a change in front of a surface the other map still sees unchanged "
-        "(docs/changes.md, the weak-change rule).");
+        "(docs/changes.md, the weak-change rule); dark_surface_radius_voxels (0: off; 3 recommended) drops a "
+        "change whose surface is dark and darker than the other map's around it (the dark-surface rule).");
   m.def("segment", &segmentPy, py::arg("diff"), py::arg("connectivity") = "face", py::arg("color_tolerance") = -1.0,
         py::arg("min_voxels") = 1, py::arg("min_value") = 0.5,
         "Connected components of a DiffMap, largest first: a list of Component.");

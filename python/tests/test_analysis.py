@@ -31,6 +31,10 @@ def test_weak_change_rule_keeps_an_object_that_hides_the_surface_behind_it(befor
         chronomap.VANISHED) == 64
     with pytest.raises(chronomap.UsageError, match="kept-surface radius"):
         chronomap.diff(before, after, kept_surface_radius_voxels=7)
+    with pytest.raises(chronomap.UsageError, match="dark-surface radius"):
+        chronomap.diff(before, after, dark_surface_radius_voxels=7)
+    with pytest.raises(chronomap.UsageError, match="dark-surface contrast"):
+        chronomap.diff(before, after, dark_surface_radius_voxels=3, dark_surface_contrast=0.0)
     with pytest.raises(chronomap.UsageError):
         chronomap.diff(before, after, kept_surface_radius_voxels=3, kept_surface_share=1.5)
 
@@ -65,6 +69,8 @@ def test_temporal_map(tmp_path, before, after):
     assert m.snapshot(50.0).empty()
     changes = m.diff(100.0, 200.0)
     assert len(m.diff(100.0, 200.0, kept_surface_radius_voxels=3)) == 64
+    with pytest.raises(chronomap.UsageError, match="dark-surface radius"):
+        m.diff(100.0, 200.0, dark_surface_radius_voxels=7)
     direct = chronomap.diff(m.snapshot(100.0), m.snapshot(200.0))
     assert len(changes) == len(direct) == 64 and changes.voxel_count(chronomap.APPEARED) == 64
     assert np.array_equal(changes.changed_centers(), direct.changed_centers())

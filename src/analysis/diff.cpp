@@ -66,6 +66,17 @@ void DiffSettings::validate() const {
   if (!(kept_surface_share > 0.0 && kept_surface_share <= 1.0)) {
     throw UsageError("diff kept-surface share must lie in (0, 1], got " + std::to_string(kept_surface_share));
   }
+  if (dark_surface_radius_voxels < 0 || dark_surface_radius_voxels > kMaxNeighbourhood) {
+    throw UsageError("diff dark-surface radius must lie in 0.." + std::to_string(kMaxNeighbourhood) +
+                     " voxels, got " + std::to_string(dark_surface_radius_voxels));
+  }
+  if (!(dark_surface_brightness >= 0.0 && dark_surface_brightness <= 255.0)) {
+    throw UsageError("diff dark-surface brightness must lie in [0, 255], got " +
+                     std::to_string(dark_surface_brightness));
+  }
+  if (!(dark_surface_contrast > 0.0 && dark_surface_contrast <= 1.0)) {
+    throw UsageError("diff dark-surface contrast must lie in (0, 1], got " + std::to_string(dark_surface_contrast));
+  }
   const double a = effectiveAlpha();
   if (mode == DiffMode::Threshold && !(a < 1.0)) {
     throw UsageError("threshold alpha must lie in [0, 1), got " + std::to_string(a));
@@ -297,14 +308,63 @@ void dropKeptSurfaces(std::vector<ChangeCell>& cells, const DiffSettings& settin
   });
 }
 
-// The rules that read the voxels around each cell, in order: the neighbourhood rule, then the
-// weak-change rule. Continuous mode keeps every cell.
+bool hasColour(const VoxelCounters& c) { return c.red != 0 || c.green != 0 || c.blue != 0; }
+
+// The dark-surface rule (DiffSettings::dark_surface_radius_voxels): drops an appeared cell whose
+// surface in the second map is dark when the first map has an occupied voxel near it, and a
+// vanished cell whose surface in the first map is dark when the second map has one near it.
+template <class CountersBefore, class CountersAfter>
+void dropDarkSurfaces(std::vector<ChangeCell>& cells, const DiffSettings& settings, CountersBefore before,
+                      CountersAfter after) {
+  const int r = settings.dark_surface_radius_voxels;
+  if (r <= 0) return;
+  // Is the surface `own` holds at k dark? All-zero colour sums are black only where the map
+  // holds colour around k; a map integrated without colour has none anywhere.
+  auto dark = [&](const VoxelKey& k, auto&& own) {
+    const VoxelCounters c = own(k);
+    if (c.hits == 0) return false;
+    const double brightness = (static_cast<double>(c.red) + c.green + c.blue) / (3.0 * c.hits);
+    if (!(brightness < settings.dark_surface_brightness)) return false;
+    return hasColour(c) || anyKeyWithin(k, r, [&](const VoxelKey& n) { return hasColour(own(n)); });
+  };
+  auto occupiedNear = [r](const VoxelKey& k, auto&& counters) {
+    return anyKeyWithin(k, r, [&](const VoxelKey& n) { return counters(n).state() == VoxelState::Occupied; });
+  };
+  // ... and darker than the surface the other map sees around it: that view returned little
+  // light. A dark object seen as dark by both maps (moved under the same light) keeps its cells.
+  auto darker = [&](const VoxelKey& k, auto&& own, auto&& other) {
+    const VoxelCounters c = own(k);
+    double sum = 0.0, hits = 0.0;
+    forEachKeyInCube(k, r, [&](const VoxelKey& n) {
+      const VoxelCounters o = other(n);
+      if (o.state() != VoxelState::Occupied || !hasColour(o)) return;
+      sum += (static_cast<double>(o.red) + o.green + o.blue) / 3.0;
+      hits += o.hits;
+    });
+    const double brightness = (static_cast<double>(c.red) + c.green + c.blue) / (3.0 * c.hits);
+    return hits > 0.0 && brightness < settings.dark_surface_contrast * (sum / hits);
+  };
+  std::erase_if(cells, [&](const ChangeCell& c) {
+    if (c.level != 0) return false;
+    if (c.kind == ChangeKind::Appeared) {
+      return dark(c.key, after) && occupiedNear(c.key, before) && darker(c.key, after, before);
+    }
+    if (c.kind == ChangeKind::Vanished) {
+      return dark(c.key, before) && occupiedNear(c.key, after) && darker(c.key, before, after);
+    }
+    return false;
+  });
+}
+
+// The rules that read the voxels around each cell, in order: the neighbourhood rule, the
+// weak-change rule, then the dark-surface rule. Continuous mode keeps every cell.
 template <class CountersBefore, class CountersAfter>
 void applyRules(std::vector<ChangeCell>& cells, const DiffSettings& settings, CountersBefore before,
                 CountersAfter after) {
   if (settings.mode == DiffMode::Continuous) return;
   dropNearSurfaces(cells, settings, before, after);
   dropKeptSurfaces(cells, settings, before, after);
+  dropDarkSurfaces(cells, settings, before, after);
 }
 
 auto countersOf(const SessionMap& m) {

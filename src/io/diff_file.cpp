@@ -54,6 +54,9 @@ void writeDiffMap(const std::filesystem::path& path, const DiffMap& diff, const 
   j["min_shift_voxels"] = diff.settings().min_shift_voxels;
   j["kept_surface_radius_voxels"] = diff.settings().kept_surface_radius_voxels;
   j["kept_surface_share"] = diff.settings().kept_surface_share;
+  j["dark_surface_radius_voxels"] = diff.settings().dark_surface_radius_voxels;
+  j["dark_surface_brightness"] = diff.settings().dark_surface_brightness;
+  j["dark_surface_contrast"] = diff.settings().dark_surface_contrast;
   const std::string text = j.dump();
   std::vector<CmapBlock> blocks(2);
   blocks[0] = {"META", std::vector<uint8_t>(text.begin(), text.end())};
@@ -74,6 +77,9 @@ DiffMap diffMapFrom(const CmapFile& file, const std::string& source) {
     settings.min_shift_voxels = j.value("min_shift_voxels", 0.0);
     settings.kept_surface_radius_voxels = j.value("kept_surface_radius_voxels", 0);
     settings.kept_surface_share = j.value("kept_surface_share", DiffSettings::kDefaultKeptSurfaceShare);
+    settings.dark_surface_radius_voxels = j.value("dark_surface_radius_voxels", 0);
+    settings.dark_surface_brightness = j.value("dark_surface_brightness", DiffSettings::kDefaultDarkSurfaceBrightness);
+    settings.dark_surface_contrast = j.value("dark_surface_contrast", DiffSettings::kDefaultDarkSurfaceContrast);
     settings.validate();
   } catch (const std::exception& e) {
     throw FormatError(source + ": invalid diff settings (" + e.what() + ")");

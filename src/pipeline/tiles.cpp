@@ -165,6 +165,7 @@ DiffMap TiledMap::diff(double t1_s, double t2_s, const DiffSettings& settings, c
   DiffSettings voxel_rule = settings;
   voxel_rule.neighbourhood_voxels = 0;
   voxel_rule.kept_surface_radius_voxels = 0;
+  voxel_rule.dark_surface_radius_voxels = 0;
   std::vector<ChangeCell> cells;
   auto gather = [&](const TemporalMap& part) {
     const DiffMap d = chronomap::diff(part, t1_s, t2_s, voxel_rule);

@@ -47,46 +47,75 @@ TEST(RealData, ThreeDMatchFramesAgreeWithEachOther) {
   EXPECT_GT(within_one, 0.99);
 }
 
-// The real-data control (docs/changes.md): a static room split into two sessions, frames 0, 2
-// and 422 against 1 and 116, diffed with the recommended settings: every object found is false.
-// Frame 116 measures part of a dark leather sofa 13 cm nearer than frame 0 while frame 1, in the
-// same session, still sees it where frame 0 does: two false objects (about 100 and 30 voxels)
-// without the weak-change rule, none with it. (Registration, which the recommended pipeline
-// adds, moves these sessions by under a centimetre and gives the same counts; left out here for
-// time.)
+// The real-data control (docs/changes.md): the five frames of a static room split into two
+// sessions and diffed with the recommended settings: every object found is false. `a` and `b`
+// index the dataset's frames (0, 1, 2, 116 and 422 of the sequence). As `chronomap build` and
+// `diff MAP@T1 MAP@T2` do, the sessions go through a 4D map file. (Registration, which the
+// recommended pipeline adds, moves these sessions by under a centimetre and gives the same
+// counts on these splits; left out here for time.)
+struct StaticRoomSplit {
+  TemporalMap map{0.05};
+  SegmentSettings segment_settings;
+  StaticRoomSplit(const Dataset& ds, std::initializer_list<size_t> a, std::initializer_list<size_t> b) {
+    IntegratorSettings s;
+    s.fast = true;
+    auto session = [&](std::initializer_list<size_t> frames) {
+      std::vector<Frame> f;
+      for (size_t i : frames) f.push_back(ds.load(i));
+      SessionMap m(0.05);
+      integrate(FrameVector(std::move(f)), m, s);
+      return m;
+    };
+    TemporalMap built(0.05);
+    built.add(1000, session(a));
+    built.add(2000, session(b));
+    test::TempDir tmp;
+    writeTemporalMap(tmp / "m.cmap", built, {});
+    map = readTemporalMap(tmp / "m.cmap");
+    segment_settings.connectivity = Connectivity::Vertex;
+    segment_settings.min_voxels = 20;
+  }
+  // The recommended diff's settings up to the weak-change rule.
+  static DiffSettings recommended() {
+    DiffSettings d;
+    d.mode = DiffMode::Band;
+    d.neighbourhood_voxels = 1;
+    d.min_shift_voxels = DiffSettings::kRecommendedMinShift;
+    return d;
+  }
+  size_t objects(const DiffSettings& d) const { return segment(diff(map, 1000, 2000, d), segment_settings).components.size(); }
+};
+
+// Frames 0, 2 and 422 against 1 and 116: frame 116 measures part of a dark leather sofa 13 cm
+// nearer than frame 0 while frame 1, in the same session, still sees it where frame 0 does: two
+// false objects (about 100 and 30 voxels) without the weak-change rule, none with it.
 TEST(RealData, StaticRoomSplitInTwoSessionsGivesNoFalseObject) {
   CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
   auto ds = openDataset(root);
-  IntegratorSettings s;
-  s.fast = true;
-  SessionMap a(0.05), b(0.05);
-  integrate(FrameVector({ds->load(0), ds->load(2), ds->load(4)}), a, s);
-  integrate(FrameVector({ds->load(1), ds->load(3)}), b, s);
-  // As `chronomap build` and `diff MAP@T1 MAP@T2` do: the sessions in a 4D map file.
-  TemporalMap built(0.05);
-  built.add(1000, a);
-  built.add(2000, b);
-  test::TempDir tmp;
-  writeTemporalMap(tmp / "m.cmap", built, {});
-  const TemporalMap map = readTemporalMap(tmp / "m.cmap");
-  DiffSettings d;
-  d.mode = DiffMode::Band;
-  d.neighbourhood_voxels = 1;
-  d.min_shift_voxels = DiffSettings::kRecommendedMinShift;
-  SegmentSettings g;
-  g.connectivity = Connectivity::Vertex;
-  g.min_voxels = 20;
-  auto objects = [&](const DiffSettings& settings) {
-    const Segmentation file = segment(diff(map, 1000, 2000, settings), g);
-    const Segmentation sessions = segment(diff(a, b, settings), g);
-    RecordProperty("session_map_objects", static_cast<int>(sessions.components.size()));
-    return file.components.size();
-  };
-  EXPECT_EQ(objects(d), 2u) << "the sofa, without the weak-change rule";
+  const StaticRoomSplit split(*ds, {0, 2, 4}, {1, 3});
+  DiffSettings d = StaticRoomSplit::recommended();
+  EXPECT_EQ(split.objects(d), 2u) << "the sofa, without the weak-change rule";
   d.kept_surface_radius_voxels = DiffSettings::kRecommendedKeptSurfaceRadius;
-  const size_t with_rule = objects(d);
+  EXPECT_EQ(split.objects(d), 0u);
+  d.dark_surface_radius_voxels = DiffSettings::kRecommendedDarkSurfaceRadius;
+  EXPECT_EQ(split.objects(d), 0u) << "the dark-surface rule adds none";
+}
+
+// Frames 116 and 422 against 0, 1 and 2: each session agrees with itself, and the two measure the
+// dark sofa 8 to 12 cm apart (while they agree within 5 mm on bright surfaces). The weak-change
+// rule cannot tell that from a moved sofa; the dark-surface rule takes the sofa's colour as the
+// cue (docs/changes.md).
+TEST(RealData, StaticRoomSplitWithTheSofaMeasuredApartNeedsTheDarkSurfaceRule) {
+  CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
+  auto ds = openDataset(root);
+  const StaticRoomSplit split(*ds, {3, 4}, {0, 1, 2});
+  DiffSettings d = StaticRoomSplit::recommended();
+  d.kept_surface_radius_voxels = DiffSettings::kRecommendedKeptSurfaceRadius;
+  EXPECT_EQ(split.objects(d), 3u) << "the sofa's patches, with the weak-change rule alone";
+  d.dark_surface_radius_voxels = DiffSettings::kRecommendedDarkSurfaceRadius;
+  const size_t with_rule = split.objects(d);
   EXPECT_LE(with_rule, 1u) << "the issue's target: at most one false object";
-  EXPECT_EQ(with_rule, 0u);
+  EXPECT_EQ(with_rule, 1u) << "one patch of about 20 voxels is left (measured)";
 }
 
 TEST(RealData, OctomapScanIntegratesAsALaserScanFromTheOrigin) {

@@ -75,6 +75,33 @@ struct DiffSettings {
   /// The recommended kept_surface_radius_voxels: 3 voxels (15 cm at 5 cm), the depth errors
   /// seen on the real frames are up to 13 cm.
   static constexpr int kRecommendedKeptSurfaceRadius = 3;
+  /// > 0: the dark-surface rule. Active depth cameras measure dark surfaces (little light
+  /// returned) with errors far beyond their noise elsewhere: on the 3DMatch study room the same
+  /// dark sofa is measured 8 to 12 cm apart by frames that agree within 5 mm on bright surfaces
+  /// (docs/changes.md). A voxel that appeared is no change when its own surface is dark (the
+  /// mean colour of its hits in the second map darker than dark_surface_brightness) and the first
+  /// map holds an occupied voxel within this many voxels (Chebyshev): a dark surface seen up to
+  /// this far from a surface of the earlier map is taken to be that surface, measured at
+  /// another depth. A voxel that vanished likewise, the maps' roles swapped. Its price: a dark
+  /// object that moved by less than this, or that stands out less than this from a surface the
+  /// other map sees, is no change either. Needs colour: a voxel whose hits carry none (every
+  /// colour sum zero, with no coloured voxel within the radius in the same map, as in maps
+  /// integrated without colour) is never dark. Applied after the weak-change rule, to unit
+  /// cells; Continuous mode ignores it. 0 (the default): off.
+  int dark_surface_radius_voxels = 0;
+  /// The brightness below which the dark-surface rule calls a voxel's surface dark: the mean
+  /// of its hits' red, green and blue (0..255), in [0, 255]. 0 makes nothing dark.
+  double dark_surface_brightness = kDefaultDarkSurfaceBrightness;
+  static constexpr double kDefaultDarkSurfaceBrightness = 40.0;
+  /// The dark-surface rule needs the voxel's surface darker than this share of the brightness
+  /// of the other map's surface around it (its occupied voxels within the radius, by their hits),
+  /// in (0, 1]: the view that measured it returned little light (the 3DMatch sofa: 27 against 72
+  /// for the same place). A dark object moved under the same light looks as dark in both maps
+  /// and stays a change (the simulated office's black chairs). 1 drops the condition.
+  double dark_surface_contrast = kDefaultDarkSurfaceContrast;
+  static constexpr double kDefaultDarkSurfaceContrast = 0.6;
+  /// The recommended dark_surface_radius_voxels.
+  static constexpr int kRecommendedDarkSurfaceRadius = 3;
 
   /// Threshold mode's default: a voxel must move by more than 0.4 in probability, so a free
   /// voxel (P near 0) must become clearly occupied (P > 0.4) to count.
@@ -86,7 +113,8 @@ struct DiffSettings {
   double effectiveAlpha() const;
   /// @throw UsageError for an alpha that is not finite, or not in [0, 1) (threshold) or
   /// [0, 0.5) (band), a neighbourhood outside 0..3, a min_shift_voxels that is not finite or is
-  /// negative, a kept_surface_radius_voxels outside 0..3 or a kept_surface_share outside (0, 1].
+  /// negative, a kept_surface_radius_voxels outside 0..3, a kept_surface_share outside (0, 1],
+  /// a dark_surface_radius_voxels outside 0..3 or a dark_surface_brightness outside [0, 255].
   void validate() const;
 };
 
@@ -170,11 +198,12 @@ std::optional<double> surfaceShift(const SessionMap& before, const SessionMap& a
 DiffMap diff(const SessionMap& before, const SessionMap& after, const DiffSettings& settings = {});
 
 /// The neighbourhood rule of `settings` (neighbourhood_voxels, min_shift_voxels, then the
-/// weak-change rule, kept_surface_radius_voxels) applied to the
+/// weak-change rule, kept_surface_radius_voxels, then the dark-surface rule,
+/// dark_surface_radius_voxels) applied to the
 /// cells of a diff found with neighbourhood_voxels = 0, reading each side's unit voxels through
 /// `before` and `after` (zero counters where unknown). Lets a diff assembled from parts (the
 /// tiles of a tiled map) drop the same cells as the diff of the whole. Does nothing in
-/// Continuous mode or without a neighbourhood and a kept-surface radius.
+/// Continuous mode or without a neighbourhood, a kept-surface radius and a dark-surface radius.
 void applyNeighbourhoodRule(std::vector<ChangeCell>& cells, const DiffSettings& settings,
                             const std::function<VoxelCounters(const VoxelKey&)>& before,
                             const std::function<VoxelCounters(const VoxelKey&)>& after);
