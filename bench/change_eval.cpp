@@ -83,7 +83,7 @@ using bench::seconds;
 // components of at least 20 voxels.
 int g_kept_surface = DiffSettings::kRecommendedKeptSurfaceRadius;  // --kept-surface
 double g_kept_share = DiffSettings::kDefaultKeptSurfaceShare;       // --kept-share
-int g_dark_surface = DiffSettings::kRecommendedDarkSurfaceRadius;  // --dark-surface
+int g_dark_surface = 0;  // --dark-surface
 double g_dark_below = DiffSettings::kDefaultDarkSurfaceBrightness;   // --dark-below
 double g_dark_contrast = DiffSettings::kDefaultDarkSurfaceContrast;  // --dark-contrast
 

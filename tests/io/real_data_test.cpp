@@ -97,7 +97,7 @@ TEST(RealData, StaticRoomSplitInTwoSessionsGivesNoFalseObject) {
   EXPECT_EQ(split.objects(d), 2u) << "the sofa, without the weak-change rule";
   d.kept_surface_radius_voxels = DiffSettings::kRecommendedKeptSurfaceRadius;
   EXPECT_EQ(split.objects(d), 0u);
-  d.dark_surface_radius_voxels = DiffSettings::kRecommendedDarkSurfaceRadius;
+  d.dark_surface_radius_voxels = DiffSettings::kDarkSurfaceRadius;
   EXPECT_EQ(split.objects(d), 0u) << "the dark-surface rule adds none";
 }
 
@@ -112,7 +112,7 @@ TEST(RealData, StaticRoomSplitWithTheSofaMeasuredApartNeedsTheDarkSurfaceRule) {
   DiffSettings d = StaticRoomSplit::recommended();
   d.kept_surface_radius_voxels = DiffSettings::kRecommendedKeptSurfaceRadius;
   EXPECT_EQ(split.objects(d), 3u) << "the sofa's patches, with the weak-change rule alone";
-  d.dark_surface_radius_voxels = DiffSettings::kRecommendedDarkSurfaceRadius;
+  d.dark_surface_radius_voxels = DiffSettings::kDarkSurfaceRadius;
   const size_t with_rule = split.objects(d);
   EXPECT_LE(with_rule, 1u) << "the issue's target: at most one false object";
   EXPECT_EQ(with_rule, 1u) << "one patch of about 20 voxels is left (measured)";

@@ -391,7 +391,7 @@ TEST(Diff, DarkSurfaceDropsADarkSurfaceSeenNearASurfaceOfTheOtherMap) {
   EXPECT_EQ(diff(a, dark_patch, s).voxelCount(ChangeKind::Appeared), 4u) << "the weak-change rule keeps it";
   s.dark_surface_radius_voxels = 1;
   EXPECT_EQ(diff(a, dark_patch, s).voxelCount(), 4u) << "the wall lies two voxels away: radius 1 does not reach it";
-  s.dark_surface_radius_voxels = DiffSettings::kRecommendedDarkSurfaceRadius;
+  s.dark_surface_radius_voxels = DiffSettings::kDarkSurfaceRadius;
   EXPECT_TRUE(diff(a, dark_patch, s).empty()) << "mean 30 < 40, the wall two voxels away";
   EXPECT_TRUE(diff(dark_patch, a, s).empty()) << "vanished: the dark patch was the first map's";
   // Brightness 40 is not under 40; a brighter threshold takes it.
