@@ -109,15 +109,15 @@ void printAdded(const AddCmdOptions& o, const pipeline::AddSessionResult& r) {
 }
 
 int runAdd(const AddCmdOptions& o) {
+  pipeline::AddSessionSettings s;
+  s.map = o.map;
+  s.session = o.session;
+  if (!o.time.empty()) s.time_s = parseTime(o.time);
+  s.replace = o.replace;
+  s.write = pipeline::parseWritePolicy(o.write);
+  s.realign = realignSettings(o.realign);
   if (pipeline::isTiledMapFolder(o.map)) {
     // A tiled map: the session streamed in tile by tile (docs/scale.md).
-    pipeline::AddSessionSettings s;
-    s.map = o.map;
-    s.session = o.session;
-    if (!o.time.empty()) s.time_s = parseTime(o.time);
-    s.replace = o.replace;
-    s.write = pipeline::parseWritePolicy(o.write);
-    s.realign = realignSettings(o.realign);
     const pipeline::StreamResult r = pipeline::streamAddSession(s, gibToBytes(o.memory_limit_gib.value_or(0.25)));
     const nlohmann::json j = {{"map", o.map},           {"time", formatTime(r.added_times.at(0))},
                               {"time_s", r.added_times.at(0)}, {"nodes_added", r.nodes_added.at(0)},
@@ -134,14 +134,7 @@ int runAdd(const AddCmdOptions& o) {
   }
   requireExtension(o.map, ".cmap", "4D map");
   if (o.memory_limit_gib) throw UsageError("--memory-limit applies to a tiled map folder only");
-  pipeline::AddSessionSettings s;
-  s.map = o.map;
-  s.session = o.session;
-  if (!o.time.empty()) s.time_s = parseTime(o.time);
-  s.replace = o.replace;
-  s.write = pipeline::parseWritePolicy(o.write);
   s.criterion = o.criterion;
-  s.realign = realignSettings(o.realign);
   printAdded(o, pipeline::addSession(s));
   return 0;
 }

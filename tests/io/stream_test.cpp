@@ -26,38 +26,12 @@ using test::freeVoxel;
 using test::occupiedVoxelExact;
 namespace fs = std::filesystem;
 
-// Voxels [kLo, kHi) per axis around the origin (a corner of every tile level), so tiles cut
-// through the sessions; now and then a large free cube far off, of tile size and more.
-constexpr int kLo = -6, kHi = 10;
+constexpr int kLo = test::kTileRegionLo, kHi = test::kTileRegionHi;
 
 double timeOf(int i) { return 1.8e9 + 3600.0 * i; }
 
 SessionMap randomSession(std::mt19937_64& rng, std::vector<uint8_t>& world) {
-  const int side = kHi - kLo;
-  for (int i = 0; i < 40; ++i) world[rng() % world.size()] ^= 1;
-  SessionMap m(0.05);
-  int lo[3], hi[3];
-  for (int a = 0; a < 3; ++a) {
-    lo[a] = kLo + static_cast<int>(rng() % 6);
-    hi[a] = std::min(kHi, lo[a] + 4 + static_cast<int>(rng() % 12));
-  }
-  for (int z = lo[2]; z < hi[2]; ++z) {
-    for (int y = lo[1]; y < hi[1]; ++y) {
-      for (int x = lo[0]; x < hi[0]; ++x) {
-        if (rng() % 12 == 0) continue;
-        const bool occ = world[static_cast<size_t>(((z - kLo) * side + (y - kLo)) * side + (x - kLo))] != 0;
-        m.add(at(x, y, z),
-              occ ? occupiedVoxelExact(1 + static_cast<uint32_t>(rng() % 3), static_cast<uint8_t>(rng() % 256))
-                  : freeVoxel(0.125f * static_cast<float>(1 + rng() % 4)));
-      }
-    }
-  }
-  // Large free cubes: a session may refine them below tile level later (a voxel seen there).
-  if (rng() % 3 == 0) m.addCube(at(16, 0, 0), 4, freeVoxel(0.25f * static_cast<float>(1 + rng() % 3)));
-  if (rng() % 3 == 0) m.addCube(at(32, 0, 0), 5, freeVoxel(0.5f));
-  if (rng() % 3 == 0) m.add(at(40 + static_cast<int>(rng() % 8), 3, 5), occupiedVoxelExact(2, 9));
-  if (rng() % 2 == 0) m.compressFree();
-  return m;
+  return test::randomTileRegionSession(rng, world, /*far_parts=*/true);
 }
 
 std::vector<SessionMap> randomSessions(uint64_t seed, int n) {

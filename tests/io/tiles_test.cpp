@@ -22,9 +22,7 @@ using test::freeVoxel;
 using test::occupiedVoxelExact;
 namespace fs = std::filesystem;
 
-// The test region: voxels [kLo, kHi) per axis around the map origin, so that tiles of every
-// level cut through it (the origin is a corner of every tile level).
-constexpr int kLo = -6, kHi = 10;
+constexpr int kLo = test::kTileRegionLo, kHi = test::kTileRegionHi;
 
 double sessionTime(int i) { return 1.7e9 + 3600.0 * i; }
 
@@ -32,28 +30,7 @@ double sessionTime(int i) { return 1.7e9 + 3600.0 * i; }
 // space with binary-fraction lengths (sums stay exact), sometimes compressed; now and then a
 // large known-free cube as well, so that uniform cubes of tile size and larger occur.
 SessionMap randomSession(std::mt19937_64& rng, std::vector<uint8_t>& world) {
-  const int side = kHi - kLo;
-  for (int i = 0; i < 40; ++i) world[rng() % world.size()] ^= 1;
-  SessionMap m(0.05);
-  int lo[3], hi[3];
-  for (int a = 0; a < 3; ++a) {
-    lo[a] = kLo + static_cast<int>(rng() % 6);
-    hi[a] = std::min(kHi, lo[a] + 4 + static_cast<int>(rng() % 12));
-  }
-  for (int z = lo[2]; z < hi[2]; ++z) {
-    for (int y = lo[1]; y < hi[1]; ++y) {
-      for (int x = lo[0]; x < hi[0]; ++x) {
-        if (rng() % 12 == 0) continue;
-        const bool occ = world[static_cast<size_t>(((z - kLo) * side + (y - kLo)) * side + (x - kLo))] != 0;
-        m.add(at(x, y, z),
-              occ ? occupiedVoxelExact(1 + static_cast<uint32_t>(rng() % 3), static_cast<uint8_t>(rng() % 256))
-                  : freeVoxel(0.125f * static_cast<float>(1 + rng() % 4)));
-      }
-    }
-  }
-  if (rng() % 3 == 0) m.addCube(at(16, 0, 0), 4, freeVoxel(0.25f * static_cast<float>(1 + rng() % 3)));
-  if (rng() % 2 == 0) m.compressFree();
-  return m;
+  return test::randomTileRegionSession(rng, world, /*far_parts=*/false);
 }
 
 TemporalMap randomMap(uint64_t seed, int sessions) {

@@ -84,4 +84,33 @@ PointCloud cloudOf(std::initializer_list<Eigen::Vector3f> points) {
   return c;
 }
 
+SessionMap randomTileRegionSession(std::mt19937_64& rng, std::vector<uint8_t>& world, bool far_parts) {
+  constexpr int kLo = kTileRegionLo, kHi = kTileRegionHi, kSide = kHi - kLo;
+  for (int i = 0; i < 40; ++i) world[rng() % world.size()] ^= 1;
+  SessionMap m(0.05);
+  int lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = kLo + static_cast<int>(rng() % 6);
+    hi[a] = std::min(kHi, lo[a] + 4 + static_cast<int>(rng() % 12));
+  }
+  for (int z = lo[2]; z < hi[2]; ++z) {
+    for (int y = lo[1]; y < hi[1]; ++y) {
+      for (int x = lo[0]; x < hi[0]; ++x) {
+        if (rng() % 12 == 0) continue;
+        const bool occ = world[static_cast<size_t>(((z - kLo) * kSide + (y - kLo)) * kSide + (x - kLo))] != 0;
+        m.add(at(x, y, z),
+              occ ? occupiedVoxelExact(1 + static_cast<uint32_t>(rng() % 3), static_cast<uint8_t>(rng() % 256))
+                  : freeVoxel(0.125f * static_cast<float>(1 + rng() % 4)));
+      }
+    }
+  }
+  if (rng() % 3 == 0) m.addCube(at(16, 0, 0), 4, freeVoxel(0.25f * static_cast<float>(1 + rng() % 3)));
+  if (far_parts) {
+    if (rng() % 3 == 0) m.addCube(at(32, 0, 0), 5, freeVoxel(0.5f));
+    if (rng() % 3 == 0) m.add(at(40 + static_cast<int>(rng() % 8), 3, 5), occupiedVoxelExact(2, 9));
+  }
+  if (rng() % 2 == 0) m.compressFree();
+  return m;
+}
+
 }  // namespace chronomap::test

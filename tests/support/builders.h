@@ -4,6 +4,8 @@
 
 #include <cstdint>
 #include <initializer_list>
+#include <random>
+#include <vector>
 
 #include "chronomap/core/counters.h"
 #include "chronomap/core/key.h"
@@ -36,6 +38,18 @@ SessionMap wallSession(int wall_x, int first_free_x = 4);
 /// A random session map over a side^3 block of voxels at the map origin: each voxel observed
 /// with probability 0.9, occupied with probability `occupied`, free subtrees compressed.
 SessionMap randomSessionMap(uint64_t seed, int side = 16, double occupied = 0.1, double resolution_m = 0.05);
+
+/// The tile tests' region: voxels [kTileRegionLo, kTileRegionHi) per axis around the map origin,
+/// so that tiles of every level cut through it (the origin is a corner of every tile level).
+inline constexpr int kTileRegionLo = -6, kTileRegionHi = 10;
+
+/// A random session over a random box of the tile tests' region: `world` (one byte a voxel of the
+/// region, 0 free, kept between calls) drifts by 40 flips, then occupied voxels, holes and free
+/// space with binary-fraction lengths (sums stay exact), sometimes compressed; now and then a
+/// known-free cube of 16 voxels at x = 16, so that uniform cubes of tile size and larger occur.
+/// `far_parts` adds, now and then, a cube of 32 voxels at x = 32 and an occupied voxel at x = 40..47
+/// (a later session refines a cube of the top below tile level).
+SessionMap randomTileRegionSession(std::mt19937_64& rng, std::vector<uint8_t>& world, bool far_parts);
 
 /// A cloud of the given points (no colour).
 PointCloud cloudOf(std::initializer_list<Eigen::Vector3f> points);
