@@ -224,8 +224,8 @@ Command addDiff(CLI::App& root) {
   app->add_option("--dark-surface", o->dark_surface,
                   "voxels: a voxel that appeared (vanished) whose surface is dark (colour darker than --dark-below) "
                   "is no change when the other map is occupied within this many voxels: active depth cameras "
-                  "measure dark surfaces centimetres off (0..3; 0: off; 3 in the recommended pipeline, "
-                  "docs/changes.md)")
+                  "measure dark surfaces centimetres off (0..3; 0: off; not in the recommended pipeline: it also "
+                  "drops dark objects set on lighter surfaces, docs/changes.md)")
       ->capture_default_str();
   app->add_option("--dark-below", o->dark_below,
                   "the mean colour (0..255) below which --dark-surface calls a surface dark")

@@ -108,6 +108,9 @@ void printAdded(const AddCmdOptions& o, const pipeline::AddSessionResult& r) {
   if (r.realigned_voxels) std::cout << "re-aligned: " << *r.realigned_voxels << " voxel(s) moved\n";
 }
 
+/// The streaming build's budget for session parts: --memory-limit, else 256 MiB.
+constexpr double kDefaultPartsGib = 0.25;
+
 int runAdd(const AddCmdOptions& o) {
   pipeline::AddSessionSettings s;
   s.map = o.map;
@@ -118,7 +121,8 @@ int runAdd(const AddCmdOptions& o) {
   s.realign = realignSettings(o.realign);
   if (pipeline::isTiledMapFolder(o.map)) {
     // A tiled map: the session streamed in tile by tile (docs/scale.md).
-    const pipeline::StreamResult r = pipeline::streamAddSession(s, gibToBytes(o.memory_limit_gib.value_or(0.25)));
+    const pipeline::StreamResult r =
+        pipeline::streamAddSession(s, gibToBytes(o.memory_limit_gib.value_or(kDefaultPartsGib)));
     const nlohmann::json j = {{"map", o.map},           {"time", formatTime(r.added_times.at(0))},
                               {"time_s", r.added_times.at(0)}, {"nodes_added", r.nodes_added.at(0)},
                               {"sessions", r.sessions}, {"tiles", r.tiles},
@@ -247,9 +251,6 @@ void printBuilt(const BuildCmdOptions& o, const pipeline::BuildResult& r) {
   std::cout << (r.created ? "created " : "updated ") << o.map << ": " << r.sessions << " session(s), " << r.nodes
             << " nodes, " << humanBytes(static_cast<double>(r.file_bytes)) << " on disk\n";
 }
-
-/// The streaming build's budget for session parts: --memory-limit, else 256 MiB.
-constexpr double kDefaultPartsGib = 0.25;
 
 int runStreamBuild(const BuildCmdOptions& o, pipeline::BuildSettings& s) {
   const pipeline::Ranks ranks;

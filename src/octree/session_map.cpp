@@ -163,10 +163,7 @@ std::optional<LeafView> SessionMap::findLeaf(const VoxelKey& key) const {
     const Ref r = inner_[node][childSlot(key, child_level)];
     if (r == kEmpty) return std::nullopt;
     if (isLeaf(r)) {
-      const uint16_t mask = static_cast<uint16_t>(~((1u << child_level) - 1));
-      return LeafView{VoxelKey{static_cast<uint16_t>(key.x & mask), static_cast<uint16_t>(key.y & mask),
-                               static_cast<uint16_t>(key.z & mask)},
-                      child_level, leaves_[index(r)]};
+      return LeafView{cellCorner(key, child_level), child_level, leaves_[index(r)]};
     }
     node = r;
   }

@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <vector>
 
+#include "chronomap/io/cmap.h"
 #include "chronomap/pipeline/map4d.h"
 
 namespace chronomap::pipeline::detail {
@@ -27,5 +28,8 @@ void sortByTime(const BuildSettings& s, std::vector<Pending>& pending);
 /// Registers and re-aligns the sorted sessions when asked, adds them to `map` and writes it once,
 /// atomically.
 BuildResult finishBuild(const BuildSettings& s, TemporalMap& map, bool created, std::vector<Pending>& pending);
+/// The time of the session `add` reads from `file`: the given one, else the file's recorded_at.
+/// @throw UsageError when there is neither.
+double sessionTime(const AddSessionSettings& s, const io::CmapFile& file);
 
 }  // namespace chronomap::pipeline::detail

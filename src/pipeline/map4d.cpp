@@ -195,9 +195,7 @@ WritePolicy parseWritePolicy(const std::string& name) {
   throw UsageError("write policy must be auto, append or rewrite, not '" + name + "'");
 }
 
-namespace {
-
-double sessionTime(const AddSessionSettings& s, const io::CmapFile& file) {
+double detail::sessionTime(const AddSessionSettings& s, const io::CmapFile& file) {
   if (s.time_s) return *s.time_s;
   const nlohmann::json meta = io::metadataOf(file);
   if (!meta.contains("recorded_at") || !meta["recorded_at"].is_number()) {
@@ -206,15 +204,13 @@ double sessionTime(const AddSessionSettings& s, const io::CmapFile& file) {
   return meta["recorded_at"].get<double>();
 }
 
-}  // namespace
-
 AddSessionResult addSession(const AddSessionSettings& s) {
   if (s.realign) s.realign->validate();
   io::refuseOverwritingInputs(s.map, {s.session});
   const io::CmapFile file = io::readCmap(s.session);
   SessionMap session = io::sessionMapFrom(file, s.session.string());
   AddSessionResult r;
-  r.time_s = sessionTime(s, file);
+  r.time_s = detail::sessionTime(s, file);
   // One add at a time per map: a second one waits here, then reads what the first wrote (also
   // when the first created the map).
   const io::FileLock lock(s.map, io::FileLock::Missing::LockFolder);

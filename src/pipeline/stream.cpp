@@ -120,16 +120,8 @@ class PartStore {
   std::set<Cube, CubeLess> cubes_;
 };
 
-int childSlotOf(const VoxelKey& key, int child_level) {
-  return ((key.x >> child_level) & 1) | (((key.y >> child_level) & 1) << 1) | (((key.z >> child_level) & 1) << 2);
-}
-
-Cube cubeAt(const VoxelKey& key, int level) {
-  const auto mask = static_cast<uint16_t>(~((1u << level) - 1u));
-  return Cube{VoxelKey{static_cast<uint16_t>(key.x & mask), static_cast<uint16_t>(key.y & mask),
-                       static_cast<uint16_t>(key.z & mask)},
-              level};
-}
+/// The cube at `level` that holds `key`.
+Cube cubeAt(const VoxelKey& key, int level) { return Cube{cellCorner(key, level), level}; }
 
 /// The cube of the top's list that holds `c` (at c's level or above), if any; and the levels
 /// of the inner nodes on the way to `c` that the top does not hold yet.
@@ -141,7 +133,7 @@ TopPath walkTop(const TemporalMap::Parts& top, const Cube& c) {
   TopPath out;
   uint32_t node = 0;
   for (int level = kTreeDepth; level > c.level; --level) {
-    const TemporalMap::Ref r = top.inner[node][static_cast<size_t>(childSlotOf(c.corner, level - 1))];
+    const TemporalMap::Ref r = top.inner[node][static_cast<size_t>(childSlot(c.corner, level - 1))];
     if (r != TemporalMap::kEmpty && (r & TemporalMap::kListBit)) {
       out.list = cubeAt(c.corner, level - 1);
       return out;
@@ -468,16 +460,7 @@ StreamResult streamAddSession(const AddSessionSettings& a, size_t memory_limit_b
   if (!io::isTiledMap(a.map)) throw UsageError("'" + a.map.string() + "' is not a tiled 4D map");
   const io::CmapFile file = io::readCmap(a.session);
   SessionMap session = io::sessionMapFrom(file, a.session.string());
-  double time_s = 0.0;
-  if (a.time_s) {
-    time_s = *a.time_s;
-  } else {
-    const nlohmann::json meta = io::metadataOf(file);
-    if (!meta.contains("recorded_at") || !meta["recorded_at"].is_number()) {
-      throw UsageError(a.session.string() + " does not say when it was recorded; give --time");
-    }
-    time_s = meta["recorded_at"].get<double>();
-  }
+  const double time_s = detail::sessionTime(a, file);
   StreamSettings s;
   s.folder = a.map;
   s.resolution_m = session.resolution_m();

@@ -15,10 +15,6 @@ using Ref = TemporalMap::Ref;
 constexpr Ref kEmpty = TemporalMap::kEmpty;
 constexpr Ref kListBit = TemporalMap::kListBit;
 
-int slotOf(const VoxelKey& key, int child_level) {
-  return ((key.x >> child_level) & 1) | (((key.y >> child_level) & 1) << 1) | (((key.z >> child_level) & 1) << 2);
-}
-
 std::string tileName(const TileKey& t) {
   return "tile (" + std::to_string(t.x) + ", " + std::to_string(t.y) + ", " + std::to_string(t.z) + ")";
 }
@@ -69,7 +65,7 @@ class PartsCopier {
 uint32_t tileRoot(const Parts& p, const VoxelKey& corner, int tile_level, const std::string& source) {
   uint32_t node = 0;
   for (int level = kTreeDepth; level > tile_level; --level) {
-    const int want = slotOf(corner, level - 1);
+    const int want = childSlot(corner, level - 1);
     const TemporalMap::Children children = p.inner[node];
     for (int slot = 0; slot < 8; ++slot) {
       const Ref r = children[static_cast<size_t>(slot)];
@@ -95,11 +91,11 @@ Parts tileParts(const PartsCopier& copier, uint32_t node, const VoxelKey& corner
     const auto next = static_cast<uint32_t>(out.inner.size());
     out.inner.emplace_back();
     out.inner[next].fill(kEmpty);
-    out.inner[at][static_cast<size_t>(slotOf(corner, level - 1))] = next;
+    out.inner[at][static_cast<size_t>(childSlot(corner, level - 1))] = next;
     at = next;
   }
   const uint32_t sub = copier.copySubtree(out, node);
-  out.inner[at][static_cast<size_t>(slotOf(corner, tile_level))] = sub;
+  out.inner[at][static_cast<size_t>(childSlot(corner, tile_level))] = sub;
   return out;
 }
 
@@ -258,7 +254,7 @@ namespace {
 Ref refAt(const Parts& p, const Cube& cube, bool* inside_list = nullptr) {
   uint32_t node = 0;
   for (int level = kTreeDepth; level > cube.level; --level) {
-    const Ref r = p.inner[node][static_cast<size_t>(slotOf(cube.corner, level - 1))];
+    const Ref r = p.inner[node][static_cast<size_t>(childSlot(cube.corner, level - 1))];
     if (level - 1 == cube.level) return r;
     if (r == kEmpty) return kEmpty;
     if (r & kListBit) {
@@ -284,7 +280,7 @@ TemporalMap restrictToCube(const TemporalMap& map, const Cube& cube, std::vector
     const auto next = static_cast<uint32_t>(out.inner.size());
     out.inner.emplace_back();
     out.inner[next].fill(kEmpty);
-    out.inner[at][static_cast<size_t>(slotOf(cube.corner, level - 1))] = next;
+    out.inner[at][static_cast<size_t>(childSlot(cube.corner, level - 1))] = next;
     at = next;
   }
   bool inside_list = false;
@@ -292,7 +288,7 @@ TemporalMap restrictToCube(const TemporalMap& map, const Cube& cube, std::vector
   if (inside_list) throw FormatError("a cube to restrict to lies inside a uniform cube of the map");
   Ref mine = kEmpty;
   if (r != kEmpty) mine = (r & kListBit) ? copier.copyList(out, r) : copier.copySubtree(out, r);
-  out.inner[at][static_cast<size_t>(slotOf(cube.corner, cube.level))] = mine;
+  out.inner[at][static_cast<size_t>(childSlot(cube.corner, cube.level))] = mine;
   return TemporalMap::fromParts(map.resolution_m(), map.criterion(), std::move(out), std::move(sessions));
 }
 

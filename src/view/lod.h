@@ -46,11 +46,5 @@ inline uint64_t unitVoxels(int level) {
   return level >= 21 ? std::numeric_limits<uint64_t>::max() : uint64_t{1} << (3 * level);
 }
 
-/// The lower corner of the cell at `level` that holds `key`.
-inline VoxelKey cellCorner(const VoxelKey& key, int level) {
-  const auto mask = static_cast<uint16_t>(~((1u << level) - 1u));
-  return VoxelKey{static_cast<uint16_t>(key.x & mask), static_cast<uint16_t>(key.y & mask),
-                  static_cast<uint16_t>(key.z & mask)};
-}
 
 }  // namespace chronomap::view::lod

@@ -90,7 +90,7 @@ VoxelSet snapshotVoxels(const TemporalMap& map, const SnapshotRequest& request) 
     if (!open || open->id != id) {
       flush();
       const int level = std::max<int>(out.level, o.level);
-      open = Sum{id, lod::cellCorner(o.key, level), static_cast<uint8_t>(level)};
+      open = Sum{id, cellCorner(o.key, level), static_cast<uint8_t>(level)};
     }
     Sum& s = *open;
     const uint64_t n = lod::unitVoxels(o.level);

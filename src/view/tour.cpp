@@ -80,7 +80,7 @@ size_t addCells(PacketWriter& w, const Timeline& t, int level, size_t sessions) 
       flush();
       open = id;
       const int l = std::max<int>(level, o.level);
-      const VoxelKey k = lod::cellCorner(o.key, l);
+      const VoxelKey k = cellCorner(o.key, l);
       keys.insert(keys.end(), {k.x, k.y, k.z});
       levels.push_back(static_cast<uint8_t>(l));
       changes.push_back(0);

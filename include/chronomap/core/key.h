@@ -71,6 +71,19 @@ constexpr VoxelKey childCorner(const VoxelKey& base, int slot, int child_level) 
   return k;
 }
 
+/// The child slot (bit 0: +x, bit 1: +y, bit 2: +z) that holds `key` in a node whose children are
+/// at `child_level`.
+constexpr int childSlot(const VoxelKey& key, int child_level) {
+  return ((key.x >> child_level) & 1) | (((key.y >> child_level) & 1) << 1) | (((key.z >> child_level) & 1) << 2);
+}
+
+/// The lower corner of the cube at `level` (2^level voxels per axis) that holds `key`.
+constexpr VoxelKey cellCorner(const VoxelKey& key, int level) {
+  const auto mask = static_cast<uint16_t>(~((1u << level) - 1u));
+  return VoxelKey{static_cast<uint16_t>(key.x & mask), static_cast<uint16_t>(key.y & mask),
+                  static_cast<uint16_t>(key.z & mask)};
+}
+
 /// The key (dx, dy, dz) voxels away from `key`, or nothing outside the key space.
 inline std::optional<VoxelKey> offsetKey(const VoxelKey& key, int dx, int dy, int dz) {
   const int x = key.x + dx, y = key.y + dy, z = key.z + dz;

@@ -123,9 +123,6 @@ class SessionMap {
   static bool isLeaf(Ref r) { return r != kEmpty && (r & kLeafBit) != 0; }
   static bool isInner(Ref r) { return r != kEmpty && (r & kLeafBit) == 0; }
   static uint32_t index(Ref r) { return r & ~kLeafBit; }
-  static int childSlot(const VoxelKey& key, int child_level) {
-    return ((key.x >> child_level) & 1) | (((key.y >> child_level) & 1) << 1) | (((key.z >> child_level) & 1) << 2);
-  }
   Ref newLeaf(const VoxelCounters& c);
   Ref newInner();
   /// Replaces the compressed leaf in slot `slot` of inner node `parent` (leaf at `level`) by an

@@ -215,9 +215,6 @@ class TemporalMap {
   static bool isList(Ref r) { return r != kEmpty && (r & kListBit) != 0; }
   static bool isInner(Ref r) { return r != kEmpty && (r & kListBit) == 0; }
   static uint32_t index(Ref r) { return r & ~kListBit; }
-  static int childSlot(const VoxelKey& key, int child_level) {
-    return ((key.x >> child_level) & 1) | (((key.y >> child_level) & 1) << 1) | (((key.z >> child_level) & 1) << 2);
-  }
 
   const Entry* entriesOf(const List& l) const { return l.size == 1 ? &l.first : arena_.data() + l.block; }
   Entry* entriesOf(List& l) { return l.size == 1 ? &l.first : arena_.data() + l.block; }
