@@ -4,11 +4,13 @@
 #include <cmath>
 #include <cstring>
 #include <numbers>
+#include <optional>
 #include <unordered_map>
 
 #include "chronomap/core/byte_buffer.h"
 #include "chronomap/core/error.h"
 #include "chronomap/temporal/coverage.h"
+#include "union_find.h"
 
 namespace chronomap {
 
@@ -258,14 +260,6 @@ VoxelRhythm fitOne(const VoxelSeries& series, double voxel_m, double& loss_hourl
 
 constexpr size_t kNoIndex = static_cast<size_t>(-1);
 
-size_t findRoot(std::vector<size_t>& parent, size_t i) {
-  while (parent[i] != i) {
-    parent[i] = parent[parent[i]];
-    i = parent[i];
-  }
-  return i;
-}
-
 /// The phi coefficient of two series' states over the sessions that observed both, and how
 /// many those are; 0 when either state is constant over them.
 double correlation(const VoxelSeries& a, const VoxelSeries& b, uint32_t& common) {
@@ -304,23 +298,21 @@ void groupVoxels(const std::vector<VoxelSeries>& series, std::vector<VoxelRhythm
       index[mortonEncode(series[i].corner)] = i;
     }
   }
-  std::vector<size_t> parent(n);
-  for (size_t i = 0; i < n; ++i) parent[i] = i;
+  UnionFind components(n);
   for (const auto& [code, i] : index) {
     const VoxelKey k = series[i].corner;
     for (int dz = 0; dz <= 1; ++dz) {
       for (int dy = -1; dy <= 1; ++dy) {
         for (int dx = -1; dx <= 1; ++dx) {
           if (dz == 0 && (dy < 0 || (dy == 0 && dx <= 0))) continue;  // each pair once
-          const int x = k.x + dx, y = k.y + dy, z = k.z + dz;
-          if (x < 0 || y < 0 || x > 0xffff || y > 0xffff || z > 0xffff) continue;
-          const auto it = index.find(mortonEncode(VoxelKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y),
-                                                           static_cast<uint16_t>(z)}));
+          const std::optional<VoxelKey> other = offsetKey(k, dx, dy, dz);
+          if (!other) continue;
+          const auto it = index.find(mortonEncode(*other));
           if (it == index.end()) continue;
           uint32_t common = 0;
           const double phi = correlation(series[i], series[it->second], common);
           if (common >= settings.min_common && phi >= settings.min_correlation) {
-            parent[findRoot(parent, i)] = findRoot(parent, it->second);
+            components.join(static_cast<uint32_t>(i), static_cast<uint32_t>(it->second));
           }
         }
       }
@@ -331,7 +323,7 @@ void groupVoxels(const std::vector<VoxelSeries>& series, std::vector<VoxelRhythm
   std::vector<std::vector<size_t>> members;
   for (size_t i = 0; i < n; ++i) {
     if (series[i].level != 0 || series[i].ranks.size() < settings.min_common) continue;
-    const size_t root = findRoot(parent, i);
+    const size_t root = components.find(static_cast<uint32_t>(i));
     if (slot[root] == kNoIndex) {
       slot[root] = members.size();
       members.emplace_back();
