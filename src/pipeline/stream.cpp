@@ -341,15 +341,15 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
       }
     }
     result.stats.largest_group_tiles = std::max(result.stats.largest_group_tiles, tiles.size());
-    // The stored sessions' records clipped to the group: a single tile has them already (so a
-    // run does not clip every stored session's coverage for every tile).
-    std::vector<SessionRecord> records =
-        tiles.size() == 1 && g.level == level ? tiles.front().map.sessions() : clipped(top.sessions(), g);
+    // The stored sessions' records in the group: the top's coverage there (outside the tiles)
+    // joined with the tiles' own.
+    std::vector<SessionRecord> records = clipped(top.sessions(), g);
     TemporalMap work = restrictToCube(top, g, records);
     if (!tiles.empty()) {
       std::vector<const Tile*> refs;
       for (const Tile& t : tiles) refs.push_back(&t);
       work = joinTiles(work, level, refs);
+      records = work.sessions();
       tiles.clear();
     }
     std::vector<std::vector<Part>> by_session(added.size());
@@ -411,11 +411,15 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
     }
   }
 
-  // 5. The top with the groups' parts in place, every session's full record, compacted as a
-  // written map is; then the index, swapped in by one rename; then the old files go.
+  // 5. The top with the groups' parts in place, every session's record with its coverage
+  // outside the tiles, compacted as a written map is; then the index, swapped in by one rename;
+  // then the old files go.
   std::vector<CubePart> replaced;
   for (size_t k = 0; k < group_cubes.size(); ++k) replaced.push_back(CubePart{group_cubes[k], &group_tops[k]});
   for (size_t k = 0; k < added.size(); ++k) all[base_rank + k].nodes_added = nodes_added[k];
+  std::vector<TileKey> tile_keys;
+  for (const io::TileEntry& e : entries) tile_keys.push_back(e.key);
+  for (SessionRecord& r : all) r.coverage = clipCoverageOutside(r.coverage, tile_keys, level);
   TemporalMap new_top = replaceCubes(top, replaced, std::move(all));
   group_tops.clear();
   new_top.compact();

@@ -66,23 +66,41 @@ Coverage Coverage::fromRanges(const std::vector<uint64_t>& pairs) {
 }
 
 Coverage Coverage::decodeFrom(const std::vector<uint8_t>& bytes, size_t& pos) {
+  // One pass that checks what fromRanges checks and that every number is in its shortest form
+  // (so that the bytes are the canonical encoding), then keeps the bytes as they are.
   const size_t start = pos;
-  const uint64_t n = getVarint(bytes, pos);
-  // Each range takes at least two bytes (two varints): refuse a count the bytes left cannot hold
-  // before reserving for it.
-  if (n > (bytes.size() - pos) / 2) throw FormatError("coverage claims more ranges than it holds");
-  std::vector<uint64_t> ranges;
-  ranges.reserve(2 * n);
+  const uint8_t* p = bytes.data() + pos;
+  const uint8_t* const end = bytes.data() + bytes.size();
+  auto number = [&]() {
+    uint64_t v = 0;
+    for (int shift = 0;; shift += 7) {
+      if (p == end) throw FormatError("coverage ends inside a number");
+      if (shift >= 64) throw FormatError("coverage holds an over-long number");
+      const uint8_t b = *p++;
+      v |= static_cast<uint64_t>(b & 0x7f) << shift;
+      if ((b & 0x80) == 0) {
+        if (b == 0 && shift > 0) throw FormatError("coverage is not in its canonical encoding");
+        return v;
+      }
+    }
+  };
+  const uint64_t n = number();
+  // Each range takes at least two bytes (two varints): refuse a count the bytes left cannot hold.
+  if (n > static_cast<uint64_t>(end - p) / 2) throw FormatError("coverage claims more ranges than it holds");
+  Coverage c;
   uint64_t previous_end = 0;
   for (uint64_t i = 0; i < n; ++i) {
-    const uint64_t gap = getVarint(bytes, pos), length = getVarint(bytes, pos);
+    const uint64_t gap = number(), length = number();
     if (gap > kMortonEnd || length > kMortonEnd) throw FormatError("coverage range outside the map");
-    ranges.push_back(previous_end + gap);
-    ranges.push_back(previous_end + gap + length);
-    previous_end = ranges.back();
+    const uint64_t b = previous_end + gap, e = b + length;
+    if (length == 0 || e > kMortonEnd || (i > 0 && gap == 0)) {
+      throw FormatError("coverage ranges are not sorted, disjoint and inside the map");
+    }
+    c.voxels_ += length;
+    previous_end = e;
   }
-  Coverage c = fromRanges(ranges);
-  if (c.encoded_.size() != pos - start) throw FormatError("coverage is not in its canonical encoding");
+  pos = static_cast<size_t>(p - bytes.data());
+  c.encoded_.assign(bytes.begin() + static_cast<std::ptrdiff_t>(start), bytes.begin() + static_cast<std::ptrdiff_t>(pos));
   return c;
 }
 

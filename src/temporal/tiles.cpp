@@ -123,6 +123,60 @@ Coverage clipCoverage(const Coverage& coverage, const VoxelKey& corner, int leve
   return Coverage::fromRanges(kept);
 }
 
+Coverage clipCoverageOutside(const Coverage& coverage, const std::vector<TileKey>& tiles, int tile_level) {
+  // The tiles as Morton ranges (a cube is one range), sorted; then one sweep.
+  std::vector<std::pair<uint64_t, uint64_t>> cut;
+  cut.reserve(tiles.size());
+  for (const TileKey& t : tiles) {
+    const uint64_t lo = mortonEncode(tileCorner(t, tile_level));
+    cut.emplace_back(lo, lo + (uint64_t{1} << (3 * tile_level)));
+  }
+  std::sort(cut.begin(), cut.end());
+  const std::vector<uint64_t> all = coverage.ranges();
+  std::vector<uint64_t> kept;
+  size_t c = 0;
+  for (size_t i = 0; i + 1 < all.size(); i += 2) {
+    uint64_t b = all[i];
+    const uint64_t e = all[i + 1];
+    while (c < cut.size() && cut[c].second <= b) ++c;
+    for (size_t k = c; k < cut.size() && cut[k].first < e && b < e; ++k) {
+      if (cut[k].first > b) {
+        kept.push_back(b);
+        kept.push_back(cut[k].first);
+      }
+      b = std::max(b, cut[k].second);
+    }
+    if (b < e) {
+      if (!kept.empty() && kept.back() == b) {
+        kept.back() = e;
+      } else {
+        kept.push_back(b);
+        kept.push_back(e);
+      }
+    }
+  }
+  return Coverage::fromRanges(kept);
+}
+
+Coverage unionCoverage(const std::vector<const Coverage*>& parts) {
+  std::vector<std::pair<uint64_t, uint64_t>> all;
+  for (const Coverage* c : parts) {
+    const std::vector<uint64_t> r = c->ranges();
+    for (size_t i = 0; i + 1 < r.size(); i += 2) all.emplace_back(r[i], r[i + 1]);
+  }
+  std::sort(all.begin(), all.end());
+  std::vector<uint64_t> merged;
+  for (const auto& [b, e] : all) {
+    if (!merged.empty() && b <= merged.back()) {
+      merged.back() = std::max(merged.back(), e);  // overlapping or touching: one range
+    } else {
+      merged.push_back(b);
+      merged.push_back(e);
+    }
+  }
+  return Coverage::fromRanges(merged);
+}
+
 SplitMap splitIntoTiles(const TemporalMap& map, int tile_level) {
   checkTileLevel(tile_level);
   const Parts p = map.parts();
@@ -157,7 +211,13 @@ SplitMap splitIntoTiles(const TemporalMap& map, int tile_level) {
   };
   copyTop(copyTop, 0, kTreeDepth, VoxelKey{});
 
-  SplitMap out{tile_level, TemporalMap::fromParts(map.resolution_m(), map.criterion(), std::move(top), map.sessions()),
+  std::vector<TileKey> keys;
+  keys.reserve(found.size());
+  for (const Found& f : found) keys.push_back(f.key);
+  std::vector<SessionRecord> top_sessions = map.sessions();
+  for (SessionRecord& s : top_sessions) s.coverage = clipCoverageOutside(s.coverage, keys, tile_level);
+  SplitMap out{tile_level,
+               TemporalMap::fromParts(map.resolution_m(), map.criterion(), std::move(top), std::move(top_sessions)),
                {}};
   out.tiles.reserve(found.size());
   for (const Found& f : found) {
@@ -244,7 +304,13 @@ TemporalMap joinTiles(const TemporalMap& top, int tile_level, const std::vector<
   if (grafted != by_key.size()) {
     throw FormatError(std::to_string(by_key.size() - grafted) + " tile(s) have no place in the index's tree");
   }
-  return TemporalMap::fromParts(top.resolution_m(), top.criterion(), std::move(out), top.sessions());
+  std::vector<SessionRecord> sessions = top.sessions();
+  for (size_t i = 0; i < sessions.size() && !tiles.empty(); ++i) {
+    std::vector<const Coverage*> parts = {&sessions[i].coverage};
+    for (const Tile* t : tiles) parts.push_back(&t->map.sessions()[i].coverage);
+    sessions[i].coverage = unionCoverage(parts);
+  }
+  return TemporalMap::fromParts(top.resolution_m(), top.criterion(), std::move(out), std::move(sessions));
 }
 
 namespace {

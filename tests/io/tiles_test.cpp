@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <set>
 
 #include "chronomap/analysis/segment.h"
 #include "chronomap/core/error.h"
@@ -80,6 +81,70 @@ TEST_P(TilesProperty, SplitAndJoinGiveTheMapBack) {
       for (size_t i = 0; i < map.sessionCount(); ++i) EXPECT_EQ(t.map.sessions()[i].time_s, map.sessions()[i].time_s);
     }
     EXPECT_TRUE(joinTiles(split.top, level, refsOf(split)) == map) << "level " << level;
+    // The coverage is cut, not copied: the top holds what lies outside the tiles, each tile its
+    // own part, and together they are every session's coverage.
+    for (size_t i = 0; i < map.sessionCount(); ++i) {
+      uint64_t voxels = split.top.sessions()[i].coverage.voxelCount();
+      for (const Tile& t : split.tiles) {
+        voxels += t.map.sessions()[i].coverage.voxelCount();
+        const Coverage inside = clipCoverage(split.top.sessions()[i].coverage, tileCorner(t.key, level), level);
+        EXPECT_EQ(inside.voxelCount(), 0u) << "session " << i << ": the top covers a tile's voxels";
+      }
+      EXPECT_EQ(voxels, map.sessions()[i].coverage.voxelCount()) << "session " << i << ", level " << level;
+    }
+    // An index written before the cut (every session's whole coverage in the top) joins back
+    // to the same map.
+    std::vector<SessionRecord> whole = split.top.sessions();
+    for (size_t i = 0; i < whole.size(); ++i) whole[i].coverage = map.sessions()[i].coverage;
+    const TemporalMap old_top =
+        TemporalMap::fromParts(map.resolution_m(), map.criterion(), split.top.parts(), std::move(whole));
+    EXPECT_TRUE(joinTiles(old_top, level, refsOf(split)) == map) << "level " << level;
+  }
+}
+
+TEST(Tiles, CoverageCutOutsideTilesAndJoinedAgainMatchesAVoxelSet) {
+  // Slow reference: the covered Morton codes as a set, on ranges inside the first 8^4 codes.
+  std::mt19937 random(3);
+  const int level = 2;  // tiles of 64 codes
+  for (int trial = 0; trial < 300; ++trial) {
+    std::vector<uint64_t> ranges;
+    uint64_t code = std::uniform_int_distribution<uint64_t>(0, 40)(random);
+    while (code < 4000) {
+      const uint64_t length = std::uniform_int_distribution<uint64_t>(1, 150)(random);
+      ranges.push_back(code);
+      ranges.push_back(std::min<uint64_t>(code + length, 4096));
+      code = ranges.back() + std::uniform_int_distribution<uint64_t>(1, 200)(random);
+    }
+    const Coverage c = Coverage::fromRanges(ranges);
+    std::vector<TileKey> tiles;
+    std::set<uint64_t> tile_codes;
+    for (uint64_t t = 0; t < 64; ++t) {
+      if (std::uniform_int_distribution<int>(0, 2)(random) != 0) continue;
+      const VoxelKey corner = mortonDecode(t * 64);
+      tiles.push_back(tileOf(corner, level));
+      tile_codes.insert(t);
+    }
+    std::shuffle(tiles.begin(), tiles.end(), random);
+    const Coverage outside = clipCoverageOutside(c, tiles, level);
+    std::set<uint64_t> expected, got;
+    for (size_t i = 0; i < ranges.size(); i += 2) {
+      for (uint64_t v = ranges[i]; v < ranges[i + 1]; ++v) {
+        if (!tile_codes.count(v / 64)) expected.insert(v);
+      }
+    }
+    const std::vector<uint64_t> r = outside.ranges();
+    for (size_t i = 0; i < r.size(); i += 2) {
+      for (uint64_t v = r[i]; v < r[i + 1]; ++v) got.insert(v);
+    }
+    ASSERT_EQ(got, expected) << "trial " << trial;
+    // The union of the part outside, the tiles' parts and the whole is the whole again.
+    std::vector<Coverage> parts = {outside, c};
+    for (const TileKey& t : tiles) parts.push_back(clipCoverage(c, tileCorner(t, level), level));
+    std::vector<const Coverage*> refs;
+    for (const Coverage& p : parts) refs.push_back(&p);
+    EXPECT_TRUE(unionCoverage(refs) == c) << "trial " << trial;
+    refs.erase(refs.begin() + 1);
+    EXPECT_TRUE(unionCoverage(refs) == c) << "trial " << trial;
   }
 }
 

@@ -801,5 +801,79 @@ TEST(Coverage, KnowsWhichCubesASessionSaw) {
   EXPECT_THROW(Coverage::decodeFrom(truncated, pos), FormatError);
 }
 
+/// The slow reference decode: the numbers read as they come (any length), the ranges rebuilt
+/// and encoded again; accepted only when that encoding is the bytes read.
+std::optional<Coverage> referenceDecode(const std::vector<uint8_t>& bytes) {
+  size_t pos = 0;
+  auto number = [&]() -> std::optional<uint64_t> {
+    uint64_t v = 0;
+    for (int shift = 0; shift < 64; shift += 7) {
+      if (pos >= bytes.size()) return std::nullopt;
+      const uint8_t b = bytes[pos++];
+      v |= static_cast<uint64_t>(b & 0x7f) << shift;
+      if ((b & 0x80) == 0) return v;
+    }
+    return std::nullopt;
+  };
+  const auto n = number();
+  if (!n || *n > bytes.size()) return std::nullopt;
+  std::vector<uint64_t> ranges;
+  uint64_t end = 0;
+  for (uint64_t i = 0; i < *n; ++i) {
+    const auto gap = number(), length = number();
+    if (!gap || !length || *gap > (uint64_t{1} << 60) || *length > (uint64_t{1} << 60)) return std::nullopt;
+    ranges.push_back(end + *gap);
+    ranges.push_back(end + *gap + *length);
+    end = ranges.back();
+  }
+  try {
+    Coverage c = Coverage::fromRanges(ranges);
+    if (c.encoded() != std::vector<uint8_t>(bytes.begin(), bytes.begin() + static_cast<std::ptrdiff_t>(pos))) {
+      return std::nullopt;
+    }
+    return c;
+  } catch (const FormatError&) {
+    return std::nullopt;
+  }
+}
+
+TEST(Coverage, DecodeAcceptsExactlyTheCanonicalEncodings) {
+  std::mt19937 random(7);
+  for (int trial = 0; trial < 2000; ++trial) {
+    // A valid encoding of random ranges, then (most trials) one byte changed, dropped or added.
+    std::vector<uint64_t> ranges;
+    uint64_t at_code = std::uniform_int_distribution<uint64_t>(0, 3)(random);
+    const int count = std::uniform_int_distribution<int>(0, 6)(random);
+    for (int i = 0; i < count; ++i) {
+      at_code += std::uniform_int_distribution<uint64_t>(i == 0 ? 0 : 1, 300)(random);
+      const uint64_t length = std::uniform_int_distribution<uint64_t>(1, 70000)(random);
+      ranges.push_back(at_code);
+      ranges.push_back(at_code + length);
+      at_code += length;
+    }
+    std::vector<uint8_t> bytes = Coverage::fromRanges(ranges).encoded();
+    const int edit = std::uniform_int_distribution<int>(0, 4)(random);
+    const size_t where = std::uniform_int_distribution<size_t>(0, bytes.size() - 1)(random);
+    const uint8_t value = static_cast<uint8_t>(std::uniform_int_distribution<int>(0, 255)(random));
+    if (edit == 1) bytes[where] = value;
+    if (edit == 2) bytes.erase(bytes.begin() + static_cast<std::ptrdiff_t>(where));
+    if (edit == 3) bytes.insert(bytes.begin() + static_cast<std::ptrdiff_t>(where), value);
+    if (edit == 4) bytes[where] = static_cast<uint8_t>(bytes[where] | 0x80);
+    const std::optional<Coverage> expected = referenceDecode(bytes);
+    size_t pos = 0;
+    std::optional<Coverage> got;
+    try {
+      got = Coverage::decodeFrom(bytes, pos);
+    } catch (const FormatError&) {
+    }
+    ASSERT_EQ(got.has_value(), expected.has_value()) << "trial " << trial;
+    if (got) {
+      EXPECT_TRUE(*got == *expected) << "trial " << trial;
+      EXPECT_EQ(got->voxelCount(), expected->voxelCount());
+      EXPECT_EQ(pos, got->encoded().size());
+    }
+  }
+}
+
 }  // namespace
 }  // namespace chronomap

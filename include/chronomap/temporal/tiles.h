@@ -46,7 +46,9 @@ struct Tile {
 struct SplitMap {
   int tile_level = 0;
   /// Inner nodes above tile level and the slot lists at tile level or above; the sessions'
-  /// full records (coverage, node counts). Where a tile hangs, its slot is empty.
+  /// full records (node counts), their coverage outside the tiles (each tile holds its own, so
+  /// that what a query reads stays small as sessions accumulate). Where a tile hangs, its slot
+  /// is empty.
   TemporalMap top;
   std::vector<Tile> tiles;  ///< in Morton order of their corners
 };
@@ -54,13 +56,20 @@ struct SplitMap {
 /// The part of `coverage` inside the cube at `corner` of 2^level voxels per axis.
 Coverage clipCoverage(const Coverage& coverage, const VoxelKey& corner, int level);
 
+/// The part of `coverage` outside the given tiles (cubes of 2^tile_level voxels per axis).
+Coverage clipCoverageOutside(const Coverage& coverage, const std::vector<TileKey>& tiles, int tile_level);
+
+/// Every voxel any of `parts` covers (they may overlap).
+Coverage unionCoverage(const std::vector<const Coverage*>& parts);
+
 /// Cuts `map` into tiles of 2^tile_level voxels per axis. The tiles hold every session (same
 /// times and names; coverage clipped to the tile; node counts zero, kept once in the top).
 /// Compact the map first (TemporalMap::compact) for a join that gives back the same layout.
 /// @throw UsageError for a tile level outside [kMinTileLevel, kMaxTileLevel].
 SplitMap splitIntoTiles(const TemporalMap& map, int tile_level);
 
-/// Puts the tiles back into the top: the map that was split.
+/// Puts the tiles back into the top: the map that was split (each session's coverage the union
+/// of the top's and the tiles').
 /// @throw FormatError when a tile does not fit (another resolution, other session times, a tile
 /// whose place in the top is taken, or structure outside its cube).
 TemporalMap joinTiles(const TemporalMap& top, int tile_level, const std::vector<const Tile*>& tiles);
