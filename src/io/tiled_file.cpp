@@ -60,18 +60,46 @@ std::optional<uint64_t> tileGeneration(const TileKey& key, const std::string& fi
   return std::stoull(digits);
 }
 
+std::string latestFileName(const std::string& tile_file) {
+  return tile_file.substr(0, tile_file.size() - 5) + ".latest.cmap";
+}
+
+namespace {
+
+/// Writes a tile's file and its latest state under `name` in `folder`; its row of the table.
+TileEntry writeTileAndLatest(const fs::path& folder, const TileKey& key, const std::string& name,
+                             const TemporalMap& tile) {
+  const std::vector<uint8_t> bytes = encodeTemporalMap(tile, nlohmann::json::object());
+  TileEntry e{key, name, bytes.size(), crc32Of(bytes), std::nullopt};
+  writeFileAtomic(folder / e.file, bytes);
+  if (tile.sessionCount() > 0) {
+    const SessionMap state = tile.snapshot(tile.sessions().back().time_s);
+    const std::vector<uint8_t> latest = encodeSessionMap(state, nlohmann::json::object());
+    e.latest = LatestState{latestFileName(name), latest.size(), crc32Of(latest)};
+    writeFileAtomic(folder / e.latest->file, latest);
+  }
+  return e;
+}
+
+nlohmann::json rowOf(const TileEntry& t) {
+  nlohmann::json row = {{"key", {t.key.x, t.key.y, t.key.z}}, {"file", t.file}, {"bytes", t.bytes}, {"crc32", t.crc32}};
+  if (t.latest) {
+    row["latest"] = {{"file", t.latest->file}, {"bytes", t.latest->bytes}, {"crc32", t.latest->crc32}};
+  }
+  return row;
+}
+
+}  // namespace
+
 TiledWriteResult writeTiledMap(const fs::path& folder, const SplitMap& split, const nlohmann::json& meta) {
   TiledWriteResult r;
   StagedFolder staged(folder);
   fs::create_directories(staged.path() / "tiles");
   nlohmann::json table = nlohmann::json::array();
   for (const Tile& t : split.tiles) {
-    const std::vector<uint8_t> bytes = encodeTemporalMap(t.map, nlohmann::json::object());
-    const std::string name = tileFileName(t.key);
-    writeFileAtomic(staged.path() / name, bytes);
-    table.push_back({{"key", {t.key.x, t.key.y, t.key.z}}, {"file", name}, {"bytes", bytes.size()},
-                     {"crc32", crc32Of(bytes)}});
-    r.tile_bytes += bytes.size();
+    const TileEntry e = writeTileAndLatest(staged.path(), t.key, tileFileName(t.key), t.map);
+    table.push_back(rowOf(e));
+    r.tile_bytes += e.bytes + (e.latest ? e.latest->bytes : 0);
     ++r.tiles;
   }
   const nlohmann::json extra = {
@@ -84,18 +112,13 @@ TiledWriteResult writeTiledMap(const fs::path& folder, const SplitMap& split, co
 }
 
 TileEntry writeTileFile(const fs::path& folder, const TileKey& key, uint64_t generation, const TemporalMap& tile) {
-  const std::vector<uint8_t> bytes = encodeTemporalMap(tile, nlohmann::json::object());
-  TileEntry e{key, tileFileName(key, generation), bytes.size(), crc32Of(bytes)};
-  writeFileAtomic(folder / e.file, bytes);
-  return e;
+  return writeTileAndLatest(folder, key, tileFileName(key, generation), tile);
 }
 
 uint64_t writeTileIndex(const fs::path& folder, const TemporalMap& top, int tile_level,
                         const std::vector<TileEntry>& tiles, const nlohmann::json& meta) {
   nlohmann::json table = nlohmann::json::array();
-  for (const TileEntry& t : tiles) {
-    table.push_back({{"key", {t.key.x, t.key.y, t.key.z}}, {"file", t.file}, {"bytes", t.bytes}, {"crc32", t.crc32}});
-  }
+  for (const TileEntry& t : tiles) table.push_back(rowOf(t));
   const nlohmann::json extra = {
       {"tiles", {{"version", kTileTableVersion}, {"level", tile_level}, {"list", std::move(table)}}}};
   const std::vector<uint8_t> index = encodeTemporalMap(top, meta, MapKind::Tiled, &extra);
@@ -137,6 +160,14 @@ TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& 
       }
       e.bytes = row.at("bytes").get<uint64_t>();
       e.crc32 = row.at("crc32").get<uint32_t>();
+      if (const auto latest = row.find("latest"); latest != row.end()) {
+        LatestState l{latest->at("file").get<std::string>(), latest->at("bytes").get<uint64_t>(),
+                      latest->at("crc32").get<uint32_t>()};
+        if (l.file != latestFileName(e.file)) {
+          throw FormatError(source + ": latest state file name '" + l.file + "' does not match its tile");
+        }
+        e.latest = std::move(l);
+      }
       index.tiles.push_back(std::move(e));
     }
   } catch (const nlohmann::json::exception& e) {
@@ -167,6 +198,29 @@ TemporalMap readTile(const fs::path& folder, const TileIndex& index, const TileE
     TemporalMap tile = temporalMapFrom(decodeCmap(bytes, source), source);
     checkTileFits(index.top, index.tile_level, entry.key, tile, source);
     return tile;
+  });
+}
+
+SessionMap readLatestState(const fs::path& folder, const TileIndex& index, const TileEntry& entry) {
+  if (!entry.latest) throw UsageError("tile " + entry.file + " has no latest state");
+  const fs::path path = folder / entry.latest->file;
+  const std::string source = path.string();
+  if (!fs::exists(path)) throw IoError(source + ": latest state file missing (listed in the index)");
+  return readNamingMemory(path, [&] {
+    const std::vector<uint8_t> bytes = readFileBytes(path);
+    if (bytes.size() != entry.latest->bytes || crc32Of(bytes) != entry.latest->crc32) {
+      throw FormatError(source + ": latest state file does not match the index (size or checksum differ)");
+    }
+    SessionMap state = sessionMapFrom(decodeCmap(bytes, source), source);
+    if (state.resolution_m() != index.top.resolution_m()) {
+      throw FormatError(source + ": resolution differs from the index's");
+    }
+    bool inside = true;
+    state.forEachLeaf([&](const LeafView& leaf) {
+      inside = inside && leaf.level <= index.tile_level && tileOf(leaf.key, index.tile_level) == entry.key;
+    });
+    if (!inside) throw FormatError(source + " holds voxels outside its tile");
+    return state;
   });
 }
 

@@ -165,7 +165,10 @@ std::vector<SessionRecord> clipped(const std::vector<SessionRecord>& all, const 
 void removeLeftovers(const fs::path& folder, const io::TileIndex* index) {
   std::set<std::string> named;
   if (index) {
-    for (const io::TileEntry& e : index->tiles) named.insert(e.file);
+    for (const io::TileEntry& e : index->tiles) {
+      named.insert(e.file);
+      if (e.latest) named.insert(e.latest->file);
+    }
   }
   std::error_code ec;
   if (fs::is_directory(folder / "tiles")) {
@@ -381,7 +384,7 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
     SplitMap split = splitIntoTiles(work, level);
     for (const Tile& t : split.tiles) {
       entries.push_back(io::writeTileFile(s.folder, t.key, generation, t.map));
-      result.tile_bytes += entries.back().bytes;
+      result.tile_bytes += entries.back().bytes + (entries.back().latest ? entries.back().latest->bytes : 0);
       ++result.stats.tiles_written;
     }
     group_tops.push_back(std::move(split.top));
@@ -406,7 +409,7 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
       const TemporalMap tile =
           TemporalMap::fromParts(old.resolution_m(), old.criterion(), old.parts(), std::move(records));
       entries.push_back(io::writeTileFile(s.folder, e.key, generation, tile));
-      result.tile_bytes += entries.back().bytes;
+      result.tile_bytes += entries.back().bytes + (entries.back().latest ? entries.back().latest->bytes : 0);
       ++result.stats.tiles_written;
     }
   }

@@ -127,7 +127,16 @@ std::vector<TileKey> TiledMap::tilesMeeting(const std::optional<VoxelBox>& box) 
 
 SessionMap TiledMap::snapshot(double time_s, const std::optional<VoxelBox>& box) {
   SessionMap out(resolution_m());
-  for (const TileKey& key : tilesMeeting(box)) out.merge(tile(key)->snapshot(time_s));
+  const bool latest = !sessions().empty() && time_s >= sessions().back().time_s;
+  for (const TileKey& key : tilesMeeting(box)) {
+    const io::TileEntry* entry = index_.find(key);
+    if (latest && entry && entry->latest && !held_.count(key)) {
+      out.merge(io::readLatestState(folder_, index_, *entry));
+      ++stats_.latest_reads;
+    } else {
+      out.merge(tile(key)->snapshot(time_s));
+    }
+  }
   if (const auto rank = index_.top.rankAtOrBefore(time_s)) {
     index_.top.forEachList([&](const VoxelKey& corner, int level, std::span<const TemporalMap::Entry> entries) {
       if (box && !box->meets(corner, level)) return;

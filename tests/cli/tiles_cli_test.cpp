@@ -80,9 +80,17 @@ TEST(TilesCli, BadInputGivesOneLine) {
   EXPECT_NE(box.exit_code, 0);
   EXPECT_NE(box.err.find("box"), std::string::npos) << box.err;
 
+  // The last session's snapshot reads the tiles' latest states, an earlier one their histories.
   const io::TileIndex index = io::readTileIndex(t);
+  ASSERT_TRUE(index.tiles.front().latest.has_value());
+  fs::remove(fs::path(t) / index.tiles.front().latest->file);
+  const test::CommandResult no_latest =
+      runCommand(cli() + " snapshot " + t + " --at 2000 -o " + (tmp / "s.cmap").string());
+  EXPECT_NE(no_latest.exit_code, 0);
+  EXPECT_NE(no_latest.err.find("latest state file missing"), std::string::npos) << no_latest.err;
+  EXPECT_EQ(std::count(no_latest.err.begin(), no_latest.err.end(), '\n'), 1) << no_latest.err;
   fs::remove(fs::path(t) / index.tiles.front().file);
-  const test::CommandResult missing = runCommand(cli() + " snapshot " + t + " --at 2000 -o " + (tmp / "s.cmap").string());
+  const test::CommandResult missing = runCommand(cli() + " snapshot " + t + " --at 1000 -o " + (tmp / "s.cmap").string());
   EXPECT_NE(missing.exit_code, 0);
   EXPECT_NE(missing.err.find("tile file missing"), std::string::npos) << missing.err;
   EXPECT_EQ(std::count(missing.err.begin(), missing.err.end(), '\n'), 1) << missing.err;

@@ -126,10 +126,13 @@ TEST_P(StreamProperty, StreamingGivesTheWholeBuildCut) {
     const io::TileEntry* e = index.find(t.key);
     ASSERT_NE(e, nullptr);
     EXPECT_TRUE(io::readTile(folder, index, *e) == t.map);
+    ASSERT_TRUE(e->latest.has_value());
+    EXPECT_TRUE(io::readLatestState(folder, index, *e) == io::asStored(t.map.snapshot(t.map.sessions().back().time_s)));
   }
   EXPECT_TRUE(index.top == cut.top);
-  // Only the files the index names remain (older generations and parts are gone).
-  EXPECT_EQ(filesOf(folder).size(), index.tiles.size() + 1);
+  // Only the files the index names remain (older generations and parts are gone): each tile's
+  // history and latest state, and the index.
+  EXPECT_EQ(filesOf(folder).size(), 2 * index.tiles.size() + 1);
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, StreamProperty, ::testing::Values(1, 2, 3, 4, 5, 6, 7, 8));

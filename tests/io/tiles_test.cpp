@@ -283,7 +283,13 @@ TEST(Tiles, ARegionTouchesOnlyTheTilesItNeeds) {
   io::writeTiledMap(dir / "tiled", splitIntoTiles(map, 3), nlohmann::json::object());
   pipeline::TiledMap tiled(dir / "tiled", {0});
   const pipeline::VoxelBox box{at(0, 0, 0), at(7, 7, 7)};  // exactly one tile
-  tiled.snapshot(sessionTime(3), box);
+  tiled.snapshot(sessionTime(3), box);  // the last session: the tile's latest state alone
+  EXPECT_EQ(tiled.cacheStats().latest_reads, 1u);
+  EXPECT_EQ(tiled.cacheStats().loads, 0u);
+  tiled.snapshot(sessionTime(2), box);  // an earlier time: the tile's history
+  EXPECT_EQ(tiled.cacheStats().loads, 1u);
+  tiled.snapshot(sessionTime(3), box);  // the tile is held now: no file read
+  EXPECT_EQ(tiled.cacheStats().latest_reads, 1u);
   EXPECT_EQ(tiled.cacheStats().loads, 1u);
   const TileKey first = tileOf(at(0, 0, 0), 3);
   const auto other = std::find_if(tiled.index().tiles.begin(), tiled.index().tiles.end(),
@@ -315,11 +321,23 @@ TEST(Tiles, BadInputGivesOneClearError) {
   fs::remove(dir / "tiled" / index.tiles[0].file);
   pipeline::TiledMap tiled(dir / "tiled", {0});
   try {
-    tiled.snapshot(sessionTime(2));
+    tiled.snapshot(sessionTime(1));
     FAIL() << "no error";
   } catch (const IoError& e) {
     EXPECT_NE(std::string(e.what()).find(index.tiles[0].file), std::string::npos) << e.what();
   }
+  // Its latest state, corrupt or missing: the last session's snapshot fails naming it.
+  std::vector<uint8_t> latest = test::bytesOf(dir / "tiled" / index.tiles[0].latest->file);
+  latest[latest.size() / 2] ^= 0x10;
+  test::writeBytes(dir / "tiled" / index.tiles[0].latest->file, latest);
+  try {
+    tiled.snapshot(sessionTime(2));
+    FAIL() << "no error";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find(index.tiles[0].latest->file), std::string::npos) << e.what();
+  }
+  fs::remove(dir / "tiled" / index.tiles[0].latest->file);
+  EXPECT_THROW(tiled.snapshot(sessionTime(2)), IoError);
   EXPECT_THROW(pipeline::untileMap(dir / "tiled", dir / "x.cmap"), IoError);
 
   // A tile changed after the index was written.
@@ -365,6 +383,12 @@ TEST(Tiles, BadInputGivesOneClearError) {
   const io::TileIndex moved_index = io::readTileIndex(dir / "moved");
   try {
     io::readTile(dir / "moved", moved_index, moved_index.tiles[0]);
+    FAIL() << "no error";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("outside its tile"), std::string::npos) << e.what();
+  }
+  try {
+    io::readLatestState(dir / "moved", moved_index, moved_index.tiles[0]);
     FAIL() << "no error";
   } catch (const FormatError& e) {
     EXPECT_NE(std::string(e.what()).find("outside its tile"), std::string::npos) << e.what();

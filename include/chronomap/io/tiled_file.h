@@ -19,12 +19,21 @@ namespace chronomap::io {
 /// The index's file name inside a tiled map's folder.
 inline constexpr const char* kTileIndexName = "index.cmap";
 
+/// A tile's state at the map's last session, kept beside its history (a session map file), so
+/// that a snapshot of the latest time reads what it shows, not every session's entries.
+struct LatestState {
+  std::string file;     ///< latestFileName(the tile's file)
+  uint64_t bytes = 0;   ///< size of the file
+  uint32_t crc32 = 0;   ///< CRC-32 of the file
+};
+
 /// One row of the tile table.
 struct TileEntry {
   TileKey key;
   std::string file;     ///< relative to the folder: tiles/X_Y_Z.cmap
   uint64_t bytes = 0;   ///< size of the tile's file
   uint32_t crc32 = 0;   ///< CRC-32 of the tile's file
+  std::optional<LatestState> latest;  ///< absent in folders written before it existed
 };
 
 /// A decoded tile index.
@@ -43,11 +52,13 @@ std::string tileFileName(const TileKey& key, uint64_t generation = 0);
 /// The generation in a tile's file name when it is tileFileName(key, generation) for some
 /// generation; nothing otherwise.
 std::optional<uint64_t> tileGeneration(const TileKey& key, const std::string& file);
+/// The file name of a tile's latest state: its file's name with `.latest` before `.cmap`.
+std::string latestFileName(const std::string& tile_file);
 
 /// What writeTiledMap wrote.
 struct TiledWriteResult {
   uint64_t index_bytes = 0;
-  uint64_t tile_bytes = 0;  ///< all tiles together
+  uint64_t tile_bytes = 0;  ///< all tiles together, their latest states included
   size_t tiles = 0;
 };
 
@@ -55,8 +66,8 @@ struct TiledWriteResult {
 /// error leaves the folder as it was). `meta` (a JSON object) is stored in the index.
 TiledWriteResult writeTiledMap(const std::filesystem::path& folder, const SplitMap& split, const nlohmann::json& meta);
 
-/// Writes one tile's file (atomically) into the folder as tileFileName(key, generation).
-/// @return its row of the tile table.
+/// Writes one tile's file (atomically) into the folder as tileFileName(key, generation), and
+/// its latest state beside it. @return its row of the tile table.
 TileEntry writeTileFile(const std::filesystem::path& folder, const TileKey& key, uint64_t generation,
                         const TemporalMap& tile);
 /// Writes the index of a tiled map (atomically: the previous index stays until the rename).
@@ -72,6 +83,11 @@ TileIndex readTileIndex(const std::filesystem::path& folder);
 /// (resolution, criterion, the sessions' times, nothing outside its cube).
 /// @throw IoError (missing file), FormatError naming the tile's file.
 TemporalMap readTile(const std::filesystem::path& folder, const TileIndex& index, const TileEntry& entry);
+
+/// Reads a tile's latest state (entry.latest must be set), checking its size and checksum
+/// against the index and that it lies inside the tile's cube at the index's resolution.
+/// @throw IoError (missing file), FormatError naming the file.
+SessionMap readLatestState(const std::filesystem::path& folder, const TileIndex& index, const TileEntry& entry);
 
 /// True when `path` is a folder holding an index.cmap.
 bool isTiledMap(const std::filesystem::path& path);
