@@ -100,7 +100,8 @@ Coverage Coverage::decodeFrom(const std::vector<uint8_t>& bytes, size_t& pos) {
     previous_end = e;
   }
   pos = static_cast<size_t>(p - bytes.data());
-  c.encoded_.assign(bytes.begin() + static_cast<std::ptrdiff_t>(start), bytes.begin() + static_cast<std::ptrdiff_t>(pos));
+  c.encoded_.assign(bytes.begin() + static_cast<std::ptrdiff_t>(start),
+                    bytes.begin() + static_cast<std::ptrdiff_t>(pos));
   return c;
 }
 

@@ -90,7 +90,8 @@ TEST(TilesCli, BadInputGivesOneLine) {
   EXPECT_NE(no_latest.err.find("latest state file missing"), std::string::npos) << no_latest.err;
   EXPECT_EQ(std::count(no_latest.err.begin(), no_latest.err.end(), '\n'), 1) << no_latest.err;
   fs::remove(fs::path(t) / index.tiles.front().file);
-  const test::CommandResult missing = runCommand(cli() + " snapshot " + t + " --at 1000 -o " + (tmp / "s.cmap").string());
+  const test::CommandResult missing =
+      runCommand(cli() + " snapshot " + t + " --at 1000 -o " + (tmp / "s.cmap").string());
   EXPECT_NE(missing.exit_code, 0);
   EXPECT_NE(missing.err.find("tile file missing"), std::string::npos) << missing.err;
   EXPECT_EQ(std::count(missing.err.begin(), missing.err.end(), '\n'), 1) << missing.err;
