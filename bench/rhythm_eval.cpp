@@ -277,7 +277,9 @@ int main(int argc, char** argv) {
   };
   Planner planners[3] = {{"latest"}, {"mean"}, {"costmap"}};
   std::vector<Eigen::Vector2d> room_centres;
+  std::vector<std::string> room_names;
   for (const auto& r : scene["rooms"]) {
+    room_names.push_back(r.value("name", std::to_string(room_names.size())));
     room_centres.emplace_back(0.5 * (r["min"][0].get<double>() + r["max"][0].get<double>()),
                               0.5 * (r["min"][1].get<double>() + r["max"][1].get<double>()));
   }
@@ -317,13 +319,19 @@ int main(int argc, char** argv) {
               return maps[p].at(c.x(), c.y()) >= Costmap::kInscribed;
             };
             pl.endpoint_closed += closed(*start) || closed(*goal);
-            if (list_plans) std::printf("plan %s session %zu %s rooms %zu-%zu: no plan\n", pl.name, test[k], when, a, b);
+            if (list_plans) {
+              std::printf("plan %s session %zu %s %s to %s: no plan\n", pl.name, test[k], when, room_names[a].c_str(),
+                          room_names[b].c_str());
+            }
             continue;
           }
           bool hit = false;
           for (const auto& c : *path) hit |= truth.at(c.x(), c.y()) != 0;
           if (hit) {
-            if (list_plans) std::printf("plan %s session %zu %s rooms %zu-%zu: blocked\n", pl.name, test[k], when, a, b);
+            if (list_plans) {
+              std::printf("plan %s session %zu %s %s to %s: blocked\n", pl.name, test[k], when, room_names[a].c_str(),
+                          room_names[b].c_str());
+            }
             ++pl.blocked;
             continue;
           }
