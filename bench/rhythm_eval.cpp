@@ -22,14 +22,17 @@
 //   --group-correlation C, --group-common N, --group-voxels N, --group-gain G: the grouping's
 //                  settings
 //   --endpoint-clearance M  plan from and to the truth's free cell nearest each room's centre
-//                  that has only free cells within M metres (default 0: the nearest free cell, at
-//                  the edge of an obstacle's inflation, where a map one voxel thicker shuts it)
+//                  that has only free cells within M metres (default 0.15: a spot the robot can
+//                  stand on; 0, the default before 2026-12-02's third pass, takes the nearest free
+//                  cell, at the edge of an obstacle's inflation, where a map one voxel thicker
+//                  shuts it whatever it knows of the place's rhythm)
 //   --save-map F   write the learning weeks' 4D map to F; --map F reads it instead of building it
 //                  (the registered build takes minutes: this lets model changes be compared on
 //                  the same map; F must come from the same simulation, poses and integration flags)
 // Then navigation: plans between every pair of rooms at each test session's time on the latest
 // snapshot, the mean map and the combined model's cost map, executed against the truth
-// (RHYTHM_EVAL_DUMP=DIR writes every grid there as map_server files, for a look).
+// (RHYTHM_EVAL_DUMP=DIR writes every grid there as map_server files, for a look;
+// RHYTHM_EVAL_PLANS=1 lists every plan that a map does not find or that the truth blocks).
 // Prints tables and, last, one JSON object (brier_*, auc_* per model and baseline, nav_*).
 
 #include <algorithm>
@@ -47,6 +50,7 @@
 
 #include "chronomap/analysis/costmap.h"
 #include "chronomap/analysis/rhythm.h"
+#include "chronomap/core/time.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/file.h"
 #include "chronomap/io/map_server.h"
@@ -127,7 +131,7 @@ int main(int argc, char** argv) {
   double robot_height_m = 1.8;
   fs::path load_map, save_map;
   RhythmGroupSettings grouping;
-  double endpoint_clearance_m = 0.0;
+  double endpoint_clearance_m = 0.15;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&] { return bench::argValue(i, argc, argv); };
@@ -273,15 +277,20 @@ int main(int argc, char** argv) {
   };
   Planner planners[3] = {{"latest"}, {"mean"}, {"costmap"}};
   std::vector<Eigen::Vector2d> room_centres;
+  std::vector<std::string> room_names;
   for (const auto& r : scene["rooms"]) {
+    room_names.push_back(r.value("name", std::to_string(room_names.size())));
     room_centres.emplace_back(0.5 * (r["min"][0].get<double>() + r["max"][0].get<double>()),
                               0.5 * (r["min"][1].get<double>() + r["max"][1].get<double>()));
   }
   CostmapSettings plain = nav;
   plain.change_weight = 0.0;
   const Costmap latest_cost = costmap(latest, plain);
+  const bool list_plans = std::getenv("RHYTHM_EVAL_PLANS") != nullptr;
   for (size_t k = 0; k < test.size(); ++k) {
     const double t = times[test[k]];
+    const std::string when_text = formatTime(t);
+    const char* when = when_text.c_str();
     const Costmap maps[3] = {latest_cost, costmap(predictMap(map, models, RhythmModel::Mean, t), plain),
                              costmap(predictMap(map, models, RhythmModel::Combined, t), nav, &models)};
     for (int p = 0; p < 3; ++p) {
@@ -310,11 +319,19 @@ int main(int argc, char** argv) {
               return maps[p].at(c.x(), c.y()) >= Costmap::kInscribed;
             };
             pl.endpoint_closed += closed(*start) || closed(*goal);
+            if (list_plans) {
+              std::printf("plan %s session %zu %s %s to %s: no plan\n", pl.name, test[k], when, room_names[a].c_str(),
+                          room_names[b].c_str());
+            }
             continue;
           }
           bool hit = false;
           for (const auto& c : *path) hit |= truth.at(c.x(), c.y()) != 0;
           if (hit) {
+            if (list_plans) {
+              std::printf("plan %s session %zu %s %s to %s: blocked\n", pl.name, test[k], when, room_names[a].c_str(),
+                          room_names[b].c_str());
+            }
             ++pl.blocked;
             continue;
           }

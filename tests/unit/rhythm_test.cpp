@@ -70,6 +70,38 @@ TEST(Rhythm, OfficeHoursAreLearnedByTheDailyModels) {
   EXPECT_EQ(predict(v, RhythmModel::Latest, 28, 13.0), s.occupied.back());
 }
 
+TEST(Rhythm, TheHourlyProfileKeepsAScheduleEdgeTheDataShow) {
+  // A door's open panel: occupied on weekdays 08:00-18:00, seen twice in each of the two-hour
+  // bins 12-14, 14-16 and 16-18 h (occupied) and 18-20 and 20-22 h (free); mean 0.6.
+  VoxelSeries s;
+  for (double hour : {12.5, 14.5, 16.5, 19.0, 21.0}) {
+    for (int day : {0, 1}) {
+      s.ranks.push_back(static_cast<uint32_t>(s.ranks.size()));
+      s.times_s.push_back(kMonday_s + 86400.0 * day + kHour * hour);
+      s.occupied.push_back(hour < 18.0 ? 1 : 0);
+    }
+  }
+  const VoxelRhythm v = fitVoxel(s);
+  ASSERT_FLOAT_EQ(v.mean, 0.6f);
+  // Wednesday 17:30: the own bin (2 of 2) plus the agreeing bins 14-16 (weight 0.25) and 12-14
+  // (0.05); the disagreeing 18-20 and 20-22 h bins count nothing, the pseudo-observation 0.6:
+  // (0.6 + 2 + 0.5 + 0.1) / (1 + 2 + 0.5 + 0.1). Smoothing them in alike (weights 0.5 and 0.15,
+  // as before) gave 3.9 / 5.6 = 0.70: a door about to shut read as half open an hour before.
+  EXPECT_NEAR(predict(v, RhythmModel::Hourly, 2, 17.5), 3.2 / 3.6, 1e-6);
+  // 18:30: the own bin (0 of 2) and 20-22 h agree, the occupied bins before count nothing.
+  EXPECT_NEAR(predict(v, RhythmModel::Hourly, 2, 18.5), 0.6 / 3.5, 1e-6);
+  // 10:30, a bin never observed: both neighbours on its side are borrowed at their weights.
+  EXPECT_NEAR(predict(v, RhythmModel::Hourly, 2, 10.5), (0.6 + 0.5 + 0.1) / (1 + 0.5 + 0.1), 1e-6);
+  // A neighbour that half agrees counts half: one of the two 16-18 h observations free.
+  s.occupied[5] = 0;
+  const VoxelRhythm half = fitVoxel(s);
+  const double m = half.mean;  // 0.5
+  EXPECT_NEAR(predict(half, RhythmModel::Hourly, 2, 17.5),
+              (m + 1 + 0.25 * 0.5 * 2 + 0.05 * 0.5 * 2) / (1 + 2 + 0.25 * 0.5 * 2 + 0.05 * 0.5 * 2 + 0.5 * 0.25 * 2 +
+                                                             0.5 * 0.05 * 2),
+              1e-6);
+}
+
 TEST(Rhythm, CombinedKeepsTheMeanForAVoxelWithoutRhythm) {
   // Occupied at random in 60% of the observations, whatever the hour: the hourly profile only
   // fits noise, and leaving each observation out shows it.
