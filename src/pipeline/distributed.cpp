@@ -10,6 +10,7 @@
 #include <climits>
 #include <cstdint>
 #include <cstdlib>
+#include <filesystem>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -173,6 +174,23 @@ Pending decodePending(const std::vector<uint8_t>& bytes, size_t index, int from)
                             meta.at("dropped_reasons").get<std::string>()}};
 }
 
+/// Bytes a recording holds on disk (a folder's files, or the file): a measure of its work.
+uintmax_t recordingBytes(const std::filesystem::path& p) {
+  std::error_code ec;
+  if (!std::filesystem::is_directory(p, ec)) {
+    const uintmax_t size = std::filesystem::file_size(p, ec);
+    return ec ? 0 : size;
+  }
+  uintmax_t total = 0;
+  std::filesystem::recursive_directory_iterator it(p, ec), end;
+  for (; !ec && it != end; it.increment(ec)) {
+    std::error_code size_ec;
+    const uintmax_t size = it->is_regular_file(size_ec) ? it->file_size(size_ec) : 0;
+    if (!size_ec) total += size;
+  }
+  return total;
+}
+
 }  // namespace
 
 bool mpiBuilt() { return true; }
@@ -202,7 +220,7 @@ std::optional<BuildResult> buildOnRanks(const BuildSettings& settings, const Ran
   if (s.session.integrator.threads == 0) s.session.integrator.threads = processorsAllowed();
   if (ranks.size() == 1) return build(s);
   const bool root = ranks.rank() == 0;
-  const size_t n = s.datasets.size(), size = static_cast<size_t>(ranks.size());
+  const size_t n = s.datasets.size();
   if (!root) s.progress = {};  // one rank reports
   Steps steps(ranks);
 
@@ -219,9 +237,13 @@ std::optional<BuildResult> buildOnRanks(const BuildSettings& settings, const Ran
   });
   steps.agree();
 
-  // Every size-th dataset from this rank's number.
+  // The recordings shared out by size (shareOutRecordings), the same on every rank.
+  std::vector<uintmax_t> sizes(n);
+  for (size_t i = 0; i < n; ++i) sizes[i] = recordingBytes(s.datasets[i]);
+  const std::vector<int> owner = shareOutRecordings(sizes, ranks.size());
   std::vector<Pending> mine;
-  for (size_t i = static_cast<size_t>(ranks.rank()); i < n; i += size) {
+  for (size_t i = 0; i < n; ++i) {
+    if (owner[i] != ranks.rank()) continue;
     const int key = static_cast<int>(std::min<size_t>(i, INT_MAX - 1));
     if (!steps.run(key, [&] { mine.push_back(detail::integrateOne(s, i)); })) break;
   }
@@ -244,18 +266,18 @@ std::optional<BuildResult> buildOnRanks(const BuildSettings& settings, const Ran
   // Every byte received before anything can fail here, so that no rank waits on a send.
   std::vector<std::vector<uint8_t>> received(n);
   for (size_t i = 0; i < n; ++i) {
-    if (i % size != 0) received[i] = receiveBytes(static_cast<int>(i % size));
+    if (owner[i] != 0) received[i] = receiveBytes(owner[i]);
   }
   BuildResult result;
   steps.run(0, [&] {
     std::vector<Pending> pending;
     size_t own = 0;
     for (size_t i = 0; i < n; ++i) {
-      if (i % size == 0) {
+      if (owner[i] == 0) {
         pending.push_back(std::move(mine[own++]));
         continue;
       }
-      const int from = static_cast<int>(i % size);
+      const int from = owner[i];
       std::ostringstream step;
       step << "[" << i + 1 << "/" << n << "] " << s.datasets[i].string() << " (integrated on rank " << from << ")";
       s.progress.say(step.str());

@@ -10,6 +10,7 @@
 #include "chronomap/core/time.h"
 #include "chronomap/io/cmap.h"
 #include "chronomap/io/file.h"
+#include "chronomap/pipeline/distributed.h"
 #include "build_steps.h"
 
 namespace chronomap::pipeline {
@@ -247,5 +248,22 @@ AddSessionResult addSession(const AddSessionSettings& s) {
   r.file_bytes = fs::file_size(s.map);
   return r;
 }
+
+std::vector<int> shareOutRecordings(const std::vector<uintmax_t>& bytes, int ranks) {
+  // Largest first, each to the rank with the least so far (ties: the lower rank, then the
+  // earlier recording), so that the ranks finish together; the same on every rank.
+  std::vector<size_t> order(bytes.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return bytes[a] > bytes[b]; });
+  std::vector<uintmax_t> load(static_cast<size_t>(std::max(ranks, 1)), 0);
+  std::vector<int> owner(bytes.size(), 0);
+  for (const size_t i : order) {
+    const auto least = static_cast<size_t>(std::min_element(load.begin(), load.end()) - load.begin());
+    owner[i] = static_cast<int>(least);
+    load[least] += bytes[i];
+  }
+  return owner;
+}
+
 
 }  // namespace chronomap::pipeline

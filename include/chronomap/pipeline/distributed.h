@@ -1,7 +1,7 @@
 #pragma once
 /// @file
-/// build() spread over the processes of an MPI job (`mpirun -np N chronomap build ...`). Rank r
-/// integrates the recordings i with i % N == r; the session maps go to rank 0 whole and exactly
+/// build() spread over the processes of an MPI job (`mpirun -np N chronomap build ...`). The
+/// recordings are shared out by their size (shareOutRecordings); the session maps go to rank 0 whole and exactly
 /// (every counter bit for bit), which then does what build() does after integrating: sorts them
 /// by time, registers and re-aligns them when asked, adds them in time order and writes the map
 /// once, atomically, holding its file lock. The file is byte-identical whatever N, and to build()'s.
@@ -11,11 +11,18 @@
 /// same calls run on this process alone.
 
 #include <exception>
+#include <cstdint>
 #include <optional>
+#include <vector>
 
 #include "chronomap/pipeline/map4d.h"
 
 namespace chronomap::pipeline {
+
+/// Which rank integrates each recording, from the bytes each holds on disk: largest first, each
+/// to the rank with the fewest bytes so far (ties: the lower rank), so that the ranks finish
+/// together. Depends only on the sizes and their order: the same on every rank.
+std::vector<int> shareOutRecordings(const std::vector<uintmax_t>& bytes, int ranks);
 
 /// True when this chronomap was built with MPI.
 bool mpiBuilt();
