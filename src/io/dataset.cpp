@@ -167,17 +167,22 @@ PointCloud depthToCloud(const ImageU16& depth, const ImageRgb* rgb, const Camera
   if (rgb) cloud.colors = rgb->pixels;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const double inv_scale = 1.0 / depth_scale;
+  // Each column's offset from the principal point, the same double the per-pixel expression
+  // (u - cx) * z / fx computes first: the same points, bit for bit.
+  std::vector<double> columns(depth.width);
+  for (uint32_t u = 0; u < depth.width; ++u) columns[u] = u - k.cx;
   for (uint32_t v = 0; v < depth.height; ++v) {
+    const double row = v - k.cy;
+    const uint16_t* line = depth.pixels.data() + size_t{v} * depth.width;
+    Eigen::Vector3f* out = cloud.points.data() + size_t{v} * depth.width;
     for (uint32_t u = 0; u < depth.width; ++u) {
-      const size_t i = size_t{v} * depth.width + u;
-      const uint16_t d = depth.pixels[i];
+      const uint16_t d = line[u];
       if (d == 0) {
-        cloud.points[i] = Eigen::Vector3f(nan, nan, nan);
+        out[u] = Eigen::Vector3f(nan, nan, nan);
         continue;
       }
       const double z = d * inv_scale;
-      cloud.points[i] = Eigen::Vector3f(toFloat((u - k.cx) * z / k.fx), toFloat((v - k.cy) * z / k.fy),
-                                        toFloat(z));
+      out[u] = Eigen::Vector3f(toFloat(columns[u] * z / k.fx), toFloat(row * z / k.fy), toFloat(z));
     }
   }
   return cloud;

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <limits>
 #include <memory>
+#include <random>
 #include <sstream>
 
 #include "chronomap/core/error.h"
@@ -136,6 +137,40 @@ TEST(Dataset, WithoutColourGivesTheSamePointsAndPosesWithoutColours) {
   fs::remove(tmp.path() / "rgb/1.png");
   EXPECT_FALSE(openDataset(tmp.path(), geometry)->load(1).cloud.hasColors());
   EXPECT_THROW(openDataset(tmp.path())->load(1), Error);
+}
+
+TEST(Dataset, DepthToCloudEqualsThePerPixelFormula) {
+  // The reference: every pixel computed on its own, beyond float's range infinite.
+  const auto toFloatRef = [](double x) {
+    constexpr double kMax = std::numeric_limits<float>::max();
+    if (x > kMax) return std::numeric_limits<float>::infinity();
+    if (x < -kMax) return -std::numeric_limits<float>::infinity();
+    return static_cast<float>(x);
+  };
+  std::mt19937 rng(7);
+  ImageU16 depth{37, 23, std::vector<uint16_t>(37 * 23)};
+  for (uint16_t& d : depth.pixels) d = rng() % 4 == 0 ? 0 : static_cast<uint16_t>(rng());
+  const CameraIntrinsics k{523.7, 517.3, 18.3, 11.9};
+  // An ordinary scale, and one that puts far pixels beyond float's range.
+  for (const double scale : {5000.0, 1000.0, 3e-36}) {
+    const PointCloud cloud = depthToCloud(depth, nullptr, k, scale, "test");
+    ASSERT_EQ(cloud.points.size(), depth.pixels.size());
+    size_t infinite = 0;
+    for (uint32_t v = 0; v < depth.height; ++v) {
+      for (uint32_t u = 0; u < depth.width; ++u) {
+        const size_t i = size_t{v} * depth.width + u;
+        const uint16_t d = depth.pixels[i];
+        const float nan = std::numeric_limits<float>::quiet_NaN();
+        const double z = d * (1.0 / scale);
+        const Eigen::Vector3f want = d == 0 ? Eigen::Vector3f(nan, nan, nan)
+                                            : Eigen::Vector3f(toFloatRef((u - k.cx) * z / k.fx),
+                                                              toFloatRef((v - k.cy) * z / k.fy), toFloatRef(z));
+        EXPECT_EQ(std::memcmp(want.data(), cloud.points[i].data(), sizeof(float) * 3), 0) << scale << " " << i;
+        infinite += std::isinf(want.z());
+      }
+    }
+    EXPECT_EQ(infinite > 0, scale < 1.0) << scale;
+  }
 }
 
 TEST(Dataset, DepthCacheGivesTheSameFramesWithinItsBudget) {
