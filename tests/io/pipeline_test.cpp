@@ -4,8 +4,6 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
-#include <memory>
-#include <utility>
 
 #include "chronomap/core/error.h"
 #include "chronomap/io/cmap.h"
