@@ -143,6 +143,12 @@ size_t DepthImageCache::bytes() const {
   return bytes_;
 }
 
+void DepthImageCache::clear() {
+  const std::lock_guard lock(mutex_);
+  images_ = {};
+  bytes_ = 0;
+}
+
 size_t DepthImageCache::images() const {
   const std::lock_guard lock(mutex_);
   return images_.size();

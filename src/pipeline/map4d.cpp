@@ -104,6 +104,8 @@ std::vector<PoseCorrection> registerPending(const BuildSettings& s, std::vector<
   s.progress.say("registering " + std::to_string(maps.size()) + " session(s), " +
                  std::to_string(s.registration->rounds) + " round(s)");
   std::vector<PoseCorrection> found = registerDatasets(maps, paths, positions, s.session, *s.registration);
+  // Nothing reads the frames again: the decoded depth images go before the sessions are added.
+  if (s.session.dataset.depth_cache) s.session.dataset.depth_cache->clear();
   for (size_t i = 0; i < pending.size(); ++i) pending[i].session.map = std::move(maps[i]);
   return found;
 }

@@ -214,6 +214,10 @@ TEST(Dataset, DepthCacheGivesTheSameFramesWithinItsBudget) {
   EXPECT_NEAR(ds->load(1).cloud.points[5].z(), 1.0, 1e-6);
   EXPECT_THROW(ds->load(2), Error);
   EXPECT_FALSE(cache->keep(tmp.path() / "depth/0.png", std::make_shared<ImageU16>(image)));  // already kept
+  cache->clear();
+  EXPECT_EQ(cache->images(), 0u);
+  EXPECT_EQ(cache->bytes(), 0u);
+  EXPECT_THROW(ds->load(1), Error);  // its file is gone, and now its image too
   EXPECT_FALSE(DepthImageCache(one - 1).keep(tmp.path() / "depth/0.png", std::make_shared<ImageU16>(image)));
   EXPECT_TRUE(DepthImageCache(one).keep(tmp.path() / "depth/0.png", std::make_shared<ImageU16>(image)));
 }

@@ -105,6 +105,8 @@ class DepthImageCache {
   size_t bytes() const;   ///< of the kept images, never above budget_bytes()
   size_t images() const;  ///< kept
   size_t hits() const { return hits_; }  ///< find() calls that found an image
+  /// Drops every image kept (the budget stays; the hits are still counted).
+  void clear();
 
  private:
   size_t budget_;
