@@ -161,6 +161,7 @@ struct BuildCmdOptions {
   double register_radius = RegisterSettings{}.radius_voxels;
   bool register_planar = false;
   bool register_points = false;
+  std::optional<double> register_cache_gib;
   bool tiles = false;
   std::optional<double> tile_size_m;
   bool json = false;
@@ -188,6 +189,10 @@ std::optional<pipeline::RegistrationSettings> registrationSettings(const BuildCm
   if (o.register_points && o.register_drift <= 0) throw UsageError("--register-points needs --register-drift");
   s.align.planar = o.register_planar;
   s.align.drift_points = o.register_points;
+  if (o.register_cache_gib) {
+    if (!o.register_sessions) throw UsageError("--register-cache needs --register");
+    s.depth_cache_bytes = gibToBytes(*o.register_cache_gib);
+  }
   if (!o.register_sessions) return std::nullopt;
   return s;
 }
@@ -402,6 +407,10 @@ Command addBuild(CLI::App& root) {
   app->add_flag("--register-points", o->register_points,
                 "fit the drift against the sessions' points rather than voxel centres, which resolves offsets "
                 "below a voxel (docs/realign.md has the office figures)");
+  app->add_option("--register-cache", o->register_cache_gib,
+                  "GiB of decoded depth images kept between registration's passes over the frames (default 3; "
+                  "0: none; about 154 KB a frame at 320 x 240); the corrections do not depend on it")
+      ->check(numberIn(0, 1e6));
   addRealignFlags(app, o->realign);
   app->add_flag("--tiles", o->tiles,
                 "build into a tiled map folder (created when missing), tile by tile: memory holds one session, "

@@ -110,6 +110,50 @@ ImageRgb colorInDepthView(const ImageRgb& color, const CameraIntrinsics& color_k
   return out;
 }
 
+std::shared_ptr<const ImageU16> DepthImageCache::find(const std::filesystem::path& path) const {
+  std::shared_ptr<const ImageU16> found;
+  {
+    const std::lock_guard lock(mutex_);
+    const auto it = images_.find(path.string());
+    if (it != images_.end()) found = it->second;
+  }
+  if (found) ++hits_;
+  return found;
+}
+
+bool DepthImageCache::keep(const std::filesystem::path& path, std::shared_ptr<const ImageU16> image) {
+  if (!image) return false;
+  const size_t need = bytesOf(path, *image);
+  const std::lock_guard lock(mutex_);
+  if (need > budget_ - bytes_) return false;
+  if (!images_.try_emplace(path.string(), std::move(image)).second) return false;
+  bytes_ += need;
+  return true;
+}
+
+size_t DepthImageCache::bytesOf(const std::filesystem::path& path, const ImageU16& image) {
+  // The pixels, the key, the image and its node in the table (two pointers and a hash), and the
+  // shared pointer's control block.
+  constexpr size_t kOverhead = sizeof(ImageU16) + sizeof(std::string) + 3 * sizeof(void*) + 32;
+  return image.pixels.size() * sizeof(uint16_t) + path.native().size() + kOverhead;
+}
+
+size_t DepthImageCache::bytes() const {
+  const std::lock_guard lock(mutex_);
+  return bytes_;
+}
+
+void DepthImageCache::clear() {
+  const std::lock_guard lock(mutex_);
+  images_ = {};
+  bytes_ = 0;
+}
+
+size_t DepthImageCache::images() const {
+  const std::lock_guard lock(mutex_);
+  return images_.size();
+}
+
 PointCloud depthToCloud(const ImageU16& depth, const ImageRgb* rgb, const CameraIntrinsics& k, double depth_scale,
                         const std::string& source) {
   if (!(depth_scale > 0.0) || !std::isfinite(depth_scale)) {
@@ -129,17 +173,22 @@ PointCloud depthToCloud(const ImageU16& depth, const ImageRgb* rgb, const Camera
   if (rgb) cloud.colors = rgb->pixels;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const double inv_scale = 1.0 / depth_scale;
+  // Each column's offset from the principal point, the same double the per-pixel expression
+  // (u - cx) * z / fx computes first: the same points, bit for bit.
+  std::vector<double> columns(depth.width);
+  for (uint32_t u = 0; u < depth.width; ++u) columns[u] = u - k.cx;
   for (uint32_t v = 0; v < depth.height; ++v) {
+    const double row = v - k.cy;
+    const uint16_t* line = depth.pixels.data() + size_t{v} * depth.width;
+    Eigen::Vector3f* out = cloud.points.data() + size_t{v} * depth.width;
     for (uint32_t u = 0; u < depth.width; ++u) {
-      const size_t i = size_t{v} * depth.width + u;
-      const uint16_t d = depth.pixels[i];
+      const uint16_t d = line[u];
       if (d == 0) {
-        cloud.points[i] = Eigen::Vector3f(nan, nan, nan);
+        out[u] = Eigen::Vector3f(nan, nan, nan);
         continue;
       }
       const double z = d * inv_scale;
-      cloud.points[i] = Eigen::Vector3f(toFloat((u - k.cx) * z / k.fx), toFloat((v - k.cy) * z / k.fy),
-                                        toFloat(z));
+      out[u] = Eigen::Vector3f(toFloat(columns[u] * z / k.fx), toFloat(row * z / k.fy), toFloat(z));
     }
   }
   return cloud;
@@ -163,14 +212,16 @@ constexpr double kPlausibleMedianDepthMax_m = 50.0;
 class ImageDataset : public Dataset {
  public:
   ImageDataset(DatasetFormat format, std::vector<ImageFrame> frames, CameraIntrinsics k, double scale, size_t dropped,
-               std::optional<CameraIntrinsics> color_k = std::nullopt, bool colour = true)
+               std::optional<CameraIntrinsics> color_k = std::nullopt, bool colour = true,
+               std::shared_ptr<DepthImageCache> depth_cache = nullptr)
       : format_(format),
         frames_(std::move(frames)),
         k_(k),
         scale_(scale),
         dropped_(dropped),
         color_k_(color_k),
-        colour_(colour) {}
+        colour_(colour),
+        depth_cache_(std::move(depth_cache)) {}
   size_t size() const override { return frames_.size(); }
   DatasetFormat format() const override { return format_; }
   std::optional<double> recordedAt() const override {
@@ -202,8 +253,14 @@ class ImageDataset : public Dataset {
 
   Frame load(size_t i) const override {
     const ImageFrame& f = frames_.at(i);
-    const ImageU16 depth = readPngU16(f.depth);
-    checkDepthScale(depth, f.depth.string());
+    std::shared_ptr<const ImageU16> kept = depth_cache_ ? depth_cache_->find(f.depth) : nullptr;
+    if (!kept) {
+      auto read = std::make_shared<ImageU16>(readPngU16(f.depth));
+      checkDepthScale(*read, f.depth.string());
+      kept = std::move(read);
+      if (depth_cache_) depth_cache_->keep(f.depth, kept);
+    }
+    const ImageU16& depth = *kept;
     std::optional<ImageRgb> rgb;
     if (f.color && colour_) rgb = readColorImage(*f.color);
     // A colour camera with intrinsics of its own (ScanNet): looked up along each depth ray.
@@ -224,6 +281,7 @@ class ImageDataset : public Dataset {
   size_t dropped_;
   std::optional<CameraIntrinsics> color_k_;
   bool colour_;
+  std::shared_ptr<DepthImageCache> depth_cache_;
 };
 
 class CloudDataset : public Dataset {
@@ -344,7 +402,7 @@ std::unique_ptr<Dataset> openThreeDMatch(const fs::path& root, const DatasetSett
   }
   if (frames.empty()) throw DataError(root.string() + ": no frame-*.depth.png files found");
   return std::make_unique<ImageDataset>(DatasetFormat::ThreeDMatch, std::move(frames), k, checkedScale(o, 1000.0), 0,
-                                        std::nullopt, o.colour);
+                                        std::nullopt, o.colour, o.depth_cache);
 }
 
 // ---------------------------------------------------------------- ScanNet
@@ -409,7 +467,7 @@ std::unique_ptr<Dataset> openScanNet(const fs::path& root, const DatasetSettings
                     " with invalid poses)");
   }
   return std::make_unique<ImageDataset>(DatasetFormat::ScanNet, std::move(frames), k, checkedScale(o, 1000.0), dropped,
-                                        color_k, o.colour);
+                                        color_k, o.colour, o.depth_cache);
 }
 
 // ---------------------------------------------------------------- TUM RGB-D
@@ -500,7 +558,7 @@ std::unique_ptr<Dataset> openTum(const fs::path& root, const DatasetSettings& o)
                     " depth frames has a pose (and colour) within " + std::to_string(o.max_time_difference_s) + " s");
   }
   return std::make_unique<ImageDataset>(DatasetFormat::Tum, std::move(frames), k, checkedScale(o, 5000.0), dropped,
-                                        std::nullopt, o.colour);
+                                        std::nullopt, o.colour, o.depth_cache);
 }
 
 // ---------------------------------------------------------------- clouds

@@ -43,13 +43,6 @@ unsigned long long parseUnsigned(const std::string& token, const std::string& co
   return v;
 }
 
-float toFloat(double v) {
-  constexpr double kMax = std::numeric_limits<float>::max();
-  if (v > kMax) return std::numeric_limits<float>::infinity();
-  if (v < -kMax) return -std::numeric_limits<float>::infinity();
-  return static_cast<float>(v);  // also NaN
-}
-
 double checkedInteger(double v, double lo, double hi, const std::string& context) {
   if (!(v >= lo && v <= hi) || v != std::floor(v)) {
     throw FormatError(context + ": value " + std::to_string(v) + " is not a whole number in range");

@@ -1,6 +1,7 @@
 #pragma once
 // Small text parsing helpers shared by the readers (internal).
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -13,8 +14,14 @@ double parseDouble(const std::string& token, const std::string& context);
 /// Parses a whole token as an unsigned integer. @throw FormatError.
 unsigned long long parseUnsigned(const std::string& token, const std::string& context);
 /// A coordinate read from a file as float: finite values beyond float's range become infinite
-/// (and so count as invalid points) instead of an undefined conversion.
-float toFloat(double v);
+/// (and so count as invalid points) instead of an undefined conversion. Inline: it is called for
+/// every pixel of every depth image.
+inline float toFloat(double v) {
+  constexpr double kMax = std::numeric_limits<float>::max();
+  if (v > kMax) return std::numeric_limits<float>::infinity();
+  if (v < -kMax) return -std::numeric_limits<float>::infinity();
+  return static_cast<float>(v);  // also NaN
+}
 /// A whole number in [lo, hi] read as double. @throw FormatError "<context>: ... out of range".
 double checkedInteger(double v, double lo, double hi, const std::string& context);
 

@@ -1,6 +1,7 @@
 #include "chronomap/pipeline/map4d.h"
 
 #include <algorithm>
+#include <memory>
 #include <span>
 #include <sstream>
 #include <utility>
@@ -104,6 +105,8 @@ std::vector<PoseCorrection> registerPending(const BuildSettings& s, std::vector<
   s.progress.say("registering " + std::to_string(maps.size()) + " session(s), " +
                  std::to_string(s.registration->rounds) + " round(s)");
   std::vector<PoseCorrection> found = registerDatasets(maps, paths, positions, s.session, *s.registration);
+  // Nothing reads the frames again: the decoded depth images go before the sessions are added.
+  if (s.session.dataset.depth_cache) s.session.dataset.depth_cache->clear();
   for (size_t i = 0; i < pending.size(); ++i) pending[i].session.map = std::move(maps[i]);
   return found;
 }
@@ -137,8 +140,13 @@ TemporalMap openOrCreate(const fs::path& path, double resolution_m, const Change
   return map;
 }
 
-BuildResult build(const BuildSettings& s) {
-  detail::checkInputs(s);
+BuildResult build(const BuildSettings& given) {
+  detail::checkInputs(given);
+  // Registration reads every frame again: the first read already keeps the decoded depth images.
+  BuildSettings s = given;
+  if (s.registration && s.registration->depth_cache_bytes > 0 && !s.session.dataset.depth_cache) {
+    s.session.dataset.depth_cache = std::make_shared<io::DepthImageCache>(s.registration->depth_cache_bytes);
+  }
   // Held to the end: an add to the same map meanwhile would otherwise be lost by the rewrite. A
   // map that does not exist yet locks its folder: two commands creating it run one after the other.
   const io::FileLock lock(s.map, io::FileLock::Missing::LockFolder);

@@ -49,12 +49,17 @@ std::vector<PoseCorrection> registerDatasets(std::vector<SessionMap>& maps, std:
                                              std::vector<RegisterReport>* reports) {
   // The drift fit needs the frames' points only, and the maps before each session's last
   // re-integration their occupancy only: there the colour images are left unread.
-  SessionSettings geometry = settings;
+  // Every frame is read up to 8 times: its depth image is decoded once while the cache has room.
+  SessionSettings full = settings;
+  if (registration.depth_cache_bytes > 0 && !full.dataset.depth_cache) {
+    full.dataset.depth_cache = std::make_shared<io::DepthImageCache>(registration.depth_cache_bytes);
+  }
+  SessionSettings geometry = full;
   geometry.dataset.colour = false;
   return registerSessions(
       maps,
       [&](size_t k, const PoseCorrection& c, bool last) {
-        return integrateDataset(paths[k], last ? settings : geometry, c, {}, "").map;
+        return integrateDataset(paths[k], last ? full : geometry, c, {}, "").map;
       },
       registration.rounds, registration.align, reports, sensor_positions,
       [&](size_t k) -> std::unique_ptr<FrameSource> { return io::openDataset(paths[k], geometry.dataset); });

@@ -607,7 +607,8 @@ TEST(SimulatorCli, SimulateAndBuildWithRegistration) {
     EXPECT_LT(a["drift_correction_max_m"].get<double>(), 0.2);
   }
   for (const auto& [bad, flag] : std::vector<std::pair<const char*, const char*>>{
-           {" --register-planar", "--register-planar"}, {" --register --register-points", "--register-points"}}) {
+           {" --register-planar", "--register-planar"}, {" --register --register-points", "--register-points"},
+           {" --register-cache 1", "--register-cache"}}) {
     r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "n.cmap").string() + " " +
                          (tmp / "sim" / "session_00").string() + bad);
     EXPECT_EQ(r.exit_code, 2) << bad;

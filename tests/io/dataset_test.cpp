@@ -5,6 +5,8 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <memory>
+#include <random>
 #include <sstream>
 
 #include "chronomap/core/error.h"
@@ -135,6 +137,89 @@ TEST(Dataset, WithoutColourGivesTheSamePointsAndPosesWithoutColours) {
   fs::remove(tmp.path() / "rgb/1.png");
   EXPECT_FALSE(openDataset(tmp.path(), geometry)->load(1).cloud.hasColors());
   EXPECT_THROW(openDataset(tmp.path())->load(1), Error);
+}
+
+TEST(Dataset, DepthToCloudEqualsThePerPixelFormula) {
+  // The reference: every pixel computed on its own, beyond float's range infinite.
+  const auto toFloatRef = [](double x) {
+    constexpr double kMax = std::numeric_limits<float>::max();
+    if (x > kMax) return std::numeric_limits<float>::infinity();
+    if (x < -kMax) return -std::numeric_limits<float>::infinity();
+    return static_cast<float>(x);
+  };
+  std::mt19937 rng(7);
+  ImageU16 depth{37, 23, std::vector<uint16_t>(37 * 23)};
+  for (uint16_t& d : depth.pixels) d = rng() % 4 == 0 ? 0 : static_cast<uint16_t>(rng());
+  const CameraIntrinsics k{523.7, 517.3, 18.3, 11.9};
+  // An ordinary scale, and one that puts far pixels beyond float's range.
+  for (const double scale : {5000.0, 1000.0, 3e-36}) {
+    const PointCloud cloud = depthToCloud(depth, nullptr, k, scale, "test");
+    ASSERT_EQ(cloud.points.size(), depth.pixels.size());
+    size_t infinite = 0;
+    for (uint32_t v = 0; v < depth.height; ++v) {
+      for (uint32_t u = 0; u < depth.width; ++u) {
+        const size_t i = size_t{v} * depth.width + u;
+        const uint16_t d = depth.pixels[i];
+        const float nan = std::numeric_limits<float>::quiet_NaN();
+        const double z = d * (1.0 / scale);
+        const Eigen::Vector3f want = d == 0 ? Eigen::Vector3f(nan, nan, nan)
+                                            : Eigen::Vector3f(toFloatRef((u - k.cx) * z / k.fx),
+                                                              toFloatRef((v - k.cy) * z / k.fy), toFloatRef(z));
+        EXPECT_EQ(std::memcmp(want.data(), cloud.points[i].data(), sizeof(float) * 3), 0) << scale << " " << i;
+        infinite += std::isinf(want.z());
+      }
+    }
+    EXPECT_EQ(infinite > 0, scale < 1.0) << scale;
+  }
+}
+
+TEST(Dataset, DepthCacheGivesTheSameFramesWithinItsBudget) {
+  test::TempDir tmp;
+  makeTum(tmp.path(), 5);
+  const ImageU16 image = readPngU16(tmp.path() / "depth/0.png");
+  // Room for two images, not three.
+  const size_t one = DepthImageCache::bytesOf(tmp.path() / "depth/0.png", image);
+  auto cache = std::make_shared<DepthImageCache>(2 * one + one / 2);
+  DatasetSettings cached;
+  cached.depth_cache = cache;
+  const auto plain = openDataset(tmp.path());
+  for (int pass = 0; pass < 3; ++pass) {
+    // A new dataset each pass, as each re-integration opens the recording again; every other
+    // pass without colour, as registration's drift passes.
+    cached.colour = pass % 2 == 0;
+    const auto ds = openDataset(tmp.path(), cached);
+    ASSERT_EQ(ds->size(), plain->size());
+    for (size_t i = 0; i < ds->size(); ++i) {
+      const Frame a = plain->load(i), b = ds->load(i);
+      EXPECT_EQ(b.cloud.hasColors(), cached.colour);
+      if (cached.colour) {
+        EXPECT_TRUE(b.cloud.colors == a.cloud.colors);
+      }
+      ASSERT_EQ(b.cloud.points.size(), a.cloud.points.size());
+      for (size_t j = 0; j < a.cloud.points.size(); ++j) {
+        EXPECT_EQ(std::memcmp(a.cloud.points[j].data(), b.cloud.points[j].data(), sizeof(float) * 3), 0) << i << j;
+      }
+      EXPECT_TRUE(a.T_world_sensor.matrix() == b.T_world_sensor.matrix());
+      EXPECT_LE(cache->bytes(), cache->budget_bytes());
+    }
+    // The first two images are kept (and found from the second pass on), the rest read each time.
+    EXPECT_EQ(cache->images(), 2u);
+    EXPECT_EQ(cache->bytes(), 2 * one);
+    EXPECT_EQ(cache->hits(), 2u * static_cast<size_t>(pass));
+  }
+  // Kept images are not read again: their files may go; the others may not.
+  fs::remove(tmp.path() / "depth/1.png");
+  fs::remove(tmp.path() / "depth/2.png");
+  const auto ds = openDataset(tmp.path(), cached);
+  EXPECT_NEAR(ds->load(1).cloud.points[5].z(), 1.0, 1e-6);
+  EXPECT_THROW(ds->load(2), Error);
+  EXPECT_FALSE(cache->keep(tmp.path() / "depth/0.png", std::make_shared<ImageU16>(image)));  // already kept
+  cache->clear();
+  EXPECT_EQ(cache->images(), 0u);
+  EXPECT_EQ(cache->bytes(), 0u);
+  EXPECT_THROW(ds->load(1), Error);  // its file is gone, and now its image too
+  EXPECT_FALSE(DepthImageCache(one - 1).keep(tmp.path() / "depth/0.png", std::make_shared<ImageU16>(image)));
+  EXPECT_TRUE(DepthImageCache(one).keep(tmp.path() / "depth/0.png", std::make_shared<ImageU16>(image)));
 }
 
 TEST(Dataset, TumDropsFramesWithoutPoseAndFailsWithNone) {

@@ -13,6 +13,7 @@
 #include "chronomap/pipeline/map4d.h"
 #include "chronomap/pipeline/maps.h"
 #include "chronomap/pipeline/session.h"
+#include "chronomap/sim/building.h"
 #include "test_support.h"
 
 namespace chronomap::pipeline {
@@ -36,6 +37,59 @@ TEST(PipelineSession, IntegratesADatasetAndRefusesOneWithoutPoints) {
   SessionSettings short_range;
   short_range.integrator.max_range_m = 1.0;
   EXPECT_THROW(integrateDataset(tmp / "wall.txt", short_range), DataError);
+}
+
+TEST(PipelineRegister, DepthCacheChangesNoCorrectionAndKeepsItsBudget) {
+  test::TempDir tmp;
+  sim::SimulationSettings sim_settings;
+  sim_settings.preset = "tiny";
+  sim_settings.sessions = 2;
+  sim_settings.resolution_scale = 0.25;
+  const sim::SimulationSummary simulated = sim::simulate(sim_settings, tmp / "sim");
+  SessionSettings settings;
+  settings.integrator.fast = true;
+  RegistrationSettings registration;
+  registration.rounds = 1;
+  registration.align.drift_knot_frames = 20;
+  registration.align.drift_rounds = 1;
+  registration.align.planar = true;
+  registration.align.drift_points = true;
+  // Without a cache, and with one given in the settings with room for a third of the images
+  // (used from the first integration on).
+  const size_t frame_bytes = 160 * 120 * sizeof(uint16_t);
+  const auto cache = std::make_shared<io::DepthImageCache>(simulated.frames * frame_bytes / 3);
+  const auto run = [&](bool cached) {
+    SessionSettings s = settings;
+    if (cached) s.dataset.depth_cache = cache;
+    RegistrationSettings r = registration;
+    r.depth_cache_bytes = 0;  // none but the one given
+    std::vector<SessionMap> maps;
+    std::vector<std::vector<Eigen::Vector3d>> positions;
+    for (const fs::path& dir : simulated.session_dirs) {
+      IntegratedSession session = integrateDataset(dir, s);
+      maps.push_back(std::move(session.map));
+      positions.push_back(std::move(session.sensor_positions));
+    }
+    const std::vector<PoseCorrection> found = registerDatasets(maps, simulated.session_dirs, positions, s, r);
+    return std::pair{found, maps};
+  };
+  const auto [plain, plain_maps] = run(false);
+  EXPECT_EQ(cache->images(), 0u);
+  const auto [found, maps] = run(true);
+  ASSERT_EQ(found.size(), plain.size());
+  for (size_t k = 0; k < found.size(); ++k) {
+    EXPECT_TRUE(found[k].motion.matrix() == plain[k].motion.matrix()) << k;
+    ASSERT_EQ(found[k].per_frame.size(), plain[k].per_frame.size());
+    for (size_t i = 0; i < found[k].per_frame.size(); ++i) {
+      EXPECT_TRUE(found[k].per_frame[i].matrix() == plain[k].per_frame[i].matrix()) << k << " " << i;
+    }
+    EXPECT_TRUE(maps[k] == plain_maps[k]) << k;
+  }
+  // The budget holds: about a third of the images kept, and found again in the later passes.
+  EXPECT_GT(cache->images(), simulated.frames / 4);
+  EXPECT_LT(cache->images(), simulated.frames / 2);
+  EXPECT_LE(cache->bytes(), cache->budget_bytes());
+  EXPECT_GT(cache->hits(), cache->images());
 }
 
 TEST(PipelineBuild, SortsByTimeAndRefusesClashesBeforeIntegrating) {

@@ -2,10 +2,14 @@
 /// @file
 /// Datasets: folders and files of RGB-D frames with poses, in common layouts.
 
+#include <atomic>
+#include <cstddef>
 #include <filesystem>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "chronomap/core/camera.h"
@@ -81,6 +85,37 @@ struct BagSettings {
   double pose_tolerance_s = 0.1;
 };
 
+/// Decoded depth images kept between passes over the same recordings (registration reads every
+/// frame up to eight times), within a budget of bytes; shared by the datasets opened with it
+/// (DatasetSettings::depth_cache) and safe from several threads. An image is kept when it still
+/// fits and is never dropped: a pass over more frames than fit then still finds the first ones
+/// kept (a cache that dropped the oldest would find none in passes that read every frame in turn).
+/// Keyed by the image file's path: share one cache only among datasets with the same depth scale.
+class DepthImageCache {
+ public:
+  explicit DepthImageCache(size_t budget_bytes) : budget_(budget_bytes) {}
+  /// The image kept for `path`, or null.
+  std::shared_ptr<const ImageU16> find(const std::filesystem::path& path) const;
+  /// Keeps `image` for `path` when its bytes fit in what is left of the budget (and none is kept
+  /// for it yet). @return whether it is kept now.
+  bool keep(const std::filesystem::path& path, std::shared_ptr<const ImageU16> image);
+  /// The bytes an image takes in the cache: its pixels, its path and the bookkeeping.
+  static size_t bytesOf(const std::filesystem::path& path, const ImageU16& image);
+  size_t budget_bytes() const { return budget_; }
+  size_t bytes() const;   ///< of the kept images, never above budget_bytes()
+  size_t images() const;  ///< kept
+  size_t hits() const { return hits_; }  ///< find() calls that found an image
+  /// Drops every image kept (the budget stays; the hits are still counted).
+  void clear();
+
+ private:
+  size_t budget_;
+  mutable std::mutex mutex_;
+  std::unordered_map<std::string, std::shared_ptr<const ImageU16>> images_;
+  size_t bytes_ = 0;
+  mutable std::atomic<size_t> hits_{0};
+};
+
 /// Settings of openDataset; unset values take the format's defaults.
 struct DatasetSettings {
   DatasetFormat format = DatasetFormat::Auto;
@@ -100,6 +135,9 @@ struct DatasetSettings {
   /// False: image datasets (TUM, 3DMatch, ScanNet) leave the colour images unread and give
   /// frames without colours (the same points), for passes that need only the geometry.
   bool colour = true;
+  /// Image datasets (TUM, 3DMatch, ScanNet): decoded depth images are looked up here before a
+  /// file is read, and kept here when they fit (the same frames as without it).
+  std::shared_ptr<DepthImageCache> depth_cache;
 };
 
 /// Frames of one recording. load() reads and decodes one frame; safe from several threads.

@@ -30,6 +30,8 @@ struct BuildSettings {
   ChangeCriterion criterion;  ///< for a new map
   SessionSettings session;
   /// Register the sessions to the consensus of all given, integrating each again with its correction.
+  /// build() then gives the datasets a depth image cache from the first integration on (unless
+  /// session.dataset has one) and empties it after the registration.
   std::optional<RegistrationSettings> registration;
   /// Re-align each session against the consensus of all given (thesis §2.2).
   std::optional<RealignSettings> realign;

@@ -56,6 +56,11 @@ nlohmann::json sessionMetadata(const std::filesystem::path& dataset, const Integ
 struct RegistrationSettings {
   int rounds = 3;  ///< each against the consensus the previous one left, in [1, 10]
   RegisterSettings align;
+  /// Registration reads every frame up to 8 times (each re-integration, each drift round): the
+  /// decoded depth images are kept between the reads up to this many bytes (io::DepthImageCache;
+  /// about 154 KB a frame at 320 x 240, 2.5 GB for floor66's 66 sessions), so the PNG files
+  /// are decoded once each. 0: none kept. The corrections do not depend on it.
+  size_t depth_cache_bytes = size_t{3} << 30;
 };
 
 /// Registers the session maps integrated from `paths` (in that order, with `sensor_positions` as
