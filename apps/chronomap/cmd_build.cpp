@@ -408,8 +408,9 @@ Command addBuild(CLI::App& root) {
                 "fit the drift against the sessions' points rather than voxel centres, which resolves offsets "
                 "below a voxel (docs/realign.md has the office figures)");
   app->add_option("--register-cache", o->register_cache_gib,
-                  "GiB of decoded depth images kept between registration's passes over the frames (default 3; "
-                  "0: none; about 154 KB a frame at 320 x 240); the corrections do not depend on it")
+                  "GiB of decoded depth images kept between registration's passes over the frames (default 3, or "
+                  "a quarter of the machine's memory if less; 0: none; about 154 KB a frame at 320 x 240); the "
+                  "corrections do not depend on it")
       ->check(numberIn(0, 1e6));
   addRealignFlags(app, o->realign);
   app->add_flag("--tiles", o->tiles,

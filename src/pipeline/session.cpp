@@ -1,11 +1,21 @@
 #include "chronomap/pipeline/session.h"
 
+#include <unistd.h>
+
+#include <algorithm>
 #include <memory>
 #include <string>
 
 #include "chronomap/core/error.h"
 
 namespace chronomap::pipeline {
+
+size_t defaultDepthCacheBytes() {
+  const size_t cap = size_t{3} << 30;
+  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+  if (pages <= 0 || page <= 0) return cap;
+  return std::min(cap, static_cast<size_t>(pages) / 4 * static_cast<size_t>(page));
+}
 
 IntegratedSession integrateDataset(const std::filesystem::path& path, const SessionSettings& settings,
                                    const PoseCorrection& correction, const Progress& progress,

@@ -52,6 +52,10 @@ IntegratedSession integrateDataset(const std::filesystem::path& path, const Sess
 nlohmann::json sessionMetadata(const std::filesystem::path& dataset, const IntegratedSession& session,
                                const SessionSettings& settings);
 
+/// The depth image cache's default budget: 3 GiB, or a quarter of the machine's memory when that
+/// is less.
+size_t defaultDepthCacheBytes();
+
 /// How sessions are registered to their consensus (align/register.h).
 struct RegistrationSettings {
   int rounds = 3;  ///< each against the consensus the previous one left, in [1, 10]
@@ -60,7 +64,7 @@ struct RegistrationSettings {
   /// decoded depth images are kept between the reads up to this many bytes (io::DepthImageCache;
   /// about 154 KB a frame at 320 x 240, 2.5 GB for floor66's 66 sessions), so the PNG files
   /// are decoded once each. 0: none kept. The corrections do not depend on it.
-  size_t depth_cache_bytes = size_t{3} << 30;
+  size_t depth_cache_bytes = defaultDepthCacheBytes();
 };
 
 /// Registers the session maps integrated from `paths` (in that order, with `sensor_positions` as
