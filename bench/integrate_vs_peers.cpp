@@ -21,8 +21,10 @@
 // one thread (every peer's) keep their best CPU time over the rounds and are compared by it;
 // the two-thread rows keep their best wall time. On an idle machine the two agree.
 //
-// Usage: integrate_vs_peers [--quick] [--rounds N] [--data DIR]
+// Usage: integrate_vs_peers [--quick] [--rounds N] [--data DIR] [--fast-only]
 //   --quick: 8 synthetic frames, one round. The last line is one JSON object (issue 27's keys).
+//   --fast-only: chronomap's fast-mode rows on the synthetic frames only (no peers, no ratios),
+//   for comparing builds of chronomap.
 
 #include <octomap/ColorOcTree.h>
 
@@ -35,6 +37,7 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -179,7 +182,7 @@ enum Row : size_t {
 
 /// Runs every method once per round and keeps each one's best time, so that slow drifts of the
 /// machine's speed hit all methods alike (see time()). Runs longer than 10 s are not repeated.
-std::vector<Result> measure(const Input& in, double res, int rounds) {
+std::vector<Result> measure(const Input& in, double res, int rounds, bool fast_only) {
   std::vector<std::function<Result()>> methods(kRows);
   methods[kOctoPlain] = [&] { return runOctomap(in, res, false); };
   methods[kOctoDisc] = [&] { return runOctomap(in, res, true); };
@@ -204,6 +207,7 @@ std::vector<Result> measure(const Input& in, double res, int rounds) {
   for (int round = 0; round < rounds; ++round) {
     for (size_t m = 0; m < kRows; ++m) {
       if (round > 0 && best[m].seconds > 10.0) continue;
+      if (fast_only && m != kFast1 && m != kFast2 && m != kFast1Bare && m != kFast2Bare) continue;
       const Result r = methods[m]();
       if (round == 0 || r.time() < best[m].time()) best[m] = r;
     }
@@ -217,7 +221,7 @@ double mib(double bytes) { return bytes / 1048576.0; }
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false;
+  bool quick = false, fast_only = false;
   int rounds = 5;
   std::filesystem::path data = CHRONOMAP_DEFAULT_DATA_DIR;
   if (const char* env = std::getenv("CHRONOMAP_DATA_DIR")) data = env;
@@ -229,8 +233,10 @@ int main(int argc, char** argv) {
       rounds = std::max(1, std::atoi(argv[++i]));
     } else if (!std::strcmp(argv[i], "--data") && i + 1 < argc) {
       data = argv[++i];
+    } else if (!std::strcmp(argv[i], "--fast-only")) {
+      fast_only = true;
     } else {
-      std::fprintf(stderr, "usage: integrate_vs_peers [--quick] [--rounds N] [--data DIR]\n");
+      std::fprintf(stderr, "usage: integrate_vs_peers [--quick] [--rounds N] [--data DIR] [--fast-only]\n");
       return 2;
     }
   }
@@ -244,6 +250,7 @@ int main(int argc, char** argv) {
   inputs.push_back(prepare("synthetic 640x480 x " + std::to_string(synthetic_frames),
                            sim::benchmarkSequence(synthetic_frames)));
   try {
+    if (fast_only) throw std::runtime_error("--fast-only");
     auto ds = io::openDataset(data / "3dmatch" / "3dmatch");
     std::vector<Frame> frames;
     for (size_t i = 0; i < ds->size(); ++i) frames.push_back(ds->load(i));
@@ -260,8 +267,17 @@ int main(int argc, char** argv) {
       std::printf("\n== %s at %.2f m: %.0f points per frame (best of %d rounds) ==\n", in.name.c_str(), res,
                   static_cast<double>(in.points) / nframes, rounds);
       std::fflush(stdout);
-      const std::vector<Result> results = measure(in, res, rounds);
+      const std::vector<Result> results = measure(in, res, rounds, fast_only);
       const Result& fast = results[kFast1];
+      if (fast_only) {
+        for (size_t k : {kFast1, kFast2, kFast1Bare, kFast2Bare}) {
+          const Result& r = results[k];
+          std::printf("| %s | %.2f ms wall | %.2f CPU ms/frame | %.2f MiB | %.2f MiB .cmap |\n", r.method.c_str(),
+                      1e3 * r.seconds / nframes, 1e3 * r.cpu_seconds / nframes, mib(r.memory), mib(r.disk));
+        }
+        summary["fast_ms_per_frame_" + std::string(res == 0.05 ? "5cm" : "2cm")] = 1e3 * fast.time() / nframes;
+        continue;
+      }
       std::printf("| %s | %s | %s | %s | %s | %s | %s |\n|---|---:|---:|---:|---:|---:|---:|\n", "method",
                   "ms/frame (wall)", "CPU ms/frame", "M points/s", "memory MiB", "disk MiB (format)",
                   "chronomap fast, 1 thread, vs this");

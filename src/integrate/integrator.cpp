@@ -87,6 +87,61 @@ CHRONOMAP_AVX2_CLONES uint64_t cubeCells(
   return kept;
 }
 
+/// The bounding box (lo, hi: in/out, working cells) of the valid points' cells, with the same
+/// filter and the same arithmetic as cubeCells(). Returns the number of points kept;
+/// `out_of_range` counts finite points beyond the range.
+CHRONOMAP_AVX2_CLONES uint64_t pointBox(
+    const float* __restrict xyz, size_t n, const float* __restrict R, const float* __restrict of, float max_r2,
+    int32_t* __restrict lo, int32_t* __restrict hi, uint64_t* out_of_range) {
+  const float r00 = R[0], r01 = R[1], r02 = R[2], r10 = R[3], r11 = R[4], r12 = R[5], r20 = R[6], r21 = R[7],
+              r22 = R[8];
+  const float o0 = of[0], o1 = of[1], o2 = of[2];
+  int32_t lx = lo[0], ly = lo[1], lz = lo[2], hx = hi[0], hy = hi[1], hz = hi[2];
+  uint64_t kept = 0, beyond = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const float px = xyz[3 * i], py = xyz[3 * i + 1], pz = xyz[3 * i + 2];
+    const float r2 = px * px + py * py + pz * pz;
+    const int valid = (r2 <= max_r2) & (r2 > 0.0f);
+    const float a = valid ? o0 + (r00 * px + r01 * py + r02 * pz) : o0;
+    const float b = valid ? o1 + (r10 * px + r11 * py + r12 * pz) : o1;
+    const float c = valid ? o2 + (r20 * px + r21 * py + r22 * pz) : o2;
+    const int32_t x = static_cast<int32_t>(a), y = static_cast<int32_t>(b), z = static_cast<int32_t>(c);
+    lx = std::min(lx, x);
+    ly = std::min(ly, y);
+    lz = std::min(lz, z);
+    hx = std::max(hx, x);
+    hy = std::max(hy, y);
+    hz = std::max(hz, z);
+    kept += static_cast<uint64_t>(valid);
+    beyond += static_cast<uint64_t>((r2 > max_r2) & (r2 <= FLT_MAX));
+  }
+  lo[0] = lx, lo[1] = ly, lo[2] = lz, hi[0] = hx, hi[1] = hy, hi[2] = hz;
+  *out_of_range = beyond;
+  return kept;
+}
+
+/// cubeCells() for a grid over a box: the index (cell - lo) . (1, sy, sz) of every point's
+/// cell, -1 for points that are invalid or out of range.
+CHRONOMAP_AVX2_CLONES void boxCells(const float* __restrict xyz, size_t n, const float* __restrict R,
+                                    const float* __restrict of, float max_r2, const int32_t* __restrict lo, int32_t sy,
+                                    int32_t sz, int32_t* __restrict idx) {
+  const float r00 = R[0], r01 = R[1], r02 = R[2], r10 = R[3], r11 = R[4], r12 = R[5], r20 = R[6], r21 = R[7],
+              r22 = R[8];
+  const float o0 = of[0], o1 = of[1], o2 = of[2];
+  const int32_t lx = lo[0], ly = lo[1], lz = lo[2];
+  for (size_t i = 0; i < n; ++i) {
+    const float px = xyz[3 * i], py = xyz[3 * i + 1], pz = xyz[3 * i + 2];
+    const float r2 = px * px + py * py + pz * pz;
+    const int valid = (r2 <= max_r2) & (r2 > 0.0f);
+    const float a = valid ? o0 + (r00 * px + r01 * py + r02 * pz) : 0.0f;
+    const float b = valid ? o1 + (r10 * px + r11 * py + r12 * pz) : 0.0f;
+    const float c = valid ? o2 + (r20 * px + r21 * py + r22 * pz) : 0.0f;
+    const int32_t cell =
+        (static_cast<int32_t>(a) - lx) + sy * (static_cast<int32_t>(b) - ly) + sz * (static_cast<int32_t>(c) - lz);
+    idx[i] = valid ? cell : -1;
+  }
+}
+
 /// A valid end point in the frame's working coordinates: voxel units, relative to the lower
 /// corner of the origin's voxel, plus a bias that makes every in-range coordinate positive (so
 /// truncation is floor).
@@ -315,6 +370,44 @@ struct RayAccumulator::Impl {
     e.blue += p.color.b;
     if (settings.hit_positions) e.addPoint(cloud->points[p.index]);
   }
+  /// Bundles one chunk of points, those from `begin` on, whose cells are in `cells` (-1:
+  /// none), into end entries; `end` maps a cell to its entry (0: none yet), and new_end(cell)
+  /// makes the entry of a cell seen first. Four variants, with and without colours and
+  /// positions, so that the loop tests neither per point.
+  template <class NewEnd>
+  void bundleChunk(const int32_t* cells, size_t begin, size_t count, uint32_t* end, NewEnd&& new_end) {
+    auto run = [&](auto with_colors, auto with_positions) {
+      EndEntry* entries = ends.data();
+      const Rgb* color = with_colors ? cloud->colors.data() + begin : nullptr;
+      for (size_t j = 0; j < count; ++j) {
+        const int32_t c = cells[j];
+        if (c < 0) continue;
+        uint32_t& e = end[static_cast<size_t>(c)];
+        if (e == 0) {
+          e = new_end(c);
+          entries = ends.data();
+        }
+        EndEntry& entry = entries[e];
+        ++entry.hits;
+        if constexpr (decltype(with_positions)::value) entry.addPoint(cloud->points[begin + j]);
+        if constexpr (decltype(with_colors)::value) {
+          entry.red += color[j].r;
+          entry.green += color[j].g;
+          entry.blue += color[j].b;
+        }
+      }
+    };
+    const bool colors = cloud->hasColors();
+    if (colors && settings.hit_positions) {
+      run(std::true_type{}, std::true_type{});
+    } else if (colors) {
+      run(std::true_type{}, std::false_type{});
+    } else if (settings.hit_positions) {
+      run(std::false_type{}, std::true_type{});
+    } else {
+      run(std::false_type{}, std::false_type{});
+    }
+  }
   /// Where a bundle's ray ends: the centre of its voxel.
   static void bundleTarget(const EndEntry& e, double target[3]) {
     for (int a = 0; a < 3; ++a) target[a] = static_cast<double>(e.cell[a]) + 0.5;
@@ -530,6 +623,24 @@ struct RayAccumulator::Impl {
     }
   }
 
+  /// Emits every cell of the bounding-box store that a ray crossed or ended in, in raster order
+  /// (consecutive keys share most of their path in the tree); `oc` is the key of working cell 0.
+  void emitDense(const int64_t oc[3], VoxelDeltas& out) {
+    const DenseStore& d = dense;
+    out.keys.reserve(ends.size() * 8);
+    out.deltas.reserve(ends.size() * 8);
+    size_t idx = 0;
+    for (int64_t z = 0; z < d.n[2]; ++z) {
+      for (int64_t y = 0; y < d.n[1]; ++y) {
+        for (int64_t x = 0; x < d.n[0]; ++x, ++idx) {
+          if (d.length[idx] > 0.0f || d.end[idx] != 0) {
+            emitCell(oc[0] + d.lo[0] + x, oc[1] + d.lo[1] + y, oc[2] + d.lo[2] + z, d.length[idx], d.end[idx], out);
+          }
+        }
+      }
+    }
+  }
+
   void emitCell(int64_t x, int64_t y, int64_t z, float length, uint32_t end, VoxelDeltas& out) const {
     out.keys.push_back(VoxelKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)});
     // Written in place, field by field: a copy of a counter built on the stack measured a
@@ -643,45 +754,16 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
       kept += cubeCells(cloud.points[begin].data(), count, Rm, of, max_range_sq, static_cast<int32_t>(sy),
                         static_cast<int32_t>(sz), cell_index, &beyond);
       out_of_range += beyond;
-      // Bundling, with and without colours (no per-point test of which).
-      auto bundle = [&](auto with_colors, auto with_positions) {
-        EndEntry* entries = s.ends.data();
-        const Rgb* color = colors ? cloud.colors.data() + begin : nullptr;
-        for (size_t j = 0; j < count; ++j) {
-          const int32_t c = cell_index[j];
-          if (c < 0) continue;
-          uint32_t& e = end[static_cast<size_t>(c)];
-          if (e == 0) {
-            const int32_t c32[3] = {static_cast<int32_t>(c % sy), static_cast<int32_t>((c / sy) % sy),
-                                    static_cast<int32_t>(c / sz)};
-            const int64_t c64[3] = {c32[0], c32[1], c32[2]};
-            e = s.newEnd(c64);
-            entries = s.ends.data();
-            for (int a = 0; a < 3; ++a) {
-              lo[a] = std::min(lo[a], c32[a]);
-              hi[a] = std::max(hi[a], c32[a]);
-            }
-          }
-          EndEntry& entry = entries[e];
-          ++entry.hits;
-          if constexpr (decltype(with_positions)::value) entry.addPoint(cloud.points[begin + j]);
-          if constexpr (decltype(with_colors)::value) {
-            entry.red += color[j].r;
-            entry.green += color[j].g;
-            entry.blue += color[j].b;
-          }
+      s.bundleChunk(cell_index, begin, count, end, [&](int32_t c) {
+        const int32_t c32[3] = {static_cast<int32_t>(c % sy), static_cast<int32_t>((c / sy) % sy),
+                                static_cast<int32_t>(c / sz)};
+        for (int a = 0; a < 3; ++a) {
+          lo[a] = std::min(lo[a], c32[a]);
+          hi[a] = std::max(hi[a], c32[a]);
         }
-      };
-      // Four variants, so that the loop tests neither per point.
-      if (colors && s.settings.hit_positions) {
-        bundle(std::true_type{}, std::true_type{});
-      } else if (colors) {
-        bundle(std::true_type{}, std::false_type{});
-      } else if (s.settings.hit_positions) {
-        bundle(std::false_type{}, std::true_type{});
-      } else {
-        bundle(std::false_type{}, std::false_type{});
-      }
+        const int64_t c64[3] = {c32[0], c32[1], c32[2]};
+        return s.newEnd(c64);
+      });
     }
     st.points = kept;
     st.points_out_of_range = out_of_range;
@@ -715,6 +797,50 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
     }
     st.voxel_updates = out.keys.size();
     return;
+  }
+
+  // Fast mode with a cube too large for one pass (fine resolutions, 0.02 m at 3 m): two
+  // vectorised passes over the points, one for the bounding box of their cells, one for their
+  // cells in a grid over that box, bundled as in the cube. The same cells, entries and order as
+  // the point list below, which it replaces here (it measured 2.3 of 27 ms per synthetic frame
+  // at 0.02 m); the list stays for frames near the map's edge and for exact mode.
+  if (s.settings.fast && cube_inside) {
+    int32_t lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) lo[a] = hi[a] = static_cast<int32_t>(o[a]);
+    uint64_t out_of_range = 0;
+    const uint64_t kept = pointBox(cloud.points.empty() ? nullptr : cloud.points[0].data(), n, Rm, of, max_range_sq,
+                                   lo, hi, &out_of_range);
+    const double cells = static_cast<double>(hi[0] - lo[0] + 1) * static_cast<double>(hi[1] - lo[1] + 1) *
+                         static_cast<double>(hi[2] - lo[2] + 1);
+    if (kept > 0 && cells <= static_cast<double>(s.settings.dense_grid_max_cells)) {
+      st.points = kept;
+      st.points_out_of_range = out_of_range;
+      st.points_invalid = n - kept - out_of_range;
+      DenseStore& d = s.dense;
+      const int64_t lo64[3] = {lo[0], lo[1], lo[2]}, hi64[3] = {hi[0], hi[1], hi[2]};
+      d.reset(lo64, hi64);
+      const int64_t sy = d.n[0], sz = d.n[0] * d.n[1];
+      constexpr size_t kChunk = 8192;
+      s.cell_index.resize(std::min(n, kChunk));
+      int32_t* cell_index = s.cell_index.data();
+      for (size_t begin = 0; begin < n; begin += kChunk) {
+        const size_t count = std::min(kChunk, n - begin);
+        boxCells(cloud.points[begin].data(), count, Rm, of, max_range_sq, lo, static_cast<int32_t>(sy),
+                 static_cast<int32_t>(sz), cell_index);
+        s.bundleChunk(cell_index, begin, count, d.end.data(), [&](int32_t c) {
+          const int64_t cell[3] = {lo[0] + c % sy, lo[1] + (c / sy) % d.n[1], lo[2] + c / sz};
+          return s.newEnd(cell);
+        });
+      }
+      st.rays = s.ends.size() - 1;
+      s.castBundles(o);
+      s.emitDense(oc, out);
+      if (s.settings.carve_beyond_range && out_of_range > 0) {
+        s.carveBeyondRange(Rm, of, oc, cube_inside, max_range, max_range_sq, out);
+      }
+      st.voxel_updates = out.keys.size();
+      return;
+    }
   }
 
   // Two passes for large cubes (long ranges, fine resolutions): filter into a point list with
@@ -772,19 +898,7 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
     const int64_t lo64[3] = {lo[0], lo[1], lo[2]}, hi64[3] = {hi[0], hi[1], hi[2]};
     d.reset(lo64, hi64);
     s.castDenseAll(o);
-    // Raster order: consecutive keys share most of their path in the tree.
-    out.keys.reserve(s.ends.size() * 8);
-    out.deltas.reserve(s.ends.size() * 8);
-    size_t idx = 0;
-    for (int64_t z = 0; z < d.n[2]; ++z) {
-      for (int64_t y = 0; y < d.n[1]; ++y) {
-        for (int64_t x = 0; x < d.n[0]; ++x, ++idx) {
-          if (d.length[idx] > 0.0f || d.end[idx] != 0) {
-            s.emitCell(oc[0] + d.lo[0] + x, oc[1] + d.lo[1] + y, oc[2] + d.lo[2] + z, d.length[idx], d.end[idx], out);
-          }
-        }
-      }
-    }
+    s.emitDense(oc, out);
   } else {
     HashStore& h = s.hash;
     h.reset();
@@ -814,9 +928,13 @@ IntegratorSettings perThread(const IntegratorSettings& settings, int threads) {
   return s;
 }
 
-/// Called after each merge: one comparison, so the limit costs nothing per point.
+/// Called after each merge: one comparison, so the limit costs nothing per point. The pools
+/// grow 4x (session_map.cpp); what they hold is counted as at most twice their size, as much as
+/// a pool that doubles reserves (its growth copies the used part; the rest of the capacity is
+/// address space no page backs until written).
 void checkMapMemory(const SessionMap& map, const IntegratorSettings& settings) {
-  if (settings.memory_limit_bytes != 0 && map.reservedBytes() > settings.memory_limit_bytes) {
+  const size_t held = std::min(map.reservedBytes(), 2 * map.memoryBytes());
+  if (settings.memory_limit_bytes != 0 && held > settings.memory_limit_bytes) {
     refuseOverMemoryLimit("the session map", settings.memory_limit_bytes, "", map.resolution_m());
   }
 }

@@ -1,5 +1,6 @@
 #include "chronomap/octree/session_map.h"
 
+#include <algorithm>
 #include <bit>
 #include <string>
 
@@ -9,6 +10,17 @@ namespace chronomap {
 
 namespace {
 constexpr uint32_t kMaxPoolIndex = 0x7ffffffeu;
+
+/// Makes room for one more node in a full pool by growing it 4x, not 2x: each growth copies the
+/// pool into fresh pages (page faults, then freeing the old ones), and integration at 0.02 m
+/// grows the pools to 90 MiB before compression. 4x copies a third as much and faults in about
+/// 60% as many pages: merging a synthetic 640x480 frame took 6.6-7.2 ms instead of 8.8-12.6 ms
+/// (CPU, 30 frames). The capacity beyond the size is address space that no page backs until it
+/// is written; the integrator's memory check counts at most 2x the size of it (integrator.cpp).
+template <class T>
+void roomForOne(std::vector<T>& pool) {
+  if (pool.size() == pool.capacity()) pool.reserve(std::max<size_t>(4 * pool.size(), 64));
+}
 
 SessionMap::Children emptyChildren() {
   SessionMap::Children c;
@@ -21,12 +33,14 @@ SessionMap::SessionMap(double resolution_m) : grid_(resolution_m) { inner_.push_
 
 SessionMap::Ref SessionMap::newLeaf(const VoxelCounters& c) {
   if (leaves_.size() >= kMaxPoolIndex) throw Error("session map is full: more than 2^31 leaves");
+  roomForOne(leaves_);
   leaves_.push_back(c);
   return static_cast<Ref>(leaves_.size() - 1) | kLeafBit;
 }
 
 SessionMap::Ref SessionMap::newInner() {
   if (inner_.size() >= kMaxPoolIndex) throw Error("session map is full: more than 2^31 inner nodes");
+  roomForOne(inner_);
   inner_.push_back(emptyChildren());
   return static_cast<Ref>(inner_.size() - 1);
 }
@@ -183,22 +197,29 @@ VoxelState SessionMap::stateOf(const VoxelKey& key) const {
   return c ? c->state() : VoxelState::Unknown;
 }
 
-bool SessionMap::compressBelow(Ref& r) {
+bool SessionMap::compressBelow(Ref& r, size_t& inner_count, size_t& leaf_count) {
   if (r == kEmpty) return false;
-  if (isLeaf(r)) return leaves_[index(r)].isKnownFreeWithoutHits();
+  if (isLeaf(r)) {
+    ++leaf_count;
+    return leaves_[index(r)].isKnownFreeWithoutHits();
+  }
   bool all_free = true;
   for (int i = 0; i < 8; ++i) {
     Ref child = inner_[r][i];
-    all_free = compressBelow(child) && all_free;
+    all_free = compressBelow(child, inner_count, leaf_count) && all_free;
     inner_[r][i] = child;
   }
-  if (!all_free || r == 0) return false;  // the root is never replaced
+  if (!all_free || r == 0) {  // the root is never replaced
+    ++inner_count;
+    return false;
+  }
   VoxelCounters sum;
   for (int i = 0; i < 8; ++i) sum.length_m += leaves_[index(inner_[r][i])].length_m;
   // Reuse the first child's leaf slot; the others become garbage that compaction drops.
   const uint32_t leaf = index(inner_[r][0]);
   leaves_[leaf] = sum;
   r = leaf | kLeafBit;
+  leaf_count -= 7;  // the 8 children counted above are one leaf now
   return true;
 }
 
@@ -226,12 +247,16 @@ SessionMap::Ref SessionMap::copyInto(Ref r, std::vector<Children>& inner, std::v
 size_t SessionMap::compressFree() {
   const size_t before = leaves_.size();
   Ref root = 0;
-  compressBelow(root);
-  // Compaction: copy the reachable tree depth first into fresh pools.
+  size_t inner_count = 0, leaf_count = 0;  // what stays reachable: the size of the new pools
+  compressBelow(root, inner_count, leaf_count);
+  // Compaction: copy the reachable tree depth first into fresh pools of that size (at most:
+  // inner nodes left without children are dropped), so that they need no growth nor
+  // shrinking copy: reserving the old pools' sizes instead faulted in their whole size, 7x the
+  // compressed map's at 0.02 m.
   std::vector<Children> inner;
   std::vector<VoxelCounters> leaves;
-  inner.reserve(inner_.size());
-  leaves.reserve(leaves_.size());
+  inner.reserve(inner_count);
+  leaves.reserve(leaf_count);
   copyInto(0, inner, leaves);
   inner.shrink_to_fit();
   leaves.shrink_to_fit();

@@ -421,9 +421,9 @@ TEST(Integrator, EveryScratchPathGivesTheSameMap) {
     if (carve) s.max_range_m = 1.5;
     SessionMap cube(0.05), dense(0.05), hashed(0.05);
     integrate(frames, cube, s);  // fast mode: one pass over the range cube
-    s.cube_max_cells = 0;        // two passes over the bounding box
+    s.cube_max_cells = 0;        // two passes over the bounding box (fast mode: the vectorised ones)
     integrate(frames, dense, s);
-    s.dense_grid_max_cells = 0;  // hash table
+    s.dense_grid_max_cells = 0;  // hash table, from the point list
     integrate(frames, hashed, s);
     EXPECT_TRUE(cube == dense) << "fast=" << fast;
     EXPECT_TRUE(dense == hashed) << "fast=" << fast;

@@ -135,8 +135,9 @@ class SessionMap {
   void mergeInto(uint32_t parent, int slot, int level, const SessionMap& other, Ref src);
   /// Spreads `sums` of a known-free cube at `level` over slot `slot` of `parent`.
   void spreadInto(uint32_t parent, int slot, int level, const VoxelCounters& sums);
-  /// compressFree's post-order pass: true when `r` is (now) a known-free leaf without hits.
-  bool compressBelow(Ref& r);
+  /// compressFree's post-order pass: true when `r` is (now) a known-free leaf without hits. Adds
+  /// the inner nodes and leaves that stay reachable below `r` to the counts.
+  bool compressBelow(Ref& r, size_t& inner_count, size_t& leaf_count);
   /// Copies the subtree `r` depth first into fresh pools; returns its new reference.
   Ref copyInto(Ref r, std::vector<Children>& inner, std::vector<VoxelCounters>& leaves) const;
 
