@@ -33,7 +33,7 @@
 //                  kept_surface_radius_voxels; default 3, as `diff --kept-surface 3`; 0: off)
 //   --kept-share F  its share (DiffSettings::kept_surface_share; default 0.9)
 //   --dark-surface R  the dark-surface rule's radius in the recommended diff
-//                  (DiffSettings::dark_surface_radius_voxels; default 0: off; 2 as measured)
+//                  (DiffSettings::dark_surface_radius_voxels; default 2, as `diff --dark-surface 2`; 0: off)
 //   --dark-below B  its brightness (DiffSettings::dark_surface_brightness; default 40)
 //   --dark-contrast C  its contrast (DiffSettings::dark_surface_contrast; default 0.6)
 //   --dark-share F  the share of an object's voxels it needs dark (DiffSettings::dark_surface_share;
@@ -85,7 +85,7 @@ using bench::seconds;
 // components of at least 20 voxels.
 int g_kept_surface = DiffSettings::kRecommendedKeptSurfaceRadius;  // --kept-surface
 double g_kept_share = DiffSettings::kDefaultKeptSurfaceShare;       // --kept-share
-int g_dark_surface = 0;  // --dark-surface
+int g_dark_surface = DiffSettings::kDarkSurfaceRadius;  // --dark-surface
 double g_dark_below = DiffSettings::kDefaultDarkSurfaceBrightness;   // --dark-below
 double g_dark_contrast = DiffSettings::kDefaultDarkSurfaceContrast;  // --dark-contrast
 double g_dark_share = DiffSettings::kDefaultDarkSurfaceShare;        // --dark-share
