@@ -13,7 +13,7 @@
 // Usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] [--register-model M] [--drift-knots N]
 //                    [--register-rounds N] [--register-radius R] [--drift-rounds N] [--not-planar]
 //                    [--drift-voxels] [--kept-surface R] [--kept-share F] [--dark-surface R]
-//                    [--dark-below B] [--dark-contrast C]
+//                    [--dark-below B] [--dark-contrast C] [--dark-share F]
 //   --office DIR   a `chronomap simulate --preset office` output (default: simulate one at half
 //                  resolution into a temporary folder)
 //   --floor66 DIR  also evaluate a floor66 simulation (not simulated by default: ~7 minutes)
@@ -33,9 +33,11 @@
 //                  kept_surface_radius_voxels; default 3, as `diff --kept-surface 3`; 0: off)
 //   --kept-share F  its share (DiffSettings::kept_surface_share; default 0.9)
 //   --dark-surface R  the dark-surface rule's radius in the recommended diff
-//                  (DiffSettings::dark_surface_radius_voxels; default 3; 0: off)
+//                  (DiffSettings::dark_surface_radius_voxels; default 2, as `diff --dark-surface 2`; 0: off)
 //   --dark-below B  its brightness (DiffSettings::dark_surface_brightness; default 40)
 //   --dark-contrast C  its contrast (DiffSettings::dark_surface_contrast; default 0.6)
+//   --dark-share F  the share of an object's voxels it needs dark (DiffSettings::dark_surface_share;
+//                  default 0.5)
 // The last line of output is one JSON object with the headline figures: the office sessions
 // registered to their consensus (as `chronomap build --register --register-drift 20
 // --register-planar --register-points`) at the recommended settings (band mode, neighbourhood 1,
@@ -83,9 +85,10 @@ using bench::seconds;
 // components of at least 20 voxels.
 int g_kept_surface = DiffSettings::kRecommendedKeptSurfaceRadius;  // --kept-surface
 double g_kept_share = DiffSettings::kDefaultKeptSurfaceShare;       // --kept-share
-int g_dark_surface = 0;  // --dark-surface
+int g_dark_surface = DiffSettings::kDarkSurfaceRadius;  // --dark-surface
 double g_dark_below = DiffSettings::kDefaultDarkSurfaceBrightness;   // --dark-below
 double g_dark_contrast = DiffSettings::kDefaultDarkSurfaceContrast;  // --dark-contrast
+double g_dark_share = DiffSettings::kDefaultDarkSurfaceShare;        // --dark-share
 
 DiffSettings defaultDiff() {
   DiffSettings d;
@@ -97,6 +100,7 @@ DiffSettings defaultDiff() {
   d.dark_surface_radius_voxels = g_dark_surface;
   d.dark_surface_brightness = g_dark_below;
   d.dark_surface_contrast = g_dark_contrast;
+  d.dark_surface_share = g_dark_share;
   return d;
 }
 
@@ -513,6 +517,8 @@ int main(int argc, char** argv) {
       g_dark_below = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--dark-contrast") && i + 1 < argc) {
       g_dark_contrast = std::atof(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--dark-share") && i + 1 < argc) {
+      g_dark_share = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--not-planar")) {
       reg.planar = false;
     } else if (!std::strcmp(argv[i], "--drift-voxels")) {
@@ -534,7 +540,7 @@ int main(int argc, char** argv) {
                    "usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] "
                    "[--register-model world|per-pose] [--drift-knots FRAMES] [--register-rounds N] "
                    "[--register-radius VOXELS] [--drift-rounds N] [--not-planar] [--drift-voxels] [--kept-surface R] "
-                   "[--kept-share F] [--dark-surface R] [--dark-below B] [--dark-contrast C]\n");
+                   "[--kept-share F] [--dark-surface R] [--dark-below B] [--dark-contrast C] [--dark-share F]\n");
       return 2;
     }
   }

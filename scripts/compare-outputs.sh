@@ -42,7 +42,7 @@ run_all() {
   t0="$(python3 -c 'import json;print(json.load(open("build.json"))["added"][0]["time"])')"
   t1="$(python3 -c 'import json;print(json.load(open("build.json"))["added"][1]["time"])')"
   "$bin" diff "office.cmap@$t0" "office.cmap@$t1" --mode band --neighbourhood 1 --min-shift 0.5 \
-    --kept-surface 3 -o d.cmap \
+    --kept-surface 3 --dark-surface 2 -o d.cmap \
     --ply d.ply --json >diff.json
   "$bin" segment d.cmap --connectivity vertex --min-voxels 20 -o objects --json >segment.json
   "$bin" snapshot office.cmap --at "$t1" -o snap.png --json >snapshot.json

@@ -40,6 +40,7 @@ struct DiffCmdOptions {
   int dark_surface = 0;
   double dark_below = DiffSettings::kDefaultDarkSurfaceBrightness;
   double dark_contrast = DiffSettings::kDefaultDarkSurfaceContrast;
+  double dark_share = DiffSettings::kDefaultDarkSurfaceShare;
   std::string output;
   std::string ply;
   std::optional<double> colour_distance;  ///< set: also compare colours
@@ -82,6 +83,7 @@ int runDiff(const DiffCmdOptions& o) {
   settings.dark_surface_radius_voxels = o.dark_surface;
   settings.dark_surface_brightness = o.dark_below;
   settings.dark_surface_contrast = o.dark_contrast;
+  settings.dark_surface_share = o.dark_share;
   settings.validate();
   requireExtension(o.output, ".cmap", "output");
   if (!o.ply.empty()) requireExtension(o.ply, ".ply", "--ply");
@@ -222,10 +224,11 @@ Command addDiff(CLI::App& root) {
   app->add_option("--kept-share", o->kept_share, "the share --kept-surface needs still occupied, in (0, 1]")
       ->capture_default_str();
   app->add_option("--dark-surface", o->dark_surface,
-                  "voxels: a voxel that appeared (vanished) whose surface is dark (colour darker than --dark-below) "
-                  "is no change when the other map is occupied within this many voxels: active depth cameras "
-                  "measure dark surfaces centimetres off (0..3; 0: off; not in the recommended pipeline: it also "
-                  "drops dark objects set on lighter surfaces, docs/changes.md)")
+                  "voxels: an object (touching voxels that appeared, or that vanished) is no change when every one "
+                  "of its voxels lies within this many voxels of a surface the other map sees and at least "
+                  "--dark-share of them are dark (colour darker than --dark-below) and darker than that surface: "
+                  "active depth cameras measure dark surfaces centimetres off (0..3; 0: off; 2 as measured, "
+                  "docs/changes.md)")
       ->capture_default_str();
   app->add_option("--dark-below", o->dark_below,
                   "the mean colour (0..255) below which --dark-surface calls a surface dark")
@@ -233,6 +236,9 @@ Command addDiff(CLI::App& root) {
   app->add_option("--dark-contrast", o->dark_contrast,
                   "--dark-surface needs the surface darker than this share of the other map's surface around it, "
                   "in (0, 1]")
+      ->capture_default_str();
+  app->add_option("--dark-share", o->dark_share,
+                  "the share of an object's voxels --dark-surface needs dark (and darker), in (0, 1]")
       ->capture_default_str();
   app->add_option("-o,--output", o->output, "the diff to write (.cmap)")->required();
   app->add_option("--ply", o->ply, "also write the changed voxels as a PLY, coloured by what they show");

@@ -10,7 +10,7 @@ namespace chronomap::python {
 
 DiffSettings diffSettings(const std::string& mode, double alpha, int neighbourhood_voxels, double min_shift_voxels,
                           int kept_surface_radius_voxels, double kept_surface_share, int dark_surface_radius_voxels,
-                          double dark_surface_brightness, double dark_surface_contrast) {
+                          double dark_surface_brightness, double dark_surface_contrast, double dark_surface_share) {
   DiffSettings settings;
   settings.mode = parseDiffMode(mode);
   settings.alpha = alpha;
@@ -21,6 +21,7 @@ DiffSettings diffSettings(const std::string& mode, double alpha, int neighbourho
   settings.dark_surface_radius_voxels = dark_surface_radius_voxels;
   settings.dark_surface_brightness = dark_surface_brightness;
   settings.dark_surface_contrast = dark_surface_contrast;
+  settings.dark_surface_share = dark_surface_share;
   return settings;
 }
 
@@ -29,10 +30,10 @@ namespace {
 DiffMap diffPy(const SessionMap& before, const SessionMap& after, const std::string& mode, double alpha,
                int neighbourhood_voxels, double min_shift_voxels, int kept_surface_radius_voxels,
                double kept_surface_share, int dark_surface_radius_voxels, double dark_surface_brightness,
-               double dark_surface_contrast) {
+               double dark_surface_contrast, double dark_surface_share) {
   const DiffSettings settings =
       diffSettings(mode, alpha, neighbourhood_voxels, min_shift_voxels, kept_surface_radius_voxels, kept_surface_share,
-                   dark_surface_radius_voxels, dark_surface_brightness, dark_surface_contrast);
+                   dark_surface_radius_voxels, dark_surface_brightness, dark_surface_contrast, dark_surface_share);
   py::gil_scoped_release release;
   return diff(before, after, settings);
 }
@@ -129,11 +130,13 @@ void bindAnalysis(py::module_& m) {
         py::arg("dark_surface_radius_voxels") = 0,
         py::arg("dark_surface_brightness") = DiffSettings::kDefaultDarkSurfaceBrightness,
         py::arg("dark_surface_contrast") = DiffSettings::kDefaultDarkSurfaceContrast,
+        py::arg("dark_surface_share") = DiffSettings::kDefaultDarkSurfaceShare,
         "What changed from `before` to `after` (two SessionMaps of one resolution). mode: 'hard', "
         "'threshold', 'band' or 'continuous'; alpha < 0 takes the mode's default. kept_surface_radius_voxels "
         "(0: off; 3 recommended) drops a change in front of a surface the other map still sees unchanged "
-        "(docs/changes.md, the weak-change rule); dark_surface_radius_voxels (0: off; 3 recommended) drops a "
-        "change whose surface is dark and darker than the other map's around it (the dark-surface rule).");
+        "(docs/changes.md, the weak-change rule); dark_surface_radius_voxels (0: off; 2 as measured) drops an "
+        "object lying within that many voxels of the other map's surface when at least dark_surface_share of its "
+        "voxels are dark and darker than the other map's around them (the dark-surface rule).");
   m.def("segment", &segmentPy, py::arg("diff"), py::arg("connectivity") = "face", py::arg("color_tolerance") = -1.0,
         py::arg("min_voxels") = 1, py::arg("min_value") = 0.5,
         "Connected components of a DiffMap, largest first: a list of Component.");

@@ -35,6 +35,8 @@ def test_weak_change_rule_keeps_an_object_that_hides_the_surface_behind_it(befor
         chronomap.diff(before, after, dark_surface_radius_voxels=7)
     with pytest.raises(chronomap.UsageError, match="dark-surface contrast"):
         chronomap.diff(before, after, dark_surface_radius_voxels=3, dark_surface_contrast=0.0)
+    with pytest.raises(chronomap.UsageError, match="dark-surface share"):
+        chronomap.diff(before, after, dark_surface_radius_voxels=2, dark_surface_share=0.0)
     with pytest.raises(chronomap.UsageError):
         chronomap.diff(before, after, kept_surface_radius_voxels=3, kept_surface_share=1.5)
 

@@ -2,8 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <unordered_map>
 
 #include "chronomap/core/error.h"
+#include "union_find.h"
 
 namespace chronomap {
 
@@ -73,6 +75,9 @@ void DiffSettings::validate() const {
   if (!(dark_surface_brightness >= 0.0 && dark_surface_brightness <= 255.0)) {
     throw UsageError("diff dark-surface brightness must lie in [0, 255], got " +
                      std::to_string(dark_surface_brightness));
+  }
+  if (!(dark_surface_share > 0.0 && dark_surface_share <= 1.0)) {
+    throw UsageError("diff dark-surface share must lie in (0, 1], got " + std::to_string(dark_surface_share));
   }
   if (!(dark_surface_contrast > 0.0 && dark_surface_contrast <= 1.0)) {
     throw UsageError("diff dark-surface contrast must lie in (0, 1], got " + std::to_string(dark_surface_contrast));
@@ -310,9 +315,12 @@ void dropKeptSurfaces(std::vector<ChangeCell>& cells, const DiffSettings& settin
 
 bool hasColour(const VoxelCounters& c) { return c.red != 0 || c.green != 0 || c.blue != 0; }
 
-// The dark-surface rule (DiffSettings::dark_surface_radius_voxels): drops an appeared cell whose
-// surface in the second map is dark when the first map has an occupied voxel near it, and a
-// vanished cell whose surface in the first map is dark when the second map has one near it.
+// The dark-surface rule (DiffSettings::dark_surface_radius_voxels), by object: the unit cells
+// of one kind that touch (26-neighbourhood, as vertex connectivity) form an object; an object is
+// dropped when every one of its voxels has an occupied voxel of the other map within the radius
+// (a layer along a surface the other map sees) and at least dark_surface_share of them are dark
+// and darker than the other map's surface around them. An appeared cell's own surface is the
+// second map's, a vanished cell's the first map's.
 template <class CountersBefore, class CountersAfter>
 void dropDarkSurfaces(std::vector<ChangeCell>& cells, const DiffSettings& settings, CountersBefore before,
                       CountersAfter after) {
@@ -326,9 +334,6 @@ void dropDarkSurfaces(std::vector<ChangeCell>& cells, const DiffSettings& settin
     const double brightness = (static_cast<double>(c.red) + c.green + c.blue) / (3.0 * c.hits);
     if (!(brightness < settings.dark_surface_brightness)) return false;
     return hasColour(c) || anyKeyWithin(k, r, [&](const VoxelKey& n) { return hasColour(own(n)); });
-  };
-  auto occupiedNear = [r](const VoxelKey& k, auto&& counters) {
-    return anyKeyWithin(k, r, [&](const VoxelKey& n) { return counters(n).state() == VoxelState::Occupied; });
   };
   // ... and darker than the surface the other map sees around it: that view returned little
   // light. A dark object seen as dark by both maps (moved under the same light) keeps its cells.
@@ -344,16 +349,66 @@ void dropDarkSurfaces(std::vector<ChangeCell>& cells, const DiffSettings& settin
     const double brightness = (static_cast<double>(c.red) + c.green + c.blue) / (3.0 * c.hits);
     return hits > 0.0 && brightness < settings.dark_surface_contrast * (sum / hits);
   };
-  std::erase_if(cells, [&](const ChangeCell& c) {
-    if (c.level != 0) return false;
-    if (c.kind == ChangeKind::Appeared) {
-      return dark(c.key, after) && occupiedNear(c.key, before) && darker(c.key, after, before);
+  auto occupiedNear = [r](const VoxelKey& k, auto&& counters) {
+    return anyKeyWithin(k, r, [&](const VoxelKey& n) { return counters(n).state() == VoxelState::Occupied; });
+  };
+  // The unit cells that may be dropped, and their objects.
+  std::vector<uint32_t> unit;  // indices into cells
+  std::unordered_map<uint64_t, uint32_t> index_of;  // Morton code -> position in `unit`
+  for (size_t i = 0; i < cells.size(); ++i) {
+    const ChangeCell& c = cells[i];
+    if (c.level != 0 || (c.kind != ChangeKind::Appeared && c.kind != ChangeKind::Vanished)) continue;
+    index_of.emplace(mortonEncode(c.key), static_cast<uint32_t>(unit.size()));
+    unit.push_back(static_cast<uint32_t>(i));
+  }
+  if (unit.empty()) return;
+  UnionFind objects(unit.size());
+  std::vector<uint8_t> is_dark(unit.size(), 0);
+  for (size_t u = 0; u < unit.size(); ++u) {
+    const ChangeCell& c = cells[unit[u]];
+    // Half of the 26 neighbours: each touching pair is seen once.
+    for (int dz = 0; dz <= 1; ++dz) {
+      for (int dy = dz == 0 ? 0 : -1; dy <= 1; ++dy) {
+        for (int dx = (dz == 0 && dy == 0) ? 1 : -1; dx <= 1; ++dx) {
+          const auto k = offsetKey(c.key, dx, dy, dz);
+          if (!k) continue;
+          const auto it = index_of.find(mortonEncode(*k));
+          if (it != index_of.end() && cells[unit[it->second]].kind == c.kind) {
+            objects.join(static_cast<uint32_t>(u), it->second);
+          }
+        }
+      }
     }
-    if (c.kind == ChangeKind::Vanished) {
-      return dark(c.key, before) && occupiedNear(c.key, after) && darker(c.key, before, after);
-    }
-    return false;
-  });
+    is_dark[u] = c.kind == ChangeKind::Appeared ? dark(c.key, after) && darker(c.key, after, before)
+                                                : dark(c.key, before) && darker(c.key, before, after);
+  }
+  std::vector<uint32_t> size(unit.size(), 0), dark_count(unit.size(), 0);
+  for (size_t u = 0; u < unit.size(); ++u) {
+    const uint32_t root = objects.find(static_cast<uint32_t>(u));
+    ++size[root];
+    dark_count[root] += is_dark[u];
+  }
+  // 0: not decided, 1: dropped, 2: kept.
+  std::vector<uint8_t> verdict(unit.size(), 0);
+  for (size_t u = 0; u < unit.size(); ++u) {
+    const uint32_t root = objects.find(static_cast<uint32_t>(u));
+    if (static_cast<double>(dark_count[root]) < settings.dark_surface_share * size[root]) verdict[root] = 2;
+  }
+  // Dark enough: is every voxel within the radius of a surface the other map sees?
+  for (size_t u = 0; u < unit.size(); ++u) {
+    const uint32_t root = objects.find(static_cast<uint32_t>(u));
+    if (verdict[root] == 2) continue;
+    const ChangeCell& c = cells[unit[u]];
+    const bool near = c.kind == ChangeKind::Appeared ? occupiedNear(c.key, before) : occupiedNear(c.key, after);
+    if (!near) verdict[root] = 2;
+  }
+  std::vector<uint8_t> drop(cells.size(), 0);
+  for (size_t u = 0; u < unit.size(); ++u) drop[unit[u]] = verdict[objects.find(static_cast<uint32_t>(u))] != 2;
+  size_t out = 0;
+  for (size_t i = 0; i < cells.size(); ++i) {
+    if (!drop[i]) cells[out++] = cells[i];
+  }
+  cells.resize(out);
 }
 
 // The rules that read the voxels around each cell, in order: the neighbourhood rule, the

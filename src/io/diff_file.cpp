@@ -57,6 +57,7 @@ void writeDiffMap(const std::filesystem::path& path, const DiffMap& diff, const 
   j["dark_surface_radius_voxels"] = diff.settings().dark_surface_radius_voxels;
   j["dark_surface_brightness"] = diff.settings().dark_surface_brightness;
   j["dark_surface_contrast"] = diff.settings().dark_surface_contrast;
+  j["dark_surface_share"] = diff.settings().dark_surface_share;
   const std::string text = j.dump();
   std::vector<CmapBlock> blocks(2);
   blocks[0] = {"META", std::vector<uint8_t>(text.begin(), text.end())};
@@ -80,6 +81,7 @@ DiffMap diffMapFrom(const CmapFile& file, const std::string& source) {
     settings.dark_surface_radius_voxels = j.value("dark_surface_radius_voxels", 0);
     settings.dark_surface_brightness = j.value("dark_surface_brightness", DiffSettings::kDefaultDarkSurfaceBrightness);
     settings.dark_surface_contrast = j.value("dark_surface_contrast", DiffSettings::kDefaultDarkSurfaceContrast);
+    settings.dark_surface_share = j.value("dark_surface_share", DiffSettings::kDefaultDarkSurfaceShare);
     settings.validate();
   } catch (const std::exception& e) {
     throw FormatError(source + ": invalid diff settings (" + e.what() + ")");

@@ -118,8 +118,9 @@ void changes(std::ostream& md, const DemoReportInput& in) {
      << "probabilities within 0.5 ± 0.1 count as unknown; a voxel is no change when the other session saw a "
      << "surface within one voxel, unless that surface moved by half a voxel or more, measured from where in "
      << "the voxels the rays ended, nor when the surface the other session saw within three voxels is still seen "
-     << "there: "
-     << "`--neighbourhood 1 --min-shift 0.5 --kept-surface 3`) and the changed voxels split into "
+     << "there, nor when the object lies within two voxels of the other session's surface and is mostly dark and "
+     << "darker than it: "
+     << "`--neighbourhood 1 --min-shift 0.5 --kept-surface 3 --dark-surface 2`) and the changed voxels split into "
      << "objects "
      << "(`chronomap segment`, vertex connectivity, at least " << segment.min_voxels << " voxels). "
      << "Green appeared, red vanished; each object is framed and numbered. Over all pairs: " << total.events_found
@@ -137,6 +138,7 @@ DemoChangeSettings demoChangeSettings() {
   s.diff.neighbourhood_voxels = 1;
   s.diff.min_shift_voxels = DiffSettings::kRecommendedMinShift;
   s.diff.kept_surface_radius_voxels = DiffSettings::kRecommendedKeptSurfaceRadius;
+  s.diff.dark_surface_radius_voxels = DiffSettings::kDarkSurfaceRadius;
   s.segment.connectivity = Connectivity::Vertex;
   s.segment.min_voxels = 20;
   return s;

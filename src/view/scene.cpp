@@ -111,6 +111,7 @@ DiffRequest changeSettings() {
   r.diff.neighbourhood_voxels = 1;
   r.diff.min_shift_voxels = DiffSettings::kRecommendedMinShift;
   r.diff.kept_surface_radius_voxels = DiffSettings::kRecommendedKeptSurfaceRadius;
+  r.diff.dark_surface_radius_voxels = DiffSettings::kDarkSurfaceRadius;
   r.segment.connectivity = Connectivity::Vertex;
   r.segment.min_voxels = 20;
   return r;

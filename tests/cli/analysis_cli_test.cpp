@@ -134,7 +134,7 @@ TEST(AnalysisCli, DiffKeepsItsNeighbourhoodSettings) {
   writePair(tmp / "a.cmap", tmp / "b.cmap");
   const auto r = test::runCommand(cli() + " diff " + (tmp / "a.cmap").string() + " " + (tmp / "b.cmap").string() +
                                   " --mode band --neighbourhood 1 --min-shift 0.5 --kept-surface 3 --kept-share 0.8" +
-                                  " --dark-surface 2 --dark-below 50 --dark-contrast 0.5 -o " +
+                                  " --dark-surface 2 --dark-below 50 --dark-contrast 0.5 --dark-share 0.7 -o " +
                                   (tmp / "d.cmap").string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const DiffMap d = io::readDiffMap(tmp / "d.cmap");
@@ -145,6 +145,7 @@ TEST(AnalysisCli, DiffKeepsItsNeighbourhoodSettings) {
   EXPECT_EQ(d.settings().dark_surface_radius_voxels, 2);
   EXPECT_EQ(d.settings().dark_surface_brightness, 50.0);
   EXPECT_EQ(d.settings().dark_surface_contrast, 0.5);
+  EXPECT_EQ(d.settings().dark_surface_share, 0.7);
   EXPECT_EQ(d.voxelCount(), 9u) << "a never saw anything occupied: the box and the lone voxel stay";
 }
 
@@ -167,6 +168,7 @@ TEST(AnalysisCli, BadInputGetsOneClearMessage) {
       {"diff " + a + " " + b + " --dark-surface 4 -o " + out, 2, "dark-surface radius"},
       {"diff " + a + " " + b + " --dark-surface 3 --dark-below 300 -o " + out, 2, "dark-surface brightness"},
       {"diff " + a + " " + b + " --dark-surface 3 --dark-contrast 0 -o " + out, 2, "dark-surface contrast"},
+      {"diff " + a + " " + b + " --dark-surface 2 --dark-share 1.5 -o " + out, 2, "dark-surface share"},
       {"diff " + a + "@100 " + b + " -o " + out, 2, "is a session map"},
       {"diff " + a + " " + (tmp / "missing.cmap").string() + " -o " + out, 1, "missing.cmap"},
       {"segment " + a, 1, "not a diff"},

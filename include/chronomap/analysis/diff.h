@@ -78,16 +78,22 @@ struct DiffSettings {
   /// > 0: the dark-surface rule. Active depth cameras measure dark surfaces (little light
   /// returned) with errors far beyond their noise elsewhere: on the 3DMatch study room the same
   /// dark sofa is measured 8 to 12 cm apart by frames that agree within 5 mm on bright surfaces
-  /// (docs/changes.md). A voxel that appeared is no change when its own surface is dark (the
-  /// mean colour of its hits in the second map darker than dark_surface_brightness) and the first
-  /// map holds an occupied voxel within this many voxels (Chebyshev): a dark surface seen up to
-  /// this far from a surface of the earlier map is taken to be that surface, measured at
-  /// another depth. A voxel that vanished likewise, the maps' roles swapped. Its price: a dark
-  /// object that moved by less than this, or that stands out less than this from a surface the
-  /// other map sees, is no change either. Needs colour: a voxel whose hits carry none (every
-  /// colour sum zero, with no coloured voxel within the radius in the same map, as in maps
-  /// integrated without colour) is never dark. Applied after the weak-change rule, to unit
-  /// cells; Continuous mode ignores it. 0 (the default): off.
+  /// (docs/changes.md). The rule judges objects, not voxels: the changed unit cells of one kind
+  /// that touch (26-neighbourhood, as vertex connectivity) form an object, and an object is no
+  /// change when (1) every one of its voxels has an occupied voxel of the other map within this
+  /// many voxels (Chebyshev): the object is a layer along a surface the other map sees, no
+  /// thicker than the depth error, and (2) at least dark_surface_share of its voxels are dark
+  /// (the mean colour of their hits under dark_surface_brightness: the second map's hits for an
+  /// object that appeared, the first map's for one that vanished) and darker than
+  /// dark_surface_contrast times the other map's surface around them. So a dark surface seen up
+  /// to this far in front of or behind the other map's is that surface measured at another depth,
+  /// while a dark object standing on a lighter floor, which reaches farther from the floor than
+  /// the radius, stays a change whole. Its price: a dark object no thicker than the radius along a
+  /// lighter surface (a dark mat on a light floor, a dark bag against a light wall) is no change
+  /// either. Needs colour: a voxel whose hits carry none (every colour sum zero, with no coloured
+  /// voxel within the radius in the same map, as in maps integrated without colour) is never
+  /// dark. Applied after the weak-change rule, to unit cells (an object's cubes, if any, neither
+  /// count nor are dropped); Continuous mode ignores it. 0 (the default): off.
   int dark_surface_radius_voxels = 0;
   /// The brightness below which the dark-surface rule calls a voxel's surface dark: the mean
   /// of its hits' red, green and blue (0..255), in [0, 255]. 0 makes nothing dark.
@@ -100,9 +106,13 @@ struct DiffSettings {
   /// and stays a change (the simulated office's black chairs). 1 drops the condition.
   double dark_surface_contrast = kDefaultDarkSurfaceContrast;
   static constexpr double kDefaultDarkSurfaceContrast = 0.6;
-  /// The dark_surface_radius_voxels measured on the 3DMatch room (docs/changes.md). Not part of the
-  /// recommended pipeline: it also drops dark objects set on lighter surfaces (3 of floor66's 258 events).
-  static constexpr int kDarkSurfaceRadius = 3;
+  /// The share of an object's voxels the dark-surface rule needs dark and darker than the other
+  /// map's surface around them, in (0, 1]: half (the 3DMatch sofa's displaced patches: 76 %).
+  double dark_surface_share = kDefaultDarkSurfaceShare;
+  static constexpr double kDefaultDarkSurfaceShare = 0.5;
+  /// The dark_surface_radius_voxels measured on the 3DMatch room and floor66 (docs/changes.md): at 3
+  /// the dark chairs floor66 sees only near the floor are dropped.
+  static constexpr int kDarkSurfaceRadius = 2;
 
   /// Threshold mode's default: a voxel must move by more than 0.4 in probability, so a free
   /// voxel (P near 0) must become clearly occupied (P > 0.4) to count.

@@ -128,7 +128,8 @@ class TiledMap {
   std::optional<VoxelCounters> valueAt(const VoxelKey& key, double time_s);
   /// The diff between two times (diff(TemporalMap, ...)) of the cells that meet `box`, or of
   /// everything: then equal to the joined map's diff. The neighbourhood rule reads across tile
-  /// borders through the cache.
+  /// borders through the cache. The dark-surface rule judges the objects the box's cells form
+  /// (an object cut by the box is judged by its part inside).
   DiffMap diff(double t1_s, double t2_s, const DiffSettings& settings, const std::optional<VoxelBox>& box = {});
 
  private:
