@@ -66,7 +66,8 @@ nlohmann::json colourDiff(const DiffCmdOptions& o, const pipeline::MapRef& befor
   return j;
 }
 
-int runDiff(const DiffCmdOptions& o) {
+/// The diff's settings from the command's options, checked.
+DiffSettings diffSettingsOf(const DiffCmdOptions& o) {
   DiffSettings settings;
   settings.mode = parseDiffMode(o.mode);
   if (o.alpha) {
@@ -85,6 +86,11 @@ int runDiff(const DiffCmdOptions& o) {
   settings.dark_surface_contrast = o.dark_contrast;
   settings.dark_surface_share = o.dark_share;
   settings.validate();
+  return settings;
+}
+
+int runDiff(const DiffCmdOptions& o) {
+  const DiffSettings settings = diffSettingsOf(o);
   requireExtension(o.output, ".cmap", "output");
   if (!o.ply.empty()) requireExtension(o.ply, ".ply", "--ply");
   const pipeline::MapRef before = pipeline::parseMapRef(o.before), after = pipeline::parseMapRef(o.after);
@@ -190,6 +196,46 @@ int runSegment(const SegmentCmdOptions& o) {
 
 }  // namespace
 
+/// The rules that keep surfaces measured differently from counting as changes.
+void addFalseChangeRules(CLI::App* app, DiffCmdOptions& o) {
+  app->add_option("--neighbourhood", o.neighbourhood,
+                  "ignore a voxel that appeared (vanished) when the other map is occupied within this many voxels: "
+                  "surfaces shifted by localisation error are not changes (0..3; 0 compares twins only)")
+      ->capture_default_str();
+  app->add_option("--min-shift", o.min_shift_voxels,
+                  "voxels: with --neighbourhood, keep a voxel near a surface when that surface moved at least this far "
+                  "(the mean position of the hits around it, from where in each voxel the rays ended); 0 drops them "
+                  "all. 0.5 tells a chair pushed by 4 cm from a centimetre of pose error, in sessions registered with "
+                  "build --register --register-drift 20 --register-planar --register-points (docs/changes.md)")
+      ->capture_default_str();
+  app->add_option("--kept-surface", o.kept_surface,
+                  "voxels: a voxel that appeared (vanished) is no change when the surface the other map holds within "
+                  "this many voxels is still seen, unchanged, by this map (--kept-share of its occupied voxels): "
+                  "the same surface measured at another depth by some of a session's frames, as dark glossy "
+                  "materials give on real depth cameras (0..3; 0: off; 3 in the recommended pipeline, "
+                  "docs/changes.md)")
+      ->capture_default_str();
+  app->add_option("--kept-share", o.kept_share, "the share --kept-surface needs still occupied, in (0, 1]")
+      ->capture_default_str();
+  app->add_option("--dark-surface", o.dark_surface,
+                  "voxels: an object (touching voxels that appeared, or that vanished) is no change when every one "
+                  "of its voxels lies within this many voxels of a surface the other map sees and at least "
+                  "--dark-share of them are dark (colour darker than --dark-below) and darker than that surface: "
+                  "active depth cameras measure dark surfaces centimetres off (0..3; 0: off; 2 as measured, "
+                  "docs/changes.md)")
+      ->capture_default_str();
+  app->add_option("--dark-below", o.dark_below,
+                  "the mean colour (0..255) below which --dark-surface calls a surface dark")
+      ->capture_default_str();
+  app->add_option("--dark-contrast", o.dark_contrast,
+                  "--dark-surface needs the surface darker than this share of the other map's surface around it, "
+                  "in (0, 1]")
+      ->capture_default_str();
+  app->add_option("--dark-share", o.dark_share,
+                  "the share of an object's voxels --dark-surface needs dark (and darker), in (0, 1]")
+      ->capture_default_str();
+}
+
 Command addDiff(CLI::App& root) {
   auto o = std::make_shared<DiffCmdOptions>();
   CLI::App* app = root.add_subcommand(
@@ -204,42 +250,7 @@ Command addDiff(CLI::App& root) {
   app->add_option("--alpha", o->alpha,
                   "threshold (threshold mode, 0 to 1) or half band width (band mode, 0 to 0.5); other modes have none")
       ->check(numberIn(0, 1));
-  app->add_option("--neighbourhood", o->neighbourhood,
-                  "ignore a voxel that appeared (vanished) when the other map is occupied within this many voxels: "
-                  "surfaces shifted by localisation error are not changes (0..3; 0 compares twins only)")
-      ->capture_default_str();
-  app->add_option("--min-shift", o->min_shift_voxels,
-                  "voxels: with --neighbourhood, keep a voxel near a surface when that surface moved at least this far "
-                  "(the mean position of the hits around it, from where in each voxel the rays ended); 0 drops them "
-                  "all. 0.5 tells a chair pushed by 4 cm from a centimetre of pose error, in sessions registered with "
-                  "build --register --register-drift 20 --register-planar --register-points (docs/changes.md)")
-      ->capture_default_str();
-  app->add_option("--kept-surface", o->kept_surface,
-                  "voxels: a voxel that appeared (vanished) is no change when the surface the other map holds within "
-                  "this many voxels is still seen, unchanged, by this map (--kept-share of its occupied voxels): "
-                  "the same surface measured at another depth by some of a session's frames, as dark glossy "
-                  "materials give on real depth cameras (0..3; 0: off; 3 in the recommended pipeline, "
-                  "docs/changes.md)")
-      ->capture_default_str();
-  app->add_option("--kept-share", o->kept_share, "the share --kept-surface needs still occupied, in (0, 1]")
-      ->capture_default_str();
-  app->add_option("--dark-surface", o->dark_surface,
-                  "voxels: an object (touching voxels that appeared, or that vanished) is no change when every one "
-                  "of its voxels lies within this many voxels of a surface the other map sees and at least "
-                  "--dark-share of them are dark (colour darker than --dark-below) and darker than that surface: "
-                  "active depth cameras measure dark surfaces centimetres off (0..3; 0: off; 2 as measured, "
-                  "docs/changes.md)")
-      ->capture_default_str();
-  app->add_option("--dark-below", o->dark_below,
-                  "the mean colour (0..255) below which --dark-surface calls a surface dark")
-      ->capture_default_str();
-  app->add_option("--dark-contrast", o->dark_contrast,
-                  "--dark-surface needs the surface darker than this share of the other map's surface around it, "
-                  "in (0, 1]")
-      ->capture_default_str();
-  app->add_option("--dark-share", o->dark_share,
-                  "the share of an object's voxels --dark-surface needs dark (and darker), in (0, 1]")
-      ->capture_default_str();
+  addFalseChangeRules(app, *o);
   app->add_option("-o,--output", o->output, "the diff to write (.cmap)")->required();
   app->add_option("--ply", o->ply, "also write the changed voxels as a PLY, coloured by what they show");
   app->add_option("--colour,--color", o->colour_distance,
