@@ -366,19 +366,12 @@ void dropDarkSurfaces(std::vector<ChangeCell>& cells, const DiffSettings& settin
   std::vector<uint8_t> is_dark(unit.size(), 0);
   for (size_t u = 0; u < unit.size(); ++u) {
     const ChangeCell& c = cells[unit[u]];
-    // Half of the 26 neighbours: each touching pair is seen once.
-    for (int dz = 0; dz <= 1; ++dz) {
-      for (int dy = dz == 0 ? 0 : -1; dy <= 1; ++dy) {
-        for (int dx = (dz == 0 && dy == 0) ? 1 : -1; dx <= 1; ++dx) {
-          const auto k = offsetKey(c.key, dx, dy, dz);
-          if (!k) continue;
-          const auto it = index_of.find(mortonEncode(*k));
-          if (it != index_of.end() && cells[unit[it->second]].kind == c.kind) {
-            objects.join(static_cast<uint32_t>(u), it->second);
-          }
-        }
+    forEachLaterNeighbour(c.key, [&](const VoxelKey& k) {  // each touching pair once
+      const auto it = index_of.find(mortonEncode(k));
+      if (it != index_of.end() && cells[unit[it->second]].kind == c.kind) {
+        objects.join(static_cast<uint32_t>(u), it->second);
       }
-    }
+    });
     is_dark[u] = c.kind == ChangeKind::Appeared ? dark(c.key, after) && darker(c.key, after, before)
                                                 : dark(c.key, before) && darker(c.key, before, after);
   }

@@ -309,22 +309,15 @@ void groupVoxels(const std::vector<VoxelSeries>& series, std::vector<VoxelRhythm
   UnionFind components(n);
   for (const auto& [code, i] : index) {
     const VoxelKey k = series[i].corner;
-    for (int dz = 0; dz <= 1; ++dz) {
-      for (int dy = -1; dy <= 1; ++dy) {
-        for (int dx = -1; dx <= 1; ++dx) {
-          if (dz == 0 && (dy < 0 || (dy == 0 && dx <= 0))) continue;  // each pair once
-          const std::optional<VoxelKey> other = offsetKey(k, dx, dy, dz);
-          if (!other) continue;
-          const auto it = index.find(mortonEncode(*other));
-          if (it == index.end()) continue;
-          uint32_t common = 0;
-          const double phi = correlation(series[i], series[it->second], common);
-          if (common >= settings.min_common && phi >= settings.min_correlation) {
-            components.join(static_cast<uint32_t>(i), static_cast<uint32_t>(it->second));
-          }
-        }
+    forEachLaterNeighbour(k, [&](const VoxelKey& other) {  // each touching pair once
+      const auto it = index.find(mortonEncode(other));
+      if (it == index.end()) return;
+      uint32_t common = 0;
+      const double phi = correlation(series[i], series[it->second], common);
+      if (common >= settings.min_common && phi >= settings.min_correlation) {
+        components.join(static_cast<uint32_t>(i), static_cast<uint32_t>(it->second));
       }
-    }
+    });
   }
   // Members of each component, in the series' order (deterministic).
   std::vector<size_t> slot(n, kNoIndex);

@@ -1,9 +1,12 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
+#include <map>
 #include <cmath>
 #include <optional>
 #include <random>
+#include <utility>
 #include <unordered_map>
 #include <vector>
 
@@ -264,6 +267,38 @@ TEST(VoxelCounters, MeanColourRounds) {
   c.green = 10;  // 3.33 -> 3
   c.blue = 11;   // 3.67 -> 4
   EXPECT_EQ(c.meanColor(), (Rgb{255, 3, 4}));
+}
+
+// Walking every voxel of a random set with forEachLaterNeighbour visits each touching pair of
+// the set exactly once (the slow reference: every pair of the set, touching when no axis
+// differs by more than one), at the key space's edges too.
+TEST(Neighbours, LaterNeighboursVisitEachTouchingPairOnce) {
+  std::mt19937 rng(5);
+  for (int trial = 0; trial < 50; ++trial) {
+    const int base = trial % 2 == 0 ? 0 : kKeysPerAxis - 4;  // half the sets at the far corner
+    std::vector<VoxelKey> set;
+    std::uniform_int_distribution<int> d(0, 3);
+    for (int i = 0; i < 24; ++i) {
+      const VoxelKey v{static_cast<uint16_t>(base + d(rng)), static_cast<uint16_t>(base + d(rng)),
+                       static_cast<uint16_t>(base + d(rng))};
+      if (std::find(set.begin(), set.end(), v) == set.end()) set.push_back(v);
+    }
+    std::map<std::pair<uint64_t, uint64_t>, int> expected, seen;
+    for (size_t i = 0; i < set.size(); ++i) {
+      for (size_t j = i + 1; j < set.size(); ++j) {
+        const VoxelKey a = set[i], b = set[j];
+        if (std::abs(a.x - b.x) <= 1 && std::abs(a.y - b.y) <= 1 && std::abs(a.z - b.z) <= 1) {
+          expected[std::minmax(mortonEncode(a), mortonEncode(b))] = 1;
+        }
+      }
+    }
+    for (const VoxelKey& v : set) {
+      forEachLaterNeighbour(v, [&](const VoxelKey& n) {
+        if (std::find(set.begin(), set.end(), n) != set.end()) ++seen[std::minmax(mortonEncode(v), mortonEncode(n))];
+      });
+    }
+    EXPECT_EQ(seen, expected) << "trial " << trial;
+  }
 }
 
 }  // namespace

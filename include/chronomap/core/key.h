@@ -104,6 +104,20 @@ void forEachKeyInCube(const VoxelKey& key, int r, Fn&& fn) {
   }
 }
 
+/// Calls fn(const VoxelKey&) for the 13 of the 26 neighbours of `key` that come after it in z,
+/// then y, then x order (those inside the key space): walking every voxel of a set this way
+/// visits each touching pair once.
+template <class Fn>
+void forEachLaterNeighbour(const VoxelKey& key, Fn&& fn) {
+  for (int dz = 0; dz <= 1; ++dz) {
+    for (int dy = dz == 0 ? 0 : -1; dy <= 1; ++dy) {
+      for (int dx = (dz == 0 && dy == 0) ? 1 : -1; dx <= 1; ++dx) {
+        if (const auto k = offsetKey(key, dx, dy, dz)) fn(*k);
+      }
+    }
+  }
+}
+
 /// Calls pred(const VoxelKey&) for every key within Chebyshev distance r of `key` (itself
 /// included) that lies inside the key space, until it returns true.
 /// @return whether pred returned true for one of them.
