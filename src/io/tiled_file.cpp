@@ -99,7 +99,7 @@ TiledWriteResult writeTiledMap(const fs::path& folder, const SplitMap& split, co
   for (const Tile& t : split.tiles) {
     const TileEntry e = writeTileAndLatest(staged.path(), t.key, tileFileName(t.key), t.map);
     table.push_back(rowOf(e));
-    r.tile_bytes += e.bytes + (e.latest ? e.latest->bytes : 0);
+    r.tile_bytes += e.diskBytes();
     ++r.tiles;
   }
   const nlohmann::json extra = {

@@ -273,5 +273,4 @@ std::vector<int> shareOutRecordings(const std::vector<uintmax_t>& bytes, int ran
   return owner;
 }
 
-
 }  // namespace chronomap::pipeline

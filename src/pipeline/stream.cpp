@@ -384,7 +384,7 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
     SplitMap split = splitIntoTiles(work, level);
     for (const Tile& t : split.tiles) {
       entries.push_back(io::writeTileFile(s.folder, t.key, generation, t.map));
-      result.tile_bytes += entries.back().bytes + (entries.back().latest ? entries.back().latest->bytes : 0);
+      result.tile_bytes += entries.back().diskBytes();
       ++result.stats.tiles_written;
     }
     group_tops.push_back(std::move(split.top));
@@ -409,7 +409,7 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
       const TemporalMap tile =
           TemporalMap::fromParts(old.resolution_m(), old.criterion(), old.parts(), std::move(records));
       entries.push_back(io::writeTileFile(s.folder, e.key, generation, tile));
-      result.tile_bytes += entries.back().bytes + (entries.back().latest ? entries.back().latest->bytes : 0);
+      result.tile_bytes += entries.back().diskBytes();
       ++result.stats.tiles_written;
     }
   }

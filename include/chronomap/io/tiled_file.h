@@ -34,6 +34,8 @@ struct TileEntry {
   uint64_t bytes = 0;   ///< size of the tile's file
   uint32_t crc32 = 0;   ///< CRC-32 of the tile's file
   std::optional<LatestState> latest;  ///< absent in folders written before it existed
+  /// Bytes the tile takes on disk: its file and its latest state's.
+  uint64_t diskBytes() const { return bytes + (latest ? latest->bytes : 0); }
 };
 
 /// A decoded tile index.
