@@ -307,7 +307,8 @@ void groupVoxels(const std::vector<VoxelSeries>& series, std::vector<VoxelRhythm
     }
   }
   UnionFind components(n);
-  for (const auto& [code, i] : index) {
+  for (const auto& entry : index) {
+    const size_t i = entry.second;  // a plain local: lambdas may not capture structured bindings before C++20
     const VoxelKey k = series[i].corner;
     forEachLaterNeighbour(k, [&](const VoxelKey& other) {  // each touching pair once
       const auto it = index.find(mortonEncode(other));
