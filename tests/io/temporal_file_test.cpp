@@ -109,10 +109,10 @@ TEST(TemporalFile, SessionFilesAreNotFourDimensional) {
 
 TEST(TemporalFile, CraftedBlocksAreRejected) {
   // Valid container, invalid content: every block is checked, not just the checksums; in the
-  // current format version and in version 1.
+  // current format version, in version 2 and in version 1.
   test::TempDir tmp;
   const TemporalMap map = sampleMap(2);
-  for (uint32_t version : {io::kCmapFormatVersion, 1u}) {
+  for (uint32_t version : {io::kCmapFormatVersion, 2u, 1u}) {
     const io::CmapFile file = io::decodeCmap(io::encodeTemporalMap(map, {}, version), "m.cmap");
     auto rewrite = [&](const std::string& tag, auto&& mutate) {
       io::CmapFile f = file;
@@ -142,7 +142,10 @@ TEST(TemporalFile, CraftedBlocksAreRejected) {
       expectRejected(rewrite("INNR", [](auto& d) { d[3] = 0x12; }), "a reference past the pools");
       continue;
     }
-    for (const char* tag : {"TMSK", "TREF", "LSIZ", "ESES", "CLEN", "CHIT", "CRGB", "CRES", "CPOS"}) {
+    const std::vector<const char*> tags =
+        version == 2 ? std::vector<const char*>{"TMSK", "TREF", "LSIZ", "ESES", "CLEN", "CHIT", "CRGB", "CRES", "CPOS"}
+                     : std::vector<const char*>{"TMSK", "TREF", "LSIZ", "ESES", "QLEN", "PHIT", "CRGB", "CPOS"};
+    for (const char* tag : tags) {
       expectRejected(rewrite(tag, [](auto& d) { d.pop_back(); }), std::string(tag) + " a byte short");
       expectRejected(rewrite(tag, [](auto& d) { d.push_back(0); }), std::string(tag) + " a byte long");
     }
