@@ -317,7 +317,9 @@ CmapFile readCmap(const std::filesystem::path& path) {
 
 std::vector<uint8_t> encodeSessionMap(const SessionMap& map, const nlohmann::json& meta, int zstd_level,
                                       uint32_t version) {
-  if (version < 1 || version > kCmapFormatVersion) throw UsageError("session maps are written in format version 1, 2 or 3");
+  if (version < 1 || version > kCmapFormatVersion) {
+    throw UsageError("session maps are written in format version 1, 2 or 3");
+  }
   CmapHeader header;
   header.kind = MapKind::Session;
   header.resolution_m = map.resolution_m();
@@ -386,8 +388,9 @@ SessionMap sessionMapFrom(const CmapFile& file, const std::string& source) {
   if (file.header.version == 1) {
     poolsOfVersion1(file, source, inner, leaves);
   } else {
-    columns::requireExactly(file, source,
-                            columns::withCounterTags(file.header.version, {"META", columns::kTreeMasks, columns::kTreeRefs}, {}));
+    columns::requireExactly(
+        file, source,
+        columns::withCounterTags(file.header.version, {"META", columns::kTreeMasks, columns::kTreeRefs}, {}));
     size_t n = 0;
     inner = columns::decodeTree(file, source, n);
     leaves.resize(n);

@@ -1,7 +1,7 @@
 #pragma once
 /// @file
-/// The column encoding of format version 2 (docs/file-format.md): a tree's shape as child masks
-/// and reference deltas, and voxel counters one field at a time (lengths as byte planes, hits
+/// The column encoding of format versions 2 and 3 (docs/file-format.md): a tree's shape as child
+/// masks and reference deltas, and voxel counters one field at a time (lengths as byte planes, hits
 /// and colour sums as varints, hit positions as quantised mean offsets), each its own block so
 /// that zstd sees one kind of value at a time. Internal to chronomap_io.
 

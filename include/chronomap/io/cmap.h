@@ -25,7 +25,7 @@ const char* toString(MapKind kind);
 /// keeps colour sums as mean * hits (see asStored); versions 1 and 2 still read.
 inline constexpr uint32_t kCmapFormatVersion = 3;
 
-/// Hit positions in version 2 files are mean offsets from the voxel centre quantised in steps of
+/// Hit positions in version 2 and 3 files are mean offsets from the voxel centre quantised in steps of
 /// 1/254 voxel, zero (the centre) exact: each axis of a voxel's mean hit position is kept to
 /// within half a step, resolution / 508 (plus float rounding), under the resolution / 256 that
 /// the tests check.
