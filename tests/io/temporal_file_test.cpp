@@ -34,10 +34,24 @@ TEST(TemporalFile, RoundTripReadsBackIdentically) {
   const TemporalMap back = io::readTemporalMap(tmp / "m.cmap");
   TemporalMap compacted = map;
   compacted.compact();
-  // Everything exact but the hit positions, which the file keeps quantised (io::asStored).
+  // Everything exact but the hit positions, lengths and colour sums, which the file keeps
+  // quantised (io::asStored): within their bounds, no entry's state changed.
   const TemporalMap stored = io::asStored(compacted);
   EXPECT_FALSE(stored == compacted) << "the sample map has positions to quantise";
   EXPECT_TRUE(back == stored);
+  const auto& written = compacted.parts().entries;
+  const auto& read = back.parts().entries;
+  ASSERT_EQ(read.size(), written.size());
+  for (size_t i = 0; i < read.size(); ++i) {
+    const VoxelCounters& a = written[i].value;
+    const VoxelCounters& b = read[i].value;
+    ASSERT_EQ(b.hits, a.hits);
+    EXPECT_EQ(b.state(), a.state()) << "entry " << i;
+    EXPECT_EQ(b.meanColor(), a.meanColor()) << "entry " << i;
+    if (a.length_m > 0.0f) {
+      EXPECT_LE(std::abs(b.length_m / a.length_m - 1.0f), io::kLengthRelativeError) << "entry " << i;
+    }
+  }
   EXPECT_EQ(back.times(), map.times());
   for (double t : map.times()) EXPECT_TRUE(back.snapshot(t) == stored.snapshot(t));
   // Writing what was read gives the same bytes: the format is deterministic.
