@@ -8,7 +8,7 @@
 //                640x480 within 3 m, fast mode, hit positions on) at 0.05 m and 0.02 m
 //   FILE.cmap:   a session or 4D map file of any version (appended sessions folded in)
 // The last line is one JSON object with each map's bytes in both versions. With the environment
-// variable CMAP_SIZE_DUMP=DIR, each session map's version 2 blocks are also written raw to DIR
+// variable CMAP_SIZE_DUMP=DIR, each session map's current-version blocks are also written raw to DIR
 // (NAME.TAG), for trying other encodings on them.
 
 #include <algorithm>
