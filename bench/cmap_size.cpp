@@ -1,6 +1,6 @@
 // Where the bytes of a .cmap go: for each map, every block of the file in format version 1 (the
-// previous layout: pools and records as they lie in memory) and in the current version (field by
-// field), raw and as stored (zstd), the CPU time to encode and to decode each, and the largest
+// previous layout: pools and records as they lie in memory), version 2 (field by field, lengths
+// exact) and the current version (lengths and colour sums quantised), raw and as stored (zstd), the CPU time to encode and to decode each, and the largest
 // error of the hit positions read back.
 //
 // Usage: cmap_size [--synthetic] [--level N] [FILE.cmap ...]
@@ -8,7 +8,7 @@
 //                640x480 within 3 m, fast mode, hit positions on) at 0.05 m and 0.02 m
 //   FILE.cmap:   a session or 4D map file of any version (appended sessions folded in)
 // The last line is one JSON object with each map's bytes in both versions. With the environment
-// variable CMAP_SIZE_DUMP=DIR, each session map's version 2 blocks are also written raw to DIR
+// variable CMAP_SIZE_DUMP=DIR, each session map's current-version blocks are also written raw to DIR
 // (NAME.TAG), for trying other encodings on them.
 
 #include <algorithm>
@@ -90,17 +90,37 @@ double positionError(const std::vector<VoxelCounters>& a, const std::vector<Voxe
   return worst;
 }
 
+/// Largest relative error of the lengths read back, largest change of P, and how many states changed.
+struct LengthError {
+  double relative = 0, probability = 0;
+  size_t states_changed = 0;
+};
+LengthError lengthError(const std::vector<VoxelCounters>& a, const std::vector<VoxelCounters>& b) {
+  LengthError e;
+  for (size_t i = 0; i < std::min(a.size(), b.size()); ++i) {
+    if (a[i].length_m > 0.0f) {
+      e.relative = std::max(e.relative, std::abs(double{b[i].length_m} / double{a[i].length_m} - 1.0));
+    }
+    e.probability = std::max(e.probability, std::abs(a[i].probability() - b[i].probability()));
+    e.states_changed += a[i].state() != b[i].state();
+  }
+  return e;
+}
+
 nlohmann::json measureSession(const std::string& name, const SessionMap& map, int rounds) {
   std::printf("\n## %s: session map, %zu inner nodes, %zu leaves\n\n", name.c_str(), map.innerCount(), map.leafCount());
-  std::vector<uint8_t> v1, v2;
+  std::vector<uint8_t> v1, v2, exact2;
   const double enc1 = bestOf(rounds, [&] { v1 = io::encodeSessionMap(map, nlohmann::json::object(), 3, 1); });
   const double enc2 = bestOf(rounds, [&] { v2 = io::encodeSessionMap(map, nlohmann::json::object()); });
+  exact2 = io::encodeSessionMap(map, nlohmann::json::object(), 3, 2);
   SessionMap back1, back2;
   const double dec1 = bestOf(rounds, [&] { back1 = io::sessionMapFrom(io::decodeCmap(v1, "v1"), "v1"); });
   const double dec2 = bestOf(rounds, [&] { back2 = io::sessionMapFrom(io::decodeCmap(v2, "v2"), "v2"); });
   printBlocks("version 1", v1, map.leafCount());
   std::printf("\n");
-  printBlocks("version 2", v2, map.leafCount());
+  printBlocks("version 2", exact2, map.leafCount());
+  std::printf("\n");
+  printBlocks("current version", v2, map.leafCount());
   if (const char* dump = std::getenv("CMAP_SIZE_DUMP")) {
     for (const io::CmapBlock& b : io::decodeCmap(v2, "v2").blocks) {
       std::FILE* f = std::fopen((std::string(dump) + "/" + name + "." + b.tag).c_str(), "wb");
@@ -109,12 +129,17 @@ nlohmann::json measureSession(const std::string& name, const SessionMap& map, in
     }
   }
   const double err = positionError(map.leafPool(), back2.leafPool());
-  std::printf("\nversion 2 / version 1: %.3f; encode %.2f / %.2f ms, decode %.2f / %.2f ms (CPU, best of %d); "
+  const LengthError lerr = lengthError(map.leafPool(), back2.leafPool());
+  std::printf("\nlargest relative length error %.3g, largest |P change| %.3g, states changed %zu\n", lerr.relative,
+              lerr.probability, lerr.states_changed);
+  std::printf("\ncurrent / version 1: %.3f; encode %.2f / %.2f ms, decode %.2f / %.2f ms (CPU, best of %d); "
               "round trip equal but positions: %s; largest position error %.5f voxel\n",
               static_cast<double>(v2.size()) / static_cast<double>(v1.size()), 1e3 * enc1, 1e3 * enc2, 1e3 * dec1,
               1e3 * dec2, rounds, back2 == io::asStored(map) ? "yes" : "NO", err);
-  return {{"bytes_v1", v1.size()}, {"bytes_v2", v2.size()}, {"encode_ms_v1", 1e3 * enc1}, {"encode_ms_v2", 1e3 * enc2},
-          {"decode_ms_v1", 1e3 * dec1}, {"decode_ms_v2", 1e3 * dec2}, {"position_error_voxels", err}};
+  return {{"bytes_v1", v1.size()}, {"bytes_v2", exact2.size()}, {"bytes_now", v2.size()}, {"encode_ms_v1", 1e3 * enc1},
+          {"encode_ms_now", 1e3 * enc2}, {"decode_ms_v1", 1e3 * dec1}, {"decode_ms_now", 1e3 * dec2},
+          {"position_error_voxels", err}, {"length_relative_error", lerr.relative},
+          {"probability_error", lerr.probability}, {"states_changed", lerr.states_changed}};
 }
 
 std::vector<VoxelCounters> entryValues(const TemporalMap& map) {
@@ -133,19 +158,27 @@ nlohmann::json measureTemporal(const std::string& name, const TemporalMap& map, 
   std::vector<uint8_t> v1, v2;
   const double enc1 = bestOf(rounds, [&] { v1 = io::encodeTemporalMap(map, nlohmann::json::object(), 1); });
   const double enc2 = bestOf(rounds, [&] { v2 = io::encodeTemporalMap(map, nlohmann::json::object()); });
+  const std::vector<uint8_t> exact2 = io::encodeTemporalMap(map, nlohmann::json::object(), 2);
   TemporalMap back1, back2;
   const double dec1 = bestOf(rounds, [&] { back1 = io::temporalMapFrom(io::decodeCmap(v1, "v1"), "v1"); });
   const double dec2 = bestOf(rounds, [&] { back2 = io::temporalMapFrom(io::decodeCmap(v2, "v2"), "v2"); });
   printBlocks("version 1", v1, records);
   std::printf("\n");
-  printBlocks("version 2", v2, records);
+  printBlocks("version 2", exact2, records);
+  std::printf("\n");
+  printBlocks("current version", v2, records);
   const double err = positionError(entryValues(back1), entryValues(back2));
-  std::printf("\nversion 2 / version 1: %.3f; encode %.0f / %.0f ms, decode %.0f / %.0f ms (CPU, best of %d); "
+  const LengthError lerr = lengthError(entryValues(back1), entryValues(back2));
+  std::printf("\nlargest relative length error %.3g, largest |P change| %.3g, states changed %zu\n", lerr.relative,
+              lerr.probability, lerr.states_changed);
+  std::printf("\ncurrent / version 1: %.3f; encode %.0f / %.0f ms, decode %.0f / %.0f ms (CPU, best of %d); "
               "largest position error %.5f voxel; memory %.1f MiB\n",
               static_cast<double>(v2.size()) / static_cast<double>(v1.size()), 1e3 * enc1, 1e3 * enc2, 1e3 * dec1,
               1e3 * dec2, rounds, err, static_cast<double>(map.memoryBytes()) / (1 << 20));
-  return {{"bytes_v1", v1.size()}, {"bytes_v2", v2.size()}, {"encode_ms_v1", 1e3 * enc1}, {"encode_ms_v2", 1e3 * enc2},
-          {"decode_ms_v1", 1e3 * dec1}, {"decode_ms_v2", 1e3 * dec2}, {"position_error_voxels", err},
+  return {{"bytes_v1", v1.size()}, {"bytes_v2", exact2.size()}, {"bytes_now", v2.size()}, {"encode_ms_v1", 1e3 * enc1},
+          {"encode_ms_now", 1e3 * enc2}, {"decode_ms_v1", 1e3 * dec1}, {"decode_ms_now", 1e3 * dec2},
+          {"position_error_voxels", err}, {"length_relative_error", lerr.relative},
+          {"probability_error", lerr.probability}, {"states_changed", lerr.states_changed},
           {"memory_bytes", map.memoryBytes()}};
 }
 

@@ -317,7 +317,9 @@ CmapFile readCmap(const std::filesystem::path& path) {
 
 std::vector<uint8_t> encodeSessionMap(const SessionMap& map, const nlohmann::json& meta, int zstd_level,
                                       uint32_t version) {
-  if (version != 1 && version != kCmapFormatVersion) throw UsageError("session maps are written in format version 1 or 2");
+  if (version < 1 || version > kCmapFormatVersion) {
+    throw UsageError("session maps are written in format version 1, 2 or 3");
+  }
   CmapHeader header;
   header.kind = MapKind::Session;
   header.resolution_m = map.resolution_m();
@@ -345,8 +347,9 @@ std::vector<uint8_t> encodeSessionMap(const SessionMap& map, const nlohmann::jso
     blocks.push_back(std::move(positions));
     return encodeCmap(header, blocks, zstd_level);
   }
+  header.version = version;
   columns::encodeTree(map.innerPool(), blocks);
-  columns::encodeCounters(leaves.size(), [&](size_t i) -> const VoxelCounters& { return leaves[i]; }, blocks);
+  columns::encodeCounters(leaves.size(), [&](size_t i) -> const VoxelCounters& { return leaves[i]; }, blocks, version);
   return encodeCmap(header, blocks, zstd_level);
 }
 
@@ -385,9 +388,9 @@ SessionMap sessionMapFrom(const CmapFile& file, const std::string& source) {
   if (file.header.version == 1) {
     poolsOfVersion1(file, source, inner, leaves);
   } else {
-    columns::requireExactly(file, source, {"META", columns::kTreeMasks, columns::kTreeRefs, columns::kLengths,
-                                           columns::kHits, columns::kColours, columns::kColourResiduals,
-                                           columns::kPositions});
+    columns::requireExactly(
+        file, source,
+        columns::withCounterTags(file.header.version, {"META", columns::kTreeMasks, columns::kTreeRefs}, {}));
     size_t n = 0;
     inner = columns::decodeTree(file, source, n);
     leaves.resize(n);
@@ -404,6 +407,10 @@ SessionMap sessionMapFrom(const CmapFile& file, const std::string& source) {
 
 VoxelCounters asStored(const VoxelCounters& c) {
   VoxelCounters out = c;
+  out.length_m = columns::dequantiseLength(columns::quantiseLength(c.length_m, c.hits));
+  out.red = columns::storedColourSum(c.red, c.hits);
+  out.green = columns::storedColourSum(c.green, c.hits);
+  out.blue = columns::storedColourSum(c.blue, c.hits);
   for (int a = 0; a < 3; ++a) {
     out.offset[a] = c.hits > 0 ? columns::dequantiseOffset(columns::quantiseOffset(c.offset[a], c.hits), c.hits) : 0.0f;
   }

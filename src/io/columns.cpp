@@ -164,7 +164,20 @@ std::vector<Children> decodeTree(const CmapFile& file, const std::string& source
   return inner;
 }
 
-void requireExactly(const CmapFile& file, const std::string& source, std::initializer_list<const char*> tags) {
+std::vector<const char*> counterTags(uint32_t version) {
+  if (version == 2) return {kLengths, kHits, kColours, kColourResiduals, kPositions};
+  return {kQuantisedLengths, kHitPlanes, kColours, kPositions};
+}
+
+std::vector<const char*> withCounterTags(uint32_t version, std::initializer_list<const char*> first,
+                                         std::initializer_list<const char*> last) {
+  std::vector<const char*> tags(first);
+  for (const char* t : counterTags(version)) tags.push_back(t);
+  tags.insert(tags.end(), last.begin(), last.end());
+  return tags;
+}
+
+void requireExactly(const CmapFile& file, const std::string& source, const std::vector<const char*>& tags) {
   for (const CmapBlock& b : file.blocks) {
     if (std::none_of(tags.begin(), tags.end(), [&](const char* t) { return b.tag == t; })) {
       throw FormatError(source + ": block '" + b.tag + "' is not part of a format version " +
@@ -190,6 +203,33 @@ float dequantiseOffset(uint8_t q, uint32_t hits) {
   return static_cast<float>((static_cast<double>(q) - kOffsetLevels) / (2 * kOffsetLevels) * static_cast<double>(hits));
 }
 
+uint16_t quantiseLength(float length_m, uint32_t hits) {
+  if (!(length_m > 0.0f)) return 0;  // zero (and -0), and what no valid map holds
+  uint32_t bits;
+  std::memcpy(&bits, &length_m, 4);
+  constexpr int kShift = 23 - kLengthMantissaBits;
+  uint32_t code = (bits + (1u << (kShift - 1))) >> kShift;
+  if (code >= kFirstNonFiniteLengthCode) code = bits >> kShift;  // the largest floats: truncated, not infinite
+  if (code == 0) code = 1;  // the smallest subnormals: a positive length stays positive
+  VoxelCounters original, stored;
+  original.length_m = length_m;
+  original.hits = stored.hits = hits;
+  stored.length_m = dequantiseLength(static_cast<uint16_t>(code));
+  if (stored.state() != original.state()) {
+    // The state's boundary lies between the length and its nearest code: the code on the
+    // length's side of it keeps the state (P is monotonic in the length).
+    code = stored.length_m > length_m ? code - 1 : code + 1;
+  }
+  return static_cast<uint16_t>(code);
+}
+
+float dequantiseLength(uint16_t code) {
+  const uint32_t bits = static_cast<uint32_t>(code) << (23 - kLengthMantissaBits);
+  float out;
+  std::memcpy(&out, &bits, 4);
+  return out;
+}
+
 namespace {
 
 uint32_t& channel(VoxelCounters& c, int i) { return i == 0 ? c.red : i == 1 ? c.green : c.blue; }
@@ -203,20 +243,97 @@ uint8_t meanChannel(uint32_t sum, uint32_t hits) {
 
 }  // namespace
 
-void encodeCounters(size_t n, const std::function<const VoxelCounters&(size_t)>& at, std::vector<CmapBlock>& blocks) {
-  std::vector<uint8_t> lengths(4 * n);
-  ByteWriter hits, residuals;
-  size_t with_hits = 0;
+uint32_t storedColourSum(uint32_t sum, uint32_t hits) {
+  if (hits == 0) return 0;
+  return static_cast<uint32_t>(std::min<uint64_t>(0xffffffffu, uint64_t{meanChannel(sum, hits)} * hits));
+}
+
+namespace {
+
+/// Version 3's QLEN and PHIT.
+void encodeLengthsAndHits(size_t n, const std::function<const VoxelCounters&(size_t)>& at,
+                          std::vector<CmapBlock>& blocks) {
+  size_t m = 0;
+  for (size_t i = 0; i < n; ++i) m += at(i).hits > 0;
+  const size_t flag_bytes = (n + 7) / 8;
+  std::vector<uint8_t> lengths(2 * n), flags(flag_bytes + 4 * m);
+  uint8_t* planes = flags.data() + flag_bytes;
+  size_t k = 0;
   for (size_t i = 0; i < n; ++i) {
     const VoxelCounters& c = at(i);
-    uint32_t bits;
-    std::memcpy(&bits, &c.length_m, 4);
-    for (int b = 0; b < 4; ++b) lengths[b * n + i] = static_cast<uint8_t>(bits >> (8 * b));
-    hits.varint(c.hits);
-    with_hits += c.hits > 0;
+    const uint16_t code = quantiseLength(c.length_m, c.hits);
+    lengths[i] = static_cast<uint8_t>(code);
+    lengths[n + i] = static_cast<uint8_t>(code >> 8);
+    if (c.hits == 0) continue;
+    flags[i / 8] = static_cast<uint8_t>(flags[i / 8] | (1u << (i % 8)));
+    for (int b = 0; b < 4; ++b) planes[b * m + k] = static_cast<uint8_t>(c.hits >> (8 * b));
+    ++k;
   }
-  // Colours: the mean (a byte, as smooth as the surfaces) and the sum's remainder beyond
-  // mean * hits (small, often zero), each channel's stream after the other's.
+  blocks.push_back({kQuantisedLengths, std::move(lengths)});
+  blocks.push_back({kHitPlanes, std::move(flags)});
+}
+
+void decodeLengthsAndHits(const CmapFile& file, const std::string& source, size_t n,
+                          const std::function<VoxelCounters&(size_t)>& at) {
+  const CmapBlock& lengths = file.block(kQuantisedLengths, source);
+  if (lengths.data.size() != 2 * n) {
+    throw FormatError(blockName(source, kQuantisedLengths) + " does not match the tree");
+  }
+  const CmapBlock& hit_block = file.block(kHitPlanes, source);
+  const size_t flag_bytes = (n + 7) / 8;
+  if (hit_block.data.size() < flag_bytes) throw FormatError(blockName(source, kHitPlanes) + " is truncated");
+  const uint8_t* flags = hit_block.data.data();
+  size_t m = 0;
+  for (size_t i = 0; i < n; ++i) m += (flags[i / 8] >> (i % 8)) & 1;
+  if (n % 8 != 0 && (flags[n / 8] >> (n % 8)) != 0) {
+    throw FormatError(blockName(source, kHitPlanes) + " flags records that do not exist");
+  }
+  if (hit_block.data.size() != flag_bytes + 4 * m) {
+    throw FormatError(blockName(source, kHitPlanes) + " does not match the tree");
+  }
+  const uint8_t* planes = flags + flag_bytes;
+  size_t k = 0;
+  for (size_t i = 0; i < n; ++i) {
+    VoxelCounters& c = at(i);
+    const uint32_t code = lengths.data[i] | uint32_t{lengths.data[n + i]} << 8;
+    if (code >= kFirstNonFiniteLengthCode) {
+      throw FormatError(blockName(source, kQuantisedLengths) + " holds an impossible length");
+    }
+    c.length_m = dequantiseLength(static_cast<uint16_t>(code));
+    c.hits = 0;
+    if (!((flags[i / 8] >> (i % 8)) & 1)) continue;
+    uint32_t h = 0;
+    for (int b = 0; b < 4; ++b) h |= static_cast<uint32_t>(planes[b * m + k]) << (8 * b);
+    if (h == 0) throw FormatError(blockName(source, kHitPlanes) + " flags a record without hits");
+    c.hits = h;
+    ++k;
+  }
+}
+
+}  // namespace
+
+void encodeCounters(size_t n, const std::function<const VoxelCounters&(size_t)>& at, std::vector<CmapBlock>& blocks,
+                    uint32_t version) {
+  ByteWriter residuals;
+  size_t with_hits = 0;
+  if (version == 2) {
+    std::vector<uint8_t> lengths(4 * n);
+    ByteWriter hits;
+    for (size_t i = 0; i < n; ++i) {
+      const VoxelCounters& c = at(i);
+      uint32_t bits;
+      std::memcpy(&bits, &c.length_m, 4);
+      for (int b = 0; b < 4; ++b) lengths[b * n + i] = static_cast<uint8_t>(bits >> (8 * b));
+      hits.varint(c.hits);
+    }
+    blocks.push_back({kLengths, std::move(lengths)});
+    blocks.push_back({kHits, std::move(hits.bytes())});
+  } else {
+    encodeLengthsAndHits(n, at, blocks);
+  }
+  for (size_t i = 0; i < n; ++i) with_hits += at(i).hits > 0;
+  // Colours: the mean (a byte, as smooth as the surfaces) and, in version 2, the sum's remainder
+  // beyond mean * hits (small, often zero), each channel's stream after the other's.
   std::vector<uint8_t> means(3 * with_hits), positions(3 * with_hits);
   for (int ch = 0; ch < 3; ++ch) {
     size_t k = 0;
@@ -225,50 +342,55 @@ void encodeCounters(size_t n, const std::function<const VoxelCounters&(size_t)>&
       if (c.hits == 0) continue;
       const uint8_t mean = meanChannel(channel(c, ch), c.hits);
       means[ch * with_hits + k] = mean;
-      residuals.svarint(static_cast<int64_t>(channel(c, ch)) - static_cast<int64_t>(mean) * c.hits);
+      if (version == 2) residuals.svarint(static_cast<int64_t>(channel(c, ch)) - static_cast<int64_t>(mean) * c.hits);
       positions[ch * with_hits + k] = quantiseOffset(c.offset[ch], c.hits);
       ++k;
     }
   }
-  blocks.push_back({kLengths, std::move(lengths)});
-  blocks.push_back({kHits, std::move(hits.bytes())});
   blocks.push_back({kColours, std::move(means)});
-  blocks.push_back({kColourResiduals, std::move(residuals.bytes())});
+  if (version == 2) blocks.push_back({kColourResiduals, std::move(residuals.bytes())});
   blocks.push_back({kPositions, std::move(positions)});
 }
 
 void decodeCounters(const CmapFile& file, const std::string& source, size_t n,
                     const std::function<VoxelCounters&(size_t)>& at) {
-  const CmapBlock& lengths = file.block(kLengths, source);
-  if (lengths.data.size() != 4 * n) throw FormatError(blockName(source, kLengths) + " does not match the tree");
-  ByteReader hits(file.block(kHits, source).data, blockName(source, kHits));
-  size_t with_hits = 0;
-  for (size_t i = 0; i < n; ++i) {
-    VoxelCounters& c = at(i);
-    uint32_t bits = 0;
-    for (int b = 0; b < 4; ++b) bits |= static_cast<uint32_t>(lengths.data[b * n + i]) << (8 * b);
-    std::memcpy(&c.length_m, &bits, 4);
-    const uint64_t h = hits.varint();
-    if (h > 0xffffffffu) hits.fail("holds an impossible hit count");
-    c.hits = static_cast<uint32_t>(h);
-    with_hits += c.hits > 0;
+  const bool exact = file.header.version == 2;
+  if (exact) {
+    const CmapBlock& lengths = file.block(kLengths, source);
+    if (lengths.data.size() != 4 * n) throw FormatError(blockName(source, kLengths) + " does not match the tree");
+    ByteReader hits(file.block(kHits, source).data, blockName(source, kHits));
+    for (size_t i = 0; i < n; ++i) {
+      VoxelCounters& c = at(i);
+      uint32_t bits = 0;
+      for (int b = 0; b < 4; ++b) bits |= static_cast<uint32_t>(lengths.data[b * n + i]) << (8 * b);
+      std::memcpy(&c.length_m, &bits, 4);
+      const uint64_t h = hits.varint();
+      if (h > 0xffffffffu) hits.fail("holds an impossible hit count");
+      c.hits = static_cast<uint32_t>(h);
+    }
+    hits.expectEnd();
+  } else {
+    decodeLengthsAndHits(file, source, n, at);
   }
-  hits.expectEnd();
+  size_t with_hits = 0;
+  for (size_t i = 0; i < n; ++i) with_hits += at(i).hits > 0;
   const CmapBlock& means = file.block(kColours, source);
   const CmapBlock& positions = file.block(kPositions, source);
   if (means.data.size() != 3 * with_hits) throw FormatError(blockName(source, kColours) + " does not match the hit counts");
   if (positions.data.size() != 3 * with_hits) {
     throw FormatError(blockName(source, kPositions) + " does not match the hit counts");
   }
-  ByteReader residuals(file.block(kColourResiduals, source).data, blockName(source, kColourResiduals));
+  static const std::vector<uint8_t> kNone;
+  ByteReader residuals(exact ? file.block(kColourResiduals, source).data : kNone, blockName(source, kColourResiduals));
   for (int ch = 0; ch < 3; ++ch) {
     size_t k = 0;
     for (size_t i = 0; i < n; ++i) {
       VoxelCounters& c = at(i);
       if (c.hits == 0) continue;
-      const int64_t residual = residuals.svarint();
+      const int64_t residual = exact ? residuals.svarint() : 0;
       if (residual > kMaxResidual || residual < -kMaxResidual) residuals.fail("holds an impossible colour sum");
-      const int64_t sum = int64_t{means.data[ch * with_hits + k]} * c.hits + residual;
+      int64_t sum = int64_t{means.data[ch * with_hits + k]} * c.hits + residual;
+      if (!exact) sum = std::min<int64_t>(sum, 0xffffffffll);  // as storedColourSum caps it
       if (sum < 0 || sum > 0xffffffffll) residuals.fail("holds an impossible colour sum");
       channel(c, ch) = static_cast<uint32_t>(sum);
       const uint8_t q = positions.data[ch * with_hits + k];

@@ -1,7 +1,7 @@
 #pragma once
 /// @file
-/// The column encoding of format version 2 (docs/file-format.md): a tree's shape as child masks
-/// and reference deltas, and voxel counters one field at a time (lengths as byte planes, hits
+/// The column encoding of format versions 2 and 3 (docs/file-format.md): a tree's shape as child
+/// masks and reference deltas, and voxel counters one field at a time (lengths as byte planes, hits
 /// and colour sums as varints, hit positions as quantised mean offsets), each its own block so
 /// that zstd sees one kind of value at a time. Internal to chronomap_io.
 
@@ -67,6 +67,11 @@ inline constexpr const char* kHits = "CHIT";
 inline constexpr const char* kColours = "CRGB";
 inline constexpr const char* kColourResiduals = "CRES";
 inline constexpr const char* kPositions = "CPOS";
+/// Version 3 replaces CLEN and CHIT by these and drops CRES (colour sums kept as mean * hits).
+inline constexpr const char* kQuantisedLengths = "QLEN";
+inline constexpr const char* kHitPlanes = "PHIT";
+/// The counter blocks of a file of `version` (2 or 3), in the order they are written.
+std::vector<const char*> counterTags(uint32_t version);
 
 /// A tree as both map kinds store it: 8 references per inner node, kEmpty (all ones), an inner
 /// index, or kLeafBit | leaf index (a leaf, or a 4D map's slot list); node 0 is the root at
@@ -85,13 +90,19 @@ void encodeTree(const std::vector<Children>& inner, std::vector<CmapBlock>& bloc
 /// an inner node at unit level, bytes missing or left over).
 std::vector<Children> decodeTree(const CmapFile& file, const std::string& source, size_t& leaves);
 
-/// The counters of `n` records, `at(i)` giving record i: appends CLEN (the f32 lengths' bits as
+/// The counters of `n` records, `at(i)` giving record i, as `version` (2 or 3) stores them.
+/// Version 3: QLEN (each length as quantiseLength's 16-bit code, two byte planes, low first),
+/// PHIT (a bitmap, bit i%8 of byte i/8 set when record i has hits, then the hit counts of those
+/// records as four byte planes, lowest first), CRGB and CPOS as in version 2, no CRES.
+/// Version 2 appends CLEN (the f32 lengths' bits as
 /// 4 byte planes, lowest byte first), CHIT (hits, varints), and for the records with hits, each
 /// as a red, then a green, then a blue plane: CRGB (mean colour, round(sum / hits), a byte), CRES
 /// (sum - mean * hits, zigzag varints) and CPOS (the quantised mean offsets, see quantiseOffset;
 /// x, y, z planes).
-void encodeCounters(size_t n, const std::function<const VoxelCounters&(size_t)>& at, std::vector<CmapBlock>& blocks);
-/// Fills the counters of `n` records (`at(i)` giving record i) from those blocks.
+void encodeCounters(size_t n, const std::function<const VoxelCounters&(size_t)>& at, std::vector<CmapBlock>& blocks,
+                    uint32_t version);
+/// Fills the counters of `n` records (`at(i)` giving record i) from those blocks (of the file's
+/// version).
 /// @throw FormatError naming `source` when a block is missing or its size does not match.
 void decodeCounters(const CmapFile& file, const std::string& source, size_t n,
                     const std::function<VoxelCounters&(size_t)>& at);
@@ -100,7 +111,10 @@ void decodeCounters(const CmapFile& file, const std::string& source, size_t n,
 /// blocks (a block the format gains comes with a new version), so that a damaged tag, which no
 /// checksum covers, is an error rather than a block silently missing.
 /// @throw FormatError naming `source` and the block.
-void requireExactly(const CmapFile& file, const std::string& source, std::initializer_list<const char*> tags);
+void requireExactly(const CmapFile& file, const std::string& source, const std::vector<const char*>& tags);
+/// `first`, then the counter blocks of `version`, then `last`.
+std::vector<const char*> withCounterTags(uint32_t version, std::initializer_list<const char*> first,
+                                         std::initializer_list<const char*> last);
 
 /// Hit positions in version 2: a mean offset from the voxel centre (in [-0.5, 0.5] voxels) is
 /// kept as q = round(mean * 254) in -127..127, stored as the byte q + 127 (0..254; 255 is
@@ -110,5 +124,21 @@ inline constexpr int kOffsetLevels = 127;
 uint8_t quantiseOffset(float sum, uint32_t hits);
 /// The offset sum that byte `q` stands for with `hits` hits: (q - 127) / 254 * hits.
 float dequantiseOffset(uint8_t q, uint32_t hits);
+
+/// Lengths in version 3: a length keeps 8 of its 23 mantissa bits, rounded to nearest, as the
+/// 16-bit code (f32 bits + 2^14) >> 15 (lengths are non-negative, the sign bit is always 0;
+/// the largest finite floats are truncated instead of rounding to infinity). Relative error at
+/// most 2^-9. Where rounding to nearest would change the voxel's state (unknown, free, occupied:
+/// P = 1 - exp(-hits / length) crossing 0.5, or a positive length becoming 0) the neighbouring
+/// code on the length's side is taken instead: relative error at most 2^-8, state unchanged.
+/// A positive length stays positive (subnormals below 2^-134 become that). Codes are exact
+/// floats, so quantising a decoded length gives its code again.
+inline constexpr int kLengthMantissaBits = 8;
+/// Codes from this one up stand for infinity or NaN: refused.
+inline constexpr uint32_t kFirstNonFiniteLengthCode = 0xff00;
+uint16_t quantiseLength(float length_m, uint32_t hits);
+float dequantiseLength(uint16_t code);
+/// Colour sums in version 3: mean * hits (the mean colour, round(sum / hits), is exact).
+uint32_t storedColourSum(uint32_t sum, uint32_t hits);
 
 }  // namespace chronomap::io::columns

@@ -93,9 +93,11 @@ std::vector<uint8_t> sessionBytes(const std::vector<uint32_t>& sizes, const std:
 
 /// The parts of a version 2 file (their consistency is checked by TemporalMap::fromParts).
 TemporalMap::Parts partsOfVersion2(const CmapFile& file, const std::string& source) {
-  columns::requireExactly(file, source, {"META", columns::kTreeMasks, columns::kTreeRefs, kListSizes, kEntrySessions,
-                                         columns::kLengths, columns::kHits, columns::kColours,
-                                         columns::kColourResiduals, columns::kPositions, "COVR"});
+  columns::requireExactly(file, source,
+                          columns::withCounterTags(file.header.version,
+                                                   {"META", columns::kTreeMasks, columns::kTreeRefs, kListSizes,
+                                                    kEntrySessions},
+                                                   {"COVR"}));
   TemporalMap::Parts parts;
   size_t lists = 0;
   parts.inner = columns::decodeTree(file, source, lists);
@@ -142,7 +144,7 @@ std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::j
 
 std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::json& meta, MapKind kind,
                                        const nlohmann::json* extra, uint32_t version) {
-  if (version != 1 && version != kCmapFormatVersion) throw UsageError("4D maps are written in format version 1 or 2");
+  if (version < 1 || version > kCmapFormatVersion) throw UsageError("4D maps are written in format version 1, 2 or 3");
   TemporalMap compacted = map;
   compacted.compact();
   const TemporalMap::Parts parts = compacted.parts();
@@ -192,11 +194,13 @@ std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::j
     blocks.push_back({"EPOS", entryOffsetBytes(parts.entries)});
     return encodeCmap(header, blocks);
   }
+  header.version = version;
   columns::encodeTree(parts.inner, blocks);
   blocks.push_back({kListSizes, listSizeBytes(parts.list_sizes)});
   blocks.push_back({kEntrySessions, sessionBytes(parts.list_sizes, parts.entries)});
   columns::encodeCounters(
-      parts.entries.size(), [&](size_t i) -> const VoxelCounters& { return parts.entries[i].value; }, blocks);
+      parts.entries.size(), [&](size_t i) -> const VoxelCounters& { return parts.entries[i].value; }, blocks,
+      version);
   blocks.push_back({"COVR", std::move(coverage)});
   return encodeCmap(header, blocks);
 }

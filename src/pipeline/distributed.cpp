@@ -133,7 +133,7 @@ std::vector<uint8_t> receiveBytes(int from) {
 }
 
 /// A session integrated on another rank, as it travels: a session map file in format version 1,
-/// whose counters are stored as they are in memory (version 2 quantises the hit offsets), with
+/// whose counters are stored as they are in memory (versions 2 and 3 quantise them), with
 /// the rest of the session in its metadata (JSON writes doubles so that they read back exactly).
 std::vector<uint8_t> encodePending(const Pending& p) {
   const IntegratedSession& s = p.session;

@@ -233,6 +233,9 @@ AddSessionResult addSession(const AddSessionSettings& s) {
     RealignReport realigned;
     session = realign(session, avg, *s.realign, &realigned);
     r.realigned_voxels = realigned.moved();
+    // As the record below keeps it (lengths, colour sums and positions quantised), so that a
+    // reader replaying the record builds the map this add holds.
+    session = io::asStored(session);
   }
   const AddSettings add_settings{s.replace, s.session.filename().string()};
   r.report = map.add(r.time_s, session, add_settings);

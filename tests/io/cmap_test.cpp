@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <random>
 
@@ -298,7 +299,7 @@ SessionMap randomCounters(uint32_t seed, double resolution_m) {
   return m;
 }
 
-TEST(Cmap, RandomMapsRoundTripExactlyButPositionsWithinTheirBound) {
+TEST(Cmap, RandomMapsRoundTripWithinTheStatedBounds) {
   for (uint32_t seed = 1; seed <= 6; ++seed) {
     const double resolution_m = seed % 2 ? 0.05 : 0.02;
     const SessionMap m = randomCounters(seed, resolution_m);
@@ -306,11 +307,18 @@ TEST(Cmap, RandomMapsRoundTripExactlyButPositionsWithinTheirBound) {
     const SessionMap back = sessionMapFrom(decodeCmap(bytes, "r.cmap"), "r.cmap");
     ASSERT_EQ(back.innerPool(), m.innerPool()) << "seed " << seed;
     ASSERT_EQ(back.leafCount(), m.leafCount());
-    double worst_m = 0.0;
+    double worst_m = 0.0, worst_length = 0.0;
     for (size_t i = 0; i < m.leafCount(); ++i) {
       const VoxelCounters& a = m.leafPool()[i];
       const VoxelCounters& b = back.leafPool()[i];
-      ASSERT_EQ(std::memcmp(&a, &b, offsetof(VoxelCounters, offset)), 0) << "leaf " << i << ": length, hits, colour exact";
+      ASSERT_EQ(b.hits, a.hits) << "leaf " << i << ": hits exact";
+      EXPECT_EQ(b.meanColor(), a.meanColor()) << "leaf " << i << ": mean colour exact";
+      EXPECT_EQ(b.state(), a.state()) << "leaf " << i << ": the state never changes";
+      // Lengths within 2^-8 relative (kLengthRelativeError), so P within 2^-8 / e.
+      const double relative = std::abs(double{b.length_m} / double{a.length_m} - 1.0);
+      EXPECT_LE(relative, kLengthRelativeError) << "leaf " << i;
+      EXPECT_LE(std::abs(b.probability() - a.probability()), kLengthRelativeError / std::exp(1.0) + 1e-9);
+      worst_length = std::max(worst_length, relative);
       for (int axis = 0; axis < 3; ++axis) {
         // The mean hit position, in metres, within resolution / 256 of the one written.
         const double error_m = std::abs(a.meanOffset(axis) - b.meanOffset(axis)) * resolution_m;
@@ -322,20 +330,83 @@ TEST(Cmap, RandomMapsRoundTripExactlyButPositionsWithinTheirBound) {
       EXPECT_TRUE(b.offsetsValid());
     }
     EXPECT_GT(worst_m, resolution_m / 2000) << "positions are quantised, not kept as floats";
+    EXPECT_GT(worst_length, kLengthRelativeError / 8) << "lengths are quantised, not kept as floats";
     EXPECT_TRUE(back == asStored(m));
     // Quantising twice changes nothing: a map read and written again gives the same bytes.
     EXPECT_EQ(encodeSessionMap(back, {{"seed", seed}}), bytes);
+    EXPECT_TRUE(asStored(back) == back);
   }
 }
 
+TEST(Cmap, QuantisedLengthsNeverChangeAVoxelsState) {
+  // Lengths at and around P = 0.5 (length = hits / ln 2), tiny and huge lengths: the stored
+  // length keeps the state, stays within the bound, and is its own quantisation.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> near(-1e-3, 1e-3);
+  size_t stepped = 0;
+  for (int i = 0; i < 20000; ++i) {
+    VoxelCounters c;
+    c.hits = 1 + static_cast<uint32_t>(rng() % 100000);
+    const double boundary = c.hits / std::log(2.0);
+    float length = static_cast<float>(boundary * (1.0 + near(rng)));
+    // Every float next to the boundary too, where rounding to nearest would cross it.
+    if (i % 4 == 0) length = std::nextafter(static_cast<float>(boundary), i % 8 ? 0.0f : 1e30f);
+    c.length_m = length;
+    const VoxelCounters s = asStored(c);
+    ASSERT_EQ(s.state(), c.state()) << c.hits << " hits, length " << length;
+    ASSERT_LE(std::abs(double{s.length_m} / double{length} - 1.0), kLengthRelativeError) << c.hits << " " << length;
+    ASSERT_EQ(asStored(s).length_m, s.length_m);
+    stepped += std::abs(double{s.length_m} / double{length} - 1.0) > kLengthRelativeError / 2;
+  }
+  EXPECT_GT(stepped, 0u) << "some lengths were moved off their nearest code to keep their state";
+  for (float length : {std::numeric_limits<float>::denorm_min(), std::numeric_limits<float>::min(), 1e-30f,
+                       std::numeric_limits<float>::max(), 3e38f}) {
+    for (uint32_t hits : {0u, 1u, 1000u}) {
+      VoxelCounters c;
+      c.length_m = length;
+      c.hits = hits;
+      const VoxelCounters s = asStored(c);
+      EXPECT_EQ(s.state(), c.state()) << length << " " << hits;
+      EXPECT_TRUE(std::isfinite(s.length_m) && s.length_m > 0.0f) << length;
+      EXPECT_EQ(asStored(s).length_m, s.length_m);
+    }
+  }
+  VoxelCounters zero;
+  zero.hits = 3;
+  EXPECT_EQ(asStored(zero).length_m, 0.0f);
+}
+
+TEST(Cmap, VersionTwoFilesStillReadExactly) {
+  // Version 2 kept lengths and colour sums bit for bit; its files read so.
+  const SessionMap m = randomCounters(12, 0.05);
+  const std::vector<uint8_t> two = encodeSessionMap(m, nullptr, 3, 2);
+  const CmapFile f = decodeCmap(two, "two.cmap");
+  EXPECT_EQ(f.header.version, 2u);
+  ASSERT_NE(f.find("CRES"), nullptr);
+  const SessionMap back = sessionMapFrom(f, "two.cmap");
+  ASSERT_EQ(back.leafCount(), m.leafCount());
+  for (size_t i = 0; i < m.leafCount(); ++i) {
+    const VoxelCounters& a = m.leafPool()[i];
+    const VoxelCounters& b = back.leafPool()[i];
+    ASSERT_EQ(std::memcmp(&a, &b, offsetof(VoxelCounters, offset)), 0) << "leaf " << i << ": length, hits, colour exact";
+  }
+  // Written again, it takes the current version, smaller, quantised once.
+  const std::vector<uint8_t> now = encodeSessionMap(back, nullptr);
+  EXPECT_EQ(decodeCmap(now, "now.cmap").header.version, kCmapFormatVersion);
+  EXPECT_LT(now.size(), two.size());
+  EXPECT_TRUE(sessionMapFrom(decodeCmap(now, "now.cmap"), "now.cmap") == asStored(m));
+}
+
 TEST(Cmap, HitsAtTheCentreStayThereExactly) {
-  // Maps made without positions (every hit at its voxel's centre) round trip bit for bit.
+  // Maps made without positions (every hit at its voxel's centre) keep their positions bit for
+  // bit (lengths and colour sums as asStored).
   SessionMap m = randomCounters(7, 0.05);
   std::vector<VoxelCounters> leaves = m.leafPool();
   for (VoxelCounters& c : leaves) c.offset[0] = c.offset[1] = c.offset[2] = 0.0f;
   m.assignPools(m.innerPool(), leaves);
   const SessionMap back = sessionMapFrom(decodeCmap(encodeSessionMap(m, nullptr), "c.cmap"), "c.cmap");
-  EXPECT_EQ(back.leafPool(), m.leafPool());
+  EXPECT_EQ(back.leafPool(), asStored(m).leafPool());
+  for (const VoxelCounters& c : back.leafPool()) EXPECT_TRUE(c.offset[0] == 0.0f && c.offset[1] == 0.0f && c.offset[2] == 0.0f);
 }
 
 TEST(Cmap, VersionOneFilesStillReadExactly) {
@@ -355,9 +426,10 @@ TEST(Cmap, VersionOneFilesStillReadExactly) {
   EXPECT_LT(now.size(), old.size());
 }
 
-TEST(Cmap, CraftedVersionTwoBlocksGiveOneClearError) {
+void craftedBlocksGiveOneClearError(uint32_t version) {
+  SCOPED_TRACE("version " + std::to_string(version));
   const SessionMap m = randomCounters(5, 0.05);
-  const CmapFile f = decodeCmap(encodeSessionMap(m, nullptr), "m.cmap");
+  const CmapFile f = decodeCmap(encodeSessionMap(m, nullptr, 3, version), "m.cmap");
   auto readWith = [&](const std::string& tag, auto&& mutate) {
     CmapFile g = f;
     for (CmapBlock& b : g.blocks) {
@@ -373,8 +445,13 @@ TEST(Cmap, CraftedVersionTwoBlocksGiveOneClearError) {
       EXPECT_NE(std::string(e.what()).find("crafted.cmap"), std::string::npos) << e.what();
     }
   };
-  EXPECT_TRUE(readWith("META", [](auto&) {}) == asStored(m));
-  for (const char* tag : {"TMSK", "TREF", "CLEN", "CHIT", "CRGB", "CRES", "CPOS"}) {
+  if (version == 3) {
+    EXPECT_TRUE(readWith("META", [](auto&) {}) == asStored(m));
+  }
+  const std::vector<const char*> tags = version == 2
+                                            ? std::vector<const char*>{"TMSK", "TREF", "CLEN", "CHIT", "CRGB", "CRES", "CPOS"}
+                                            : std::vector<const char*>{"TMSK", "TREF", "QLEN", "PHIT", "CRGB", "CPOS"};
+  for (const char* tag : tags) {
     expectError(tag, [](std::vector<uint8_t>& d) { d.pop_back(); }, "a block one byte short");
     expectError(tag, [](std::vector<uint8_t>& d) { d.push_back(0); }, "a block one byte long");
     expectError(tag, [](std::vector<uint8_t>& d) { d.clear(); }, "an empty block");
@@ -410,12 +487,27 @@ TEST(Cmap, CraftedVersionTwoBlocksGiveOneClearError) {
   expectError("TMSK", [](std::vector<uint8_t>& d) { d.assign(d.size(), 0xff); }, "every slot filled");
   // Hit counts that change which records have colours and positions, lengths that are not
   // lengths, colour sums beyond 32 bits.
+  if (version == 3) {
+    expectError("PHIT", [](std::vector<uint8_t>& d) { d[0] ^= 1; }, "one hit record more or less");
+    expectError("QLEN", [](std::vector<uint8_t>& d) { d[d.size() / 2] = 0xff; }, "an infinite or NaN length");
+    const size_t n = m.leafCount();
+    expectError("PHIT", [n](std::vector<uint8_t>& d) { d[(n + 7) / 8 - 1] |= 0x80; }, "a record past the last flagged");
+    expectError("PHIT", [n](std::vector<uint8_t>& d) {
+      const size_t m4 = (d.size() - (n + 7) / 8) / 4;
+      for (int b = 0; b < 4; ++b) d[(n + 7) / 8 + b * m4] = 0;
+    }, "a flagged record without hits");
+    return;
+  }
   expectError("CHIT", [](std::vector<uint8_t>& d) { d[0] = d[0] == 0 ? 1 : 0; }, "one hit record more or less");
   expectError("CLEN", [](std::vector<uint8_t>& d) { d[3 * d.size() / 4] = 0xff; }, "a negative NaN length");
   expectError("CRES", [](std::vector<uint8_t>& d) {
     d.insert(d.begin(), {0xfe, 0xff, 0xff, 0xff, 0x7f});
     d.pop_back();
   }, "a colour sum beyond 32 bits");
+}
+
+TEST(Cmap, CraftedVersionTwoAndThreeBlocksGiveOneClearError) {
+  for (uint32_t version : {2u, 3u}) craftedBlocksGiveOneClearError(version);
 }
 
 TEST(Cmap, FailedWriteLeavesTheOldFileIntact) {

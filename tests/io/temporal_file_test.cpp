@@ -34,10 +34,24 @@ TEST(TemporalFile, RoundTripReadsBackIdentically) {
   const TemporalMap back = io::readTemporalMap(tmp / "m.cmap");
   TemporalMap compacted = map;
   compacted.compact();
-  // Everything exact but the hit positions, which the file keeps quantised (io::asStored).
+  // Everything exact but the hit positions, lengths and colour sums, which the file keeps
+  // quantised (io::asStored): within their bounds, no entry's state changed.
   const TemporalMap stored = io::asStored(compacted);
   EXPECT_FALSE(stored == compacted) << "the sample map has positions to quantise";
   EXPECT_TRUE(back == stored);
+  const auto& written = compacted.parts().entries;
+  const auto& read = back.parts().entries;
+  ASSERT_EQ(read.size(), written.size());
+  for (size_t i = 0; i < read.size(); ++i) {
+    const VoxelCounters& a = written[i].value;
+    const VoxelCounters& b = read[i].value;
+    ASSERT_EQ(b.hits, a.hits);
+    EXPECT_EQ(b.state(), a.state()) << "entry " << i;
+    EXPECT_EQ(b.meanColor(), a.meanColor()) << "entry " << i;
+    if (a.length_m > 0.0f) {
+      EXPECT_LE(std::abs(b.length_m / a.length_m - 1.0f), io::kLengthRelativeError) << "entry " << i;
+    }
+  }
   EXPECT_EQ(back.times(), map.times());
   for (double t : map.times()) EXPECT_TRUE(back.snapshot(t) == stored.snapshot(t));
   // Writing what was read gives the same bytes: the format is deterministic.
@@ -109,10 +123,10 @@ TEST(TemporalFile, SessionFilesAreNotFourDimensional) {
 
 TEST(TemporalFile, CraftedBlocksAreRejected) {
   // Valid container, invalid content: every block is checked, not just the checksums; in the
-  // current format version and in version 1.
+  // current format version, in version 2 and in version 1.
   test::TempDir tmp;
   const TemporalMap map = sampleMap(2);
-  for (uint32_t version : {io::kCmapFormatVersion, 1u}) {
+  for (uint32_t version : {io::kCmapFormatVersion, 2u, 1u}) {
     const io::CmapFile file = io::decodeCmap(io::encodeTemporalMap(map, {}, version), "m.cmap");
     auto rewrite = [&](const std::string& tag, auto&& mutate) {
       io::CmapFile f = file;
@@ -142,7 +156,10 @@ TEST(TemporalFile, CraftedBlocksAreRejected) {
       expectRejected(rewrite("INNR", [](auto& d) { d[3] = 0x12; }), "a reference past the pools");
       continue;
     }
-    for (const char* tag : {"TMSK", "TREF", "LSIZ", "ESES", "CLEN", "CHIT", "CRGB", "CRES", "CPOS"}) {
+    const std::vector<const char*> tags =
+        version == 2 ? std::vector<const char*>{"TMSK", "TREF", "LSIZ", "ESES", "CLEN", "CHIT", "CRGB", "CRES", "CPOS"}
+                     : std::vector<const char*>{"TMSK", "TREF", "LSIZ", "ESES", "QLEN", "PHIT", "CRGB", "CPOS"};
+    for (const char* tag : tags) {
       expectRejected(rewrite(tag, [](auto& d) { d.pop_back(); }), std::string(tag) + " a byte short");
       expectRejected(rewrite(tag, [](auto& d) { d.push_back(0); }), std::string(tag) + " a byte long");
     }

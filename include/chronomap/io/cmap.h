@@ -21,14 +21,20 @@ enum class MapKind : uint32_t { Session = 1, Temporal = 2, Diff = 3, Tiled = 4 }
 const char* toString(MapKind kind);
 
 /// The format version this build writes and the newest it reads. Version 2 stores session and
-/// 4D maps field by field, hit positions quantised (see asStored); version 1 files still read.
-inline constexpr uint32_t kCmapFormatVersion = 2;
+/// 4D maps field by field, hit positions quantised; version 3 also quantises the ray lengths and
+/// keeps colour sums as mean * hits (see asStored); versions 1 and 2 still read.
+inline constexpr uint32_t kCmapFormatVersion = 3;
 
-/// Hit positions in version 2 files are mean offsets from the voxel centre quantised in steps of
+/// Hit positions in version 2 and 3 files are mean offsets from the voxel centre quantised in steps of
 /// 1/254 voxel, zero (the centre) exact: each axis of a voxel's mean hit position is kept to
 /// within half a step, resolution / 508 (plus float rounding), under the resolution / 256 that
 /// the tests check.
 inline constexpr double kPositionStepVoxels = 1.0 / 254.0;
+
+/// Ray lengths in version 3 files keep 8 mantissa bits: each within 2^-9 of the length written,
+/// and within 2^-8 where the nearest value would change the voxel's state (unknown, free,
+/// occupied), which they never do; so P = 1 - exp(-hits / length) moves by at most 2^-8 / e.
+inline constexpr double kLengthRelativeError = 1.0 / 256.0;
 
 /// Fixed-size header of a .cmap file.
 struct CmapHeader {
@@ -83,7 +89,9 @@ void writeSessionMap(const std::filesystem::path& path, const SessionMap& map, c
 SessionMap readSessionMap(const std::filesystem::path& path);
 /// The session map stored in a decoded file. @throw FormatError.
 SessionMap sessionMapFrom(const CmapFile& file, const std::string& source);
-/// `c` as a file keeps it: the hit positions quantised (kPositionStepVoxels), the rest exact.
+/// `c` as a file keeps it: the hit positions quantised (kPositionStepVoxels), the length
+/// quantised (kLengthRelativeError, state kept), each colour sum mean * hits (the mean colour
+/// exact); hits exact.
 /// Reading a written map gives asStored of every counter; asStored(asStored(c)) == asStored(c).
 VoxelCounters asStored(const VoxelCounters& c);
 /// `map` with every leaf asStored: what writing and reading it back gives.
