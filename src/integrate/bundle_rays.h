@@ -79,13 +79,13 @@ inline LaneRay laneRay(const double origin[3], const double end[3], float weight
   return r;
 }
 
-/// Floor division by a positive divisor.
-inline int64_t floorDiv(int64_t a, int64_t b) { return a >= 0 ? a / b : -((-a + b - 1) / b); }
+/// floor(a / 2^level) (an arithmetic shift, as C++20 defines >> of negative values).
+inline int64_t floorShift(int64_t a, int level) { return a >> level; }
 
 /// Coarse carving (IntegratorSettings::carve_level): splits the bundle ray origin -> end (end: a
 /// voxel centre; working voxel units) where it enters the end's **near box**, the coarse cells
 /// within one of the end voxel's coarse cell on every axis. Coarse cells have side S = 2^level
-/// voxels; working cell u lies in coarse cell floorDiv(u + shift, S), so that with shift = (key
+/// voxels; working cell u lies in coarse cell floor((u + shift) / S), so that with shift = (key
 /// of working cell 0) mod S they are aligned to the map's octree nodes of that level. The part
 /// before the box (ray parameter 0 to t_s) becomes `coarse`, a walk through coarse cells of the
 /// grid (clo, cstride); the rest (t_s to 1) `fine`, a walk through unit voxels of the grid (lo,
@@ -104,7 +104,7 @@ inline bool splitCarvedRay(const double origin[3], const double end[3], float we
     first[a] = floorInt(origin[a]);
     last[a] = floorInt(end[a]);
     d[a] = end[a] - origin[a];
-    const int64_t c = floorDiv(last[a] + shift[a], side);
+    const int64_t c = floorShift(last[a] + shift[a], level);
     box_lo[a] = (c - 1) * side - shift[a];
     box_hi[a] = (c + 2) * side - shift[a];
     double t_a = 0.0;
@@ -140,9 +140,9 @@ inline bool splitCarvedRay(const double origin[3], const double end[3], float we
       f = std::min(f, std::min(std::max(first[a], last[a]), box_hi[a] - 1));
     }
     // The coarse walk goes from the origin's coarse cell to the one just before the box.
-    const int64_t c0 = floorDiv(first[a] + shift[a], side);
-    const int64_t c1 = a == entry ? floorDiv((d[a] > 0 ? box_lo[a] - 1 : box_hi[a]) + shift[a], side)
-                                  : floorDiv(f + shift[a], side);
+    const int64_t c0 = floorShift(first[a] + shift[a], level);
+    const int64_t c1 = a == entry ? floorShift((d[a] > 0 ? box_lo[a] - 1 : box_hi[a]) + shift[a], level)
+                                  : floorShift(f + shift[a], level);
     const int64_t fine_n = f < last[a] ? last[a] - f : f - last[a];
     const int64_t coarse_n = c0 < c1 ? c1 - c0 : c0 - c1;
     fine.cell += (f - lo[a]) * stride[a];

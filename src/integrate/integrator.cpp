@@ -362,6 +362,7 @@ struct RayAccumulator::Impl {
   int64_t key_origin[3] = {0, 0, 0};
   VoxelDeltas* frame_out = nullptr;
   std::vector<float> coarse_length;
+  std::vector<detail::LaneRay> fine_rays;
 
   uint32_t newEnd(const int64_t cell[3]) {
     EndEntry e;
@@ -454,12 +455,12 @@ struct RayAccumulator::Impl {
     const int64_t side = int64_t{1} << level;
     int64_t shift[3], clo[3], chi[3];
     for (int a = 0; a < 3; ++a) {
-      shift[a] = key_origin[a] - detail::floorDiv(key_origin[a], side) * side;
-      clo[a] = chi[a] = detail::floorDiv(floorInt(o[a]) + shift[a], side);
+      shift[a] = key_origin[a] & (side - 1);
+      clo[a] = chi[a] = detail::floorShift(floorInt(o[a]) + shift[a], level);
     }
     for (size_t e = 1; e < ends.size(); ++e) {
       for (int a = 0; a < 3; ++a) {
-        const int64_t c = detail::floorDiv(ends[e].cell[a] + shift[a], side);
+        const int64_t c = detail::floorShift(ends[e].cell[a] + shift[a], level);
         clo[a] = std::min(clo[a], c - 2);
         chi[a] = std::max(chi[a], c + 2);
       }
@@ -474,16 +475,18 @@ struct RayAccumulator::Impl {
                                 dense_coarse ? cn[0] * cn[1] : int64_t{1} << (2 * kShift)};
     std::unordered_map<int64_t, float> coarse_hash;
     if (dense_coarse) coarse_length.assign(static_cast<size_t>(coarse_cells), 0.0f);
+    // The fine parts are kept from the first pass for the second.
     const size_t n_ends = ends.size();
+    fine_rays.resize(n_ends);
     size_t e = 1;
-    detail::LaneRay coarse, fine;
     auto next_coarse = [&](detail::LaneRay& r) {
       while (e < n_ends) {
         double target[3];
         bundleTarget(ends[e], target);
         const float w = static_cast<float>(ends[e].hits);
+        const bool split = detail::splitCarvedRay(o, target, w, level, shift, lo, stride, clo, cstride, r, fine_rays[e]);
         ++e;
-        if (detail::splitCarvedRay(o, target, w, level, shift, lo, stride, clo, cstride, r, fine)) return true;
+        if (split) return true;
       }
       return false;
     };
@@ -496,11 +499,7 @@ struct RayAccumulator::Impl {
     e = 1;
     auto next_fine = [&](detail::LaneRay& r) {
       if (e >= n_ends) return false;
-      double target[3];
-      bundleTarget(ends[e], target);
-      detail::splitCarvedRay(o, target, static_cast<float>(ends[e].hits), level, shift, lo, stride, clo, cstride,
-                             coarse, r);
-      ++e;
+      r = fine_rays[e++];
       return true;
     };
     detail::castBundleLanes(next_fine, add, settings.simd);
