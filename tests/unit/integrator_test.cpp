@@ -458,7 +458,7 @@ TEST(Integrator, CompressionKeepsEveryVoxelState) {
 
 TEST(Integrator, CoarseCarvingKeepsHitsAndTheSummedLengthAndMostStates) {
   const sim::PinholeCamera cam = smallCamera(160);
-  auto frames = sim::benchmarkSequence(4, cam);
+  auto frames = sim::benchmarkSequence(3, cam);
   for (auto& f : frames) f.cloud.colors.assign(f.cloud.size(), Rgb{10, 20, 30});
   const double res = 0.02;
   SessionMap exact(res), fast(res), carved(res);
@@ -492,10 +492,15 @@ TEST(Integrator, CoarseCarvingKeepsHitsAndTheSummedLengthAndMostStates) {
   // The summed length is fast mode's up to float rounding (each ray's parts sum to the ray).
   EXPECT_NEAR(len_carved, len_fast, 1e-4 * len_fast);
   // States against exact mode, over the voxels known in both (measured: docs/integration.md).
-  size_t both = 0, agree = 0, occupied = 0, occupied_kept = 0;
+  size_t both = 0, agree = 0, occupied = 0, occupied_kept = 0, both_fast = 0, agree_fast = 0;
   exact.forEachLeaf([&](const LeafView& l) {
     const VoxelState want = l.counters.state();
     const VoxelState got = carved.stateOf(l.key);
+    const VoxelState got_fast = fast.stateOf(l.key);
+    if (got_fast != VoxelState::Unknown) {
+      ++both_fast;
+      agree_fast += got_fast == want;
+    }
     if (want == VoxelState::Occupied) {
       ++occupied;
       occupied_kept += got == VoxelState::Occupied;
@@ -506,11 +511,20 @@ TEST(Integrator, CoarseCarvingKeepsHitsAndTheSummedLengthAndMostStates) {
   });
   const double agreement = static_cast<double>(agree) / static_cast<double>(both);
   const double kept = static_cast<double>(occupied_kept) / static_cast<double>(occupied);
-  std::printf("coarse carving, level 2 at 0.02 m: %zu voxels known in both, states agree %.4f, occupied kept %.4f, "
-              "%llu cubes+voxels merged\n",
-              both, agreement, kept, static_cast<unsigned long long>(sc.voxel_updates));
-  EXPECT_GT(agreement, 0.0);
-  EXPECT_GT(kept, 0.0);
+  const uint64_t known_exact = exact.counts().free_voxels + exact.counts().occupied_voxels;
+  const uint64_t known_carved = carved.counts().free_voxels + carved.counts().occupied_voxels;
+  const uint64_t known_fast = fast.counts().free_voxels + fast.counts().occupied_voxels;
+  std::printf("coarse carving, level 2 at 0.02 m: %zu voxels known in both, states agree %.6f (fast %.6f), "
+              "occupied kept %.6f of %zu, known %llu (exact %llu, fast %llu), %llu cubes+voxels merged\n",
+              both, agreement, static_cast<double>(agree_fast) / static_cast<double>(both_fast), kept, occupied,
+              static_cast<unsigned long long>(known_carved), static_cast<unsigned long long>(known_exact), static_cast<unsigned long long>(known_fast),
+              static_cast<unsigned long long>(sc.voxel_updates));
+  // Measured 1.000000 and 1.000000 (hits decide occupancy, and they are fast mode's), with 14%
+  // more voxels known: those of coarse cubes that no ray crossed, known free here, unknown in
+  // exact mode (docs/integration.md).
+  EXPECT_GT(agreement, 0.999);
+  EXPECT_GT(kept, 0.999);
+  EXPECT_LT(static_cast<double>(known_carved), 1.25 * static_cast<double>(known_exact));
 }
 
 TEST(Integrator, CoarseCarvingGivesTheSameMapOnEveryPathAndThreadCount) {
