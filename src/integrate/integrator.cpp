@@ -484,7 +484,8 @@ struct RayAccumulator::Impl {
         double target[3];
         bundleTarget(ends[e], target);
         const float w = static_cast<float>(ends[e].hits);
-        const bool split = detail::splitCarvedRay(o, target, w, level, shift, lo, stride, clo, cstride, r, fine_rays[e]);
+        const bool split =
+            detail::splitCarvedRay(o, target, w, level, shift, lo, stride, clo, cstride, r, fine_rays[e]);
         ++e;
         if (split) return true;
       }
@@ -508,7 +509,8 @@ struct RayAccumulator::Impl {
     out.cube_level = level;
     const float res = static_cast<float>(grid.resolution_m());
     auto emit = [&](int64_t x, int64_t y, int64_t z, float len) {
-      const int64_t k[3] = {(x + clo[0]) * side - shift[0] + key_origin[0], (y + clo[1]) * side - shift[1] + key_origin[1],
+      const int64_t k[3] = {(x + clo[0]) * side - shift[0] + key_origin[0],
+                            (y + clo[1]) * side - shift[1] + key_origin[1],
                             (z + clo[2]) * side - shift[2] + key_origin[2]};
       out.cube_keys.push_back(
           VoxelKey{static_cast<uint16_t>(k[0]), static_cast<uint16_t>(k[1]), static_cast<uint16_t>(k[2])});

@@ -517,7 +517,8 @@ TEST(Integrator, CoarseCarvingKeepsHitsAndTheSummedLengthAndMostStates) {
   std::printf("coarse carving, level 2 at 0.02 m: %zu voxels known in both, states agree %.6f (fast %.6f), "
               "occupied kept %.6f of %zu, known %llu (exact %llu, fast %llu), %llu cubes+voxels merged\n",
               both, agreement, static_cast<double>(agree_fast) / static_cast<double>(both_fast), kept, occupied,
-              static_cast<unsigned long long>(known_carved), static_cast<unsigned long long>(known_exact), static_cast<unsigned long long>(known_fast),
+              static_cast<unsigned long long>(known_carved), static_cast<unsigned long long>(known_exact),
+              static_cast<unsigned long long>(known_fast),
               static_cast<unsigned long long>(sc.voxel_updates));
   // Measured 1.000000 and 1.000000 (hits decide occupancy, and they are fast mode's), with 14%
   // more voxels known: those of coarse cubes that no ray crossed, known free here, unknown in
