@@ -118,8 +118,9 @@ struct Result {
   std::string disk_note;
 };
 
-Result runChronomap(const Input& in, double res, bool fast, int threads, bool positions) {
+Result runChronomap(const Input& in, double res, bool fast, int threads, bool positions, int carve_level = 0) {
   IntegratorSettings s;
+  s.carve_level = carve_level;
   s.max_range_m = kMaxRange;
   s.fast = fast;
   s.threads = threads;
@@ -127,7 +128,8 @@ Result runChronomap(const Input& in, double res, bool fast, int threads, bool po
   const FrameVector frames(in.frames);
   Result r;
   r.method = std::string("chronomap ") + (fast ? "fast" : "exact") + ", " + std::to_string(threads) + " thread" +
-             (threads > 1 ? "s" : "") + (positions ? "" : ", no positions");
+             (threads > 1 ? "s" : "") + (positions ? "" : ", no positions") +
+             (carve_level > 0 ? ", carve level " + std::to_string(carve_level) : "");
   r.threads = threads;
   SessionMap map(res);
   const double c0 = cpuNow();
@@ -177,7 +179,7 @@ Result fromPeer(std::string method, const peers::PeerResult& p, std::string note
 // Row indices of measure()'s results.
 enum Row : size_t {
   kOctoPlain, kOctoDisc, kExact1, kExact2, kExact1Bare, kExact2Bare, kFast1, kFast2, kFast1Bare, kFast2Bare,
-  kBonxai, kUfo0, kUfo2, kRows
+  kBonxai, kUfo0, kUfo2, kFast1Carve2, kRows
 };
 
 /// Runs every method once per round and keeps each one's best time, so that slow drifts of the
@@ -194,6 +196,7 @@ std::vector<Result> measure(const Input& in, double res, int rounds, bool fast_o
   methods[kFast2] = [&] { return runChronomap(in, res, true, 2, true); };
   methods[kFast1Bare] = [&] { return runChronomap(in, res, true, 1, false); };
   methods[kFast2Bare] = [&] { return runChronomap(in, res, true, 2, false); };
+  methods[kFast1Carve2] = [&] { return runChronomap(in, res, true, 1, true, 2); };
   methods[kBonxai] = [&] {
     return fromPeer("Bonxai ProbabilisticMap", peers::runBonxai(in.peer, res, kMaxRange), "Serialize");
   };
@@ -207,7 +210,7 @@ std::vector<Result> measure(const Input& in, double res, int rounds, bool fast_o
   for (int round = 0; round < rounds; ++round) {
     for (size_t m = 0; m < kRows; ++m) {
       if (round > 0 && best[m].seconds > 10.0) continue;
-      if (fast_only && m != kFast1 && m != kFast2 && m != kFast1Bare && m != kFast2Bare) continue;
+      if (fast_only && m != kFast1 && m != kFast2 && m != kFast1Bare && m != kFast2Bare && m != kFast1Carve2) continue;
       const Result r = methods[m]();
       if (round == 0 || r.time() < best[m].time()) best[m] = r;
     }
@@ -270,12 +273,14 @@ int main(int argc, char** argv) {
       const std::vector<Result> results = measure(in, res, rounds, fast_only);
       const Result& fast = results[kFast1];
       if (fast_only) {
-        for (size_t k : {kFast1, kFast2, kFast1Bare, kFast2Bare}) {
+        for (size_t k : {kFast1, kFast2, kFast1Bare, kFast2Bare, kFast1Carve2}) {
           const Result& r = results[k];
           std::printf("| %s | %.2f ms wall | %.2f CPU ms/frame | %.2f MiB | %.2f MiB .cmap |\n", r.method.c_str(),
                       1e3 * r.seconds / nframes, 1e3 * r.cpu_seconds / nframes, mib(r.memory), mib(r.disk));
         }
         summary["fast_ms_per_frame_" + std::string(res == 0.05 ? "5cm" : "2cm")] = 1e3 * fast.time() / nframes;
+        summary["fast_carve2_ms_per_frame_" + std::string(res == 0.05 ? "5cm" : "2cm")] =
+            1e3 * results[kFast1Carve2].time() / nframes;
         continue;
       }
       std::printf("| %s | %s | %s | %s | %s | %s | %s |\n|---|---:|---:|---:|---:|---:|---:|\n", "method",
@@ -307,6 +312,13 @@ int main(int argc, char** argv) {
       summary["memory_vs_best_peer_" + key] = fast.memory / best_peer_memory;
       summary["fast_vs_octomap_discretized_" + key] = results[kOctoDisc].time() / fast.time();
       summary["fast_ms_per_frame_" + key] = 1e3 * fast.time() / nframes;
+      // Coarse carving (IntegratorSettings::carve_level = 2, docs/integration.md) against the peers.
+      const Result& carve = results[kFast1Carve2];
+      summary["fast_carve2_vs_bonxai_" + key] = results[kBonxai].time() / carve.time();
+      summary["fast_carve2_vs_ufomap_" + key] = results[kUfo0].time() / carve.time();
+      summary["fast_carve2_vs_ufomap_d2_" + key] = results[kUfo2].time() / carve.time();
+      summary["fast_carve2_ms_per_frame_" + key] = 1e3 * carve.time() / nframes;
+      summary["disk_carve2_vs_ufomap_" + key] = carve.disk / results[kUfo0].disk;
       if (synthetic && res == 0.05) {
         summary["fast_vs_octomap_discretized"] = results[kOctoDisc].time() / fast.time();
         summary["memory_vs_best_peer"] = fast.memory / best_peer_memory;

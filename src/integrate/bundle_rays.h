@@ -14,6 +14,7 @@
 /// on every machine.
 
 #include <cmath>
+#include <algorithm>
 #include <cstdint>
 #include <limits>
 
@@ -35,6 +36,8 @@ struct LaneRay {
   int64_t step[3] = {0, 0, 0};    ///< index change per crossing (0 on axes never crossed)
   int64_t steps = 0;              ///< crossings in all
   float weight = 0;               ///< the ray's weight (points in the bundle)
+  double t0 = 0.0;                ///< ray parameter where the walk starts (a part of a ray: carving)
+  double t_end = 1.0;             ///< ... and where it stops; every crossing counted in `steps` lies below
 };
 
 /// floor() for finite values of moderate size, inlined (std::floor is a library call on x86-64).
@@ -76,11 +79,102 @@ inline LaneRay laneRay(const double origin[3], const double end[3], float weight
   return r;
 }
 
+/// floor(a / 2^level) (an arithmetic shift, as C++20 defines >> of negative values).
+inline int64_t floorShift(int64_t a, int level) { return a >> level; }
+
+/// Coarse carving (IntegratorSettings::carve_level): splits the bundle ray origin -> end (end: a
+/// voxel centre; working voxel units) where it enters the end's **near box**, the coarse cells
+/// within one of the end voxel's coarse cell on every axis. Coarse cells have side S = 2^level
+/// voxels; working cell u lies in coarse cell floor((u + shift) / S), so that with shift = (key
+/// of working cell 0) mod S they are aligned to the map's octree nodes of that level. The part
+/// before the box (ray parameter 0 to t_s) becomes `coarse`, a walk through coarse cells of the
+/// grid (clo, cstride); the rest (t_s to 1) `fine`, a walk through unit voxels of the grid (lo,
+/// stride). Both keep the whole ray's length and parameter, so their lengths sum to the ray's.
+/// Returns false when the origin lies inside the near box: then `fine` is laneRay() itself.
+inline bool splitCarvedRay(const double origin[3], const double end[3], float weight, int level,
+                           const int64_t shift[3], const int64_t lo[3], const int64_t stride[3], const int64_t clo[3],
+                           const int64_t cstride[3], LaneRay& coarse, LaneRay& fine) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const int64_t side = int64_t{1} << level;
+  int64_t first[3], last[3], box_lo[3], box_hi[3];  // box: [box_lo, box_hi) in working voxels
+  double d[3];
+  double t_s = 0.0;
+  int entry = -1;  // the axis on which the ray enters the near box
+  for (int a = 0; a < 3; ++a) {
+    first[a] = floorInt(origin[a]);
+    last[a] = floorInt(end[a]);
+    d[a] = end[a] - origin[a];
+    const int64_t c = floorShift(last[a] + shift[a], level);
+    box_lo[a] = (c - 1) * side - shift[a];
+    box_hi[a] = (c + 2) * side - shift[a];
+    double t_a = 0.0;
+    if (origin[a] < static_cast<double>(box_lo[a])) {
+      t_a = (static_cast<double>(box_lo[a]) - origin[a]) / d[a];
+    } else if (origin[a] >= static_cast<double>(box_hi[a])) {
+      t_a = (static_cast<double>(box_hi[a]) - origin[a]) / d[a];
+    }
+    if (t_a > t_s) {
+      t_s = t_a;
+      entry = a;
+    }
+  }
+  if (entry < 0) {
+    fine = laneRay(origin, end, weight, lo, stride);
+    return false;
+  }
+  const double length = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+  coarse = LaneRay{};
+  fine = LaneRay{};
+  coarse.weight = fine.weight = weight;
+  coarse.length = fine.length = length;
+  coarse.t_end = fine.t0 = t_s;
+  for (int a = 0; a < 3; ++a) {
+    // The unit voxel where the fine walk starts: inside the box on the entry axis, else where the
+    // entry point lies, kept between the origin's and the end's voxel and inside the box.
+    int64_t f = 0;
+    if (a == entry) {
+      f = d[a] > 0 ? box_lo[a] : box_hi[a] - 1;
+    } else {
+      f = floorInt(origin[a] + t_s * d[a]);
+      f = std::max(f, std::max(std::min(first[a], last[a]), box_lo[a]));
+      f = std::min(f, std::min(std::max(first[a], last[a]), box_hi[a] - 1));
+    }
+    // The coarse walk goes from the origin's coarse cell to the one just before the box.
+    const int64_t c0 = floorShift(first[a] + shift[a], level);
+    const int64_t c1 = a == entry ? floorShift((d[a] > 0 ? box_lo[a] - 1 : box_hi[a]) + shift[a], level)
+                                  : floorShift(f + shift[a], level);
+    const int64_t fine_n = f < last[a] ? last[a] - f : f - last[a];
+    const int64_t coarse_n = c0 < c1 ? c1 - c0 : c0 - c1;
+    fine.cell += (f - lo[a]) * stride[a];
+    coarse.cell += (c0 - clo[a]) * cstride[a];
+    fine.steps += fine_n;
+    coarse.steps += coarse_n;
+    const double inv = d[a] != 0.0 ? 1.0 / std::abs(d[a]) : kInf;
+    if (fine_n == 0) {
+      fine.t_max[a] = fine.t_delta[a] = kInf;
+    } else {
+      fine.t_delta[a] = inv;
+      fine.t_max[a] = (d[a] > 0 ? static_cast<double>(f) + 1.0 - origin[a] : origin[a] - static_cast<double>(f)) * inv;
+      fine.step[a] = d[a] > 0 ? stride[a] : -stride[a];
+    }
+    if (coarse_n == 0) {
+      coarse.t_max[a] = coarse.t_delta[a] = kInf;
+    } else {
+      const double next = static_cast<double>((d[a] > 0 ? c0 + 1 : c0) * side - shift[a]);  // next boundary
+      coarse.t_delta[a] = static_cast<double>(side) * inv;
+      coarse.t_max[a] = (d[a] > 0 ? next - origin[a] : origin[a] - next) * inv;
+      coarse.step[a] = d[a] > 0 ? cstride[a] : -cstride[a];
+    }
+  }
+  return true;
+}
+
 /// Lanes of ray state, laid out for vector loads. A lane without a ray is all zeros with
 /// steps = -1 (it never finishes and its calls are skipped).
 constexpr int kLanes = 8;
 struct Lanes {
-  alignas(32) double tx[kLanes], ty[kLanes], tz[kLanes], t[kLanes], dx[kLanes], dy[kLanes], dz[kLanes], len[kLanes];
+  alignas(32) double tx[kLanes], ty[kLanes], tz[kLanes], t[kLanes], dx[kLanes], dy[kLanes], dz[kLanes], len[kLanes],
+      te[kLanes];
   alignas(32) int64_t cell[kLanes], sx[kLanes], sy[kLanes], sz[kLanes], steps[kLanes];
   alignas(32) float w[kLanes];
 
@@ -91,7 +185,7 @@ struct Lanes {
     LaneRay r;
     while (next(r)) {
       if (r.steps == 0) {
-        add(r.cell, r.weight * static_cast<float>((1.0 - 0.0) * r.length));
+        add(r.cell, r.weight * static_cast<float>((r.t_end - r.t0) * r.length));
         continue;
       }
       tx[k] = r.t_max[0];
@@ -100,7 +194,8 @@ struct Lanes {
       dx[k] = r.t_delta[0];
       dy[k] = r.t_delta[1];
       dz[k] = r.t_delta[2];
-      t[k] = 0.0;
+      t[k] = r.t0;
+      te[k] = r.t_end;
       len[k] = r.length;
       cell[k] = r.cell;
       sx[k] = r.step[0];
@@ -110,7 +205,7 @@ struct Lanes {
       w[k] = r.weight;
       return true;
     }
-    tx[k] = ty[k] = tz[k] = t[k] = dx[k] = dy[k] = dz[k] = len[k] = 0.0;
+    tx[k] = ty[k] = tz[k] = t[k] = dx[k] = dy[k] = dz[k] = len[k] = te[k] = 0.0;
     cell[k] = sx[k] = sy[k] = sz[k] = 0;
     steps[k] = -1;
     w[k] = 0.0f;
@@ -131,7 +226,7 @@ struct Lanes {
   unsigned finish(unsigned done, unsigned live, Next& next, Add& add) {
     for (int k = 0; k < kLanes; ++k) {
       if (!(done >> k & 1u)) continue;
-      add(cell[k], w[k] * static_cast<float>((1.0 - t[k]) * len[k]));
+      add(cell[k], w[k] * static_cast<float>((te[k] - t[k]) * len[k]));
       if (!refill(k, next, add)) live &= ~(1u << k);
     }
     return live;
@@ -156,7 +251,7 @@ void castLanesPortable(Next& next, Add& add) {
         const int64_t mx = -static_cast<int64_t>(s.tx[k] == tc);
         const int64_t my = ~mx & -static_cast<int64_t>(s.ty[k] == tc);
         const int64_t mz = ~(mx | my);
-        const double tn = std::min(std::max(tc, s.t[k]), 1.0);
+        const double tn = std::min(std::max(tc, s.t[k]), s.te[k]);
         cells[k] = s.cell[k];
         values[k] = s.w[k] * static_cast<float>((tn - s.t[k]) * s.len[k]);
         s.t[k] = tn;
@@ -189,17 +284,17 @@ template <class Next, class Add>
 __attribute__((target("avx2"))) void castLanesAvx2(Next& next, Add& add) {
   Lanes s;
   unsigned live = s.fill(next, add);
-  const __m256d one = _mm256_set1_pd(1.0);
   const __m256i zero = _mm256_setzero_si256(), minus_one = _mm256_set1_epi64x(-1);
   // Groups of four lanes: g = 0 holds lanes 0-3, g = 1 lanes 4-7.
   while (live != 0) {
-    __m256d tx[kLanes / 4], ty[kLanes / 4], tz[kLanes / 4], t[kLanes / 4];
+    __m256d tx[kLanes / 4], ty[kLanes / 4], tz[kLanes / 4], t[kLanes / 4], te[kLanes / 4];
     __m256i cell[kLanes / 4], steps[kLanes / 4];
     for (int g = 0; g < kLanes / 4; ++g) {
       tx[g] = _mm256_load_pd(s.tx + 4 * g);
       ty[g] = _mm256_load_pd(s.ty + 4 * g);
       tz[g] = _mm256_load_pd(s.tz + 4 * g);
       t[g] = _mm256_load_pd(s.t + 4 * g);
+      te[g] = _mm256_load_pd(s.te + 4 * g);
       cell[g] = ld(s.cell + 4 * g);
       steps[g] = ld(s.steps + 4 * g);
     }
@@ -213,7 +308,7 @@ __attribute__((target("avx2"))) void castLanesAvx2(Next& next, Add& add) {
         const __m256d mx = _mm256_cmp_pd(tx[g], tc, _CMP_EQ_OQ);
         const __m256d my = _mm256_andnot_pd(mx, _mm256_cmp_pd(ty[g], tc, _CMP_EQ_OQ));
         const __m256d mz = _mm256_andnot_pd(_mm256_or_pd(mx, my), _mm256_castsi256_pd(minus_one));
-        const __m256d tn = _mm256_min_pd(_mm256_max_pd(tc, t[g]), one);
+        const __m256d tn = _mm256_min_pd(_mm256_max_pd(tc, t[g]), te[g]);
         const __m256d seg = _mm256_mul_pd(_mm256_sub_pd(tn, t[g]), _mm256_load_pd(s.len + 4 * g));
         _mm_store_ps(values + 4 * g, _mm_mul_ps(_mm_load_ps(s.w + 4 * g), _mm256_cvtpd_ps(seg)));
         st(cells + 4 * g, cell[g]);

@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cmath>
 #include <sstream>
+#include <string>
 #include <thread>
 #include <unordered_map>
 
@@ -356,6 +357,12 @@ struct RayAccumulator::Impl {
   DenseStore dense;
   HashStore hash;
   CubeStore cube;
+  // Coarse carving (settings.carve_level > 0): key of working cell 0, the frame's deltas (the
+  // cubes go straight there), the coarse cells' lengths in voxel units.
+  int64_t key_origin[3] = {0, 0, 0};
+  VoxelDeltas* frame_out = nullptr;
+  std::vector<float> coarse_length;
+  std::vector<detail::LaneRay> fine_rays;
 
   uint32_t newEnd(const int64_t cell[3]) {
     EndEntry e;
@@ -421,6 +428,10 @@ struct RayAccumulator::Impl {
   /// through here, so all of them form the same float sums.
   template <class Add>
   void castBundleRays(const double o[3], const int64_t lo[3], const int64_t stride[3], Add&& add) {
+    if (settings.carve_level > 0) {
+      castCarved(o, lo, stride, add);
+      return;
+    }
     size_t e = 1;
     auto next = [&](detail::LaneRay& r) {
       if (e >= ends.size()) return false;
@@ -432,6 +443,98 @@ struct RayAccumulator::Impl {
     };
     detail::castBundleLanes(next, add, settings.simd);
   }
+  /// castBundleRays() with coarse carving (IntegratorSettings::carve_level, bundle_rays.h
+  /// splitCarvedRay()): first the coarse parts of every bundle ray, in bundle order, into a grid
+  /// of coarse cells (dense over their box, or a hash table for boxes over dense_grid_max_cells:
+  /// the same sums either way), emitted as cubes in raster order; then the fine parts as
+  /// castBundleRays() casts whole rays. The grid the fine parts go to does not change the coarse
+  /// sums, so every scratch path gives the same map.
+  template <class Add>
+  void castCarved(const double o[3], const int64_t lo[3], const int64_t stride[3], Add& add) {
+    const int level = settings.carve_level;
+    const int64_t side = int64_t{1} << level;
+    int64_t shift[3], clo[3], chi[3];
+    for (int a = 0; a < 3; ++a) {
+      shift[a] = key_origin[a] & (side - 1);
+      clo[a] = chi[a] = detail::floorShift(floorInt(o[a]) + shift[a], level);
+    }
+    for (size_t e = 1; e < ends.size(); ++e) {
+      for (int a = 0; a < 3; ++a) {
+        const int64_t c = detail::floorShift(ends[e].cell[a] + shift[a], level);
+        clo[a] = std::min(clo[a], c - 2);
+        chi[a] = std::max(chi[a], c + 2);
+      }
+    }
+    const int64_t cn[3] = {chi[0] - clo[0] + 1, chi[1] - clo[1] + 1, chi[2] - clo[2] + 1};
+    const double coarse_cells = static_cast<double>(cn[0]) * static_cast<double>(cn[1]) * static_cast<double>(cn[2]);
+    const bool dense_coarse = coarse_cells <= static_cast<double>(settings.dense_grid_max_cells);
+    // The hash table's cells are packed (c - clo) with 21 bits per axis.
+    constexpr int kShift = 21;
+    constexpr int64_t kMask = (int64_t{1} << kShift) - 1;
+    const int64_t cstride[3] = {1, dense_coarse ? cn[0] : int64_t{1} << kShift,
+                                dense_coarse ? cn[0] * cn[1] : int64_t{1} << (2 * kShift)};
+    std::unordered_map<int64_t, float> coarse_hash;
+    if (dense_coarse) coarse_length.assign(static_cast<size_t>(coarse_cells), 0.0f);
+    // The fine parts are kept from the first pass for the second.
+    const size_t n_ends = ends.size();
+    fine_rays.resize(n_ends);
+    size_t e = 1;
+    auto next_coarse = [&](detail::LaneRay& r) {
+      while (e < n_ends) {
+        double target[3];
+        bundleTarget(ends[e], target);
+        const float w = static_cast<float>(ends[e].hits);
+        const bool split =
+            detail::splitCarvedRay(o, target, w, level, shift, lo, stride, clo, cstride, r, fine_rays[e]);
+        ++e;
+        if (split) return true;
+      }
+      return false;
+    };
+    if (dense_coarse) {
+      float* length = coarse_length.data();
+      detail::castBundleLanes(next_coarse, [length](int64_t c, float v) { length[c] += v; }, settings.simd);
+    } else {
+      detail::castBundleLanes(next_coarse, [&coarse_hash](int64_t c, float v) { coarse_hash[c] += v; }, settings.simd);
+    }
+    e = 1;
+    auto next_fine = [&](detail::LaneRay& r) {
+      if (e >= n_ends) return false;
+      r = fine_rays[e++];
+      return true;
+    };
+    detail::castBundleLanes(next_fine, add, settings.simd);
+    // The cubes, in raster order of their cells (z, then y, then x).
+    VoxelDeltas& out = *frame_out;
+    out.cube_level = level;
+    const float res = static_cast<float>(grid.resolution_m());
+    auto emit = [&](int64_t x, int64_t y, int64_t z, float len) {
+      const int64_t k[3] = {(x + clo[0]) * side - shift[0] + key_origin[0],
+                            (y + clo[1]) * side - shift[1] + key_origin[1],
+                            (z + clo[2]) * side - shift[2] + key_origin[2]};
+      out.cube_keys.push_back(
+          VoxelKey{static_cast<uint16_t>(k[0]), static_cast<uint16_t>(k[1]), static_cast<uint16_t>(k[2])});
+      out.cube_length_m.push_back(len * res);
+    };
+    if (dense_coarse) {
+      size_t idx = 0;
+      for (int64_t z = 0; z < cn[2]; ++z) {
+        for (int64_t y = 0; y < cn[1]; ++y) {
+          for (int64_t x = 0; x < cn[0]; ++x, ++idx) {
+            if (coarse_length[idx] > 0.0f) emit(x, y, z, coarse_length[idx]);
+          }
+        }
+      }
+    } else {
+      std::vector<std::pair<int64_t, float>> cells(coarse_hash.begin(), coarse_hash.end());
+      // Packed z, y, x from the top bits down: sorting the codes is raster order.
+      std::sort(cells.begin(), cells.end());
+      for (const auto& [c, len] : cells) {
+        if (len > 0.0f) emit(c & kMask, (c >> kShift) & kMask, c >> (2 * kShift), len);
+      }
+    }
+  }
+
   /// Casts the bundles into the bounding-box store's lengths.
   void castBundles(const double o[3]) {
     DenseStore& d = dense;
@@ -676,7 +779,11 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
   Impl& s = *impl_;
   out.keys.clear();
   out.deltas.clear();
+  out.cube_keys.clear();
+  out.cube_length_m.clear();
+  out.cube_level = 0;
   out.stats = IntegrationStats{};
+  s.frame_out = &out;
   IntegrationStats& st = out.stats;
   st.frames = 1;
 
@@ -704,6 +811,7 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
     const int64_t cell = floorInt(origin_u[a]);
     oc[a] = cell - bias;
     o[a] = origin_u[a] - static_cast<double>(cell) + static_cast<double>(bias);
+    s.key_origin[a] = oc[a];
   }
   // When the whole range cube lies inside the map, no point needs a bounds test.
   bool cube_inside = true;
@@ -795,7 +903,7 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
     if (s.settings.carve_beyond_range && out_of_range > 0) {
       s.carveBeyondRange(Rm, of, oc, cube_inside, max_range, max_range_sq, out);
     }
-    st.voxel_updates = out.keys.size();
+    st.voxel_updates = out.keys.size() + out.cube_keys.size();
     return;
   }
 
@@ -838,7 +946,7 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
       if (s.settings.carve_beyond_range && out_of_range > 0) {
         s.carveBeyondRange(Rm, of, oc, cube_inside, max_range, max_range_sq, out);
       }
-      st.voxel_updates = out.keys.size();
+      st.voxel_updates = out.keys.size() + out.cube_keys.size();
       return;
     }
   }
@@ -887,7 +995,7 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
   const bool carve = s.settings.carve_beyond_range && st.points_out_of_range > 0;
   if (st.points == 0) {
     if (carve) s.carveBeyondRange(Rm, of, oc, cube_inside, max_range, max_range_sq, out);
-    st.voxel_updates = out.keys.size();
+    st.voxel_updates = out.keys.size() + out.cube_keys.size();
     return;
   }
 
@@ -916,7 +1024,7 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
   }
   if (s.settings.fast) st.rays = s.ends.size() - 1;
   if (carve) s.carveBeyondRange(Rm, of, oc, cube_inside, max_range, max_range_sq, out);
-  st.voxel_updates = out.keys.size();
+  st.voxel_updates = out.keys.size() + out.cube_keys.size();
 }
 
 namespace {
@@ -944,9 +1052,18 @@ void checkSettings(const IntegratorSettings& settings) {
     throw UsageError("max range must be a positive number of metres");
   }
   if (settings.threads < 0) throw UsageError("thread count must be 0 (all cores) or positive");
+  if (settings.carve_level < 0 || settings.carve_level > kMaxCarveLevel) {
+    throw UsageError("carve level must be 0 (off) to " + std::to_string(kMaxCarveLevel));
+  }
+  if (settings.carve_level > 0 && !settings.fast) throw UsageError("carving free space coarser needs fast mode");
 }
 
 }  // namespace
+
+void mergeDeltas(SessionMap& map, const VoxelDeltas& deltas) {
+  map.addMany(deltas.keys, deltas.deltas);
+  if (!deltas.cube_keys.empty()) map.addCubes(deltas.cube_keys, deltas.cube_level, deltas.cube_length_m);
+}
 
 size_t defaultMemoryLimitBytes() {
   const long pages = ::sysconf(_SC_PHYS_PAGES), page_bytes = ::sysconf(_SC_PAGE_SIZE);
@@ -972,7 +1089,7 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
       } else {
         acc.accumulate(source.load(i), deltas);
       }
-      map.addMany(deltas.keys, deltas.deltas);
+      mergeDeltas(map, deltas);
       checkMapMemory(map, settings);
       total += deltas.stats;
       if (progress) progress(i + 1, n);
@@ -1036,7 +1153,7 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
             CHRONOMAP_HAPPENS_AFTER(&setup_done);
             CHRONOMAP_HAPPENS_AFTER(&handed_over);
             CHRONOMAP_HAPPENS_AFTER(&merge_turn);  // one merge after another
-            map.addMany(buffers[b].keys, buffers[b].deltas);
+            mergeDeltas(map, buffers[b]);
             try {
               checkMapMemory(map, settings);
             } catch (...) {
@@ -1079,7 +1196,7 @@ IncrementalIntegrator::IncrementalIntegrator(double resolution_m, const Integrat
 IntegrationStats IncrementalIntegrator::add(const Frame& frame) {
   const auto start = std::chrono::steady_clock::now();
   accumulator_.accumulate(frame, deltas_);
-  map_.addMany(deltas_.keys, deltas_.deltas);
+  mergeDeltas(map_, deltas_);
   checkMapMemory(map_, settings_);
   IntegrationStats frame_stats = deltas_.stats;
   frame_stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

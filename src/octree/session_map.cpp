@@ -134,6 +134,33 @@ void SessionMap::addCube(const VoxelKey& corner, int level, const VoxelCounters&
   spreadInto(node, childSlot(corner, level), level, sums);
 }
 
+void SessionMap::addCubes(std::span<const VoxelKey> corners, int level, std::span<const float> lengths_m) {
+  if (corners.size() != lengths_m.size()) throw UsageError("addCubes: corners and lengths differ in length");
+  if (level < 1 || level >= kTreeDepth) throw UsageError("addCubes: level " + std::to_string(level) + " out of range");
+  const uint32_t low = (1u << level) - 1;
+  // path[l] is the inner node at level l on the way to the previous cube (path[kTreeDepth] = root).
+  std::array<uint32_t, kTreeDepth + 1> path{};
+  path[kTreeDepth] = 0;
+  VoxelKey prev{};
+  bool have_prev = false;
+  for (size_t i = 0; i < corners.size(); ++i) {
+    const VoxelKey& key = corners[i];
+    if (((key.x | key.y | key.z) & low) != 0) throw UsageError("addCubes: corner not aligned to the cube");
+    if (!(lengths_m[i] > 0.0f)) continue;
+    int from = kTreeDepth;  // level of the deepest valid common ancestor in path
+    if (have_prev) {
+      const uint32_t diff = static_cast<uint32_t>((key.x ^ prev.x) | (key.y ^ prev.y) | (key.z ^ prev.z));
+      from = diff == 0 ? level + 1 : std::bit_width(diff);
+    }
+    for (int l = from; l > level + 1; --l) path[l - 1] = descend(path[l], childSlot(key, l - 1));
+    VoxelCounters sums;
+    sums.length_m = lengths_m[i];
+    spreadInto(path[level + 1], childSlot(key, level), level, sums);
+    prev = key;
+    have_prev = true;
+  }
+}
+
 void SessionMap::mergeInto(uint32_t parent, int slot, int level, const SessionMap& other, Ref src) {
   if (src == kEmpty) return;
   if (isLeaf(src)) {

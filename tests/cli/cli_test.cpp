@@ -101,6 +101,27 @@ TEST(Cli, IntegrateRecordsHitPositionsUnlessToldNot) {
   EXPECT_GT(placed, 1000u);
 }
 
+// Coarse carving: --carve-level with --fast is recorded in the metadata and keeps the hits;
+// without --fast it is refused.
+TEST(Cli, IntegrateCarvesCoarserWhenAsked) {
+  CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
+  test::TempDir tmp;
+  auto r = test::runCommand(cli() + " integrate " + root.string() + " --fast --carve-level 2 -o " +
+                            (tmp / "carved.cmap").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = test::runCommand(cli() + " integrate " + root.string() + " --fast -o " + (tmp / "fast.cmap").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(io::metadataOf(io::readCmap(tmp / "carved.cmap"))["carve_level"], 2);
+  EXPECT_FALSE(io::metadataOf(io::readCmap(tmp / "fast.cmap")).contains("carve_level"));
+  const double occupied = static_cast<double>(io::readSessionMap(tmp / "fast.cmap").counts().occupied_voxels);
+  EXPECT_NEAR(static_cast<double>(io::readSessionMap(tmp / "carved.cmap").counts().occupied_voxels), occupied,
+              0.01 * occupied);
+  r = test::runCommand(cli() + " integrate " + root.string() + " --carve-level 2 -o " + (tmp / "x.cmap").string());
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("needs fast mode"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(tmp / "x.cmap"));
+}
+
 TEST(Cli, BadDataExitsWithOneAndWritesNothing) {
   test::TempDir tmp;
   std::ofstream(tmp / "broken.cmap") << "definitely not a map";

@@ -145,5 +145,109 @@ TEST(BundleLanes, VectorAndPortableLanesMakeTheSameCalls) {
   EXPECT_TRUE(castLanes({}, true).empty());
 }
 
+
+// Coarse carving (splitCarvedRay, IntegratorSettings::carve_level): the lanes against a slow
+// reference that clips the ray against every coarse cell and unit voxel of its bounding box.
+
+/// The reference for one ray: where it enters the near box (the coarse cells within one of its
+/// end voxel's coarse cell; coarse cell of voxel u: floor((u + shift) / 2^level)), the length of
+/// the part before that inside every coarse cell and of the rest inside every unit voxel, in
+/// voxel units times the weight. Cells are indexed as in the lanes' grids (kLo, kStride).
+void carveReference(const Ray& r, int level, const int64_t shift[3], std::map<int64_t, double>& coarse,
+                    std::map<int64_t, double>& fine) {
+  const double side = std::ldexp(1.0, level);
+  double d[3], lo[3], hi[3];
+  double len2 = 0.0;
+  for (int a = 0; a < 3; ++a) {
+    d[a] = r.end[a] - r.o[a];
+    len2 += d[a] * d[a];
+    const double c = std::floor((std::floor(r.end[a]) + static_cast<double>(shift[a])) / side);
+    lo[a] = (c - 1) * side - static_cast<double>(shift[a]);
+    hi[a] = (c + 2) * side - static_cast<double>(shift[a]);
+  }
+  const double len = std::sqrt(len2);
+  double t_s = 0.0;
+  for (int a = 0; a < 3; ++a) {
+    if (r.o[a] < lo[a]) t_s = std::max(t_s, (lo[a] - r.o[a]) / d[a]);
+    if (r.o[a] >= hi[a]) t_s = std::max(t_s, (hi[a] - r.o[a]) / d[a]);
+  }
+  // Length of the part [t0, t1] of the ray inside the box [b0, b1).
+  auto clip = [&](double t0, double t1, const double b0[3], const double b1[3]) {
+    for (int a = 0; a < 3; ++a) {
+      if (d[a] == 0.0) {
+        if (r.o[a] < b0[a] || r.o[a] >= b1[a]) return 0.0;
+        continue;
+      }
+      double u = (b0[a] - r.o[a]) / d[a], v = (b1[a] - r.o[a]) / d[a];
+      if (u > v) std::swap(u, v);
+      t0 = std::max(t0, u);
+      t1 = std::min(t1, v);
+    }
+    return t1 > t0 ? (t1 - t0) * len * r.weight : 0.0;
+  };
+  auto walk = [&](double t0, double t1, double cell, const int64_t off[3], std::map<int64_t, double>& out) {
+    int64_t c0[3], c1[3];
+    for (int a = 0; a < 3; ++a) {
+      const double p = r.o[a] + t0 * d[a], q = r.o[a] + t1 * d[a];
+      c0[a] = static_cast<int64_t>(std::floor((std::min(p, q) + static_cast<double>(off[a])) / cell)) - 1;
+      c1[a] = static_cast<int64_t>(std::floor((std::max(p, q) + static_cast<double>(off[a])) / cell)) + 1;
+    }
+    for (int64_t z = c0[2]; z <= c1[2]; ++z) {
+      for (int64_t y = c0[1]; y <= c1[1]; ++y) {
+        for (int64_t x = c0[0]; x <= c1[0]; ++x) {
+          const int64_t c[3] = {x, y, z};
+          double b0[3], b1[3];
+          for (int a = 0; a < 3; ++a) {
+            b0[a] = static_cast<double>(c[a]) * cell - static_cast<double>(off[a]);
+            b1[a] = b0[a] + cell;
+          }
+          const double l = clip(t0, t1, b0, b1);
+          if (l > 0.0) out[indexOf(x, y, z)] += l;
+        }
+      }
+    }
+  };
+  const int64_t none[3] = {0, 0, 0};
+  if (t_s > 0.0) walk(0.0, t_s, side, shift, coarse);
+  walk(t_s, 1.0, 1.0, none, fine);
+}
+
+TEST(BundleLanes, CoarseCarvingEqualsTheClippingReference) {
+  const int64_t shift[3] = {1, 2, 3};
+  for (int level : {1, 2, 3}) {
+    const std::vector<Ray> rays = randomRays(40 + level, 300, 60);
+    for (const Ray& ray : rays) {
+      std::map<int64_t, double> want_coarse, want_fine;
+      carveReference(ray, level, shift, want_coarse, want_fine);
+      for (bool simd : {true, false}) {
+        detail::LaneRay coarse, fine;
+        const bool split =
+            detail::splitCarvedRay(ray.o, ray.end, ray.weight, level, shift, kLo, kStride, kLo, kStride, coarse, fine);
+        EXPECT_EQ(split, !want_coarse.empty());
+        Calls coarse_calls, fine_calls;
+        int k = 0;
+        detail::castBundleLanes([&](detail::LaneRay& r) { return split && k++ == 0 ? (r = coarse, true) : false; },
+                                [&](int64_t c, float v) { coarse_calls.emplace_back(c, v); }, simd);
+        k = 0;
+        detail::castBundleLanes([&](detail::LaneRay& r) { return k++ == 0 ? (r = fine, true) : false; },
+                                [&](int64_t c, float v) { fine_calls.emplace_back(c, v); }, simd);
+        // The last call is the end voxel's.
+        ASSERT_FALSE(fine_calls.empty());
+        const int64_t end_cell = indexOf(static_cast<int64_t>(ray.end[0]), static_cast<int64_t>(ray.end[1]),
+                                         static_cast<int64_t>(ray.end[2]));
+        EXPECT_EQ(fine_calls.back().first, end_cell);
+        // The same cells with the same lengths, up to float rounding (cells the reference
+        // finds only grazed, below the tolerance, may be missing from the walk and vice versa).
+        double len = 0.0;
+        for (int a = 0; a < 3; ++a) len += (ray.end[a] - ray.o[a]) * (ray.end[a] - ray.o[a]);
+        const double tol = 1e-5 * std::sqrt(len) * ray.weight;
+        for (auto [got, want] : {std::pair{sums(coarse_calls), want_coarse}, std::pair{sums(fine_calls), want_fine}}) {
+          for (const auto& [c, v] : want) EXPECT_NEAR(got.count(c) ? got[c] : 0.0, v, tol) << "level " << level;
+          for (const auto& [c, v] : got) EXPECT_NEAR(want.count(c) ? want[c] : 0.0, v, tol) << "level " << level;
+        }
+      }
+    }
+  }
+}
 }  // namespace
 }  // namespace chronomap

@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <map>
+#include <tuple>
 #include <optional>
 #include <random>
 
@@ -304,6 +306,54 @@ TEST(SessionMapAddCube, RejectsBadCubes) {
   EXPECT_THROW(m.addCube(at(0, 0, 0), 2, occupiedVoxel({1, 1, 1})), UsageError);  // hits above unit level
   m.addCube(at(0, 0, 0), 2, VoxelCounters{});  // an unobserved cube adds nothing
   EXPECT_TRUE(m.empty());
+}
+
+// addCubes (coarse carving's merge) is addCube one cube after another, on a map that is finer
+// in places, with repeated and zero-length cubes, in raster order and shuffled.
+TEST(SessionMapAddCube, AddCubesIsAddCubeInALoop) {
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> cell(0, 15), fine(0, 63);
+  SessionMap base(0.05);
+  for (int i = 0; i < 200; ++i) base.add(at(fine(rng), fine(rng), fine(rng)), freeVoxel());
+  std::vector<VoxelKey> corners;
+  std::vector<float> lengths;
+  for (int i = 0; i < 400; ++i) {
+    corners.push_back(at(4 * cell(rng), 4 * cell(rng), 4 * cell(rng)));
+    lengths.push_back(i % 7 == 0 ? 0.0f : 0.01f * static_cast<float>(i));
+  }
+  for (bool sorted : {true, false}) {
+    if (sorted) {
+      std::vector<size_t> order(corners.size());
+      for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+      std::sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+        return std::tie(corners[a].z, corners[a].y, corners[a].x) < std::tie(corners[b].z, corners[b].y, corners[b].x);
+      });
+      std::vector<VoxelKey> c;
+      std::vector<float> l;
+      for (size_t i : order) {
+        c.push_back(corners[i]);
+        l.push_back(lengths[i]);
+      }
+      corners = c;
+      lengths = l;
+    } else {
+      std::shuffle(corners.begin(), corners.end(), rng);
+    }
+    SessionMap many = base, loop = base;
+    many.addCubes(corners, 2, lengths);
+    for (size_t i = 0; i < corners.size(); ++i) {
+      VoxelCounters c;
+      c.length_m = lengths[i];
+      loop.addCube(corners[i], 2, c);
+    }
+    EXPECT_TRUE(many == loop) << "sorted=" << sorted;
+  }
+  SessionMap m(0.05);
+  const std::vector<VoxelKey> bad = {at(2, 0, 0)};
+  const std::vector<float> one = {1.0f};
+  EXPECT_THROW(m.addCubes(bad, 2, one), UsageError);  // not aligned
+  EXPECT_THROW(m.addCubes(bad, 0, one), UsageError);  // unit level: addMany
+  EXPECT_THROW(m.addCubes(bad, 1, {}), UsageError);   // lengths missing
 }
 
 }  // namespace

@@ -53,7 +53,17 @@ struct IntegratorSettings {
   /// (checked as it grows). Past it, integration stops with a UsageError saying what it needed
   /// at which resolution, instead of taking all memory. 0: no limit.
   size_t memory_limit_bytes = defaultMemoryLimitBytes();
+  /// Fast mode only: carve free space coarser, far from the surfaces (docs/integration.md, "Coarse
+  /// carving"). Each bundle ray is walked in cubes of 2^carve_level voxels per axis (aligned to the
+  /// octree's nodes of that level) until it enters the cubes within one of its end voxel's cube,
+  /// and in unit voxels from there; a cube's length is spread evenly over its voxels when merged.
+  /// Hits, colours and hit positions are those of carve_level 0; the summed length is the same up
+  /// to float rounding; per-voxel lengths differ. 0: off (the maps are those of before, bit for bit).
+  int carve_level = 0;
 };
+
+/// Largest IntegratorSettings::carve_level (16 voxels per axis).
+inline constexpr int kMaxCarveLevel = 4;
 
 /// What an integration did, point by point.
 struct IntegrationStats {
@@ -74,8 +84,17 @@ struct IntegrationStats {
 struct VoxelDeltas {
   std::vector<VoxelKey> keys;
   std::vector<VoxelCounters> deltas;
+  /// Coarse carving (IntegratorSettings::carve_level > 0): the lower corners of cubes of
+  /// 2^cube_level voxels per axis and the free-space length (metres) each got as a whole, in
+  /// raster order; merged after `keys`, spread evenly over the cube (SessionMap::addCubes).
+  std::vector<VoxelKey> cube_keys;
+  std::vector<float> cube_length_m;
+  int cube_level = 0;
   IntegrationStats stats;
 };
+
+/// Adds one frame's deltas to `map`: the voxels, then the cubes.
+void mergeDeltas(SessionMap& map, const VoxelDeltas& deltas);
 
 /// Scratch space that turns one frame into VoxelDeltas. One per thread; reusable.
 class RayAccumulator {

@@ -58,6 +58,12 @@ class SessionMap {
   /// @throw UsageError for a level above kTreeDepth - 1, a corner not aligned to the level, or
   /// a cube above unit level with hits (only known-free cubes can be spread).
   void addCube(const VoxelKey& corner, int level, const VoxelCounters& sums);
+  /// addCube() for many known-free cubes of one level (above unit level), each with only a
+  /// length (metres), which may be zero (nothing is added). Fastest when consecutive corners are
+  /// close (raster or Morton order): the descent restarts at their common ancestor.
+  /// @throw UsageError for a level outside 1 .. kTreeDepth - 1, a corner not aligned to it, or
+  /// spans of different lengths.
+  void addCubes(std::span<const VoxelKey> corners, int level, std::span<const float> lengths_m);
   /// Adds every counter of `other` (same resolution) to this map, volume by volume; a
   /// compressed node of either map is spread evenly where the other is finer (the consensus
   /// of §2.2). Linear in the nodes of both maps.
