@@ -6,8 +6,11 @@
 
 #include "chronomap/core/error.h"
 #include "chronomap/core/key.h"
+#include "chronomap/core/offset_quantiser.h"
 
 namespace chronomap::io::columns {
+
+static_assert(kOffsetLevels == chronomap::kOffsetLevels, "one quantiser of hit positions");
 
 uint64_t ByteReader::varint() {
   uint64_t v = 0;
@@ -192,16 +195,9 @@ void requireExactly(const CmapFile& file, const std::string& source, const std::
   }
 }
 
-uint8_t quantiseOffset(float sum, uint32_t hits) {
-  if (hits == 0) return kOffsetLevels;
-  const double mean = static_cast<double>(sum) / static_cast<double>(hits);
-  const double q = std::round(mean * (2 * kOffsetLevels));
-  return static_cast<uint8_t>(std::clamp(q, -double{kOffsetLevels}, double{kOffsetLevels}) + kOffsetLevels);
-}
+uint8_t quantiseOffset(float sum, uint32_t hits) { return chronomap::quantiseOffset(sum, hits); }
 
-float dequantiseOffset(uint8_t q, uint32_t hits) {
-  return static_cast<float>((static_cast<double>(q) - kOffsetLevels) / (2 * kOffsetLevels) * static_cast<double>(hits));
-}
+float dequantiseOffset(uint8_t q, uint32_t hits) { return chronomap::dequantiseOffset(q, hits); }
 
 uint16_t quantiseLength(float length_m, uint32_t hits) {
   if (!(length_m > 0.0f)) return 0;  // zero (and -0), and what no valid map holds

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "chronomap/core/error.h"
+#include "chronomap/core/offset_quantiser.h"
 #include "chronomap/core/time.h"
 
 namespace chronomap {
@@ -72,7 +73,50 @@ uint32_t TemporalMap::newInner() {
   return static_cast<uint32_t>(inner_.size() - 1);
 }
 
-uint32_t TemporalMap::newList(const Entry& e) {
+TemporalMap::Stored TemporalMap::store(uint32_t session, const VoxelCounters& value) {
+  Stored s{session, value.length_m, kNoPart};
+  if (value.hits == 0 && value.red == 0 && value.green == 0 && value.blue == 0) return s;
+  HitPart p{value.hits, value.red, value.green, value.blue, {}, 0};
+  for (int a = 0; a < 3; ++a) p.offset[a] = quantiseOffset(value.offset[a], value.hits);
+  if (!free_hit_parts_.empty()) {
+    s.part = free_hit_parts_.back();
+    free_hit_parts_.pop_back();
+    hit_parts_[s.part] = p;
+  } else {
+    if (hit_parts_.size() >= kMaxIndex) throw DataError("4D map too large: more than 2^31 entries with hits");
+    s.part = static_cast<uint32_t>(hit_parts_.size());
+    hit_parts_.push_back(p);
+  }
+  return s;
+}
+
+void TemporalMap::release(const Stored& s) {
+  if (s.part != kNoPart) free_hit_parts_.push_back(s.part);
+}
+
+VoxelCounters TemporalMap::valueOf(const Stored& s) const {
+  VoxelCounters v;
+  v.length_m = s.length_m;
+  if (s.part == kNoPart) return v;
+  const HitPart& p = hit_parts_[s.part];
+  v.hits = p.hits;
+  v.red = p.red;
+  v.green = p.green;
+  v.blue = p.blue;
+  if (p.hits > 0) {
+    for (int a = 0; a < 3; ++a) v.offset[a] = dequantiseOffset(p.offset[a], p.hits);
+  }
+  return v;
+}
+
+std::span<const TemporalMap::Entry> TemporalMap::decoded(const List& l, std::vector<Entry>& scratch) const {
+  scratch.resize(l.size);
+  const Stored* e = entriesOf(l);
+  for (size_t i = 0; i < l.size; ++i) scratch[i] = entryOf(e[i]);
+  return {scratch.data(), scratch.size()};
+}
+
+uint32_t TemporalMap::newList(const Stored& e) {
   ++live_lists_;
   ++live_entries_;
   if (!free_lists_.empty()) {
@@ -88,6 +132,8 @@ uint32_t TemporalMap::newList(const Entry& e) {
 
 void TemporalMap::freeList(uint32_t list) {
   List& l = lists_[list];
+  const Stored* e = entriesOf(l);
+  for (size_t i = 0; i < l.size; ++i) release(e[i]);
   if (l.size >= 2) freeBlock(l.block, l.capacity_log2);
   live_entries_ -= l.size;
   --live_lists_;
@@ -112,7 +158,7 @@ void TemporalMap::freeBlock(uint32_t block, int capacity_log2) {
   free_blocks_[static_cast<size_t>(capacity_log2)].push_back(block);
 }
 
-void TemporalMap::insertEntry(uint32_t list, size_t pos, const Entry& e) {
+void TemporalMap::insertEntry(uint32_t list, size_t pos, const Stored& e) {
   List& l = lists_[list];
   if (l.size >= kMaxListSize) throw DataError("4D map: a voxel has more than 65535 history entries");
   if (l.size == 0) {  // emptied by eraseEntry, refilled before it is freed
@@ -122,7 +168,7 @@ void TemporalMap::insertEntry(uint32_t list, size_t pos, const Entry& e) {
     return;
   }
   if (l.size == 1) {
-    const Entry only = l.first;
+    const Stored only = l.first;
     const uint32_t block = allocBlock(1);
     List& m = lists_[list];  // allocBlock does not touch lists_, but keep the reference fresh
     m.block = block;
@@ -142,7 +188,7 @@ void TemporalMap::insertEntry(uint32_t list, size_t pos, const Entry& e) {
     l.block = block;
     l.capacity_log2 = static_cast<uint8_t>(cap);
   }
-  Entry* data = arena_.data() + l.block;
+  Stored* data = arena_.data() + l.block;
   std::copy_backward(data + pos, data + l.size, data + l.size + 1);
   data[pos] = e;
   ++l.size;
@@ -152,17 +198,18 @@ void TemporalMap::insertEntry(uint32_t list, size_t pos, const Entry& e) {
 
 void TemporalMap::eraseEntry(uint32_t list, size_t pos) {
   List& l = lists_[list];
+  release(entriesOf(l)[pos]);
   if (l.size == 1) {
     l.size = 0;
     --live_entries_;
     return;
   }
-  Entry* data = arena_.data() + l.block;
+  Stored* data = arena_.data() + l.block;
   std::copy(data + pos + 1, data + l.size, data + pos);
   --l.size;
   --live_entries_;
   if (l.size == 1) {
-    const Entry only = data[0];
+    const Stored only = data[0];
     freeBlock(l.block, l.capacity_log2);
     l.first = only;
     l.block = 0;
@@ -173,7 +220,7 @@ void TemporalMap::eraseEntry(uint32_t list, size_t pos) {
 }
 
 size_t TemporalMap::lowerBound(const List& l, uint32_t session) const {
-  const Entry* e = entriesOf(l);
+  const Stored* e = entriesOf(l);
   size_t i = 0;
   while (i < l.size && e[i].session < session) ++i;  // lists are short: a linear scan wins
   return i;
@@ -183,12 +230,12 @@ uint32_t TemporalMap::refine(uint32_t node, int slot) {
   const uint32_t list = index(inner_[node][slot]);
   coarse_dirty_[node] = 1;
   const uint32_t child = newInner();
-  const List source = lists_[list];
-  std::vector<Entry> history(entriesOf(source), entriesOf(source) + source.size);
+  std::vector<Entry> history;
+  decoded(lists_[list], history);
   for (Entry& e : history) e.value = eighth(e.value);
   for (int i = 0; i < 8; ++i) {
-    const uint32_t l = newList(history[0]);
-    for (size_t k = 1; k < history.size(); ++k) insertEntry(l, k, history[k]);
+    const uint32_t l = newList(store(history[0].session, history[0].value));
+    for (size_t k = 1; k < history.size(); ++k) insertEntry(l, k, store(history[k].session, history[k].value));
     inner_[child][i] = l | kListBit;
   }
   freeList(list);
@@ -236,7 +283,7 @@ void TemporalMap::apply(uint32_t node, int level, const VoxelKey& corner, int ta
         // A uniform cube larger than the observation: refine only when the state changes.
         const List& l = lists_[index(r)];
         const size_t pos = lowerBound(l, rank);
-        if (pos > 0 && !criterion_.differs(entriesOf(l)[pos - 1].value, value)) return;
+        if (pos > 0 && !criterion_.differs(valueOf(entriesOf(l)[pos - 1]), value)) return;
         markPath();
         node = refine(node, slot);
         report.inner_added += 1;
@@ -247,7 +294,7 @@ void TemporalMap::apply(uint32_t node, int level, const VoxelKey& corner, int ta
     // The slot is the observed cube itself.
     if (r == kEmpty) {
       // Nobody observed any of this cube before, so no later session did either.
-      inner_[node][slot] = newList(Entry{rank, value}) | kListBit;
+      inner_[node][slot] = newList(store(rank, value)) | kListBit;
       ++report.entries_added;
       markPath();
       return;
@@ -270,7 +317,7 @@ void TemporalMap::applyToList(uint32_t node, int slot, int level, const VoxelKey
   const uint32_t list = index(inner_[node][slot]);
   const size_t pos = lowerBound(lists_[list], rank);
   std::optional<VoxelCounters> before;
-  if (pos > 0) before = entriesOf(lists_[list])[pos - 1].value;
+  if (pos > 0) before = valueOf(entriesOf(lists_[list])[pos - 1]);
   if (before && !criterion_.differs(*before, value)) return;  // no change: nothing to store
   coarse_dirty_[node] = 1;  // `node` may lie below path_ (a cube refined here)
   markPath();
@@ -286,32 +333,32 @@ void TemporalMap::applyToList(uint32_t node, int slot, int level, const VoxelKey
     }
     return;
   }
-  insertEntry(list, pos, Entry{rank, value});
+  insertEntry(list, pos, store(rank, value));
   ++report.entries_added;
   if (!next) return;
   // The next observer's entry was decided against `before`; decide it again against `value`.
   const List& l = lists_[list];
   const size_t j = pos + 1;
   if (j < l.size && entriesOf(l)[j].session == next->first) {
-    if (!criterion_.differs(value, entriesOf(l)[j].value)) {
+    if (!criterion_.differs(value, valueOf(entriesOf(l)[j]))) {
       eraseEntry(list, j);
       ++report.entries_removed;
     }
   } else if (before) {
     // It confirmed `before` and was not stored; with `value` in between it is a change back.
-    insertEntry(list, j, Entry{next->first, *before});
+    insertEntry(list, j, store(next->first, *before));
     ++report.entries_added;
   }
 }
 
 void TemporalMap::shiftSessions(uint32_t from, int delta) {
   markAllCoarseDirty();
-  auto shift = [&](Entry& e) {
+  auto shift = [&](Stored& e) {
     if (e.session >= from) e.session = static_cast<uint32_t>(static_cast<int64_t>(e.session) + delta);
   };
   for (List& l : lists_) {
     if (l.size == 0) continue;
-    Entry* e = entriesOf(l);
+    Stored* e = entriesOf(l);
     for (size_t i = 0; i < l.size; ++i) shift(e[i]);
     if (l.size >= 2) l.first = e[l.size - 1];
   }
@@ -437,17 +484,17 @@ void TemporalMap::removeFromList(uint32_t node, int slot, int level, const Voxel
     for (int i = 0; i < 8; ++i) removeFromList(child, i, level - 1, childCorner(corner, i, level - 1), rank);
     return;
   }
-  const VoxelCounters removed = entriesOf(lists_[list])[pos].value;
+  const VoxelCounters removed = valueOf(entriesOf(lists_[list])[pos]);
   std::optional<VoxelCounters> before;
-  if (pos > 0) before = entriesOf(lists_[list])[pos - 1].value;
+  if (pos > 0) before = valueOf(entriesOf(lists_[list])[pos - 1]);
   eraseEntry(list, pos);
   if (next) {
     const List& l = lists_[list];
     if (pos < l.size && entriesOf(l)[pos].session == next->first) {
-      if (before && !criterion_.differs(*before, entriesOf(l)[pos].value)) eraseEntry(list, pos);
+      if (before && !criterion_.differs(*before, valueOf(entriesOf(l)[pos]))) eraseEntry(list, pos);
     } else if (!before || criterion_.differs(*before, removed)) {
       // The next observer confirmed the removed state without being stored: it now carries it.
-      insertEntry(list, pos, Entry{next->first, removed});
+      insertEntry(list, pos, store(next->first, removed));
     }
   }
   if (lists_[list].size == 0) {
@@ -501,11 +548,11 @@ SessionMap TemporalMap::snapshot(double time_s, SnapshotVisits* visits) const {
         if (l.first.session <= last) {
           // The newest entry is valid: it is kept in the list record itself, so the snapshot of
           // the latest time never reads the entry arena.
-          leaves.push_back(l.first.value);
+          leaves.push_back(valueOf(l.first));
           out_ref = static_cast<uint32_t>(leaves.size() - 1) | SessionMap::kLeafBit;
         } else if (l.size > 1 && entriesOf(l)[0].session <= last) {
           // An older entry: binary search, so that long histories do not slow snapshots down.
-          const Entry* e = entriesOf(l);
+          const Stored* e = entriesOf(l);
           size_t lo = 1, hi = l.size - 1;  // e[lo - 1] <= last < e[hi]
           while (lo < hi) {
             const size_t mid = (lo + hi) / 2;
@@ -515,7 +562,7 @@ SessionMap TemporalMap::snapshot(double time_s, SnapshotVisits* visits) const {
               hi = mid;
             }
           }
-          leaves.push_back(e[lo - 1].value);
+          leaves.push_back(valueOf(e[lo - 1]));
           out_ref = static_cast<uint32_t>(leaves.size() - 1) | SessionMap::kLeafBit;
         }
       }
@@ -545,11 +592,11 @@ std::vector<HistoryEntry> TemporalMap::history(const VoxelKey& key) const {
       continue;
     }
     const List& l = lists_[index(r)];
-    const Entry* e = entriesOf(l);
+    const Stored* e = entriesOf(l);
     h.reserve(l.size);
     const auto scale = static_cast<float>(uint64_t{1} << (3 * level));
     for (size_t i = 0; i < l.size; ++i) {
-      VoxelCounters c = e[i].value;
+      VoxelCounters c = valueOf(e[i]);
       if (level > 0) c.length_m /= scale;
       h.push_back(HistoryEntry{sessions_[e[i].session].time_s, c, level});
     }
@@ -578,11 +625,30 @@ TemporalCounts TemporalMap::counts() const {
 }
 
 size_t TemporalMap::memoryBytes() const {
-  size_t bytes = inner_.size() * sizeof(Children) + lists_.size() * sizeof(List) + arena_.size() * sizeof(Entry);
+  size_t bytes = inner_.size() * sizeof(Children) + lists_.size() * sizeof(List) + arena_.size() * sizeof(Stored) +
+                 hit_parts_.size() * sizeof(HitPart) + free_hit_parts_.capacity() * sizeof(uint32_t);
   bytes += coarse_.capacity() * sizeof(Coarse) + coarse_span_.capacity() * sizeof(CoarseSpan) + coarse_dirty_.capacity();
   for (const auto& s : sessions_) bytes += s.coverage.memoryBytes() + sizeof(SessionRecord) + s.name.capacity();
   bytes += change_masks_.capacity() * sizeof(uint64_t);
   return bytes;
+}
+
+TemporalMap::MemoryUse TemporalMap::memoryUse() const {
+  MemoryUse m;
+  m.inner = inner_.size() * sizeof(Children);
+  m.lists = live_lists_ * sizeof(List);
+  for (const List& l : lists_) {
+    if (l.size < 2) continue;
+    m.entries += l.size * sizeof(Stored);
+  }
+  m.hit_parts = (hit_parts_.size() - free_hit_parts_.size()) * sizeof(HitPart);
+  m.slack = arena_.size() * sizeof(Stored) - m.entries + (lists_.size() - live_lists_) * sizeof(List) +
+            free_hit_parts_.size() * sizeof(HitPart) + free_hit_parts_.capacity() * sizeof(uint32_t);
+  m.coarse = coarse_.capacity() * sizeof(Coarse) + coarse_span_.capacity() * sizeof(CoarseSpan) +
+             coarse_dirty_.capacity();
+  for (const auto& s : sessions_) m.sessions += s.coverage.memoryBytes() + sizeof(SessionRecord) + s.name.capacity();
+  m.change_masks = change_masks_.capacity() * sizeof(uint64_t);
+  return m;
 }
 
 bool TemporalMap::compactBelow(Ref& r, int level) {
@@ -590,9 +656,9 @@ bool TemporalMap::compactBelow(Ref& r, int level) {
   if (r == kEmpty) return false;
   if (isList(r)) {
     const List& l = lists_[index(r)];
-    const Entry* e = entriesOf(l);
+    const Stored* e = entriesOf(l);
     for (size_t i = 0; i < l.size; ++i) {
-      if (!e[i].value.isKnownFreeWithoutHits()) return false;
+      if (!freeWithoutHits(e[i])) return false;
     }
     return true;
   }
@@ -616,7 +682,7 @@ bool TemporalMap::compactBelow(Ref& r, int level) {
   for (int i = 1; i < 8; ++i) {
     const uint32_t other = index(inner_[r][i]);
     for (size_t k = 0; k < first.size; ++k) {
-      entriesOf(lists_[keep])[k].value.length_m += entriesOf(lists_[other])[k].value.length_m;
+      entriesOf(lists_[keep])[k].length_m += entriesOf(lists_[other])[k].length_m;
     }
     freeList(other);
   }
@@ -673,11 +739,11 @@ void TemporalMap::rebuildCoarse(uint32_t node) {
       scratch.insert(scratch.end(), coarse_.begin() + span.begin, coarse_.begin() + span.begin + span.count);
     } else {
       const List& l = lists_[index(r)];
-      const Entry* e = entriesOf(l);
+      const Stored* e = entriesOf(l);
       const size_t before = scratch.size();
       for (size_t i = 0; i < l.size; ++i) {
-        if (!e[i].value.isKnownFreeWithoutHits()) continue;
-        scratch.push_back(Coarse{e[i].session, i + 1 < l.size ? e[i + 1].session : kForever, e[i].value.length_m});
+        if (!freeWithoutHits(e[i])) continue;
+        scratch.push_back(Coarse{e[i].session, i + 1 < l.size ? e[i + 1].session : kForever, e[i].length_m});
       }
       if (scratch.size() == before) return;
     }
@@ -732,7 +798,7 @@ void TemporalMap::buildChangeMasks() const {
         mask |= self(self, r);
       } else if (isList(r)) {
         const List& l = lists_[index(r)];
-        const Entry* e = entriesOf(l);
+        const Stored* e = entriesOf(l);
         for (size_t i = 1; i < l.size; ++i) mask |= uint64_t{1} << (e[i].session % 64);
       }
     }
@@ -809,6 +875,7 @@ void TemporalMap::relayout() {
   }
   std::vector<List> lists(order.lists.size());
   for (size_t i = 0; i < order.lists.size(); ++i) lists[i] = lists_[order.lists[i]];
+  packHitParts(lists);
   // Lists keep their blocks in the entry arena (a snapshot of the latest time does not read it).
   inner_ = std::move(inner);
   lists_ = std::move(lists);
@@ -820,6 +887,30 @@ void TemporalMap::relayout() {
   hot_inner_at_layout_ = order.hot_inner;
   hot_lists_at_layout_ = order.hot_lists;
   ++relayouts_;
+}
+
+void TemporalMap::packHitParts(std::vector<List>& lists) {
+  // First the parts of the lists' newest entries in list order (what a snapshot of the latest
+  // time reads, in the order it reads them), then the older entries' parts; free parts dropped.
+  std::vector<HitPart> parts;
+  parts.reserve(hit_parts_.size() - free_hit_parts_.size());
+  auto move = [&](Stored& e) {
+    if (e.part == kNoPart) return;
+    parts.push_back(hit_parts_[e.part]);
+    e.part = static_cast<uint32_t>(parts.size() - 1);
+  };
+  for (List& l : lists) {
+    if (l.size == 0) continue;
+    move(entriesOf(l)[l.size - 1]);
+    if (l.size >= 2) l.first = entriesOf(l)[l.size - 1];
+  }
+  for (List& l : lists) {
+    Stored* e = entriesOf(l);
+    for (size_t k = 0; k + 1 < l.size; ++k) move(e[k]);
+  }
+  hit_parts_ = std::move(parts);
+  free_hit_parts_.clear();
+  free_hit_parts_.shrink_to_fit();
 }
 
 TemporalMap::Parts TemporalMap::parts() const {
@@ -840,7 +931,8 @@ TemporalMap::Parts TemporalMap::parts() const {
   for (const uint32_t list : order.lists) {
     const List& l = lists_[list];
     p.list_sizes.push_back(l.size);
-    p.entries.insert(p.entries.end(), entriesOf(l), entriesOf(l) + l.size);
+    const Stored* e = entriesOf(l);
+    for (size_t i = 0; i < l.size; ++i) p.entries.push_back(entryOf(e[i]));
   }
   return p;
 }
@@ -919,12 +1011,13 @@ TemporalMap TemporalMap::fromParts(double resolution_m, ChangeCriterion criterio
     const Entry* e = parts.entries.data() + offsets[i];
     const uint32_t n = parts.list_sizes[i];
     List& l = m.lists_[i];
-    l.first = e[0];
+    l.first = m.store(e[0].session, e[0].value);
     l.size = 1;
     ++m.live_lists_;
     ++m.live_entries_;
-    for (uint32_t k = 1; k < n; ++k) m.insertEntry(static_cast<uint32_t>(i), k, e[k]);
+    for (uint32_t k = 1; k < n; ++k) m.insertEntry(static_cast<uint32_t>(i), k, m.store(e[k].session, e[k].value));
   }
+  m.packHitParts(m.lists_);
   m.sessions_ = std::move(sessions);
   m.updateCoarse();
   m.packCoarse();  // in node order, as the pools are laid out

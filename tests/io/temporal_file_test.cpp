@@ -37,7 +37,7 @@ TEST(TemporalFile, RoundTripReadsBackIdentically) {
   // Everything exact but the hit positions, lengths and colour sums, which the file keeps
   // quantised (io::asStored): within their bounds, no entry's state changed.
   const TemporalMap stored = io::asStored(compacted);
-  EXPECT_FALSE(stored == compacted) << "the sample map has positions to quantise";
+  EXPECT_FALSE(stored == compacted) << "the sample map has lengths to quantise";
   EXPECT_TRUE(back == stored);
   const auto& written = compacted.parts().entries;
   const auto& read = back.parts().entries;
@@ -319,6 +319,61 @@ SessionMap allFree() {
   }
   m.compressFree();
   return m;
+}
+
+TEST(TemporalFile, AMapBuiltInMemoryAnswersAsItsFile) {
+  // Hit positions are kept in memory as the file keeps them, so the map that add() built and
+  // the same map written and read back give the same snapshots and histories, bit for bit,
+  // but for what format version 3 quantises besides (lengths, colour sums: io::asStored).
+  test::TempDir tmp;
+  TemporalMap map = sampleMap(3, 21);
+  map.add(1500.0, test::randomSessionMap(31), {false, "out of order"});
+  map.add(2000.0, test::randomSessionMap(32), {true, "replaced"});
+  io::writeTemporalMap(tmp / "m.cmap", map, {});
+  const TemporalMap back = io::readTemporalMap(tmp / "m.cmap");
+  TemporalMap compacted = map;
+  compacted.compact();  // as the write did: histories of merged lists are one level up
+  std::vector<double> times = map.times();
+  times.push_back(times.back() + 1.0);
+  times.push_back(times.front() - 1.0);
+  const TemporalMap stored = io::asStored(compacted);
+  for (double t : times) {
+    expectSameSnapshot(stored, back, t);
+    // Positions are kept in memory as the file keeps them: they read back bit for bit.
+    const SessionMap a = compacted.snapshot(t), b = back.snapshot(t);
+    ASSERT_EQ(a.leafPool().size(), b.leafPool().size());
+    for (size_t i = 0; i < a.leafPool().size(); ++i) {
+      for (int axis = 0; axis < 3; ++axis) ASSERT_EQ(a.leafPool()[i].offset[axis], b.leafPool()[i].offset[axis]);
+    }
+  }
+  size_t with_hits = 0, voxels = 0;
+  for (uint64_t seed : {21u, 22u, 23u, 31u, 32u}) {
+    const SessionMap session = test::randomSessionMap(seed);
+    session.forEachLeaf([&](const LeafView& leaf) {
+      const std::vector<HistoryEntry> a = compacted.history(leaf.key), b = back.history(leaf.key);
+      ASSERT_EQ(a.size(), b.size());
+      ++voxels;
+      for (size_t i = 0; i < a.size(); ++i) {
+        ASSERT_EQ(a[i].time_s, b[i].time_s);
+        ASSERT_EQ(a[i].level, b[i].level);
+        ASSERT_EQ(io::asStored(a[i].counters), b[i].counters);
+        for (int axis = 0; axis < 3; ++axis) ASSERT_EQ(a[i].counters.offset[axis], b[i].counters.offset[axis]);
+        with_hits += a[i].counters.hits > 0 && a[i].counters.meanOffset(0) != 0.0;
+      }
+    });
+  }
+  EXPECT_GT(voxels, 1000u);
+  EXPECT_GT(with_hits, 100u) << "positions were compared";
+  // A single session's positions read as the file keeps them (within its stated bound).
+  TemporalMap one(0.05);
+  const SessionMap session = test::randomSessionMap(41);
+  one.add(1000.0, session);
+  session.forEachLeaf([&](const LeafView& leaf) {
+    if (leaf.level > 0 || leaf.counters.hits == 0) return;
+    const auto v = one.valueAt(leaf.key, 1000.0);
+    ASSERT_TRUE(v.has_value());
+    for (int axis = 0; axis < 3; ++axis) ASSERT_EQ(v->offset[axis], io::asStored(leaf.counters).offset[axis]);
+  });
 }
 
 TEST(TemporalFile, CoarseEntriesAreRebuiltOnRead) {

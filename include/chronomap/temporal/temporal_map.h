@@ -172,6 +172,18 @@ class TemporalMap {
   TemporalCounts counts() const;
   /// Bytes of node storage in use (pools, free blocks included; coverage included).
   size_t memoryBytes() const;
+  /// Where memoryBytes() goes, part by part (the parts sum to it).
+  struct MemoryUse {
+    size_t inner = 0;          ///< inner nodes (8 references each)
+    size_t lists = 0;          ///< list records in use (each holds its newest entry)
+    size_t entries = 0;        ///< entries of lists with 2 or more, in the arena
+    size_t hit_parts = 0;      ///< hits, colours and positions of entries with hits
+    size_t slack = 0;          ///< free list records, free room in the arena, free hit parts
+    size_t coarse = 0;         ///< coarse entries and spans (issue 28), their marks
+    size_t sessions = 0;       ///< session records and coverages
+    size_t change_masks = 0;   ///< the change summary of forEachListChangedIn
+  };
+  MemoryUse memoryUse() const;
 
   /// Merges 8 sibling lists with the same sessions and no hits into one (states stay exact;
   /// lengths are summed, as in §2.1's compression) and re-lays the pools out as files hold them.
@@ -205,25 +217,53 @@ class TemporalMap {
   friend bool operator==(const TemporalMap& a, const TemporalMap& b);
 
  private:
+  // Entries are stored split (docs/temporal.md, "Layout in memory"): every entry as its session
+  // and length, and only entries with hits (or colour) with a part that holds the hits, the
+  // colour sums and the mean hit offset quantised as files keep it (core/offset_quantiser.h),
+  // so that a map built in memory reads exactly as the same map read back from its file.
+  static constexpr uint32_t kNoPart = 0xffffffffu;
+  struct Stored {
+    uint32_t session = 0;
+    float length_m = 0.0f;
+    uint32_t part = kNoPart;  // index in hit_parts_, owned by the entry (a list's copy of its newest shares it)
+  };
+  struct HitPart {
+    uint32_t hits = 0, red = 0, green = 0, blue = 0;
+    uint8_t offset[3] = {0, 0, 0};
+    uint8_t unused = 0;
+  };
   struct List {
-    Entry first;             // the only entry while size == 1, else a copy of the newest
+    Stored first;            // the only entry while size == 1, else a copy of the newest
     uint32_t block = 0;      // arena offset of the entries while size >= 2
     uint16_t size = 0;
     uint8_t capacity_log2 = 0;
     uint8_t unused = 0;
   };
+  /// An entry as stored (a part taken when it has hits or colour).
+  Stored store(uint32_t session, const VoxelCounters& value);
+  /// Frees the part of a stored entry that is dropped.
+  void release(const Stored& s);
+  VoxelCounters valueOf(const Stored& s) const;
+  Entry entryOf(const Stored& s) const { return Entry{s.session, valueOf(s)}; }
+  bool freeWithoutHits(const Stored& s) const {
+    return s.length_m > 0.0f && (s.part == kNoPart || hit_parts_[s.part].hits == 0);
+  }
+  /// Re-lays the hit parts out for the list records `lists` (see relayout()).
+  void packHitParts(std::vector<List>& lists);
+  /// The entries of `l`, decoded into `scratch`.
+  std::span<const Entry> decoded(const List& l, std::vector<Entry>& scratch) const;
   static bool isList(Ref r) { return r != kEmpty && (r & kListBit) != 0; }
   static bool isInner(Ref r) { return r != kEmpty && (r & kListBit) == 0; }
   static uint32_t index(Ref r) { return r & ~kListBit; }
 
-  const Entry* entriesOf(const List& l) const { return l.size == 1 ? &l.first : arena_.data() + l.block; }
-  Entry* entriesOf(List& l) { return l.size == 1 ? &l.first : arena_.data() + l.block; }
+  const Stored* entriesOf(const List& l) const { return l.size == 1 ? &l.first : arena_.data() + l.block; }
+  Stored* entriesOf(List& l) { return l.size == 1 ? &l.first : arena_.data() + l.block; }
   uint32_t newInner();
-  uint32_t newList(const Entry& e);
+  uint32_t newList(const Stored& e);
   void freeList(uint32_t list);
   uint32_t allocBlock(int capacity_log2);
   void freeBlock(uint32_t block, int capacity_log2);
-  void insertEntry(uint32_t list, size_t pos, const Entry& e);
+  void insertEntry(uint32_t list, size_t pos, const Stored& e);
   void eraseEntry(uint32_t list, size_t pos);
   /// Index of the first entry whose session is >= `session` (the insertion position).
   size_t lowerBound(const List& l, uint32_t session) const;
@@ -303,7 +343,9 @@ class TemporalMap {
   std::vector<SessionRecord> sessions_;  // in time order; entries refer to these ranks
   std::vector<Children> inner_;          // inner_[0] is the root
   std::vector<List> lists_;
-  std::vector<Entry> arena_;
+  std::vector<Stored> arena_;
+  std::vector<HitPart> hit_parts_;
+  std::vector<uint32_t> free_hit_parts_;
   std::vector<uint32_t> free_lists_;
   std::array<std::vector<uint32_t>, 17> free_blocks_;
   size_t live_lists_ = 0;
@@ -319,12 +361,10 @@ class TemporalMap {
 
 template <class Fn>
 void TemporalMap::forEachList(Fn&& fn) const {
+  std::vector<Entry> scratch;
   walkPoolTree(
       inner_, kListBit, [](uint32_t) { return true; },
-      [&](Ref r, const VoxelKey& k, int level) {
-        const List& l = lists_[index(r)];
-        fn(k, level, std::span<const Entry>(entriesOf(l), l.size));
-      });
+      [&](Ref r, const VoxelKey& k, int level) { fn(k, level, decoded(lists_[index(r)], scratch)); });
 }
 
 template <class Fn>
@@ -336,14 +376,15 @@ size_t TemporalMap::forEachListChangedIn(uint32_t first, uint32_t end, Fn&& fn) 
     query = 0;
     for (uint32_t r = first; r < end; ++r) query |= uint64_t{1} << (r % 64);
   }
+  std::vector<Entry> scratch;
   return walkPoolTree(
       inner_, kListBit, [&](uint32_t node) { return (change_masks_[node] & query) != 0; },
       [&](Ref r, const VoxelKey& k, int level) {
         const List& l = lists_[index(r)];
-        const std::span<const Entry> entries(entriesOf(l), l.size);
-        for (size_t i = 1; i < entries.size(); ++i) {
+        const Stored* entries = entriesOf(l);
+        for (size_t i = 1; i < l.size; ++i) {
           if (entries[i].session >= first && entries[i].session < end) {
-            fn(k, level, entries);
+            fn(k, level, decoded(l, scratch));
             return;
           }
         }

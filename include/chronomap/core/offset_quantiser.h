@@ -1,0 +1,30 @@
+#pragma once
+/// @file
+/// The one quantiser of hit positions: a voxel's mean hit offset along one axis as one byte, as
+/// format version 2 files store it and as the 4D map keeps it in memory (so a map built in memory
+/// answers exactly as the same map read back from its file).
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
+namespace chronomap {
+
+/// Mean offsets (in voxels, -0.5..0.5) are kept as q = round(mean * 254) in -127..127, stored
+/// as the byte q + 127 (0..254). Zero, a hit at the centre, is kept exactly.
+inline constexpr int kOffsetLevels = 127;
+
+/// The byte of an offset sum `sum` over `hits` hits (127 without hits).
+inline uint8_t quantiseOffset(float sum, uint32_t hits) {
+  if (hits == 0) return kOffsetLevels;
+  const double mean = static_cast<double>(sum) / static_cast<double>(hits);
+  const double q = std::round(mean * (2 * kOffsetLevels));
+  return static_cast<uint8_t>(std::clamp(q, -double{kOffsetLevels}, double{kOffsetLevels}) + kOffsetLevels);
+}
+
+/// The offset sum that the byte `q` stands for over `hits` hits.
+inline float dequantiseOffset(uint8_t q, uint32_t hits) {
+  return static_cast<float>((static_cast<double>(q) - kOffsetLevels) / (2 * kOffsetLevels) * static_cast<double>(hits));
+}
+
+}  // namespace chronomap
