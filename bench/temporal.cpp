@@ -417,6 +417,24 @@ int main(int argc, char** argv) {
               1e3 * add_seconds / sessions, 1e3 * add_cpu_seconds / sessions, 1e3 * seconds(w0, w1),
               1e3 * seconds(w1, w2));
   std::printf("bytes per stored change: %.1f\n", bytes_per_change);
+  {
+    const TemporalMap::MemoryUse m = map.memoryUse();
+    auto mib = [](size_t b) { return static_cast<double>(b) / 1048576.0; };
+    std::printf("memory by part, MiB: inner %.1f, list records %.1f, arena entries %.1f, hit parts %.1f, "
+                "slack %.1f, coarse %.1f, sessions %.1f, change masks %.1f\n",
+                mib(m.inner), mib(m.lists), mib(m.entries), mib(m.hit_parts), mib(m.slack), mib(m.coarse),
+                mib(m.sessions), mib(m.change_masks));
+    size_t lists = 0, single = 0, entries = 0, hit = 0, single_hit = 0;
+    map.forEachList([&](const VoxelKey&, int, std::span<const TemporalMap::Entry> e) {
+      ++lists;
+      single += e.size() == 1;
+      entries += e.size();
+      for (const auto& x : e) hit += x.value.hits > 0;
+      single_hit += e.size() == 1 && e[0].value.hits > 0;
+    });
+    std::printf("lists %zu (%zu of one entry, %zu of them with hits), entries %zu (%zu with hits), inner nodes %zu\n",
+                lists, single, single_hit, entries, hit, map.counts().inner_nodes);
+  }
   double relayout_ms = 0.0;
   {
     TemporalMap copy = map;
