@@ -70,7 +70,7 @@ struct IntegrateFlags {
   int threads = 0;
   bool no_compress = false;
   bool no_positions = false;
-  int carve_level = 0;
+  std::string carve_level = "auto";  ///< "auto" or 0 to kMaxCarveLevel
   std::optional<double> depth_scale;  ///< unset: the format's own
   std::optional<double> memory_limit_gib;  ///< unset: IntegratorSettings' default; 0: none
   std::string intrinsics;

@@ -340,6 +340,7 @@ struct HashStore {
 
 struct RayAccumulator::Impl {
   Impl(const KeyGrid& g, const IntegratorSettings& s) : grid(g), settings(s) {
+    settings.carve_level = carveLevelFor(s, g.resolution_m());
     hash.max_bytes = s.memory_limit_bytes;
     hash.resolution_m = g.resolution_m();
   }
@@ -1052,13 +1053,20 @@ void checkSettings(const IntegratorSettings& settings) {
     throw UsageError("max range must be a positive number of metres");
   }
   if (settings.threads < 0) throw UsageError("thread count must be 0 (all cores) or positive");
-  if (settings.carve_level < 0 || settings.carve_level > kMaxCarveLevel) {
-    throw UsageError("carve level must be 0 (off) to " + std::to_string(kMaxCarveLevel));
+  if (settings.carve_level != kCarveAuto && (settings.carve_level < 0 || settings.carve_level > kMaxCarveLevel)) {
+    throw UsageError("carve level must be auto (" + std::to_string(kCarveAuto) + ") or 0 (off) to " +
+                     std::to_string(kMaxCarveLevel));
   }
   if (settings.carve_level > 0 && !settings.fast) throw UsageError("carving free space coarser needs fast mode");
 }
 
 }  // namespace
+
+int carveLevelFor(const IntegratorSettings& settings, double resolution_m) {
+  if (settings.carve_level != kCarveAuto) return settings.carve_level;
+  // The tolerance keeps a resolution typed as 0.025 on the fine side.
+  return settings.fast && resolution_m <= kCarveAutoCoarsestResolutionM * (1 + 1e-9) ? 2 : 0;
+}
 
 void mergeDeltas(SessionMap& map, const VoxelDeltas& deltas) {
   map.addMany(deltas.keys, deltas.deltas);

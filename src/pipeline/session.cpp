@@ -49,7 +49,8 @@ nlohmann::json sessionMetadata(const std::filesystem::path& dataset, const Integ
                          {"fast", settings.integrator.fast},
                          {"compressed", settings.integrator.compress_free},
                          {"hit_positions", settings.integrator.hit_positions}};
-  if (settings.integrator.carve_level > 0) meta["carve_level"] = settings.integrator.carve_level;
+  const int carve_level = carveLevelFor(settings.integrator, session.map.resolution_m());
+  if (carve_level > 0) meta["carve_level"] = carve_level;
   if (session.recorded_at) meta["recorded_at"] = *session.recorded_at;
   return meta;
 }

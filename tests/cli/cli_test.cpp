@@ -112,7 +112,7 @@ TEST(Cli, IntegrateCarvesCoarserWhenAsked) {
   r = test::runCommand(cli() + " integrate " + root.string() + " --fast -o " + (tmp / "fast.cmap").string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(io::metadataOf(io::readCmap(tmp / "carved.cmap"))["carve_level"], 2);
-  EXPECT_FALSE(io::metadataOf(io::readCmap(tmp / "fast.cmap")).contains("carve_level"));
+  EXPECT_FALSE(io::metadataOf(io::readCmap(tmp / "fast.cmap")).contains("carve_level"));  // auto: 0 at 0.05 m
   const double occupied = static_cast<double>(io::readSessionMap(tmp / "fast.cmap").counts().occupied_voxels);
   EXPECT_NEAR(static_cast<double>(io::readSessionMap(tmp / "carved.cmap").counts().occupied_voxels), occupied,
               0.01 * occupied);
@@ -120,6 +120,18 @@ TEST(Cli, IntegrateCarvesCoarserWhenAsked) {
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.err.find("needs fast mode"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(tmp / "x.cmap"));
+  for (const char* bad : {"5", "x", "-1", "22"}) {
+    r = test::runCommand(cli() + " integrate " + root.string() + " --fast --carve-level " + bad + " -o " +
+                         (tmp / "x.cmap").string());
+    EXPECT_NE(r.exit_code, 0) << bad;
+    EXPECT_NE(r.err.find("--carve-level must be auto or a level from 0 to 4"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(tmp / "x.cmap"));
+  }
+  // The default, auto, carves at level 2 at 0.02 m, and records it.
+  r = test::runCommand(cli() + " integrate " + root.string() + " --fast --resolution 0.02 -o " +
+                       (tmp / "fine.cmap").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(io::metadataOf(io::readCmap(tmp / "fine.cmap"))["carve_level"], 2);
 }
 
 TEST(Cli, BadDataExitsWithOneAndWritesNothing) {

@@ -465,6 +465,7 @@ TEST(Integrator, CoarseCarvingKeepsHitsAndTheSummedLengthAndMostStates) {
   IntegratorSettings s = exactUncompressed();
   integrate(FrameVector(frames), exact, s);
   s.fast = true;
+  s.carve_level = 0;  // at 0.02 m the default (auto) would carve at level 2
   integrate(FrameVector(frames), fast, s);
   s.carve_level = 2;
   const IntegrationStats sc = integrate(FrameVector(frames), carved, s);
@@ -571,8 +572,44 @@ TEST(Integrator, CoarseCarvingNeedsFastModeAndALevelUpToFour) {
   s.fast = true;
   s.carve_level = kMaxCarveLevel + 1;
   EXPECT_THROW(integrate(frames, map, s), UsageError);
-  s.carve_level = -1;
+  s.carve_level = kCarveAuto - 1;
   EXPECT_THROW(integrate(frames, map, s), UsageError);
+  s.carve_level = kCarveAuto;  // fine in either mode
+  EXPECT_NO_THROW(integrate(frames, map, s));
+  s.fast = false;
+  EXPECT_NO_THROW(integrate(frames, map, s));
+}
+
+// The default level (kCarveAuto) is 2 in fast mode at 0.025 m and finer, 0 otherwise; it gives
+// the maps of that level set by hand.
+TEST(Integrator, CoarseCarvingPicksItsLevelFromTheResolution) {
+  IntegratorSettings s;
+  EXPECT_EQ(s.carve_level, kCarveAuto);
+  EXPECT_EQ(carveLevelFor(s, 0.02), 0);  // exact mode
+  s.fast = true;
+  EXPECT_EQ(carveLevelFor(s, 0.01), 2);
+  EXPECT_EQ(carveLevelFor(s, 0.02), 2);
+  EXPECT_EQ(carveLevelFor(s, 0.025), 2);
+  EXPECT_EQ(carveLevelFor(s, 0.026), 0);
+  EXPECT_EQ(carveLevelFor(s, 0.05), 0);
+  s.carve_level = 1;
+  EXPECT_EQ(carveLevelFor(s, 0.05), 1);
+  s.carve_level = 0;
+  EXPECT_EQ(carveLevelFor(s, 0.02), 0);
+
+  const FrameVector frames(sim::benchmarkSequence(2, smallCamera(96)));
+  s.threads = 1;
+  for (const double res : {0.02, 0.05}) {
+    SessionMap automatic(res), by_hand(res), off(res);
+    s.carve_level = kCarveAuto;
+    integrate(frames, automatic, s);
+    s.carve_level = res < 0.03 ? 2 : 0;
+    integrate(frames, by_hand, s);
+    s.carve_level = 0;
+    integrate(frames, off, s);
+    EXPECT_TRUE(automatic == by_hand) << res;
+    EXPECT_EQ(automatic == off, res > 0.03) << res;
+  }
 }
 
 }  // namespace
