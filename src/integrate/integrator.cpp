@@ -1015,7 +1015,8 @@ void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
     std::vector<const HashStore::Slot*> filled;
     filled.reserve(h.used);
     for (const auto& slot : h.slots) {
-      if (slot.code != 0) filled.push_back(&slot);
+      // As emitDense(): a cell that a ray only touched (length 0, as at a corner) is no update.
+      if (slot.code != 0 && (slot.length > 0.0f || slot.end != 0)) filled.push_back(&slot);
     }
     std::sort(filled.begin(), filled.end(), [](auto* a, auto* b) { return a->code < b->code; });
     for (const auto* slot : filled) {

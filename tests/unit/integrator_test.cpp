@@ -561,6 +561,23 @@ TEST(Integrator, CoarseCarvingGivesTheSameMapOnEveryPathAndThreadCount) {
   s.carve_level = 0;
   integrate(frames, plain, s);
   EXPECT_FALSE(plain == cube);
+
+  // At 0.02 m the bounding-box path is the default one: the hash tables (which hold every cell
+  // a ray touched, even with length 0, as at a corner: not updates) and frame-by-frame
+  // integration give its map.
+  s = IntegratorSettings{};
+  s.fast = true;
+  s.threads = 1;
+  s.carve_level = 2;
+  SessionMap box(0.02), hashed_fine(0.02);
+  integrate(frames, box, s);
+  s.dense_grid_max_cells = 0;
+  integrate(frames, hashed_fine, s);
+  EXPECT_TRUE(box == hashed_fine);
+  s.dense_grid_max_cells = IntegratorSettings{}.dense_grid_max_cells;
+  IncrementalIntegrator one_at_a_time(0.02, s);
+  for (const Frame& f : frames.frames()) one_at_a_time.add(f);
+  EXPECT_TRUE(one_at_a_time.finish() == box);
 }
 
 TEST(Integrator, CoarseCarvingNeedsFastModeAndALevelUpToFour) {
