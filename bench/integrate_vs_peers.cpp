@@ -27,16 +27,19 @@
 // threads (the command line's default: all cores) against every row's wall time: the time a
 // user waits for, each program using the cores as it does by default.
 //
-// Usage: integrate_vs_peers [--quick] [--rounds N] [--data DIR] [--fast-only] [--only K]
+// Usage: integrate_vs_peers [--quick] [--rounds N] [--data DIR] [--fast-only] [--only K] [--res R]
+//                           [--3dmatch-only]
 //   --quick: 8 synthetic frames, one round. The last line is one JSON object (issue 27's keys).
 //   --fast-only: chronomap's fast-mode rows on the synthetic frames only (no peers, no ratios),
 //   for comparing builds of chronomap.
-//   --only K: row K of the Row enumeration alone, on the synthetic frames (for profiling).
+//   --only K: row K of the Row enumeration alone (for profiling); --res R: resolution R alone;
+//   --3dmatch-only: the 3DMatch frames alone.
 
 #include <octomap/ColorOcTree.h>
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <ctime>
@@ -241,6 +244,8 @@ double mib(double bytes) { return bytes / 1048576.0; }
 int main(int argc, char** argv) {
   bool quick = false, fast_only = false;
   int only = -1;  // --only K: row K alone (for profiling)
+  double only_res = 0;  // --res R: that resolution alone
+  bool real_only = false;  // --3dmatch-only
   int rounds = 5;
   std::filesystem::path data = CHRONOMAP_DEFAULT_DATA_DIR;
   if (const char* env = std::getenv("CHRONOMAP_DATA_DIR")) data = env;
@@ -252,13 +257,19 @@ int main(int argc, char** argv) {
       rounds = std::max(1, std::atoi(argv[++i]));
     } else if (!std::strcmp(argv[i], "--data") && i + 1 < argc) {
       data = argv[++i];
+    } else if (!std::strcmp(argv[i], "--res") && i + 1 < argc) {
+      only_res = std::atof(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--3dmatch-only")) {
+      real_only = true;
     } else if (!std::strcmp(argv[i], "--only") && i + 1 < argc) {
       only = std::atoi(argv[++i]);
       fast_only = true;
     } else if (!std::strcmp(argv[i], "--fast-only")) {
       fast_only = true;
     } else {
-      std::fprintf(stderr, "usage: integrate_vs_peers [--quick] [--rounds N] [--data DIR] [--fast-only] [--only K]\n");
+      std::fprintf(stderr,
+                   "usage: integrate_vs_peers [--quick] [--rounds N] [--data DIR] [--fast-only] [--only K] [--res R] "
+                   "[--3dmatch-only]\n");
       return 2;
     }
   }
@@ -269,10 +280,12 @@ int main(int argc, char** argv) {
 
   std::vector<Input> inputs;
   const size_t synthetic_frames = quick ? 8 : 30;
-  inputs.push_back(prepare("synthetic 640x480 x " + std::to_string(synthetic_frames),
-                           sim::benchmarkSequence(synthetic_frames)));
+  if (!real_only) {
+    inputs.push_back(prepare("synthetic 640x480 x " + std::to_string(synthetic_frames),
+                             sim::benchmarkSequence(synthetic_frames)));
+  }
   try {
-    if (fast_only) throw std::runtime_error("--fast-only");
+    if (fast_only && only < 0) throw std::runtime_error("--fast-only");
     auto ds = io::openDataset(data / "3dmatch" / "3dmatch");
     std::vector<Frame> frames;
     for (size_t i = 0; i < ds->size(); ++i) frames.push_back(ds->load(i));
@@ -288,6 +301,7 @@ int main(int argc, char** argv) {
   for (const Input& in : inputs) {
     const bool synthetic = in.name.rfind("synthetic", 0) == 0;
     for (double res : {0.05, 0.02}) {
+      if (only_res > 0 && std::abs(res - only_res) > 1e-9) continue;
       const double nframes = static_cast<double>(in.frames.size());
       std::printf("\n== %s at %.2f m: %.0f points per frame (best of %d rounds) ==\n", in.name.c_str(), res,
                   static_cast<double>(in.points) / nframes, rounds);
