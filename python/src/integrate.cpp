@@ -19,10 +19,22 @@ namespace chronomap::python {
 
 namespace {
 
+/// carve_level: "auto" (kCarveAuto) or a level from 0 to kMaxCarveLevel (`--carve-level`).
+int toCarveLevel(const py::object& level) {
+  if (py::isinstance<py::str>(level) && level.cast<std::string>() == "auto") return kCarveAuto;
+  if (py::isinstance<py::int_>(level) && !py::isinstance<py::bool_>(level)) {
+    const long v = level.cast<long>();
+    if (v >= 0 && v <= kMaxCarveLevel) return static_cast<int>(v);
+  }
+  throw py::value_error("carve_level must be 'auto' or a level from 0 to " + std::to_string(kMaxCarveLevel) +
+                        ", not " + py::repr(level).cast<std::string>());
+}
+
 SessionMap integrateDatasetPy(const std::filesystem::path& path, double resolution_m, bool fast, double max_range_m,
                               int threads, const std::string& format, std::optional<double> depth_scale,
-                              const py::object& progress, bool carve_beyond_range) {
+                              const py::object& progress, bool carve_beyond_range, const py::object& carve_level) {
   pipeline::SessionSettings settings;
+  settings.integrator.carve_level = toCarveLevel(carve_level);
   settings.resolution_m = resolution_m;
   settings.integrator.fast = fast;
   settings.integrator.max_range_m = max_range_m;
@@ -125,8 +137,10 @@ void addPoints(IncrementalIntegrator& integrator, const py::handle& points_world
 }
 
 std::unique_ptr<IncrementalIntegrator> makeIntegrator(double resolution_m, double max_range_m, bool fast,
-                                                      bool compress_free, bool carve_beyond_range) {
+                                                      bool compress_free, bool carve_beyond_range,
+                                                      const py::object& carve_level) {
   IntegratorSettings settings;
+  settings.carve_level = toCarveLevel(carve_level);
   settings.max_range_m = max_range_m;
   settings.carve_beyond_range = carve_beyond_range;
   settings.fast = fast;
@@ -143,17 +157,20 @@ void bindIntegrate(py::module_& m) {
   m.def("integrate_dataset", &integrateDatasetPy, py::arg("path"), py::arg("resolution_m") = 0.05,
         py::arg("fast") = false, py::arg("max_range_m") = 3.0, py::arg("threads") = 0, py::arg("format") = "auto",
         py::arg("depth_scale") = py::none(), py::arg("progress") = py::none(), py::arg("carve_beyond_range") = false,
+        py::arg("carve_level") = "auto",
         "Integrates the recording at `path` (a TUM, 3DMatch, ScanNet or cloud-list dataset, as "
         "`chronomap integrate` reads it) into a SessionMap. `progress`, if given, is called as "
         "progress(label, done, total) after each frame. The GIL is released while it runs. "
         "carve_beyond_range=True carves free space along the rays of points beyond max_range_m, up to the "
-        "range (`--carve-beyond-range`).");
+        "range (`--carve-beyond-range`). carve_level (fast mode): free space far from the surfaces in cubes of "
+        "2**L voxels per axis; 'auto' is 2 at 0.025 m and finer, 0 (off) above (`--carve-level`).");
 
   py::class_<IncrementalIntegrator>(m, "Integrator",
                                     "Integrates frames one at a time; finish() gives the map integrate_dataset gives "
                                     "for the same frames and settings.")
       .def(py::init(&makeIntegrator), py::arg("resolution_m") = 0.05, py::arg("max_range_m") = 3.0,
-           py::arg("fast") = false, py::arg("compress_free") = true, py::arg("carve_beyond_range") = false)
+           py::arg("fast") = false, py::arg("compress_free") = true, py::arg("carve_beyond_range") = false,
+           py::arg("carve_level") = "auto")
       .def("add_frame", &addFrame, py::arg("depth"), py::arg("intrinsics"), py::arg("T_world_camera"),
            py::arg("rgb") = py::none(), py::arg("depth_scale") = 1000.0,
            "Adds a depth image: (H, W) uint16 with depth_scale units per metre, or float32 metres (0 = no "

@@ -64,6 +64,26 @@ def test_carving_beyond_the_range_equals_the_cli_and_adds_free_space(tmp_path, t
     assert integrator.finish() == carved
 
 
+def test_carve_level_auto_is_two_in_fast_mode_at_two_centimetres(threedmatch):
+    auto = chronomap.integrate_dataset(threedmatch, resolution_m=0.02, fast=True)
+    assert auto == chronomap.integrate_dataset(threedmatch, resolution_m=0.02, fast=True, carve_level=2)
+    off = chronomap.integrate_dataset(threedmatch, resolution_m=0.02, fast=True, carve_level=0)
+    assert auto != off
+    # Coarse cubes make voxels next to crossed ones known free; the hits stay fast mode's.
+    assert auto.counts()["free_voxels"] > off.counts()["free_voxels"]
+    assert auto.counts()["occupied_voxels"] == pytest.approx(off.counts()["occupied_voxels"], rel=0.01)
+    k, frames = frames_of(threedmatch)
+    integrator = chronomap.Integrator(resolution_m=0.02, fast=True)
+    for depth, rgb, pose in frames:
+        integrator.add_frame(depth, k, pose, rgb=rgb, depth_scale=1000.0)
+    assert integrator.finish() == auto
+    assert chronomap.integrate_dataset(threedmatch, fast=True) == chronomap.integrate_dataset(
+        threedmatch, fast=True, carve_level=0)  # auto is off at 0.05 m
+    for bad in (5, -1, "two", True, 1.5):
+        with pytest.raises(ValueError, match="carve_level must be 'auto' or a level from 0 to 4"):
+            chronomap.integrate_dataset(threedmatch, fast=True, carve_level=bad)
+
+
 def test_float_depth_in_metres_agrees_with_uint16(threedmatch):
     k, frames = frames_of(threedmatch)
     depth, rgb, pose = frames[0]
