@@ -76,24 +76,42 @@ void SessionMap::add(const VoxelKey& key, const VoxelCounters& delta) {
   addMany(std::span<const VoxelKey>(&key, 1), std::span<const VoxelCounters>(&delta, 1));
 }
 
+namespace {
+
+/// The inner nodes on the way to the previous key walked: keys in raster or Morton order share
+/// most of their path, so each walk descends only from their deepest common ancestor.
+class KeyPath {
+ public:
+  /// The inner node of level `level + 1` that holds `key`'s node of `level` (`key` aligned to
+  /// it), made on the way by `descend(parent, slot)`.
+  template <class Descend>
+  uint32_t parentOf(const VoxelKey& key, int level, Descend&& descend) {
+    int from = kTreeDepth;  // level of the deepest common ancestor still valid in node_
+    if (have_prev_) {
+      const uint32_t diff = static_cast<uint32_t>((key.x ^ prev_.x) | (key.y ^ prev_.y) | (key.z ^ prev_.z));
+      from = diff == 0 ? level + 1 : std::bit_width(diff);
+    }
+    for (int l = from; l > level + 1; --l) node_[l - 1] = descend(node_[l], childSlot(key, l - 1));
+    prev_ = key;
+    have_prev_ = true;
+    return node_[level + 1];
+  }
+
+ private:
+  std::array<uint32_t, kTreeDepth + 1> node_{};  // node_[l]: the inner node at level l; node_[kTreeDepth] = 0, the root
+  VoxelKey prev_{};
+  bool have_prev_ = false;
+};
+
+}  // namespace
+
 void SessionMap::addMany(std::span<const VoxelKey> keys, std::span<const VoxelCounters> deltas) {
   if (keys.size() != deltas.size()) throw UsageError("addMany: keys and deltas differ in length");
-  // path[l] is the inner node at level l on the way to the previous key (path[kTreeDepth] = root).
-  std::array<uint32_t, kTreeDepth + 1> path{};
-  path[kTreeDepth] = 0;
-  VoxelKey prev{};
-  bool have_prev = false;
+  KeyPath path;
+  const auto down = [this](uint32_t parent, int slot) { return descend(parent, slot); };
   for (size_t i = 0; i < keys.size(); ++i) {
     const VoxelKey& key = keys[i];
-    int level = kTreeDepth;  // level of the deepest valid common ancestor in path
-    if (have_prev) {
-      const uint32_t diff = static_cast<uint32_t>((key.x ^ prev.x) | (key.y ^ prev.y) | (key.z ^ prev.z));
-      level = diff == 0 ? 1 : std::bit_width(diff);
-    }
-    for (int l = level; l > 1; --l) {
-      path[l - 1] = descend(path[l], childSlot(key, l - 1));
-    }
-    const uint32_t node = path[1];
+    const uint32_t node = path.parentOf(key, 0, down);
     const int slot = childSlot(key, 0);
     const Ref r = inner_[node][slot];
     if (r == kEmpty) {
@@ -102,8 +120,6 @@ void SessionMap::addMany(std::span<const VoxelKey> keys, std::span<const VoxelCo
     } else {
       leaves_[index(r)] += deltas[i];
     }
-    prev = key;
-    have_prev = true;
   }
 }
 
@@ -138,26 +154,15 @@ void SessionMap::addCubes(std::span<const VoxelKey> corners, int level, std::spa
   if (corners.size() != lengths_m.size()) throw UsageError("addCubes: corners and lengths differ in length");
   if (level < 1 || level >= kTreeDepth) throw UsageError("addCubes: level " + std::to_string(level) + " out of range");
   const uint32_t low = (1u << level) - 1;
-  // path[l] is the inner node at level l on the way to the previous cube (path[kTreeDepth] = root).
-  std::array<uint32_t, kTreeDepth + 1> path{};
-  path[kTreeDepth] = 0;
-  VoxelKey prev{};
-  bool have_prev = false;
+  KeyPath path;
+  const auto down = [this](uint32_t parent, int slot) { return descend(parent, slot); };
   for (size_t i = 0; i < corners.size(); ++i) {
     const VoxelKey& key = corners[i];
     if (((key.x | key.y | key.z) & low) != 0) throw UsageError("addCubes: corner not aligned to the cube");
     if (!(lengths_m[i] > 0.0f)) continue;
-    int from = kTreeDepth;  // level of the deepest valid common ancestor in path
-    if (have_prev) {
-      const uint32_t diff = static_cast<uint32_t>((key.x ^ prev.x) | (key.y ^ prev.y) | (key.z ^ prev.z));
-      from = diff == 0 ? level + 1 : std::bit_width(diff);
-    }
-    for (int l = from; l > level + 1; --l) path[l - 1] = descend(path[l], childSlot(key, l - 1));
     VoxelCounters sums;
     sums.length_m = lengths_m[i];
-    spreadInto(path[level + 1], childSlot(key, level), level, sums);
-    prev = key;
-    have_prev = true;
+    spreadInto(path.parentOf(key, level, down), childSlot(key, level), level, sums);
   }
 }
 
