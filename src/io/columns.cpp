@@ -6,11 +6,8 @@
 
 #include "chronomap/core/error.h"
 #include "chronomap/core/key.h"
-#include "chronomap/core/offset_quantiser.h"
 
 namespace chronomap::io::columns {
-
-static_assert(kOffsetLevels == chronomap::kOffsetLevels, "one quantiser of hit positions");
 
 uint64_t ByteReader::varint() {
   uint64_t v = 0;
@@ -195,10 +192,6 @@ void requireExactly(const CmapFile& file, const std::string& source, const std::
   }
 }
 
-uint8_t quantiseOffset(float sum, uint32_t hits) { return chronomap::quantiseOffset(sum, hits); }
-
-float dequantiseOffset(uint8_t q, uint32_t hits) { return chronomap::dequantiseOffset(q, hits); }
-
 uint16_t quantiseLength(float length_m, uint32_t hits) {
   if (!(length_m > 0.0f)) return 0;  // zero (and -0), and what no valid map holds
   uint32_t bits;
@@ -246,11 +239,9 @@ uint32_t storedColourSum(uint32_t sum, uint32_t hits) {
 
 namespace {
 
-/// Version 3's QLEN and PHIT.
-void encodeLengthsAndHits(size_t n, const std::function<const VoxelCounters&(size_t)>& at,
+/// Version 3's QLEN and PHIT, of `n` records of which `m` have hits.
+void encodeLengthsAndHits(size_t n, size_t m, const std::function<const VoxelCounters&(size_t)>& at,
                           std::vector<CmapBlock>& blocks) {
-  size_t m = 0;
-  for (size_t i = 0; i < n; ++i) m += at(i).hits > 0;
   const size_t flag_bytes = (n + 7) / 8;
   std::vector<uint8_t> lengths(2 * n), flags(flag_bytes + 4 * m);
   uint8_t* planes = flags.data() + flag_bytes;
@@ -269,8 +260,9 @@ void encodeLengthsAndHits(size_t n, const std::function<const VoxelCounters&(siz
   blocks.push_back({kHitPlanes, std::move(flags)});
 }
 
-void decodeLengthsAndHits(const CmapFile& file, const std::string& source, size_t n,
-                          const std::function<VoxelCounters&(size_t)>& at) {
+/// Reads version 3's QLEN and PHIT; returns how many of the `n` records have hits.
+size_t decodeLengthsAndHits(const CmapFile& file, const std::string& source, size_t n,
+                            const std::function<VoxelCounters&(size_t)>& at) {
   const CmapBlock& lengths = file.block(kQuantisedLengths, source);
   if (lengths.data.size() != 2 * n) {
     throw FormatError(blockName(source, kQuantisedLengths) + " does not match the tree");
@@ -304,6 +296,7 @@ void decodeLengthsAndHits(const CmapFile& file, const std::string& source, size_
     c.hits = h;
     ++k;
   }
+  return m;
 }
 
 }  // namespace
@@ -312,6 +305,7 @@ void encodeCounters(size_t n, const std::function<const VoxelCounters&(size_t)>&
                     uint32_t version) {
   ByteWriter residuals;
   size_t with_hits = 0;
+  for (size_t i = 0; i < n; ++i) with_hits += at(i).hits > 0;
   if (version == 2) {
     std::vector<uint8_t> lengths(4 * n);
     ByteWriter hits;
@@ -325,9 +319,8 @@ void encodeCounters(size_t n, const std::function<const VoxelCounters&(size_t)>&
     blocks.push_back({kLengths, std::move(lengths)});
     blocks.push_back({kHits, std::move(hits.bytes())});
   } else {
-    encodeLengthsAndHits(n, at, blocks);
+    encodeLengthsAndHits(n, with_hits, at, blocks);
   }
-  for (size_t i = 0; i < n; ++i) with_hits += at(i).hits > 0;
   // Colours: the mean (a byte, as smooth as the surfaces) and, in version 2, the sum's remainder
   // beyond mean * hits (small, often zero), each channel's stream after the other's.
   std::vector<uint8_t> means(3 * with_hits), positions(3 * with_hits);
@@ -351,6 +344,7 @@ void encodeCounters(size_t n, const std::function<const VoxelCounters&(size_t)>&
 void decodeCounters(const CmapFile& file, const std::string& source, size_t n,
                     const std::function<VoxelCounters&(size_t)>& at) {
   const bool exact = file.header.version == 2;
+  size_t with_hits = 0;
   if (exact) {
     const CmapBlock& lengths = file.block(kLengths, source);
     if (lengths.data.size() != 4 * n) throw FormatError(blockName(source, kLengths) + " does not match the tree");
@@ -363,13 +357,12 @@ void decodeCounters(const CmapFile& file, const std::string& source, size_t n,
       const uint64_t h = hits.varint();
       if (h > 0xffffffffu) hits.fail("holds an impossible hit count");
       c.hits = static_cast<uint32_t>(h);
+      with_hits += c.hits > 0;
     }
     hits.expectEnd();
   } else {
-    decodeLengthsAndHits(file, source, n, at);
+    with_hits = decodeLengthsAndHits(file, source, n, at);
   }
-  size_t with_hits = 0;
-  for (size_t i = 0; i < n; ++i) with_hits += at(i).hits > 0;
   const CmapBlock& means = file.block(kColours, source);
   const CmapBlock& positions = file.block(kPositions, source);
   if (means.data.size() != 3 * with_hits) throw FormatError(blockName(source, kColours) + " does not match the hit counts");

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "chronomap/core/counters.h"
+#include "chronomap/core/offset_quantiser.h"
 #include "chronomap/io/cmap.h"
 
 namespace chronomap::io::columns {
@@ -116,14 +117,11 @@ void requireExactly(const CmapFile& file, const std::string& source, const std::
 std::vector<const char*> withCounterTags(uint32_t version, std::initializer_list<const char*> first,
                                          std::initializer_list<const char*> last);
 
-/// Hit positions in version 2: a mean offset from the voxel centre (in [-0.5, 0.5] voxels) is
-/// kept as q = round(mean * 254) in -127..127, stored as the byte q + 127 (0..254; 255 is
-/// refused). Zero, a hit at the centre (maps made without positions), is kept exactly.
-inline constexpr int kOffsetLevels = 127;
-/// The stored byte of an offset sum `sum` over `hits` hits (127 without hits).
-uint8_t quantiseOffset(float sum, uint32_t hits);
-/// The offset sum that byte `q` stands for with `hits` hits: (q - 127) / 254 * hits.
-float dequantiseOffset(uint8_t q, uint32_t hits);
+/// Hit positions in versions 2 and 3: the core's one quantiser (core/offset_quantiser.h), a mean
+/// offset as the byte round(mean * 254) + 127 (0..254; 255 is refused).
+using chronomap::dequantiseOffset;
+using chronomap::kOffsetLevels;
+using chronomap::quantiseOffset;
 
 /// Lengths in version 3: a length keeps 8 of its 23 mantissa bits, rounded to nearest, as the
 /// 16-bit code (f32 bits + 2^14) >> 15 (lengths are non-negative, the sign bit is always 0;
