@@ -624,13 +624,21 @@ TemporalCounts TemporalMap::counts() const {
   return c;
 }
 
-size_t TemporalMap::memoryBytes() const {
-  size_t bytes = inner_.size() * sizeof(Children) + lists_.size() * sizeof(List) + arena_.size() * sizeof(Stored) +
-                 hit_parts_.size() * sizeof(HitPart) + free_hit_parts_.capacity() * sizeof(uint32_t);
-  bytes += coarse_.capacity() * sizeof(Coarse) + coarse_span_.capacity() * sizeof(CoarseSpan) + coarse_dirty_.capacity();
+size_t TemporalMap::sessionBytes() const {
+  size_t bytes = 0;
   for (const auto& s : sessions_) bytes += s.coverage.memoryBytes() + sizeof(SessionRecord) + s.name.capacity();
-  bytes += change_masks_.capacity() * sizeof(uint64_t);
   return bytes;
+}
+
+size_t TemporalMap::coarseBytes() const {
+  return coarse_.capacity() * sizeof(Coarse) + coarse_span_.capacity() * sizeof(CoarseSpan) + coarse_dirty_.capacity();
+}
+
+size_t TemporalMap::memoryBytes() const {
+  // memoryUse() splits the same sum part by part (walking the lists); this stays constant time.
+  return inner_.size() * sizeof(Children) + lists_.size() * sizeof(List) + arena_.size() * sizeof(Stored) +
+         hit_parts_.size() * sizeof(HitPart) + free_hit_parts_.capacity() * sizeof(uint32_t) + coarseBytes() +
+         sessionBytes() + change_masks_.capacity() * sizeof(uint64_t);
 }
 
 TemporalMap::MemoryUse TemporalMap::memoryUse() const {
@@ -644,9 +652,8 @@ TemporalMap::MemoryUse TemporalMap::memoryUse() const {
   m.hit_parts = (hit_parts_.size() - free_hit_parts_.size()) * sizeof(HitPart);
   m.slack = arena_.size() * sizeof(Stored) - m.entries + (lists_.size() - live_lists_) * sizeof(List) +
             free_hit_parts_.size() * sizeof(HitPart) + free_hit_parts_.capacity() * sizeof(uint32_t);
-  m.coarse = coarse_.capacity() * sizeof(Coarse) + coarse_span_.capacity() * sizeof(CoarseSpan) +
-             coarse_dirty_.capacity();
-  for (const auto& s : sessions_) m.sessions += s.coverage.memoryBytes() + sizeof(SessionRecord) + s.name.capacity();
+  m.coarse = coarseBytes();
+  m.sessions = sessionBytes();
   m.change_masks = change_masks_.capacity() * sizeof(uint64_t);
   return m;
 }

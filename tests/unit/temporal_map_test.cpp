@@ -176,6 +176,35 @@ void replaceOneRemoveAnother(std::mt19937_64& rng, World& world, int n, Temporal
 // ---------------------------------------------------------------------------------------------
 // Analytic cases.
 
+// memoryUse() splits memoryBytes() part by part: the parts sum to it, with free list records,
+// arena room and hit parts (after a replace and a removal) and after compaction.
+TEST(TemporalMap, MemoryUseSumsToMemoryBytes) {
+  std::mt19937_64 rng(27);
+  World world;
+  world.init(rng);
+  TemporalMap map(0.05);
+  Reference ref;
+  auto sum = [](const TemporalMap::MemoryUse& m) {
+    return m.inner + m.lists + m.entries + m.hit_parts + m.slack + m.coarse + m.sessions + m.change_masks;
+  };
+  constexpr int kSessions = 6;
+  for (int i = 0; i < kSessions; ++i) {
+    world.change(rng, 200);
+    const SessionMap s = randomSession(rng, world);
+    map.add(sessionTime(i), s);
+    ref.add(sessionTime(i), s);
+    EXPECT_EQ(sum(map.memoryUse()), map.memoryBytes()) << "after session " << i;
+  }
+  replaceOneRemoveAnother(rng, world, kSessions, map, ref);
+  const TemporalMap::MemoryUse m = map.memoryUse();
+  EXPECT_GT(m.entries, 0u);
+  EXPECT_GT(m.hit_parts, 0u);
+  EXPECT_GT(m.sessions, 0u);
+  EXPECT_EQ(sum(m), map.memoryBytes());
+  map.compact();
+  EXPECT_EQ(sum(map.memoryUse()), map.memoryBytes());
+}
+
 TEST(TemporalMap, OnlyChangesCreateEntries) {
   TemporalMap map(0.05);
   SessionMap a(0.05), b(0.05), c(0.05);

@@ -248,6 +248,9 @@ class TemporalMap {
   bool freeWithoutHits(const Stored& s) const {
     return s.length_m > 0.0f && (s.part == kNoPart || hit_parts_[s.part].hits == 0);
   }
+  /// Bytes of the session records and their coverages; of the coarse entries, spans and marks.
+  size_t sessionBytes() const;
+  size_t coarseBytes() const;
   /// Re-lays the hit parts out for the list records `lists` (see relayout()).
   void packHitParts(std::vector<List>& lists);
   /// The entries of `l`, decoded into `scratch`.
