@@ -1,7 +1,7 @@
 // Where the bytes of a .cmap go: for each map, every block of the file in format version 1 (the
 // previous layout: pools and records as they lie in memory), version 2 (field by field, lengths
-// exact) and the current version (lengths and colour sums quantised), raw and as stored (zstd), the CPU time to encode and to decode each, and the largest
-// error of the hit positions read back.
+// exact) and the current version (lengths and colour sums quantised), raw and as stored (zstd),
+// the CPU time to encode and to decode each, and the largest error of the hit positions read back.
 //
 // Usage: cmap_size [--synthetic] [--level N] [FILE.cmap ...]
 //   --synthetic: the session maps of integrate_vs_peers' synthetic sequence (30 frames of

@@ -225,10 +225,8 @@ std::vector<Result> measure(const Input& in, double res, int rounds, bool fast_o
   for (int round = 0; round < rounds; ++round) {
     for (size_t m = 0; m < kRows; ++m) {
       if (round > 0 && best[m].seconds > 10.0) continue;
-      if (only >= 0 ? m != static_cast<size_t>(only)
-                    : fast_only && m != kFast1 && m != kFast2 && m != kFast1Bare && m != kFast2Bare && m < kFast1Carve0) {
-        continue;
-      }
+      const bool fast_row = m == kFast1 || m == kFast2 || m == kFast1Bare || m == kFast2Bare || m >= kFast1Carve0;
+      if (only >= 0 ? m != static_cast<size_t>(only) : fast_only && !fast_row) continue;
       const Result r = methods[m]();
       if (round == 0 || r.time() < best[m].time()) best[m] = r;
     }

@@ -406,7 +406,9 @@ TEST(Cmap, HitsAtTheCentreStayThereExactly) {
   m.assignPools(m.innerPool(), leaves);
   const SessionMap back = sessionMapFrom(decodeCmap(encodeSessionMap(m, nullptr), "c.cmap"), "c.cmap");
   EXPECT_EQ(back.leafPool(), asStored(m).leafPool());
-  for (const VoxelCounters& c : back.leafPool()) EXPECT_TRUE(c.offset[0] == 0.0f && c.offset[1] == 0.0f && c.offset[2] == 0.0f);
+  for (const VoxelCounters& c : back.leafPool()) {
+    EXPECT_TRUE(c.offset[0] == 0.0f && c.offset[1] == 0.0f && c.offset[2] == 0.0f);
+  }
 }
 
 TEST(Cmap, VersionOneFilesStillReadExactly) {
@@ -448,9 +450,9 @@ void craftedBlocksGiveOneClearError(uint32_t version) {
   if (version == 3) {
     EXPECT_TRUE(readWith("META", [](auto&) {}) == asStored(m));
   }
-  const std::vector<const char*> tags = version == 2
-                                            ? std::vector<const char*>{"TMSK", "TREF", "CLEN", "CHIT", "CRGB", "CRES", "CPOS"}
-                                            : std::vector<const char*>{"TMSK", "TREF", "QLEN", "PHIT", "CRGB", "CPOS"};
+  const std::vector<const char*> tags =
+      version == 2 ? std::vector<const char*>{"TMSK", "TREF", "CLEN", "CHIT", "CRGB", "CRES", "CPOS"}
+                   : std::vector<const char*>{"TMSK", "TREF", "QLEN", "PHIT", "CRGB", "CPOS"};
   for (const char* tag : tags) {
     expectError(tag, [](std::vector<uint8_t>& d) { d.pop_back(); }, "a block one byte short");
     expectError(tag, [](std::vector<uint8_t>& d) { d.push_back(0); }, "a block one byte long");
