@@ -15,6 +15,8 @@
 #include <tf2_msgs/TFMessage.h>
 
 #include <algorithm>
+#include <limits>
+#include <stdexcept>
 #include <cmath>
 #include <cstddef>
 #include <map>
@@ -37,8 +39,19 @@ namespace fs = std::filesystem;
 
 namespace {
 
+/// The most bytes one allocation may take while a message is instantiated (instantiate() sets it
+/// from the message's size): a corrupt array length must not ask for gigabytes.
+thread_local size_t tl_allocation_limit = std::numeric_limits<size_t>::max();
+
+/// Thrown by RosAllocator past tl_allocation_limit; the readers' handlers turn it into a
+/// FormatError naming the file.
+struct OversizedMessage : std::runtime_error {
+  OversizedMessage() : std::runtime_error("a message claims more elements than its bytes can hold (corrupt)") {}
+};
+
 /// The allocator the messages are instantiated with. The generated headers ask their allocator
-/// for `rebind`, which std::allocator lost in C++20; this one still has it.
+/// for `rebind`, which std::allocator lost in C++20; this one still has it, and refuses what no
+/// message of its size can hold (tl_allocation_limit).
 template <class T>
 struct RosAllocator {
   using value_type = T;
@@ -49,7 +62,10 @@ struct RosAllocator {
   RosAllocator() = default;
   template <class U>
   RosAllocator(const RosAllocator<U>& /*other*/) noexcept {}
-  T* allocate(std::size_t n) { return std::allocator<T>{}.allocate(n); }
+  T* allocate(std::size_t n) {
+    if (n > tl_allocation_limit / sizeof(T)) throw OversizedMessage();
+    return std::allocator<T>{}.allocate(n);
+  }
   void deallocate(T* p, std::size_t n) noexcept { std::allocator<T>{}.deallocate(p, n); }
   template <class U>
   bool operator==(const RosAllocator<U>& /*other*/) const {
@@ -65,6 +81,19 @@ using Odometry = nav_msgs::Odometry_<RosAllocator<void>>;
 using PoseStamped = geometry_msgs::PoseStamped_<RosAllocator<void>>;
 using Point = geometry_msgs::Point_<RosAllocator<void>>;
 using Quaternion = geometry_msgs::Quaternion_<RosAllocator<void>>;
+
+/// `m` as a T (null when it is another type). No allocation may exceed 16 times the message's
+/// bytes (plus 4 KiB): an element takes at most 8 times its serialised size in memory (an empty
+/// string: 4 bytes in the bag, 32 in memory).
+template <class T>
+boost::shared_ptr<T> instantiate(const rosbag::MessageInstance& m) {
+  struct Limit {
+    size_t before = tl_allocation_limit;
+    ~Limit() { tl_allocation_limit = before; }
+  } limit;
+  tl_allocation_limit = 16 * size_t{m.size()} + 4096;
+  return m.instantiate<T>();
+}
 
 /// A message's string as a std::string.
 std::string text(std::string_view s) { return std::string(s); }
@@ -93,12 +122,12 @@ bag::TopicMap topicsOf(const rosbag::Bag& bag) {
     rosbag::View view(bag, rosbag::TopicQuery(name));
     info.messages = view.size();
     if (info.type == bag::kImage && info.messages > 0) {
-      if (auto im = view.begin()->instantiate<Image>()) {
+      if (auto im = instantiate<Image>(*view.begin())) {
         info.encoding = text(im->encoding);
         info.frame_id = text(im->header.frame_id);
       }
     } else if (info.type == bag::kCompressedImage && info.messages > 0) {
-      if (auto im = view.begin()->instantiate<CompressedImage>()) {
+      if (auto im = instantiate<CompressedImage>(*view.begin())) {
         info.encoding = text(im->format);
         info.frame_id = text(im->header.frame_id);
       }
@@ -113,7 +142,7 @@ Eigen::Isometry3d poseOf(const Point& p, const Quaternion& q, const std::string&
 
 /// The transforms of one /tf or /tf_static message.
 void addTransforms(TransformTree& tree, const rosbag::MessageInstance& m, bool is_static, const fs::path& path) {
-  const auto tf = m.instantiate<TFMessage>();
+  const auto tf = instantiate<TFMessage>(m);
   if (!tf)
     throw DataError(path.string() + ": " + m.getTopic() + " is a " + m.getDataType() + ", not tf2_msgs/TFMessage");
   for (const auto& ts : tf->transforms) {
@@ -134,11 +163,11 @@ void addTransforms(TransformTree& tree, const rosbag::MessageInstance& m, bool i
 /// The pose of one Odometry or PoseStamped message.
 void addPose(bag::PoseTrack& track, const rosbag::MessageInstance& m, const fs::path& path) {
   const std::string context = path.string() + ": " + m.getTopic();
-  if (auto odom = m.instantiate<Odometry>()) {
+  if (auto odom = instantiate<Odometry>(m)) {
     track.child_frame = bag::frameName(odom->child_frame_id);
     track.poses.push_back(
         {seconds(odom->header.stamp), poseOf(odom->pose.pose.position, odom->pose.pose.orientation, context)});
-  } else if (auto ps = m.instantiate<PoseStamped>()) {
+  } else if (auto ps = instantiate<PoseStamped>(m)) {
     track.poses.push_back({seconds(ps->header.stamp), poseOf(ps->pose.position, ps->pose.orientation, context)});
   }
 }
@@ -146,7 +175,7 @@ void addPose(bag::PoseTrack& track, const rosbag::MessageInstance& m, const fs::
 std::optional<CameraIntrinsics> readInfo(const rosbag::Bag& bag, const std::string& topic, const fs::path& path) {
   if (topic.empty()) return std::nullopt;
   for (const rosbag::MessageInstance& m : rosbag::View(bag, rosbag::TopicQuery(topic))) {
-    const auto info = m.instantiate<CameraInfo>();
+    const auto info = instantiate<CameraInfo>(m);
     if (!info) continue;
     double k[9];
     std::copy(info->K.begin(), info->K.end(), k);
@@ -208,7 +237,7 @@ class RosBagDataset : public bag::BagDataset {
     boost::shared_ptr<T> msg;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      msg = messages_.at(i).instantiate<T>();
+      msg = io::instantiate<T>(messages_.at(i));
     }
     if (!msg)
       throw DataError(path_.string() + ": message " + std::to_string(i) + " is not a " +
@@ -219,7 +248,7 @@ class RosBagDataset : public bag::BagDataset {
   /// Remembers a message with its header's stamp and frame.
   template <class T>
   void addStamped(std::vector<bag::Stamped>& out, const rosbag::MessageInstance& m) {
-    const auto msg = m.instantiate<T>();
+    const auto msg = io::instantiate<T>(m);
     if (!msg) return;
     out.push_back({seconds(msg->header.stamp), messages_.size(), bag::frameName(msg->header.frame_id)});
     messages_.push_back(m);
