@@ -38,7 +38,7 @@
 #include "bench_sim.h"
 #include "chronomap/analysis/alerts.h"
 #include "chronomap/core/time.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/store/temporal_file.h"
 #include "chronomap/pipeline/alerts.h"
 #include "chronomap/sim/change_truth.h"
 
@@ -114,11 +114,11 @@ int main(int argc, char** argv) {
   const auto build_started = std::chrono::steady_clock::now();
   // --map FILE: the 4D map built once and kept (read when it exists, else built and written).
   auto buildMap = [&]() -> TemporalMap {
-    if (!map_file.empty() && fs::exists(map_file)) return io::readTemporalMap(map_file);
+    if (!map_file.empty() && fs::exists(map_file)) return readTemporalMap(map_file);
     TemporalMap m = bench::buildWeeksMap(weeks, all, poses == "true", max_range_m,
                                          (tmp.empty() ? fs::temp_directory_path() : tmp) /
                                              ("alerts_eval_" + std::to_string(::getpid()) + ".cmap"));
-    if (!map_file.empty()) io::writeTemporalMap(map_file, m, {{"created_by", "alerts_eval"}, {"poses", poses}});
+    if (!map_file.empty()) writeTemporalMap(map_file, m, {{"created_by", "alerts_eval"}, {"poses", poses}});
     return m;
   };
   const TemporalMap map = buildMap();

@@ -21,8 +21,8 @@
 #include <string>
 #include <vector>
 
-#include "chronomap/io/dataset.h"
-#include "chronomap/io/rosbag.h"
+#include "chronomap/ingest/dataset.h"
+#include "chronomap/ingest/ros/rosbag.h"
 
 using namespace chronomap;
 
@@ -46,12 +46,12 @@ double seconds(std::chrono::steady_clock::time_point since) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
 }
 
-Timing measure(const std::filesystem::path& path, const io::DatasetSettings& settings, int rounds) {
+Timing measure(const std::filesystem::path& path, const DatasetSettings& settings, int rounds) {
   Timing t;
   for (int r = 0; r < rounds; ++r) {
     auto start = std::chrono::steady_clock::now();
     double cpu = threadCpuSeconds();
-    const auto dataset = io::openDataset(path, settings);
+    const auto dataset = openDataset(path, settings);
     t.open_s = std::min(t.open_s, seconds(start));
     t.open_cpu_s = std::min(t.open_cpu_s, threadCpuSeconds() - cpu);
     t.frames = dataset->size();
@@ -74,7 +74,7 @@ Timing measure(const std::filesystem::path& path, const io::DatasetSettings& set
 int main(int argc, char** argv) {
   std::vector<std::string> paths;
   int rounds = 5;
-  io::DatasetSettings bag_settings;
+  DatasetSettings bag_settings;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--rounds" && i + 1 < argc) {
@@ -114,9 +114,9 @@ int main(int argc, char** argv) {
                         {"bags", nlohmann::json::object()}};
   for (size_t b = 1; b < paths.size(); ++b) {
     // --fixed-frame for the bags with /tf; the others take their pose topic.
-    io::DatasetSettings settings = bag_settings;
-    const auto topics = io::listBag(paths[b]);
-    if (std::none_of(topics.begin(), topics.end(), [](const io::BagTopic& t) { return t.name == "/tf"; })) {
+    DatasetSettings settings = bag_settings;
+    const auto topics = listBag(paths[b]);
+    if (std::none_of(topics.begin(), topics.end(), [](const BagTopic& t) { return t.name == "/tf"; })) {
       settings.bag.fixed_frame.clear();
     }
     const Timing t = measure(paths[b], settings, rounds);

@@ -15,10 +15,10 @@
 #include <nlohmann/json.hpp>
 
 #include "chronomap/align/register.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/file.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/core/file.h"
 #include "chronomap/pipeline/map4d.h"
-#include "chronomap/io/dataset.h"
+#include "chronomap/ingest/dataset.h"
 #include "chronomap/pipeline/session.h"
 #include "chronomap/sim/building.h"
 #include "chronomap/sim/change_truth.h"
@@ -66,10 +66,10 @@ struct PoseError {
 };
 
 inline PoseError poseError(const std::filesystem::path& dir, const PoseCorrection& correction) {
-  const auto estimated = io::openDataset(dir);
-  io::DatasetSettings truth_options;
+  const auto estimated = openDataset(dir);
+  DatasetSettings truth_options;
   truth_options.trajectory = dir / "groundtruth.txt";
-  const auto truth = io::openDataset(dir, truth_options);
+  const auto truth = openDataset(dir, truth_options);
   const size_t n = std::min(estimated->size(), truth->size());
   PoseError e;
   if (n == 0) return e;
@@ -220,7 +220,7 @@ inline std::filesystem::path simulateWeeks(const std::filesystem::path& tmp, dou
 inline WeeksSim readWeeks(const std::filesystem::path& dir, int learn_days) {
   WeeksSim w;
   w.dir = dir;
-  w.scene = nlohmann::json::parse(io::readTextFile(dir / "scene.json"));
+  w.scene = nlohmann::json::parse(readTextFile(dir / "scene.json"));
   for (const auto& s : w.scene["sessions"]) {
     w.times.push_back(s["time_s"].get<double>());
     w.dirs.push_back(dir / s["dir"].get<std::string>());
@@ -260,7 +260,7 @@ inline TemporalMap buildWeeksMap(const WeeksSim& w, const std::vector<size_t>& w
     return m;
   }
   pipeline::build(build);
-  TemporalMap m = io::readTemporalMap(build.map);
+  TemporalMap m = readTemporalMap(build.map);
   std::error_code ec;
   std::filesystem::remove(build.map, ec);
   return m;

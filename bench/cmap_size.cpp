@@ -23,9 +23,9 @@
 #include <vector>
 
 #include "chronomap/integrate/integrator.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/core/file.h"
+#include "chronomap/store/temporal_file.h"
 #include "chronomap/sim/box_room.h"
 
 using namespace chronomap;
@@ -110,19 +110,19 @@ LengthError lengthError(const std::vector<VoxelCounters>& a, const std::vector<V
 nlohmann::json measureSession(const std::string& name, const SessionMap& map, int rounds) {
   std::printf("\n## %s: session map, %zu inner nodes, %zu leaves\n\n", name.c_str(), map.innerCount(), map.leafCount());
   std::vector<uint8_t> v1, v2, exact2;
-  const double enc1 = bestOf(rounds, [&] { v1 = io::encodeSessionMap(map, nlohmann::json::object(), 3, 1); });
-  const double enc2 = bestOf(rounds, [&] { v2 = io::encodeSessionMap(map, nlohmann::json::object()); });
-  exact2 = io::encodeSessionMap(map, nlohmann::json::object(), 3, 2);
+  const double enc1 = bestOf(rounds, [&] { v1 = encodeSessionMap(map, nlohmann::json::object(), 3, 1); });
+  const double enc2 = bestOf(rounds, [&] { v2 = encodeSessionMap(map, nlohmann::json::object()); });
+  exact2 = encodeSessionMap(map, nlohmann::json::object(), 3, 2);
   SessionMap back1, back2;
-  const double dec1 = bestOf(rounds, [&] { back1 = io::sessionMapFrom(io::decodeCmap(v1, "v1"), "v1"); });
-  const double dec2 = bestOf(rounds, [&] { back2 = io::sessionMapFrom(io::decodeCmap(v2, "v2"), "v2"); });
+  const double dec1 = bestOf(rounds, [&] { back1 = sessionMapFrom(decodeCmap(v1, "v1"), "v1"); });
+  const double dec2 = bestOf(rounds, [&] { back2 = sessionMapFrom(decodeCmap(v2, "v2"), "v2"); });
   printBlocks("version 1", v1, map.leafCount());
   std::printf("\n");
   printBlocks("version 2", exact2, map.leafCount());
   std::printf("\n");
   printBlocks("current version", v2, map.leafCount());
   if (const char* dump = std::getenv("CMAP_SIZE_DUMP")) {
-    for (const io::CmapBlock& b : io::decodeCmap(v2, "v2").blocks) {
+    for (const CmapBlock& b : decodeCmap(v2, "v2").blocks) {
       std::FILE* f = std::fopen((std::string(dump) + "/" + name + "." + b.tag).c_str(), "wb");
       std::fwrite(b.data.data(), 1, b.data.size(), f);
       std::fclose(f);
@@ -135,7 +135,7 @@ nlohmann::json measureSession(const std::string& name, const SessionMap& map, in
   std::printf("\ncurrent / version 1: %.3f; encode %.2f / %.2f ms, decode %.2f / %.2f ms (CPU, best of %d); "
               "round trip equal but positions: %s; largest position error %.5f voxel\n",
               static_cast<double>(v2.size()) / static_cast<double>(v1.size()), 1e3 * enc1, 1e3 * enc2, 1e3 * dec1,
-              1e3 * dec2, rounds, back2 == io::asStored(map) ? "yes" : "NO", err);
+              1e3 * dec2, rounds, back2 == asStored(map) ? "yes" : "NO", err);
   return {{"bytes_v1", v1.size()}, {"bytes_v2", exact2.size()}, {"bytes_now", v2.size()}, {"encode_ms_v1", 1e3 * enc1},
           {"encode_ms_now", 1e3 * enc2}, {"decode_ms_v1", 1e3 * dec1}, {"decode_ms_now", 1e3 * dec2},
           {"position_error_voxels", err}, {"length_relative_error", lerr.relative},
@@ -156,12 +156,12 @@ nlohmann::json measureTemporal(const std::string& name, const TemporalMap& map, 
   std::printf("\n## %s: 4D map, %zu sessions, %zu entries\n\n", name.c_str(), map.sessionCount(), records);
   (void)counts;
   std::vector<uint8_t> v1, v2;
-  const double enc1 = bestOf(rounds, [&] { v1 = io::encodeTemporalMap(map, nlohmann::json::object(), 1); });
-  const double enc2 = bestOf(rounds, [&] { v2 = io::encodeTemporalMap(map, nlohmann::json::object()); });
-  const std::vector<uint8_t> exact2 = io::encodeTemporalMap(map, nlohmann::json::object(), 2);
+  const double enc1 = bestOf(rounds, [&] { v1 = encodeTemporalMap(map, nlohmann::json::object(), 1); });
+  const double enc2 = bestOf(rounds, [&] { v2 = encodeTemporalMap(map, nlohmann::json::object()); });
+  const std::vector<uint8_t> exact2 = encodeTemporalMap(map, nlohmann::json::object(), 2);
   TemporalMap back1, back2;
-  const double dec1 = bestOf(rounds, [&] { back1 = io::temporalMapFrom(io::decodeCmap(v1, "v1"), "v1"); });
-  const double dec2 = bestOf(rounds, [&] { back2 = io::temporalMapFrom(io::decodeCmap(v2, "v2"), "v2"); });
+  const double dec1 = bestOf(rounds, [&] { back1 = temporalMapFrom(decodeCmap(v1, "v1"), "v1"); });
+  const double dec2 = bestOf(rounds, [&] { back2 = temporalMapFrom(decodeCmap(v2, "v2"), "v2"); });
   printBlocks("version 1", v1, records);
   std::printf("\n");
   printBlocks("version 2", exact2, records);
@@ -219,11 +219,11 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "usage: cmap_size [--rounds N] [--synthetic] [FILE.cmap ...]\n");
       return 2;
     } else {
-      const io::CmapFile file = io::readCmap(arg);
-      if (file.header.kind == io::MapKind::Session) {
-        summary[arg] = measureSession(arg, io::sessionMapFrom(file, arg), rounds);
-      } else if (file.header.kind == io::MapKind::Temporal) {
-        summary[arg] = measureTemporal(arg, io::temporalMapFrom(file, arg), rounds);
+      const CmapFile file = readCmap(arg);
+      if (file.header.kind == MapKind::Session) {
+        summary[arg] = measureSession(arg, sessionMapFrom(file, arg), rounds);
+      } else if (file.header.kind == MapKind::Temporal) {
+        summary[arg] = measureTemporal(arg, temporalMapFrom(file, arg), rounds);
       }
       summary[arg]["file_bytes"] = file.file_bytes;
       summary[arg]["file_version"] = file.header.version;

@@ -31,7 +31,7 @@
 #include "bench_sim.h"
 #include "chronomap/analysis/colour.h"
 #include "chronomap/core/time.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/store/temporal_file.h"
 #include "chronomap/pipeline/maps.h"
 
 namespace fs = std::filesystem;
@@ -47,7 +47,7 @@ struct Sessions {
 
 Sessions integrateAll(const fs::path& dir) {
   Sessions s;
-  s.scene = nlohmann::json::parse(io::readTextFile(dir / "scene.json"));
+  s.scene = nlohmann::json::parse(readTextFile(dir / "scene.json"));
   for (const auto& j : s.scene["sessions"]) {
     const fs::path p = dir / j["dir"].get<std::string>();
     pipeline::SessionSettings ss = bench::simSessionSettings();
@@ -74,7 +74,7 @@ struct Cost {
 
 Cost measure(const Sessions& s, double d, const fs::path& scratch) {
   const TemporalMap m = buildMap(s, d, s.maps.size());
-  io::writeTemporalMap(scratch, m, {{"created_by", "colour_eval"}});
+  writeTemporalMap(scratch, m, {{"created_by", "colour_eval"}});
   const Cost c{d, m.counts().nodes(), m.counts().entries, fs::file_size(scratch)};
   fs::remove(scratch);
   return c;

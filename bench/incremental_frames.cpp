@@ -1,6 +1,6 @@
 // Frame-by-frame integration from decoded images, the C++ side of bench/python_integration.py:
 // the frames of a TUM folder (depth.txt order, each with the nearest pose and colour image) are
-// read and decoded first; then, timed, each depth image is turned into a cloud (io::depthToCloud)
+// read and decoded first; then, timed, each depth image is turned into a cloud (depthToCloud)
 // and added to an IncrementalIntegrator on one thread, and finish() compresses the map. This is
 // what chronomap.Integrator.add_frame does for numpy arrays, so the Python script compares the two.
 //
@@ -18,9 +18,9 @@
 #include <nlohmann/json.hpp>
 
 #include "chronomap/integrate/incremental.h"
-#include "chronomap/io/dataset.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/png.h"
+#include "chronomap/ingest/dataset.h"
+#include "chronomap/core/file.h"
+#include "chronomap/ingest/png.h"
 
 using namespace chronomap;
 namespace fs = std::filesystem;
@@ -62,15 +62,15 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  const auto depths = io::parseStampedList(io::readTextFile(folder / "depth.txt"), "depth.txt");
-  const auto colors = io::parseStampedList(io::readTextFile(folder / "rgb.txt"), "rgb.txt");
+  const auto depths = parseStampedList(readTextFile(folder / "depth.txt"), "depth.txt");
+  const auto colors = parseStampedList(readTextFile(folder / "rgb.txt"), "rgb.txt");
   const fs::path traj = fs::exists(folder / "trajectory.txt") ? folder / "trajectory.txt" : folder / "groundtruth.txt";
-  const auto poses = io::parseTumTrajectory(io::readTextFile(traj), traj.string());
-  const CameraIntrinsics k = io::readIntrinsicsFile(folder / "camera-intrinsics.txt");
+  const auto poses = parseTumTrajectory(readTextFile(traj), traj.string());
+  const CameraIntrinsics k = readIntrinsicsFile(folder / "camera-intrinsics.txt");
   std::vector<DecodedFrame> frames;
   for (const auto& d : depths) {
     if (frames.size() >= max_frames) break;
-    frames.push_back({io::readPngU16(folder / d.name), io::readPngRgb(folder / nearest(colors, d.t).name),
+    frames.push_back({readPngU16(folder / d.name), readPngRgb(folder / nearest(colors, d.t).name),
                       nearest(poses, d.t).pose});
   }
   IntegratorSettings settings;
@@ -84,7 +84,7 @@ int main(int argc, char** argv) {
     for (const DecodedFrame& f : frames) {
       Frame frame;
       frame.T_world_sensor = f.pose;
-      frame.cloud = io::depthToCloud(f.depth, &f.rgb, k, 5000.0, "bench");
+      frame.cloud = depthToCloud(f.depth, &f.rgb, k, 5000.0, "bench");
       integrator.add(frame);
     }
     points = integrator.stats().points;

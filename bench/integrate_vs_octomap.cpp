@@ -21,7 +21,7 @@
 #include <vector>
 
 #include "chronomap/integrate/integrator.h"
-#include "chronomap/io/dataset.h"
+#include "chronomap/ingest/dataset.h"
 #include "chronomap/sim/box_room.h"
 
 using namespace chronomap;
@@ -147,7 +147,7 @@ int main(int argc, char** argv) {
   inputs.push_back(prepare("synthetic 640x480 x " + std::to_string(synthetic_frames),
                            sim::benchmarkSequence(synthetic_frames)));
   try {
-    auto ds = io::openDataset(data / "3dmatch" / "3dmatch");
+    auto ds = openDataset(data / "3dmatch" / "3dmatch");
     std::vector<Frame> frames;
     for (size_t i = 0; i < ds->size(); ++i) frames.push_back(ds->load(i));
     inputs.push_back(prepare("3dmatch study room x 5", std::move(frames)));

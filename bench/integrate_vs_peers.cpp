@@ -53,8 +53,8 @@
 #include <vector>
 
 #include "chronomap/integrate/integrator.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/dataset.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/ingest/dataset.h"
 #include "chronomap/sim/box_room.h"
 #include "peers.h"
 
@@ -151,7 +151,7 @@ Result runChronomap(const Input& in, double res, bool fast, int threads, bool po
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   r.cpu_seconds = cpuNow() - c0;
   r.memory = static_cast<double>(map.memoryBytes());
-  r.disk = static_cast<double>(io::encodeSessionMap(map, nlohmann::json::object()).size());
+  r.disk = static_cast<double>(encodeSessionMap(map, nlohmann::json::object()).size());
   r.disk_note = ".cmap";
   return r;
 }
@@ -284,7 +284,7 @@ int main(int argc, char** argv) {
   }
   try {
     if (fast_only && only < 0) throw std::runtime_error("--fast-only");
-    auto ds = io::openDataset(data / "3dmatch" / "3dmatch");
+    auto ds = openDataset(data / "3dmatch" / "3dmatch");
     std::vector<Frame> frames;
     for (size_t i = 0; i < ds->size(); ++i) frames.push_back(ds->load(i));
     inputs.push_back(prepare("3dmatch study room x 5", std::move(frames)));

@@ -51,10 +51,10 @@
 #include "chronomap/analysis/costmap.h"
 #include "chronomap/analysis/rhythm.h"
 #include "chronomap/core/time.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/map_server.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/core/file.h"
+#include "chronomap/export/map_server.h"
+#include "chronomap/store/temporal_file.h"
 #include "chronomap/pipeline/map4d.h"
 #include "chronomap/sim/building.h"
 #include "bench_sim.h"
@@ -177,13 +177,13 @@ int main(int argc, char** argv) {
   const auto build_started = std::chrono::steady_clock::now();
   const TemporalMap map =
       !load_map.empty()
-          ? io::readTemporalMap(load_map)
+          ? readTemporalMap(load_map)
           : bench::buildWeeksMap(weeks, learn, poses == "true", max_range_m,
                                  (tmp.empty() ? fs::temp_directory_path() : tmp) /
                                      ("rhythm_eval_" + std::to_string(::getpid()) + ".cmap"),
                                  carve);
   const double build_s = seconds(build_started);
-  if (!save_map.empty()) io::writeTemporalMap(save_map, map, nlohmann::json{{"poses", poses}});
+  if (!save_map.empty()) writeTemporalMap(save_map, map, nlohmann::json{{"poses", poses}});
 
   const auto fit_started = std::chrono::steady_clock::now();
   const RhythmModels models = fitRhythm(map, times[learn.front()], times[learn.back()], min_changes, grouping);
@@ -203,7 +203,7 @@ int main(int argc, char** argv) {
   for (size_t i : test) {
     char name[64];
     std::snprintf(name, sizeof name, "occupancy_%02zu.cmap", i);
-    truths.push_back(io::readSessionMap(sim_dir / "truth" / name));
+    truths.push_back(readSessionMap(sim_dir / "truth" / name));
   }
   std::map<RhythmModel, double> brier, brier_varying, brier_static;
   std::map<RhythmModel, std::vector<std::pair<double, uint8_t>>> scored;
@@ -296,8 +296,8 @@ int main(int argc, char** argv) {
     for (int p = 0; p < 3; ++p) {
       const Costmap truth = truthCostmap(truths[k], maps[p], nav);
       if (std::getenv("RHYTHM_EVAL_DUMP")) {  // every test session's grids, for a look
-        io::writeMapServer(fs::path(std::getenv("RHYTHM_EVAL_DUMP")) / (std::string(planners[p].name) + std::to_string(k) + ".yaml"), maps[p]);
-        io::writeMapServer(fs::path(std::getenv("RHYTHM_EVAL_DUMP")) / (std::string(planners[p].name) + std::to_string(k) + "_truth.yaml"), truth);
+        writeMapServer(fs::path(std::getenv("RHYTHM_EVAL_DUMP")) / (std::string(planners[p].name) + std::to_string(k) + ".yaml"), maps[p]);
+        writeMapServer(fs::path(std::getenv("RHYTHM_EVAL_DUMP")) / (std::string(planners[p].name) + std::to_string(k) + "_truth.yaml"), truth);
       }
       Costmap open_truth = truth;  // the shortest feasible path: distance only
       for (auto& c : open_truth.cost) c = c == 0 ? 0 : Costmap::kLethal;

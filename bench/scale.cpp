@@ -96,9 +96,9 @@ void measureQueries(const fs::path& folder, size_t tiles, nlohmann::json& out) {
     std::vector<double> total, open;
     for (int rep = 0; rep < 5; ++rep) {
       const auto start = std::chrono::steady_clock::now();
-      pipeline::TiledMap map(folder);
+      TiledMap map(folder);
       open.push_back(msSince(start));
-      const pipeline::VoxelBox box = pipeline::voxelBoxOf(map.grid(), lo, hi);
+      const VoxelBox box = voxelBoxOf(map.grid(), lo, hi);
       const auto& sessions = map.sessions();
       const double t = last ? sessions.back().time_s : sessions[(sessions.size() - 1) / 2].time_s;
       const SessionMap room = map.snapshot(t, box);
@@ -114,7 +114,7 @@ void measureQueries(const fs::path& folder, size_t tiles, nlohmann::json& out) {
     if (last) out["index_open_ms"] = best(open);
   }
 
-  pipeline::TiledMap map(folder);
+  TiledMap map(folder);
   std::vector<VoxelKey> keys;
   std::mt19937 random(1);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
@@ -154,7 +154,7 @@ int main(int argc, char** argv) {
   }
   if (!query.empty()) {
     nlohmann::json out;
-    measureQueries(query, pipeline::TiledMap(query).index().tiles.size(), out);
+    measureQueries(query, TiledMap(query).index().tiles.size(), out);
     out["load_average"] = loadAverage();
     std::cout << out.dump() << "\n";
     return 0;

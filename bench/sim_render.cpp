@@ -21,8 +21,8 @@
 #include <sys/resource.h>
 #include <vector>
 
-#include "chronomap/io/dataset.h"
-#include "chronomap/io/file.h"
+#include "chronomap/ingest/dataset.h"
+#include "chronomap/core/file.h"
 #include "chronomap/sim/building.h"
 #include "chronomap/sim/render.h"
 #include "chronomap/sim/scene.h"
@@ -97,7 +97,7 @@ int main(int argc, char** argv) {
     }
     // The renderer alone: session 0's poses, the first scene state, one thread.
     const sim::SceneState state = sim::makeScene(preset, 1);
-    const auto poses = io::parseTumTrajectory(io::readTextFile(tmp / (preset + "_1") / "session_00" / "groundtruth.txt"),
+    const auto poses = parseTumTrajectory(readTextFile(tmp / (preset + "_1") / "session_00" / "groundtruth.txt"),
                                               "groundtruth.txt");
     const sim::Camera cam = sim::kinectCamera(scale);
     const sim::SensorModel sensor;

@@ -36,10 +36,10 @@
 #include <vector>
 
 #include "chronomap/integrate/integrator.h"
-#include "chronomap/io/dataset.h"
+#include "chronomap/ingest/dataset.h"
 #include "chronomap/render/plot.h"
-#include "chronomap/io/png.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/ingest/png.h"
+#include "chronomap/store/temporal_file.h"
 #include "chronomap/temporal/temporal_map.h"
 
 using namespace chronomap;
@@ -283,7 +283,7 @@ int main(int argc, char** argv) {
     double time_s = 3600.0 * 8 * s;
     SessionMap session(kResolution);
     if (!sim_sessions.empty()) {
-      const auto dataset = io::openDataset(sim_sessions[static_cast<size_t>(s)]);
+      const auto dataset = openDataset(sim_sessions[static_cast<size_t>(s)]);
       IntegratorSettings is;
       is.fast = true;
       const IntegrationStats st = integrate(*dataset, session, is);
@@ -376,10 +376,10 @@ int main(int argc, char** argv) {
   // On disk.
   const auto path = std::filesystem::temp_directory_path() / "chronomap-bench-temporal.cmap";
   const auto w0 = std::chrono::steady_clock::now();
-  io::writeTemporalMap(path, map, {});
+  writeTemporalMap(path, map, {});
   const auto w1 = std::chrono::steady_clock::now();
   const auto file_bytes = std::filesystem::file_size(path);
-  const TemporalMap back = io::readTemporalMap(path);
+  const TemporalMap back = readTemporalMap(path);
   const auto w2 = std::chrono::steady_clock::now();
   if (!std::getenv("CHRONOMAP_KEEP_BENCH_MAP")) std::filesystem::remove(path);
   const TemporalCounts c = map.counts();
@@ -448,7 +448,7 @@ int main(int argc, char** argv) {
   if (!(back.counts().nodes() == compacted.counts().nodes())) std::printf("WARNING: read-back differs\n");
 
   if (!plot.empty()) {
-    io::writePng(plot, render::renderStoragePlot(sep_nodes, nodes_4d, "Nodes after each session"));
+    writePng(plot, render::renderStoragePlot(sep_nodes, nodes_4d, "Nodes after each session"));
     std::printf("wrote %s\n", plot.c_str());
   }
   const nlohmann::json j = {{"sessions", sessions},

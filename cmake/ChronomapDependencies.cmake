@@ -40,10 +40,11 @@ find_package(PkgConfig REQUIRED)
 pkg_check_modules(HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
 
 # ROS 1 bags: Debian's librosbag (rosbag_storage) and the generated headers of the message
-# packages. Only src/io/rosbag1.cpp includes them; the include folders are SYSTEM so that the
+# packages. Only src/ingest/ros/rosbag1.cpp includes them; the include folders are SYSTEM so that the
 # ROS headers' own warnings do not fail the build.
+option(CHRONOMAP_ROS "Build the ROS bag readers (chronomap_ingest_ros: ROS 2 MCAP and .db3, and ROS 1 through librosbag)" ON)
 option(CHRONOMAP_ROSBAG "Read ROS 1 bags through librosbag (scripts/install-deps.sh installs it)" ON)
-if(CHRONOMAP_ROSBAG)
+if(CHRONOMAP_ROS AND CHRONOMAP_ROSBAG)
   find_path(ROSBAG_INCLUDE_DIR rosbag/bag.h)
   find_path(ROS_SENSOR_MSGS_INCLUDE_DIR sensor_msgs/Image.h)
   find_path(ROS_TF2_MSGS_INCLUDE_DIR tf2_msgs/TFMessage.h)

@@ -9,32 +9,35 @@
 #include <vector>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/cloud_io.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/temporal_file.h"
-#include "chronomap/io/tiled_file.h"
-#include "chronomap/io/diff_file.h"
+#include "chronomap/ingest/cloud_io.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/store/temporal_file.h"
+#include "chronomap/store/tiled_file.h"
+#include "chronomap/store/diff_file.h"
 #include "chronomap/align/consensus.h"
 #include "chronomap/align/realign.h"
 #include "chronomap/analysis/colour.h"
+#include "chronomap/store/colour_file.h"
 #include "chronomap/analysis/rhythm.h"
+#include "chronomap/store/rhythm_file.h"
 #include "chronomap/analysis/segment.h"
-#include "chronomap/io/dataset.h"
-#include "chronomap/io/jpeg.h"
-#include "chronomap/io/png.h"
+#include "chronomap/ingest/dataset.h"
+#include "chronomap/ingest/jpeg.h"
+#include "chronomap/ingest/png.h"
 #if defined(FUZZ_BAG) || defined(FUZZ_MCAP) || defined(FUZZ_DB3)
 #include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
 
-#include "chronomap/io/rosbag.h"
+#include "chronomap/ingest/ros/readers.h"
+#include "chronomap/ingest/ros/rosbag.h"
 #endif
 #if defined(FUZZ_ROSMSG)
-#include "io/ros_messages.h"
+#include "ingest/ros/ros_messages.h"
 #endif
 #if defined(FUZZ_CDR)
-#include "io/cdr.h"
+#include "ingest/ros/cdr.h"
 #endif
 
 namespace {
@@ -45,18 +48,19 @@ using namespace chronomap;
 /// Both bag readers read files: the input goes to a file of this process (named with
 /// `extension`), then through the listing and the dataset reader (topics detected, poses from a
 /// pose topic or /tf into "map"), loading the first frames.
-void fuzzBagFile(const std::vector<uint8_t>& bytes, const char* extension, io::DatasetFormat format) {
+void fuzzBagFile(const std::vector<uint8_t>& bytes, const char* extension, const char* format) {
   static const std::filesystem::path path =
       std::filesystem::temp_directory_path() / ("chronomap-fuzz-" + std::to_string(::getpid()) + extension);
   std::ofstream(path, std::ios::binary | std::ios::trunc)
       .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
-  io::listBag(path);
+  registerRosReaders();
+  listBag(path);
   for (const char* fixed_frame : {"", "map"}) {
     try {
-      io::DatasetSettings settings;
+      DatasetSettings settings;
       settings.format = format;
       settings.bag.fixed_frame = fixed_frame;
-      const auto dataset = io::openDataset(path, settings);
+      const auto dataset = openDataset(path, settings);
       for (size_t i = 0; i < dataset->size() && i < 4; ++i) dataset->load(i);
     } catch (const Error&) {
     }
@@ -67,9 +71,9 @@ void fuzzBagFile(const std::vector<uint8_t>& bytes, const char* extension, io::D
 void fuzzOne(const std::vector<uint8_t>& bytes) {
   const std::string name = "fuzz-input";
 #if defined(FUZZ_CMAP)
-  const io::CmapFile file = io::decodeCmap(bytes, name);
-  if (file.header.kind == io::MapKind::Session) {
-    const SessionMap map = io::sessionMapFrom(file, name);
+  const CmapFile file = decodeCmap(bytes, name);
+  if (file.header.kind == MapKind::Session) {
+    const SessionMap map = sessionMapFrom(file, name);
     volatile size_t leaves = map.counts().leaves;
     (void)leaves;
     map.find(VoxelKey{32768, 32768, 32768});
@@ -78,9 +82,9 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
     const SessionMap avg = consensus(std::span<const SessionMap* const>(both));
     volatile size_t moved = realign(map, avg).leafCount();
     (void)moved;
-  } else if (file.header.kind == io::MapKind::Temporal) {
+  } else if (file.header.kind == MapKind::Temporal) {
     // A 4D map that reads must also answer queries without crashing.
-    TemporalMap map = io::temporalMapFrom(file, name);
+    TemporalMap map = temporalMapFrom(file, name);
     if (map.sessionCount() > 0) {
       const SessionMap snap = map.snapshot(map.sessions().back().time_s);
       volatile size_t leaves = snap.leafCount();
@@ -96,56 +100,56 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
       (void)cells;
     }
     map.compact();
-  } else if (file.header.kind == io::MapKind::Tiled) {
+  } else if (file.header.kind == MapKind::Tiled) {
     // A tile index (the top of a tiled map and its table of tiles) that reads must also answer
     // the queries a tiled map asks of its top.
-    const io::TileIndex index = io::decodeTileIndex(bytes, name);
+    const TileIndex index = decodeTileIndex(bytes, name);
     index.top.history(VoxelKey{32768, 32768, 32768});
-    for (const io::TileEntry& e : index.tiles) index.find(e.key);
+    for (const TileEntry& e : index.tiles) index.find(e.key);
     if (index.top.sessionCount() > 1) {
       volatile size_t cells =
           diff(index.top, index.top.sessions().front().time_s, index.top.sessions().back().time_s).cells().size();
       (void)cells;
     }
-  } else if (file.header.kind == io::MapKind::Diff) {
+  } else if (file.header.kind == MapKind::Diff) {
     // A diff that reads must also segment without crashing.
-    const DiffMap d = io::diffMapFrom(file, name);
+    const DiffMap d = diffMapFrom(file, name);
     SegmentSettings s;
     s.connectivity = Connectivity::Vertex;
     volatile size_t n = segment(d, s).components.size();
     (void)n;
   }
-  io::metadataOf(file);
+  metadataOf(file);
 #elif defined(FUZZ_PCD)
-  io::parsePcd(bytes, name);
+  parsePcd(bytes, name);
 #elif defined(FUZZ_PLY)
-  io::parsePly(bytes, name);
+  parsePly(bytes, name);
 #elif defined(FUZZ_XYZ)
-  io::parseXyz(std::string(bytes.begin(), bytes.end()), name);
+  parseXyz(std::string(bytes.begin(), bytes.end()), name);
 #elif defined(FUZZ_PNG)
   // Colour frames: PNG or JPEG, as readColorImage tells them apart; depth is PNG only.
-  if (io::looksLikeJpeg(bytes)) {
-    io::decodeJpegRgb(bytes, name);
+  if (looksLikeJpeg(bytes)) {
+    decodeJpegRgb(bytes, name);
     return;
   }
   try {
-    io::decodePngRgb(bytes, name);
+    decodePngRgb(bytes, name);
   } catch (const Error&) {
   }
-  io::decodePngU16(bytes, name);
+  decodePngU16(bytes, name);
 #elif defined(FUZZ_TEXT)
   // The first byte picks the format, the rest is the text.
   if (bytes.empty()) return;
   const std::string text(bytes.begin() + 1, bytes.end());
   switch (bytes[0] % 5) {
-    case 0: io::parseIntrinsicsText(text, name); break;
-    case 1: chronomap::io::parseMatrix4(text, name); break;
-    case 2: io::parseStampedList(text, name); break;
-    case 3: io::parseTumTrajectory(text, name); break;
-    default: io::parseCloudList(text, name); break;
+    case 0: parseIntrinsicsText(text, name); break;
+    case 1: chronomap::parseMatrix4(text, name); break;
+    case 2: parseStampedList(text, name); break;
+    case 3: parseTumTrajectory(text, name); break;
+    default: parseCloudList(text, name); break;
   }
 #elif defined(FUZZ_BAG)
-  fuzzBagFile(bytes, ".bag", io::DatasetFormat::RosBag);  // through librosbag
+  fuzzBagFile(bytes, ".bag", "rosbag");  // through librosbag
 #elif defined(FUZZ_ROSMSG)
   // The message decoders behind every bag reader: a 12-byte head picks the message's shape
   // (kind, encoding or fields, size, row bytes, byte order), the rest is its data.
@@ -159,25 +163,25 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
                                          "16UC1; compressedDepth rvl", "rgb8; jpeg compressed bgr8", "png", "8UC3; compressedDepth"};
   switch (bytes[0] % 5) {
     case 0: {
-      const io::rosmsg::ImageView im{height, width, kEncodings[bytes[6] % 9], big_endian, step, data};
-      io::rosmsg::depthCloud(im, nullptr, k, 1000.0, name);
+      const rosmsg::ImageView im{height, width, kEncodings[bytes[6] % 9], big_endian, step, data};
+      rosmsg::depthCloud(im, nullptr, k, 1000.0, name);
       break;
     }
     case 3: {
       // sensor_msgs/CompressedImage: compressedDepth (a header and a PNG) or a JPEG/PNG colour image.
-      const io::rosmsg::CompressedView im{kFormats[bytes[6] % 6], data};
-      const io::rosmsg::OwnedImage depth = io::rosmsg::compressedDepthImage(im, name);
-      io::rosmsg::depthCloud(depth.view, nullptr, k, 1000.0, name);
+      const rosmsg::CompressedView im{kFormats[bytes[6] % 6], data};
+      const rosmsg::OwnedImage depth = rosmsg::compressedDepthImage(im, name);
+      rosmsg::depthCloud(depth.view, nullptr, k, 1000.0, name);
       break;
     }
-    case 4: io::rosmsg::compressedColorImage({kFormats[bytes[6] % 6], data}, name); break;
+    case 4: rosmsg::compressedColorImage({kFormats[bytes[6] % 6], data}, name); break;
     case 1: {
-      const io::rosmsg::ImageView im{height, width, kEncodings[bytes[6] % 9], big_endian, step, data};
-      io::rosmsg::colorImage(im, name);
+      const rosmsg::ImageView im{height, width, kEncodings[bytes[6] % 9], big_endian, step, data};
+      rosmsg::colorImage(im, name);
       break;
     }
     default: {
-      io::rosmsg::CloudView cloud{height, width, {}, big_endian, bytes[7] % 64u, step, data};
+      rosmsg::CloudView cloud{height, width, {}, big_endian, bytes[7] % 64u, step, data};
       static const char* const kNames[] = {"x", "y", "z", "rgb", "rgba", "intensity"};
       for (size_t f = 8; f < 12; ++f) {
         cloud.fields.push_back({kNames[bytes[f] % 6], (bytes[f] >> 3) % 32u, static_cast<uint8_t>(bytes[f] % 10), 1});
@@ -185,14 +189,14 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
       // x, y and z as FLOAT32 after the random fields, so that most inputs get past the field check.
       const char* const axes[] = {"x", "y", "z"};
       for (uint32_t a = 0; a < 3; ++a) cloud.fields.push_back({axes[a], 4 * a + bytes[7 + a] % 4u, 7, 1});
-      io::rosmsg::pointCloud(cloud, name);
+      rosmsg::pointCloud(cloud, name);
       break;
     }
   }
 #elif defined(FUZZ_MCAP)
-  fuzzBagFile(bytes, ".mcap", io::DatasetFormat::Ros2Bag);  // chronomap's own MCAP reader
+  fuzzBagFile(bytes, ".mcap", "ros2bag");  // chronomap's own MCAP reader
 #elif defined(FUZZ_DB3)
-  fuzzBagFile(bytes, ".db3", io::DatasetFormat::Ros2Bag);  // rosbag2's SQLite storage through libsqlite3
+  fuzzBagFile(bytes, ".db3", "ros2bag");  // rosbag2's SQLite storage through libsqlite3
 #elif defined(FUZZ_CDR)
   // The CDR decoders of ROS 2 messages: the first byte picks the message type, the rest is the
   // message (encapsulation header first); images and clouds go on through ros_messages.
@@ -200,26 +204,26 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
   const std::span<const uint8_t> msg(bytes.data() + 1, bytes.size() - 1);
   switch (bytes[0] % 9) {
     case 0: {
-      const auto im = io::cdr::image(msg, name);
-      io::rosmsg::colorImage(im.view, name);
+      const auto im = cdr::image(msg, name);
+      rosmsg::colorImage(im.view, name);
       break;
     }
     case 1: {
-      const auto im = io::cdr::image(msg, name);
-      io::rosmsg::depthCloud(im.view, nullptr, CameraIntrinsics{100.0, 100.0, 32.0, 24.0}, 1000.0, name);
+      const auto im = cdr::image(msg, name);
+      rosmsg::depthCloud(im.view, nullptr, CameraIntrinsics{100.0, 100.0, 32.0, 24.0}, 1000.0, name);
       break;
     }
-    case 2: io::rosmsg::pointCloud(io::cdr::cloud(msg, name).view, name); break;
-    case 3: io::cdr::cameraInfo(msg, name); break;
-    case 4: io::cdr::tfMessage(msg, name); break;
-    case 5: io::cdr::odometry(msg, name); break;
-    case 7: io::rosmsg::compressedColorImage(io::cdr::compressedImage(msg, name).view, name); break;
+    case 2: rosmsg::pointCloud(cdr::cloud(msg, name).view, name); break;
+    case 3: cdr::cameraInfo(msg, name); break;
+    case 4: cdr::tfMessage(msg, name); break;
+    case 5: cdr::odometry(msg, name); break;
+    case 7: rosmsg::compressedColorImage(cdr::compressedImage(msg, name).view, name); break;
     case 8: {
-      const auto depth = io::rosmsg::compressedDepthImage(io::cdr::compressedImage(msg, name).view, name);
-      io::rosmsg::depthCloud(depth.view, nullptr, CameraIntrinsics{100.0, 100.0, 32.0, 24.0}, 1000.0, name);
+      const auto depth = rosmsg::compressedDepthImage(cdr::compressedImage(msg, name).view, name);
+      rosmsg::depthCloud(depth.view, nullptr, CameraIntrinsics{100.0, 100.0, 32.0, 24.0}, 1000.0, name);
       break;
     }
-    default: io::cdr::poseStamped(msg, name); break;
+    default: cdr::poseStamped(msg, name); break;
   }
 #elif defined(FUZZ_MODEL)
   // Saved models: a .rhythm or a .colour (their magic tells them apart; both readers see every

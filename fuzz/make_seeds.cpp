@@ -9,16 +9,18 @@
 #include <nlohmann/json.hpp>
 
 #include "chronomap/analysis/colour.h"
+#include "chronomap/store/colour_file.h"
 #include "chronomap/analysis/rhythm.h"
-#include "chronomap/io/cloud_io.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/temporal_file.h"
-#include "chronomap/io/tiled_file.h"
-#include "chronomap/io/diff_file.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/jpeg.h"
-#include "chronomap/io/png.h"
+#include "chronomap/store/rhythm_file.h"
+#include "chronomap/ingest/cloud_io.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/core/file.h"
+#include "chronomap/store/temporal_file.h"
+#include "chronomap/store/tiled_file.h"
+#include "chronomap/store/diff_file.h"
+#include "chronomap/core/file.h"
+#include "chronomap/ingest/jpeg.h"
+#include "chronomap/ingest/png.h"
 #include "db3_writer.h"
 
 using namespace chronomap;
@@ -54,10 +56,10 @@ int main(int argc, char** argv) {
     colour.to_s = 86400.0;
     colour.sessions = 2;
     colour.observations = 4;
-    io::writeFileAtomic(root / "model/two.colour", serialize(colour));
+    writeFileAtomic(root / "model/two.colour", serialize(colour));
     RhythmModels rhythm;
     rhythm.resolution_m = 0.05;
-    io::writeFileAtomic(root / "model/empty.rhythm", serialize(rhythm));
+    writeFileAtomic(root / "model/empty.rhythm", serialize(rhythm));
   }
   // Message decoder heads (fuzz_readers.cpp, FUZZ_ROSMSG): 16UC1 depth 4 x 2, rgb8 colour 2 x 2,
   // a 2 x 1 cloud of 16-byte points; then their data.
@@ -79,21 +81,21 @@ int main(int argc, char** argv) {
     cloud.labels.push_back(static_cast<uint32_t>(i / 4));
   }
   cloud.points[5] = Eigen::Vector3f::Constant(std::numeric_limits<float>::quiet_NaN());
-  io::writePcd(root / "pcd/ascii.pcd", cloud, io::PcdEncoding::Ascii);
-  io::writePcd(root / "pcd/binary.pcd", cloud, io::PcdEncoding::Binary);
-  io::writePcd(root / "pcd/compressed.pcd", cloud, io::PcdEncoding::BinaryCompressed);
-  io::writePly(root / "ply/cloud.ply", cloud);
+  writePcd(root / "pcd/ascii.pcd", cloud, PcdEncoding::Ascii);
+  writePcd(root / "pcd/binary.pcd", cloud, PcdEncoding::Binary);
+  writePcd(root / "pcd/compressed.pcd", cloud, PcdEncoding::BinaryCompressed);
+  writePly(root / "ply/cloud.ply", cloud);
   std::ofstream(root / "ply/ascii.ply") << "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\n"
                                            "property float y\nproperty float z\nproperty uchar red\n"
                                            "property uchar green\nproperty uchar blue\nend_header\n"
                                            "1 2 3 4 5 6\n7 8 9 10 11 12\n";
   std::ofstream(root / "xyz/scan.xyz") << "# x y z\n1 2 3\n4 5 6\n";
   std::ofstream(root / "xyz/color.xyz") << "1 2 3 10 20 30\n";
-  io::writePng(root / "png/depth.png", ImageU16{4, 3, std::vector<uint16_t>(12, 5000)});
-  io::writePng(root / "png/color.png", ImageRgb{4, 3, std::vector<Rgb>(12, Rgb{1, 2, 3})});
+  writePng(root / "png/depth.png", ImageU16{4, 3, std::vector<uint16_t>(12, 5000)});
+  writePng(root / "png/color.png", ImageRgb{4, 3, std::vector<Rgb>(12, Rgb{1, 2, 3})});
   const ImageRgb small{16, 8, std::vector<Rgb>(128, Rgb{90, 160, 30})};
-  io::writeFileAtomic(root / "png/color.jpg", io::encodeJpeg(small, {30, false, false}));
-  io::writeFileAtomic(root / "png/progressive.jpg", io::encodeJpeg(small, {30, false, true}));
+  writeFileAtomic(root / "png/color.jpg", encodeJpeg(small, {30, false, false}));
+  writeFileAtomic(root / "png/progressive.jpg", encodeJpeg(small, {30, false, true}));
   std::ofstream(root / "text/intrinsics") << '\0' << "525 0 319.5\n0 525 239.5\n0 0 1\n";
   std::ofstream(root / "text/matrix") << '\1' << "1 0 0 0.5\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
   std::ofstream(root / "text/list") << '\2' << "# timestamp filename\n1.0 depth/1.png\n1.1 depth/2.png\n";
@@ -113,9 +115,9 @@ int main(int argc, char** argv) {
             free);
   }
   map.compressFree();
-  io::writeSessionMap(root / "cmap/session.cmap", map, {{"seed", true}});
+  writeSessionMap(root / "cmap/session.cmap", map, {{"seed", true}});
   // The previous format version, which readers still read.
-  io::writeFileAtomic(root / "cmap/session_v1.cmap", io::encodeSessionMap(map, {{"seed", true}}, 3, 1));
+  writeFileAtomic(root / "cmap/session_v1.cmap", encodeSessionMap(map, {{"seed", true}}, 3, 1));
   {
     // A small 4D map: the session, then the same session shifted by a voxel, added out of order.
     TemporalMap four_d(map.resolution_m());
@@ -125,18 +127,18 @@ int main(int argc, char** argv) {
       if (leaf.level == 0) shifted.add(VoxelKey{static_cast<uint16_t>(leaf.key.x + 1), leaf.key.y, leaf.key.z}, leaf.counters);
     });
     four_d.add(1000.0, shifted);
-    io::writeTemporalMap(root / "cmap/four_d.cmap", four_d, {{"seed", true}});
-    io::writeFileAtomic(root / "cmap/four_d_v1.cmap", io::encodeTemporalMap(four_d, {{"seed", true}}, 1));
-    io::writeDiffMap(root / "cmap/diff.cmap", diff(four_d, 1000.0, 2000.0), {{"seed", true}});
+    writeTemporalMap(root / "cmap/four_d.cmap", four_d, {{"seed", true}});
+    writeFileAtomic(root / "cmap/four_d_v1.cmap", encodeTemporalMap(four_d, {{"seed", true}}, 1));
+    writeDiffMap(root / "cmap/diff.cmap", diff(four_d, 1000.0, 2000.0), {{"seed", true}});
     // The same 4D map cut into tiles of 2 voxels: its index (fuzz_cmap reads kind "tiled" too).
-    io::writeTiledMap(root / "tiled", splitIntoTiles(four_d, 1), {{"seed", true}});
-    fs::copy_file(root / "tiled" / io::kTileIndexName, root / "cmap/tile_index.cmap", fs::copy_options::overwrite_existing);
+    writeTiledMap(root / "tiled", splitIntoTiles(four_d, 1), {{"seed", true}});
+    fs::copy_file(root / "tiled" / kTileIndexName, root / "cmap/tile_index.cmap", fs::copy_options::overwrite_existing);
     fs::remove_all(root / "tiled");
     // The same 4D map with a third session appended as `chronomap add` appends it.
-    io::writeTemporalMap(root / "cmap/four_d_appended.cmap", four_d, {{"seed", true}});
+    writeTemporalMap(root / "cmap/four_d_appended.cmap", four_d, {{"seed", true}});
     const AddSettings options{false, "appended"};
-    io::appendToFile(root / "cmap/four_d_appended.cmap", std::filesystem::file_size(root / "cmap/four_d_appended.cmap"),
-                     io::encodeSessionRecord(3000.0, shifted, options));
+    appendToFile(root / "cmap/four_d_appended.cmap", std::filesystem::file_size(root / "cmap/four_d_appended.cmap"),
+                     encodeSessionRecord(3000.0, shifted, options));
   }
   return 0;
 }

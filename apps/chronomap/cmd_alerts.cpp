@@ -8,8 +8,8 @@
 
 #include "chronomap/analysis/alerts.h"
 #include "chronomap/core/time.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/core/file.h"
+#include "chronomap/store/temporal_file.h"
 #include "chronomap/pipeline/alerts.h"
 #include "commands.h"
 
@@ -33,7 +33,7 @@ int runAlerts(const AlertsCmdOptions& o) {
   settings.neighbourhood_voxels = o.neighbourhood;
   if (!o.history_to.empty()) settings.history_to_s = parseTime(o.history_to);
   settings.validate();
-  const TemporalMap map = io::readTemporalMap(o.map);
+  const TemporalMap map = readTemporalMap(o.map);
   const AlertReport report = findAlerts(map, t, settings);
   if (!o.output.empty()) pipeline::writeAlerts(o.output, map, report, o.top, o.map);
   const nlohmann::json summary = pipeline::alertsJson(report, o.top);

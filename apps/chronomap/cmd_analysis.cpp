@@ -13,9 +13,10 @@
 #include "chronomap/analysis/segment.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/diff_file.h"
-#include "chronomap/io/file.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/store/diff_file.h"
+#include "chronomap/export/export.h"
+#include "chronomap/core/file.h"
 #include "chronomap/pipeline/maps.h"
 #include "commands.h"
 
@@ -95,18 +96,18 @@ int runDiff(const DiffCmdOptions& o) {
   if (!o.ply.empty()) requireExtension(o.ply, ".ply", "--ply");
   const pipeline::MapRef before = pipeline::parseMapRef(o.before), after = pipeline::parseMapRef(o.after);
   const std::vector<fs::path> inputs = {before.path, after.path};
-  io::refuseOverwritingInputs(o.output, inputs);
-  if (!o.ply.empty()) io::refuseOverwritingInputs(o.ply, inputs);
+  refuseOverwritingInputs(o.output, inputs);
+  if (!o.ply.empty()) refuseOverwritingInputs(o.ply, inputs);
   const auto start = std::chrono::steady_clock::now();
   if (o.lighting_invariant && !o.colour_distance) throw UsageError("--lighting-invariant applies to --colour");
   const nlohmann::json colour = o.colour_distance ? colourDiff(o, before, after) : nlohmann::json::object();
   const DiffMap d = pipeline::diffMaps(before, after, settings, tileCacheSettings(o.memory_limit_gib));
-  io::writeDiffMap(o.output, d, {{"created_by", "chronomap diff"}, {"before", o.before}, {"after", o.after}});
+  writeDiffMap(o.output, d, {{"created_by", "chronomap diff"}, {"before", o.before}, {"after", o.after}});
   std::vector<ChangeCell> changed;
   for (const ChangeCell& c : d.cells()) {
     if (c.kind != ChangeKind::Unchanged) changed.push_back(c);
   }
-  if (!o.ply.empty()) io::exportDiffPly(o.ply, d, changed);
+  if (!o.ply.empty()) exportDiffPly(o.ply, d, changed);
   const uint64_t appeared = d.voxelCount(ChangeKind::Appeared), vanished = d.voxelCount(ChangeKind::Vanished);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (o.json) {
@@ -156,7 +157,7 @@ int runSegment(const SegmentCmdOptions& o) {
   settings.min_voxels = o.min_voxels;
   settings.min_value = o.min_value;
   settings.validate();
-  const DiffMap d = io::readDiffMap(o.input);
+  const DiffMap d = readDiffMap(o.input);
   const auto start = std::chrono::steady_clock::now();
   const Segmentation seg = segment(d, settings);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -7,9 +7,9 @@
 
 #include "chronomap/core/error.h"
 #include "chronomap/core/format.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/core/file.h"
+#include "chronomap/store/temporal_file.h"
 #include "chronomap/pipeline/maps.h"
 #include "chronomap/view/tour.h"
 #include "commands.h"
@@ -31,7 +31,7 @@ int runTour(const ExportOptions& o) {
   view::TourSettings settings;
   settings.max_voxels = o.max_voxels;
   settings.max_diff_cells = o.max_diff_cells;
-  const TemporalMap map = io::readTemporalMap(o.input);
+  const TemporalMap map = readTemporalMap(o.input);
   const auto r = view::writeTour(o.output, map, std::filesystem::path(o.input).filename().string(), settings);
   if (o.json) {
     std::cout << nlohmann::json{{"output", o.output}, {"format", "html"}, {"elements", r.cells},
@@ -52,11 +52,11 @@ int runExport(const ExportOptions& o) {
     throw UsageError("output '" + o.output + "' must end in .ply, .ot, .png or .html");
   }
   if (o.pixels_per_voxel < 1 || o.pixels_per_voxel > 64) throw UsageError("--scale must be 1 to 64");
-  io::refuseOverwritingInputs(o.output, {o.input});
+  refuseOverwritingInputs(o.output, {o.input});
   if (ext == ".html") return runTour(o);
   pipeline::ExportSettings settings;
   settings.pixels_per_voxel = o.pixels_per_voxel;
-  const size_t n = pipeline::exportSessionMap(o.output, io::readSessionMap(o.input), settings);
+  const size_t n = pipeline::exportSessionMap(o.output, readSessionMap(o.input), settings);
   const std::string what = ext == ".ply"  ? " occupied voxel centres"
                            : ext == ".ot" ? " OctoMap ColorOcTree leaves"
                                           : " pixels, top view";

@@ -11,10 +11,9 @@
 #include "chronomap/core/error.h"
 #include "chronomap/core/format.h"
 #include "chronomap/core/pose.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/dataset.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/rosbag.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/ingest/dataset.h"
+#include "chronomap/core/file.h"
 #include "chronomap/pipeline/session.h"
 #include "commands.h"
 #include "progress.h"
@@ -29,11 +28,12 @@ struct IntegrateCmdOptions {
   IntegrateFlags flags;
   bool json = false;
   bool list = false;
+  bool list_formats = false;
 };
 
 /// `integrate run.bag --list`: the bag's topics, types and message counts.
 int listBagTopics(const IntegrateCmdOptions& o) {
-  const std::vector<io::BagTopic> topics = io::listBag(o.dataset);
+  const std::vector<BagTopic> topics = pipeline::listBagTopics(o.dataset);
   if (o.json) {
     nlohmann::json out = nlohmann::json::array();
     for (const auto& t : topics) {
@@ -47,6 +47,26 @@ int listBagTopics(const IntegrateCmdOptions& o) {
     std::cout << "  " << t.name << "  " << t.type << "  " << t.messages << " message(s)";
     if (!t.encoding.empty()) std::cout << "  " << t.encoding;
     std::cout << "\n";
+  }
+  return 0;
+}
+
+/// `integrate --list-formats`: every reader of the registry, in detection order.
+int listFormats(bool json) {
+  const std::vector<DatasetReader> readers = pipeline::registerReaders();
+  if (json) {
+    nlohmann::json out = nlohmann::json::array();
+    for (const auto& r : readers) {
+      out.push_back({{"name", r.name}, {"aliases", r.aliases}, {"description", r.description}});
+    }
+    std::cout << out.dump() << "\n";
+    return 0;
+  }
+  std::cout << "formats, in the order detection tries them (--format NAME skips detection):\n";
+  for (const auto& r : readers) {
+    std::string names = r.name;
+    for (const auto& a : r.aliases) names += ", " + a;
+    std::cout << "  " << names << "\n      " << r.description << "\n";
   }
   return 0;
 }
@@ -97,14 +117,16 @@ void printIntegrated(const IntegrateCmdOptions& o, const pipeline::IntegratedSes
 }
 
 int runIntegrate(const IntegrateCmdOptions& o) {
+  if (o.list_formats) return listFormats(o.json);
+  if (o.dataset.empty()) throw UsageError("integrate: DATASET is required");
   if (o.list) return listBagTopics(o);
   if (o.output.empty()) throw UsageError("integrate: --output is required");
   requireExtension(o.output, ".cmap", "output");
-  io::refuseOverwritingInputs(o.output, {o.dataset});
+  refuseOverwritingInputs(o.output, {o.dataset});
   const pipeline::SessionSettings settings = sessionSettings(o.flags);
   const pipeline::IntegratedSession session =
       pipeline::integrateDataset(o.dataset, settings, {}, terminalProgress(o.json));
-  io::writeSessionMap(o.output, session.map, pipeline::sessionMetadata(o.dataset, session, settings));
+  writeSessionMap(o.output, session.map, pipeline::sessionMetadata(o.dataset, session, settings));
   const auto file_bytes = std::filesystem::file_size(o.output);
   if (o.json) {
     std::cout << integrateJson(o, session, file_bytes).dump() << "\n";
@@ -155,12 +177,20 @@ int parseCarveLevel(const std::string& v) {
 
 }  // namespace
 
+/// --format's help, from the readers this build has.
+static std::string formatHelp() {
+  std::string names = "auto (detect)";
+  for (const DatasetReader& r : pipeline::registerReaders()) names += ", " + r.name;
+  return names + " (--list-formats says what each reads)";
+}
+
 pipeline::SessionSettings sessionSettings(const IntegrateFlags& f) {
   pipeline::SessionSettings s;
   s.resolution_m = f.resolution_m;
-  s.dataset.format = io::parseDatasetFormat(f.format);
+  pipeline::registerReaders();
+  s.dataset.format = parseDatasetFormat(f.format);
   s.dataset.depth_scale = f.depth_scale;
-  if (!f.intrinsics.empty()) s.dataset.intrinsics = io::parseIntrinsics(f.intrinsics);
+  if (!f.intrinsics.empty()) s.dataset.intrinsics = parseIntrinsics(f.intrinsics);
   if (!f.pose.empty()) {
     try {
       s.dataset.pose = parsePose(f.pose);
@@ -236,7 +266,7 @@ void addIntegrateFlags(CLI::App* app, IntegrateFlags& f) {
                 "carve free space along the rays of points beyond --max-range, up to the range, instead of discarding "
                 "them whole (as OctoMap does): space seen through, such as an open doorway before a far wall, is then "
                 "observed free");
-  app->add_option("--format", f.format, "auto, tum, 3dmatch, scannet, clouds, rosbag (ROS 1) or ros2bag")->capture_default_str();
+  app->add_option("--format", f.format, formatHelp())->capture_default_str();
   app->add_flag("--fast", f.fast,
                 "bundle the points of a frame that end in the same voxel into one weighted ray "
                 "(much faster; see docs/integration.md for how far the counters may differ)");
@@ -270,11 +300,14 @@ Command addIntegrate(CLI::App& root) {
       "(color/N.jpg, depth/N.png, pose/N.txt, intrinsic/), a ROS 1 bag (.bag) or a ROS 2 bag (.mcap or .db3 storage, or its folder with "
       "metadata.yaml; --list shows a bag's topics), a single "
       "PCD/PLY/XYZ cloud (seen from the origin unless --pose), or a text list of clouds with poses "
-      "('cloud.pcd tx ty tz qx qy qz qw' per line).");
-  app->add_option("DATASET", o->dataset, "dataset folder or file")->required();
+      "('cloud.pcd tx ty tz qx qy qz qw' per line). --list-formats lists every reader and what it looks for.");
+  app->add_option("DATASET", o->dataset, "dataset folder or file");
   app->add_option("-o,--output", o->output, "session map to write (.cmap)");
   addIntegrateFlags(app, o->flags);
   app->add_flag("--list", o->list, "ROS bag: list its topics, their types and message counts, and stop");
+  app->add_flag("--list-formats", o->list_formats,
+                "list the formats this chronomap reads (--format's names), in the order detection tries them, "
+                "and stop");
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runIntegrate(*o); }};
 }

@@ -12,8 +12,8 @@
 #include "chronomap/analysis/rhythm.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/core/file.h"
+#include "chronomap/store/temporal_file.h"
 #include "chronomap/pipeline/maps.h"
 #include "chronomap/pipeline/rhythm.h"
 #include "commands.h"
@@ -86,13 +86,13 @@ int runPredict(const PredictCmdOptions& o) {
   std::vector<std::filesystem::path> inputs = {o.map};
   if (!o.learn.rhythm_in.empty()) inputs.emplace_back(o.learn.rhythm_in);
   if (!o.colour_in.empty()) inputs.emplace_back(o.colour_in);
-  io::refuseOverwritingInputs(o.output, inputs);
-  if (!o.learn.rhythm_out.empty()) io::refuseOverwritingInputs(o.learn.rhythm_out, inputs);
-  if (!o.colour_out.empty()) io::refuseOverwritingInputs(o.colour_out, inputs);
+  refuseOverwritingInputs(o.output, inputs);
+  if (!o.learn.rhythm_out.empty()) refuseOverwritingInputs(o.learn.rhythm_out, inputs);
+  if (!o.colour_out.empty()) refuseOverwritingInputs(o.colour_out, inputs);
   const bool colour = o.colour || !o.colour_in.empty() || !o.colour_out.empty();
   const RhythmModel model = parseRhythmModel(o.learn.model);
   const double t = parseTime(o.at);
-  const TemporalMap map = io::readTemporalMap(o.map);
+  const TemporalMap map = readTemporalMap(o.map);
   const RhythmModels models = pipeline::learnRhythm(map, learnSettings(o.learn));
   SessionMap predicted = predictMap(map, models, model, t);
   std::optional<ColourModel> colours;
@@ -150,10 +150,10 @@ int runCostmap(const CostmapCmdOptions& o) {
   const pipeline::CostmapFiles files = pipeline::costmapFiles(o.output);
   std::vector<std::filesystem::path> inputs = {o.map};
   if (!o.learn.rhythm_in.empty()) inputs.emplace_back(o.learn.rhythm_in);
-  for (const fs::path& out : {files.yaml, files.pgm, files.png}) io::refuseOverwritingInputs(out, inputs);
+  for (const fs::path& out : {files.yaml, files.pgm, files.png}) refuseOverwritingInputs(out, inputs);
   const RhythmModel model = parseRhythmModel(o.learn.model);
   const double t = parseTime(o.at);
-  const TemporalMap map = io::readTemporalMap(o.map);
+  const TemporalMap map = readTemporalMap(o.map);
   const RhythmModels models = pipeline::learnRhythm(map, learnSettings(o.learn));
   const Costmap c = costmap(predictMap(map, models, model, t), o.settings, &models);
   const pipeline::CostmapCounts n = pipeline::writeCostmap(files, c, o.map);

@@ -7,12 +7,12 @@
 #include "chronomap/core/error.h"
 #include "chronomap/core/format.h"
 #include "chronomap/core/time.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/diff_file.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/png.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/store/diff_file.h"
+#include "chronomap/core/file.h"
+#include "chronomap/ingest/png.h"
 #include "chronomap/render/plot.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/store/temporal_file.h"
 #include "commands.h"
 
 namespace chronomap::cli {
@@ -28,8 +28,8 @@ struct StatsOptions {
 /// What stats prints of a 4D map.
 struct TemporalStats {
   const TemporalMap& map;
-  const io::CmapFile& file;
-  io::TemporalFileLayout layout;
+  const CmapFile& file;
+  TemporalFileLayout layout;
   TemporalCounts counts;
   double nodes_separate = 0.0;
 };
@@ -47,7 +47,7 @@ void printTemporalJson(const StatsOptions& o, const TemporalStats& s) {
   }
   const auto& h = s.file.header;
   const TemporalCounts& c = s.counts;
-  nlohmann::json j = {{"kind", io::toString(h.kind)},
+  nlohmann::json j = {{"kind", toString(h.kind)},
                       {"format_version", h.version},
                       {"resolution_m", h.resolution_m},
                       {"sessions", s.map.sessionCount()},
@@ -109,15 +109,15 @@ void printTemporalText(const StatsOptions& o, const TemporalStats& s) {
   if (!o.plot.empty()) std::cout << "wrote " << o.plot << "\n";
 }
 
-int runTemporalStats(const StatsOptions& o, const io::CmapFile& file) {
-  const TemporalMap map = io::temporalMapFrom(file, o.file);
-  TemporalStats s{map, file, io::layoutOf(file), map.counts(), 0.0};
+int runTemporalStats(const StatsOptions& o, const CmapFile& file) {
+  const TemporalMap map = temporalMapFrom(file, o.file);
+  TemporalStats s{map, file, layoutOf(file), map.counts(), 0.0};
   for (const auto& session : map.sessions()) s.nodes_separate += static_cast<double>(session.nodes_separate);
   if (!o.plot.empty()) {
     if (std::filesystem::path(o.plot).extension() != ".png") throw UsageError("--plot '" + o.plot + "' must end in .png");
-    io::refuseOverwritingInputs(o.plot, {o.file});
+    refuseOverwritingInputs(o.plot, {o.file});
     if (map.sessionCount() == 0) throw DataError(o.file + ": no sessions to plot");
-    io::writePng(o.plot, render::renderStoragePlot(map));
+    writePng(o.plot, render::renderStoragePlot(map));
   }
   if (o.json) {
     printTemporalJson(o, s);
@@ -127,13 +127,13 @@ int runTemporalStats(const StatsOptions& o, const io::CmapFile& file) {
   return 0;
 }
 
-int runDiffStats(const StatsOptions& o, const io::CmapFile& file) {
+int runDiffStats(const StatsOptions& o, const CmapFile& file) {
   if (!o.plot.empty()) throw UsageError("--plot draws the storage of a 4D map; " + o.file + " is a diff");
-  const DiffMap d = io::diffMapFrom(file, o.file);
+  const DiffMap d = diffMapFrom(file, o.file);
   const uint64_t appeared = d.voxelCount(ChangeKind::Appeared), vanished = d.voxelCount(ChangeKind::Vanished);
   const auto& h = file.header;
   if (o.json) {
-    std::cout << nlohmann::json{{"kind", io::toString(h.kind)},
+    std::cout << nlohmann::json{{"kind", toString(h.kind)},
                                 {"format_version", h.version},
                                 {"resolution_m", h.resolution_m},
                                 {"mode", toString(d.settings().mode)},
@@ -159,22 +159,22 @@ int runDiffStats(const StatsOptions& o, const io::CmapFile& file) {
 }
 
 int runStats(const StatsOptions& o) {
-  const io::CmapFile file = io::readCmap(o.file);
-  if (file.header.kind == io::MapKind::Temporal) return runTemporalStats(o, file);
-  if (file.header.kind == io::MapKind::Diff) return runDiffStats(o, file);
-  if (file.header.kind != io::MapKind::Session) {
-    throw DataError(o.file + ": stats for " + std::string(io::toString(file.header.kind)) +
+  const CmapFile file = readCmap(o.file);
+  if (file.header.kind == MapKind::Temporal) return runTemporalStats(o, file);
+  if (file.header.kind == MapKind::Diff) return runDiffStats(o, file);
+  if (file.header.kind != MapKind::Session) {
+    throw DataError(o.file + ": stats for " + std::string(toString(file.header.kind)) +
                     " maps are not supported by this build");
   }
   if (!o.plot.empty()) throw UsageError("--plot draws the storage of a 4D map; " + o.file + " is a session map");
-  const SessionMap map = io::sessionMapFrom(file, o.file);
+  const SessionMap map = sessionMapFrom(file, o.file);
   const SessionMapCounts c = map.counts();
-  const nlohmann::json meta = io::metadataOf(file);
+  const nlohmann::json meta = metadataOf(file);
   const size_t nodes = c.inner_nodes + c.leaves;
   const double per_leaf = c.leaves ? static_cast<double>(map.memoryBytes()) / static_cast<double>(c.leaves) : 0.0;
   const auto& h = file.header;
   if (o.json) {
-    nlohmann::json j = {{"kind", io::toString(h.kind)},
+    nlohmann::json j = {{"kind", toString(h.kind)},
                         {"format_version", h.version},
                         {"resolution_m", h.resolution_m},
                         {"sessions", 1},
@@ -195,7 +195,7 @@ int runStats(const StatsOptions& o) {
     std::cout << j.dump() << "\n";
     return 0;
   }
-  std::cout << o.file << ": " << io::toString(h.kind) << " map, format version " << h.version << "\n"
+  std::cout << o.file << ": " << toString(h.kind) << " map, format version " << h.version << "\n"
             << "  resolution:  " << h.resolution_m << " m\n"
             << "  bounds:      [" << h.bounds_min_m.transpose() << "] .. [" << h.bounds_max_m.transpose() << "] m\n"
             << "  voxels:      " << c.occupied_voxels << " occupied, " << c.free_voxels << " free\n"

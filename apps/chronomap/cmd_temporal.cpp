@@ -12,8 +12,8 @@
 #include "chronomap/analysis/change_frequency.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/core/file.h"
+#include "chronomap/store/temporal_file.h"
 #include "chronomap/pipeline/maps.h"
 #include "commands.h"
 
@@ -53,7 +53,7 @@ pipeline::BoxMetres parseBox(const std::string& text) {
   return {Eigen::Vector3d(v[0], v[1], v[2]), Eigen::Vector3d(v[3], v[4], v[5])};
 }
 
-nlohmann::json tileStatsJson(const std::optional<pipeline::TileCacheStats>& s) {
+nlohmann::json tileStatsJson(const std::optional<TileCacheStats>& s) {
   if (!s) return nullptr;
   return {{"tiles_loaded", s->loads}, {"tiles_evicted", s->evictions}, {"peak_tile_bytes", s->peak_resident_bytes}};
 }
@@ -63,7 +63,7 @@ int runSnapshot(const SnapshotCmdOptions& o) {
   if (ext != ".cmap" && ext != ".ply" && ext != ".ot" && ext != ".png") {
     throw UsageError("output '" + o.output + "' must end in .cmap, .ply, .ot or .png");
   }
-  io::refuseOverwritingInputs(o.output, {o.map});
+  refuseOverwritingInputs(o.output, {o.map});
   const double t = parseTime(o.at);
   const std::optional<pipeline::BoxMetres> box = o.box.empty() ? std::nullopt : std::optional(parseBox(o.box));
   const pipeline::MapSnapshot r = pipeline::snapshotOfMap(o.map, t, box, tileCacheSettings(o.memory_limit_gib));
@@ -201,10 +201,10 @@ void printChanges(const ChangesCmdOptions& o, const ChangeFrequency& f, size_t s
 int runChanges(const ChangesCmdOptions& o) {
   if (!o.output.empty()) {
     requireExtension(o.output, ".ply", "output");
-    io::refuseOverwritingInputs(o.output, {o.map});
+    refuseOverwritingInputs(o.output, {o.map});
   }
   if (o.min < 1) throw UsageError("--min must be at least 1");
-  const TemporalMap map = io::readTemporalMap(o.map);
+  const TemporalMap map = readTemporalMap(o.map);
   const double t0 = o.from.empty() ? -std::numeric_limits<double>::infinity() : parseTime(o.from);
   const double t1 = o.to.empty() ? std::numeric_limits<double>::infinity() : parseTime(o.to);
   if (t1 < t0) throw UsageError("--to lies before --from");

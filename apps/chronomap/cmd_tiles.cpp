@@ -11,8 +11,8 @@
 
 namespace chronomap::cli {
 
-pipeline::TileCacheSettings tileCacheSettings(const std::optional<double>& gib) {
-  pipeline::TileCacheSettings s;
+TileCacheSettings tileCacheSettings(const std::optional<double>& gib) {
+  TileCacheSettings s;
   if (gib) s.memory_limit_bytes = gibToBytes(*gib);
   return s;
 }

@@ -5,8 +5,8 @@
 #include <memory>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/rhythm_file.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/store/rhythm_file.h"
+#include "chronomap/store/temporal_file.h"
 #include "chronomap/view/server.h"
 #include "commands.h"
 
@@ -23,10 +23,10 @@ struct ViewOptions {
 
 int runView(ViewOptions o) {
   requireExtension(o.map, ".cmap", "4D map");
-  const TemporalMap map = io::readTemporalMap(o.map);
+  const TemporalMap map = readTemporalMap(o.map);
   o.server.api.default_max_voxels = o.budget;
   if (!o.rhythm.empty()) {
-    o.server.api.rhythm = std::make_shared<const RhythmModels>(io::readRhythmModels(o.rhythm));
+    o.server.api.rhythm = std::make_shared<const RhythmModels>(readRhythmModels(o.rhythm));
     if (std::abs(o.server.api.rhythm->resolution_m - map.resolution_m()) > 1e-9) {
       throw UsageError(o.rhythm + ": models of " + std::to_string(o.server.api.rhythm->resolution_m) +
                        " m voxels; the map has " + std::to_string(map.resolution_m()) + " m");

@@ -58,7 +58,7 @@ inline size_t gibToBytes(double gib) { return static_cast<size_t>(std::llround(g
 inline constexpr const char* kTileMemoryHelp =
     "tiled maps: GiB of tiles held at once (least recently used tiles are dropped whole); 0: no limit; default 1";
 /// The tile cache a --memory-limit flag (GiB; 0: none; unset: the default) asks for.
-pipeline::TileCacheSettings tileCacheSettings(const std::optional<double>& gib);
+TileCacheSettings tileCacheSettings(const std::optional<double>& gib);
 
 /// The integration flags of integrate and build, as given.
 struct IntegrateFlags {
@@ -76,7 +76,7 @@ struct IntegrateFlags {
   std::string intrinsics;
   std::string pose;
   std::string trajectory;
-  io::BagSettings bag;                      ///< ROS bags: topics and frames
+  BagSettings bag;                      ///< ROS bags: topics and frames
   std::optional<double> pose_tolerance_s;  ///< unset: BagSettings' default
 };
 /// Registers the integration flags on a subcommand.

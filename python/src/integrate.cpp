@@ -10,9 +10,9 @@
 #include "chronomap/core/error.h"
 #include "chronomap/core/pose.h"
 #include "chronomap/integrate/incremental.h"
-#include "chronomap/io/dataset.h"
-#include "chronomap/io/depth_image.h"
-#include "chronomap/io/png.h"
+#include "chronomap/ingest/dataset.h"
+#include "chronomap/ingest/depth_image.h"
+#include "chronomap/ingest/png.h"
 #include "chronomap/pipeline/session.h"
 
 namespace chronomap::python {
@@ -40,7 +40,7 @@ SessionMap integrateDatasetPy(const std::filesystem::path& path, double resoluti
   settings.integrator.max_range_m = max_range_m;
   settings.integrator.carve_beyond_range = carve_beyond_range;
   settings.integrator.threads = threads;
-  settings.dataset.format = io::parseDatasetFormat(format);
+  settings.dataset.format = parseDatasetFormat(format);
   settings.dataset.depth_scale = depth_scale;
   ProgressForwarder forwarder{progress, nullptr};
   std::optional<pipeline::IntegratedSession> session;
@@ -73,12 +73,12 @@ PointCloud depthCloud(const py::handle& h, const ImageRgb* rgb, const CameraIntr
     const auto a = py::array_t<uint16_t, py::array::c_style | py::array::forcecast>::ensure(any);
     ImageU16 depth{width, height, std::vector<uint16_t>(a.data(), a.data() + a.size())};
     py::gil_scoped_release release;
-    return io::depthToCloud(depth, rgb, k, depth_scale, "add_frame");
+    return depthToCloud(depth, rgb, k, depth_scale, "add_frame");
   }
   if (any.dtype().is(py::dtype::of<float>())) {
     const auto a = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(any);
     py::gil_scoped_release release;
-    return io::depthMetresToCloud(std::span<const float>(a.data(), static_cast<size_t>(a.size())), width, height, rgb,
+    return depthMetresToCloud(std::span<const float>(a.data(), static_cast<size_t>(a.size())), width, height, rgb,
                                   k, "add_frame");
   }
   std::string msg("depth: expected uint16 (with depth_scale) or float32 metres, got dtype ");
@@ -92,7 +92,7 @@ py::array_t<uint16_t> readDepthPng(const std::filesystem::path& path) {
   ImageU16 img;
   {
     py::gil_scoped_release release;
-    img = io::readPngU16(path);
+    img = readPngU16(path);
   }
   const auto h = static_cast<py::ssize_t>(img.height), w = static_cast<py::ssize_t>(img.width);
   return vectorArray(std::move(img.pixels)).attr("reshape")(h, w);  // a view, no copy
@@ -102,7 +102,7 @@ py::array_t<uint8_t> readColorPng(const std::filesystem::path& path) {
   ImageRgb img;
   {
     py::gil_scoped_release release;
-    img = io::readPngRgb(path);
+    img = readPngRgb(path);
   }
   const auto h = static_cast<py::ssize_t>(img.height), w = static_cast<py::ssize_t>(img.width);
   return colorsArray(std::move(img.pixels)).attr("reshape")(h, w, 3);  // a view, no copy

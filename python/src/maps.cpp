@@ -8,7 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bindings.h"
-#include "chronomap/io/cmap.h"
+#include "chronomap/store/cmap.h"
 #include "chronomap/octree/session_map.h"
 #include "chronomap/octree/voxel_queries.h"
 
@@ -109,14 +109,14 @@ void bindMaps(py::module_& m) {
           "open",
           [](const std::filesystem::path& path) {
             py::gil_scoped_release release;
-            return io::readSessionMap(path);
+            return readSessionMap(path);
           },
           py::arg("path"), "Reads a session map file (.cmap). Raises IoError or FormatError naming the file.")
       .def(
           "save",
           [](const SessionMap& map, const std::filesystem::path& path) {
             py::gil_scoped_release release;
-            io::writeSessionMap(path, map, nlohmann::json::object());
+            writeSessionMap(path, map, nlohmann::json::object());
           },
           py::arg("path"), "Writes the map as a session map file (.cmap), atomically.")
       .def_property_readonly("resolution_m", &SessionMap::resolution_m, "Voxel edge length in metres.")

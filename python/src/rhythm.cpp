@@ -7,8 +7,8 @@
 #include "chronomap/analysis/colour.h"
 #include "chronomap/analysis/costmap.h"
 #include "chronomap/analysis/rhythm.h"
-#include "chronomap/io/colour_file.h"
-#include "chronomap/io/rhythm_file.h"
+#include "chronomap/store/colour_file.h"
+#include "chronomap/store/rhythm_file.h"
 
 namespace chronomap::python {
 
@@ -106,14 +106,14 @@ void bindRhythm(py::module_& m) {
           "open",
           [](const std::filesystem::path& path) {
             py::gil_scoped_release release;
-            return io::readRhythmModels(path);
+            return readRhythmModels(path);
           },
           py::arg("path"), "Reads a model saved by save() or `chronomap predict --save-rhythm`.")
       .def(
           "save",
           [](const RhythmModels& r, const std::filesystem::path& path) {
             py::gil_scoped_release release;
-            io::writeRhythmModels(path, r);
+            writeRhythmModels(path, r);
           },
           py::arg("path"), "Writes the model (.rhythm), atomically.")
       .def("__len__", [](const RhythmModels& r) { return r.voxels.size(); })
@@ -151,7 +151,7 @@ void bindRhythm(py::module_& m) {
           "open",
           [](const std::filesystem::path& path) {
             py::gil_scoped_release release;
-            ColourModel model = io::readColourModel(path);
+            ColourModel model = readColourModel(path);
             const double resolution_m = model.resolution_m;
             return PyColourModel{std::move(model), resolution_m};
           },
@@ -160,7 +160,7 @@ void bindRhythm(py::module_& m) {
           "save",
           [](const PyColourModel& c, const std::filesystem::path& path) {
             py::gil_scoped_release release;
-            io::writeColourModel(path, c.model);
+            writeColourModel(path, c.model);
           },
           py::arg("path"), "Writes the model (.colour), atomically.")
       .def("__len__", [](const PyColourModel& c) { return c.model.keys.size(); })

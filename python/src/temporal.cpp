@@ -10,7 +10,7 @@
 #include "bindings.h"
 #include "chronomap/analysis/change_frequency.h"
 #include "chronomap/analysis/diff.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/store/temporal_file.h"
 #include "chronomap/temporal/temporal_map.h"
 
 namespace chronomap::python {
@@ -105,14 +105,14 @@ void bindTemporal(py::module_& m) {
           "open",
           [](const std::filesystem::path& path) {
             py::gil_scoped_release release;
-            return io::readTemporalMap(path);
+            return readTemporalMap(path);
           },
           py::arg("path"), "Reads a 4D map file (.cmap). Raises IoError or FormatError naming the file.")
       .def(
           "save",
           [](const TemporalMap& map, const std::filesystem::path& path) {
             py::gil_scoped_release release;
-            io::writeTemporalMap(path, map, nlohmann::json::object());
+            writeTemporalMap(path, map, nlohmann::json::object());
           },
           py::arg("path"), "Writes the 4D map file (.cmap), atomically.")
       .def_property_readonly("resolution_m", &TemporalMap::resolution_m, "Voxel edge length in metres.")

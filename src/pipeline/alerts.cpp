@@ -4,9 +4,10 @@
 #include <cstdio>
 
 #include "chronomap/core/time.h"
-#include "chronomap/io/diff_file.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/png.h"
+#include "chronomap/store/diff_file.h"
+#include "chronomap/export/export.h"
+#include "chronomap/core/file.h"
+#include "chronomap/ingest/png.h"
 #include "chronomap/render/top_view.h"
 
 namespace chronomap::pipeline {
@@ -110,21 +111,21 @@ void writeAlerts(const fs::path& folder, const TemporalMap& map, const AlertRepo
     names.push_back(std::string(name) + ".png");
     names.push_back(std::string(name) + ".ply");
   }
-  for (const std::string& name : names) io::refuseOverwritingInputs(folder / name, {source});
-  io::StagedFolder staged(folder);
+  for (const std::string& name : names) refuseOverwritingInputs(folder / name, {source});
+  StagedFolder staged(folder);
   const std::string json = alertsJson(report, top).dump(2) + "\n";
-  io::writeFileAtomic(staged.path() / "alerts.json", std::vector<uint8_t>(json.begin(), json.end()));
+  writeFileAtomic(staged.path() / "alerts.json", std::vector<uint8_t>(json.begin(), json.end()));
   const SessionMap now = map.snapshot(report.time_s);
   if (!now.empty()) {
     const auto [d, seg] = ranked(report, n);
-    io::writePng(staged.path() / "alerts.png", render::renderChangeView(now, d, seg));
+    writePng(staged.path() / "alerts.png", render::renderChangeView(now, d, seg));
   }
   for (size_t i = 0; i < n; ++i) {
     const Alert& a = report.alerts[i];
     char stem[32];
     std::snprintf(stem, sizeof stem, "alert_%02zu", i + 1);
     const DiffMap part = componentDiff(report.diff, a.component);
-    io::exportDiffPly(staged.path() / (std::string(stem) + ".ply"), part, part.cells());
+    exportDiffPly(staged.path() / (std::string(stem) + ".ply"), part, part.cells());
     const SessionMap around = crop(now, a.component.bbox_min_m, a.component.bbox_max_m, 1.0);
     if (around.empty()) continue;
     Segmentation one;
@@ -135,7 +136,7 @@ void writeAlerts(const fs::path& folder, const TemporalMap& map, const AlertRepo
     one.components.push_back(std::move(c));
     render::TopViewSettings view;
     view.pixels_per_voxel = 4;
-    io::writePng(staged.path() / (std::string(stem) + ".png"), render::renderChangeView(around, part, one, view));
+    writePng(staged.path() / (std::string(stem) + ".png"), render::renderChangeView(around, part, one, view));
   }
   staged.commit();
 }

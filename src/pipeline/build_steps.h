@@ -5,7 +5,7 @@
 #include <cstddef>
 #include <vector>
 
-#include "chronomap/io/cmap.h"
+#include "chronomap/store/cmap.h"
 #include "chronomap/pipeline/map4d.h"
 
 namespace chronomap::pipeline::detail {
@@ -30,6 +30,6 @@ void sortByTime(const BuildSettings& s, std::vector<Pending>& pending);
 BuildResult finishBuild(const BuildSettings& s, TemporalMap& map, bool created, std::vector<Pending>& pending);
 /// The time of the session `add` reads from `file`: the given one, else the file's recorded_at.
 /// @throw UsageError when there is neither.
-double sessionTime(const AddSessionSettings& s, const io::CmapFile& file);
+double sessionTime(const AddSessionSettings& s, const CmapFile& file);
 
 }  // namespace chronomap::pipeline::detail

@@ -12,12 +12,12 @@
 #include "chronomap/analysis/segment.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/dataset.h"
-#include "chronomap/io/diff_file.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/png.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/ingest/dataset.h"
+#include "chronomap/store/diff_file.h"
+#include "chronomap/core/file.h"
+#include "chronomap/ingest/png.h"
+#include "chronomap/store/temporal_file.h"
 #include "chronomap/pipeline/session.h"
 #include "chronomap/render/color.h"
 #include "chronomap/render/plot.h"
@@ -52,7 +52,7 @@ std::vector<DemoSession> integrateSessions(const DemoSettings& s, const sim::Sim
     IntegratedSession i = integrateDataset(simulated.session_dirs[k], session_settings, {}, s.progress,
                                            "session " + std::to_string(k));
     const SessionMap truth_map =
-        io::readSessionMap(s.output / "data" / "truth" / numbered("occupancy_%02zu.cmap", k));
+        readSessionMap(s.output / "data" / "truth" / numbered("occupancy_%02zu.cmap", k));
     std::vector<VoxelKey> truth;
     truth_map.forEachLeaf([&](const LeafView& l) { truth.push_back(l.key); });
     const sim::OccupancyScore score = sim::scoreOccupancy(i.map, truth);
@@ -80,7 +80,7 @@ void registerAll(const DemoSettings& s, const sim::SimulationSummary& simulated,
   for (size_t k = 0; k < sessions.size(); ++k) {
     sessions[k].map = std::move(maps[k]);
     sessions[k].registered_score = sim::scoreOccupancy(sessions[k].map, sessions[k].truth);
-    io::writeSessionMap(s.output / "sessions" / numbered("session_%02zu.cmap", k), sessions[k].map,
+    writeSessionMap(s.output / "sessions" / numbered("session_%02zu.cmap", k), sessions[k].map,
                         {{"created_by", "chronomap demo"}, {"recorded_at", simulated.times_s[k]}, {"registered", true}});
   }
 }
@@ -92,7 +92,7 @@ TemporalMap buildMap(const sim::SimulationSummary& simulated, const std::vector<
   for (size_t k = 0; k < sessions.size(); ++k) {
     map.add(simulated.times_s[k], sessions[k].map, AddSettings{false, numbered("session_%02zu", k)});
   }
-  io::writeTemporalMap(path, map, {{"created_by", "chronomap demo"}});
+  writeTemporalMap(path, map, {{"created_by", "chronomap demo"}});
   return map;
 }
 
@@ -111,10 +111,10 @@ std::vector<DemoPair> findChanges(const DemoSettings& s, const std::vector<DemoS
     const DiffMap d = diff(sessions[k - 1].map, sessions[k].map, cs.diff);
     p.segmentation = segment(d, cs.segment);
     p.score = sim::scoreChanges(d, p.segmentation, p.events, sessions[k - 1].map, sessions[k].map);
-    io::writeDiffMap(s.output / "changes" / (p.name + ".cmap"), d, {{"created_by", "chronomap demo"}});
+    writeDiffMap(s.output / "changes" / (p.name + ".cmap"), d, {{"created_by", "chronomap demo"}});
     render::TopViewSettings view;
     view.pixels_per_voxel = 3;
-    io::writePng(images / (p.name + ".png"), render::renderChangeView(sessions[k].map, d, p.segmentation, view));
+    writePng(images / (p.name + ".png"), render::renderChangeView(sessions[k].map, d, p.segmentation, view));
     pairs.push_back(std::move(p));
   }
   return pairs;
@@ -122,7 +122,7 @@ std::vector<DemoPair> findChanges(const DemoSettings& s, const std::vector<DemoS
 
 /// Session 0's points from above, every second point of every frame.
 ImageRgb sessionCloudView(const fs::path& dir) {
-  const auto dataset = io::openDataset(dir);
+  const auto dataset = openRecording(dir);
   std::vector<Eigen::Vector3f> points;
   std::vector<Rgb> colors;
   for (size_t i = 0; i < dataset->size(); ++i) {
@@ -139,7 +139,7 @@ ImageRgb sessionCloudView(const fs::path& dir) {
 
 std::vector<Eigen::Vector3d> trajectoryPositions(const fs::path& path) {
   std::vector<Eigen::Vector3d> out;
-  for (const auto& p : io::parseTumTrajectory(io::readTextFile(path), path.string())) out.push_back(p.pose.translation());
+  for (const auto& p : parseTumTrajectory(readTextFile(path), path.string())) out.push_back(p.pose.translation());
   return out;
 }
 
@@ -165,16 +165,16 @@ ImageRgb trajectoryPlot(const fs::path& dir) {
 void drawPictures(const sim::SimulationSummary& simulated, const TemporalMap& map, const fs::path& images) {
   render::TopViewSettings view;
   view.pixels_per_voxel = 3;
-  io::writePng(images / "map_topview.png", render::renderTopView(map.snapshot(simulated.times_s.back()), view));
+  writePng(images / "map_topview.png", render::renderTopView(map.snapshot(simulated.times_s.back()), view));
   const fs::path& first = simulated.session_dirs.front();
-  io::writePng(images / "session_00_cloud.png", sessionCloudView(first));
+  writePng(images / "session_00_cloud.png", sessionCloudView(first));
   // One frame as recorded: colour and depth (from the middle of the first session).
-  const auto names = io::parseStampedList(io::readTextFile(first / "depth.txt"), "depth.txt");
+  const auto names = parseStampedList(readTextFile(first / "depth.txt"), "depth.txt");
   const auto& mid = names[names.size() / 2];
   fs::copy_file(first / ("rgb/" + mid.name.substr(6)), images / "frame_rgb.png", fs::copy_options::overwrite_existing);
-  io::writePng(images / "frame_depth.png", render::colorizeDepth(io::readPngU16(first / mid.name), 5000.0));
-  io::writePng(images / "trajectory.png", trajectoryPlot(first));
-  io::writePng(images / "storage.png", render::renderStoragePlot(map));
+  writePng(images / "frame_depth.png", render::colorizeDepth(readPngU16(first / mid.name), 5000.0));
+  writePng(images / "trajectory.png", trajectoryPlot(first));
+  writePng(images / "storage.png", render::renderStoragePlot(map));
 }
 
 /// The result's means and totals; @return the change score over all pairs.
@@ -201,7 +201,7 @@ DemoResult runDemo(const DemoSettings& settings) {
   const auto started = std::chrono::steady_clock::now();
   // Written whole or not at all: every step writes into a staging folder beside the output,
   // moved into place at the end; the report and the result name the final places.
-  io::StagedFolder staged(settings.output);
+  StagedFolder staged(settings.output);
   DemoSettings s = settings;
   s.output = staged.path();
   DemoResult r;
@@ -253,7 +253,7 @@ DemoResult runDemo(const DemoSettings& settings) {
   r.tour = settings.output / "tour.html";
   const std::string report =
       demoReport({settings, sim_settings, simulated, sessions, pairs, map, r, changes, map_bytes, kDriftKnots});
-  io::writeFileAtomic(s.output / "report.md", std::vector<uint8_t>(report.begin(), report.end()));
+  writeFileAtomic(s.output / "report.md", std::vector<uint8_t>(report.begin(), report.end()));
   staged.commit();
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   return r;

@@ -19,8 +19,8 @@
 
 #include "build_steps.h"
 #include "chronomap/core/error.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/file.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/core/file.h"
 
 namespace chronomap::pipeline {
 
@@ -151,14 +151,14 @@ std::vector<uint8_t> encodePending(const Pending& p) {
        {st.frames, st.points, st.points_invalid, st.points_out_of_range, st.points_outside_map, st.rays,
         st.voxel_updates, st.seconds}},
       {"sensor_positions", std::move(positions)}};
-  return io::encodeSessionMap(s.map, meta, /*zstd_level=*/1, /*version=*/1);
+  return encodeSessionMap(s.map, meta, /*zstd_level=*/1, /*version=*/1);
 }
 
 Pending decodePending(const std::vector<uint8_t>& bytes, size_t index, int from) {
   const std::string source = "the session map of dataset " + std::to_string(index + 1) + " from rank " +
                              std::to_string(from);
-  const io::CmapFile file = io::decodeCmap(bytes, source);
-  const nlohmann::json meta = io::metadataOf(file);
+  const CmapFile file = decodeCmap(bytes, source);
+  const nlohmann::json meta = metadataOf(file);
   if (meta.value("index", size_t{0}) != index) throw Error(source + ": another dataset's session arrived");
   const nlohmann::json& st = meta.at("stats");
   const IntegrationStats stats{st.at(0), st.at(1), st.at(2), st.at(3), st.at(4), st.at(5), st.at(6), st.at(7)};
@@ -169,7 +169,7 @@ Pending decodePending(const std::vector<uint8_t>& bytes, size_t index, int from)
     positions.emplace_back(q.at(0).get<double>(), q.at(1).get<double>(), q.at(2).get<double>());
   }
   return {index, meta.at("time_s").get<double>(),
-          IntegratedSession{io::sessionMapFrom(file, source), stats, recorded_at, meta.at("format").get<std::string>(),
+          IntegratedSession{sessionMapFrom(file, source), stats, recorded_at, meta.at("format").get<std::string>(),
                             meta.at("frames_dropped").get<size_t>(), std::move(positions),
                             meta.at("dropped_reasons").get<std::string>()}};
 }
@@ -225,13 +225,13 @@ std::optional<BuildResult> buildOnRanks(const BuildSettings& settings, const Ran
   Steps steps(ranks);
 
   // The inputs, checked on every rank (each reads the datasets); rank 0 locks and reads the map.
-  std::optional<io::FileLock> lock;
+  std::optional<FileLock> lock;
   std::optional<TemporalMap> map;
   bool created = false;
   steps.run(0, [&] {
     detail::checkInputs(s);
     if (!root) return;
-    lock.emplace(s.map, io::FileLock::Missing::LockFolder);  // held to the end, as build() holds it
+    lock.emplace(s.map, FileLock::Missing::LockFolder);  // held to the end, as build() holds it
     map.emplace(openOrCreate(s.map, s.session.resolution_m, s.criterion, created));
     detail::refuseClashes(s, *map);
   });

@@ -9,8 +9,8 @@
 #include "chronomap/align/consensus.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/file.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/core/file.h"
 #include "chronomap/pipeline/distributed.h"
 #include "build_steps.h"
 
@@ -44,7 +44,7 @@ void checkInputs(const BuildSettings& s) {
   for (const auto& d : s.datasets) {
     if (!fs::exists(d)) throw UsageError("dataset '" + d.string() + "' does not exist");
   }
-  io::refuseOverwritingInputs(s.map, s.datasets);
+  refuseOverwritingInputs(s.map, s.datasets);
 }
 
 void refuseClashes(const BuildSettings& s, const TemporalMap& map) {
@@ -129,10 +129,10 @@ std::vector<size_t> realignPending(const BuildSettings& s, std::vector<Pending>&
 }  // namespace
 
 TemporalMap openOrCreate(const fs::path& path, double resolution_m, const ChangeCriterion& criterion, bool& created,
-                         io::TemporalFileLayout* layout) {
+                         TemporalFileLayout* layout) {
   created = !fs::exists(path);
   if (created) return TemporalMap(resolution_m, criterion);
-  TemporalMap map = io::readTemporalMap(path, layout);
+  TemporalMap map = readTemporalMap(path, layout);
   if (map.resolution_m() != resolution_m) {
     throw UsageError(path.string() + ": the 4D map has resolution " + std::to_string(map.resolution_m()) +
                      " m but the session has " + std::to_string(resolution_m) + " m");
@@ -145,11 +145,11 @@ BuildResult build(const BuildSettings& given) {
   // Registration reads every frame again: the first read already keeps the decoded depth images.
   BuildSettings s = given;
   if (s.registration && s.registration->depth_cache_bytes > 0 && !s.session.dataset.depth_cache) {
-    s.session.dataset.depth_cache = std::make_shared<io::DepthImageCache>(s.registration->depth_cache_bytes);
+    s.session.dataset.depth_cache = std::make_shared<DepthImageCache>(s.registration->depth_cache_bytes);
   }
   // Held to the end: an add to the same map meanwhile would otherwise be lost by the rewrite. A
   // map that does not exist yet locks its folder: two commands creating it run one after the other.
-  const io::FileLock lock(s.map, io::FileLock::Missing::LockFolder);
+  const FileLock lock(s.map, FileLock::Missing::LockFolder);
   bool created = false;
   TemporalMap map = openOrCreate(s.map, s.session.resolution_m, s.criterion, created);
   detail::refuseClashes(s, map);
@@ -181,7 +181,7 @@ BuildResult detail::finishBuild(const BuildSettings& s, TemporalMap& map, bool c
     result.added.push_back(std::move(b));
   }
   // One atomic write at the end: a crash leaves the previous map (or none) on disk.
-  io::writeTemporalMap(s.map, map, {});
+  writeTemporalMap(s.map, map, {});
   result.sessions = map.sessionCount();
   result.nodes = map.counts().nodes();
   result.file_bytes = fs::file_size(s.map);
@@ -204,9 +204,9 @@ WritePolicy parseWritePolicy(const std::string& name) {
   throw UsageError("write policy must be auto, append or rewrite, not '" + name + "'");
 }
 
-double detail::sessionTime(const AddSessionSettings& s, const io::CmapFile& file) {
+double detail::sessionTime(const AddSessionSettings& s, const CmapFile& file) {
   if (s.time_s) return *s.time_s;
-  const nlohmann::json meta = io::metadataOf(file);
+  const nlohmann::json meta = metadataOf(file);
   if (!meta.contains("recorded_at") || !meta["recorded_at"].is_number()) {
     throw UsageError(s.session.string() + " does not say when it was recorded; give --time");
   }
@@ -215,15 +215,15 @@ double detail::sessionTime(const AddSessionSettings& s, const io::CmapFile& file
 
 AddSessionResult addSession(const AddSessionSettings& s) {
   if (s.realign) s.realign->validate();
-  io::refuseOverwritingInputs(s.map, {s.session});
-  const io::CmapFile file = io::readCmap(s.session);
-  SessionMap session = io::sessionMapFrom(file, s.session.string());
+  refuseOverwritingInputs(s.map, {s.session});
+  const CmapFile file = readCmap(s.session);
+  SessionMap session = sessionMapFrom(file, s.session.string());
   AddSessionResult r;
   r.time_s = detail::sessionTime(s, file);
   // One add at a time per map: a second one waits here, then reads what the first wrote (also
   // when the first created the map).
-  const io::FileLock lock(s.map, io::FileLock::Missing::LockFolder);
-  io::TemporalFileLayout layout;
+  const FileLock lock(s.map, FileLock::Missing::LockFolder);
+  TemporalFileLayout layout;
   TemporalMap map = openOrCreate(s.map, session.resolution_m(), s.criterion, r.created, &layout);
   if (s.realign) {
     // The consensus of every session stored so far (each time's snapshot) and this one.
@@ -235,7 +235,7 @@ AddSessionResult addSession(const AddSessionSettings& s) {
     r.realigned_voxels = realigned.moved();
     // As the record below keeps it (lengths, colour sums and positions quantised), so that a
     // reader replaying the record builds the map this add holds.
-    session = io::asStored(session);
+    session = asStored(session);
   }
   const AddSettings add_settings{s.replace, s.session.filename().string()};
   r.report = map.add(r.time_s, session, add_settings);
@@ -243,15 +243,15 @@ AddSessionResult addSession(const AddSessionSettings& s) {
   // map again, folding earlier records in: "auto" appends while the records stay smaller than the
   // base, so that reading never replays more than the base holds.
   const std::vector<uint8_t> record =
-      r.created ? std::vector<uint8_t>{} : io::encodeSessionRecord(r.time_s, session, add_settings);
+      r.created ? std::vector<uint8_t>{} : encodeSessionRecord(r.time_s, session, add_settings);
   r.appended = !r.created && (s.write == WritePolicy::Append ||
                               (s.write == WritePolicy::Auto &&
                                layout.appended_bytes + record.size() <= layout.base_bytes));
   if (r.appended) {
-    io::appendToFile(s.map, layout.completeBytes(), record);
+    appendToFile(s.map, layout.completeBytes(), record);
     r.record_bytes = record.size();
   } else {
-    io::writeTemporalMap(s.map, map, {});
+    writeTemporalMap(s.map, map, {});
   }
   r.nodes_added = nodesAddedAt(map, r.time_s);
   r.sessions = map.sessionCount();

@@ -8,12 +8,12 @@
 
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
-#include "chronomap/io/cloud_io.h"
-#include "chronomap/io/diff_file.h"
-#include "chronomap/io/export.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/png.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/ingest/cloud_io.h"
+#include "chronomap/store/diff_file.h"
+#include "chronomap/export/export.h"
+#include "chronomap/core/file.h"
+#include "chronomap/ingest/png.h"
+#include "chronomap/store/temporal_file.h"
 #include "chronomap/render/color.h"
 #include "chronomap/render/top_view.h"
 
@@ -27,17 +27,17 @@ MapRef parseMapRef(const std::string& text) {
   return {text.substr(0, at), parseTime(text.substr(at + 1))};
 }
 
-SessionMap loadSessionMap(const MapRef& ref, const io::CmapFile& file) {
+SessionMap loadSessionMap(const MapRef& ref, const CmapFile& file) {
   const std::string path = ref.path.string();
-  if (file.header.kind == io::MapKind::Session) {
+  if (file.header.kind == MapKind::Session) {
     if (ref.time_s) throw UsageError(path + " is a session map: it has no times to pick with @");
-    return io::sessionMapFrom(file, path);
+    return sessionMapFrom(file, path);
   }
-  if (file.header.kind == io::MapKind::Temporal) {
+  if (file.header.kind == MapKind::Temporal) {
     if (!ref.time_s) throw UsageError(path + " is a 4D map: say which time to compare, as " + path + "@TIME");
-    return io::temporalMapFrom(file, path).snapshot(*ref.time_s);
+    return temporalMapFrom(file, path).snapshot(*ref.time_s);
   }
-  throw UsageError(path + " holds a " + std::string(io::toString(file.header.kind)) +
+  throw UsageError(path + " holds a " + std::string(toString(file.header.kind)) +
                    " map; diff compares session maps and 4D maps");
 }
 
@@ -49,13 +49,13 @@ DiffMap diffMaps(const MapRef& a, const MapRef& b, const DiffSettings& settings,
     TiledMap map(a.path, cache);
     return map.diff(*a.time_s, *b.time_s, settings);
   }
-  const io::CmapFile fa = io::readCmap(a.path);
-  if (fa.header.kind == io::MapKind::Temporal && a.time_s && b.time_s && fs::exists(b.path) &&
+  const CmapFile fa = readCmap(a.path);
+  if (fa.header.kind == MapKind::Temporal && a.time_s && b.time_s && fs::exists(b.path) &&
       fs::equivalent(a.path, b.path)) {
-    return diff(io::temporalMapFrom(fa, a.path.string()), *a.time_s, *b.time_s, settings);
+    return diff(temporalMapFrom(fa, a.path.string()), *a.time_s, *b.time_s, settings);
   }
   const SessionMap ma = loadSessionMap(a, fa);
-  const SessionMap mb = loadSessionMap(b, io::readCmap(b.path));
+  const SessionMap mb = loadSessionMap(b, readCmap(b.path));
   return diff(ma, mb, settings);
 }
 
@@ -64,7 +64,7 @@ ColourDiffReport colourDiffMaps(const MapRef& before, const MapRef& after, const
     throw UsageError("--colour compares two times of one 4D map: give A and B as MAP.cmap@TIME");
   }
   settings.validate();
-  const TemporalMap map = io::readTemporalMap(before.path);
+  const TemporalMap map = readTemporalMap(before.path);
   ColourDiffReport r;
   if (settings.lighting_invariant) {
     const double later = std::max(*before.time_s, *after.time_s);
@@ -85,16 +85,16 @@ SessionMap snapshotAt(const TemporalMap& map, double time_s, const std::string& 
 size_t exportSessionMap(const fs::path& path, const SessionMap& map, const ExportSettings& settings) {
   const std::string ext = path.extension().string();
   if (ext == ".cmap") {
-    io::writeSessionMap(path, map, settings.metadata);
+    writeSessionMap(path, map, settings.metadata);
     return map.leafCount();
   }
-  if (ext == ".ply") return io::exportOccupiedPly(path, map);
-  if (ext == ".ot") return io::exportOctomap(path, map);
+  if (ext == ".ply") return exportOccupiedPly(path, map);
+  if (ext == ".ot") return exportOctomap(path, map);
   if (ext == ".png") {
     render::TopViewSettings view;
     view.pixels_per_voxel = settings.pixels_per_voxel;
     const ImageRgb img = render::renderTopView(map, view);
-    io::writePng(path, img);
+    writePng(path, img);
     return size_t{img.width} * img.height;
   }
   throw UsageError("output '" + path.string() + "' must end in .cmap, .ply, .ot or .png");
@@ -112,7 +112,7 @@ size_t writeChangeFrequencyPly(const fs::path& path, const TemporalMap& map, con
     cloud.colors.push_back(render::heatColor(t));
   }
   cloud.width = static_cast<uint32_t>(cloud.points.size());
-  io::writePly(path, cloud);
+  writePly(path, cloud);
   return cloud.points.size();
 }
 
@@ -164,22 +164,22 @@ void writeComponents(const fs::path& folder, const DiffMap& diff, const Segmenta
   }
   // Every file this writes is checked against the input before the first is written.
   for (const fs::path& stem : stems) {
-    io::refuseOverwritingInputs(stem.string() + ".cmap", {source});
-    io::refuseOverwritingInputs(stem.string() + ".ply", {source});
+    refuseOverwritingInputs(stem.string() + ".cmap", {source});
+    refuseOverwritingInputs(stem.string() + ".ply", {source});
   }
-  io::refuseOverwritingInputs(folder / "components.json", {source});
+  refuseOverwritingInputs(folder / "components.json", {source});
   // All or nothing: the files go to a staging folder, moved into `folder` once all are written.
-  io::StagedFolder staged(folder);
+  StagedFolder staged(folder);
   for (size_t i = 0; i < stems.size(); ++i) {
     const Component& c = segmentation.components[i];
     const DiffMap part = componentDiff(diff, c);
     const std::string staged_stem = (staged.path() / stems[i].filename()).string();
-    io::writeDiffMap(staged_stem + ".cmap", part,
+    writeDiffMap(staged_stem + ".cmap", part,
                      {{"created_by", "chronomap segment"}, {"from", source}, {"component", c.id}});
-    io::exportDiffPly(staged_stem + ".ply", part, part.cells());
+    exportDiffPly(staged_stem + ".ply", part, part.cells());
   }
   const std::string index = summary.dump(2) + "\n";
-  io::writeFileAtomic(staged.path() / "components.json", std::vector<uint8_t>(index.begin(), index.end()));
+  writeFileAtomic(staged.path() / "components.json", std::vector<uint8_t>(index.begin(), index.end()));
   staged.commit();
   removeStaleComponents(folder, stems);
 }

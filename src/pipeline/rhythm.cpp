@@ -1,10 +1,10 @@
 #include "chronomap/pipeline/rhythm.h"
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/colour_file.h"
-#include "chronomap/io/map_server.h"
-#include "chronomap/io/png.h"
-#include "chronomap/io/rhythm_file.h"
+#include "chronomap/store/colour_file.h"
+#include "chronomap/export/map_server.h"
+#include "chronomap/ingest/png.h"
+#include "chronomap/store/rhythm_file.h"
 #include "chronomap/render/top_view.h"
 
 namespace chronomap::pipeline {
@@ -14,10 +14,10 @@ RhythmModels learnRhythm(const TemporalMap& map, const LearnSettings& s) {
     if (s.range_given || s.save) {
       throw UsageError("--rhythm reads a fitted model: it takes no --learn-from, --learn-to or --save-rhythm");
     }
-    return io::readRhythmModels(*s.saved);
+    return readRhythmModels(*s.saved);
   }
   RhythmModels models = fitRhythm(map, s.from_s, s.to_s, s.min_changes);
-  if (s.save) io::writeRhythmModels(*s.save, models);
+  if (s.save) writeRhythmModels(*s.save, models);
   return models;
 }
 
@@ -26,7 +26,7 @@ ColourModel learnColour(const TemporalMap& map, const ColourLearnSettings& s) {
     if (s.range_given || s.save) {
       throw UsageError("--colour-model reads a fitted model: it takes no --learn-from, --learn-to or --save-colour");
     }
-    ColourModel model = io::readColourModel(*s.saved);
+    ColourModel model = readColourModel(*s.saved);
     if (model.resolution_m != map.resolution_m()) {
       throw UsageError(s.saved->string() + ": the colour model was learned on a map of " +
                        std::to_string(model.resolution_m) + " m voxels; this map's are " +
@@ -35,7 +35,7 @@ ColourModel learnColour(const TemporalMap& map, const ColourLearnSettings& s) {
     return model;
   }
   ColourModel model = fitColour(map, s.from_s, s.to_s, s.fit);
-  if (s.save) io::writeColourModel(*s.save, model);
+  if (s.save) writeColourModel(*s.save, model);
   return model;
 }
 
@@ -49,8 +49,8 @@ CostmapFiles costmapFiles(const std::filesystem::path& yaml) {
 
 CostmapCounts writeCostmap(const CostmapFiles& files, const Costmap& c, const std::string& source) {
   if (c.width == 0) throw DataError(source + ": nothing is known between --z-min and --z-max");
-  io::writeMapServer(files.yaml, c);
-  io::writePng(files.png, render::renderCostmap(c));
+  writeMapServer(files.yaml, c);
+  writePng(files.png, render::renderCostmap(c));
   CostmapCounts n;
   for (int8_t v : c.cost) ++(v < 0 ? n.unknown : v == 0 ? n.free : v < Costmap::kInscribed ? n.costly : n.blocked);
   return n;

@@ -7,8 +7,32 @@
 #include <string>
 
 #include "chronomap/core/error.h"
+#include "chronomap/ingest/registry.h"
+#if CHRONOMAP_HAVE_ROS
+#include "chronomap/ingest/ros/readers.h"
+#endif
 
 namespace chronomap::pipeline {
+
+std::vector<DatasetReader> registerReaders() {
+#if CHRONOMAP_HAVE_ROS
+  registerRosReaders();
+#endif
+  return datasetReaders();
+}
+
+std::vector<BagTopic> listBagTopics(const std::filesystem::path& path) {
+#if CHRONOMAP_HAVE_ROS
+  return listBag(path);
+#else
+  throw UsageError(path.string() + ": this chronomap was built without the ROS bag readers (CHRONOMAP_ROS=OFF)");
+#endif
+}
+
+std::unique_ptr<Dataset> openRecording(const std::filesystem::path& path, const DatasetSettings& settings) {
+  registerReaders();
+  return openDataset(path, settings);
+}
 
 size_t defaultDepthCacheBytes() {
   const size_t cap = size_t{3} << 30;
@@ -20,8 +44,8 @@ size_t defaultDepthCacheBytes() {
 IntegratedSession integrateDataset(const std::filesystem::path& path, const SessionSettings& settings,
                                    const PoseCorrection& correction, const Progress& progress,
                                    const std::string& label) {
-  auto dataset = io::openDataset(path, settings.dataset);
-  IntegratedSession out{SessionMap(settings.resolution_m), {}, dataset->recordedAt(), io::toString(dataset->format()),
+  auto dataset = openRecording(path, settings.dataset);
+  IntegratedSession out{SessionMap(settings.resolution_m), {}, dataset->recordedAt(), dataset->format(),
                         dataset->framesDropped(), {}, dataset->droppedReasons()};
   out.sensor_positions.reserve(dataset->size());
   for (size_t i = 0; i < dataset->size(); ++i) out.sensor_positions.push_back(dataset->poseOf(i).translation());
@@ -64,7 +88,7 @@ std::vector<PoseCorrection> registerDatasets(std::vector<SessionMap>& maps, std:
   // Every frame is read up to 8 times: its depth image is decoded once while the cache has room.
   SessionSettings full = settings;
   if (registration.depth_cache_bytes > 0 && !full.dataset.depth_cache) {
-    full.dataset.depth_cache = std::make_shared<io::DepthImageCache>(registration.depth_cache_bytes);
+    full.dataset.depth_cache = std::make_shared<DepthImageCache>(registration.depth_cache_bytes);
   }
   SessionSettings geometry = full;
   geometry.dataset.colour = false;
@@ -74,7 +98,7 @@ std::vector<PoseCorrection> registerDatasets(std::vector<SessionMap>& maps, std:
         return integrateDataset(paths[k], last ? full : geometry, c, {}, "").map;
       },
       registration.rounds, registration.align, reports, sensor_positions,
-      [&](size_t k) -> std::unique_ptr<FrameSource> { return io::openDataset(paths[k], geometry.dataset); });
+      [&](size_t k) -> std::unique_ptr<FrameSource> { return openRecording(paths[k], geometry.dataset); });
 }
 
 }  // namespace chronomap::pipeline

@@ -14,9 +14,9 @@
 #include "build_steps.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/tiled_file.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/core/file.h"
+#include "chronomap/store/tiled_file.h"
 #include "chronomap/pipeline/tiles.h"
 #include "chronomap/temporal/tiles.h"
 
@@ -81,7 +81,7 @@ class PartStore {
     std::vector<Part> out;
     const fs::path file = folder_ / cubeFile(cube);
     if (created_ && fs::exists(file)) {
-      const std::vector<uint8_t> bytes = io::readFileBytes(file);
+      const std::vector<uint8_t> bytes = readFileBytes(file);
       out.resize(bytes.size() / sizeof(Part));
       std::memcpy(static_cast<void*>(out.data()), bytes.data(), out.size() * sizeof(Part));
       fs::remove(file);
@@ -162,10 +162,10 @@ std::vector<SessionRecord> clipped(const std::vector<SessionRecord>& all, const 
 }
 
 /// Removes what a killed earlier run left: tile files the index does not name, parts folders.
-void removeLeftovers(const fs::path& folder, const io::TileIndex* index) {
+void removeLeftovers(const fs::path& folder, const TileIndex* index) {
   std::set<std::string> named;
   if (index) {
-    for (const io::TileEntry& e : index->tiles) {
+    for (const TileEntry& e : index->tiles) {
       named.insert(e.file);
       if (e.latest) named.insert(e.latest->file);
     }
@@ -199,9 +199,9 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
     throw UsageError("'" + s.folder.string() + "' exists and is not a folder (a tiled map is a folder)");
   }
   const bool existed = fs::exists(s.folder);
-  if (existed && !io::isTiledMap(s.folder) && !onlyLeftovers(s.folder)) {
+  if (existed && !isTiledMap(s.folder) && !onlyLeftovers(s.folder)) {
     throw UsageError("'" + s.folder.string() + "' is a folder but not a tiled 4D map (it has no " +
-                     io::kTileIndexName + ")");
+                     kTileIndexName + ")");
   }
   fs::create_directories(s.folder);
   struct Cleanup {  // a new map that failed leaves no folder behind
@@ -209,17 +209,17 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
     bool armed;
     ~Cleanup() {
       std::error_code ec;
-      if (!armed || fs::exists(path / io::kTileIndexName, ec)) return;
+      if (!armed || fs::exists(path / kTileIndexName, ec)) return;
       fs::remove_all(path / "tiles", ec);
       if (fs::is_directory(path, ec) && fs::is_empty(path, ec)) fs::remove(path, ec);
     }
-  } cleanup{s.folder, !existed || !io::isTiledMap(s.folder)};
+  } cleanup{s.folder, !existed || !isTiledMap(s.folder)};
   // The folder itself is locked: the index is replaced by a rename, the folder stays.
-  const io::FileLock lock(s.folder);
+  const FileLock lock(s.folder);
 
   StreamResult result;
-  std::optional<io::TileIndex> index;
-  if (io::isTiledMap(s.folder)) index = io::readTileIndex(s.folder);
+  std::optional<TileIndex> index;
+  if (isTiledMap(s.folder)) index = readTileIndex(s.folder);
   result.created = !index;
   TemporalMap top = index ? index->top : TemporalMap(s.resolution_m, s.criterion);
   const int level = index ? index->tile_level
@@ -235,7 +235,7 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
   result.tile_level = level;
   uint64_t generation = 0;
   if (index) {
-    for (const io::TileEntry& e : index->tiles) generation = std::max(generation, *io::tileGeneration(e.key, e.file));
+    for (const TileEntry& e : index->tiles) generation = std::max(generation, *tileGeneration(e.key, e.file));
   }
   ++generation;
   removeLeftovers(s.folder, index ? &*index : nullptr);
@@ -327,7 +327,7 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
     all.push_back(std::move(r));
   }
   fs::create_directories(s.folder / "tiles");
-  std::vector<io::TileEntry> entries;
+  std::vector<TileEntry> entries;
   std::vector<TemporalMap> group_tops;
   std::vector<Cube> group_cubes;
   std::set<TileKey> done;
@@ -335,9 +335,9 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
     s.progress.advance("tiles", result.stats.groups, groups.size());
     std::vector<Tile> tiles;
     if (index) {
-      for (const io::TileEntry& e : index->tiles) {
+      for (const TileEntry& e : index->tiles) {
         if (g.contains(Cube{tileCorner(e.key, level), level})) {
-          tiles.push_back(Tile{e.key, io::readTile(s.folder, *index, e)});
+          tiles.push_back(Tile{e.key, readTile(s.folder, *index, e)});
           ++result.stats.tiles_read;
           done.insert(e.key);
         }
@@ -383,7 +383,7 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
     work.compact();
     SplitMap split = splitIntoTiles(work, level);
     for (const Tile& t : split.tiles) {
-      entries.push_back(io::writeTileFile(s.folder, t.key, generation, t.map));
+      entries.push_back(writeTileFile(s.folder, t.key, generation, t.map));
       result.tile_bytes += entries.back().diskBytes();
       ++result.stats.tiles_written;
     }
@@ -394,9 +394,9 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
 
   // 4. The tiles no session reached: the new sessions' records (nothing observed there).
   if (index) {
-    for (const io::TileEntry& e : index->tiles) {
+    for (const TileEntry& e : index->tiles) {
       if (done.count(e.key)) continue;
-      const TemporalMap old = io::readTile(s.folder, *index, e);
+      const TemporalMap old = readTile(s.folder, *index, e);
       ++result.stats.tiles_read;
       std::vector<SessionRecord> records = old.sessions();
       for (const NewSession& n : added) {
@@ -408,7 +408,7 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
       }
       const TemporalMap tile =
           TemporalMap::fromParts(old.resolution_m(), old.criterion(), old.parts(), std::move(records));
-      entries.push_back(io::writeTileFile(s.folder, e.key, generation, tile));
+      entries.push_back(writeTileFile(s.folder, e.key, generation, tile));
       result.tile_bytes += entries.back().diskBytes();
       ++result.stats.tiles_written;
     }
@@ -421,17 +421,17 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
   for (size_t k = 0; k < group_cubes.size(); ++k) replaced.push_back(CubePart{group_cubes[k], &group_tops[k]});
   for (size_t k = 0; k < added.size(); ++k) all[base_rank + k].nodes_added = nodes_added[k];
   std::vector<TileKey> tile_keys;
-  for (const io::TileEntry& e : entries) tile_keys.push_back(e.key);
+  for (const TileEntry& e : entries) tile_keys.push_back(e.key);
   for (SessionRecord& r : all) r.coverage = clipCoverageOutside(r.coverage, tile_keys, level);
   TemporalMap new_top = replaceCubes(top, replaced, std::move(all));
   group_tops.clear();
   new_top.compact();
   std::sort(entries.begin(), entries.end(),
-            [](const io::TileEntry& a, const io::TileEntry& b) { return a.key < b.key; });
+            [](const TileEntry& a, const TileEntry& b) { return a.key < b.key; });
   const nlohmann::json meta = {{"created_by", "chronomap build --tiles"}};
-  result.index_bytes = io::writeTileIndex(s.folder, new_top, level, entries, meta);
+  result.index_bytes = writeTileIndex(s.folder, new_top, level, entries, meta);
   cleanup.armed = false;
-  io::TileIndex written{level, TemporalMap(new_top.resolution_m()), entries};
+  TileIndex written{level, TemporalMap(new_top.resolution_m()), entries};
   removeLeftovers(s.folder, &written);
 
   result.sessions = new_top.sessionCount();
@@ -464,9 +464,9 @@ StreamResult streamAddSession(const AddSessionSettings& a, size_t memory_limit_b
   if (a.replace) throw UsageError("--replace cannot be used on a tiled map");
   if (a.realign) throw UsageError("--realign cannot be used on a tiled map");
   if (a.write != WritePolicy::Auto) throw UsageError("--write does not apply to a tiled map");
-  if (!io::isTiledMap(a.map)) throw UsageError("'" + a.map.string() + "' is not a tiled 4D map");
-  const io::CmapFile file = io::readCmap(a.session);
-  SessionMap session = io::sessionMapFrom(file, a.session.string());
+  if (!isTiledMap(a.map)) throw UsageError("'" + a.map.string() + "' is not a tiled 4D map");
+  const CmapFile file = readCmap(a.session);
+  SessionMap session = sessionMapFrom(file, a.session.string());
   const double time_s = detail::sessionTime(a, file);
   StreamSettings s;
   s.folder = a.map;

@@ -5,7 +5,7 @@
 #include <unordered_set>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/file.h"
+#include "chronomap/core/file.h"
 
 namespace chronomap::sim {
 
@@ -13,7 +13,7 @@ std::vector<ChangeEvent> readTruthEvents(const std::filesystem::path& scene_json
   const std::string source = scene_json.string();
   std::vector<ChangeEvent> out;
   try {
-    const nlohmann::json j = nlohmann::json::parse(io::readTextFile(scene_json));
+    const nlohmann::json j = nlohmann::json::parse(readTextFile(scene_json));
     for (const auto& e : j.at("events")) {
       ChangeEvent t;
       t.from_session = e.at("from_session").get<uint32_t>();

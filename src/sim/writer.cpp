@@ -20,9 +20,9 @@
 #include "chronomap/core/error.h"
 #include "chronomap/core/parallel.h"
 #include "chronomap/core/time.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/png.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/core/file.h"
+#include "chronomap/ingest/png.h"
 #include "internal.h"
 
 namespace chronomap::sim {
@@ -143,7 +143,7 @@ class EventSpool {
 
 template <class Image>
 void writePngStaged(const fs::path& path, const Image& image) {
-  const std::vector<uint8_t> bytes = io::encodePng(image);
+  const std::vector<uint8_t> bytes = encodePng(image);
   writeStaged(path, bytes.data(), bytes.size());
 }
 
@@ -194,7 +194,7 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
   SensorModel sensor;
   sensor.noise_per_m2 = settings.noise_per_m2;
   // Written whole or not at all: into a staging folder beside `out`, moved into place at the end.
-  io::StagedFolder staged(out);
+  StagedFolder staged(out);
   const fs::path& root = staged.path();
   std::error_code ec;
   fs::create_directories(root / "truth", ec);
@@ -443,7 +443,7 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
     const SessionMap occupancy = detail::truthMap(truth, grid);
     char truth_name[64];
     std::snprintf(truth_name, sizeof truth_name, occupancy_format, s);
-    io::writeSessionMap(root / "truth" / truth_name,
+    writeSessionMap(root / "truth" / truth_name,
                         occupancy, {{"created_by", "chronomap simulate"}, {"truth", true}, {"session", s}});
     std::snprintf(truth_name, sizeof truth_name, objects_format, s);
     writeText(root / "truth" / truth_name, objectsJson(state).dump(1) + "\n");

@@ -6,7 +6,7 @@
 #include <algorithm>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/file.h"
+#include "chronomap/core/file.h"
 #include "chronomap/view/api.h"
 #include "chronomap/view/packet.h"
 #include "chronomap/view/scene.h"
@@ -184,7 +184,7 @@ TourReport writeTour(const std::filesystem::path& path, const TemporalMap& map, 
                      const TourSettings& settings) {
   TourReport report;
   const std::string html = selfContainedPage(tourData(map, name, settings, &report));
-  io::writeFileAtomic(path, std::vector<uint8_t>(html.begin(), html.end()));
+  writeFileAtomic(path, std::vector<uint8_t>(html.begin(), html.end()));
   report.bytes = html.size();
   return report;
 }

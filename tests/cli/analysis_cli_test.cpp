@@ -8,10 +8,10 @@
 #include <nlohmann/json.hpp>
 
 #include "chronomap/analysis/segment.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/diff_file.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/store/diff_file.h"
+#include "chronomap/core/file.h"
+#include "chronomap/store/temporal_file.h"
 #include "test_support.h"
 
 namespace chronomap {
@@ -49,8 +49,8 @@ void writePair(const fs::path& a, const fs::path& b) {
       }
     }
   }
-  io::writeSessionMap(a, ma, {});
-  io::writeSessionMap(b, mb, {});
+  writeSessionMap(a, ma, {});
+  writeSessionMap(b, mb, {});
 }
 
 TEST(AnalysisCli, HelpForEveryCommand) {
@@ -74,8 +74,8 @@ TEST(AnalysisCli, DiffThenSegmentFindsTheBox) {
   EXPECT_EQ(dj["appeared"], 9);
   EXPECT_EQ(dj["vanished"], 0);
   EXPECT_TRUE(fs::exists(tmp / "d.ply"));
-  const DiffMap file = io::readDiffMap(tmp / "d.cmap");
-  EXPECT_EQ(file, diff(io::readSessionMap(tmp / "a.cmap"), io::readSessionMap(tmp / "b.cmap")));
+  const DiffMap file = readDiffMap(tmp / "d.cmap");
+  EXPECT_EQ(file, diff(readSessionMap(tmp / "a.cmap"), readSessionMap(tmp / "b.cmap")));
 
   const auto s = test::runCommand(cli() + " segment " + (tmp / "d.cmap").string() + " --json -o " +
                                   (tmp / "parts").string());
@@ -95,7 +95,7 @@ TEST(AnalysisCli, DiffThenSegmentFindsTheBox) {
   }
   EXPECT_EQ(box["mean_color"][0], 200);
   EXPECT_EQ(sj["components"][1]["voxels"], 1);
-  EXPECT_EQ(io::readDiffMap(tmp / "parts" / "component_0001.cmap").voxelCount(), 8u);
+  EXPECT_EQ(readDiffMap(tmp / "parts" / "component_0001.cmap").voxelCount(), 8u);
   EXPECT_TRUE(fs::exists(tmp / "parts" / "component_0002.ply"));
   EXPECT_TRUE(fs::exists(tmp / "parts" / "components.json"));
 
@@ -114,9 +114,9 @@ TEST(AnalysisCli, DiffOfTwoTimesOfA4DMap) {
   test::TempDir tmp;
   writePair(tmp / "a.cmap", tmp / "b.cmap");
   TemporalMap map(0.05);
-  map.add(100, io::readSessionMap(tmp / "a.cmap"));
-  map.add(200, io::readSessionMap(tmp / "b.cmap"));
-  io::writeTemporalMap(tmp / "m.cmap", map, {});
+  map.add(100, readSessionMap(tmp / "a.cmap"));
+  map.add(200, readSessionMap(tmp / "b.cmap"));
+  writeTemporalMap(tmp / "m.cmap", map, {});
   const std::string m = (tmp / "m.cmap").string();
   const auto r = test::runCommand(cli() + " diff " + m + "@150 " + m + "@200 --mode band -o " +
                                   (tmp / "d.cmap").string() + " --json");
@@ -137,7 +137,7 @@ TEST(AnalysisCli, DiffKeepsItsNeighbourhoodSettings) {
                                   " --dark-surface 2 --dark-below 50 --dark-contrast 0.5 --dark-share 0.7 -o " +
                                   (tmp / "d.cmap").string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const DiffMap d = io::readDiffMap(tmp / "d.cmap");
+  const DiffMap d = readDiffMap(tmp / "d.cmap");
   EXPECT_EQ(d.settings().neighbourhood_voxels, 1);
   EXPECT_EQ(d.settings().min_shift_voxels, 0.5);
   EXPECT_EQ(d.settings().kept_surface_radius_voxels, 3);
@@ -183,18 +183,18 @@ TEST(AnalysisCli, BadInputGetsOneClearMessage) {
   }
   // A 4D map without a time.
   TemporalMap map(0.05);
-  map.add(100, io::readSessionMap(a));
-  io::writeTemporalMap(tmp / "m.cmap", map, {});
+  map.add(100, readSessionMap(a));
+  writeTemporalMap(tmp / "m.cmap", map, {});
   const auto r = test::runCommand(cli() + " diff " + (tmp / "m.cmap").string() + " " + b + " -o " + out);
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("@TIME"), std::string::npos) << r.err;
   // Truncated and corrupt diffs.
   ASSERT_EQ(test::runCommand(cli() + " diff " + a + " " + b + " -o " + out).exit_code, 0);
-  std::vector<uint8_t> bytes = io::readFileBytes(out);
+  std::vector<uint8_t> bytes = readFileBytes(out);
   const fs::path cut = tmp / "cut.cmap", flipped = tmp / "flipped.cmap";
-  io::writeFileAtomic(cut, std::vector<uint8_t>(bytes.begin(), bytes.begin() + static_cast<long>(bytes.size() / 2)));
+  writeFileAtomic(cut, std::vector<uint8_t>(bytes.begin(), bytes.begin() + static_cast<long>(bytes.size() / 2)));
   bytes[bytes.size() - 5] ^= 0x40;
-  io::writeFileAtomic(flipped, bytes);
+  writeFileAtomic(flipped, bytes);
   for (const fs::path& bad : {cut, flipped}) {
     const auto s = test::runCommand(cli() + " segment " + bad.string());
     EXPECT_EQ(s.exit_code, 1) << bad;
@@ -233,7 +233,7 @@ TEST(AnalysisCli, AlertsRankTheSessionsChangesWithReasons) {
   SessionMap both = blockWithBox(2);
   both.merge(blockWithBox(10));
   map.add(last, both);
-  io::writeTemporalMap(tmp / "m.cmap", map, {});
+  writeTemporalMap(tmp / "m.cmap", map, {});
   const std::string m = (tmp / "m.cmap").string();
   auto r = test::runCommand(cli() + " alerts " + m + " --at 2012-03-11T09:00:00Z --json --min-voxels 5");
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -256,7 +256,7 @@ TEST(AnalysisCli, AlertsRankTheSessionsChangesWithReasons) {
   }
   EXPECT_FALSE(fs::exists(tmp / "out" / "alert_02.ply"));
   // Bad input: one line naming what is wrong.
-  io::writeFileAtomic(tmp / "bad.cmap", std::vector<uint8_t>{'n', 'o', 'p', 'e'});
+  writeFileAtomic(tmp / "bad.cmap", std::vector<uint8_t>{'n', 'o', 'p', 'e'});
   const std::pair<std::string, std::string> bad[] = {
       {m + " --at 2012-03-11T10:00:00Z", "no session of the map lies at 2012-03-11T10:00:00"},
       {m + " --at 2012-03-05T09:00:00Z", "first session"},
@@ -305,7 +305,7 @@ std::vector<double> writeLitWall(const fs::path& path, double colour_distance) {
       times.push_back(t);
     }
   }
-  io::writeTemporalMap(path, map, {});
+  writeTemporalMap(path, map, {});
   return times;
 }
 

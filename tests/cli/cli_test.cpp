@@ -5,7 +5,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
-#include "chronomap/io/cmap.h"
+#include "chronomap/store/cmap.h"
 #include "test_support.h"
 
 namespace chronomap {
@@ -83,10 +83,10 @@ TEST(Cli, IntegrateRecordsHitPositionsUnlessToldNot) {
     const auto r = test::runCommand(cli() + " integrate " + root.string() + " --fast -o " + out.string() + extra);
     ASSERT_EQ(r.exit_code, 0) << r.err;
   }
-  const io::CmapFile file = io::readCmap(tmp / "room.cmap");
-  EXPECT_EQ(io::metadataOf(file)["hit_positions"], true);
-  EXPECT_EQ(io::metadataOf(io::readCmap(tmp / "bare.cmap"))["hit_positions"], false);
-  const SessionMap with = io::sessionMapFrom(file, "room.cmap"), bare = io::readSessionMap(tmp / "bare.cmap");
+  const CmapFile file = readCmap(tmp / "room.cmap");
+  EXPECT_EQ(metadataOf(file)["hit_positions"], true);
+  EXPECT_EQ(metadataOf(readCmap(tmp / "bare.cmap"))["hit_positions"], false);
+  const SessionMap with = sessionMapFrom(file, "room.cmap"), bare = readSessionMap(tmp / "bare.cmap");
   ASSERT_EQ(with.leafCount(), bare.leafCount());
   size_t placed = 0;
   for (size_t i = 0; i < with.leafCount(); ++i) {
@@ -111,10 +111,10 @@ TEST(Cli, IntegrateCarvesCoarserWhenAsked) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   r = test::runCommand(cli() + " integrate " + root.string() + " --fast -o " + (tmp / "fast.cmap").string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_EQ(io::metadataOf(io::readCmap(tmp / "carved.cmap"))["carve_level"], 2);
-  EXPECT_FALSE(io::metadataOf(io::readCmap(tmp / "fast.cmap")).contains("carve_level"));  // auto: 0 at 0.05 m
-  const double occupied = static_cast<double>(io::readSessionMap(tmp / "fast.cmap").counts().occupied_voxels);
-  EXPECT_NEAR(static_cast<double>(io::readSessionMap(tmp / "carved.cmap").counts().occupied_voxels), occupied,
+  EXPECT_EQ(metadataOf(readCmap(tmp / "carved.cmap"))["carve_level"], 2);
+  EXPECT_FALSE(metadataOf(readCmap(tmp / "fast.cmap")).contains("carve_level"));  // auto: 0 at 0.05 m
+  const double occupied = static_cast<double>(readSessionMap(tmp / "fast.cmap").counts().occupied_voxels);
+  EXPECT_NEAR(static_cast<double>(readSessionMap(tmp / "carved.cmap").counts().occupied_voxels), occupied,
               0.01 * occupied);
   r = test::runCommand(cli() + " integrate " + root.string() + " --carve-level 2 -o " + (tmp / "x.cmap").string());
   EXPECT_NE(r.exit_code, 0);
@@ -131,7 +131,7 @@ TEST(Cli, IntegrateCarvesCoarserWhenAsked) {
   r = test::runCommand(cli() + " integrate " + root.string() + " --fast --resolution 0.02 -o " +
                        (tmp / "fine.cmap").string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_EQ(io::metadataOf(io::readCmap(tmp / "fine.cmap"))["carve_level"], 2);
+  EXPECT_EQ(metadataOf(readCmap(tmp / "fine.cmap"))["carve_level"], 2);
 }
 
 TEST(Cli, BadDataExitsWithOneAndWritesNothing) {

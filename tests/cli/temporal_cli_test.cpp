@@ -15,10 +15,10 @@
 #include <thread>
 
 #include "chronomap/core/time.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/png.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/core/file.h"
+#include "chronomap/ingest/png.h"
+#include "chronomap/store/temporal_file.h"
 #include "chronomap/octree/session_map.h"
 #include "builders.h"
 #include "test_support.h"
@@ -41,7 +41,7 @@ fs::path sessionFile(const test::TempDir& dir, int i) {
 /// Three session files s0..s2 in `dir`.
 void writeSessions(const test::TempDir& dir, int side = 16) {
   for (int i = 0; i < 3; ++i) {
-    io::writeSessionMap(sessionFile(dir, i),
+    writeSessionMap(sessionFile(dir, i),
                         test::randomSessionMap(static_cast<uint64_t>(10 + i), side), {});
   }
 }
@@ -54,7 +54,7 @@ TEST(TemporalCli, PredictFitsSavesAndReusesTheModel) {
     SessionMap s(0.05);
     s.add(test::at(0, 0, 0), test::occupiedVoxel(Rgb{200, 10, 10}));
     s.add(test::at(5, 5, 5), i % 2 == 0 ? test::occupiedVoxel(Rgb{}) : test::freeVoxel());
-    io::writeSessionMap(sessionFile(tmp, i), s, {});
+    writeSessionMap(sessionFile(tmp, i), s, {});
     ASSERT_EQ(test::runCommand(cli() + " add " + map + " " + sessionFile(tmp, i).string() + " --time " +
                                std::to_string(100 * (i + 1)))
                   .exit_code,
@@ -69,9 +69,9 @@ TEST(TemporalCli, PredictFitsSavesAndReusesTheModel) {
   EXPECT_EQ(j["learning_sessions"], 8);
   EXPECT_EQ(j["model"], "mean");
   // The mean model: occupied in half the sessions (the file keeps the probability to within
-  // what its quantised lengths allow, io::kLengthRelativeError / e).
-  const double stored_p = io::kLengthRelativeError / std::exp(1.0) + 1e-6;
-  const SessionMap p = io::readSessionMap(tmp / "p.cmap");
+  // what its quantised lengths allow, kLengthRelativeError / e).
+  const double stored_p = kLengthRelativeError / std::exp(1.0) + 1e-6;
+  const SessionMap p = readSessionMap(tmp / "p.cmap");
   EXPECT_NEAR(p.find(test::at(5, 5, 5))->probability(), 0.5, stored_p);
   EXPECT_EQ(p.stateOf(test::at(0, 0, 0)), VoxelState::Occupied);
   // The saved model gives the same prediction without refitting, and learning only from the
@@ -79,10 +79,10 @@ TEST(TemporalCli, PredictFitsSavesAndReusesTheModel) {
   r = test::runCommand(cli() + " predict " + map + " --at 900 --model mean --rhythm " + rhythm + " -o " +
                        (tmp / "q.cmap").string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_EQ(io::readSessionMap(tmp / "q.cmap"), p);
+  EXPECT_EQ(readSessionMap(tmp / "q.cmap"), p);
   r = test::runCommand(cli() + " predict " + map + " --at 900 --model mean --learn-to 300 -o " + (tmp / "e.cmap").string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NEAR(io::readSessionMap(tmp / "e.cmap").find(test::at(5, 5, 5))->probability(), 2.0 / 3.0, stored_p);
+  EXPECT_NEAR(readSessionMap(tmp / "e.cmap").find(test::at(5, 5, 5))->probability(), 2.0 / 3.0, stored_p);
   // Bad input: one line naming what is wrong; nothing written.
   const std::pair<std::string, std::string> bad[] = {
       {" --at 900 -o " + (tmp / "x.txt").string(), "must end in"},
@@ -100,9 +100,9 @@ TEST(TemporalCli, PredictFitsSavesAndReusesTheModel) {
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
   }
   EXPECT_FALSE(fs::exists(tmp / "x.png"));
-  std::vector<uint8_t> truncated = io::readFileBytes(rhythm);
+  std::vector<uint8_t> truncated = readFileBytes(rhythm);
   truncated.resize(truncated.size() - 5);
-  io::writeFileAtomic(tmp / "t.rhythm", truncated);
+  writeFileAtomic(tmp / "t.rhythm", truncated);
   r = test::runCommand(cli() + " predict " + map + " --at 900 --rhythm " + (tmp / "t.rhythm").string() + " -o " +
                        (tmp / "x.png").string());
   EXPECT_NE(r.exit_code, 0);
@@ -122,7 +122,7 @@ TEST(TemporalCli, CostmapWritesMapServerFiles) {
               wall || box ? test::occupiedVoxel(Rgb{}) : test::freeVoxel());
       }
     }
-    io::writeSessionMap(sessionFile(tmp, i), s, {});
+    writeSessionMap(sessionFile(tmp, i), s, {});
     ASSERT_EQ(test::runCommand(cli() + " add " + map + " " + sessionFile(tmp, i).string() + " --time " +
                                std::to_string(100 * (i + 1)))
                   .exit_code,
@@ -135,8 +135,8 @@ TEST(TemporalCli, CostmapWritesMapServerFiles) {
   EXPECT_EQ(j["width"], 10);
   EXPECT_EQ(j["height"], 10);
   EXPECT_EQ(j["blocked"], 11);  // the wall's ten cells and the box
-  EXPECT_NE(io::readTextFile(tmp / "cost.yaml").find("image: cost.pgm"), std::string::npos);
-  const std::vector<uint8_t> pgm = io::readFileBytes(tmp / "cost.pgm");
+  EXPECT_NE(readTextFile(tmp / "cost.yaml").find("image: cost.pgm"), std::string::npos);
+  const std::vector<uint8_t> pgm = readFileBytes(tmp / "cost.pgm");
   EXPECT_EQ(pgm.size(), std::string("P5\n10 10\n255\n").size() + 100);
   EXPECT_TRUE(fs::exists(tmp / "cost.png"));
   // Bad input: one line, nothing written.
@@ -158,8 +158,8 @@ TEST(TemporalCli, CostmapWritesMapServerFiles) {
 
 TEST(TemporalCli, AddRealignMovesAShiftedSessionBack) {
   test::TempDir tmp;
-  for (int i = 0; i < 3; ++i) io::writeSessionMap(sessionFile(tmp, i), test::wallSession(10, 0), {});
-  io::writeSessionMap(tmp / "shifted.cmap", test::wallSession(11, 0), {});
+  for (int i = 0; i < 3; ++i) writeSessionMap(sessionFile(tmp, i), test::wallSession(10, 0), {});
+  writeSessionMap(tmp / "shifted.cmap", test::wallSession(11, 0), {});
   int64_t added[2] = {0, 0};
   for (int realign = 0; realign < 2; ++realign) {
     const std::string map = (tmp / ("m" + std::to_string(realign) + ".cmap")).string();
@@ -218,9 +218,9 @@ TEST(TemporalCli, AddSnapshotHistoryChangesStats) {
   // The map on disk equals the library's map built from the same sessions.
   TemporalMap expected(0.05);
   for (int i = 0; i < 3; ++i) {
-    expected.add(parseTime(times[i]), io::readSessionMap(sessionFile(tmp, i)));
+    expected.add(parseTime(times[i]), readSessionMap(sessionFile(tmp, i)));
   }
-  const TemporalMap onDisk = io::readTemporalMap(map);
+  const TemporalMap onDisk = readTemporalMap(map);
   for (double t : expected.times()) {
     const SessionMap a = onDisk.snapshot(t), b = expected.snapshot(t);
     EXPECT_EQ(a.counts().occupied_voxels, b.counts().occupied_voxels);
@@ -231,7 +231,7 @@ TEST(TemporalCli, AddSnapshotHistoryChangesStats) {
   auto r = test::runCommand(cli() + " snapshot " + map + " --at 2012-03-02T12:00:00Z -o " + (tmp / "snap.cmap").string() +
                             " --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  const SessionMap snap = io::readSessionMap(tmp / "snap.cmap");
+  const SessionMap snap = readSessionMap(tmp / "snap.cmap");
   const SessionMap lib = expected.snapshot(parseTime("2012-03-02T12:00:00Z"));
   EXPECT_EQ(snap.counts().occupied_voxels, lib.counts().occupied_voxels);
   EXPECT_EQ(nlohmann::json::parse(r.out)["occupied"], lib.counts().occupied_voxels);
@@ -336,7 +336,7 @@ TEST(TemporalCli, BuildTakesTimesFromTumFolders) {
     depth.width = 64;
     depth.height = 48;
     depth.pixels.assign(64 * 48, static_cast<uint16_t>(5000 * (1 + i)));
-    io::writePng(d / "depth" / "0.png", depth);
+    writePng(d / "depth" / "0.png", depth);
     const double t = i == 0 ? 2000.0 : 1000.0;
     std::ofstream(d / "depth.txt") << std::fixed << t << " depth/0.png\n";
     std::ofstream(d / "trajectory.txt") << std::fixed << t << " 0 0 0 0 0 0 1\n";
@@ -349,7 +349,7 @@ TEST(TemporalCli, BuildTakesTimesFromTumFolders) {
   EXPECT_EQ(j["sessions"], 2);
   ASSERT_EQ(j["added"].size(), 2u);
   EXPECT_EQ(j["added"][0]["time_s"].get<double>(), 1000.0) << "sessions are added in time order";
-  const TemporalMap m = io::readTemporalMap(map);
+  const TemporalMap m = readTemporalMap(map);
   // In time order a wall at 2 m (tum1), then at 1 m (tum0): the voxel at 1 m turns from free to
   // occupied.
   const auto key = m.grid().keyOf(Eigen::Vector3d(0.01, 0.01, 1.01));
@@ -390,7 +390,7 @@ pid_t spawnCli(const std::vector<std::string>& argv) {
 void killAtRandom(const std::vector<std::string>& argv, const fs::path& old_copy, const fs::path& map,
                   const std::vector<uint8_t>& old_bytes, const std::vector<uint8_t>& new_bytes, int rounds,
                   int64_t max_delay_us, uint64_t seed, int& old_seen, int& new_seen, int* interrupted = nullptr) {
-  const TemporalMap old_map = io::readTemporalMap(old_copy);
+  const TemporalMap old_map = readTemporalMap(old_copy);
   std::mt19937_64 rng(seed);
   old_seen = new_seen = 0;
   if (interrupted) *interrupted = 0;
@@ -414,10 +414,10 @@ void killAtRandom(const std::vector<std::string>& argv, const fs::path& old_copy
                   std::equal(now.begin(), now.end(), new_bytes.begin()) &&
                   std::equal(old_bytes.begin(), old_bytes.end(), now.begin()))
           << "round " << round << ": the map is not the old one with part of an append";
-      ASSERT_TRUE(io::readTemporalMap(map) == old_map) << "round " << round;
+      ASSERT_TRUE(readTemporalMap(map) == old_map) << "round " << round;
       ++*interrupted;
     }
-    EXPECT_NO_THROW(io::readTemporalMap(map));
+    EXPECT_NO_THROW(readTemporalMap(map));
   }
   EXPECT_EQ(old_seen + new_seen + (interrupted ? *interrupted : 0), rounds);
 }
@@ -427,10 +427,10 @@ void killAtRandom(const std::vector<std::string>& argv, const fs::path& old_copy
 /// unfinished record after it, which reads as the old map and which the next add replaces.
 TEST(TemporalCli, KilledAddLeavesOldOrNewMap) {
   test::TempDir tmp;
-  io::writeSessionMap(tmp / "big.cmap", test::randomSessionMap(99, 48, 0.2), {});
+  writeSessionMap(tmp / "big.cmap", test::randomSessionMap(99, 48, 0.2), {});
   TemporalMap old_map(0.05);
   old_map.add(1000, test::randomSessionMap(98, 48, 0.2));
-  io::writeTemporalMap(tmp / "old.cmap", old_map, {});
+  writeTemporalMap(tmp / "old.cmap", old_map, {});
   const auto old_bytes = bytesOf(tmp / "old.cmap");
   const fs::path map = tmp / "m.cmap";
   for (const std::string write : {"rewrite", "append"}) {
@@ -457,7 +457,7 @@ TEST(TemporalCli, KilledAddLeavesOldOrNewMap) {
     if (write == "append") {
       // Kills at random moments rarely land inside the write itself: also kill as soon as the
       // file starts to grow.
-      const TemporalMap before = io::readTemporalMap(tmp / "old.cmap");
+      const TemporalMap before = readTemporalMap(tmp / "old.cmap");
       int cut = 0;
       const int write_rounds = test::underSanitizer() ? 4 : 10;
       for (int round = 0; round < write_rounds; ++round) {
@@ -473,7 +473,7 @@ TEST(TemporalCli, KilledAddLeavesOldOrNewMap) {
         ASSERT_TRUE(std::equal(now.begin(), now.end(), new_bytes.begin()) && now.size() >= old_bytes.size());
         if (now.size() < new_bytes.size()) {
           ++cut;
-          ASSERT_TRUE(io::readTemporalMap(map) == before) << "an interrupted append does not read as the old map";
+          ASSERT_TRUE(readTemporalMap(map) == before) << "an interrupted append does not read as the old map";
         }
       }
       std::cout << "killed add --write append while writing: " << cut << " of " << write_rounds
@@ -503,7 +503,7 @@ TEST(TemporalCli, KilledAddLeavesOldOrNewMap) {
 TEST(TemporalCli, AddAppendsWithoutRewriting) {
   test::TempDir tmp;
   for (int i = 0; i < 4; ++i) {
-    io::writeSessionMap(tmp / ("s" + std::to_string(i) + ".cmap"), test::randomSessionMap(40 + i, 32, 0.2), {});
+    writeSessionMap(tmp / ("s" + std::to_string(i) + ".cmap"), test::randomSessionMap(40 + i, 32, 0.2), {});
   }
   const fs::path map = tmp / "m.cmap";
   auto add = [&](int i, const std::string& time, const std::string& extra) {
@@ -525,7 +525,7 @@ TEST(TemporalCli, AddAppendsWithoutRewriting) {
   auto stats = nlohmann::json::parse(test::runCommand(cli() + " stats --json " + map.string()).out);
   EXPECT_EQ(stats["appended_sessions"], 2);
   EXPECT_EQ(stats["sessions"], 3);
-  const TemporalMap appended = io::readTemporalMap(map);
+  const TemporalMap appended = readTemporalMap(map);
   // auto: the appended records now outweigh the base, so this add writes the map whole.
   fs::copy_file(map, tmp / "copy.cmap");
   EXPECT_FALSE(add(3, "3000", "")["appended"].get<bool>());
@@ -536,7 +536,7 @@ TEST(TemporalCli, AddAppendsWithoutRewriting) {
   const auto r = test::runCommand(cli() + " add " + (tmp / "copy.cmap").string() + " " + (tmp / "s3.cmap").string() +
                                   " --time 3000 --write append");
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  TemporalMap a = io::readTemporalMap(map), b = io::readTemporalMap(tmp / "copy.cmap");
+  TemporalMap a = readTemporalMap(map), b = readTemporalMap(tmp / "copy.cmap");
   a.compact();
   b.compact();
   EXPECT_TRUE(a == b);
@@ -661,7 +661,7 @@ TEST(SimulatorCli, Demo) {
   EXPECT_GT(d["precision"].get<double>(), d["precision_as_recorded"].get<double>());
   EXPECT_GT(d["events_found"].get<int>(), 0);
   EXPECT_LT(d["nodes_4d"].get<uint64_t>(), d["nodes_separate"].get<uint64_t>());
-  const std::string report = io::readTextFile(tmp / "demo" / "report.md");
+  const std::string report = readTextFile(tmp / "demo" / "report.md");
   for (const char* image : {"map_topview.png", "session_00_cloud.png", "frame_rgb.png", "frame_depth.png",
                             "trajectory.png", "storage.png"}) {
     EXPECT_NE(report.find(std::string("images/") + image), std::string::npos) << image;
@@ -670,7 +670,7 @@ TEST(SimulatorCli, Demo) {
   EXPECT_TRUE(fs::exists(tmp / "demo" / "office.cmap"));
   // The tour: the viewer with the map inside, linked from the report.
   EXPECT_NE(report.find("(tour.html)"), std::string::npos);
-  const std::string tour = io::readTextFile(tmp / "demo" / "tour.html");
+  const std::string tour = readTextFile(tmp / "demo" / "tour.html");
   EXPECT_NE(tour.find("id=\"chronomap-data\""), std::string::npos);
   EXPECT_GT(tour.size(), 500000u);  // the bundle and the data
 }

@@ -5,10 +5,10 @@
 #include <algorithm>
 #include <nlohmann/json.hpp>
 
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/diff_file.h"
-#include "chronomap/io/temporal_file.h"
-#include "chronomap/io/tiled_file.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/store/diff_file.h"
+#include "chronomap/store/temporal_file.h"
+#include "chronomap/store/tiled_file.h"
 #include "builders.h"
 #include "test_support.h"
 
@@ -23,7 +23,7 @@ TEST(TilesCli, TiledFolderAnswersAsTheMap) {
   test::TempDir tmp;
   TemporalMap map(0.05);
   for (int i = 0; i < 3; ++i) map.add(1000.0 * (i + 1), test::randomSessionMap(static_cast<uint64_t>(20 + i), 12));
-  io::writeTemporalMap(tmp / "m.cmap", map, {});
+  writeTemporalMap(tmp / "m.cmap", map, {});
   const std::string m = (tmp / "m.cmap").string(), t = (tmp / "t").string();
 
   const test::CommandResult tiled = runCommand(cli() + " tile " + m + " -o " + t + " --tile-size 0.2 --json");
@@ -35,7 +35,7 @@ TEST(TilesCli, TiledFolderAnswersAsTheMap) {
   // The whole snapshot, from the folder and from the file.
   ASSERT_EQ(runCommand(cli() + " snapshot " + t + " --at 2500 -o " + (tmp / "a.cmap").string()).exit_code, 0);
   ASSERT_EQ(runCommand(cli() + " snapshot " + m + " --at 2500 -o " + (tmp / "b.cmap").string()).exit_code, 0);
-  EXPECT_TRUE(io::readSessionMap(tmp / "a.cmap") == io::readSessionMap(tmp / "b.cmap"));
+  EXPECT_TRUE(readSessionMap(tmp / "a.cmap") == readSessionMap(tmp / "b.cmap"));
 
   // A box inside one tile reads one tile.
   const test::CommandResult box = runCommand(cli() + " snapshot " + t + " --at 2500 --box 0,0,0,0.15,0.15,0.15 -o " +
@@ -52,19 +52,19 @@ TEST(TilesCli, TiledFolderAnswersAsTheMap) {
   // Diff of two times of the folder, and of the file.
   ASSERT_EQ(runCommand(cli() + " diff " + t + "@1000 " + t + "@3000 -o " + (tmp / "d1.cmap").string()).exit_code, 0);
   ASSERT_EQ(runCommand(cli() + " diff " + m + "@1000 " + m + "@3000 -o " + (tmp / "d2.cmap").string()).exit_code, 0);
-  EXPECT_TRUE(io::readDiffMap(tmp / "d1.cmap") == io::readDiffMap(tmp / "d2.cmap"));
-  EXPECT_FALSE(io::readDiffMap(tmp / "d1.cmap").empty());
+  EXPECT_TRUE(readDiffMap(tmp / "d1.cmap") == readDiffMap(tmp / "d2.cmap"));
+  EXPECT_FALSE(readDiffMap(tmp / "d1.cmap").empty());
 
   // Joined back: the same map.
   ASSERT_EQ(runCommand(cli() + " untile " + t + " -o " + (tmp / "back.cmap").string()).exit_code, 0);
-  EXPECT_TRUE(io::readTemporalMap(tmp / "back.cmap") == io::readTemporalMap(tmp / "m.cmap"));
+  EXPECT_TRUE(readTemporalMap(tmp / "back.cmap") == readTemporalMap(tmp / "m.cmap"));
 }
 
 TEST(TilesCli, BadInputGivesOneLine) {
   test::TempDir tmp;
   TemporalMap map(0.05);
   for (int i = 0; i < 2; ++i) map.add(1000.0 * (i + 1), test::randomSessionMap(static_cast<uint64_t>(30 + i), 8));
-  io::writeTemporalMap(tmp / "m.cmap", map, {});
+  writeTemporalMap(tmp / "m.cmap", map, {});
   const std::string m = (tmp / "m.cmap").string(), t = (tmp / "t").string();
   const test::CommandResult bad_size = runCommand(cli() + " tile " + m + " -o " + t + " --tile-size 0.3");
   EXPECT_NE(bad_size.exit_code, 0);
@@ -81,7 +81,7 @@ TEST(TilesCli, BadInputGivesOneLine) {
   EXPECT_NE(box.err.find("box"), std::string::npos) << box.err;
 
   // The last session's snapshot reads the tiles' latest states, an earlier one their histories.
-  const io::TileIndex index = io::readTileIndex(t);
+  const TileIndex index = readTileIndex(t);
   ASSERT_TRUE(index.tiles.front().latest.has_value());
   fs::remove(fs::path(t) / index.tiles.front().latest->file);
   const test::CommandResult no_latest =
@@ -168,8 +168,8 @@ TEST(TilesCli, AddToATiledFolderStreamsTheSession) {
   test::TempDir tmp;
   TemporalMap map(0.05);
   for (int i = 0; i < 2; ++i) map.add(1000.0 * (i + 1), test::randomSessionMap(static_cast<uint64_t>(40 + i), 12));
-  io::writeTemporalMap(tmp / "m.cmap", map, {});
-  io::writeSessionMap(tmp / "s.cmap", test::randomSessionMap(42, 12), {{"recorded_at", 3000.0}});
+  writeTemporalMap(tmp / "m.cmap", map, {});
+  writeSessionMap(tmp / "s.cmap", test::randomSessionMap(42, 12), {{"recorded_at", 3000.0}});
   const std::string m = (tmp / "m.cmap").string(), s = (tmp / "s.cmap").string();
   ASSERT_EQ(runCommand(cli() + " tile " + m + " -o " + (tmp / "t").string() + " --tile-size 0.2").exit_code, 0);
   // The whole map: add, then tile; the tiled folder: add (streamed).

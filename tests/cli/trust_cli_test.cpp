@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/store/temporal_file.h"
 #include "test_support.h"
 
 namespace chronomap {
@@ -34,7 +34,7 @@ TEST(TrustCli, CommandsCreatingOneMapAtOnceKeepEverySession) {
   test::TempDir tmp;
   constexpr int kWriters = 4;
   for (int i = 0; i < kWriters; ++i) {
-    io::writeSessionMap(tmp / cat("s", i, ".cmap"), test::randomSessionMap(60 + i, 16, 0.3), {});
+    writeSessionMap(tmp / cat("s", i, ".cmap"), test::randomSessionMap(60 + i, 16, 0.3), {});
   }
   const fs::path dataset = test::writeWallDataset(tmp.path(), "wall", 2.0f);
   for (int attempt = 0; attempt < 6; ++attempt) {
@@ -48,7 +48,7 @@ TEST(TrustCli, CommandsCreatingOneMapAtOnceKeepEverySession) {
     if (attempt % 2) script << cli() << " build " << map.string() << " " << dataset.string() << " --times 5000 >/dev/null 2>&1 & ";
     script << "wait";
     ASSERT_EQ(test::runCommand(script.str()).exit_code, 0);
-    const TemporalMap m = io::readTemporalMap(map);
+    const TemporalMap m = readTemporalMap(map);
     EXPECT_EQ(m.sessionCount(), static_cast<size_t>(kWriters + attempt % 2)) << "attempt " << attempt;
   }
 }
@@ -60,8 +60,8 @@ struct Case {
 
 TEST(TrustCli, AnOutputThatIsAnInputIsRefusedBeforeWork) {
   test::TempDir tmp;
-  io::writeSessionMap(tmp / "a.cmap", test::randomSessionMap(1, 16, 0.3), {});
-  io::writeSessionMap(tmp / "b.cmap", test::randomSessionMap(2, 16, 0.3), {});
+  writeSessionMap(tmp / "a.cmap", test::randomSessionMap(1, 16, 0.3), {});
+  writeSessionMap(tmp / "b.cmap", test::randomSessionMap(2, 16, 0.3), {});
   const std::string a = (tmp / "a.cmap").string(), b = (tmp / "b.cmap").string(), m = (tmp / "m.cmap").string();
   ASSERT_EQ(test::runCommand(cat(cli(), " add ", m, " ", a, " --time 1000 && ", cli(), " add ", m, " ", b, " --time 2000"))
                 .exit_code,
@@ -98,8 +98,8 @@ TEST(TrustCli, AnOutputThatIsAnInputIsRefusedBeforeWork) {
 
 TEST(TrustCli, SegmentReplacesAnEarlierSegmentationWhole) {
   test::TempDir tmp;
-  io::writeSessionMap(tmp / "a.cmap", test::wallSession(10), {});
-  io::writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});
+  writeSessionMap(tmp / "a.cmap", test::wallSession(10), {});
+  writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});
   const std::string d = (tmp / "d.cmap").string(), objects = (tmp / "objects").string();
   ASSERT_EQ(test::runCommand(cat(cli(), " diff ", (tmp / "a.cmap").string(), " ", (tmp / "b.cmap").string(), " -o ", d))
                 .exit_code,
@@ -119,8 +119,8 @@ TEST(TrustCli, SegmentReplacesAnEarlierSegmentationWhole) {
 
 TEST(TrustCli, OutOfRangeValuesAreRefusedNotReplacedByDefaults) {
   test::TempDir tmp;
-  io::writeSessionMap(tmp / "a.cmap", test::wallSession(10), {});
-  io::writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});
+  writeSessionMap(tmp / "a.cmap", test::wallSession(10), {});
+  writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});
   const fs::path dataset = test::writeWallDataset(tmp.path(), "wall", 2.0f);
   const std::string a = (tmp / "a.cmap").string(), b = (tmp / "b.cmap").string(), m = (tmp / "m.cmap").string();
   const std::string d = (tmp / "ab.cmap").string();
@@ -175,13 +175,13 @@ TEST(TrustCli, OutOfRangeValuesAreRefusedNotReplacedByDefaults) {
 TEST(TrustCli, OutputsThroughALinkUpdateItsTarget) {
   test::TempDir tmp;
   fs::create_directories(tmp / "real");
-  io::writeSessionMap(tmp / "a.cmap", test::wallSession(10), {});
-  io::writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});
+  writeSessionMap(tmp / "a.cmap", test::wallSession(10), {});
+  writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});
   const std::string a = (tmp / "a.cmap").string(), b = (tmp / "b.cmap").string();
   const fs::path dataset = test::writeWallDataset(tmp.path(), "wall", 2.0f);
   // One link per output kind; the map links point at files that exist, the others dangle
   // (a first write through a link creates the target).
-  io::writeSessionMap(tmp / "real" / "map.cmap", test::wallSession(11), {});
+  writeSessionMap(tmp / "real" / "map.cmap", test::wallSession(11), {});
   ASSERT_EQ(test::runCommand(cat(cli(), " add ", (tmp / "real" / "4d.cmap").string(), " ", a, " --time 1000"))
                 .exit_code,
             0);
@@ -208,7 +208,7 @@ TEST(TrustCli, OutputsThroughALinkUpdateItsTarget) {
     EXPECT_GT(fs::file_size(target), 0u) << name;
   }
   // Through the link, the 4D map gained the session: the target holds both.
-  EXPECT_EQ(io::readTemporalMap(tmp / "real" / "4d.cmap").sessionCount(), 2u);
+  EXPECT_EQ(readTemporalMap(tmp / "real" / "4d.cmap").sessionCount(), 2u);
 }
 
 /// Every file under `dir` with its size, by path relative to `dir`.
@@ -257,7 +257,7 @@ TEST(TrustCli, SimulateOnAFullDiskLeavesNoPartialTree) {
 TEST(TrustCli, SegmentOnAFullDiskLeavesTheEarlierSegmentation) {
   test::TempDir tmp;
   for (int i = 0; i < 3; ++i) {
-    io::writeSessionMap(tmp / cat("r", i, ".cmap"), test::randomSessionMap(70 + i, 6, 0.3), {});
+    writeSessionMap(tmp / cat("r", i, ".cmap"), test::randomSessionMap(70 + i, 6, 0.3), {});
   }
   auto diff = [&](int a, int b, const std::string& out) {
     return test::runCommand(cat(cli(), " diff ", (tmp / cat("r", a, ".cmap")).string(), " ",
@@ -293,7 +293,7 @@ TEST(TrustCli, SegmentOnAFullDiskLeavesTheEarlierSegmentation) {
 
 TEST(TrustCli, EveryFailureIsOneLineNamingTheFile) {
   test::TempDir tmp;
-  io::writeSessionMap(tmp / "a.cmap", test::wallSession(10), {});
+  writeSessionMap(tmp / "a.cmap", test::wallSession(10), {});
   const std::string a = (tmp / "a.cmap").string();
   const std::string nowhere = (tmp / "no" / "such" / "folder").string();
   const std::string missing_folder = cat("'", nowhere, "' does not exist");
@@ -325,8 +325,8 @@ TEST(TrustCli, EveryFailureIsOneLineNamingTheFile) {
 TEST(TrustCli, EveryNumericFlagRefusesWhatIsNotAFiniteNumber) {
   // The flags come from each command's --help, so that a flag added later is swept too.
   test::TempDir tmp;
-  io::writeSessionMap(tmp / "a.cmap", test::wallSession(10), {});
-  io::writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});
+  writeSessionMap(tmp / "a.cmap", test::wallSession(10), {});
+  writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});
   const std::string a = (tmp / "a.cmap").string(), b = (tmp / "b.cmap").string();
   const std::string d = (tmp / "d.cmap").string(), m = (tmp / "m.cmap").string();
   const std::string dataset = test::writeWallDataset(tmp.path(), "wall", 2.0f).string();
@@ -404,7 +404,7 @@ TEST(TrustCli, AResolutionTooFineStopsAtTheMemoryLimit) {
 
 TEST(TrustCli, SpecialFilesAreRefusedAtOnceNamingThem) {
   test::TempDir tmp;
-  io::writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});
+  writeSessionMap(tmp / "b.cmap", test::wallSession(12), {});
   ASSERT_EQ(test::runCommand(cat("mkfifo ", (tmp / "pipe.ply").string())).exit_code, 0);
   fs::create_symlink(tmp / "loop2.cmap", tmp / "loop.cmap");
   fs::create_symlink(tmp / "loop.cmap", tmp / "loop2.cmap");

@@ -11,12 +11,13 @@
 
 #include <nlohmann/json.hpp>
 
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/dataset.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/ingest/dataset.h"
+#include "chronomap/ingest/ros/readers.h"
 #include "chronomap/pipeline/session.h"
 #include "test_support.h"
 
-namespace chronomap::io {
+namespace chronomap {
 
 #ifndef CHRONOMAP_SOURCE_DIR
 #error "CHRONOMAP_SOURCE_DIR must name the project's source folder"
@@ -37,6 +38,8 @@ template <class Suite>
 class BagFixture : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
+    // The tests open bags through openDataset itself, as a program without the pipeline does.
+    registerRosReaders();
     dir_ = new test::TempDir();
     const std::filesystem::path src = CHRONOMAP_SOURCE_DIR;
     const auto made = test::runCommand((src / "tests/io/make_test_bags.sh").string() + " " + test::cli() + " " +
@@ -81,4 +84,4 @@ class BagFixture : public ::testing::Test {
   static inline std::string generator_error_;
 };
 
-}  // namespace chronomap::io
+}  // namespace chronomap

@@ -4,11 +4,11 @@
 #include <fstream>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/cloud_io.h"
-#include "chronomap/io/file.h"
+#include "chronomap/ingest/cloud_io.h"
+#include "chronomap/core/file.h"
 #include "test_support.h"
 
-namespace chronomap::io {
+namespace chronomap {
 namespace {
 
 using namespace std::string_literals;
@@ -225,4 +225,4 @@ TEST(Xyz, ReadsPlainAndBzip2Text) {
 }
 
 }  // namespace
-}  // namespace chronomap::io
+}  // namespace chronomap

@@ -10,11 +10,11 @@
 #include <random>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/file.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/core/file.h"
 #include "test_support.h"
 
-namespace chronomap::io {
+namespace chronomap {
 namespace {
 
 SessionMap sampleMap() {
@@ -550,4 +550,4 @@ TEST(Cmap, FullDiskLeavesTheOldFileIntact) {
 }
 
 }  // namespace
-}  // namespace chronomap::io
+}  // namespace chronomap

@@ -10,15 +10,15 @@
 #include <sstream>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/cloud_io.h"
-#include "chronomap/io/dataset.h"
-#include "chronomap/io/depth_image.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/jpeg.h"
-#include "chronomap/io/png.h"
+#include "chronomap/ingest/cloud_io.h"
+#include "chronomap/ingest/dataset.h"
+#include "chronomap/ingest/depth_image.h"
+#include "chronomap/core/file.h"
+#include "chronomap/ingest/jpeg.h"
+#include "chronomap/ingest/png.h"
 #include "test_support.h"
 
-namespace chronomap::io {
+namespace chronomap {
 namespace {
 
 namespace fs = std::filesystem;
@@ -88,7 +88,7 @@ TEST(DepthToCloud, MetresAsFloatsGiveTheSamePointsAsMillimetres) {
 TEST(Dataset, Reads3DMatchFramesWithPoses) {
   CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
   auto ds = openDataset(root);
-  EXPECT_EQ(ds->format(), DatasetFormat::ThreeDMatch);
+  EXPECT_EQ(ds->format(), "3dmatch");
   ASSERT_EQ(ds->size(), 5u);
   const Frame f = ds->load(0);
   EXPECT_EQ(f.cloud.width, 640u);
@@ -105,7 +105,7 @@ TEST(Dataset, ReadsTumWithAssociationAndIntrinsics) {
   test::TempDir tmp;
   makeTum(tmp.path(), 3);
   auto ds = openDataset(tmp.path());
-  EXPECT_EQ(ds->format(), DatasetFormat::Tum);
+  EXPECT_EQ(ds->format(), "tum");
   ASSERT_EQ(ds->size(), 3u);
   const Frame f = ds->load(2);
   EXPECT_NEAR(f.T_world_sensor.translation().x(), 0.20, 1e-9);  // pose at t = 100.2
@@ -260,7 +260,7 @@ TEST(Dataset, RejectsBadTumInputNamingTheFileAndLine) {
   fs::remove(tmp / "depth.txt");
   EXPECT_THROW(openDataset(tmp.path()), UsageError);  // format can no longer be detected
   DatasetSettings tum;
-  tum.format = DatasetFormat::Tum;
+  tum.format = "tum";
   EXPECT_THROW(openDataset(tmp.path(), tum), DataError);
 }
 
@@ -334,9 +334,9 @@ TEST(Dataset, CloudListsAndSingleClouds) {
 }
 
 }  // namespace
-}  // namespace chronomap::io
+}  // namespace chronomap
 
-namespace chronomap::io {
+namespace chronomap {
 namespace {
 
 TEST(ColorInDepthView, LooksUpEachDepthRayInTheColourImage) {
@@ -399,7 +399,7 @@ TEST(Dataset, ReadsAScanNetExportWithColourAtItsOwnResolution) {
     writeFileAtomic(tmp / "color" / (std::to_string(n) + ".jpg"), encodeJpeg(big, {95, false, false}));
   }
   const auto scannet = openDataset(tmp.path());
-  EXPECT_EQ(scannet->format(), DatasetFormat::ScanNet);
+  EXPECT_EQ(scannet->format(), "scannet");
   ASSERT_EQ(scannet->size(), 4u);
   EXPECT_EQ(scannet->framesDropped(), 1u);
   const auto reference = openDataset(root);
@@ -424,4 +424,4 @@ TEST(Dataset, ReadsAScanNetExportWithColourAtItsOwnResolution) {
 }
 
 }  // namespace
-}  // namespace chronomap::io
+}  // namespace chronomap

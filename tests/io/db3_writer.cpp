@@ -5,7 +5,7 @@
 #include <memory>
 #include <stdexcept>
 
-#include "io/mcap.h"
+#include "ingest/ros/mcap.h"
 
 namespace chronomap::test {
 
@@ -38,12 +38,12 @@ void writeDb3(const fs::path& mcap_path, const fs::path& db3, const std::map<std
   };
   const auto topic = prepare("INSERT INTO topics VALUES (?, ?, ?, ?, '', '')");
   const auto message = prepare("INSERT INTO messages (topic_id, timestamp, data) VALUES (?, ?, ?)");
-  io::mcap::Reader reader(mcap_path);
+  mcap::Reader reader(mcap_path);
   std::map<uint16_t, int> topic_ids;
-  reader.forEachMessage([&](const io::mcap::Message& m) {
+  reader.forEachMessage([&](const mcap::Message& m) {
     auto it = topic_ids.find(m.channel);
     if (it == topic_ids.end()) {
-      const io::mcap::Channel& ch = reader.channels().at(m.channel);
+      const mcap::Channel& ch = reader.channels().at(m.channel);
       const int id = static_cast<int>(topic_ids.size()) + 1;
       const std::string type = reader.schemas().at(ch.schema_id).name;
       const std::string format = formats.count(ch.topic) ? formats.at(ch.topic) : ch.message_encoding;

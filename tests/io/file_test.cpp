@@ -7,11 +7,11 @@
 #include <string>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/export.h"
-#include "chronomap/io/file.h"
+#include "chronomap/export/export.h"
+#include "chronomap/core/file.h"
 #include "test_support.h"
 
-namespace chronomap::io {
+namespace chronomap {
 namespace {
 
 namespace fs = std::filesystem;
@@ -148,4 +148,4 @@ TEST(ExportOctomap, FullDiskLeavesTheOldFileIntact) {
 }
 
 }  // namespace
-}  // namespace chronomap::io
+}  // namespace chronomap

@@ -1,4 +1,4 @@
-// JPEG colour frames: decoding against known images (encoded by libjpeg through io::encodeJpeg), refusing what is corrupt or a bomb,
+// JPEG colour frames: decoding against known images (encoded by libjpeg through encodeJpeg), refusing what is corrupt or a bomb,
 // telling PNG from JPEG by content, and a real 3DMatch sequence with its colour as JPEG.
 
 #include <gtest/gtest.h>
@@ -7,19 +7,19 @@
 #include <cstdlib>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/dataset.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/jpeg.h"
-#include "chronomap/io/png.h"
+#include "chronomap/ingest/dataset.h"
+#include "chronomap/core/file.h"
+#include "chronomap/ingest/jpeg.h"
+#include "chronomap/ingest/png.h"
 #include "test_support.h"
 
-namespace chronomap::io {
+namespace chronomap {
 namespace {
 
 namespace fs = std::filesystem;
 
 std::vector<uint8_t> encodeJpeg(const ImageRgb& image, int quality, bool grey = false, bool progressive = false) {
-  return io::encodeJpeg(image, {quality, grey, progressive});
+  return encodeJpeg(image, {quality, grey, progressive});
 }
 
 /// A smooth colour gradient (JPEG keeps smooth images close).
@@ -152,4 +152,4 @@ TEST(Jpeg, A3DMatchSequenceWithJpegColourKeepsItsColours) {
 }
 
 }  // namespace
-}  // namespace chronomap::io
+}  // namespace chronomap

@@ -7,8 +7,8 @@
 #include <random>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/store/temporal_file.h"
 #include "chronomap/pipeline/distributed.h"
 #include "chronomap/pipeline/map4d.h"
 #include "chronomap/pipeline/maps.h"
@@ -57,7 +57,7 @@ TEST(PipelineRegister, DepthCacheChangesNoCorrectionAndKeepsItsBudget) {
   // Without a cache, and with one given in the settings with room for a third of the images
   // (used from the first integration on).
   const size_t frame_bytes = 160 * 120 * sizeof(uint16_t);
-  const auto cache = std::make_shared<io::DepthImageCache>(simulated.frames * frame_bytes / 3);
+  const auto cache = std::make_shared<DepthImageCache>(simulated.frames * frame_bytes / 3);
   const auto run = [&](bool cached) {
     SessionSettings s = settings;
     if (cached) s.dataset.depth_cache = cache;
@@ -108,7 +108,7 @@ TEST(PipelineBuild, SortsByTimeAndRefusesClashesBeforeIntegrating) {
   EXPECT_EQ(r.added[0].dataset.filename(), "early.txt");
   EXPECT_FALSE(r.added[0].correction);
   EXPECT_EQ(steps, 2u);  // one line per dataset
-  EXPECT_EQ(io::readTemporalMap(s.map).sessionCount(), 2u);
+  EXPECT_EQ(readTemporalMap(s.map).sessionCount(), 2u);
   EXPECT_EQ(r.file_bytes, fs::file_size(s.map));
   // A time the map holds already, without replace: refused, the map unchanged.
   const auto before = test::bytesOf(s.map);
@@ -125,7 +125,7 @@ TEST(PipelineBuild, SortsByTimeAndRefusesClashesBeforeIntegrating) {
 TEST(PipelineAdd, AppendsOrRewritesAsThePolicySays) {
   test::TempDir tmp;
   for (int i = 0; i < 4; ++i) {
-    io::writeSessionMap(tmp / ("s" + std::to_string(i) + ".cmap"), test::randomSessionMap(40 + i, 16, 0.3),
+    writeSessionMap(tmp / ("s" + std::to_string(i) + ".cmap"), test::randomSessionMap(40 + i, 16, 0.3),
                         {{"recorded_at", 1000.0 * i}});
   }
   AddSessionSettings s;
@@ -154,11 +154,11 @@ TEST(PipelineAdd, AppendsOrRewritesAsThePolicySays) {
   s.time_s = 5000.0;  // given, overrides the file's
   r = addSession(s);
   EXPECT_EQ(r.time_s, 5000.0);
-  const TemporalMap map = io::readTemporalMap(s.map);
+  const TemporalMap map = readTemporalMap(s.map);
   ASSERT_EQ(map.sessionCount(), 4u);
   EXPECT_EQ(map.sessions().back().time_s, 5000.0);
   // A session without a recorded time and none given.
-  io::writeSessionMap(tmp / "untimed.cmap", test::wallSession(10), {});
+  writeSessionMap(tmp / "untimed.cmap", test::wallSession(10), {});
   s.session = tmp / "untimed.cmap";
   s.time_s.reset();
   EXPECT_THROW(addSession(s), UsageError);
@@ -177,7 +177,7 @@ TEST(PipelineMaps, MapReferencesAndTheDiffOfTwoTimesEqualsTheDiffOfTheirSnapshot
 
   TemporalMap map(0.05);
   for (int i = 0; i < 4; ++i) map.add(100.0 * i, test::randomSessionMap(70 + i, 16, 0.3));
-  io::writeTemporalMap(tmp / "map.cmap", map, {});
+  writeTemporalMap(tmp / "map.cmap", map, {});
   const std::string m = (tmp / "map.cmap").string();
   DiffSettings settings;
   const DiffMap fast = diffMaps(parseMapRef(m + "@100"), parseMapRef(m + "@300"), settings);
@@ -193,7 +193,7 @@ TEST(PipelineMaps, ExportsByExtension) {
   test::TempDir tmp;
   const SessionMap map = test::wallSession(10);
   EXPECT_EQ(exportSessionMap(tmp / "m.cmap", map), map.leafCount());
-  EXPECT_EQ(io::readSessionMap(tmp / "m.cmap").counts().occupied_voxels, map.counts().occupied_voxels);
+  EXPECT_EQ(readSessionMap(tmp / "m.cmap").counts().occupied_voxels, map.counts().occupied_voxels);
   EXPECT_EQ(exportSessionMap(tmp / "m.ply", map), map.counts().occupied_voxels);
   EXPECT_GT(exportSessionMap(tmp / "m.ot", map), 0u);
   ExportSettings big;

@@ -5,11 +5,11 @@
 #include <fstream>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/png.h"
+#include "chronomap/core/file.h"
+#include "chronomap/ingest/png.h"
 #include "test_support.h"
 
-namespace chronomap::io {
+namespace chronomap {
 namespace {
 
 TEST(Png, RoundTripsColourAndDepth) {
@@ -179,4 +179,4 @@ TEST(Png, RunningOutOfMemoryNamesTheFile) {
 }
 
 }  // namespace
-}  // namespace chronomap::io
+}  // namespace chronomap

@@ -8,14 +8,14 @@
 #include "chronomap/analysis/diff.h"
 #include "chronomap/analysis/segment.h"
 #include "chronomap/integrate/integrator.h"
-#include "chronomap/io/cloud_io.h"
-#include "chronomap/io/dataset.h"
-#include "chronomap/io/export.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/ingest/cloud_io.h"
+#include "chronomap/ingest/dataset.h"
+#include "chronomap/export/export.h"
+#include "chronomap/store/temporal_file.h"
 #include "chronomap/pipeline/session.h"
 #include "test_support.h"
 
-namespace chronomap::io {
+namespace chronomap {
 namespace {
 
 TEST(RealData, ThreeDMatchFramesAgreeWithEachOther) {
@@ -196,4 +196,4 @@ TEST(RealData, SingleKinectCloudIntegratesAndExports) {
 }
 
 }  // namespace
-}  // namespace chronomap::io
+}  // namespace chronomap

@@ -14,20 +14,20 @@
 #include <memory>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/dataset.h"
-#include "chronomap/io/rosbag.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/ingest/dataset.h"
+#include "chronomap/ingest/ros/rosbag.h"
 #include "chronomap/pipeline/session.h"
-#include "chronomap/io/jpeg.h"
-#include "chronomap/io/png.h"
-#include "io/cdr.h"
-#include "io/ros_messages.h"
-#include "io/mcap.h"
+#include "chronomap/ingest/jpeg.h"
+#include "chronomap/ingest/png.h"
+#include "ingest/ros/cdr.h"
+#include "ingest/ros/ros_messages.h"
+#include "ingest/ros/mcap.h"
 #include "bag_fixture.h"
 #include "db3_writer.h"
 #include "test_support.h"
 
-namespace chronomap::io {
+namespace chronomap {
 namespace {
 
 namespace fs = std::filesystem;
@@ -119,7 +119,7 @@ TEST_F(Ros2BagTest, PoseTopicBagsGiveTheTumFoldersMapByteForByte) {
                            "pose_db3_folder", "pose_mcap_folder"}) {
     SCOPED_TRACE(name);
     const auto dataset = openDataset(bag(name), bagSettings());
-    EXPECT_EQ(dataset->format(), DatasetFormat::Ros2Bag);
+    EXPECT_EQ(dataset->format(), "ros2bag");
     EXPECT_EQ(dataset->size(), 32u);
     EXPECT_EQ(dataset->framesDropped(), 0u);
     EXPECT_TRUE(mapBytes(bag(name), bagSettings()) == expected);
@@ -676,4 +676,4 @@ TEST(Cdr, AnEmptyCloudWithBillionsOfRowsIsEmptyAtOnce) {
 }
 
 }  // namespace
-}  // namespace chronomap::io
+}  // namespace chronomap

@@ -1,7 +1,7 @@
 // ROS 1 bags: written by Debian's python3-rosbag (tests/io/make_ros1_bags.py) from a simulated
 // TUM session, read back through librosbag, and compared with the TUM reader's frames and map.
 
-#include "chronomap/io/rosbag.h"
+#include "chronomap/ingest/ros/rosbag.h"
 
 #include <gtest/gtest.h>
 
@@ -13,15 +13,15 @@
 #include <memory>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/dataset.h"
-#include "chronomap/io/transform_tree.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/ingest/dataset.h"
+#include "chronomap/ingest/ros/transform_tree.h"
 #include "chronomap/pipeline/session.h"
-#include "io/ros_messages.h"
+#include "ingest/ros/ros_messages.h"
 #include "bag_fixture.h"
 #include "test_support.h"
 
-namespace chronomap::io {
+namespace chronomap {
 namespace {
 
 namespace fs = std::filesystem;
@@ -57,7 +57,7 @@ TEST_F(RosBagTest, PoseTopicBagsGiveTheTumFoldersMapByteForByte) {
   for (const char* name : {"pose_none.bag", "pose_bz2.bag", "pose_lz4.bag", "odometry.bag"}) {
     SCOPED_TRACE(name);
     const auto dataset = openDataset(bag(name), bagSettings());
-    EXPECT_EQ(dataset->format(), DatasetFormat::RosBag);
+    EXPECT_EQ(dataset->format(), "rosbag");
     EXPECT_EQ(dataset->size(), 32u);
     EXPECT_EQ(dataset->framesDropped(), 0u);
     EXPECT_TRUE(mapBytes(bag(name), bagSettings()) == expected);
@@ -451,4 +451,4 @@ TEST(TransformTree, ChainsThroughTheCommonAncestor) {
 }
 
 }  // namespace
-}  // namespace chronomap::io
+}  // namespace chronomap

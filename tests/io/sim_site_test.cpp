@@ -9,8 +9,8 @@
 #include <string>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/dataset.h"
-#include "chronomap/io/file.h"
+#include "chronomap/ingest/dataset.h"
+#include "chronomap/core/file.h"
 #include "chronomap/sim/building.h"
 #include "test_support.h"
 
@@ -78,9 +78,9 @@ TEST(SimSite, NightlyPatrolsOfEveryFloorAndTheFirstSessionsOfALongerRun) {
   s.sessions = 1;
   sim::simulate(s, tmp / "one");
 
-  const auto scene = nlohmann::json::parse(io::readTextFile(tmp / "two" / "scene.json"));
+  const auto scene = nlohmann::json::parse(readTextFile(tmp / "two" / "scene.json"));
   // The change events, spooled to a file while simulating, are spliced in as dump(1) puts them.
-  EXPECT_EQ(scene.dump(1) + "\n", io::readTextFile(tmp / "two" / "scene.json"));
+  EXPECT_EQ(scene.dump(1) + "\n", readTextFile(tmp / "two" / "scene.json"));
   EXPECT_FALSE(fs::exists(tmp / "two" / ".events.tmp"));
   EXPECT_EQ(scene["preset"], "site");
   EXPECT_EQ(scene["site"]["floors"], 2);
@@ -97,8 +97,8 @@ TEST(SimSite, NightlyPatrolsOfEveryFloorAndTheFirstSessionsOfALongerRun) {
     }
     last_time = time;
     // Every floor patrolled, its frames one after the other, the camera 1.2 m above its floor.
-    const auto poses = io::parseTumTrajectory(
-        io::readTextFile(tmp / "two" / session["dir"].get<std::string>() / "groundtruth.txt"), "groundtruth");
+    const auto poses = parseTumTrajectory(
+        readTextFile(tmp / "two" / session["dir"].get<std::string>() / "groundtruth.txt"), "groundtruth");
     ASSERT_EQ(session["floors"].size(), 2u);
     size_t frames = 0;
     for (const auto& floor : session["floors"]) {
@@ -130,7 +130,7 @@ TEST(SimSite, NightlyPatrolsOfEveryFloorAndTheFirstSessionsOfALongerRun) {
     ++compared;
   }
   EXPECT_GT(compared, 400u);
-  const auto first = nlohmann::json::parse(io::readTextFile(tmp / "one" / "scene.json"));
+  const auto first = nlohmann::json::parse(readTextFile(tmp / "one" / "scene.json"));
   EXPECT_EQ(first["sessions"][0], scene["sessions"][0]);
 }
 

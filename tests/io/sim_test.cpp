@@ -8,9 +8,9 @@
 
 #include "chronomap/core/error.h"
 #include "chronomap/integrate/integrator.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/dataset.h"
-#include "chronomap/io/file.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/ingest/dataset.h"
+#include "chronomap/core/file.h"
 #include "chronomap/sim/building.h"
 #include "chronomap/sim/change_truth.h"
 #include "sim/internal.h"
@@ -75,7 +75,7 @@ TEST(Simulator, SameSeedSameBytesWhateverTheThreads) {
   ASSERT_GT(files.size(), 20u);
   for (const auto& f : files) EXPECT_EQ(bytesOf(tmp / "a" / f), bytesOf(tmp / "b" / f)) << f;
   // scene.json, its change events spliced in from a spool, is what nlohmann::json writes.
-  const std::string scene = io::readTextFile(tmp / "a" / "scene.json");
+  const std::string scene = readTextFile(tmp / "a" / "scene.json");
   EXPECT_EQ(nlohmann::json::parse(scene).dump(1) + "\n", scene);
   s.seed = 2;
   sim::simulate(s, tmp / "c");
@@ -120,7 +120,7 @@ TEST(Simulator, FramesReprojectOntoTheTrueSurfaces) {
   for (double yaw : {0.0, 1.0, 2.0, 3.0, 4.5}) {
     const Eigen::Isometry3d T = lookingAt({3.0, 1.0, 1.2}, yaw);
     const auto f = renderer.render(camera, T, sensor, 10.0, 1);
-    const PointCloud cloud = io::depthToCloud(f.depth, &f.rgb, k, sensor.depth_scale, "frame");
+    const PointCloud cloud = depthToCloud(f.depth, &f.rgb, k, sensor.depth_scale, "frame");
     for (const auto& p : cloud.points) {
       if (!p.allFinite()) continue;
       const Eigen::Vector3d w = T * p.cast<double>();
@@ -138,14 +138,14 @@ TEST(Simulator, ChangeEventsShowInTheTruth) {
   s.sessions = 5;
   s.resolution_scale = 0.1;
   sim::simulate(s, tmp.path());
-  const auto scene = nlohmann::json::parse(io::readTextFile(tmp / "scene.json"));
+  const auto scene = nlohmann::json::parse(readTextFile(tmp / "scene.json"));
   ASSERT_EQ(scene["sessions"].size(), 5u);
   ASSERT_GT(scene["events"].size(), 3u);
   std::vector<std::vector<VoxelKey>> truth;
   for (int i = 0; i < 5; ++i) {
     char name[64];
     std::snprintf(name, sizeof name, "occupancy_%02d.cmap", i);
-    const SessionMap m = io::readSessionMap(tmp / "truth" / name);
+    const SessionMap m = readSessionMap(tmp / "truth" / name);
     truth.emplace_back();
     m.forEachLeaf([&](const LeafView& l) { truth.back().push_back(l.key); });
     std::sort(truth.back().begin(), truth.back().end());
@@ -185,7 +185,7 @@ TEST(Simulator, TheWeeksPresetFollowsItsScheduleAndSaysSo) {
   s.sessions = 14;  // the first week
   s.resolution_scale = 0.1;
   const sim::SimulationSummary summary = sim::simulate(s, tmp.path());
-  const auto scene = nlohmann::json::parse(io::readTextFile(tmp / "scene.json"));
+  const auto scene = nlohmann::json::parse(readTextFile(tmp / "scene.json"));
   ASSERT_EQ(scene["sessions"].size(), 14u);
   // Two sessions a day from the first Monday, one before noon and one after.
   for (size_t i = 0; i < 14; ++i) {
@@ -219,7 +219,7 @@ TEST(Simulator, TheWeeksPresetFollowsItsScheduleAndSaysSo) {
     sim::applySchedule(state, home, s.seed, summary.times_s[i]);
     char name[64];
     std::snprintf(name, sizeof name, "occupancy_%02zu.cmap", i);
-    EXPECT_EQ(io::readSessionMap(tmp / "truth" / name), sim::detail::truthMap(sim::truthOccupancy(state, KeyGrid(0.05)),
+    EXPECT_EQ(readSessionMap(tmp / "truth" / name), sim::detail::truthMap(sim::truthOccupancy(state, KeyGrid(0.05)),
                                                                       KeyGrid(0.05)))
         << "session " << i;
   }
@@ -228,7 +228,7 @@ TEST(Simulator, TheWeeksPresetFollowsItsScheduleAndSaysSo) {
   s.preset = "office";
   s.sessions = 3;
   sim::simulate(s, office.path());
-  const auto office_scene = nlohmann::json::parse(io::readTextFile(office / "scene.json"));
+  const auto office_scene = nlohmann::json::parse(readTextFile(office / "scene.json"));
   EXPECT_FALSE(office_scene.contains("schedule"));
   for (const auto& e : office_scene["events"]) EXPECT_EQ(e["cause"], "random");
 }
@@ -244,7 +244,7 @@ TEST(Simulator, RareEventsAreLabelledInTheTruth) {
   s.resolution_scale = 0.1;
   s.rare_events = true;
   const sim::SimulationSummary summary = sim::simulate(s, tmp.path());
-  const auto scene = nlohmann::json::parse(io::readTextFile(tmp / "scene.json"));
+  const auto scene = nlohmann::json::parse(readTextFile(tmp / "scene.json"));
   const auto& rare = scene["schedule"]["rare_events"];
   size_t expected = 0;
   for (int i = 0; i < 8; ++i) {
@@ -314,8 +314,8 @@ TEST(Simulator, DaylightAndRepaintChangeOnlyColoursAndAreLabelled) {
   }
   EXPECT_GT(rgb_differ, 0u);
   EXPECT_EQ(repainted_objects_files, 1u);  // session 3 of 4: 4 - 4 / 4
-  const auto plain = nlohmann::json::parse(io::readTextFile(tmp / "plain" / "scene.json"));
-  auto lit = nlohmann::json::parse(io::readTextFile(tmp / "lit" / "scene.json"));
+  const auto plain = nlohmann::json::parse(readTextFile(tmp / "plain" / "scene.json"));
+  auto lit = nlohmann::json::parse(readTextFile(tmp / "lit" / "scene.json"));
   EXPECT_FALSE(plain.contains("lighting"));
   EXPECT_FALSE(plain.contains("repaints"));
   ASSERT_TRUE(lit.contains("lighting"));
@@ -332,7 +332,7 @@ TEST(Simulator, DaylightAndRepaintChangeOnlyColoursAndAreLabelled) {
   EXPECT_EQ(r["object_kind"], "table");  // the kitchen table: no routine moves it
   EXPECT_GT(r["voxel_count"].get<size_t>(), 100u);
   EXPECT_EQ(r["voxels"].size(), r["voxel_count"].get<size_t>());
-  const auto objects = nlohmann::json::parse(io::readTextFile(tmp / "lit" / "truth" / "objects_03.json"));
+  const auto objects = nlohmann::json::parse(readTextFile(tmp / "lit" / "truth" / "objects_03.json"));
   bool found = false;
   for (const auto& o : objects) {
     if (o["id"] != r["object"]) continue;
@@ -374,12 +374,12 @@ TEST(Simulator, TinySessionWithTruePosesMatchesTheTruth) {
   s.sessions = 1;
   s.resolution_scale = 0.5;
   const auto summary = sim::simulate(s, tmp.path());
-  io::DatasetSettings dopt;
+  DatasetSettings dopt;
   dopt.trajectory = (summary.session_dirs[0] / "groundtruth.txt").string();
-  auto dataset = io::openDataset(summary.session_dirs[0], dopt);
+  auto dataset = openDataset(summary.session_dirs[0], dopt);
   SessionMap map(0.05);
   integrate(*dataset, map, IntegratorSettings{});
-  const SessionMap truth_map = io::readSessionMap(tmp / "truth" / "occupancy_00.cmap");
+  const SessionMap truth_map = readSessionMap(tmp / "truth" / "occupancy_00.cmap");
   std::vector<VoxelKey> truth;
   truth_map.forEachLeaf([&](const LeafView& l) { truth.push_back(l.key); });
   const sim::OccupancyScore score = sim::scoreOccupancy(map, truth);

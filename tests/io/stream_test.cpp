@@ -10,10 +10,10 @@
 #include <random>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/cmap.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/temporal_file.h"
-#include "chronomap/io/tiled_file.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/core/file.h"
+#include "chronomap/store/temporal_file.h"
+#include "chronomap/store/tiled_file.h"
 #include "chronomap/pipeline/stream.h"
 #include "chronomap/pipeline/tiles.h"
 #include "chronomap/temporal/tiles.h"
@@ -53,8 +53,8 @@ TemporalMap wholeBuild(const std::vector<SessionMap>& sessions, const std::vecto
     std::vector<int> sorted = batch;
     std::sort(sorted.begin(), sorted.end());
     for (const int i : sorted) map.add(timeOf(i), sessions[static_cast<size_t>(i)], {false, nameOf(i)});
-    const std::vector<uint8_t> bytes = io::encodeTemporalMap(map, nlohmann::json::object());
-    map = io::temporalMapFrom(io::decodeCmap(bytes, "whole"), "whole");
+    const std::vector<uint8_t> bytes = encodeTemporalMap(map, nlohmann::json::object());
+    map = temporalMapFrom(decodeCmap(bytes, "whole"), "whole");
   }
   return map;
 }
@@ -72,9 +72,9 @@ pipeline::StreamResult stream(const fs::path& folder, const std::vector<SessionM
 }
 
 TemporalMap joined(const fs::path& folder) {
-  const io::TileIndex index = io::readTileIndex(folder);
+  const TileIndex index = readTileIndex(folder);
   std::vector<Tile> tiles;
-  for (const io::TileEntry& e : index.tiles) tiles.push_back(Tile{e.key, io::readTile(folder, index, e)});
+  for (const TileEntry& e : index.tiles) tiles.push_back(Tile{e.key, readTile(folder, index, e)});
   std::vector<const Tile*> refs;
   for (const Tile& t : tiles) refs.push_back(&t);
   return joinTiles(index.top, index.tile_level, refs);
@@ -83,7 +83,7 @@ TemporalMap joined(const fs::path& folder) {
 std::map<std::string, std::vector<uint8_t>> filesOf(const fs::path& folder) {
   std::map<std::string, std::vector<uint8_t>> out;
   for (const auto& f : fs::recursive_directory_iterator(folder)) {
-    if (f.is_regular_file()) out[fs::relative(f.path(), folder).string()] = io::readFileBytes(f.path());
+    if (f.is_regular_file()) out[fs::relative(f.path(), folder).string()] = readFileBytes(f.path());
   }
   return out;
 }
@@ -116,18 +116,18 @@ TEST_P(StreamProperty, StreamingGivesTheWholeBuildCut) {
   TemporalMap whole = wholeBuild(sessions, batches);
   const TemporalMap streamed = joined(folder);
   ASSERT_TRUE(streamed == whole) << "level " << level << ", " << batches.size() << " batches";
-  EXPECT_EQ(io::encodeTemporalMap(streamed, nlohmann::json::object()),
-            io::encodeTemporalMap(whole, nlohmann::json::object()));
+  EXPECT_EQ(encodeTemporalMap(streamed, nlohmann::json::object()),
+            encodeTemporalMap(whole, nlohmann::json::object()));
   whole.compact();
   const SplitMap cut = splitIntoTiles(whole, level);
-  const io::TileIndex index = io::readTileIndex(folder);
+  const TileIndex index = readTileIndex(folder);
   ASSERT_EQ(index.tiles.size(), cut.tiles.size());
   for (const Tile& t : cut.tiles) {
-    const io::TileEntry* e = index.find(t.key);
+    const TileEntry* e = index.find(t.key);
     ASSERT_NE(e, nullptr);
-    EXPECT_TRUE(io::readTile(folder, index, *e) == t.map);
+    EXPECT_TRUE(readTile(folder, index, *e) == t.map);
     ASSERT_TRUE(e->latest.has_value());
-    EXPECT_TRUE(io::readLatestState(folder, index, *e) == io::asStored(t.map.snapshot(t.map.sessions().back().time_s)));
+    EXPECT_TRUE(readLatestState(folder, index, *e) == asStored(t.map.snapshot(t.map.sessions().back().time_s)));
   }
   EXPECT_TRUE(index.top == cut.top);
   // Only the files the index names remain (older generations and parts are gone): each tile's
@@ -149,7 +149,7 @@ TEST(Stream, AUniformCubeAboveTileLevelRefinedByALaterSession) {
   test::TempDir dir;
   const fs::path folder = dir / "tiled";
   stream(folder, sessions, {0, 1}, 3, 0);
-  const io::TileIndex before = io::readTileIndex(folder);
+  const TileIndex before = readTileIndex(folder);
   EXPECT_TRUE(before.tiles.empty());  // the whole cube is one list of the top
   const pipeline::StreamResult r = stream(folder, sessions, {2}, 3, 0);
   EXPECT_EQ(r.tiles, 1u);
@@ -198,7 +198,7 @@ TEST(Stream, AFailedAddLeavesThePreviousTiledMap) {
                IoError);
   EXPECT_EQ(filesOf(folder), before);
   // A failure while the tiles are being written: new tiles exist, the index is the old one.
-  io::writeFileAtomic(folder / "tiles" / "0_0_0.g7.cmap", {1, 2, 3});  // what a killed run leaves
+  writeFileAtomic(folder / "tiles" / "0_0_0.g7.cmap", {1, 2, 3});  // what a killed run leaves
   fs::create_directories(folder / ".parts-99999");
   EXPECT_TRUE(joined(folder) == wholeBuild(sessions, {{0, 1}}));  // still readable
   stream(folder, sessions, {2, 3, 4}, 3, 0);
@@ -240,7 +240,7 @@ TEST(Stream, BadInputIsRefused) {
   EXPECT_EQ(filesOf(folder), before);
   // A folder that is not a tiled map, a file, a tile size that is no power of two.
   fs::create_directories(dir / "other");
-  io::writeFileAtomic(dir / "other" / "notes.txt", {1});
+  writeFileAtomic(dir / "other" / "notes.txt", {1});
   EXPECT_THROW(stream(dir / "other", sessions, {0}, 3, 0), UsageError);
   EXPECT_THROW(stream(dir / "other" / "notes.txt", sessions, {0}, 3, 0), UsageError);
   s.folder = dir / "odd";

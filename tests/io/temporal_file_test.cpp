@@ -9,8 +9,8 @@
 #include <nlohmann/json.hpp>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/core/file.h"
+#include "chronomap/store/temporal_file.h"
 #include "test_support.h"
 
 namespace chronomap {
@@ -30,13 +30,13 @@ using test::writeBytes;
 TEST(TemporalFile, RoundTripReadsBackIdentically) {
   test::TempDir tmp;
   TemporalMap map = sampleMap(4);
-  io::writeTemporalMap(tmp / "m.cmap", map, {{"note", "test"}});
-  const TemporalMap back = io::readTemporalMap(tmp / "m.cmap");
+  writeTemporalMap(tmp / "m.cmap", map, {{"note", "test"}});
+  const TemporalMap back = readTemporalMap(tmp / "m.cmap");
   TemporalMap compacted = map;
   compacted.compact();
   // Everything exact but the hit positions, lengths and colour sums, which the file keeps
-  // quantised (io::asStored): within their bounds, no entry's state changed.
-  const TemporalMap stored = io::asStored(compacted);
+  // quantised (asStored): within their bounds, no entry's state changed.
+  const TemporalMap stored = asStored(compacted);
   // The sample's lengths and colour sums are ones the file keeps exactly, and the map keeps its
   // hit positions as the file does: nothing to quantise here.
   EXPECT_TRUE(stored == compacted);
@@ -51,31 +51,31 @@ TEST(TemporalFile, RoundTripReadsBackIdentically) {
     EXPECT_EQ(b.state(), a.state()) << "entry " << i;
     EXPECT_EQ(b.meanColor(), a.meanColor()) << "entry " << i;
     if (a.length_m > 0.0f) {
-      EXPECT_LE(std::abs(b.length_m / a.length_m - 1.0f), io::kLengthRelativeError) << "entry " << i;
+      EXPECT_LE(std::abs(b.length_m / a.length_m - 1.0f), kLengthRelativeError) << "entry " << i;
     }
   }
   EXPECT_EQ(back.times(), map.times());
   for (double t : map.times()) EXPECT_TRUE(back.snapshot(t) == stored.snapshot(t));
   // Writing what was read gives the same bytes: the format is deterministic.
-  io::writeTemporalMap(tmp / "again.cmap", back, {{"note", "test"}});
+  writeTemporalMap(tmp / "again.cmap", back, {{"note", "test"}});
   EXPECT_EQ(bytesOf(tmp / "m.cmap"), bytesOf(tmp / "again.cmap"));
 }
 
 TEST(TemporalFile, EmptyMapRoundTrips) {
   test::TempDir tmp;
-  io::writeTemporalMap(tmp / "e.cmap", TemporalMap(0.1), {});
-  const TemporalMap back = io::readTemporalMap(tmp / "e.cmap");
+  writeTemporalMap(tmp / "e.cmap", TemporalMap(0.1), {});
+  const TemporalMap back = readTemporalMap(tmp / "e.cmap");
   EXPECT_EQ(back.sessionCount(), 0u);
   EXPECT_DOUBLE_EQ(back.resolution_m(), 0.1);
 }
 
 TEST(TemporalFile, AppendEqualsBuildingInOneGo) {
   test::TempDir tmp;
-  io::writeTemporalMap(tmp / "m.cmap", sampleMap(2), {});
-  TemporalMap loaded = io::readTemporalMap(tmp / "m.cmap");
+  writeTemporalMap(tmp / "m.cmap", sampleMap(2), {});
+  TemporalMap loaded = readTemporalMap(tmp / "m.cmap");
   loaded.add(3000.0, test::randomSessionMap(3));
-  io::writeTemporalMap(tmp / "m.cmap", loaded, {});
-  const TemporalMap appended = io::readTemporalMap(tmp / "m.cmap");
+  writeTemporalMap(tmp / "m.cmap", loaded, {});
+  const TemporalMap appended = readTemporalMap(tmp / "m.cmap");
   const TemporalMap direct = sampleMap(3);
   for (double t : direct.times()) {
     const SessionMap a = appended.snapshot(t), b = direct.snapshot(t);
@@ -91,12 +91,12 @@ TEST(TemporalFile, AppendEqualsBuildingInOneGo) {
 
 TEST(TemporalFile, TruncatedAndCorruptFilesAreRejectedByName) {
   test::TempDir tmp;
-  io::writeTemporalMap(tmp / "m.cmap", sampleMap(3), {});
+  writeTemporalMap(tmp / "m.cmap", sampleMap(3), {});
   const auto good = bytesOf(tmp / "m.cmap");
   for (size_t keep : {size_t{0}, size_t{10}, size_t{90}, good.size() / 2, good.size() - 1}) {
     writeBytes(tmp / "t.cmap", std::vector<uint8_t>(good.begin(), good.begin() + static_cast<long>(keep)));
     try {
-      io::readTemporalMap(tmp / "t.cmap");
+      readTemporalMap(tmp / "t.cmap");
       FAIL() << "truncated to " << keep << " bytes was accepted";
     } catch (const FormatError& e) {
       EXPECT_NE(std::string(e.what()).find("t.cmap"), std::string::npos) << e.what();
@@ -106,21 +106,21 @@ TEST(TemporalFile, TruncatedAndCorruptFilesAreRejectedByName) {
     auto bad = good;
     bad[at] ^= 0x5a;
     writeBytes(tmp / "c.cmap", bad);
-    EXPECT_THROW(io::readTemporalMap(tmp / "c.cmap"), FormatError) << "byte " << at;
+    EXPECT_THROW(readTemporalMap(tmp / "c.cmap"), FormatError) << "byte " << at;
   }
 }
 
 TEST(TemporalFile, SessionFilesAreNotFourDimensional) {
   test::TempDir tmp;
-  io::writeSessionMap(tmp / "s.cmap", test::randomSessionMap(1), {});
+  writeSessionMap(tmp / "s.cmap", test::randomSessionMap(1), {});
   try {
-    io::readTemporalMap(tmp / "s.cmap");
+    readTemporalMap(tmp / "s.cmap");
     FAIL();
   } catch (const FormatError& e) {
     EXPECT_NE(std::string(e.what()).find("not a 4D map"), std::string::npos) << e.what();
   }
-  io::writeTemporalMap(tmp / "m.cmap", sampleMap(1), {});
-  EXPECT_THROW(io::readSessionMap(tmp / "m.cmap"), FormatError);
+  writeTemporalMap(tmp / "m.cmap", sampleMap(1), {});
+  EXPECT_THROW(readSessionMap(tmp / "m.cmap"), FormatError);
 }
 
 TEST(TemporalFile, CraftedBlocksAreRejected) {
@@ -128,21 +128,21 @@ TEST(TemporalFile, CraftedBlocksAreRejected) {
   // current format version, in version 2 and in version 1.
   test::TempDir tmp;
   const TemporalMap map = sampleMap(2);
-  for (uint32_t version : {io::kCmapFormatVersion, 2u, 1u}) {
-    const io::CmapFile file = io::decodeCmap(io::encodeTemporalMap(map, {}, version), "m.cmap");
+  for (uint32_t version : {kCmapFormatVersion, 2u, 1u}) {
+    const CmapFile file = decodeCmap(encodeTemporalMap(map, {}, version), "m.cmap");
     auto rewrite = [&](const std::string& tag, auto&& mutate) {
-      io::CmapFile f = file;
+      CmapFile f = file;
       size_t found = 0;
       for (auto& b : f.blocks) {
         if (b.tag == tag) mutate(b.data), ++found;
       }
       EXPECT_EQ(found, 1u) << tag;
-      io::writeFileAtomic(tmp / "x.cmap", io::encodeCmap(f.header, f.blocks));
+      writeFileAtomic(tmp / "x.cmap", encodeCmap(f.header, f.blocks));
       return tmp / "x.cmap";
     };
     auto expectRejected = [&](const fs::path& path, const std::string& what) {
       try {
-        io::readTemporalMap(path);
+        readTemporalMap(path);
         ADD_FAILURE() << "version " << version << ": " << what << " was read";
       } catch (const FormatError& e) {
         EXPECT_NE(std::string(e.what()).find("x.cmap"), std::string::npos) << e.what();
@@ -177,18 +177,18 @@ TEST(TemporalFile, VersionOneFilesStillReadExactly) {
   // pools in the writer's layout; written again they take the current version.
   TemporalMap map = sampleMap(4);
   map.compact();
-  const std::vector<uint8_t> old = io::encodeTemporalMap(map, {{"old", true}}, 1);
-  const io::CmapFile f = io::decodeCmap(old, "old.cmap");
+  const std::vector<uint8_t> old = encodeTemporalMap(map, {{"old", true}}, 1);
+  const CmapFile f = decodeCmap(old, "old.cmap");
   EXPECT_EQ(f.header.version, 1u);
-  const TemporalMap back = io::temporalMapFrom(f, "old.cmap");
+  const TemporalMap back = temporalMapFrom(f, "old.cmap");
   EXPECT_TRUE(back == map);
   EXPECT_EQ(back.parts().inner, map.parts().inner);
   EXPECT_EQ(back.parts().entries, map.parts().entries);
-  const std::vector<uint8_t> now = io::encodeTemporalMap(back, {{"old", true}});
-  EXPECT_EQ(io::decodeCmap(now, "new.cmap").header.version, io::kCmapFormatVersion);
+  const std::vector<uint8_t> now = encodeTemporalMap(back, {{"old", true}});
+  EXPECT_EQ(decodeCmap(now, "new.cmap").header.version, kCmapFormatVersion);
   EXPECT_LT(now.size(), old.size());
   // The current version keeps the writer's two-layer pool order too.
-  const TemporalMap again = io::temporalMapFrom(io::decodeCmap(now, "new.cmap"), "new.cmap");
+  const TemporalMap again = temporalMapFrom(decodeCmap(now, "new.cmap"), "new.cmap");
   EXPECT_EQ(again.parts().inner, map.parts().inner);
   EXPECT_EQ(again.parts().list_sizes, map.parts().list_sizes);
 }
@@ -197,7 +197,7 @@ TEST(TemporalFile, RandomMapsKeepPositionsWithinTheirBound) {
   for (uint64_t seed = 1; seed <= 4; ++seed) {
     TemporalMap map = sampleMap(3, 10 * seed);
     map.compact();
-    const TemporalMap back = io::temporalMapFrom(io::decodeCmap(io::encodeTemporalMap(map, {}), "r.cmap"), "r.cmap");
+    const TemporalMap back = temporalMapFrom(decodeCmap(encodeTemporalMap(map, {}), "r.cmap"), "r.cmap");
     const TemporalMap::Parts a = map.parts(), b = back.parts();
     ASSERT_EQ(a.inner, b.inner);
     ASSERT_EQ(a.list_sizes, b.list_sizes);
@@ -217,12 +217,12 @@ TEST(TemporalFile, FilesWithoutHitPositionsReadWithHitsAtTheCentres) {
   test::TempDir tmp;
   TemporalMap map = sampleMap(3);
   map.compact();
-  io::writeFileAtomic(tmp / "m.cmap", io::encodeTemporalMap(map, {}, 1));  // format version 1
-  io::CmapFile f = io::readCmap(tmp / "m.cmap");
+  writeFileAtomic(tmp / "m.cmap", encodeTemporalMap(map, {}, 1));  // format version 1
+  CmapFile f = readCmap(tmp / "m.cmap");
   ASSERT_NE(f.find("EPOS"), nullptr);
-  std::erase_if(f.blocks, [](const io::CmapBlock& b) { return b.tag == "EPOS"; });
-  io::writeFileAtomic(tmp / "old.cmap", io::encodeCmap(f.header, f.blocks));
-  const TemporalMap old = io::readTemporalMap(tmp / "old.cmap");
+  std::erase_if(f.blocks, [](const CmapBlock& b) { return b.tag == "EPOS"; });
+  writeFileAtomic(tmp / "old.cmap", encodeCmap(f.header, f.blocks));
+  const TemporalMap old = readTemporalMap(tmp / "old.cmap");
   TemporalMap::Parts expected = map.parts(), got = old.parts();
   size_t with_positions = 0;
   for (TemporalMap::Entry& e : expected.entries) {
@@ -237,12 +237,12 @@ TEST(TemporalFile, FilesWithoutHitPositionsReadWithHitsAtTheCentres) {
                         const float nan = std::nanf("");
                         for (size_t i = 0; i + 4 <= d.size(); i += 4) std::memcpy(d.data() + i, &nan, 4);
                       }}) {
-    io::CmapFile g = io::readCmap(tmp / "m.cmap");
+    CmapFile g = readCmap(tmp / "m.cmap");
     for (auto& b : g.blocks) {
       if (b.tag == "EPOS") mutate(b.data);
     }
-    io::writeFileAtomic(tmp / "x.cmap", io::encodeCmap(g.header, g.blocks));
-    EXPECT_THROW(io::readTemporalMap(tmp / "x.cmap"), FormatError);
+    writeFileAtomic(tmp / "x.cmap", encodeCmap(g.header, g.blocks));
+    EXPECT_THROW(readTemporalMap(tmp / "x.cmap"), FormatError);
   }
 }
 
@@ -256,8 +256,8 @@ struct AppendedFile {
 
 AppendedFile writeAppended(const fs::path& path) {
   AppendedFile f;
-  io::writeTemporalMap(path, sampleMap(2), {});
-  f.stages.push_back(io::readTemporalMap(path));
+  writeTemporalMap(path, sampleMap(2), {});
+  f.stages.push_back(readTemporalMap(path));
   f.ends.push_back(fs::file_size(path));
   const struct {
     double time_s;
@@ -269,7 +269,7 @@ AppendedFile writeAppended(const fs::path& path) {
     const AddSettings options{a.replace, "seed " + std::to_string(a.seed)};
     TemporalMap next = f.stages.back();
     next.add(a.time_s, session, options);
-    io::appendToFile(path, f.ends.back(), io::encodeSessionRecord(a.time_s, session, options));
+    appendToFile(path, f.ends.back(), encodeSessionRecord(a.time_s, session, options));
     f.stages.push_back(std::move(next));
     f.ends.push_back(fs::file_size(path));
   }
@@ -279,10 +279,10 @@ AppendedFile writeAppended(const fs::path& path) {
 TEST(TemporalFile, AppendedSessionsReadBackAsTheMapThatAddedThem) {
   test::TempDir tmp;
   const AppendedFile f = writeAppended(tmp / "m.cmap");
-  io::TemporalFileLayout layout;
-  const TemporalMap back = io::readTemporalMap(tmp / "m.cmap", &layout);
+  TemporalFileLayout layout;
+  const TemporalMap back = readTemporalMap(tmp / "m.cmap", &layout);
   // As the add that wrote the last record held it, but for the positions the file quantises.
-  EXPECT_TRUE(back == io::asStored(f.stages.back()));
+  EXPECT_TRUE(back == asStored(f.stages.back()));
   EXPECT_EQ(back.times(), (std::vector<double>{1000.0, 1500.0, 2000.0, 3000.0}));
   EXPECT_EQ(layout.appended_sessions, 3u);
   EXPECT_EQ(layout.base_bytes, f.ends.front());
@@ -293,12 +293,12 @@ TEST(TemporalFile, AppendedSessionsReadBackAsTheMapThatAddedThem) {
   direct.add(3000.0, test::randomSessionMap(3), {false, "seed 3"});
   direct.add(1500.0, test::randomSessionMap(4), {false, "seed 4"});
   direct.add(3000.0, test::randomSessionMap(5), {true, "seed 5"});
-  EXPECT_TRUE(back == io::asStored(direct));
-  io::writeTemporalMap(tmp / "whole.cmap", back, {});
-  io::TemporalFileLayout whole;
+  EXPECT_TRUE(back == asStored(direct));
+  writeTemporalMap(tmp / "whole.cmap", back, {});
+  TemporalFileLayout whole;
   TemporalMap compacted = direct;
   compacted.compact();  // as every whole write does
-  EXPECT_TRUE(io::readTemporalMap(tmp / "whole.cmap", &whole) == io::asStored(compacted));
+  EXPECT_TRUE(readTemporalMap(tmp / "whole.cmap", &whole) == asStored(compacted));
   EXPECT_EQ(whole.appended_sessions, 0u);
 }
 
@@ -326,19 +326,19 @@ SessionMap allFree() {
 TEST(TemporalFile, AMapBuiltInMemoryAnswersAsItsFile) {
   // Hit positions are kept in memory as the file keeps them, so the map that add() built and
   // the same map written and read back give the same snapshots and histories, bit for bit,
-  // but for what format version 3 quantises besides (lengths, colour sums: io::asStored).
+  // but for what format version 3 quantises besides (lengths, colour sums: asStored).
   test::TempDir tmp;
   TemporalMap map = sampleMap(3, 21);
   map.add(1500.0, test::randomSessionMap(31), {false, "out of order"});
   map.add(2000.0, test::randomSessionMap(32), {true, "replaced"});
-  io::writeTemporalMap(tmp / "m.cmap", map, {});
-  const TemporalMap back = io::readTemporalMap(tmp / "m.cmap");
+  writeTemporalMap(tmp / "m.cmap", map, {});
+  const TemporalMap back = readTemporalMap(tmp / "m.cmap");
   TemporalMap compacted = map;
   compacted.compact();  // as the write did: histories of merged lists are one level up
   std::vector<double> times = map.times();
   times.push_back(times.back() + 1.0);
   times.push_back(times.front() - 1.0);
-  const TemporalMap stored = io::asStored(compacted);
+  const TemporalMap stored = asStored(compacted);
   for (double t : times) {
     expectSameSnapshot(stored, back, t);
     // Positions are kept in memory as the file keeps them: they read back bit for bit.
@@ -358,7 +358,7 @@ TEST(TemporalFile, AMapBuiltInMemoryAnswersAsItsFile) {
       for (size_t i = 0; i < a.size(); ++i) {
         ASSERT_EQ(a[i].time_s, b[i].time_s);
         ASSERT_EQ(a[i].level, b[i].level);
-        ASSERT_EQ(io::asStored(a[i].counters), b[i].counters);
+        ASSERT_EQ(asStored(a[i].counters), b[i].counters);
         for (int axis = 0; axis < 3; ++axis) ASSERT_EQ(a[i].counters.offset[axis], b[i].counters.offset[axis]);
         with_hits += a[i].counters.hits > 0 && a[i].counters.meanOffset(0) != 0.0;
       }
@@ -374,7 +374,7 @@ TEST(TemporalFile, AMapBuiltInMemoryAnswersAsItsFile) {
     if (leaf.level > 0 || leaf.counters.hits == 0) return;
     const auto v = one.valueAt(leaf.key, 1000.0);
     ASSERT_TRUE(v.has_value());
-    for (int axis = 0; axis < 3; ++axis) ASSERT_EQ(v->offset[axis], io::asStored(leaf.counters).offset[axis]);
+    for (int axis = 0; axis < 3; ++axis) ASSERT_EQ(v->offset[axis], asStored(leaf.counters).offset[axis]);
   });
 }
 
@@ -389,9 +389,9 @@ TEST(TemporalFile, CoarseEntriesAreRebuiltOnRead) {
     map.add(times[i], i % 2 ? allFree() : test::randomSessionMap(static_cast<uint64_t>(10 + i)));
   }
   map.add(2000, allFree(), AddSettings{true, "replaced"});
-  io::writeTemporalMap(tmp / "m.cmap", map, {});
-  const TemporalMap back = io::readTemporalMap(tmp / "m.cmap");
-  const TemporalMap stored = io::asStored(map);
+  writeTemporalMap(tmp / "m.cmap", map, {});
+  const TemporalMap back = readTemporalMap(tmp / "m.cmap");
+  const TemporalMap stored = asStored(map);
   size_t coarse_total = 0;
   for (double t : map.times()) {
     expectSameSnapshot(stored, back, t);
@@ -404,8 +404,8 @@ TEST(TemporalFile, CoarseEntriesAreRebuiltOnRead) {
   EXPECT_EQ(back.snapshot(2000).leafCount(), 1u) << "at 2000 the whole block reads free";
 
   const AppendedFile f = writeAppended(tmp / "a.cmap");
-  const TemporalMap appended = io::readTemporalMap(tmp / "a.cmap");
-  const TemporalMap stored_stage = io::asStored(f.stages.back());
+  const TemporalMap appended = readTemporalMap(tmp / "a.cmap");
+  const TemporalMap stored_stage = asStored(f.stages.back());
   for (double t : appended.times()) expectSameSnapshot(appended, stored_stage, t);
 }
 
@@ -422,15 +422,15 @@ TEST(TemporalFile, AnInterruptedAppendLeavesThePreviousMap) {
     for (int i = 0; i < 12; ++i) cuts.push_back(begin + 1 + rng() % (end - begin - 1));
     for (uint64_t cut : cuts) {
       writeBytes(tmp / "t.cmap", std::vector<uint8_t>(good.begin(), good.begin() + static_cast<long>(cut)));
-      io::TemporalFileLayout layout;
-      const TemporalMap back = io::readTemporalMap(tmp / "t.cmap", &layout);
-      ASSERT_TRUE(back == io::asStored(f.stages[k])) << "record " << k + 1 << " cut after " << cut - begin << " bytes";
+      TemporalFileLayout layout;
+      const TemporalMap back = readTemporalMap(tmp / "t.cmap", &layout);
+      ASSERT_TRUE(back == asStored(f.stages[k])) << "record " << k + 1 << " cut after " << cut - begin << " bytes";
       EXPECT_EQ(layout.appended_sessions, k);
       EXPECT_EQ(layout.incomplete_tail_bytes, cut - begin);
       // Appending the record again cuts the interrupted one off first.
       const std::vector<uint8_t> record(good.begin() + static_cast<long>(begin), good.begin() + static_cast<long>(end));
-      io::appendToFile(tmp / "t.cmap", layout.completeBytes(), record);
-      ASSERT_TRUE(io::readTemporalMap(tmp / "t.cmap") == io::asStored(f.stages[k + 1]));
+      appendToFile(tmp / "t.cmap", layout.completeBytes(), record);
+      ASSERT_TRUE(readTemporalMap(tmp / "t.cmap") == asStored(f.stages[k + 1]));
     }
   }
 }
@@ -445,7 +445,7 @@ TEST(TemporalFile, CorruptOrCraftedAppendedRecordsAreRejected) {
     bad[at] ^= 0x21;
     writeBytes(tmp / "c.cmap", bad);
     try {
-      io::readTemporalMap(tmp / "c.cmap");
+      readTemporalMap(tmp / "c.cmap");
       FAIL() << "byte " << at << " flipped was accepted";
     } catch (const FormatError& e) {
       EXPECT_NE(std::string(e.what()).find("appended record"), std::string::npos) << e.what();
@@ -462,40 +462,40 @@ TEST(TemporalFile, CorruptOrCraftedAppendedRecordsAreRejected) {
   const SessionMap session = test::randomSessionMap(9);
   auto expectRejected = [&](const std::vector<uint8_t>& record, const std::string& words) {
     try {
-      io::readTemporalMap(withRecord(record));
+      readTemporalMap(withRecord(record));
       FAIL() << "accepted; expected: " << words;
     } catch (const FormatError& e) {
       EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
     }
   };
   // A time the base already holds, without replace.
-  expectRejected(io::encodeSessionRecord(1000.0, session, {}), "cannot be added again");
-  expectRejected(io::encodeAppendRecord({"XTRA", {1, 2, 3}}), "unknown tag");
-  expectRejected(io::encodeAppendRecord({"ADDS", {1, 2, 3}}), "appended session 1");
-  expectRejected(io::encodeAppendRecord({"ADDS", io::encodeSessionMap(session, {{"time_s", 5.0}}, 0)}),
+  expectRejected(encodeSessionRecord(1000.0, session, {}), "cannot be added again");
+  expectRejected(encodeAppendRecord({"XTRA", {1, 2, 3}}), "unknown tag");
+  expectRejected(encodeAppendRecord({"ADDS", {1, 2, 3}}), "appended session 1");
+  expectRejected(encodeAppendRecord({"ADDS", encodeSessionMap(session, {{"time_s", 5.0}}, 0)}),
                  "description is malformed");
-  expectRejected(io::encodeAppendRecord({"ADDS", io::encodeSessionMap(test::randomSessionMap(9, 16, 0.1, 0.1),
+  expectRejected(encodeAppendRecord({"ADDS", encodeSessionMap(test::randomSessionMap(9, 16, 0.1, 0.1),
                                                                       {{"time_s", 5.0}, {"replace", false}, {"name", ""}}, 0)}),
                  "resolution");
   // Session and diff files take no records at all.
-  io::writeSessionMap(tmp / "s.cmap", session, {});
+  writeSessionMap(tmp / "s.cmap", session, {});
   auto s_bytes = bytesOf(tmp / "s.cmap");
-  const auto record = io::encodeSessionRecord(5.0, session, {});
+  const auto record = encodeSessionRecord(5.0, session, {});
   s_bytes.insert(s_bytes.end(), record.begin(), record.end());
   writeBytes(tmp / "s.cmap", s_bytes);
-  EXPECT_THROW(io::readSessionMap(tmp / "s.cmap"), FormatError);
+  EXPECT_THROW(readSessionMap(tmp / "s.cmap"), FormatError);
 }
 
 TEST(TemporalFile, AFailedAppendLeavesTheFileAsItWas) {
   test::TempDir tmp;
-  io::writeTemporalMap(tmp / "m.cmap", sampleMap(2), {});
+  writeTemporalMap(tmp / "m.cmap", sampleMap(2), {});
   const auto before = bytesOf(tmp / "m.cmap");
-  const auto record = io::encodeSessionRecord(3000.0, test::randomSessionMap(3, 32, 0.3), {});
+  const auto record = encodeSessionRecord(3000.0, test::randomSessionMap(3, 32, 0.3), {});
   // A file-size limit just above the current size makes the write fail part-way (as a full
   // disk does), in a child process so that the limit stays there.
   const int code = test::exitCodeUnderFileSizeLimit(before.size() + 100, [&] {
     try {
-      io::appendToFile(tmp / "m.cmap", before.size(), record);
+      appendToFile(tmp / "m.cmap", before.size(), record);
     } catch (const IoError& e) {
       return std::string(e.what()).find("the map is unchanged") != std::string::npos ? 3 : 4;
     }
@@ -504,7 +504,7 @@ TEST(TemporalFile, AFailedAppendLeavesTheFileAsItWas) {
   EXPECT_EQ(code, 3);
   EXPECT_EQ(bytesOf(tmp / "m.cmap"), before);
   // A file that is shorter than what was read is refused, not extended.
-  EXPECT_THROW(io::appendToFile(tmp / "m.cmap", before.size() + 1, record), IoError);
+  EXPECT_THROW(appendToFile(tmp / "m.cmap", before.size() + 1, record), IoError);
   EXPECT_EQ(bytesOf(tmp / "m.cmap"), before);
 }
 

@@ -9,8 +9,8 @@
 
 #include "chronomap/analysis/segment.h"
 #include "chronomap/core/error.h"
-#include "chronomap/io/temporal_file.h"
-#include "chronomap/io/tiled_file.h"
+#include "chronomap/store/temporal_file.h"
+#include "chronomap/store/tiled_file.h"
 #include "chronomap/pipeline/tiles.h"
 #include "chronomap/temporal/tiles.h"
 #include "test_support.h"
@@ -154,8 +154,8 @@ TEST_P(TilesProperty, QueriesThroughTilesAnswerAsTheWholeMap) {
   // Levels 1 and 2 write tens to hundreds of files (each flushed to disk): the split test covers them.
   const int level = 3 + static_cast<int>(rng() % 3);
   test::TempDir dir;
-  io::writeTiledMap(dir / "tiled", splitIntoTiles(map, level), nlohmann::json::object());
-  pipeline::TiledMap tiled(dir / "tiled", {0});
+  writeTiledMap(dir / "tiled", splitIntoTiles(map, level), nlohmann::json::object());
+  TiledMap tiled(dir / "tiled", {0});
   ASSERT_EQ(tiled.sessions().size(), map.sessionCount());
 
   std::vector<double> times{sessionTime(0) - 1.0};
@@ -163,9 +163,9 @@ TEST_P(TilesProperty, QueriesThroughTilesAnswerAsTheWholeMap) {
   for (const double t : times) EXPECT_TRUE(tiled.snapshot(t) == map.snapshot(t)) << "level " << level << " t " << t;
 
   // A region: every voxel in the box reads as in the whole snapshot.
-  const pipeline::VoxelBox box{at(kLo + static_cast<int>(rng() % 8), kLo + static_cast<int>(rng() % 8), kLo),
+  const VoxelBox box{at(kLo + static_cast<int>(rng() % 8), kLo + static_cast<int>(rng() % 8), kLo),
                      at(kLo + 8 + static_cast<int>(rng() % 8), kHi - 1, kLo + 4 + static_cast<int>(rng() % 8))};
-  const pipeline::VoxelBox& region = box;
+  const VoxelBox& region = box;
   const double t = times[1 + rng() % 6];
   const SessionMap whole = map.snapshot(t);
   const SessionMap part = tiled.snapshot(t, region);
@@ -202,7 +202,7 @@ TEST_P(TilesProperty, QueriesThroughTilesAnswerAsTheWholeMap) {
 TEST_P(TilesProperty, AFolderJoinsBackToTheSameFile) {
   const TemporalMap map = randomMap(GetParam(), 4);
   test::TempDir dir;
-  io::writeTemporalMap(dir / "map.cmap", map, {{"k", 1}});
+  writeTemporalMap(dir / "map.cmap", map, {{"k", 1}});
   pipeline::TileSettings s;
   s.map = dir / "map.cmap";
   s.folder = dir / "tiled";
@@ -210,31 +210,31 @@ TEST_P(TilesProperty, AFolderJoinsBackToTheSameFile) {
   const pipeline::TileResult r = pipeline::tileMap(s);
   EXPECT_GT(r.tiles, 0u);
   EXPECT_EQ(pipeline::untileMap(dir / "tiled", dir / "back.cmap"), map.sessionCount());
-  EXPECT_TRUE(io::readTemporalMap(dir / "back.cmap") == map);
-  io::writeTemporalMap(dir / "again.cmap", io::readTemporalMap(dir / "back.cmap"), {{"k", 1}});
-  io::writeTemporalMap(dir / "orig.cmap", map, {{"k", 1}});
+  EXPECT_TRUE(readTemporalMap(dir / "back.cmap") == map);
+  writeTemporalMap(dir / "again.cmap", readTemporalMap(dir / "back.cmap"), {{"k", 1}});
+  writeTemporalMap(dir / "orig.cmap", map, {{"k", 1}});
   EXPECT_EQ(test::bytesOf(dir / "again.cmap"), test::bytesOf(dir / "orig.cmap"));
 }
 
 TEST_P(TilesProperty, ASmallBudgetIsRespectedAndAnswersStayTheSame) {
   const TemporalMap map = randomMap(GetParam(), 5);
   test::TempDir dir;
-  io::writeTiledMap(dir / "tiled", splitIntoTiles(map, 3), nlohmann::json::object());
+  writeTiledMap(dir / "tiled", splitIntoTiles(map, 3), nlohmann::json::object());
   size_t largest = 0;
   {
-    pipeline::TiledMap all(dir / "tiled", {0});
+    TiledMap all(dir / "tiled", {0});
     for (const TileKey& k : all.tilesMeeting(std::nullopt)) largest = std::max(largest, all.tile(k)->memoryBytes());
     EXPECT_EQ(all.cacheStats().evictions, 0u);
   }
   const size_t limit = 3 * largest;
-  pipeline::TiledMap tiled(dir / "tiled", {limit});
+  TiledMap tiled(dir / "tiled", {limit});
   const double t = sessionTime(3);
   EXPECT_TRUE(tiled.snapshot(t) == map.snapshot(t));
   DiffSettings s;
   s.neighbourhood_voxels = 1;
   EXPECT_TRUE(tiled.diff(sessionTime(1), t, s) == diff(map, sessionTime(1), t, s));
   for (const VoxelKey& k : regionKeys()) ASSERT_TRUE(sameHistory(tiled.history(k), map.history(k)));
-  const pipeline::TileCacheStats& c = tiled.cacheStats();
+  const TileCacheStats& c = tiled.cacheStats();
   EXPECT_LE(c.peak_resident_bytes, limit);
   EXPECT_LE(c.resident_bytes, limit);
   EXPECT_GT(c.evictions, 0u);
@@ -259,8 +259,8 @@ TEST(Tiles, AnObjectAcrossATileBorderIsOneObject) {
   map.add(sessionTime(0), before);
   map.add(sessionTime(1), after);
   test::TempDir dir;
-  io::writeTiledMap(dir / "tiled", splitIntoTiles(map, 2), nlohmann::json::object());
-  pipeline::TiledMap tiled(dir / "tiled", {0});
+  writeTiledMap(dir / "tiled", splitIntoTiles(map, 2), nlohmann::json::object());
+  TiledMap tiled(dir / "tiled", {0});
   DiffMap d;
   const Segmentation seg = pipeline::segmentTiledDiff(tiled, sessionTime(0), sessionTime(1), {}, {}, std::nullopt, &d);
   std::vector<TileKey> touched;
@@ -280,9 +280,9 @@ TEST(Tiles, AnObjectAcrossATileBorderIsOneObject) {
 TEST(Tiles, ARegionTouchesOnlyTheTilesItNeeds) {
   const TemporalMap map = randomMap(3, 4);
   test::TempDir dir;
-  io::writeTiledMap(dir / "tiled", splitIntoTiles(map, 3), nlohmann::json::object());
-  pipeline::TiledMap tiled(dir / "tiled", {0});
-  const pipeline::VoxelBox box{at(0, 0, 0), at(7, 7, 7)};  // exactly one tile
+  writeTiledMap(dir / "tiled", splitIntoTiles(map, 3), nlohmann::json::object());
+  TiledMap tiled(dir / "tiled", {0});
+  const VoxelBox box{at(0, 0, 0), at(7, 7, 7)};  // exactly one tile
   tiled.snapshot(sessionTime(3), box);  // the last session: the tile's latest state alone
   EXPECT_EQ(tiled.cacheStats().latest_reads, 1u);
   EXPECT_EQ(tiled.cacheStats().loads, 0u);
@@ -293,7 +293,7 @@ TEST(Tiles, ARegionTouchesOnlyTheTilesItNeeds) {
   EXPECT_EQ(tiled.cacheStats().loads, 1u);
   const TileKey first = tileOf(at(0, 0, 0), 3);
   const auto other = std::find_if(tiled.index().tiles.begin(), tiled.index().tiles.end(),
-                                  [&](const io::TileEntry& e) { return !(e.key == first); });
+                                  [&](const TileEntry& e) { return !(e.key == first); });
   ASSERT_NE(other, tiled.index().tiles.end());
   tiled.history(tileCorner(other->key, 3));  // a voxel of another tile: that tile alone
   EXPECT_EQ(tiled.cacheStats().loads, 2u);
@@ -313,13 +313,13 @@ TEST(Tiles, BadInputGivesOneClearError) {
   const TemporalMap map = randomMap(5, 3);
   test::TempDir dir;
   const SplitMap split = splitIntoTiles(map, 3);
-  io::writeTiledMap(dir / "tiled", split, nlohmann::json::object());
-  const io::TileIndex index = io::readTileIndex(dir / "tiled");
+  writeTiledMap(dir / "tiled", split, nlohmann::json::object());
+  const TileIndex index = readTileIndex(dir / "tiled");
   ASSERT_GE(index.tiles.size(), 2u);
 
   // A missing tile: the index opens, the query that needs the tile fails naming it.
   fs::remove(dir / "tiled" / index.tiles[0].file);
-  pipeline::TiledMap tiled(dir / "tiled", {0});
+  TiledMap tiled(dir / "tiled", {0});
   try {
     tiled.snapshot(sessionTime(1));
     FAIL() << "no error";
@@ -344,21 +344,21 @@ TEST(Tiles, BadInputGivesOneClearError) {
   std::vector<uint8_t> bytes = test::bytesOf(dir / "tiled" / index.tiles[1].file);
   bytes[bytes.size() / 2] ^= 0x40;
   test::writeBytes(dir / "tiled" / index.tiles[1].file, bytes);
-  EXPECT_THROW(io::readTile(dir / "tiled", index, index.tiles[1]), FormatError);
+  EXPECT_THROW(readTile(dir / "tiled", index, index.tiles[1]), FormatError);
 
   // A corrupt index.
-  std::vector<uint8_t> idx = test::bytesOf(dir / "tiled" / io::kTileIndexName);
+  std::vector<uint8_t> idx = test::bytesOf(dir / "tiled" / kTileIndexName);
   for (size_t at_byte : {size_t{5}, size_t{14}, idx.size() / 2, idx.size() - 3}) {
     std::vector<uint8_t> bad = idx;
     bad[at_byte] ^= 0x21;
-    EXPECT_THROW(io::decodeTileIndex(bad, "index"), FormatError) << at_byte;
+    EXPECT_THROW(decodeTileIndex(bad, "index"), FormatError) << at_byte;
   }
   idx.resize(idx.size() - 7);
-  EXPECT_THROW(io::decodeTileIndex(idx, "index"), FormatError);
+  EXPECT_THROW(decodeTileIndex(idx, "index"), FormatError);
   // A 4D map is not an index, nor is a folder without one.
-  io::writeTemporalMap(dir / "map.cmap", map, {});
-  EXPECT_THROW(io::decodeTileIndex(test::bytesOf(dir / "map.cmap"), "map"), FormatError);
-  EXPECT_THROW(io::readTileIndex(dir.path()), IoError);
+  writeTemporalMap(dir / "map.cmap", map, {});
+  EXPECT_THROW(decodeTileIndex(test::bytesOf(dir / "map.cmap"), "map"), FormatError);
+  EXPECT_THROW(readTileIndex(dir.path()), IoError);
 
   // A tile whose sessions' table disagrees with the index's: one session fewer.
   TemporalMap shorter = map;
@@ -367,10 +367,10 @@ TEST(Tiles, BadInputGivesOneClearError) {
   const SplitMap other = splitIntoTiles(shorter, 3);
   SplitMap mixed{3, split.top, {}};
   mixed.tiles.push_back(other.tiles[0]);
-  io::writeTiledMap(dir / "mixed", mixed, nlohmann::json::object());
-  const io::TileIndex mixed_index = io::readTileIndex(dir / "mixed");
+  writeTiledMap(dir / "mixed", mixed, nlohmann::json::object());
+  const TileIndex mixed_index = readTileIndex(dir / "mixed");
   try {
-    io::readTile(dir / "mixed", mixed_index, mixed_index.tiles[0]);
+    readTile(dir / "mixed", mixed_index, mixed_index.tiles[0]);
     FAIL() << "no error";
   } catch (const FormatError& e) {
     EXPECT_NE(std::string(e.what()).find("sessions"), std::string::npos) << e.what();
@@ -379,16 +379,16 @@ TEST(Tiles, BadInputGivesOneClearError) {
   // A tile filed under another tile's key.
   SplitMap moved{3, split.top, {}};
   moved.tiles.push_back(Tile{split.tiles[1].key, split.tiles[0].map});
-  io::writeTiledMap(dir / "moved", moved, nlohmann::json::object());
-  const io::TileIndex moved_index = io::readTileIndex(dir / "moved");
+  writeTiledMap(dir / "moved", moved, nlohmann::json::object());
+  const TileIndex moved_index = readTileIndex(dir / "moved");
   try {
-    io::readTile(dir / "moved", moved_index, moved_index.tiles[0]);
+    readTile(dir / "moved", moved_index, moved_index.tiles[0]);
     FAIL() << "no error";
   } catch (const FormatError& e) {
     EXPECT_NE(std::string(e.what()).find("outside its tile"), std::string::npos) << e.what();
   }
   try {
-    io::readLatestState(dir / "moved", moved_index, moved_index.tiles[0]);
+    readLatestState(dir / "moved", moved_index, moved_index.tiles[0]);
     FAIL() << "no error";
   } catch (const FormatError& e) {
     EXPECT_NE(std::string(e.what()).find("outside its tile"), std::string::npos) << e.what();

@@ -11,7 +11,7 @@
 #include <random>
 #include <sstream>
 
-#include "chronomap/io/cloud_io.h"
+#include "chronomap/ingest/cloud_io.h"
 
 namespace chronomap::test {
 
@@ -145,7 +145,7 @@ fs::path writeWallDataset(const fs::path& dir, const std::string& name, float wa
   }
   cloud.width = static_cast<uint32_t>(cloud.points.size());
   const fs::path list = dir / (name + ".txt");
-  io::writePly(dir / (name + ".ply"), cloud);
+  writePly(dir / (name + ".ply"), cloud);
   std::ofstream(list) << name << ".ply 0 0 0 0 0 0 1\n";
   return list;
 }

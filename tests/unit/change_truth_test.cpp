@@ -5,7 +5,7 @@
 #include "chronomap/analysis/diff.h"
 #include "chronomap/analysis/segment.h"
 #include "chronomap/core/error.h"
-#include "chronomap/io/file.h"
+#include "chronomap/core/file.h"
 #include "chronomap/sim/change_truth.h"
 #include "test_support.h"
 
@@ -149,7 +149,7 @@ TEST(ChangeTruth, ReadsTheEventsOfASceneAndRejectsUnknownKinds) {
   const auto write = [&](const std::string& kind) {
     const std::string text = R"({"events": [{"from_session": 1, "to_session": 2, "object": 7, "object_kind": "chair",
                                  "kind": ")" + kind + R"(", "voxel_count": 1, "voxels": [[1, 2, 3]]}]})";
-    io::writeFileAtomic(tmp / "scene.json", std::vector<uint8_t>(text.begin(), text.end()));
+    writeFileAtomic(tmp / "scene.json", std::vector<uint8_t>(text.begin(), text.end()));
     return tmp / "scene.json";
   };
   const std::vector<ChangeEvent> events = readTruthEvents(write("door_closed"));

@@ -11,6 +11,7 @@
 
 #include "builders.h"
 #include "chronomap/analysis/colour.h"
+#include "chronomap/store/colour_file.h"
 #include "chronomap/core/error.h"
 
 namespace chronomap {

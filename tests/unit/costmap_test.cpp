@@ -8,8 +8,8 @@
 #include "builders.h"
 #include "chronomap/analysis/costmap.h"
 #include "chronomap/core/error.h"
-#include "chronomap/io/file.h"
-#include "chronomap/io/map_server.h"
+#include "chronomap/core/file.h"
+#include "chronomap/export/map_server.h"
 #include "test_support.h"
 
 namespace chronomap {
@@ -122,14 +122,14 @@ TEST(Costmap, MapServerFilesFollowTheConventions) {
   c.width = 3;
   c.height = 2;
   c.cost = {0, 50, 100, -1, 99, 0};  // row y = 0, then y = 1
-  const auto pgm = io::writeMapServer(tmp / "cost.yaml", c);
+  const auto pgm = writeMapServer(tmp / "cost.yaml", c);
   EXPECT_EQ(pgm, tmp / "cost.pgm");
-  const std::string yaml = io::readTextFile(tmp / "cost.yaml");
+  const std::string yaml = readTextFile(tmp / "cost.yaml");
   for (const char* field : {"image: cost.pgm\n", "resolution: 0.050000\n", "origin: [1.500000, -2.000000, 0.0]\n",
                             "negate: 0\n", "occupied_thresh: 0.65\n", "free_thresh: 0.196\n", "mode: scale\n"}) {
     EXPECT_NE(yaml.find(field), std::string::npos) << field;
   }
-  const std::vector<uint8_t> bytes = io::readFileBytes(pgm);
+  const std::vector<uint8_t> bytes = readFileBytes(pgm);
   const std::string header = "P5\n3 2\n255\n";
   ASSERT_EQ(bytes.size(), header.size() + 6);
   EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + static_cast<long>(header.size())), header);

@@ -10,7 +10,7 @@
 #include "chronomap/core/error.h"
 #include "chronomap/integrate/incremental.h"
 #include "chronomap/integrate/integrator.h"
-#include "chronomap/io/cmap.h"
+#include "chronomap/store/cmap.h"
 #include "chronomap/sim/box_room.h"
 #include "test_support.h"
 
@@ -370,16 +370,16 @@ TEST(Integrator, ResultsDoNotDependOnThreadCount) {
       s.fast = fast;
       s.threads = threads;
       integrate(frames, map, s);
-      io::CmapHeader h;
+      CmapHeader h;
       h.resolution_m = map.resolution_m();
-      std::vector<io::CmapBlock> blocks(2);
+      std::vector<CmapBlock> blocks(2);
       blocks[0].tag = "INNR";
       blocks[0].data.assign(reinterpret_cast<const uint8_t*>(map.innerPool().data()),
                             reinterpret_cast<const uint8_t*>(map.innerPool().data() + map.innerPool().size()));
       blocks[1].tag = "LEAF";
       blocks[1].data.assign(reinterpret_cast<const uint8_t*>(map.leafPool().data()),
                             reinterpret_cast<const uint8_t*>(map.leafPool().data() + map.leafPool().size()));
-      const auto bytes = io::encodeCmap(h, blocks, 0);
+      const auto bytes = encodeCmap(h, blocks, 0);
       if (threads == 1) {
         reference = bytes;
       } else {
@@ -403,7 +403,7 @@ TEST(Integrator, FrameByFrameGivesTheMapOfAllFramesAtOnce) {
     EXPECT_EQ(incremental.stats().frames, frames.size());
     const SessionMap one_by_one = incremental.finish();
     EXPECT_TRUE(one_by_one == all) << "fast=" << fast;
-    EXPECT_EQ(io::encodeSessionMap(one_by_one, {}), io::encodeSessionMap(all, {})) << "fast=" << fast;
+    EXPECT_EQ(encodeSessionMap(one_by_one, {}), encodeSessionMap(all, {})) << "fast=" << fast;
     EXPECT_TRUE(incremental.map().empty());
     EXPECT_EQ(incremental.stats().frames, 0u);
   }

@@ -11,6 +11,7 @@
 
 #include "builders.h"
 #include "chronomap/analysis/rhythm.h"
+#include "chronomap/store/rhythm_file.h"
 #include "chronomap/core/error.h"
 
 namespace chronomap {

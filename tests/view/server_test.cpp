@@ -14,7 +14,7 @@
 #include <unistd.h>
 
 #include "chronomap/core/error.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/store/temporal_file.h"
 #include "chronomap/view/packet.h"
 #include "chronomap/view/scene.h"
 #include "chronomap/view/server.h"
@@ -183,7 +183,7 @@ TEST(ViewServer, AnAddressInUseIsAnError) {
 
 TEST(ViewCli, ViewPrintsTheAddressAndServesTheMap) {
   test::TempDir dir;
-  io::writeTemporalMap(dir / "three.cmap", threeSessions(), {});
+  writeTemporalMap(dir / "three.cmap", threeSessions(), {});
   const std::string out = (dir / "view.out").string();
   const pid_t pid = fork();
   ASSERT_GE(pid, 0);
@@ -215,7 +215,7 @@ TEST(ViewCli, ViewPrintsTheAddressAndServesTheMap) {
 
 TEST(ViewCli, ExportHtmlWritesATourAndRefusesSessionMapsForIt) {
   test::TempDir dir;
-  io::writeTemporalMap(dir / "three.cmap", threeSessions(), {});
+  writeTemporalMap(dir / "three.cmap", threeSessions(), {});
   const auto r = test::runCommand(test::cli() + " export " + (dir / "three.cmap").string() + " -o " +
                                   (dir / "tour.html").string() + " --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;

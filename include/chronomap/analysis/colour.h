@@ -86,14 +86,7 @@ struct ColourModel {
   size_t bytes() const { return keys.size() * bytesPerVoxel() + 8 * curves.size(); }
 };
 
-/// Serialises a colour model (little-endian, versioned; docs/colour.md, "Saving a model"): magic
-/// "CMCO", version, kind (1: per-voxel weights under shared light curves), the curves, then per
-/// voxel its key and weights. deserializeColour() is its inverse.
-std::vector<uint8_t> serialize(const ColourModel& model);
-/// @throw FormatError naming `source` for bytes that are not a valid colour model (wrong magic,
-/// a newer version, an unknown kind, truncated, values out of range, voxels out of order, bytes
-/// after the last voxel).
-ColourModel deserializeColour(std::span<const uint8_t> bytes, const std::string& source);
+
 
 /// Fits the curves and weights of `voxels` voxels to observations (any order).
 /// @throw UsageError for bad settings; DataError when there is no observation, a voxel index

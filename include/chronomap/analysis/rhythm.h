@@ -170,9 +170,6 @@ double surfaceEvidence(const VoxelRhythm& rhythm);
 /// @throw UsageError when the models' resolution differs from the map's.
 SessionMap predictMap(const TemporalMap& map, const RhythmModels& models, RhythmModel model, double time_s);
 
-/// Serialises fitted models (little-endian, versioned); deserialise is its inverse.
-/// @throw FormatError naming `source` for bytes that are not a valid model.
-std::vector<uint8_t> serialize(const RhythmModels& models);
-RhythmModels deserializeRhythm(std::span<const uint8_t> bytes, const std::string& source);
+
 
 }  // namespace chronomap

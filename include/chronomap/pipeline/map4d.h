@@ -13,7 +13,7 @@
 
 #include "chronomap/align/pose_correction.h"
 #include "chronomap/align/realign.h"
-#include "chronomap/io/temporal_file.h"
+#include "chronomap/store/temporal_file.h"
 #include "chronomap/pipeline/progress.h"
 #include "chronomap/pipeline/session.h"
 #include "chronomap/temporal/temporal_map.h"
@@ -112,6 +112,6 @@ AddSessionResult addSession(const AddSessionSettings& settings);
 /// The 4D map at `path`, or a new one when the file does not exist (`created` says which).
 /// @throw UsageError when the stored map has another resolution.
 TemporalMap openOrCreate(const std::filesystem::path& path, double resolution_m, const ChangeCriterion& criterion,
-                         bool& created, io::TemporalFileLayout* layout = nullptr);
+                         bool& created, TemporalFileLayout* layout = nullptr);
 
 }  // namespace chronomap::pipeline

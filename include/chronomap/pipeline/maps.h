@@ -15,7 +15,7 @@
 #include "chronomap/analysis/colour.h"
 #include "chronomap/analysis/diff.h"
 #include "chronomap/analysis/segment.h"
-#include "chronomap/io/cmap.h"
+#include "chronomap/store/cmap.h"
 #include "chronomap/octree/session_map.h"
 #include "chronomap/pipeline/tiles.h"
 #include "chronomap/temporal/temporal_map.h"
@@ -35,7 +35,7 @@ MapRef parseMapRef(const std::string& text);
 /// The session map a reference names: the session file itself, or the 4D map's snapshot at the
 /// time. @throw UsageError when a session map is given a time, a 4D map none, or the file holds
 /// another kind of map.
-SessionMap loadSessionMap(const MapRef& ref, const io::CmapFile& file);
+SessionMap loadSessionMap(const MapRef& ref, const CmapFile& file);
 
 /// What changed from `before` to `after`. Two times of one 4D map visit only what changed in
 /// between; two times of one tiled map folder read its tiles through a cache under `cache`.

@@ -58,7 +58,7 @@ CostmapFiles costmapFiles(const std::filesystem::path& yaml);
 struct CostmapCounts {
   size_t unknown = 0, free = 0, costly = 0, blocked = 0;
 };
-/// Writes `costmap` as `files` (io::writeMapServer and render::renderCostmap), each atomically.
+/// Writes `costmap` as `files` (writeMapServer and render::renderCostmap), each atomically.
 /// @throw DataError naming `source` when the costmap is empty (nothing known in its band).
 CostmapCounts writeCostmap(const CostmapFiles& files, const Costmap& costmap, const std::string& source);
 

@@ -16,7 +16,9 @@
 #include "chronomap/align/pose_correction.h"
 #include "chronomap/align/register.h"
 #include "chronomap/integrate/integrator.h"
-#include "chronomap/io/dataset.h"
+#include "chronomap/ingest/dataset.h"
+#include "chronomap/ingest/registry.h"
+#include "chronomap/ingest/ros/rosbag.h"
 #include "chronomap/octree/session_map.h"
 #include "chronomap/pipeline/progress.h"
 
@@ -25,7 +27,7 @@ namespace chronomap::pipeline {
 /// How a recording becomes a session map: how it is read, and how it is integrated.
 struct SessionSettings {
   double resolution_m = 0.05;
-  io::DatasetSettings dataset;
+  DatasetSettings dataset;
   IntegratorSettings integrator;
 };
 
@@ -37,8 +39,20 @@ struct IntegratedSession {
   std::string format;                 ///< the layout that was read ("tum", "3dmatch", "clouds")
   size_t frames_dropped = 0;
   std::vector<Eigen::Vector3d> sensor_positions;  ///< of every frame, as recorded (before the correction)
-  std::string dropped_reasons;  ///< why frames were dropped, when the reader says (io::Dataset::droppedReasons)
+  std::string dropped_reasons;  ///< why frames were dropped, when the reader says (Dataset::droppedReasons)
 };
+
+/// Registers every reader this build has (the bag readers of ingest/ros when built with them)
+/// and returns them in detection order. Every front door calls it (or openRecording) before it
+/// names or opens a format; safe to call any number of times.
+std::vector<DatasetReader> registerReaders();
+
+/// The topics of a ROS 1 or ROS 2 bag (ingest/ros/rosbag.h's listBag).
+/// @throw UsageError when chronomap was built without the bag readers; as listBag otherwise.
+std::vector<BagTopic> listBagTopics(const std::filesystem::path& path);
+
+/// openDataset after registerReaders(): what the CLI, Python and the workflows open recordings with.
+std::unique_ptr<Dataset> openRecording(const std::filesystem::path& path, const DatasetSettings& settings = {});
 
 /// Opens and integrates the recording at `path`, every pose corrected by `correction`; reports
 /// the frames as work labelled `label` (none when empty).
@@ -61,7 +75,7 @@ struct RegistrationSettings {
   int rounds = 3;  ///< each against the consensus the previous one left, in [1, 10]
   RegisterSettings align;
   /// Registration reads every frame up to 8 times (each re-integration, each drift round): the
-  /// decoded depth images are kept between the reads up to this many bytes (io::DepthImageCache;
+  /// decoded depth images are kept between the reads up to this many bytes (DepthImageCache;
   /// about 154 KB a frame at 320 x 240, 2.5 GB for floor66's 66 sessions), so the PNG files
   /// are decoded once each. 0: none kept. The corrections do not depend on it.
   size_t depth_cache_bytes = defaultDepthCacheBytes();

@@ -1,0 +1,97 @@
+#pragma once
+/// @file
+/// A tiled 4D map on disk (docs/file-format.md, "Tiled 4D maps"): a folder holding `index.cmap`
+/// (a .cmap of kind "tiled": the top of the octree, the sessions' table once, and the table of
+/// tiles) and `tiles/X_Y_Z.cmap`, one 4D map per tile.
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json_fwd.hpp>
+
+#include "chronomap/temporal/tiles.h"
+
+namespace chronomap {
+
+/// The index's file name inside a tiled map's folder.
+inline constexpr const char* kTileIndexName = "index.cmap";
+
+/// A tile's state at the map's last session, kept beside its history (a session map file), so
+/// that a snapshot of the latest time reads what it shows, not every session's entries.
+struct LatestState {
+  std::string file;     ///< latestFileName(the tile's file)
+  uint64_t bytes = 0;   ///< size of the file
+  uint32_t crc32 = 0;   ///< CRC-32 of the file
+};
+
+/// One row of the tile table.
+struct TileEntry {
+  TileKey key;
+  std::string file;     ///< relative to the folder: tiles/X_Y_Z.cmap
+  uint64_t bytes = 0;   ///< size of the tile's file
+  uint32_t crc32 = 0;   ///< CRC-32 of the tile's file
+  std::optional<LatestState> latest;  ///< absent in folders written before it existed
+  /// Bytes the tile takes on disk: its file and its latest state's.
+  uint64_t diskBytes() const { return bytes + (latest ? latest->bytes : 0); }
+};
+
+/// A decoded tile index.
+struct TileIndex {
+  int tile_level = 0;
+  TemporalMap top;               ///< see SplitMap::top
+  std::vector<TileEntry> tiles;  ///< sorted by key
+  /// The row of tile `key`, or null when the map holds nothing there.
+  const TileEntry* find(const TileKey& key) const;
+};
+
+/// The file name a tile gets: tiles/X_Y_Z.cmap (tile coordinates, decimal), or, for a tile
+/// written by the streaming build's generation `generation` > 0, tiles/X_Y_Z.gN.cmap (so that
+/// new tiles never overwrite the files the current index names).
+std::string tileFileName(const TileKey& key, uint64_t generation = 0);
+/// The generation in a tile's file name when it is tileFileName(key, generation) for some
+/// generation; nothing otherwise.
+std::optional<uint64_t> tileGeneration(const TileKey& key, const std::string& file);
+/// The file name of a tile's latest state: its file's name with `.latest` before `.cmap`.
+std::string latestFileName(const std::string& tile_file);
+
+/// What writeTiledMap wrote.
+struct TiledWriteResult {
+  uint64_t index_bytes = 0;
+  uint64_t tile_bytes = 0;  ///< all tiles together, their latest states included
+  size_t tiles = 0;
+};
+
+/// Writes `split` into the folder `folder` as a whole (staged, then moved into place: an
+/// error leaves the folder as it was). `meta` (a JSON object) is stored in the index.
+TiledWriteResult writeTiledMap(const std::filesystem::path& folder, const SplitMap& split, const nlohmann::json& meta);
+
+/// Writes one tile's file (atomically) into the folder as tileFileName(key, generation), and
+/// its latest state beside it. @return its row of the tile table.
+TileEntry writeTileFile(const std::filesystem::path& folder, const TileKey& key, uint64_t generation,
+                        const TemporalMap& tile);
+/// Writes the index of a tiled map (atomically: the previous index stays until the rename).
+/// @return the bytes written.
+uint64_t writeTileIndex(const std::filesystem::path& folder, const TemporalMap& top, int tile_level,
+                        const std::vector<TileEntry>& tiles, const nlohmann::json& meta);
+
+/// Decodes an index file image. @throw FormatError naming `source`.
+TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& source);
+/// Reads `folder`/index.cmap. @throw IoError, FormatError.
+TileIndex readTileIndex(const std::filesystem::path& folder);
+/// Reads one tile, checking its size and checksum against the index and that it fits it
+/// (resolution, criterion, the sessions' times, nothing outside its cube).
+/// @throw IoError (missing file), FormatError naming the tile's file.
+TemporalMap readTile(const std::filesystem::path& folder, const TileIndex& index, const TileEntry& entry);
+
+/// Reads a tile's latest state (entry.latest must be set), checking its size and checksum
+/// against the index and that it lies inside the tile's cube at the index's resolution.
+/// @throw IoError (missing file), FormatError naming the file.
+SessionMap readLatestState(const std::filesystem::path& folder, const TileIndex& index, const TileEntry& entry);
+
+/// True when `path` is a folder holding an index.cmap.
+bool isTiledMap(const std::filesystem::path& path);
+
+}  // namespace chronomap

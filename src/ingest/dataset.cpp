@@ -1,0 +1,93 @@
+#include "chronomap/ingest/dataset.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "chronomap/core/error.h"
+#include "chronomap/core/file.h"
+#include "chronomap/ingest/registry.h"
+#include "text_util.h"
+
+namespace chronomap {
+
+namespace fs = std::filesystem;
+
+std::string parseDatasetFormat(const std::string& name) {
+  if (name == "auto") return name;
+  if (const auto reader = findDatasetReader(name)) return reader->name;
+  std::string names = "auto";
+  const std::vector<DatasetReader> readers = datasetReaders();
+  for (size_t i = 0; i < readers.size(); ++i) names += (i + 1 == readers.size() ? " or " : ", ") + readers[i].name;
+  throw UsageError("unknown dataset format '" + name + "' (expected " + names + ")");
+}
+
+CameraIntrinsics parseIntrinsics(const std::string& text) {
+  std::string s = text;
+  std::replace(s.begin(), s.end(), ',', ' ');
+  const auto tok = splitWhitespace(s);
+  if (tok.size() != 4) throw UsageError("intrinsics '" + text + "' must be four numbers: fx,fy,cx,cy");
+  CameraIntrinsics k;
+  try {
+    k = {parseDouble(tok[0], "fx"), parseDouble(tok[1], "fy"), parseDouble(tok[2], "cx"), parseDouble(tok[3], "cy")};
+  } catch (const FormatError& e) {
+    throw UsageError(std::string("intrinsics: ") + e.what());
+  }
+  if (!(k.fx > 0 && k.fy > 0) || !std::isfinite(k.fx) || !std::isfinite(k.fy) || !std::isfinite(k.cx) ||
+      !std::isfinite(k.cy)) {
+    throw UsageError("intrinsics '" + text + "': focal lengths must be positive and all values finite");
+  }
+  return k;
+}
+
+CameraIntrinsics readIntrinsicsFile(const fs::path& path) {
+  return parseIntrinsicsText(readTextFile(path), path.string());
+}
+
+CameraIntrinsics parseIntrinsicsText(const std::string& text, const std::string& name) {
+  std::vector<double> v;
+  for (const auto& [number, line] : contentLines(text)) {
+    for (const auto& t : splitWhitespace(line)) v.push_back(parseDouble(t, name + ":" + std::to_string(number)));
+  }
+  CameraIntrinsics k;
+  if (v.size() == 9) {
+    k = {v[0], v[4], v[2], v[5]};
+  } else if (v.size() == 16) {  // a 4x4 projection (ScanNet's intrinsic_*.txt)
+    k = {v[0], v[5], v[2], v[6]};
+  } else if (v.size() == 4) {
+    k = {v[0], v[1], v[2], v[3]};
+  } else {
+    throw FormatError(name + ": expected a 3x3 matrix or 'fx fy cx cy', found " + std::to_string(v.size()) + " numbers");
+  }
+  if (!(k.fx > 0 && k.fy > 0) || !std::isfinite(k.cx) || !std::isfinite(k.cy)) {
+    throw FormatError(name + ": focal lengths must be positive and all values finite");
+  }
+  return k;
+}
+
+Eigen::Matrix4d parseMatrix4(const std::string& text, const std::string& name) {
+  std::vector<double> v;
+  for (const auto& [number, line] : contentLines(text)) {
+    for (const auto& t : splitWhitespace(line)) v.push_back(parseDouble(t, name + ":" + std::to_string(number)));
+  }
+  if (v.size() != 16) throw FormatError(name + ": expected a 4x4 matrix, found " + std::to_string(v.size()) + " numbers");
+  Eigen::Matrix4d m;
+  for (int r = 0; r < 4; ++r) {
+    for (int c = 0; c < 4; ++c) m(r, c) = v[static_cast<size_t>(r) * 4 + static_cast<size_t>(c)];
+  }
+  return m;
+}
+
+std::unique_ptr<Dataset> openDataset(const fs::path& path, const DatasetSettings& options) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw UsageError(path.string() + ": no such file or folder");
+  if (options.depth_scale && !(*options.depth_scale > 0.0 && std::isfinite(*options.depth_scale))) {
+    throw UsageError("the depth scale must be a positive number of image units per metre, got " +
+                     std::to_string(*options.depth_scale));
+  }
+  const DatasetReader reader = options.format == "auto" ? detectDatasetReader(path)
+                                                          : *findDatasetReader(parseDatasetFormat(options.format));
+  if (!reader.takes_pose && options.pose) throw UsageError("--pose applies to a single cloud file");
+  return reader.open(path, options);
+}
+
+}  // namespace chronomap

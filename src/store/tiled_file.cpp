@@ -1,0 +1,229 @@
+#include "chronomap/store/tiled_file.h"
+
+#include <zlib.h>
+
+#include <algorithm>
+#include <nlohmann/json.hpp>
+
+#include "chronomap/core/error.h"
+#include "chronomap/store/cmap.h"
+#include "chronomap/core/file.h"
+#include "chronomap/store/temporal_file.h"
+
+namespace chronomap {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+/// Version of the tile table inside the index's metadata (the container has its own).
+constexpr int kTileTableVersion = 1;
+
+uint32_t crc32Of(const std::vector<uint8_t>& bytes) {
+  uLong c = crc32(0L, Z_NULL, 0);
+  size_t at = 0;
+  while (at < bytes.size()) {  // zlib takes 32-bit lengths
+    const auto n = static_cast<uInt>(std::min<size_t>(bytes.size() - at, 1u << 30));
+    c = crc32(c, bytes.data() + at, n);
+    at += n;
+  }
+  return static_cast<uint32_t>(c);
+}
+
+}  // namespace
+
+const TileEntry* TileIndex::find(const TileKey& key) const {
+  const auto it = std::lower_bound(tiles.begin(), tiles.end(), key,
+                                   [](const TileEntry& e, const TileKey& k) { return e.key < k; });
+  return it != tiles.end() && it->key == key ? &*it : nullptr;
+}
+
+std::string tileFileName(const TileKey& key, uint64_t generation) {
+  std::string name = "tiles/" + std::to_string(key.x) + "_" + std::to_string(key.y) + "_" + std::to_string(key.z);
+  if (generation > 0) name += ".g" + std::to_string(generation);
+  return name + ".cmap";
+}
+
+std::optional<uint64_t> tileGeneration(const TileKey& key, const std::string& file) {
+  if (file == tileFileName(key)) return 0;
+  const std::string stem = tileFileName(key);
+  const std::string head = stem.substr(0, stem.size() - 5) + ".g";
+  if (file.size() <= head.size() + 5 || file.compare(0, head.size(), head) != 0 ||
+      file.compare(file.size() - 5, 5, ".cmap") != 0) {
+    return std::nullopt;
+  }
+  const std::string digits = file.substr(head.size(), file.size() - head.size() - 5);
+  if (digits.empty() || digits.size() > 18 || digits[0] == '0' ||
+      !std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+    return std::nullopt;
+  }
+  return std::stoull(digits);
+}
+
+std::string latestFileName(const std::string& tile_file) {
+  return tile_file.substr(0, tile_file.size() - 5) + ".latest.cmap";
+}
+
+namespace {
+
+/// Writes a tile's file and its latest state under `name` in `folder`; its row of the table.
+TileEntry writeTileAndLatest(const fs::path& folder, const TileKey& key, const std::string& name,
+                             const TemporalMap& tile) {
+  const std::vector<uint8_t> bytes = encodeTemporalMap(tile, nlohmann::json::object());
+  TileEntry e{key, name, bytes.size(), crc32Of(bytes), std::nullopt};
+  writeFileAtomic(folder / e.file, bytes);
+  if (tile.sessionCount() > 0) {
+    const SessionMap state = tile.snapshot(tile.sessions().back().time_s);
+    const std::vector<uint8_t> latest = encodeSessionMap(state, nlohmann::json::object());
+    e.latest = LatestState{latestFileName(name), latest.size(), crc32Of(latest)};
+    writeFileAtomic(folder / e.latest->file, latest);
+  }
+  return e;
+}
+
+nlohmann::json rowOf(const TileEntry& t) {
+  nlohmann::json row = {{"key", {t.key.x, t.key.y, t.key.z}}, {"file", t.file}, {"bytes", t.bytes}, {"crc32", t.crc32}};
+  if (t.latest) {
+    row["latest"] = {{"file", t.latest->file}, {"bytes", t.latest->bytes}, {"crc32", t.latest->crc32}};
+  }
+  return row;
+}
+
+}  // namespace
+
+TiledWriteResult writeTiledMap(const fs::path& folder, const SplitMap& split, const nlohmann::json& meta) {
+  TiledWriteResult r;
+  StagedFolder staged(folder);
+  fs::create_directories(staged.path() / "tiles");
+  nlohmann::json table = nlohmann::json::array();
+  for (const Tile& t : split.tiles) {
+    const TileEntry e = writeTileAndLatest(staged.path(), t.key, tileFileName(t.key), t.map);
+    table.push_back(rowOf(e));
+    r.tile_bytes += e.diskBytes();
+    ++r.tiles;
+  }
+  const nlohmann::json extra = {
+      {"tiles", {{"version", kTileTableVersion}, {"level", split.tile_level}, {"list", std::move(table)}}}};
+  const std::vector<uint8_t> index = encodeTemporalMap(split.top, meta, MapKind::Tiled, &extra);
+  writeFileAtomic(staged.path() / kTileIndexName, index);
+  r.index_bytes = index.size();
+  staged.commit();
+  return r;
+}
+
+TileEntry writeTileFile(const fs::path& folder, const TileKey& key, uint64_t generation, const TemporalMap& tile) {
+  return writeTileAndLatest(folder, key, tileFileName(key, generation), tile);
+}
+
+uint64_t writeTileIndex(const fs::path& folder, const TemporalMap& top, int tile_level,
+                        const std::vector<TileEntry>& tiles, const nlohmann::json& meta) {
+  nlohmann::json table = nlohmann::json::array();
+  for (const TileEntry& t : tiles) table.push_back(rowOf(t));
+  const nlohmann::json extra = {
+      {"tiles", {{"version", kTileTableVersion}, {"level", tile_level}, {"list", std::move(table)}}}};
+  const std::vector<uint8_t> index = encodeTemporalMap(top, meta, MapKind::Tiled, &extra);
+  writeFileAtomic(folder / kTileIndexName, index);
+  return index.size();
+}
+
+TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& source) {
+  const CmapFile file = decodeCmap(bytes, source);
+  if (file.header.kind != MapKind::Tiled) {
+    throw FormatError(source + ": holds a " + std::string(toString(file.header.kind)) + " map, not a tile index");
+  }
+  TileIndex index{0, decodeTemporalBlocks(file, source), {}};
+  const CmapBlock& meta = file.block("META", source);
+  const nlohmann::json j = nlohmann::json::parse(meta.data.begin(), meta.data.end(), nullptr, false);
+  try {
+    const nlohmann::json& t = j.at("tiles");
+    const int version = t.at("version").get<int>();
+    if (version != kTileTableVersion) {
+      throw FormatError(source + ": tile table version " + std::to_string(version) + " is not one this build reads (" +
+                        std::to_string(kTileTableVersion) + ")");
+    }
+    index.tile_level = t.at("level").get<int>();
+    if (index.tile_level < kMinTileLevel || index.tile_level > kMaxTileLevel) {
+      throw FormatError(source + ": invalid tile level " + std::to_string(index.tile_level));
+    }
+    const uint32_t max_key = (uint32_t{1} << (kTreeDepth - index.tile_level)) - 1;
+    for (const nlohmann::json& row : t.at("list")) {
+      TileEntry e;
+      const nlohmann::json& k = row.at("key");
+      if (!k.is_array() || k.size() != 3) throw FormatError(source + ": a tile key is not three numbers");
+      const uint32_t x = k[0].get<uint32_t>(), y = k[1].get<uint32_t>(), z = k[2].get<uint32_t>();
+      if (x > max_key || y > max_key || z > max_key) throw FormatError(source + ": a tile key lies outside the map");
+      e.key = TileKey{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)};
+      e.file = row.at("file").get<std::string>();
+      // The name is derived from the key: nothing else (no other folder) is ever opened.
+      if (!tileGeneration(e.key, e.file)) {
+        throw FormatError(source + ": tile file name '" + e.file + "' does not match its key");
+      }
+      e.bytes = row.at("bytes").get<uint64_t>();
+      e.crc32 = row.at("crc32").get<uint32_t>();
+      if (const auto latest = row.find("latest"); latest != row.end()) {
+        LatestState l{latest->at("file").get<std::string>(), latest->at("bytes").get<uint64_t>(),
+                      latest->at("crc32").get<uint32_t>()};
+        if (l.file != latestFileName(e.file)) {
+          throw FormatError(source + ": latest state file name '" + l.file + "' does not match its tile");
+        }
+        e.latest = std::move(l);
+      }
+      index.tiles.push_back(std::move(e));
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw FormatError(source + ": the tile table is malformed: " + e.what());
+  }
+  std::sort(index.tiles.begin(), index.tiles.end(), [](const TileEntry& a, const TileEntry& b) { return a.key < b.key; });
+  for (size_t i = 1; i < index.tiles.size(); ++i) {
+    if (index.tiles[i].key == index.tiles[i - 1].key) throw FormatError(source + ": a tile is listed twice");
+  }
+  return index;
+}
+
+TileIndex readTileIndex(const fs::path& folder) {
+  const fs::path path = folder / kTileIndexName;
+  if (!fs::exists(path)) throw IoError(folder.string() + " is not a tiled 4D map (it has no " + kTileIndexName + ")");
+  return readNamingMemory(path, [&] { return decodeTileIndex(readFileBytes(path), path.string()); });
+}
+
+TemporalMap readTile(const fs::path& folder, const TileIndex& index, const TileEntry& entry) {
+  const fs::path path = folder / entry.file;
+  const std::string source = path.string();
+  if (!fs::exists(path)) throw IoError(source + ": tile file missing (listed in the index)");
+  return readNamingMemory(path, [&] {
+    const std::vector<uint8_t> bytes = readFileBytes(path);
+    if (bytes.size() != entry.bytes || crc32Of(bytes) != entry.crc32) {
+      throw FormatError(source + ": tile file does not match the index (size or checksum differ)");
+    }
+    TemporalMap tile = temporalMapFrom(decodeCmap(bytes, source), source);
+    checkTileFits(index.top, index.tile_level, entry.key, tile, source);
+    return tile;
+  });
+}
+
+SessionMap readLatestState(const fs::path& folder, const TileIndex& index, const TileEntry& entry) {
+  if (!entry.latest) throw UsageError("tile " + entry.file + " has no latest state");
+  const fs::path path = folder / entry.latest->file;
+  const std::string source = path.string();
+  if (!fs::exists(path)) throw IoError(source + ": latest state file missing (listed in the index)");
+  return readNamingMemory(path, [&] {
+    const std::vector<uint8_t> bytes = readFileBytes(path);
+    if (bytes.size() != entry.latest->bytes || crc32Of(bytes) != entry.latest->crc32) {
+      throw FormatError(source + ": latest state file does not match the index (size or checksum differ)");
+    }
+    SessionMap state = sessionMapFrom(decodeCmap(bytes, source), source);
+    if (state.resolution_m() != index.top.resolution_m()) {
+      throw FormatError(source + ": resolution differs from the index's");
+    }
+    bool inside = true;
+    state.forEachLeaf([&](const LeafView& leaf) {
+      inside = inside && leaf.level <= index.tile_level && tileOf(leaf.key, index.tile_level) == entry.key;
+    });
+    if (!inside) throw FormatError(source + " holds voxels outside its tile");
+    return state;
+  });
+}
+
+bool isTiledMap(const fs::path& path) { return fs::is_directory(path) && fs::exists(path / kTileIndexName); }
+
+}  // namespace chronomap
