@@ -63,11 +63,12 @@
 #include "chronomap/align/consensus.h"
 #include "chronomap/align/realign.h"
 #include "chronomap/align/register.h"
+#include "chronomap/analysis/change_preset.h"
 #include "chronomap/analysis/segment.h"
 #include "chronomap/integrate/integrator.h"
-#include "chronomap/io/cloud_io.h"
-#include "chronomap/io/dataset.h"
-#include "chronomap/io/png.h"
+#include "chronomap/ingest/cloud_io.h"
+#include "chronomap/ingest/dataset.h"
+#include "chronomap/ingest/png.h"
 #include "chronomap/sim/building.h"
 #include "chronomap/sim/change_truth.h"
 #include "bench_sim.h"
@@ -91,10 +92,7 @@ double g_dark_contrast = DiffSettings::kDefaultDarkSurfaceContrast;  // --dark-c
 double g_dark_share = DiffSettings::kDefaultDarkSurfaceShare;        // --dark-share
 
 DiffSettings defaultDiff() {
-  DiffSettings d;
-  d.mode = DiffMode::Band;
-  d.neighbourhood_voxels = 1;
-  d.min_shift_voxels = DiffSettings::kRecommendedMinShift;
+  DiffSettings d = recommendedChangeSettings().diff;
   d.kept_surface_radius_voxels = g_kept_surface;
   d.kept_surface_share = g_kept_share;
   d.dark_surface_radius_voxels = g_dark_surface;
@@ -104,12 +102,7 @@ DiffSettings defaultDiff() {
   return d;
 }
 
-SegmentSettings defaultSegment() {
-  SegmentSettings s;
-  s.connectivity = Connectivity::Vertex;
-  s.min_voxels = 20;
-  return s;
-}
+SegmentSettings defaultSegment() { return recommendedChangeSettings().segment; }
 
 // Without the shift test: every surface within one voxel is no change (for maps whose poses
 // were not registered: the demo's sessions, the real data's single shots).
@@ -350,7 +343,7 @@ MosdResult evaluateMosd(const fs::path& dir) {
   constexpr double kResolution = 0.01;  // the objects are boxes and cans of 5-20 cm
   std::printf("\n== mOSD group A (%s) ==\n", dir.c_str());
   std::vector<PointCloud> clouds;
-  for (int i = 0; i < 5; ++i) clouds.push_back(io::readPcd(dir / ("test" + std::to_string(i) + ".pcd")));
+  for (int i = 0; i < 5; ++i) clouds.push_back(readPcd(dir / ("test" + std::to_string(i) + ".pcd")));
   std::vector<SessionMap> maps;
   // Per shot: object number -> the voxels its points fall in.
   std::vector<std::map<uint32_t, std::set<VoxelKey>>> objects;
@@ -437,11 +430,11 @@ MosdResult evaluateMosd(const fs::path& dir) {
 // point falls in a voxel that appeared after frame 1.
 double evaluateHuman(const fs::path& dir) {
   std::printf("\n== human_dataset (%s) ==\n", dir.c_str());
-  const CameraIntrinsics k = io::readIntrinsicsFile(dir / "camera-intrinsics.txt");
-  const ImageU16 d1 = io::readPngU16(dir / "depth_image_1.png");
-  const ImageU16 d2 = io::readPngU16(dir / "depth_image_2.png");
-  const PointCloud c1 = io::depthToCloud(d1, nullptr, k, 1000.0, "depth_image_1.png");
-  const PointCloud c2 = io::depthToCloud(d2, nullptr, k, 1000.0, "depth_image_2.png");
+  const CameraIntrinsics k = readIntrinsicsFile(dir / "camera-intrinsics.txt");
+  const ImageU16 d1 = readPngU16(dir / "depth_image_1.png");
+  const ImageU16 d2 = readPngU16(dir / "depth_image_2.png");
+  const PointCloud c1 = depthToCloud(d1, nullptr, k, 1000.0, "depth_image_1.png");
+  const PointCloud c2 = depthToCloud(d2, nullptr, k, 1000.0, "depth_image_2.png");
   constexpr double kResolution = 0.05, kRange = 9.0;  // depth reaches 8.2 m
   const SessionMap m1 = integrateCloud(c1, kResolution, kRange), m2 = integrateCloud(c2, kResolution, kRange);
   const DiffMap d = diff(m1, m2, noShiftDiff());
@@ -473,7 +466,7 @@ double evaluateGrabber(const fs::path& dir) {
   }
   std::sort(files.begin(), files.end());
   std::vector<SessionMap> maps;
-  for (const auto& f : files) maps.push_back(integrateCloud(io::readPcd(f), 0.05, 3.0));
+  for (const auto& f : files) maps.push_back(integrateCloud(readPcd(f), 0.05, 3.0));
   uint64_t changed = 0, known = 0;
   for (size_t k = 1; k < maps.size(); ++k) {
     const DiffMap d = diff(maps[k - 1], maps[k], noShiftDiff());

@@ -4,6 +4,7 @@
 #include <iomanip>
 #include <sstream>
 
+#include "chronomap/analysis/change_preset.h"
 #include "chronomap/core/format.h"
 #include "chronomap/core/time.h"
 
@@ -133,15 +134,8 @@ void changes(std::ostream& md, const DemoReportInput& in) {
 }  // namespace
 
 DemoChangeSettings demoChangeSettings() {
-  DemoChangeSettings s;
-  s.diff.mode = DiffMode::Band;
-  s.diff.neighbourhood_voxels = 1;
-  s.diff.min_shift_voxels = DiffSettings::kRecommendedMinShift;
-  s.diff.kept_surface_radius_voxels = DiffSettings::kRecommendedKeptSurfaceRadius;
-  s.diff.dark_surface_radius_voxels = DiffSettings::kDarkSurfaceRadius;
-  s.segment.connectivity = Connectivity::Vertex;
-  s.segment.min_voxels = 20;
-  return s;
+  const ChangeSettings preset = recommendedChangeSettings();
+  return {preset.diff, preset.segment};
 }
 
 std::string demoReport(const DemoReportInput& in) {

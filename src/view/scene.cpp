@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <limits>
 
+#include "chronomap/analysis/change_preset.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
 #include "lod.h"
@@ -106,14 +107,10 @@ VoxelSet snapshotVoxels(const TemporalMap& map, const SnapshotRequest& request) 
 }
 
 DiffRequest changeSettings() {
+  const ChangeSettings preset = recommendedChangeSettings();
   DiffRequest r;
-  r.diff.mode = DiffMode::Band;
-  r.diff.neighbourhood_voxels = 1;
-  r.diff.min_shift_voxels = DiffSettings::kRecommendedMinShift;
-  r.diff.kept_surface_radius_voxels = DiffSettings::kRecommendedKeptSurfaceRadius;
-  r.diff.dark_surface_radius_voxels = DiffSettings::kDarkSurfaceRadius;
-  r.segment.connectivity = Connectivity::Vertex;
-  r.segment.min_voxels = 20;
+  r.diff = preset.diff;
+  r.segment = preset.segment;
   return r;
 }
 

@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "chronomap/analysis/change_preset.h"
 #include "chronomap/analysis/diff.h"
 #include "chronomap/analysis/segment.h"
 #include "chronomap/temporal/temporal_map.h"
@@ -63,18 +64,21 @@ struct MoveSettings {
 
 /// Settings of findAlerts().
 struct AlertSettings {
-  /// The diff between the previous session and the session at T. Default: hard, with the
-  /// neighbourhood rule of registered sessions (1 voxel, surfaces moved by half a voxel).
+  /// The diff between the previous session and the session at T. Default: the recommended
+  /// neighbourhood rule and shift test (analysis/change_preset.h) in hard mode, without the
+  /// surface rules.
   DiffSettings diff = [] {
+    const DiffSettings preset = recommendedChangeSettings().diff;
     DiffSettings d;
-    d.neighbourhood_voxels = 1;
-    d.min_shift_voxels = DiffSettings::kRecommendedMinShift;
+    d.neighbourhood_voxels = preset.neighbourhood_voxels;
+    d.min_shift_voxels = preset.min_shift_voxels;
     return d;
   }();
-  /// Its components; smaller ones are not objects (default 20 voxels, 2.5 litres).
+  /// Its components; smaller ones are not objects (the recommended 20 voxels, 2.5 litres; face
+  /// connectivity).
   SegmentSettings segment = [] {
     SegmentSettings s;
-    s.min_voxels = 20;
+    s.min_voxels = kRecommendedMinObjectVoxels;
     return s;
   }();
   /// How far the object's space is shifted (x and y, voxels) to look for the same change nearby (0..6).

@@ -1,0 +1,32 @@
+#pragma once
+/// @file
+/// The recommended settings for "what changed between two visits, and which objects": the one
+/// place that says them. The demo and its report, the viewer, alerts and the benchmarks start
+/// from these (docs/changes.md explains each rule and how its constant was chosen).
+
+#include "chronomap/analysis/diff.h"
+#include <cstdint>
+
+#include "chronomap/analysis/segment.h"
+
+namespace chronomap {
+
+/// The smallest component that counts as an object: 20 voxels (2.5 litres at 0.05 m).
+inline constexpr uint64_t kRecommendedMinObjectVoxels = 20;
+
+/// A diff and the segmentation of its changes into objects.
+struct ChangeSettings {
+  DiffSettings diff;
+  SegmentSettings segment;
+};
+
+/// The recommended settings for registered sessions: band mode; the neighbourhood rule at one
+/// voxel with the shift test at half a voxel (DiffSettings::kRecommendedMinShift); the kept-surface
+/// rule at DiffSettings::kRecommendedKeptSurfaceRadius; the dark-surface rule at
+/// DiffSettings::kDarkSurfaceRadius; objects of vertex-connected changes of at least
+/// kRecommendedMinObjectVoxels voxels. The same as `chronomap diff --mode band --neighbourhood 1
+/// --min-shift 0.5 --kept-surface 3 --dark-surface 2` and `segment --connectivity vertex
+/// --min-voxels 20`.
+ChangeSettings recommendedChangeSettings();
+
+}  // namespace chronomap

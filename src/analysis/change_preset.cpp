@@ -1,0 +1,17 @@
+#include "chronomap/analysis/change_preset.h"
+
+namespace chronomap {
+
+ChangeSettings recommendedChangeSettings() {
+  ChangeSettings s;
+  s.diff.mode = DiffMode::Band;
+  s.diff.neighbourhood_voxels = 1;
+  s.diff.min_shift_voxels = DiffSettings::kRecommendedMinShift;
+  s.diff.kept_surface_radius_voxels = DiffSettings::kRecommendedKeptSurfaceRadius;
+  s.diff.dark_surface_radius_voxels = DiffSettings::kDarkSurfaceRadius;
+  s.segment.connectivity = Connectivity::Vertex;
+  s.segment.min_voxels = kRecommendedMinObjectVoxels;
+  return s;
+}
+
+}  // namespace chronomap
