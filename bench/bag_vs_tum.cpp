@@ -3,7 +3,7 @@
 // back-projected into clouds), the best of several rounds, frames loaded on 1 thread and on all
 // threads as the integrator loads them. The 1-thread figures are also taken as the thread's
 // processor time (cpu columns), which a loaded shared machine disturbs far less than the clock.
-// The bags hold the folder's frames (tests/io/make_ros1_bags.py, make_ros2_bags.mjs); nothing
+// The bags hold the folder's frames (tests/ingest/ros/make_ros1_bags.py, make_ros2_bags.mjs); nothing
 // is integrated.
 //
 // Usage: bag_vs_tum TUM_FOLDER BAG [BAG...] [--rounds N] [--depth-scale S] [--fixed-frame F]

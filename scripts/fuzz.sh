@@ -3,7 +3,7 @@
 # as many at once as there are cores.
 # Seeds: small files made by chronomap's own writers, plus small real files from the data folder.
 # A crash, or an input that takes more than 10 s (a hang), leaves its input as build/fuzz/artifacts/<target>/crash-*; turn it into a regression
-# test under tests/io before fixing it. Memory bombs are findings too: a run may hold 2 GiB
+# test under tests/<module> (the reader's folder) before fixing it. Memory bombs are findings too: a run may hold 2 GiB
 # (-rss_limit_mb) and no single allocation may reach 1 GiB (-malloc_limit_mb) from an input of at
 # most 64 KiB, which no reader's bound allows (docs/reliability.md, "Limits").
 # Usage: scripts/fuzz.sh [SECONDS]
@@ -37,12 +37,12 @@ printf '/api/diff?from=0&to=2&min_voxels=1' >"$seeds/view/diff"
 printf '/api/history?key=32768,32768,32768&level=2' >"$seeds/view/history"
 printf '/api/map' >"$seeds/view/map"
 # ROS 1 bags written by Debian's python3-rosbag, as the tests write them.
-/usr/bin/python3 tests/io/make_ros1_bags.py --seeds "$seeds/bag"
-# ROS 2 bags written by npm's @mcap/core (tests/io/ros2_writer, as the tests write them); the CDR
+/usr/bin/python3 tests/ingest/ros/make_ros1_bags.py --seeds "$seeds/bag"
+# ROS 2 bags written by npm's @mcap/core (tests/ingest/ros/ros2_writer, as the tests write them); the CDR
 # target's seeds are their messages, each behind the byte that picks its decoder.
 writer=build/fuzz/ros2_writer
 mkdir -p "$writer"
-cp tests/io/ros2_writer/package.json tests/io/ros2_writer/package-lock.json tests/io/ros2_writer/make_ros2_bags.mjs "$writer/"
+cp tests/ingest/ros/ros2_writer/package.json tests/ingest/ros/ros2_writer/package-lock.json tests/ingest/ros/ros2_writer/make_ros2_bags.mjs "$writer/"
 [ -d "$writer/node_modules/@mcap/core" ] || (cd "$writer" && npm ci --no-audit --no-fund >/dev/null)
 node "$writer/make_ros2_bags.mjs" --seeds "$seeds/mcap" "$seeds/cdr"
 # SQLite bags (rosbag2's .db3) of the same messages, written as the tests write theirs.

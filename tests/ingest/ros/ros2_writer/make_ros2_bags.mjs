@@ -8,7 +8,7 @@
 //       (the fuzz targets' seeds: tiny bags for fuzz_mcap; for fuzz_cdr one message of each type
 //       behind the byte that picks its decoder, as fuzz/fuzz_readers.cpp reads them)
 //
-// Like tests/io/make_ros1_bags.py: depth stays in the TUM PNG's units (5000 per metre) in 16UC1
+// Like tests/ingest/ros/make_ros1_bags.py: depth stays in the TUM PNG's units (5000 per metre) in 16UC1
 // images, header stamps are depth.txt's, poses are trajectory.txt's numbers.
 import fs from "node:fs";
 import path from "node:path";

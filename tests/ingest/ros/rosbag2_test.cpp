@@ -1,5 +1,5 @@
 // ROS 2 bags: MCAP files written by npm's @mcap/core with @foxglove/rosmsg2-serialization's CDR
-// (tests/io/ros2_writer/make_ros2_bags.mjs) from a simulated TUM session, SQLite .db3 bags
+// (tests/ingest/ros/ros2_writer/make_ros2_bags.mjs) from a simulated TUM session, SQLite .db3 bags
 // written here through SQLite with rosbag2's schema, read back and compared with the TUM
 // reader's frames and map (and a ROS 1 bag's, where this build reads them).
 

@@ -1,4 +1,4 @@
-// ROS 1 bags: written by Debian's python3-rosbag (tests/io/make_ros1_bags.py) from a simulated
+// ROS 1 bags: written by Debian's python3-rosbag (tests/ingest/ros/make_ros1_bags.py) from a simulated
 // TUM session, read back through librosbag, and compared with the TUM reader's frames and map.
 
 #include "chronomap/ingest/ros/rosbag.h"
@@ -361,7 +361,7 @@ TEST_F(RosBagTest, RealThreeDMatchFramesFromABagGiveTheFoldersMap) {
   CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
   const fs::path real = *dir_ / "3dmatch.bag";
   const auto made = test::runCommand(std::string(kDebianPython) + " " + CHRONOMAP_SOURCE_DIR +
-                                     "/tests/io/make_ros1_bags.py --3dmatch " + (root / "seq-01").string() + " " +
+                                     "/tests/ingest/ros/make_ros1_bags.py --3dmatch " + (root / "seq-01").string() + " " +
                                      (root / "camera-intrinsics.txt").string() + " " + real.string());
   ASSERT_EQ(made.exit_code, 0) << made.err;
   const auto from_folder = openDataset(root);

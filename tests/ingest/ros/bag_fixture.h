@@ -29,7 +29,7 @@ namespace chronomap {
 #error "CHRONOMAP_ROS2_WRITER_DIR must name the build folder of the npm writer"
 #endif
 
-/// The recordings are made once per build by tests/io/make_test_bags.sh (CTest runs it as the
+/// The recordings are made once per build by tests/ingest/ros/make_test_bags.sh (CTest runs it as the
 /// fixture BagData before the bag tests; SetUpTestSuite runs it too, which costs nothing once
 /// they exist, so that a suite run outside CTest finds them). `Suite::kWriters` names what its
 /// bags need and `Suite::kErrorFile` where the script leaves that writer's failure: every test
@@ -42,7 +42,7 @@ class BagFixture : public ::testing::Test {
     registerRosReaders();
     dir_ = new test::TempDir();
     const std::filesystem::path src = CHRONOMAP_SOURCE_DIR;
-    const auto made = test::runCommand((src / "tests/io/make_test_bags.sh").string() + " " + test::cli() + " " +
+    const auto made = test::runCommand((src / "tests/ingest/ros/make_test_bags.sh").string() + " " + test::cli() + " " +
                                        src.string() + " " + CHRONOMAP_ROS2_WRITER_DIR + " " + recordings().string());
     if (made.exit_code != 0) {
       generator_error_ = "make_test_bags.sh: " + made.err;
