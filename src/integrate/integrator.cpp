@@ -97,6 +97,122 @@ size_t defaultMemoryLimitBytes() {
   return static_cast<size_t>(pages) * static_cast<size_t>(page_bytes) / 2;
 }
 
+namespace {
+
+/// integrate() on the calling thread; adds each frame's stats to `total`.
+void integrateSerial(const FrameSource& source, SessionMap& map, const IntegratorSettings& settings,
+                     const ProgressFn& progress, IntegrationStats& total) {
+  const size_t n = source.size();
+  RayAccumulator acc(map.grid(), perThread(settings, 1));
+  VoxelDeltas deltas;
+  for (size_t i = 0; i < n; ++i) {
+    if (const Frame* f = source.resident(i)) {
+      acc.accumulate(*f, deltas);
+    } else {
+      acc.accumulate(source.load(i), deltas);
+    }
+    mergeDeltas(map, deltas);
+    checkMapMemory(map, settings);
+    total += deltas.stats;
+    if (progress) progress(i + 1, n);
+  }
+}
+
+/// integrate() over `threads` threads; adds each frame's stats to `total`.
+void integrateParallel(const FrameSource& source, SessionMap& map, const IntegratorSettings& settings,
+                       const ProgressFn& progress, int threads, IntegrationStats& total) {
+  const size_t n = source.size();
+  // Frames are loaded and cast in parallel; merging stays serial and in frame order, so the
+  // map is the same for every thread count.
+  tbb::enumerable_thread_specific<RayAccumulator> accumulators(map.grid(), perThread(settings, threads));
+  // At most `tokens` frames are in flight, each in its own buffer; the stages pass buffer
+  // numbers, and a merged buffer goes back to the free list.
+  const size_t tokens = static_cast<size_t>(threads) * 2;
+  std::vector<VoxelDeltas> buffers(tokens);
+  std::vector<size_t> free_buffers(tokens);
+  for (size_t b = 0; b < tokens; ++b) free_buffers[b] = b;
+  std::mutex free_mutex;
+  tbb::task_arena arena(threads);
+  // Hand-overs between the stages' threads, for ThreadSanitizer (core/happens_before.h). The
+  // marks are static objects: a stage must not read its captures before its mark, nor any
+  // of this thread's variables after its closing mark.
+  static char setup_done, source_turn, handed_over, merge_turn;
+  arena.execute([&] {
+    size_t next = 0;
+    auto stages =
+        tbb::make_filter<void, size_t>(tbb::filter_mode::serial_in_order,
+                                       [&](tbb::flow_control& fc) -> size_t {
+                                         CHRONOMAP_HAPPENS_AFTER(&setup_done);
+                                         CHRONOMAP_HAPPENS_AFTER(&source_turn);  // one call after another
+                                         const size_t i = next < n ? next++ : n;
+                                         const bool done = i >= n;  // n is read before the mark
+                                         CHRONOMAP_HAPPENS_BEFORE(&source_turn);
+                                         if (done) {
+                                           fc.stop();
+                                           return 0;
+                                         }
+                                         return i;
+                                       }) &
+        tbb::make_filter<size_t, size_t>(
+            tbb::filter_mode::parallel,
+            [&](size_t i) {
+              CHRONOMAP_HAPPENS_AFTER(&setup_done);
+              size_t b = 0;
+              {
+                std::lock_guard<std::mutex> lock(free_mutex);
+                b = free_buffers.back();
+                free_buffers.pop_back();
+              }
+              try {
+                if (const Frame* f = source.resident(i)) {
+                  accumulators.local().accumulate(*f, buffers[b]);
+                } else {
+                  accumulators.local().accumulate(source.load(i), buffers[b]);
+                }
+              } catch (...) {
+                CHRONOMAP_HAPPENS_BEFORE(&handed_over);  // to the caller, which rethrows
+                throw;
+              }
+              CHRONOMAP_HAPPENS_BEFORE(&handed_over);  // to the merging stage
+              return b;
+            }) &
+        tbb::make_filter<size_t, void>(tbb::filter_mode::serial_in_order, [&](size_t b) {
+          CHRONOMAP_HAPPENS_AFTER(&setup_done);
+          CHRONOMAP_HAPPENS_AFTER(&handed_over);
+          CHRONOMAP_HAPPENS_AFTER(&merge_turn);  // one merge after another
+          mergeDeltas(map, buffers[b]);
+          try {
+            checkMapMemory(map, settings);
+          } catch (...) {
+            CHRONOMAP_HAPPENS_BEFORE(&merge_turn);  // to the caller, which rethrows
+            throw;
+          }
+          total += buffers[b].stats;
+          if (progress) progress(static_cast<size_t>(total.frames), n);
+          {
+            std::lock_guard<std::mutex> lock(free_mutex);
+            free_buffers.push_back(b);
+          }
+          CHRONOMAP_HAPPENS_BEFORE(&merge_turn);
+        });
+    CHRONOMAP_HAPPENS_BEFORE(&setup_done);
+    try {
+      tbb::parallel_pipeline(tokens, stages);
+    } catch (...) {
+      // A stage threw (a bad frame, the memory limit): TBB has waited for the others, and
+      // the stages that ran marked what they touched.
+      CHRONOMAP_HAPPENS_AFTER(&source_turn);
+      CHRONOMAP_HAPPENS_AFTER(&handed_over);
+      CHRONOMAP_HAPPENS_AFTER(&merge_turn);
+      throw;
+    }
+    CHRONOMAP_HAPPENS_AFTER(&source_turn);
+    CHRONOMAP_HAPPENS_AFTER(&merge_turn);
+  });
+}
+
+}  // namespace
+
 IntegrationStats integrate(const FrameSource& source, SessionMap& map, const IntegratorSettings& settings,
                            const ProgressFn& progress) {
   checkSettings(settings);
@@ -105,109 +221,10 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
   const size_t n = source.size();
   int threads = settings.threads > 0 ? settings.threads : static_cast<int>(std::thread::hardware_concurrency());
   threads = std::max(1, threads);
-
   if (threads == 1 || n <= 1) {
-    RayAccumulator acc(map.grid(), perThread(settings, 1));
-    VoxelDeltas deltas;
-    for (size_t i = 0; i < n; ++i) {
-      if (const Frame* f = source.resident(i)) {
-        acc.accumulate(*f, deltas);
-      } else {
-        acc.accumulate(source.load(i), deltas);
-      }
-      mergeDeltas(map, deltas);
-      checkMapMemory(map, settings);
-      total += deltas.stats;
-      if (progress) progress(i + 1, n);
-    }
+    integrateSerial(source, map, settings, progress, total);
   } else {
-    // Frames are loaded and cast in parallel; merging stays serial and in frame order, so the
-    // map is the same for every thread count.
-    tbb::enumerable_thread_specific<RayAccumulator> accumulators(map.grid(), perThread(settings, threads));
-    // At most `tokens` frames are in flight, each in its own buffer; the stages pass buffer
-    // numbers, and a merged buffer goes back to the free list.
-    const size_t tokens = static_cast<size_t>(threads) * 2;
-    std::vector<VoxelDeltas> buffers(tokens);
-    std::vector<size_t> free_buffers(tokens);
-    for (size_t b = 0; b < tokens; ++b) free_buffers[b] = b;
-    std::mutex free_mutex;
-    tbb::task_arena arena(threads);
-    // Hand-overs between the stages' threads, for ThreadSanitizer (core/happens_before.h). The
-    // marks are static objects: a stage must not read its captures before its mark, nor any
-    // of this thread's variables after its closing mark.
-    static char setup_done, source_turn, handed_over, merge_turn;
-    arena.execute([&] {
-      size_t next = 0;
-      auto stages =
-          tbb::make_filter<void, size_t>(tbb::filter_mode::serial_in_order,
-                                         [&](tbb::flow_control& fc) -> size_t {
-                                           CHRONOMAP_HAPPENS_AFTER(&setup_done);
-                                           CHRONOMAP_HAPPENS_AFTER(&source_turn);  // one call after another
-                                           const size_t i = next < n ? next++ : n;
-                                           const bool done = i >= n;  // n is read before the mark
-                                           CHRONOMAP_HAPPENS_BEFORE(&source_turn);
-                                           if (done) {
-                                             fc.stop();
-                                             return 0;
-                                           }
-                                           return i;
-                                         }) &
-          tbb::make_filter<size_t, size_t>(
-              tbb::filter_mode::parallel,
-              [&](size_t i) {
-                CHRONOMAP_HAPPENS_AFTER(&setup_done);
-                size_t b = 0;
-                {
-                  std::lock_guard<std::mutex> lock(free_mutex);
-                  b = free_buffers.back();
-                  free_buffers.pop_back();
-                }
-                try {
-                  if (const Frame* f = source.resident(i)) {
-                    accumulators.local().accumulate(*f, buffers[b]);
-                  } else {
-                    accumulators.local().accumulate(source.load(i), buffers[b]);
-                  }
-                } catch (...) {
-                  CHRONOMAP_HAPPENS_BEFORE(&handed_over);  // to the caller, which rethrows
-                  throw;
-                }
-                CHRONOMAP_HAPPENS_BEFORE(&handed_over);  // to the merging stage
-                return b;
-              }) &
-          tbb::make_filter<size_t, void>(tbb::filter_mode::serial_in_order, [&](size_t b) {
-            CHRONOMAP_HAPPENS_AFTER(&setup_done);
-            CHRONOMAP_HAPPENS_AFTER(&handed_over);
-            CHRONOMAP_HAPPENS_AFTER(&merge_turn);  // one merge after another
-            mergeDeltas(map, buffers[b]);
-            try {
-              checkMapMemory(map, settings);
-            } catch (...) {
-              CHRONOMAP_HAPPENS_BEFORE(&merge_turn);  // to the caller, which rethrows
-              throw;
-            }
-            total += buffers[b].stats;
-            if (progress) progress(static_cast<size_t>(total.frames), n);
-            {
-              std::lock_guard<std::mutex> lock(free_mutex);
-              free_buffers.push_back(b);
-            }
-            CHRONOMAP_HAPPENS_BEFORE(&merge_turn);
-          });
-      CHRONOMAP_HAPPENS_BEFORE(&setup_done);
-      try {
-        tbb::parallel_pipeline(tokens, stages);
-      } catch (...) {
-        // A stage threw (a bad frame, the memory limit): TBB has waited for the others, and
-        // the stages that ran marked what they touched.
-        CHRONOMAP_HAPPENS_AFTER(&source_turn);
-        CHRONOMAP_HAPPENS_AFTER(&handed_over);
-        CHRONOMAP_HAPPENS_AFTER(&merge_turn);
-        throw;
-      }
-      CHRONOMAP_HAPPENS_AFTER(&source_turn);
-      CHRONOMAP_HAPPENS_AFTER(&merge_turn);
-    });
+    integrateParallel(source, map, settings, progress, threads, total);
   }
   if (settings.compress_free) map.compressFree();
   total.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
