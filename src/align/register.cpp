@@ -527,6 +527,112 @@ void keyPointsAndSamplesOf(const Frame& f, uint32_t index, const RegistrationTar
   }
 }
 
+// Drift knots: frame i lies at u = i / spacing between knots floor(u) and floor(u) + 1, each
+// with kDriftDof unknowns (x, y, z offset and yaw).
+constexpr int kDriftDof = 4;
+struct DriftKnots {
+  size_t spacing = 1;
+  size_t count = 0;
+  /// Frame i's first knot and its weight on the second.
+  std::pair<size_t, double> of(size_t i) const {
+    const size_t k = i / spacing;
+    return std::pair<size_t, double>{k, static_cast<double>(i - k * spacing) / static_cast<double>(spacing)};
+  }
+};
+
+/// One Gauss-Newton step's normal equations over the knots, and how far the samples were pulled.
+struct DriftSystem {
+  Eigen::MatrixXd ata;
+  Eigen::VectorXd atb;
+  double shift = 0.0;
+  size_t matched = 0;
+};
+
+/// The samples' rows of the normal equations, with every frame moved by `frame_params`.
+DriftSystem driftRows(const std::vector<Eigen::Vector3d>& sensors, const std::vector<DriftSample>& samples,
+                      const std::vector<Eigen::Vector4d>& frame_params, const DriftKnots& knots, bool use_points,
+                      const KeyGrid& grid, const RegistrationTarget& target, const RegisterSettings& settings) {
+  constexpr int kDof = kDriftDof;
+  const int dim = static_cast<int>(knots.count) * kDof;
+  const HitMap& surface = target.surface();
+  DriftSystem sys;
+  sys.ata = Eigen::MatrixXd::Zero(dim, dim);
+  sys.atb = Eigen::VectorXd::Zero(dim);
+  Eigen::MatrixXd& ata = sys.ata;
+  Eigen::VectorXd& atb = sys.atb;
+  for (const DriftSample& d : samples) {
+    const Eigen::Vector4d& fp = frame_params[d.frame];
+    const Eigen::Matrix3d r = Eigen::AngleAxisd(fp(3), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    const Eigen::Vector3d arm = r * (d.point - sensors[d.frame]);
+    const Eigen::Vector3d p = sensors[d.frame] + fp.head<3>() + arm;
+    // Plain variables, not a structured binding: the lambda below captures them.
+    const std::pair<size_t, double> knot = knots.of(d.frame);
+    const size_t k = knot.first;
+    const double w = knot.second;
+    const Eigen::Index a = static_cast<Eigen::Index>(k) * kDof, b = a + kDof;
+    const auto addRow = [&](const Eigen::Vector3d& n, double residual) {
+      Eigen::Vector4d j;
+      j << n, arm.x() * n.y() - arm.y() * n.x();  // d(p . n) / d yaw = (z x arm) . n
+      if (settings.planar) j(2) = 0.0;  // no vertical offset: its unknowns stay 0
+      const Eigen::Vector4d ja = (1.0 - w) * j, jb = w * j;
+      ata.block<kDof, kDof>(a, a) += ja * ja.transpose();
+      ata.block<kDof, kDof>(a, b) += ja * jb.transpose();
+      ata.block<kDof, kDof>(b, a) += jb * ja.transpose();
+      ata.block<kDof, kDof>(b, b) += jb * jb.transpose();
+      atb.segment<kDof>(a) += ja * residual;
+      atb.segment<kDof>(b) += jb * residual;
+    };
+    if (use_points) {
+      // Point to plane against the points' surface, relative to the frame's own plane there;
+      // no plane, no sample.
+      const auto plane = pointPlaneNear(target.points(), grid, p, settings.radius_voxels);
+      if (!plane) continue;
+      ++sys.matched;
+      const double residual = plane->normal.dot(plane->point - r * d.own_pull - p);
+      addRow(plane->normal, residual);
+      sys.shift += std::abs(residual);
+      continue;
+    }
+    const auto q = centroidNear(surface, grid, p, settings.radius_voxels, true);
+    if (!q) continue;
+    // Where the frame's surface is a plane, the pull counts along its normal only (it says
+    // how far the surface lies, not where along it the voxel belongs); elsewhere in full.
+    // Voxels that already fit count too: they hold the frame where it is.
+    const Eigen::Vector3d pull = *q - r * d.own_pull - p;
+    ++sys.matched;
+    if (d.normal.squaredNorm() > 0.0) {
+      const Eigen::Vector3d n = r * d.normal;
+      addRow(n, n.dot(pull));
+      sys.shift += std::abs(n.dot(pull));
+    } else {
+      for (int c = 0; c < 3; ++c) addRow(Eigen::Vector3d::Unit(c), pull(c));
+      sys.shift += pull.norm();
+    }
+  }
+  return sys;
+}
+
+/// The prior on the totals x + step: lambda |x[k+1] + s[k+1] - x[k] - s[k]|^2.
+void addDriftPrior(DriftSystem& sys, const Eigen::VectorXd& x, const double lambda[kDriftDof],
+                   const DriftKnots& knots) {
+  constexpr int kDof = kDriftDof;
+  Eigen::MatrixXd& ata = sys.ata;
+  Eigen::VectorXd& atb = sys.atb;
+  for (size_t k = 0; k + 1 < knots.count; ++k) {
+    const Eigen::Index a = static_cast<Eigen::Index>(k) * kDof, b = a + kDof;
+    for (int c = 0; c < kDof; ++c) {
+      const double l = lambda[c];
+      const double diff = x(b + c) - x(a + c);
+      ata(a + c, a + c) += l;
+      ata(b + c, b + c) += l;
+      ata(a + c, b + c) -= l;
+      ata(b + c, a + c) -= l;
+      atb(a + c) += l * diff;
+      atb(b + c) -= l * diff;
+    }
+  }
+}
+
 /// The drift of one session from its samples (driftSamplesOf(), in frame order) and its
 /// `sensors` (one position per frame, as integrated): fitDrift() without the frames.
 std::vector<Eigen::Isometry3d> solveDrift(const std::vector<Eigen::Vector3d>& sensors,
@@ -537,27 +643,23 @@ std::vector<Eigen::Isometry3d> solveDrift(const std::vector<Eigen::Vector3d>& se
   std::vector<Eigen::Isometry3d> out(n_frames, Eigen::Isometry3d::Identity());
   RegisterReport rep;
   rep.points = samples.size();
-  // Knots: frame i lies at u = i / spacing between knots floor(u) and floor(u) + 1.
-  const size_t spacing = static_cast<size_t>(settings.drift_knot_frames);
-  const size_t knots = (n_frames - 1) / spacing + 2;
-  const auto knotOf = [&](size_t i) {
-    const size_t k = i / spacing;
-    return std::pair<size_t, double>{k, static_cast<double>(i - k * spacing) / static_cast<double>(spacing)};
-  };
-  constexpr int kDof = 4;  // x, y, z offset and yaw
-  const int dim = static_cast<int>(knots) * kDof;
+  DriftKnots knots;
+  knots.spacing = static_cast<size_t>(settings.drift_knot_frames);
+  knots.count = (n_frames - 1) / knots.spacing + 2;
+  constexpr int kDof = kDriftDof;
+  const int dim = static_cast<int>(knots.count) * kDof;
   // The prior: knot differences of a random walk over `spacing` frames, against a pull noise of
   // half a voxel (both in the least-squares units of the data).
   const double noise = 0.5 * grid.resolution_m();
   const double yaw_step = settings.drift_yaw_per_frame_deg * std::numbers::pi / 180.0;
-  const double lambda_t = noise * noise / (static_cast<double>(spacing) * settings.drift_per_frame_m *
+  const double lambda_t = noise * noise / (static_cast<double>(knots.spacing) * settings.drift_per_frame_m *
                                            settings.drift_per_frame_m);
-  const double lambda_yaw = noise * noise / (static_cast<double>(spacing) * yaw_step * yaw_step);
+  const double lambda_yaw = noise * noise / (static_cast<double>(knots.spacing) * yaw_step * yaw_step);
   const double lambda[kDof] = {lambda_t, lambda_t, lambda_t, lambda_yaw};
   Eigen::VectorXd x = Eigen::VectorXd::Zero(dim);
   // Frame i's offset and yaw: its two knots' values, linearly interpolated.
   const auto paramsOf = [&](size_t i) -> Eigen::Vector4d {
-    const auto [k, w] = knotOf(i);
+    const auto [k, w] = knots.of(i);
     return (1.0 - w) * x.segment<kDof>(static_cast<Eigen::Index>(k) * kDof) +
            w * x.segment<kDof>(static_cast<Eigen::Index>(k + 1) * kDof);
   };
@@ -565,85 +667,21 @@ std::vector<Eigen::Isometry3d> solveDrift(const std::vector<Eigen::Vector3d>& se
   std::vector<Eigen::Vector4d> frame_params(n_frames);
   for (int it = 0; it < settings.max_iterations && !surface.empty() && !samples.empty(); ++it) {
     for (size_t i = 0; i < n_frames; ++i) frame_params[i] = paramsOf(i);
-    Eigen::MatrixXd ata = Eigen::MatrixXd::Zero(dim, dim);
-    Eigen::VectorXd atb = Eigen::VectorXd::Zero(dim);
-    double shift = 0.0;
-    size_t matched = 0;
-    for (const DriftSample& d : samples) {
-      const Eigen::Vector4d& fp = frame_params[d.frame];
-      const Eigen::Matrix3d r = Eigen::AngleAxisd(fp(3), Eigen::Vector3d::UnitZ()).toRotationMatrix();
-      const Eigen::Vector3d arm = r * (d.point - sensors[d.frame]);
-      const Eigen::Vector3d p = sensors[d.frame] + fp.head<3>() + arm;
-      // Plain variables, not a structured binding: the lambda below captures them.
-      const std::pair<size_t, double> knot = knotOf(d.frame);
-      const size_t k = knot.first;
-      const double w = knot.second;
-      const Eigen::Index a = static_cast<Eigen::Index>(k) * kDof, b = a + kDof;
-      const auto addRow = [&](const Eigen::Vector3d& n, double residual) {
-        Eigen::Vector4d j;
-        j << n, arm.x() * n.y() - arm.y() * n.x();  // d(p . n) / d yaw = (z x arm) . n
-        if (settings.planar) j(2) = 0.0;  // no vertical offset: its unknowns stay 0
-        const Eigen::Vector4d ja = (1.0 - w) * j, jb = w * j;
-        ata.block<kDof, kDof>(a, a) += ja * ja.transpose();
-        ata.block<kDof, kDof>(a, b) += ja * jb.transpose();
-        ata.block<kDof, kDof>(b, a) += jb * ja.transpose();
-        ata.block<kDof, kDof>(b, b) += jb * jb.transpose();
-        atb.segment<kDof>(a) += ja * residual;
-        atb.segment<kDof>(b) += jb * residual;
-      };
-      if (use_points) {
-        // Point to plane against the points' surface, relative to the frame's own plane there;
-        // no plane, no sample.
-        const auto plane = pointPlaneNear(target.points(), grid, p, settings.radius_voxels);
-        if (!plane) continue;
-        ++matched;
-        const double residual = plane->normal.dot(plane->point - r * d.own_pull - p);
-        addRow(plane->normal, residual);
-        shift += std::abs(residual);
-        continue;
-      }
-      const auto q = centroidNear(surface, grid, p, settings.radius_voxels, true);
-      if (!q) continue;
-      // Where the frame's surface is a plane, the pull counts along its normal only (it says
-      // how far the surface lies, not where along it the voxel belongs); elsewhere in full.
-      // Voxels that already fit count too: they hold the frame where it is.
-      const Eigen::Vector3d pull = *q - r * d.own_pull - p;
-      ++matched;
-      if (d.normal.squaredNorm() > 0.0) {
-        const Eigen::Vector3d n = r * d.normal;
-        addRow(n, n.dot(pull));
-        shift += std::abs(n.dot(pull));
-      } else {
-        for (int c = 0; c < 3; ++c) addRow(Eigen::Vector3d::Unit(c), pull(c));
-        shift += pull.norm();
-      }
-    }
-    rep.matched = matched;
-    const double mean_shift = matched ? shift / static_cast<double>(matched) : 0.0;
+    DriftSystem sys = driftRows(sensors, samples, frame_params, knots, use_points, grid, target, settings);
+    rep.matched = sys.matched;
+    const double mean_shift = sys.matched ? sys.shift / static_cast<double>(sys.matched) : 0.0;
     if (it == 0) rep.mean_shift_before_m = mean_shift;
     rep.mean_shift_after_m = mean_shift;
     rep.iterations = it + 1;
-    if (matched < 3) break;
-    // The prior on the totals x + step: lambda |x[k+1] + s[k+1] - x[k] - s[k]|^2.
-    for (size_t k = 0; k + 1 < knots; ++k) {
-      const Eigen::Index a = static_cast<Eigen::Index>(k) * kDof, b = a + kDof;
-      for (int c = 0; c < kDof; ++c) {
-        const double l = lambda[c];
-        const double diff = x(b + c) - x(a + c);
-        ata(a + c, a + c) += l;
-        ata(b + c, b + c) += l;
-        ata(a + c, b + c) -= l;
-        ata(b + c, a + c) -= l;
-        atb(a + c) += l * diff;
-        atb(b + c) -= l * diff;
-      }
-    }
+    if (sys.matched < 3) break;
+    addDriftPrior(sys, x, lambda, knots);
+    Eigen::MatrixXd& ata = sys.ata;
     ata.diagonal().array() += 1e-6 * (ata.trace() / dim + 1.0);
-    const Eigen::VectorXd step = ata.ldlt().solve(atb);
+    const Eigen::VectorXd step = ata.ldlt().solve(sys.atb);
     if (!step.allFinite()) break;
     x += step;
     double moved = 0.0;
-    for (size_t k = 0; k < knots; ++k) {
+    for (size_t k = 0; k < knots.count; ++k) {
       const Eigen::Index a = static_cast<Eigen::Index>(k) * kDof;
       moved = std::max(moved, step.segment<3>(a).norm() + std::abs(step(a + 3)));
     }

@@ -190,38 +190,33 @@ bool onlyLeftovers(const fs::path& folder) {
   return true;
 }
 
-}  // namespace
-
-StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
-                             const std::function<StreamSession(size_t)>& produce) {
-  s.criterion.validate();
-  if (fs::exists(s.folder) && !fs::is_directory(s.folder)) {
-    throw UsageError("'" + s.folder.string() + "' exists and is not a folder (a tiled map is a folder)");
+/// Checks that `folder` can take a tiled map; returns whether it existed.
+bool checkFolder(const fs::path& folder) {
+  if (fs::exists(folder) && !fs::is_directory(folder)) {
+    throw UsageError("'" + folder.string() + "' exists and is not a folder (a tiled map is a folder)");
   }
-  const bool existed = fs::exists(s.folder);
-  if (existed && !isTiledMap(s.folder) && !onlyLeftovers(s.folder)) {
-    throw UsageError("'" + s.folder.string() + "' is a folder but not a tiled 4D map (it has no " +
+  const bool existed = fs::exists(folder);
+  if (existed && !isTiledMap(folder) && !onlyLeftovers(folder)) {
+    throw UsageError("'" + folder.string() + "' is a folder but not a tiled 4D map (it has no " +
                      kTileIndexName + ")");
   }
-  fs::create_directories(s.folder);
-  struct Cleanup {  // a new map that failed leaves no folder behind
-    fs::path path;
-    bool armed;
-    ~Cleanup() {
-      std::error_code ec;
-      if (!armed || fs::exists(path / kTileIndexName, ec)) return;
-      fs::remove_all(path / "tiles", ec);
-      if (fs::is_directory(path, ec) && fs::is_empty(path, ec)) fs::remove(path, ec);
-    }
-  } cleanup{s.folder, !existed || !isTiledMap(s.folder)};
-  // The folder itself is locked: the index is replaced by a rename, the folder stays.
-  const FileLock lock(s.folder);
+  return existed;
+}
 
-  StreamResult result;
-  std::optional<TileIndex> index;
-  if (isTiledMap(s.folder)) index = readTileIndex(s.folder);
-  result.created = !index;
-  TemporalMap top = index ? index->top : TemporalMap(s.resolution_m, s.criterion);
+/// A new map that failed leaves no folder behind.
+struct FolderCleanup {
+  fs::path path;
+  bool armed;
+  ~FolderCleanup() {
+    std::error_code ec;
+    if (!armed || fs::exists(path / kTileIndexName, ec)) return;
+    fs::remove_all(path / "tiles", ec);
+    if (fs::is_directory(path, ec) && fs::is_empty(path, ec)) fs::remove(path, ec);
+  }
+};
+
+/// The tile level: the stored map's, else the one asked for; checks that the sessions fit.
+int tileLevelOf(const StreamSettings& s, const std::optional<TileIndex>& index, const TemporalMap& top) {
   const int level = index ? index->tile_level
                           : (s.tile_size_m ? tileLevelFor(*s.tile_size_m, s.resolution_m) : kDefaultTileLevel);
   if (index && top.resolution_m() != s.resolution_m) {
@@ -232,63 +227,117 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
     throw UsageError(s.folder.string() + " has tiles of " + std::to_string(std::ldexp(top.resolution_m(), level)) +
                      " m; it cannot take another tile size");
   }
-  result.tile_level = level;
+  return level;
+}
+
+/// The generation this build writes its tiles under: one past the stored map's newest.
+uint64_t nextGeneration(const std::optional<TileIndex>& index) {
   uint64_t generation = 0;
   if (index) {
     for (const TileEntry& e : index->tiles) generation = std::max(generation, *tileGeneration(e.key, e.file));
   }
-  ++generation;
-  removeLeftovers(s.folder, index ? &*index : nullptr);
+  return generation + 1;
+}
 
-  // 1. Each session in turn: its record, and its leaves cut to the tiles (a leaf of tile size
-  // or larger stays whole).
-  PartStore parts(s.folder / (".parts-" + std::to_string(::getpid())), s.memory_limit_bytes, result.stats);
-  std::vector<NewSession> added;
-  std::map<Cube, std::vector<uint32_t>, CubeLess> sessions_of_cube;  // session indices with parts there
+/// The steps of streamIntoTiles() after the folder is set up, with what they hand each other.
+class TileStream {
+ public:
+  TileStream(const StreamSettings& s, const std::optional<TileIndex>& index, const TemporalMap& top, int level,
+             uint64_t generation, StreamResult& result)
+      : s_(s), index_(index), top_(top), level_(level), generation_(generation), result_(result),
+        parts_(s.folder / (".parts-" + std::to_string(::getpid())), s.memory_limit_bytes, result.stats) {}
+
+  void addSessions(size_t count, const std::function<StreamSession(size_t)>& produce);
+  void formGroups();
+  void writeGroups();
+  void rewriteUnreached();
+  /// The top with the groups' parts in place, every session's record with its coverage
+  /// outside the tiles, compacted as a written map is; sorts the entries.
+  TemporalMap newTop();
+
+  std::vector<TileEntry>& entries() { return entries_; }
+  const std::vector<NewSession>& added() const { return added_; }
+  std::vector<int64_t>& nodesAdded() { return nodes_added_; }
+
+ private:
+  void addSession(size_t i, StreamSession& session);
+  TemporalMap groupBase(const Cube& g, std::vector<SessionRecord>& records);
+  void addGroupSessions(const Cube& g, TemporalMap& work);
+
+  const StreamSettings& s_;
+  const std::optional<TileIndex>& index_;
+  const TemporalMap& top_;
+  const int level_;
+  const uint64_t generation_;
+  StreamResult& result_;
+  PartStore parts_;
+  std::vector<NewSession> added_;
+  std::map<Cube, std::vector<uint32_t>, CubeLess> sessions_of_cube_;  // session indices with parts there
+  uint32_t base_rank_ = 0;
+  std::vector<uint32_t> rank_of_;
+  std::vector<Cube> groups_;
+  std::vector<int64_t> nodes_added_;
+  std::vector<SessionRecord> all_;
+  std::vector<TileEntry> entries_;
+  std::vector<TemporalMap> group_tops_;
+  std::vector<Cube> group_cubes_;
+  std::set<TileKey> done_;
+};
+
+// 1. Each session in turn: its record, and its leaves cut to the tiles (a leaf of tile size or
+// larger stays whole).
+void TileStream::addSessions(size_t count, const std::function<StreamSession(size_t)>& produce) {
   for (size_t i = 0; i < count; ++i) {
     StreamSession session = produce(i);
-    if (session.map.resolution_m() != top.resolution_m()) {
-      throw UsageError(session.name + ": session resolution " + std::to_string(session.map.resolution_m()) +
-                       " m differs from the tiled map's " + std::to_string(top.resolution_m()) + " m");
-    }
-    if (!std::isfinite(session.time_s)) throw UsageError(session.name + ": session time must be finite");
-    if (top.sessionCount() && session.time_s <= top.sessions().back().time_s) {
-      throw UsageError(session.name + " (" + formatTime(session.time_s) +
-                       ") is not after the tiled map's last session (" +
-                       formatTime(top.sessions().back().time_s) +
-                       "): the streaming build only adds later sessions (join with `untile` to add earlier ones)");
-    }
-    added.push_back(NewSession{i, session.time_s, session.name, Coverage(session.map),
-                               session.map.innerCount() + session.map.leafCount()});
-    session.map.forEachLeaf([&](const LeafView& leaf) {
-      const Cube cube = leaf.level < level ? cubeAt(leaf.key, level) : Cube{leaf.key, leaf.level};
-      parts.add(cube, Part{static_cast<uint32_t>(i), leaf.key.x, leaf.key.y, leaf.key.z,
-                           static_cast<uint8_t>(leaf.level), 0, leaf.counters});
-      std::vector<uint32_t>& who = sessions_of_cube[cube];
-      if (who.empty() || who.back() != i) who.push_back(static_cast<uint32_t>(i));
-    });
+    addSession(i, session);
   }
-  std::stable_sort(added.begin(), added.end(),
+  std::stable_sort(added_.begin(), added_.end(),
                    [](const NewSession& a, const NewSession& b) { return a.time_s < b.time_s; });
-  for (size_t k = 1; k < added.size(); ++k) {
-    if (added[k].time_s == added[k - 1].time_s) {
-      throw UsageError(added[k - 1].name + " and " + added[k].name + " have the same time " +
-                       formatTime(added[k].time_s));
+  for (size_t k = 1; k < added_.size(); ++k) {
+    if (added_[k].time_s == added_[k - 1].time_s) {
+      throw UsageError(added_[k - 1].name + " and " + added_[k].name + " have the same time " +
+                       formatTime(added_[k].time_s));
     }
   }
-  const auto base_rank = static_cast<uint32_t>(top.sessionCount());
-  std::vector<uint32_t> rank_of(count);
-  for (size_t k = 0; k < added.size(); ++k) rank_of[added[k].index] = base_rank + static_cast<uint32_t>(k);
+  base_rank_ = static_cast<uint32_t>(top_.sessionCount());
+  rank_of_.resize(count);
+  for (size_t k = 0; k < added_.size(); ++k) rank_of_[added_[k].index] = base_rank_ + static_cast<uint32_t>(k);
+}
 
-  // 2. Groups: a tile, or a uniform cube of the top (or a session's leaf) of tile size or more
-  // with everything inside it. Groups are disjoint; largest first.
-  const TemporalMap::Parts top_parts = top.parts();
+void TileStream::addSession(size_t i, StreamSession& session) {
+  const TemporalMap& top = top_;
+  if (session.map.resolution_m() != top.resolution_m()) {
+    throw UsageError(session.name + ": session resolution " + std::to_string(session.map.resolution_m()) +
+                     " m differs from the tiled map's " + std::to_string(top.resolution_m()) + " m");
+  }
+  if (!std::isfinite(session.time_s)) throw UsageError(session.name + ": session time must be finite");
+  if (top.sessionCount() && session.time_s <= top.sessions().back().time_s) {
+    throw UsageError(session.name + " (" + formatTime(session.time_s) +
+                     ") is not after the tiled map's last session (" +
+                     formatTime(top.sessions().back().time_s) +
+                     "): the streaming build only adds later sessions (join with `untile` to add earlier ones)");
+  }
+  added_.push_back(NewSession{i, session.time_s, session.name, Coverage(session.map),
+                              session.map.innerCount() + session.map.leafCount()});
+  session.map.forEachLeaf([&](const LeafView& leaf) {
+    const Cube cube = leaf.level < level_ ? cubeAt(leaf.key, level_) : Cube{leaf.key, leaf.level};
+    parts_.add(cube, Part{static_cast<uint32_t>(i), leaf.key.x, leaf.key.y, leaf.key.z,
+                          static_cast<uint8_t>(leaf.level), 0, leaf.counters});
+    std::vector<uint32_t>& who = sessions_of_cube_[cube];
+    if (who.empty() || who.back() != i) who.push_back(static_cast<uint32_t>(i));
+  });
+}
+
+// 2. Groups: a tile, or a uniform cube of the top (or a session's leaf) of tile size or more
+// with everything inside it. Groups are disjoint; largest first.
+void TileStream::formGroups() {
+  const TemporalMap::Parts top_parts = top_.parts();
   std::set<Cube, CubeLess> promoted;  // largest first
-  for (const Cube& c : parts.cubes()) {
+  for (const Cube& c : parts_.cubes()) {
     const TopPath path = walkTop(top_parts, c);
     promoted.insert(path.list ? *path.list : c);
   }
-  std::vector<Cube> groups;
+  std::vector<Cube>& groups = groups_;
   for (const Cube& g : promoted) {
     if (std::none_of(groups.begin(), groups.end(), [&](const Cube& h) { return h.contains(g); })) groups.push_back(g);
   }
@@ -298,136 +347,176 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
   });
   // Inner nodes of the top that the sessions create on the way to a group, each counted for
   // the first session (in time order) that reaches it, as TemporalMap::add counts them.
-  std::vector<int64_t> nodes_added(added.size(), 0);
-  {
-    std::map<Cube, uint32_t, CubeLess> new_nodes;
-    for (const Cube& g : groups) {
-      uint32_t first = UINT32_MAX;
-      for (const auto& [c, who] : sessions_of_cube) {
-        if (!g.contains(c)) continue;
-        for (const uint32_t i : who) first = std::min(first, rank_of[i]);
-      }
-      for (const int l : walkTop(top_parts, g).missing_levels) {
-        auto [it, fresh] = new_nodes.emplace(cubeAt(g.corner, l), first);
-        if (!fresh) it->second = std::min(it->second, first);
-      }
+  nodes_added_.assign(added_.size(), 0);
+  std::map<Cube, uint32_t, CubeLess> new_nodes;
+  for (const Cube& g : groups) {
+    uint32_t first = UINT32_MAX;
+    for (const auto& [c, who] : sessions_of_cube_) {
+      if (!g.contains(c)) continue;
+      for (const uint32_t i : who) first = std::min(first, rank_of_[i]);
     }
-    for (const auto& [c, r] : new_nodes) ++nodes_added[r - base_rank];
+    for (const int l : walkTop(top_parts, g).missing_levels) {
+      auto [it, fresh] = new_nodes.emplace(cubeAt(g.corner, l), first);
+      if (!fresh) it->second = std::min(it->second, first);
+    }
   }
+  for (const auto& [c, r] : new_nodes) ++nodes_added_[r - base_rank_];
+}
 
-  // 3. Each group: its part of the top and its tiles, the sessions added in time order,
-  // compacted, cut into tiles again, written under the new generation's names.
-  std::vector<SessionRecord> all = top.sessions();
-  for (const NewSession& n : added) {
+// 3. Each group: its part of the top and its tiles, the sessions added in time order,
+// compacted, cut into tiles again, written under the new generation's names.
+void TileStream::writeGroups() {
+  all_ = top_.sessions();
+  for (const NewSession& n : added_) {
     SessionRecord r;
     r.time_s = n.time_s;
     r.name = n.name;
     r.coverage = n.coverage;
     r.nodes_separate = n.nodes_separate;
-    all.push_back(std::move(r));
+    all_.push_back(std::move(r));
   }
-  fs::create_directories(s.folder / "tiles");
-  std::vector<TileEntry> entries;
-  std::vector<TemporalMap> group_tops;
-  std::vector<Cube> group_cubes;
-  std::set<TileKey> done;
-  for (const Cube& g : groups) {
-    s.progress.advance("tiles", result.stats.groups, groups.size());
-    std::vector<Tile> tiles;
-    if (index) {
-      for (const TileEntry& e : index->tiles) {
-        if (g.contains(Cube{tileCorner(e.key, level), level})) {
-          tiles.push_back(Tile{e.key, readTile(s.folder, *index, e)});
-          ++result.stats.tiles_read;
-          done.insert(e.key);
-        }
-      }
-    }
-    result.stats.largest_group_tiles = std::max(result.stats.largest_group_tiles, tiles.size());
-    // The stored sessions' records in the group: the top's coverage there (outside the tiles)
-    // joined with the tiles' own.
-    std::vector<SessionRecord> records = clipped(top.sessions(), g);
-    TemporalMap work = restrictToCube(top, g, records);
-    if (!tiles.empty()) {
-      std::vector<const Tile*> refs;
-      for (const Tile& t : tiles) refs.push_back(&t);
-      work = joinTiles(work, level, refs);
-      records = work.sessions();
-      tiles.clear();
-    }
-    std::vector<std::vector<Part>> by_session(added.size());
-    for (const Cube& c : parts.cubes()) {
-      if (!g.contains(c)) continue;
-      for (const Part& p : parts.take(c)) by_session[rank_of[p.session] - base_rank].push_back(p);
-    }
-    for (size_t k = 0; k < added.size(); ++k) {
-      SessionMap part(top.resolution_m());
-      for (const Part& p : by_session[k]) {
-        const VoxelKey key{p.x, p.y, p.z};
-        if (p.level == 0) {
-          part.add(key, p.counters);
-        } else {
-          part.addCube(key, p.level, p.counters);
-        }
-      }
-      by_session[k].clear();
-      by_session[k].shrink_to_fit();
-      work.add(added[k].time_s, part, AddSettings{false, added[k].name});
-      nodes_added[k] += work.sessions()[base_rank + k].nodes_added;
-    }
-    result.stats.peak_group_bytes = std::max(result.stats.peak_group_bytes, work.memoryBytes());
-    for (SessionRecord& r : clipped(std::vector<SessionRecord>(all.begin() + base_rank, all.end()), g)) {
+  fs::create_directories(s_.folder / "tiles");
+  for (const Cube& g : groups_) {
+    s_.progress.advance("tiles", result_.stats.groups, groups_.size());
+    std::vector<SessionRecord> records;
+    TemporalMap work = groupBase(g, records);
+    addGroupSessions(g, work);
+    result_.stats.peak_group_bytes = std::max(result_.stats.peak_group_bytes, work.memoryBytes());
+    for (SessionRecord& r : clipped(std::vector<SessionRecord>(all_.begin() + base_rank_, all_.end()), g)) {
       records.push_back(std::move(r));
     }
     work = TemporalMap::fromParts(work.resolution_m(), work.criterion(), work.parts(), std::move(records));
     work.compact();
-    SplitMap split = splitIntoTiles(work, level);
+    SplitMap split = splitIntoTiles(work, level_);
     for (const Tile& t : split.tiles) {
-      entries.push_back(writeTileFile(s.folder, t.key, generation, t.map));
-      result.tile_bytes += entries.back().diskBytes();
-      ++result.stats.tiles_written;
+      entries_.push_back(writeTileFile(s_.folder, t.key, generation_, t.map));
+      result_.tile_bytes += entries_.back().diskBytes();
+      ++result_.stats.tiles_written;
     }
-    group_tops.push_back(std::move(split.top));
-    group_cubes.push_back(g);
-    ++result.stats.groups;
+    group_tops_.push_back(std::move(split.top));
+    group_cubes_.push_back(g);
+    ++result_.stats.groups;
   }
+}
 
-  // 4. The tiles no session reached: the new sessions' records (nothing observed there).
-  if (index) {
-    for (const TileEntry& e : index->tiles) {
-      if (done.count(e.key)) continue;
-      const TemporalMap old = readTile(s.folder, *index, e);
-      ++result.stats.tiles_read;
-      std::vector<SessionRecord> records = old.sessions();
-      for (const NewSession& n : added) {
-        SessionRecord r;
-        r.time_s = n.time_s;
-        r.name = n.name;
-        r.coverage = Coverage::fromRanges({});
-        records.push_back(std::move(r));
+// The group's part of the stored map: the top's part with the group's tiles joined in; `records`
+// gets the stored sessions' records there (the top's coverage outside the tiles joined with the
+// tiles' own).
+TemporalMap TileStream::groupBase(const Cube& g, std::vector<SessionRecord>& records) {
+  std::vector<Tile> tiles;
+  if (index_) {
+    for (const TileEntry& e : index_->tiles) {
+      if (g.contains(Cube{tileCorner(e.key, level_), level_})) {
+        tiles.push_back(Tile{e.key, readTile(s_.folder, *index_, e)});
+        ++result_.stats.tiles_read;
+        done_.insert(e.key);
       }
-      const TemporalMap tile =
-          TemporalMap::fromParts(old.resolution_m(), old.criterion(), old.parts(), std::move(records));
-      entries.push_back(writeTileFile(s.folder, e.key, generation, tile));
-      result.tile_bytes += entries.back().diskBytes();
-      ++result.stats.tiles_written;
     }
   }
+  result_.stats.largest_group_tiles = std::max(result_.stats.largest_group_tiles, tiles.size());
+  records = clipped(top_.sessions(), g);
+  TemporalMap work = restrictToCube(top_, g, records);
+  if (!tiles.empty()) {
+    std::vector<const Tile*> refs;
+    for (const Tile& t : tiles) refs.push_back(&t);
+    work = joinTiles(work, level_, refs);
+    records = work.sessions();
+    tiles.clear();
+  }
+  return work;
+}
 
-  // 5. The top with the groups' parts in place, every session's record with its coverage
-  // outside the tiles, compacted as a written map is; then the index, swapped in by one rename;
-  // then the old files go.
+// The new sessions' parts inside the group, added to `work` in time order.
+void TileStream::addGroupSessions(const Cube& g, TemporalMap& work) {
+  std::vector<std::vector<Part>> by_session(added_.size());
+  for (const Cube& c : parts_.cubes()) {
+    if (!g.contains(c)) continue;
+    for (const Part& p : parts_.take(c)) by_session[rank_of_[p.session] - base_rank_].push_back(p);
+  }
+  for (size_t k = 0; k < added_.size(); ++k) {
+    SessionMap part(top_.resolution_m());
+    for (const Part& p : by_session[k]) {
+      const VoxelKey key{p.x, p.y, p.z};
+      if (p.level == 0) {
+        part.add(key, p.counters);
+      } else {
+        part.addCube(key, p.level, p.counters);
+      }
+    }
+    by_session[k].clear();
+    by_session[k].shrink_to_fit();
+    work.add(added_[k].time_s, part, AddSettings{false, added_[k].name});
+    nodes_added_[k] += work.sessions()[base_rank_ + k].nodes_added;
+  }
+}
+
+// 4. The tiles no session reached: the new sessions' records (nothing observed there).
+void TileStream::rewriteUnreached() {
+  if (!index_) return;
+  for (const TileEntry& e : index_->tiles) {
+    if (done_.count(e.key)) continue;
+    const TemporalMap old = readTile(s_.folder, *index_, e);
+    ++result_.stats.tiles_read;
+    std::vector<SessionRecord> records = old.sessions();
+    for (const NewSession& n : added_) {
+      SessionRecord r;
+      r.time_s = n.time_s;
+      r.name = n.name;
+      r.coverage = Coverage::fromRanges({});
+      records.push_back(std::move(r));
+    }
+    const TemporalMap tile =
+        TemporalMap::fromParts(old.resolution_m(), old.criterion(), old.parts(), std::move(records));
+    entries_.push_back(writeTileFile(s_.folder, e.key, generation_, tile));
+    result_.tile_bytes += entries_.back().diskBytes();
+    ++result_.stats.tiles_written;
+  }
+}
+
+TemporalMap TileStream::newTop() {
   std::vector<CubePart> replaced;
-  for (size_t k = 0; k < group_cubes.size(); ++k) replaced.push_back(CubePart{group_cubes[k], &group_tops[k]});
-  for (size_t k = 0; k < added.size(); ++k) all[base_rank + k].nodes_added = nodes_added[k];
+  for (size_t k = 0; k < group_cubes_.size(); ++k) replaced.push_back(CubePart{group_cubes_[k], &group_tops_[k]});
+  for (size_t k = 0; k < added_.size(); ++k) all_[base_rank_ + k].nodes_added = nodes_added_[k];
   std::vector<TileKey> tile_keys;
-  for (const TileEntry& e : entries) tile_keys.push_back(e.key);
-  for (SessionRecord& r : all) r.coverage = clipCoverageOutside(r.coverage, tile_keys, level);
-  TemporalMap new_top = replaceCubes(top, replaced, std::move(all));
-  group_tops.clear();
+  for (const TileEntry& e : entries_) tile_keys.push_back(e.key);
+  for (SessionRecord& r : all_) r.coverage = clipCoverageOutside(r.coverage, tile_keys, level_);
+  TemporalMap new_top = replaceCubes(top_, replaced, std::move(all_));
+  group_tops_.clear();
   new_top.compact();
-  std::sort(entries.begin(), entries.end(),
+  std::sort(entries_.begin(), entries_.end(),
             [](const TileEntry& a, const TileEntry& b) { return a.key < b.key; });
+  return new_top;
+}
+
+}  // namespace
+
+StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
+                             const std::function<StreamSession(size_t)>& produce) {
+  s.criterion.validate();
+  const bool existed = checkFolder(s.folder);
+  fs::create_directories(s.folder);
+  FolderCleanup cleanup{s.folder, !existed || !isTiledMap(s.folder)};
+  // The folder itself is locked: the index is replaced by a rename, the folder stays.
+  const FileLock lock(s.folder);
+
+  StreamResult result;
+  std::optional<TileIndex> index;
+  if (isTiledMap(s.folder)) index = readTileIndex(s.folder);
+  result.created = !index;
+  const TemporalMap top = index ? index->top : TemporalMap(s.resolution_m, s.criterion);
+  const int level = tileLevelOf(s, index, top);
+  result.tile_level = level;
+  const uint64_t generation = nextGeneration(index);
+  removeLeftovers(s.folder, index ? &*index : nullptr);
+
+  TileStream stream(s, index, top, level, generation, result);
+  stream.addSessions(count, produce);
+  stream.formGroups();
+  stream.writeGroups();
+  stream.rewriteUnreached();
+  // 5. The top, then the index, swapped in by one rename; then the old files go.
+  const TemporalMap new_top = stream.newTop();
+  const std::vector<TileEntry>& entries = stream.entries();
   const nlohmann::json meta = {{"created_by", "chronomap build --tiles"}};
   result.index_bytes = writeTileIndex(s.folder, new_top, level, entries, meta);
   cleanup.armed = false;
@@ -436,8 +525,8 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
 
   result.sessions = new_top.sessionCount();
   result.tiles = entries.size();
-  for (const NewSession& n : added) result.added_times.push_back(n.time_s);
-  result.nodes_added = std::move(nodes_added);
+  for (const NewSession& n : stream.added()) result.added_times.push_back(n.time_s);
+  result.nodes_added = std::move(stream.nodesAdded());
   return result;
 }
 

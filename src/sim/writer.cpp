@@ -167,14 +167,7 @@ nlohmann::json objectsJson(const SceneState& state) {
   return objects;
 }
 
-}  // namespace
-
-SimulationSummary simulate(const SimulationSettings& settings, const fs::path& out,
-                           const SimulationProgress& progress) {
-  const auto started = std::chrono::steady_clock::now();
-  const PresetPlan plan = presetPlan(settings.preset);
-  SceneState state = makeScene(settings.preset, settings.seed);  // validates the preset
-  const int sessions = settings.sessions > 0 ? settings.sessions : plan.sessions;
+void checkSettings(const SimulationSettings& settings, int sessions) {
   if (settings.sessions < 0 || sessions > 1000) throw UsageError("--sessions must lie between 1 and 1000");
   if (!(settings.resolution_scale >= 0.1 && settings.resolution_scale <= 1.0)) {
     throw UsageError("--resolution-scale must lie between 0.1 and 1");
@@ -189,25 +182,16 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
   if (settings.lighting != "fixed" && settings.lighting != "daylight") {
     throw UsageError("--lighting must be fixed or daylight, not '" + settings.lighting + "'");
   }
-  const KeyGrid grid(settings.voxel_resolution_m);
-  const Camera camera = kinectCamera(settings.resolution_scale);
-  SensorModel sensor;
-  sensor.noise_per_m2 = settings.noise_per_m2;
-  // Written whole or not at all: into a staging folder beside `out`, moved into place at the end.
-  StagedFolder staged(out);
-  const fs::path& root = staged.path();
-  std::error_code ec;
-  fs::create_directories(root / "truth", ec);
-  if (ec) throw IoError(out.string() + ": cannot create folder (" + ec.message() + ")");
-  std::unique_ptr<tbb::global_control> limit;
-  if (settings.threads > 0) {
-    limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
-                                                  static_cast<size_t>(settings.threads));
-  }
+}
 
-  // Session times: 2 or 3 sessions on a recording day, at different hours, a day or two apart;
-  // for the rhythmic building ("weeks"), two a day every day from its first Monday, one in the
-  // morning half of the day and one in the evening half, at any hour, nights included.
+struct SessionTimes {
+  std::vector<double> times, hours;
+};
+
+// Session times: 2 or 3 sessions on a recording day, at different hours, a day or two apart;
+// for the rhythmic building ("weeks"), two a day every day from its first Monday, one in the
+// morning half of the day and one in the evening half, at any hour, nights included.
+SessionTimes sessionTimes(const SimulationSettings& settings, const PresetPlan& plan, int sessions) {
   Rng time_rng(mix(settings.seed, 77));
   std::vector<double> times, hours;
   const bool rhythmic = settings.preset == "weeks";
@@ -236,243 +220,377 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
     }
     day += plan.days * 2.5 / plan.sessions >= 1.0 ? 1.0 + time_rng.below(2) : 1.0;
   }
+  return {std::move(times), std::move(hours)};
+}
 
-  SimulationSummary summary;
-  nlohmann::json sessions_json = nlohmann::json::array();
-  // The change events go to a file in the staging folder as they come, already formatted as
-  // elements of scene.json's "events" (their voxels make them most of scene.json: about 4 MB a
-  // night on the site, far more than memory should hold for a year); writeScene() splices them.
-  EventSpool events(root / ".events.tmp");
-  std::vector<VoxelKey> previous_truth;
-  SceneState previous_state;
-  if (settings.rare_events) {
-    if (!rhythmic) throw UsageError("--rare-events needs the weeks preset");
-    addRareObjects(state, settings.seed);
+// The repainted object: the first table no routine moves (else the first such desk).
+uint32_t repaintObject(const SceneState& home, const SimulationSettings& settings, int sessions) {
+  std::vector<uint32_t> routine_objects;
+  for (const Routine& r : routinesOf(home)) {
+    routine_objects.insert(routine_objects.end(), r.objects.begin(), r.objects.end());
   }
-  const SceneState home = state;
-  // The site's floors, each in its own frame with its own change processes and patrol.
-  std::vector<SceneState> floors;
-  for (int f = 0; site && f < settings.floors; ++f) floors.push_back(siteFloor(settings.seed, f));
-  // Numbered with three digits where there can be more than 100 sessions, so that names sort.
-  const char* const session_format = site ? "session_%03d" : "session_%02d";
-  const char* const occupancy_format = site ? "occupancy_%03d.cmap" : "occupancy_%02d.cmap";
-  const char* const objects_format = site ? "objects_%03d.json" : "objects_%02d.json";
-  Daylight daylight;
-  daylight.building = state.bounds;
-  const bool use_daylight = settings.lighting == "daylight";
-  // The repainted object: the first table no routine moves (else the first such desk), repainted
-  // from session repaint_at on.
-  const int repaint_at = settings.repaint ? std::max(1, sessions - sessions / 4) : -1;
   uint32_t repaint_object = 0;
-  if (settings.repaint) {
-    std::vector<uint32_t> routine_objects;
-    for (const Routine& r : routinesOf(home)) routine_objects.insert(routine_objects.end(), r.objects.begin(), r.objects.end());
-    bool found = false;
-    for (const ObjectKind kind : {ObjectKind::Table, ObjectKind::Desk}) {
-      for (const Object& o : home.objects) {
-        if (found || o.kind != kind || !o.present) continue;
-        if (std::find(routine_objects.begin(), routine_objects.end(), o.id) != routine_objects.end()) continue;
-        repaint_object = o.id;
-        found = true;
+  bool found = false;
+  for (const ObjectKind kind : {ObjectKind::Table, ObjectKind::Desk}) {
+    for (const Object& o : home.objects) {
+      if (found || o.kind != kind || !o.present) continue;
+      if (std::find(routine_objects.begin(), routine_objects.end(), o.id) != routine_objects.end()) continue;
+      repaint_object = o.id;
+      found = true;
+    }
+  }
+  if (!found) throw UsageError("--repaint: the " + settings.preset + " preset has no table or desk to repaint");
+  if (sessions < 2) throw UsageError("--repaint needs at least 2 sessions");
+  return repaint_object;
+}
+
+// What every session is rendered with.
+struct Rig {
+  const KeyGrid& grid;
+  const Camera& camera;
+  const SensorModel& sensor;
+};
+
+// The sessions one after the other, with the scene state, truth and scene.json's parts that
+// carry from each session to the next.
+class Simulation {
+ public:
+  Simulation(const SimulationSettings& settings, const Rig& rig, const fs::path& out, const fs::path& root,
+             const SessionTimes& times, SceneState initial, int sessions)
+      : settings_(settings), rig_(rig), out_(out), root_(root), times_(times.times), hours_(times.hours),
+        rhythmic_(settings.preset == "weeks"), site_(settings.preset == "site"),
+        // The change events go to a file in the staging folder as they come, already formatted
+        // as elements of scene.json's "events" (their voxels make them most of scene.json: about
+        // 4 MB a night on the site, far more than memory should hold for a year); writeScene()
+        // splices them.
+        events_(root / ".events.tmp"), state_(std::move(initial)) {
+    if (settings.rare_events) {
+      if (!rhythmic_) throw UsageError("--rare-events needs the weeks preset");
+      addRareObjects(state_, settings.seed);
+    }
+    home_ = state_;
+    // The site's floors, each in its own frame with its own change processes and patrol.
+    for (int f = 0; site_ && f < settings.floors; ++f) floors_.push_back(siteFloor(settings.seed, f));
+    daylight_.building = state_.bounds;
+    use_daylight_ = settings.lighting == "daylight";
+    // Repainted from session repaint_at_ on.
+    repaint_at_ = settings.repaint ? std::max(1, sessions - sessions / 4) : -1;
+    if (settings.repaint) repaint_object_ = repaintObject(home_, settings, sessions);
+  }
+
+  void session(int s);
+  // Writes scene.json (with the spooled events) into the staging folder.
+  void writeScene();
+  SimulationSummary& summary() { return summary_; }
+
+ private:
+  std::vector<ScheduledChange> changesOf(int s);
+  std::vector<ScheduledChange> scheduleChanges(int s);
+  void repaint(int s);
+  void addEvents(int s, const std::vector<ScheduledChange>& changes, const std::vector<VoxelKey>& truth);
+  detail::Patrol patrolOf(int s, nlohmann::json& floors_json) const;
+  void writeFrames(int s, const fs::path& dir, const detail::Patrol& patrol) const;
+  void writeTruth(int s, const std::vector<VoxelKey>& truth) const;
+  nlohmann::json scheduleJson() const;
+  nlohmann::json lightingJson() const;
+
+  const SimulationSettings& settings_;
+  const Rig& rig_;
+  const fs::path& out_;
+  const fs::path& root_;
+  const std::vector<double>& times_;
+  const std::vector<double>& hours_;
+  const bool rhythmic_;
+  const bool site_;
+  SimulationSummary summary_;
+  nlohmann::json sessions_json_ = nlohmann::json::array();
+  EventSpool events_;
+  std::vector<VoxelKey> previous_truth_;
+  SceneState previous_state_;
+  SceneState state_;
+  SceneState home_;
+  std::vector<SceneState> floors_;
+  Daylight daylight_;
+  bool use_daylight_ = false;
+  int repaint_at_ = -1;
+  uint32_t repaint_object_ = 0;
+  nlohmann::json repaints_json_ = nlohmann::json::array();
+  std::vector<uint32_t> rare_before_;  // the objects the previous session's rare event changed
+  nlohmann::json rare_json_ = nlohmann::json::array();
+};
+
+// Each change with its cause: a routine of the schedule, or the random processes.
+std::vector<ScheduledChange> Simulation::changesOf(int s) {
+  std::vector<ScheduledChange> changes;
+  if (rhythmic_) {
+    changes = scheduleChanges(s);
+    if (s == 0) changes.clear();  // the first session's state is where the history starts
+  } else if (site_) {
+    for (size_t f = 0; f < floors_.size() && s > 0; ++f) {
+      for (const auto& [id, kind] : applyChanges(floors_[f], siteFloorSeed(settings_.seed, static_cast<int>(f)), s)) {
+        changes.push_back({static_cast<uint32_t>(f) * kSiteIdStride + id, kind, {}});
       }
     }
-    if (!found) throw UsageError("--repaint: the " + settings.preset + " preset has no table or desk to repaint");
-    if (sessions < 2) throw UsageError("--repaint needs at least 2 sessions");
+    state_ = stackFloors(floors_);
+  } else if (s > 0) {
+    for (const auto& [id, kind] : applyChanges(state_, settings_.seed, s)) changes.push_back({id, kind, {}});
   }
+  return changes;
+}
+
+std::vector<ScheduledChange> Simulation::scheduleChanges(int s) {
+  const SceneState before = state_;
+  std::vector<ScheduledChange> changes =
+      applySchedule(state_, home_, settings_.seed, times_[static_cast<size_t>(s)]);
+  if (!settings_.rare_events) return changes;
+  // The schedule, then the session's rare event on top; each change labelled with its cause.
+  std::map<uint32_t, std::string> routine_of;
+  for (const Routine& r : routinesOf(home_)) {
+    for (uint32_t id : r.objects) routine_of[id] = r.name;
+  }
+  std::vector<uint32_t> rare_now;
+  const auto rare = rareEventOf(settings_.seed, s, times_);
+  if (rare) {
+    rare_now = applyRareEvent(state_, home_, settings_.seed, s, *rare);
+    rare_json_.push_back({{"session", s}, {"what", describe(*rare)}, {"objects", rare_now}});
+  }
+  changes = objectChanges(before, state_);
+  for (ScheduledChange& c : changes) {
+    const auto in = [&](const std::vector<uint32_t>& ids) {
+      return std::find(ids.begin(), ids.end(), c.object) != ids.end();
+    };
+    const auto r = routine_of.find(c.object);
+    c.routine = r == routine_of.end() ? std::string() : r->second;
+    if (in(rare_now)) {
+      c.cause = "rare";
+      c.routine = describe(*rare);
+    } else if (in(rare_before_)) {
+      c.cause = "after_rare";
+    }
+  }
+  rare_before_ = rare_now;
+  return changes;
+}
+
+// Applied after the session's changes, so that a schedule restoring objects from home cannot
+// undo it.
+void Simulation::repaint(int s) {
   const Rgb repaint_colour{196, 52, 44};  // a red unlike any face colour of the presets
-  nlohmann::json repaints_json = nlohmann::json::array();
-  std::vector<uint32_t> rare_before;  // the objects the previous session's rare event changed
-  nlohmann::json rare_json = nlohmann::json::array();
-  for (int s = 0; s < sessions; ++s) {
-    // Each change with its cause: a routine of the schedule, or the random processes.
-    std::vector<ScheduledChange> changes;
-    if (rhythmic) {
-      const SceneState before = state;
-      changes = applySchedule(state, home, settings.seed, times[static_cast<size_t>(s)]);
-      if (settings.rare_events) {
-        // The schedule, then the session's rare event on top; each change labelled with its cause.
-        std::map<uint32_t, std::string> routine_of;
-        for (const Routine& r : routinesOf(home)) {
-          for (uint32_t id : r.objects) routine_of[id] = r.name;
-        }
-        std::vector<uint32_t> rare_now;
-        const auto rare = rareEventOf(settings.seed, s, times);
-        if (rare) {
-          rare_now = applyRareEvent(state, home, settings.seed, s, *rare);
-          rare_json.push_back({{"session", s}, {"what", describe(*rare)}, {"objects", rare_now}});
-        }
-        changes = objectChanges(before, state);
-        for (ScheduledChange& c : changes) {
-          const auto in = [&](const std::vector<uint32_t>& ids) {
-            return std::find(ids.begin(), ids.end(), c.object) != ids.end();
-          };
-          const auto r = routine_of.find(c.object);
-          c.routine = r == routine_of.end() ? std::string() : r->second;
-          if (in(rare_now)) {
-            c.cause = "rare";
-            c.routine = describe(*rare);
-          } else if (in(rare_before)) {
-            c.cause = "after_rare";
-          }
-        }
-        rare_before = rare_now;
-      }
-      if (s == 0) changes.clear();  // the first session's state is where the history starts
-    } else if (site) {
-      for (size_t f = 0; f < floors.size() && s > 0; ++f) {
-        for (const auto& [id, kind] : applyChanges(floors[f], siteFloorSeed(settings.seed, static_cast<int>(f)), s)) {
-          changes.push_back({static_cast<uint32_t>(f) * kSiteIdStride + id, kind, {}});
-        }
-      }
-      state = stackFloors(floors);
-    } else if (s > 0) {
-      for (const auto& [id, kind] : applyChanges(state, settings.seed, s)) changes.push_back({id, kind, {}});
-    }
-    if (s >= repaint_at && repaint_at >= 0) {
-      // Applied after the session's changes, so that a schedule restoring objects from home
-      // cannot undo it.
-      for (Object& o : state.objects) {
-        if (o.id != repaint_object) continue;
-        if (s == repaint_at) {
-          nlohmann::json voxels = nlohmann::json::array();
-          for (const VoxelKey& k : objectVoxels(o, grid)) voxels.push_back({k.x, k.y, k.z});
-          const Rgb was = o.parts.front().face_colors[5];
-          repaints_json.push_back({{"from_session", s - 1},
-                                   {"to_session", s},
-                                   {"object", o.id},
-                                   {"object_kind", toString(o.kind)},
-                                   {"from", {was.r, was.g, was.b}},
-                                   {"to", {repaint_colour.r, repaint_colour.g, repaint_colour.b}},
-                                   {"voxel_count", voxels.size()},
-                                   {"voxels", voxels}});
-        }
-        for (Part& part : o.parts) part.face_colors.fill(repaint_colour);
-      }
-    }
-    const std::vector<VoxelKey> truth = truthOccupancy(state, grid);
-    // Change events with the truth voxels each one changes.
-    for (const auto& [id, kind, routine, cause] : changes) {
-      ChangeEvent e = detail::changeEvent(id, kind, previous_state, state, previous_truth, truth, grid);
-      e.from_session = static_cast<uint32_t>(s - 1);
-      if (e.voxels.empty()) continue;  // hidden by other objects: nothing a map could see
+  for (Object& o : state_.objects) {
+    if (o.id != repaint_object_) continue;
+    if (s == repaint_at_) {
       nlohmann::json voxels = nlohmann::json::array();
-      for (const VoxelKey& k : e.voxels) voxels.push_back({k.x, k.y, k.z});
-      events.add({{"from_session", e.from_session},
-                             {"to_session", s},
-                             {"object", e.object},
-                             {"object_kind", toString(e.object_kind)},
-                             {"kind", toString(e.kind)},
-                             {"cause", rhythmic ? cause : "random"},
-                             {"routine", routine},
-                             {"voxel_count", e.voxels.size()},
-                             {"voxels", voxels}});
-      ++summary.events;
+      for (const VoxelKey& k : objectVoxels(o, rig_.grid)) voxels.push_back({k.x, k.y, k.z});
+      const Rgb was = o.parts.front().face_colors[5];
+      repaints_json_.push_back({{"from_session", s - 1},
+                                {"to_session", s},
+                                {"object", o.id},
+                                {"object_kind", toString(o.kind)},
+                                {"from", {was.r, was.g, was.b}},
+                                {"to", {repaint_colour.r, repaint_colour.g, repaint_colour.b}},
+                                {"voxel_count", voxels.size()},
+                                {"voxels", voxels}});
     }
-
-    // The patrol, true and estimated poses.
-    detail::Patrol patrol;
-    nlohmann::json floors_json = nlohmann::json::array();
-    if (site) {
-      // One patrol per floor, one after the other, each with its own localisation error.
-      for (size_t f = 0; f < floors.size(); ++f) {
-        SimulationSettings floor_settings = settings;
-        floor_settings.seed = siteFloorSeed(settings.seed, static_cast<int>(f));
-        detail::Patrol p = detail::patrolSession(floors[f], floor_settings, s);
-        const Eigen::Vector3d up(0.0, 0.0, static_cast<double>(f) * kSiteFloorHeight_m);
-        floors_json.push_back({{"floor", f},
-                               {"first_frame", patrol.true_poses.size()},
-                               {"frames", p.true_poses.size()},
-                               {"localisation_offset",
-                                {p.offset_x_m, p.offset_y_m, p.offset_yaw_rad * 180.0 / std::numbers::pi}}});
-        if (f == 0) {
-          patrol.offset_x_m = p.offset_x_m;
-          patrol.offset_y_m = p.offset_y_m;
-          patrol.offset_yaw_rad = p.offset_yaw_rad;
-        }
-        for (size_t i = 0; i < p.true_poses.size(); ++i) {
-          p.true_poses[i].translation() += up;
-          p.estimated[i].translation() += up;
-          patrol.true_poses.push_back(p.true_poses[i]);
-          patrol.estimated.push_back(p.estimated[i]);
-        }
-      }
-    } else {
-      patrol = detail::patrolSession(state, settings, s);
-    }
-    const size_t frames = patrol.true_poses.size();
-
-    char name[32];
-    std::snprintf(name, sizeof name, session_format, s);
-    const fs::path dir = root / name;
-    fs::create_directories(dir / "rgb", ec);
-    fs::create_directories(dir / "depth", ec);
-    if (ec) throw IoError(dir.string() + ": cannot create folder (" + ec.message() + ")");
-    const Renderer renderer(state);
-    std::vector<std::string> stamps(frames);
-    for (size_t i = 0; i < frames; ++i) {
-      char st[32];
-      std::snprintf(st, sizeof st, "%.6f", times[static_cast<size_t>(s)] + 0.5 * static_cast<double>(i));
-      stamps[i] = st;
-    }
-    parallelFor(frames, settings.threads, [&](size_t i) {
-      const RenderedFrame f = renderer.render(camera, patrol.true_poses[i], sensor, hours[static_cast<size_t>(s)],
-                                              mix(settings.seed, (static_cast<uint64_t>(s) << 20) + i),
-                                              use_daylight ? &daylight : nullptr);
-      writePngStaged(dir / "rgb" / (stamps[i] + ".png"), f.rgb);
-      writePngStaged(dir / "depth" / (stamps[i] + ".png"), f.depth);
-    });
-    std::string rgb_txt = "# color images\n# timestamp filename\n", depth_txt = "# depth maps\n# timestamp filename\n";
-    std::string gt = "# true camera poses\n# timestamp tx ty tz qx qy qz qw\n";
-    std::string traj = "# estimated camera poses (localisation with offset and drift)\n# timestamp tx ty tz qx qy qz qw\n";
-    for (size_t i = 0; i < frames; ++i) {
-      const double stamp = times[static_cast<size_t>(s)] + 0.5 * static_cast<double>(i);
-      rgb_txt += stamps[i] + " rgb/" + stamps[i] + ".png\n";
-      depth_txt += stamps[i] + " depth/" + stamps[i] + ".png\n";
-      gt += poseLine(stamp, patrol.true_poses[i]);
-      traj += poseLine(stamp, patrol.estimated[i]);
-    }
-    writeText(dir / "rgb.txt", rgb_txt);
-    writeText(dir / "depth.txt", depth_txt);
-    writeText(dir / "groundtruth.txt", gt);
-    writeText(dir / "trajectory.txt", traj);
-    char k[128];
-    std::snprintf(k, sizeof k, "%.6f %.6f %.6f %.6f\n", camera.fx, camera.fy, camera.cx, camera.cy);
-    writeText(dir / "camera-intrinsics.txt", k);
-
-    // Ground truth of this session.
-    const SessionMap occupancy = detail::truthMap(truth, grid);
-    char truth_name[64];
-    std::snprintf(truth_name, sizeof truth_name, occupancy_format, s);
-    writeSessionMap(root / "truth" / truth_name,
-                        occupancy, {{"created_by", "chronomap simulate"}, {"truth", true}, {"session", s}});
-    std::snprintf(truth_name, sizeof truth_name, objects_format, s);
-    writeText(root / "truth" / truth_name, objectsJson(state).dump(1) + "\n");
-
-    const double offset_yaw_deg = patrol.offset_yaw_rad * 180.0 / std::numbers::pi;
-    sessions_json.push_back({{"index", s},
-                             {"dir", name},
-                             {"time_s", times[static_cast<size_t>(s)]},
-                             {"time", formatTime(times[static_cast<size_t>(s)])},
-                             {"hour", hours[static_cast<size_t>(s)]},
-                             {"frames", frames},
-                             {"changes", changes.size()},
-                             {"weekday", scheduleDay(settings.seed, static_cast<int>(std::floor((times[static_cast<size_t>(s)] -
-                                                                                   kScheduleStart_s) / 86400.0)))
-                                            .weekday},
-                             {"localisation_offset", {patrol.offset_x_m, patrol.offset_y_m, offset_yaw_deg}}});
-    if (site) sessions_json.back()["floors"] = floors_json;
-    summary.session_dirs.push_back(out / name);
-    summary.times_s.push_back(times[static_cast<size_t>(s)]);
-    summary.hours.push_back(hours[static_cast<size_t>(s)]);
-    summary.frames += frames;
-    previous_truth = truth;
-    previous_state = state;
-    if (progress) progress(static_cast<size_t>(s) + 1, static_cast<size_t>(sessions));
+    for (Part& part : o.parts) part.face_colors.fill(repaint_colour);
   }
+}
+
+// Change events with the truth voxels each one changes.
+void Simulation::addEvents(int s, const std::vector<ScheduledChange>& changes, const std::vector<VoxelKey>& truth) {
+  for (const auto& [id, kind, routine, cause] : changes) {
+    ChangeEvent e = detail::changeEvent(id, kind, previous_state_, state_, previous_truth_, truth, rig_.grid);
+    e.from_session = static_cast<uint32_t>(s - 1);
+    if (e.voxels.empty()) continue;  // hidden by other objects: nothing a map could see
+    nlohmann::json voxels = nlohmann::json::array();
+    for (const VoxelKey& k : e.voxels) voxels.push_back({k.x, k.y, k.z});
+    events_.add({{"from_session", e.from_session},
+                 {"to_session", s},
+                 {"object", e.object},
+                 {"object_kind", toString(e.object_kind)},
+                 {"kind", toString(e.kind)},
+                 {"cause", rhythmic_ ? cause : "random"},
+                 {"routine", routine},
+                 {"voxel_count", e.voxels.size()},
+                 {"voxels", voxels}});
+    ++summary_.events;
+  }
+}
+
+// The patrol, true and estimated poses; on the site, each floor's part goes into floors_json.
+detail::Patrol Simulation::patrolOf(int s, nlohmann::json& floors_json) const {
+  if (!site_) return detail::patrolSession(state_, settings_, s);
+  // One patrol per floor, one after the other, each with its own localisation error.
+  detail::Patrol patrol;
+  for (size_t f = 0; f < floors_.size(); ++f) {
+    SimulationSettings floor_settings = settings_;
+    floor_settings.seed = siteFloorSeed(settings_.seed, static_cast<int>(f));
+    detail::Patrol p = detail::patrolSession(floors_[f], floor_settings, s);
+    const Eigen::Vector3d up(0.0, 0.0, static_cast<double>(f) * kSiteFloorHeight_m);
+    floors_json.push_back({{"floor", f},
+                           {"first_frame", patrol.true_poses.size()},
+                           {"frames", p.true_poses.size()},
+                           {"localisation_offset",
+                            {p.offset_x_m, p.offset_y_m, p.offset_yaw_rad * 180.0 / std::numbers::pi}}});
+    if (f == 0) {
+      patrol.offset_x_m = p.offset_x_m;
+      patrol.offset_y_m = p.offset_y_m;
+      patrol.offset_yaw_rad = p.offset_yaw_rad;
+    }
+    for (size_t i = 0; i < p.true_poses.size(); ++i) {
+      p.true_poses[i].translation() += up;
+      p.estimated[i].translation() += up;
+      patrol.true_poses.push_back(p.true_poses[i]);
+      patrol.estimated.push_back(p.estimated[i]);
+    }
+  }
+  return patrol;
+}
+
+// The session's TUM folder: images, their lists, both trajectories and the intrinsics.
+void Simulation::writeFrames(int s, const fs::path& dir, const detail::Patrol& patrol) const {
+  const size_t frames = patrol.true_poses.size();
+  std::error_code ec;
+  fs::create_directories(dir / "rgb", ec);
+  fs::create_directories(dir / "depth", ec);
+  if (ec) throw IoError(dir.string() + ": cannot create folder (" + ec.message() + ")");
+  const Renderer renderer(state_);
+  std::vector<std::string> stamps(frames);
+  for (size_t i = 0; i < frames; ++i) {
+    char st[32];
+    std::snprintf(st, sizeof st, "%.6f", times_[static_cast<size_t>(s)] + 0.5 * static_cast<double>(i));
+    stamps[i] = st;
+  }
+  parallelFor(frames, settings_.threads, [&](size_t i) {
+    const RenderedFrame f = renderer.render(rig_.camera, patrol.true_poses[i], rig_.sensor,
+                                            hours_[static_cast<size_t>(s)],
+                                            mix(settings_.seed, (static_cast<uint64_t>(s) << 20) + i),
+                                            use_daylight_ ? &daylight_ : nullptr);
+    writePngStaged(dir / "rgb" / (stamps[i] + ".png"), f.rgb);
+    writePngStaged(dir / "depth" / (stamps[i] + ".png"), f.depth);
+  });
+  std::string rgb_txt = "# color images\n# timestamp filename\n", depth_txt = "# depth maps\n# timestamp filename\n";
+  std::string gt = "# true camera poses\n# timestamp tx ty tz qx qy qz qw\n";
+  std::string traj =
+      "# estimated camera poses (localisation with offset and drift)\n# timestamp tx ty tz qx qy qz qw\n";
+  for (size_t i = 0; i < frames; ++i) {
+    const double stamp = times_[static_cast<size_t>(s)] + 0.5 * static_cast<double>(i);
+    rgb_txt += stamps[i] + " rgb/" + stamps[i] + ".png\n";
+    depth_txt += stamps[i] + " depth/" + stamps[i] + ".png\n";
+    gt += poseLine(stamp, patrol.true_poses[i]);
+    traj += poseLine(stamp, patrol.estimated[i]);
+  }
+  writeText(dir / "rgb.txt", rgb_txt);
+  writeText(dir / "depth.txt", depth_txt);
+  writeText(dir / "groundtruth.txt", gt);
+  writeText(dir / "trajectory.txt", traj);
+  char k[128];
+  std::snprintf(k, sizeof k, "%.6f %.6f %.6f %.6f\n", rig_.camera.fx, rig_.camera.fy, rig_.camera.cx, rig_.camera.cy);
+  writeText(dir / "camera-intrinsics.txt", k);
+}
+
+// Ground truth of this session: its occupancy and its objects.
+void Simulation::writeTruth(int s, const std::vector<VoxelKey>& truth) const {
+  // Numbered with three digits where there can be more than 100 sessions, so that names sort.
+  const char* const occupancy_format = site_ ? "occupancy_%03d.cmap" : "occupancy_%02d.cmap";
+  const char* const objects_format = site_ ? "objects_%03d.json" : "objects_%02d.json";
+  const SessionMap occupancy = detail::truthMap(truth, rig_.grid);
+  char truth_name[64];
+  std::snprintf(truth_name, sizeof truth_name, occupancy_format, s);
+  writeSessionMap(root_ / "truth" / truth_name,
+                      occupancy, {{"created_by", "chronomap simulate"}, {"truth", true}, {"session", s}});
+  std::snprintf(truth_name, sizeof truth_name, objects_format, s);
+  writeText(root_ / "truth" / truth_name, objectsJson(state_).dump(1) + "\n");
+}
+
+void Simulation::session(int s) {
+  const std::vector<ScheduledChange> changes = changesOf(s);
+  if (s >= repaint_at_ && repaint_at_ >= 0) repaint(s);
+  const std::vector<VoxelKey> truth = truthOccupancy(state_, rig_.grid);
+  addEvents(s, changes, truth);
+  nlohmann::json floors_json = nlohmann::json::array();
+  const detail::Patrol patrol = patrolOf(s, floors_json);
+  const size_t frames = patrol.true_poses.size();
+
+  char name[32];
+  // Numbered with three digits where there can be more than 100 sessions, so that names sort.
+  std::snprintf(name, sizeof name, site_ ? "session_%03d" : "session_%02d", s);
+  writeFrames(s, root_ / name, patrol);
+  writeTruth(s, truth);
+
+  const double time_s = times_[static_cast<size_t>(s)];
+  const double offset_yaw_deg = patrol.offset_yaw_rad * 180.0 / std::numbers::pi;
+  sessions_json_.push_back({{"index", s},
+                            {"dir", name},
+                            {"time_s", time_s},
+                            {"time", formatTime(time_s)},
+                            {"hour", hours_[static_cast<size_t>(s)]},
+                            {"frames", frames},
+                            {"changes", changes.size()},
+                            {"weekday", scheduleDay(settings_.seed, static_cast<int>(std::floor((time_s -
+                                                                                   kScheduleStart_s) / 86400.0)))
+                                           .weekday},
+                            {"localisation_offset", {patrol.offset_x_m, patrol.offset_y_m, offset_yaw_deg}}});
+  if (site_) sessions_json_.back()["floors"] = floors_json;
+  summary_.session_dirs.push_back(out_ / name);
+  summary_.times_s.push_back(time_s);
+  summary_.hours.push_back(hours_[static_cast<size_t>(s)]);
+  summary_.frames += frames;
+  previous_truth_ = truth;
+  previous_state_ = state_;
+}
+
+// The true schedule: every routine with its rule and objects, and each day's exceptions.
+nlohmann::json Simulation::scheduleJson() const {
+  nlohmann::json routines = nlohmann::json::array(), days = nlohmann::json::array();
+  for (const Routine& r : routinesOf(home_)) {
+    routines.push_back({{"name", r.name}, {"rule", r.rule}, {"objects", r.objects}});
+  }
+  const int last_day = static_cast<int>((times_.back() - kScheduleStart_s) / 86400.0);
+  for (int d = 0; d <= last_day; ++d) {
+    const ScheduleDay day_exceptions = scheduleDay(settings_.seed, d);
+    days.push_back({{"day", d},
+                    {"date", formatTime(kScheduleStart_s + 86400.0 * d).substr(0, 10)},
+                    {"weekday", day_exceptions.weekday},
+                    {"worker_away", day_exceptions.worker_away},
+                    {"weekend_visit", day_exceptions.weekend_visit},
+                    {"meeting_cancelled", day_exceptions.meeting_cancelled}});
+  }
+  nlohmann::json schedule = {{"start", formatTime(kScheduleStart_s)},
+                             {"clock", "UTC"},
+                             {"routines", routines},
+                             {"days", days}};
+  if (settings_.rare_events) schedule["rare_events"] = rare_json_;
+  return schedule;
+}
+
+// The true illumination: the curves sampled every quarter hour, and the rule for the place.
+nlohmann::json Simulation::lightingJson() const {
+  nlohmann::json hours_json = nlohmann::json::array(), ceiling = nlohmann::json::array(),
+                 sun = nlohmann::json::array();
+  for (int q = 0; q <= 96; ++q) {
+    const double h = 0.25 * q;
+    const Eigen::Vector3d c = Daylight::ceiling(h), d = Daylight::daylight(h);
+    hours_json.push_back(h);
+    ceiling.push_back({c.x(), c.y(), c.z()});
+    sun.push_back({d.x(), d.y(), d.z()});
+  }
+  return {{"model", "daylight"},
+          {"rule", "colour = albedo * (ceiling(hour) + window(p) * daylight(hour)), per channel"},
+          {"window", "exp(-d / 2 m), d = horizontal distance to the nearest outer wall"},
+          {"building_min", {state_.bounds.min().x(), state_.bounds.min().y(), state_.bounds.min().z()}},
+          {"building_max", {state_.bounds.max().x(), state_.bounds.max().y(), state_.bounds.max().z()}},
+          {"hours", hours_json},
+          {"ceiling", ceiling},
+          {"daylight", sun}};
+}
+
+void Simulation::writeScene() {
+  const Camera& camera = rig_.camera;
+  const SensorModel& sensor = rig_.sensor;
   nlohmann::json scene = {{"created_by", "chronomap simulate"},
-                          {"preset", settings.preset},
-                          {"seed", settings.seed},
-                          {"voxel_resolution_m", settings.voxel_resolution_m},
+                          {"preset", settings_.preset},
+                          {"seed", settings_.seed},
+                          {"voxel_resolution_m", settings_.voxel_resolution_m},
                           {"camera",
                            {{"width", camera.width},
                             {"height", camera.height},
@@ -488,65 +606,60 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
                             {"min_range_m", sensor.min_range_m},
                             {"max_range_m", sensor.max_range_m}}},
                           {"rooms", nlohmann::json::array()},
-                          {"sessions", sessions_json},
+                          {"sessions", sessions_json_},
                           {"events", EventSpool::kMarker}};
-  if (rhythmic) {
-    // The true schedule: every routine with its rule and objects, and each day's exceptions.
-    nlohmann::json routines = nlohmann::json::array(), days = nlohmann::json::array();
-    for (const Routine& r : routinesOf(home)) {
-      routines.push_back({{"name", r.name}, {"rule", r.rule}, {"objects", r.objects}});
-    }
-    const int last_day = static_cast<int>((times.back() - kScheduleStart_s) / 86400.0);
-    for (int d = 0; d <= last_day; ++d) {
-      const ScheduleDay day_exceptions = scheduleDay(settings.seed, d);
-      days.push_back({{"day", d},
-                      {"date", formatTime(kScheduleStart_s + 86400.0 * d).substr(0, 10)},
-                      {"weekday", day_exceptions.weekday},
-                      {"worker_away", day_exceptions.worker_away},
-                      {"weekend_visit", day_exceptions.weekend_visit},
-                      {"meeting_cancelled", day_exceptions.meeting_cancelled}});
-    }
-    scene["schedule"] = {{"start", formatTime(kScheduleStart_s)},
-                         {"clock", "UTC"},
-                         {"routines", routines},
-                         {"days", days}};
-    if (settings.rare_events) scene["schedule"]["rare_events"] = rare_json;
-  }
-  if (use_daylight) {
-    // The true illumination: the curves sampled every quarter hour, and the rule for the place.
-    nlohmann::json hours_json = nlohmann::json::array(), ceiling = nlohmann::json::array(),
-                   sun = nlohmann::json::array();
-    for (int q = 0; q <= 96; ++q) {
-      const double h = 0.25 * q;
-      const Eigen::Vector3d c = Daylight::ceiling(h), d = Daylight::daylight(h);
-      hours_json.push_back(h);
-      ceiling.push_back({c.x(), c.y(), c.z()});
-      sun.push_back({d.x(), d.y(), d.z()});
-    }
-    scene["lighting"] = {{"model", "daylight"},
-                         {"rule", "colour = albedo * (ceiling(hour) + window(p) * daylight(hour)), per channel"},
-                         {"window", "exp(-d / 2 m), d = horizontal distance to the nearest outer wall"},
-                         {"building_min", {state.bounds.min().x(), state.bounds.min().y(), state.bounds.min().z()}},
-                         {"building_max", {state.bounds.max().x(), state.bounds.max().y(), state.bounds.max().z()}},
-                         {"hours", hours_json},
-                         {"ceiling", ceiling},
-                         {"daylight", sun}};
-  }
-  if (settings.repaint) scene["repaints"] = repaints_json;
-  if (site) {
-    scene["site"] = {{"floors", settings.floors},
+  if (rhythmic_) scene["schedule"] = scheduleJson();
+  if (use_daylight_) scene["lighting"] = lightingJson();
+  if (settings_.repaint) scene["repaints"] = repaints_json_;
+  if (site_) {
+    scene["site"] = {{"floors", settings_.floors},
                      {"floor_height_m", kSiteFloorHeight_m},
                      {"object_id_stride", kSiteIdStride},
                      {"building", "each floor a floor66 building of its own seed, floor f raised by f * floor_height_m"},
                      {"patrols", "one a night from 22:00 to 03:00 (UTC), the floors one after the other"}};
   }
-  for (const Room& r : state.rooms) {
+  for (const Room& r : state_.rooms) {
     scene["rooms"].push_back({{"name", r.name},
                               {"min", {r.area.min().x(), r.area.min().y()}},
                               {"max", {r.area.max().x(), r.area.max().y()}}});
   }
-  events.writeScene(root / "scene.json", scene.dump(1) + "\n");
+  events_.writeScene(root_ / "scene.json", scene.dump(1) + "\n");
+}
+
+}  // namespace
+
+SimulationSummary simulate(const SimulationSettings& settings, const fs::path& out,
+                           const SimulationProgress& progress) {
+  const auto started = std::chrono::steady_clock::now();
+  const PresetPlan plan = presetPlan(settings.preset);
+  SceneState state = makeScene(settings.preset, settings.seed);  // validates the preset
+  const int sessions = settings.sessions > 0 ? settings.sessions : plan.sessions;
+  checkSettings(settings, sessions);
+  const KeyGrid grid(settings.voxel_resolution_m);
+  const Camera camera = kinectCamera(settings.resolution_scale);
+  SensorModel sensor;
+  sensor.noise_per_m2 = settings.noise_per_m2;
+  // Written whole or not at all: into a staging folder beside `out`, moved into place at the end.
+  StagedFolder staged(out);
+  const fs::path& root = staged.path();
+  std::error_code ec;
+  fs::create_directories(root / "truth", ec);
+  if (ec) throw IoError(out.string() + ": cannot create folder (" + ec.message() + ")");
+  std::unique_ptr<tbb::global_control> limit;
+  if (settings.threads > 0) {
+    limit = std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism,
+                                                  static_cast<size_t>(settings.threads));
+  }
+  const SessionTimes times = sessionTimes(settings, plan, sessions);
+  const Rig rig{grid, camera, sensor};
+  Simulation simulation(settings, rig, out, root, times, std::move(state), sessions);
+  for (int s = 0; s < sessions; ++s) {
+    simulation.session(s);
+    if (progress) progress(static_cast<size_t>(s) + 1, static_cast<size_t>(sessions));
+  }
+  simulation.writeScene();
   staged.commit();
+  SimulationSummary summary = std::move(simulation.summary());
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   return summary;
 }

@@ -1,3 +1,5 @@
+// TemporalMap: sessions added and removed, snapshots, histories, compaction and files' parts.
+// Its pools, coarse entries and layout have their own files (pools.cpp, coarse.cpp, layout.cpp).
 #include "chronomap/temporal/temporal_map.h"
 
 #include <algorithm>
@@ -7,21 +9,14 @@
 #include "chronomap/core/error.h"
 #include "chronomap/core/offset_quantiser.h"
 #include "chronomap/core/time.h"
+#include "pool_limits.h"
 
 namespace chronomap {
 
-namespace {
+using detail::kMaxIndex;
+using detail::kMaxListSize;
 
-constexpr uint32_t kMaxIndex = 0x7ffffff0u;
-constexpr size_t kMaxListSize = 0xffff;
-// add() and remove() re-lay the pools out once the nodes that the latest snapshot reads outside
-// the block where the last layout put them reach 1/kRelayoutShare of that snapshot's nodes (and
-// at least kMinRelayout nodes). Each node read out of place costs about a cache miss: at 16 a
-// snapshot of the latest time stayed within 1.15x of a freshly laid-out map's on
-// bench/temporal's stress case (at 8: 1.4x), and add() took about 1.6x the processor time at
-// 365 sessions (each re-layout costs about as much as copying the pools; docs/temporal.md).
-constexpr size_t kRelayoutShare = 16;
-constexpr size_t kMinRelayout = 1024;
+namespace {
 
 // Counters of one of the 8 children of a uniform cube. Lists above unit level only ever hold
 // known-free counters without hits, so only the length is split; a power-of-two division of a
@@ -64,36 +59,6 @@ TemporalMap::TemporalMap(double resolution_m, ChangeCriterion criterion) : grid_
   coarse_dirty_.push_back(1);
 }
 
-uint32_t TemporalMap::newInner() {
-  if (inner_.size() >= kMaxIndex) throw DataError("4D map too large: more than 2^31 inner nodes");
-  inner_.emplace_back();
-  inner_.back().fill(kEmpty);
-  coarse_span_.emplace_back();
-  coarse_dirty_.push_back(1);
-  return static_cast<uint32_t>(inner_.size() - 1);
-}
-
-TemporalMap::Stored TemporalMap::store(uint32_t session, const VoxelCounters& value) {
-  Stored s{session, value.length_m, kNoPart};
-  if (value.hits == 0 && value.red == 0 && value.green == 0 && value.blue == 0) return s;
-  HitPart p{value.hits, value.red, value.green, value.blue, {}, 0};
-  for (int a = 0; a < 3; ++a) p.offset[a] = quantiseOffset(value.offset[a], value.hits);
-  if (!free_hit_parts_.empty()) {
-    s.part = free_hit_parts_.back();
-    free_hit_parts_.pop_back();
-    hit_parts_[s.part] = p;
-  } else {
-    if (hit_parts_.size() >= kMaxIndex) throw DataError("4D map too large: more than 2^31 entries with hits");
-    s.part = static_cast<uint32_t>(hit_parts_.size());
-    hit_parts_.push_back(p);
-  }
-  return s;
-}
-
-void TemporalMap::release(const Stored& s) {
-  if (s.part != kNoPart) free_hit_parts_.push_back(s.part);
-}
-
 VoxelCounters TemporalMap::valueOf(const Stored& s) const {
   VoxelCounters v;
   v.length_m = s.length_m;
@@ -114,109 +79,6 @@ std::span<const TemporalMap::Entry> TemporalMap::decoded(const List& l, std::vec
   const Stored* e = entriesOf(l);
   for (size_t i = 0; i < l.size; ++i) scratch[i] = entryOf(e[i]);
   return {scratch.data(), scratch.size()};
-}
-
-uint32_t TemporalMap::newList(const Stored& e) {
-  ++live_lists_;
-  ++live_entries_;
-  if (!free_lists_.empty()) {
-    const uint32_t i = free_lists_.back();
-    free_lists_.pop_back();
-    lists_[i] = List{e, 0, 1, 0, 0};
-    return i;
-  }
-  if (lists_.size() >= kMaxIndex) throw DataError("4D map too large: more than 2^31 slot lists");
-  lists_.push_back(List{e, 0, 1, 0, 0});
-  return static_cast<uint32_t>(lists_.size() - 1);
-}
-
-void TemporalMap::freeList(uint32_t list) {
-  List& l = lists_[list];
-  const Stored* e = entriesOf(l);
-  for (size_t i = 0; i < l.size; ++i) release(e[i]);
-  if (l.size >= 2) freeBlock(l.block, l.capacity_log2);
-  live_entries_ -= l.size;
-  --live_lists_;
-  l = List{};
-  free_lists_.push_back(list);
-}
-
-uint32_t TemporalMap::allocBlock(int capacity_log2) {
-  auto& free = free_blocks_[static_cast<size_t>(capacity_log2)];
-  if (!free.empty()) {
-    const uint32_t b = free.back();
-    free.pop_back();
-    return b;
-  }
-  const size_t at = arena_.size();
-  if (at + (size_t{1} << capacity_log2) >= kMaxIndex) throw DataError("4D map too large: more than 2^31 entries");
-  arena_.resize(at + (size_t{1} << capacity_log2));
-  return static_cast<uint32_t>(at);
-}
-
-void TemporalMap::freeBlock(uint32_t block, int capacity_log2) {
-  free_blocks_[static_cast<size_t>(capacity_log2)].push_back(block);
-}
-
-void TemporalMap::insertEntry(uint32_t list, size_t pos, const Stored& e) {
-  List& l = lists_[list];
-  if (l.size >= kMaxListSize) throw DataError("4D map: a voxel has more than 65535 history entries");
-  if (l.size == 0) {  // emptied by eraseEntry, refilled before it is freed
-    l.first = e;
-    l.size = 1;
-    ++live_entries_;
-    return;
-  }
-  if (l.size == 1) {
-    const Stored only = l.first;
-    const uint32_t block = allocBlock(1);
-    List& m = lists_[list];  // allocBlock does not touch lists_, but keep the reference fresh
-    m.block = block;
-    m.capacity_log2 = 1;
-    arena_[block + (pos == 0 ? 1 : 0)] = only;
-    arena_[block + pos] = e;
-    m.size = 2;
-    m.first = arena_[block + 1];
-    ++live_entries_;
-    return;
-  }
-  if (l.size == (size_t{1} << l.capacity_log2)) {
-    const int cap = l.capacity_log2 + 1;
-    const uint32_t block = allocBlock(cap);
-    std::copy(arena_.begin() + l.block, arena_.begin() + l.block + l.size, arena_.begin() + block);
-    freeBlock(l.block, l.capacity_log2);
-    l.block = block;
-    l.capacity_log2 = static_cast<uint8_t>(cap);
-  }
-  Stored* data = arena_.data() + l.block;
-  std::copy_backward(data + pos, data + l.size, data + l.size + 1);
-  data[pos] = e;
-  ++l.size;
-  l.first = data[l.size - 1];
-  ++live_entries_;
-}
-
-void TemporalMap::eraseEntry(uint32_t list, size_t pos) {
-  List& l = lists_[list];
-  release(entriesOf(l)[pos]);
-  if (l.size == 1) {
-    l.size = 0;
-    --live_entries_;
-    return;
-  }
-  Stored* data = arena_.data() + l.block;
-  std::copy(data + pos + 1, data + l.size, data + pos);
-  --l.size;
-  --live_entries_;
-  if (l.size == 1) {
-    const Stored only = data[0];
-    freeBlock(l.block, l.capacity_log2);
-    l.first = only;
-    l.block = 0;
-    l.capacity_log2 = 0;
-  } else {
-    l.first = data[l.size - 1];
-  }
 }
 
 size_t TemporalMap::lowerBound(const List& l, uint32_t session) const {
@@ -430,35 +292,6 @@ void TemporalMap::remove(double time_s) {
   relayoutIfScattered();
 }
 
-void TemporalMap::relayoutIfScattered() {
-  const size_t scattered = scatteredHot().first;
-  if (scattered >= std::max(kMinRelayout, (hot_inner_at_layout_ + hot_lists_at_layout_) / kRelayoutShare)) relayout();
-}
-
-std::pair<size_t, TemporalMap::Layout> TemporalMap::scatteredHot() const {
-  // What the latest snapshot reads outside the block where the last layout put it: created
-  // since, or moved out of the shadowed layer by a coarse entry that ended.
-  const auto latest = static_cast<uint32_t>(sessions_.empty() ? 0 : sessions_.size() - 1);
-  size_t scattered = 0;
-  Layout hot;
-  hot.hot_inner = 1;
-  auto visit = [&](auto&& self, uint32_t node) -> void {
-    for (const Ref r : inner_[node]) {
-      if (r == kEmpty) continue;
-      if (isList(r)) {
-        scattered += index(r) >= hot_lists_at_layout_;
-        ++hot.hot_lists;
-      } else {
-        scattered += r >= hot_inner_at_layout_;
-        ++hot.hot_inner;
-        if (!coarseAt(r, latest)) self(self, r);
-      }
-    }
-  };
-  visit(visit, 0);
-  return {scattered, hot};
-}
-
 void TemporalMap::removeBelow(uint32_t node, int level, const VoxelKey& base, uint32_t rank) {
   coarse_dirty_[node] = 1;
   for (int slot = 0; slot < 8; ++slot) {
@@ -630,10 +463,6 @@ size_t TemporalMap::sessionBytes() const {
   return bytes;
 }
 
-size_t TemporalMap::coarseBytes() const {
-  return coarse_.capacity() * sizeof(Coarse) + coarse_span_.capacity() * sizeof(CoarseSpan) + coarse_dirty_.capacity();
-}
-
 size_t TemporalMap::memoryBytes() const {
   // memoryUse() splits the same sum part by part (walking the lists); this stays constant time.
   return inner_.size() * sizeof(Children) + lists_.size() * sizeof(List) + arena_.size() * sizeof(Stored) +
@@ -699,103 +528,6 @@ bool TemporalMap::compactBelow(Ref& r, int level) {
   return true;
 }
 
-void TemporalMap::markPath() {
-  for (const uint32_t node : path_) coarse_dirty_[node] = 1;
-}
-
-void TemporalMap::markAllCoarseDirty() { std::fill(coarse_dirty_.begin(), coarse_dirty_.end(), uint8_t{1}); }
-
-void TemporalMap::updateCoarse() {
-  rebuildCoarse(0);
-  // Drop the garbage once it outweighs the live entries.
-  if (coarse_garbage_ > 4096 && coarse_garbage_ > coarse_.size() / 2) packCoarse();
-}
-
-void TemporalMap::packCoarse() {
-  std::vector<Coarse> live;
-  live.reserve(coarse_.size() - coarse_garbage_);
-  for (CoarseSpan& span : coarse_span_) {
-    const auto begin = static_cast<uint32_t>(live.size());
-    live.insert(live.end(), coarse_.begin() + span.begin, coarse_.begin() + span.begin + span.count);
-    span.begin = span.count ? begin : 0;
-  }
-  coarse_ = std::move(live);
-  coarse_garbage_ = 0;
-}
-
-void TemporalMap::rebuildCoarse(uint32_t node) {
-  if (!coarse_dirty_[node]) return;
-  coarse_dirty_[node] = 0;
-  for (const Ref r : inner_[node]) {
-    if (isInner(r)) rebuildCoarse(r);
-  }
-  coarse_garbage_ += coarse_span_[node].count;
-  coarse_span_[node] = CoarseSpan{};
-  if (node == 0) return;  // the root is never one leaf (compressFree never replaces it)
-  // Each child's intervals of "reads free without hits", one run per child in `scratch`.
-  std::vector<Coarse>& scratch = coarse_scratch_;
-  scratch.clear();
-  std::array<size_t, 9> run{};
-  for (int slot = 0; slot < 8; ++slot) {
-    const Ref r = inner_[node][slot];
-    run[static_cast<size_t>(slot)] = scratch.size();
-    if (r == kEmpty) return;
-    if (isInner(r)) {
-      const CoarseSpan span = coarse_span_[r];
-      if (span.count == 0) return;
-      scratch.insert(scratch.end(), coarse_.begin() + span.begin, coarse_.begin() + span.begin + span.count);
-    } else {
-      const List& l = lists_[index(r)];
-      const Stored* e = entriesOf(l);
-      const size_t before = scratch.size();
-      for (size_t i = 0; i < l.size; ++i) {
-        if (!freeWithoutHits(e[i])) continue;
-        scratch.push_back(Coarse{e[i].session, i + 1 < l.size ? e[i + 1].session : kForever, e[i].length_m});
-      }
-      if (scratch.size() == before) return;
-    }
-  }
-  run[8] = scratch.size();
-  // Intersect the 8 runs: where all children read free, the cube does, with their lengths summed
-  // in slot order (as compressFree() sums them).
-  std::array<size_t, 8> at{};
-  for (size_t i = 0; i < 8; ++i) at[i] = run[i];
-  const auto begin = static_cast<uint32_t>(coarse_.size());
-  while (true) {
-    uint32_t lo = 0, hi = kForever;
-    for (size_t i = 0; i < 8; ++i) {
-      lo = std::max(lo, scratch[at[i]].from);
-      hi = std::min(hi, scratch[at[i]].to);
-    }
-    if (lo < hi) {
-      float sum = 0.0f;
-      for (size_t i = 0; i < 8; ++i) sum += scratch[at[i]].length_m;
-      if (coarse_.size() > begin && coarse_.back().to == lo && coarse_.back().length_m == sum) {
-        coarse_.back().to = hi;
-      } else {
-        coarse_.push_back(Coarse{lo, hi, sum});
-      }
-    }
-    if (hi == kForever) break;
-    bool done = false;
-    for (size_t i = 0; i < 8; ++i) {
-      if (scratch[at[i]].to == hi && ++at[i] == run[i + 1]) done = true;
-    }
-    if (done) break;
-  }
-  coarse_span_[node] = CoarseSpan{begin, static_cast<uint32_t>(coarse_.size() - begin), Coarse{}};
-  if (coarse_span_[node].count > 0) coarse_span_[node].newest = coarse_.back();
-}
-
-const TemporalMap::Coarse* TemporalMap::coarseBefore(const CoarseSpan& span, uint32_t rank) const {
-  const Coarse* first = coarse_.data() + span.begin;
-  const Coarse* last = first + span.count;
-  const Coarse* it = std::upper_bound(first, last, rank, [](uint32_t r, const Coarse& c) { return r < c.from; });
-  if (it == first) return nullptr;
-  --it;
-  return rank < it->to ? it : nullptr;
-}
-
 void TemporalMap::buildChangeMasks() const {
   change_masks_.assign(inner_.size(), 0);
   auto build = [&](auto&& self, uint32_t node) -> uint64_t {
@@ -826,122 +558,6 @@ size_t TemporalMap::compact() {
   *this = fromParts(resolution_m(), criterion_, std::move(p), std::move(sessions_));
   relayouts_ = relayouts + 1;
   return lists_before - live_lists_;
-}
-
-TemporalMap::Layout TemporalMap::layout() const {
-  // Depth first, in two layers: first what a snapshot of the latest time reads, then the
-  // subtrees that a coarse entry shadows at that time (each depth first), so that this
-  // snapshot walks a dense prefix of the pools however much refined history lies behind it.
-  // The root of a shadowed subtree stays in the first layer, where the snapshot reads its
-  // coarse entry; only what lies below it is deferred.
-  Layout order;
-  order.inner.reserve(inner_.size());
-  order.lists.reserve(live_lists_);
-  const bool layered = !sessions_.empty();
-  const auto latest = static_cast<uint32_t>(layered ? sessions_.size() - 1 : 0);
-  std::vector<uint32_t> shadowed;
-  auto visit = [&](auto&& self, uint32_t node, bool defer) -> void {
-    for (const Ref r : inner_[node]) {
-      if (r == kEmpty) continue;
-      if (isList(r)) {
-        order.lists.push_back(index(r));
-      } else {
-        order.inner.push_back(r);
-        if (defer && coarseAt(r, latest)) {
-          shadowed.push_back(r);
-        } else {
-          self(self, r, defer);
-        }
-      }
-    }
-  };
-  order.inner.push_back(0);
-  visit(visit, 0, layered);
-  order.hot_inner = order.inner.size();
-  order.hot_lists = order.lists.size();
-  for (const uint32_t node : shadowed) visit(visit, node, false);
-  return order;
-}
-
-void TemporalMap::relayout() {
-  const Layout order = layout();
-  std::vector<uint32_t> new_inner(inner_.size(), kEmpty), new_list(lists_.size(), kEmpty);
-  for (size_t i = 0; i < order.inner.size(); ++i) new_inner[order.inner[i]] = static_cast<uint32_t>(i);
-  for (size_t i = 0; i < order.lists.size(); ++i) new_list[order.lists[i]] = static_cast<uint32_t>(i);
-  std::vector<Children> inner(order.inner.size());
-  std::vector<CoarseSpan> spans(order.inner.size());
-  std::vector<uint8_t> dirty(order.inner.size());
-  for (size_t i = 0; i < order.inner.size(); ++i) {
-    const uint32_t old = order.inner[i];
-    for (size_t slot = 0; slot < 8; ++slot) {
-      const Ref r = inner_[old][slot];
-      inner[i][slot] = r == kEmpty ? kEmpty : isList(r) ? new_list[index(r)] | kListBit : new_inner[r];
-    }
-    spans[i] = coarse_span_[old];
-    dirty[i] = coarse_dirty_[old];
-  }
-  std::vector<List> lists(order.lists.size());
-  for (size_t i = 0; i < order.lists.size(); ++i) lists[i] = lists_[order.lists[i]];
-  packHitParts(lists);
-  // Lists keep their blocks in the entry arena (a snapshot of the latest time does not read it).
-  inner_ = std::move(inner);
-  lists_ = std::move(lists);
-  free_lists_.clear();
-  coarse_span_ = std::move(spans);
-  coarse_dirty_ = std::move(dirty);
-  packCoarse();
-  change_masks_valid_ = false;
-  hot_inner_at_layout_ = order.hot_inner;
-  hot_lists_at_layout_ = order.hot_lists;
-  ++relayouts_;
-}
-
-void TemporalMap::packHitParts(std::vector<List>& lists) {
-  // First the parts of the lists' newest entries in list order (what a snapshot of the latest
-  // time reads, in the order it reads them), then the older entries' parts; free parts dropped.
-  std::vector<HitPart> parts;
-  parts.reserve(hit_parts_.size() - free_hit_parts_.size());
-  auto move = [&](Stored& e) {
-    if (e.part == kNoPart) return;
-    parts.push_back(hit_parts_[e.part]);
-    e.part = static_cast<uint32_t>(parts.size() - 1);
-  };
-  for (List& l : lists) {
-    if (l.size == 0) continue;
-    move(entriesOf(l)[l.size - 1]);
-    if (l.size >= 2) l.first = entriesOf(l)[l.size - 1];
-  }
-  for (List& l : lists) {
-    Stored* e = entriesOf(l);
-    for (size_t k = 0; k + 1 < l.size; ++k) move(e[k]);
-  }
-  hit_parts_ = std::move(parts);
-  free_hit_parts_.clear();
-  free_hit_parts_.shrink_to_fit();
-}
-
-TemporalMap::Parts TemporalMap::parts() const {
-  const Layout order = layout();
-  std::vector<uint32_t> new_inner(inner_.size(), kEmpty), new_list(lists_.size(), kEmpty);
-  for (size_t i = 0; i < order.inner.size(); ++i) new_inner[order.inner[i]] = static_cast<uint32_t>(i);
-  for (size_t i = 0; i < order.lists.size(); ++i) new_list[order.lists[i]] = static_cast<uint32_t>(i);
-  Parts p;
-  p.inner.resize(order.inner.size());
-  p.list_sizes.reserve(order.lists.size());
-  p.entries.reserve(live_entries_);
-  for (size_t i = 0; i < order.inner.size(); ++i) {
-    for (size_t slot = 0; slot < 8; ++slot) {
-      const Ref r = inner_[order.inner[i]][slot];
-      p.inner[i][slot] = r == kEmpty ? kEmpty : isList(r) ? new_list[index(r)] | kListBit : new_inner[r];
-    }
-  }
-  for (const uint32_t list : order.lists) {
-    const List& l = lists_[list];
-    p.list_sizes.push_back(l.size);
-    const Stored* e = entriesOf(l);
-    for (size_t i = 0; i < l.size; ++i) p.entries.push_back(entryOf(e[i]));
-  }
-  return p;
 }
 
 TemporalMap TemporalMap::fromParts(double resolution_m, ChangeCriterion criterion, Parts parts,
