@@ -1,6 +1,6 @@
 // Which changes are unusual (issue 23): the rhythmic building (preset "weeks") with rare events,
 // every session in one 4D map; each test session's changed objects scored by findAlerts() with
-// the learning days as history, and matched to the truth's events (sim::scoreChanges): objects of
+// the learning days as history, and matched to the truth's events (scoreChanges): objects of
 // rare events against objects of routine ones. ROC AUC and precision among the top k (k = the
 // objects of rare events) over all test sessions pooled; baselines: the object's size alone
 // (bigger is more unusual) and its voxels' change count while learning alone (fewer changes is
@@ -108,7 +108,7 @@ int main(int argc, char** argv) {
     sim_dir = bench::simulateWeeks(tmp, scale, true);
   }
   const bench::WeeksSim weeks = bench::readWeeks(sim_dir, learn_days);
-  const std::vector<sim::ChangeEvent> events = sim::readTruthEvents(sim_dir / "scene.json");
+  const std::vector<ChangeEvent> events = readTruthEvents(sim_dir / "scene.json");
   std::vector<size_t> all(weeks.times.size());
   for (size_t i = 0; i < all.size(); ++i) all[i] = i;
   const auto build_started = std::chrono::steady_clock::now();
@@ -142,9 +142,9 @@ int main(int argc, char** argv) {
     const AlertReport report = findAlerts(map, time_s, settings);
     alert_s += bench::seconds(alert_started);
     const SessionMap before = map.snapshot(report.previous_time_s), after = map.snapshot(time_s);
-    const std::vector<sim::ChangeEvent> here = sim::eventsFrom(events, static_cast<uint32_t>(t - 1));
-    const sim::ChangeScore truth = sim::scoreChanges(report.diff, report.segmentation, here, before, after);
-    for (const sim::ChangeEvent& e : here) rare_events += e.cause == "rare";
+    const std::vector<ChangeEvent> here = eventsFrom(events, static_cast<uint32_t>(t - 1));
+    const ChangeScore truth = scoreChanges(report.diff, report.segmentation, here, before, after);
+    for (const ChangeEvent& e : here) rare_events += e.cause == "rare";
     std::vector<bool> rare_seen(here.size(), false);
     for (size_t rank = 0; rank < report.alerts.size(); ++rank) {
       const Alert& a = report.alerts[rank];
@@ -171,9 +171,9 @@ int main(int argc, char** argv) {
       s.count = -(n ? changes / static_cast<double>(n) : 0.0);
       std::string label = "none";
       if (ev >= 0) {
-        const sim::ChangeEvent& e = here[static_cast<size_t>(ev)];
-        label = e.cause + ": " + (e.routine.empty() ? std::string(sim::toString(e.object_kind)) : e.routine) + " " +
-                sim::toString(e.kind);
+        const ChangeEvent& e = here[static_cast<size_t>(ev)];
+        label = e.cause + ": " + (e.routine.empty() ? std::string(toString(e.object_kind)) : e.routine) + " " +
+                toString(e.kind);
         if (e.cause == "rare") {
           s.label = 1;
           rare_seen[static_cast<size_t>(ev)] = true;
@@ -195,7 +195,7 @@ int main(int argc, char** argv) {
     if (!out_dir.empty()) {
       char name[32];
       std::snprintf(name, sizeof name, "session_%02zu", t);
-      pipeline::writeAlerts(out_dir / name, map, report, 10, "");
+      writeAlerts(out_dir / name, map, report, 10, "");
     }
   }
   std::vector<Scored> labelled;

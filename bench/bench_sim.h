@@ -42,14 +42,14 @@ inline double seconds(std::chrono::steady_clock::time_point since) {
 struct SimSessions {
   std::vector<SessionMap> estimated;   // integrated with the estimated poses (trajectory.txt)
   std::vector<SessionMap> truth_pose;  // with the true poses (groundtruth.txt), when asked for
-  std::vector<sim::ChangeEvent> events;
+  std::vector<ChangeEvent> events;
   std::vector<std::filesystem::path> dirs;  // the session folders, in order
   std::vector<std::vector<Eigen::Vector3d>> positions;  // each session's sensor positions (estimated poses)
 };
 
 // How the benchmarks integrate simulated sessions: fast mode at 0.05 m.
-inline pipeline::SessionSettings simSessionSettings() {
-  pipeline::SessionSettings s;
+inline SessionSettings simSessionSettings() {
+  SessionSettings s;
   s.integrator.fast = true;
   return s;
 }
@@ -116,7 +116,7 @@ inline std::vector<SessionMap> registerSimulation(const SimSessions& s, const Re
                                                   std::vector<PoseCorrection>* corrections = nullptr,
                                                   std::vector<RegisterReport>* reports = nullptr) {
   std::vector<SessionMap> maps = s.estimated;
-  auto found = pipeline::registerDatasets(maps, s.dirs, s.positions, simSessionSettings(), {rounds, settings}, reports);
+  auto found = registerDatasets(maps, s.dirs, s.positions, simSessionSettings(), {rounds, settings}, reports);
   if (corrections) *corrections = std::move(found);
   return maps;
 }
@@ -136,7 +136,7 @@ inline std::vector<SessionMap> registerSimulation(const SimSessions& s, Correcti
 inline SimSessions loadSimulation(const std::filesystem::path& dir, bool with_true_poses) {
   namespace fs = std::filesystem;
   SimSessions s;
-  s.events = sim::readTruthEvents(dir / "scene.json");
+  s.events = readTruthEvents(dir / "scene.json");
   std::vector<fs::path> sessions;
   for (const auto& e : fs::directory_iterator(dir)) {
     if (e.is_directory() && e.path().filename().string().rfind("session_", 0) == 0) sessions.push_back(e.path());
@@ -144,13 +144,13 @@ inline SimSessions loadSimulation(const std::filesystem::path& dir, bool with_tr
   std::sort(sessions.begin(), sessions.end());
   s.dirs = sessions;
   for (const fs::path& p : sessions) {
-    pipeline::IntegratedSession estimated = pipeline::integrateDataset(p, simSessionSettings());
+    IntegratedSession estimated = integrateDataset(p, simSessionSettings());
     s.estimated.push_back(std::move(estimated.map));
     s.positions.push_back(std::move(estimated.sensor_positions));
     if (with_true_poses) {
-      pipeline::SessionSettings truth = simSessionSettings();
+      SessionSettings truth = simSessionSettings();
       truth.dataset.trajectory = p / "groundtruth.txt";
-      s.truth_pose.push_back(pipeline::integrateDataset(p, truth).map);
+      s.truth_pose.push_back(integrateDataset(p, truth).map);
     }
     std::fprintf(stderr, "\r  integrated %zu/%zu sessions", s.estimated.size(), sessions.size());
   }
@@ -161,11 +161,11 @@ inline SimSessions loadSimulation(const std::filesystem::path& dir, bool with_tr
 // Simulates `preset` at half resolution into a fresh temporary folder and returns it.
 inline std::filesystem::path simulateTemporary(const std::string& preset, const std::string& tag) {
   const auto dir = std::filesystem::temp_directory_path() / (tag + "_" + preset + "_" + std::to_string(::getpid()));
-  sim::SimulationSettings s;
+  SimulationSettings s;
   s.preset = preset;
   s.resolution_scale = 0.5;
   std::fprintf(stderr, "simulating %s into %s\n", preset.c_str(), dir.c_str());
-  sim::simulate(s, dir, {});
+  chronomap::simulate(s, dir, {});
   return dir;
 }
 
@@ -205,13 +205,13 @@ struct WeeksSim {
 
 // Simulates the weeks preset (seed 1) at `scale` into `tmp`/weeks, with rare events if asked.
 inline std::filesystem::path simulateWeeks(const std::filesystem::path& tmp, double scale, bool rare_events) {
-  sim::SimulationSettings s;
+  SimulationSettings s;
   s.preset = "weeks";
   s.resolution_scale = scale;
   s.rare_events = rare_events;
   std::printf("simulating the weeks preset at %.2f of 640x480%s ...\n", scale, rare_events ? " with rare events" : "");
   std::fflush(stdout);
-  sim::simulate(s, tmp / "weeks");
+  chronomap::simulate(s, tmp / "weeks");
   return tmp / "weeks";
 }
 
@@ -225,7 +225,7 @@ inline WeeksSim readWeeks(const std::filesystem::path& dir, int learn_days) {
     w.times.push_back(s["time_s"].get<double>());
     w.dirs.push_back(dir / s["dir"].get<std::string>());
   }
-  w.split_s = sim::kScheduleStart_s + 86400.0 * learn_days;
+  w.split_s = kScheduleStart_s + 86400.0 * learn_days;
   for (size_t i = 0; i < w.times.size(); ++i) (w.times[i] < w.split_s ? w.learn : w.test).push_back(i);
   if (w.learn.empty() || w.test.empty()) {
     std::fprintf(stderr, "--learn-days %d leaves no session to learn from or to test\n", learn_days);
@@ -240,7 +240,7 @@ inline WeeksSim readWeeks(const std::filesystem::path& dir, int learn_days) {
 inline TemporalMap buildWeeksMap(const WeeksSim& w, const std::vector<size_t>& which, bool true_poses,
                                  double max_range_m, const std::filesystem::path& scratch,
                                  bool carve_beyond_range = false) {
-  pipeline::BuildSettings build;
+  BuildSettings build;
   build.map = scratch;
   for (size_t i : which) {
     build.datasets.push_back(w.dirs[i]);
@@ -249,17 +249,17 @@ inline TemporalMap buildWeeksMap(const WeeksSim& w, const std::vector<size_t>& w
   build.session.integrator.fast = true;
   build.session.integrator.max_range_m = max_range_m;
   build.session.integrator.carve_beyond_range = carve_beyond_range;
-  build.registration = pipeline::RegistrationSettings{};
+  build.registration = RegistrationSettings{};
   if (true_poses) {
     TemporalMap m(0.05);
     for (size_t i : which) {
-      pipeline::SessionSettings ss = build.session;
+      SessionSettings ss = build.session;
       ss.dataset.trajectory = w.dirs[i] / "groundtruth.txt";
-      m.add(w.times[i], pipeline::integrateDataset(w.dirs[i], ss).map);
+      m.add(w.times[i], integrateDataset(w.dirs[i], ss).map);
     }
     return m;
   }
-  pipeline::build(build);
+  build(build);
   TemporalMap m = readTemporalMap(build.map);
   std::error_code ec;
   std::filesystem::remove(build.map, ec);

@@ -118,14 +118,14 @@ DiffSettings noShiftDiff() {
 using bench::loadSimulation;
 using bench::SimSessions;
 
-sim::ChangeScore scorePairs(const std::vector<SessionMap>& maps, const std::vector<sim::ChangeEvent>& events,
+ChangeScore scorePairs(const std::vector<SessionMap>& maps, const std::vector<ChangeEvent>& events,
                             const DiffSettings& ds, const SegmentSettings& ss, size_t* pairs_with_false = nullptr) {
-  sim::ChangeScore total;
+  ChangeScore total;
   for (size_t k = 1; k < maps.size(); ++k) {
-    const std::vector<sim::ChangeEvent> pair = sim::eventsFrom(events, static_cast<uint32_t>(k - 1));
+    const std::vector<ChangeEvent> pair = eventsFrom(events, static_cast<uint32_t>(k - 1));
     const DiffMap d = diff(maps[k - 1], maps[k], ds);
     const Segmentation seg = segment(d, ss);
-    const sim::ChangeScore s = sim::scoreChanges(d, seg, pair, maps[k - 1], maps[k]);
+    const ChangeScore s = scoreChanges(d, seg, pair, maps[k - 1], maps[k]);
     if (pairs_with_false && s.false_components > 1) ++*pairs_with_false;
     total += s;
   }
@@ -237,7 +237,7 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
                  const SegmentSettings& ss, bool verbose = false) {
     size_t bad_pairs = 0;
     const auto t = std::chrono::steady_clock::now();
-    const sim::ChangeScore c = scorePairs(maps, s.events, ds, ss, &bad_pairs);
+    const ChangeScore c = scorePairs(maps, s.events, ds, ss, &bad_pairs);
     std::printf("%-9s %-10s %5.2f %5d %5.2f %-7s %5llu | %9.3f %9.3f | %4zu/%-4zu %7.3f | %10.2f %9zu | %6.2f\n",
                 poses, toString(ds.mode), ds.effectiveAlpha(), ds.neighbourhood_voxels, ds.min_shift_voxels,
                 toString(ss.connectivity),
@@ -252,12 +252,12 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
   };
   std::printf("poses     mode       alpha nbhd shift  conn    min_v | voxel_prec voxel_rec | objects  recall | "
               "false/pair >1 false | seconds\n");
-  const sim::ChangeScore headline = row("register", registered, defaultDiff(), defaultSegment(), true);
+  const ChangeScore headline = row("register", registered, defaultDiff(), defaultSegment(), true);
   row("true", s.truth_pose, defaultDiff(), defaultSegment(), true);
   row("reg+align", realigned, defaultDiff(), defaultSegment(), true);
   row("estimated", s.estimated, defaultDiff(), defaultSegment(), true);
   std::printf("without the shift test (min shift 0):\n");
-  const sim::ChangeScore unshifted = row("register", registered, noShiftDiff(), defaultSegment(), true);
+  const ChangeScore unshifted = row("register", registered, noShiftDiff(), defaultSegment(), true);
   row("true", s.truth_pose, noShiftDiff(), defaultSegment(), true);
   row("reg+align", realigned, noShiftDiff(), defaultSegment(), true);
   row("estimated", s.estimated, noShiftDiff(), defaultSegment(), true);

@@ -193,7 +193,7 @@ int main(int argc, char** argv) {
       rounds = std::max(1, std::atoi(argv[++i]));
     } else if (arg == "--synthetic") {
       // As integrate_vs_peers prepares them: points within 3 m only.
-      std::vector<Frame> frames = sim::benchmarkSequence(30);
+      std::vector<Frame> frames = benchmarkSequence(30);
       for (Frame& f : frames) {
         PointCloud kept;
         for (size_t k = 0; k < f.cloud.size(); ++k) {

@@ -50,9 +50,9 @@ Sessions integrateAll(const fs::path& dir) {
   s.scene = nlohmann::json::parse(readTextFile(dir / "scene.json"));
   for (const auto& j : s.scene["sessions"]) {
     const fs::path p = dir / j["dir"].get<std::string>();
-    pipeline::SessionSettings ss = bench::simSessionSettings();
+    SessionSettings ss = bench::simSessionSettings();
     ss.dataset.trajectory = p / "groundtruth.txt";
-    s.maps.push_back(pipeline::integrateDataset(p, ss).map);
+    s.maps.push_back(integrateDataset(p, ss).map);
     s.times.push_back(j["time_s"].get<double>());
     std::fprintf(stderr, "\r  integrated %zu/%zu sessions", s.maps.size(), s.scene["sessions"].size());
   }
@@ -150,14 +150,14 @@ int main(int argc, char** argv) {
   }
 
   if (weeks_dir.empty()) {
-    sim::SimulationSettings s;
+    SimulationSettings s;
     s.preset = "weeks";
     s.resolution_scale = scale;
     s.lighting = "daylight";
     s.repaint = true;
     std::printf("simulating the weeks preset at %.2f of 640x480 with daylight and a repaint ...\n", scale);
     std::fflush(stdout);
-    sim::simulate(s, tmp / "weeks");
+    chronomap::simulate(s, tmp / "weeks");
     weeks_dir = (tmp / "weeks").string();
   }
   const auto t0 = std::chrono::steady_clock::now();
@@ -173,7 +173,7 @@ int main(int argc, char** argv) {
   }
 
   // The split: learn from the first `learn_days` days, test on the rest.
-  const double split_s = sim::kScheduleStart_s + 86400.0 * learn_days;
+  const double split_s = kScheduleStart_s + 86400.0 * learn_days;
   std::vector<size_t> test;
   for (size_t i = 0; i < weeks.times.size(); ++i) {
     if (weeks.times[i] >= split_s) test.push_back(i);
@@ -356,10 +356,10 @@ int main(int argc, char** argv) {
         if (std::abs(hourOfDay(weeks.times[i]) - want) < std::abs(hourOfDay(weeks.times[best]) - want)) best = i;
       }
       const std::string tag = want < 12.0 ? "morning" : "evening";
-      pipeline::exportSessionMap(fs::path(out_dir) / ("observed_" + tag + ".png"), weeks.maps[best]);
-      pipeline::exportSessionMap(fs::path(out_dir) / ("predicted_" + tag + ".png"),
+      exportSessionMap(fs::path(out_dir) / ("observed_" + tag + ".png"), weeks.maps[best]);
+      exportSessionMap(fs::path(out_dir) / ("predicted_" + tag + ".png"),
                                  recolour(weeks.maps[best], model, weeks.times[best]));
-      pipeline::exportSessionMap(fs::path(out_dir) / ("latest_" + tag + ".png"), latest_map);
+      exportSessionMap(fs::path(out_dir) / ("latest_" + tag + ".png"), latest_map);
       std::printf("top views at session %zu (%s, hour %.2f) in %s\n", best, formatTime(weeks.times[best]).c_str(),
                   hourOfDay(weeks.times[best]), out_dir.c_str());
     }

@@ -1,7 +1,7 @@
 // Integration speed and memory: chronomap (exact and fast mode, 1 and 2 threads) against
 // OctoMap's ColorOcTree::insertPointCloud (plain and discretized), on the same frames, in the
 // same run. Inputs are fixed: the five real 3DMatch frames and a synthetic 640x480 sequence of
-// 30 frames (sim::benchmarkSequence). Frames are decoded before timing; OctoMap gets the same
+// 30 frames (benchmarkSequence). Frames are decoded before timing; OctoMap gets the same
 // points in the map frame, already limited to the same maximum range.
 //
 // Usage: integrate_vs_octomap [--quick] [--data DIR]   (--quick: 8 synthetic frames, one round)
@@ -145,7 +145,7 @@ int main(int argc, char** argv) {
   std::vector<Input> inputs;
   const size_t synthetic_frames = quick ? 8 : 30;
   inputs.push_back(prepare("synthetic 640x480 x " + std::to_string(synthetic_frames),
-                           sim::benchmarkSequence(synthetic_frames)));
+                           benchmarkSequence(synthetic_frames)));
   try {
     auto ds = openDataset(data / "3dmatch" / "3dmatch");
     std::vector<Frame> frames;

@@ -1,6 +1,6 @@
 // Integration speed, memory and file size: chronomap against OctoMap, Bonxai and UFOMap on the
 // same frames, in the same run. Inputs are those of integrate_vs_octomap: a synthetic 640x480
-// sequence of 30 frames (sim::benchmarkSequence) and the five real 3DMatch frames, limited to
+// sequence of 30 frames (benchmarkSequence) and the five real 3DMatch frames, limited to
 // 3 m; frames are decoded before timing and every peer gets the same points in the map frame,
 // converted to its own point type before its clock starts.
 //
@@ -280,7 +280,7 @@ int main(int argc, char** argv) {
   const size_t synthetic_frames = quick ? 8 : 30;
   if (!real_only) {
     inputs.push_back(prepare("synthetic 640x480 x " + std::to_string(synthetic_frames),
-                             sim::benchmarkSequence(synthetic_frames)));
+                             benchmarkSequence(synthetic_frames)));
   }
   try {
     if (fast_only && only < 0) throw std::runtime_error("--fast-only");

@@ -57,7 +57,7 @@ using bench::seconds;
 // The truth event voxels by the session gap they belong to (events between sessions s, s + 1).
 class TruthIndex {
  public:
-  TruthIndex(const std::vector<sim::ChangeEvent>& events, size_t sessions) : by_gap_(sessions) {
+  TruthIndex(const std::vector<ChangeEvent>& events, size_t sessions) : by_gap_(sessions) {
     for (const auto& e : events) {
       if (e.from_session >= by_gap_.size()) continue;
       for (const VoxelKey& k : e.voxels) by_gap_[e.from_session].insert(mortonEncode(k));

@@ -77,7 +77,7 @@ int main(int argc, char** argv) {
   while (std::getline(list, preset, ',')) {
     nlohmann::json r;
     for (int threads : {1, 2}) {
-      sim::SimulationSettings s;
+      SimulationSettings s;
       s.preset = preset;
       s.sessions = sessions;
       s.resolution_scale = scale;
@@ -85,7 +85,7 @@ int main(int argc, char** argv) {
       const fs::path dir = tmp / (preset + "_" + std::to_string(threads));
       const auto t0 = std::chrono::steady_clock::now();
       const double c0 = cpuSeconds();
-      const sim::SimulationSummary summary = sim::simulate(s, dir);
+      const SimulationSummary summary = chronomap::simulate(s, dir);
       const double sec = since(t0);
       const double cpu = (cpuSeconds() - c0) / sessions;
       const double per = sec / sessions;
@@ -96,19 +96,19 @@ int main(int argc, char** argv) {
       r["frames"] = summary.frames;
     }
     // The renderer alone: session 0's poses, the first scene state, one thread.
-    const sim::SceneState state = sim::makeScene(preset, 1);
+    const SceneState state = makeScene(preset, 1);
     const auto poses = parseTumTrajectory(readTextFile(tmp / (preset + "_1") / "session_00" / "groundtruth.txt"),
                                               "groundtruth.txt");
-    const sim::Camera cam = sim::kinectCamera(scale);
-    const sim::SensorModel sensor;
+    const Camera cam = kinectCamera(scale);
+    const SensorModel sensor;
     const auto t0 = std::chrono::steady_clock::now();
-    const sim::Renderer renderer(state);
+    const Renderer renderer(state);
     const double build_s = since(t0);
     const auto t1 = std::chrono::steady_clock::now();
     const double c1 = cpuSeconds();
     size_t hits = 0;
     for (size_t i = 0; i < poses.size(); ++i) {
-      const sim::RenderedFrame f = renderer.render(cam, poses[i].pose, sensor, 12.0, i);
+      const RenderedFrame f = renderer.render(cam, poses[i].pose, sensor, 12.0, i);
       for (float z : f.true_depth_m) hits += z > 0.0f;
     }
     const double render_s = since(t1);

@@ -448,7 +448,7 @@ int main(int argc, char** argv) {
   if (!(back.counts().nodes() == compacted.counts().nodes())) std::printf("WARNING: read-back differs\n");
 
   if (!plot.empty()) {
-    writePng(plot, render::renderStoragePlot(sep_nodes, nodes_4d, "Nodes after each session"));
+    writePng(plot, renderStoragePlot(sep_nodes, nodes_4d, "Nodes after each session"));
     std::printf("wrote %s\n", plot.c_str());
   }
   const nlohmann::json j = {{"sessions", sessions},

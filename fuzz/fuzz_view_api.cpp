@@ -1,4 +1,4 @@
-// libFuzzer target for the viewer's HTTP API (view::Api), which answers whatever a browser or
+// libFuzzer target for the viewer's HTTP API (Api), which answers whatever a browser or
 // another program on the machine sends: the input is "PATH?QUERY" (QUERY as name=value pairs
 // joined by '&'), asked of a small 4D map. Every answer must be a page, a packet or a 4xx; a
 // crash or an exception other than chronomap::Error is a finding.
@@ -40,11 +40,11 @@ const TemporalMap& smallMap() {
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  static const view::Api api(smallMap(), "fuzz.cmap");
+  static const Api api(smallMap(), "fuzz.cmap");
   const std::string text(reinterpret_cast<const char*>(data), size);
   const size_t q = text.find('?');
   const std::string path = text.substr(0, q);
-  view::Query query;
+  Query query;
   if (q != std::string::npos) {
     size_t start = q + 1;
     while (start <= text.size()) {
@@ -57,7 +57,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     }
   }
   try {
-    const view::Reply r = api.get(path, query);
+    const Reply r = api.get(path, query);
     if (r.status != 200 && r.status != 400 && r.status != 404) __builtin_trap();
   } catch (const Error&) {
     // A library error the API did not turn into a 400: acceptable only as a chronomap::Error.

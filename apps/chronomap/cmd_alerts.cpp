@@ -35,8 +35,8 @@ int runAlerts(const AlertsCmdOptions& o) {
   settings.validate();
   const TemporalMap map = readTemporalMap(o.map);
   const AlertReport report = findAlerts(map, t, settings);
-  if (!o.output.empty()) pipeline::writeAlerts(o.output, map, report, o.top, o.map);
-  const nlohmann::json summary = pipeline::alertsJson(report, o.top);
+  if (!o.output.empty()) writeAlerts(o.output, map, report, o.top, o.map);
+  const nlohmann::json summary = alertsJson(report, o.top);
   if (o.json) {
     std::cout << summary.dump() << "\n";
     return 0;

@@ -51,11 +51,11 @@ struct DiffCmdOptions {
 };
 
 /// The colour part of a diff: two times of one 4D map, their colours compared.
-nlohmann::json colourDiff(const DiffCmdOptions& o, const pipeline::MapRef& before, const pipeline::MapRef& after) {
+nlohmann::json colourDiff(const DiffCmdOptions& o, const MapRef& before, const MapRef& after) {
   ColourDiffSettings cs;
   cs.distance = *o.colour_distance;
   cs.lighting_invariant = o.lighting_invariant;
-  const pipeline::ColourDiffReport r = pipeline::colourDiffMaps(before, after, cs);
+  const ColourDiffReport r = colourDiffMaps(before, after, cs);
   nlohmann::json j;
   if (r.model) {
     j["colour_model"] = {{"voxels", r.model->keys.size()}, {"sessions", r.model->sessions}, {"rms_error", r.model->rms_error}};
@@ -94,14 +94,14 @@ int runDiff(const DiffCmdOptions& o) {
   const DiffSettings settings = diffSettingsOf(o);
   requireExtension(o.output, ".cmap", "output");
   if (!o.ply.empty()) requireExtension(o.ply, ".ply", "--ply");
-  const pipeline::MapRef before = pipeline::parseMapRef(o.before), after = pipeline::parseMapRef(o.after);
+  const MapRef before = parseMapRef(o.before), after = parseMapRef(o.after);
   const std::vector<fs::path> inputs = {before.path, after.path};
   refuseOverwritingInputs(o.output, inputs);
   if (!o.ply.empty()) refuseOverwritingInputs(o.ply, inputs);
   const auto start = std::chrono::steady_clock::now();
   if (o.lighting_invariant && !o.colour_distance) throw UsageError("--lighting-invariant applies to --colour");
   const nlohmann::json colour = o.colour_distance ? colourDiff(o, before, after) : nlohmann::json::object();
-  const DiffMap d = pipeline::diffMaps(before, after, settings, tileCacheSettings(o.memory_limit_gib));
+  const DiffMap d = diffMaps(before, after, settings, tileCacheSettings(o.memory_limit_gib));
   writeDiffMap(o.output, d, {{"created_by", "chronomap diff"}, {"before", o.before}, {"after", o.after}});
   std::vector<ChangeCell> changed;
   for (const ChangeCell& c : d.cells()) {
@@ -162,9 +162,9 @@ int runSegment(const SegmentCmdOptions& o) {
   const Segmentation seg = segment(d, settings);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
-  nlohmann::json summary = pipeline::segmentationJson(seg, settings);
+  nlohmann::json summary = segmentationJson(seg, settings);
   summary["seconds"] = seconds;
-  if (!o.output_dir.empty()) pipeline::writeComponents(o.output_dir, d, seg, o.input, summary);
+  if (!o.output_dir.empty()) writeComponents(o.output_dir, d, seg, o.input, summary);
   if (o.json) {
     std::cout << summary.dump() << "\n";
     return 0;

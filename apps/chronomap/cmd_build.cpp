@@ -85,7 +85,7 @@ struct AddCmdOptions {
   bool json = false;
 };
 
-void printAdded(const AddCmdOptions& o, const pipeline::AddSessionResult& r) {
+void printAdded(const AddCmdOptions& o, const AddSessionResult& r) {
   if (o.json) {
     nlohmann::json j = addReportJson(r.report, r.time_s, r.nodes_added);
     if (r.realigned_voxels) j["realigned_voxels"] = *r.realigned_voxels;
@@ -112,17 +112,17 @@ void printAdded(const AddCmdOptions& o, const pipeline::AddSessionResult& r) {
 constexpr double kDefaultPartsGib = 0.25;
 
 int runAdd(const AddCmdOptions& o) {
-  pipeline::AddSessionSettings s;
+  AddSessionSettings s;
   s.map = o.map;
   s.session = o.session;
   if (!o.time.empty()) s.time_s = parseTime(o.time);
   s.replace = o.replace;
-  s.write = pipeline::parseWritePolicy(o.write);
+  s.write = parseWritePolicy(o.write);
   s.realign = realignSettings(o.realign);
-  if (pipeline::isTiledMapFolder(o.map)) {
+  if (isTiledMapFolder(o.map)) {
     // A tiled map: the session streamed in tile by tile (docs/scale.md).
-    const pipeline::StreamResult r =
-        pipeline::streamAddSession(s, gibToBytes(o.memory_limit_gib.value_or(kDefaultPartsGib)));
+    const StreamResult r =
+        streamAddSession(s, gibToBytes(o.memory_limit_gib.value_or(kDefaultPartsGib)));
     const nlohmann::json j = {{"map", o.map},           {"time", formatTime(r.added_times.at(0))},
                               {"time_s", r.added_times.at(0)}, {"nodes_added", r.nodes_added.at(0)},
                               {"sessions", r.sessions}, {"tiles", r.tiles},
@@ -139,7 +139,7 @@ int runAdd(const AddCmdOptions& o) {
   requireExtension(o.map, ".cmap", "4D map");
   if (o.memory_limit_gib) throw UsageError("--memory-limit applies to a tiled map folder only");
   s.criterion = o.criterion;
-  printAdded(o, pipeline::addSession(s));
+  printAdded(o, chronomap::addSession(s));
   return 0;
 }
 
@@ -168,9 +168,9 @@ struct BuildCmdOptions {
 };
 
 /// The registration the flags ask for; refuses values out of range and flags without --register.
-std::optional<pipeline::RegistrationSettings> registrationSettings(const BuildCmdOptions& o) {
+std::optional<RegistrationSettings> registrationSettings(const BuildCmdOptions& o) {
   if (o.register_rounds < 1 || o.register_rounds > 10) throw UsageError("--register-rounds must lie in [1, 10]");
-  pipeline::RegistrationSettings s;
+  RegistrationSettings s;
   s.rounds = o.register_rounds;
   s.align.model = parseCorrectionModel(o.register_model);
   if (o.register_drift < 0 || o.register_drift > 100000) {
@@ -210,7 +210,7 @@ std::vector<std::optional<double>> buildTimes(const BuildCmdOptions& o) {
   return times;
 }
 
-nlohmann::json builtJson(const pipeline::BuiltSession& b) {
+nlohmann::json builtJson(const BuiltSession& b) {
   nlohmann::json j = addReportJson(b.report, b.time_s, b.nodes_added);
   if (b.realigned_voxels) j["realigned_voxels"] = *b.realigned_voxels;
   if (b.correction) {
@@ -230,7 +230,7 @@ nlohmann::json builtJson(const pipeline::BuiltSession& b) {
   return j;
 }
 
-void printBuilt(const BuildCmdOptions& o, const pipeline::BuildResult& r) {
+void printBuilt(const BuildCmdOptions& o, const BuildResult& r) {
   nlohmann::json reports = nlohmann::json::array();
   for (const auto& b : r.added) reports.push_back(builtJson(b));
   if (o.json) {
@@ -257,14 +257,14 @@ void printBuilt(const BuildCmdOptions& o, const pipeline::BuildResult& r) {
             << " nodes, " << humanBytes(static_cast<double>(r.file_bytes)) << " on disk\n";
 }
 
-int runStreamBuild(const BuildCmdOptions& o, pipeline::BuildSettings& s) {
-  const pipeline::Ranks ranks;
+int runStreamBuild(const BuildCmdOptions& o, BuildSettings& s) {
+  const Ranks ranks;
   if (ranks.size() > 1) throw UsageError("--tiles (the streaming build) runs in one process, not under mpirun");
   s.progress = terminalProgress(o.json);
   const double gib = o.integrate.memory_limit_gib.value_or(kDefaultPartsGib);
   // --memory-limit is the parts' budget here; integration keeps its own default limit.
   s.session.integrator.memory_limit_bytes = defaultMemoryLimitBytes();
-  const pipeline::StreamResult r = pipeline::streamBuild(s, o.tile_size_m, gibToBytes(gib));
+  const StreamResult r = streamBuild(s, o.tile_size_m, gibToBytes(gib));
   nlohmann::json added = nlohmann::json::array();
   for (size_t i = 0; i < r.added_times.size(); ++i) {
     added.push_back({{"time", formatTime(r.added_times[i])}, {"time_s", r.added_times[i]},
@@ -304,12 +304,12 @@ int runStreamBuild(const BuildCmdOptions& o, pipeline::BuildSettings& s) {
 }
 
 int runBuild(const BuildCmdOptions& o) {
-  const bool tiled = o.tiles || pipeline::isTiledMapFolder(o.map);
+  const bool tiled = o.tiles || isTiledMapFolder(o.map);
   if (!tiled) {
     requireExtension(o.map, ".cmap", "4D map");
     if (o.tile_size_m) throw UsageError("--tile-size needs --tiles");
   }
-  pipeline::BuildSettings s;
+  BuildSettings s;
   s.realign = realignSettings(o.realign);
   s.registration = registrationSettings(o);
   s.map = o.map;
@@ -320,11 +320,11 @@ int runBuild(const BuildCmdOptions& o) {
   s.session = sessionSettings(o.integrate);
   if (tiled) return runStreamBuild(o, s);
   // Under mpirun the ranks share the recordings out and rank 0 writes and reports; alone, one process.
-  const pipeline::Ranks ranks;
+  const Ranks ranks;
   s.progress = terminalProgress(o.json || ranks.rank() != 0);
   try {
-    if (const auto result = pipeline::buildOnRanks(s, ranks)) printBuilt(o, *result);
-  } catch (const pipeline::RankStopped& stopped) {
+    if (const auto result = buildOnRanks(s, ranks)) printBuilt(o, *result);
+  } catch (const RankStopped& stopped) {
     return stopped.exitCode();  // rank 0 says why
   } catch (...) {
     if (ranks.size() < 2) throw;

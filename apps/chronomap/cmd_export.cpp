@@ -22,17 +22,17 @@ struct ExportOptions {
   std::string input;
   std::string output;
   int pixels_per_voxel = 2;
-  size_t max_voxels = view::TourSettings{}.max_voxels;
-  size_t max_diff_cells = view::TourSettings{}.max_diff_cells;
+  size_t max_voxels = TourSettings{}.max_voxels;
+  size_t max_diff_cells = TourSettings{}.max_diff_cells;
   bool json = false;
 };
 
 int runTour(const ExportOptions& o) {
-  view::TourSettings settings;
+  TourSettings settings;
   settings.max_voxels = o.max_voxels;
   settings.max_diff_cells = o.max_diff_cells;
   const TemporalMap map = readTemporalMap(o.input);
-  const auto r = view::writeTour(o.output, map, std::filesystem::path(o.input).filename().string(), settings);
+  const auto r = writeTour(o.output, map, std::filesystem::path(o.input).filename().string(), settings);
   if (o.json) {
     std::cout << nlohmann::json{{"output", o.output}, {"format", "html"}, {"elements", r.cells},
                                 {"level", r.level},   {"diffs", r.diffs},  {"diff_cells", r.diff_cells}, {"bytes", r.bytes}}
@@ -54,9 +54,9 @@ int runExport(const ExportOptions& o) {
   if (o.pixels_per_voxel < 1 || o.pixels_per_voxel > 64) throw UsageError("--scale must be 1 to 64");
   refuseOverwritingInputs(o.output, {o.input});
   if (ext == ".html") return runTour(o);
-  pipeline::ExportSettings settings;
+  ExportSettings settings;
   settings.pixels_per_voxel = o.pixels_per_voxel;
-  const size_t n = pipeline::exportSessionMap(o.output, readSessionMap(o.input), settings);
+  const size_t n = exportSessionMap(o.output, readSessionMap(o.input), settings);
   const std::string what = ext == ".ply"  ? " occupied voxel centres"
                            : ext == ".ot" ? " OctoMap ColorOcTree leaves"
                                           : " pixels, top view";

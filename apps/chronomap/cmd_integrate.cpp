@@ -33,7 +33,7 @@ struct IntegrateCmdOptions {
 
 /// `integrate run.bag --list`: the bag's topics, types and message counts.
 int listBagTopics(const IntegrateCmdOptions& o) {
-  const std::vector<BagTopic> topics = pipeline::listBagTopics(o.dataset);
+  const std::vector<BagTopic> topics = chronomap::listBagTopics(o.dataset);
   if (o.json) {
     nlohmann::json out = nlohmann::json::array();
     for (const auto& t : topics) {
@@ -53,7 +53,7 @@ int listBagTopics(const IntegrateCmdOptions& o) {
 
 /// `integrate --list-formats`: every reader of the registry, in detection order.
 int listFormats(bool json) {
-  const std::vector<DatasetReader> readers = pipeline::registerReaders();
+  const std::vector<DatasetReader> readers = registerReaders();
   if (json) {
     nlohmann::json out = nlohmann::json::array();
     for (const auto& r : readers) {
@@ -71,7 +71,7 @@ int listFormats(bool json) {
   return 0;
 }
 
-nlohmann::json integrateJson(const IntegrateCmdOptions& o, const pipeline::IntegratedSession& session,
+nlohmann::json integrateJson(const IntegrateCmdOptions& o, const IntegratedSession& session,
                              uint64_t file_bytes) {
   const IntegrationStats& stats = session.stats;
   const SessionMapCounts counts = session.map.counts();
@@ -93,7 +93,7 @@ nlohmann::json integrateJson(const IntegrateCmdOptions& o, const pipeline::Integ
           {"output", o.output}};
 }
 
-void printIntegrated(const IntegrateCmdOptions& o, const pipeline::IntegratedSession& session, uint64_t file_bytes,
+void printIntegrated(const IntegrateCmdOptions& o, const IntegratedSession& session, uint64_t file_bytes,
                      double max_range_m) {
   const IntegrationStats& stats = session.stats;
   const SessionMap& map = session.map;
@@ -123,10 +123,10 @@ int runIntegrate(const IntegrateCmdOptions& o) {
   if (o.output.empty()) throw UsageError("integrate: --output is required");
   requireExtension(o.output, ".cmap", "output");
   refuseOverwritingInputs(o.output, {o.dataset});
-  const pipeline::SessionSettings settings = sessionSettings(o.flags);
-  const pipeline::IntegratedSession session =
-      pipeline::integrateDataset(o.dataset, settings, {}, terminalProgress(o.json));
-  writeSessionMap(o.output, session.map, pipeline::sessionMetadata(o.dataset, session, settings));
+  const SessionSettings settings = sessionSettings(o.flags);
+  const IntegratedSession session =
+      integrateDataset(o.dataset, settings, {}, terminalProgress(o.json));
+  writeSessionMap(o.output, session.map, sessionMetadata(o.dataset, session, settings));
   const auto file_bytes = std::filesystem::file_size(o.output);
   if (o.json) {
     std::cout << integrateJson(o, session, file_bytes).dump() << "\n";
@@ -180,14 +180,14 @@ int parseCarveLevel(const std::string& v) {
 /// --format's help, from the readers this build has.
 static std::string formatHelp() {
   std::string names = "auto (detect)";
-  for (const DatasetReader& r : pipeline::registerReaders()) names += ", " + r.name;
+  for (const DatasetReader& r : registerReaders()) names += ", " + r.name;
   return names + " (--list-formats says what each reads)";
 }
 
-pipeline::SessionSettings sessionSettings(const IntegrateFlags& f) {
-  pipeline::SessionSettings s;
+SessionSettings sessionSettings(const IntegrateFlags& f) {
+  SessionSettings s;
   s.resolution_m = f.resolution_m;
-  pipeline::registerReaders();
+  registerReaders();
   s.dataset.format = parseDatasetFormat(f.format);
   s.dataset.depth_scale = f.depth_scale;
   if (!f.intrinsics.empty()) s.dataset.intrinsics = parseIntrinsics(f.intrinsics);

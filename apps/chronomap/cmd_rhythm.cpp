@@ -31,8 +31,8 @@ struct LearnFlags {
 };
 
 /// The flags as the library's learning settings (times parsed).
-pipeline::LearnSettings learnSettings(const LearnFlags& f) {
-  pipeline::LearnSettings s;
+LearnSettings learnSettings(const LearnFlags& f) {
+  LearnSettings s;
   if (!f.rhythm_in.empty()) s.saved = f.rhythm_in;
   if (!f.rhythm_out.empty()) s.save = f.rhythm_out;
   if (!f.learn_from.empty()) s.from_s = parseTime(f.learn_from);
@@ -93,25 +93,25 @@ int runPredict(const PredictCmdOptions& o) {
   const RhythmModel model = parseRhythmModel(o.learn.model);
   const double t = parseTime(o.at);
   const TemporalMap map = readTemporalMap(o.map);
-  const RhythmModels models = pipeline::learnRhythm(map, learnSettings(o.learn));
+  const RhythmModels models = learnRhythm(map, learnSettings(o.learn));
   SessionMap predicted = predictMap(map, models, model, t);
   std::optional<ColourModel> colours;
   if (colour) {
-    const pipeline::LearnSettings range = learnSettings(o.learn);
-    pipeline::ColourLearnSettings c;
+    const LearnSettings range = learnSettings(o.learn);
+    ColourLearnSettings c;
     if (!o.colour_in.empty()) c.saved = o.colour_in;
     if (!o.colour_out.empty()) c.save = o.colour_out;
     c.from_s = range.from_s;
     c.to_s = range.to_s;
     c.range_given = range.range_given;
     c.fit = o.colour_settings;
-    colours = pipeline::learnColour(map, c);
+    colours = learnColour(map, c);
     predicted = recolour(predicted, *colours, t);
   }
-  pipeline::ExportSettings settings;
+  ExportSettings settings;
   settings.metadata = {{"created_by", "chronomap predict"}, {"prediction_of", o.map}, {"time_s", t},
                        {"model", toString(model)}};
-  pipeline::exportSessionMap(o.output, predicted, settings);
+  exportSessionMap(o.output, predicted, settings);
   const SessionMapCounts c = predicted.counts();
   const nlohmann::json summary = {{"output", o.output},
                                   {"time", formatTime(t)},
@@ -147,16 +147,16 @@ struct CostmapCmdOptions {
 };
 
 int runCostmap(const CostmapCmdOptions& o) {
-  const pipeline::CostmapFiles files = pipeline::costmapFiles(o.output);
+  const CostmapFiles files = costmapFiles(o.output);
   std::vector<std::filesystem::path> inputs = {o.map};
   if (!o.learn.rhythm_in.empty()) inputs.emplace_back(o.learn.rhythm_in);
   for (const fs::path& out : {files.yaml, files.pgm, files.png}) refuseOverwritingInputs(out, inputs);
   const RhythmModel model = parseRhythmModel(o.learn.model);
   const double t = parseTime(o.at);
   const TemporalMap map = readTemporalMap(o.map);
-  const RhythmModels models = pipeline::learnRhythm(map, learnSettings(o.learn));
+  const RhythmModels models = learnRhythm(map, learnSettings(o.learn));
   const Costmap c = costmap(predictMap(map, models, model, t), o.settings, &models);
-  const pipeline::CostmapCounts n = pipeline::writeCostmap(files, c, o.map);
+  const CostmapCounts n = writeCostmap(files, c, o.map);
   const nlohmann::json summary = {{"output", o.output}, {"pgm", files.pgm.string()}, {"png", files.png.string()},
                                   {"time", formatTime(t)}, {"time_s", t}, {"model", toString(model)},
                                   {"width", c.width}, {"height", c.height}, {"resolution_m", c.resolution_m},

@@ -16,14 +16,14 @@ namespace chronomap::cli {
 namespace {
 
 struct SimulateOptions {
-  sim::SimulationSettings settings;
+  SimulationSettings settings;
   std::string output;
   bool json = false;
 };
 
 int runSimulate(const SimulateOptions& o) {
   std::unique_ptr<ProgressBar> bar;
-  const sim::SimulationSummary s = sim::simulate(o.settings, o.output, [&](size_t done, size_t total) {
+  const SimulationSummary s = chronomap::simulate(o.settings, o.output, [&](size_t done, size_t total) {
     if (!bar) bar = std::make_unique<ProgressBar>("simulating " + o.settings.preset, total);
     bar->update(done);
   });
@@ -50,7 +50,7 @@ int runSimulate(const SimulateOptions& o) {
 // demo
 
 struct DemoCmdOptions {
-  pipeline::DemoSettings settings;
+  DemoSettings settings;
   std::string output = "chronomap-demo";
   bool exact = false;
   bool json = false;
@@ -62,7 +62,7 @@ std::string percent(double v) {
   return s.str();
 }
 
-void printDemo(const pipeline::DemoResult& r) {
+void printDemo(const DemoResult& r) {
   std::cout << "\nchronomap demo finished in " << std::fixed << std::setprecision(1) << r.seconds << " s\n"
             << "  " << r.sessions << " sessions, " << r.frames << " frames, " << r.events
             << " change events simulated\n"
@@ -80,11 +80,11 @@ void printDemo(const pipeline::DemoResult& r) {
 }
 
 int runDemo(const DemoCmdOptions& o) {
-  pipeline::DemoSettings settings = o.settings;
+  DemoSettings settings = o.settings;
   settings.output = o.output;
   settings.fast = !o.exact;
   settings.progress = terminalProgress(o.json);
-  const pipeline::DemoResult r = pipeline::runDemo(settings);
+  const DemoResult r = chronomap::runDemo(settings);
   if (!o.json) {
     printDemo(r);
     return 0;

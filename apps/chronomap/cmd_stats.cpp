@@ -117,7 +117,7 @@ int runTemporalStats(const StatsOptions& o, const CmapFile& file) {
     if (std::filesystem::path(o.plot).extension() != ".png") throw UsageError("--plot '" + o.plot + "' must end in .png");
     refuseOverwritingInputs(o.plot, {o.file});
     if (map.sessionCount() == 0) throw DataError(o.file + ": no sessions to plot");
-    writePng(o.plot, render::renderStoragePlot(map));
+    writePng(o.plot, renderStoragePlot(map));
   }
   if (o.json) {
     printTemporalJson(o, s);

@@ -36,7 +36,7 @@ struct SnapshotCmdOptions {
 };
 
 /// "X0,Y0,Z0,X1,Y1,Z1" in metres.
-pipeline::BoxMetres parseBox(const std::string& text) {
+BoxMetres parseBox(const std::string& text) {
   const std::vector<std::string> parts = splitCommas(text);
   double v[6];
   bool ok = parts.size() == 6;
@@ -65,12 +65,12 @@ int runSnapshot(const SnapshotCmdOptions& o) {
   }
   refuseOverwritingInputs(o.output, {o.map});
   const double t = parseTime(o.at);
-  const std::optional<pipeline::BoxMetres> box = o.box.empty() ? std::nullopt : std::optional(parseBox(o.box));
-  const pipeline::MapSnapshot r = pipeline::snapshotOfMap(o.map, t, box, tileCacheSettings(o.memory_limit_gib));
+  const std::optional<BoxMetres> box = o.box.empty() ? std::nullopt : std::optional(parseBox(o.box));
+  const MapSnapshot r = snapshotOfMap(o.map, t, box, tileCacheSettings(o.memory_limit_gib));
   const SessionMap& snap = r.map;
-  pipeline::ExportSettings settings;
+  ExportSettings settings;
   settings.metadata = {{"created_by", "chronomap snapshot"}, {"snapshot_of", o.map}, {"time_s", t}};
-  const size_t n = pipeline::exportSessionMap(o.output, snap, settings);
+  const size_t n = exportSessionMap(o.output, snap, settings);
   const SessionMapCounts c = snap.counts();
   if (o.json) {
     std::cout << nlohmann::json{{"output", o.output},   {"time", formatTime(t)},       {"time_s", t},
@@ -155,7 +155,7 @@ void printHistory(const Eigen::Vector3d& c, const VoxelKey& key, const std::vect
 
 int runHistory(const HistoryCmdOptions& o) {
   const Eigen::Vector3d p = parsePoint(o.point);
-  const pipeline::VoxelHistory h = pipeline::historyOfMap(o.map, p, tileCacheSettings(o.memory_limit_gib));
+  const VoxelHistory h = historyOfMap(o.map, p, tileCacheSettings(o.memory_limit_gib));
   if (o.json) {
     printHistoryJson(p, h.center_m, h.key, h.entries);
   } else {
@@ -209,7 +209,7 @@ int runChanges(const ChangesCmdOptions& o) {
   const double t1 = o.to.empty() ? std::numeric_limits<double>::infinity() : parseTime(o.to);
   if (t1 < t0) throw UsageError("--to lies before --from");
   const ChangeFrequency f = changeFrequency(map, t0, t1, o.min);
-  if (!o.output.empty()) pipeline::writeChangeFrequencyPly(o.output, map, f, o.min);
+  if (!o.output.empty()) writeChangeFrequencyPly(o.output, map, f, o.min);
   printChanges(o, f, map.sessionCount());
   return 0;
 }

@@ -27,11 +27,11 @@ struct TileCmdOptions {
 };
 
 int runTile(const TileCmdOptions& o) {
-  pipeline::TileSettings s;
+  TileSettings s;
   s.map = o.map;
   s.folder = o.output;
   s.tile_size_m = o.tile_size_m;
-  const pipeline::TileResult r = pipeline::tileMap(s);
+  const TileResult r = tileMap(s);
   if (o.json) {
     std::cout << nlohmann::json{{"output", o.output},         {"tile_size_m", r.tile_size_m},
                                 {"tile_level", r.tile_level}, {"tiles", r.tiles},
@@ -55,7 +55,7 @@ struct UntileCmdOptions {
 
 int runUntile(const UntileCmdOptions& o) {
   requireExtension(o.output, ".cmap", "output");
-  const size_t sessions = pipeline::untileMap(o.folder, o.output);
+  const size_t sessions = untileMap(o.folder, o.output);
   if (o.json) {
     std::cout << nlohmann::json{{"output", o.output}, {"sessions", sessions}}.dump() << "\n";
   } else {

@@ -16,8 +16,8 @@ namespace {
 
 struct ViewOptions {
   std::string map;
-  view::ServerSettings server;
-  size_t budget = view::ApiSettings{}.default_max_voxels;
+  ServerSettings server;
+  size_t budget = ApiSettings{}.default_max_voxels;
   std::string rhythm;
 };
 
@@ -32,7 +32,7 @@ int runView(ViewOptions o) {
                        " m voxels; the map has " + std::to_string(map.resolution_m()) + " m");
     }
   }
-  view::Server server(map, std::filesystem::path(o.map).filename().string(), o.server);
+  Server server(map, std::filesystem::path(o.map).filename().string(), o.server);
   server.bind();
   std::cout << "chronomap view: " << o.map << " (" << map.sessionCount() << " sessions) at " << server.url()
             << "\nopen that address in a browser; Ctrl-C stops the server" << std::endl;
@@ -57,7 +57,7 @@ Command addView(CLI::App& root) {
       ->capture_default_str();
   app->add_option("--budget", o->budget, "cells per snapshot unless the page asks for another number; more "
                                          "occupied voxels are drawn as coarser octree cubes")
-      ->check(numberIn(1, static_cast<double>(view::ApiSettings{}.max_voxels_limit)))
+      ->check(numberIn(1, static_cast<double>(ApiSettings{}.max_voxels_limit)))
       ->capture_default_str();
   app->add_option("--rhythm", o->rhythm,
                   "temporal models saved by `chronomap predict --save-rhythm`, for colouring by predicted "

@@ -82,7 +82,7 @@ struct IntegrateFlags {
 /// Registers the integration flags on a subcommand.
 void addIntegrateFlags(CLI::App* app, IntegrateFlags& flags);
 /// The session settings the flags ask for. @throw UsageError for unreadable values.
-pipeline::SessionSettings sessionSettings(const IntegrateFlags& flags);
+SessionSettings sessionSettings(const IntegrateFlags& flags);
 
 /// Validator for a numeric flag: the value must be a finite number in [lo, hi]; otherwise the
 /// command stops with "--flag: VALUE: must lie in [lo, hi]" before anything runs. Every numeric

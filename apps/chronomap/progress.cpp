@@ -38,14 +38,14 @@ void ProgressBar::finish() {
   drawn_ = false;
 }
 
-pipeline::Progress terminalProgress(bool quiet) {
+Progress terminalProgress(bool quiet) {
   // One bar at a time: a new label starts a new bar, the last unit of the work clears it.
   struct Current {
     std::string label;
     std::unique_ptr<ProgressBar> bar;
   };
   auto current = std::make_shared<Current>();
-  pipeline::Progress p;
+  Progress p;
   if (!quiet) p.step = [](const std::string& message) { std::cerr << message << "\n"; };
   p.work = [current](const std::string& label, size_t done, size_t total) {
     if (!current->bar || current->label != label) {

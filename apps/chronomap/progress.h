@@ -32,6 +32,6 @@ class ProgressBar {
 
 /// Progress for a command: each step's message as a line on stderr (none when `quiet`, as with
 /// --json) and a bar for each piece of work with a label.
-pipeline::Progress terminalProgress(bool quiet);
+Progress terminalProgress(bool quiet);
 
 }  // namespace chronomap::cli

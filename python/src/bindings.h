@@ -37,7 +37,7 @@ struct ProgressForwarder {
   py::object callback;
   std::shared_ptr<py::error_already_set> raised;
 
-  pipeline::Progress progress();
+  Progress progress();
   void rethrow() const;
 };
 

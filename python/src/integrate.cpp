@@ -1,4 +1,4 @@
-// integrate_dataset (pipeline::integrateDataset) and the incremental Integrator
+// integrate_dataset (integrateDataset) and the incremental Integrator
 // (IncrementalIntegrator) fed from numpy arrays.
 
 #include <memory>
@@ -33,7 +33,7 @@ int toCarveLevel(const py::object& level) {
 SessionMap integrateDatasetPy(const std::filesystem::path& path, double resolution_m, bool fast, double max_range_m,
                               int threads, const std::string& format, std::optional<double> depth_scale,
                               const py::object& progress, bool carve_beyond_range, const py::object& carve_level) {
-  pipeline::SessionSettings settings;
+  SessionSettings settings;
   settings.integrator.carve_level = toCarveLevel(carve_level);
   settings.resolution_m = resolution_m;
   settings.integrator.fast = fast;
@@ -43,10 +43,10 @@ SessionMap integrateDatasetPy(const std::filesystem::path& path, double resoluti
   settings.dataset.format = parseDatasetFormat(format);
   settings.dataset.depth_scale = depth_scale;
   ProgressForwarder forwarder{progress, nullptr};
-  std::optional<pipeline::IntegratedSession> session;
+  std::optional<IntegratedSession> session;
   {
     py::gil_scoped_release release;
-    session = pipeline::integrateDataset(path, settings, {}, forwarder.progress());
+    session = integrateDataset(path, settings, {}, forwarder.progress());
   }
   forwarder.rethrow();
   return std::move(session->map);

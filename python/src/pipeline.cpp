@@ -1,4 +1,4 @@
-// The workflows on 4D map files (pipeline::build, pipeline::addSession) and what the bindings
+// The workflows on 4D map files (build, chronomap::addSession) and what the bindings
 // share for them: progress forwarded to Python, times as epoch seconds or datetimes.
 
 #include <filesystem>
@@ -12,8 +12,8 @@
 
 namespace chronomap::python {
 
-pipeline::Progress ProgressForwarder::progress() {
-  pipeline::Progress p;
+Progress ProgressForwarder::progress() {
+  Progress p;
   if (callback.is_none()) return p;
   p.work = [this](const std::string& label, size_t done, size_t total) {
     py::gil_scoped_acquire acquire;
@@ -54,7 +54,7 @@ py::object toDatetime(double time_s) {
 
 namespace {
 
-py::dict builtSessionDict(const pipeline::BuiltSession& b) {
+py::dict builtSessionDict(const BuiltSession& b) {
   py::dict d;
   d["dataset"] = b.dataset;
   d["time_s"] = b.time_s;
@@ -75,7 +75,7 @@ py::dict buildPy(const std::filesystem::path& map, const std::vector<std::filesy
                  const py::object& times, double resolution_m, bool fast, double max_range_m, int threads,
                  const std::string& format, bool register_sessions, int registration_rounds, bool realign,
                  bool replace, const py::object& progress, bool carve_beyond_range) {
-  pipeline::BuildSettings settings;
+  BuildSettings settings;
   settings.map = map;
   settings.datasets = datasets;
   if (!times.is_none()) {
@@ -90,7 +90,7 @@ py::dict buildPy(const std::filesystem::path& map, const std::vector<std::filesy
   settings.session.integrator.threads = threads;
   settings.session.dataset.format = parseDatasetFormat(format);
   if (register_sessions) {
-    pipeline::RegistrationSettings r;
+    RegistrationSettings r;
     r.rounds = registration_rounds;
     settings.registration = r;
   }
@@ -98,10 +98,10 @@ py::dict buildPy(const std::filesystem::path& map, const std::vector<std::filesy
   settings.replace = replace;
   ProgressForwarder forwarder{progress, nullptr};
   settings.progress = forwarder.progress();
-  pipeline::BuildResult result;
+  BuildResult result;
   {
     py::gil_scoped_release release;
-    result = pipeline::build(settings);
+    result = build(settings);
   }
   forwarder.rethrow();
   py::dict d;
@@ -117,17 +117,17 @@ py::dict buildPy(const std::filesystem::path& map, const std::vector<std::filesy
 
 py::dict addSessionPy(const std::filesystem::path& map, const std::filesystem::path& session, const py::object& time,
                       bool replace, const std::string& write, bool realign) {
-  pipeline::AddSessionSettings settings;
+  AddSessionSettings settings;
   settings.map = map;
   settings.session = session;
   if (!time.is_none()) settings.time_s = toSeconds(time, "time");
   settings.replace = replace;
-  settings.write = pipeline::parseWritePolicy(write);
+  settings.write = parseWritePolicy(write);
   if (realign) settings.realign = RealignSettings{};
-  pipeline::AddSessionResult r;
+  AddSessionResult r;
   {
     py::gil_scoped_release release;
-    r = pipeline::addSession(settings);
+    r = chronomap::addSession(settings);
   }
   py::dict d;
   d["created"] = r.created;

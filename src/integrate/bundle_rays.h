@@ -25,7 +25,7 @@
 #define CHRONOMAP_HAVE_AVX2_LANES 0
 #endif
 
-namespace chronomap::detail {
+namespace chronomap::integrate_detail {
 
 /// The DDA state of one ray in a grid whose cell c has the linear index (c - lo) . stride.
 struct LaneRay {
@@ -368,4 +368,4 @@ void castBundleLanes(Next&& next, Add&& add, bool simd = true) {
   castLanesPortable(next, add);
 }
 
-}  // namespace chronomap::detail
+}  // namespace chronomap::integrate_detail

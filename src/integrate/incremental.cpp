@@ -8,9 +8,9 @@
 
 namespace chronomap {
 
-using detail::checkMapMemory;
-using detail::checkSettings;
-using detail::perThread;
+using integrate_detail::checkMapMemory;
+using integrate_detail::checkSettings;
+using integrate_detail::perThread;
 
 IncrementalIntegrator::IncrementalIntegrator(double resolution_m, const IntegratorSettings& settings)
     : settings_((checkSettings(settings), settings)),

@@ -35,7 +35,7 @@ IntegrationStats& IntegrationStats::operator+=(const IntegrationStats& o) {
   return *this;
 }
 
-namespace detail {
+namespace integrate_detail {
 
 [[noreturn]] void refuseOverMemoryLimit(const char* what, size_t limit_bytes, const char* share, double resolution_m) {
   std::ostringstream msg;
@@ -74,11 +74,11 @@ void checkSettings(const IntegratorSettings& settings) {
 }
 
 
-}  // namespace detail
+}  // namespace integrate_detail
 
-using detail::checkMapMemory;
-using detail::checkSettings;
-using detail::perThread;
+using integrate_detail::checkMapMemory;
+using integrate_detail::checkSettings;
+using integrate_detail::perThread;
 
 int carveLevelFor(const IntegratorSettings& settings, double resolution_m) {
   if (settings.carve_level != kCarveAuto) return settings.carve_level;

@@ -14,7 +14,7 @@
 
 #include "chronomap/integrate/integrator.h"
 
-namespace chronomap::detail {
+namespace chronomap::integrate_detail {
 
 /// Stops integration that needs more than the memory limit, saying what needed it.
 /// `share` follows the amount (" per thread" for a frame's scratch).
@@ -151,4 +151,4 @@ struct HashStore {
   }
 };
 
-}  // namespace chronomap::detail
+}  // namespace chronomap::integrate_detail

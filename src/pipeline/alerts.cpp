@@ -10,7 +10,7 @@
 #include "chronomap/ingest/png.h"
 #include "chronomap/render/top_view.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 namespace fs = std::filesystem;
 
@@ -118,7 +118,7 @@ void writeAlerts(const fs::path& folder, const TemporalMap& map, const AlertRepo
   const SessionMap now = map.snapshot(report.time_s);
   if (!now.empty()) {
     const auto [d, seg] = ranked(report, n);
-    writePng(staged.path() / "alerts.png", render::renderChangeView(now, d, seg));
+    writePng(staged.path() / "alerts.png", renderChangeView(now, d, seg));
   }
   for (size_t i = 0; i < n; ++i) {
     const Alert& a = report.alerts[i];
@@ -134,11 +134,11 @@ void writeAlerts(const fs::path& folder, const TemporalMap& map, const AlertRepo
     c.cells.resize(part.cells().size());
     for (size_t k = 0; k < c.cells.size(); ++k) c.cells[k] = static_cast<uint32_t>(k);
     one.components.push_back(std::move(c));
-    render::TopViewSettings view;
+    TopViewSettings view;
     view.pixels_per_voxel = 4;
-    writePng(staged.path() / (std::string(stem) + ".png"), render::renderChangeView(around, part, one, view));
+    writePng(staged.path() / (std::string(stem) + ".png"), renderChangeView(around, part, one, view));
   }
   staged.commit();
 }
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

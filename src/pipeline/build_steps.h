@@ -1,5 +1,5 @@
 #pragma once
-// The steps of pipeline::build(), shared by the one-process build (map4d.cpp) and the build
+// The steps of build(), shared by the one-process build (map4d.cpp) and the build
 // spread over MPI ranks (distributed.cpp), so that both run the same code in the same order.
 
 #include <cstddef>
@@ -8,7 +8,7 @@
 #include "chronomap/store/cmap.h"
 #include "chronomap/pipeline/map4d.h"
 
-namespace chronomap::pipeline::detail {
+namespace chronomap::pipeline_detail {
 
 /// A recording integrated, waiting to be added.
 struct Pending {
@@ -32,4 +32,4 @@ BuildResult finishBuild(const BuildSettings& s, TemporalMap& map, bool created, 
 /// @throw UsageError when there is neither.
 double sessionTime(const AddSessionSettings& s, const CmapFile& file);
 
-}  // namespace chronomap::pipeline::detail
+}  // namespace chronomap::pipeline_detail

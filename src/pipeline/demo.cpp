@@ -27,7 +27,7 @@
 #include "chronomap/view/tour.h"
 #include "demo_report.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 namespace fs = std::filesystem;
 
@@ -45,7 +45,7 @@ std::string numbered(const char* pattern, size_t n) {
 }
 
 /// Step 2: every session integrated with the estimated poses and scored against the truth.
-std::vector<DemoSession> integrateSessions(const DemoSettings& s, const sim::SimulationSummary& simulated,
+std::vector<DemoSession> integrateSessions(const DemoSettings& s, const SimulationSummary& simulated,
                                            const SessionSettings& session_settings) {
   std::vector<DemoSession> sessions;
   for (size_t k = 0; k < simulated.session_dirs.size(); ++k) {
@@ -55,7 +55,7 @@ std::vector<DemoSession> integrateSessions(const DemoSettings& s, const sim::Sim
         readSessionMap(s.output / "data" / "truth" / numbered("occupancy_%02zu.cmap", k));
     std::vector<VoxelKey> truth;
     truth_map.forEachLeaf([&](const LeafView& l) { truth.push_back(l.key); });
-    const sim::OccupancyScore score = sim::scoreOccupancy(i.map, truth);
+    const OccupancyScore score = scoreOccupancy(i.map, truth);
     sessions.push_back({std::move(i.map), i.stats, score, {}, std::move(truth), std::move(i.sensor_positions)});
   }
   return sessions;
@@ -63,7 +63,7 @@ std::vector<DemoSession> integrateSessions(const DemoSettings& s, const sim::Sim
 
 /// Step 3: registration to the consensus of all sessions, each integrated again with its
 /// correction, scored again and written to sessions/.
-void registerAll(const DemoSettings& s, const sim::SimulationSummary& simulated,
+void registerAll(const DemoSettings& s, const SimulationSummary& simulated,
                       const SessionSettings& session_settings, std::vector<DemoSession>& sessions) {
   RegistrationSettings registration;
   registration.rounds = kRegisterRounds;
@@ -79,14 +79,14 @@ void registerAll(const DemoSettings& s, const sim::SimulationSummary& simulated,
   registerDatasets(maps, simulated.session_dirs, positions, session_settings, registration);
   for (size_t k = 0; k < sessions.size(); ++k) {
     sessions[k].map = std::move(maps[k]);
-    sessions[k].registered_score = sim::scoreOccupancy(sessions[k].map, sessions[k].truth);
+    sessions[k].registered_score = scoreOccupancy(sessions[k].map, sessions[k].truth);
     writeSessionMap(s.output / "sessions" / numbered("session_%02zu.cmap", k), sessions[k].map,
                         {{"created_by", "chronomap demo"}, {"recorded_at", simulated.times_s[k]}, {"registered", true}});
   }
 }
 
 /// Step 4: the 4D map of the registered sessions.
-TemporalMap buildMap(const sim::SimulationSummary& simulated, const std::vector<DemoSession>& sessions,
+TemporalMap buildMap(const SimulationSummary& simulated, const std::vector<DemoSession>& sessions,
                      const fs::path& path) {
   TemporalMap map(sessions.front().map.resolution_m());
   for (size_t k = 0; k < sessions.size(); ++k) {
@@ -100,21 +100,21 @@ TemporalMap buildMap(const sim::SimulationSummary& simulated, const std::vector<
 std::vector<DemoPair> findChanges(const DemoSettings& s, const std::vector<DemoSession>& sessions,
                                   const fs::path& images) {
   fs::create_directories(s.output / "changes");
-  const std::vector<sim::ChangeEvent> truth_events = sim::readTruthEvents(s.output / "data" / "scene.json");
+  const std::vector<ChangeEvent> truth_events = readTruthEvents(s.output / "data" / "scene.json");
   const DemoChangeSettings cs = demoChangeSettings();
   std::vector<DemoPair> pairs;
   for (size_t k = 1; k < sessions.size(); ++k) {
     DemoPair p;
     p.from = k - 1;
     p.name = numbered("diff_%02zu", k - 1) + numbered("_%02zu", k);
-    p.events = sim::eventsFrom(truth_events, static_cast<uint32_t>(k - 1));
+    p.events = eventsFrom(truth_events, static_cast<uint32_t>(k - 1));
     const DiffMap d = diff(sessions[k - 1].map, sessions[k].map, cs.diff);
     p.segmentation = segment(d, cs.segment);
-    p.score = sim::scoreChanges(d, p.segmentation, p.events, sessions[k - 1].map, sessions[k].map);
+    p.score = scoreChanges(d, p.segmentation, p.events, sessions[k - 1].map, sessions[k].map);
     writeDiffMap(s.output / "changes" / (p.name + ".cmap"), d, {{"created_by", "chronomap demo"}});
-    render::TopViewSettings view;
+    TopViewSettings view;
     view.pixels_per_voxel = 3;
-    writePng(images / (p.name + ".png"), render::renderChangeView(sessions[k].map, d, p.segmentation, view));
+    writePng(images / (p.name + ".png"), renderChangeView(sessions[k].map, d, p.segmentation, view));
     pairs.push_back(std::move(p));
   }
   return pairs;
@@ -134,7 +134,7 @@ ImageRgb sessionCloudView(const fs::path& dir) {
       colors.push_back(f.cloud.hasColors() ? f.cloud.colors[k] : Rgb{200, 200, 200});
     }
   }
-  return render::renderPointsTopView(points, colors, 0.02);
+  return renderPointsTopView(points, colors, 0.02);
 }
 
 std::vector<Eigen::Vector3d> trajectoryPositions(const fs::path& path) {
@@ -145,7 +145,7 @@ std::vector<Eigen::Vector3d> trajectoryPositions(const fs::path& path) {
 
 /// Session 0's camera path, true and estimated.
 ImageRgb trajectoryPlot(const fs::path& dir) {
-  render::PlotSeries truth{"true path", Rgb{40, 90, 200}, {}, {}}, estimate{"estimated path", Rgb{220, 80, 40}, {}, {}};
+  PlotSeries truth{"true path", Rgb{40, 90, 200}, {}, {}}, estimate{"estimated path", Rgb{220, 80, 40}, {}, {}};
   for (const auto& p : trajectoryPositions(dir / "groundtruth.txt")) {
     truth.x.push_back(p.x());
     truth.y.push_back(p.y());
@@ -154,31 +154,31 @@ ImageRgb trajectoryPlot(const fs::path& dir) {
     estimate.x.push_back(p.x());
     estimate.y.push_back(p.y());
   }
-  render::PlotSettings ps;
+  PlotSettings ps;
   ps.title = "Session 0: camera path";
   ps.x_label = "x (m)";
   ps.y_label = "y (m)";
-  return render::renderLinePlot({truth, estimate}, ps);
+  return renderLinePlot({truth, estimate}, ps);
 }
 
 /// Step 6: the pictures beside the changes.
-void drawPictures(const sim::SimulationSummary& simulated, const TemporalMap& map, const fs::path& images) {
-  render::TopViewSettings view;
+void drawPictures(const SimulationSummary& simulated, const TemporalMap& map, const fs::path& images) {
+  TopViewSettings view;
   view.pixels_per_voxel = 3;
-  writePng(images / "map_topview.png", render::renderTopView(map.snapshot(simulated.times_s.back()), view));
+  writePng(images / "map_topview.png", renderTopView(map.snapshot(simulated.times_s.back()), view));
   const fs::path& first = simulated.session_dirs.front();
   writePng(images / "session_00_cloud.png", sessionCloudView(first));
   // One frame as recorded: colour and depth (from the middle of the first session).
   const auto names = parseStampedList(readTextFile(first / "depth.txt"), "depth.txt");
   const auto& mid = names[names.size() / 2];
   fs::copy_file(first / ("rgb/" + mid.name.substr(6)), images / "frame_rgb.png", fs::copy_options::overwrite_existing);
-  writePng(images / "frame_depth.png", render::colorizeDepth(readPngU16(first / mid.name), 5000.0));
+  writePng(images / "frame_depth.png", colorizeDepth(readPngU16(first / mid.name), 5000.0));
   writePng(images / "trajectory.png", trajectoryPlot(first));
-  writePng(images / "storage.png", render::renderStoragePlot(map));
+  writePng(images / "storage.png", renderStoragePlot(map));
 }
 
 /// The result's means and totals; @return the change score over all pairs.
-sim::ChangeScore summarise(const std::vector<DemoSession>& sessions, const std::vector<DemoPair>& pairs,
+ChangeScore summarise(const std::vector<DemoSession>& sessions, const std::vector<DemoPair>& pairs,
                            DemoResult& r) {
   const double w = 1.0 / static_cast<double>(sessions.size());
   for (const DemoSession& d : sessions) {
@@ -187,7 +187,7 @@ sim::ChangeScore summarise(const std::vector<DemoSession>& sessions, const std::
     r.precision_as_recorded += w * d.score.precision;
     r.recall_as_recorded += w * d.score.recall;
   }
-  sim::ChangeScore total;
+  ChangeScore total;
   for (const DemoPair& p : pairs) total += p.score;
   r.events_observable = total.events_observable;
   r.events_found = total.events_found;
@@ -212,11 +212,11 @@ DemoResult runDemo(const DemoSettings& settings) {
   if (ec) throw IoError(s.output.string() + ": cannot create folder (" + ec.message() + ")");
 
   s.progress.say("[1/6] simulating the 'office' preset: a corridor, an office, a kitchen and a meeting room");
-  sim::SimulationSettings sim_settings;
+  SimulationSettings sim_settings;
   sim_settings.preset = "office";
   sim_settings.seed = s.seed;
   sim_settings.resolution_scale = s.resolution_scale;
-  const sim::SimulationSummary simulated = sim::simulate(
+  const SimulationSummary simulated = chronomap::simulate(
       sim_settings, s.output / "data", [&](size_t done, size_t) { s.progress.advance("simulating", done, 6); });
 
   s.progress.say("[2/6] integrating " + std::to_string(simulated.session_dirs.size()) + " sessions (" +
@@ -238,14 +238,14 @@ DemoResult runDemo(const DemoSettings& settings) {
 
   s.progress.say("[6/6] drawing the report");
   drawPictures(simulated, map, r.images);
-  view::writeTour(s.output / "tour.html", map, "office.cmap");
+  writeTour(s.output / "tour.html", map, "office.cmap");
   r.sessions = sessions.size();
   r.frames = simulated.frames;
   r.events = simulated.events;
   r.nodes_4d = map.counts().nodes();
   for (const auto& session : map.sessions()) r.nodes_separate += session.nodes_separate;
   for (uint64_t n : changeHistogram(map, -1e300, 1e300)) r.changed_voxels += n;
-  const sim::ChangeScore changes = summarise(sessions, pairs, r);
+  const ChangeScore changes = summarise(sessions, pairs, r);
   const uint64_t map_bytes = fs::file_size(r.map);
   r.images = settings.output / "images";
   r.map = settings.output / "office.cmap";
@@ -259,4 +259,4 @@ DemoResult runDemo(const DemoSettings& settings) {
   return r;
 }
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

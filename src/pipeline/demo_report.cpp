@@ -8,7 +8,7 @@
 #include "chronomap/core/format.h"
 #include "chronomap/core/time.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 namespace {
 
@@ -18,7 +18,7 @@ std::string percent(double v) {
   return s.str();
 }
 
-std::string eventName(const sim::ChangeEvent& e) { return std::string(toString(e.object_kind)) + " " + toString(e.kind); }
+std::string eventName(const ChangeEvent& e) { return std::string(toString(e.object_kind)) + " " + toString(e.kind); }
 
 void introduction(std::ostream& md, const DemoReportInput& in) {
   md << "# chronomap demo: the simulated office\n\n"
@@ -112,7 +112,7 @@ void pairSection(std::ostream& md, const DemoPair& p, const SegmentSettings& seg
 }
 
 void changes(std::ostream& md, const DemoReportInput& in) {
-  const sim::ChangeScore& total = in.changes;
+  const ChangeScore& total = in.changes;
   const SegmentSettings segment = demoChangeSettings().segment;
   md << "## What changed, and which objects\n\n"
      << "Each pair of consecutive registered session maps was compared (`chronomap diff`, band mode: "
@@ -155,4 +155,4 @@ std::string demoReport(const DemoReportInput& in) {
   return md.str();
 }
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

@@ -12,14 +12,14 @@
 #include "chronomap/sim/change_truth.h"
 #include "chronomap/temporal/temporal_map.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 /// One simulated session as the demo integrated and scored it.
 struct DemoSession {
   SessionMap map;
   IntegrationStats stats;
-  sim::OccupancyScore score;             ///< with the poses as recorded
-  sim::OccupancyScore registered_score;  ///< after registration
+  OccupancyScore score;             ///< with the poses as recorded
+  OccupancyScore registered_score;  ///< after registration
   std::vector<VoxelKey> truth;           ///< the truth's occupied voxels
   std::vector<Eigen::Vector3d> sensor_positions;
 };
@@ -28,9 +28,9 @@ struct DemoSession {
 struct DemoPair {
   size_t from = 0;
   std::string name;  ///< "diff_00_01": of its diff in changes/ and its picture in images/
-  std::vector<sim::ChangeEvent> events;
+  std::vector<ChangeEvent> events;
   Segmentation segmentation;
-  sim::ChangeScore score;
+  ChangeScore score;
 };
 
 /// How the demo diffs and segments: the recommended settings for registered sessions.
@@ -43,13 +43,13 @@ DemoChangeSettings demoChangeSettings();
 /// Everything the report states.
 struct DemoReportInput {
   const DemoSettings& settings;
-  const sim::SimulationSettings& simulation;
-  const sim::SimulationSummary& simulated;
+  const SimulationSettings& simulation;
+  const SimulationSummary& simulated;
   const std::vector<DemoSession>& sessions;
   const std::vector<DemoPair>& pairs;
   const TemporalMap& map;
   const DemoResult& result;
-  const sim::ChangeScore& changes;  ///< over all pairs
+  const ChangeScore& changes;  ///< over all pairs
   uint64_t map_file_bytes;
   int drift_knots;
 };
@@ -57,4 +57,4 @@ struct DemoReportInput {
 /// report.md.
 std::string demoReport(const DemoReportInput& in);
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

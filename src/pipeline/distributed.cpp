@@ -22,11 +22,11 @@
 #include "chronomap/store/cmap.h"
 #include "chronomap/core/file.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 namespace {
 
-using detail::Pending;
+using pipeline_detail::Pending;
 
 /// Launched by mpirun (Open MPI, or a PMI launcher such as MPICH's)?
 bool launchedByMpirun() {
@@ -229,11 +229,11 @@ std::optional<BuildResult> buildOnRanks(const BuildSettings& settings, const Ran
   std::optional<TemporalMap> map;
   bool created = false;
   steps.run(0, [&] {
-    detail::checkInputs(s);
+    pipeline_detail::checkInputs(s);
     if (!root) return;
     lock.emplace(s.map, FileLock::Missing::LockFolder);  // held to the end, as build() holds it
     map.emplace(openOrCreate(s.map, s.session.resolution_m, s.criterion, created));
-    detail::refuseClashes(s, *map);
+    pipeline_detail::refuseClashes(s, *map);
   });
   steps.agree();
 
@@ -245,7 +245,7 @@ std::optional<BuildResult> buildOnRanks(const BuildSettings& settings, const Ran
   for (size_t i = 0; i < n; ++i) {
     if (owner[i] != ranks.rank()) continue;
     const int key = static_cast<int>(std::min<size_t>(i, INT_MAX - 1));
-    if (!steps.run(key, [&] { mine.push_back(detail::integrateOne(s, i)); })) break;
+    if (!steps.run(key, [&] { mine.push_back(pipeline_detail::integrateOne(s, i)); })) break;
   }
   steps.agree();
 
@@ -284,11 +284,11 @@ std::optional<BuildResult> buildOnRanks(const BuildSettings& settings, const Ran
       pending.push_back(decodePending(received[i], i, from));
       std::vector<uint8_t>().swap(received[i]);
     }
-    detail::sortByTime(s, pending);
-    result = detail::finishBuild(s, *map, created, pending);
+    pipeline_detail::sortByTime(s, pending);
+    result = pipeline_detail::finishBuild(s, *map, created, pending);
   });
   steps.agree();
   return result;
 }
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

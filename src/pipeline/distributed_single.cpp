@@ -6,7 +6,7 @@
 #include "chronomap/core/error.h"
 #include "chronomap/pipeline/distributed.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 bool mpiBuilt() { return false; }
 
@@ -24,4 +24,4 @@ Ranks::~Ranks() = default;
 
 std::optional<BuildResult> buildOnRanks(const BuildSettings& settings, const Ranks&) { return build(settings); }
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

@@ -14,7 +14,7 @@
 #include "chronomap/pipeline/distributed.h"
 #include "build_steps.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 namespace fs = std::filesystem;
 
@@ -33,7 +33,7 @@ std::optional<double> givenTime(const BuildSettings& s, size_t i) {
 
 }  // namespace
 
-namespace detail {
+namespace pipeline_detail {
 
 void checkInputs(const BuildSettings& s) {
   if (s.realign) s.realign->validate();  // bad settings fail before integrating
@@ -85,11 +85,11 @@ void sortByTime(const BuildSettings& s, std::vector<Pending>& pending) {
   }
 }
 
-}  // namespace detail
+}  // namespace pipeline_detail
 
 namespace {
 
-using detail::Pending;
+using pipeline_detail::Pending;
 
 /// Each session's correction against the consensus of all given; the sessions become the
 /// recordings integrated again with it.
@@ -141,7 +141,7 @@ TemporalMap openOrCreate(const fs::path& path, double resolution_m, const Change
 }
 
 BuildResult build(const BuildSettings& given) {
-  detail::checkInputs(given);
+  pipeline_detail::checkInputs(given);
   // Registration reads every frame again: the first read already keeps the decoded depth images.
   BuildSettings s = given;
   if (s.registration && s.registration->depth_cache_bytes > 0 && !s.session.dataset.depth_cache) {
@@ -152,14 +152,14 @@ BuildResult build(const BuildSettings& given) {
   const FileLock lock(s.map, FileLock::Missing::LockFolder);
   bool created = false;
   TemporalMap map = openOrCreate(s.map, s.session.resolution_m, s.criterion, created);
-  detail::refuseClashes(s, map);
+  pipeline_detail::refuseClashes(s, map);
   std::vector<Pending> pending;
-  for (size_t i = 0; i < s.datasets.size(); ++i) pending.push_back(detail::integrateOne(s, i));
-  detail::sortByTime(s, pending);
-  return detail::finishBuild(s, map, created, pending);
+  for (size_t i = 0; i < s.datasets.size(); ++i) pending.push_back(pipeline_detail::integrateOne(s, i));
+  pipeline_detail::sortByTime(s, pending);
+  return pipeline_detail::finishBuild(s, map, created, pending);
 }
 
-BuildResult detail::finishBuild(const BuildSettings& s, TemporalMap& map, bool created, std::vector<Pending>& pending) {
+BuildResult pipeline_detail::finishBuild(const BuildSettings& s, TemporalMap& map, bool created, std::vector<Pending>& pending) {
   BuildResult result;
   result.created = created;
   std::vector<PoseCorrection> corrections;
@@ -204,7 +204,7 @@ WritePolicy parseWritePolicy(const std::string& name) {
   throw UsageError("write policy must be auto, append or rewrite, not '" + name + "'");
 }
 
-double detail::sessionTime(const AddSessionSettings& s, const CmapFile& file) {
+double pipeline_detail::sessionTime(const AddSessionSettings& s, const CmapFile& file) {
   if (s.time_s) return *s.time_s;
   const nlohmann::json meta = metadataOf(file);
   if (!meta.contains("recorded_at") || !meta["recorded_at"].is_number()) {
@@ -219,7 +219,7 @@ AddSessionResult addSession(const AddSessionSettings& s) {
   const CmapFile file = readCmap(s.session);
   SessionMap session = sessionMapFrom(file, s.session.string());
   AddSessionResult r;
-  r.time_s = detail::sessionTime(s, file);
+  r.time_s = pipeline_detail::sessionTime(s, file);
   // One add at a time per map: a second one waits here, then reads what the first wrote (also
   // when the first created the map).
   const FileLock lock(s.map, FileLock::Missing::LockFolder);
@@ -276,4 +276,4 @@ std::vector<int> shareOutRecordings(const std::vector<uintmax_t>& bytes, int ran
   return owner;
 }
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

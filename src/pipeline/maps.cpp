@@ -17,7 +17,7 @@
 #include "chronomap/render/color.h"
 #include "chronomap/render/top_view.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 namespace fs = std::filesystem;
 
@@ -91,9 +91,9 @@ size_t exportSessionMap(const fs::path& path, const SessionMap& map, const Expor
   if (ext == ".ply") return exportOccupiedPly(path, map);
   if (ext == ".ot") return exportOctomap(path, map);
   if (ext == ".png") {
-    render::TopViewSettings view;
+    TopViewSettings view;
     view.pixels_per_voxel = settings.pixels_per_voxel;
-    const ImageRgb img = render::renderTopView(map, view);
+    const ImageRgb img = renderTopView(map, view);
     writePng(path, img);
     return size_t{img.width} * img.height;
   }
@@ -109,7 +109,7 @@ size_t writeChangeFrequencyPly(const fs::path& path, const TemporalMap& map, con
   for (const VoxelChangeCount& v : frequency.voxels) {
     cloud.points.push_back(map.grid().centerOf(v.key).cast<float>());
     const double t = hi > lo ? static_cast<double>(v.count - lo) / static_cast<double>(hi - lo) : 1.0;
-    cloud.colors.push_back(render::heatColor(t));
+    cloud.colors.push_back(heatColor(t));
   }
   cloud.width = static_cast<uint32_t>(cloud.points.size());
   writePly(path, cloud);
@@ -184,4 +184,4 @@ void writeComponents(const fs::path& folder, const DiffMap& diff, const Segmenta
   removeStaleComponents(folder, stems);
 }
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

@@ -7,7 +7,7 @@
 #include "chronomap/store/rhythm_file.h"
 #include "chronomap/render/top_view.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 RhythmModels learnRhythm(const TemporalMap& map, const LearnSettings& s) {
   if (s.saved) {
@@ -50,10 +50,10 @@ CostmapFiles costmapFiles(const std::filesystem::path& yaml) {
 CostmapCounts writeCostmap(const CostmapFiles& files, const Costmap& c, const std::string& source) {
   if (c.width == 0) throw DataError(source + ": nothing is known between --z-min and --z-max");
   writeMapServer(files.yaml, c);
-  writePng(files.png, render::renderCostmap(c));
+  writePng(files.png, renderCostmap(c));
   CostmapCounts n;
   for (int8_t v : c.cost) ++(v < 0 ? n.unknown : v == 0 ? n.free : v < Costmap::kInscribed ? n.costly : n.blocked);
   return n;
 }
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

@@ -12,7 +12,7 @@
 #include "chronomap/ingest/ros/readers.h"
 #endif
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 std::vector<DatasetReader> registerReaders() {
 #if CHRONOMAP_HAVE_ROS
@@ -101,4 +101,4 @@ std::vector<PoseCorrection> registerDatasets(std::vector<SessionMap>& maps, std:
       [&](size_t k) -> std::unique_ptr<FrameSource> { return openRecording(paths[k], geometry.dataset); });
 }
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

@@ -20,7 +20,7 @@
 #include "chronomap/pipeline/tiles.h"
 #include "chronomap/temporal/tiles.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 namespace fs = std::filesystem;
 
@@ -535,7 +535,7 @@ StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size
                                        "by tile and registration needs every session at once");
   if (b.realign) throw UsageError("--realign cannot be used with --tiles (it needs every session at once)");
   if (b.replace) throw UsageError("--replace cannot be used with --tiles");
-  detail::checkInputs(b);
+  pipeline_detail::checkInputs(b);
   StreamSettings s;
   s.folder = b.map;
   s.resolution_m = b.session.resolution_m;
@@ -544,7 +544,7 @@ StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size
   s.memory_limit_bytes = memory_limit_bytes;
   s.progress = b.progress;
   return streamIntoTiles(s, b.datasets.size(), [&](size_t i) {
-    detail::Pending p = detail::integrateOne(b, i);
+    pipeline_detail::Pending p = pipeline_detail::integrateOne(b, i);
     return StreamSession{p.time_s, b.datasets[i].filename().string(), std::move(p.session.map)};
   });
 }
@@ -556,7 +556,7 @@ StreamResult streamAddSession(const AddSessionSettings& a, size_t memory_limit_b
   if (!isTiledMap(a.map)) throw UsageError("'" + a.map.string() + "' is not a tiled 4D map");
   const CmapFile file = readCmap(a.session);
   SessionMap session = sessionMapFrom(file, a.session.string());
-  const double time_s = detail::sessionTime(a, file);
+  const double time_s = pipeline_detail::sessionTime(a, file);
   StreamSettings s;
   s.folder = a.map;
   s.resolution_m = session.resolution_m();
@@ -567,4 +567,4 @@ StreamResult streamAddSession(const AddSessionSettings& a, size_t memory_limit_b
   });
 }
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

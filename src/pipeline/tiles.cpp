@@ -11,7 +11,7 @@
 #include "chronomap/store/temporal_file.h"
 #include "chronomap/pipeline/maps.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 namespace fs = std::filesystem;
 
@@ -125,4 +125,4 @@ VoxelHistory historyOfMap(const fs::path& path, const Eigen::Vector3d& point_m, 
   return h;
 }
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace chronomap::render {
+namespace chronomap {
 
 namespace {
 
@@ -30,4 +30,4 @@ ImageRgb colorizeDepth(const ImageU16& depth, double depth_scale) {
   return img;
 }
 
-}  // namespace chronomap::render
+}  // namespace chronomap

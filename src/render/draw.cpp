@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cstdlib>
 
-namespace chronomap::render {
+namespace chronomap {
 
 namespace {
 
@@ -101,4 +101,4 @@ void drawLine(ImageRgb& image, int x0, int y0, int x1, int y1, Rgb color, int th
   }
 }
 
-}  // namespace chronomap::render
+}  // namespace chronomap

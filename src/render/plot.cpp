@@ -8,7 +8,7 @@
 #include "chronomap/core/error.h"
 #include "chronomap/render/draw.h"
 
-namespace chronomap::render {
+namespace chronomap {
 
 namespace {
 
@@ -132,4 +132,4 @@ ImageRgb renderStoragePlot(const TemporalMap& map) {
   return renderStoragePlot(separate, four_d);
 }
 
-}  // namespace chronomap::render
+}  // namespace chronomap

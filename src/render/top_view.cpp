@@ -8,7 +8,7 @@
 #include "chronomap/core/error.h"
 #include "chronomap/render/draw.h"
 
-namespace chronomap::render {
+namespace chronomap {
 
 ImageRgb renderCostmap(const Costmap& c) {
   ImageRgb img{static_cast<uint32_t>(c.width), static_cast<uint32_t>(c.height), {}};
@@ -169,4 +169,4 @@ ImageRgb renderPointsTopView(const std::vector<Eigen::Vector3f>& points, const s
   return img;
 }
 
-}  // namespace chronomap::render
+}  // namespace chronomap

@@ -5,7 +5,7 @@
 #include <numbers>
 #include <random>
 
-namespace chronomap::sim {
+namespace chronomap {
 
 BoxRoom defaultRoom() {
   BoxRoom room;
@@ -120,4 +120,4 @@ std::vector<Frame> benchmarkSequence(size_t frames, const PinholeCamera& camera)
   return out;
 }
 
-}  // namespace chronomap::sim
+}  // namespace chronomap

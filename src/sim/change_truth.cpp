@@ -7,7 +7,7 @@
 #include "chronomap/core/error.h"
 #include "chronomap/core/file.h"
 
-namespace chronomap::sim {
+namespace chronomap {
 
 std::vector<ChangeEvent> readTruthEvents(const std::filesystem::path& scene_json) {
   const std::string source = scene_json.string();
@@ -127,4 +127,4 @@ ChangeScore scoreChanges(const DiffMap& diff, const Segmentation& segmentation, 
   return s;
 }
 
-}  // namespace chronomap::sim
+}  // namespace chronomap

@@ -12,7 +12,7 @@
 
 #include "chronomap/sim/building.h"
 
-namespace chronomap::sim::detail {
+namespace chronomap::sim_detail {
 
 // Randomness that is the same on every platform (std distributions are not).
 struct Rng {
@@ -66,4 +66,4 @@ ChangeEvent changeEvent(uint32_t id, EventKind kind, const SceneState& previous_
 // The truth voxels as a session map, each occupied with one hit (truth.cpp).
 SessionMap truthMap(const std::vector<VoxelKey>& truth, const KeyGrid& grid);
 
-}  // namespace chronomap::sim::detail
+}  // namespace chronomap::sim_detail

@@ -5,9 +5,9 @@
 
 #include "internal.h"
 
-namespace chronomap::sim {
+namespace chronomap {
 
-namespace detail {
+namespace sim_detail {
 
 namespace {
 
@@ -96,6 +96,6 @@ Patrol patrolSession(const SceneState& state, const SimulationSettings& settings
   return out;
 }
 
-}  // namespace detail
+}  // namespace sim_detail
 
-}  // namespace chronomap::sim
+}  // namespace chronomap

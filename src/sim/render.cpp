@@ -8,9 +8,9 @@
 
 #include "internal.h"
 
-namespace chronomap::sim {
+namespace chronomap {
 
-using detail::Rng;
+using sim_detail::Rng;
 
 Camera kinectCamera(double scale) {
   Camera c;
@@ -528,4 +528,4 @@ RenderedFrame Renderer::render(const Camera& cam, const Eigen::Isometry3d& T, co
   return f;
 }
 
-}  // namespace chronomap::sim
+}  // namespace chronomap

@@ -9,13 +9,13 @@
 #include "chronomap/core/error.h"
 #include "internal.h"
 
-namespace chronomap::sim {
+namespace chronomap {
 
 namespace {
 
-using detail::kOffset;
-using detail::mix;
-using detail::Rng;
+using sim_detail::kOffset;
+using sim_detail::mix;
+using sim_detail::Rng;
 
 constexpr double kWallHeight = 2.5;
 constexpr double kWallThickness = 0.1;
@@ -170,7 +170,7 @@ void translate(Object& o, const Eigen::Vector3d& d) {
 
 }  // namespace
 
-namespace detail {
+namespace sim_detail {
 
 Eigen::Vector2d centerOf(const Object& o) {
   Eigen::AlignedBox3d all;
@@ -178,9 +178,9 @@ Eigen::Vector2d centerOf(const Object& o) {
   return all.center().head<2>();
 }
 
-}  // namespace detail
+}  // namespace sim_detail
 
-using detail::centerOf;
+using sim_detail::centerOf;
 
 const char* toString(ObjectKind kind) {
   switch (kind) {
@@ -483,4 +483,4 @@ std::vector<std::pair<uint32_t, EventKind>> applyChanges(SceneState& state, uint
   return events;
 }
 
-}  // namespace chronomap::sim
+}  // namespace chronomap

@@ -11,13 +11,13 @@
 #include "chronomap/core/error.h"
 #include "internal.h"
 
-namespace chronomap::sim {
+namespace chronomap {
 
 namespace {
 
-using detail::centerOf;
-using detail::mix;
-using detail::Rng;
+using sim_detail::centerOf;
+using sim_detail::mix;
+using sim_detail::Rng;
 
 int roomIndex(const SceneState& s, const std::string& name) {
   for (size_t i = 0; i < s.rooms.size(); ++i) {
@@ -385,4 +385,4 @@ std::vector<uint32_t> applyRareEvent(SceneState& state, const SceneState& home, 
   return {};
 }
 
-}  // namespace chronomap::sim
+}  // namespace chronomap

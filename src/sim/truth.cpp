@@ -7,7 +7,7 @@
 
 #include "internal.h"
 
-namespace chronomap::sim {
+namespace chronomap {
 
 namespace {
 
@@ -83,7 +83,7 @@ OccupancyScore scoreOccupancy(const SessionMap& map, const std::vector<VoxelKey>
   return s;
 }
 
-namespace detail {
+namespace sim_detail {
 
 namespace {
 
@@ -132,6 +132,6 @@ SessionMap truthMap(const std::vector<VoxelKey>& truth, const KeyGrid& grid) {
   return occupancy;
 }
 
-}  // namespace detail
+}  // namespace sim_detail
 
-}  // namespace chronomap::sim
+}  // namespace chronomap

@@ -25,17 +25,17 @@
 #include "chronomap/ingest/png.h"
 #include "internal.h"
 
-namespace chronomap::sim {
+namespace chronomap {
 
 namespace fs = std::filesystem;
 
 namespace {
 
-using detail::centerOf;
-using detail::kCameraHeight;
-using detail::kCameraPitchDeg;
-using detail::mix;
-using detail::Rng;
+using sim_detail::centerOf;
+using sim_detail::kCameraHeight;
+using sim_detail::kCameraPitchDeg;
+using sim_detail::mix;
+using sim_detail::Rng;
 
 struct PresetPlan {
   int sessions;
@@ -288,8 +288,8 @@ class Simulation {
   std::vector<ScheduledChange> scheduleChanges(int s);
   void repaint(int s);
   void addEvents(int s, const std::vector<ScheduledChange>& changes, const std::vector<VoxelKey>& truth);
-  detail::Patrol patrolOf(int s, nlohmann::json& floors_json) const;
-  void writeFrames(int s, const fs::path& dir, const detail::Patrol& patrol) const;
+  sim_detail::Patrol patrolOf(int s, nlohmann::json& floors_json) const;
+  void writeFrames(int s, const fs::path& dir, const sim_detail::Patrol& patrol) const;
   void writeTruth(int s, const std::vector<VoxelKey>& truth) const;
   nlohmann::json scheduleJson() const;
   nlohmann::json lightingJson() const;
@@ -398,7 +398,7 @@ void Simulation::repaint(int s) {
 // Change events with the truth voxels each one changes.
 void Simulation::addEvents(int s, const std::vector<ScheduledChange>& changes, const std::vector<VoxelKey>& truth) {
   for (const auto& [id, kind, routine, cause] : changes) {
-    ChangeEvent e = detail::changeEvent(id, kind, previous_state_, state_, previous_truth_, truth, rig_.grid);
+    ChangeEvent e = sim_detail::changeEvent(id, kind, previous_state_, state_, previous_truth_, truth, rig_.grid);
     e.from_session = static_cast<uint32_t>(s - 1);
     if (e.voxels.empty()) continue;  // hidden by other objects: nothing a map could see
     nlohmann::json voxels = nlohmann::json::array();
@@ -417,14 +417,14 @@ void Simulation::addEvents(int s, const std::vector<ScheduledChange>& changes, c
 }
 
 // The patrol, true and estimated poses; on the site, each floor's part goes into floors_json.
-detail::Patrol Simulation::patrolOf(int s, nlohmann::json& floors_json) const {
-  if (!site_) return detail::patrolSession(state_, settings_, s);
+sim_detail::Patrol Simulation::patrolOf(int s, nlohmann::json& floors_json) const {
+  if (!site_) return sim_detail::patrolSession(state_, settings_, s);
   // One patrol per floor, one after the other, each with its own localisation error.
-  detail::Patrol patrol;
+  sim_detail::Patrol patrol;
   for (size_t f = 0; f < floors_.size(); ++f) {
     SimulationSettings floor_settings = settings_;
     floor_settings.seed = siteFloorSeed(settings_.seed, static_cast<int>(f));
-    detail::Patrol p = detail::patrolSession(floors_[f], floor_settings, s);
+    sim_detail::Patrol p = sim_detail::patrolSession(floors_[f], floor_settings, s);
     const Eigen::Vector3d up(0.0, 0.0, static_cast<double>(f) * kSiteFloorHeight_m);
     floors_json.push_back({{"floor", f},
                            {"first_frame", patrol.true_poses.size()},
@@ -447,7 +447,7 @@ detail::Patrol Simulation::patrolOf(int s, nlohmann::json& floors_json) const {
 }
 
 // The session's TUM folder: images, their lists, both trajectories and the intrinsics.
-void Simulation::writeFrames(int s, const fs::path& dir, const detail::Patrol& patrol) const {
+void Simulation::writeFrames(int s, const fs::path& dir, const sim_detail::Patrol& patrol) const {
   const size_t frames = patrol.true_poses.size();
   std::error_code ec;
   fs::create_directories(dir / "rgb", ec);
@@ -493,7 +493,7 @@ void Simulation::writeTruth(int s, const std::vector<VoxelKey>& truth) const {
   // Numbered with three digits where there can be more than 100 sessions, so that names sort.
   const char* const occupancy_format = site_ ? "occupancy_%03d.cmap" : "occupancy_%02d.cmap";
   const char* const objects_format = site_ ? "objects_%03d.json" : "objects_%02d.json";
-  const SessionMap occupancy = detail::truthMap(truth, rig_.grid);
+  const SessionMap occupancy = sim_detail::truthMap(truth, rig_.grid);
   char truth_name[64];
   std::snprintf(truth_name, sizeof truth_name, occupancy_format, s);
   writeSessionMap(root_ / "truth" / truth_name,
@@ -508,7 +508,7 @@ void Simulation::session(int s) {
   const std::vector<VoxelKey> truth = truthOccupancy(state_, rig_.grid);
   addEvents(s, changes, truth);
   nlohmann::json floors_json = nlohmann::json::array();
-  const detail::Patrol patrol = patrolOf(s, floors_json);
+  const sim_detail::Patrol patrol = patrolOf(s, floors_json);
   const size_t frames = patrol.true_poses.size();
 
   char name[32];
@@ -664,4 +664,4 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
   return summary;
 }
 
-}  // namespace chronomap::sim
+}  // namespace chronomap

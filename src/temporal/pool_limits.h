@@ -6,11 +6,11 @@
 #include <cstddef>
 #include <cstdint>
 
-namespace chronomap::detail {
+namespace chronomap::temporal_detail {
 
 /// Most inner nodes, list records, arena entries or hit parts (indices keep the list bit free).
 inline constexpr uint32_t kMaxIndex = 0x7ffffff0u;
 /// Most entries in one history list (its size is 16 bits).
 inline constexpr size_t kMaxListSize = 0xffff;
 
-}  // namespace chronomap::detail
+}  // namespace chronomap::temporal_detail

@@ -11,8 +11,8 @@
 
 namespace chronomap {
 
-using detail::kMaxIndex;
-using detail::kMaxListSize;
+using temporal_detail::kMaxIndex;
+using temporal_detail::kMaxListSize;
 
 uint32_t TemporalMap::newInner() {
   if (inner_.size() >= kMaxIndex) throw DataError("4D map too large: more than 2^31 inner nodes");

@@ -13,8 +13,8 @@
 
 namespace chronomap {
 
-using detail::kMaxIndex;
-using detail::kMaxListSize;
+using temporal_detail::kMaxIndex;
+using temporal_detail::kMaxListSize;
 
 namespace {
 

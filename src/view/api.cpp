@@ -15,7 +15,7 @@
 #include "chronomap/core/time.h"
 #include "chronomap/view/packet.h"
 
-namespace chronomap::view {
+namespace chronomap {
 
 namespace {
 
@@ -275,12 +275,12 @@ std::string encodeDiff(const DiffObjects& o, const DiffRequest& request, size_t 
                    {"dropped", o.segmentation.dropped}});
 }
 
-std::string servedPage() { return assets::page(assets::scriptTag("viewer.js"), ""); }
+std::string servedPage() { return viewer_assets::page(viewer_assets::scriptTag("viewer.js"), ""); }
 
-std::string_view viewerScript() { return assets::viewerScript(); }
+std::string_view viewerScript() { return viewer_assets::viewerScript(); }
 
 std::string selfContainedPage(const std::string& data) {
-  return assets::page(assets::inlineScript(assets::viewerScript()), assets::inlineData(data));
+  return viewer_assets::page(viewer_assets::inlineScript(viewer_assets::viewerScript()), viewer_assets::inlineData(data));
 }
 
-}  // namespace chronomap::view
+}  // namespace chronomap

@@ -4,7 +4,7 @@
 
 #include "chronomap/core/error.h"
 
-namespace chronomap::view::assets {
+namespace chronomap::viewer_assets {
 
 namespace {
 
@@ -86,4 +86,4 @@ std::string base64(std::string_view bytes) {
   return out;
 }
 
-}  // namespace chronomap::view::assets
+}  // namespace chronomap::viewer_assets

@@ -5,7 +5,7 @@
 #include <string>
 #include <string_view>
 
-namespace chronomap::view::assets {
+namespace chronomap::viewer_assets {
 
 /// viewer/index.html as committed (generated source).
 std::string_view pageTemplate();
@@ -23,4 +23,4 @@ std::string inlineData(const std::string& bytes);
 /// Standard base64 with padding.
 std::string base64(std::string_view bytes);
 
-}  // namespace chronomap::view::assets
+}  // namespace chronomap::viewer_assets

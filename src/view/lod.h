@@ -9,7 +9,7 @@
 
 #include "chronomap/view/scene.h"
 
-namespace chronomap::view::lod {
+namespace chronomap::lod {
 
 /// Cell id of an item (a Morton code `code` of a cube at `level`) at level of detail `lod`:
 /// the code without the bits below the cell, tagged with the level, so that a larger uniform
@@ -47,4 +47,4 @@ inline uint64_t unitVoxels(int level) {
 }
 
 
-}  // namespace chronomap::view::lod
+}  // namespace chronomap::lod

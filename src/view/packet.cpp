@@ -7,7 +7,7 @@
 
 #include "chronomap/core/error.h"
 
-namespace chronomap::view {
+namespace chronomap {
 
 namespace {
 
@@ -103,4 +103,4 @@ std::span<const uint8_t> Packet::bytes(const std::string& name) const {
   throw FormatError("viewer packet: no array '" + name + "'");
 }
 
-}  // namespace chronomap::view
+}  // namespace chronomap

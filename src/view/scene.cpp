@@ -10,7 +10,7 @@
 #include "chronomap/core/time.h"
 #include "lod.h"
 
-namespace chronomap::view {
+namespace chronomap {
 
 namespace {
 
@@ -197,4 +197,4 @@ nlohmann::json mapInfoJson(const TemporalMap& map, const std::string& name) {
           {"max_history_level", kMaxHistoryLevel}};
 }
 
-}  // namespace chronomap::view
+}  // namespace chronomap

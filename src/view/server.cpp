@@ -8,7 +8,7 @@
 
 #include "chronomap/core/error.h"
 
-namespace chronomap::view {
+namespace chronomap {
 
 namespace {
 
@@ -112,4 +112,4 @@ std::string Server::url() const {
   return u;
 }
 
-}  // namespace chronomap::view
+}  // namespace chronomap

@@ -12,7 +12,7 @@
 #include "chronomap/view/scene.h"
 #include "lod.h"
 
-namespace chronomap::view {
+namespace chronomap {
 
 namespace {
 
@@ -189,4 +189,4 @@ TourReport writeTour(const std::filesystem::path& path, const TemporalMap& map, 
   return report;
 }
 
-}  // namespace chronomap::view
+}  // namespace chronomap

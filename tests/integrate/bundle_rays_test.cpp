@@ -32,10 +32,10 @@ using Calls = std::vector<std::pair<int64_t, float>>;
 Calls castLanes(const std::vector<Ray>& rays, bool simd) {
   Calls calls;
   size_t i = 0;
-  detail::castBundleLanes(
-      [&](detail::LaneRay& r) {
+  integrate_detail::castBundleLanes(
+      [&](integrate_detail::LaneRay& r) {
         if (i >= rays.size()) return false;
-        r = detail::laneRay(rays[i].o, rays[i].end, rays[i].weight, kLo, kStride);
+        r = integrate_detail::laneRay(rays[i].o, rays[i].end, rays[i].weight, kLo, kStride);
         ++i;
         return true;
       },
@@ -135,7 +135,7 @@ TEST(BundleLanes, ManyRaysSumLikeTheSingleRayDda) {
 }
 
 TEST(BundleLanes, VectorAndPortableLanesMakeTheSameCalls) {
-  if (!detail::avx2Lanes()) {
+  if (!integrate_detail::avx2Lanes()) {
     std::printf("this CPU has no AVX2: both runs take the portable lanes\n");
   }
   for (uint32_t seed = 1; seed <= 10; ++seed) {
@@ -220,16 +220,16 @@ TEST(BundleLanes, CoarseCarvingEqualsTheClippingReference) {
       std::map<int64_t, double> want_coarse, want_fine;
       carveReference(ray, level, shift, want_coarse, want_fine);
       for (bool simd : {true, false}) {
-        detail::LaneRay coarse, fine;
+        integrate_detail::LaneRay coarse, fine;
         const bool split =
-            detail::splitCarvedRay(ray.o, ray.end, ray.weight, level, shift, kLo, kStride, kLo, kStride, coarse, fine);
+            integrate_detail::splitCarvedRay(ray.o, ray.end, ray.weight, level, shift, kLo, kStride, kLo, kStride, coarse, fine);
         EXPECT_EQ(split, !want_coarse.empty());
         Calls coarse_calls, fine_calls;
         int k = 0;
-        detail::castBundleLanes([&](detail::LaneRay& r) { return split && k++ == 0 ? (r = coarse, true) : false; },
+        integrate_detail::castBundleLanes([&](integrate_detail::LaneRay& r) { return split && k++ == 0 ? (r = coarse, true) : false; },
                                 [&](int64_t c, float v) { coarse_calls.emplace_back(c, v); }, simd);
         k = 0;
-        detail::castBundleLanes([&](detail::LaneRay& r) { return k++ == 0 ? (r = fine, true) : false; },
+        integrate_detail::castBundleLanes([&](integrate_detail::LaneRay& r) { return k++ == 0 ? (r = fine, true) : false; },
                                 [&](int64_t c, float v) { fine_calls.emplace_back(c, v); }, simd);
         // The last call is the end voxel's.
         ASSERT_FALSE(fine_calls.empty());

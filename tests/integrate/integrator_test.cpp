@@ -18,8 +18,8 @@ namespace chronomap {
 namespace {
 
 /// The Kinect-like benchmark camera scaled down to `width` pixels (same field of view).
-sim::PinholeCamera smallCamera(uint32_t width) {
-  sim::PinholeCamera cam;
+PinholeCamera smallCamera(uint32_t width) {
+  PinholeCamera cam;
   const double scale = width / 640.0;
   cam.width = width;
   cam.height = static_cast<uint32_t>(480 * scale);
@@ -288,8 +288,8 @@ TEST(Integrator, RejectsBadPosesAndSettings) {
 }
 
 TEST(Integrator, StopsWhenTheMapPassesTheMemoryLimit) {
-  const sim::PinholeCamera cam = smallCamera(160);
-  const FrameVector frames(sim::benchmarkSequence(4, cam));
+  const PinholeCamera cam = smallCamera(160);
+  const FrameVector frames(benchmarkSequence(4, cam));
   IntegratorSettings s = exactUncompressed();
   SessionMap unlimited(0.02);
   s.memory_limit_bytes = 0;
@@ -317,8 +317,8 @@ TEST(Integrator, StopsWhenTheMapPassesTheMemoryLimit) {
 }
 
 TEST(Integrator, FastModeKeepsHitsAndColoursAndBoundsLengths) {
-  const sim::PinholeCamera cam = smallCamera(160);
-  auto frames = sim::benchmarkSequence(4, cam);
+  const PinholeCamera cam = smallCamera(160);
+  auto frames = benchmarkSequence(4, cam);
   for (auto& f : frames) f.cloud.colors.assign(f.cloud.size(), Rgb{10, 20, 30});
   const double res = 0.05;
   SessionMap exact(res), fast(res);
@@ -360,8 +360,8 @@ TEST(Integrator, FastModeKeepsHitsAndColoursAndBoundsLengths) {
 }
 
 TEST(Integrator, ResultsDoNotDependOnThreadCount) {
-  const sim::PinholeCamera cam = smallCamera(200);
-  const FrameVector frames(sim::benchmarkSequence(12, cam));
+  const PinholeCamera cam = smallCamera(200);
+  const FrameVector frames(benchmarkSequence(12, cam));
   for (bool fast : {false, true}) {
     std::vector<uint8_t> reference;
     for (int threads : {1, 2, 4}) {
@@ -390,8 +390,8 @@ TEST(Integrator, ResultsDoNotDependOnThreadCount) {
 }
 
 TEST(Integrator, FrameByFrameGivesTheMapOfAllFramesAtOnce) {
-  const sim::PinholeCamera cam = smallCamera(200);
-  const FrameVector frames(sim::benchmarkSequence(12, cam));
+  const PinholeCamera cam = smallCamera(200);
+  const FrameVector frames(benchmarkSequence(12, cam));
   for (bool fast : {false, true}) {
     IntegratorSettings s;
     s.fast = fast;
@@ -410,8 +410,8 @@ TEST(Integrator, FrameByFrameGivesTheMapOfAllFramesAtOnce) {
 }
 
 TEST(Integrator, EveryScratchPathGivesTheSameMap) {
-  const sim::PinholeCamera cam = smallCamera(120);
-  const FrameVector frames(sim::benchmarkSequence(3, cam));
+  const PinholeCamera cam = smallCamera(120);
+  const FrameVector frames(benchmarkSequence(3, cam));
   for (auto [fast, carve] : {std::pair{false, false}, std::pair{true, false}, std::pair{false, true}, std::pair{true, true}}) {
     IntegratorSettings s;
     s.fast = fast;
@@ -438,8 +438,8 @@ TEST(Integrator, EveryScratchPathGivesTheSameMap) {
 }
 
 TEST(Integrator, CompressionKeepsEveryVoxelState) {
-  const sim::PinholeCamera cam = smallCamera(160);
-  const FrameVector frames(sim::benchmarkSequence(3, cam));
+  const PinholeCamera cam = smallCamera(160);
+  const FrameVector frames(benchmarkSequence(3, cam));
   SessionMap plain(0.05), compressed(0.05);
   IntegratorSettings s = exactUncompressed();
   integrate(frames, plain, s);
@@ -457,8 +457,8 @@ TEST(Integrator, CompressionKeepsEveryVoxelState) {
 }
 
 TEST(Integrator, CoarseCarvingKeepsHitsAndTheSummedLengthAndMostStates) {
-  const sim::PinholeCamera cam = smallCamera(160);
-  auto frames = sim::benchmarkSequence(3, cam);
+  const PinholeCamera cam = smallCamera(160);
+  auto frames = benchmarkSequence(3, cam);
   for (auto& f : frames) f.cloud.colors.assign(f.cloud.size(), Rgb{10, 20, 30});
   const double res = 0.02;
   SessionMap exact(res), fast(res), carved(res);
@@ -530,8 +530,8 @@ TEST(Integrator, CoarseCarvingKeepsHitsAndTheSummedLengthAndMostStates) {
 }
 
 TEST(Integrator, CoarseCarvingGivesTheSameMapOnEveryPathAndThreadCount) {
-  const sim::PinholeCamera cam = smallCamera(120);
-  const FrameVector frames(sim::benchmarkSequence(3, cam));
+  const PinholeCamera cam = smallCamera(120);
+  const FrameVector frames(benchmarkSequence(3, cam));
   IntegratorSettings s;
   s.fast = true;
   s.threads = 1;
@@ -581,7 +581,7 @@ TEST(Integrator, CoarseCarvingGivesTheSameMapOnEveryPathAndThreadCount) {
 }
 
 TEST(Integrator, CoarseCarvingNeedsFastModeAndALevelUpToFour) {
-  const FrameVector frames(sim::benchmarkSequence(1, smallCamera(64)));
+  const FrameVector frames(benchmarkSequence(1, smallCamera(64)));
   SessionMap map(0.05);
   IntegratorSettings s;
   s.carve_level = 2;
@@ -614,7 +614,7 @@ TEST(Integrator, CoarseCarvingPicksItsLevelFromTheResolution) {
   s.carve_level = 0;
   EXPECT_EQ(carveLevelFor(s, 0.02), 0);
 
-  const FrameVector frames(sim::benchmarkSequence(2, smallCamera(96)));
+  const FrameVector frames(benchmarkSequence(2, smallCamera(96)));
   s.threads = 1;
   for (const double res : {0.02, 0.05}) {
     SessionMap automatic(res), by_hand(res), off(res);

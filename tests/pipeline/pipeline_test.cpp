@@ -16,7 +16,7 @@
 #include "chronomap/sim/building.h"
 #include "test_support.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 namespace {
 
 namespace fs = std::filesystem;
@@ -41,11 +41,11 @@ TEST(PipelineSession, IntegratesADatasetAndRefusesOneWithoutPoints) {
 
 TEST(PipelineRegister, DepthCacheChangesNoCorrectionAndKeepsItsBudget) {
   test::TempDir tmp;
-  sim::SimulationSettings sim_settings;
+  SimulationSettings sim_settings;
   sim_settings.preset = "tiny";
   sim_settings.sessions = 2;
   sim_settings.resolution_scale = 0.25;
-  const sim::SimulationSummary simulated = sim::simulate(sim_settings, tmp / "sim");
+  const SimulationSummary simulated = chronomap::simulate(sim_settings, tmp / "sim");
   SessionSettings settings;
   settings.integrator.fast = true;
   RegistrationSettings registration;
@@ -246,4 +246,4 @@ TEST(ShareOut, WithinTheGreedyBoundOfTheBestAssignment) {
 }
 
 }  // namespace
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

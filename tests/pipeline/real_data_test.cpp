@@ -74,20 +74,20 @@ struct StaticRoomSplit {
       return dir / "seq";
     };
     const std::vector<fs::path> paths = {folder("a", a), folder("b", b)};
-    pipeline::SessionSettings settings;
+    SessionSettings settings;
     settings.integrator.fast = true;
     std::vector<SessionMap> maps;
     std::vector<std::vector<Eigen::Vector3d>> positions;
     for (const fs::path& p : paths) {
-      pipeline::IntegratedSession s = pipeline::integrateDataset(p, settings);
+      IntegratedSession s = integrateDataset(p, settings);
       maps.push_back(std::move(s.map));
       positions.push_back(std::move(s.sensor_positions));
     }
-    pipeline::RegistrationSettings registration;
+    RegistrationSettings registration;
     registration.align.drift_knot_frames = 20;
     registration.align.planar = true;
     registration.align.drift_points = true;
-    pipeline::registerDatasets(maps, paths, positions, settings, registration);
+    registerDatasets(maps, paths, positions, settings, registration);
     TemporalMap built(0.05);
     built.add(1000, maps[0]);
     built.add(2000, maps[1]);

@@ -59,15 +59,15 @@ TemporalMap wholeBuild(const std::vector<SessionMap>& sessions, const std::vecto
   return map;
 }
 
-pipeline::StreamResult stream(const fs::path& folder, const std::vector<SessionMap>& sessions,
+StreamResult stream(const fs::path& folder, const std::vector<SessionMap>& sessions,
                               const std::vector<int>& batch, int tile_level, size_t limit) {
-  pipeline::StreamSettings s;
+  StreamSettings s;
   s.folder = folder;
   s.tile_size_m = std::ldexp(0.05, tile_level);
   s.memory_limit_bytes = limit;
-  return pipeline::streamIntoTiles(s, batch.size(), [&](size_t k) {
+  return streamIntoTiles(s, batch.size(), [&](size_t k) {
     const int i = batch[k];
-    return pipeline::StreamSession{timeOf(i), nameOf(i), sessions[static_cast<size_t>(i)]};
+    return StreamSession{timeOf(i), nameOf(i), sessions[static_cast<size_t>(i)]};
   });
 }
 
@@ -108,7 +108,7 @@ TEST_P(StreamProperty, StreamingGivesTheWholeBuildCut) {
   test::TempDir dir;
   const fs::path folder = dir / "tiled";
   for (const auto& b : batches) {
-    const pipeline::StreamResult r = stream(folder, sessions, b, level, limit);
+    const StreamResult r = stream(folder, sessions, b, level, limit);
     if (limit) {
       EXPECT_LE(r.stats.peak_parts_bytes, limit);
     }
@@ -151,7 +151,7 @@ TEST(Stream, AUniformCubeAboveTileLevelRefinedByALaterSession) {
   stream(folder, sessions, {0, 1}, 3, 0);
   const TileIndex before = readTileIndex(folder);
   EXPECT_TRUE(before.tiles.empty());  // the whole cube is one list of the top
-  const pipeline::StreamResult r = stream(folder, sessions, {2}, 3, 0);
+  const StreamResult r = stream(folder, sessions, {2}, 3, 0);
   EXPECT_EQ(r.tiles, 1u);
   const TemporalMap whole = wholeBuild(sessions, {{0, 1}, {2}});
   const TemporalMap streamed = joined(folder);
@@ -169,11 +169,11 @@ TEST(Stream, AUniformCubeAboveTileLevelRefinedByALaterSession) {
 TEST(Stream, ABudgetBoundsThePartsHeldAndSpillsTheRest) {
   const std::vector<SessionMap> sessions = randomSessions(77, 4);
   test::TempDir dir;
-  const pipeline::StreamResult small = stream(dir / "small", sessions, {0, 1, 2, 3}, 3, 4096);
+  const StreamResult small = stream(dir / "small", sessions, {0, 1, 2, 3}, 3, 4096);
   EXPECT_LE(small.stats.peak_parts_bytes, 4096u);
   EXPECT_GT(small.stats.spills, 0u);
   EXPECT_GT(small.stats.spilled_bytes, 0u);
-  const pipeline::StreamResult large = stream(dir / "large", sessions, {0, 1, 2, 3}, 3, 0);
+  const StreamResult large = stream(dir / "large", sessions, {0, 1, 2, 3}, 3, 0);
   EXPECT_EQ(large.stats.spills, 0u);
   EXPECT_GT(large.stats.peak_parts_bytes, 4096u);
   EXPECT_TRUE(joined(dir / "small") == joined(dir / "large"));
@@ -187,11 +187,11 @@ TEST(Stream, AFailedAddLeavesThePreviousTiledMap) {
   const fs::path folder = dir / "tiled";
   stream(folder, sessions, {0, 1}, 3, 0);
   const auto before = filesOf(folder);
-  pipeline::StreamSettings s;
+  StreamSettings s;
   s.folder = folder;
   s.memory_limit_bytes = 2000;  // parts spilled into the folder before the failure
-  EXPECT_THROW(pipeline::streamIntoTiles(s, 3,
-                                         [&](size_t k) -> pipeline::StreamSession {
+  EXPECT_THROW(streamIntoTiles(s, 3,
+                                         [&](size_t k) -> StreamSession {
                                            if (k == 2) throw IoError("recording 4 cannot be read");
                                            return {timeOf(2 + static_cast<int>(k)), nameOf(2), sessions[2 + k]};
                                          }),
@@ -206,13 +206,13 @@ TEST(Stream, AFailedAddLeavesThePreviousTiledMap) {
   EXPECT_FALSE(fs::exists(folder / "tiles" / "0_0_0.g7.cmap"));
   EXPECT_FALSE(fs::exists(folder / ".parts-99999"));
   // A first build that fails leaves no folder.
-  EXPECT_THROW(pipeline::streamIntoTiles(
+  EXPECT_THROW(streamIntoTiles(
                    [&] {
-                     pipeline::StreamSettings n;
+                     StreamSettings n;
                      n.folder = dir / "new";
                      return n;
                    }(),
-                   1, [&](size_t) -> pipeline::StreamSession { throw IoError("unreadable"); }),
+                   1, [&](size_t) -> StreamSession { throw IoError("unreadable"); }),
                IoError);
   EXPECT_FALSE(fs::exists(dir / "new"));
 }
@@ -230,13 +230,13 @@ TEST(Stream, BadInputIsRefused) {
   EXPECT_THROW(stream(folder, sessions, {3, 3}, 3, 0), UsageError);
   // Another tile size, another resolution.
   EXPECT_THROW(stream(folder, sessions, {3}, 4, 0), UsageError);
-  pipeline::StreamSettings s;
+  StreamSettings s;
   s.folder = folder;
   s.resolution_m = 0.1;
-  const auto coarse = [&](size_t) { return pipeline::StreamSession{timeOf(3), "x", SessionMap(0.1)}; };
-  EXPECT_THROW(pipeline::streamIntoTiles(s, 1, coarse), UsageError);
+  const auto coarse = [&](size_t) { return StreamSession{timeOf(3), "x", SessionMap(0.1)}; };
+  EXPECT_THROW(streamIntoTiles(s, 1, coarse), UsageError);
   s.resolution_m = 0.05;  // the map's, but not the session's
-  EXPECT_THROW(pipeline::streamIntoTiles(s, 1, coarse), UsageError);
+  EXPECT_THROW(streamIntoTiles(s, 1, coarse), UsageError);
   EXPECT_EQ(filesOf(folder), before);
   // A folder that is not a tiled map, a file, a tile size that is no power of two.
   fs::create_directories(dir / "other");
@@ -245,8 +245,8 @@ TEST(Stream, BadInputIsRefused) {
   EXPECT_THROW(stream(dir / "other" / "notes.txt", sessions, {0}, 3, 0), UsageError);
   s.folder = dir / "odd";
   s.tile_size_m = 0.3;
-  const auto first = [&](size_t) { return pipeline::StreamSession{timeOf(0), "x", sessions[0]}; };
-  EXPECT_THROW(pipeline::streamIntoTiles(s, 1, first), UsageError);
+  const auto first = [&](size_t) { return StreamSession{timeOf(0), "x", sessions[0]}; };
+  EXPECT_THROW(streamIntoTiles(s, 1, first), UsageError);
   EXPECT_FALSE(fs::exists(dir / "odd"));
 }
 

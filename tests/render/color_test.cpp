@@ -2,7 +2,7 @@
 
 #include "chronomap/render/color.h"
 
-namespace chronomap::render {
+namespace chronomap {
 namespace {
 
 TEST(HeatColor, RunsFromBlueThroughGreenToRed) {
@@ -29,4 +29,4 @@ TEST(ColorizeDepth, BlackWithoutDepthBlueNearRedFar) {
 }
 
 }  // namespace
-}  // namespace chronomap::render
+}  // namespace chronomap

@@ -7,7 +7,7 @@
 #include "chronomap/render/plot.h"
 #include "builders.h"
 
-namespace chronomap::render {
+namespace chronomap {
 namespace {
 
 size_t countColor(const ImageRgb& img, Rgb c) { return static_cast<size_t>(std::count(img.pixels.begin(), img.pixels.end(), c)); }
@@ -54,4 +54,4 @@ TEST(DrawText, WidthFollowsTheCharactersAndScale) {
 }
 
 }  // namespace
-}  // namespace chronomap::render
+}  // namespace chronomap

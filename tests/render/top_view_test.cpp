@@ -3,7 +3,7 @@
 #include "chronomap/core/error.h"
 #include "chronomap/render/top_view.h"
 
-namespace chronomap::render {
+namespace chronomap {
 namespace {
 
 TEST(TopView, DrawsHighestOccupiedVoxelFreeAndUnknownColumns) {
@@ -37,4 +37,4 @@ TEST(TopView, DrawsHighestOccupiedVoxelFreeAndUnknownColumns) {
 }
 
 }  // namespace
-}  // namespace chronomap::render
+}  // namespace chronomap

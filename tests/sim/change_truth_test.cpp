@@ -9,7 +9,7 @@
 #include "chronomap/sim/change_truth.h"
 #include "test_support.h"
 
-namespace chronomap::sim {
+namespace chronomap {
 namespace {
 
 constexpr uint16_t kBase = 32768 - 16;
@@ -169,4 +169,4 @@ TEST(ChangeTruth, ReadsTheEventsOfASceneAndRejectsUnknownKinds) {
 }
 
 }  // namespace
-}  // namespace chronomap::sim
+}  // namespace chronomap

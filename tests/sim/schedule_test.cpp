@@ -10,7 +10,7 @@
 #include "chronomap/sim/scene.h"
 #include "sim/internal.h"
 
-namespace chronomap::sim {
+namespace chronomap {
 namespace {
 
 constexpr uint64_t kSeed = 1;
@@ -82,7 +82,7 @@ TEST(Schedule, AtNightEveryDoorIsShutAndNobodyIsIn) {
       for (uint32_t id : r.at(routine)) {
         const Object& o = object(s, id);
         if (o.kind != ObjectKind::Chair) continue;
-        EXPECT_EQ(detail::centerOf(o), detail::centerOf(object(home, id)));
+        EXPECT_EQ(sim_detail::centerOf(o), sim_detail::centerOf(object(home, id)));
       }
     }
   }
@@ -102,7 +102,7 @@ TEST(Schedule, AWorkingDayMorningHasTheWorkerInAndTheMeetingOn) {
   EXPECT_TRUE(object(s, r.at("office worker").back()).present);
   for (uint32_t id : r.at("meetings")) {
     // Pulled out from the table by 0.4 m (and a sideways jitter of at most 0.12 m).
-    const Eigen::Vector2d d = detail::centerOf(object(s, id)) - detail::centerOf(object(home, id));
+    const Eigen::Vector2d d = sim_detail::centerOf(object(s, id)) - sim_detail::centerOf(object(home, id));
     EXPECT_NEAR(std::abs(d.y()), 0.4, 1e-9);
     EXPECT_LE(std::abs(d.x()), 0.12 + 1e-9);
   }
@@ -118,7 +118,7 @@ TEST(Schedule, AWorkingDayMorningHasTheWorkerInAndTheMeetingOn) {
   SceneState c = home;
   applySchedule(c, home, kSeed, at(cancelled, 10.5));
   for (uint32_t id : r.at("meetings")) {
-    EXPECT_EQ(detail::centerOf(object(c, id)), detail::centerOf(object(home, id)));
+    EXPECT_EQ(sim_detail::centerOf(object(c, id)), sim_detail::centerOf(object(home, id)));
   }
 }
 
@@ -151,12 +151,12 @@ TEST(Schedule, LunchAndCleaningKeepTheirHours) {
   applySchedule(s, home, kSeed, at(tuesday, 19.1));
   const Object& cart = object(s, r.at("cleaning")[0]);
   ASSERT_TRUE(cart.present);
-  const double x_early = detail::centerOf(cart).x();
+  const double x_early = sim_detail::centerOf(cart).x();
   const auto later = applySchedule(s, home, kSeed, at(tuesday, 20.4));
   ASSERT_EQ(later.size(), 1u);
   EXPECT_EQ(later[0].kind, EventKind::Moved);
   EXPECT_EQ(later[0].routine, "cleaning");
-  EXPECT_GT(detail::centerOf(object(s, r.at("cleaning")[0])).x(), x_early + 5.0);
+  EXPECT_GT(sim_detail::centerOf(object(s, r.at("cleaning")[0])).x(), x_early + 5.0);
   const auto gone = applySchedule(s, home, kSeed, at(tuesday, 20.6));
   ASSERT_EQ(gone.size(), 1u);
   EXPECT_EQ(gone[0].kind, EventKind::Left);
@@ -169,13 +169,13 @@ TEST(Schedule, LunchAndCleaningKeepTheirHours) {
 }
 
 }  // namespace
-}  // namespace chronomap::sim
+}  // namespace chronomap
 
-namespace chronomap::sim {
+namespace chronomap {
 namespace {
 
 bool inCorridor(const SceneState& home, const Object& o) {
-  return home.rooms[0].area.contains(detail::centerOf(o));
+  return home.rooms[0].area.contains(sim_detail::centerOf(o));
 }
 
 TEST(Schedule, RareEventsChangeWhatTheyName) {
@@ -230,7 +230,7 @@ TEST(Schedule, RareEventsChangeWhatTheyName) {
   SceneState a = home, b = home;
   applyRareEvent(a, home, kSeed, 50, RareKind::Parcel);
   applyRareEvent(b, home, kSeed, 50, RareKind::Parcel);
-  EXPECT_EQ(detail::centerOf(object(a, parcel.id)), detail::centerOf(object(b, parcel.id)));
+  EXPECT_EQ(sim_detail::centerOf(object(a, parcel.id)), sim_detail::centerOf(object(b, parcel.id)));
   SceneState no_rare = plain;
   EXPECT_THROW(applyRareEvent(no_rare, plain, kSeed, 50, RareKind::Parcel), UsageError);
   SceneState office = makeScene("office", kSeed);
@@ -262,4 +262,4 @@ TEST(Schedule, RareEventsFallInTheLastQuarterAtFittingHours) {
 }
 
 }  // namespace
-}  // namespace chronomap::sim
+}  // namespace chronomap

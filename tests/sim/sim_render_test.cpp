@@ -51,11 +51,11 @@ bool slab(const Eigen::AlignedBox3d& box, const Eigen::Vector3d& o, const Eigen:
 }
 
 // Every part tested, nearest first, ties to the earlier part of the list.
-Hit bruteForce(const std::vector<sim::Part>& parts, const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+Hit bruteForce(const std::vector<Part>& parts, const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
   const Eigen::Vector3d inv(1.0 / d.x(), 1.0 / d.y(), 1.0 / d.z());
   Hit h;
   double best = 1e30;
-  for (const sim::Part& p : parts) {
+  for (const Part& p : parts) {
     double te = 0.0;
     int face = 0;
     if (slab(p.box, o, inv, best, te, face) && face >= 0 && te < best) {
@@ -69,8 +69,8 @@ Hit bruteForce(const std::vector<sim::Part>& parts, const Eigen::Vector3d& o, co
 // The first renderer's hierarchy and walk, unchanged.
 class LegacyRenderer {
  public:
-  explicit LegacyRenderer(const sim::SceneState& state) {
-    for (const sim::Object& o : state.objects) {
+  explicit LegacyRenderer(const SceneState& state) {
+    for (const Object& o : state.objects) {
       if (o.present) parts_.insert(parts_.end(), o.parts.begin(), o.parts.end());
     }
     nodes_.push_back({});
@@ -82,7 +82,7 @@ class LegacyRenderer {
     const Eigen::Vector3d inv(1.0 / dir.x(), 1.0 / dir.y(), 1.0 / dir.z());
     double best = 1e30;
     int best_face = -1;
-    const sim::Part* best_part = nullptr;
+    const Part* best_part = nullptr;
     uint32_t stack[64];
     int top = 0;
     stack[top++] = 0;
@@ -113,7 +113,7 @@ class LegacyRenderer {
     Eigen::AlignedBox3d box;
     uint32_t first = 0, count = 0;
   };
-  std::vector<sim::Part> parts_;
+  std::vector<Part> parts_;
   std::vector<Node> nodes_;
   void build(uint32_t node, uint32_t begin, uint32_t end) {
     Eigen::AlignedBox3d box, centers;
@@ -131,7 +131,7 @@ class LegacyRenderer {
     centers.sizes().maxCoeff(&axis);
     const uint32_t mid = begin + (end - begin) / 2;
     std::nth_element(parts_.begin() + begin, parts_.begin() + mid, parts_.begin() + end,
-                     [axis](const sim::Part& a, const sim::Part& b) { return a.box.center()[axis] < b.box.center()[axis]; });
+                     [axis](const Part& a, const Part& b) { return a.box.center()[axis] < b.box.center()[axis]; });
     const auto left = static_cast<uint32_t>(nodes_.size());
     nodes_.push_back({});
     nodes_.push_back({});
@@ -142,7 +142,7 @@ class LegacyRenderer {
   }
 };
 
-Hit fast(const sim::Renderer& r, const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+Hit fast(const Renderer& r, const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
   Hit h;
   h.hit = r.cast(o, d, h.t, h.color);
   return h;
@@ -161,14 +161,14 @@ Eigen::Isometry3d lookingAt(const Eigen::Vector3d& position, double yaw, double 
 
 // A scene of boxes on a 0.5 m lattice with sizes in whole lattice steps, many touching,
 // overlapping or sharing faces with others of other colours: rays meet equally near parts often.
-sim::SceneState latticeScene(uint64_t seed, int boxes) {
+SceneState latticeScene(uint64_t seed, int boxes) {
   std::mt19937_64 rng(seed);
   auto step = [&](int lo, int hi) { return 0.5 * std::uniform_int_distribution<int>(lo, hi)(rng); };
-  sim::SceneState s;
+  SceneState s;
   for (int i = 0; i < boxes; ++i) {
-    sim::Object o;
+    Object o;
     o.id = static_cast<uint32_t>(i);
-    sim::Part p;
+    Part p;
     const Eigen::Vector3d lo(step(0, 16), step(0, 16), step(0, 6));
     const Eigen::Vector3d size(step(1, 4), step(1, 4), step(1, 3));
     p.box = Eigen::AlignedBox3d(lo, lo + size);
@@ -183,9 +183,9 @@ sim::SceneState latticeScene(uint64_t seed, int boxes) {
 }
 
 // Rays from random origins in `box` in random directions, and a few axis-aligned ones.
-void compareOnRays(const sim::SceneState& scene, const Eigen::AlignedBox3d& box, int rays, uint64_t seed,
+void compareOnRays(const SceneState& scene, const Eigen::AlignedBox3d& box, int rays, uint64_t seed,
                    size_t* ties = nullptr) {
-  const sim::Renderer renderer(scene);
+  const Renderer renderer(scene);
   const LegacyRenderer legacy(scene);
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);
@@ -210,7 +210,7 @@ void compareOnRays(const sim::SceneState& scene, const Eigen::AlignedBox3d& box,
       // Count rays on which another part is exactly as near (the tie-breaking order matters).
       const Eigen::Vector3d inv(1.0 / d.x(), 1.0 / d.y(), 1.0 / d.z());
       int same = 0;
-      for (const sim::Part& p : renderer.parts()) {
+      for (const Part& p : renderer.parts()) {
         double te = 0.0;
         int face = 0;
         if (slab(p.box, o, inv, 1e30, te, face) && face >= 0 && te == want.t) ++same;
@@ -224,7 +224,7 @@ void compareOnRays(const sim::SceneState& scene, const Eigen::AlignedBox3d& box,
 TEST(Renderer, NearestHitEqualsEveryPartTestedAndTheFirstRenderer) {
   for (const char* preset : {"tiny", "office", "floor66", "weeks", "site"}) {
     SCOPED_TRACE(preset);
-    const sim::SceneState scene = sim::makeScene(preset, 5);
+    const SceneState scene = makeScene(preset, 5);
     compareOnRays(scene, scene.bounds, 3000, 11);
   }
 }
@@ -233,7 +233,7 @@ TEST(Renderer, EquallyNearPartsGoToTheEarlierOneAsBefore) {
   for (uint64_t seed : {1u, 2u, 3u}) {
     SCOPED_TRACE(seed);
     size_t ties = 0;
-    const sim::SceneState scene = latticeScene(seed, 120);
+    const SceneState scene = latticeScene(seed, 120);
     compareOnRays(scene, Eigen::AlignedBox3d(Eigen::Vector3d(-1, -1, -1), Eigen::Vector3d(10, 10, 5)), 4000, seed,
                   &ties);
     EXPECT_GT(ties, 20u) << "the lattice should make rays meet equally near parts";
@@ -244,19 +244,19 @@ TEST(Renderer, TwoPartsInTheSamePlaceShowTheEarlierOne) {
   // Two identical boxes of different colours (and filler boxes so that the hierarchy is deep):
   // every ray that meets them meets both at the same distance; the colour is that of the part
   // that comes first in parts(), and the first renderer showed the same.
-  sim::SceneState s = latticeScene(9, 40);
+  SceneState s = latticeScene(9, 40);
   for (uint8_t c : {uint8_t{200}, uint8_t{100}}) {
-    sim::Object o;
-    sim::Part p;
+    Object o;
+    Part p;
     p.box = Eigen::AlignedBox3d(Eigen::Vector3d(20, 0, 0), Eigen::Vector3d(21, 1, 1));
     p.face_colors.fill(Rgb{c, c, c});
     o.parts.push_back(p);
     s.objects.push_back(o);
   }
-  const sim::Renderer renderer(s);
+  const Renderer renderer(s);
   const LegacyRenderer legacy(s);
   uint8_t first = 0;
-  for (const sim::Part& p : renderer.parts()) {
+  for (const Part& p : renderer.parts()) {
     if (p.box.min().x() == 20.0) {
       first = p.face_colors[0].r;
       break;
@@ -278,22 +278,22 @@ TEST(Renderer, FramesEqualThoseOfEveryPartTested) {
   // testing every part, with render()'s ray directions, texture and lighting.
   for (const char* preset : {"office", "floor66", "site"}) {
     SCOPED_TRACE(preset);
-    const sim::SceneState scene = sim::makeScene(preset, 2);
+    const SceneState scene = makeScene(preset, 2);
     const bool site = std::string(preset) == "site";  // views on every floor, the floors above in sight
-    const sim::Renderer renderer(scene);
-    const sim::Camera cam = sim::kinectCamera(0.25);
-    const sim::SensorModel sensor;
+    const Renderer renderer(scene);
+    const Camera cam = kinectCamera(0.25);
+    const SensorModel sensor;
     const double hour = 17.5;
-    const Eigen::Vector3d light = sim::lightingAt(hour);
+    const Eigen::Vector3d light = lightingAt(hour);
     const Eigen::Vector3d c = scene.bounds.center();
     size_t hits = 0;
     // Views along the building, looking down, level and up, one from inside a part.
     const int views = 5;
     for (int view = 0; view < views; ++view) {
-      Eigen::Vector3d at(c.x() + 0.7 * view, c.y() - 0.3, 1.2 + (site ? sim::kSiteFloorHeight_m * (view % sim::kSiteFloors) : 0.0));
+      Eigen::Vector3d at(c.x() + 0.7 * view, c.y() - 0.3, 1.2 + (site ? kSiteFloorHeight_m * (view % kSiteFloors) : 0.0));
       if (view == views - 1) at = renderer.parts()[renderer.parts().size() / 2].box.center();
       const Eigen::Isometry3d T = lookingAt(at, 1.3 * view + 0.2, view % 3 == 0 ? -0.2 : (view % 3 == 1 ? -0.9 : 0.5));
-      const sim::RenderedFrame f = renderer.render(cam, T, sensor, hour, 7 + view);
+      const RenderedFrame f = renderer.render(cam, T, sensor, hour, 7 + view);
       const Eigen::Matrix3d R = T.rotation();
       for (uint32_t v = 0; v < cam.height; ++v) {
         for (uint32_t u = 0; u < cam.width; ++u) {
@@ -327,9 +327,9 @@ TEST(Renderer, FramesEqualThoseOfEveryPartTested) {
 }
 
 TEST(Renderer, AnEmptySceneHitsNothing) {
-  sim::SceneState s = latticeScene(4, 3);
+  SceneState s = latticeScene(4, 3);
   for (auto& o : s.objects) o.present = false;
-  const sim::Renderer renderer(s);
+  const Renderer renderer(s);
   EXPECT_TRUE(renderer.parts().empty());
   EXPECT_FALSE(fast(renderer, Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(1, 0, 0)).hit);
 }

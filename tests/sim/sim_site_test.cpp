@@ -22,17 +22,17 @@ namespace fs = std::filesystem;
 using test::bytesOf;
 
 TEST(SimSite, FloorsAreBuildingsOfTheirOwnStackedAndNumbered) {
-  const sim::SceneState site = sim::makeScene("site", 4);
-  std::vector<sim::SceneState> floors;
-  for (int f = 0; f < sim::kSiteFloors; ++f) floors.push_back(sim::siteFloor(4, f));
-  ASSERT_EQ(site.rooms.size(), floors[0].rooms.size() * sim::kSiteFloors);
+  const SceneState site = makeScene("site", 4);
+  std::vector<SceneState> floors;
+  for (int f = 0; f < kSiteFloors; ++f) floors.push_back(siteFloor(4, f));
+  ASSERT_EQ(site.rooms.size(), floors[0].rooms.size() * kSiteFloors);
   size_t k = 0;
   std::set<uint32_t> ids;
-  for (int f = 0; f < sim::kSiteFloors; ++f) {
-    const double up = f * sim::kSiteFloorHeight_m;
-    for (const sim::Object& local : floors[static_cast<size_t>(f)].objects) {
-      const sim::Object& o = site.objects.at(k++);
-      EXPECT_EQ(o.id, static_cast<uint32_t>(f) * sim::kSiteIdStride + local.id);
+  for (int f = 0; f < kSiteFloors; ++f) {
+    const double up = f * kSiteFloorHeight_m;
+    for (const Object& local : floors[static_cast<size_t>(f)].objects) {
+      const Object& o = site.objects.at(k++);
+      EXPECT_EQ(o.id, static_cast<uint32_t>(f) * kSiteIdStride + local.id);
       EXPECT_TRUE(ids.insert(o.id).second) << "object ids are unique";
       EXPECT_EQ(o.kind, local.kind);
       EXPECT_EQ(o.present, local.present);
@@ -42,41 +42,41 @@ TEST(SimSite, FloorsAreBuildingsOfTheirOwnStackedAndNumbered) {
         EXPECT_EQ(o.parts[p].box.max(), local.parts[p].box.max() + Eigen::Vector3d(0, 0, up));
         // Every part lies between its floor's slab and the next one.
         EXPECT_GE(o.parts[p].box.min().z(), up - 0.2);
-        EXPECT_LE(o.parts[p].box.max().z(), up + sim::kSiteFloorHeight_m - 0.1);
+        EXPECT_LE(o.parts[p].box.max().z(), up + kSiteFloorHeight_m - 0.1);
       }
       if (o.room >= 0) {
-        const sim::Room& room = site.rooms.at(static_cast<size_t>(o.room));
+        const Room& room = site.rooms.at(static_cast<size_t>(o.room));
         EXPECT_NE(room.name.find("(floor " + std::to_string(f) + ")"), std::string::npos) << room.name;
       }
     }
   }
   EXPECT_EQ(k, site.objects.size());
-  for (const sim::Room& r : site.rooms) EXPECT_TRUE(ids.count(r.door_object)) << r.name;
+  for (const Room& r : site.rooms) EXPECT_TRUE(ids.count(r.door_object)) << r.name;
   // Each floor is a building of its own: their furniture differs.
-  const auto layout = [](const sim::SceneState& floor) {
+  const auto layout = [](const SceneState& floor) {
     std::vector<double> corners;
-    for (const sim::Object& o : floor.objects) {
-      for (const sim::Part& p : o.parts) corners.push_back(p.box.min().x() + 7.0 * p.box.min().y());
+    for (const Object& o : floor.objects) {
+      for (const Part& p : o.parts) corners.push_back(p.box.min().x() + 7.0 * p.box.min().y());
     }
     return corners;
   };
   EXPECT_NE(layout(floors[0]), layout(floors[1]));
   EXPECT_NE(layout(floors[1]), layout(floors[2]));
-  EXPECT_NEAR(site.bounds.max().z(), (sim::kSiteFloors - 1) * sim::kSiteFloorHeight_m + 2.5 + 0.017, 1e-9);
+  EXPECT_NEAR(site.bounds.max().z(), (kSiteFloors - 1) * kSiteFloorHeight_m + 2.5 + 0.017, 1e-9);
 }
 
 TEST(SimSite, NightlyPatrolsOfEveryFloorAndTheFirstSessionsOfALongerRun) {
   test::TempDir tmp;
-  sim::SimulationSettings s;
+  SimulationSettings s;
   s.preset = "site";
   s.sessions = 2;
   s.resolution_scale = 0.1;      // 64 x 48
   s.voxel_resolution_m = 0.2;    // a coarse truth: quick
   s.threads = 2;
   s.floors = 2;                  // two floors of the three: quicker, and still stacked
-  const sim::SimulationSummary two = sim::simulate(s, tmp / "two");
+  const SimulationSummary two = chronomap::simulate(s, tmp / "two");
   s.sessions = 1;
-  sim::simulate(s, tmp / "one");
+  chronomap::simulate(s, tmp / "one");
 
   const auto scene = nlohmann::json::parse(readTextFile(tmp / "two" / "scene.json"));
   // The change events, spooled to a file while simulating, are spliced in as dump(1) puts them.
@@ -106,7 +106,7 @@ TEST(SimSite, NightlyPatrolsOfEveryFloorAndTheFirstSessionsOfALongerRun) {
       EXPECT_EQ(first, frames);
       EXPECT_GT(n, 100u);
       frames += n;
-      const double z = 1.2 + 0.017 + sim::kSiteFloorHeight_m * floor["floor"].get<double>();
+      const double z = 1.2 + 0.017 + kSiteFloorHeight_m * floor["floor"].get<double>();
       for (size_t i = first; i < first + n; ++i) ASSERT_NEAR(poses.at(i).pose.translation().z(), z, 1e-5);
     }
     EXPECT_EQ(frames, session["frames"].get<size_t>());
@@ -116,8 +116,8 @@ TEST(SimSite, NightlyPatrolsOfEveryFloorAndTheFirstSessionsOfALongerRun) {
   ASSERT_GT(scene["events"].size(), 0u);
   for (const auto& e : scene["events"]) {
     const uint32_t id = e["object"];
-    EXPECT_LT(id / sim::kSiteIdStride, 2u);
-    EXPECT_LT(id % sim::kSiteIdStride, 1000u);
+    EXPECT_LT(id / kSiteIdStride, 2u);
+    EXPECT_LT(id % kSiteIdStride, 1000u);
     EXPECT_EQ(e["cause"], "random");
   }
 
@@ -136,18 +136,18 @@ TEST(SimSite, NightlyPatrolsOfEveryFloorAndTheFirstSessionsOfALongerRun) {
 
 TEST(SimSite, BadFloorCountsAreRefused) {
   test::TempDir tmp;
-  sim::SimulationSettings s;
+  SimulationSettings s;
   s.preset = "site";
   for (int floors : {0, 51}) {
     s.floors = floors;
-    EXPECT_THROW(sim::simulate(s, tmp / "x"), UsageError) << floors;
+    EXPECT_THROW(chronomap::simulate(s, tmp / "x"), UsageError) << floors;
   }
   EXPECT_FALSE(fs::exists(tmp / "x"));
 }
 
 TEST(SimSite, UnknownPresetsNameTheSite) {
   try {
-    sim::makeScene("campus", 1);
+    makeScene("campus", 1);
     FAIL() << "no error";
   } catch (const UsageError& e) {
     EXPECT_NE(std::string(e.what()).find("site"), std::string::npos) << e.what();

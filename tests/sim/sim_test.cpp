@@ -45,7 +45,7 @@ Eigen::Isometry3d lookingAt(const Eigen::Vector3d& position, double yaw) {
 }
 
 // Distance from p to the nearest surface of a present part.
-double distanceToSurface(const sim::SceneState& state, const Eigen::Vector3d& p) {
+double distanceToSurface(const SceneState& state, const Eigen::Vector3d& p) {
   double best = 1e9;
   for (const auto& o : state.objects) {
     if (!o.present) continue;
@@ -62,14 +62,14 @@ double distanceToSurface(const sim::SceneState& state, const Eigen::Vector3d& p)
 
 TEST(Simulator, SameSeedSameBytesWhateverTheThreads) {
   test::TempDir tmp;
-  sim::SimulationSettings s;
+  SimulationSettings s;
   s.preset = "tiny";
   s.sessions = 2;
   s.resolution_scale = 0.25;
   s.threads = 1;
-  sim::simulate(s, tmp / "a");
+  chronomap::simulate(s, tmp / "a");
   s.threads = 2;
-  sim::simulate(s, tmp / "b");
+  chronomap::simulate(s, tmp / "b");
   const auto files = filesBelow(tmp / "a");
   ASSERT_EQ(files, filesBelow(tmp / "b"));
   ASSERT_GT(files.size(), 20u);
@@ -78,17 +78,17 @@ TEST(Simulator, SameSeedSameBytesWhateverTheThreads) {
   const std::string scene = readTextFile(tmp / "a" / "scene.json");
   EXPECT_EQ(nlohmann::json::parse(scene).dump(1) + "\n", scene);
   s.seed = 2;
-  sim::simulate(s, tmp / "c");
+  chronomap::simulate(s, tmp / "c");
   EXPECT_NE(bytesOf(tmp / "a" / "scene.json"), bytesOf(tmp / "c" / "scene.json"));
 }
 
 TEST(Simulator, DepthNoiseFollowsTheModel) {
-  const sim::SceneState scene = sim::makeScene("tiny", 3);
-  const sim::Renderer renderer(scene);
-  sim::SensorModel sensor;
+  const SceneState scene = makeScene("tiny", 3);
+  const Renderer renderer(scene);
+  SensorModel sensor;
   sensor.edge_dropout = 0.0;
   sensor.dark_dropout = 0.0;
-  const sim::Camera camera = sim::kinectCamera(0.5);
+  const Camera camera = kinectCamera(0.5);
   double sum = 0.0, sum2 = 0.0;
   size_t n = 0;
   for (int view = 0; view < 4; ++view) {
@@ -110,11 +110,11 @@ TEST(Simulator, DepthNoiseFollowsTheModel) {
 }
 
 TEST(Simulator, FramesReprojectOntoTheTrueSurfaces) {
-  const sim::SceneState scene = sim::makeScene("office", 4);
-  const sim::Renderer renderer(scene);
-  sim::SensorModel sensor;
+  const SceneState scene = makeScene("office", 4);
+  const Renderer renderer(scene);
+  SensorModel sensor;
   sensor.noise_per_m2 = 0.0;
-  const sim::Camera camera = sim::kinectCamera(0.25);
+  const Camera camera = kinectCamera(0.25);
   const CameraIntrinsics k{camera.fx, camera.fy, camera.cx, camera.cy};
   size_t points = 0;
   for (double yaw : {0.0, 1.0, 2.0, 3.0, 4.5}) {
@@ -133,11 +133,11 @@ TEST(Simulator, FramesReprojectOntoTheTrueSurfaces) {
 
 TEST(Simulator, ChangeEventsShowInTheTruth) {
   test::TempDir tmp;
-  sim::SimulationSettings s;
+  SimulationSettings s;
   s.preset = "office";
   s.sessions = 5;
   s.resolution_scale = 0.1;
-  sim::simulate(s, tmp.path());
+  chronomap::simulate(s, tmp.path());
   const auto scene = nlohmann::json::parse(readTextFile(tmp / "scene.json"));
   ASSERT_EQ(scene["sessions"].size(), 5u);
   ASSERT_GT(scene["events"].size(), 3u);
@@ -166,7 +166,7 @@ TEST(Simulator, ChangeEventsShowInTheTruth) {
   }
   EXPECT_GE(kinds.size(), 2u);
   // The evaluators read back the events the simulator wrote.
-  const std::vector<sim::ChangeEvent> events = sim::readTruthEvents(tmp / "scene.json");
+  const std::vector<ChangeEvent> events = readTruthEvents(tmp / "scene.json");
   ASSERT_EQ(events.size(), scene["events"].size());
   for (size_t i = 0; i < events.size(); ++i) {
     const auto& e = scene["events"][i];
@@ -180,17 +180,17 @@ TEST(Simulator, ChangeEventsShowInTheTruth) {
 
 TEST(Simulator, TheWeeksPresetFollowsItsScheduleAndSaysSo) {
   test::TempDir tmp;
-  sim::SimulationSettings s;
+  SimulationSettings s;
   s.preset = "weeks";
   s.sessions = 14;  // the first week
   s.resolution_scale = 0.1;
-  const sim::SimulationSummary summary = sim::simulate(s, tmp.path());
+  const SimulationSummary summary = chronomap::simulate(s, tmp.path());
   const auto scene = nlohmann::json::parse(readTextFile(tmp / "scene.json"));
   ASSERT_EQ(scene["sessions"].size(), 14u);
   // Two sessions a day from the first Monday, one before noon and one after.
   for (size_t i = 0; i < 14; ++i) {
     const double t = summary.times_s[i];
-    EXPECT_EQ(static_cast<int>((t - sim::kScheduleStart_s) / 86400.0), static_cast<int>(i / 2));
+    EXPECT_EQ(static_cast<int>((t - kScheduleStart_s) / 86400.0), static_cast<int>(i / 2));
     EXPECT_EQ(summary.hours[i] >= 12.0, i % 2 == 1);
     EXPECT_EQ(scene["sessions"][i]["weekday"].get<int>(), static_cast<int>(i / 2) % 7);
   }
@@ -204,7 +204,7 @@ TEST(Simulator, TheWeeksPresetFollowsItsScheduleAndSaysSo) {
     for (const auto& id : r["objects"]) routine_of[id.get<uint32_t>()] = r["name"];
   }
   for (int d = 0; d < 7; ++d) {
-    EXPECT_EQ(schedule["days"][d]["worker_away"].get<bool>(), sim::scheduleDay(s.seed, d).worker_away);
+    EXPECT_EQ(schedule["days"][d]["worker_away"].get<bool>(), scheduleDay(s.seed, d).worker_away);
   }
   // Every change is a routine's, on one of that routine's objects; the true state of every
   // session is the schedule's at its time.
@@ -213,13 +213,13 @@ TEST(Simulator, TheWeeksPresetFollowsItsScheduleAndSaysSo) {
     EXPECT_EQ(e["cause"], "routine");
     EXPECT_EQ(routine_of.at(e["object"].get<uint32_t>()), e["routine"]);
   }
-  const sim::SceneState home = sim::makeScene("weeks", s.seed);
+  const SceneState home = makeScene("weeks", s.seed);
   for (size_t i = 0; i < 14; i += 5) {
-    sim::SceneState state = home;
-    sim::applySchedule(state, home, s.seed, summary.times_s[i]);
+    SceneState state = home;
+    applySchedule(state, home, s.seed, summary.times_s[i]);
     char name[64];
     std::snprintf(name, sizeof name, "occupancy_%02zu.cmap", i);
-    EXPECT_EQ(readSessionMap(tmp / "truth" / name), sim::detail::truthMap(sim::truthOccupancy(state, KeyGrid(0.05)),
+    EXPECT_EQ(readSessionMap(tmp / "truth" / name), sim_detail::truthMap(truthOccupancy(state, KeyGrid(0.05)),
                                                                       KeyGrid(0.05)))
         << "session " << i;
   }
@@ -227,7 +227,7 @@ TEST(Simulator, TheWeeksPresetFollowsItsScheduleAndSaysSo) {
   test::TempDir office;
   s.preset = "office";
   s.sessions = 3;
-  sim::simulate(s, office.path());
+  chronomap::simulate(s, office.path());
   const auto office_scene = nlohmann::json::parse(readTextFile(office / "scene.json"));
   EXPECT_FALSE(office_scene.contains("schedule"));
   for (const auto& e : office_scene["events"]) EXPECT_EQ(e["cause"], "random");
@@ -238,21 +238,21 @@ TEST(Simulator, RareEventsAreLabelledInTheTruth) {
   // holds them, as rareEventOf() says; each is an event labelled rare, with its voxels, and the
   // next session's undoing of it is labelled after_rare.
   test::TempDir tmp;
-  sim::SimulationSettings s;
+  SimulationSettings s;
   s.preset = "weeks";
   s.sessions = 8;
   s.resolution_scale = 0.1;
   s.rare_events = true;
-  const sim::SimulationSummary summary = sim::simulate(s, tmp.path());
+  const SimulationSummary summary = chronomap::simulate(s, tmp.path());
   const auto scene = nlohmann::json::parse(readTextFile(tmp / "scene.json"));
   const auto& rare = scene["schedule"]["rare_events"];
   size_t expected = 0;
   for (int i = 0; i < 8; ++i) {
-    const auto kind = sim::rareEventOf(s.seed, i, summary.times_s);
+    const auto kind = rareEventOf(s.seed, i, summary.times_s);
     if (!kind) continue;
     ASSERT_LT(expected, rare.size());
     EXPECT_EQ(rare[expected]["session"], i);
-    EXPECT_EQ(rare[expected]["what"], sim::describe(*kind));
+    EXPECT_EQ(rare[expected]["what"], describe(*kind));
     ++expected;
   }
   EXPECT_EQ(rare.size(), expected);
@@ -276,12 +276,12 @@ TEST(Simulator, RareEventsAreLabelledInTheTruth) {
   }
   // readTruthEvents keeps the cause and what happened.
   size_t read_rare = 0;
-  for (const sim::ChangeEvent& e : sim::readTruthEvents(tmp / "scene.json")) read_rare += e.cause == "rare";
+  for (const ChangeEvent& e : readTruthEvents(tmp / "scene.json")) read_rare += e.cause == "rare";
   EXPECT_EQ(read_rare, labelled);
   // Not for the other presets.
   s.preset = "office";
   test::TempDir office;
-  EXPECT_THROW(sim::simulate(s, office.path()), UsageError);
+  EXPECT_THROW(chronomap::simulate(s, office.path()), UsageError);
 }
 
 TEST(Simulator, DaylightAndRepaintChangeOnlyColoursAndAreLabelled) {
@@ -289,15 +289,15 @@ TEST(Simulator, DaylightAndRepaintChangeOnlyColoursAndAreLabelled) {
   // poses, truth and change events are the same bytes; colour images differ; scene.json holds
   // the true light curves and the repaint with the desk's voxels.
   test::TempDir tmp;
-  sim::SimulationSettings s;
+  SimulationSettings s;
   s.preset = "weeks";
   s.sessions = 4;
   s.resolution_scale = 0.1;
   s.threads = 1;
-  sim::simulate(s, tmp / "plain");
+  chronomap::simulate(s, tmp / "plain");
   s.lighting = "daylight";
   s.repaint = true;
-  const sim::SimulationSummary summary = sim::simulate(s, tmp / "lit");
+  const SimulationSummary summary = chronomap::simulate(s, tmp / "lit");
   const auto files = filesBelow(tmp / "plain");
   ASSERT_EQ(files, filesBelow(tmp / "lit"));
   size_t rgb_differ = 0, repainted_objects_files = 0;
@@ -323,8 +323,8 @@ TEST(Simulator, DaylightAndRepaintChangeOnlyColoursAndAreLabelled) {
   ASSERT_EQ(light["hours"].size(), 97u);
   for (size_t q = 0; q < 97; q += 7) {
     const double h = light["hours"][q];
-    EXPECT_DOUBLE_EQ(light["ceiling"][q][0].get<double>(), sim::Daylight::ceiling(h).x());
-    EXPECT_DOUBLE_EQ(light["daylight"][q][2].get<double>(), sim::Daylight::daylight(h).z());
+    EXPECT_DOUBLE_EQ(light["ceiling"][q][0].get<double>(), Daylight::ceiling(h).x());
+    EXPECT_DOUBLE_EQ(light["daylight"][q][2].get<double>(), Daylight::daylight(h).z());
   }
   ASSERT_EQ(lit["repaints"].size(), 1u);
   const auto& r = lit["repaints"][0];
@@ -346,34 +346,34 @@ TEST(Simulator, DaylightAndRepaintChangeOnlyColoursAndAreLabelled) {
   EXPECT_EQ(summary.times_s.size(), 4u);
   s.lighting = "moonlight";
   test::TempDir bad;
-  EXPECT_THROW(sim::simulate(s, bad.path()), UsageError);
+  EXPECT_THROW(chronomap::simulate(s, bad.path()), UsageError);
 }
 
 TEST(Simulator, DaylightCurves) {
   // Night: only the dim night light; working hours: the lamps; the sun warm when low.
-  EXPECT_EQ(sim::Daylight::daylight(3.0), Eigen::Vector3d::Zero());
-  EXPECT_EQ(sim::Daylight::daylight(21.0), Eigen::Vector3d::Zero());
-  EXPECT_LT(sim::Daylight::ceiling(3.0).x(), 0.1);
-  EXPECT_GT(sim::Daylight::ceiling(12.0).x(), 0.5);
-  const Eigen::Vector3d dusk = sim::Daylight::daylight(18.5), noon = sim::Daylight::daylight(12.75);
+  EXPECT_EQ(Daylight::daylight(3.0), Eigen::Vector3d::Zero());
+  EXPECT_EQ(Daylight::daylight(21.0), Eigen::Vector3d::Zero());
+  EXPECT_LT(Daylight::ceiling(3.0).x(), 0.1);
+  EXPECT_GT(Daylight::ceiling(12.0).x(), 0.5);
+  const Eigen::Vector3d dusk = Daylight::daylight(18.5), noon = Daylight::daylight(12.75);
   EXPECT_GT(dusk.x(), 2.0 * dusk.z());             // warm at sunset
   EXPECT_NEAR(noon.x(), noon.z(), 1e-3);            // white when high
-  EXPECT_EQ(sim::Daylight::daylight(12.0 + 24.0), sim::Daylight::daylight(12.0));
-  sim::Daylight d;
+  EXPECT_EQ(Daylight::daylight(12.0 + 24.0), Daylight::daylight(12.0));
+  Daylight d;
   d.building = Eigen::AlignedBox3d(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(10, 6, 3));
   EXPECT_DOUBLE_EQ(d.window(Eigen::Vector3d(5, 0, 1)), 1.0);
   EXPECT_NEAR(d.window(Eigen::Vector3d(5, 3, 1)), std::exp(-1.5), 1e-12);
   const Eigen::Vector3d at = d.at(18.5, Eigen::Vector3d(5, 3, 1));
-  EXPECT_TRUE(at.isApprox(sim::Daylight::ceiling(18.5) + std::exp(-1.5) * dusk));
+  EXPECT_TRUE(at.isApprox(Daylight::ceiling(18.5) + std::exp(-1.5) * dusk));
 }
 
 TEST(Simulator, TinySessionWithTruePosesMatchesTheTruth) {
   test::TempDir tmp;
-  sim::SimulationSettings s;
+  SimulationSettings s;
   s.preset = "tiny";
   s.sessions = 1;
   s.resolution_scale = 0.5;
-  const auto summary = sim::simulate(s, tmp.path());
+  const auto summary = chronomap::simulate(s, tmp.path());
   DatasetSettings dopt;
   dopt.trajectory = (summary.session_dirs[0] / "groundtruth.txt").string();
   auto dataset = openDataset(summary.session_dirs[0], dopt);
@@ -382,7 +382,7 @@ TEST(Simulator, TinySessionWithTruePosesMatchesTheTruth) {
   const SessionMap truth_map = readSessionMap(tmp / "truth" / "occupancy_00.cmap");
   std::vector<VoxelKey> truth;
   truth_map.forEachLeaf([&](const LeafView& l) { truth.push_back(l.key); });
-  const sim::OccupancyScore score = sim::scoreOccupancy(map, truth);
+  const OccupancyScore score = scoreOccupancy(map, truth);
   std::cout << "tiny, true poses: precision " << score.precision << ", recall " << score.recall << " ("
             << score.predicted << " occupied, " << score.truth_known << " truth voxels observed)\n";
   EXPECT_GE(score.precision, 0.9);
@@ -392,15 +392,15 @@ TEST(Simulator, TinySessionWithTruePosesMatchesTheTruth) {
 
 TEST(Simulator, RejectsBadSettings) {
   test::TempDir tmp;
-  sim::SimulationSettings s;
+  SimulationSettings s;
   s.preset = "castle";
-  EXPECT_THROW(sim::simulate(s, tmp.path()), UsageError);
+  EXPECT_THROW(chronomap::simulate(s, tmp.path()), UsageError);
   s.preset = "tiny";
   s.resolution_scale = 3.0;
-  EXPECT_THROW(sim::simulate(s, tmp.path()), UsageError);
+  EXPECT_THROW(chronomap::simulate(s, tmp.path()), UsageError);
   s.resolution_scale = 0.25;
   s.sessions = -1;
-  EXPECT_THROW(sim::simulate(s, tmp.path()), UsageError);
+  EXPECT_THROW(chronomap::simulate(s, tmp.path()), UsageError);
 }
 
 }  // namespace

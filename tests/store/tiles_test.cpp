@@ -203,13 +203,13 @@ TEST_P(TilesProperty, AFolderJoinsBackToTheSameFile) {
   const TemporalMap map = randomMap(GetParam(), 4);
   test::TempDir dir;
   writeTemporalMap(dir / "map.cmap", map, {{"k", 1}});
-  pipeline::TileSettings s;
+  TileSettings s;
   s.map = dir / "map.cmap";
   s.folder = dir / "tiled";
   s.tile_size_m = 0.05 * (8 << (GetParam() % 3));
-  const pipeline::TileResult r = pipeline::tileMap(s);
+  const TileResult r = tileMap(s);
   EXPECT_GT(r.tiles, 0u);
-  EXPECT_EQ(pipeline::untileMap(dir / "tiled", dir / "back.cmap"), map.sessionCount());
+  EXPECT_EQ(untileMap(dir / "tiled", dir / "back.cmap"), map.sessionCount());
   EXPECT_TRUE(readTemporalMap(dir / "back.cmap") == map);
   writeTemporalMap(dir / "again.cmap", readTemporalMap(dir / "back.cmap"), {{"k", 1}});
   writeTemporalMap(dir / "orig.cmap", map, {{"k", 1}});
@@ -262,7 +262,7 @@ TEST(Tiles, AnObjectAcrossATileBorderIsOneObject) {
   writeTiledMap(dir / "tiled", splitIntoTiles(map, 2), nlohmann::json::object());
   TiledMap tiled(dir / "tiled", {0});
   DiffMap d;
-  const Segmentation seg = pipeline::segmentTiledDiff(tiled, sessionTime(0), sessionTime(1), {}, {}, std::nullopt, &d);
+  const Segmentation seg = segmentTiledDiff(tiled, sessionTime(0), sessionTime(1), {}, {}, std::nullopt, &d);
   std::vector<TileKey> touched;
   for (const ChangeCell& c : d.cells()) touched.push_back(tileOf(c.key, 2));
   std::sort(touched.begin(), touched.end());
@@ -301,11 +301,11 @@ TEST(Tiles, ARegionTouchesOnlyTheTilesItNeeds) {
 }
 
 TEST(Tiles, TileSizesArePowersOfTwoVoxels) {
-  EXPECT_EQ(pipeline::tileLevelFor(6.4, 0.05), 7);
-  EXPECT_EQ(pipeline::tileLevelFor(0.1, 0.05), 1);
-  EXPECT_THROW(pipeline::tileLevelFor(5.0, 0.05), UsageError);
-  EXPECT_THROW(pipeline::tileLevelFor(0.05, 0.05), UsageError);  // one voxel
-  EXPECT_THROW(pipeline::tileLevelFor(-1.0, 0.05), UsageError);
+  EXPECT_EQ(tileLevelFor(6.4, 0.05), 7);
+  EXPECT_EQ(tileLevelFor(0.1, 0.05), 1);
+  EXPECT_THROW(tileLevelFor(5.0, 0.05), UsageError);
+  EXPECT_THROW(tileLevelFor(0.05, 0.05), UsageError);  // one voxel
+  EXPECT_THROW(tileLevelFor(-1.0, 0.05), UsageError);
   EXPECT_THROW(splitIntoTiles(TemporalMap(0.05), 0), UsageError);
 }
 
@@ -338,7 +338,7 @@ TEST(Tiles, BadInputGivesOneClearError) {
   }
   fs::remove(dir / "tiled" / index.tiles[0].latest->file);
   EXPECT_THROW(tiled.snapshot(sessionTime(2)), IoError);
-  EXPECT_THROW(pipeline::untileMap(dir / "tiled", dir / "x.cmap"), IoError);
+  EXPECT_THROW(untileMap(dir / "tiled", dir / "x.cmap"), IoError);
 
   // A tile changed after the index was written.
   std::vector<uint8_t> bytes = test::bytesOf(dir / "tiled" / index.tiles[1].file);

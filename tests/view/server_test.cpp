@@ -22,7 +22,7 @@
 // After Eigen: httplib.h includes <resolv.h>, whose macro _res breaks Eigen's headers.
 #include <httplib.h>
 
-namespace chronomap::view {
+namespace chronomap {
 namespace {
 
 TemporalMap threeSessions() {
@@ -234,4 +234,4 @@ TEST(ViewCli, ExportHtmlWritesATourAndRefusesSessionMapsForIt) {
 }
 
 }  // namespace
-}  // namespace chronomap::view
+}  // namespace chronomap

@@ -16,7 +16,7 @@
 #include "pipeline/demo_report.h"
 #include "test_support.h"
 
-namespace chronomap::view {
+namespace chronomap {
 namespace {
 
 using test::randomSessionMap;
@@ -129,7 +129,7 @@ TEST(ViewPacket, RoundTripAndBadInput) {
 TEST(ViewDiff, SameObjectsAsDiffAndSegmentWithTheDemosSettings) {
   const TemporalMap map = fourSessions();
   // The viewer's defaults are the demo's, which docs/changes.md measured.
-  const auto demo = pipeline::demoChangeSettings();
+  const auto demo = demoChangeSettings();
   const DiffRequest defaults = changeSettings();
   EXPECT_EQ(defaults.diff.mode, demo.diff.mode);
   EXPECT_EQ(defaults.diff.neighbourhood_voxels, demo.diff.neighbourhood_voxels);
@@ -341,23 +341,23 @@ TEST(ViewTour, HoldsEverySessionsOccupiedVoxelsAndTheBundle) {
   const std::string html(bytes.begin(), bytes.end());
   EXPECT_EQ(r.bytes, html.size());
   EXPECT_NE(html.find(R"(<script type="application/octet-stream" id="chronomap-data">)"), std::string::npos);
-  EXPECT_NE(html.find(assets::base64(tourData(map, "four.cmap", TourSettings{}))), std::string::npos);
-  EXPECT_NE(html.find(assets::inlineScript(viewerScript())), std::string::npos);
+  EXPECT_NE(html.find(viewer_assets::base64(tourData(map, "four.cmap", TourSettings{}))), std::string::npos);
+  EXPECT_NE(html.find(viewer_assets::inlineScript(viewerScript())), std::string::npos);
   EXPECT_EQ(html.find("<!--CHRONOMAP_"), std::string::npos);
   EXPECT_EQ(html.find("viewer.js\""), std::string::npos);  // nothing loaded from beside it
 }
 
 TEST(ViewAssets, Base64AndScriptEscaping) {
-  EXPECT_EQ(assets::base64(""), "");
-  EXPECT_EQ(assets::base64("f"), "Zg==");
-  EXPECT_EQ(assets::base64("fo"), "Zm8=");
-  EXPECT_EQ(assets::base64("foo"), "Zm9v");
-  EXPECT_EQ(assets::base64(std::string("\xff\x00\x80", 3)), "/wCA");
-  EXPECT_EQ(assets::inlineScript("a='</script><!--'"), "<script>a='<\\/script><\\!--'</script>");
+  EXPECT_EQ(viewer_assets::base64(""), "");
+  EXPECT_EQ(viewer_assets::base64("f"), "Zg==");
+  EXPECT_EQ(viewer_assets::base64("fo"), "Zm8=");
+  EXPECT_EQ(viewer_assets::base64("foo"), "Zm9v");
+  EXPECT_EQ(viewer_assets::base64(std::string("\xff\x00\x80", 3)), "/wCA");
+  EXPECT_EQ(viewer_assets::inlineScript("a='</script><!--'"), "<script>a='<\\/script><\\!--'</script>");
   // The committed bundle is the one built in.
   const auto committed = test::bytesOf(std::filesystem::path(CHRONOMAP_SOURCE_DIR) / "viewer/dist/viewer.js");
-  EXPECT_EQ(std::string(committed.begin(), committed.end()), std::string(assets::viewerScript()));
+  EXPECT_EQ(std::string(committed.begin(), committed.end()), std::string(viewer_assets::viewerScript()));
 }
 
 }  // namespace
-}  // namespace chronomap::view
+}  // namespace chronomap

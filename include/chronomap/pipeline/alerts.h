@@ -11,7 +11,7 @@
 #include "chronomap/analysis/alerts.h"
 #include "chronomap/temporal/temporal_map.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 /// The first `top` alerts of `report` (all when `top` is 0) as JSON: rank, score in bits,
 /// probability, reason, the evidence counts and the object's component fields.
@@ -26,4 +26,4 @@ nlohmann::json alertsJson(const AlertReport& report, size_t top);
 void writeAlerts(const std::filesystem::path& folder, const TemporalMap& map, const AlertReport& report, size_t top,
                  const std::string& source);
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

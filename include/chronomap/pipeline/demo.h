@@ -9,7 +9,7 @@
 
 #include "chronomap/pipeline/progress.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 /// What runDemo() does.
 struct DemoSettings {
@@ -43,4 +43,4 @@ struct DemoResult {
 /// writes report.md with pictures and tour.html, the map in the viewer as one file.
 DemoResult runDemo(const DemoSettings& settings);
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

@@ -17,7 +17,7 @@
 
 #include "chronomap/pipeline/map4d.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 /// Which rank integrates each recording, from the bytes each holds on disk: largest first, each
 /// to the rank with the fewest bytes so far (ties: the lower rank), so that the ranks finish
@@ -66,4 +66,4 @@ class RankStopped : public std::exception {
 /// error of the first in the given order); RankStopped on the others.
 std::optional<BuildResult> buildOnRanks(const BuildSettings& settings, const Ranks& ranks);
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

@@ -18,7 +18,7 @@
 #include "chronomap/pipeline/session.h"
 #include "chronomap/temporal/temporal_map.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 /// What build() does.
 struct BuildSettings {
@@ -114,4 +114,4 @@ AddSessionResult addSession(const AddSessionSettings& settings);
 TemporalMap openOrCreate(const std::filesystem::path& path, double resolution_m, const ChangeCriterion& criterion,
                          bool& created, TemporalFileLayout* layout = nullptr);
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

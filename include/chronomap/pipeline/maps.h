@@ -20,7 +20,7 @@
 #include "chronomap/pipeline/tiles.h"
 #include "chronomap/temporal/temporal_map.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 /// A session map file, or a 4D map file at a time.
 struct MapRef {
@@ -84,4 +84,4 @@ nlohmann::json segmentationJson(const Segmentation& segmentation, const SegmentS
 void writeComponents(const std::filesystem::path& folder, const DiffMap& diff, const Segmentation& segmentation,
                      const std::string& source, const nlohmann::json& summary);
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

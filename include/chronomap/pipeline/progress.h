@@ -7,7 +7,7 @@
 #include <functional>
 #include <string>
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 /// Callbacks for long work; either may be empty.
 struct Progress {
@@ -25,4 +25,4 @@ struct Progress {
   }
 };
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

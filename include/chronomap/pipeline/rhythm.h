@@ -14,7 +14,7 @@
 #include "chronomap/analysis/rhythm.h"
 #include "chronomap/temporal/temporal_map.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 /// Where learnRhythm() takes the models from.
 struct LearnSettings {
@@ -58,8 +58,8 @@ CostmapFiles costmapFiles(const std::filesystem::path& yaml);
 struct CostmapCounts {
   size_t unknown = 0, free = 0, costly = 0, blocked = 0;
 };
-/// Writes `costmap` as `files` (writeMapServer and render::renderCostmap), each atomically.
+/// Writes `costmap` as `files` (writeMapServer and renderCostmap), each atomically.
 /// @throw DataError naming `source` when the costmap is empty (nothing known in its band).
 CostmapCounts writeCostmap(const CostmapFiles& files, const Costmap& costmap, const std::string& source);
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

@@ -22,7 +22,7 @@
 #include "chronomap/octree/session_map.h"
 #include "chronomap/pipeline/progress.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 /// How a recording becomes a session map: how it is read, and how it is integrated.
 struct SessionSettings {
@@ -90,4 +90,4 @@ std::vector<PoseCorrection> registerDatasets(std::vector<SessionMap>& maps, std:
                                              const SessionSettings& settings, const RegistrationSettings& registration,
                                              std::vector<RegisterReport>* reports = nullptr);
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

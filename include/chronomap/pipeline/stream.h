@@ -20,7 +20,7 @@
 #include "chronomap/pipeline/map4d.h"
 #include "chronomap/temporal/temporal_map.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 /// One session for streamIntoTiles.
 struct StreamSession {
@@ -88,4 +88,4 @@ StreamResult streamBuild(const BuildSettings& settings, std::optional<double> ti
 /// neither given nor recorded; what streamIntoTiles throws.
 StreamResult streamAddSession(const AddSessionSettings& settings, size_t memory_limit_bytes);
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

@@ -23,7 +23,7 @@
 #include "chronomap/temporal/temporal_map.h"
 #include "chronomap/temporal/tiles.h"
 
-namespace chronomap::pipeline {
+namespace chronomap {
 
 /// The tile edge tileMap() uses unless told: 128 voxels (6.4 m at 5 cm), about a room.
 inline constexpr int kDefaultTileLevel = 7;
@@ -102,4 +102,4 @@ struct VoxelHistory {
 VoxelHistory historyOfMap(const std::filesystem::path& path, const Eigen::Vector3d& point_m,
                           const TileCacheSettings& cache = {});
 
-}  // namespace chronomap::pipeline
+}  // namespace chronomap

@@ -5,7 +5,7 @@
 #include "chronomap/core/counters.h"
 #include "chronomap/core/image.h"
 
-namespace chronomap::render {
+namespace chronomap {
 
 /// Blue (t = 0) through green to red (t = 1); t is clamped to [0, 1].
 Rgb heatColor(double t);
@@ -14,4 +14,4 @@ Rgb heatColor(double t);
 /// black. `depth_scale` is the image's units per metre.
 ImageRgb colorizeDepth(const ImageU16& depth, double depth_scale);
 
-}  // namespace chronomap::render
+}  // namespace chronomap

@@ -7,7 +7,7 @@
 
 #include "chronomap/core/image.h"
 
-namespace chronomap::render {
+namespace chronomap {
 
 /// Draws `text` with the built-in font at pixel (x, y) (top left), scaled by `scale`.
 /// Lower-case letters are drawn as capitals; characters without a glyph as a box.
@@ -19,4 +19,4 @@ void fillRect(ImageRgb& image, int x0, int y0, int x1, int y1, Rgb color);
 /// Draws a line (Bresenham), clipped to the image, `thickness` pixels wide.
 void drawLine(ImageRgb& image, int x0, int y0, int x1, int y1, Rgb color, int thickness = 1);
 
-}  // namespace chronomap::render
+}  // namespace chronomap

@@ -8,7 +8,7 @@
 #include "chronomap/core/image.h"
 #include "chronomap/temporal/temporal_map.h"
 
-namespace chronomap::render {
+namespace chronomap {
 
 /// One line of a plot.
 struct PlotSeries {
@@ -39,4 +39,4 @@ ImageRgb renderStoragePlot(const std::vector<double>& separate, const std::vecto
 /// added to the map, summed in time order. @throw DataError when the map holds no session.
 ImageRgb renderStoragePlot(const TemporalMap& map);
 
-}  // namespace chronomap::render
+}  // namespace chronomap

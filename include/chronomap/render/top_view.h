@@ -12,7 +12,7 @@
 #include "chronomap/core/image.h"
 #include "chronomap/octree/session_map.h"
 
-namespace chronomap::render {
+namespace chronomap {
 
 /// Settings of a top-view picture.
 struct TopViewSettings {
@@ -46,4 +46,4 @@ ImageRgb renderChangeView(const SessionMap& background, const DiffMap& diff, con
 ImageRgb renderPointsTopView(const std::vector<Eigen::Vector3f>& points, const std::vector<Rgb>& colors,
                              double metres_per_pixel);
 
-}  // namespace chronomap::render
+}  // namespace chronomap

@@ -10,7 +10,7 @@
 
 #include "chronomap/core/frame.h"
 
-namespace chronomap::sim {
+namespace chronomap {
 
 /// An axis-aligned box with one colour.
 struct Box {
@@ -46,4 +46,4 @@ Frame renderFrame(const BoxRoom& room, const PinholeCamera& camera, const Eigen:
 /// moving on a 0.3 m circle, with Kinect-like noise (1.4 mm z^2). Deterministic.
 std::vector<Frame> benchmarkSequence(size_t frames, const PinholeCamera& camera = {});
 
-}  // namespace chronomap::sim
+}  // namespace chronomap

@@ -15,7 +15,7 @@
 #include "chronomap/sim/scene.h"
 #include "chronomap/sim/truth.h"
 
-namespace chronomap::sim {
+namespace chronomap {
 
 /// Settings of a simulation. Presets: "tiny" (one room), "office" (three rooms and a corridor,
 /// the demo), "floor66" (40 x 20 m, 16 rooms, 66 sessions over 45 days), "weeks" (the office
@@ -33,7 +33,7 @@ struct SimulationSettings {
   double localisation_yaw_deg = 0.3;     ///< sigma of the per-session heading offset
   double drift_per_frame_m = 0.002;      ///< sigma of the position random walk per frame
   int threads = 0;                ///< 0: all cores
-  /// "weeks" only: rare events on top of the routines (sim::rareEventOf), labelled "rare" in
+  /// "weeks" only: rare events on top of the routines (rareEventOf), labelled "rare" in
   /// scene.json. Off, the simulation is what it was before rare events existed.
   bool rare_events = false;
   /// "fixed" (the default): lightingAt(hour), the same everywhere, as before lighting could be
@@ -70,4 +70,4 @@ using SimulationProgress = std::function<void(size_t, size_t)>;
 SimulationSummary simulate(const SimulationSettings& settings, const std::filesystem::path& out,
                            const SimulationProgress& progress = {});
 
-}  // namespace chronomap::sim
+}  // namespace chronomap

@@ -12,7 +12,7 @@
 #include "chronomap/octree/session_map.h"
 #include "chronomap/sim/scene.h"
 
-namespace chronomap::sim {
+namespace chronomap {
 
 /// Reads the change events simulate() wrote into a simulation's scene.json.
 /// @throw IoError, FormatError naming the file (unknown object or event kinds included).
@@ -58,4 +58,4 @@ struct ChangeScore {
 ChangeScore scoreChanges(const DiffMap& diff, const Segmentation& segmentation, const std::vector<ChangeEvent>& events,
                          const SessionMap& before, const SessionMap& after, const ChangeScoreSettings& settings = {});
 
-}  // namespace chronomap::sim
+}  // namespace chronomap

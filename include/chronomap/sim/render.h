@@ -11,7 +11,7 @@
 #include "chronomap/core/image.h"
 #include "chronomap/sim/scene.h"
 
-namespace chronomap::sim {
+namespace chronomap {
 
 /// Pinhole camera in the optical frame (x right, y down, z forward).
 struct Camera {
@@ -93,4 +93,4 @@ class Renderer {
 Eigen::Vector3d lightingAt(double hour);
 
 
-}  // namespace chronomap::sim
+}  // namespace chronomap

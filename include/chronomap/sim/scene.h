@@ -15,7 +15,7 @@
 #include "chronomap/core/key.h"
 #include "chronomap/core/counters.h"
 
-namespace chronomap::sim {
+namespace chronomap {
 
 /// What an object is; change processes act by kind.
 enum class ObjectKind : uint8_t { Floor, Wall, Door, Desk, Chair, Shelf, Table, Box, Person, Robot, Cart };
@@ -158,4 +158,4 @@ SceneState makeScene(const std::string& preset, uint64_t seed);
 /// their event kinds. A session may have no change at all.
 std::vector<std::pair<uint32_t, EventKind>> applyChanges(SceneState& state, uint64_t seed, int session);
 
-}  // namespace chronomap::sim
+}  // namespace chronomap

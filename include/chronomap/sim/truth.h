@@ -10,7 +10,7 @@
 #include "chronomap/octree/session_map.h"
 #include "chronomap/sim/scene.h"
 
-namespace chronomap::sim {
+namespace chronomap {
 
 /// Unit voxels that overlap a present part, parts being solid (the ground-truth occupancy),
 /// sorted in Morton order.
@@ -29,4 +29,4 @@ struct OccupancyScore {
 /// Scores `map` against truth voxels sorted in Morton order (truthOccupancy's order).
 OccupancyScore scoreOccupancy(const SessionMap& map, const std::vector<VoxelKey>& truth);
 
-}  // namespace chronomap::sim
+}  // namespace chronomap

@@ -15,7 +15,7 @@
 #include "chronomap/temporal/temporal_map.h"
 #include "chronomap/view/scene.h"
 
-namespace chronomap::view {
+namespace chronomap {
 
 /// Limits of the API: what a request may ask for.
 struct ApiSettings {
@@ -112,4 +112,4 @@ std::string_view viewerScript();
 /// that opens with no server (tour.h).
 std::string selfContainedPage(const std::string& data);
 
-}  // namespace chronomap::view
+}  // namespace chronomap

@@ -12,7 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
-namespace chronomap::view {
+namespace chronomap {
 
 /// Magic of a packet: "CMV1" (chronomap view, version 1).
 inline constexpr char kPacketMagic[4] = {'C', 'M', 'V', '1'};
@@ -71,4 +71,4 @@ std::vector<T> Packet::values(const std::string& name) const {
   return out;
 }
 
-}  // namespace chronomap::view
+}  // namespace chronomap

@@ -19,7 +19,7 @@
 #include "chronomap/core/key.h"
 #include "chronomap/temporal/temporal_map.h"
 
-namespace chronomap::view {
+namespace chronomap {
 
 /// The coarsest level of detail the viewer uses: cubes of 2^8 voxels per axis.
 inline constexpr int kMaxLevel = 8;
@@ -97,4 +97,4 @@ nlohmann::json historyJson(const TemporalMap& map, const VoxelKey& corner, int l
 /// node counts.
 nlohmann::json mapInfoJson(const TemporalMap& map, const std::string& name);
 
-}  // namespace chronomap::view
+}  // namespace chronomap

@@ -9,7 +9,7 @@
 #include "chronomap/temporal/temporal_map.h"
 #include "chronomap/view/api.h"
 
-namespace chronomap::view {
+namespace chronomap {
 
 /// Where and how the server listens.
 struct ServerSettings {
@@ -42,4 +42,4 @@ class Server {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace chronomap::view
+}  // namespace chronomap

@@ -14,7 +14,7 @@
 #include "chronomap/temporal/temporal_map.h"
 #include "chronomap/view/scene.h"
 
-namespace chronomap::view {
+namespace chronomap {
 
 /// Bounds of a tour, so that the file stays small enough to send.
 struct TourSettings {
@@ -27,7 +27,7 @@ struct TourSettings {
   size_t max_bytes = size_t{48} << 20;
   /// Changed cells per diff (the objects are always kept whole).
   size_t max_diff_cells = 100000;
-  /// How diffs are computed and segmented (view::changeSettings() by default).
+  /// How diffs are computed and segmented (changeSettings() by default).
   DiffSettings diff = changeSettings().diff;
   SegmentSettings segment = changeSettings().segment;
 };
@@ -58,4 +58,4 @@ std::string tourData(const TemporalMap& map, const std::string& name, const Tour
 TourReport writeTour(const std::filesystem::path& path, const TemporalMap& map, const std::string& name,
                      const TourSettings& settings = {});
 
-}  // namespace chronomap::view
+}  // namespace chronomap

@@ -74,10 +74,10 @@ class BagFixture : public ::testing::Test {
     return s;
   }
   static std::vector<uint8_t> mapBytes(const std::filesystem::path& path, const DatasetSettings& dataset) {
-    pipeline::SessionSettings s;
+    SessionSettings s;
     s.dataset = dataset;
     s.integrator.threads = 2;
-    return encodeSessionMap(pipeline::integrateDataset(path, s).map, nlohmann::json::object());
+    return encodeSessionMap(integrateDataset(path, s).map, nlohmann::json::object());
   }
 
   static inline test::TempDir* dir_ = nullptr;

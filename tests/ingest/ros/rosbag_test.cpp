@@ -131,10 +131,10 @@ TEST_F(RosBagTest, TfPosesAreInterpolatedWithinATolerance) {
     EXPECT_LT((a.translation() - b.translation()).norm(), 1e-8) << i;
     EXPECT_LT(Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle(), 1e-8) << i;
   }
-  pipeline::SessionSettings settings;
-  const auto tum_map = pipeline::integrateDataset(tum(), settings).map;
+  SessionSettings settings;
+  const auto tum_map = integrateDataset(tum(), settings).map;
   settings.dataset = s;
-  const auto bag_map = pipeline::integrateDataset(bag("tf.bag"), settings).map;
+  const auto bag_map = integrateDataset(bag("tf.bag"), settings).map;
   EXPECT_EQ(bag_map.counts().occupied_voxels, tum_map.counts().occupied_voxels);
   EXPECT_EQ(bag_map.counts().free_voxels, tum_map.counts().free_voxels);
 }
@@ -195,9 +195,9 @@ TEST_F(RosBagTest, NanDepthPixelsAreInvalidPoints) {
   const Frame f = dataset->load(0);
   const size_t half = size_t{f.cloud.width} * (f.cloud.height / 2);
   for (size_t p = 0; p < half; ++p) ASSERT_TRUE(std::isnan(f.cloud.points[p].z())) << p;
-  pipeline::SessionSettings s;
-  const auto full = pipeline::integrateDataset(tum(), s);
-  const auto halved = pipeline::integrateDataset(bag("float_nan.bag"), s);
+  SessionSettings s;
+  const auto full = integrateDataset(tum(), s);
+  const auto halved = integrateDataset(bag("float_nan.bag"), s);
   EXPECT_EQ(halved.stats.points + halved.stats.pointsSkipped(), full.stats.points + full.stats.pointsSkipped());
   EXPECT_GT(halved.stats.points_invalid, full.stats.points_invalid + full.stats.points / 3);
 }
@@ -374,9 +374,9 @@ TEST_F(RosBagTest, RealThreeDMatchFramesFromABagGiveTheFoldersMap) {
   const Frame a = from_folder->load(1), b = from_bag->load(1);
   EXPECT_EQ(std::memcmp(a.cloud.points.data(), b.cloud.points.data(), a.cloud.size() * sizeof(a.cloud.points[0])), 0);
   EXPECT_TRUE(a.cloud.colors == b.cloud.colors);
-  pipeline::SessionSettings s;
-  const auto folder_map = pipeline::integrateDataset(root, s).map;
-  const auto bag_map = pipeline::integrateDataset(real, s).map;
+  SessionSettings s;
+  const auto folder_map = integrateDataset(root, s).map;
+  const auto bag_map = integrateDataset(real, s).map;
   EXPECT_EQ(bag_map.counts().occupied_voxels, folder_map.counts().occupied_voxels);
   EXPECT_EQ(bag_map.counts().free_voxels, folder_map.counts().free_voxels);
   RecordProperty("byte_identical", encodeSessionMap(bag_map, {}) == encodeSessionMap(folder_map, {}) ? "yes" : "no");
