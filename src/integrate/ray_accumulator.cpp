@@ -196,15 +196,14 @@ inline uint64_t packCell(int64_t x, int64_t y, int64_t z) {
 /// coordinates (truncation is then floor) and small magnitudes keep float precision.
 struct WorkingFrame {
   int64_t bias = 0;
-  int64_t side = 0;         // of the range cube around the origin: 2 * bias + 1
+  int64_t side = 0;           // of the range cube around the origin: 2 * bias + 1
   int64_t oc[3] = {0, 0, 0};  // key of working cell 0
   double o[3] = {0, 0, 0};    // origin in the working frame
-  bool cube_inside = true;  // the whole range cube lies inside the map
-  float Rm[9] = {};         // sensor metres -> voxel units, row-major
-  float of[3] = {};         // the origin, as float
+  bool cube_inside = true;    // the whole range cube lies inside the map
+  float Rm[9] = {};           // sensor metres -> voxel units, row-major
+  float of[3] = {};           // the origin, as float
   float max_range = 0.0f, max_range_sq = 0.0f;
-  size_t n = 0;             // points in the cloud
-  bool colors = false;
+  bool colors = false;        // the cloud has colours
 };
 
 }  // namespace
@@ -753,7 +752,6 @@ WorkingFrame RayAccumulator::Impl::setUp(const Frame& frame) {
     for (int c = 0; c < 3; ++c) rotation[3 * r + c] = rotation_u(r, c);
   }
   w.colors = cloud->hasColors();
-  w.n = cloud->points.size();
   ends.assign(1, EndEntry{});
   w.side = 2 * w.bias + 1;
   return w;
@@ -796,7 +794,7 @@ void RayAccumulator::Impl::accumulateCube(const WorkingFrame& w, VoxelDeltas& ou
 uint64_t RayAccumulator::Impl::bundleCube(const WorkingFrame& w, int32_t lo[3], int32_t hi[3],
                                           IntegrationStats& st) {
   const PointCloud& c_cloud = *cloud;
-  const size_t n = w.n;
+  const size_t n = c_cloud.points.size();
   cube.ensure(w.side);
   const int64_t sy = w.side, sz = w.side * w.side;
   uint32_t* end = cube.end.data();
@@ -838,12 +836,13 @@ uint64_t RayAccumulator::Impl::bundleCube(const WorkingFrame& w, int32_t lo[3], 
 bool RayAccumulator::Impl::accumulateBox(const WorkingFrame& w, VoxelDeltas& out) {
   IntegrationStats& st = out.stats;
   const PointCloud& c_cloud = *cloud;
-  const size_t n = w.n;
+  const size_t n = c_cloud.points.size();
+  if (n == 0) return false;  // keeps no point: the point list takes the frame, as below
   int32_t lo[3], hi[3];
   for (int a = 0; a < 3; ++a) lo[a] = hi[a] = static_cast<int32_t>(w.o[a]);
   uint64_t out_of_range = 0;
-  const uint64_t kept = pointBox(c_cloud.points.empty() ? nullptr : c_cloud.points[0].data(), n, w.Rm, w.of,
-                                 w.max_range_sq, lo, hi, &out_of_range);
+  const uint64_t kept =
+      pointBox(c_cloud.points[0].data(), n, w.Rm, w.of, w.max_range_sq, lo, hi, &out_of_range);
   const double cells = static_cast<double>(hi[0] - lo[0] + 1) * static_cast<double>(hi[1] - lo[1] + 1) *
                        static_cast<double>(hi[2] - lo[2] + 1);
   if (!(kept > 0 && cells <= static_cast<double>(settings.dense_grid_max_cells))) return false;
@@ -877,8 +876,9 @@ void RayAccumulator::Impl::listPoints(const WorkingFrame& w, int32_t lo[3], int3
   const PointCloud& c_cloud = *cloud;
   const int64_t* oc = w.oc;
   points.clear();
-  points.reserve(w.n);
-  for (size_t i = 0; i < w.n; ++i) {
+  const size_t n = c_cloud.points.size();
+  points.reserve(n);
+  for (size_t i = 0; i < n; ++i) {
     const Eigen::Vector3f& p = c_cloud.points[i];
     const float r2 = p.squaredNorm();
     if (!(r2 <= w.max_range_sq && r2 > 0.0f)) {
