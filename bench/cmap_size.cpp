@@ -200,7 +200,7 @@ int main(int argc, char** argv) {
           const Eigen::Vector3f& p = f.cloud.points[k];
           if (!p.allFinite() || p.norm() > 3.0f || p.norm() == 0.0f) continue;
           kept.points.push_back(p);
-          if (f.cloud.hasColors()) kept.colors.push_back(f.cloud.colors[k]);
+          if (f.cloud.hasColours()) kept.colours.push_back(f.cloud.colours[k]);
         }
         kept.width = static_cast<uint32_t>(kept.points.size());
         f.cloud = std::move(kept);

@@ -244,10 +244,10 @@ int main(int argc, char** argv) {
       const auto last = latest_map.find(leaf.key);
       if (!last || last->hits == 0 || last->state() != VoxelState::Occupied) return;
       if (nearChange(leaf.key, moved) || nearChange(leaf.key, repainted)) return;
-      const Rgb observed = leaf.counters.meanColor();
+      const Rgb observed = leaf.counters.meanColour();
       em += rgbDistance(clamp255(model.predict(*v, hour)), observed);
       en += rgbDistance(mean[*v], observed);
-      const Rgb l = last->meanColor();
+      const Rgb l = last->meanColour();
       el += rgbDistance({double(l.r), double(l.g), double(l.b)}, observed);
       ++k;
     });

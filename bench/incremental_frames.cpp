@@ -63,14 +63,14 @@ int main(int argc, char** argv) {
     }
   }
   const auto depths = parseStampedList(readTextFile(folder / "depth.txt"), "depth.txt");
-  const auto colors = parseStampedList(readTextFile(folder / "rgb.txt"), "rgb.txt");
+  const auto colours = parseStampedList(readTextFile(folder / "rgb.txt"), "rgb.txt");
   const fs::path traj = fs::exists(folder / "trajectory.txt") ? folder / "trajectory.txt" : folder / "groundtruth.txt";
   const auto poses = parseTumTrajectory(readTextFile(traj), traj.string());
   const CameraIntrinsics k = readIntrinsicsFile(folder / "camera-intrinsics.txt");
   std::vector<DecodedFrame> frames;
   for (const auto& d : depths) {
     if (frames.size() >= max_frames) break;
-    frames.push_back({readPngU16(folder / d.name), readPngRgb(folder / nearest(colors, d.t).name),
+    frames.push_back({readPngU16(folder / d.name), readPngRgb(folder / nearest(colours, d.t).name),
                       nearest(poses, d.t).pose});
   }
   IntegratorSettings settings;

@@ -51,7 +51,7 @@ Input prepare(std::string name, std::vector<Frame> frames) {
       const Eigen::Vector3d w = f.T_world_sensor * p.cast<double>();
       pc.push_back(static_cast<float>(w.x()), static_cast<float>(w.y()), static_cast<float>(w.z()));
       kept.points.push_back(p);
-      if (f.cloud.hasColors()) kept.colors.push_back(f.cloud.colors[i]);
+      if (f.cloud.hasColours()) kept.colours.push_back(f.cloud.colours[i]);
     }
     kept.width = static_cast<uint32_t>(kept.points.size());
     in.points += kept.points.size();

@@ -90,9 +90,9 @@ Input prepare(std::string name, std::vector<Frame> frames) {
       pc.push_back(x, y, z);
       pf.xyz.insert(pf.xyz.end(), {x, y, z});
       kept.points.push_back(p);
-      if (f.cloud.hasColors()) {
-        kept.colors.push_back(f.cloud.colors[i]);
-        const Rgb& c = f.cloud.colors[i];
+      if (f.cloud.hasColours()) {
+        kept.colours.push_back(f.cloud.colours[i]);
+        const Rgb& c = f.cloud.colours[i];
         pf.rgb.insert(pf.rgb.end(), {c.r, c.g, c.b});
       } else {
         pf.rgb.insert(pf.rgb.end(), 3, 128);

@@ -224,7 +224,7 @@ Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bo
   std::printf("\ndefaults (%s, alpha %.4g, d_max %.3g voxels, epsilon %.3g, consensus occupied above %.4g, "
               "weights %.3g/%.3g/%.3g):\n",
               moveName(defaults.move), defaults.alpha, defaults.max_distance_voxels, defaults.epsilon,
-              defaults.consensus_occupied_above, defaults.weight_distance, defaults.weight_color,
+              defaults.consensus_occupied_above, defaults.weight_distance, defaults.weight_colour,
               defaults.weight_probability);
   std::printf("  as recorded: %llu true + %llu false changed voxels; 4D map %llu nodes, %.0f added per session\n",
               (unsigned long long)plain.true_changes, (unsigned long long)plain.false_changes,

@@ -52,12 +52,12 @@ constexpr double kResolution = 0.05;
 
 struct Box {
   int x, y, sx, sy, sz;
-  Rgb color;
+  Rgb colour;
 };
 
 struct World {
   std::vector<uint8_t> cell;  // 0 free, 1 occupied, 2 unobservable (inside a box)
-  std::vector<Rgb> color;
+  std::vector<Rgb> colour;
   std::vector<Box> boxes;
   std::vector<bool> door_open;
   uint8_t at(int x, int y, int z) const { return cell[(static_cast<size_t>(z) * kY + y) * kX + x]; }
@@ -68,12 +68,12 @@ const int kDoorY[] = {64, 64, 64, 128, 128, 128};
 
 void rasterise(World& w) {
   w.cell.assign(static_cast<size_t>(kX) * kY * kZ, 0);
-  w.color.assign(w.cell.size(), Rgb{});
+  w.colour.assign(w.cell.size(), Rgb{});
   auto set = [&](int x, int y, int z, uint8_t v, Rgb c) {
     if (x < 0 || y < 0 || z < 0 || x >= kX || y >= kY || z >= kZ) return;
     const size_t i = (static_cast<size_t>(z) * kY + y) * kX + x;
     w.cell[i] = v;
-    w.color[i] = c;
+    w.colour[i] = c;
   };
   for (int y = 0; y < kY; ++y) {
     for (int x = 0; x < kX; ++x) set(x, y, 0, 1, Rgb{120, 110, 100});  // floor
@@ -98,7 +98,7 @@ void rasterise(World& w) {
       for (int y = b.y; y < b.y + b.sy; ++y) {
         for (int x = b.x; x < b.x + b.sx; ++x) {
           const bool shell = z == b.sz || y == b.y || y == b.y + b.sy - 1 || x == b.x || x == b.x + b.sx - 1;
-          set(x, y, z, shell ? 1 : 2, b.color);
+          set(x, y, z, shell ? 1 : 2, b.colour);
         }
       }
     }
@@ -112,7 +112,7 @@ Box randomBox(std::mt19937_64& rng) {
   b.sz = 4 + static_cast<int>(rng() % 14);
   b.x = static_cast<int>(rng() % static_cast<uint64_t>(kX - b.sx));
   b.y = static_cast<int>(rng() % static_cast<uint64_t>(kY - b.sy));
-  b.color = Rgb{static_cast<uint8_t>(rng()), static_cast<uint8_t>(rng()), static_cast<uint8_t>(rng())};
+  b.colour = Rgb{static_cast<uint8_t>(rng()), static_cast<uint8_t>(rng()), static_cast<uint8_t>(rng())};
   return b;
 }
 
@@ -130,7 +130,7 @@ SessionMap observe(const World& w, std::mt19937_64& rng) {
         if (u(rng) < 0.0005) c = c ? 0 : 1;  // sensor noise
         VoxelCounters v;
         if (c == 1) {
-          const Rgb col = w.color[(static_cast<size_t>(z) * kY + y) * kX + x];
+          const Rgb col = w.colour[(static_cast<size_t>(z) * kY + y) * kX + x];
           v.hits = 3;
           v.length_m = 0.1f;
           v.red = 3u * col.r;

@@ -127,7 +127,7 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
 #elif defined(FUZZ_XYZ)
   parseXyz(std::string(bytes.begin(), bytes.end()), name);
 #elif defined(FUZZ_PNG)
-  // Colour frames: PNG or JPEG, as readColorImage tells them apart; depth is PNG only.
+  // Colour frames: PNG or JPEG, as readColourImage tells them apart; depth is PNG only.
   if (looksLikeJpeg(bytes)) {
     decodeJpegRgb(bytes, name);
     return;
@@ -174,10 +174,10 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
       rosmsg::depthCloud(depth.view, nullptr, k, 1000.0, name);
       break;
     }
-    case 4: rosmsg::compressedColorImage({kFormats[bytes[6] % 6], data}, name); break;
+    case 4: rosmsg::compressedColourImage({kFormats[bytes[6] % 6], data}, name); break;
     case 1: {
       const rosmsg::ImageView im{height, width, kEncodings[bytes[6] % 9], big_endian, step, data};
-      rosmsg::colorImage(im, name);
+      rosmsg::colourImage(im, name);
       break;
     }
     default: {
@@ -205,7 +205,7 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
   switch (bytes[0] % 9) {
     case 0: {
       const auto im = cdr::image(msg, name);
-      rosmsg::colorImage(im.view, name);
+      rosmsg::colourImage(im.view, name);
       break;
     }
     case 1: {
@@ -217,7 +217,7 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
     case 3: cdr::cameraInfo(msg, name); break;
     case 4: cdr::tfMessage(msg, name); break;
     case 5: cdr::odometry(msg, name); break;
-    case 7: rosmsg::compressedColorImage(cdr::compressedImage(msg, name).view, name); break;
+    case 7: rosmsg::compressedColourImage(cdr::compressedImage(msg, name).view, name); break;
     case 8: {
       const auto depth = rosmsg::compressedDepthImage(cdr::compressedImage(msg, name).view, name);
       rosmsg::depthCloud(depth.view, nullptr, CameraIntrinsics{100.0, 100.0, 32.0, 24.0}, 1000.0, name);

@@ -77,7 +77,7 @@ int main(int argc, char** argv) {
   cloud.height = 3;
   for (int i = 0; i < 12; ++i) {
     cloud.points.emplace_back(0.1f * i, -0.05f * i, 1.0f + 0.01f * i);
-    cloud.colors.push_back(Rgb{static_cast<uint8_t>(20 * i), 7, 200});
+    cloud.colours.push_back(Rgb{static_cast<uint8_t>(20 * i), 7, 200});
     cloud.labels.push_back(static_cast<uint32_t>(i / 4));
   }
   cloud.points[5] = Eigen::Vector3f::Constant(std::numeric_limits<float>::quiet_NaN());

@@ -143,7 +143,7 @@ int runDiff(const DiffCmdOptions& o) {
 struct SegmentCmdOptions {
   std::string input;
   std::string connectivity = "face";
-  double color_tolerance = -1.0;
+  double colour_tolerance = -1.0;
   uint64_t min_voxels = 1;
   double min_value = SegmentSettings{}.min_value;
   std::string output_dir;
@@ -153,7 +153,7 @@ struct SegmentCmdOptions {
 int runSegment(const SegmentCmdOptions& o) {
   SegmentSettings settings;
   settings.connectivity = parseConnectivity(o.connectivity);
-  settings.color_tolerance = o.color_tolerance;
+  settings.colour_tolerance = o.colour_tolerance;
   settings.min_voxels = o.min_voxels;
   settings.min_value = o.min_value;
   settings.validate();
@@ -170,7 +170,7 @@ int runSegment(const SegmentCmdOptions& o) {
     return 0;
   }
   std::cout << seg.components.size() << " components (" << toString(settings.connectivity) << " connectivity";
-  if (settings.color_tolerance >= 0) std::cout << ", colour tolerance " << settings.color_tolerance;
+  if (settings.colour_tolerance >= 0) std::cout << ", colour tolerance " << settings.colour_tolerance;
   std::cout << ")";
   if (seg.dropped) std::cout << ", " << seg.dropped << " smaller than " << settings.min_voxels << " voxels dropped";
   std::cout << "\n";
@@ -185,8 +185,8 @@ int runSegment(const SegmentCmdOptions& o) {
               << std::setprecision(2) << std::setw(6) << c.centroid_m.x() << ", " << std::setw(6) << c.centroid_m.y()
               << ", " << std::setw(6) << c.centroid_m.z() << "   " << std::setw(5) << size.x() << ", "
               << std::setw(5) << size.y() << ", " << std::setw(5) << size.z() << "   #" << std::hex
-              << std::setfill('0') << std::setw(2) << int{c.mean_color.r} << std::setw(2) << int{c.mean_color.g}
-              << std::setw(2) << int{c.mean_color.b} << std::dec << std::setfill(' ') << "\n";
+              << std::setfill('0') << std::setw(2) << int{c.mean_colour.r} << std::setw(2) << int{c.mean_colour.g}
+              << std::setw(2) << int{c.mean_colour.b} << std::dec << std::setfill(' ') << "\n";
   }
   if (!o.output_dir.empty()) {
     std::cout << "wrote " << seg.components.size() << " components (.cmap and .ply each) and components.json to "
@@ -277,7 +277,7 @@ Command addSegment(CLI::App& root) {
   app->add_option("DIFF", o->input, "a diff written by chronomap diff (.cmap)")->required();
   app->add_option("--connectivity", o->connectivity, "face (6 neighbours), edge (18) or vertex (26)")
       ->capture_default_str();
-  app->add_option("--color-tolerance", o->color_tolerance,
+  app->add_option("--color-tolerance,--colour-tolerance", o->colour_tolerance,
                   "join neighbours only when their colours differ by at most this (RGB distance, 0..441; "
                   "leave it out to ignore colour)")
       ->check(numberIn(0, std::numeric_limits<double>::max()));

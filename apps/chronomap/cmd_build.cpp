@@ -58,7 +58,7 @@ void addCriterionFlags(CLI::App* app, ChangeCriterion& c) {
   app->add_option("--probability-threshold", c.probability_threshold,
                   "new map only: also store a change when P moves by more than this (0 = state only)")
       ->capture_default_str();
-  app->add_option("--color-distance", c.color_distance,
+  app->add_option("--color-distance,--colour-distance", c.colour_distance,
                   "new map only: also store a change when the mean colour moves farther than this "
                   "(8-bit RGB units; 0 = off)")
       ->capture_default_str();

@@ -235,7 +235,7 @@ namespace {
 void addBagFlags(CLI::App* app, IntegrateFlags& f) {
   const std::string detected = " (detected when the bag has only one)";
   app->add_option("--depth-topic", f.bag.depth_topic, "ROS bag: depth image topic, 16UC1 mm or 32FC1 m, or a compressedDepth CompressedImage topic" + detected);
-  app->add_option("--color-topic", f.bag.color_topic, "ROS bag: colour image topic (Image, or a JPEG/PNG CompressedImage); 'none' for no colour" + detected);
+  app->add_option("--color-topic,--colour-topic", f.bag.colour_topic, "ROS bag: colour image topic (Image, or a JPEG/PNG CompressedImage); 'none' for no colour" + detected);
   app->add_option("--info-topic", f.bag.info_topic,
                   "ROS bag: CameraInfo of the depth camera (default: camera_info beside the depth topic)");
   app->add_option("--cloud-topic", f.bag.cloud_topic, "ROS bag: PointCloud2 topic, read instead of depth images");

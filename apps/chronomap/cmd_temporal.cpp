@@ -115,7 +115,7 @@ void printHistoryJson(const Eigen::Vector3d& p, const Eigen::Vector3d& c, const 
                       const std::vector<HistoryEntry>& history) {
   nlohmann::json entries = nlohmann::json::array();
   for (const auto& e : history) {
-    const Rgb rgb = e.counters.meanColor();
+    const Rgb rgb = e.counters.meanColour();
     entries.push_back({{"time", formatTime(e.time_s)},
                        {"time_s", e.time_s},
                        {"state", toString(e.counters.state())},
@@ -141,7 +141,7 @@ void printHistory(const Eigen::Vector3d& c, const VoxelKey& key, const std::vect
     return;
   }
   for (const auto& e : history) {
-    const Rgb rgb = e.counters.meanColor();
+    const Rgb rgb = e.counters.meanColour();
     std::cout << "  " << formatTime(e.time_s) << "  " << std::setw(8) << std::left << toString(e.counters.state())
               << std::right << " P=" << std::fixed << std::setprecision(3) << e.counters.probability()
               << std::defaultfloat << "  hits=" << e.counters.hits;

@@ -38,11 +38,11 @@ DiffMap diffPy(const SessionMap& before, const SessionMap& after, const std::str
   return diff(before, after, settings);
 }
 
-py::list segmentPy(const DiffMap& changes, const std::string& connectivity, double color_tolerance,
+py::list segmentPy(const DiffMap& changes, const std::string& connectivity, double colour_tolerance,
                    uint64_t min_voxels, double min_value) {
   SegmentSettings settings;
   settings.connectivity = parseConnectivity(connectivity);
-  settings.color_tolerance = color_tolerance;
+  settings.colour_tolerance = colour_tolerance;
   settings.min_voxels = min_voxels;
   settings.min_value = min_value;
   Segmentation result;
@@ -105,8 +105,8 @@ void bindComponent(py::module_& m) {
       .def_property_readonly("bbox_max_m", [](const Component& c) { return vector3Array(c.bbox_max_m); })
       .def_property_readonly("centroid_m", [](const Component& c) { return vector3Array(c.centroid_m); })
       .def_property_readonly("mean_color",
-                             [](const Component& c) { return py::make_tuple(c.mean_color.r, c.mean_color.g,
-                                                                            c.mean_color.b); })
+                             [](const Component& c) { return py::make_tuple(c.mean_colour.r, c.mean_colour.g,
+                                                                            c.mean_colour.b); })
       .def_property_readonly("cells", [](const Component& c) { return vectorArray(c.cells); },
                              "indices into the diff's cells, increasing")
       .def("__repr__", [](const Component& c) {

@@ -70,7 +70,7 @@ ImageRgb toRgbImage(const py::handle& h, const char* name) {
   return img;
 }
 
-std::vector<Rgb> toColors(const py::handle& h, size_t n, const char* name) {
+std::vector<Rgb> toColours(const py::handle& h, size_t n, const char* name) {
   const py::array any = py::array::ensure(h);
   if (!any) throw py::type_error(std::string(name) + ": expected an array");
   if (!any.dtype().is(py::dtype::of<uint8_t>())) wrongDtype(name, any, "uint8");
@@ -92,9 +92,9 @@ py::array_t<double> pointsArray(std::vector<Eigen::Vector3d> points) {
   return py::array_t<double>({n, py::ssize_t{3}}, owned->empty() ? nullptr : owned->front().data(), free);
 }
 
-py::array_t<uint8_t> colorsArray(std::vector<Rgb> colors) {
+py::array_t<uint8_t> coloursArray(std::vector<Rgb> colours) {
   static_assert(sizeof(Rgb) == 3);
-  auto* owned = new std::vector<Rgb>(std::move(colors));
+  auto* owned = new std::vector<Rgb>(std::move(colours));
   py::capsule free(owned, [](void* p) { delete static_cast<std::vector<Rgb>*>(p); });
   const auto n = static_cast<py::ssize_t>(owned->size());
   return py::array_t<uint8_t>({n, py::ssize_t{3}}, owned->empty() ? nullptr : &owned->front().r, free);

@@ -62,11 +62,11 @@ Eigen::Matrix4d toMatrix4(const py::handle& a, const char* name);
 /// An H x W x 3 uint8 image. @throw as toPoints.
 ImageRgb toRgbImage(const py::handle& a, const char* name);
 /// (N, 3) uint8 colours for `n` points. @throw as toPoints.
-std::vector<Rgb> toColors(const py::handle& a, size_t n, const char* name);
+std::vector<Rgb> toColours(const py::handle& a, size_t n, const char* name);
 
 /// Arrays that own the vectors they are made from (moved, not copied).
 py::array_t<double> pointsArray(std::vector<Eigen::Vector3d> points);
-py::array_t<uint8_t> colorsArray(std::vector<Rgb> colors);
+py::array_t<uint8_t> coloursArray(std::vector<Rgb> colours);
 template <class T>
 py::array_t<T> vectorArray(std::vector<T> values) {
   auto* owned = new std::vector<T>(std::move(values));

@@ -98,14 +98,14 @@ py::array_t<uint16_t> readDepthPng(const std::filesystem::path& path) {
   return vectorArray(std::move(img.pixels)).attr("reshape")(h, w);  // a view, no copy
 }
 
-py::array_t<uint8_t> readColorPng(const std::filesystem::path& path) {
+py::array_t<uint8_t> readColourPng(const std::filesystem::path& path) {
   ImageRgb img;
   {
     py::gil_scoped_release release;
     img = readPngRgb(path);
   }
   const auto h = static_cast<py::ssize_t>(img.height), w = static_cast<py::ssize_t>(img.width);
-  return colorsArray(std::move(img.pixels)).attr("reshape")(h, w, 3);  // a view, no copy
+  return coloursArray(std::move(img.pixels)).attr("reshape")(h, w, 3);  // a view, no copy
 }
 
 void addFrame(IncrementalIntegrator& integrator, const py::handle& depth, const py::handle& intrinsics,
@@ -113,21 +113,21 @@ void addFrame(IncrementalIntegrator& integrator, const py::handle& depth, const 
   const CameraIntrinsics k = toIntrinsics(intrinsics);
   Frame frame;
   frame.T_world_sensor = toPose(T_world_camera, "T_world_camera");
-  std::optional<ImageRgb> color;
-  if (!rgb.is_none()) color = toRgbImage(rgb, "rgb");
-  frame.cloud = depthCloud(depth, color ? &*color : nullptr, k, depth_scale);
+  std::optional<ImageRgb> colour;
+  if (!rgb.is_none()) colour = toRgbImage(rgb, "rgb");
+  frame.cloud = depthCloud(depth, colour ? &*colour : nullptr, k, depth_scale);
   frame.source = "add_frame";
   py::gil_scoped_release release;
   integrator.add(frame);
 }
 
 void addPoints(IncrementalIntegrator& integrator, const py::handle& points_world, const py::handle& origin,
-               const py::object& colors) {
+               const py::object& colours) {
   const std::vector<Eigen::Vector3d> points = toPoints(points_world, "points_world");
   const Eigen::Vector3d o = toVector3(origin, "origin");
   Frame frame;
   frame.T_world_sensor = Eigen::Translation3d(o);
-  if (!colors.is_none()) frame.cloud.colors = toColors(colors, points.size(), "colors");
+  if (!colours.is_none()) frame.cloud.colours = toColours(colours, points.size(), "colors");
   frame.source = "add_points";
   py::gil_scoped_release release;
   frame.cloud.points.reserve(points.size());
@@ -153,7 +153,7 @@ std::unique_ptr<IncrementalIntegrator> makeIntegrator(double resolution_m, doubl
 
 void bindIntegrate(py::module_& m) {
   m.def("read_depth_png", &readDepthPng, py::arg("path"), "A 16-bit PNG (a depth image) as an (H, W) uint16 array.");
-  m.def("read_color_png", &readColorPng, py::arg("path"), "A PNG as an (H, W, 3) uint8 RGB array.");
+  m.def("read_color_png", &readColourPng, py::arg("path"), "A PNG as an (H, W, 3) uint8 RGB array.");
   m.def("integrate_dataset", &integrateDatasetPy, py::arg("path"), py::arg("resolution_m") = 0.05,
         py::arg("fast") = false, py::arg("max_range_m") = 3.0, py::arg("threads") = 0, py::arg("format") = "auto",
         py::arg("depth_scale") = py::none(), py::arg("progress") = py::none(), py::arg("carve_beyond_range") = false,

@@ -55,7 +55,7 @@ py::dict countersOf(const SessionMap& map, const py::handle& points) {
   std::vector<float> length(p.size(), 0.0f);
   std::vector<uint32_t> hits(p.size(), 0);
   std::vector<int8_t> states(p.size(), static_cast<int8_t>(VoxelState::Unknown));
-  std::vector<Rgb> colors(p.size());
+  std::vector<Rgb> colours(p.size());
   std::vector<double> offsets(3 * p.size(), 0.0);
   {
     py::gil_scoped_release release;
@@ -66,7 +66,7 @@ py::dict countersOf(const SessionMap& map, const py::handle& points) {
       length[i] = c.length_m;
       hits[i] = c.hits;
       states[i] = static_cast<int8_t>(c.state());
-      colors[i] = c.meanColor();
+      colours[i] = c.meanColour();
       for (int a = 0; a < 3; ++a) offsets[3 * i + a] = c.meanOffset(a);
     }
   }
@@ -74,7 +74,7 @@ py::dict countersOf(const SessionMap& map, const py::handle& points) {
   d["length_m"] = vectorArray(std::move(length));
   d["hits"] = vectorArray(std::move(hits));
   d["state"] = vectorArray(std::move(states));
-  d["mean_color"] = colorsArray(std::move(colors));
+  d["mean_color"] = coloursArray(std::move(colours));
   d["mean_offset_voxels"] = vectorArray(std::move(offsets)).attr("reshape")(static_cast<py::ssize_t>(p.size()), 3);
   return d;
 }
@@ -128,7 +128,7 @@ void bindMaps(py::module_& m) {
           "occupied_centers", [](const SessionMap& map) { return pointsArray(occupiedCentres(map).centers_m); },
           "Centres of the occupied voxels, (N, 3) float64 metres, in Morton order.")
       .def(
-          "occupied_colors", [](const SessionMap& map) { return colorsArray(occupiedCentres(map).colors); },
+          "occupied_colors", [](const SessionMap& map) { return coloursArray(occupiedCentres(map).colours); },
           "Mean colours of the occupied voxels, (N, 3) uint8, in the order of occupied_centers().")
       .def("probability", &probabilitiesOf, py::arg("points"),
            "Occupancy probability 1 - exp(-hits / length) of the voxel containing each of the (N, 3) points: an "

@@ -95,8 +95,8 @@ py::array_t<uint64_t> changeHistogramPy(const TemporalMap& map, const py::object
 
 void bindTemporal(py::module_& m) {
   py::class_<TemporalMap>(m, "TemporalMap", "The 4D map: every observed state of a place, session by session.")
-      .def(py::init([](double resolution_m, double color_distance) {
-             return TemporalMap(resolution_m, ChangeCriterion{0.0, color_distance});
+      .def(py::init([](double resolution_m, double colour_distance) {
+             return TemporalMap(resolution_m, ChangeCriterion{0.0, colour_distance});
            }),
            py::arg("resolution_m") = 0.05, py::arg("color_distance") = 0.0,
            "An empty 4D map. color_distance > 0 also stores a change when a voxel's mean colour moves farther than "

@@ -12,7 +12,7 @@ namespace chronomap {
 void RealignSettings::validate() const {
   auto finite_in = [](double v, double lo, double hi) { return std::isfinite(v) && v >= lo && v <= hi; };
   if (!finite_in(alpha, 0.0, 1e300)) throw UsageError("re-alignment: alpha must be a finite number >= 0");
-  if (!finite_in(weight_distance, 0.0, 10.0) || !finite_in(weight_color, 0.0, 10.0) ||
+  if (!finite_in(weight_distance, 0.0, 10.0) || !finite_in(weight_colour, 0.0, 10.0) ||
       !finite_in(weight_probability, 0.0, 10.0)) {
     throw UsageError("re-alignment: the weights must lie in [0, 10]");
   }
@@ -25,14 +25,14 @@ void RealignSettings::validate() const {
   }
 }
 
-double realignScore(double distance_voxels, double color_distance, double probability_difference,
+double realignScore(double distance_voxels, double colour_distance, double probability_difference,
                     const RealignSettings& s) {
   auto term = [&](double x, double weight) { return std::pow(std::max(x, s.epsilon), weight); };
-  return 1.0 / (term(distance_voxels, s.weight_distance) * term(color_distance, s.weight_color) *
+  return 1.0 / (term(distance_voxels, s.weight_distance) * term(colour_distance, s.weight_colour) *
                 term(probability_difference, s.weight_probability));
 }
 
-double colorDistance(const Rgb& a, const Rgb& b) {
+double colourDistance(const Rgb& a, const Rgb& b) {
   const double dr = (double(a.r) - double(b.r)) / 255.0;
   const double dg = (double(a.g) - double(b.g)) / 255.0;
   const double db = (double(a.b) - double(b.b)) / 255.0;
@@ -41,7 +41,7 @@ double colorDistance(const Rgb& a, const Rgb& b) {
 
 double realignScore(const VoxelCounters& moved, const VoxelCounters& consensus_there, double distance_voxels,
                     const RealignSettings& s) {
-  return realignScore(distance_voxels, colorDistance(moved.meanColor(), consensus_there.meanColor()),
+  return realignScore(distance_voxels, colourDistance(moved.meanColour(), consensus_there.meanColour()),
                       std::abs(moved.probability() - consensus_there.probability()), s);
 }
 

@@ -112,7 +112,7 @@ std::optional<double> moveDissimilarity(const Component& gone, const Component& 
   const double small = static_cast<double>(std::min(gone.voxels, come.voxels));
   const double large = static_cast<double>(std::max(gone.voxels, come.voxels));
   const double height = std::abs((gone.bbox_max_m.z() - gone.bbox_min_m.z()) - (come.bbox_max_m.z() - come.bbox_min_m.z()));
-  const double colour = colourDistance(gone.mean_color, come.mean_color);
+  const double colour = colourDistance(gone.mean_colour, come.mean_colour);
   if (small <= 0.0 || large > s.max_size_ratio * small || height > s.max_height_difference_m ||
       colour > s.max_colour_distance) {
     return std::nullopt;

@@ -250,7 +250,7 @@ ColourModel fitColourObservations(std::span<const ColourObservation> obs, size_t
 }
 
 ColourData colourObservations(const TemporalMap& map, double from_s, double to_s, size_t min_observations) {
-  if (!(map.criterion().color_distance > 0.0)) {
+  if (!(map.criterion().colour_distance > 0.0)) {
     throw UsageError("the 4D map keeps no colour changes (it was created without --color-distance), so it holds "
                      "each surface's colour at one hour only; build it with --color-distance D");
   }
@@ -386,7 +386,7 @@ ColourDiff colourChanges(const TemporalMap& map, double t1_s, double t2_s, const
   const auto r1 = map.rankAtOrBefore(t1_s), r2 = map.rankAtOrBefore(t2_s);
   if (!r1 || !r2) throw UsageError("colour diff: a time lies before the map's first session");
   // A stored colour lags the observed one by up to the map's colour distance, plus rounding.
-  const double uncertainty = map.criterion().color_distance + 0.87;
+  const double uncertainty = map.criterion().colour_distance + 0.87;
   // Each voxel's colour at a time is the one its last observation up to then left (the entry
   // valid then, within the map's colour distance), seen at that observation's hour: a voxel no
   // session observed between the two times has nothing new to compare.
@@ -422,8 +422,8 @@ ColourDiff colourChanges(const TemporalMap& map, double t1_s, double t2_s, const
     ++out.compared;
     ColourChange ch;
     ch.key = corner;
-    ch.before = a.meanColor();
-    ch.after = b.meanColor();
+    ch.before = a.meanColour();
+    ch.after = b.meanColour();
     double dist = 0.0;
     if (settings.lighting_invariant) {
       const double h1 = hourOfDay(times[*o1]), h2 = hourOfDay(times[*o2]);

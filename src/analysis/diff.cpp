@@ -137,7 +137,7 @@ std::optional<ChangeCell> compareVoxel(const VoxelCounters& before, const VoxelC
   // The colour of the occupied side tells what the change was: the new surface, or the lost one.
   const VoxelCounters& first = cell.kind == ChangeKind::Vanished ? before : after;
   const VoxelCounters& second = cell.kind == ChangeKind::Vanished ? after : before;
-  cell.color = first.hits > 0 ? first.meanColor() : second.meanColor();
+  cell.colour = first.hits > 0 ? first.meanColour() : second.meanColour();
   return cell;
 }
 

@@ -471,14 +471,14 @@ namespace {
 
 /// The colour of the latest stored state of `key` with hits, at or before `time_s` if there is
 /// one, else the earliest after it; black when it was never hit.
-Rgb lastSeenColor(const TemporalMap& map, const VoxelKey& key, double time_s) {
+Rgb lastSeenColour(const TemporalMap& map, const VoxelKey& key, double time_s) {
   std::optional<Rgb> before, after;
   for (const HistoryEntry& e : map.history(key)) {
     if (e.counters.hits == 0) continue;
     if (e.time_s <= time_s) {
-      before = e.counters.meanColor();
+      before = e.counters.meanColour();
     } else if (!after) {
-      after = e.counters.meanColor();
+      after = e.counters.meanColour();
     }
   }
   return before ? *before : after.value_or(Rgb{});
@@ -507,10 +507,10 @@ SessionMap predictMap(const TemporalMap& map, const RhythmModels& models, Rhythm
           } else {
             c.hits = 1;
             c.length_m = p >= 1.0 ? 0.0f : static_cast<float>(-1.0 / std::log1p(-p));
-            const Rgb color = before && before->hits > 0 ? before->meanColor() : lastSeenColor(map, key, time_s);
-            c.red = color.r;
-            c.green = color.g;
-            c.blue = color.b;
+            const Rgb colour = before && before->hits > 0 ? before->meanColour() : lastSeenColour(map, key, time_s);
+            c.red = colour.r;
+            c.green = colour.g;
+            c.blue = colour.b;
           }
           out.assign(key, c);
         }

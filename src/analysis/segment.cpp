@@ -27,7 +27,7 @@ Connectivity parseConnectivity(const std::string& name) {
 }
 
 void SegmentSettings::validate() const {
-  if (std::isnan(color_tolerance) || std::isinf(color_tolerance)) {
+  if (std::isnan(colour_tolerance) || std::isinf(colour_tolerance)) {
     throw UsageError("colour tolerance must be a finite number");
   }
   if (!std::isfinite(min_value) || min_value < 0.0 || min_value >= 1.0) {
@@ -64,7 +64,7 @@ struct JoinRule {
     const ChangeCell& b = diff.cells()[sel[j]];
     if (a.kind != b.kind) return false;
     if (tolerance < 0.0) return true;
-    const double dr = a.color.r - b.color.r, dg = a.color.g - b.color.g, db = a.color.b - b.color.b;
+    const double dr = a.colour.r - b.colour.r, dg = a.colour.g - b.colour.g, db = a.colour.b - b.colour.b;
     return dr * dr + dg * dg + db * db <= tolerance * tolerance;
   }
 };
@@ -97,15 +97,15 @@ Segmentation collect(const DiffMap& diff, const std::vector<uint32_t>& sel, Unio
       c.bbox_min_m = c.bbox_min_m.cwiseMin(lo);
       c.bbox_max_m = c.bbox_max_m.cwiseMax(hi);
       weighted += 0.5 * (lo + hi) * static_cast<double>(n);
-      sum_r += cell.color.r * static_cast<double>(n);
-      sum_g += cell.color.g * static_cast<double>(n);
-      sum_b += cell.color.b * static_cast<double>(n);
+      sum_r += cell.colour.r * static_cast<double>(n);
+      sum_g += cell.colour.g * static_cast<double>(n);
+      sum_b += cell.colour.b * static_cast<double>(n);
     }
     const auto v = static_cast<double>(c.voxels);
     c.volume_m3 = v * res * res * res;
     c.centroid_m = weighted / v;
     auto channel = [v](double s) { return static_cast<uint8_t>(std::lround(s / v)); };
-    c.mean_color = Rgb{channel(sum_r), channel(sum_g), channel(sum_b)};
+    c.mean_colour = Rgb{channel(sum_r), channel(sum_g), channel(sum_b)};
     if (c.voxels < settings.min_voxels) {
       ++out.dropped;
       continue;
@@ -153,7 +153,7 @@ class BoxSegmenter {
  public:
   BoxSegmenter(const DiffMap& diff, const std::vector<uint32_t>& sel, const SegmentSettings& settings, UnionFind& uf)
       : diff_(diff), sel_(sel), conn_(settings.connectivity), uf_(uf),
-        rule_{diff, sel, settings.color_tolerance} {
+        rule_{diff, sel, settings.colour_tolerance} {
     codes_.reserve(sel.size());
     for (uint32_t i : sel) codes_.push_back(mortonEncode(diff.cells()[i].key));
   }
@@ -422,7 +422,7 @@ Segmentation segmentByFloodFill(const DiffMap& diff, const SegmentSettings& sett
   const int max_nonzero = settings.connectivity == Connectivity::Face ? 1
                           : settings.connectivity == Connectivity::Edge ? 2
                                                                         : 3;
-  const JoinRule rule{diff, sel, settings.color_tolerance};
+  const JoinRule rule{diff, sel, settings.colour_tolerance};
   UnionFind uf(sel.size());
   std::vector<uint32_t> label(sel.size(), kNone);
   std::vector<uint32_t> queue;

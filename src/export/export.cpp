@@ -18,7 +18,7 @@ size_t exportOccupiedPly(const std::filesystem::path& path, const SessionMap& ma
   PointCloud cloud;
   cloud.points.reserve(occupied.centers_m.size());
   for (const Eigen::Vector3d& c : occupied.centers_m) cloud.points.push_back(c.cast<float>());
-  cloud.colors = occupied.colors;
+  cloud.colours = occupied.colours;
   cloud.width = static_cast<uint32_t>(cloud.points.size());
   writePly(path, cloud);
   return cloud.points.size();
@@ -37,7 +37,7 @@ size_t exportOctomap(const std::filesystem::path& path, const SessionMap& map) {
     if (state == VoxelState::Unknown) return;
     const float value = logodds(leaf.counters.probability());
     const int side = 1 << leaf.level;
-    const Rgb color = leaf.counters.meanColor();
+    const Rgb colour = leaf.counters.meanColour();
     for (int dz = 0; dz < side; ++dz) {
       for (int dy = 0; dy < side; ++dy) {
         for (int dx = 0; dx < side; ++dx) {
@@ -45,7 +45,7 @@ size_t exportOctomap(const std::filesystem::path& path, const SessionMap& map) {
                                        static_cast<octomap::key_type>(leaf.key.y + dy),
                                        static_cast<octomap::key_type>(leaf.key.z + dz));
           tree.setNodeValue(key, value, true);
-          if (state == VoxelState::Occupied) tree.setNodeColor(key, color.r, color.g, color.b);
+          if (state == VoxelState::Occupied) tree.setNodeColor(key, colour.r, colour.g, colour.b);
         }
       }
     }
@@ -76,7 +76,7 @@ size_t exportDiffPly(const std::filesystem::path& path, const DiffMap& diff, std
           const VoxelKey k{static_cast<uint16_t>(c.key.x + dx), static_cast<uint16_t>(c.key.y + dy),
                            static_cast<uint16_t>(c.key.z + dz)};
           cloud.points.push_back(diff.grid().centerOf(k).cast<float>());
-          cloud.colors.push_back(c.color);
+          cloud.colours.push_back(c.colour);
         }
       }
     }

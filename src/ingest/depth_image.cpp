@@ -32,7 +32,7 @@ PointCloud depthMetresToCloud(std::span<const float> depth_m, uint32_t width, ui
   cloud.width = width;
   cloud.height = height;
   cloud.points.resize(depth_m.size());
-  if (rgb) cloud.colors = rgb->pixels;
+  if (rgb) cloud.colours = rgb->pixels;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   for (uint32_t v = 0; v < height; ++v) {
     for (uint32_t u = 0; u < width; ++u) {
@@ -49,23 +49,23 @@ PointCloud depthMetresToCloud(std::span<const float> depth_m, uint32_t width, ui
   return cloud;
 }
 
-ImageRgb colorInDepthView(const ImageRgb& color, const CameraIntrinsics& color_k, const CameraIntrinsics& depth_k,
+ImageRgb colourInDepthView(const ImageRgb& colour, const CameraIntrinsics& colour_k, const CameraIntrinsics& depth_k,
                           uint32_t width, uint32_t height) {
   ImageRgb out{width, height, std::vector<Rgb>(size_t{width} * height, Rgb{0, 0, 0})};
   // A ray's colour pixel does not depend on its depth: u_c = fx_c * (u - cx) / fx + cx_c.
   std::vector<int64_t> columns(width), rows(height);
   for (uint32_t u = 0; u < width; ++u) {
-    columns[u] = static_cast<int64_t>(std::floor(color_k.fx * (u - depth_k.cx) / depth_k.fx + color_k.cx + 0.5));
+    columns[u] = static_cast<int64_t>(std::floor(colour_k.fx * (u - depth_k.cx) / depth_k.fx + colour_k.cx + 0.5));
   }
   for (uint32_t v = 0; v < height; ++v) {
-    rows[v] = static_cast<int64_t>(std::floor(color_k.fy * (v - depth_k.cy) / depth_k.fy + color_k.cy + 0.5));
+    rows[v] = static_cast<int64_t>(std::floor(colour_k.fy * (v - depth_k.cy) / depth_k.fy + colour_k.cy + 0.5));
   }
   for (uint32_t v = 0; v < height; ++v) {
-    if (rows[v] < 0 || rows[v] >= color.height) continue;
+    if (rows[v] < 0 || rows[v] >= colour.height) continue;
     for (uint32_t u = 0; u < width; ++u) {
-      if (columns[u] < 0 || columns[u] >= color.width) continue;
-      const size_t from = static_cast<size_t>(rows[v]) * color.width + static_cast<size_t>(columns[u]);
-      out.pixels[size_t{v} * width + u] = color.pixels[from];
+      if (columns[u] < 0 || columns[u] >= colour.width) continue;
+      const size_t from = static_cast<size_t>(rows[v]) * colour.width + static_cast<size_t>(columns[u]);
+      out.pixels[size_t{v} * width + u] = colour.pixels[from];
     }
   }
   return out;
@@ -87,7 +87,7 @@ PointCloud depthToCloud(const ImageU16& depth, const ImageRgb* rgb, const Camera
   cloud.height = depth.height;
   const size_t n = size_t{depth.width} * depth.height;
   cloud.points.resize(n);
-  if (rgb) cloud.colors = rgb->pixels;
+  if (rgb) cloud.colours = rgb->pixels;
   const float nan = std::numeric_limits<float>::quiet_NaN();
   const double inv_scale = 1.0 / depth_scale;
   // Each column's offset from the principal point, the same double the per-pixel expression

@@ -21,7 +21,7 @@ namespace fs = std::filesystem;
 /// One RGB-D frame on disk.
 struct ImageFrame {
   fs::path depth;
-  std::optional<fs::path> color;
+  std::optional<fs::path> colour;
   Eigen::Isometry3d pose;
   double timestamp_s = 0.0;
 };
@@ -34,14 +34,14 @@ constexpr double kPlausibleMedianDepthMax_m = 50.0;
 class ImageDataset : public Dataset {
  public:
   ImageDataset(std::string format, std::vector<ImageFrame> frames, CameraIntrinsics k, double scale, size_t dropped,
-               std::optional<CameraIntrinsics> color_k = std::nullopt, bool colour = true,
+               std::optional<CameraIntrinsics> colour_k = std::nullopt, bool colour = true,
                std::shared_ptr<DepthImageCache> depth_cache = nullptr)
       : format_(std::move(format)),
         frames_(std::move(frames)),
         k_(k),
         scale_(scale),
         dropped_(dropped),
-        color_k_(color_k),
+        colour_k_(colour_k),
         colour_(colour),
         depth_cache_(std::move(depth_cache)) {}
   size_t size() const override { return frames_.size(); }
@@ -84,9 +84,9 @@ class ImageDataset : public Dataset {
     }
     const ImageU16& depth = *kept;
     std::optional<ImageRgb> rgb;
-    if (f.color && colour_) rgb = readColorImage(*f.color);
+    if (f.colour && colour_) rgb = readColourImage(*f.colour);
     // A colour camera with intrinsics of its own (ScanNet): looked up along each depth ray.
-    if (rgb && color_k_) rgb = colorInDepthView(*rgb, *color_k_, k_, depth.width, depth.height);
+    if (rgb && colour_k_) rgb = colourInDepthView(*rgb, *colour_k_, k_, depth.width, depth.height);
     Frame frame;
     frame.source = f.depth.string();
     frame.cloud = depthToCloud(depth, rgb ? &*rgb : nullptr, k_, scale_, frame.source);
@@ -101,7 +101,7 @@ class ImageDataset : public Dataset {
   CameraIntrinsics k_;
   double scale_;
   size_t dropped_;
-  std::optional<CameraIntrinsics> color_k_;
+  std::optional<CameraIntrinsics> colour_k_;
   bool colour_;
   std::shared_ptr<DepthImageCache> depth_cache_;
 };

@@ -137,7 +137,7 @@ std::vector<uint8_t> encodeJpeg(const ImageRgb& image, const JpegEncoding& e) {
   return bytes;
 }
 
-ImageRgb readColorImage(const std::filesystem::path& path) {
+ImageRgb readColourImage(const std::filesystem::path& path) {
   const std::vector<uint8_t> bytes = readFileBytes(path);
   if (looksLikeJpeg(bytes)) return decodeJpegRgb(bytes, path.string());
   static constexpr uint8_t kPngSignature[4] = {0x89, 'P', 'N', 'G'};

@@ -207,7 +207,7 @@ PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name) 
   cloud.width = static_cast<uint32_t>(h.width);
   cloud.height = static_cast<uint32_t>(h.height);
   cloud.points.resize(capacity);
-  if (frgb) cloud.colors.resize(capacity);
+  if (frgb) cloud.colours.resize(capacity);
   if (flabel) cloud.labels.resize(capacity);
 
   if (h.data == "ascii") {
@@ -240,7 +240,7 @@ PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name) 
           } else {
             packed = static_cast<uint32_t>(checkedInteger(num(), 0.0, 4294967295.0, ctx + " rgb"));
           }
-          cloud.colors[i] = unpackRgb(packed);
+          cloud.colours[i] = unpackRgb(packed);
         }
         if (&f == flabel) {
           cloud.labels[i] = static_cast<uint32_t>(checkedInteger(num(), 0.0, 4294967295.0, ctx + " label"));
@@ -275,7 +275,7 @@ PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name) 
   for (size_t i = 0; i < n; ++i) {
     cloud.points[i] = Eigen::Vector3f(toFloat(readScalar(at(*fx, i), *fx)), toFloat(readScalar(at(*fy, i), *fy)),
                                       toFloat(readScalar(at(*fz, i), *fz)));
-    if (frgb) cloud.colors[i] = unpackRgb(readPacked(at(*frgb, i)));
+    if (frgb) cloud.colours[i] = unpackRgb(readPacked(at(*frgb, i)));
     if (flabel) {
       const double label = readScalar(at(*flabel, i), *flabel);
       cloud.labels[i] = static_cast<uint32_t>(
@@ -287,7 +287,7 @@ PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name) 
 
 void writePcd(const std::filesystem::path& path, const PointCloud& cloud, PcdEncoding encoding) {
   const size_t n = cloud.points.size();
-  const bool rgb = cloud.hasColors();
+  const bool rgb = cloud.hasColours();
   const bool label = cloud.hasLabels();
   const uint32_t width = (cloud.width * cloud.height == n) ? cloud.width : static_cast<uint32_t>(n);
   const uint32_t height = (cloud.width * cloud.height == n) ? cloud.height : 1;
@@ -302,7 +302,7 @@ void writePcd(const std::filesystem::path& path, const PointCloud& cloud, PcdEnc
   const std::string header = hdr.str();
   std::vector<uint8_t> out(header.begin(), header.end());
   auto packed = [&](size_t i) {
-    const Rgb c = cloud.colors[i];
+    const Rgb c = cloud.colours[i];
     return (uint32_t{c.r} << 16) | (uint32_t{c.g} << 8) | uint32_t{c.b};
   };
   auto append = [](std::vector<uint8_t>& v, const void* p, size_t bytes) {

@@ -79,7 +79,7 @@ struct PlyElement {
   std::vector<PlyProperty> props;
 };
 
-uint8_t toColorByte(double v, PlyType t) {
+uint8_t toColourByte(double v, PlyType t) {
   if (t == PlyType::Float32 || t == PlyType::Float64) v *= 255.0;
   if (!(v > 0.0)) return 0;  // also NaN
   return static_cast<uint8_t>(std::lround(std::min(v, 255.0)));
@@ -192,10 +192,10 @@ PointCloud parsePly(const std::vector<uint8_t>& bytes, const std::string& name) 
       throw FormatError(name + ": PLY is truncated: the header declares " + std::to_string(el.count) +
                         " vertices, the file holds at most " + std::to_string(room / min_bytes));
     }
-    const bool color = ir >= 0 && ig >= 0 && ib >= 0;
+    const bool colour = ir >= 0 && ig >= 0 && ib >= 0;
     const size_t n = static_cast<size_t>(el.count);
     cloud.points.resize(n);
-    if (color) cloud.colors.resize(n);
+    if (colour) cloud.colours.resize(n);
     cloud.width = static_cast<uint32_t>(n);
     cloud.height = 1;
     if (ascii) {
@@ -212,10 +212,10 @@ PointCloud parsePly(const std::vector<uint8_t>& bytes, const std::string& name) 
         const std::string ctx = name + ": PLY vertex " + std::to_string(i);
         cloud.points[i] = Eigen::Vector3f(toFloat(parseDouble(tok[ix], ctx)), toFloat(parseDouble(tok[iy], ctx)),
                                           toFloat(parseDouble(tok[iz], ctx)));
-        if (color) {
-          cloud.colors[i] = Rgb{toColorByte(parseDouble(tok[ir], ctx), el.props[ir].type),
-                                toColorByte(parseDouble(tok[ig], ctx), el.props[ig].type),
-                                toColorByte(parseDouble(tok[ib], ctx), el.props[ib].type)};
+        if (colour) {
+          cloud.colours[i] = Rgb{toColourByte(parseDouble(tok[ir], ctx), el.props[ir].type),
+                                toColourByte(parseDouble(tok[ig], ctx), el.props[ig].type),
+                                toColourByte(parseDouble(tok[ib], ctx), el.props[ib].type)};
         }
       }
     } else {
@@ -226,9 +226,9 @@ PointCloud parsePly(const std::vector<uint8_t>& bytes, const std::string& name) 
         const uint8_t* rec = bytes.data() + pos + i * record;
         auto get = [&](int k) { return readBinary(rec + offsets[k], el.props[k].type, big); };
         cloud.points[i] = Eigen::Vector3f(toFloat(get(ix)), toFloat(get(iy)), toFloat(get(iz)));
-        if (color) {
-          cloud.colors[i] = Rgb{toColorByte(get(ir), el.props[ir].type), toColorByte(get(ig), el.props[ig].type),
-                                toColorByte(get(ib), el.props[ib].type)};
+        if (colour) {
+          cloud.colours[i] = Rgb{toColourByte(get(ir), el.props[ir].type), toColourByte(get(ig), el.props[ig].type),
+                                toColourByte(get(ib), el.props[ib].type)};
         }
       }
       pos += n * record;
@@ -249,7 +249,7 @@ void writePly(const std::filesystem::path& path, const PointCloud& cloud) {
   for (size_t i = 0; i < cloud.size(); ++i) {
     const auto* p = reinterpret_cast<const uint8_t*>(cloud.points[i].data());
     out.insert(out.end(), p, p + 12);
-    const Rgb c = cloud.hasColors() ? cloud.colors[i] : Rgb{200, 200, 200};
+    const Rgb c = cloud.hasColours() ? cloud.colours[i] : Rgb{200, 200, 200};
     out.push_back(c.r);
     out.push_back(c.g);
     out.push_back(c.b);
@@ -272,13 +272,13 @@ PointCloud parseXyz(const std::string& text, const std::string& name) {
     cloud.points.emplace_back(toFloat(parseDouble(tok[0], ctx)), toFloat(parseDouble(tok[1], ctx)),
                               toFloat(parseDouble(tok[2], ctx)));
     if (tok.size() == 6) {
-      if (cloud.colors.size() + 1 != cloud.points.size()) throw FormatError(ctx + ": some lines have colour, some not");
+      if (cloud.colours.size() + 1 != cloud.points.size()) throw FormatError(ctx + ": some lines have colour, some not");
       auto byte = [&](const std::string& t) {
         const double v = parseDouble(t, ctx);
         return static_cast<uint8_t>(v > 0.0 ? std::lround(std::min(v, 255.0)) : 0);
       };
-      cloud.colors.push_back(Rgb{byte(tok[3]), byte(tok[4]), byte(tok[5])});
-    } else if (!cloud.colors.empty()) {
+      cloud.colours.push_back(Rgb{byte(tok[3]), byte(tok[4]), byte(tok[5])});
+    } else if (!cloud.colours.empty()) {
       throw FormatError(ctx + ": some lines have colour, some not");
     }
   }

@@ -106,22 +106,22 @@ bool decode(const std::vector<uint8_t>& file, bool want16, Decoded& out, std::st
     png_destroy_read_struct(&png, &info, nullptr);
     return false;
   }
-  const int color_type = png_get_color_type(png, info);
+  const int colour_type = png_get_color_type(png, info);
   const int depth = png_get_bit_depth(png, info);
   if (want16) {
-    if (color_type != PNG_COLOR_TYPE_GRAY || depth != 16) {
+    if (colour_type != PNG_COLOR_TYPE_GRAY || depth != 16) {
       png_destroy_read_struct(&png, &info, nullptr);
       error = "expected a 16-bit single-channel depth image, found " + std::to_string(depth) + "-bit " +
-              (color_type == PNG_COLOR_TYPE_GRAY ? "grey" : "colour");
+              (colour_type == PNG_COLOR_TYPE_GRAY ? "grey" : "colour");
       return false;
     }
     png_set_swap(png);  // PNG stores 16-bit samples big-endian
   } else {
     if (depth == 16) png_set_strip_16(png);
-    if (color_type == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
-    if (color_type == PNG_COLOR_TYPE_GRAY && depth < 8) png_set_expand_gray_1_2_4_to_8(png);
-    if (color_type == PNG_COLOR_TYPE_GRAY || color_type == PNG_COLOR_TYPE_GRAY_ALPHA) png_set_gray_to_rgb(png);
-    if (color_type & PNG_COLOR_MASK_ALPHA) png_set_strip_alpha(png);
+    if (colour_type == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
+    if (colour_type == PNG_COLOR_TYPE_GRAY && depth < 8) png_set_expand_gray_1_2_4_to_8(png);
+    if (colour_type == PNG_COLOR_TYPE_GRAY || colour_type == PNG_COLOR_TYPE_GRAY_ALPHA) png_set_gray_to_rgb(png);
+    if (colour_type & PNG_COLOR_MASK_ALPHA) png_set_strip_alpha(png);
     if (png_get_valid(png, info, PNG_INFO_tRNS)) png_set_strip_alpha(png);
   }
   png_set_interlace_handling(png);

@@ -34,15 +34,15 @@ bool isScanNet(const fs::path& root) {
 
 std::unique_ptr<Dataset> openScanNet(const fs::path& root, const DatasetSettings& o) {
   const fs::path depth_k_file = root / "intrinsic" / "intrinsic_depth.txt";
-  const fs::path color_k_file = root / "intrinsic" / "intrinsic_color.txt";
+  const fs::path colour_k_file = root / "intrinsic" / "intrinsic_color.txt";
   const CameraIntrinsics k = o.intrinsics ? *o.intrinsics : (requireFile(depth_k_file, "depth intrinsics file"),
                                                                readIntrinsicsFile(depth_k_file));
   std::error_code ec;
-  const bool has_color = fs::is_directory(root / "color", ec);
-  std::optional<CameraIntrinsics> color_k;
-  if (has_color) {
-    requireFile(color_k_file, "colour intrinsics file");
-    color_k = readIntrinsicsFile(color_k_file);
+  const bool has_colour = fs::is_directory(root / "color", ec);
+  std::optional<CameraIntrinsics> colour_k;
+  if (has_colour) {
+    requireFile(colour_k_file, "colour intrinsics file");
+    colour_k = readIntrinsicsFile(colour_k_file);
   }
   std::vector<ImageFrame> frames;
   size_t dropped = 0;
@@ -57,11 +57,11 @@ std::unique_ptr<Dataset> openScanNet(const fs::path& root, const DatasetSettings
     }
     ImageFrame f;
     f.depth = depth;
-    if (has_color) {
-      fs::path color = root / "color" / (std::to_string(n) + ".jpg");
-      if (!fs::exists(color, ec)) color = root / "color" / (std::to_string(n) + ".png");
-      requireFile(color, "colour frame");
-      f.color = color;
+    if (has_colour) {
+      fs::path colour = root / "color" / (std::to_string(n) + ".jpg");
+      if (!fs::exists(colour, ec)) colour = root / "color" / (std::to_string(n) + ".png");
+      requireFile(colour, "colour frame");
+      f.colour = colour;
     }
     f.pose = poseFromMatrix(m, pose.string());
     f.timestamp_s = static_cast<double>(n);
@@ -72,7 +72,7 @@ std::unique_ptr<Dataset> openScanNet(const fs::path& root, const DatasetSettings
                     " with invalid poses)");
   }
   return std::make_unique<ImageDataset>("scannet", std::move(frames), k, checkedScale(o, 1000.0), dropped,
-                                        color_k, o.colour, o.depth_cache);
+                                        colour_k, o.colour, o.depth_cache);
 }
 
 std::unique_ptr<Dataset> openScanNetChecked(const fs::path& root, const DatasetSettings& o) {

@@ -64,12 +64,12 @@ std::unique_ptr<Dataset> openThreeDMatch(const fs::path& root, const DatasetSett
       const std::string stem = depth.filename().string().substr(0, depth.filename().string().size() - 10);
       const fs::path pose = seq / (stem + ".pose.txt");
       // Colour as PNG or, as 7-Scenes, ScanNet and many copies store it, JPEG.
-      fs::path color = seq / (stem + ".color.png");
-      if (!fs::exists(color, ec)) color = seq / (stem + ".color.jpg");
+      fs::path colour = seq / (stem + ".color.png");
+      if (!fs::exists(colour, ec)) colour = seq / (stem + ".color.jpg");
       requireFile(pose, "pose file");
       ImageFrame f;
       f.depth = depth;
-      if (fs::exists(color, ec)) f.color = color;
+      if (fs::exists(colour, ec)) f.colour = colour;
       f.pose = poseFromMatrix(readMatrix4(pose), pose.string());
       f.timestamp_s = static_cast<double>(frames.size());
       frames.push_back(f);

@@ -74,23 +74,23 @@ std::unique_ptr<Dataset> openTum(const fs::path& root, const DatasetSettings& o)
     }
   }
   const auto depths = parseStampedList(readTextFile(depth_list), depth_list.string());
-  std::vector<StampedName> colors;
+  std::vector<StampedName> colours;
   const bool have_rgb = fs::exists(root / "rgb.txt", ec);
-  if (have_rgb) colors = parseStampedList(readTextFile(root / "rgb.txt"), (root / "rgb.txt").string());
+  if (have_rgb) colours = parseStampedList(readTextFile(root / "rgb.txt"), (root / "rgb.txt").string());
   const auto poses = parseTumTrajectory(readTextFile(traj), traj.string());
   if (poses.empty()) throw DataError(traj.string() + ": no poses");
   std::vector<ImageFrame> frames;
   size_t dropped = 0;
   for (const StampedName& d : depths) {
     const StampedPose* pose = nearestInTime(poses, d.t, o.max_time_difference_s);
-    const StampedName* color = have_rgb ? nearestInTime(colors, d.t, o.max_time_difference_s) : nullptr;
-    if (!pose || (have_rgb && !color)) {
+    const StampedName* colour = have_rgb ? nearestInTime(colours, d.t, o.max_time_difference_s) : nullptr;
+    if (!pose || (have_rgb && !colour)) {
       ++dropped;
       continue;
     }
     ImageFrame f;
     f.depth = root / d.name;
-    if (color) f.color = root / color->name;
+    if (colour) f.colour = root / colour->name;
     f.pose = pose->pose;
     f.timestamp_s = d.t;
     frames.push_back(f);

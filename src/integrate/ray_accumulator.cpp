@@ -203,7 +203,7 @@ struct WorkingFrame {
   float Rm[9] = {};           // sensor metres -> voxel units, row-major
   float of[3] = {};           // the origin, as float
   float max_range = 0.0f, max_range_sq = 0.0f;
-  bool colors = false;        // the cloud has colours
+  bool colours = false;        // the cloud has colours
 };
 
 }  // namespace
@@ -243,9 +243,9 @@ struct RayAccumulator::Impl {
   }
   void addEnd(EndEntry& e, const RelPoint& p) const {
     ++e.hits;
-    e.red += p.color.r;
-    e.green += p.color.g;
-    e.blue += p.color.b;
+    e.red += p.colour.r;
+    e.green += p.colour.g;
+    e.blue += p.colour.b;
     if (settings.hit_positions) e.addPoint(cloud->points[p.index]);
   }
   /// Bundles one chunk of points, those from `begin` on, whose cells are in `cells` (-1:
@@ -254,9 +254,9 @@ struct RayAccumulator::Impl {
   /// positions, so that the loop tests neither per point.
   template <class NewEnd>
   void bundleChunk(const int32_t* cells, size_t begin, size_t count, uint32_t* end, NewEnd&& new_end) {
-    auto run = [&](auto with_colors, auto with_positions) {
+    auto run = [&](auto with_colours, auto with_positions) {
       EndEntry* entries = ends.data();
-      const Rgb* color = with_colors ? cloud->colors.data() + begin : nullptr;
+      const Rgb* colour = with_colours ? cloud->colours.data() + begin : nullptr;
       for (size_t j = 0; j < count; ++j) {
         const int32_t c = cells[j];
         if (c < 0) continue;
@@ -268,17 +268,17 @@ struct RayAccumulator::Impl {
         EndEntry& entry = entries[e];
         ++entry.hits;
         if constexpr (decltype(with_positions)::value) entry.addPoint(cloud->points[begin + j]);
-        if constexpr (decltype(with_colors)::value) {
-          entry.red += color[j].r;
-          entry.green += color[j].g;
-          entry.blue += color[j].b;
+        if constexpr (decltype(with_colours)::value) {
+          entry.red += colour[j].r;
+          entry.green += colour[j].g;
+          entry.blue += colour[j].b;
         }
       }
     };
-    const bool colors = cloud->hasColors();
-    if (colors && settings.hit_positions) {
+    const bool colours = cloud->hasColours();
+    if (colours && settings.hit_positions) {
       run(std::true_type{}, std::true_type{});
-    } else if (colors) {
+    } else if (colours) {
       run(std::true_type{}, std::false_type{});
     } else if (settings.hit_positions) {
       run(std::false_type{}, std::true_type{});
@@ -751,7 +751,7 @@ WorkingFrame RayAccumulator::Impl::setUp(const Frame& frame) {
     origin[r] = w.o[r];
     for (int c = 0; c < 3; ++c) rotation[3 * r + c] = rotation_u(r, c);
   }
-  w.colors = cloud->hasColors();
+  w.colours = cloud->hasColours();
   ends.assign(1, EndEntry{});
   w.side = 2 * w.bias + 1;
   return w;
@@ -891,7 +891,7 @@ void RayAccumulator::Impl::listPoints(const WorkingFrame& w, int32_t lo[3], int3
     }
     RelPoint rp;
     transformPoint(w.Rm, w.of, p, rp.u);
-    rp.color = w.colors ? c_cloud.colors[i] : Rgb{};
+    rp.colour = w.colours ? c_cloud.colours[i] : Rgb{};
     rp.index = static_cast<uint32_t>(i);
     if (!w.cube_inside) {
       // Tested before any integer conversion: a far point's coordinate may exceed int32.

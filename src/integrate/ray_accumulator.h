@@ -36,7 +36,7 @@ void checkMapMemory(const SessionMap& map, const IntegratorSettings& settings);
 /// truncation is floor).
 struct RelPoint {
   float u[3];
-  Rgb color;
+  Rgb colour;
   uint32_t index;  // in the frame's cloud
 };
 

@@ -7,7 +7,7 @@ VoxelCentres occupiedCentres(const SessionMap& map) {
   map.forEachLeaf([&](const LeafView& leaf) {
     if (leaf.level != 0 || leaf.counters.state() != VoxelState::Occupied) return;
     out.centers_m.push_back(map.grid().centerOf(leaf.key));
-    out.colors.push_back(leaf.counters.meanColor());
+    out.colours.push_back(leaf.counters.meanColour());
   });
   return out;
 }

@@ -83,7 +83,7 @@ nlohmann::json alertsJson(const AlertReport& report, size_t top) {
                     {"centroid", vec3(c.centroid_m)},
                     {"bbox_min", vec3(c.bbox_min_m)},
                     {"bbox_max", vec3(c.bbox_max_m)},
-                    {"mean_color", {c.mean_color.r, c.mean_color.g, c.mean_color.b}},
+                    {"mean_color", {c.mean_colour.r, c.mean_colour.g, c.mean_colour.b}},
                     {"evidence",
                      {{"observations", a.evidence.observations},
                       {"in_new_state", a.evidence.in_state},

@@ -19,7 +19,7 @@
 #include "chronomap/ingest/png.h"
 #include "chronomap/store/temporal_file.h"
 #include "chronomap/pipeline/session.h"
-#include "chronomap/render/color.h"
+#include "chronomap/render/colour.h"
 #include "chronomap/render/plot.h"
 #include "chronomap/render/top_view.h"
 #include "chronomap/sim/building.h"
@@ -124,17 +124,17 @@ std::vector<DemoPair> findChanges(const DemoSettings& s, const std::vector<DemoS
 ImageRgb sessionCloudView(const fs::path& dir) {
   const auto dataset = openRecording(dir);
   std::vector<Eigen::Vector3f> points;
-  std::vector<Rgb> colors;
+  std::vector<Rgb> colours;
   for (size_t i = 0; i < dataset->size(); ++i) {
     const Frame f = dataset->load(i);
     for (size_t k = 0; k < f.cloud.size(); k += 2) {
       const Eigen::Vector3f& p = f.cloud.points[k];
       if (!p.allFinite()) continue;
       points.push_back((f.T_world_sensor * p.cast<double>()).cast<float>());
-      colors.push_back(f.cloud.hasColors() ? f.cloud.colors[k] : Rgb{200, 200, 200});
+      colours.push_back(f.cloud.hasColours() ? f.cloud.colours[k] : Rgb{200, 200, 200});
     }
   }
-  return renderPointsTopView(points, colors, 0.02);
+  return renderPointsTopView(points, colours, 0.02);
 }
 
 std::vector<Eigen::Vector3d> trajectoryPositions(const fs::path& path) {
@@ -172,7 +172,7 @@ void drawPictures(const SimulationSummary& simulated, const TemporalMap& map, co
   const auto names = parseStampedList(readTextFile(first / "depth.txt"), "depth.txt");
   const auto& mid = names[names.size() / 2];
   fs::copy_file(first / ("rgb/" + mid.name.substr(6)), images / "frame_rgb.png", fs::copy_options::overwrite_existing);
-  writePng(images / "frame_depth.png", colorizeDepth(readPngU16(first / mid.name), 5000.0));
+  writePng(images / "frame_depth.png", colourizeDepth(readPngU16(first / mid.name), 5000.0));
   writePng(images / "trajectory.png", trajectoryPlot(first));
   writePng(images / "storage.png", renderStoragePlot(map));
 }

@@ -92,7 +92,7 @@ void componentTable(std::ostream& md, const DemoPair& p) {
     std::snprintf(line, sizeof line, "| %u | %s | %llu | %.1f | %.2f, %.2f, %.2f | %.2f, %.2f, %.2f | #%02x%02x%02x | ",
                   comp.id, toString(comp.kind), static_cast<unsigned long long>(comp.voxels), comp.volume_m3 * 1000.0,
                   comp.centroid_m.x(), comp.centroid_m.y(), comp.centroid_m.z(), size.x(), size.y(), size.z(),
-                  comp.mean_color.r, comp.mean_color.g, comp.mean_color.b);
+                  comp.mean_colour.r, comp.mean_colour.g, comp.mean_colour.b);
     const int e = p.score.component_event[c];
     md << line << (e >= 0 ? eventName(p.events[static_cast<size_t>(e)]) : std::string("no event (false)")) << " |\n";
   }

@@ -14,7 +14,7 @@
 #include "chronomap/core/file.h"
 #include "chronomap/ingest/png.h"
 #include "chronomap/store/temporal_file.h"
-#include "chronomap/render/color.h"
+#include "chronomap/render/colour.h"
 #include "chronomap/render/top_view.h"
 
 namespace chronomap {
@@ -105,11 +105,11 @@ size_t writeChangeFrequencyPly(const fs::path& path, const TemporalMap& map, con
   const uint32_t lo = min_changes, hi = frequency.max_count;
   PointCloud cloud;
   cloud.points.reserve(frequency.voxels.size());
-  cloud.colors.reserve(frequency.voxels.size());
+  cloud.colours.reserve(frequency.voxels.size());
   for (const VoxelChangeCount& v : frequency.voxels) {
     cloud.points.push_back(map.grid().centerOf(v.key).cast<float>());
     const double t = hi > lo ? static_cast<double>(v.count - lo) / static_cast<double>(hi - lo) : 1.0;
-    cloud.colors.push_back(heatColor(t));
+    cloud.colours.push_back(heatColour(t));
   }
   cloud.width = static_cast<uint32_t>(cloud.points.size());
   writePly(path, cloud);
@@ -148,7 +148,7 @@ nlohmann::json segmentationJson(const Segmentation& segmentation, const SegmentS
                     {"bbox_min", vec3(c.bbox_min_m)},
                     {"bbox_max", vec3(c.bbox_max_m)},
                     {"centroid", vec3(c.centroid_m)},
-                    {"mean_color", {c.mean_color.r, c.mean_color.g, c.mean_color.b}},
+                    {"mean_color", {c.mean_colour.r, c.mean_colour.g, c.mean_colour.b}},
                     {"kind", toString(c.kind)}});
   }
   return {{"components", list}, {"dropped", segmentation.dropped}, {"connectivity", toString(settings.connectivity)}};

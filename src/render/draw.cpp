@@ -45,9 +45,9 @@ const uint8_t* glyphOf(char c) {
   return kBox;
 }
 
-void setPixel(ImageRgb& image, int x, int y, Rgb color) {
+void setPixel(ImageRgb& image, int x, int y, Rgb colour) {
   if (x < 0 || y < 0 || x >= static_cast<int>(image.width) || y >= static_cast<int>(image.height)) return;
-  image.pixels[static_cast<size_t>(y) * image.width + static_cast<size_t>(x)] = color;
+  image.pixels[static_cast<size_t>(y) * image.width + static_cast<size_t>(x)] = colour;
 }
 
 }  // namespace
@@ -56,37 +56,37 @@ int textWidth(const std::string& text, int scale) {
   return text.empty() ? 0 : (static_cast<int>(text.size()) * kAdvance - 1) * scale;
 }
 
-void drawText(ImageRgb& image, int x, int y, const std::string& text, Rgb color, int scale) {
+void drawText(ImageRgb& image, int x, int y, const std::string& text, Rgb colour, int scale) {
   for (size_t i = 0; i < text.size(); ++i) {
     const uint8_t* rows = glyphOf(text[i]);
     const int gx = x + static_cast<int>(i) * kAdvance * scale;
     for (int r = 0; r < 7; ++r) {
       for (int c = 0; c < 5; ++c) {
         if (((rows[r] >> (4 - c)) & 1) == 0) continue;
-        fillRect(image, gx + c * scale, y + r * scale, gx + (c + 1) * scale, y + (r + 1) * scale, color);
+        fillRect(image, gx + c * scale, y + r * scale, gx + (c + 1) * scale, y + (r + 1) * scale, colour);
       }
     }
   }
 }
 
-void fillRect(ImageRgb& image, int x0, int y0, int x1, int y1, Rgb color) {
+void fillRect(ImageRgb& image, int x0, int y0, int x1, int y1, Rgb colour) {
   x0 = std::max(x0, 0);
   y0 = std::max(y0, 0);
   x1 = std::min(x1, static_cast<int>(image.width));
   y1 = std::min(y1, static_cast<int>(image.height));
   for (int y = y0; y < y1; ++y) {
-    for (int x = x0; x < x1; ++x) image.pixels[static_cast<size_t>(y) * image.width + static_cast<size_t>(x)] = color;
+    for (int x = x0; x < x1; ++x) image.pixels[static_cast<size_t>(y) * image.width + static_cast<size_t>(x)] = colour;
   }
 }
 
-void drawLine(ImageRgb& image, int x0, int y0, int x1, int y1, Rgb color, int thickness) {
+void drawLine(ImageRgb& image, int x0, int y0, int x1, int y1, Rgb colour, int thickness) {
   const int dx = std::abs(x1 - x0), dy = -std::abs(y1 - y0);
   const int sx = x0 < x1 ? 1 : -1, sy = y0 < y1 ? 1 : -1;
   int err = dx + dy;
   const int h = thickness / 2;
   while (true) {
     for (int oy = -h; oy < thickness - h; ++oy) {
-      for (int ox = -h; ox < thickness - h; ++ox) setPixel(image, x0 + ox, y0 + oy, color);
+      for (int ox = -h; ox < thickness - h; ++ox) setPixel(image, x0 + ox, y0 + oy, colour);
     }
     if (x0 == x1 && y0 == y1) break;
     const int e2 = 2 * err;

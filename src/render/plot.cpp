@@ -97,10 +97,10 @@ ImageRgb renderLinePlot(const std::vector<PlotSeries>& series, const PlotSetting
   for (const PlotSeries& p : series) {
     for (size_t i = 1; i < p.x.size(); ++i) {
       if (!std::isfinite(p.x[i - 1] + p.y[i - 1] + p.x[i] + p.y[i])) continue;
-      drawLine(img, px(p.x[i - 1]), py(p.y[i - 1]), px(p.x[i]), py(p.y[i]), p.color, 2);
+      drawLine(img, px(p.x[i - 1]), py(p.y[i - 1]), px(p.x[i]), py(p.y[i]), p.colour, 2);
     }
-    if (p.x.size() == 1) fillRect(img, px(p.x[0]) - 2, py(p.y[0]) - 2, px(p.x[0]) + 3, py(p.y[0]) + 3, p.color);
-    fillRect(img, left + 12, legend_y, left + 30, legend_y + 4, p.color);
+    if (p.x.size() == 1) fillRect(img, px(p.x[0]) - 2, py(p.y[0]) - 2, px(p.x[0]) + 3, py(p.y[0]) + 3, p.colour);
+    fillRect(img, left + 12, legend_y, left + 30, legend_y + 4, p.colour);
     drawText(img, left + 36, legend_y - 2, p.label, ink);
     legend_y += 14;
   }

@@ -54,7 +54,7 @@ ImageRgb renderTopView(const SessionMap& map, const TopViewSettings& settings) {
   }
   // Per column: highest occupied voxel (z, colour) or "free seen".
   std::vector<int> top(static_cast<size_t>(nx) * ny, -1);
-  std::vector<Rgb> color(top.size());
+  std::vector<Rgb> colour(top.size());
   std::vector<uint8_t> seen(top.size(), 0);
   map.forEachLeaf([&](const LeafView& l) {
     const VoxelState st = l.counters.state();
@@ -66,7 +66,7 @@ ImageRgb renderTopView(const SessionMap& map, const TopViewSettings& settings) {
         seen[i] = 1;
         if (st == VoxelState::Occupied && int{l.key.z} > top[i]) {
           top[i] = l.key.z;
-          color[i] = l.counters.meanColor();
+          colour[i] = l.counters.meanColour();
         }
       }
     }
@@ -79,11 +79,11 @@ ImageRgb renderTopView(const SessionMap& map, const TopViewSettings& settings) {
   for (int y = 0; y < ny; ++y) {
     for (int x = 0; x < nx; ++x) {
       const size_t i = static_cast<size_t>(y) * nx + x;
-      Rgb c = seen[i] ? settings.free_color : settings.unknown_color;
+      Rgb c = seen[i] ? settings.free_colour : settings.unknown_colour;
       if (top[i] >= 0) {
         const double shade = 0.55 + 0.45 * (top[i] - zlo) / zrange;  // higher is brighter
-        c = Rgb{static_cast<uint8_t>(color[i].r * shade), static_cast<uint8_t>(color[i].g * shade),
-                static_cast<uint8_t>(color[i].b * shade)};
+        c = Rgb{static_cast<uint8_t>(colour[i].r * shade), static_cast<uint8_t>(colour[i].g * shade),
+                static_cast<uint8_t>(colour[i].b * shade)};
       }
       for (int py = 0; py < ppv; ++py) {
         const size_t row = static_cast<size_t>(ny - 1 - y) * static_cast<size_t>(ppv) + static_cast<size_t>(py);  // y up
@@ -114,36 +114,36 @@ ImageRgb renderChangeView(const SessionMap& background, const DiffMap& diff, con
   };
   auto inside = [&](int x, int y) { return x >= 0 && y >= 0 && x < int(img.width) && y < int(img.height); };
   for (const Component& c : segmentation.components) {
-    const Rgb color = c.kind == ChangeKind::Appeared ? Rgb{20, 150, 40} : Rgb{210, 40, 30};
+    const Rgb colour = c.kind == ChangeKind::Appeared ? Rgb{20, 150, 40} : Rgb{210, 40, 30};
     for (uint32_t idx : c.cells) {
       const ChangeCell& cell = diff.cells()[idx];
       const int side = 1 << cell.level;
       const auto [x0, y0] = toPixel(cell.key.x, cell.key.y + side - 1);
       for (int y = y0; y < y0 + side * ppv; ++y) {
         for (int x = x0; x < x0 + side * ppv; ++x) {
-          if (inside(x, y)) img.pixels[static_cast<size_t>(y) * img.width + static_cast<size_t>(x)] = color;
+          if (inside(x, y)) img.pixels[static_cast<size_t>(y) * img.width + static_cast<size_t>(x)] = colour;
         }
       }
     }
   }
   for (const Component& c : segmentation.components) {
-    const Rgb color = c.kind == ChangeKind::Appeared ? Rgb{10, 90, 20} : Rgb{140, 20, 10};
+    const Rgb colour = c.kind == ChangeKind::Appeared ? Rgb{10, 90, 20} : Rgb{140, 20, 10};
     const auto lo = diff.grid().keyOf(c.bbox_min_m + Eigen::Vector3d::Constant(diff.resolution_m() / 2));
     const auto hi = diff.grid().keyOf(c.bbox_max_m - Eigen::Vector3d::Constant(diff.resolution_m() / 2));
     if (!lo || !hi) continue;
     const auto [x0, y0] = toPixel(lo->x, hi->y);
     const auto [x1, y1] = toPixel(hi->x + 1, lo->y - 1);
     const int m = 2;  // margin around the component
-    drawLine(img, x0 - m, y0 - m, x1 + m, y0 - m, color);
-    drawLine(img, x0 - m, y1 + m, x1 + m, y1 + m, color);
-    drawLine(img, x0 - m, y0 - m, x0 - m, y1 + m, color);
-    drawLine(img, x1 + m, y0 - m, x1 + m, y1 + m, color);
-    drawText(img, x1 + m + 2, y0 - m, std::to_string(c.id), color, 2);
+    drawLine(img, x0 - m, y0 - m, x1 + m, y0 - m, colour);
+    drawLine(img, x0 - m, y1 + m, x1 + m, y1 + m, colour);
+    drawLine(img, x0 - m, y0 - m, x0 - m, y1 + m, colour);
+    drawLine(img, x1 + m, y0 - m, x1 + m, y1 + m, colour);
+    drawText(img, x1 + m + 2, y0 - m, std::to_string(c.id), colour, 2);
   }
   return img;
 }
 
-ImageRgb renderPointsTopView(const std::vector<Eigen::Vector3f>& points, const std::vector<Rgb>& colors,
+ImageRgb renderPointsTopView(const std::vector<Eigen::Vector3f>& points, const std::vector<Rgb>& colours,
                              double metres_per_pixel) {
   if (points.empty()) throw DataError("no valid points to draw");
   Eigen::Vector3f lo = points[0], hi = points[0];
@@ -163,7 +163,7 @@ ImageRgb renderPointsTopView(const std::vector<Eigen::Vector3f>& points, const s
     const size_t at = static_cast<size_t>(v) * img.width + static_cast<size_t>(u);
     if (points[i].z() > top[at]) {
       top[at] = points[i].z();
-      img.pixels[at] = colors[i];
+      img.pixels[at] = colours[i];
     }
   }
   return img;

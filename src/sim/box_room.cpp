@@ -68,7 +68,7 @@ Frame renderFrame(const BoxRoom& room, const PinholeCamera& cam, const Eigen::Is
   cloud.width = cam.width;
   cloud.height = cam.height;
   cloud.points.resize(size_t{cam.width} * cam.height);
-  cloud.colors.resize(cloud.points.size());
+  cloud.colours.resize(cloud.points.size());
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> gauss(0.0, 1.0);
   const Eigen::Matrix3d R = T.linear();
@@ -80,12 +80,12 @@ Frame renderFrame(const BoxRoom& room, const PinholeCamera& cam, const Eigen::Is
       const Eigen::Vector3d ray_c((u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, 1.0);  // z = 1
       const Eigen::Vector3d d = R * ray_c;
       double t = hitInside(room.bounds, o, d);
-      Rgb color = room.bounds.color;
+      Rgb colour = room.bounds.colour;
       for (const Box& b : room.boxes) {
         const double tb = hitOutside(b, o, d);
         if (tb < t) {
           t = tb;
-          color = b.color;
+          colour = b.colour;
         }
       }
       if (!std::isfinite(t)) {
@@ -98,8 +98,8 @@ Frame renderFrame(const BoxRoom& room, const PinholeCamera& cam, const Eigen::Is
       // Shade walls a little by height so that colour varies across the scene.
       const double h = (o + d * t).z();
       const double shade = 0.85 + 0.15 * std::clamp(h / 2.6, 0.0, 1.0);
-      cloud.colors[i] = Rgb{static_cast<uint8_t>(color.r * shade), static_cast<uint8_t>(color.g * shade),
-                            static_cast<uint8_t>(color.b * shade)};
+      cloud.colours[i] = Rgb{static_cast<uint8_t>(colour.r * shade), static_cast<uint8_t>(colour.g * shade),
+                            static_cast<uint8_t>(colour.b * shade)};
     }
   }
   return frame;

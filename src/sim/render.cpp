@@ -291,7 +291,7 @@ struct NearestHit {
 
 }  // namespace
 
-bool Renderer::cast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double& t, Rgb& color) const {
+bool Renderer::cast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double& t, Rgb& colour) const {
   if (parts_.empty()) return false;
   const Eigen::Vector3d inv(1.0 / dir.x(), 1.0 / dir.y(), 1.0 / dir.z());
   // Nodes are tested with the near and far planes picked by the ray's direction.
@@ -349,7 +349,7 @@ bool Renderer::cast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, d
   }
   if (hit.face < 0) return false;
   t = hit.t;
-  color = parts_[hit.part].face_colors[static_cast<size_t>(hit.face)];
+  colour = parts_[hit.part].face_colours[static_cast<size_t>(hit.face)];
   return true;
 }
 
@@ -435,7 +435,7 @@ class Tiles {
 
   // The nearest part along the ray of pixel (u, v), from the camera at `o` along unit `dir`.
   bool cast(const std::vector<Part>& parts, uint32_t u, uint32_t v, const Eigen::Vector3d& o,
-            const Eigen::Vector3d& dir, double& t, Rgb& color) const {
+            const Eigen::Vector3d& dir, double& t, Rgb& colour) const {
     const Eigen::Vector3d inv(1.0 / dir.x(), 1.0 / dir.y(), 1.0 / dir.z());
     const size_t tile = size_t{v / kSize} * across_ + u / kSize;
     NearestHit hit;
@@ -446,7 +446,7 @@ class Tiles {
     }
     if (hit.face < 0) return false;
     t = hit.t;
-    color = parts[hit.part].face_colors[static_cast<size_t>(hit.face)];
+    colour = parts[hit.part].face_colours[static_cast<size_t>(hit.face)];
     return true;
   }
 

@@ -32,11 +32,11 @@ Part solid(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, Rgb c) {
   Part p;
   p.box = Eigen::AlignedBox3d(lo, hi);
   // Sides slightly darker than the top, as under ceiling light.
-  p.face_colors = {shade(c, 0.85), shade(c, 0.9), shade(c, 0.8), shade(c, 0.95), shade(c, 0.6), c};
+  p.face_colours = {shade(c, 0.85), shade(c, 0.9), shade(c, 0.8), shade(c, 0.95), shade(c, 0.6), c};
   return p;
 }
 
-Rgb randomColor(Rng& rng, int lo, int hi) {
+Rgb randomColour(Rng& rng, int lo, int hi) {
   return {static_cast<uint8_t>(lo + rng.below(hi - lo)), static_cast<uint8_t>(lo + rng.below(hi - lo)),
           static_cast<uint8_t>(lo + rng.below(hi - lo))};
 }
@@ -73,7 +73,7 @@ std::vector<Part> tableAt(double x, double y, double sx, double sy, double h, Rg
 }
 
 std::vector<Part> personAt(double x, double y, Rng& rng) {
-  const Rgb clothes = randomColor(rng, 40, 220);
+  const Rgb clothes = randomColour(rng, 40, 220);
   return {solid({x - 0.2, y - 0.15, 0.0}, {x + 0.2, y + 0.15, 1.45}, clothes),
           solid({x - 0.1, y - 0.1, 1.45}, {x + 0.1, y + 0.1, 1.72}, Rgb{210, 170, 140})};
 }
@@ -123,14 +123,14 @@ void furnish(Builder& b, int room_index, Rng& rng) {
   const bool north = room.door_m.y() < a.center().y();  // door on the south side
   const double back_y = north ? a.max().y() : a.min().y();
   const double dir = north ? -1.0 : 1.0;  // from the back wall into the room
-  const Rgb chair_color = rng.chance(0.5) ? Rgb{30, 30, 34} : randomColor(rng, 60, 200);
+  const Rgb chair_colour = rng.chance(0.5) ? Rgb{30, 30, 34} : randomColour(rng, 60, 200);
   if (room.name == "meeting room") {
     const Eigen::Vector2d c = a.center() + Eigen::Vector2d(0.0, north ? 0.6 : -0.6);  // off the robot's stand
     b.add(ObjectKind::Table, room_index, tableAt(c.x(), c.y(), 2.4, 1.0, 0.74, Rgb{150, 110, 70}));
     for (int i = 0; i < 6; ++i) {
       const double x = c.x() - 0.8 + 0.8 * (i % 3);
       const double y = c.y() + (i < 3 ? -0.8 : 0.8);
-      b.add(ObjectKind::Chair, room_index, chairAt(x, y, i >= 3, chair_color));
+      b.add(ObjectKind::Chair, room_index, chairAt(x, y, i >= 3, chair_colour));
     }
   } else if (room.name == "kitchen") {
     b.add(ObjectKind::Shelf, room_index,
@@ -139,28 +139,28 @@ void furnish(Builder& b, int room_index, Rng& rng) {
     const Eigen::Vector2d t = spotIn(room, rng, 0.7);
     b.add(ObjectKind::Table, room_index, tableAt(t.x(), t.y(), 1.2, 0.8, 0.75, Rgb{200, 190, 170}));
     for (int i = 0; i < 2; ++i) {
-      b.add(ObjectKind::Chair, room_index, chairAt(t.x() - 0.3 + 0.6 * i, t.y() - 0.6, false, chair_color));
+      b.add(ObjectKind::Chair, room_index, chairAt(t.x() - 0.3 + 0.6 * i, t.y() - 0.6, false, chair_colour));
     }
   } else {
     const int desks = a.sizes().x() > 4.5 ? 2 : 1;
     for (int i = 0; i < desks; ++i) {
       const double x = a.min().x() + (i + 0.5) * a.sizes().x() / desks;
       const double y = back_y + dir * 0.4;
-      const Rgb desk = randomColor(rng, 120, 230);
+      const Rgb desk = randomColour(rng, 120, 230);
       b.add(ObjectKind::Desk, room_index,
             {solid({x - 0.7, y - 0.35, 0.0}, {x + 0.7, y + 0.35, 0.74}, desk)});
-      b.add(ObjectKind::Chair, room_index, chairAt(x, y + dir * 0.75, north, chair_color));
+      b.add(ObjectKind::Chair, room_index, chairAt(x, y + dir * 0.75, north, chair_colour));
     }
     const double sx = rng.chance(0.5) ? a.min().x() + 0.2 : a.max().x() - 0.6;
     b.add(ObjectKind::Shelf, room_index,
-          {solid({sx, a.center().y() - 0.5, 0.0}, {sx + 0.4, a.center().y() + 0.5, 1.8}, randomColor(rng, 80, 200))});
+          {solid({sx, a.center().y() - 0.5, 0.0}, {sx + 0.4, a.center().y() + 0.5, 1.8}, randomColour(rng, 80, 200))});
   }
   const int boxes = 1 + rng.below(2);
   for (int i = 0; i < boxes; ++i) {
     const double s = rng.uniform(0.3, 0.6);
     const Eigen::Vector2d p = spotIn(room, rng, s);
     b.add(ObjectKind::Box, room_index,
-          {solid({p.x() - s / 2, p.y() - s / 2, 0.0}, {p.x() + s / 2, p.y() + s / 2, s}, randomColor(rng, 90, 230))});
+          {solid({p.x() - s / 2, p.y() - s / 2, 0.0}, {p.x() + s / 2, p.y() + s / 2, s}, randomColour(rng, 90, 230))});
   }
 }
 
@@ -268,14 +268,14 @@ SceneState makeScene(const std::string& preset, uint64_t seed) {
   }
   Rng rng(mix(seed, 0x5ce4e));
   Builder b;
-  const Rgb wall_color = randomColor(rng, 190, 235);
+  const Rgb wall_colour = randomColour(rng, 190, 235);
   if (preset == "tiny") {
     const Eigen::AlignedBox2d area(Eigen::Vector2d(0.0, 0.0), Eigen::Vector2d(4.0, 3.5));
     b.add(ObjectKind::Floor, -1, {solid({-0.2, -0.2, -0.1}, {4.2, 3.7, 0.0}, Rgb{140, 125, 110})});
-    addWallX(b, -0.1, 4.1, -0.1, {2.0}, wall_color);
-    addWallX(b, -0.1, 4.1, 3.5, {}, wall_color);
-    addWallY(b, -0.1, 0.0, 3.5, wall_color);
-    addWallY(b, 4.0, 0.0, 3.5, wall_color);
+    addWallX(b, -0.1, 4.1, -0.1, {2.0}, wall_colour);
+    addWallX(b, -0.1, 4.1, 3.5, {}, wall_colour);
+    addWallY(b, -0.1, 0.0, 3.5, wall_colour);
+    addWallY(b, 4.0, 0.0, 3.5, wall_colour);
     b.s.rooms.push_back(Room{"office", area, {2.0, -0.05}, {2.0, 1.6}, 0});
     Object& door = b.add(ObjectKind::Door, 0, {solid({1.5, -0.08, 0.0}, {2.5, -0.02, kDoorHeight}, Rgb{120, 80, 50})});
     b.s.rooms[0].door_object = door.id;
@@ -291,15 +291,15 @@ SceneState makeScene(const std::string& preset, uint64_t seed) {
     std::vector<double> north_doors, south_doors;
     for (int i = 0; i < per_side; ++i) north_doors.push_back((i + 0.5) * width);
     if (big) south_doors = north_doors;
-    addWallX(b, -0.1, length + 0.1, corridor, north_doors, wall_color);          // corridor, north side
-    addWallX(b, -0.1, length + 0.1, corridor + depth + kWallThickness, {}, wall_color);
-    addWallX(b, -0.1, length + 0.1, -kWallThickness, south_doors, wall_color);  // corridor, south side
-    if (big) addWallX(b, -0.1, length + 0.1, -depth - 2 * kWallThickness, {}, wall_color);
-    addWallY(b, -0.1, big ? -depth - kWallThickness : 0.0, corridor + depth + kWallThickness, wall_color);
-    addWallY(b, length, big ? -depth - kWallThickness : 0.0, corridor + depth + kWallThickness, wall_color);
+    addWallX(b, -0.1, length + 0.1, corridor, north_doors, wall_colour);          // corridor, north side
+    addWallX(b, -0.1, length + 0.1, corridor + depth + kWallThickness, {}, wall_colour);
+    addWallX(b, -0.1, length + 0.1, -kWallThickness, south_doors, wall_colour);  // corridor, south side
+    if (big) addWallX(b, -0.1, length + 0.1, -depth - 2 * kWallThickness, {}, wall_colour);
+    addWallY(b, -0.1, big ? -depth - kWallThickness : 0.0, corridor + depth + kWallThickness, wall_colour);
+    addWallY(b, length, big ? -depth - kWallThickness : 0.0, corridor + depth + kWallThickness, wall_colour);
     for (int i = 1; i < per_side; ++i) {
-      addWallY(b, i * width - kWallThickness / 2, corridor + kWallThickness, corridor + depth + kWallThickness, wall_color);
-      if (big) addWallY(b, i * width - kWallThickness / 2, -depth - kWallThickness, -kWallThickness, wall_color);
+      addWallY(b, i * width - kWallThickness / 2, corridor + kWallThickness, corridor + depth + kWallThickness, wall_colour);
+      if (big) addWallY(b, i * width - kWallThickness / 2, -depth - kWallThickness, -kWallThickness, wall_colour);
     }
     b.s.rooms.push_back(Room{"corridor", Eigen::AlignedBox2d(Eigen::Vector2d(0, 0), Eigen::Vector2d(length, corridor)),
                              {0, 0}, {0, 1.0}, 0});
@@ -476,7 +476,7 @@ std::vector<std::pair<uint32_t, EventKind>> applyChanges(SceneState& state, uint
     o.kind = ObjectKind::Box;
     o.room = room_index;
     o.parts = {solid({p.x() - s / 2, p.y() - s / 2, kOffset.z()}, {p.x() + s / 2, p.y() + s / 2, kOffset.z() + s},
-                     randomColor(rng, 90, 230))};
+                     randomColour(rng, 90, 230))};
     events.emplace_back(o.id, EventKind::Added);
     state.objects.push_back(std::move(o));
   }

@@ -234,7 +234,7 @@ Part rareBox(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, Rgb c) {
     auto v = [f](uint8_t x) { return static_cast<uint8_t>(std::clamp(std::lround(x * f), 0L, 255L)); };
     return Rgb{v(c.r), v(c.g), v(c.b)};
   };
-  p.face_colors = {shade(0.85), shade(0.9), shade(0.8), shade(0.95), shade(0.6), c};
+  p.face_colours = {shade(0.85), shade(0.9), shade(0.8), shade(0.95), shade(0.6), c};
   return p;
 }
 

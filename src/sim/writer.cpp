@@ -155,7 +155,7 @@ nlohmann::json objectsJson(const SceneState& state) {
     for (const Part& p : o.parts) {
       parts.push_back({{"min", {p.box.min().x(), p.box.min().y(), p.box.min().z()}},
                        {"max", {p.box.max().x(), p.box.max().y(), p.box.max().z()}},
-                       {"color", {p.face_colors[5].r, p.face_colors[5].g, p.face_colors[5].b}}});
+                       {"color", {p.face_colours[5].r, p.face_colours[5].g, p.face_colours[5].b}}});
     }
     const Eigen::Vector2d c = centerOf(o);
     objects.push_back({{"id", o.id},
@@ -381,7 +381,7 @@ void Simulation::repaint(int s) {
     if (s == repaint_at_) {
       nlohmann::json voxels = nlohmann::json::array();
       for (const VoxelKey& k : objectVoxels(o, rig_.grid)) voxels.push_back({k.x, k.y, k.z});
-      const Rgb was = o.parts.front().face_colors[5];
+      const Rgb was = o.parts.front().face_colours[5];
       repaints_json_.push_back({{"from_session", s - 1},
                                 {"to_session", s},
                                 {"object", o.id},
@@ -391,7 +391,7 @@ void Simulation::repaint(int s) {
                                 {"voxel_count", voxels.size()},
                                 {"voxels", voxels}});
     }
-    for (Part& part : o.parts) part.face_colors.fill(repaint_colour);
+    for (Part& part : o.parts) part.face_colours.fill(repaint_colour);
   }
 }
 

@@ -39,7 +39,7 @@ void writeDiffMap(const std::filesystem::path& path, const DiffMap& diff, const 
     put16(cells, c.key.x);
     put16(cells, c.key.y);
     put16(cells, c.key.z);
-    cells.insert(cells.end(), {c.level, static_cast<uint8_t>(c.kind), c.color.r, c.color.g, c.color.b});
+    cells.insert(cells.end(), {c.level, static_cast<uint8_t>(c.kind), c.colour.r, c.colour.g, c.colour.b});
     uint8_t value[4];
     std::memcpy(value, &c.value, 4);
     cells.insert(cells.end(), value, value + 4);
@@ -92,7 +92,7 @@ DiffMap diffMapFrom(const CmapFile& file, const std::string& source) {
     c.key = VoxelKey{get16(p), get16(p + 2), get16(p + 4)};
     c.level = p[6];
     c.kind = static_cast<ChangeKind>(p[7]);
-    c.color = Rgb{p[8], p[9], p[10]};
+    c.colour = Rgb{p[8], p[9], p[10]};
     std::memcpy(&c.value, p + 11, 4);
     p += kCellBytes;
   }

@@ -34,10 +34,10 @@ bool ChangeCriterion::differs(const VoxelCounters& before, const VoxelCounters& 
   if (probability_threshold > 0.0 && std::abs(before.probability() - after.probability()) > probability_threshold) {
     return true;
   }
-  if (color_distance > 0.0 && before.hits > 0 && after.hits > 0) {
-    const Rgb a = before.meanColor(), b = after.meanColor();
+  if (colour_distance > 0.0 && before.hits > 0 && after.hits > 0) {
+    const Rgb a = before.meanColour(), b = after.meanColour();
     const double dr = a.r - b.r, dg = a.g - b.g, db = a.b - b.b;
-    if (std::sqrt(dr * dr + dg * dg + db * db) > color_distance) return true;
+    if (std::sqrt(dr * dr + dg * dg + db * db) > colour_distance) return true;
   }
   return false;
 }
@@ -46,8 +46,8 @@ void ChangeCriterion::validate() const {
   if (!std::isfinite(probability_threshold) || probability_threshold < 0.0 || probability_threshold >= 1.0) {
     throw UsageError("probability threshold must lie in [0, 1), got " + std::to_string(probability_threshold));
   }
-  if (!std::isfinite(color_distance) || color_distance < 0.0) {
-    throw UsageError("colour distance must be a non-negative number, got " + std::to_string(color_distance));
+  if (!std::isfinite(colour_distance) || colour_distance < 0.0) {
+    throw UsageError("colour distance must be a non-negative number, got " + std::to_string(colour_distance));
   }
 }
 
@@ -654,7 +654,7 @@ TemporalMap TemporalMap::fromParts(double resolution_m, ChangeCriterion criterio
 bool operator==(const TemporalMap& a, const TemporalMap& b) {
   if (a.resolution_m() != b.resolution_m() || a.sessions_.size() != b.sessions_.size()) return false;
   if (a.criterion_.probability_threshold != b.criterion_.probability_threshold ||
-      a.criterion_.color_distance != b.criterion_.color_distance) {
+      a.criterion_.colour_distance != b.criterion_.colour_distance) {
     return false;
   }
   for (size_t i = 0; i < a.sessions_.size(); ++i) {

@@ -245,7 +245,7 @@ void checkTileFits(const TemporalMap& top, int tile_level, const TileKey& key, c
                       std::to_string(top.resolution_m()) + " m");
   }
   if (tile.criterion().probability_threshold != top.criterion().probability_threshold ||
-      tile.criterion().color_distance != top.criterion().color_distance) {
+      tile.criterion().colour_distance != top.criterion().colour_distance) {
     throw FormatError(source + ": its change criterion differs from the index's");
   }
   bool same = tile.sessionCount() == top.sessionCount();

@@ -229,13 +229,13 @@ std::string encodeSnapshot(const VoxelSet& v, const TemporalMap& map) {
   std::vector<uint16_t> keys;
   keys.reserve(v.keys.size() * 3);
   for (const auto& k : v.keys) keys.insert(keys.end(), {k.x, k.y, k.z});
-  std::vector<uint8_t> colors;
-  colors.reserve(v.colors.size() * 3);
-  for (const auto& c : v.colors) colors.insert(colors.end(), {c.r, c.g, c.b});
+  std::vector<uint8_t> colours;
+  colours.reserve(v.colours.size() * 3);
+  for (const auto& c : v.colours) colours.insert(colours.end(), {c.r, c.g, c.b});
   PacketWriter w;
   w.add("keys", std::span<const uint16_t>(keys));
   w.add("levels", std::span<const uint8_t>(v.levels));
-  w.add("colors", std::span<const uint8_t>(colors));
+  w.add("colors", std::span<const uint8_t>(colours));
   w.add("changes", std::span<const uint8_t>(v.changes));
   w.add("since", std::span<const uint16_t>(v.since));
   w.add("members", std::span<const uint32_t>(v.members));

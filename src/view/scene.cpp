@@ -19,7 +19,7 @@ struct Occupied {
   uint64_t code = 0;
   VoxelKey key;
   uint8_t level = 0;
-  Rgb color;
+  Rgb colour;
   uint8_t changes = 0;
   uint16_t since = 0;
 };
@@ -42,7 +42,7 @@ std::vector<Occupied> occupiedAt(const TemporalMap& map, uint32_t rank, const Sn
     const auto& valid = *(it - 1);
     if (valid.value.state() != VoxelState::Occupied) return;
     const auto index = static_cast<size_t>(it - entries.begin()) - 1;  // changes before and at `rank`
-    out.push_back(Occupied{mortonEncode(corner), corner, static_cast<uint8_t>(level), valid.value.meanColor(),
+    out.push_back(Occupied{mortonEncode(corner), corner, static_cast<uint8_t>(level), valid.value.meanColour(),
                            static_cast<uint8_t>(std::min<size_t>(index, 255)),
                            static_cast<uint16_t>(std::min<uint32_t>(valid.session, 0xffff))});
   });
@@ -80,7 +80,7 @@ VoxelSet snapshotVoxels(const TemporalMap& map, const SnapshotRequest& request) 
     out.keys.push_back(s.corner);
     out.levels.push_back(s.level);
     const auto mean = [&](uint64_t sum) { return static_cast<uint8_t>((sum + s.members / 2) / s.members); };
-    out.colors.push_back(Rgb{mean(s.r), mean(s.g), mean(s.b)});
+    out.colours.push_back(Rgb{mean(s.r), mean(s.g), mean(s.b)});
     out.changes.push_back(s.changes);
     out.since.push_back(s.since);
     out.members.push_back(static_cast<uint32_t>(std::min<uint64_t>(s.members, std::numeric_limits<uint32_t>::max())));
@@ -95,9 +95,9 @@ VoxelSet snapshotVoxels(const TemporalMap& map, const SnapshotRequest& request) 
     }
     Sum& s = *open;
     const uint64_t n = lod::unitVoxels(o.level);
-    s.r += o.color.r * n;
-    s.g += o.color.g * n;
-    s.b += o.color.b * n;
+    s.r += o.colour.r * n;
+    s.g += o.colour.g * n;
+    s.b += o.colour.b * n;
     s.members += n;
     s.changes = std::max(s.changes, o.changes);
     s.since = std::max(s.since, o.since);
@@ -133,7 +133,7 @@ nlohmann::json componentJson(const Component& c) {
           {"bbox_min_m", vec(c.bbox_min_m)},
           {"bbox_max_m", vec(c.bbox_max_m)},
           {"centroid_m", vec(c.centroid_m)},
-          {"color", {c.mean_color.r, c.mean_color.g, c.mean_color.b}}};
+          {"color", {c.mean_colour.r, c.mean_colour.g, c.mean_colour.b}}};
 }
 
 nlohmann::json historyJson(const TemporalMap& map, const VoxelKey& corner, int level) {
@@ -165,7 +165,7 @@ nlohmann::json historyJson(const TemporalMap& map, const VoxelKey& corner, int l
   }
   nlohmann::json entries = nlohmann::json::array();
   for (const auto& e : best) {
-    const Rgb c = e.counters.meanColor();
+    const Rgb c = e.counters.meanColour();
     entries.push_back({{"time_s", e.time_s},
                        {"time", formatTime(e.time_s)},
                        {"session", map.rankAtOrBefore(e.time_s).value_or(0)},

@@ -21,7 +21,7 @@ struct Item {
   uint64_t code = 0;
   VoxelKey key;
   uint8_t level = 0;
-  Rgb color;
+  Rgb colour;
   uint8_t changes = 0;
 };
 
@@ -41,13 +41,13 @@ Timeline everOccupied(const TemporalMap& map) {
   map.forEachList([&](const VoxelKey& corner, int level, std::span<const TemporalMap::Entry> entries) {
     std::fill(row.begin(), row.end(), 0);
     bool ever = false;
-    Rgb color;
+    Rgb colour;
     size_t next = 0;
     VoxelState state = VoxelState::Unknown;
     for (uint32_t s = 0; s < sessions; ++s) {
       for (; next < entries.size() && entries[next].session <= s; ++next) {
         state = entries[next].value.state();
-        if (state == VoxelState::Occupied) color = entries[next].value.meanColor();
+        if (state == VoxelState::Occupied) colour = entries[next].value.meanColour();
       }
       row[s / 4] = static_cast<uint8_t>(row[s / 4] | static_cast<uint8_t>(state) << (2 * (s % 4)));
       if (state == VoxelState::Occupied) {
@@ -56,7 +56,7 @@ Timeline everOccupied(const TemporalMap& map) {
       }
     }
     if (!ever) return;
-    t.items.push_back(Item{mortonEncode(corner), corner, static_cast<uint8_t>(level), color,
+    t.items.push_back(Item{mortonEncode(corner), corner, static_cast<uint8_t>(level), colour,
                            static_cast<uint8_t>(std::min<size_t>(entries.size() - 1, 255))});
     t.states.insert(t.states.end(), row.begin(), row.end());
   });
@@ -66,12 +66,12 @@ Timeline everOccupied(const TemporalMap& map) {
 // The cells of the timeline at level of detail `level`, added to `w`; returns their number.
 size_t addCells(PacketWriter& w, const Timeline& t, int level, size_t sessions) {
   std::vector<uint16_t> keys;
-  std::vector<uint8_t> levels, colors, changes, states;
+  std::vector<uint8_t> levels, colours, changes, states;
   std::vector<uint64_t> sums;  // r, g, b, voxels of the open cell
   uint64_t open = ~uint64_t{0};
   auto flush = [&] {
     if (open == ~uint64_t{0}) return;
-    for (int c = 0; c < 3; ++c) colors.push_back(static_cast<uint8_t>((sums[c] + sums[3] / 2) / sums[3]));
+    for (int c = 0; c < 3; ++c) colours.push_back(static_cast<uint8_t>((sums[c] + sums[3] / 2) / sums[3]));
   };
   for (size_t i = 0; i < t.items.size(); ++i) {
     const Item& o = t.items[i];
@@ -88,9 +88,9 @@ size_t addCells(PacketWriter& w, const Timeline& t, int level, size_t sessions) 
       sums.assign(4, 0);
     }
     const uint64_t n = lod::unitVoxels(o.level);
-    sums[0] += o.color.r * n;
-    sums[1] += o.color.g * n;
-    sums[2] += o.color.b * n;
+    sums[0] += o.colour.r * n;
+    sums[1] += o.colour.g * n;
+    sums[2] += o.colour.b * n;
     sums[3] += n;
     changes.back() = std::max(changes.back(), o.changes);
     // A cell's state per session is its most occupied member's (occupied > free > unknown).
@@ -104,7 +104,7 @@ size_t addCells(PacketWriter& w, const Timeline& t, int level, size_t sessions) 
   flush();
   w.add("keys", std::span<const uint16_t>(keys));
   w.add("levels", std::span<const uint8_t>(levels));
-  w.add("colors", std::span<const uint8_t>(colors));
+  w.add("colors", std::span<const uint8_t>(colours));
   w.add("changes", std::span<const uint8_t>(changes));
   w.add("states", std::span<const uint8_t>(states));
   return levels.size();

@@ -32,11 +32,11 @@ TEST(RealignScore, MatchesItsFormula) {
   s.weight_distance = 2.0;
   s.weight_probability = 0.0;
   EXPECT_DOUBLE_EQ(realignScore(2.0, 0.5, 0.25, s), 1.0 / (4.0 * 0.5));
-  s.weight_color = 3.0;
+  s.weight_colour = 3.0;
   EXPECT_DOUBLE_EQ(realignScore(1.5, 0.2, 0.9, s), 1.0 / (2.25 * 0.008));
-  EXPECT_DOUBLE_EQ(colorDistance({0, 0, 0}, {255, 255, 255}), std::sqrt(3.0));
-  EXPECT_DOUBLE_EQ(colorDistance({10, 20, 30}, {10, 20, 30}), 0.0);
-  EXPECT_DOUBLE_EQ(colorDistance({0, 51, 0}, {0, 0, 0}), 0.2);
+  EXPECT_DOUBLE_EQ(colourDistance({0, 0, 0}, {255, 255, 255}), std::sqrt(3.0));
+  EXPECT_DOUBLE_EQ(colourDistance({10, 20, 30}, {10, 20, 30}), 0.0);
+  EXPECT_DOUBLE_EQ(colourDistance({0, 51, 0}, {0, 0, 0}), 0.2);
 }
 
 TEST(RealignScore, IsFiniteForIdenticalVoxelsAndZeroDistance) {
@@ -59,7 +59,7 @@ TEST(RealignSettings, RejectsBadValues) {
   EXPECT_THROW(bad([](auto& s) { s.alpha = std::nan(""); }).validate(), UsageError);
   EXPECT_THROW(bad([](auto& s) { s.epsilon = 0; }).validate(), UsageError);
   EXPECT_THROW(bad([](auto& s) { s.max_distance_voxels = 9; }).validate(), UsageError);
-  EXPECT_THROW(bad([](auto& s) { s.weight_color = -0.5; }).validate(), UsageError);
+  EXPECT_THROW(bad([](auto& s) { s.weight_colour = -0.5; }).validate(), UsageError);
   EXPECT_THROW(bad([](auto& s) { s.consensus_occupied_above = 1.0; }).validate(), UsageError);
   EXPECT_THROW(bad([](auto& s) { s.consensus_occupied_above = 0.2; }).validate(), UsageError);
   EXPECT_NO_THROW(RealignSettings{}.validate());
@@ -223,7 +223,7 @@ struct DenseRealign {
 
 // A random map over side^3 voxels with colours from a small palette, so that ties and close
 // matches happen.
-SessionMap randomColoredMap(std::mt19937_64& rng, int side) {
+SessionMap randomColouredMap(std::mt19937_64& rng, int side) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   const Rgb palette[] = {{200, 30, 30}, {205, 30, 30}, {30, 200, 30}, {30, 30, 200}};
   SessionMap m(0.05);
@@ -252,14 +252,14 @@ TEST(Realign, EqualsTheDenseReferenceOnRandomMaps) {
   size_t total_moves = 0, transfer_moves = 0;
   for (int trial = 0; trial < 120; ++trial) {
     std::vector<SessionMap> maps;
-    for (int i = 0; i < 3; ++i) maps.push_back(randomColoredMap(rng, side));
+    for (int i = 0; i < 3; ++i) maps.push_back(randomColouredMap(rng, side));
     const SessionMap avg = consensus(std::span<const SessionMap>(maps));
     RealignSettings s;
     s.move = trial % 2 ? RealignSettings::Move::Swap : RealignSettings::Move::Transfer;
     s.alpha = std::vector<double>{0.0, 20.0, 300.0}[trial % 3];
     s.max_distance_voxels = std::vector<double>{1.0, 1.75, 2.0, 3.0}[(trial / 3) % 4];
     s.consensus_occupied_above = trial % 5 == 0 ? 0.99 : 0.5;
-    s.weight_color = trial % 7 == 0 ? 2.0 : 1.0;
+    s.weight_colour = trial % 7 == 0 ? 2.0 : 1.0;
     RealignReport report;
     const SessionMap fixed = realign(maps[0], avg, s, &report);
     const DenseRealign dense(maps[0], avg, side);

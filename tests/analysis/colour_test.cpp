@@ -319,11 +319,11 @@ TEST(Colour, RecolourPaintsThePredictedColour) {
   const SessionMap painted = recolour(extra, m, t);
   const auto unmodelled = painted.find(at(20, 20, 0));
   ASSERT_TRUE(unmodelled);
-  EXPECT_EQ(unmodelled->meanColor(), (Rgb{1, 2, 3}));
+  EXPECT_EQ(unmodelled->meanColour(), (Rgb{1, 2, 3}));
   // At 13:00 each voxel reads as it was observed at 13:00 (within the map's colour distance).
   const SessionMap observed = map.snapshot(times[times.size() - 2]);
   for (int x = 0; x < 8; ++x) {
-    const Rgb p = painted.find(at(x, 2, 0))->meanColor(), o = observed.find(at(x, 2, 0))->meanColor();
+    const Rgb p = painted.find(at(x, 2, 0))->meanColour(), o = observed.find(at(x, 2, 0))->meanColour();
     EXPECT_LE(std::hypot(double(p.r) - o.r, double(p.g) - o.g, double(p.b) - o.b), 4.0 + 2.0) << x;
   }
   EXPECT_EQ(m.bytesPerVoxel(), 6u + 24u);
@@ -357,7 +357,7 @@ TEST(Colour, SavedModelsAnswerTheSameColoursAndBadBytesAreRefused) {
   const double t = kMonday_s + 86400.0 * 9 + 3600.0 * 19.0;
   const SessionMap snap = map.snapshot(times.back());
   const SessionMap a = recolour(snap, m, t), b = recolour(snap, back, t);
-  for (int x = 0; x < 8; ++x) EXPECT_EQ(a.find(at(x, 2, 0))->meanColor(), b.find(at(x, 2, 0))->meanColor()) << x;
+  for (int x = 0; x < 8; ++x) EXPECT_EQ(a.find(at(x, 2, 0))->meanColour(), b.find(at(x, 2, 0))->meanColour()) << x;
   EXPECT_EQ(serialize(back), bytes);
 
   // Every truncation, a wrong magic, a newer version and an unknown kind are refused, naming the file.

@@ -69,9 +69,9 @@ TEST(Diff, HardModeSeesOnlyOccupiedFreeChanges) {
   ASSERT_EQ(d.cells().size(), 2u);
   const auto cells = byKey(d);
   EXPECT_EQ(cells.at(at(0, 0, 0)).kind, ChangeKind::Vanished);
-  EXPECT_EQ(cells.at(at(0, 0, 0)).color.r, 100) << "a vanished voxel keeps the colour of what vanished";
+  EXPECT_EQ(cells.at(at(0, 0, 0)).colour.r, 100) << "a vanished voxel keeps the colour of what vanished";
   EXPECT_EQ(cells.at(at(1, 0, 0)).kind, ChangeKind::Appeared);
-  EXPECT_EQ(cells.at(at(1, 0, 0)).color.r, 210) << "an appeared voxel has the colour of the new surface";
+  EXPECT_EQ(cells.at(at(1, 0, 0)).colour.r, 210) << "an appeared voxel has the colour of the new surface";
   EXPECT_NEAR(cells.at(at(1, 0, 0)).value, 0.8, 1e-5);
   EXPECT_EQ(d.voxelCount(ChangeKind::Appeared), 1u);
   EXPECT_EQ(d.voxelCount(ChangeKind::Vanished), 1u);
@@ -618,7 +618,7 @@ TEST(Diff, EqualsVoxelByVoxelReferenceOnRandomMaps) {
             if (!expected) continue;
             ++expected_count;
             EXPECT_EQ(it->second.kind, expected->kind);
-            EXPECT_EQ(it->second.color, expected->color);
+            EXPECT_EQ(it->second.colour, expected->colour);
             EXPECT_FLOAT_EQ(it->second.value, expected->value);
           }
         }

@@ -385,11 +385,11 @@ TEST(Rhythm, PredictedMapsCarryTheModelsProbabilities) {
       ASSERT_TRUE(c);
       EXPECT_NEAR(c->probability(), RhythmModels::predict(models.voxels[0], m, t), 1e-6) << toString(m);
       if (c->hits > 0) {
-        EXPECT_EQ(c->meanColor(), (Rgb{10, 200, 10}));  // the last colour seen there
+        EXPECT_EQ(c->meanColour(), (Rgb{10, 200, 10}));  // the last colour seen there
       }
       // The wall is as last observed.
       EXPECT_EQ(p.stateOf(at(0, 0, 0)), VoxelState::Occupied);
-      EXPECT_EQ(p.find(at(0, 0, 0))->meanColor(), (Rgb{200, 10, 10}));
+      EXPECT_EQ(p.find(at(0, 0, 0))->meanColour(), (Rgb{200, 10, 10}));
       EXPECT_EQ(p.stateOf(at(9, 9, 9)), VoxelState::Unknown);
     }
   }

@@ -13,12 +13,12 @@ namespace {
 // Cells near the root's centre, so that components cross the largest octree boundaries.
 constexpr int kBase = 32768 - 16;
 
-ChangeCell cellAt(int x, int y, int z, int level = 0, ChangeKind kind = ChangeKind::Appeared, Rgb color = {}) {
+ChangeCell cellAt(int x, int y, int z, int level = 0, ChangeKind kind = ChangeKind::Appeared, Rgb colour = {}) {
   ChangeCell c;
   c.key = VoxelKey{static_cast<uint16_t>(kBase + x), static_cast<uint16_t>(kBase + y), static_cast<uint16_t>(kBase + z)};
   c.level = static_cast<uint8_t>(level);
   c.kind = kind;
-  c.color = color;
+  c.colour = colour;
   c.value = 1.0f;
   return c;
 }
@@ -83,9 +83,9 @@ TEST(Segment, ComponentRecordsAreExact) {
   EXPECT_TRUE(slab.bbox_min_m.isApprox(corner));
   EXPECT_TRUE(slab.bbox_max_m.isApprox(corner + Eigen::Vector3d(0.10, 0.15, 0.05)));
   EXPECT_TRUE(slab.centroid_m.isApprox(corner + Eigen::Vector3d(0.05, 0.075, 0.025)));
-  EXPECT_EQ(slab.mean_color, (Rgb{100, 0, 10}));
+  EXPECT_EQ(slab.mean_colour, (Rgb{100, 0, 10}));
   EXPECT_EQ(seg.components[1].kind, ChangeKind::Vanished);
-  EXPECT_EQ(seg.components[1].mean_color, (Rgb{0, 200, 0}));
+  EXPECT_EQ(seg.components[1].mean_colour, (Rgb{0, 200, 0}));
   EXPECT_EQ(componentDiff(d, slab).voxelCount(), 6u);
 }
 
@@ -97,13 +97,13 @@ TEST(Segment, ColourToleranceAndMinimumSize) {
   const DiffMap d = diffOf(cells);
   SegmentSettings s;
   EXPECT_EQ(segment(d, s).components.size(), 2u);
-  s.color_tolerance = 50;
+  s.colour_tolerance = 50;
   EXPECT_EQ(segment(d, s).components.size(), 3u);
   s.min_voxels = 2;
   const Segmentation big = segment(d, s);
   EXPECT_EQ(big.components.size(), 2u);
   EXPECT_EQ(big.dropped, 1u);
-  s.color_tolerance = std::numeric_limits<double>::infinity();
+  s.colour_tolerance = std::numeric_limits<double>::infinity();
   EXPECT_THROW(segment(d, s), UsageError);
   EXPECT_THROW(parseConnectivity("corner"), UsageError);
 }
@@ -189,7 +189,7 @@ TEST(Segment, EqualsFloodFillOnThousandsOfRandomOctrees) {
       for (double tolerance : {-1.0, 20.0}) {
         SegmentSettings s;
         s.connectivity = c;
-        s.color_tolerance = tolerance;
+        s.colour_tolerance = tolerance;
         const Segmentation fast = segment(d, s);
         const Segmentation slow = segmentByFloodFill(d, s);
         ASSERT_EQ(partition(fast), partition(slow)) << "trial " << trial << " " << toString(c) << " tolerance "

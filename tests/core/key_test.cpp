@@ -266,7 +266,7 @@ TEST(VoxelCounters, MeanColourRounds) {
   c.red = 255 * 3;
   c.green = 10;  // 3.33 -> 3
   c.blue = 11;   // 3.67 -> 4
-  EXPECT_EQ(c.meanColor(), (Rgb{255, 3, 4}));
+  EXPECT_EQ(c.meanColour(), (Rgb{255, 3, 4}));
 }
 
 // Walking every voxel of a random set with forEachLaterNeighbour visits each touching pair of

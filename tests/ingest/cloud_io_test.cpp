@@ -27,7 +27,7 @@ void expectSameCloud(const PointCloud& a, const PointCloud& b) {
       }
     }
   }
-  EXPECT_EQ(a.colors, b.colors);
+  EXPECT_EQ(a.colours, b.colours);
   EXPECT_EQ(a.labels, b.labels);
 }
 
@@ -38,7 +38,7 @@ TEST(Pcd, ReadsRealKinectFrameInAllThreeEncodings) {
   const PointCloud cloud = readPcd(path);  // binary_compressed (LZF)
   ASSERT_EQ(cloud.width, 640u);
   ASSERT_EQ(cloud.height, 480u);
-  ASSERT_TRUE(cloud.hasColors());
+  ASSERT_TRUE(cloud.hasColours());
   size_t valid = 0;
   for (const auto& p : cloud.points) {
     if (p.allFinite()) {
@@ -79,7 +79,7 @@ TEST(Pcd, ReadsHandWrittenAsciiWithFloatRgbAndPadding) {
   ASSERT_EQ(c.size(), 2u);
   EXPECT_EQ(c.points[0], Eigen::Vector3f(1, 2, 3));
   EXPECT_TRUE(std::isnan(c.points[1].x()));
-  EXPECT_EQ(c.colors[0], (Rgb{10, 20, 30}));
+  EXPECT_EQ(c.colours[0], (Rgb{10, 20, 30}));
 }
 
 TEST(Pcd, RejectsMalformedFilesNamingThem) {
@@ -138,13 +138,13 @@ TEST(Pcd, RejectsOutOfRangeIntegersAndSaturatesHugeCoordinates) {
   writeBytes(tmp / "h.xyz", "1e300 0 0 300 -5 nan\n");
   const PointCloud x = readXyz(tmp / "h.xyz");
   EXPECT_TRUE(std::isinf(x.points[0].x()));
-  EXPECT_EQ(x.colors[0], (Rgb{255, 0, 0}));
+  EXPECT_EQ(x.colours[0], (Rgb{255, 0, 0}));
 }
 
 TEST(Ply, RoundTripsAndReadsAsciiAndBigEndian) {
   test::TempDir tmp;
   PointCloud c = test::cloudOf({{1, 2, 3}, {-4, 5.5f, 6}});
-  c.colors = {{1, 2, 3}, {250, 128, 0}};
+  c.colours = {{1, 2, 3}, {250, 128, 0}};
   writePly(tmp / "c.ply", c);
   expectSameCloud(readPly(tmp / "c.ply"), c);
 
@@ -156,7 +156,7 @@ TEST(Ply, RoundTripsAndReadsAsciiAndBigEndian) {
   const PointCloud a = readPly(tmp / "a.ply");
   ASSERT_EQ(a.size(), 2u);
   EXPECT_EQ(a.points[1], Eigen::Vector3f(4, 5, 6));
-  EXPECT_EQ(a.colors[0], (Rgb{255, 0, 128}));
+  EXPECT_EQ(a.colours[0], (Rgb{255, 0, 128}));
 
   std::string be = "ply\nformat binary_big_endian 1.0\nelement vertex 1\nproperty double x\nproperty double y\n"
                    "property double z\nend_header\n";

@@ -75,7 +75,7 @@ TEST(DepthToCloud, MetresAsFloatsGiveTheSamePointsAsMillimetres) {
   EXPECT_EQ(b.height, 2u);
   EXPECT_TRUE(std::isnan(b.points[0].x()));
   for (size_t i = 1; i < 6; ++i) EXPECT_EQ(a.points[i], b.points[i]) << i;  // whole metres: exact
-  EXPECT_EQ(b.colors, rgb.pixels);
+  EXPECT_EQ(b.colours, rgb.pixels);
   const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
   const PointCloud c = depthMetresToCloud(std::vector<float>{nan, -1.0f, inf, 0.5f}, 2, 2, nullptr, k, "t");
   for (size_t i = 0; i < 3; ++i) EXPECT_TRUE(std::isnan(c.points[i].z())) << i;
@@ -92,7 +92,7 @@ TEST(Dataset, Reads3DMatchFramesWithPoses) {
   ASSERT_EQ(ds->size(), 5u);
   const Frame f = ds->load(0);
   EXPECT_EQ(f.cloud.width, 640u);
-  EXPECT_TRUE(f.cloud.hasColors());
+  EXPECT_TRUE(f.cloud.hasColours());
   // frame-000000.pose.txt, first row: 0.313181 0.309473 -0.897856 1.973046
   EXPECT_NEAR(f.T_world_sensor.translation().x(), 1.973046, 1e-6);
   EXPECT_NEAR(f.T_world_sensor.linear()(0, 0), 0.313181, 1e-3);
@@ -109,7 +109,7 @@ TEST(Dataset, ReadsTumWithAssociationAndIntrinsics) {
   ASSERT_EQ(ds->size(), 3u);
   const Frame f = ds->load(2);
   EXPECT_NEAR(f.T_world_sensor.translation().x(), 0.20, 1e-9);  // pose at t = 100.2
-  EXPECT_EQ(f.cloud.colors[5].r, 20);
+  EXPECT_EQ(f.cloud.colours[5].r, 20);
   EXPECT_NEAR(f.cloud.points[5].z(), 1.0, 1e-6);                    // 5000 units = 1 m
   EXPECT_NEAR(f.cloud.points[5].x(), (1 - 1.5) * 1.0 / 2.0, 1e-6);  // intrinsics file used
   EXPECT_TRUE(std::isnan(f.cloud.points[0].z()));
@@ -124,8 +124,8 @@ TEST(Dataset, WithoutColourGivesTheSamePointsAndPosesWithoutColours) {
   ASSERT_EQ(without->size(), with->size());
   for (size_t i = 0; i < with->size(); ++i) {
     const Frame a = with->load(i), b = without->load(i);
-    EXPECT_TRUE(a.cloud.hasColors());
-    EXPECT_FALSE(b.cloud.hasColors());
+    EXPECT_TRUE(a.cloud.hasColours());
+    EXPECT_FALSE(b.cloud.hasColours());
     ASSERT_EQ(b.cloud.points.size(), a.cloud.points.size());
     for (size_t j = 0; j < a.cloud.points.size(); ++j) {
       // Bitwise (NaN for the invalid pixel in both).
@@ -135,7 +135,7 @@ TEST(Dataset, WithoutColourGivesTheSamePointsAndPosesWithoutColours) {
   }
   // The colour images are not even opened: a missing one does not matter.
   fs::remove(tmp.path() / "rgb/1.png");
-  EXPECT_FALSE(openDataset(tmp.path(), geometry)->load(1).cloud.hasColors());
+  EXPECT_FALSE(openDataset(tmp.path(), geometry)->load(1).cloud.hasColours());
   EXPECT_THROW(openDataset(tmp.path())->load(1), Error);
 }
 
@@ -191,9 +191,9 @@ TEST(Dataset, DepthCacheGivesTheSameFramesWithinItsBudget) {
     ASSERT_EQ(ds->size(), plain->size());
     for (size_t i = 0; i < ds->size(); ++i) {
       const Frame a = plain->load(i), b = ds->load(i);
-      EXPECT_EQ(b.cloud.hasColors(), cached.colour);
+      EXPECT_EQ(b.cloud.hasColours(), cached.colour);
       if (cached.colour) {
-        EXPECT_TRUE(b.cloud.colors == a.cloud.colors);
+        EXPECT_TRUE(b.cloud.colours == a.cloud.colours);
       }
       ASSERT_EQ(b.cloud.points.size(), a.cloud.points.size());
       for (size_t j = 0; j < a.cloud.points.size(); ++j) {
@@ -339,16 +339,16 @@ TEST(Dataset, CloudListsAndSingleClouds) {
 namespace chronomap {
 namespace {
 
-TEST(ColorInDepthView, LooksUpEachDepthRayInTheColourImage) {
+TEST(ColourInDepthView, LooksUpEachDepthRayInTheColourImage) {
   // Colour at twice the depth resolution, same field of view: depth pixel (u, v) sees colour
   // pixel (2u + 1, 2v + 1) with these intrinsics (the centre of its 2 x 2 block).
   const CameraIntrinsics depth_k{100, 100, 1.5, 1.0};
-  const CameraIntrinsics color_k{200, 200, 4.0, 3.0};
-  ImageRgb color{8, 6, std::vector<Rgb>(48)};
+  const CameraIntrinsics colour_k{200, 200, 4.0, 3.0};
+  ImageRgb colour{8, 6, std::vector<Rgb>(48)};
   for (uint32_t y = 0; y < 6; ++y) {
-    for (uint32_t x = 0; x < 8; ++x) color.pixels[y * 8 + x] = Rgb{static_cast<uint8_t>(x), static_cast<uint8_t>(y), 7};
+    for (uint32_t x = 0; x < 8; ++x) colour.pixels[y * 8 + x] = Rgb{static_cast<uint8_t>(x), static_cast<uint8_t>(y), 7};
   }
-  const ImageRgb seen = colorInDepthView(color, color_k, depth_k, 4, 3);
+  const ImageRgb seen = colourInDepthView(colour, colour_k, depth_k, 4, 3);
   ASSERT_EQ(seen.width, 4u);
   ASSERT_EQ(seen.height, 3u);
   for (uint32_t v = 0; v < 3; ++v) {
@@ -359,7 +359,7 @@ TEST(ColorInDepthView, LooksUpEachDepthRayInTheColourImage) {
     }
   }
   // Rays that leave the colour image are black.
-  const ImageRgb narrow = colorInDepthView(color, CameraIntrinsics{400, 400, 4.0, 3.0}, depth_k, 4, 3);
+  const ImageRgb narrow = colourInDepthView(colour, CameraIntrinsics{400, 400, 4.0, 3.0}, depth_k, 4, 3);
   EXPECT_EQ(narrow.pixels[0].b, 0);
 }
 
@@ -377,9 +377,9 @@ TEST(Dataset, ReadsAScanNetExportWithColourAtItsOwnResolution) {
     m << c.fx << " 0 " << c.cx << " 0\n0 " << c.fy << " " << c.cy << " 0\n0 0 1 0\n0 0 0 1\n";
     return m.str();
   };
-  const CameraIntrinsics color_k{2 * k.fx, 2 * k.fy, 2 * k.cx + 0.5, 2 * k.cy + 0.5};
+  const CameraIntrinsics colour_k{2 * k.fx, 2 * k.fy, 2 * k.cx + 0.5, 2 * k.cy + 0.5};
   writeText(tmp / "intrinsic" / "intrinsic_depth.txt", matrix(k));
-  writeText(tmp / "intrinsic" / "intrinsic_color.txt", matrix(color_k));
+  writeText(tmp / "intrinsic" / "intrinsic_color.txt", matrix(colour_k));
   // The frame numbers of the real sequence: 116 must come after 2 (numbers, not names, sort).
   for (int n : {0, 1, 2, 116, 422}) {
     char stem[32];
@@ -411,13 +411,13 @@ TEST(Dataset, ReadsAScanNetExportWithColourAtItsOwnResolution) {
       EXPECT_EQ(a.cloud.points[i], b.cloud.points[i]) << i;
     }
   }
-  ASSERT_TRUE(b.cloud.hasColors());
+  ASSERT_TRUE(b.cloud.hasColours());
   double difference = 0;
-  for (size_t i = 0; i < a.cloud.colors.size(); ++i) {
-    difference += std::abs(a.cloud.colors[i].r - b.cloud.colors[i].r) + std::abs(a.cloud.colors[i].g - b.cloud.colors[i].g) +
-                  std::abs(a.cloud.colors[i].b - b.cloud.colors[i].b);
+  for (size_t i = 0; i < a.cloud.colours.size(); ++i) {
+    difference += std::abs(a.cloud.colours[i].r - b.cloud.colours[i].r) + std::abs(a.cloud.colours[i].g - b.cloud.colours[i].g) +
+                  std::abs(a.cloud.colours[i].b - b.cloud.colours[i].b);
   }
-  EXPECT_LT(difference / (3.0 * static_cast<double>(a.cloud.colors.size())), 4.0);
+  EXPECT_LT(difference / (3.0 * static_cast<double>(a.cloud.colours.size())), 4.0);
   // A missing colour frame is named, not skipped.
   fs::remove(tmp / "color" / "422.jpg");
   EXPECT_THROW(openDataset(tmp.path()), DataError);

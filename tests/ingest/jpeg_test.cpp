@@ -107,11 +107,11 @@ TEST(Jpeg, ColourFramesAreToldApartByContentNotName) {
   const ImageRgb img = gradient(32, 24);
   writeFileAtomic(tmp / "really_jpeg.png", encodeJpeg(img, 95));
   writePng(tmp / "really_png.jpg", img);
-  EXPECT_LT(meanAbsoluteError(readColorImage(tmp / "really_jpeg.png"), img), 2.0);
-  EXPECT_EQ(meanAbsoluteError(readColorImage(tmp / "really_png.jpg"), img), 0.0);
+  EXPECT_LT(meanAbsoluteError(readColourImage(tmp / "really_jpeg.png"), img), 2.0);
+  EXPECT_EQ(meanAbsoluteError(readColourImage(tmp / "really_png.jpg"), img), 0.0);
   writeFileAtomic(tmp / "text.jpg", std::vector<uint8_t>{'h', 'e', 'l', 'l', 'o'});
   try {
-    readColorImage(tmp / "text.jpg");
+    readColourImage(tmp / "text.jpg");
     FAIL();
   } catch (const FormatError& e) {
     EXPECT_NE(std::string(e.what()).find("text.jpg: a colour frame must be PNG or JPEG"), std::string::npos);
@@ -138,15 +138,15 @@ TEST(Jpeg, A3DMatchSequenceWithJpegColourKeepsItsColours) {
   const auto jpeg_frames = openDataset(tmp.path());
   ASSERT_EQ(jpeg_frames->size(), png_frames->size());
   const Frame a = png_frames->load(0), b = jpeg_frames->load(0);
-  ASSERT_TRUE(b.cloud.hasColors()) << "JPEG colour frames were ignored";
-  ASSERT_EQ(a.cloud.colors.size(), b.cloud.colors.size());
+  ASSERT_TRUE(b.cloud.hasColours()) << "JPEG colour frames were ignored";
+  ASSERT_EQ(a.cloud.colours.size(), b.cloud.colours.size());
   double sum = 0, brightness = 0;
-  for (size_t i = 0; i < a.cloud.colors.size(); ++i) {
-    sum += std::abs(a.cloud.colors[i].r - b.cloud.colors[i].r) + std::abs(a.cloud.colors[i].g - b.cloud.colors[i].g) +
-           std::abs(a.cloud.colors[i].b - b.cloud.colors[i].b);
-    brightness += b.cloud.colors[i].r + b.cloud.colors[i].g + b.cloud.colors[i].b;
+  for (size_t i = 0; i < a.cloud.colours.size(); ++i) {
+    sum += std::abs(a.cloud.colours[i].r - b.cloud.colours[i].r) + std::abs(a.cloud.colours[i].g - b.cloud.colours[i].g) +
+           std::abs(a.cloud.colours[i].b - b.cloud.colours[i].b);
+    brightness += b.cloud.colours[i].r + b.cloud.colours[i].g + b.cloud.colours[i].b;
   }
-  const double n = 3.0 * static_cast<double>(a.cloud.colors.size());
+  const double n = 3.0 * static_cast<double>(a.cloud.colours.size());
   EXPECT_LT(sum / n, 4.0);
   EXPECT_GT(brightness / n, 20.0) << "the colours came out black";
 }

@@ -45,13 +45,13 @@ TEST(Png, ReadsRealTumDepth) {
 }
 
 TEST(Png, RejectsColourAsDepthAndBadFiles) {
-  CHRONOMAP_REQUIRE_DATA(color, "rgbd-formats/TUM_color.png");
-  EXPECT_THROW(readPngU16(color), FormatError);
-  const ImageRgb c = readPngRgb(color);
+  CHRONOMAP_REQUIRE_DATA(colour, "rgbd-formats/TUM_color.png");
+  EXPECT_THROW(readPngU16(colour), FormatError);
+  const ImageRgb c = readPngRgb(colour);
   EXPECT_EQ(c.width, 640u);
 
   test::TempDir tmp;
-  const auto bytes = readFileBytes(color);
+  const auto bytes = readFileBytes(colour);
   for (size_t cut : {size_t{0}, size_t{7}, size_t{40}, bytes.size() / 2, bytes.size() - 13}) {
     std::ofstream(tmp / "t.png", std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
                                                         static_cast<std::streamsize>(cut));

@@ -319,7 +319,7 @@ TEST(Integrator, StopsWhenTheMapPassesTheMemoryLimit) {
 TEST(Integrator, FastModeKeepsHitsAndColoursAndBoundsLengths) {
   const PinholeCamera cam = smallCamera(160);
   auto frames = benchmarkSequence(4, cam);
-  for (auto& f : frames) f.cloud.colors.assign(f.cloud.size(), Rgb{10, 20, 30});
+  for (auto& f : frames) f.cloud.colours.assign(f.cloud.size(), Rgb{10, 20, 30});
   const double res = 0.05;
   SessionMap exact(res), fast(res);
   IntegratorSettings s = exactUncompressed();
@@ -459,7 +459,7 @@ TEST(Integrator, CompressionKeepsEveryVoxelState) {
 TEST(Integrator, CoarseCarvingKeepsHitsAndTheSummedLengthAndMostStates) {
   const PinholeCamera cam = smallCamera(160);
   auto frames = benchmarkSequence(3, cam);
-  for (auto& f : frames) f.cloud.colors.assign(f.cloud.size(), Rgb{10, 20, 30});
+  for (auto& f : frames) f.cloud.colours.assign(f.cloud.size(), Rgb{10, 20, 30});
   const double res = 0.02;
   SessionMap exact(res), fast(res), carved(res);
   IntegratorSettings s = exactUncompressed();

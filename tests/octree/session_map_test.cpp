@@ -42,7 +42,7 @@ TEST(SessionMap, AddAccumulatesCounters) {
   ASSERT_TRUE(c);
   EXPECT_FLOAT_EQ(c->length_m, 0.07f);
   EXPECT_EQ(c->hits, 3u);
-  EXPECT_EQ(c->meanColor().r, 100);
+  EXPECT_EQ(c->meanColour().r, 100);
   EXPECT_EQ(m.stateOf({5, 6, 7}), VoxelState::Occupied);
   EXPECT_EQ(m.stateOf({5, 6, 8}), VoxelState::Unknown);
   EXPECT_EQ(m.leafCount(), 1u);
@@ -59,10 +59,10 @@ TEST(SessionMap, OccupiedCentresAndKnownBounds) {
   m.addCube(at(4, 4, 4), 2, freeVoxel(3.2f));  // a compressed free cube of 4 x 4 x 4 voxels
   const VoxelCentres occupied = occupiedCentres(m);
   ASSERT_EQ(occupied.centers_m.size(), 2u);
-  ASSERT_EQ(occupied.colors.size(), 2u);
+  ASSERT_EQ(occupied.colours.size(), 2u);
   EXPECT_TRUE(occupied.centers_m[0].isApprox(Eigen::Vector3d(0.05, 0.05, 0.05)));  // Morton order
   EXPECT_TRUE(occupied.centers_m[1].isApprox(Eigen::Vector3d(0.15, 0.25, 0.35)));
-  EXPECT_EQ(occupied.colors[1].r, 200);
+  EXPECT_EQ(occupied.colours[1].r, 200);
   const auto bounds = knownBounds(m);
   ASSERT_TRUE(bounds);
   EXPECT_TRUE(bounds->min_m.isApprox(Eigen::Vector3d(-0.2, 0.0, 0.0)));

@@ -176,21 +176,21 @@ TEST(RealData, SingleKinectCloudIntegratesAndExports) {
   exportOctomap(tmp / "o.ot", map);
   std::unique_ptr<octomap::AbstractOcTree> tree(octomap::AbstractOcTree::read((tmp / "o.ot").string()));
   ASSERT_TRUE(tree);
-  auto* color = dynamic_cast<octomap::ColorOcTree*>(tree.get());
-  ASSERT_NE(color, nullptr);
-  EXPECT_DOUBLE_EQ(color->getResolution(), 0.05);
+  auto* colour = dynamic_cast<octomap::ColorOcTree*>(tree.get());
+  ASSERT_NE(colour, nullptr);
+  EXPECT_DOUBLE_EQ(colour->getResolution(), 0.05);
   size_t occupied = 0;
-  for (auto it = color->begin_leafs(); it != color->end_leafs(); ++it) {
-    if (color->isNodeOccupied(*it)) occupied += static_cast<size_t>(std::pow(8, 16 - it.getDepth()));
+  for (auto it = colour->begin_leafs(); it != colour->end_leafs(); ++it) {
+    if (colour->isNodeOccupied(*it)) occupied += static_cast<size_t>(std::pow(8, 16 - it.getDepth()));
   }
   EXPECT_EQ(occupied, map.counts().occupied_voxels);
   // Our keys are OctoMap's keys: the same voxel is occupied in both.
   size_t checked = 0;
   map.forEachLeaf([&](const LeafView& l) {
     if (l.level != 0 || l.counters.state() != VoxelState::Occupied || checked > 500) return;
-    auto* node = color->search(octomap::OcTreeKey(l.key.x, l.key.y, l.key.z));
+    auto* node = colour->search(octomap::OcTreeKey(l.key.x, l.key.y, l.key.z));
     ASSERT_NE(node, nullptr);
-    EXPECT_TRUE(color->isNodeOccupied(node));
+    EXPECT_TRUE(colour->isNodeOccupied(node));
     ++checked;
   });
 }

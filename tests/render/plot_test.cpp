@@ -10,7 +10,7 @@
 namespace chronomap {
 namespace {
 
-size_t countColor(const ImageRgb& img, Rgb c) { return static_cast<size_t>(std::count(img.pixels.begin(), img.pixels.end(), c)); }
+size_t countColour(const ImageRgb& img, Rgb c) { return static_cast<size_t>(std::count(img.pixels.begin(), img.pixels.end(), c)); }
 
 TEST(LinePlot, DrawsEachSeriesInItsColourAndRefusesBadInput) {
   PlotSettings s;
@@ -20,8 +20,8 @@ TEST(LinePlot, DrawsEachSeriesInItsColourAndRefusesBadInput) {
   const ImageRgb img = renderLinePlot({{"a", red, {0, 1, 2}, {0, 5, 10}}, {"b", blue, {0, 1, 2}, {1, 1, 1}}}, s);
   EXPECT_EQ(img.width, 400u);
   EXPECT_EQ(img.height, 300u);
-  EXPECT_GT(countColor(img, red), 50u);
-  EXPECT_GT(countColor(img, blue), 50u);
+  EXPECT_GT(countColour(img, red), 50u);
+  EXPECT_GT(countColour(img, blue), 50u);
   EXPECT_THROW(renderLinePlot({{"a", red, {0, 1}, {0}}}, s), UsageError);
   s.width = 10;
   EXPECT_THROW(renderLinePlot({{"a", red, {0, 1}, {0, 1}}}, s), UsageError);
@@ -34,8 +34,8 @@ TEST(StoragePlot, SumsTheSessionsInTimeOrder) {
   map.add(2.0, test::wallSession(11));
   const ImageRgb img = renderStoragePlot(map);
   EXPECT_EQ(img.width, PlotSettings{}.width);
-  EXPECT_GT(countColor(img, Rgb{200, 60, 50}), 0u);  // the session maps stored separately
-  EXPECT_GT(countColor(img, Rgb{40, 90, 200}), 0u);  // the 4D map
+  EXPECT_GT(countColour(img, Rgb{200, 60, 50}), 0u);  // the session maps stored separately
+  EXPECT_GT(countColour(img, Rgb{40, 90, 200}), 0u);  // the 4D map
 }
 
 TEST(DrawText, WidthFollowsTheCharactersAndScale) {
@@ -48,9 +48,9 @@ TEST(DrawText, WidthFollowsTheCharactersAndScale) {
   img.height = 10;
   img.pixels.assign(400, Rgb{255, 255, 255});
   drawText(img, 1, 1, "HI", Rgb{0, 0, 0});
-  EXPECT_GT(countColor(img, Rgb{0, 0, 0}), 10u);
+  EXPECT_GT(countColour(img, Rgb{0, 0, 0}), 10u);
   drawText(img, -100, -100, "CLIPPED", Rgb{9, 9, 9});  // fully outside: nothing drawn, no crash
-  EXPECT_EQ(countColor(img, Rgb{9, 9, 9}), 0u);
+  EXPECT_EQ(countColour(img, Rgb{9, 9, 9}), 0u);
 }
 
 }  // namespace

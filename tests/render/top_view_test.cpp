@@ -26,9 +26,9 @@ TEST(TopView, DrawsHighestOccupiedVoxelFreeAndUnknownColumns) {
   ASSERT_EQ(img.height, 2u);
   // Row 0 is the larger y (y points up in the picture).
   auto px = [&](uint32_t x, uint32_t row) { return img.pixels[row * img.width + x]; };
-  EXPECT_EQ(px(0, 1), s.free_color);
-  EXPECT_EQ(px(3, 1), s.free_color);
-  EXPECT_EQ(px(0, 0), s.unknown_color);
+  EXPECT_EQ(px(0, 1), s.free_colour);
+  EXPECT_EQ(px(3, 1), s.free_colour);
+  EXPECT_EQ(px(0, 0), s.unknown_colour);
   EXPECT_EQ(px(2, 0), (Rgb{110, 0, 0}));  // lowest occupied: 0.55 of its colour
   EXPECT_EQ(px(1, 0), (Rgb{0, 250, 0}));  // highest occupied: full brightness
   s.pixels_per_voxel = 3;

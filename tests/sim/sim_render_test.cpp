@@ -18,12 +18,12 @@ namespace {
 struct Hit {
   bool hit = false;
   double t = 0.0;
-  Rgb color{};
+  Rgb colour{};
 };
 
 bool sameHit(const Hit& a, const Hit& b) {
-  return a.hit == b.hit && (!a.hit || (a.t == b.t && a.color.r == b.color.r && a.color.g == b.color.g &&
-                                        a.color.b == b.color.b));
+  return a.hit == b.hit && (!a.hit || (a.t == b.t && a.colour.r == b.colour.r && a.colour.g == b.colour.g &&
+                                        a.colour.b == b.colour.b));
 }
 
 // The slab test as the renderer has always done it: entry distance and entry face.
@@ -60,7 +60,7 @@ Hit bruteForce(const std::vector<Part>& parts, const Eigen::Vector3d& o, const E
     int face = 0;
     if (slab(p.box, o, inv, best, te, face) && face >= 0 && te < best) {
       best = te;
-      h = {true, te, p.face_colors[static_cast<size_t>(face)]};
+      h = {true, te, p.face_colours[static_cast<size_t>(face)]};
     }
   }
   return h;
@@ -104,7 +104,7 @@ class LegacyRenderer {
         }
       }
     }
-    if (best_part) h = {true, best, best_part->face_colors[static_cast<size_t>(best_face)]};
+    if (best_part) h = {true, best, best_part->face_colours[static_cast<size_t>(best_face)]};
     return h;
   }
 
@@ -144,7 +144,7 @@ class LegacyRenderer {
 
 Hit fast(const Renderer& r, const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
   Hit h;
-  h.hit = r.cast(o, d, h.t, h.color);
+  h.hit = r.cast(o, d, h.t, h.colour);
   return h;
 }
 
@@ -173,7 +173,7 @@ SceneState latticeScene(uint64_t seed, int boxes) {
     const Eigen::Vector3d size(step(1, 4), step(1, 4), step(1, 3));
     p.box = Eigen::AlignedBox3d(lo, lo + size);
     for (size_t f = 0; f < 6; ++f) {
-      p.face_colors[f] = Rgb{static_cast<uint8_t>(i), static_cast<uint8_t>(f * 40), static_cast<uint8_t>(i * 7)};
+      p.face_colours[f] = Rgb{static_cast<uint8_t>(i), static_cast<uint8_t>(f * 40), static_cast<uint8_t>(i * 7)};
     }
     o.parts.push_back(p);
     o.present = i % 11 != 5;  // some absent: the renderer must leave them out
@@ -249,7 +249,7 @@ TEST(Renderer, TwoPartsInTheSamePlaceShowTheEarlierOne) {
     Object o;
     Part p;
     p.box = Eigen::AlignedBox3d(Eigen::Vector3d(20, 0, 0), Eigen::Vector3d(21, 1, 1));
-    p.face_colors.fill(Rgb{c, c, c});
+    p.face_colours.fill(Rgb{c, c, c});
     o.parts.push_back(p);
     s.objects.push_back(o);
   }
@@ -258,7 +258,7 @@ TEST(Renderer, TwoPartsInTheSamePlaceShowTheEarlierOne) {
   uint8_t first = 0;
   for (const Part& p : renderer.parts()) {
     if (p.box.min().x() == 20.0) {
-      first = p.face_colors[0].r;
+      first = p.face_colours[0].r;
       break;
     }
   }
@@ -268,7 +268,7 @@ TEST(Renderer, TwoPartsInTheSamePlaceShowTheEarlierOne) {
     const Hit h = fast(renderer, o, d);
     ASSERT_TRUE(h.hit);
     EXPECT_EQ(h.t, 4.0);
-    EXPECT_EQ(h.color.r, first);
+    EXPECT_EQ(h.colour.r, first);
     EXPECT_TRUE(sameHit(h, legacy.cast(o, d)));
   }
 }
@@ -316,9 +316,9 @@ TEST(Renderer, FramesEqualThoseOfEveryPartTested) {
           auto ch = [&](uint8_t base, double l) {
             return static_cast<uint8_t>(std::clamp(std::lround(base * tex * l), 0L, 255L));
           };
-          ASSERT_EQ(f.rgb.pixels[i].r, ch(want.color.r, light.x()));
-          ASSERT_EQ(f.rgb.pixels[i].g, ch(want.color.g, light.y()));
-          ASSERT_EQ(f.rgb.pixels[i].b, ch(want.color.b, light.z()));
+          ASSERT_EQ(f.rgb.pixels[i].r, ch(want.colour.r, light.x()));
+          ASSERT_EQ(f.rgb.pixels[i].g, ch(want.colour.g, light.y()));
+          ASSERT_EQ(f.rgb.pixels[i].b, ch(want.colour.b, light.z()));
         }
       }
     }

@@ -312,7 +312,7 @@ TEST(Cmap, RandomMapsRoundTripWithinTheStatedBounds) {
       const VoxelCounters& a = m.leafPool()[i];
       const VoxelCounters& b = back.leafPool()[i];
       ASSERT_EQ(b.hits, a.hits) << "leaf " << i << ": hits exact";
-      EXPECT_EQ(b.meanColor(), a.meanColor()) << "leaf " << i << ": mean colour exact";
+      EXPECT_EQ(b.meanColour(), a.meanColour()) << "leaf " << i << ": mean colour exact";
       EXPECT_EQ(b.state(), a.state()) << "leaf " << i << ": the state never changes";
       // Lengths within 2^-8 relative (kLengthRelativeError), so P within 2^-8 / e.
       const double relative = std::abs(double{b.length_m} / double{a.length_m} - 1.0);

@@ -49,7 +49,7 @@ TEST(TemporalFile, RoundTripReadsBackIdentically) {
     const VoxelCounters& b = read[i].value;
     ASSERT_EQ(b.hits, a.hits);
     EXPECT_EQ(b.state(), a.state()) << "entry " << i;
-    EXPECT_EQ(b.meanColor(), a.meanColor()) << "entry " << i;
+    EXPECT_EQ(b.meanColour(), a.meanColour()) << "entry " << i;
     if (a.length_m > 0.0f) {
       EXPECT_LE(std::abs(b.length_m / a.length_m - 1.0f), kLengthRelativeError) << "entry " << i;
     }

@@ -17,13 +17,13 @@ VoxelCounters freeVoxel(float length) {
   return c;
 }
 
-VoxelCounters occupiedVoxel(Rgb color, uint32_t hits) {
+VoxelCounters occupiedVoxel(Rgb colour, uint32_t hits) {
   VoxelCounters c;
   c.length_m = 0.025f * static_cast<float>(hits);
   c.hits = hits;
-  c.red = color.r * hits;
-  c.green = color.g * hits;
-  c.blue = color.b * hits;
+  c.red = colour.r * hits;
+  c.green = colour.g * hits;
+  c.blue = colour.b * hits;
   return c;
 }
 

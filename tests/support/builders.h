@@ -21,7 +21,7 @@ VoxelKey at(int x, int y, int z);
 VoxelCounters freeVoxel(float length = 0.05f);
 
 /// A voxel where `hits` rays of the given colour ended, 0.025 m of ray per hit.
-VoxelCounters occupiedVoxel(Rgb color, uint32_t hits = 10);
+VoxelCounters occupiedVoxel(Rgb colour, uint32_t hits = 10);
 
 /// A voxel where `hits` rays ended, 1/16 m of ray per hit (a binary fraction, so that sums of
 /// such counters stay exact in float), colour (red, 10, 20).

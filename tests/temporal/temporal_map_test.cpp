@@ -326,7 +326,7 @@ TEST(TemporalMap, SessionAddedBeforeLaterOnesRestoresTheirStates) {
 TEST(TemporalMap, CriterionThresholds) {
   ChangeCriterion c;
   EXPECT_FALSE(c.differs(occupiedVoxelExact(1, 0), occupiedVoxelExact(1, 255)));
-  c.color_distance = 100;
+  c.colour_distance = 100;
   EXPECT_TRUE(c.differs(occupiedVoxelExact(1, 0), occupiedVoxelExact(1, 255)));
   EXPECT_FALSE(c.differs(occupiedVoxelExact(1, 100), occupiedVoxelExact(1, 150)));
   EXPECT_FALSE(c.differs(freeVoxel(1.0f), freeVoxel(2.0f))) << "no colour without hits";
@@ -429,7 +429,7 @@ TEST_P(TemporalProperty, ProbabilityCriterionMatchesTheReferenceChain) {
   world.init(rng);
   ChangeCriterion criterion;
   criterion.probability_threshold = 0.1;
-  criterion.color_distance = 60;
+  criterion.colour_distance = 60;
   TemporalMap map(0.05, criterion);
   Reference ref;
   ref.criterion = criterion;

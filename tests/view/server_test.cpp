@@ -104,8 +104,8 @@ TEST(ViewServer, SnapshotPayloadDecodesToTheLibrarysVoxels) {
     for (size_t i = 0; i < ref.keys.size(); ++i) {
       ASSERT_EQ((VoxelKey{keys[3 * i], keys[3 * i + 1], keys[3 * i + 2]}), ref.keys[i]);
     }
-    const auto colors = p.values<uint8_t>("colors");
-    for (size_t i = 0; i < ref.colors.size(); ++i) EXPECT_EQ(colors[3 * i], ref.colors[i].r);
+    const auto colours = p.values<uint8_t>("colors");
+    for (size_t i = 0; i < ref.colours.size(); ++i) EXPECT_EQ(colours[3 * i], ref.colours[i].r);
     EXPECT_EQ(p.values<uint8_t>("levels"), ref.levels);
     EXPECT_EQ(p.values<uint32_t>("members"), ref.members);
   }

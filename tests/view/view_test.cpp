@@ -61,7 +61,7 @@ TEST(ViewSnapshot, UnitVoxelsAreTheSnapshotsOccupiedVoxels) {
       // Colour and age come from the entry valid at t.
       const auto value = map.valueAt(v.keys[i], t);
       ASSERT_TRUE(value);
-      EXPECT_EQ(v.colors[i], value->meanColor());
+      EXPECT_EQ(v.colours[i], value->meanColour());
       EXPECT_LE(v.since[i], *v.rank);
       EXPECT_EQ(map.history(v.keys[i]).size() > 1 || v.changes[i] == 0, true);
     }

@@ -24,7 +24,7 @@ namespace chronomap {
 struct RealignSettings {
   double alpha = 1000.0;             ///< a move needs a score above this
   double weight_distance = 1.0;      ///< ωd
-  double weight_color = 1.0;         ///< ωc
+  double weight_colour = 1.0;         ///< ωc
   double weight_probability = 1.0;   ///< ωp
   double max_distance_voxels = 1.0;  ///< d_max: candidates lie within this Euclidean distance
   double epsilon = 0.01;             ///< least value of each term (keeps the score finite)
@@ -55,10 +55,10 @@ struct RealignSettings {
 };
 
 /// The score of a pair, as defined above. Finite for any finite non-negative input.
-double realignScore(double distance_voxels, double color_distance, double probability_difference,
+double realignScore(double distance_voxels, double colour_distance, double probability_difference,
                     const RealignSettings& settings);
 /// c of the score: Euclidean distance of two colours with channels scaled to 0..1.
-double colorDistance(const Rgb& a, const Rgb& b);
+double colourDistance(const Rgb& a, const Rgb& b);
 /// The score of moving the data `moved` (of the session) by `distance_voxels` to a place where
 /// the consensus holds `consensus_there`.
 double realignScore(const VoxelCounters& moved, const VoxelCounters& consensus_there, double distance_voxels,

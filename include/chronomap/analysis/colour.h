@@ -1,7 +1,7 @@
 #pragma once
 /// @file
 /// Colour by time of day (thesis §3.3): how each surface's colour depends on the hour, learned
-/// from the colour changes a 4D map keeps (ChangeCriterion::color_distance), and a colour
+/// from the colour changes a 4D map keeps (ChangeCriterion::colour_distance), and a colour
 /// comparison that a change of light does not fool.
 ///
 /// The model: a voxel's colour at hour h, per channel c, is

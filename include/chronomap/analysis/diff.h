@@ -145,7 +145,7 @@ struct ChangeCell {
   ChangeKind kind = ChangeKind::Appeared;
   /// Mean colour of the occupied side (the new surface for Appeared, the vanished one for
   /// Vanished; for Continuous, the side with hits, the second map preferred). Black without.
-  Rgb color;
+  Rgb colour;
   /// |P1 - P2|.
   float value = 0.0f;
   friend bool operator==(const ChangeCell&, const ChangeCell&) = default;

@@ -26,7 +26,7 @@ struct SegmentSettings {
   Connectivity connectivity = Connectivity::Face;
   /// >= 0: neighbours join only when their colours lie at most this far apart (Euclidean
   /// distance in 8-bit RGB units). Negative: colour plays no part.
-  double color_tolerance = -1.0;
+  double colour_tolerance = -1.0;
   /// Components with fewer unit voxels are dropped (counted in Segmentation::dropped).
   uint64_t min_voxels = 1;
   /// Cells of a Continuous diff take part only when their value (|P1 - P2|) exceeds this.
@@ -46,7 +46,7 @@ struct Component {
   Eigen::Vector3d bbox_min_m = Eigen::Vector3d::Zero();
   Eigen::Vector3d bbox_max_m = Eigen::Vector3d::Zero();
   Eigen::Vector3d centroid_m = Eigen::Vector3d::Zero();
-  Rgb mean_color;
+  Rgb mean_colour;
   /// Indices into DiffMap::cells(), increasing.
   std::vector<uint32_t> cells;
 };

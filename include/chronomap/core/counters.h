@@ -45,7 +45,7 @@ struct VoxelCounters {
     return probability() > 0.5 ? VoxelState::Occupied : VoxelState::Free;
   }
   /// Mean colour of the end points (black when there are none).
-  Rgb meanColor() const {
+  Rgb meanColour() const {
     if (hits == 0) return {};
     auto mean = [this](uint32_t sum) { return static_cast<uint8_t>((sum + hits / 2) / hits); };
     return {mean(red), mean(green), mean(blue)};

@@ -17,13 +17,13 @@ namespace chronomap {
 /// `points`.
 struct PointCloud {
   std::vector<Eigen::Vector3f> points;
-  std::vector<Rgb> colors;
+  std::vector<Rgb> colours;
   std::vector<uint32_t> labels;
   uint32_t width = 0;   ///< columns of an organized cloud, or the point count
   uint32_t height = 1;  ///< rows of an organized cloud, or 1
 
   size_t size() const { return points.size(); }
-  bool hasColors() const { return !colors.empty(); }
+  bool hasColours() const { return !colours.empty(); }
   bool hasLabels() const { return !labels.empty(); }
 };
 

@@ -62,7 +62,7 @@ std::vector<CloudListEntry> parseCloudList(const std::string& text, const std::s
 /// when only one topic fits; an ambiguous bag is refused with the candidates named.
 struct BagSettings {
   std::string depth_topic;  ///< sensor_msgs/Image, 16UC1 (millimetres) or 32FC1 (metres)
-  std::string color_topic;  ///< sensor_msgs/Image, rgb8, bgr8, mono8, rgba8 or bgra8; "none": no colour
+  std::string colour_topic;  ///< sensor_msgs/Image, rgb8, bgr8, mono8, rgba8 or bgra8; "none": no colour
   std::string info_topic;   ///< sensor_msgs/CameraInfo of the depth camera (default: beside the depth topic)
   std::string cloud_topic;  ///< sensor_msgs/PointCloud2, read instead of depth images
   /// nav_msgs/Odometry or geometry_msgs/PoseStamped: the sensor's pose in the map frame (an
@@ -154,7 +154,7 @@ std::unique_ptr<Dataset> openDataset(const std::filesystem::path& path, const Da
 /// intrinsics), the colour pixel on the same ray through the colour intrinsics (the cameras
 /// share their centre and axes, as in ScanNet's export), nearest neighbour; black where the
 /// ray leaves the colour image.
-ImageRgb colorInDepthView(const ImageRgb& color, const CameraIntrinsics& color_k, const CameraIntrinsics& depth_k,
+ImageRgb colourInDepthView(const ImageRgb& colour, const CameraIntrinsics& colour_k, const CameraIntrinsics& depth_k,
                           uint32_t width, uint32_t height);
 
 /// Back-projects a depth image into an organized cloud in the camera frame (x right, y down,

@@ -33,6 +33,6 @@ std::vector<uint8_t> encodeJpeg(const ImageRgb& image, const JpegEncoding& encod
 
 /// Reads a colour frame, PNG or JPEG, told apart by the file's first bytes (not its name).
 /// @throw IoError when unreadable; FormatError naming the file when neither or corrupt.
-ImageRgb readColorImage(const std::filesystem::path& path);
+ImageRgb readColourImage(const std::filesystem::path& path);
 
 }  // namespace chronomap

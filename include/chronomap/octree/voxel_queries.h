@@ -16,7 +16,7 @@ namespace chronomap {
 /// Centres of voxels and their mean colours, one per voxel, in Morton order.
 struct VoxelCentres {
   std::vector<Eigen::Vector3d> centers_m;
-  std::vector<Rgb> colors;
+  std::vector<Rgb> colours;
 };
 
 /// The occupied unit voxels of `map` (compressed nodes are free, so never among them).

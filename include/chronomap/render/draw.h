@@ -11,12 +11,12 @@ namespace chronomap {
 
 /// Draws `text` with the built-in font at pixel (x, y) (top left), scaled by `scale`.
 /// Lower-case letters are drawn as capitals; characters without a glyph as a box.
-void drawText(ImageRgb& image, int x, int y, const std::string& text, Rgb color, int scale = 1);
+void drawText(ImageRgb& image, int x, int y, const std::string& text, Rgb colour, int scale = 1);
 /// Width in pixels of `text` drawn at `scale`.
 int textWidth(const std::string& text, int scale = 1);
 /// Fills a rectangle, clipped to the image.
-void fillRect(ImageRgb& image, int x0, int y0, int x1, int y1, Rgb color);
+void fillRect(ImageRgb& image, int x0, int y0, int x1, int y1, Rgb colour);
 /// Draws a line (Bresenham), clipped to the image, `thickness` pixels wide.
-void drawLine(ImageRgb& image, int x0, int y0, int x1, int y1, Rgb color, int thickness = 1);
+void drawLine(ImageRgb& image, int x0, int y0, int x1, int y1, Rgb colour, int thickness = 1);
 
 }  // namespace chronomap

@@ -13,7 +13,7 @@ namespace chronomap {
 /// One line of a plot.
 struct PlotSeries {
   std::string label;
-  Rgb color;
+  Rgb colour;
   std::vector<double> x, y;
 };
 

@@ -19,9 +19,9 @@ struct TopViewSettings {
   /// Pixels per unit voxel edge.
   int pixels_per_voxel = 2;
   /// Colour of columns with free voxels but no occupied one.
-  Rgb free_color{225, 232, 240};
+  Rgb free_colour{225, 232, 240};
   /// Colour of columns never observed.
-  Rgb unknown_color{40, 40, 48};
+  Rgb unknown_colour{40, 40, 48};
 };
 
 /// Renders the map seen from above (+z down onto the x-y plane, x to the right, y up): each
@@ -43,7 +43,7 @@ ImageRgb renderChangeView(const SessionMap& background, const DiffMap& diff, con
 /// Points seen from above: each pixel of `metres_per_pixel` shows the highest point that falls
 /// in it, in its colour, on white; at most 4000 pixels a side (points beyond are left out).
 /// `colors` is as long as `points`. @throw DataError when there is no point.
-ImageRgb renderPointsTopView(const std::vector<Eigen::Vector3f>& points, const std::vector<Rgb>& colors,
+ImageRgb renderPointsTopView(const std::vector<Eigen::Vector3f>& points, const std::vector<Rgb>& colours,
                              double metres_per_pixel);
 
 }  // namespace chronomap

@@ -15,7 +15,7 @@ namespace chronomap {
 /// An axis-aligned box with one colour.
 struct Box {
   Eigen::Vector3d min_m, max_m;
-  Rgb color;
+  Rgb colour;
 };
 
 /// A room: its walls are the inside of `bounds`; `boxes` stand inside it.

@@ -65,7 +65,7 @@ class Renderer {
  public:
   explicit Renderer(const SceneState& state);
   /// Distance along a unit ray to the nearest part, its face colour; false when nothing is hit.
-  bool cast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double& t, Rgb& color) const;
+  bool cast(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double& t, Rgb& colour) const;
   /// Renders one frame. `hour` (0..24) sets the lighting colour (lightingAt(), the same
   /// everywhere, or `daylight`'s when given); `seed` the noise. The lighting changes the colour
   /// image only: depth, its noise and its dropouts do not depend on it.

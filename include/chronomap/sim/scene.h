@@ -27,7 +27,7 @@ ObjectKind parseObjectKind(const std::string& name);
 /// One axis-aligned box of an object with a colour per face (-x, +x, -y, +y, -z, +z).
 struct Part {
   Eigen::AlignedBox3d box;
-  std::array<Rgb, 6> face_colors;
+  std::array<Rgb, 6> face_colours;
 };
 
 /// An object of the scene. Its parts are in world coordinates for the current state.

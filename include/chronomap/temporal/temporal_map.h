@@ -25,7 +25,7 @@ struct ChangeCriterion {
   double probability_threshold = 0.0;
   /// > 0: also a change when both voxels hold hits and their mean colours lie farther apart
   /// than this (Euclidean distance in 8-bit RGB units, 0..441).
-  double color_distance = 0.0;
+  double colour_distance = 0.0;
 
   /// True when `after` is a change from `before` (both known).
   bool differs(const VoxelCounters& before, const VoxelCounters& after) const;

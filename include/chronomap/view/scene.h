@@ -43,7 +43,7 @@ struct VoxelSet {
   int level = 0;                 ///< the level of detail chosen
   std::vector<VoxelKey> keys;    ///< lower corners
   std::vector<uint8_t> levels;   ///< per cell (a level above `level` only for an occupied uniform cube)
-  std::vector<Rgb> colors;       ///< mean colour of the occupied voxels in the cell
+  std::vector<Rgb> colours;       ///< mean colour of the occupied voxels in the cell
   std::vector<uint8_t> changes;  ///< most state changes of a voxel in the cell up to the time (saturates at 255)
   std::vector<uint16_t> since;   ///< latest session (rank) that set an occupied voxel's state
   std::vector<uint32_t> members; ///< occupied unit voxels in the cell

@@ -125,17 +125,17 @@ Topics chooseTopics(const TopicMap& topics, const BagSettings& s, const fs::path
     throw DataError(path.string() + ": no depth image (16UC1, 32FC1, compressedDepth) or PointCloud2 topic");
   }
   if (!t.depth.empty()) {
-    if (s.color_topic == "none") {
+    if (s.colour_topic == "none") {
       // no colour, as asked
-    } else if (!s.color_topic.empty()) {
-      requireTopic(topics, s.color_topic, {kImage, kCompressedImage}, "--color-topic", path);
-      t.color = s.color_topic;
-    } else if (auto color = theOnly(imageTopics(topics, rosmsg::isColorEncoding, rosmsg::isCompressedColorFormat),
+    } else if (!s.colour_topic.empty()) {
+      requireTopic(topics, s.colour_topic, {kImage, kCompressedImage}, "--color-topic", path);
+      t.colour = s.colour_topic;
+    } else if (auto colour = theOnly(imageTopics(topics, rosmsg::isColourEncoding, rosmsg::isCompressedColourFormat),
                                     "colour image", "--color-topic (or --color-topic none)", path)) {
-      t.color = *color;
+      t.colour = *colour;
     }
     t.depth_compressed = isCompressed(topics, t.depth);
-    t.color_compressed = isCompressed(topics, t.color);
+    t.colour_compressed = isCompressed(topics, t.colour);
     if (!s.info_topic.empty()) {
       requireTopic(topics, s.info_topic, {kCameraInfo}, "--info-topic", path);
       t.info = s.info_topic;
@@ -144,7 +144,7 @@ Topics chooseTopics(const TopicMap& topics, const BagSettings& s, const fs::path
       if (t.info.empty())
         t.info = theOnly(topicsOfType(topics, kCameraInfo), "camera info", "--info-topic", path).value_or("");
     }
-    if (!t.color.empty()) t.color_info = infoBeside(topics, t.color);
+    if (!t.colour.empty()) t.colour_info = infoBeside(topics, t.colour);
   }
   if (!s.pose_topic.empty()) {
     requireTopic(topics, s.pose_topic, {kOdometry, kPoseStamped}, "--pose-topic", path);
@@ -179,8 +179,8 @@ CameraIntrinsics intrinsicsOf(const double (&k)[9], const std::string& context) 
 std::string BagDataset::droppedReasons() const {
   std::ostringstream out;
   if (without_pose_) out << without_pose_ << " without a pose within " << pose_tolerance_s_ << " s";
-  if (without_pose_ && without_color_) out << ", ";
-  if (without_color_) out << without_color_ << " without colour within " << color_tolerance_s_ << " s";
+  if (without_pose_ && without_colour_) out << ", ";
+  if (without_colour_) out << without_colour_ << " without colour within " << colour_tolerance_s_ << " s";
   return out.str();
 }
 
@@ -190,14 +190,14 @@ std::optional<double> BagDataset::recordedAt() const {
 
 void BagDataset::assemble(const Topics& t, const DatasetSettings& s, Gathered g) {
   pose_tolerance_s_ = s.bag.pose_tolerance_s;
-  color_tolerance_s_ = s.max_time_difference_s;
+  colour_tolerance_s_ = s.max_time_difference_s;
   depth_scale_ = s.depth_scale.value_or(kDefaultDepthScale);
   cloud_ = !t.cloud.empty();
   depth_compressed_ = t.depth_compressed;
-  color_compressed_ = t.color_compressed;
+  colour_compressed_ = t.colour_compressed;
   depth_topic_ = t.depth;
   cloud_topic_ = t.cloud;
-  color_topic_ = t.color;
+  colour_topic_ = t.colour;
   if (!cloud_) {
     const auto k = s.intrinsics ? s.intrinsics : g.k;
     if (!k) {
@@ -205,11 +205,11 @@ void BagDataset::assemble(const Topics& t, const DatasetSettings& s, Gathered g)
                       " (give --info-topic or --intrinsics)");
     }
     k_ = *k;
-    color_k_ = g.color_k;
+    colour_k_ = g.colour_k;
   }
   const auto by_time = [](const Stamped& a, const Stamped& b) { return a.t < b.t; };
   std::stable_sort(g.depths.begin(), g.depths.end(), by_time);
-  std::stable_sort(g.colors.begin(), g.colors.end(), by_time);
+  std::stable_sort(g.colours.begin(), g.colours.end(), by_time);
   g.tree.finish();
   if (g.track) {
     std::stable_sort(g.track->poses.begin(), g.track->poses.end(),
@@ -223,13 +223,13 @@ void BagDataset::assemble(const Topics& t, const DatasetSettings& s, Gathered g)
       continue;
     }
     Pair f{d.message, std::nullopt, *pose, d.t};
-    if (!t.color.empty()) {
-      const Stamped* c = nearestInTime(g.colors, d.t, s.max_time_difference_s);
+    if (!t.colour.empty()) {
+      const Stamped* c = nearestInTime(g.colours, d.t, s.max_time_difference_s);
       if (!c) {
-        ++without_color_;
+        ++without_colour_;
         continue;
       }
-      f.color = c->message;
+      f.colour = c->message;
     }
     frames_.push_back(f);
   }
@@ -279,19 +279,19 @@ Frame BagDataset::load(size_t i) const {
     if (depth.compressed) decoded = rosmsg::compressedDepthImage(*depth.compressed, frame.source);
     const rosmsg::ImageView& depth_view = depth.compressed ? decoded.view : depth.view;
     std::optional<ImageRgb> rgb;
-    if (f.color) {
-      const ImageMessage color = image(*f.color, color_compressed_);
-      rgb = color.compressed ? rosmsg::compressedColorImage(*color.compressed, frame.source)
-                             : rosmsg::colorImage(color.view, frame.source);
+    if (f.colour) {
+      const ImageMessage colour = image(*f.colour, colour_compressed_);
+      rgb = colour.compressed ? rosmsg::compressedColourImage(*colour.compressed, frame.source)
+                             : rosmsg::colourImage(colour.view, frame.source);
       if (rgb->width != depth_view.width || rgb->height != depth_view.height) {
-        if (!color_k_) {
+        if (!colour_k_) {
           std::ostringstream msg;
           msg << frame.source << ": the colour image is " << rgb->width << "x" << rgb->height << ", the depth image "
-              << depth_view.width << "x" << depth_view.height << ", and " << color_topic_
+              << depth_view.width << "x" << depth_view.height << ", and " << colour_topic_
               << " has no camera_info beside it to look colour up with";
           throw DataError(msg.str());
         }
-        rgb = colorInDepthView(*rgb, *color_k_, k_, depth_view.width, depth_view.height);
+        rgb = colourInDepthView(*rgb, *colour_k_, k_, depth_view.width, depth_view.height);
       }
     }
     frame.cloud = rosmsg::depthCloud(depth_view, rgb ? &*rgb : nullptr, k_, depth_scale_, frame.source);

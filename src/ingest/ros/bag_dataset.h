@@ -49,12 +49,12 @@ std::string joinNames(const std::vector<std::string>& names);
 struct Topics {
   std::string depth;  ///< depth images, or
   std::string cloud;  ///< point clouds
-  std::string color;
+  std::string colour;
   std::string info;
-  std::string color_info;
+  std::string colour_info;
   std::string pose;  ///< empty: /tf and /tf_static
   /// The depth or colour topic holds sensor_msgs/CompressedImage (compressedDepth, JPEG or PNG).
-  bool depth_compressed = false, color_compressed = false;
+  bool depth_compressed = false, colour_compressed = false;
 };
 
 /// The topics for `s`: named ones checked, the others detected when only one fits.
@@ -79,10 +79,10 @@ CameraIntrinsics intrinsicsOf(const double (&k)[9], const std::string& context);
 
 /// What one pass over a bag gathers for the chosen topics.
 struct Gathered {
-  std::vector<Stamped> depths, colors;  ///< the frames' messages (depth images or clouds) and colour images
+  std::vector<Stamped> depths, colours;  ///< the frames' messages (depth images or clouds) and colour images
   TransformTree tree;                   ///< /tf and /tf_static
   std::optional<PoseTrack> track;       ///< the pose topic's poses, when there is one
-  std::optional<CameraIntrinsics> k, color_k;  ///< the first CameraInfo of each info topic
+  std::optional<CameraIntrinsics> k, colour_k;  ///< the first CameraInfo of each info topic
 };
 
 /// A decoded message with what keeps its bytes alive: a sensor_msgs/Image (`view`) or a
@@ -103,7 +103,7 @@ class BagDataset : public Dataset {
  public:
   size_t size() const override { return frames_.size(); }
   std::string format() const override { return format_; }
-  size_t framesDropped() const override { return without_pose_ + without_color_; }
+  size_t framesDropped() const override { return without_pose_ + without_colour_; }
   std::string droppedReasons() const override;
   std::optional<double> recordedAt() const override;
   Eigen::Isometry3d poseOf(size_t i) const override { return frames_.at(i).pose; }
@@ -124,7 +124,7 @@ class BagDataset : public Dataset {
  private:
   struct Pair {
     uint64_t depth = 0;
-    std::optional<uint64_t> color;
+    std::optional<uint64_t> colour;
     Eigen::Isometry3d pose;
     double t = 0.0;
   };
@@ -134,13 +134,13 @@ class BagDataset : public Dataset {
   std::string format_;
   std::vector<Pair> frames_;
   bool cloud_ = false;
-  bool depth_compressed_ = false, color_compressed_ = false;
-  std::string depth_topic_, cloud_topic_, color_topic_;
+  bool depth_compressed_ = false, colour_compressed_ = false;
+  std::string depth_topic_, cloud_topic_, colour_topic_;
   CameraIntrinsics k_;
-  std::optional<CameraIntrinsics> color_k_;
+  std::optional<CameraIntrinsics> colour_k_;
   double depth_scale_ = kDefaultDepthScale;
-  double pose_tolerance_s_ = 0.0, color_tolerance_s_ = 0.0;
-  size_t without_pose_ = 0, without_color_ = 0;
+  double pose_tolerance_s_ = 0.0, colour_tolerance_s_ = 0.0;
+  size_t without_pose_ = 0, without_colour_ = 0;
 };
 
 }  // namespace chronomap::bag

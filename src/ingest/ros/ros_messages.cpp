@@ -88,14 +88,14 @@ constexpr size_t kDepthHeaderBytes = 12;
 
 }  // namespace
 
-bool isCompressedColorFormat(std::string_view format) {
+bool isCompressedColourFormat(std::string_view format) {
   const std::string f = lowered(format);
   return !contains(f, "compresseddepth") && (contains(f, "jpeg") || contains(f, "jpg") || contains(f, "png"));
 }
 
 bool isCompressedDepthFormat(std::string_view format) { return contains(lowered(format), "compresseddepth"); }
 
-ImageRgb compressedColorImage(const CompressedView& im, const std::string& source) {
+ImageRgb compressedColourImage(const CompressedView& im, const std::string& source) {
   if (isCompressedDepthFormat(im.format)) {
     throw DataError(source + ": a compressedDepth image ('" + std::string(im.format) + "') is not a colour image");
   }
@@ -158,12 +158,12 @@ OwnedImage compressedDepthImage(const CompressedView& im, const std::string& sou
 }
 
 bool isDepthEncoding(std::string_view e) { return e == "16UC1" || e == "mono16" || e == "32FC1"; }
-bool isColorEncoding(std::string_view e) {
+bool isColourEncoding(std::string_view e) {
   return e == "rgb8" || e == "bgr8" || e == "mono8" || e == "rgba8" || e == "bgra8";
 }
 
-ImageRgb colorImage(const ImageView& im, const std::string& source) {
-  if (!isColorEncoding(im.encoding)) {
+ImageRgb colourImage(const ImageView& im, const std::string& source) {
+  if (!isColourEncoding(im.encoding)) {
     throw DataError(source + ": colour encoding '" + std::string(im.encoding) +
                     "' is not read (rgb8, bgr8, mono8, rgba8, bgra8)");
   }
@@ -259,9 +259,9 @@ PointCloud pointCloud(const CloudView& c, const std::string& source) {
   };
   const auto x = find("x"), y = find("y"), z = find("z");
   if (!x || !y || !z) throw DataError(source + ": the point cloud has no x, y and z fields");
-  auto color = find("rgb");
-  if (!color) color = find("rgba");
-  if (color && fieldBytes(color->datatype) != 4) throw DataError(source + ": the rgb field is not 4 bytes");
+  auto colour = find("rgb");
+  if (!colour) colour = find("rgba");
+  if (colour && fieldBytes(colour->datatype) != 4) throw DataError(source + ": the rgb field is not 4 bytes");
   if (uint64_t{c.row_step} < uint64_t{c.width} * c.point_step || uint64_t{c.row_step} * c.height > c.data.size()) {
     std::ostringstream msg;
     msg << source << ": a " << c.width << "x" << c.height << " cloud with points of " << c.point_step
@@ -276,7 +276,7 @@ PointCloud pointCloud(const CloudView& c, const std::string& source) {
   // An empty cloud: no rows to walk (4 billion rows of width 0 took fuzz_cdr past its timeout).
   if (n == 0) return out;
   out.points.resize(n);
-  if (color) out.colors.resize(n);
+  if (colour) out.colours.resize(n);
   for (uint32_t v = 0; v < c.height; ++v) {
     for (uint32_t u = 0; u < c.width; ++u) {
       const uint8_t* p = c.data.data() + size_t{v} * c.row_step + size_t{u} * c.point_step;
@@ -285,10 +285,10 @@ PointCloud pointCloud(const CloudView& c, const std::string& source) {
           Eigen::Vector3d(readField(p + x->offset, x->datatype, swap), readField(p + y->offset, y->datatype, swap),
                           readField(p + z->offset, z->datatype, swap))
               .cast<float>();
-      if (color) {
+      if (colour) {
         // PCL packs 0x00RRGGBB into the four bytes, whether the field says FLOAT32 or UINT32.
-        const uint32_t packed = readScalar<uint32_t>(p + color->offset, swap);
-        out.colors[i] = {static_cast<uint8_t>(packed >> 16), static_cast<uint8_t>(packed >> 8),
+        const uint32_t packed = readScalar<uint32_t>(p + colour->offset, swap);
+        out.colours[i] = {static_cast<uint8_t>(packed >> 16), static_cast<uint8_t>(packed >> 8),
                          static_cast<uint8_t>(packed)};
       }
     }

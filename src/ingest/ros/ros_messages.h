@@ -62,14 +62,14 @@ struct OwnedImage {
 };
 
 /// True for the compressed colour formats read: a JPEG or PNG (not compressedDepth).
-bool isCompressedColorFormat(std::string_view format);
+bool isCompressedColourFormat(std::string_view format);
 /// True for compressedDepth formats (whether their compression is read or not: RVL is refused
 /// when decoded, with a message that says so).
 bool isCompressedDepthFormat(std::string_view format);
 
 /// The colour image in a JPEG or PNG CompressedImage. @throw DataError or FormatError naming
 /// `source` for another compression or a corrupt file.
-ImageRgb compressedColorImage(const CompressedView& image, const std::string& source);
+ImageRgb compressedColourImage(const CompressedView& image, const std::string& source);
 
 /// The depth image in a compressedDepth CompressedImage, as a little-endian 16UC1 image (its
 /// units as written) or, for 32FC1, metres from the inverse-depth quantisation (a stored value
@@ -80,10 +80,10 @@ OwnedImage compressedDepthImage(const CompressedView& image, const std::string& 
 /// True for the depth encodings read (16UC1, 32FC1, and "mono16" as some drivers write 16UC1).
 bool isDepthEncoding(std::string_view encoding);
 /// True for the colour encodings read (rgb8, bgr8, mono8, rgba8, bgra8).
-bool isColorEncoding(std::string_view encoding);
+bool isColourEncoding(std::string_view encoding);
 
 /// A colour image. @throw DataError naming `source` for an unknown encoding or a short buffer.
-ImageRgb colorImage(const ImageView& image, const std::string& source);
+ImageRgb colourImage(const ImageView& image, const std::string& source);
 
 /// A depth image back-projected with `k`: 16UC1 divided by `depth_scale` (units per metre;
 /// 1000 for millimetres), 32FC1 in metres. `rgb`, when given, has the depth image's size.

@@ -261,12 +261,12 @@ class RosBagDataset : public bag::BagDataset {
     const bool cloud = !t.cloud.empty();
     if (!cloud) {
       if (!s.intrinsics) g.k = readInfo(bag_, t.info, path_);
-      g.color_k = readInfo(bag_, t.color_info, path_);
+      g.colour_k = readInfo(bag_, t.colour_info, path_);
     }
     // One pass over the topics in time order, so that each chunk is decompressed once.
     const std::string frames_topic = cloud ? t.cloud : t.depth;
     std::vector<std::string> wanted{frames_topic};
-    for (const std::string& topic : {t.color, t.pose, std::string("/tf"), std::string("/tf_static")}) {
+    for (const std::string& topic : {t.colour, t.pose, std::string("/tf"), std::string("/tf_static")}) {
       if (!topic.empty() && topics.count(topic)) wanted.push_back(topic);
     }
     if (!t.pose.empty()) g.track.emplace();
@@ -278,8 +278,8 @@ class RosBagDataset : public bag::BagDataset {
         } else {
           t.depth_compressed ? addStamped<CompressedImage>(g.depths, m) : addStamped<Image>(g.depths, m);
         }
-      } else if (topic == t.color) {
-        t.color_compressed ? addStamped<CompressedImage>(g.colors, m) : addStamped<Image>(g.colors, m);
+      } else if (topic == t.colour) {
+        t.colour_compressed ? addStamped<CompressedImage>(g.colours, m) : addStamped<Image>(g.colours, m);
       } else if (topic == t.pose) {
         addPose(*g.track, m, path_);
       } else if (topic == "/tf" || topic == "/tf_static") {

@@ -393,7 +393,7 @@ class Ros2BagDataset : public bag::BagDataset {
     const bag::Topics t = bag::chooseTopics(topics, s.bag, file_);
     const std::string frames_topic = t.cloud.empty() ? t.depth : t.cloud;
     std::set<std::string> wanted{frames_topic};
-    for (const std::string& topic : {t.color, t.pose, t.info, t.color_info, std::string("/tf"), std::string("/tf_static")}) {
+    for (const std::string& topic : {t.colour, t.pose, t.info, t.colour_info, std::string("/tf"), std::string("/tf_static")}) {
       if (!topic.empty() && topics.count(topic)) wanted.insert(topic);
     }
     bag::Gathered g;
@@ -403,9 +403,9 @@ class Ros2BagDataset : public bag::BagDataset {
       requireCdr(m, file_);
       const std::string source = name + ": " + m.topic;
       const std::string type = ros1Type(m.type);
-      if (m.topic == frames_topic || m.topic == t.color) {
+      if (m.topic == frames_topic || m.topic == t.colour) {
         const cdr::Header h = cdr::header(m.data, source);
-        (m.topic == frames_topic ? g.depths : g.colors).push_back({h.stamp, m.handle, bag::frameName(h.frame_id)});
+        (m.topic == frames_topic ? g.depths : g.colours).push_back({h.stamp, m.handle, bag::frameName(h.frame_id)});
       } else if (m.topic == t.pose) {
         if (type == bag::kOdometry) {
           const cdr::Transform p = cdr::odometry(m.data, source);
@@ -429,8 +429,8 @@ class Ros2BagDataset : public bag::BagDataset {
       if (m.topic == t.info && !g.k && !s.intrinsics) {
         g.k = bag::intrinsicsOf(cdr::cameraInfo(m.data, source).k, source);
       }
-      if (m.topic == t.color_info && !g.color_k) {
-        g.color_k = bag::intrinsicsOf(cdr::cameraInfo(m.data, source).k, source);
+      if (m.topic == t.colour_info && !g.colour_k) {
+        g.colour_k = bag::intrinsicsOf(cdr::cameraInfo(m.data, source).k, source);
       }
     });
     assemble(t, s, std::move(g));

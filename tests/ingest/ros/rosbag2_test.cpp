@@ -158,9 +158,9 @@ TEST_F(Ros2BagTest, FramesMatchTheTumReadersAndAFrameDecodesTheSameFromEveryStor
     const size_t bytes = a.cloud.size() * sizeof(a.cloud.points[0]);
     EXPECT_EQ(std::memcmp(a.cloud.points.data(), b.cloud.points.data(), bytes), 0);
     EXPECT_EQ(std::memcmp(b.cloud.points.data(), c.cloud.points.data(), bytes), 0);
-    EXPECT_TRUE(b.cloud.colors == c.cloud.colors);
+    EXPECT_TRUE(b.cloud.colours == c.cloud.colours);
     EXPECT_NE(b.source.find("pose_zstd.mcap: /camera/depth/image_raw at "), std::string::npos) << b.source;
-    EXPECT_TRUE(a.cloud.colors == b.cloud.colors);
+    EXPECT_TRUE(a.cloud.colours == b.cloud.colours);
   }
 }
 
@@ -173,7 +173,7 @@ TEST_F(Ros2BagTest, PointCloud2TopicsGiveTheSamePointsAndColours) {
   const Frame a = from_tum->load(4), b = from_bag->load(4);
   ASSERT_EQ(b.cloud.width, a.cloud.width);
   ASSERT_EQ(b.cloud.height, a.cloud.height);
-  EXPECT_TRUE(a.cloud.colors == b.cloud.colors);
+  EXPECT_TRUE(a.cloud.colours == b.cloud.colours);
   size_t finite = 0;
   for (size_t p = 0; p < a.cloud.size(); ++p) {
     EXPECT_EQ(std::isfinite(a.cloud.points[p].z()), std::isfinite(b.cloud.points[p].z())) << p;
@@ -428,7 +428,7 @@ TEST_F(Ros2BagTest, ASplitBagReadsAsOneRecording) {
   }
   // Frames of the last file are decoded from it.
   const Frame last = from_split->load(31), same = from_one->load(31);
-  EXPECT_EQ(last.cloud.colors, same.cloud.colors);
+  EXPECT_EQ(last.cloud.colours, same.cloud.colours);
   EXPECT_NE(last.source.find("split_tf: /camera/depth/image_raw at "), std::string::npos) << last.source;
   EXPECT_TRUE(mapBytes(bag("split_tf"), s) == mapBytes(bag("tf.mcap"), s));
 }
@@ -557,15 +557,15 @@ std::vector<uint8_t> compressedDepth(const std::vector<uint8_t>& png, float a = 
 
 TEST(CompressedImage, FormatsAreToldApart) {
   for (const char* f : {"jpeg", "png", "rgb8; jpeg compressed bgr8", "bgr8; png compressed bgr8", "JPEG"}) {
-    EXPECT_TRUE(rosmsg::isCompressedColorFormat(f)) << f;
+    EXPECT_TRUE(rosmsg::isCompressedColourFormat(f)) << f;
     EXPECT_FALSE(rosmsg::isCompressedDepthFormat(f)) << f;
   }
   for (const char* f : {"16UC1; compressedDepth", "16UC1; compressedDepth png", "32FC1; compressedDepth",
                         "16UC1; compressedDepth rvl"}) {
     EXPECT_TRUE(rosmsg::isCompressedDepthFormat(f)) << f;
-    EXPECT_FALSE(rosmsg::isCompressedColorFormat(f)) << f;
+    EXPECT_FALSE(rosmsg::isCompressedColourFormat(f)) << f;
   }
-  EXPECT_FALSE(rosmsg::isCompressedColorFormat("webp"));
+  EXPECT_FALSE(rosmsg::isCompressedColourFormat("webp"));
 }
 
 // 16UC1: the PNG's numbers as they are; 32FC1: the inverse-depth quantisation undone,
@@ -610,10 +610,10 @@ TEST(CompressedImage, ColourDecodesFromJpegAndPng) {
   ImageRgb rgb{4, 2, std::vector<Rgb>(8)};
   for (size_t i = 0; i < 8; ++i) rgb.pixels[i] = {static_cast<uint8_t>(120 + 4 * i), 100, static_cast<uint8_t>(80 - 4 * i)};
   const auto png = pngBytes(rgb);
-  const ImageRgb from_png = rosmsg::compressedColorImage({"rgb8; png compressed bgr8", png}, "t");
+  const ImageRgb from_png = rosmsg::compressedColourImage({"rgb8; png compressed bgr8", png}, "t");
   EXPECT_TRUE(from_png.pixels == rgb.pixels);
   const auto jpeg = encodeJpeg(rgb, {95});
-  const ImageRgb from_jpeg = rosmsg::compressedColorImage({"jpeg", jpeg}, "t");
+  const ImageRgb from_jpeg = rosmsg::compressedColourImage({"jpeg", jpeg}, "t");
   ASSERT_EQ(from_jpeg.width, 4u);
   ASSERT_EQ(from_jpeg.height, 2u);
   // JPEG's loss: chroma is averaged over 2 x 2 pixels, so single pixels move by up to a dozen
@@ -642,12 +642,12 @@ TEST(CompressedImage, OtherCompressionsAndBrokenDataAreOneLineErrors) {
   EXPECT_THROW(rosmsg::compressedDepthImage({"16UC1; compressedDepth", cut}, "/d"), Error);
   EXPECT_THROW(rosmsg::compressedDepthImage({"32FC1; compressedDepth", compressedDepth(png, 0.0f, 1.0f)}, "/d"),
                FormatError);
-  EXPECT_THROW(rosmsg::compressedColorImage({"16UC1; compressedDepth", bytes}, "/c"), DataError);
+  EXPECT_THROW(rosmsg::compressedColourImage({"16UC1; compressedDepth", bytes}, "/c"), DataError);
   const std::vector<uint8_t> webp{'R', 'I', 'F', 'F', 0, 0, 0, 0, 'W', 'E', 'B', 'P'};
-  EXPECT_EQ(messageOf<DataError>([&] { rosmsg::compressedColorImage({"webp", webp}, "/c"); }),
+  EXPECT_EQ(messageOf<DataError>([&] { rosmsg::compressedColourImage({"webp", webp}, "/c"); }),
             "/c: compressed image of format 'webp' is neither a JPEG nor a PNG (the compressions read)");
   const std::vector<uint8_t> half_png(png.begin(), png.begin() + static_cast<long>(png.size() / 2));
-  EXPECT_THROW(rosmsg::compressedColorImage({"png", half_png}, "/c"), Error);
+  EXPECT_THROW(rosmsg::compressedColourImage({"png", half_png}, "/c"), Error);
 }
 
 // Found by fuzz_cdr: a cloud of 4 billion rows of width 0 (fits any data: 0 bytes) walked every

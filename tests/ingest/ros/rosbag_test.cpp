@@ -89,10 +89,10 @@ TEST_F(RosBagTest, CompressedImageTopicsAreReadAsImageTransportWritesThem) {
     const Frame a = from_tum->load(i), b = from_jpeg->load(i);
     ASSERT_EQ(a.cloud.size(), b.cloud.size());
     EXPECT_EQ(std::memcmp(a.cloud.points.data(), b.cloud.points.data(), a.cloud.size() * sizeof(a.cloud.points[0])), 0);
-    ASSERT_EQ(a.cloud.colors.size(), b.cloud.colors.size());
-    for (size_t p = 0; p < a.cloud.colors.size(); ++p, ++n) {
-      error += std::abs(a.cloud.colors[p].r - b.cloud.colors[p].r) + std::abs(a.cloud.colors[p].g - b.cloud.colors[p].g) +
-               std::abs(a.cloud.colors[p].b - b.cloud.colors[p].b);
+    ASSERT_EQ(a.cloud.colours.size(), b.cloud.colours.size());
+    for (size_t p = 0; p < a.cloud.colours.size(); ++p, ++n) {
+      error += std::abs(a.cloud.colours[p].r - b.cloud.colours[p].r) + std::abs(a.cloud.colours[p].g - b.cloud.colours[p].g) +
+               std::abs(a.cloud.colours[p].b - b.cloud.colours[p].b);
     }
   }
   ASSERT_GT(n, 0u);
@@ -110,7 +110,7 @@ TEST_F(RosBagTest, FramesMatchTheTumReadersFrames) {
     EXPECT_NEAR(a.timestamp_s, b.timestamp_s, 1e-6);
     ASSERT_EQ(a.cloud.size(), b.cloud.size());
     EXPECT_EQ(std::memcmp(a.cloud.points.data(), b.cloud.points.data(), a.cloud.size() * sizeof(a.cloud.points[0])), 0);
-    EXPECT_TRUE(a.cloud.colors == b.cloud.colors);
+    EXPECT_TRUE(a.cloud.colours == b.cloud.colours);
     EXPECT_NE(b.source.find("pose_lz4.bag: /camera/depth/image_raw at "), std::string::npos) << b.source;
   }
   EXPECT_NEAR(*from_bag->recordedAt(), *from_tum->recordedAt(), 1e-6);
@@ -179,7 +179,7 @@ TEST_F(RosBagTest, FloatDepthAndBgrColourGiveTheSamePoints) {
   for (size_t i = 0; i < from_tum->size(); i += 5) {
     const Frame a = from_tum->load(i), b = from_bag->load(i);
     ASSERT_EQ(a.cloud.size(), b.cloud.size());
-    EXPECT_TRUE(a.cloud.colors == b.cloud.colors);
+    EXPECT_TRUE(a.cloud.colours == b.cloud.colours);
     for (size_t p = 0; p < a.cloud.size(); ++p) {
       const bool valid = std::isfinite(a.cloud.points[p].z());
       ASSERT_EQ(valid, std::isfinite(b.cloud.points[p].z())) << p;
@@ -209,7 +209,7 @@ TEST_F(RosBagTest, PointCloud2TopicsGiveTheSamePointsAndColours) {
   const Frame a = from_tum->load(4), b = from_bag->load(4);
   ASSERT_EQ(b.cloud.width, a.cloud.width);
   ASSERT_EQ(b.cloud.height, a.cloud.height);
-  EXPECT_TRUE(a.cloud.colors == b.cloud.colors);
+  EXPECT_TRUE(a.cloud.colours == b.cloud.colours);
   for (size_t p = 0; p < a.cloud.size(); ++p) {
     if (std::isfinite(a.cloud.points[p].z())) {
       ASSERT_LT((a.cloud.points[p] - b.cloud.points[p]).norm(), 1e-6f) << p;
@@ -268,7 +268,7 @@ TEST_F(RosBagTest, AColourTopicAsDepthIsAnUnknownEncoding) {
   DatasetSettings s = bagSettings();
   s.bag.depth_topic = "/camera/rgb/image_raw";
   s.bag.info_topic = "/camera/depth/camera_info";
-  s.bag.color_topic = "none";
+  s.bag.colour_topic = "none";
   const auto dataset = openDataset(bag("pose_none.bag"), s);
   const std::string what = messageOf<DataError>([&] { dataset->load(0); });
   EXPECT_NE(what.find("pose_none.bag: /camera/rgb/image_raw at "), std::string::npos) << what;
@@ -373,7 +373,7 @@ TEST_F(RosBagTest, RealThreeDMatchFramesFromABagGiveTheFoldersMap) {
   }
   const Frame a = from_folder->load(1), b = from_bag->load(1);
   EXPECT_EQ(std::memcmp(a.cloud.points.data(), b.cloud.points.data(), a.cloud.size() * sizeof(a.cloud.points[0])), 0);
-  EXPECT_TRUE(a.cloud.colors == b.cloud.colors);
+  EXPECT_TRUE(a.cloud.colours == b.cloud.colours);
   SessionSettings s;
   const auto folder_map = integrateDataset(root, s).map;
   const auto bag_map = integrateDataset(real, s).map;
@@ -400,7 +400,7 @@ TEST(RosMessages, ShortBuffersAndUnknownEncodingsAreDataErrors) {
   const std::vector<uint8_t> data(7);
   EXPECT_THROW(rosmsg::depthCloud({2, 2, "16UC1", false, 4, data}, nullptr, {1, 1, 0, 0}, 1000.0, "t"), DataError);
   EXPECT_THROW(rosmsg::depthCloud({1, 2, "16UC1", false, 2, data}, nullptr, {1, 1, 0, 0}, 1000.0, "t"), DataError);
-  EXPECT_THROW(rosmsg::colorImage({1, 1, "yuv422", false, 2, data}, "t"), DataError);
+  EXPECT_THROW(rosmsg::colourImage({1, 1, "yuv422", false, 2, data}, "t"), DataError);
   rosmsg::CloudView cloud{1, 2, {{"x", 0, 7, 1}, {"y", 4, 7, 1}, {"z", 8, 7, 1}}, false, 12, 24, data};
   EXPECT_THROW(rosmsg::pointCloud(cloud, "t"), DataError);  // 24 bytes claimed, 7 held
   cloud.fields.pop_back();

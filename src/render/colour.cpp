@@ -1,4 +1,4 @@
-#include "chronomap/render/color.h"
+#include "chronomap/render/colour.h"
 
 #include <algorithm>
 #include <cmath>
@@ -11,9 +11,9 @@ uint8_t channel(double v) { return static_cast<uint8_t>(std::lround(std::clamp(v
 
 }  // namespace
 
-Rgb heatColor(double t) { return {channel(1.5 * t), channel(1.0 - 2.0 * std::abs(t - 0.5)), channel(1.5 * (1.0 - t))}; }
+Rgb heatColour(double t) { return {channel(1.5 * t), channel(1.0 - 2.0 * std::abs(t - 0.5)), channel(1.5 * (1.0 - t))}; }
 
-ImageRgb colorizeDepth(const ImageU16& depth, double depth_scale) {
+ImageRgb colourizeDepth(const ImageU16& depth, double depth_scale) {
   ImageRgb img;
   img.width = depth.width;
   img.height = depth.height;

@@ -8,10 +8,10 @@
 namespace chronomap {
 
 /// Blue (t = 0) through green to red (t = 1); t is clamped to [0, 1].
-Rgb heatColor(double t);
+Rgb heatColour(double t);
 
 /// A depth image in false colour: blue near, red far over 0..5 m; zero depth (no measurement)
 /// black. `depth_scale` is the image's units per metre.
-ImageRgb colorizeDepth(const ImageU16& depth, double depth_scale);
+ImageRgb colourizeDepth(const ImageU16& depth, double depth_scale);
 
 }  // namespace chronomap
