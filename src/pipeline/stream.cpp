@@ -4,18 +4,16 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
-#include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
-#include <type_traits>
 
 #include "build_steps.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
 #include "chronomap/store/cmap.h"
 #include "chronomap/core/file.h"
+#include "chronomap/store/part_store.h"
 #include "chronomap/store/tiled_file.h"
 #include "chronomap/pipeline/tiles.h"
 #include "chronomap/temporal/tiles.h"
@@ -26,98 +24,12 @@ namespace fs = std::filesystem;
 
 namespace {
 
-/// One leaf of a session map, as held and spilled.
-struct Part {
-  uint32_t session = 0;  // index given to produce()
-  uint16_t x = 0, y = 0, z = 0;
-  uint8_t level = 0;
-  uint8_t unused = 0;
-  VoxelCounters counters;
-};
-static_assert(std::is_trivially_copyable_v<Part>);
-
-struct CubeLess {
-  bool operator()(const Cube& a, const Cube& b) const {
-    if (a.level != b.level) return a.level > b.level;
-    return mortonEncode(a.corner) < mortonEncode(b.corner);
-  }
-};
-
 struct NewSession {
   size_t index = 0;
   double time_s = 0.0;
   std::string name;
   Coverage coverage;
   uint64_t nodes_separate = 0;
-};
-
-std::string cubeFile(const Cube& c) {
-  return std::to_string(c.level) + "_" + std::to_string(c.corner.x) + "_" + std::to_string(c.corner.y) + "_" +
-         std::to_string(c.corner.z) + ".parts";
-}
-
-/// The session parts by cube, in memory under a budget, spilled to files beyond it.
-class PartStore {
- public:
-  PartStore(fs::path folder, size_t limit, StreamStats& stats)
-      : folder_(std::move(folder)), limit_(limit), stats_(stats) {}
-  ~PartStore() {
-    std::error_code ec;
-    if (created_) fs::remove_all(folder_, ec);
-  }
-  PartStore(const PartStore&) = delete;
-  PartStore& operator=(const PartStore&) = delete;
-
-  void add(const Cube& cube, const Part& p) {
-    if (limit_ != 0 && bytes_ + sizeof(Part) > limit_) spill();
-    held_[cube].push_back(p);
-    bytes_ += sizeof(Part);
-    stats_.peak_parts_bytes = std::max(stats_.peak_parts_bytes, bytes_);
-    cubes_.insert(cube);
-  }
-  const std::set<Cube, CubeLess>& cubes() const { return cubes_; }
-  /// Every part of `cube`, spilled or held; the held ones are dropped.
-  std::vector<Part> take(const Cube& cube) {
-    std::vector<Part> out;
-    const fs::path file = folder_ / cubeFile(cube);
-    if (created_ && fs::exists(file)) {
-      const std::vector<uint8_t> bytes = readFileBytes(file);
-      out.resize(bytes.size() / sizeof(Part));
-      std::memcpy(static_cast<void*>(out.data()), bytes.data(), out.size() * sizeof(Part));
-      fs::remove(file);
-    }
-    if (const auto it = held_.find(cube); it != held_.end()) {
-      out.insert(out.end(), it->second.begin(), it->second.end());
-      bytes_ -= it->second.size() * sizeof(Part);
-      held_.erase(it);
-    }
-    return out;
-  }
-
- private:
-  void spill() {
-    if (!created_) {
-      fs::create_directories(folder_);
-      created_ = true;
-    }
-    for (auto& [cube, parts] : held_) {
-      std::ofstream out(folder_ / cubeFile(cube), std::ios::binary | std::ios::app);
-      out.write(reinterpret_cast<const char*>(parts.data()), static_cast<std::streamsize>(parts.size() * sizeof(Part)));
-      if (!out) throw IoError((folder_ / cubeFile(cube)).string() + ": cannot write (disk full?)");
-      stats_.spilled_bytes += parts.size() * sizeof(Part);
-    }
-    held_.clear();
-    bytes_ = 0;
-    ++stats_.spills;
-  }
-
-  fs::path folder_;
-  size_t limit_;
-  StreamStats& stats_;
-  bool created_ = false;
-  size_t bytes_ = 0;
-  std::map<Cube, std::vector<Part>, CubeLess> held_;
-  std::set<Cube, CubeLess> cubes_;
 };
 
 /// The cube at `level` that holds `key`.
@@ -245,7 +157,7 @@ class TileStream {
   TileStream(const StreamSettings& s, const std::optional<TileIndex>& index, const TemporalMap& top, int level,
              uint64_t generation, StreamResult& result)
       : s_(s), index_(index), top_(top), level_(level), generation_(generation), result_(result),
-        parts_(s.folder / (".parts-" + std::to_string(::getpid())), s.memory_limit_bytes, result.stats) {}
+        parts_(s.folder / (".parts-" + std::to_string(::getpid())), s.memory_limit_bytes) {}
 
   void addSessions(size_t count, const std::function<StreamSession(size_t)>& produce);
   void formGroups();
@@ -258,6 +170,7 @@ class TileStream {
   std::vector<TileEntry>& entries() { return entries_; }
   const std::vector<NewSession>& added() const { return added_; }
   std::vector<int64_t>& nodesAdded() { return nodes_added_; }
+  const PartStoreStats& partStats() const { return parts_.stats(); }
 
  private:
   void addSession(size_t i, StreamSession& session);
@@ -321,7 +234,7 @@ void TileStream::addSession(size_t i, StreamSession& session) {
                               session.map.innerCount() + session.map.leafCount()});
   session.map.forEachLeaf([&](const LeafView& leaf) {
     const Cube cube = leaf.level < level_ ? cubeAt(leaf.key, level_) : Cube{leaf.key, leaf.level};
-    parts_.add(cube, Part{static_cast<uint32_t>(i), leaf.key.x, leaf.key.y, leaf.key.z,
+    parts_.add(cube, SessionPart{static_cast<uint32_t>(i), leaf.key.x, leaf.key.y, leaf.key.z,
                           static_cast<uint8_t>(leaf.level), 0, leaf.counters});
     std::vector<uint32_t>& who = sessions_of_cube_[cube];
     if (who.empty() || who.back() != i) who.push_back(static_cast<uint32_t>(i));
@@ -428,14 +341,14 @@ TemporalMap TileStream::groupBase(const Cube& g, std::vector<SessionRecord>& rec
 
 // The new sessions' parts inside the group, added to `work` in time order.
 void TileStream::addGroupSessions(const Cube& g, TemporalMap& work) {
-  std::vector<std::vector<Part>> by_session(added_.size());
+  std::vector<std::vector<SessionPart>> by_session(added_.size());
   for (const Cube& c : parts_.cubes()) {
     if (!g.contains(c)) continue;
-    for (const Part& p : parts_.take(c)) by_session[rank_of_[p.session] - base_rank_].push_back(p);
+    for (const SessionPart& p : parts_.take(c)) by_session[rank_of_[p.session] - base_rank_].push_back(p);
   }
   for (size_t k = 0; k < added_.size(); ++k) {
     SessionMap part(top_.resolution_m());
-    for (const Part& p : by_session[k]) {
+    for (const SessionPart& p : by_session[k]) {
       const VoxelKey key{p.x, p.y, p.z};
       if (p.level == 0) {
         part.add(key, p.counters);
@@ -523,6 +436,9 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
   TileIndex written{level, TemporalMap(new_top.resolution_m()), entries};
   removeLeftovers(s.folder, &written);
 
+  result.stats.spills = stream.partStats().spills;
+  result.stats.spilled_bytes = stream.partStats().spilled_bytes;
+  result.stats.peak_parts_bytes = stream.partStats().peak_bytes;
   result.sessions = new_top.sessionCount();
   result.tiles = entries.size();
   for (const NewSession& n : stream.added()) result.added_times.push_back(n.time_s);
