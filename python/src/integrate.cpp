@@ -40,6 +40,7 @@ SessionMap integrateDatasetPy(const std::filesystem::path& path, double resoluti
   settings.integrator.max_range_m = max_range_m;
   settings.integrator.carve_beyond_range = carve_beyond_range;
   settings.integrator.threads = threads;
+  registerReaders();
   settings.dataset.format = parseDatasetFormat(format);
   settings.dataset.depth_scale = depth_scale;
   ProgressForwarder forwarder{progress, nullptr};
@@ -154,11 +155,27 @@ std::unique_ptr<IncrementalIntegrator> makeIntegrator(double resolution_m, doubl
 void bindIntegrate(py::module_& m) {
   m.def("read_depth_png", &readDepthPng, py::arg("path"), "A 16-bit PNG (a depth image) as an (H, W) uint16 array.");
   m.def("read_color_png", &readColourPng, py::arg("path"), "A PNG as an (H, W, 3) uint8 RGB array.");
+  m.def(
+      "formats",
+      [] {
+        py::list out;
+        for (const DatasetReader& r : registerReaders()) {
+          py::dict d;
+          d["name"] = r.name;
+          d["aliases"] = r.aliases;
+          d["description"] = r.description;
+          out.append(d);
+        }
+        return out;
+      },
+      "The recording formats this build reads, in the order detection tries them: a list of dicts "
+      "with 'name' (what `format=` takes), 'aliases' and 'description' (as `chronomap integrate "
+      "--list-formats`).");
   m.def("integrate_dataset", &integrateDatasetPy, py::arg("path"), py::arg("resolution_m") = 0.05,
         py::arg("fast") = false, py::arg("max_range_m") = 3.0, py::arg("threads") = 0, py::arg("format") = "auto",
         py::arg("depth_scale") = py::none(), py::arg("progress") = py::none(), py::arg("carve_beyond_range") = false,
         py::arg("carve_level") = "auto",
-        "Integrates the recording at `path` (a TUM, 3DMatch, ScanNet or cloud-list dataset, as "
+        "Integrates the recording at `path` (any format formats() lists, as "
         "`chronomap integrate` reads it) into a SessionMap. `progress`, if given, is called as "
         "progress(label, done, total) after each frame. The GIL is released while it runs. "
         "carve_beyond_range=True carves free space along the rays of points beyond max_range_m, up to the "

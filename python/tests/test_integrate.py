@@ -1,5 +1,6 @@
 """integrate_dataset against the command line, and frame by frame against integrate_dataset."""
 
+import json
 import subprocess
 import threading
 import time
@@ -146,3 +147,24 @@ def test_gil_is_released_during_integration(threedmatch):
     assert result["map"].counts()["occupied_voxels"] > 1000
     # With the GIL held for the whole call this thread would tick about once.
     assert ticks >= 10, (ticks, result["seconds"])
+
+
+def test_formats_are_the_registry_the_cli_lists(cli, threedmatch):
+    # One registry: Python's formats(), the CLI's --list-formats and what format= takes.
+    listed = json.loads(subprocess.run([str(cli), "integrate", "--list-formats", "--json"], check=True,
+                                       capture_output=True, text=True).stdout)
+    ours = chronomap.formats()
+    assert [f["name"] for f in ours] == [f["name"] for f in listed]
+    assert [f["aliases"] for f in ours] == [f["aliases"] for f in listed]
+    names = [f["name"] for f in ours]
+    assert names[:4] == ["tum", "3dmatch", "scannet", "clouds"]
+    assert "7scenes" in ours[1]["aliases"]
+    # An alias reads as its reader; a name no reader has is refused listing those there are.
+    by_alias = chronomap.integrate_dataset(threedmatch, format="7scenes")
+    assert by_alias == chronomap.integrate_dataset(threedmatch, format="3dmatch")
+    with pytest.raises(chronomap.UsageError, match="expected auto, tum, 3dmatch"):
+        chronomap.integrate_dataset(threedmatch, format="kinectfusion")
+    if "rosbag" in names:
+        # The bag readers are registered before format= is read: a TUM folder is not a bag.
+        with pytest.raises(chronomap.UsageError):
+            chronomap.integrate_dataset(threedmatch, format="rosbag")
