@@ -7,17 +7,15 @@
 #include <random>
 
 #include "chronomap/analysis/diff.h"
+#include "builders.h"
 #include "chronomap/core/error.h"
 
 namespace chronomap {
 namespace {
 
-constexpr uint16_t kBase = 32768 - 8;  // the test region straddles the root's centre
+constexpr int kBase = kKeyOrigin - 8;  // the test region straddles the root's centre
 constexpr int kSide = 16;
 
-VoxelKey at(int x, int y, int z) {
-  return {static_cast<uint16_t>(kBase + x), static_cast<uint16_t>(kBase + y), static_cast<uint16_t>(kBase + z)};
-}
 
 // Counters with a chosen probability: hits / length = -ln(1 - p).
 VoxelCounters withProbability(double p, uint32_t hits = 4, uint8_t red = 100) {
@@ -30,11 +28,6 @@ VoxelCounters withProbability(double p, uint32_t hits = 4, uint8_t red = 100) {
   return c;
 }
 
-VoxelCounters freeVoxel(float length = 0.25f) {
-  VoxelCounters c;
-  c.length_m = length;
-  return c;
-}
 
 DiffSettings mode(DiffMode m, double alpha = -1.0) {
   DiffSettings s;
@@ -54,69 +47,69 @@ std::map<VoxelKey, ChangeCell> byKey(const DiffMap& d) {
 
 TEST(Diff, HardModeSeesOnlyOccupiedFreeChanges) {
   SessionMap a(0.05), b(0.05);
-  a.add(at(0, 0, 0), withProbability(0.9));  // occupied -> free: vanished
-  b.add(at(0, 0, 0), freeVoxel());
-  a.add(at(1, 0, 0), freeVoxel());  // free -> occupied: appeared
-  b.add(at(1, 0, 0), withProbability(0.8, 4, 210));
-  a.add(at(2, 0, 0), withProbability(0.9));  // occupied -> unknown: no change
-  b.add(at(3, 0, 0), freeVoxel());           // unknown -> free: no change
-  a.add(at(4, 0, 0), freeVoxel(0.5f));       // free -> free
-  b.add(at(4, 0, 0), freeVoxel(0.125f));
-  a.add(at(5, 0, 0), withProbability(0.6));  // occupied -> occupied
-  b.add(at(5, 0, 0), withProbability(0.99));
+  a.add(test::at(0, 0, 0, kBase), withProbability(0.9));  // occupied -> free: vanished
+  b.add(test::at(0, 0, 0, kBase), test::freeVoxel(0.25f));
+  a.add(test::at(1, 0, 0, kBase), test::freeVoxel(0.25f));  // free -> occupied: appeared
+  b.add(test::at(1, 0, 0, kBase), withProbability(0.8, 4, 210));
+  a.add(test::at(2, 0, 0, kBase), withProbability(0.9));  // occupied -> unknown: no change
+  b.add(test::at(3, 0, 0, kBase), test::freeVoxel(0.25f));           // unknown -> free: no change
+  a.add(test::at(4, 0, 0, kBase), test::freeVoxel(0.5f));       // free -> free
+  b.add(test::at(4, 0, 0, kBase), test::freeVoxel(0.125f));
+  a.add(test::at(5, 0, 0, kBase), withProbability(0.6));  // occupied -> occupied
+  b.add(test::at(5, 0, 0, kBase), withProbability(0.99));
 
   const DiffMap d = diff(a, b, mode(DiffMode::Hard));
   ASSERT_EQ(d.cells().size(), 2u);
   const auto cells = byKey(d);
-  EXPECT_EQ(cells.at(at(0, 0, 0)).kind, ChangeKind::Vanished);
-  EXPECT_EQ(cells.at(at(0, 0, 0)).colour.r, 100) << "a vanished voxel keeps the colour of what vanished";
-  EXPECT_EQ(cells.at(at(1, 0, 0)).kind, ChangeKind::Appeared);
-  EXPECT_EQ(cells.at(at(1, 0, 0)).colour.r, 210) << "an appeared voxel has the colour of the new surface";
-  EXPECT_NEAR(cells.at(at(1, 0, 0)).value, 0.8, 1e-5);
+  EXPECT_EQ(cells.at(test::at(0, 0, 0, kBase)).kind, ChangeKind::Vanished);
+  EXPECT_EQ(cells.at(test::at(0, 0, 0, kBase)).colour.r, 100) << "a vanished voxel keeps the colour of what vanished";
+  EXPECT_EQ(cells.at(test::at(1, 0, 0, kBase)).kind, ChangeKind::Appeared);
+  EXPECT_EQ(cells.at(test::at(1, 0, 0, kBase)).colour.r, 210) << "an appeared voxel has the colour of the new surface";
+  EXPECT_NEAR(cells.at(test::at(1, 0, 0, kBase)).value, 0.8, 1e-5);
   EXPECT_EQ(d.voxelCount(ChangeKind::Appeared), 1u);
   EXPECT_EQ(d.voxelCount(ChangeKind::Vanished), 1u);
 }
 
 TEST(Diff, ThresholdBandAndContinuousFollowTheirDefinitions) {
   SessionMap a(0.05), b(0.05);
-  a.add(at(0, 0, 0), withProbability(0.45));  // crosses 0.5 by 0.1
-  b.add(at(0, 0, 0), withProbability(0.55));
-  a.add(at(1, 0, 0), withProbability(0.05));  // 0.05 -> 0.7: a jump of 0.65
-  b.add(at(1, 0, 0), withProbability(0.7));
-  a.add(at(2, 0, 0), withProbability(0.3));  // 0.3 -> 0.35: no bin changes, small jump
-  b.add(at(2, 0, 0), withProbability(0.35));
-  a.add(at(3, 0, 0), freeVoxel());  // free in a, unknown in b
-  a.add(at(4, 0, 0), freeVoxel());  // identical
-  b.add(at(4, 0, 0), freeVoxel());
+  a.add(test::at(0, 0, 0, kBase), withProbability(0.45));  // crosses 0.5 by 0.1
+  b.add(test::at(0, 0, 0, kBase), withProbability(0.55));
+  a.add(test::at(1, 0, 0, kBase), withProbability(0.05));  // 0.05 -> 0.7: a jump of 0.65
+  b.add(test::at(1, 0, 0, kBase), withProbability(0.7));
+  a.add(test::at(2, 0, 0, kBase), withProbability(0.3));  // 0.3 -> 0.35: no bin changes, small jump
+  b.add(test::at(2, 0, 0, kBase), withProbability(0.35));
+  a.add(test::at(3, 0, 0, kBase), test::freeVoxel(0.25f));  // free in a, unknown in b
+  a.add(test::at(4, 0, 0, kBase), test::freeVoxel(0.25f));  // identical
+  b.add(test::at(4, 0, 0, kBase), test::freeVoxel(0.25f));
 
   const auto hard = byKey(diff(a, b, mode(DiffMode::Hard)));
   EXPECT_EQ(hard.size(), 2u);
-  EXPECT_TRUE(hard.count(at(0, 0, 0)) && hard.count(at(1, 0, 0)));
+  EXPECT_TRUE(hard.count(test::at(0, 0, 0, kBase)) && hard.count(test::at(1, 0, 0, kBase)));
 
   const auto threshold = byKey(diff(a, b, mode(DiffMode::Threshold, 0.4)));
   ASSERT_EQ(threshold.size(), 1u) << "only the 0.65 jump exceeds alpha = 0.4";
-  EXPECT_EQ(threshold.at(at(1, 0, 0)).kind, ChangeKind::Appeared);
+  EXPECT_EQ(threshold.at(test::at(1, 0, 0, kBase)).kind, ChangeKind::Appeared);
   const auto threshold_low = byKey(diff(a, b, mode(DiffMode::Threshold, 0.04)));
   EXPECT_EQ(threshold_low.size(), 3u) << "0.1, 0.65 and 0.05 exceed 0.04";
 
   const auto band = byKey(diff(a, b, mode(DiffMode::Band, 0.1)));
   ASSERT_EQ(band.size(), 1u) << "0.45 and 0.55 lie in the grey band (0.4, 0.6)";
-  EXPECT_TRUE(band.count(at(1, 0, 0)));
+  EXPECT_TRUE(band.count(test::at(1, 0, 0, kBase)));
 
   const auto cont = byKey(diff(a, b, mode(DiffMode::Continuous)));
   ASSERT_EQ(cont.size(), 4u) << "every voxel known in both, the unknown one excluded";
-  EXPECT_NEAR(cont.at(at(0, 0, 0)).value, 0.1, 1e-5);
-  EXPECT_NEAR(cont.at(at(1, 0, 0)).value, 0.65, 1e-5);
-  EXPECT_NEAR(cont.at(at(2, 0, 0)).value, 0.05, 1e-5);
-  EXPECT_EQ(cont.at(at(4, 0, 0)).value, 0.0f);
-  EXPECT_EQ(cont.at(at(4, 0, 0)).kind, ChangeKind::Unchanged);
-  EXPECT_EQ(cont.at(at(2, 0, 0)).kind, ChangeKind::Appeared);
+  EXPECT_NEAR(cont.at(test::at(0, 0, 0, kBase)).value, 0.1, 1e-5);
+  EXPECT_NEAR(cont.at(test::at(1, 0, 0, kBase)).value, 0.65, 1e-5);
+  EXPECT_NEAR(cont.at(test::at(2, 0, 0, kBase)).value, 0.05, 1e-5);
+  EXPECT_EQ(cont.at(test::at(4, 0, 0, kBase)).value, 0.0f);
+  EXPECT_EQ(cont.at(test::at(4, 0, 0, kBase)).kind, ChangeKind::Unchanged);
+  EXPECT_EQ(cont.at(test::at(2, 0, 0, kBase)).kind, ChangeKind::Appeared);
 }
 
 TEST(Diff, UnknownAgainstAnythingIsNeverAChange) {
   SessionMap a(0.05), b(0.05);
-  for (int i = 0; i < 8; ++i) a.add(at(i, 0, 0), i % 2 ? freeVoxel() : withProbability(0.9));
-  for (int i = 0; i < 8; ++i) b.add(at(i, 5, 0), i % 2 ? withProbability(0.9) : freeVoxel());
+  for (int i = 0; i < 8; ++i) a.add(test::at(i, 0, 0, kBase), i % 2 ? test::freeVoxel(0.25f) : withProbability(0.9));
+  for (int i = 0; i < 8; ++i) b.add(test::at(i, 5, 0, kBase), i % 2 ? withProbability(0.9) : test::freeVoxel(0.25f));
   for (DiffMode m : {DiffMode::Hard, DiffMode::Threshold, DiffMode::Band, DiffMode::Continuous}) {
     EXPECT_TRUE(diff(a, b, mode(m)).empty()) << toString(m);
     EXPECT_TRUE(diff(a, SessionMap(0.05), mode(m)).empty()) << toString(m);
@@ -128,8 +121,8 @@ TEST(Diff, CompressedFreeCubesCompareAtTheFinerSide) {
   for (int z = 0; z < 8; ++z) {
     for (int y = 0; y < 8; ++y) {
       for (int x = 0; x < 8; ++x) {
-        a.add(at(x, y, z), freeVoxel());
-        b.add(at(x, y, z), (x == 3 && y == 4 && z == 5) ? withProbability(0.9) : freeVoxel(0.5f));
+        a.add(test::at(x, y, z, kBase), test::freeVoxel(0.25f));
+        b.add(test::at(x, y, z, kBase), (x == 3 && y == 4 && z == 5) ? withProbability(0.9) : test::freeVoxel(0.5f));
       }
     }
   }
@@ -138,7 +131,7 @@ TEST(Diff, CompressedFreeCubesCompareAtTheFinerSide) {
   ASSERT_LT(a.leafCount(), 64u) << "a compressed";
   const DiffMap hard = diff(a, b, mode(DiffMode::Hard));
   ASSERT_EQ(hard.cells().size(), 1u);
-  EXPECT_EQ(hard.cells()[0].key, at(3, 4, 5));
+  EXPECT_EQ(hard.cells()[0].key, test::at(3, 4, 5, kBase));
   EXPECT_EQ(hard.cells()[0].level, 0);
   EXPECT_EQ(hard.cells()[0].kind, ChangeKind::Appeared);
   // Continuous: uniform cubes known in both come out as one cell each, with value 0.
@@ -155,9 +148,9 @@ TEST(Diff, NeighbourhoodIgnoresShiftedSurfacesButNotObjects) {
   for (int z = 0; z < 6; ++z) {
     for (int y = 0; y < 6; ++y) {
       for (int x = 0; x < 12; ++x) {
-        a.add(at(x, y, z), x == 4 ? withProbability(0.9) : freeVoxel());
+        a.add(test::at(x, y, z, kBase), x == 4 ? withProbability(0.9) : test::freeVoxel(0.25f));
         const bool box = x == 9 && y < 2 && z < 2;
-        b.add(at(x, y, z), x == 5 || box ? withProbability(0.9) : freeVoxel());
+        b.add(test::at(x, y, z, kBase), x == 5 || box ? withProbability(0.9) : test::freeVoxel(0.25f));
       }
     }
   }
@@ -181,12 +174,12 @@ void addSplitWall(SessionMap& m, uint32_t hits4) {
           const uint32_t hits = x == 4 ? hits4 : 10 - hits4;
           VoxelCounters c = withProbability(0.9, hits);
           if (hits < 5) {  // free: a few hits over a long path, P = 1 - exp(-1/4) = 0.22
-            c = freeVoxel(hits == 0 ? 0.25f : 4.0f * static_cast<float>(hits));
+            c = test::freeVoxel(hits == 0 ? 0.25f : 4.0f * static_cast<float>(hits));
             c.hits = hits;
           }
-          m.add(at(x, y, z), c);
+          m.add(test::at(x, y, z, kBase), c);
         } else {
-          m.add(at(x, y, z), freeVoxel());
+          m.add(test::at(x, y, z, kBase), test::freeVoxel(0.25f));
         }
       }
     }
@@ -203,16 +196,16 @@ TEST(Diff, MinShiftTellsAMovedSurfaceFromAShiftedOne) {
   SessionMap obj_a(0.05), obj_b(0.05);
   addSplitWall(obj_a, 10);
   addSplitWall(obj_b, 0);
-  ASSERT_EQ(wall_a.stateOf(at(5, 2, 2)), VoxelState::Free);
-  ASSERT_EQ(wall_b.stateOf(at(5, 2, 2)), VoxelState::Occupied);
-  ASSERT_EQ(wall_b.stateOf(at(4, 2, 2)), VoxelState::Free);
+  ASSERT_EQ(wall_a.stateOf(test::at(5, 2, 2, kBase)), VoxelState::Free);
+  ASSERT_EQ(wall_b.stateOf(test::at(5, 2, 2, kBase)), VoxelState::Occupied);
+  ASSERT_EQ(wall_b.stateOf(test::at(4, 2, 2, kBase)), VoxelState::Free);
 
   // The hit-weighted centres: 4.1 -> 4.6 (wall), 4.0 -> 5.0 (object); lateral terms cancel.
-  EXPECT_NEAR(surfaceShift(wall_a, wall_b, at(4, 2, 2), 1).value(), 0.5, 1e-9);
-  EXPECT_NEAR(surfaceShift(wall_a, wall_b, at(4, 0, 0), 1).value(), 0.5, 1e-9) << "at the wall's corner";
-  EXPECT_NEAR(surfaceShift(obj_a, obj_b, at(5, 3, 1), 1).value(), 1.0, 1e-9);
-  EXPECT_FALSE(surfaceShift(wall_a, wall_b, at(8, 2, 2), 1)) << "no hits within one voxel";
-  EXPECT_THROW(surfaceShift(wall_a, SessionMap(0.1), at(4, 2, 2), 1), UsageError);
+  EXPECT_NEAR(surfaceShift(wall_a, wall_b, test::at(4, 2, 2, kBase), 1).value(), 0.5, 1e-9);
+  EXPECT_NEAR(surfaceShift(wall_a, wall_b, test::at(4, 0, 0, kBase), 1).value(), 0.5, 1e-9) << "at the wall's corner";
+  EXPECT_NEAR(surfaceShift(obj_a, obj_b, test::at(5, 3, 1, kBase), 1).value(), 1.0, 1e-9);
+  EXPECT_FALSE(surfaceShift(wall_a, wall_b, test::at(8, 2, 2, kBase), 1)) << "no hits within one voxel";
+  EXPECT_THROW(surfaceShift(wall_a, SessionMap(0.1), test::at(4, 2, 2, kBase), 1), UsageError);
 
   DiffSettings s;
   EXPECT_EQ(diff(wall_a, wall_b, s).voxelCount(), 72u) << "36 vanished at x = 4, 36 appeared at x = 5";
@@ -242,7 +235,7 @@ TEST(Diff, MinShiftSeesAMoveWithinOneVoxel) {
     for (int z = 0; z < 6; ++z) {
       for (int y = 0; y < 6; ++y) {
         for (int x = 0; x < 10; ++x) {
-          VoxelCounters c = freeVoxel();
+          VoxelCounters c = test::freeVoxel(0.25f);
           if (x == 4) {
             c = withProbability(0.9, 10);
             c.offset[0] = 10.0f * offset;
@@ -250,7 +243,7 @@ TEST(Diff, MinShiftSeesAMoveWithinOneVoxel) {
             c = withProbability(0.9, 2);
             c.offset[0] = 2.0f * -0.45f;
           }
-          m.add(at(x, y, z), c);
+          m.add(test::at(x, y, z, kBase), c);
         }
       }
     }
@@ -260,7 +253,7 @@ TEST(Diff, MinShiftSeesAMoveWithinOneVoxel) {
   // Before: 360 hits at 4 - 0.4; after: 360 at 4 + 0.35 and 72 at 5 - 0.45. Mean x, per row of
   // the 3 x 3 window (10 and 2 hits a voxel): 3.6 before, (10 * 4.35 + 2 * 4.55) / 12 after.
   const double after_x = (10.0 * 4.35 + 2.0 * 4.55) / 12.0;
-  EXPECT_NEAR(surfaceShift(before, after, at(5, 2, 2), 1).value(), after_x - 3.6, 1e-5);
+  EXPECT_NEAR(surfaceShift(before, after, test::at(5, 2, 2, kBase), 1).value(), after_x - 3.6, 1e-5);
   // Without positions (a map written before they were kept) the same hits sit at the centres.
   SessionMap before_c(0.05), after_c(0.05);
   for (const auto& [src, dst] : {std::pair{&before, &before_c}, std::pair{&after, &after_c}}) {
@@ -270,7 +263,7 @@ TEST(Diff, MinShiftSeesAMoveWithinOneVoxel) {
       if (leaf.level == 0) dst->add(leaf.key, c);
     });
   }
-  EXPECT_NEAR(surfaceShift(before_c, after_c, at(5, 2, 2), 1).value(), 2.0 / 12.0, 1e-9);
+  EXPECT_NEAR(surfaceShift(before_c, after_c, test::at(5, 2, 2, kBase), 1).value(), 2.0 / 12.0, 1e-9);
 
   DiffSettings s;
   s.neighbourhood_voxels = 1;
@@ -291,12 +284,12 @@ SessionMap wallScene(int patch_x, bool wall_behind_patch, bool wall_at_6) {
       const bool in_patch = y >= 2 && y < 4 && z >= 2 && z < 4;
       for (int x = 0; x < 7; ++x) {
         if (in_patch && x == patch_x) {
-          m.add(at(x, y, z), withProbability(0.9));
+          m.add(test::at(x, y, z, kBase), withProbability(0.9));
         } else if (x == 6) {
-          if (!wall_at_6) m.add(at(x, y, z), freeVoxel());
-          else if (!in_patch || wall_behind_patch) m.add(at(x, y, z), withProbability(0.9));
+          if (!wall_at_6) m.add(test::at(x, y, z, kBase), test::freeVoxel(0.25f));
+          else if (!in_patch || wall_behind_patch) m.add(test::at(x, y, z, kBase), withProbability(0.9));
         } else if (!(in_patch && x > patch_x && patch_x >= 0)) {
-          m.add(at(x, y, z), freeVoxel());
+          m.add(test::at(x, y, z, kBase), test::freeVoxel(0.25f));
         }
       }
     }
@@ -332,7 +325,7 @@ TEST(Diff, KeptSurfaceDropsADepthErrorInFrontOfASurfaceStillSeen) {
   auto moveWallHits = [](SessionMap& m, float offset) {
     std::vector<std::pair<VoxelKey, VoxelCounters>> deltas;
     m.forEachLeaf([&](const LeafView& l) {
-      if (l.key.x != at(6, 0, 0).x || l.counters.hits == 0) return;
+      if (l.key.x != test::at(6, 0, 0, kBase).x || l.counters.hits == 0) return;
       VoxelCounters d;
       d.offset[0] = offset * static_cast<float>(l.counters.hits);
       deltas.emplace_back(l.key, d);
@@ -371,7 +364,7 @@ SessionMap recoloured(const SessionMap& m, Rgb wall, Rgb patch) {
   SessionMap out(m.resolution_m());
   m.forEachLeaf([&](const LeafView& l) {
     VoxelCounters c = l.counters;
-    const Rgb col = l.key.x == at(6, 0, 0).x ? wall : patch;
+    const Rgb col = l.key.x == test::at(6, 0, 0, kBase).x ? wall : patch;
     c.red = uint32_t{col.r} * c.hits;
     c.green = uint32_t{col.g} * c.hits;
     c.blue = uint32_t{col.b} * c.hits;
@@ -452,11 +445,11 @@ SessionMap floorScene(int height, int bright_layers = 0) {
       for (int x = 0; x < 8; ++x) {
         const bool under = x >= 3 && x < 5 && y >= 3 && y < 5;
         if (z == 0) {
-          if (!under || height == 0) m.add(at(x, y, z), coloured(150));
+          if (!under || height == 0) m.add(test::at(x, y, z, kBase), coloured(150));
         } else if (under && z <= height) {
-          m.add(at(x, y, z), coloured(z > height - bright_layers ? 100 : 30));
+          m.add(test::at(x, y, z, kBase), coloured(z > height - bright_layers ? 100 : 30));
         } else {
-          m.add(at(x, y, z), freeVoxel());
+          m.add(test::at(x, y, z, kBase), test::freeVoxel(0.25f));
         }
       }
     }
@@ -523,19 +516,19 @@ TEST(Diff, SettingsAreChecked) {
 
 TEST(Diff, CellsMustNotOverlap) {
   ChangeCell big;
-  big.key = at(0, 0, 0);
+  big.key = test::at(0, 0, 0, kBase);
   big.level = 1;
   ChangeCell inside;
-  inside.key = at(1, 1, 1);
+  inside.key = test::at(1, 1, 1, kBase);
   EXPECT_THROW(DiffMap::fromCells(0.05, {}, {big, inside}), FormatError);
   ChangeCell misaligned;
-  misaligned.key = at(1, 0, 0);
+  misaligned.key = test::at(1, 0, 0, kBase);
   misaligned.level = 1;
   EXPECT_THROW(DiffMap::fromCells(0.05, {}, {misaligned}), FormatError);
   inside.value = std::nanf("");
   EXPECT_THROW(DiffMap::fromCells(0.05, {}, {inside}), FormatError);
   ChangeCell beside;
-  beside.key = at(2, 2, 2);
+  beside.key = test::at(2, 2, 2, kBase);
   EXPECT_EQ(DiffMap::fromCells(0.05, {}, {beside, big}).cells()[0].key, big.key) << "sorted by Morton code";
 }
 
@@ -555,11 +548,11 @@ SessionMap randomMap(std::mt19937_64& rng, const std::vector<uint8_t>& world) {
                                             1 + static_cast<uint32_t>(rng() % 4), static_cast<uint8_t>(rng()));
           // Where in the voxel the hits ended: anywhere within it.
           for (float& o : c.offset) o = static_cast<float>(c.hits) * (static_cast<float>(rng() % 101) / 100.0f - 0.5f);
-          m.add(at(x, y, z), c);
+          m.add(test::at(x, y, z, kBase), c);
         } else if (rng() % 20 == 0) {
-          m.add(at(x, y, z), withProbability(0.02 + 0.47 * static_cast<double>(rng() % 100) / 100.0));
+          m.add(test::at(x, y, z, kBase), withProbability(0.02 + 0.47 * static_cast<double>(rng() % 100) / 100.0));
         } else {
-          m.add(at(x, y, z), freeVoxel(0.125f * static_cast<float>(1 + rng() % 4)));
+          m.add(test::at(x, y, z, kBase), test::freeVoxel(0.125f * static_cast<float>(1 + rng() % 4)));
         }
       }
     }
@@ -609,7 +602,7 @@ TEST(Diff, EqualsVoxelByVoxelReferenceOnRandomMaps) {
       for (int z = -1; z <= kSide; ++z) {
         for (int y = -1; y <= kSide; ++y) {
           for (int x = -1; x <= kSide; ++x) {
-            const VoxelKey k = at(x, y, z);
+            const VoxelKey k = test::at(x, y, z, kBase);
             const auto expected =
                 compareVoxel(a.find(k).value_or(VoxelCounters{}), b.find(k).value_or(VoxelCounters{}), s);
             const auto it = got.find(k);
@@ -754,10 +747,10 @@ TEST(Diff, FourDimensionalDiffVisitsOnlyChangedSubtrees) {
   auto world = randomWorld(rng);
   for (int i = 0; i < 6; ++i) map.add(100.0 * i, randomMap(rng, world));
   SessionMap one(0.05);
-  one.add(at(40, 40, 40), withProbability(0.9));
+  one.add(test::at(40, 40, 40, kBase), withProbability(0.9));
   map.add(1000.0, one);
   SessionMap flip(0.05);
-  flip.add(at(40, 40, 40), freeVoxel());
+  flip.add(test::at(40, 40, 40, kBase), test::freeVoxel(0.25f));
   map.add(1100.0, flip);
   DiffStats stats;
   const DiffMap d = diff(map, 1000.0, 1100.0, {}, &stats);

@@ -4,6 +4,7 @@
 
 #include "chronomap/analysis/diff.h"
 #include "chronomap/analysis/segment.h"
+#include "builders.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/file.h"
 #include "chronomap/sim/change_truth.h"
@@ -12,11 +13,8 @@
 namespace chronomap {
 namespace {
 
-constexpr uint16_t kBase = 32768 - 16;
+constexpr int kBase = kKeyOrigin - 16;
 
-VoxelKey at(int x, int y, int z) {
-  return {static_cast<uint16_t>(kBase + x), static_cast<uint16_t>(kBase + y), static_cast<uint16_t>(kBase + z)};
-}
 
 VoxelCounters occupied() {
   VoxelCounters c;
@@ -25,11 +23,6 @@ VoxelCounters occupied() {
   return c;
 }
 
-VoxelCounters freeVoxel() {
-  VoxelCounters c;
-  c.length_m = 0.5f;
-  return c;
-}
 
 // A 32^3 region observed free, with the given boxes (inclusive corners) occupied.
 struct Box {
@@ -43,7 +36,7 @@ SessionMap room(std::initializer_list<Box> boxes) {
       for (int z = 0; z < 32; ++z) {
         bool in = false;
         for (const Box& b : boxes) in |= x >= b.x0 && x <= b.x1 && y >= b.y0 && y <= b.y1 && z >= b.z0 && z <= b.z1;
-        m.add(at(x, y, z), in ? occupied() : freeVoxel());
+        m.add(test::at(x, y, z, kBase), in ? occupied() : test::freeVoxel(0.5f));
       }
     }
   }
@@ -57,7 +50,7 @@ ChangeEvent eventOf(const Box& b, uint32_t object, EventKind kind) {
   e.kind = kind;
   for (int x = b.x0; x <= b.x1; ++x) {
     for (int y = b.y0; y <= b.y1; ++y) {
-      for (int z = b.z0; z <= b.z1; ++z) e.voxels.push_back(at(x, y, z));
+      for (int z = b.z0; z <= b.z1; ++z) e.voxels.push_back(test::at(x, y, z, kBase));
     }
   }
   return e;
@@ -111,8 +104,8 @@ TEST(ChangeTruth, EventsOutsideTheObservedSpaceDoNotCount) {
   ChangeEvent e;
   e.object_kind = ObjectKind::Door;
   e.kind = EventKind::DoorOpened;
-  for (int i = 0; i < 19; ++i) e.voxels.push_back(at(i, 0, 0));
-  for (int i = 0; i < 40; ++i) e.voxels.push_back(at(i, 40, 0));
+  for (int i = 0; i < 19; ++i) e.voxels.push_back(test::at(i, 0, 0, kBase));
+  for (int i = 0; i < 40; ++i) e.voxels.push_back(test::at(i, 40, 0, kBase));
   const SessionMap m = room({});
   ChangeScore s = score(m, m, {e});
   EXPECT_EQ(s.events_observable, 0u);
@@ -120,7 +113,7 @@ TEST(ChangeTruth, EventsOutsideTheObservedSpaceDoNotCount) {
   EXPECT_EQ(s.truth_voxels, 19u);
   // Sums add up, missed events included.
   ChangeScore twice = s;
-  e.voxels.push_back(at(19, 0, 0));
+  e.voxels.push_back(test::at(19, 0, 0, kBase));
   twice += score(m, m, {e});
   EXPECT_EQ(twice.events, 2u);
   EXPECT_EQ(twice.events_observable, 1u);

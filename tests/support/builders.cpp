@@ -6,9 +6,8 @@
 
 namespace chronomap::test {
 
-VoxelKey at(int x, int y, int z) {
-  return VoxelKey{static_cast<uint16_t>(kKeyOrigin + x), static_cast<uint16_t>(kKeyOrigin + y),
-                  static_cast<uint16_t>(kKeyOrigin + z)};
+VoxelKey at(int x, int y, int z, int origin) {
+  return VoxelKey{static_cast<uint16_t>(origin + x), static_cast<uint16_t>(origin + y), static_cast<uint16_t>(origin + z)};
 }
 
 VoxelCounters freeVoxel(float length) {

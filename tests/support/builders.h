@@ -14,8 +14,9 @@
 
 namespace chronomap::test {
 
-/// The key of the voxel (x, y, z) voxels from the map origin (kKeyOrigin).
-VoxelKey at(int x, int y, int z);
+/// The key of the voxel (x, y, z) voxels from `origin` on every axis (default the map origin,
+/// kKeyOrigin; a test region that straddles the root's centre starts a few voxels below it).
+VoxelKey at(int x, int y, int z, int origin = kKeyOrigin);
 
 /// A voxel crossed by rays of `length` metres in all, none ending in it.
 VoxelCounters freeVoxel(float length = 0.05f);
