@@ -187,8 +187,7 @@ static std::string formatHelp() {
 SessionSettings sessionSettings(const IntegrateFlags& f) {
   SessionSettings s;
   s.resolution_m = f.resolution_m;
-  registerReaders();
-  s.dataset.format = parseDatasetFormat(f.format);
+  s.dataset.format = parseRecordingFormat(f.format);
   s.dataset.depth_scale = f.depth_scale;
   if (!f.intrinsics.empty()) s.dataset.intrinsics = parseIntrinsics(f.intrinsics);
   if (!f.pose.empty()) {

@@ -40,8 +40,7 @@ SessionMap integrateDatasetPy(const std::filesystem::path& path, double resoluti
   settings.integrator.max_range_m = max_range_m;
   settings.integrator.carve_beyond_range = carve_beyond_range;
   settings.integrator.threads = threads;
-  registerReaders();
-  settings.dataset.format = parseDatasetFormat(format);
+  settings.dataset.format = parseRecordingFormat(format);
   settings.dataset.depth_scale = depth_scale;
   ProgressForwarder forwarder{progress, nullptr};
   std::optional<IntegratedSession> session;

@@ -88,8 +88,7 @@ py::dict buildPy(const std::filesystem::path& map, const std::vector<std::filesy
   settings.session.integrator.max_range_m = max_range_m;
   settings.session.integrator.carve_beyond_range = carve_beyond_range;
   settings.session.integrator.threads = threads;
-  registerReaders();
-  settings.session.dataset.format = parseDatasetFormat(format);
+  settings.session.dataset.format = parseRecordingFormat(format);
   if (register_sessions) {
     RegistrationSettings r;
     r.rounds = registration_rounds;

@@ -12,15 +12,6 @@ namespace chronomap {
 
 namespace fs = std::filesystem;
 
-std::string parseDatasetFormat(const std::string& name) {
-  if (name == "auto") return name;
-  if (const auto reader = findDatasetReader(name)) return reader->name;
-  std::string names = "auto";
-  const std::vector<DatasetReader> readers = datasetReaders();
-  for (size_t i = 0; i < readers.size(); ++i) names += (i + 1 == readers.size() ? " or " : ", ") + readers[i].name;
-  throw UsageError("unknown dataset format '" + name + "' (expected " + names + ")");
-}
-
 CameraIntrinsics parseIntrinsics(const std::string& text) {
   std::string s = text;
   std::replace(s.begin(), s.end(), ',', ' ');
@@ -84,8 +75,8 @@ std::unique_ptr<Dataset> openDataset(const fs::path& path, const DatasetSettings
     throw UsageError("the depth scale must be a positive number of image units per metre, got " +
                      std::to_string(*options.depth_scale));
   }
-  const DatasetReader reader = options.format == "auto" ? detectDatasetReader(path)
-                                                          : *findDatasetReader(parseDatasetFormat(options.format));
+  const DatasetReader reader =
+      options.format == "auto" ? detectDatasetReader(path) : datasetReaderNamed(options.format);
   if (!reader.takes_pose && options.pose) throw UsageError("--pose applies to a single cloud file");
   return reader.open(path, options);
 }

@@ -35,7 +35,7 @@ class ImageDataset : public Dataset {
  public:
   ImageDataset(std::string format, std::vector<ImageFrame> frames, CameraIntrinsics k, double scale, size_t dropped,
                std::optional<CameraIntrinsics> colour_k = std::nullopt, bool colour = true,
-               std::shared_ptr<DepthImageCache> depth_cache = nullptr)
+               std::shared_ptr<DepthImageCache> depth_cache = nullptr, bool timestamps_are_times = false)
       : format_(std::move(format)),
         frames_(std::move(frames)),
         k_(k),
@@ -43,11 +43,12 @@ class ImageDataset : public Dataset {
         dropped_(dropped),
         colour_k_(colour_k),
         colour_(colour),
-        depth_cache_(std::move(depth_cache)) {}
+        depth_cache_(std::move(depth_cache)),
+        timestamps_are_times_(timestamps_are_times) {}
   size_t size() const override { return frames_.size(); }
   std::string format() const override { return format_; }
   std::optional<double> recordedAt() const override {
-    if (format_ != "tum" || frames_.empty()) return std::nullopt;
+    if (!timestamps_are_times_ || frames_.empty()) return std::nullopt;
     return frames_.front().timestamp_s;
   }
   size_t framesDropped() const override { return dropped_; }
@@ -104,6 +105,7 @@ class ImageDataset : public Dataset {
   std::optional<CameraIntrinsics> colour_k_;
   bool colour_;
   std::shared_ptr<DepthImageCache> depth_cache_;
+  bool timestamps_are_times_;  // the frames\' timestamps are seconds since the epoch (TUM)
 };
 
 class CloudDataset : public Dataset {

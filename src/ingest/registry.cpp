@@ -28,6 +28,16 @@ Registry& registry() {
   return instance;
 }
 
+/// The readers' names in order, "a, b, c", or "a, b or c" with `or_last`.
+std::string namesOf(const std::vector<DatasetReader>& readers, bool or_last) {
+  std::string names;
+  for (size_t i = 0; i < readers.size(); ++i) {
+    if (i > 0) names += or_last && i + 1 == readers.size() ? " or " : ", ";
+    names += readers[i].name;
+  }
+  return names;
+}
+
 bool answersTo(const DatasetReader& reader, const std::string& name) {
   return reader.name == name || std::find(reader.aliases.begin(), reader.aliases.end(), name) != reader.aliases.end();
 }
@@ -65,16 +75,21 @@ std::optional<DatasetReader> findDatasetReader(const std::string& name) {
   return std::nullopt;
 }
 
+DatasetReader datasetReaderNamed(const std::string& name) {
+  if (auto reader = findDatasetReader(name)) return std::move(*reader);
+  throw UsageError("unknown dataset format '" + name + "' (expected auto, " + namesOf(datasetReaders(), true) + ")");
+}
+
+std::string parseDatasetFormat(const std::string& name) { return name == "auto" ? name : datasetReaderNamed(name).name; }
+
 DatasetReader detectDatasetReader(const fs::path& path) {
   const std::vector<DatasetReader> readers = datasetReaders();
   for (const DatasetReader& reader : readers) {
     if (reader.recognises(path)) return reader;
   }
-  std::string names;
-  for (const DatasetReader& reader : readers) names += (names.empty() ? "" : ", ") + reader.name;
   std::error_code ec;
   const std::string what = fs::is_directory(path, ec) ? "folder" : "file";
-  throw UsageError(path.string() + ": cannot tell the dataset format: no reader (" + names + ") recognises this " +
+  throw UsageError(path.string() + ": cannot tell the dataset format: no reader (" + namesOf(readers, false) + ") recognises this " +
                    what + "; `chronomap integrate --list-formats` says what each looks for; use --format");
 }
 

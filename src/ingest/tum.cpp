@@ -100,7 +100,7 @@ std::unique_ptr<Dataset> openTum(const fs::path& root, const DatasetSettings& o)
                     " depth frames has a pose (and colour) within " + std::to_string(o.max_time_difference_s) + " s");
   }
   return std::make_unique<ImageDataset>("tum", std::move(frames), k, checkedScale(o, 5000.0), dropped,
-                                        std::nullopt, o.colour, o.depth_cache);
+                                        std::nullopt, o.colour, o.depth_cache, true);
 }
 
 bool isTum(const fs::path& path) {

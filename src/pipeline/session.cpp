@@ -21,6 +21,11 @@ std::vector<DatasetReader> registerReaders() {
   return datasetReaders();
 }
 
+std::string parseRecordingFormat(const std::string& name) {
+  registerReaders();
+  return parseDatasetFormat(name);
+}
+
 std::vector<BagTopic> listBagTopics(const std::filesystem::path& path) {
 #if CHRONOMAP_HAVE_ROS
   return listBag(path);

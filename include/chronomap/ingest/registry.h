@@ -42,6 +42,10 @@ bool registerDatasetReader(DatasetReader reader);
 /// The reader of that name or alias, or nullopt.
 std::optional<DatasetReader> findDatasetReader(const std::string& name);
 
+/// The reader of that name or alias.
+/// @throw UsageError for a name no registered reader has, listing the names there are.
+DatasetReader datasetReaderNamed(const std::string& name);
+
 /// The first reader that recognises `path`.
 /// @throw UsageError when none does, saying what was looked for and to use --format.
 DatasetReader detectDatasetReader(const std::filesystem::path& path);

@@ -47,6 +47,10 @@ struct IntegratedSession {
 /// names or opens a format; safe to call any number of times.
 std::vector<DatasetReader> registerReaders();
 
+/// parseDatasetFormat after registerReaders(): what the CLI's --format and Python's format= read.
+/// @throw UsageError for a name no reader of this build has.
+std::string parseRecordingFormat(const std::string& name);
+
 /// The topics of a ROS 1 or ROS 2 bag (ingest/ros/rosbag.h's listBag).
 /// @throw UsageError when chronomap was built without the bag readers; as listBag otherwise.
 std::vector<BagTopic> listBagTopics(const std::filesystem::path& path);
