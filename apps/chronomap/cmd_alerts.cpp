@@ -33,6 +33,7 @@ int runAlerts(const AlertsCmdOptions& o) {
   settings.neighbourhood_voxels = o.neighbourhood;
   if (!o.history_to.empty()) settings.history_to_s = parseTime(o.history_to);
   settings.validate();
+  checkOutputs({{o.output, "-o", true}}, {o.map});
   const TemporalMap map = readTemporalMap(o.map);
   const AlertReport report = findAlerts(map, t, settings);
   if (!o.output.empty()) writeAlerts(o.output, map, report, o.top, o.map);

@@ -96,8 +96,7 @@ int runDiff(const DiffCmdOptions& o) {
   if (!o.ply.empty()) requireExtension(o.ply, ".ply", "--ply");
   const MapRef before = parseMapRef(o.before), after = parseMapRef(o.after);
   const std::vector<fs::path> inputs = {before.path, after.path};
-  refuseOverwritingInputs(o.output, inputs);
-  if (!o.ply.empty()) refuseOverwritingInputs(o.ply, inputs);
+  checkOutputs({{o.output, "-o"}, {o.ply, "--ply"}}, inputs);
   const auto start = std::chrono::steady_clock::now();
   if (o.lighting_invariant && !o.colour_distance) throw UsageError("--lighting-invariant applies to --colour");
   const nlohmann::json colour = o.colour_distance ? colourDiff(o, before, after) : nlohmann::json::object();
@@ -157,6 +156,7 @@ int runSegment(const SegmentCmdOptions& o) {
   settings.min_voxels = o.min_voxels;
   settings.min_value = o.min_value;
   settings.validate();
+  checkOutputs({{o.output_dir, "-o", true}}, {o.input});
   const DiffMap d = readDiffMap(o.input);
   const auto start = std::chrono::steady_clock::now();
   const Segmentation seg = segment(d, settings);

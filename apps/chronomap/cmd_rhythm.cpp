@@ -86,9 +86,7 @@ int runPredict(const PredictCmdOptions& o) {
   std::vector<std::filesystem::path> inputs = {o.map};
   if (!o.learn.rhythm_in.empty()) inputs.emplace_back(o.learn.rhythm_in);
   if (!o.colour_in.empty()) inputs.emplace_back(o.colour_in);
-  refuseOverwritingInputs(o.output, inputs);
-  if (!o.learn.rhythm_out.empty()) refuseOverwritingInputs(o.learn.rhythm_out, inputs);
-  if (!o.colour_out.empty()) refuseOverwritingInputs(o.colour_out, inputs);
+  checkOutputs({{o.output, "-o"}, {o.learn.rhythm_out, "--save-rhythm"}, {o.colour_out, "--save-colour"}}, inputs);
   const bool colour = o.colour || !o.colour_in.empty() || !o.colour_out.empty();
   const RhythmModel model = parseRhythmModel(o.learn.model);
   const double t = parseTime(o.at);
@@ -150,7 +148,11 @@ int runCostmap(const CostmapCmdOptions& o) {
   const CostmapFiles files = costmapFiles(o.output);
   std::vector<std::filesystem::path> inputs = {o.map};
   if (!o.learn.rhythm_in.empty()) inputs.emplace_back(o.learn.rhythm_in);
-  for (const fs::path& out : {files.yaml, files.pgm, files.png}) refuseOverwritingInputs(out, inputs);
+  checkOutputs({{files.yaml, "-o"},
+                {files.pgm, "the PGM beside -o"},
+                {files.png, "the PNG beside -o"},
+                {o.learn.rhythm_out, "--save-rhythm"}},
+               inputs);
   const RhythmModel model = parseRhythmModel(o.learn.model);
   const double t = parseTime(o.at);
   const TemporalMap map = readTemporalMap(o.map);

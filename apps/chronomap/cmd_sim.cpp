@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "chronomap/core/file.h"
 #include "chronomap/pipeline/demo.h"
 #include "chronomap/sim/building.h"
 #include "commands.h"
@@ -22,6 +23,7 @@ struct SimulateOptions {
 };
 
 int runSimulate(const SimulateOptions& o) {
+  checkOutputs({{o.output, "-o", true}}, {});
   std::unique_ptr<ProgressBar> bar;
   const SimulationSummary s = chronomap::simulate(o.settings, o.output, [&](size_t done, size_t total) {
     if (!bar) bar = std::make_unique<ProgressBar>("simulating " + o.settings.preset, total);
@@ -82,6 +84,7 @@ void printDemo(const DemoResult& r) {
 int runDemo(const DemoCmdOptions& o) {
   DemoSettings settings = o.settings;
   settings.output = o.output;
+  checkOutputs({{settings.output, "-o", true}}, {});
   settings.fast = !o.exact;
   settings.progress = terminalProgress(o.json);
   const DemoResult r = chronomap::runDemo(settings);

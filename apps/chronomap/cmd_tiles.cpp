@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "chronomap/core/error.h"
+#include "chronomap/core/file.h"
 #include "chronomap/pipeline/tiles.h"
 #include "commands.h"
 
@@ -27,6 +28,7 @@ struct TileCmdOptions {
 };
 
 int runTile(const TileCmdOptions& o) {
+  checkOutputs({{o.output, "-o", true}}, {o.map});
   TileSettings s;
   s.map = o.map;
   s.folder = o.output;

@@ -179,6 +179,29 @@ void removeStaleTemporaries(const fs::path& dir, const fs::path& path) {
 
 }  // namespace
 
+namespace {
+
+/// What an existing entry is, in words, when it is not a regular file; empty for a regular file.
+std::string nonRegularKind(const struct stat& st) {
+  if (S_ISREG(st.st_mode)) return {};
+  if (S_ISDIR(st.st_mode)) return "a folder";
+  if (S_ISFIFO(st.st_mode)) return "a FIFO (named pipe)";
+  if (S_ISCHR(st.st_mode)) return "a character device";
+  if (S_ISBLK(st.st_mode)) return "a block device";
+  if (S_ISSOCK(st.st_mode)) return "a socket";
+  return "not a regular file";
+}
+
+/// The kind of what exists at `path` (links followed) when it is not a regular file; empty when
+/// it is one or nothing is there.
+std::string existingNonRegular(const fs::path& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return {};
+  return nonRegularKind(st);
+}
+
+}  // namespace
+
 fs::path followLinks(const fs::path& path) {
   fs::path p = path;
   for (int hops = 0; hops < 40; ++hops) {
@@ -194,6 +217,7 @@ fs::path followLinks(const fs::path& path) {
 void writeFileAtomic(const fs::path& link_or_path, const std::vector<uint8_t>& bytes) {
   // Through a link, the target is replaced and the link stays (as a plain write would do).
   const fs::path path = followLinks(link_or_path);
+  refuseNonRegularFile(path);
   const fs::path dir = parentOf(path);
   removeStaleTemporaries(dir, path);
   const fs::path tmp = temporaryBeside(path);
@@ -238,9 +262,14 @@ void writeFileAtomic(const fs::path& link_or_path, const std::vector<uint8_t>& b
 }
 
 void appendToFile(const fs::path& path, uint64_t keep_bytes, const std::vector<uint8_t>& bytes) {
+  refuseNonRegularFile(path);  // before open: opening a FIFO to write waits for a reader
   const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);
   if (fd < 0) throw IoError(path.string() + ": cannot open for appending (" + std::strerror(errno) + ")");
   struct stat st {};
+  if (::fstat(fd, &st) == 0 && !S_ISREG(st.st_mode)) {
+    ::close(fd);
+    throw IoError(path.string() + ": is " + nonRegularKind(st) + ", not a regular file; nothing was written");
+  }
   if (::fstat(fd, &st) != 0 || static_cast<uint64_t>(st.st_size) < keep_bytes) {
     ::close(fd);
     throw IoError(path.string() + ": changed while it was being read; nothing was written");
@@ -328,13 +357,71 @@ FileLock::FileLock(const fs::path& link_or_path, Missing if_missing) {
   }
 }
 
-void refuseOverwritingInputs(const fs::path& output, const std::vector<fs::path>& inputs) {
-  for (const fs::path& input : inputs) {
-    std::error_code ec;
-    if (fs::equivalent(output, input, ec) && !ec) {
-      throw UsageError("output '" + output.string() + "' is the input '" + input.string() +
-                       "': refusing to overwrite it (write to another file)");
+namespace {
+
+/// One spelling per file: absolute, links and ".." resolved as far as the path exists.
+std::string canonicalName(const fs::path& path) {
+  std::error_code ec;
+  fs::path p = fs::weakly_canonical(fs::absolute(followLinks(path), ec), ec);
+  return ec ? fs::absolute(path).lexically_normal().string() : p.string();
+}
+
+bool sameFile(const fs::path& a, const fs::path& b) {
+  std::error_code ec;
+  if (fs::equivalent(a, b, ec) && !ec) return true;
+  return canonicalName(a) == canonicalName(b);
+}
+
+std::string named(const PlannedOutput& o) { return o.flag + " '" + o.path.string() + "'"; }
+
+void checkOneOutput(const PlannedOutput& o) {
+  std::error_code ec;
+  const bool exists = fs::exists(o.path, ec);
+  if (!exists) return;
+  const bool is_folder = fs::is_directory(o.path, ec);
+  if (o.folder) {
+    if (!is_folder) throw UsageError(named(o) + " exists and is not a folder: refusing to replace it with one");
+    return;
+  }
+  const std::string kind = existingNonRegular(o.path);
+  if (!kind.empty()) {
+    throw UsageError(named(o) + " is " + kind + ", not a regular file: chronomap replaces only regular files " +
+                     "(write to a file path)");
+  }
+}
+
+}  // namespace
+
+void checkOutputs(const std::vector<PlannedOutput>& outputs, const std::vector<fs::path>& inputs) {
+  for (size_t i = 0; i < outputs.size(); ++i) {
+    const PlannedOutput& o = outputs[i];
+    if (o.path.empty()) continue;
+    for (const fs::path& input : inputs) {
+      std::error_code ec;
+      if (fs::equivalent(o.path, input, ec) && !ec) {
+        throw UsageError(named(o) + " is the input '" + input.string() +
+                         "': refusing to overwrite it (write to another file)");
+      }
     }
+    for (size_t j = 0; j < i; ++j) {
+      if (!outputs[j].path.empty() && sameFile(o.path, outputs[j].path)) {
+        throw UsageError(named(o) + " is the same file as " + named(outputs[j]) +
+                         ": one would replace the other (give each output its own name)");
+      }
+    }
+    checkOneOutput(o);
+  }
+}
+
+void refuseOverwritingInputs(const fs::path& output, const std::vector<fs::path>& inputs) {
+  checkOutputs({{output, "output"}}, inputs);
+}
+
+void refuseNonRegularFile(const fs::path& path) {
+  const std::string kind = existingNonRegular(path);
+  if (!kind.empty()) {
+    throw IoError(path.string() + ": is " + kind + ", not a regular file: chronomap replaces only regular files, " +
+                  "so it is left alone and nothing was written");
   }
 }
 
@@ -342,6 +429,9 @@ StagedFolder::StagedFolder(const fs::path& destination) : destination_(followLin
   if (destination_.filename().empty()) destination_ = destination_.parent_path();
   const fs::path dir = parentOf(destination_);
   std::error_code ec;
+  if (fs::exists(destination_, ec) && !fs::is_directory(destination_, ec)) {
+    throw IoError(destination_.string() + ": exists and is not a folder; nothing was written");
+  }
   fs::create_directories(dir, ec);
   if (ec) throw IoError(dir.string() + ": cannot create folder (" + ec.message() + ")");
   removeStaleTemporaries(dir, destination_);

@@ -2,6 +2,7 @@
 // no input destroyed by an output that names it.
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <map>
@@ -93,6 +94,56 @@ TEST(TrustCli, AnOutputThatIsAnInputIsRefusedBeforeWork) {
     EXPECT_EQ(r.exit_code, 2) << c.command << "\n" << r.err;
     EXPECT_NE(r.err.find("input"), std::string::npos) << c.command << "\n" << r.err;
     EXPECT_EQ(bytesOf(c.input), before) << c.command;
+  }
+}
+
+// Every output of a command is checked before work, not only the main one: a secondary output
+// that names an input or another output, and a FIFO or a folder where a file goes, are refused
+// and left as they were.
+TEST(TrustCli, EveryOutputOfACommandIsCheckedBeforeWork) {
+  test::TempDir tmp;
+  writeSessionMap(tmp / "a.cmap", test::randomSessionMap(1, 16, 0.3), {});
+  writeSessionMap(tmp / "b.cmap", test::randomSessionMap(2, 16, 0.3), {});
+  const std::string a = (tmp / "a.cmap").string(), b = (tmp / "b.cmap").string(), m = (tmp / "m.cmap").string();
+  ASSERT_EQ(test::runCommand(cat(cli(), " add ", m, " ", a, " --time 1000 && ", cli(), " add ", m, " ", b, " --time 2000"))
+                .exit_code,
+            0);
+  const fs::path fifo = tmp / "pipe.cmap", folder = tmp / "folder.cmap", file = tmp / "file";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0644), 0);
+  fs::create_directories(folder);
+  test::writeBytes(file, std::string("a file where a folder goes\n"));
+  const std::string x = (tmp / "x.cmap").string(), c = (tmp / "c.yaml").string(), y = (tmp / "y.ply").string();
+  fs::create_symlink(x, y);
+  struct OutputCase {
+    std::string command, says;
+    fs::path kept;  // what must be left as it was
+  };
+  const std::vector<OutputCase> cases = {
+      {cat("costmap ", m, " --at 2000 -o ", c, " --save-rhythm ", m), "--save-rhythm", m},
+      {cat("predict ", m, " --at 2000 -o ", x, " --save-rhythm ", x), "same file", x},
+      {cat("predict ", m, " --at 2000 -o ", x, " --save-rhythm ", (tmp / "r.rhythm").string(), " --save-colour ", x),
+       "same file", x},
+      {cat("costmap ", m, " --at 2000 -o ", c, " --save-rhythm ", c), "same file", c},
+      {cat("diff ", a, " ", b, " -o ", x, " --ply ", y), "same file", x},  // y.ply links to x.cmap
+      {cat("snapshot ", m, " --at 2000 -o ", fifo.string()), "FIFO", fifo},
+      {cat("diff ", a, " ", b, " -o ", fifo.string()), "FIFO", fifo},
+      {cat("snapshot ", m, " --at 2000 -o ", folder.string()), "a folder", folder},
+      {cat("alerts ", m, " --at 2000 -o ", file.string()), "not a folder", file},
+  };
+  for (const OutputCase& k : cases) {
+    const bool existed = fs::exists(k.kept);
+    const auto before = existed && fs::is_regular_file(k.kept) ? bytesOf(k.kept) : std::vector<uint8_t>{};
+    const auto type = fs::symlink_status(k.kept).type();
+    const auto r = test::runCommand(cat(cli(), " ", k.command));
+    EXPECT_EQ(r.exit_code, 2) << k.command << "\n" << r.err;
+    EXPECT_NE(r.err.find(k.says), std::string::npos) << k.command << "\n" << r.err;
+    EXPECT_EQ(fs::symlink_status(k.kept).type(), type) << k.command;
+    if (existed && fs::is_regular_file(k.kept)) {
+      EXPECT_EQ(bytesOf(k.kept), before) << k.command;
+    }
+    if (!existed) {
+      EXPECT_FALSE(fs::exists(k.kept)) << k.command << ": written although refused";
+    }
   }
 }
 

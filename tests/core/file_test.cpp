@@ -99,6 +99,54 @@ std::vector<uint8_t> bzip2OfZeros(int blocks) {
   return out.bytes;
 }
 
+// The writers replace regular files only: a FIFO, a device or a folder is left as it was, and the
+// append of a 4D map does not wait for a FIFO's reader. The check in front of the command
+// (checkOutputs) says the same before any work.
+TEST(WriteFile, OnlyRegularFilesAreReplaced) {
+  test::TempDir tmp;
+  const fs::path fifo = tmp / "pipe", folder = tmp / "folder";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0644), 0);
+  fs::create_directories(folder);
+  const std::vector<uint8_t> bytes = {1, 2, 3};
+  for (const fs::path& p : {fifo, folder}) {
+    EXPECT_THROW(writeFileAtomic(p, bytes), IoError) << p;
+    EXPECT_THROW(appendToFile(p, 0, bytes), IoError) << p;
+    EXPECT_THROW(checkOutputs({{p, "-o"}}, {}), UsageError) << p;
+  }
+  EXPECT_TRUE(fs::is_fifo(fifo));
+  EXPECT_TRUE(fs::is_directory(folder));
+  // Through a link, what it points to counts.
+  fs::create_symlink(fifo, tmp / "link");
+  EXPECT_THROW(writeFileAtomic(tmp / "link", bytes), IoError);
+  EXPECT_TRUE(fs::is_fifo(fifo));
+  // A folder output is refused where a file is, and accepted where a folder or nothing is.
+  writeFileAtomic(tmp / "file", bytes);
+  EXPECT_THROW(checkOutputs({{tmp / "file", "-o", true}}, {}), UsageError);
+  EXPECT_NO_THROW(checkOutputs({{folder, "-o", true}, {tmp / "new", "--other", true}}, {}));
+}
+
+TEST(WriteFile, OutputsOfOneCommandMayNotNameEachOtherOrAnInput) {
+  test::TempDir tmp;
+  writeFileAtomic(tmp / "in", {1});
+  fs::create_symlink(tmp / "out.cmap", tmp / "alias.ply");  // to a file that does not exist yet
+  auto message = [](const std::vector<PlannedOutput>& outputs, const std::vector<fs::path>& inputs) -> std::string {
+    try {
+      checkOutputs(outputs, inputs);
+    } catch (const UsageError& e) {
+      return e.what();
+    }
+    return "(accepted)";
+  };
+  EXPECT_NE(message({{tmp / "a", "-o"}, {tmp / "b", "--ply"}, {tmp / "in", "--save-rhythm"}}, {tmp / "in"})
+                .find("--save-rhythm"),
+            std::string::npos);
+  EXPECT_NE(message({{tmp / "out.cmap", "-o"}, {tmp / "alias.ply", "--ply"}}, {}).find("same file as -o"),
+            std::string::npos);
+  EXPECT_NE(message({{tmp / "x", "-o"}, {tmp / "sub" / ".." / "x", "--save-colour"}}, {}).find("same file"),
+            std::string::npos);
+  EXPECT_EQ(message({{tmp / "x", "-o"}, {"", "--save-rhythm"}, {tmp / "y", "--ply"}}, {tmp / "in"}), "(accepted)");
+}
+
 TEST(ReadFile, RefusesBzip2BombsAndReadsRealFiles) {
   test::TempDir tmp;
   // 4 GB of zeros in about 4 KB: refused once the output passes the bound (64 MiB for a file

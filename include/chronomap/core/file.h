@@ -41,8 +41,8 @@ std::filesystem::path followLinks(const std::filesystem::path& path);
 /// Writes `bytes` to `path` atomically: into a temporary file in the same folder, flushed to
 /// disk, then renamed over `path`. On any failure the temporary file is removed and `path` is
 /// left as it was. When `path` is a symbolic link, the file it points to is replaced and the
-/// link kept.
-/// @throw IoError naming the file (disk full, permission, missing folder).
+/// link kept. Only a regular file is ever replaced (refuseNonRegularFile).
+/// @throw IoError naming the file (disk full, permission, missing folder, not a regular file).
 void writeFileAtomic(const std::filesystem::path& path, const std::vector<uint8_t>& bytes);
 
 /// Appends `bytes` to `path` after its first `keep_bytes` bytes (anything beyond them, such as
@@ -103,10 +103,28 @@ class StagedFolder {
   bool committed_ = false;
 };
 
-/// Refuses to write `output` over one of `inputs`, before any work: throws UsageError when it
-/// names the same existing file as an input, however either is spelled (links, "..", hard
-/// links). Outputs that do not exist yet are never an input.
+/// One file (or folder) a command is about to write, with the flag that asked for it.
+struct PlannedOutput {
+  std::filesystem::path path;  ///< empty: not asked for this time (skipped)
+  std::string flag;            ///< how the user named it, for messages: "-o", "--save-rhythm"
+  bool folder = false;         ///< a folder of outputs (StagedFolder) rather than one file
+};
+
+/// Checks all the outputs of one command together, before any work, so that nothing is
+/// written unless everything can be: throws UsageError naming the flags when an output
+/// - names an input (however either is spelled: links, "..", hard links),
+/// - names the same file as another output of the command (the second would replace the first),
+/// - exists but is not what it would be replaced by: a FIFO, a device, a socket or a folder
+///   where a file goes, a file where a folder goes (writeFileAtomic refuses those too).
+/// Outputs that do not exist yet are never an input.
+void checkOutputs(const std::vector<PlannedOutput>& outputs, const std::vector<std::filesystem::path>& inputs);
+
+/// checkOutputs for a command with one output.
 void refuseOverwritingInputs(const std::filesystem::path& output, const std::vector<std::filesystem::path>& inputs);
+
+/// @throw IoError when `path` (links followed) exists and is not a regular file: chronomap
+/// replaces regular files only, never a FIFO, a device, a socket or a folder.
+void refuseNonRegularFile(const std::filesystem::path& path);
 
 /// `path` without a trailing ".bz2", lower-cased extension of what remains (".pcd", ".ply", ...).
 std::string dataExtension(const std::filesystem::path& path);
