@@ -181,11 +181,13 @@ class SqliteStore : public MessageStore {
       throw FormatError(path.string() + ": cannot open as SQLite (" + why + ")");
     }
     try {
+      boundValues();
       const auto tables = column("SELECT name FROM sqlite_master WHERE type = 'table'");
       for (const char* table : {"topics", "messages"}) {
         if (std::find(tables.begin(), tables.end(), table) == tables.end()) {
           throw FormatError(path.string() + ": not a rosbag2 SQLite bag (no table '" + table + "')");
         }
+        refuseComputedBytes(table);
       }
       Statement st(*this, "SELECT id, name, type, serialization_format FROM topics");
       while (st.step()) topics_[st.integer(0)] = {st.text(1), st.text(2), st.text(3)};
@@ -262,6 +264,39 @@ class SqliteStore : public MessageStore {
     const SqliteStore& store_;
   };
   [[noreturn]] void fail() const { throw FormatError(path_.string() + ": SQLite: " + sqlite3_errmsg(db_)); }
+
+  /// No value read may be longer than the bytes stored: the database file and its write-ahead
+  /// log (at least 1 MiB, for SQLite's own small values). A stored value cannot exceed them;
+  /// only a computed one could, and SQLite refuses to make it ("string or blob too big").
+  void boundValues() {
+    std::error_code ec;
+    uintmax_t bytes = fs::file_size(path_, ec);
+    if (ec) bytes = 0;
+    const uintmax_t wal = fs::file_size(path_.string() + "-wal", ec);
+    if (!ec) bytes += wal;
+    const uintmax_t bound = std::clamp<uintmax_t>(bytes, uintmax_t{1} << 20, uintmax_t{INT32_MAX});
+    sqlite3_limit(db_, SQLITE_LIMIT_LENGTH, static_cast<int>(bound));
+  }
+
+  /// A rosbag2 table holds stored bytes only: a virtual table or a generated column computes
+  /// them when read (a 16 KiB file whose messages.data is zeroblob(900000000) would allocate
+  /// 900 MB per message), so either is refused before anything is read.
+  void refuseComputedBytes(const std::string& table) {
+    Statement kind(*this, "SELECT sql FROM sqlite_master WHERE type = 'table' AND name = ?");
+    sqlite3_bind_text(kind.s, 1, table.c_str(), -1, SQLITE_TRANSIENT);
+    if (kind.step() && kind.text(0).rfind("CREATE VIRTUAL", 0) == 0) {
+      throw FormatError(path_.string() + ": not a rosbag2 SQLite bag (table '" + table +
+                        "' is a virtual table, which computes its rows instead of storing them)");
+    }
+    // table_xinfo's column 6 ("hidden") is 2 or 3 for a generated column.
+    Statement columns(*this, ("PRAGMA table_xinfo(\"" + table + "\")").c_str());
+    while (columns.step()) {
+      if (columns.integer(6) >= 2) {
+        throw FormatError(path_.string() + ": not a rosbag2 SQLite bag (column " + table + "." + columns.text(1) +
+                          " is generated: computed when read, not stored bytes)");
+      }
+    }
+  }
   std::vector<std::string> column(const char* sql) const {
     std::vector<std::string> out;
     Statement st(*this, sql);

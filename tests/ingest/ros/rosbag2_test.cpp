@@ -334,6 +334,26 @@ TEST_F(Ros2BagTest, TruncatedAndCorruptFilesAreOneLineFormatErrorsNamingTheFile)
     sqlite3_close(db);
     expectError(other, "not a rosbag2 SQLite bag (no table 'topics')");
   }
+  // Bytes computed when read instead of stored: a 16 KiB file whose every message is a
+  // generated zeroblob of 900 MB (it drove --list to 1.78 GB resident), and a virtual table.
+  const std::vector<std::pair<std::string, std::string>> computed = {
+      {"data BLOB GENERATED ALWAYS AS (zeroblob(900000000)) VIRTUAL", "column messages.data is generated"},
+      {"data BLOB, big BLOB GENERATED ALWAYS AS (zeroblob(16)) STORED", "column messages.big is generated"},
+  };
+  for (const auto& [column, problem] : computed) {
+    const fs::path generated = *dir_ / "generated.db3";
+    fs::remove(generated);
+    fs::copy_file(bag("pose.db3"), generated);
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(generated.c_str(), &db), SQLITE_OK);
+    const std::string sql = "ALTER TABLE messages RENAME TO stored; CREATE TABLE messages(id INTEGER PRIMARY KEY, "
+                            "topic_id INTEGER, timestamp INTEGER, " + column + "); INSERT INTO messages(id, "
+                            "topic_id, timestamp) SELECT id, topic_id, timestamp FROM stored LIMIT 3; DROP TABLE stored";
+    EXPECT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, nullptr), SQLITE_OK) << sqlite3_errmsg(db);
+    sqlite3_close(db);
+    expectError(generated, problem);
+    EXPECT_NE(messageOf<FormatError>([&] { listBag(generated); }).find(problem), std::string::npos);
+  }
   // Neither MCAP nor SQLite.
   test::writeBytes(*dir_ / "text.mcap", std::string("not an mcap file at all, but long enough to look at it"));
   expectError(*dir_ / "text.mcap", "not an MCAP file");
