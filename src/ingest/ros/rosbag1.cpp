@@ -14,7 +14,11 @@
 #include <sensor_msgs/PointCloud2.h>
 #include <tf2_msgs/TFMessage.h>
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <atomic>
+#include <fstream>
 #include <limits>
 #include <stdexcept>
 #include <cmath>
@@ -100,14 +104,54 @@ std::string text(std::string_view s) { return std::string(s); }
 
 double seconds(const ros::Time& t) { return t.toSec(); }
 
-/// Opens a bag, librosbag's console messages silenced (the library never prints).
+/// A copy of a bag in the temporary folder whose index times 0 read as 1 ns, the first time
+/// librosbag indexes (it drops entries at 0 when it opens a bag). Removed on destruction: an
+/// open bag keeps reading its file.
+class ZeroTimesMoved {
+ public:
+  ZeroTimesMoved(const fs::path& path, const BagStructure& s) {
+    static std::atomic<unsigned> counter{0};
+    path_ = fs::temp_directory_path() /
+            ("chronomap-bag-" + std::to_string(::getpid()) + "-" + std::to_string(counter++) + ".bag");
+    std::error_code ec;
+    fs::copy_file(path, path_, fs::copy_options::overwrite_existing, ec);
+    std::fstream f(path_, std::ios::in | std::ios::out | std::ios::binary);
+    const uint32_t one_ns[2] = {0, 1};
+    for (const uint64_t at : s.zero_times) {
+      if (ec || !f) break;
+      f.seekp(static_cast<std::streamoff>(at));
+      f.write(reinterpret_cast<const char*>(one_ns), sizeof one_ns);
+    }
+    if (ec || !f.flush()) {
+      fs::remove(path_, ec);
+      throw IoError(path.string() + ": cannot copy it to " + path_.parent_path().string() +
+                    " to read its messages recorded at time 0 (" + std::to_string(s.zero_time_messages) +
+                    "; librosbag skips them in place): is the temporary folder full? Set TMPDIR");
+    }
+  }
+  ~ZeroTimesMoved() {
+    std::error_code ignored;
+    fs::remove(path_, ignored);
+  }
+  ZeroTimesMoved(const ZeroTimesMoved&) = delete;
+  ZeroTimesMoved& operator=(const ZeroTimesMoved&) = delete;
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+/// Opens a bag, librosbag's console messages silenced (the library never prints). Messages
+/// recorded at time 0 are read too (ZeroTimesMoved).
 void openBag(rosbag::Bag& bag, const fs::path& path) {
   console_bridge::setLogLevel(console_bridge::CONSOLE_BRIDGE_LOG_NONE);
   std::error_code ec;
   if (!fs::exists(path, ec)) throw UsageError(path.string() + ": no such file");
-  checkBagStructure(path);
+  const BagStructure structure = checkBagStructure(path);
+  std::optional<ZeroTimesMoved> copy;
+  if (!structure.zero_times.empty()) copy.emplace(path, structure);
   try {
-    bag.open(path.string(), rosbag::bagmode::Read);
+    bag.open((copy ? copy->path() : path).string(), rosbag::bagmode::Read);
   } catch (const std::exception& e) {
     throw FormatError(path.string() + ": not a readable ROS 1 bag (" + e.what() + ")");
   }

@@ -47,6 +47,8 @@ struct Fields {
   std::string compression;
   std::optional<uint32_t> size, count;
   std::optional<uint64_t> chunk_pos, index_pos;
+  std::optional<uint32_t> start_time_at;  ///< where a start_time field's 8 bytes lie in the header
+  bool start_time_zero = false;
 };
 
 Fields parseFields(const uint8_t* p, uint32_t n, const fs::path& path, uint64_t offset) {
@@ -71,6 +73,9 @@ Fields parseFields(const uint8_t* p, uint32_t n, const fs::path& path, uint64_t 
       uint64_t v;
       std::memcpy(&v, value.data(), 8);
       (name == "chunk_pos" ? f.chunk_pos : f.index_pos) = v;
+    } else if (name == "start_time" && value.size() == 8) {
+      f.start_time_at = static_cast<uint32_t>(at - value.size());
+      f.start_time_zero = value.find_first_not_of('\0') == std::string_view::npos;
     } else if ((name == "size" || name == "count") && value.size() == 4) {
       (name == "size" ? f.size : f.count) = u32(reinterpret_cast<const uint8_t*>(value.data()));
     }
@@ -129,7 +134,8 @@ std::vector<uint8_t> decompress(const std::string& compression, std::vector<uint
 
 }  // namespace
 
-void checkBagStructure(const fs::path& path) {
+BagStructure checkBagStructure(const fs::path& path) {
+  BagStructure out;
   std::ifstream in(path, std::ios::binary);
   if (!in) throw IoError(path.string() + ": cannot open");
   in.seekg(0, std::ios::end);
@@ -161,6 +167,7 @@ void checkBagStructure(const fs::path& path) {
       fail(path, record, "a record header claims " + std::to_string(header_len) + " bytes");
     read(header, header_len, "a record header");
     const Fields f = parseFields(header.data(), header_len, path, record);
+    if (*f.op == kOpChunkInfo && f.start_time_zero) out.zero_times.push_back(record + 4 + *f.start_time_at);
     records.insert(record);
     if (*f.op == kOpBagHeader) {
       if (!f.index_pos) fail(path, record, "the bag header has no index_pos");
@@ -177,12 +184,17 @@ void checkBagStructure(const fs::path& path) {
       read(data, data_len, "a chunk");
       last_chunk = chunkMessages(decompress(f.compression, data, *f.size, path, record), path, record);
     } else if (*f.op == kOpIndex) {
+      const uint64_t data_at = at;
       read(data, data_len, "an index record");
       if (!f.count || uint64_t{*f.count} * 12 != data_len)
         fail(path, record, "an index record's count does not match its data");
       for (uint32_t i = 0; i < *f.count; ++i) {
         if (!last_chunk.count(u32(data.data() + 12 * i + 8))) {
           fail(path, record, "an index entry points at no message record of its chunk");
+        }
+        if (u32(data.data() + 12 * i) == 0 && u32(data.data() + 12 * i + 4) == 0) {
+          out.zero_times.push_back(data_at + 12 * i);
+          ++out.zero_time_messages;
         }
       }
     } else {
@@ -195,6 +207,7 @@ void checkBagStructure(const fs::path& path) {
   if (!index_pos) fail(path, kMagicBytes, "the bag has no bag header record");
   if (*index_pos != 0 && !records.count(*index_pos))
     fail(path, kMagicBytes, "the bag header's index_pos points at no record");
+  return out;
 }
 
 }  // namespace chronomap

@@ -326,6 +326,9 @@ def main():
     tum, out = sys.argv[1], sys.argv[2]
     os.makedirs(out, exist_ok=True)
     intr, frames = load(tum)
+    # Simulated time: the recording starts at time 0 (stamps and bag times), its /tf_static at 0.
+    zero = genpy.Time(0, 0)
+    from_zero = [dict(f, stamp=zero + (f['stamp'] - frames[0]['stamp'])) for f in frames]
     # name: how the frames are stored
     bags = {
         'pose_none.bag': dict(compression='none'),
@@ -350,6 +353,8 @@ def main():
     for name, options in bags.items():
         if not only or name in only:
             write(os.path.join(out, name), intr, frames, **options)
+    if not only or 'sim_time.bag' in only:
+        write(os.path.join(out, 'sim_time.bag'), intr, from_zero, pose='odometry_base')
 
 
 if __name__ == '__main__':

@@ -152,6 +152,26 @@ TEST_F(RosBagTest, OdometryOfTheBaseIsCarriedToTheSensorThroughTf) {
   }
 }
 
+// Simulated time: the first frame, its pose and the latched /tf_static are all at bag time 0.
+// Every message counts, as in the same recording at wall-clock times.
+TEST_F(RosBagTest, MessagesAtTimeZeroAreRead) {
+  const std::vector<BagTopic> topics = listBag(bag("sim_time.bag"));
+  std::map<std::string, uint64_t> counts;
+  for (const BagTopic& t : topics) counts[t.name] = t.messages;
+  EXPECT_EQ(counts["/camera/depth/image_raw"], 32u);
+  EXPECT_EQ(counts["/odom"], 32u);
+  EXPECT_EQ(counts["/tf_static"], 1u);
+  const auto from_tum = openDataset(tum());
+  const auto from_bag = openDataset(bag("sim_time.bag"), bagSettings());
+  ASSERT_EQ(from_bag->size(), from_tum->size());
+  EXPECT_EQ(from_bag->framesDropped(), 0u);
+  for (size_t i = 0; i < from_tum->size(); ++i) {
+    const Eigen::Isometry3d a = from_tum->poseOf(i), b = from_bag->poseOf(i);
+    EXPECT_LT((a.translation() - b.translation()).norm(), 1e-8) << i;
+  }
+  EXPECT_EQ(from_bag->load(0).timestamp_s, 0.0);
+}
+
 TEST_F(RosBagTest, FramesWithoutAPoseAreDroppedAndCounted) {
   DatasetSettings s = bagSettings();
   s.bag.fixed_frame = "map";
