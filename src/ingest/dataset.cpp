@@ -23,8 +23,7 @@ CameraIntrinsics parseIntrinsics(const std::string& text) {
   } catch (const FormatError& e) {
     throw UsageError(std::string("intrinsics: ") + e.what());
   }
-  if (!(k.fx > 0 && k.fy > 0) || !std::isfinite(k.fx) || !std::isfinite(k.fy) || !std::isfinite(k.cx) ||
-      !std::isfinite(k.cy)) {
+  if (!intrinsicsValid(k)) {
     throw UsageError("intrinsics '" + text + "': focal lengths must be positive and all values finite");
   }
   return k;
@@ -49,7 +48,7 @@ CameraIntrinsics parseIntrinsicsText(const std::string& text, const std::string&
   } else {
     throw FormatError(name + ": expected a 3x3 matrix or 'fx fy cx cy', found " + std::to_string(v.size()) + " numbers");
   }
-  if (!(k.fx > 0 && k.fy > 0) || !std::isfinite(k.cx) || !std::isfinite(k.cy)) {
+  if (!intrinsicsValid(k)) {
     throw FormatError(name + ": focal lengths must be positive and all values finite");
   }
   return k;

@@ -76,6 +76,7 @@ PointCloud depthToCloud(const ImageU16& depth, const ImageRgb* rgb, const Camera
   if (!(depth_scale > 0.0) || !std::isfinite(depth_scale)) {
     throw DataError(source + ": depth scale must be a positive number of units per metre");
   }
+  checkIntrinsicsFit(k, depth.width, depth.height, source);
   if (rgb && (rgb->width != depth.width || rgb->height != depth.height)) {
     std::ostringstream msg;
     msg << source << ": colour image is " << rgb->width << "x" << rgb->height << " but the depth image is "

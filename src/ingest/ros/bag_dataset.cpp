@@ -169,8 +169,7 @@ Topics chooseTopics(const TopicMap& topics, const BagSettings& s, const fs::path
 
 CameraIntrinsics intrinsicsOf(const double (&k)[9], const std::string& context) {
   const CameraIntrinsics out{k[0], k[4], k[2], k[5]};
-  if (!(out.fx > 0 && out.fy > 0) || !std::isfinite(out.fx) || !std::isfinite(out.fy) || !std::isfinite(out.cx) ||
-      !std::isfinite(out.cy)) {
+  if (!intrinsicsValid(out)) {
     throw DataError(context + ": the camera matrix K has no positive, finite focal lengths");
   }
   return out;
@@ -206,11 +205,16 @@ void BagDataset::assemble(const Topics& t, const DatasetSettings& s, Gathered g)
     }
     k_ = *k;
     colour_k_ = g.colour_k;
+    if (!s.intrinsics) {
+      info_width_ = g.info_width;
+      info_height_ = g.info_height;
+      info_topic_ = g.info_topic;
+    }
   }
   const auto by_time = [](const Stamped& a, const Stamped& b) { return a.t < b.t; };
   std::stable_sort(g.depths.begin(), g.depths.end(), by_time);
   std::stable_sort(g.colours.begin(), g.colours.end(), by_time);
-  g.tree.finish();
+  g.tree.finish(path_.string() + ": /tf and /tf_static");
   if (g.track) {
     std::stable_sort(g.track->poses.begin(), g.track->poses.end(),
                      [](const TimedPose& a, const TimedPose& b) { return a.t < b.t; });
@@ -259,6 +263,16 @@ std::optional<Eigen::Isometry3d> BagDataset::poseAt(const Stamped& d, const Tran
   return *T_map_body * *T_body_sensor;
 }
 
+void BagDataset::checkInfoSize(uint32_t width, uint32_t height, const std::string& source) const {
+  if (info_width_ == 0 || info_height_ == 0 || (info_width_ == width && info_height_ == height)) return;
+  std::ostringstream msg;
+  msg << source << ": the depth image is " << width << " x " << height << " but the CameraInfo on " << info_topic_
+      << " describes " << info_width_ << " x " << info_height_
+      << " images: its intrinsics belong to another image size (give --intrinsics for " << width << " x " << height
+      << ", or --info-topic)";
+  throw DataError(msg.str());
+}
+
 Frame BagDataset::load(size_t i) const {
   const Pair& f = frames_.at(i);
   Frame frame;
@@ -278,6 +292,7 @@ Frame BagDataset::load(size_t i) const {
     rosmsg::OwnedImage decoded;
     if (depth.compressed) decoded = rosmsg::compressedDepthImage(*depth.compressed, frame.source);
     const rosmsg::ImageView& depth_view = depth.compressed ? decoded.view : depth.view;
+    checkInfoSize(depth_view.width, depth_view.height, frame.source);
     std::optional<ImageRgb> rgb;
     if (f.colour) {
       const ImageMessage colour = image(*f.colour, colour_compressed_);

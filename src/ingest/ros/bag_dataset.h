@@ -83,6 +83,8 @@ struct Gathered {
   TransformTree tree;                   ///< /tf and /tf_static
   std::optional<PoseTrack> track;       ///< the pose topic's poses, when there is one
   std::optional<CameraIntrinsics> k, colour_k;  ///< the first CameraInfo of each info topic
+  uint32_t info_width = 0, info_height = 0;     ///< the image size the depth CameraInfo states (0: none)
+  std::string info_topic;                       ///< where it came from, for messages
 };
 
 /// A decoded message with what keeps its bytes alive: a sensor_msgs/Image (`view`) or a
@@ -128,6 +130,8 @@ class BagDataset : public Dataset {
     Eigen::Isometry3d pose;
     double t = 0.0;
   };
+  /// @throw DataError when the depth CameraInfo states another image size than the image's.
+  void checkInfoSize(uint32_t width, uint32_t height, const std::string& source) const;
   std::optional<Eigen::Isometry3d> poseAt(const Stamped& d, const TransformTree& tree,
                                           const std::optional<PoseTrack>& track, const BagSettings& s) const;
 
@@ -138,6 +142,8 @@ class BagDataset : public Dataset {
   std::string depth_topic_, cloud_topic_, colour_topic_;
   CameraIntrinsics k_;
   std::optional<CameraIntrinsics> colour_k_;
+  uint32_t info_width_ = 0, info_height_ = 0;  ///< the depth CameraInfo's image size, when k_ came from it
+  std::string info_topic_;
   double depth_scale_ = kDefaultDepthScale;
   double pose_tolerance_s_ = 0.0, colour_tolerance_s_ = 0.0;
   size_t without_pose_ = 0, without_colour_ = 0;

@@ -149,8 +149,8 @@ CameraInfo cameraInfo(std::span<const uint8_t> msg, const std::string& source) {
   Reader r(msg, source);
   CameraInfo info;
   info.header = r.header();
-  r.u32();  // height
-  r.u32();  // width
+  info.height = r.u32();
+  info.width = r.u32();
   r.str();  // distortion_model
   const uint32_t d = r.count(8, "distortion coefficients");
   for (uint32_t i = 0; i < d; ++i) r.f64();

@@ -41,6 +41,7 @@ struct Cloud {
 /// sensor_msgs/msg/CameraInfo: the header and the camera matrix.
 struct CameraInfo {
   Header header;
+  uint32_t height = 0, width = 0;  ///< the images it describes (0: not said)
   double k[9] = {};
 };
 

@@ -193,6 +193,7 @@ PointCloud depthCloud(const ImageView& im, const ImageRgb* rgb, const CameraIntr
     throw DataError(source + ": depth encoding '" + std::string(im.encoding) + "' is not read (16UC1, 32FC1)");
   }
   checkImage(im, source);
+  checkIntrinsicsFit(k, im.width, im.height, source);
   const bool swap = im.big_endian != kHostBigEndian;
   if (im.encoding == "32FC1") {
     std::vector<float> metres(size_t{im.width} * im.height);

@@ -200,7 +200,7 @@ void addTransforms(TransformTree& tree, const rosbag::MessageInstance& m, bool i
         .append(" -> ")
         .append(ts.child_frame_id);
     tree.add(bag::frameName(ts.header.frame_id), bag::frameName(ts.child_frame_id), seconds(ts.header.stamp),
-             poseFromTranslationQuaternion({tr.x, tr.y, tr.z}, q.x, q.y, q.z, q.w, context), is_static);
+             poseFromTranslationQuaternion({tr.x, tr.y, tr.z}, q.x, q.y, q.z, q.w, context), is_static, context);
   }
 }
 
@@ -216,13 +216,18 @@ void addPose(bag::PoseTrack& track, const rosbag::MessageInstance& m, const fs::
   }
 }
 
-std::optional<CameraIntrinsics> readInfo(const rosbag::Bag& bag, const std::string& topic, const fs::path& path) {
+/// The first CameraInfo of `topic`: its intrinsics, and the image size it states into
+/// `width`, `height` when asked.
+std::optional<CameraIntrinsics> readInfo(const rosbag::Bag& bag, const std::string& topic, const fs::path& path,
+                                         uint32_t* width = nullptr, uint32_t* height = nullptr) {
   if (topic.empty()) return std::nullopt;
   for (const rosbag::MessageInstance& m : rosbag::View(bag, rosbag::TopicQuery(topic))) {
     const auto info = instantiate<CameraInfo>(m);
     if (!info) continue;
     double k[9];
     std::copy(info->K.begin(), info->K.end(), k);
+    if (width) *width = info->width;
+    if (height) *height = info->height;
     return bag::intrinsicsOf(k, path.string() + ": " + topic);
   }
   return std::nullopt;
@@ -304,7 +309,10 @@ class RosBagDataset : public bag::BagDataset {
     bag::Gathered g;
     const bool cloud = !t.cloud.empty();
     if (!cloud) {
-      if (!s.intrinsics) g.k = readInfo(bag_, t.info, path_);
+      if (!s.intrinsics) {
+        g.k = readInfo(bag_, t.info, path_, &g.info_width, &g.info_height);
+        g.info_topic = t.info;
+      }
       g.colour_k = readInfo(bag_, t.colour_info, path_);
     }
     // One pass over the topics in time order, so that each chunk is decompressed once.

@@ -458,11 +458,15 @@ class Ros2BagDataset : public bag::BagDataset {
           std::string context = source;
           context.append(" ").append(tr.header.frame_id).append(" -> ").append(tr.child);
           g.tree.add(bag::frameName(tr.header.frame_id), bag::frameName(tr.child), tr.header.stamp,
-                     transformOf(tr, context), m.topic == "/tf_static");
+                     transformOf(tr, context), m.topic == "/tf_static", context);
         }
       }
       if (m.topic == t.info && !g.k && !s.intrinsics) {
-        g.k = bag::intrinsicsOf(cdr::cameraInfo(m.data, source).k, source);
+        const cdr::CameraInfo info = cdr::cameraInfo(m.data, source);
+        g.k = bag::intrinsicsOf(info.k, source);
+        g.info_width = info.width;
+        g.info_height = info.height;
+        g.info_topic = t.info;
       }
       if (m.topic == t.colour_info && !g.colour_k) {
         g.colour_k = bag::intrinsicsOf(cdr::cameraInfo(m.data, source).k, source);

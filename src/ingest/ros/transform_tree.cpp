@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "chronomap/core/error.h"
+
 namespace chronomap {
 
 namespace {
@@ -35,8 +37,13 @@ std::optional<Eigen::Isometry3d> poseAt(const std::vector<TimedPose>& sorted, do
 }
 
 void TransformTree::add(const std::string& parent, const std::string& child, double t,
-                        const Eigen::Isometry3d& T_parent_child, bool is_static) {
+                        const Eigen::Isometry3d& T_parent_child, bool is_static, const std::string& context) {
+  if (parent == child) throw DataError(context + ": frame '" + child + "' is given itself as its parent");
   Edge& e = parents_[child];
+  if (!e.parent.empty() && e.parent != parent) {
+    throw DataError(context + ": frame '" + child + "' has two parents, '" + e.parent + "' and '" + parent +
+                    "' (a transform tree gives each frame one parent; record one of them under another name)");
+  }
   e.parent = parent;
   if (is_static) {
     e.fixed = T_parent_child;
@@ -45,7 +52,23 @@ void TransformTree::add(const std::string& parent, const std::string& child, dou
   }
 }
 
-void TransformTree::finish() {
+void TransformTree::finish(const std::string& context) {
+  for (const auto& [child, e] : parents_) {
+    // Walking up from every frame ends at a root within as many steps as there are edges.
+    std::vector<std::string> path{child};
+    for (auto it = parents_.find(child); it != parents_.end(); it = parents_.find(path.back())) {
+      const std::string& parent = it->second.parent;
+      const auto seen = std::find(path.begin(), path.end(), parent);
+      if (seen == path.end()) {
+        path.push_back(parent);
+        continue;
+      }
+      std::string loop;
+      for (auto f = seen; f != path.end(); ++f) loop += *f + " -> ";
+      throw DataError(context + ": the transforms form a loop (" + loop + parent +
+                      "), so no frame on it has a pose; a transform tree has no loops");
+    }
+  }
   for (auto& [child, e] : parents_) {
     std::stable_sort(e.samples.begin(), e.samples.end(),
                      [](const TimedPose& a, const TimedPose& b) { return a.t < b.t; });

@@ -177,7 +177,7 @@ TF_OFFSET_NS = 10_000_000  # /tf samples 10 ms before and after each frame
 
 
 def write(path, intr, frames, compression='none', pose='pose_stamped', depth='16UC1', color='rgb8',
-          drop_pose=(), nan_rows=0, points=False, extra_depth=False, both_colors=False):
+          drop_pose=(), nan_rows=0, points=False, extra_depth=False, both_colors=False, info_scale=1):
     bag = rosbag.Bag(path, 'w', compression=compression)
     camera = 'camera_depth_optical_frame'
     try:
@@ -202,7 +202,10 @@ def write(path, intr, frames, compression='none', pose='pose_stamped', depth='16
                     bag.write('/camera/depth/image_raw', image(s, camera, metres, '32FC1'), s)
                 if extra_depth:
                     bag.write('/camera2/depth/image_raw', image(s, camera, f['depth'], '16UC1'), s)
-                bag.write('/camera/depth/camera_info', info(s, camera, intr, f['depth'].shape), s)
+                # info_scale: a CameraInfo for images that many times larger (another resolution mode)
+                shape = tuple(n * info_scale for n in f['depth'].shape)
+                scaled = tuple(v * info_scale for v in intr)
+                bag.write('/camera/depth/camera_info', info(s, camera, scaled, shape), s)
                 rgb_frame = 'camera_rgb_optical_frame'
                 if color in ('png', 'jpeg'):
                     data = f['rgb_png'] if color == 'png' else jpeg(f['rgb'])
@@ -348,6 +351,7 @@ def main():
         'compressed_png.bag': dict(depth='compressedDepth', color='png', compression='lz4'),
         'compressed_jpeg.bag': dict(color='jpeg'),
         'raw_and_jpeg.bag': dict(color='jpeg', both_colors=True),
+        'info_640.bag': dict(info_scale=4),
     }
     only = sys.argv[3:]
     for name, options in bags.items():

@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <functional>
+
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -249,6 +251,24 @@ std::string messageOf(F body) {
   return {};
 }
 
+// A CameraInfo for 640 x 480 beside depth images of 160 x 120 (its intrinsics scaled with it):
+// refused with both sizes, where it built a map of a few voxels; --intrinsics for the images
+// reads the bag.
+TEST_F(RosBagTest, ACameraInfoOfAnotherImageSizeIsRefused) {
+  const auto dataset = openDataset(bag("info_640.bag"), bagSettings());
+  const std::string what = messageOf<DataError>([&] { dataset->load(0); });
+  EXPECT_NE(what.find("the depth image is 160 x 120 but the CameraInfo on /camera/depth/camera_info describes "
+                      "640 x 480 images"),
+            std::string::npos)
+      << what;
+  DatasetSettings s = bagSettings();
+  const auto from_tum = openDataset(tum());
+  s.intrinsics = readIntrinsicsFile(tum() / "camera-intrinsics.txt");
+  const auto with_k = openDataset(bag("info_640.bag"), s);
+  EXPECT_EQ(with_k->load(0).cloud.size(), from_tum->load(0).cloud.size());
+}
+
+
 TEST_F(RosBagTest, AmbiguousDepthTopicsAreRefusedWithTheCandidates) {
   const std::string what = messageOf<UsageError>([&] { openDataset(bag("two_depths.bag"), bagSettings()); });
   EXPECT_NE(what.find("two_depths.bag: 2 depth image topics (/camera/depth/image_raw, /camera2/depth/image_raw); "
@@ -446,6 +466,41 @@ TEST(PoseAt, InterpolatesBetweenSamplesWithinTheTolerance) {
   EXPECT_FALSE(poseAt(samples, 3.2, 0.1));
   EXPECT_FALSE(poseAt(samples, 0.8, 0.1));
   EXPECT_FALSE(poseAt({}, 1.0, 0.1));
+}
+
+// A loop or a frame with two parents is a broken tree, said as such (it was "no pose" before).
+TEST(TransformTree, LoopsAndSecondParentsAreRefusedNamingTheFrames) {
+  const auto message = [](const std::function<void()>& body) -> std::string {
+    try {
+      body();
+    } catch (const DataError& e) {
+      return e.what();
+    }
+    return "(accepted)";
+  };
+  EXPECT_EQ(message([] {
+              TransformTree tree;
+              tree.add("map", "odom", 0.0, pose(1.0, 0.0), true, "bag: /tf_static");
+              tree.add("base", "odom", 1.0, pose(1.0, 0.0), false, "bag: /tf base -> odom");
+            }),
+            "bag: /tf base -> odom: frame 'odom' has two parents, 'map' and 'base' (a transform tree gives each "
+            "frame one parent; record one of them under another name)");
+  EXPECT_NE(message([] {
+              TransformTree tree;
+              tree.add("odom", "odom", 0.0, pose(1.0, 0.0), true);
+            }).find("frame 'odom' is given itself as its parent"),
+            std::string::npos);
+  const std::string loop = message([] {
+    TransformTree tree;
+    tree.add("map", "odom", 0.0, pose(1.0, 0.0), true);
+    tree.add("odom", "base", 0.0, pose(1.0, 0.0), true);
+    tree.add("base", "map", 0.0, pose(1.0, 0.0), true);
+    tree.add("base", "camera", 0.0, pose(1.0, 0.0), true);
+    tree.finish("bag: /tf");
+  });
+  EXPECT_EQ(loop.rfind("bag: /tf: the transforms form a loop (", 0), 0u) << loop;
+  for (const char* frame : {"map", "odom", "base"}) EXPECT_NE(loop.find(frame), std::string::npos) << loop;
+  EXPECT_EQ(loop.find("camera"), std::string::npos) << loop;
 }
 
 TEST(TransformTree, ChainsThroughTheCommonAncestor) {

@@ -31,10 +31,14 @@ std::optional<Eigen::Isometry3d> poseAt(const std::vector<TimedPose>& sorted, do
 class TransformTree {
  public:
   /// Records T_parent_child at time t (static: at every time; a later static one replaces it).
+  /// @throw DataError naming `context` when `child` already has another parent (a tf tree gives
+  /// each frame one), or is its own parent.
   void add(const std::string& parent, const std::string& child, double t, const Eigen::Isometry3d& T_parent_child,
-           bool is_static);
+           bool is_static, const std::string& context = "transform");
   /// Sorts the samples; call once after the last add().
-  void finish();
+  /// @throw DataError naming `context` and the frames of a loop (a -> b -> a), which would
+  /// leave every frame on it without a pose.
+  void finish(const std::string& context = "transform tree");
   /// T_target_source at time t: the transform of points of `source` into `target`, through their
   /// common ancestor. Nothing when the frames are not connected or a transform on the way has no
   /// sample within the tolerance.
