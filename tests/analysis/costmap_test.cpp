@@ -2,8 +2,11 @@
 // analytic maps, a slow Dijkstra reference on random grids, file conventions, bad settings.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <map>
 #include <random>
+#include <sstream>
 
 #include "builders.h"
 #include "chronomap/analysis/costmap.h"
@@ -18,6 +21,7 @@ namespace {
 using test::at;
 using test::freeVoxel;
 using test::occupiedVoxel;
+namespace fs = std::filesystem;
 
 /// A 20 x 10 voxel floor area (z keys 2..10, about 0.1..0.55 m at 0.05 m) seen free, with a
 /// wall of occupied voxels at x = 10 for y in 0..7, leaving a gap at y = 8, 9.
@@ -126,16 +130,113 @@ TEST(Costmap, MapServerFilesFollowTheConventions) {
   EXPECT_EQ(pgm, tmp / "cost.pgm");
   const std::string yaml = readTextFile(tmp / "cost.yaml");
   for (const char* field : {"image: cost.pgm\n", "resolution: 0.050000\n", "origin: [1.500000, -2.000000, 0.0]\n",
-                            "negate: 0\n", "occupied_thresh: 0.65\n", "free_thresh: 0.196\n", "mode: scale\n"}) {
+                            "negate: 0\n", "occupied_thresh: 0.65\n", "free_thresh: 0.196\n", "mode: raw\n"}) {
     EXPECT_NE(yaml.find(field), std::string::npos) << field;
   }
   const std::vector<uint8_t> bytes = readFileBytes(pgm);
   const std::string header = "P5\n3 2\n255\n";
   ASSERT_EQ(bytes.size(), header.size() + 6);
   EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + static_cast<long>(header.size())), header);
-  // First image row is the highest y: -1 -> 205 unknown, 99 -> 3, 0 -> 254; then 254, 127, 0.
+  // First image row is the highest y: each grey level is the cost, 255 unknown.
   const std::vector<uint8_t> pixels(bytes.begin() + static_cast<long>(header.size()), bytes.end());
-  EXPECT_EQ(pixels, (std::vector<uint8_t>{205, 3, 254, 254, 127, 0}));
+  EXPECT_EQ(pixels, (std::vector<uint8_t>{255, 99, 0, 0, 50, 100}));
+}
+
+/// The map_server loaders whose documented rules the files must satisfy, for a one-channel
+/// (PGM) image: ROS 1 map_server's image_loader before Noetic (scale: 99 r, truncated) and in
+/// Noetic (1 + 98 r, truncated), and ROS 2 nav2_map_server's map_io (rint(100 r)). In ROS 1 a
+/// one-channel pixel's alpha is 1, so scale mode never reads it unknown; nav2 reads a PGM as
+/// opaque. Raw mode: ROS 1 stores the grey level as a signed byte, nav2 keeps 0..100 and reads
+/// anything above as unknown.
+enum class Loader { kRos1Scale99, kRos1Noetic, kNav2 };
+
+struct LoadedMap {
+  int width = 0, height = 0;
+  double resolution_m = 0;
+  std::vector<int> cells;  ///< row-major from the lowest y, as the OccupancyGrid message
+};
+
+LoadedMap loadMapServer(const fs::path& yaml_path, Loader loader) {
+  std::map<std::string, std::string> yaml;
+  std::istringstream lines(readTextFile(yaml_path));
+  for (std::string line; std::getline(lines, line);) {
+    const size_t colon = line.find(": ");
+    if (colon != std::string::npos) yaml[line.substr(0, colon)] = line.substr(colon + 2);
+  }
+  const std::string mode = yaml.count("mode") ? yaml["mode"] : "trinary";
+  const bool negate = yaml["negate"] == "1" || yaml["negate"] == "true";
+  const double occupied = std::stod(yaml.at("occupied_thresh")), free = std::stod(yaml.at("free_thresh"));
+  EXPECT_TRUE(mode == "trinary" || mode == "scale" || mode == "raw") << mode;
+  const std::vector<uint8_t> bytes = readFileBytes(yaml_path.parent_path() / yaml.at("image"));
+  std::istringstream header(std::string(bytes.begin(), bytes.begin() + static_cast<long>(std::min<size_t>(bytes.size(), 64))));
+  std::string magic;
+  LoadedMap out;
+  int max_grey = 0;
+  header >> magic >> out.width >> out.height >> max_grey;
+  EXPECT_EQ(magic, "P5");
+  EXPECT_EQ(max_grey, 255);
+  const size_t first = static_cast<size_t>(header.tellg()) + 1;  // one whitespace after the header
+  EXPECT_EQ(bytes.size(), first + static_cast<size_t>(out.width * out.height));
+  out.resolution_m = std::stod(yaml.at("resolution"));
+  out.cells.assign(static_cast<size_t>(out.width * out.height), 0);
+  for (int y = 0; y < out.height; ++y) {
+    for (int x = 0; x < out.width; ++x) {
+      const double grey = bytes[first + static_cast<size_t>(y * out.width + x)];
+      int value = 0;
+      if (loader == Loader::kNav2) {
+        const double shade = grey / 255.0, occ = negate ? shade : 1.0 - shade;
+        if (mode == "raw") {
+          const double level = std::round(shade * 255.0);
+          value = level >= 0 && level <= 100 ? static_cast<int>(level) : -1;
+        } else if (occupied < occ) {
+          value = 100;
+        } else if (occ < free) {
+          value = 0;
+        } else {
+          value = mode == "trinary" ? -1 : static_cast<int>(std::rint((occ - free) / (occupied - free) * 100.0));
+        }
+      } else {
+        const double average = negate ? 255.0 - grey : grey;
+        const double occ = (255.0 - average) / 255.0, ratio = (occ - free) / (occupied - free);
+        if (mode == "raw") {
+          value = static_cast<int8_t>(static_cast<uint8_t>(average));
+        } else if (occ > occupied) {
+          value = 100;
+        } else if (occ < free) {
+          value = 0;
+        } else if (mode == "trinary") {
+          value = -1;
+        } else {
+          value = static_cast<uint8_t>(loader == Loader::kRos1Scale99 ? 99 * ratio : 1 + 98 * ratio);
+        }
+      }
+      out.cells[static_cast<size_t>((out.height - 1 - y) * out.width + x)] = value;  // first row: highest y
+    }
+  }
+  return out;
+}
+
+TEST(Costmap, MapServerLoadersReadEveryCostAsChronomapMeansIt) {
+  // Every value a costmap holds (unknown, free, each cost, inscribed, lethal), in two rows of
+  // opposite order, loaded by each loader's documented rules: each cell must come back as it is.
+  // (Before, mode scale with 205 for unknown: all three loaded unknown as free or as cost 1, and
+  // every cost up to 20 as free.)
+  test::TempDir tmp;
+  Costmap c;
+  c.resolution_m = 0.02;
+  c.width = 102;
+  c.height = 2;
+  for (int v = -1; v <= 100; ++v) c.cost.push_back(static_cast<int8_t>(v));
+  for (int v = 100; v >= -1; --v) c.cost.push_back(static_cast<int8_t>(v));
+  writeMapServer(tmp / "cost.yaml", c);
+  const std::vector<int> expected(c.cost.begin(), c.cost.end());
+  for (Loader loader : {Loader::kRos1Scale99, Loader::kRos1Noetic, Loader::kNav2}) {
+    const LoadedMap m = loadMapServer(tmp / "cost.yaml", loader);
+    ASSERT_EQ(m.width, c.width);
+    ASSERT_EQ(m.height, c.height);
+    EXPECT_DOUBLE_EQ(m.resolution_m, 0.02);
+    EXPECT_EQ(m.cells, expected) << "loader " << static_cast<int>(loader);
+  }
 }
 
 /// The slow reference: Dijkstra over every cell with the same step costs.

@@ -136,6 +136,7 @@ TEST(TemporalCli, CostmapWritesMapServerFiles) {
   EXPECT_EQ(j["height"], 10);
   EXPECT_EQ(j["blocked"], 11);  // the wall's ten cells and the box
   EXPECT_NE(readTextFile(tmp / "cost.yaml").find("image: cost.pgm"), std::string::npos);
+  EXPECT_NE(readTextFile(tmp / "cost.yaml").find("mode: raw"), std::string::npos);
   const std::vector<uint8_t> pgm = readFileBytes(tmp / "cost.pgm");
   EXPECT_EQ(pgm.size(), std::string("P5\n10 10\n255\n").size() + 100);
   EXPECT_TRUE(fs::exists(tmp / "cost.png"));
