@@ -1,5 +1,6 @@
-// Costmaps and the planner (analysis/costmap.h) and their map_server files (io/map_server.h):
-// analytic maps, a slow Dijkstra reference on random grids, file conventions, bad settings.
+// Costmaps and the planner (analysis/costmap.h) and their map_server files (export/map_server.h):
+// analytic maps, slow references on random grids (Dijkstra, disk inflation), the files loaded by
+// map_server's documented rules, bad settings.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -237,6 +238,81 @@ TEST(Costmap, MapServerLoadersReadEveryCostAsChronomapMeansIt) {
     EXPECT_DOUBLE_EQ(m.resolution_m, 0.02);
     EXPECT_EQ(m.cells, expected) << "loader " << static_cast<int>(loader);
   }
+}
+
+/// Today's inflation before the distance transform, kept as the slow reference: a disk of offsets
+/// stamped around every lethal cell.
+void inflateByDisk(Costmap& m, double radius_m) {
+  const double r = m.resolution_m;
+  const int reach = static_cast<int>(std::floor(radius_m / r + 1e-9));
+  std::vector<Eigen::Vector2i> disk;
+  for (int dy = -reach; dy <= reach; ++dy) {
+    for (int dx = -reach; dx <= reach; ++dx) {
+      if ((dx || dy) && (dx * dx + dy * dy) * r * r <= radius_m * radius_m + 1e-12) disk.emplace_back(dx, dy);
+    }
+  }
+  const Costmap before = m;
+  for (int j = 0; j < m.height; ++j) {
+    for (int i = 0; i < m.width; ++i) {
+      if (before.at(i, j) != Costmap::kLethal) continue;
+      for (const Eigen::Vector2i& d : disk) {
+        const int x = i + d.x(), y = j + d.y();
+        if (x < 0 || y < 0 || x >= m.width || y >= m.height) continue;
+        if (m.at(x, y) != Costmap::kLethal) m.at(x, y) = Costmap::kInscribed;
+      }
+    }
+  }
+}
+
+TEST(Costmap, InflationMatchesTheDiskReferenceOnRandomGrids) {
+  // Random grids (from one cell to 40 x 30, every tenth up to 160 x 120; sparse to dense
+  // obstacles, unknown cells), resolutions and radii, including radii on whole and diagonal cell
+  // distances, where rounding decides.
+  const double resolutions[] = {0.01, 0.02, 0.03, 0.05, 0.1, 0.25};
+  size_t inscribed = 0;
+  for (uint64_t seed = 0; seed < 400; ++seed) {
+    std::mt19937_64 rng(seed);
+    Costmap m;
+    m.resolution_m = resolutions[rng() % 6];
+    const int scale = seed % 10 == 9 ? 4 : 1;
+    m.width = 1 + static_cast<int>(rng() % static_cast<uint64_t>(40 * scale));
+    m.height = 1 + static_cast<int>(rng() % static_cast<uint64_t>(30 * scale));
+    const auto density = rng() % 100;  // per mille of lethal cells: 0 .. 99
+    m.cost.resize(static_cast<size_t>(m.width * m.height));
+    for (auto& c : m.cost) {
+      c = rng() % 1000 < density ? Costmap::kLethal : rng() % 8 == 0 ? Costmap::kUnknown : static_cast<int8_t>(rng() % 99);
+    }
+    const double cells = static_cast<double>(rng() % 12);
+    const double radius = seed % 3 == 0 ? cells * m.resolution_m
+                          : seed % 3 == 1 ? std::sqrt(cells * cells + static_cast<double>(rng() % 4)) * m.resolution_m
+                                          : std::uniform_real_distribution<double>(0.0, 0.6)(rng);
+    Costmap fast = m, slow = m;
+    inflate(fast, radius);
+    inflateByDisk(slow, radius);
+    ASSERT_EQ(fast.cost, slow.cost) << "seed " << seed << ", radius " << radius << " m at " << m.resolution_m;
+    inscribed += static_cast<size_t>(std::count(fast.cost.begin(), fast.cost.end(), Costmap::kInscribed));
+  }
+  EXPECT_GT(inscribed, 10000u);  // the trials inflate, not only pass through
+}
+
+TEST(Costmap, InflationMemoryDoesNotGrowWithTheRadius) {
+  // A 100 m radius on a 0.01 m grid (--robot-radius 100 on a 1 cm map): the disk of offsets took
+  // (2 x 10^4)^2 x 8 bytes = 3.2 GB and ran out of memory. Within 256 MiB now, every cell but the
+  // lethal one inscribed; a 0.02 m radius marks the cells two apart or nearer.
+  const int code = test::exitCodeUnderMemoryLimit(size_t{256} << 20, [] {
+    Costmap m;
+    m.resolution_m = 0.01;
+    m.width = 60;
+    m.height = 40;
+    m.cost.assign(60 * 40, 0);
+    m.at(30, 20) = Costmap::kLethal;
+    Costmap wide = m;
+    inflate(wide, 100.0);
+    if (std::count(wide.cost.begin(), wide.cost.end(), Costmap::kInscribed) != 60 * 40 - 1) return 1;
+    inflate(m, 0.02);
+    return std::count(m.cost.begin(), m.cost.end(), Costmap::kInscribed) == 12 ? 0 : 2;
+  });
+  EXPECT_EQ(code, 0) << "99: out of memory";
 }
 
 /// The slow reference: Dijkstra over every cell with the same step costs.
