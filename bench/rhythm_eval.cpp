@@ -31,7 +31,8 @@
 //                  the same map; F must come from the same simulation, poses and integration flags)
 // Then navigation: plans between every pair of rooms at each test session's time on the latest
 // snapshot, the mean map and the combined model's cost map, executed against the truth
-// (RHYTHM_EVAL_DUMP=DIR writes every grid there as map_server files, for a look;
+// (RHYTHM_EVAL_DUMP=DIR writes every grid there as map_server files (raw mode),
+// to load in ROS;
 // RHYTHM_EVAL_PLANS=1 lists every plan that a map does not find or that the truth blocks).
 // Prints tables and, last, one JSON object (brier_*, auc_* per model and baseline, nav_*).
 

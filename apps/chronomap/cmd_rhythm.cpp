@@ -183,7 +183,8 @@ Command addCostmap(CLI::App& root) {
       "Where a ground robot should drive at a time: the predicted map at --at (as chronomap predict) seen "
       "from above over a height band, each cell lethal where occupied, else costing its probability of "
       "occupancy and how often its space changes, inflated by the robot's radius. Writes ROS map_server "
-      "files (OUT.yaml and OUT.pgm: -1/205 unknown, 0..100 cost) and OUT.png.");
+      "files (OUT.yaml and OUT.pgm in mode raw: each grey level the cost, 0 free .. 100 lethal, 255 "
+      "unknown) and OUT.png, a picture.");
   app->add_option("MAP", o->map, "the 4D map (.cmap)")->required();
   app->add_option("--at", o->at, "time: ISO-8601 or seconds since the epoch")->required();
   app->add_option("-o,--output", o->output, "the map_server YAML to write (the PGM and PNG go beside it)")->required();

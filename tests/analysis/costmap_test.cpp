@@ -1,9 +1,13 @@
-// Costmaps and the planner (analysis/costmap.h) and their map_server files (io/map_server.h):
-// analytic maps, a slow Dijkstra reference on random grids, file conventions, bad settings.
+// Costmaps and the planner (analysis/costmap.h) and their map_server files (export/map_server.h):
+// analytic maps, slow references on random grids (Dijkstra, disk inflation), the files loaded by
+// map_server's documented rules, bad settings.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <map>
 #include <random>
+#include <sstream>
 
 #include "builders.h"
 #include "chronomap/analysis/costmap.h"
@@ -18,6 +22,7 @@ namespace {
 using test::at;
 using test::freeVoxel;
 using test::occupiedVoxel;
+namespace fs = std::filesystem;
 
 /// A 20 x 10 voxel floor area (z keys 2..10, about 0.1..0.55 m at 0.05 m) seen free, with a
 /// wall of occupied voxels at x = 10 for y in 0..7, leaving a gap at y = 8, 9.
@@ -126,16 +131,188 @@ TEST(Costmap, MapServerFilesFollowTheConventions) {
   EXPECT_EQ(pgm, tmp / "cost.pgm");
   const std::string yaml = readTextFile(tmp / "cost.yaml");
   for (const char* field : {"image: cost.pgm\n", "resolution: 0.050000\n", "origin: [1.500000, -2.000000, 0.0]\n",
-                            "negate: 0\n", "occupied_thresh: 0.65\n", "free_thresh: 0.196\n", "mode: scale\n"}) {
+                            "negate: 0\n", "occupied_thresh: 0.65\n", "free_thresh: 0.196\n", "mode: raw\n"}) {
     EXPECT_NE(yaml.find(field), std::string::npos) << field;
   }
   const std::vector<uint8_t> bytes = readFileBytes(pgm);
   const std::string header = "P5\n3 2\n255\n";
   ASSERT_EQ(bytes.size(), header.size() + 6);
   EXPECT_EQ(std::string(bytes.begin(), bytes.begin() + static_cast<long>(header.size())), header);
-  // First image row is the highest y: -1 -> 205 unknown, 99 -> 3, 0 -> 254; then 254, 127, 0.
+  // First image row is the highest y: each grey level is the cost, 255 unknown.
   const std::vector<uint8_t> pixels(bytes.begin() + static_cast<long>(header.size()), bytes.end());
-  EXPECT_EQ(pixels, (std::vector<uint8_t>{205, 3, 254, 254, 127, 0}));
+  EXPECT_EQ(pixels, (std::vector<uint8_t>{255, 99, 0, 0, 50, 100}));
+}
+
+/// The map_server loaders whose documented rules the files must satisfy, for a one-channel
+/// (PGM) image: ROS 1 map_server's image_loader before Noetic (scale: 99 r, truncated) and in
+/// Noetic (1 + 98 r, truncated), and ROS 2 nav2_map_server's map_io (rint(100 r)). In ROS 1 a
+/// one-channel pixel's alpha is 1, so scale mode never reads it unknown; nav2 reads a PGM as
+/// opaque. Raw mode: ROS 1 stores the grey level as a signed byte, nav2 keeps 0..100 and reads
+/// anything above as unknown.
+enum class Loader { kRos1Scale99, kRos1Noetic, kNav2 };
+
+struct LoadedMap {
+  int width = 0, height = 0;
+  double resolution_m = 0;
+  std::vector<int> cells;  ///< row-major from the lowest y, as the OccupancyGrid message
+};
+
+LoadedMap loadMapServer(const fs::path& yaml_path, Loader loader) {
+  std::map<std::string, std::string> yaml;
+  std::istringstream lines(readTextFile(yaml_path));
+  for (std::string line; std::getline(lines, line);) {
+    const size_t colon = line.find(": ");
+    if (colon != std::string::npos) yaml[line.substr(0, colon)] = line.substr(colon + 2);
+  }
+  const std::string mode = yaml.count("mode") ? yaml["mode"] : "trinary";
+  const bool negate = yaml["negate"] == "1" || yaml["negate"] == "true";
+  const double occupied = std::stod(yaml.at("occupied_thresh")), free = std::stod(yaml.at("free_thresh"));
+  EXPECT_TRUE(mode == "trinary" || mode == "scale" || mode == "raw") << mode;
+  const std::vector<uint8_t> bytes = readFileBytes(yaml_path.parent_path() / yaml.at("image"));
+  std::istringstream header(std::string(bytes.begin(), bytes.begin() + static_cast<long>(std::min<size_t>(bytes.size(), 64))));
+  std::string magic;
+  LoadedMap out;
+  int max_grey = 0;
+  header >> magic >> out.width >> out.height >> max_grey;
+  EXPECT_EQ(magic, "P5");
+  EXPECT_EQ(max_grey, 255);
+  const size_t first = static_cast<size_t>(header.tellg()) + 1;  // one whitespace after the header
+  EXPECT_EQ(bytes.size(), first + static_cast<size_t>(out.width * out.height));
+  out.resolution_m = std::stod(yaml.at("resolution"));
+  out.cells.assign(static_cast<size_t>(out.width * out.height), 0);
+  for (int y = 0; y < out.height; ++y) {
+    for (int x = 0; x < out.width; ++x) {
+      const double grey = bytes[first + static_cast<size_t>(y * out.width + x)];
+      int value = 0;
+      if (loader == Loader::kNav2) {
+        const double shade = grey / 255.0, occ = negate ? shade : 1.0 - shade;
+        if (mode == "raw") {
+          const double level = std::round(shade * 255.0);
+          value = level >= 0 && level <= 100 ? static_cast<int>(level) : -1;
+        } else if (occupied < occ) {
+          value = 100;
+        } else if (occ < free) {
+          value = 0;
+        } else {
+          value = mode == "trinary" ? -1 : static_cast<int>(std::rint((occ - free) / (occupied - free) * 100.0));
+        }
+      } else {
+        const double average = negate ? 255.0 - grey : grey;
+        const double occ = (255.0 - average) / 255.0, ratio = (occ - free) / (occupied - free);
+        if (mode == "raw") {
+          value = static_cast<int8_t>(static_cast<uint8_t>(average));
+        } else if (occ > occupied) {
+          value = 100;
+        } else if (occ < free) {
+          value = 0;
+        } else if (mode == "trinary") {
+          value = -1;
+        } else {
+          value = static_cast<uint8_t>(loader == Loader::kRos1Scale99 ? 99 * ratio : 1 + 98 * ratio);
+        }
+      }
+      out.cells[static_cast<size_t>((out.height - 1 - y) * out.width + x)] = value;  // first row: highest y
+    }
+  }
+  return out;
+}
+
+TEST(Costmap, MapServerLoadersReadEveryCostAsChronomapMeansIt) {
+  // Every value a costmap holds (unknown, free, each cost, inscribed, lethal), in two rows of
+  // opposite order, loaded by each loader's documented rules: each cell must come back as it is.
+  // (Before, mode scale with 205 for unknown: all three loaded unknown as free or as cost 1, and
+  // every cost up to 20 as free.)
+  test::TempDir tmp;
+  Costmap c;
+  c.resolution_m = 0.02;
+  c.width = 102;
+  c.height = 2;
+  for (int v = -1; v <= 100; ++v) c.cost.push_back(static_cast<int8_t>(v));
+  for (int v = 100; v >= -1; --v) c.cost.push_back(static_cast<int8_t>(v));
+  writeMapServer(tmp / "cost.yaml", c);
+  const std::vector<int> expected(c.cost.begin(), c.cost.end());
+  for (Loader loader : {Loader::kRos1Scale99, Loader::kRos1Noetic, Loader::kNav2}) {
+    const LoadedMap m = loadMapServer(tmp / "cost.yaml", loader);
+    ASSERT_EQ(m.width, c.width);
+    ASSERT_EQ(m.height, c.height);
+    EXPECT_DOUBLE_EQ(m.resolution_m, 0.02);
+    EXPECT_EQ(m.cells, expected) << "loader " << static_cast<int>(loader);
+  }
+}
+
+/// Today's inflation before the distance transform, kept as the slow reference: a disk of offsets
+/// stamped around every lethal cell.
+void inflateByDisk(Costmap& m, double radius_m) {
+  const double r = m.resolution_m;
+  const int reach = static_cast<int>(std::floor(radius_m / r + 1e-9));
+  std::vector<Eigen::Vector2i> disk;
+  for (int dy = -reach; dy <= reach; ++dy) {
+    for (int dx = -reach; dx <= reach; ++dx) {
+      if ((dx || dy) && (dx * dx + dy * dy) * r * r <= radius_m * radius_m + 1e-12) disk.emplace_back(dx, dy);
+    }
+  }
+  const Costmap before = m;
+  for (int j = 0; j < m.height; ++j) {
+    for (int i = 0; i < m.width; ++i) {
+      if (before.at(i, j) != Costmap::kLethal) continue;
+      for (const Eigen::Vector2i& d : disk) {
+        const int x = i + d.x(), y = j + d.y();
+        if (x < 0 || y < 0 || x >= m.width || y >= m.height) continue;
+        if (m.at(x, y) != Costmap::kLethal) m.at(x, y) = Costmap::kInscribed;
+      }
+    }
+  }
+}
+
+TEST(Costmap, InflationMatchesTheDiskReferenceOnRandomGrids) {
+  // Random grids (from one cell to 40 x 30, every tenth up to 160 x 120; sparse to dense
+  // obstacles, unknown cells), resolutions and radii, including radii on whole and diagonal cell
+  // distances, where rounding decides.
+  const double resolutions[] = {0.01, 0.02, 0.03, 0.05, 0.1, 0.25};
+  size_t inscribed = 0;
+  for (uint64_t seed = 0; seed < 400; ++seed) {
+    std::mt19937_64 rng(seed);
+    Costmap m;
+    m.resolution_m = resolutions[rng() % 6];
+    const int scale = seed % 10 == 9 ? 4 : 1;
+    m.width = 1 + static_cast<int>(rng() % static_cast<uint64_t>(40 * scale));
+    m.height = 1 + static_cast<int>(rng() % static_cast<uint64_t>(30 * scale));
+    const auto density = rng() % 100;  // per mille of lethal cells: 0 .. 99
+    m.cost.resize(static_cast<size_t>(m.width * m.height));
+    for (auto& c : m.cost) {
+      c = rng() % 1000 < density ? Costmap::kLethal : rng() % 8 == 0 ? Costmap::kUnknown : static_cast<int8_t>(rng() % 99);
+    }
+    const double cells = static_cast<double>(rng() % 12);
+    const double radius = seed % 3 == 0 ? cells * m.resolution_m
+                          : seed % 3 == 1 ? std::sqrt(cells * cells + static_cast<double>(rng() % 4)) * m.resolution_m
+                                          : std::uniform_real_distribution<double>(0.0, 0.6)(rng);
+    Costmap fast = m, slow = m;
+    inflate(fast, radius);
+    inflateByDisk(slow, radius);
+    ASSERT_EQ(fast.cost, slow.cost) << "seed " << seed << ", radius " << radius << " m at " << m.resolution_m;
+    inscribed += static_cast<size_t>(std::count(fast.cost.begin(), fast.cost.end(), Costmap::kInscribed));
+  }
+  EXPECT_GT(inscribed, 10000u);  // the trials inflate, not only pass through
+}
+
+TEST(Costmap, InflationMemoryDoesNotGrowWithTheRadius) {
+  // A 100 m radius on a 0.01 m grid (--robot-radius 100 on a 1 cm map): the disk of offsets took
+  // (2 x 10^4)^2 x 8 bytes = 3.2 GB and ran out of memory. Within 256 MiB now, every cell but the
+  // lethal one inscribed; a 0.02 m radius marks the cells two apart or nearer.
+  const int code = test::exitCodeUnderMemoryLimit(size_t{256} << 20, [] {
+    Costmap m;
+    m.resolution_m = 0.01;
+    m.width = 60;
+    m.height = 40;
+    m.cost.assign(60 * 40, 0);
+    m.at(30, 20) = Costmap::kLethal;
+    Costmap wide = m;
+    inflate(wide, 100.0);
+    if (std::count(wide.cost.begin(), wide.cost.end(), Costmap::kInscribed) != 60 * 40 - 1) return 1;
+    inflate(m, 0.02);
+    return std::count(m.cost.begin(), m.cost.end(), Costmap::kInscribed) == 12 ? 0 : 2;
+  });
+  EXPECT_EQ(code, 0) << "99: out of memory";
 }
 
 /// The slow reference: Dijkstra over every cell with the same step costs.

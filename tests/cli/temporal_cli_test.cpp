@@ -136,6 +136,7 @@ TEST(TemporalCli, CostmapWritesMapServerFiles) {
   EXPECT_EQ(j["height"], 10);
   EXPECT_EQ(j["blocked"], 11);  // the wall's ten cells and the box
   EXPECT_NE(readTextFile(tmp / "cost.yaml").find("image: cost.pgm"), std::string::npos);
+  EXPECT_NE(readTextFile(tmp / "cost.yaml").find("mode: raw"), std::string::npos);
   const std::vector<uint8_t> pgm = readFileBytes(tmp / "cost.pgm");
   EXPECT_EQ(pgm.size(), std::string("P5\n10 10\n255\n").size() + 100);
   EXPECT_TRUE(fs::exists(tmp / "cost.png"));
@@ -154,6 +155,30 @@ TEST(TemporalCli, CostmapWritesMapServerFiles) {
   }
   EXPECT_FALSE(fs::exists(tmp / "c.yaml"));
   EXPECT_FALSE(fs::exists(tmp / "c.pgm"));
+}
+
+TEST(TemporalCli, CostmapRadiusDoesNotCostMemory) {
+  // `--robot-radius 100` on a 1 cm map: inflation stamped a disk of (2 x 10^4)^2 offsets, 3.2 GB,
+  // and ran out of memory. Under the shell's 2 GiB address-space limit (not under sanitizers) it
+  // now finishes: every cell of the 10 x 10 floor but the one wall voxel is blocked.
+  test::TempDir tmp;
+  const std::string map = (tmp / "m.cmap").string();
+  SessionMap s(0.01);
+  for (int x = 0; x < 10; ++x) {
+    for (int y = 0; y < 10; ++y) {
+      s.add(VoxelKey{static_cast<uint16_t>(32768 + x), static_cast<uint16_t>(32768 + y), 32778},
+            x == 4 && y == 4 ? test::occupiedVoxel(Rgb{}) : test::freeVoxel());
+    }
+  }
+  writeSessionMap(sessionFile(tmp, 0), s, {});
+  ASSERT_EQ(test::runCommand(cli() + " add " + map + " " + sessionFile(tmp, 0).string() + " --time 100").exit_code, 0);
+  const std::string limit = test::memoryLimitsApply() ? "ulimit -v 2097152; " : "";
+  const auto r = test::runCommand(limit + cli() + " costmap " + map + " --at 100 --robot-radius 100 --model latest -o " +
+                                  (tmp / "cost.yaml").string() + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["width"], 10);
+  EXPECT_EQ(j["blocked"], 100);
 }
 
 TEST(TemporalCli, AddRealignMovesAShiftedSessionBack) {

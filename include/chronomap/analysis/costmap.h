@@ -3,7 +3,7 @@
 /// Navigation costs for a ground robot from a map of occupancy probabilities (a snapshot, or a
 /// prediction of the temporal models at some time): a 2D grid over a height band whose cost
 /// rises with the predicted occupancy and with how often the space changes, inflated by the
-/// robot's radius, and an A* planner on it (io/map_server.h writes it for ROS).
+/// robot's radius, and an A* planner on it (export/map_server.h writes it for ROS).
 #include <cstdint>
 #include <optional>
 #include <vector>
@@ -54,7 +54,8 @@ struct Costmap {
 Costmap costmap(const SessionMap& map, const CostmapSettings& settings, const RhythmModels* models = nullptr);
 
 /// Marks every cell whose centre lies within `radius_m` of a lethal cell's centre kInscribed
-/// (lethal cells stay lethal). costmap() ends with it.
+/// (lethal cells stay lethal). costmap() ends with it. Time and memory are linear in the grid,
+/// whatever the radius (an exact Euclidean distance transform).
 void inflate(Costmap& costmap, double radius_m);
 
 /// A* on the costmap between two cells: 8-connected, a step costs its length times
