@@ -207,13 +207,7 @@ SessionSettings sessionSettings(const IntegrateFlags& f) {
   s.integrator.compress_free = !f.no_compress;
   s.integrator.hit_positions = !f.no_positions;
   s.integrator.carve_level = parseCarveLevel(f.carve_level);
-  if (f.memory_limit_gib) {
-    const double gib = *f.memory_limit_gib;
-    if (!std::isfinite(gib) || gib < 0.0 || gib > 1e6) {
-      throw UsageError("--memory-limit must be a number of GiB (0 for no limit), not " + std::to_string(gib));
-    }
-    s.integrator.memory_limit_bytes = gibToBytes(gib);
-  }
+  if (f.memory_limit_gib) s.integrator.memory_limit_bytes = memoryLimitFromGib(*f.memory_limit_gib);
   return s;
 }
 

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "chronomap/core/memory.h"
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/pipeline/session.h"
 #include "chronomap/pipeline/tiles.h"
@@ -53,7 +54,7 @@ inline int printError(int code, const std::string& message) {
   return code;
 }
 
-inline size_t gibToBytes(double gib) { return static_cast<size_t>(std::llround(gib * 1073741824.0)); }
+inline size_t gibToBytes(double gib) { return memoryLimitFromGib(gib); }
 /// Help of the --memory-limit flag of the commands that read tiled maps.
 inline constexpr const char* kTileMemoryHelp =
     "tiled maps: GiB of tiles held at once (least recently used tiles are dropped whole); 0: no limit; default 1";

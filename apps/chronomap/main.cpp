@@ -3,14 +3,25 @@
 
 #include <cstdio>
 #include <iostream>
+#include <regex>
 #include <vector>
 
 #include "chronomap/core/error.h"
+#include "chronomap/core/memory.h"
 #include "commands.h"
 
 namespace {
 
 int fail(int code, const std::string& message) { return chronomap::cli::printError(code, message); }
+
+/// CLI11's words for a parse error, with a repeated flag said plainly ("--at: At Most 1 required
+/// but received 2" becomes "--at was given 2 times; give it once").
+std::string parseErrorMessage(const std::string& what) {
+  static const std::regex repeated("^(-[^:]*): At Most 1 required but received ([0-9]+)$");
+  std::smatch m;
+  if (std::regex_match(what, m, repeated)) return m[1].str() + " was given " + m[2].str() + " times; give it once";
+  return what;
+}
 
 int run(int argc, char** argv) {
   using namespace chronomap;
@@ -37,11 +48,15 @@ int run(int argc, char** argv) {
   } catch (const CLI::CallForVersion& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
-    return fail(2, std::string(e.what()) + " (see chronomap --help)");
+    return fail(2, parseErrorMessage(e.what()) + " (see chronomap --help)");
   }
   try {
     for (const auto& command : commands) {
-      if (command.app->parsed()) return command.run();
+      if (!command.app->parsed()) continue;
+      // Running out of memory names the command at least; library steps say more (MemoryActivity).
+      const chronomap::MemoryActivity activity("running chronomap " + command.app->get_name(),
+                                               "free memory, or give the command less to hold (see its --help)");
+      return command.run();
     }
     return fail(2, "no command given (see chronomap --help)");
   } catch (...) {

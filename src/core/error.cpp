@@ -2,6 +2,8 @@
 
 #include "chronomap/core/error.h"
 
+#include "chronomap/core/memory.h"
+
 #include <filesystem>
 #include <new>
 
@@ -19,7 +21,7 @@ ErrorReport describeError(const std::exception_ptr& error) {
     const std::string path = e.path1().empty() ? std::string() : e.path1().string() + ": ";
     return {1, path + e.code().message()};
   } catch (const std::bad_alloc&) {
-    return {1, "out of memory"};
+    return {1, outOfMemoryMessage()};
   } catch (const std::exception& e) {
     return {1, std::string("internal error: ") + e.what()};
   } catch (...) {

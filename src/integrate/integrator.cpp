@@ -3,6 +3,7 @@
 #include "chronomap/integrate/integrator.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <mutex>
@@ -19,6 +20,7 @@
 #include "chronomap/core/error.h"
 #include "chronomap/core/format.h"
 #include "chronomap/core/happens_before.h"
+#include "chronomap/core/memory.h"
 #include "ray_accumulator.h"
 
 namespace chronomap {
@@ -46,7 +48,8 @@ namespace integrate_detail {
 
 IntegratorSettings perThread(const IntegratorSettings& settings, int threads) {
   IntegratorSettings s = settings;
-  s.memory_limit_bytes /= static_cast<size_t>(threads);
+  // A share of a limit is a limit: never 0, which means none.
+  if (s.memory_limit_bytes != 0) s.memory_limit_bytes = std::max<size_t>(1, s.memory_limit_bytes / static_cast<size_t>(threads));
   return s;
 }
 
@@ -54,10 +57,11 @@ IntegratorSettings perThread(const IntegratorSettings& settings, int threads) {
 /// grow 4x (session_map.cpp); what they hold is counted as at most twice their size, as much as
 /// a pool that doubles reserves (its growth copies the used part; the rest of the capacity is
 /// address space no page backs until written).
-void checkMapMemory(const SessionMap& map, const IntegratorSettings& settings) {
+void checkMapMemory(const SessionMap& map, const IntegratorSettings& settings, size_t scratch_bytes) {
   const size_t held = std::min(map.reservedBytes(), 2 * map.memoryBytes());
-  if (settings.memory_limit_bytes != 0 && held > settings.memory_limit_bytes) {
-    refuseOverMemoryLimit("the session map", settings.memory_limit_bytes, "", map.resolution_m());
+  if (settings.memory_limit_bytes != 0 && held + scratch_bytes > settings.memory_limit_bytes) {
+    refuseOverMemoryLimit(scratch_bytes ? "the session map with the frames' scratch" : "the session map",
+                          settings.memory_limit_bytes, "", map.resolution_m());
   }
 }
 
@@ -91,11 +95,7 @@ void mergeDeltas(SessionMap& map, const VoxelDeltas& deltas) {
   if (!deltas.cube_keys.empty()) map.addCubes(deltas.cube_keys, deltas.cube_level, deltas.cube_length_m);
 }
 
-size_t defaultMemoryLimitBytes() {
-  const long pages = ::sysconf(_SC_PHYS_PAGES), page_bytes = ::sysconf(_SC_PAGE_SIZE);
-  if (pages <= 0 || page_bytes <= 0) return 0;
-  return static_cast<size_t>(pages) * static_cast<size_t>(page_bytes) / 2;
-}
+size_t defaultMemoryLimitBytes() { return processMemoryBytes() / 2; }
 
 namespace {
 
@@ -112,7 +112,7 @@ void integrateSerial(const FrameSource& source, SessionMap& map, const Integrato
       acc.accumulate(source.load(i), deltas);
     }
     mergeDeltas(map, deltas);
-    checkMapMemory(map, settings);
+    checkMapMemory(map, settings, acc.scratchBytes() + deltaBytes(deltas));
     total += deltas.stats;
     if (progress) progress(i + 1, n);
   }
@@ -129,6 +129,9 @@ void integrateParallel(const FrameSource& source, SessionMap& map, const Integra
   // numbers, and a merged buffer goes back to the free list.
   const size_t tokens = static_cast<size_t>(threads) * 2;
   std::vector<VoxelDeltas> buffers(tokens);
+  // Each buffer's deltas plus the scratch of the accumulator that filled it, as it was then
+  // (written by the casting stage before the hand-over, summed by the merging one).
+  std::vector<std::atomic<size_t>> scratch(tokens);
   std::vector<size_t> free_buffers(tokens);
   for (size_t b = 0; b < tokens; ++b) free_buffers[b] = b;
   std::mutex free_mutex;
@@ -169,6 +172,8 @@ void integrateParallel(const FrameSource& source, SessionMap& map, const Integra
                 } else {
                   accumulators.local().accumulate(source.load(i), buffers[b]);
                 }
+                scratch[b].store(accumulators.local().scratchBytes() + deltaBytes(buffers[b]),
+                                 std::memory_order_relaxed);
               } catch (...) {
                 CHRONOMAP_HAPPENS_BEFORE(&handed_over);  // to the caller, which rethrows
                 throw;
@@ -182,7 +187,9 @@ void integrateParallel(const FrameSource& source, SessionMap& map, const Integra
           CHRONOMAP_HAPPENS_AFTER(&merge_turn);  // one merge after another
           mergeDeltas(map, buffers[b]);
           try {
-            checkMapMemory(map, settings);
+            size_t in_flight = 0;
+            for (const std::atomic<size_t>& bytes : scratch) in_flight += bytes.load(std::memory_order_relaxed);
+            checkMapMemory(map, settings, in_flight);
           } catch (...) {
             CHRONOMAP_HAPPENS_BEFORE(&merge_turn);  // to the caller, which rethrows
             throw;
@@ -219,6 +226,11 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
   const auto start = std::chrono::steady_clock::now();
   IntegrationStats total;
   const size_t n = source.size();
+  std::ostringstream what;
+  what << "integrating " << n << " frame(s) at resolution " << map.resolution_m() << " m";
+  const MemoryActivity activity(what.str(), "use a coarser --resolution, fewer --threads, or a --memory-limit below "
+                                            "the memory this process may use (" +
+                                                humanBytes(static_cast<double>(processMemoryBytes())) + ")");
   int threads = settings.threads > 0 ? settings.threads : static_cast<int>(std::thread::hardware_concurrency());
   threads = std::max(1, threads);
   if (threads == 1 || n <= 1) {

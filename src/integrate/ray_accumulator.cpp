@@ -366,7 +366,19 @@ struct RayAccumulator::Impl {
       float* length = coarse_length.data();
       integrate_detail::castBundleLanes(next_coarse, [length](int64_t c, float v) { length[c] += v; }, settings.simd);
     } else {
-      integrate_detail::castBundleLanes(next_coarse, [&coarse_hash](int64_t c, float v) { coarse_hash[c] += v; }, settings.simd);
+      // Counted against the thread's share of the memory limit like the fine hash table: a node
+      // and its bucket, then the sorted copy and the cube it becomes.
+      constexpr size_t kBytesPerCell = 48 + sizeof(std::pair<int64_t, float>) + sizeof(VoxelKey) + sizeof(float);
+      const size_t max_cells = hash.max_bytes == 0 ? SIZE_MAX : hash.max_bytes / kBytesPerCell;
+      integrate_detail::castBundleLanes(
+          next_coarse,
+          [&](int64_t c, float v) {
+            coarse_hash[c] += v;
+            if (coarse_hash.size() > max_cells) {
+              integrate_detail::refuseOverMemoryLimit("carving one frame's free space", hash.max_bytes, " per thread", hash.resolution_m);
+            }
+          },
+          settings.simd);
     }
     e = 1;
     auto next_fine = [&](integrate_detail::LaneRay& r) {
@@ -684,6 +696,24 @@ RayAccumulator::RayAccumulator(const KeyGrid& grid, const IntegratorSettings& se
 RayAccumulator::~RayAccumulator() = default;
 RayAccumulator::RayAccumulator(RayAccumulator&&) noexcept = default;
 RayAccumulator& RayAccumulator::operator=(RayAccumulator&&) noexcept = default;
+
+namespace {
+template <class T>
+size_t capacityBytes(const std::vector<T>& v) {
+  return v.capacity() * sizeof(T);
+}
+}  // namespace
+
+size_t deltaBytes(const VoxelDeltas& d) {
+  return capacityBytes(d.keys) + capacityBytes(d.deltas) + capacityBytes(d.cube_keys) + capacityBytes(d.cube_length_m);
+}
+
+size_t RayAccumulator::scratchBytes() const {
+  const Impl& m = *impl_;
+  return capacityBytes(m.points) + capacityBytes(m.cell_index) + capacityBytes(m.ends) + capacityBytes(m.beyond_ends) +
+         capacityBytes(m.dense.length) + capacityBytes(m.dense.end) + capacityBytes(m.hash.slots) +
+         capacityBytes(m.cube.end) + capacityBytes(m.coarse_length) + capacityBytes(m.fine_rays);
+}
 
 void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
   Impl& s = *impl_;

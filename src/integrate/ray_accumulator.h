@@ -26,9 +26,10 @@ void checkSettings(const IntegratorSettings& settings);
 /// The settings each thread's accumulator gets: its share of the memory limit.
 IntegratorSettings perThread(const IntegratorSettings& settings, int threads);
 
-/// Called after each merge: @throw UsageError when the map holds more than the memory limit
-/// (integrator.cpp says how it is counted).
-void checkMapMemory(const SessionMap& map, const IntegratorSettings& settings);
+/// Called after each merge: @throw UsageError when the map and the frames' scratch (the
+/// accumulators' buffers and the deltas in flight, `scratch_bytes`) hold more than the memory
+/// limit together (integrator.cpp says how the map is counted).
+void checkMapMemory(const SessionMap& map, const IntegratorSettings& settings, size_t scratch_bytes = 0);
 
 
 /// A valid end point in the frame's working coordinates: voxel units, relative to the lower

@@ -44,7 +44,7 @@ void checkInputs(const BuildSettings& s) {
   for (const auto& d : s.datasets) {
     if (!fs::exists(d)) throw UsageError("dataset '" + d.string() + "' does not exist");
   }
-  refuseOverwritingInputs(s.map, s.datasets);
+  checkOutputs({{s.map, "MAP", fs::is_directory(s.map)}}, s.datasets);  // a folder: a tiled map
 }
 
 void refuseClashes(const BuildSettings& s, const TemporalMap& map) {
@@ -215,7 +215,7 @@ double pipeline_detail::sessionTime(const AddSessionSettings& s, const CmapFile&
 
 AddSessionResult addSession(const AddSessionSettings& s) {
   if (s.realign) s.realign->validate();
-  refuseOverwritingInputs(s.map, {s.session});
+  checkOutputs({{s.map, "MAP", fs::is_directory(s.map)}}, {s.session});
   const CmapFile file = readCmap(s.session);
   SessionMap session = sessionMapFrom(file, s.session.string());
   AddSessionResult r;

@@ -147,6 +147,12 @@ TEST(TrustCli, EveryOutputOfACommandIsCheckedBeforeWork) {
   }
 }
 
+TEST(TrustCli, ARepeatedFlagIsSaidPlainly) {
+  const auto r = test::runCommand(cat(cli(), " snapshot m.cmap --at 1 --at 2 -o x.cmap"));
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("--at was given 2 times; give it once"), std::string::npos) << r.err;
+}
+
 TEST(TrustCli, SegmentReplacesAnEarlierSegmentationWhole) {
   test::TempDir tmp;
   writeSessionMap(tmp / "a.cmap", test::wallSession(10), {});
@@ -442,6 +448,16 @@ TEST(TrustCli, AResolutionTooFineStopsAtTheMemoryLimit) {
     EXPECT_NE(r.err.find("at resolution 0.0005 m; use a coarser --resolution or raise --memory-limit"),
               std::string::npos)
         << r.err;
+    EXPECT_FALSE(fs::exists(out));
+  }
+  // A tiny limit is a limit (1e-12 GiB rounded to 0 bytes, which meant none), and without
+  // --memory-limit the default follows the address-space limit: both stop at the limit, where
+  // before they ran until "out of memory".
+  for (const std::string& flags : {std::string(" --memory-limit 1e-12"), std::string(limit.empty() ? " --memory-limit 0.25" : "")}) {
+    const auto r = test::runCommand(cat(limit, cli(), " integrate ", dataset.string(), " --resolution 0.0005", flags,
+                                        " -o ", out.string()));
+    EXPECT_EQ(r.exit_code, 2) << flags << "\n" << r.err;
+    EXPECT_NE(r.err.find("use a coarser --resolution or raise --memory-limit"), std::string::npos) << flags << r.err;
     EXPECT_FALSE(fs::exists(out));
   }
   const auto bad = test::runCommand(cat(cli(), " integrate ", dataset.string(), " --memory-limit -1 -o ", out.string()));

@@ -105,6 +105,9 @@ struct VoxelDeltas {
   IntegrationStats stats;
 };
 
+/// The bytes `deltas` holds (capacities), for the memory limit.
+size_t deltaBytes(const VoxelDeltas& deltas);
+
 /// Adds one frame's deltas to `map`: the voxels, then the cubes.
 void mergeDeltas(SessionMap& map, const VoxelDeltas& deltas);
 
@@ -120,6 +123,8 @@ class RayAccumulator {
   /// @throw DataError when the sensor pose is not finite or lies outside the map; UsageError when
   /// the frame's scratch space would pass settings.memory_limit_bytes.
   void accumulate(const Frame& frame, VoxelDeltas& out);
+  /// The bytes its scratch holds now (every buffer's capacity), for the memory limit.
+  size_t scratchBytes() const;
 
  private:
   struct Impl;
