@@ -33,7 +33,8 @@ int runView(ViewOptions o) {
     }
   }
   Server server(map, std::filesystem::path(o.map).filename().string(), o.server);
-  server.bind();
+  const int port = server.bind();
+  if (const auto warning = exposureWarning(o.server.host, port)) std::cerr << "chronomap view: " << *warning << std::endl;
   std::cout << "chronomap view: " << o.map << " (" << map.sessionCount() << " sessions) at " << server.url()
             << "\nopen that address in a browser; Ctrl-C stops the server" << std::endl;
   server.serve();
@@ -53,7 +54,10 @@ Command addView(CLI::App& root) {
   app->add_option("--port", o->server.port, "port to listen on (0: any free port)")
       ->check(numberIn(0, 65535))
       ->capture_default_str();
-  app->add_option("--host", o->server.host, "address to listen on (0.0.0.0: every interface, reachable from other machines)")
+  app->add_option("--host", o->server.host,
+                  "address to listen on (0.0.0.0: every interface, reachable from other machines, which prints a "
+                  "warning: the viewer has no authentication); requests addressed to other names than localhost, "
+                  "127.0.0.1, [::1] and this address are refused")
       ->capture_default_str();
   app->add_option("--budget", o->budget, "cells per snapshot unless the page asks for another number; more "
                                          "occupied voxels are drawn as coarser octree cubes")

@@ -2,15 +2,16 @@
 
 #include "chronomap/view/api.h"
 
+#include <algorithm>
 #include <charconv>
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <set>
 #include <sstream>
 #include <utility>
 
 #include "assets.h"
+#include "printable.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
 #include "chronomap/view/packet.h"
@@ -26,11 +27,18 @@ Reply json(const nlohmann::json& j, int status = 200) {
 }
 Reply binary(std::string body) { return {200, "application/octet-stream", std::move(body)}; }
 
-// Refuses parameters other than `allowed`, and repeated ones.
-void onlyParameters(const Query& query, const std::set<std::string>& allowed) {
+// Refuses parameters of `path` other than `allowed` (listed in the message in that order), and
+// repeated ones.
+void onlyParameters(const std::string& path, const Query& query, std::initializer_list<const char*> allowed) {
   for (const auto& [name, value] : query) {
-    if (!allowed.count(name)) throw UsageError("unknown parameter '" + name + "'");
-    if (query.count(name) > 1) throw UsageError("parameter '" + name + "' given more than once");
+    if (std::find(allowed.begin(), allowed.end(), name) == allowed.end()) {
+      std::string m = "unknown parameter '" + printable(name) + "': " + path;
+      if (allowed.size() == 0) throw UsageError(m + " takes no parameters");
+      m += " takes ";
+      for (const char* a : allowed) m.append(a).append(a == *(allowed.end() - 1) ? "" : ", ");
+      throw UsageError(m);
+    }
+    if (query.count(name) > 1) throw UsageError("parameter '" + printable(name) + "' given more than once: give it once");
   }
 }
 
@@ -39,29 +47,48 @@ const std::string* find(const Query& query, const std::string& name) {
   return it == query.end() ? nullptr : &it->second;
 }
 
-uint64_t parseCount(const std::string& text, const std::string& name, uint64_t lo, uint64_t hi) {
+// `name=text` as received (bytes that do not print escaped), to begin an error message.
+std::string received(const std::string& name, const std::string& text) { return name + "=" + printable(text); }
+
+// A whole number in [lo, hi]; else "NAME=TEXT is not WHAT: expected a whole number from LO to HI
+// (NOTE)".
+uint64_t parseCount(const std::string& text, const std::string& name, uint64_t lo, uint64_t hi, const std::string& what,
+                    const std::string& note = "") {
   uint64_t v = 0;
   const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
   if (ec != std::errc() || end != text.data() + text.size() || v < lo || v > hi) {
     std::ostringstream m;
-    m << name << "=" << text << ": must be a whole number in [" << lo << ", " << hi << "]";
+    m << received(name, text) << " is not " << what << ": expected a whole number from " << lo << " to " << hi;
+    if (!note.empty()) m << " (" << note << ")";
     throw UsageError(m.str());
   }
   return v;
 }
 
-std::vector<uint16_t> parseKeys(const std::string& text, const std::string& name, size_t count) {
-  std::vector<uint16_t> out;
-  size_t start = 0;
-  while (out.size() < count) {
-    const size_t comma = text.find(',', start);
-    const std::string part = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-    out.push_back(static_cast<uint16_t>(parseCount(part, name, 0, kKeysPerAxis - 1)));
-    if (comma == std::string::npos) break;
-    start = comma + 1;
-    if (out.size() == count) throw UsageError(name + ": more than " + std::to_string(count) + " numbers");
+// `count` voxel keys separated by commas, in the order `form` names them (e.g. "x,y,z").
+std::vector<uint16_t> parseKeys(const std::string& text, const std::string& name, size_t count, const std::string& form) {
+  const std::string expected = "expected " + form + ", whole numbers from 0 to " + std::to_string(kKeysPerAxis - 1) +
+                               " separated by commas";
+  std::vector<std::string> parts(1);
+  for (const char c : text) {
+    if (c == ',') {
+      parts.emplace_back();
+    } else {
+      parts.back().push_back(c);
+    }
   }
-  if (out.size() != count) throw UsageError(name + ": expected " + std::to_string(count) + " numbers");
+  if (parts.size() != count) {
+    throw UsageError(received(name, text) + " is not " + std::to_string(count) + " voxel keys: " + expected);
+  }
+  std::vector<uint16_t> out;
+  for (const auto& part : parts) {
+    uint32_t v = 0;
+    const auto [end, ec] = std::from_chars(part.data(), part.data() + part.size(), v);
+    if (ec != std::errc() || end != part.data() + part.size() || v >= static_cast<uint32_t>(kKeysPerAxis)) {
+      throw UsageError(received(name, text) + ": '" + printable(part) + "' is not a voxel key: " + expected);
+    }
+    out.push_back(static_cast<uint16_t>(v));
+  }
   return out;
 }
 
@@ -79,26 +106,52 @@ namespace {
 // The time a request names with `session` (a rank) or `time` (seconds or ISO-8601), which must
 // lie within the map's sessions.
 double requestedTime(const TemporalMap& map, const Query& query, const std::string& session, const std::string& time) {
+  if (map.sessionCount() == 0) throw UsageError("the map holds no session");
   const auto* rank = find(query, session);
   const auto* t = find(query, time);
-  if ((rank != nullptr) == (t != nullptr)) throw UsageError("give either " + session + "= or " + time + "=");
-  if (map.sessionCount() == 0) throw UsageError("the map holds no session");
-  if (rank) return map.sessions()[parseCount(*rank, session, 0, map.sessionCount() - 1)].time_s;
-  const double s = parseTime(*t);
-  const double first = map.sessions().front().time_s, last = map.sessions().back().time_s;
-  if (s < first || s > last) {
-    throw UsageError(time + "=" + *t + ": outside the map's sessions (" + formatTime(first) + " to " + formatTime(last) + ")");
+  const size_t n = map.sessionCount();
+  const std::string first = formatTime(map.sessions().front().time_s), last = formatTime(map.sessions().back().time_s);
+  const std::string times = "seconds since the epoch or ISO-8601 (e.g. 2012-03-01T10:00:00Z) from " + first + " to " + last;
+  if (rank && t) throw UsageError("give " + session + "= or " + time + "=, not both");
+  if (!rank && !t) {
+    throw UsageError("give one of " + session + "=RANK (a session number from 0 to " + std::to_string(n - 1) + ") or " + time +
+                     "=TIME (" + times + ")");
+  }
+  if (rank) {
+    const std::string note = "the map has " + std::to_string(n) + " session" + (n == 1 ? "" : "s");
+    return map.sessions()[parseCount(*rank, session, 0, n - 1, "a session number", note)].time_s;
+  }
+  double s = 0.0;
+  try {
+    s = parseTime(*t);
+  } catch (const UsageError&) {
+    throw UsageError(received(time, *t) + " is not a time: expected " + times);
+  }
+  if (s < map.sessions().front().time_s || s > map.sessions().back().time_s) {
+    throw UsageError(received(time, *t) + " lies outside the map's sessions: expected a time from " + first + " to " + last);
   }
   return s;
 }
 
+// The temporal model `model=` names.
+RhythmModel requestedModel(const std::string& text) {
+  std::string names;
+  for (size_t i = 0; i < kRhythmModels.size(); ++i) {
+    names.append(i == 0 ? "" : i + 1 == kRhythmModels.size() ? " or " : ", ").append(toString(kRhythmModels[i]));
+  }
+  for (RhythmModel m : kRhythmModels) {
+    if (text == toString(m)) return m;
+  }
+  throw UsageError(received("model", text) + " is not a temporal model: expected " + names);
+}
+
 // What a prediction or cost-map request names: its time (as requestedTime) and the temporal
 // model (`model`, the combined one by default).
-std::pair<double, RhythmModel> predictionRequest(const TemporalMap& map, const Query& query) {
-  onlyParameters(query, {"session", "t", "model"});
+std::pair<double, RhythmModel> predictionRequest(const TemporalMap& map, const std::string& path, const Query& query) {
+  onlyParameters(path, query, {"session", "t", "model"});
   const double time_s = requestedTime(map, query, "session", "t");
   RhythmModel model = RhythmModel::Combined;
-  if (const auto* m = find(query, "model")) model = parseRhythmModel(*m);
+  if (const auto* m = find(query, "model")) model = requestedModel(*m);
   return {time_s, model};
 }
 
@@ -107,12 +160,12 @@ std::pair<double, RhythmModel> predictionRequest(const TemporalMap& map, const Q
 Reply Api::get(const std::string& path, const Query& query) const {
   try {
     if (path == "/" || path == "/index.html") {
-      onlyParameters(query, {});
+      onlyParameters(path, query, {});
       return {200, "text/html; charset=utf-8", servedPage()};
     }
     if (path == "/viewer.js") return {200, "application/javascript", std::string(viewerScript())};
     if (path == "/api/map") {
-      onlyParameters(query, {});
+      onlyParameters(path, query, {});
       nlohmann::json info = mapInfoJson(map_, name_);
       info["default_max_voxels"] = settings_.default_max_voxels;
       info["max_voxels_limit"] = settings_.max_voxels_limit;
@@ -126,40 +179,46 @@ Reply Api::get(const std::string& path, const Query& query) const {
   } catch (const UsageError& e) {
     return json({{"error", e.what()}}, 400);
   }
-  return json({{"error", "no such path: " + path}}, 404);
+  return json({{"error", "no such path: " + printable(path)}}, 404);
 }
 
 Reply Api::snapshot(const Query& query) const {
-  onlyParameters(query, {"session", "t", "budget", "level", "region"});
+  onlyParameters("/api/snapshot", query, {"session", "t", "budget", "level", "region"});
   SnapshotRequest r;
   r.time_s = requestedTime(map_, query, "session", "t");
   r.max_voxels = settings_.default_max_voxels;
-  if (const auto* b = find(query, "budget")) r.max_voxels = parseCount(*b, "budget", 1, settings_.max_voxels_limit);
-  if (const auto* l = find(query, "level")) r.min_level = static_cast<int>(parseCount(*l, "level", 0, kMaxLevel));
+  if (const auto* b = find(query, "budget")) r.max_voxels = parseCount(*b, "budget", 1, settings_.max_voxels_limit, "a cell budget");
+  if (const auto* l = find(query, "level")) {
+    r.min_level = static_cast<int>(parseCount(*l, "level", 0, kMaxLevel, "a level of detail"));
+  }
   if (const auto* region = find(query, "region")) {
-    const auto k = parseKeys(*region, "region", 6);
+    const auto k = parseKeys(*region, "region", 6, "x0,y0,z0,x1,y1,z1");
     r.region = std::array<VoxelKey, 2>{VoxelKey{k[0], k[1], k[2]}, VoxelKey{k[3], k[4], k[5]}};
-    if (k[0] > k[3] || k[1] > k[4] || k[2] > k[5]) throw UsageError("region: the lower corner lies above the upper");
+    if (k[0] > k[3] || k[1] > k[4] || k[2] > k[5]) {
+      throw UsageError(received("region", *region) + ": the lower corner lies above the upper (expected x0 <= x1, y0 <= y1, z0 <= z1)");
+    }
   }
   return binary(encodeSnapshot(snapshotVoxels(map_, r), map_));
 }
 
 Reply Api::diffReply(const Query& query) const {
-  onlyParameters(query, {"from", "to", "t0", "t1", "min_voxels"});
+  onlyParameters("/api/diff", query, {"from", "to", "t0", "t1", "min_voxels"});
   DiffRequest r{0.0, 0.0, settings_.diff, settings_.segment};
   r.t0_s = requestedTime(map_, query, "from", "t0");
   r.t1_s = requestedTime(map_, query, "to", "t1");
-  if (const auto* m = find(query, "min_voxels")) r.segment.min_voxels = parseCount(*m, "min_voxels", 1, 1u << 30);
+  if (const auto* m = find(query, "min_voxels")) r.segment.min_voxels = parseCount(*m, "min_voxels", 1, 1u << 30, "an object size in voxels");
   return binary(encodeDiff(diffObjects(map_, r), r, settings_.max_diff_cells));
 }
 
 Reply Api::history(const Query& query) const {
-  onlyParameters(query, {"key", "level"});
+  onlyParameters("/api/history", query, {"key", "level"});
   const auto* key = find(query, "key");
-  if (!key) throw UsageError("give key=x,y,z");
-  const auto k = parseKeys(*key, "key", 3);
+  if (!key) throw UsageError("give key=x,y,z (the voxel's keys, whole numbers from 0 to " + std::to_string(kKeysPerAxis - 1) + ")");
+  const auto k = parseKeys(*key, "key", 3, "x,y,z");
   int level = 0;
-  if (const auto* l = find(query, "level")) level = static_cast<int>(parseCount(*l, "level", 0, kMaxHistoryLevel));
+  if (const auto* l = find(query, "level")) {
+    level = static_cast<int>(parseCount(*l, "level", 0, kMaxHistoryLevel, "a history level"));
+  }
   return json(historyJson(map_, VoxelKey{k[0], k[1], k[2]}, level));
 }
 
@@ -181,13 +240,13 @@ const RhythmModels& Api::rhythm() const {
 }
 
 Reply Api::predict(const Query& query) const {
-  const auto [time_s, model] = predictionRequest(map_, query);
+  const auto [time_s, model] = predictionRequest(map_, "/api/predict", query);
   const RhythmModels& models = rhythm();
   return binary(encodePrediction(models, model, time_s, settings_.rhythm ? 0.0 : fitted_->seconds));
 }
 
 Reply Api::costmapReply(const Query& query) const {
-  const auto [time_s, model] = predictionRequest(map_, query);
+  const auto [time_s, model] = predictionRequest(map_, "/api/costmap", query);
   const RhythmModels& models = rhythm();
   const CostmapSettings settings;
   return binary(encodeCostmap(costmap(predictMap(map_, models, model, time_s), settings, &models), settings, model, time_s));

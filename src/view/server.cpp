@@ -1,12 +1,14 @@
-// The viewer's HTTP server: cpp-httplib in front of Api.
+// The viewer's HTTP server: cpp-httplib in front of Api, behind a request guard.
 
 #include "chronomap/view/server.h"
 
-#include <httplib.h>
 #include <sys/socket.h>
 #include <zlib.h>
 
+#include <chrono>
+
 #include "chronomap/core/error.h"
+#include "connection_guard.h"
 
 namespace chronomap {
 
@@ -30,16 +32,57 @@ std::string gzip(std::string_view bytes) {
   return out;
 }
 
+// The server's connection limits, checked.
+ConnectionLimits connectionLimits(const ServerSettings& s) {
+  const auto ms = [](double seconds, const char* what) {
+    if (!(seconds > 0.0 && seconds <= 86400.0)) {
+      throw UsageError(std::string("the viewer's ") + what + " must be between 0 and 86400 s, not " + std::to_string(seconds));
+    }
+    return std::chrono::milliseconds(std::max<int64_t>(1, static_cast<int64_t>(seconds * 1000.0)));
+  };
+  if (s.threads < 1 || s.max_open_connections < 1) {
+    throw UsageError("the viewer needs at least one thread and one open connection (threads " + std::to_string(s.threads) +
+                     ", connections " + std::to_string(s.max_open_connections) + ")");
+  }
+  ConnectionLimits limits;
+  limits.request_timeout = ms(s.request_timeout_s, "request timeout");
+  limits.keep_alive_timeout = ms(s.keep_alive_timeout_s, "keep-alive timeout");
+  limits.write_timeout = ms(s.write_timeout_s, "write timeout");
+  limits.threads = static_cast<size_t>(s.threads);
+  limits.max_waiting = s.max_open_connections;
+  return limits;
+}
+
+// The request guard, in front of every route: a request addressed to another name than ours is
+// refused before anything answers it (hostRefusal).
+httplib::Server::HandlerResponse guardRequest(const std::string& served_host, const httplib::Request& req, httplib::Response& res) {
+  std::optional<std::string> refusal;
+  if (req.get_header_value_count("Host") > 1) {
+    refusal = "a request with more than one Host header is refused";
+  } else {
+    refusal = hostRefusal(req.get_header_value("Host"), served_host);
+  }
+  if (!refusal) return httplib::Server::HandlerResponse::Unhandled;
+  res.status = 403;
+  res.set_header("Cache-Control", "no-store");
+  res.set_content(nlohmann::json{{"error", *refusal}}.dump(), "application/json");
+  return httplib::Server::HandlerResponse::Handled;
+}
+
+// The largest request body read: the API takes none.
+constexpr size_t kMaxRequestBody = 64 * 1024;
+
 }  // namespace
 
 struct Server::Impl {
-  Impl(const TemporalMap& map, std::string name, ServerSettings s) : api(map, std::move(name), s.api), settings(std::move(s)) {}
+  Impl(const TemporalMap& map, std::string name, ServerSettings s)
+      : api(map, std::move(name), s.api), settings(std::move(s)), http(connectionLimits(settings)) {}
   Api api;
   ServerSettings settings;
   // The page's script, compressed once: cpp-httplib would compress it per request (with Brotli
   // at its slowest setting: 3 s for the 0.6 MB bundle).
   std::string script_gz = gzip(viewerScript());
-  httplib::Server http;
+  GuardedHttpServer http;
   int port = -1;
 };
 
@@ -66,6 +109,10 @@ Server::Server(const TemporalMap& map, std::string name, ServerSettings settings
     res.set_content(std::move(r.body), r.content_type.c_str());
   };
   impl_->http.Get(R"(/.*)", answer);
+  impl_->http.set_pre_routing_handler([&host = impl_->settings.host](const httplib::Request& req, httplib::Response& res) {
+    return guardRequest(host, req, res);
+  });
+  impl_->http.set_payload_max_length(kMaxRequestBody);
   // cpp-httplib's default also sets SO_REUSEPORT, with which a second server (another `chronomap
   // view`, or another program) could bind the same port and take some of the connections. Only
   // SO_REUSEADDR: a restarted server may bind while old connections linger in TIME_WAIT.
@@ -89,6 +136,7 @@ int Server::bind() {
   if (impl_->port < 0) {
     throw IoError("cannot listen on " + s.host + ":" + std::to_string(s.port) + " (in use, or not an address of this machine)");
   }
+  impl_->http.widenBacklog();
   return impl_->port;
 }
 

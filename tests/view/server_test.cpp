@@ -18,41 +18,14 @@
 #include "chronomap/view/packet.h"
 #include "chronomap/view/scene.h"
 #include "chronomap/view/server.h"
+#include "running_server.h"
 #include "test_support.h"
-// After Eigen: httplib.h includes <resolv.h>, whose macro _res breaks Eigen's headers.
-#include <httplib.h>
 
 namespace chronomap {
 namespace {
 
-TemporalMap threeSessions() {
-  TemporalMap map(0.05);
-  for (int s = 0; s < 3; ++s) map.add(1000.0 * (s + 1), test::randomSessionMap(200 + s, 20, 0.2));
-  return map;
-}
-
-// A server on a free loopback port, serving on its own thread while the test runs.
-class Running {
- public:
-  explicit Running(const TemporalMap& map, ServerSettings s = []{ ServerSettings d; d.port = 0; return d; }())
-      : server_(map, "three.cmap", s) {
-    port_ = server_.bind();
-    thread_ = std::thread([this] { server_.serve(); });
-    httplib::Client probe("127.0.0.1", port_);
-    for (int i = 0; i < 200 && !probe.Get("/api/map"); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  ~Running() {
-    server_.stop();
-    thread_.join();
-  }
-  int port() const { return port_; }
-  const Server& server() const { return server_; }
-
- private:
-  Server server_;
-  int port_ = 0;
-  std::thread thread_;
-};
+using test::Running;
+using test::threeSessions;
 
 TEST(ViewServer, ListensOnLoopbackByDefault) {
   EXPECT_EQ(ServerSettings{}.host, "127.0.0.1");

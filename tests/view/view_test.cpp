@@ -6,6 +6,8 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <tuple>
+#include <vector>
 
 #include "assets.h"
 #include "chronomap/core/error.h"
@@ -242,6 +244,52 @@ TEST(ViewApi, AnswersAndRefusals) {
     EXPECT_EQ(r.status, 400) << path << " " << (query.empty() ? "" : query.begin()->first);
     EXPECT_TRUE(nlohmann::json::parse(r.body).contains("error"));
   }
+}
+
+// Every refusal names the parameter, quotes the value as received (bytes that do not print are
+// escaped, so a NUL does not cut the message short) and says what is allowed.
+TEST(ViewApi, RefusalsQuoteTheValueAndSayWhatIsAllowed) {
+  const TemporalMap map = fourSessions();
+  const Api api(map, "four.cmap");
+  auto error = [&](const std::string& path, const Query& query) {
+    const Reply r = api.get(path, query);
+    EXPECT_EQ(r.status, 400) << path;
+    return nlohmann::json::parse(r.body)["error"].get<std::string>();
+  };
+  // `session=1%00`: before, the message was cut at the NUL and said only "session=1".
+  EXPECT_EQ(error("/api/snapshot", {{"session", std::string("1\0", 2)}}),
+            "session=1\\x00 is not a session number: expected a whole number from 0 to 3 (the map has 4 sessions)");
+  const std::vector<std::tuple<std::string, Query, std::vector<std::string>>> cases = {
+      {"/api/snapshot", {{"session", "4"}}, {"session=4 ", "from 0 to 3"}},
+      {"/api/snapshot", {{"session", "\t1\n"}}, {"session=\\x091\\x0a ", "from 0 to 3"}},
+      {"/api/snapshot", {{"session", "\xe9\x7f\\"}}, {"session=\\xe9\\x7f\\\\ ", "from 0 to 3"}},
+      {"/api/snapshot", {}, {"session=", "t=", "give one of"}},
+      {"/api/snapshot", {{"session", "1"}, {"t", "2000"}}, {"session=", "t=", "not both"}},
+      {"/api/snapshot", {{"t", "nan"}}, {"t=nan ", "ISO-8601", "1970-01-01T00:16:40Z"}},
+      {"/api/snapshot", {{"t", std::string("2000\0", 5)}}, {"t=2000\\x00 ", "ISO-8601"}},
+      {"/api/snapshot", {{"t", "4001"}}, {"t=4001 ", "outside the map's sessions", "1970-01-01T01:06:40Z"}},
+      {"/api/snapshot", {{"session", "1"}, {"budget", "0"}}, {"budget=0 ", "from 1 to 2000000"}},
+      {"/api/snapshot", {{"session", "1"}, {"level", "9"}}, {"level=9 ", "from 0 to 8"}},
+      {"/api/snapshot", {{"session", "1"}, {"region", "1,2,3"}}, {"region=1,2,3 ", "6 voxel keys", "x0,y0,z0,x1,y1,z1"}},
+      {"/api/snapshot", {{"session", "1"}, {"region", "0,0,0,1,1,65536"}}, {"region=0,0,0,1,1,65536: ", "'65536'", "0 to 65535"}},
+      {"/api/snapshot", {{"session", "1"}, {"region", "5,5,5,4,4,4"}}, {"region=5,5,5,4,4,4: ", "lower corner"}},
+      {"/api/snapshot", {{"session", "1"}, {"colour", "red"}}, {"'colour'", "/api/snapshot", "session, t, budget, level, region"}},
+      {"/api/snapshot", {{"session", "1"}, {std::string("x\0y", 3), "1"}}, {"'x\\x00y'"}},
+      {"/api/snapshot", {{"session", "1"}, {"session", "2"}}, {"session", "more than once"}},
+      {"/api/map", {{"x", "1"}}, {"'x'", "/api/map takes no parameters"}},
+      {"/api/diff", {{"from", "0"}}, {"to=", "t1="}},
+      {"/api/diff", {{"from", "0"}, {"to", "0"}, {"min_voxels", "-2"}}, {"min_voxels=-2 ", "from 1 to"}},
+      {"/api/history", {}, {"key=x,y,z"}},
+      {"/api/history", {{"key", "1,2"}}, {"key=1,2 ", "3 voxel keys", "x,y,z"}},
+      {"/api/history", {{"key", "1,2,3"}, {"level", "7"}}, {"level=7 ", "from 0 to 6"}},
+      {"/api/predict", {{"session", "1"}, {"model", std::string("crystal\0ball", 12)}}, {"model=crystal\\x00ball ", "latest, mean, markov, periodic, hourly or combined"}},
+  };
+  for (const auto& [path, query, parts] : cases) {
+    const std::string message = error(path, query);
+    for (const auto& part : parts) EXPECT_NE(message.find(part), std::string::npos) << path << ": " << message << " lacks " << part;
+  }
+  // What the request path held is escaped as well.
+  EXPECT_EQ(nlohmann::json::parse(api.get(std::string("/api/x\0y", 8), {}).body)["error"], "no such path: /api/x\\x00y");
 }
 
 // /api/predict: every modelled cube with the probability RhythmModels::predict gives it, from
