@@ -248,6 +248,42 @@ TEST(Integrator, AnyRangeBeyondTheSceneGivesTheSameMap) {
   EXPECT_EQ(st.points_outside_map, 2u);
 }
 
+// Points anywhere (not at voxel centres), seen from a rotated sensor off a voxel centre: a range
+// that reaches them all gives the same map bit for bit, however far it reaches, in exact and
+// fast mode. (The working frame's bias followed the range; the floats of a far bias rounded
+// points differently: 24,986 occupied voxels at --max-range 1e6 against 25,017 at 6 m.)
+TEST(Integrator, AnyRangeBeyondTheSceneGivesTheSameMapForAnyPoints) {
+  std::mt19937 rng(42);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<Frame> frames;
+  for (int f = 0; f < 3; ++f) {
+    PointCloud cloud;
+    for (int i = 0; i < 4000; ++i) {
+      Eigen::Vector3f d(u(rng), u(rng), 1.0f + 0.5f * u(rng));
+      cloud.points.push_back(d.normalized() * (0.5f + 1.25f * (u(rng) + 1.0f)));  // 0.5 to 3 m
+    }
+    cloud.width = static_cast<uint32_t>(cloud.points.size());
+    Frame frame = frameAt({0.013 + 0.3 * f, -0.071, 0.029}, cloud);
+    frame.T_world_sensor.linear() = Eigen::AngleAxisd(0.3 + f, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+    frames.push_back(std::move(frame));
+  }
+  const FrameVector source(std::move(frames));
+  for (bool fast : {false, true}) {
+    IntegratorSettings s = exactUncompressed();
+    s.fast = fast;
+    s.max_range_m = 3.01;
+    SessionMap reference(0.05);
+    integrate(source, reference, s);
+    ASSERT_GT(reference.counts().occupied_voxels, 1000u);
+    for (double range : {3.5, 6.0, 1e3, 1e6, 1e30}) {
+      s.max_range_m = range;
+      SessionMap map(0.05);
+      integrate(source, map, s);
+      EXPECT_EQ(leafSummary(map), leafSummary(reference)) << "fast=" << fast << " range=" << range;
+    }
+  }
+}
+
 TEST(Integrator, ResolutionsOutsideTheLimitsAreRefused) {
   EXPECT_NO_THROW(KeyGrid{kMinResolution_m});
   EXPECT_NO_THROW(KeyGrid{kMaxResolution_m});
@@ -303,7 +339,7 @@ TEST(Integrator, StopsWhenTheMapPassesTheMemoryLimit) {
       integrate(frames, map, s);
       ADD_FAILURE() << "integrated past the memory limit";
     } catch (const UsageError& e) {
-      EXPECT_NE(std::string(e.what()).find("the session map needs more than"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("the session map"), std::string::npos) << e.what();
       EXPECT_NE(std::string(e.what()).find("at resolution 0.02 m"), std::string::npos) << e.what();
     }
     EXPECT_LE(map.reservedBytes(), 2 * unlimited.reservedBytes());
