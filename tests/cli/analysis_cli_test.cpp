@@ -255,6 +255,11 @@ TEST(AnalysisCli, AlertsRankTheSessionsChangesWithReasons) {
     EXPECT_TRUE(fs::exists(tmp / "out" / f)) << f;
   }
   EXPECT_FALSE(fs::exists(tmp / "out" / "alert_02.ply"));
+  // At the second session: one session of history, in the singular.
+  r = test::runCommand(cli() + " alerts " + m + " --at 2012-03-05T20:00:00Z --min-voxels 5");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("1 changed object at 2012-03-05T20:00:00Z"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("; 1 session of history)"), std::string::npos) << r.out;
   // Bad input: one line naming what is wrong.
   writeFileAtomic(tmp / "bad.cmap", std::vector<uint8_t>{'n', 'o', 'p', 'e'});
   const std::pair<std::string, std::string> bad[] = {
