@@ -53,6 +53,9 @@ inline int printError(int code, const std::string& message) {
   return code;
 }
 
+/// Prints one warning the way every command does ("chronomap: warning: ..." on stderr).
+inline void printWarning(const std::string& message) { std::cerr << "chronomap: warning: " << message << "\n" << std::flush; }
+
 inline size_t gibToBytes(double gib) { return static_cast<size_t>(std::llround(gib * 1073741824.0)); }
 /// Help of the --memory-limit flag of the commands that read tiled maps.
 inline constexpr const char* kTileMemoryHelp =
