@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <nlohmann/json.hpp>
 #include <cstdint>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -17,6 +18,7 @@
 #include "chronomap/align/consensus.h"
 #include "chronomap/align/realign.h"
 #include "chronomap/analysis/colour.h"
+#include "chronomap/analysis/fitted_on.h"
 #include "chronomap/store/colour_file.h"
 #include "chronomap/analysis/rhythm.h"
 #include "chronomap/store/rhythm_file.h"
@@ -24,6 +26,7 @@
 #include "chronomap/ingest/dataset.h"
 #include "chronomap/ingest/jpeg.h"
 #include "chronomap/ingest/png.h"
+#include "model_map.h"
 #if defined(FUZZ_BAG) || defined(FUZZ_MCAP) || defined(FUZZ_DB3)
 #include <unistd.h>
 
@@ -226,17 +229,33 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
     default: cdr::poseStamped(msg, name); break;
   }
 #elif defined(FUZZ_MODEL)
-  // Saved models: a .rhythm or a .colour (their magic tells them apart; both readers see every
-  // input). A colour model that reads must also predict.
-  try {
-    volatile size_t voxels = deserializeRhythm(bytes, name).voxels.size();
-    (void)voxels;
-  } catch (const Error&) {
+  // Saved models: a .rhythm or a .colour, told apart by their magic. A model that reads is also
+  // checked against the map its seeds were fitted on (model_map.h), as predict and view check a
+  // saved model, strictly and with --allow-other-map; a colour model that reads must also predict.
+  static const TemporalMap map = fuzz::modelMap();
+  FittedOnCheck check{name, "model-map", "refit", "--allow-other-map", false};
+  auto checkBoth = [&](const auto& model) {
+    try {
+      checkFittedOn(model, map, check);
+    } catch (const Error&) {
+    }
+    check.allow_other_map = true;
+    checkFittedOn(model, map, check);
+  };
+  if (bytes.size() >= 4 && std::memcmp(bytes.data(), "CMRH", 4) == 0) {
+    const RhythmModels models = deserializeRhythm(bytes, name);
+    if (!models.voxels.empty()) {
+      volatile double p = RhythmModels::predict(models.voxels.back(), RhythmModel::Combined, 2500.0);
+      (void)p;
+    }
+    checkBoth(models);
+    return;
   }
   const ColourModel m = deserializeColour(bytes, name);
   volatile double c = m.predictMean(7.5)[0];
   if (!m.keys.empty()) c = m.predict(m.keys.size() - 1, 23.9)[2];
   (void)c;
+  checkBoth(m);
 #else
 #error "define one FUZZ_* target"
 #endif

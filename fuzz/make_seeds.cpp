@@ -22,6 +22,7 @@
 #include "chronomap/ingest/jpeg.h"
 #include "chronomap/ingest/png.h"
 #include "db3_writer.h"
+#include "model_map.h"
 
 using namespace chronomap;
 namespace fs = std::filesystem;
@@ -43,23 +44,31 @@ int main(int argc, char** argv) {
   for (const char* t : {"cmap", "pcd", "ply", "xyz", "png", "text", "model", "bag", "rosmsg"}) {
     fs::create_directories(root / t);
   }
-  // Saved models (fuzz_model): a colour model of two voxels under one light, and an empty rhythm model.
+  // Saved models (fuzz_model): a colour model of two voxels under one light and an empty rhythm
+  // model, fitted without a map; the rhythm models fitted on fuzz_model's map (model_map.h), and
+  // a colour model recording that map; each also in the previous version, which still reads.
   {
+    const TemporalMap fitted_on = fuzz::modelMap();
     ColourModel colour;
     colour.components = 1;
     colour.bins = 4;
     colour.curves.assign(3 * 4, 0.5);
     colour.keys = {VoxelKey{1, 2, 3}, VoxelKey{4, 5, 6}};
     colour.weights = {100.0f, 50.0f, 20.0f, 10.0f, 200.0f, 30.0f};
-    colour.resolution_m = 0.05;
-    colour.from_s = 0.0;
-    colour.to_s = 86400.0;
+    colour.resolution_m = fitted_on.resolution_m();
+    colour.from_s = 1000.0;
+    colour.to_s = 2000.0;
     colour.sessions = 2;
     colour.observations = 4;
+    colour.fitted_on = fittedOn(fitted_on, colour.from_s, colour.to_s);
     writeFileAtomic(root / "model/two.colour", serialize(colour));
+    writeFileAtomic(root / "model/two_v1.colour", serialize(colour, 1));
     RhythmModels rhythm;
     rhythm.resolution_m = 0.05;
     writeFileAtomic(root / "model/empty.rhythm", serialize(rhythm));
+    const RhythmModels fitted = fitRhythm(fitted_on, 0.0, 3000.0);
+    writeFileAtomic(root / "model/fitted.rhythm", serialize(fitted));
+    writeFileAtomic(root / "model/fitted_v3.rhythm", serialize(fitted, 3));
   }
   // Message decoder heads (fuzz_readers.cpp, FUZZ_ROSMSG): 16UC1 depth 4 x 2, rgb8 colour 2 x 2,
   // a 2 x 1 cloud of 16-byte points; then their data.

@@ -6,6 +6,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 
+#include "chronomap/core/format.h"
 #include "chronomap/analysis/alerts.h"
 #include "chronomap/core/time.h"
 #include "chronomap/core/file.h"
@@ -42,8 +43,9 @@ int runAlerts(const AlertsCmdOptions& o) {
     std::cout << summary.dump() << "\n";
     return 0;
   }
-  std::printf("%zu changed objects at %s (against %s; %u sessions of history)\n", report.alerts.size(),
-              formatTime(report.time_s).c_str(), formatTime(report.previous_time_s).c_str(), report.history_sessions);
+  std::printf("%s at %s (against %s; %s of history)\n", countOf(report.alerts.size(), "changed object").c_str(),
+              formatTime(report.time_s).c_str(), formatTime(report.previous_time_s).c_str(),
+              countOf(report.history_sessions, "session").c_str());
   const size_t n = o.top == 0 ? report.alerts.size() : std::min(o.top, report.alerts.size());
   for (size_t i = 0; i < n; ++i) {
     const Alert& a = report.alerts[i];

@@ -39,9 +39,9 @@ int runTour(const ExportOptions& o) {
                      .dump()
               << "\n";
   } else {
-    std::cout << "wrote " << o.output << " (" << humanBytes(static_cast<double>(r.bytes)) << ": " << map.sessionCount()
-              << " sessions, " << r.cells << " cells" << (r.level > 0 ? " of " + std::to_string(1 << r.level) + "^3 voxels" : "")
-              << ", objects of " << r.diffs << " session pairs); it opens in a browser with no server\n";
+    std::cout << "wrote " << o.output << " (" << humanBytes(static_cast<double>(r.bytes)) << ": " << countOf(map.sessionCount(), "session")
+              << ", " << countOf(r.cells, "cell") << (r.level > 0 ? " of " + std::to_string(1 << r.level) + "^3 voxels" : "")
+              << ", objects of " << countOf(r.diffs, "session pair") << "); it opens in a browser with no server\n";
   }
   return 0;
 }

@@ -28,11 +28,15 @@ namespace {
 struct LearnFlags {
   std::string model = "combined", learn_from, learn_to, rhythm_in, rhythm_out;
   uint32_t min_changes = 1;
+  bool allow_other_map = false;
 };
 
-/// The flags as the library's learning settings (times parsed).
-LearnSettings learnSettings(const LearnFlags& f) {
+/// The flags as the library's learning settings (times parsed) for the map `map`.
+LearnSettings learnSettings(const LearnFlags& f, const std::string& map) {
   LearnSettings s;
+  s.map_name = map;
+  s.allow_other_map = f.allow_other_map;
+  s.warn = printWarning;
   if (!f.rhythm_in.empty()) s.saved = f.rhythm_in;
   if (!f.rhythm_out.empty()) s.save = f.rhythm_out;
   if (!f.learn_from.empty()) s.from_s = parseTime(f.learn_from);
@@ -51,6 +55,9 @@ void addLearnFlags(CLI::App* app, LearnFlags& f) {
       ->capture_default_str();
   app->add_option("--rhythm", f.rhythm_in, "use a model saved by --save-rhythm instead of fitting one");
   app->add_option("--save-rhythm", f.rhythm_out, "also save the fitted model (.rhythm) for later use");
+  app->add_flag("--allow-other-map", f.allow_other_map,
+                "use a saved model (--rhythm, --colour-model) even when it was fitted on another map or other sessions "
+                "of the same resolution (a map rebuilt from the same recordings, say): a warning instead of an error");
 }
 
 /// What predict --colour learned, for --json.
@@ -78,6 +85,23 @@ struct PredictCmdOptions {
   bool json = false;
 };
 
+/// predict's colour flags as the library's settings: the learning range and the saved model's
+/// check as for the rhythm models.
+ColourLearnSettings colourLearnSettings(const PredictCmdOptions& o) {
+  const LearnSettings range = learnSettings(o.learn, o.map);
+  ColourLearnSettings c;
+  if (!o.colour_in.empty()) c.saved = o.colour_in;
+  if (!o.colour_out.empty()) c.save = o.colour_out;
+  c.from_s = range.from_s;
+  c.to_s = range.to_s;
+  c.range_given = range.range_given;
+  c.fit = o.colour_settings;
+  c.map_name = range.map_name;
+  c.allow_other_map = range.allow_other_map;
+  c.warn = range.warn;
+  return c;
+}
+
 int runPredict(const PredictCmdOptions& o) {
   const std::string ext = fs::path(o.output).extension().string();
   if (ext != ".cmap" && ext != ".ply" && ext != ".ot" && ext != ".png") {
@@ -91,19 +115,11 @@ int runPredict(const PredictCmdOptions& o) {
   const RhythmModel model = parseRhythmModel(o.learn.model);
   const double t = parseTime(o.at);
   const TemporalMap map = readTemporalMap(o.map);
-  const RhythmModels models = learnRhythm(map, learnSettings(o.learn));
+  const RhythmModels models = learnRhythm(map, learnSettings(o.learn, o.map));
   SessionMap predicted = predictMap(map, models, model, t);
   std::optional<ColourModel> colours;
   if (colour) {
-    const LearnSettings range = learnSettings(o.learn);
-    ColourLearnSettings c;
-    if (!o.colour_in.empty()) c.saved = o.colour_in;
-    if (!o.colour_out.empty()) c.save = o.colour_out;
-    c.from_s = range.from_s;
-    c.to_s = range.to_s;
-    c.range_given = range.range_given;
-    c.fit = o.colour_settings;
-    colours = learnColour(map, c);
+    colours = learnColour(map, colourLearnSettings(o));
     predicted = recolour(predicted, *colours, t);
   }
   ExportSettings settings;
@@ -156,7 +172,7 @@ int runCostmap(const CostmapCmdOptions& o) {
   const RhythmModel model = parseRhythmModel(o.learn.model);
   const double t = parseTime(o.at);
   const TemporalMap map = readTemporalMap(o.map);
-  const RhythmModels models = learnRhythm(map, learnSettings(o.learn));
+  const RhythmModels models = learnRhythm(map, learnSettings(o.learn, o.map));
   const Costmap c = costmap(predictMap(map, models, model, t), o.settings, &models);
   const CostmapCounts n = writeCostmap(files, c, o.map);
   const nlohmann::json summary = {{"output", o.output}, {"pgm", files.pgm.string()}, {"png", files.png.string()},

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "chronomap/core/file.h"
+#include "chronomap/core/format.h"
 #include "chronomap/pipeline/demo.h"
 #include "chronomap/sim/building.h"
 #include "commands.h"
@@ -66,8 +67,8 @@ std::string percent(double v) {
 
 void printDemo(const DemoResult& r) {
   std::cout << "\nchronomap demo finished in " << std::fixed << std::setprecision(1) << r.seconds << " s\n"
-            << "  " << r.sessions << " sessions, " << r.frames << " frames, " << r.events
-            << " change events simulated\n"
+            << "  " << countOf(r.sessions, "session") << ", " << countOf(r.frames, "frame") << ", "
+            << countOf(r.events, "change event") << " simulated\n"
             << "  occupied voxels vs truth: precision " << percent(r.precision) << ", recall " << percent(r.recall)
             << " registered (as recorded: " << percent(r.precision_as_recorded) << ", "
             << percent(r.recall_as_recorded) << "; mean over sessions)\n"

@@ -1,10 +1,11 @@
 // chronomap view MAP.cmap [--port N] [--host ADDR]: the 4D viewer in the browser.
 
-#include <cmath>
 #include <iostream>
 #include <memory>
 
+#include "chronomap/analysis/fitted_on.h"
 #include "chronomap/core/error.h"
+#include "chronomap/core/format.h"
 #include "chronomap/store/rhythm_file.h"
 #include "chronomap/store/temporal_file.h"
 #include "chronomap/view/server.h"
@@ -19,6 +20,7 @@ struct ViewOptions {
   ServerSettings server;
   size_t budget = ApiSettings{}.default_max_voxels;
   std::string rhythm;
+  bool allow_other_map = false;
 };
 
 int runView(ViewOptions o) {
@@ -27,15 +29,16 @@ int runView(ViewOptions o) {
   o.server.api.default_max_voxels = o.budget;
   if (!o.rhythm.empty()) {
     o.server.api.rhythm = std::make_shared<const RhythmModels>(readRhythmModels(o.rhythm));
-    if (std::abs(o.server.api.rhythm->resolution_m - map.resolution_m()) > 1e-9) {
-      throw UsageError(o.rhythm + ": models of " + std::to_string(o.server.api.rhythm->resolution_m) +
-                       " m voxels; the map has " + std::to_string(map.resolution_m()) + " m");
+    const FittedOnCheck check{o.rhythm, o.map, "leave out --rhythm (the viewer then fits the models on this map)",
+                              "--allow-other-map", o.allow_other_map};
+    if (const std::string warning = checkFittedOn(*o.server.api.rhythm, map, check); !warning.empty()) {
+      printWarning(warning);
     }
   }
   Server server(map, std::filesystem::path(o.map).filename().string(), o.server);
   const int port = server.bind();
   if (const auto warning = exposureWarning(o.server.host, port)) std::cerr << "chronomap view: " << *warning << std::endl;
-  std::cout << "chronomap view: " << o.map << " (" << map.sessionCount() << " sessions) at " << server.url()
+  std::cout << "chronomap view: " << o.map << " (" << countOf(map.sessionCount(), "session") << ") at " << server.url()
             << "\nopen that address in a browser; Ctrl-C stops the server" << std::endl;
   server.serve();
   return 0;
@@ -65,7 +68,11 @@ Command addView(CLI::App& root) {
       ->capture_default_str();
   app->add_option("--rhythm", o->rhythm,
                   "temporal models saved by `chronomap predict --save-rhythm`, for colouring by predicted "
-                  "occupancy (without it, the models are fitted to every session when the page first asks)");
+                  "occupancy (without it, the models are fitted to every session when the page first asks); it must "
+                  "have been fitted on MAP");
+  app->add_flag("--allow-other-map", o->allow_other_map,
+                "use the --rhythm models even when they were fitted on another map or other sessions of the same "
+                "resolution: a warning instead of an error");
   return {app, [o] { return runView(*o); }};
 }
 

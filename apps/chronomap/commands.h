@@ -54,6 +54,9 @@ inline int printError(int code, const std::string& message) {
   return code;
 }
 
+/// Prints one warning the way every command does ("chronomap: warning: ..." on stderr).
+inline void printWarning(const std::string& message) { std::cerr << "chronomap: warning: " << message << "\n" << std::flush; }
+
 inline size_t gibToBytes(double gib) { return memoryLimitFromGib(gib); }
 /// Help of the --memory-limit flag of the commands that read tiled maps.
 inline constexpr const char* kTileMemoryHelp =

@@ -95,7 +95,8 @@ def test_rhythm_models_predict_and_costmap(tmp_path, before, after):
         m.add(after, day0 + datetime.timedelta(days=d, hours=14))
     models = chronomap.RhythmModels.fit(m)
     assert len(models) >= 64 and models.sessions == 28
-    assert models.bytes == 44 + 105 * len(models) + 8 + 96 * models.groups
+    # .rhythm version 4: a 60-byte header and each learning session's time, the voxels, the objects.
+    assert models.bytes == 60 + 8 * 28 + 105 * len(models) + 8 + 96 * models.groups
     afternoon = day0 + datetime.timedelta(days=15, hours=14)
     morning = day0 + datetime.timedelta(days=15, hours=8)
     p = models.predict(np.array([BOX, OUTSIDE]), afternoon, model="hourly")

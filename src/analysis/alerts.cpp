@@ -1,3 +1,4 @@
+#include "chronomap/core/format.h"
 #include "chronomap/analysis/alerts.h"
 
 #include <algorithm>
@@ -257,7 +258,7 @@ AlertReport findAlerts(const TemporalMap& map, double time_s, const AlertSetting
         if (std::abs(sessions[i].time_s - time_s) < std::abs(sessions[nearest].time_s - time_s)) nearest = i;
       }
       msg.append(" (the nearest is ").append(formatTime(sessions[nearest].time_s)).append("; ");
-      msg.append(std::to_string(sessions.size())).append(" sessions from ").append(formatTime(sessions.front().time_s));
+      msg.append(countOf(sessions.size(), "session")).append(" from ").append(formatTime(sessions.front().time_s));
       msg.append(" to ").append(formatTime(sessions.back().time_s)).append(")");
     }
     throw UsageError(msg);

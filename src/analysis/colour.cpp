@@ -319,6 +319,7 @@ ColourModel fitColour(const TemporalMap& map, double from_s, double to_s, const 
   m.from_s = d.from_s;
   m.to_s = d.to_s;
   m.resolution_m = map.resolution_m();
+  m.fitted_on = fittedOn(map, m.from_s, m.to_s);
   return m;
 }
 

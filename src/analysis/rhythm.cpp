@@ -9,6 +9,7 @@
 
 #include "chronomap/core/byte_buffer.h"
 #include "chronomap/core/error.h"
+#include "chronomap/core/format.h"
 #include "chronomap/temporal/coverage.h"
 #include "union_find.h"
 
@@ -464,6 +465,7 @@ RhythmModels fitRhythm(const TemporalMap& map, double from_s, double to_s, uint3
   models.from_s = map.sessions()[first].time_s;
   models.to_s = map.sessions()[end - 1].time_s;
   models.sessions = end - first;
+  models.fitted_on = fittedOn(map, models.from_s, models.to_s);
   return models;
 }
 
@@ -487,9 +489,9 @@ Rgb lastSeenColour(const TemporalMap& map, const VoxelKey& key, double time_s) {
 }  // namespace
 
 SessionMap predictMap(const TemporalMap& map, const RhythmModels& models, RhythmModel model, double time_s) {
-  if (std::abs(models.resolution_m - map.resolution_m()) > 1e-12 * map.resolution_m()) {
-    throw UsageError("the model was fitted at " + std::to_string(models.resolution_m) + " m, the map has " +
-                     std::to_string(map.resolution_m()) + " m voxels");
+  if (!sameResolution(models.resolution_m, map.resolution_m())) {
+    throw UsageError("the model was fitted at " + exactNumber(models.resolution_m) + " m, the map has " +
+                     exactNumber(map.resolution_m()) + " m voxels");
   }
   SessionMap out = map.snapshot(time_s);
   for (const VoxelRhythm& v : models.voxels) {

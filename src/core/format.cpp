@@ -1,5 +1,6 @@
 #include "chronomap/core/format.h"
 
+#include <charconv>
 #include <cstdio>
 
 namespace chronomap {
@@ -14,6 +15,19 @@ std::string humanBytes(double bytes) {
   char buf[32];
   std::snprintf(buf, sizeof(buf), u == 0 ? "%.0f %s" : "%.1f %s", bytes, units[u]);
   return buf;
+}
+
+std::string countOf(uint64_t count, std::string_view noun) {
+  std::string out = std::to_string(count);
+  out.append(" ").append(noun);
+  if (count != 1) out.append("s");
+  return out;
+}
+
+std::string exactNumber(double value) {
+  char buf[32];
+  const auto result = std::to_chars(buf, buf + sizeof(buf), value);
+  return std::string(buf, result.ptr);
 }
 
 }  // namespace chronomap

@@ -1,3 +1,4 @@
+#include "chronomap/core/format.h"
 #include "chronomap/pipeline/demo.h"
 
 #include <chrono>
@@ -219,7 +220,7 @@ DemoResult runDemo(const DemoSettings& settings) {
   const SimulationSummary simulated = chronomap::simulate(
       sim_settings, s.output / "data", [&](size_t done, size_t) { s.progress.advance("simulating", done, 6); });
 
-  s.progress.say("[2/6] integrating " + std::to_string(simulated.session_dirs.size()) + " sessions (" +
+  s.progress.say("[2/6] integrating " + countOf(simulated.session_dirs.size(), "session") + " (" +
                  (s.fast ? "fast" : "exact") + " mode, estimated poses)");
   fs::create_directories(s.output / "sessions", ec);
   SessionSettings session_settings;

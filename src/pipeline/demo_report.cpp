@@ -57,7 +57,7 @@ void mapAndPictures(std::ostream& md, const DemoReportInput& in) {
   const TemporalCounts counts = in.map.counts();
   const DemoResult& r = in.result;
   md << "## The 4D map\n\n"
-     << "- " << in.map.sessionCount() << " sessions, " << counts.nodes() << " nodes (" << counts.inner_nodes
+     << "- " << countOf(in.map.sessionCount(), "session") << ", " << counts.nodes() << " nodes (" << counts.inner_nodes
      << " inner, " << counts.entries << " history entries); the session maps on their own hold " << r.nodes_separate
      << " nodes, so the 4D map needs "
      << percent(static_cast<double>(counts.nodes()) / static_cast<double>(r.nodes_separate)) << " of that.\n"

@@ -1,5 +1,6 @@
 #include "chronomap/pipeline/rhythm.h"
 
+#include "chronomap/analysis/fitted_on.h"
 #include "chronomap/core/error.h"
 #include "chronomap/store/colour_file.h"
 #include "chronomap/export/map_server.h"
@@ -14,7 +15,12 @@ RhythmModels learnRhythm(const TemporalMap& map, const LearnSettings& s) {
     if (s.range_given || s.save) {
       throw UsageError("--rhythm reads a fitted model: it takes no --learn-from, --learn-to or --save-rhythm");
     }
-    return readRhythmModels(*s.saved);
+    RhythmModels models = readRhythmModels(*s.saved);
+    const FittedOnCheck check{s.saved->string(), s.map_name,
+                              "leave out --rhythm to fit the models on this map (--save-rhythm keeps them)",
+                              "--allow-other-map", s.allow_other_map};
+    if (const std::string warning = checkFittedOn(models, map, check); !warning.empty() && s.warn) s.warn(warning);
+    return models;
   }
   RhythmModels models = fitRhythm(map, s.from_s, s.to_s, s.min_changes);
   if (s.save) writeRhythmModels(*s.save, models);
@@ -27,11 +33,10 @@ ColourModel learnColour(const TemporalMap& map, const ColourLearnSettings& s) {
       throw UsageError("--colour-model reads a fitted model: it takes no --learn-from, --learn-to or --save-colour");
     }
     ColourModel model = readColourModel(*s.saved);
-    if (model.resolution_m != map.resolution_m()) {
-      throw UsageError(s.saved->string() + ": the colour model was learned on a map of " +
-                       std::to_string(model.resolution_m) + " m voxels; this map's are " +
-                       std::to_string(map.resolution_m()) + " m");
-    }
+    const FittedOnCheck check{s.saved->string(), s.map_name,
+                              "leave out --colour-model to fit the colour model on this map (--save-colour keeps it)",
+                              "--allow-other-map", s.allow_other_map};
+    if (const std::string warning = checkFittedOn(model, map, check); !warning.empty() && s.warn) s.warn(warning);
     return model;
   }
   ColourModel model = fitColour(map, s.from_s, s.to_s, s.fit);

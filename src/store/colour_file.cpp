@@ -6,23 +6,28 @@
 #include "chronomap/core/byte_buffer.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/file.h"
+#include "chronomap/core/key.h"
+#include "fitted_on_record.h"
 
 namespace chronomap {
 
 namespace {
 
 constexpr char kColourMagic[4] = {'C', 'M', 'C', 'O'};
-constexpr uint32_t kColourVersion = 1;
 constexpr uint8_t kColourKindLightCurves = 1;  ///< per-voxel weights under shared light curves
-constexpr size_t kColourHeaderBytes = 68;
+constexpr size_t kColourHeaderBytes = 84;      ///< version 2, without the learning times
 
 }  // namespace
 
-std::vector<uint8_t> serialize(const ColourModel& m) {
+std::vector<uint8_t> serialize(const ColourModel& m, uint32_t version) {
+  if (version < 1 || version > kColourVersion) {
+    throw UsageError("colour models are written in versions 1 to " + std::to_string(kColourVersion) + ", not " +
+                     std::to_string(version));
+  }
   ByteWriter w;
-  w.bytes.reserve(kColourHeaderBytes + m.bytes());
+  w.bytes.reserve(kColourHeaderBytes + 8 * m.fitted_on.times_s.size() + m.bytes());
   for (char c : kColourMagic) w.put(c);
-  w.put(kColourVersion);
+  w.put(version);
   w.put(kColourKindLightCurves);
   w.put(static_cast<uint8_t>(m.components));
   w.put(static_cast<uint16_t>(m.bins));
@@ -32,6 +37,7 @@ std::vector<uint8_t> serialize(const ColourModel& m) {
   w.put(static_cast<uint64_t>(m.sessions));
   w.put(static_cast<uint64_t>(m.observations));
   w.put(m.rms_error);
+  if (version >= 2) putFittedOn(w, m.fitted_on);
   w.put(static_cast<uint64_t>(m.keys.size()));
   for (double v : m.curves) w.put(v);
   const size_t per_voxel = 3 * static_cast<size_t>(m.components);
@@ -49,8 +55,10 @@ ColourModel deserializeColour(std::span<const uint8_t> bytes, const std::string&
   for (char c : kColourMagic) {
     if (r.get<char>() != c) throw FormatError(source + ": not a chronomap colour model");
   }
-  if (const auto version = r.get<uint32_t>(); version != kColourVersion) {
-    throw FormatError(source + ": colour model version " + std::to_string(version) + " (this build reads 1)");
+  const auto version = r.get<uint32_t>();
+  if (version < 1 || version > kColourVersion) {
+    throw FormatError(source + ": colour model version " + std::to_string(version) + " (this build reads 1 to " +
+                      std::to_string(kColourVersion) + ")");
   }
   if (const auto kind = r.get<uint8_t>(); kind != kColourKindLightCurves) {
     throw FormatError(source + ": colour model of unknown kind " + std::to_string(kind));
@@ -64,6 +72,8 @@ ColourModel deserializeColour(std::span<const uint8_t> bytes, const std::string&
   const auto sessions = r.get<uint64_t>();
   const auto observations = r.get<uint64_t>();
   m.rms_error = r.get<double>();
+  checkLearnedRange({sessions, m.from_s, m.to_s}, source);
+  if (version >= 2) m.fitted_on = getFittedOn(r, {sessions, m.from_s, m.to_s});
   const auto count = r.get<uint64_t>();
   ColourSettings ranges;  // the ranges validate() allows
   ranges.components = m.components;
@@ -77,9 +87,10 @@ ColourModel deserializeColour(std::span<const uint8_t> bytes, const std::string&
   const size_t per_voxel = 3 * static_cast<size_t>(m.components);
   const size_t curve_values = per_voxel * static_cast<size_t>(m.bins);
   const size_t record = 6 + 4 * per_voxel;
-  if (!std::isfinite(m.resolution_m) || m.resolution_m < 0.0 || !std::isfinite(m.from_s) || !std::isfinite(m.to_s) ||
-      m.to_s < m.from_s || !std::isfinite(m.rms_error) || m.rms_error < 0.0) {
-    throw FormatError(source + ": bad header (resolution, times or fit error)");
+  // Resolution 0: a model fitted without a map (fitColourObservations()).
+  if (!(m.resolution_m == 0.0 || (m.resolution_m >= kMinResolution_m && m.resolution_m <= kMaxResolution_m)) ||
+      !std::isfinite(m.rms_error) || m.rms_error < 0.0) {
+    throw FormatError(source + ": bad header (resolution or fit error)");
   }
   if (bytes.size() - r.pos < 8 * curve_values || count > (bytes.size() - r.pos - 8 * curve_values) / record) {
     throw FormatError(source + ": the colour model ends early (truncated): its header announces " +

@@ -13,6 +13,7 @@
 #include "assets.h"
 #include "printable.h"
 #include "chronomap/core/error.h"
+#include "chronomap/core/format.h"
 #include "chronomap/core/time.h"
 #include "chronomap/view/packet.h"
 
@@ -224,9 +225,9 @@ Reply Api::history(const Query& query) const {
 
 const RhythmModels& Api::rhythm() const {
   if (settings_.rhythm) {
-    if (std::abs(settings_.rhythm->resolution_m - map_.resolution_m()) > 1e-9) {
-      throw UsageError("the temporal models are for " + std::to_string(settings_.rhythm->resolution_m) +
-                       " m voxels, the map has " + std::to_string(map_.resolution_m()) + " m");
+    if (!sameResolution(settings_.rhythm->resolution_m, map_.resolution_m())) {
+      throw UsageError("the temporal models are for " + exactNumber(settings_.rhythm->resolution_m) +
+                       " m voxels, the map has " + exactNumber(map_.resolution_m()) + " m");
     }
     return *settings_.rhythm;
   }

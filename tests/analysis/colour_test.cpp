@@ -336,9 +336,11 @@ TEST(Colour, SavedModelsAnswerTheSameColoursAndBadBytesAreRefused) {
   const ColourModel m = fitColour(map, times.front(), times.back());
   EXPECT_EQ(m.resolution_m, map.resolution_m());
   const std::vector<uint8_t> bytes = serialize(m);
-  // A 68-byte header (magic, version, kind, shape, resolution, range, counts, fit error), the
-  // curves, then the voxels: what bytes() counts.
-  EXPECT_EQ(bytes.size(), 68u + m.bytes());
+  // An 84-byte header (magic, version, kind, shape, resolution, range, counts, fit error, the
+  // map's fingerprint and the number of learning times), the times, the curves, then the
+  // voxels: what bytes() counts.
+  ASSERT_EQ(m.fitted_on.times_s, times);
+  EXPECT_EQ(bytes.size(), 84u + 8u * times.size() + m.bytes());
   const ColourModel back = deserializeColour(bytes, "m.colour");
   EXPECT_EQ(back.components, m.components);
   EXPECT_EQ(back.bins, m.bins);
@@ -348,6 +350,8 @@ TEST(Colour, SavedModelsAnswerTheSameColoursAndBadBytesAreRefused) {
   EXPECT_EQ(back.from_s, m.from_s);
   EXPECT_EQ(back.to_s, m.to_s);
   EXPECT_EQ(back.rms_error, m.rms_error);
+  EXPECT_EQ(back.fitted_on.times_s, m.fitted_on.times_s);
+  EXPECT_EQ(back.fitted_on.fingerprint, m.fitted_on.fingerprint);
   ASSERT_EQ(back.keys.size(), m.keys.size());
   for (size_t v = 0; v < m.keys.size(); ++v) {
     EXPECT_EQ(back.keys[v], m.keys[v]);
@@ -376,8 +380,8 @@ TEST(Colour, SavedModelsAnswerTheSameColoursAndBadBytesAreRefused) {
   bad[0] = 'X';
   EXPECT_EQ(message(bad), "m.colour: not a chronomap colour model");
   bad = bytes;
-  bad[4] = 2;
-  EXPECT_EQ(message(bad), "m.colour: colour model version 2 (this build reads 1)");
+  bad[4] = 3;
+  EXPECT_EQ(message(bad), "m.colour: colour model version 3 (this build reads 1 to 2)");
   bad = bytes;
   bad[8] = 7;
   EXPECT_EQ(message(bad), "m.colour: colour model of unknown kind 7");

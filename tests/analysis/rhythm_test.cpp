@@ -317,10 +317,9 @@ TEST(Rhythm, SavedModelsAnswerTheSameAndBadBytesAreRefused) {
     VoxelSeries s = withCounters(sampled(28, 9, officeHours), 3, 0.02f, 0.5f);
     RhythmModels one;
     one.voxels.push_back(fitVoxel(s));
-    std::vector<uint8_t> v1 = serialize(one);
-    ASSERT_EQ(v1.size(), RhythmModels::kHeaderBytes + RhythmModels::kVoxelBytes + 8);
-    v1.resize(v1.size() - 8 - 8);  // the group count, then the record's group and hits_per_voxel
-    v1[4] = 1;                     // the version, little-endian after the magic
+    const std::vector<uint8_t> v1 = serialize(one, 1);
+    ASSERT_EQ(v1.size(), 44 + RhythmModels::kVoxelBytes - 8);  // no group, no hits_per_voxel, no group count
+    EXPECT_EQ(v1[4], 1);                                          // the version, little-endian after the magic
     const RhythmModels old = deserializeRhythm(v1, "v1.rhythm");
     ASSERT_EQ(old.voxels.size(), 1u);
     EXPECT_EQ(old.voxels[0].hits_per_voxel, -1.0f);
@@ -535,14 +534,8 @@ TEST(Rhythm, SavedModelsKeepTheirObjects) {
   RhythmGroupSettings off;
   off.enabled = false;
   const RhythmModels alone = fitSeries(doorSeries(), 0.05, off);
-  const std::vector<uint8_t> v3 = serialize(alone);
-  std::vector<uint8_t> v2;
-  v2.insert(v2.end(), v3.begin(), v3.begin() + static_cast<long>(RhythmModels::kHeaderBytes));
-  for (size_t i = 0; i < alone.voxels.size(); ++i) {
-    const auto record = v3.begin() + static_cast<long>(RhythmModels::kHeaderBytes + i * RhythmModels::kVoxelBytes);
-    v2.insert(v2.end(), record, record + static_cast<long>(RhythmModels::kVoxelBytes - 4));
-  }
-  v2[4] = 2;
+  const std::vector<uint8_t> v2 = serialize(alone, 2);
+  ASSERT_EQ(v2.size(), 44 + alone.voxels.size() * (RhythmModels::kVoxelBytes - 4));  // no groups
   const RhythmModels old = deserializeRhythm(v2, "v2.rhythm");
   ASSERT_EQ(old.voxels.size(), alone.voxels.size());
   EXPECT_TRUE(old.groups.empty());
@@ -551,10 +544,10 @@ TEST(Rhythm, SavedModelsKeepTheirObjects) {
     EXPECT_EQ(RhythmModels::predict(old.voxels[i], RhythmModel::Combined, kMonday_s + 29 * 86400.0),
               RhythmModels::predict(alone.voxels[i], RhythmModel::Combined, kMonday_s + 29 * 86400.0));
   }
-  // Version 4 is not read.
-  std::vector<uint8_t> v4 = bytes;
-  v4[4] = 4;
-  EXPECT_THROW(deserializeRhythm(v4, "v4.rhythm"), FormatError);
+  // Version 5 is not read.
+  std::vector<uint8_t> v5 = bytes;
+  v5[4] = 5;
+  EXPECT_THROW(deserializeRhythm(v5, "v5.rhythm"), FormatError);
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include "chronomap/store/cmap.h"
 #include "chronomap/store/diff_file.h"
 #include "chronomap/core/file.h"
+#include "chronomap/store/rhythm_file.h"
 #include "chronomap/store/temporal_file.h"
 #include "test_support.h"
 
@@ -255,6 +256,11 @@ TEST(AnalysisCli, AlertsRankTheSessionsChangesWithReasons) {
     EXPECT_TRUE(fs::exists(tmp / "out" / f)) << f;
   }
   EXPECT_FALSE(fs::exists(tmp / "out" / "alert_02.ply"));
+  // At the second session: one session of history, in the singular.
+  r = test::runCommand(cli() + " alerts " + m + " --at 2012-03-05T20:00:00Z --min-voxels 5");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("1 changed object at 2012-03-05T20:00:00Z"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("; 1 session of history)"), std::string::npos) << r.out;
   // Bad input: one line naming what is wrong.
   writeFileAtomic(tmp / "bad.cmap", std::vector<uint8_t>{'n', 'o', 'p', 'e'});
   const std::pair<std::string, std::string> bad[] = {
@@ -307,6 +313,90 @@ std::vector<double> writeLitWall(const fs::path& path, double colour_distance) {
   }
   writeTemporalMap(path, map, {});
   return times;
+}
+
+/// `a`'s 4D map with its first session replaced by the wall one voxel further along x: the same
+/// sessions' times and resolution, another map.
+void writeShiftedFirstSession(const fs::path& a, const fs::path& b) {
+  TemporalMap map = readTemporalMap(a);
+  SessionMap shifted(0.05);
+  for (int y = 0; y < 8; ++y) {
+    for (int x = 0; x < 8; ++x) shifted.add(at(x + 1, y, 0), occupied());
+  }
+  map.add(map.times().front(), shifted, AddSettings{true, "shifted"});
+  writeTemporalMap(b, map, {});
+}
+
+TEST(AnalysisCli, SavedModelsAreRefusedOnAnotherMap) {
+  test::TempDir tmp;
+  writeLitWall(tmp / "a.cmap", 4.0);
+  writeShiftedFirstSession(tmp / "a.cmap", tmp / "b.cmap");
+  const std::string a = (tmp / "a.cmap").string(), b = (tmp / "b.cmap").string();
+  const std::string rhythm = (tmp / "a.rhythm").string(), colour = (tmp / "a.colour").string();
+  const std::string when = " --at 2012-03-12T19:00:00Z ", band = " --z-min -1 --z-max 1 ";
+  // (view serves until stopped once its model passes: a time limit keeps a missed refusal from hanging.)
+  auto run = [&](const std::string& args) { return test::runCommand("timeout 30 " + cli() + " " + args); };
+  // Fitted on a and saved; used on a again: accepted without a word on stderr.
+  auto r = run("predict " + a + when + "--save-rhythm " + rhythm + " --save-colour " + colour + " -o " +
+               (tmp / "fit.png").string());
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  r = run("predict " + a + when + "--rhythm " + rhythm + " --colour-model " + colour + " -o " + (tmp / "p.png").string());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  r = run("costmap " + a + when + band + "--rhythm " + rhythm + " -o " + (tmp / "c.yaml").string());
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(r.err, "");
+  // view: the model passes; only the address (not one of this machine) stops it.
+  r = run("view " + a + " --rhythm " + rhythm + " --host 203.0.113.1 --port 1");
+  EXPECT_NE(r.err.find("cannot listen on 203.0.113.1"), std::string::npos) << r.err;
+
+  // On b (same times, other voxels): refused by predict, costmap and view, in one line naming
+  // both files, what differs and the way out; nothing written.
+  const std::string out = (tmp / "x.png").string();
+  const std::pair<std::string, std::string> refused[] = {
+      {"predict " + b + when + "--rhythm " + rhythm + " -o " + out, "a.rhythm: the rhythm model was fitted on another map"},
+      {"predict " + b + when + "--colour-model " + colour + " -o " + out, "a.colour: the colour model was fitted on another map"},
+      {"costmap " + b + when + band + "--rhythm " + rhythm + " -o " + (tmp / "x.yaml").string(),
+       "a.rhythm: the rhythm model was fitted on another map"},
+      {"view " + b + " --rhythm " + rhythm + " --port 0", "a.rhythm: the rhythm model was fitted on another map"},
+  };
+  for (const auto& [args, message] : refused) {
+    r = run(args);
+    EXPECT_EQ(r.exit_code, 2) << args;
+    EXPECT_NE(r.err.find(message), std::string::npos) << args << ": " << r.err;
+    EXPECT_NE(r.err.find("15 sessions from 2012-03-05T09:00:00Z to 2012-03-09T19:00:00Z"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("observed other voxels"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("b.cmap has 15 sessions"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("or pass --allow-other-map to use it anyway"), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_FALSE(fs::exists(tmp / "x.yaml"));
+  // --allow-other-map: used, with the same facts as a warning.
+  r = run("predict " + b + when + "--rhythm " + rhythm + " --colour-model " + colour + " --allow-other-map -o " + out);
+  EXPECT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("chronomap: warning: " + rhythm + ": the rhythm model was fitted on another map"),
+            std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("used anyway, as --allow-other-map asks"), std::string::npos) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 2) << r.err;  // the rhythm and the colour model
+
+  // A model saved before the fingerprint (.rhythm version 3) cannot be checked beyond its
+  // resolution and learning range: used with a warning that says so.
+  const std::string old = (tmp / "old.rhythm").string();
+  writeFileAtomic(old, serialize(readRhythmModels(rhythm), 3));
+  for (const std::string& map : {a, b}) {
+    r = run("predict " + map + when + "--rhythm " + old + " -o " + (tmp / "o.png").string());
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.err.find("chronomap: warning: " + old + ": the rhythm model records no fingerprint of the map"),
+              std::string::npos) << r.err;
+  }
+  // ... and refused on a map without its first or last learning session.
+  TemporalMap later = readTemporalMap(a);
+  later.remove(later.times().front());
+  writeTemporalMap(tmp / "later.cmap", later, {});
+  r = run("predict " + (tmp / "later.cmap").string() + when + "--rhythm " + old + " -o " + out);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("later.cmap has no session at 2012-03-05T09:00:00Z"), std::string::npos) << r.err;
 }
 
 TEST(AnalysisCli, ColourPredictionAndLightingInvariantDiff) {

@@ -31,6 +31,7 @@
 #include <string>
 #include <vector>
 
+#include "chronomap/analysis/fitted_on.h"
 #include "chronomap/core/counters.h"
 #include "chronomap/core/key.h"
 #include "chronomap/octree/session_map.h"
@@ -71,6 +72,7 @@ struct ColourModel {
   size_t observations = 0;          ///< colour observations used
   double rms_error = 0.0;           ///< RMS of the fit over those observations, per channel, 8-bit units
   double resolution_m = 0.0;        ///< of the map it was learned from (fitColour()); 0: not from a map
+  FittedOn fitted_on;               ///< the learning sessions' times and the map's fingerprint (fitColour())
 
   /// Curve j, channel c at `hour` (any real: taken modulo 24).
   double curve(int j, int c, double hour) const;

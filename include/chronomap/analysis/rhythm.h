@@ -40,6 +40,7 @@
 
 #include "chronomap/core/key.h"
 #include "chronomap/octree/session_map.h"
+#include "chronomap/analysis/fitted_on.h"
 #include "chronomap/temporal/temporal_map.h"
 
 namespace chronomap {
@@ -133,6 +134,7 @@ struct RhythmModels {
   double resolution_m = 0.05;
   double from_s = 0.0, to_s = 0.0;  ///< the learning sessions' times
   uint32_t sessions = 0;            ///< learning sessions
+  FittedOn fitted_on;               ///< their times and the map's fingerprint (fitRhythm())
   std::vector<VoxelRhythm> voxels;
   std::vector<RhythmGroup> groups;  ///< objects whose pooled profile some voxel's Combined uses
 
@@ -141,10 +143,14 @@ struct RhythmModels {
   /// The fitted cube containing `key`, or null (binary search: voxels are sorted by Morton code
   /// of their corners, which fit() guarantees).
   const VoxelRhythm* find(const VoxelKey& key) const;
-  /// Bytes of a saved model: a 44-byte header, 105 bytes per cube (97 in version 1, 101 in
-  /// version 2), then (version 3) an 8-byte group count and 96 bytes per group.
-  static constexpr size_t kHeaderBytes = 44, kVoxelBytes = 105, kGroupBytes = 96;
-  size_t bytes() const { return kHeaderBytes + voxels.size() * kVoxelBytes + 8 + groups.size() * kGroupBytes; }
+  /// Bytes of a saved model (version 4): a 60-byte header and 8 bytes per recorded learning
+  /// session's time, 105 bytes per cube, then an 8-byte group count and 96 bytes per group.
+  /// Older versions: a 44-byte header without the fingerprint and times; 97 bytes per cube in
+  /// version 1, 101 in version 2; no groups before version 3.
+  static constexpr size_t kHeaderBytes = 60, kVoxelBytes = 105, kGroupBytes = 96;
+  size_t bytes() const {
+    return kHeaderBytes + 8 * fitted_on.times_s.size() + voxels.size() * kVoxelBytes + 8 + groups.size() * kGroupBytes;
+  }
 };
 
 /// Fits every model to the observations of the sessions with times in [from_s, to_s], for the
@@ -167,7 +173,8 @@ double surfaceEvidence(const VoxelRhythm& rhythm);
 /// probability (P = 1 - exp(-hits / length)), coloured as it looked when last seen occupied.
 /// Voxels without a model keep
 /// their last observed state; unknown stays unknown.
-/// @throw UsageError when the models' resolution differs from the map's.
+/// Saved models belong to the map they were fitted on: check them first (checkFittedOn()).
+/// @throw UsageError when the models' resolution differs from the map's (sameResolution()).
 SessionMap predictMap(const TemporalMap& map, const RhythmModels& models, RhythmModel model, double time_s);
 
 

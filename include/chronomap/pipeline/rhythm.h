@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <limits>
 #include <optional>
 #include <string>
@@ -24,11 +25,18 @@ struct LearnSettings {
   double to_s = std::numeric_limits<double>::infinity();
   bool range_given = false;  ///< from_s or to_s was set by the user
   uint32_t min_changes = 1;
+  /// A saved model: how the map is named in messages, whether a model fitted on another map is
+  /// used anyway (checkFittedOn()), and where warnings go (none when empty).
+  std::string map_name = "the map";
+  bool allow_other_map = false;
+  std::function<void(const std::string& warning)> warn;
 };
 
-/// The models of `map`: read from `saved`, or fitted (fitRhythm) and written to `save` if set.
-/// @throw UsageError for `saved` with a learning range or `save`; what fitRhythm and the
-/// .rhythm reader and writer throw.
+/// The models of `map`: read from `saved` and checked against the map (checkFittedOn(): fitted
+/// on another map or at another resolution is refused, unless `allow_other_map`; a warning when
+/// the file cannot tell), or fitted (fitRhythm) and written to `save` if set.
+/// @throw UsageError for `saved` with a learning range or `save`, or not fitted on `map`; what
+/// fitRhythm and the .rhythm reader and writer throw.
 RhythmModels learnRhythm(const TemporalMap& map, const LearnSettings& settings);
 
 /// Where learnColour() takes the colour model from.
@@ -39,12 +47,16 @@ struct ColourLearnSettings {
   double to_s = std::numeric_limits<double>::infinity();
   bool range_given = false;  ///< from_s or to_s was set by the user
   ColourSettings fit;        ///< how a model is fitted (not used with `saved`)
+  /// As LearnSettings: a saved model's check against the map.
+  std::string map_name = "the map";
+  bool allow_other_map = false;
+  std::function<void(const std::string& warning)> warn;
 };
 
-/// The colour model of `map`: read from `saved` (it must have been learned at the map's
-/// resolution), or fitted (fitColour) and written to `save` if set.
-/// @throw UsageError for `saved` with a learning range or `save`, or learned at another
-/// resolution; what fitColour and the .colour reader and writer throw.
+/// The colour model of `map`: read from `saved` and checked against the map as learnRhythm()
+/// checks a saved .rhythm, or fitted (fitColour) and written to `save` if set.
+/// @throw UsageError for `saved` with a learning range or `save`, or not fitted on `map`; what
+/// fitColour and the .colour reader and writer throw.
 ColourModel learnColour(const TemporalMap& map, const ColourLearnSettings& settings);
 
 /// The files of a costmap: the map_server YAML and, beside it, its PGM and a PNG picture.
