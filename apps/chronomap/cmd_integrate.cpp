@@ -215,9 +215,9 @@ namespace {
 
 std::string memoryLimitHelp() {
   std::string help(
-      "most memory integration may take, GiB: the session map, and one frame's scratch per thread (this over "
-      "the threads); past it, integration stops and says what it needed. 0 = no limit; default half the "
-      "physical memory (");
+      "most memory integration may take, GiB: the session map with the frames' scratch, and one frame's scratch "
+      "per thread (this over the threads); past it, integration stops and says what it needed. 0 = no limit; "
+      "default half the memory this process may use (physical memory, ulimit -v, the cgroup's limit: ");
   return help.append(humanBytes(static_cast<double>(defaultMemoryLimitBytes()))).append(" here)");
 }
 

@@ -28,6 +28,7 @@ void checkSizes(size_t depth_pixels, uint32_t width, uint32_t height, const Imag
 PointCloud depthMetresToCloud(std::span<const float> depth_m, uint32_t width, uint32_t height, const ImageRgb* rgb,
                               const CameraIntrinsics& k, const std::string& source) {
   checkSizes(depth_m.size(), width, height, rgb, source);
+  checkIntrinsicsFit(k, width, height, source);
   PointCloud cloud;
   cloud.width = width;
   cloud.height = height;
