@@ -1,5 +1,6 @@
 #include "chronomap/core/format.h"
 
+#include <charconv>
 #include <cstdio>
 
 namespace chronomap {
@@ -14,6 +15,12 @@ std::string humanBytes(double bytes) {
   char buf[32];
   std::snprintf(buf, sizeof(buf), u == 0 ? "%.0f %s" : "%.1f %s", bytes, units[u]);
   return buf;
+}
+
+std::string formatNumber(double v) {
+  char buf[32];
+  const auto result = std::to_chars(buf, buf + sizeof(buf), v);  // 24 characters at most
+  return std::string(buf, result.ptr);
 }
 
 }  // namespace chronomap
