@@ -183,12 +183,12 @@ void integrateParallel(const FrameSource& source, SessionMap& map, const Integra
           mergeDeltas(map, buffers[b]);
           try {
             checkMapMemory(map, settings);
+            total += buffers[b].stats;
+            if (progress) progress(static_cast<size_t>(total.frames), n);  // may throw to stop
           } catch (...) {
             CHRONOMAP_HAPPENS_BEFORE(&merge_turn);  // to the caller, which rethrows
             throw;
           }
-          total += buffers[b].stats;
-          if (progress) progress(static_cast<size_t>(total.frames), n);
           {
             std::lock_guard<std::mutex> lock(free_mutex);
             free_buffers.push_back(b);
@@ -199,8 +199,8 @@ void integrateParallel(const FrameSource& source, SessionMap& map, const Integra
     try {
       tbb::parallel_pipeline(tokens, stages);
     } catch (...) {
-      // A stage threw (a bad frame, the memory limit): TBB has waited for the others, and
-      // the stages that ran marked what they touched.
+      // A stage threw (a bad frame, the memory limit, a progress callback stopping the work):
+      // TBB has waited for the others, and the stages that ran marked what they touched.
       CHRONOMAP_HAPPENS_AFTER(&source_turn);
       CHRONOMAP_HAPPENS_AFTER(&handed_over);
       CHRONOMAP_HAPPENS_AFTER(&merge_turn);
