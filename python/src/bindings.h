@@ -2,9 +2,14 @@
 // The pieces of the _chronomap module and the array conversions they share. The bindings wrap
 // library calls (pipeline/ and the modules below) and add no logic of their own.
 
+#include <array>
+#include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -30,19 +35,62 @@ void bindAnalysis(py::module_& m);
 void bindPipeline(py::module_& m);
 void bindRhythm(py::module_& m);
 
-/// Forwards pipeline progress to a Python callable(label, done, total), taking the GIL for the
-/// call. An exception it raises is kept and raised again once the library call has returned
-/// (rethrow()); later reports are then dropped.
-struct ProgressForwarder {
-  py::object callback;
-  std::shared_ptr<py::error_already_set> raised;
+/// Serialises the calls on one bound object whose state changes (a TemporalMap, an Integrator):
+/// every method of those classes, and every function that reads one, holds the object's lock
+/// from its first line to its return, including while the GIL is released. A second thread
+/// waits (without the GIL) until the first is done, so threads sharing an object get what
+/// calling one after another gives. Construct with the GIL held. Nothing holding a lock calls
+/// back into Python code that could ask for the same lock.
+class ObjectLock {
+ public:
+  explicit ObjectLock(const void* object);
+  /// Both objects' locks, taken in address order (one lock when they are the same object).
+  ObjectLock(const void* a, const void* b);
+  ~ObjectLock();
+  ObjectLock(const ObjectLock&) = delete;
+  ObjectLock& operator=(const ObjectLock&) = delete;
 
+  struct Slot;
+
+ private:
+  static Slot* acquire(const void* object);
+  static void release(const void* object, Slot* slot);
+  std::array<std::pair<const void*, Slot*>, 2> held_{};
+};
+
+/// A long library call that Ctrl-C stops. The call runs on a worker thread while the calling
+/// thread waits without the GIL and, every 20 ms, runs Python's signal handlers
+/// (PyErr_CheckSignals: only the main thread runs them, so a call blocked in C++ on the main
+/// thread would never see Ctrl-C). When a handler raises (KeyboardInterrupt), the call is
+/// stopped at its next progress report (the library unwinds as on an error: nothing is
+/// written), waited for, and the handler's exception is raised. progress() also forwards each
+/// report to the Python `callback(label, done, total)` with the GIL; an exception that raises
+/// stops the call the same way and is raised.
+class LongCall {
+ public:
+  explicit LongCall(py::object callback = py::none());
+  /// For the library call: every step and report first checks whether to stop.
   Progress progress();
-  void rethrow() const;
+  /// Runs `work` (which must not touch Python objects) as described. Call with the GIL held.
+  template <class Fn>
+  auto run(Fn&& work) -> decltype(work()) {
+    std::optional<decltype(work())> result;
+    runErased([&] { result.emplace(work()); });
+    return std::move(*result);
+  }
+
+ private:
+  void runErased(const std::function<void()>& work);
+  py::object callback_;
+  bool has_callback_ = false;
+  std::atomic<bool> stop_{false};
+  std::shared_ptr<py::error_already_set> raised_;  // by the callback
 };
 
 /// A time as epoch seconds: a real number, or a datetime.datetime (naive ones are taken as
-/// UTC). @throw py::type_error for anything else, naming `name`.
+/// UTC), checked by checkTime (core/time.h) as the command line checks its times.
+/// @throw py::type_error for anything else, naming `name`; UsageError (a ValueError) for NaN
+/// or a time outside the years 1 to 9999, naming `name` and the value.
 double toSeconds(const py::handle& time, const char* name);
 /// Epoch seconds as an aware datetime.datetime in UTC.
 py::object toDatetime(double time_s);

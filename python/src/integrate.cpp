@@ -7,6 +7,7 @@
 #include <string>
 
 #include "bindings.h"
+#include "chronomap/core/camera.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/pose.h"
 #include "chronomap/integrate/incremental.h"
@@ -42,24 +43,35 @@ SessionMap integrateDatasetPy(const std::filesystem::path& path, double resoluti
   settings.integrator.threads = threads;
   settings.dataset.format = parseRecordingFormat(format);
   settings.dataset.depth_scale = depth_scale;
-  ProgressForwarder forwarder{progress, nullptr};
-  std::optional<IntegratedSession> session;
-  {
-    py::gil_scoped_release release;
-    session = integrateDataset(path, settings, {}, forwarder.progress());
-  }
-  forwarder.rethrow();
-  return std::move(session->map);
+  LongCall call(progress);
+  const Progress report = call.progress();
+  return call.run([&] { return integrateDataset(path, settings, {}, report).map; });
 }
 
-/// (fx, fy, cx, cy) or a 3x3 K matrix.
+/// (fx, fy, cx, cy) or a 3x3 K matrix. @throw UsageError (a ValueError) naming the values when
+/// intrinsicsValid refuses them.
 CameraIntrinsics toIntrinsics(const py::handle& h) {
   const py::array a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(h);
   if (!a) throw py::type_error("intrinsics: expected (fx, fy, cx, cy) or a 3x3 matrix of numbers");
   const auto* p = static_cast<const double*>(a.data());
-  if (a.size() == 4 && a.ndim() == 1) return {p[0], p[1], p[2], p[3]};
-  if (a.ndim() == 2 && a.shape(0) == 3 && a.shape(1) == 3) return {p[0], p[4], p[2], p[5]};
-  throw py::value_error("intrinsics: expected (fx, fy, cx, cy) or a 3x3 matrix");
+  CameraIntrinsics k;
+  if (a.size() == 4 && a.ndim() == 1) {
+    k = {p[0], p[1], p[2], p[3]};
+  } else if (a.ndim() == 2 && a.shape(0) == 3 && a.shape(1) == 3) {
+    k = {p[0], p[4], p[2], p[5]};
+  } else {
+    throw py::value_error("intrinsics: expected (fx, fy, cx, cy) or a 3x3 matrix");
+  }
+  // The check of every reader and back-projection (core/camera.h; a negative focal length
+  // would mirror the map), refused as a bad argument.
+  if (!intrinsicsValid(k)) {
+    try {
+      checkIntrinsics(k, "add_frame");
+    } catch (const DataError& e) {
+      throw UsageError(e.what());
+    }
+  }
+  return k;
 }
 
 /// The depth image as an organized cloud in the camera frame: uint16 with `depth_scale` units
@@ -117,6 +129,7 @@ void addFrame(IncrementalIntegrator& integrator, const py::handle& depth, const 
   if (!rgb.is_none()) colour = toRgbImage(rgb, "rgb");
   frame.cloud = depthCloud(depth, colour ? &*colour : nullptr, k, depth_scale);
   frame.source = "add_frame";
+  const ObjectLock lock(&integrator);
   py::gil_scoped_release release;
   integrator.add(frame);
 }
@@ -129,6 +142,7 @@ void addPoints(IncrementalIntegrator& integrator, const py::handle& points_world
   frame.T_world_sensor = Eigen::Translation3d(o);
   if (!colours.is_none()) frame.cloud.colours = toColours(colours, points.size(), "colors");
   frame.source = "add_points";
+  const ObjectLock lock(&integrator);
   py::gil_scoped_release release;
   frame.cloud.points.reserve(points.size());
   for (const Eigen::Vector3d& p : points) frame.cloud.points.push_back((p - o).cast<float>());
@@ -176,7 +190,8 @@ void bindIntegrate(py::module_& m) {
         py::arg("carve_level") = "auto",
         "Integrates the recording at `path` (any format formats() lists, as "
         "`chronomap integrate` reads it) into a SessionMap. `progress`, if given, is called as "
-        "progress(label, done, total) after each frame. The GIL is released while it runs. "
+        "progress(label, done, total) after each frame (on another thread, with the GIL). The GIL is released while "
+        "it runs; Ctrl-C stops it at the next frame with KeyboardInterrupt. "
         "carve_beyond_range=True carves free space along the rays of points beyond max_range_m, up to the "
         "range (`--carve-beyond-range`). carve_level (fast mode): free space far from the surfaces in cubes of "
         "2**L voxels per axis; 'auto' is 2 at 0.025 m and finer, 0 (off) above (`--carve-level`).");
@@ -190,21 +205,38 @@ void bindIntegrate(py::module_& m) {
       .def("add_frame", &addFrame, py::arg("depth"), py::arg("intrinsics"), py::arg("T_world_camera"),
            py::arg("rgb") = py::none(), py::arg("depth_scale") = 1000.0,
            "Adds a depth image: (H, W) uint16 with depth_scale units per metre, or float32 metres (0 = no "
-           "measurement); intrinsics (fx, fy, cx, cy) or a 3x3 K; T_world_camera a 4x4 camera-to-world "
+           "measurement); intrinsics (fx, fy, cx, cy) or a 3x3 K (focal lengths positive, all finite, else "
+           "UsageError); T_world_camera a 4x4 camera-to-world "
            "matrix; rgb an optional (H, W, 3) uint8 image.")
       .def("add_points", &addPoints, py::arg("points_world"), py::arg("origin"), py::arg("colors") = py::none(),
            "Adds (N, 3) points in the world frame seen from the sensor at `origin` (3,), with optional "
            "(N, 3) uint8 colours.")
       .def_property_readonly(
-          "map", [](const IncrementalIntegrator& i) { return i.map(); },
+          "map",
+          [](const IncrementalIntegrator& i) {
+            const ObjectLock lock(&i);
+            py::gil_scoped_release release;
+            return i.map();
+          },
           "A copy of the map so far (free space not yet compressed).")
       .def_property_readonly(
-          "frames", [](const IncrementalIntegrator& i) { return i.stats().frames; }, "Frames added so far.")
+          "frames",
+          [](const IncrementalIntegrator& i) {
+            const ObjectLock lock(&i);
+            return i.stats().frames;
+          },
+          "Frames added so far.")
       .def_property_readonly(
-          "points", [](const IncrementalIntegrator& i) { return i.stats().points; }, "Points cast as rays so far.")
+          "points",
+          [](const IncrementalIntegrator& i) {
+            const ObjectLock lock(&i);
+            return i.stats().points;
+          },
+          "Points cast as rays so far.")
       .def(
           "finish",
           [](IncrementalIntegrator& i) {
+            const ObjectLock lock(&i);
             py::gil_scoped_release release;
             return i.finish();
           },

@@ -1,42 +1,26 @@
 // The workflows on 4D map files (build, chronomap::addSession) and what the bindings
-// share for them: progress forwarded to Python, times as epoch seconds or datetimes.
+// share for them: times as epoch seconds or datetimes, checked as the command line checks them.
+// (Progress forwarded to Python, and Ctrl-C: LongCall in guards.cpp.)
 
 #include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
 
-
 #include "bindings.h"
+#include "chronomap/core/format.h"
+#include "chronomap/core/time.h"
 #include "chronomap/pipeline/map4d.h"
 
 namespace chronomap::python {
-
-Progress ProgressForwarder::progress() {
-  Progress p;
-  if (callback.is_none()) return p;
-  p.work = [this](const std::string& label, size_t done, size_t total) {
-    py::gil_scoped_acquire acquire;
-    if (raised) return;
-    try {
-      callback(label, done, total);
-    } catch (py::error_already_set& e) {
-      raised = std::make_shared<py::error_already_set>(std::move(e));
-    }
-  };
-  return p;
-}
-
-void ProgressForwarder::rethrow() const {
-  if (raised) throw *raised;
-}
 
 double toSeconds(const py::handle& time, const char* name) {
   const py::module_ datetime = py::module_::import("datetime");
   if (py::isinstance(time, datetime.attr("datetime"))) {
     py::object t = py::reinterpret_borrow<py::object>(time);
     if (t.attr("tzinfo").is_none()) t = t.attr("replace")(py::arg("tzinfo") = datetime.attr("timezone").attr("utc"));
-    return t.attr("timestamp")().cast<double>();
+    const double seconds = t.attr("timestamp")().cast<double>();
+    return checkTime(seconds, std::string(name) + " " + exactNumber(seconds));
   }
   if (py::isinstance<py::bool_>(time) || !(py::isinstance<py::float_>(time) || py::isinstance<py::int_>(time) ||
                                             py::hasattr(time, "__float__"))) {
@@ -44,7 +28,8 @@ double toSeconds(const py::handle& time, const char* name) {
     msg.append(": expected epoch seconds or a datetime.datetime, got ");
     throw py::type_error(msg.append(py::str(py::type::handle_of(time).attr("__name__")).cast<std::string>()));
   }
-  return time.cast<double>();
+  const double seconds = time.cast<double>();
+  return checkTime(seconds, std::string(name) + " " + exactNumber(seconds));
 }
 
 py::object toDatetime(double time_s) {
@@ -96,14 +81,9 @@ py::dict buildPy(const std::filesystem::path& map, const std::vector<std::filesy
   }
   if (realign) settings.realign = RealignSettings{};
   settings.replace = replace;
-  ProgressForwarder forwarder{progress, nullptr};
-  settings.progress = forwarder.progress();
-  BuildResult result;
-  {
-    py::gil_scoped_release release;
-    result = build(settings);
-  }
-  forwarder.rethrow();
+  LongCall call(progress);
+  settings.progress = call.progress();
+  const BuildResult result = call.run([&] { return build(settings); });
   py::dict d;
   d["created"] = result.created;
   d["sessions"] = result.sessions;
@@ -156,7 +136,8 @@ void bindPipeline(py::module_& m) {
         "does: integrated, ordered by time, registered to their consensus (register=True) and re-aligned "
         "(realign=True) when asked, added and written once, atomically. `times`: one per dataset (epoch "
         "seconds, datetime, or None for the dataset's own first timestamp), or None. `progress(label, done, "
-        "total)` is called as work advances. Returns a summary dict with one entry per added session.");
+        "total)` is called as work advances; Ctrl-C stops the work at the next frame, writing nothing. Returns a "
+        "summary dict with one entry per added session.");
   m.def("add_session", &addSessionPy, py::arg("map"), py::arg("session"), py::arg("time") = py::none(),
         py::arg("replace") = false, py::arg("write") = "auto", py::arg("realign") = false,
         "Adds the session map file `session` to the 4D map file `map` (created when missing), as `chronomap "

@@ -18,6 +18,7 @@ RhythmModels fit(const TemporalMap& map, const py::object& from, const py::objec
   const double inf = std::numeric_limits<double>::infinity();
   const double from_s = from.is_none() ? -inf : toSeconds(from, "from_time");
   const double to_s = to.is_none() ? inf : toSeconds(to, "to_time");
+  const ObjectLock lock(&map);
   py::gil_scoped_release release;
   return fitRhythm(map, from_s, to_s, min_changes);
 }
@@ -69,6 +70,7 @@ ColourModel fitColourPy(const TemporalMap& map, const py::object& from, const py
   const double to_s = to.is_none() ? inf : toSeconds(to, "to_time");
   ColourSettings s;
   s.components = components;
+  const ObjectLock lock(&map);
   py::gil_scoped_release release;
   return fitColour(map, from_s, to_s, s);
 }
@@ -130,6 +132,7 @@ void bindRhythm(py::module_& m) {
           [](const RhythmModels& r, const TemporalMap& map, const py::handle& time, const std::string& model) {
             const double t = toSeconds(time, "time");
             const RhythmModel which = parseRhythmModel(model);
+            const ObjectLock lock(&map);
             py::gil_scoped_release release;
             return predictMap(map, r, which, t);
           },

@@ -19,6 +19,7 @@ namespace {
 
 py::list historyOf(const TemporalMap& map, const py::handle& point) {
   const Eigen::Vector3d p = toVector3(point, "point");
+  const ObjectLock lock(&map);
   py::list out;
   const auto key = map.grid().keyOf(p);
   if (!key) return out;
@@ -36,6 +37,7 @@ py::dict addSession(TemporalMap& map, const SessionMap& session, const py::handl
   options.replace = replace;
   AddReport report;
   {
+    const ObjectLock lock(&map);
     py::gil_scoped_release release;
     report = map.add(time_s, session, options);
   }
@@ -55,6 +57,7 @@ DiffMap diffTimes(const TemporalMap& map, const py::handle& t1, const py::handle
       diffSettings(mode, alpha, neighbourhood_voxels, min_shift_voxels, kept_surface_radius_voxels, kept_surface_share,
                    dark_surface_radius_voxels, dark_surface_brightness, dark_surface_contrast, dark_surface_share);
   const double t1_s = toSeconds(t1, "t1"), t2_s = toSeconds(t2, "t2");
+  const ObjectLock lock(&map);
   py::gil_scoped_release release;
   return diff(map, t1_s, t2_s, settings);
 }
@@ -67,6 +70,7 @@ std::pair<double, double> interval(const py::object& from, const py::object& to)
 
 py::tuple changeCounts(const TemporalMap& map, const py::object& from, const py::object& to, uint32_t min_changes) {
   const auto [from_s, to_s] = interval(from, to);
+  const ObjectLock lock(&map);
   ChangeFrequency f;
   {
     py::gil_scoped_release release;
@@ -83,6 +87,7 @@ py::tuple changeCounts(const TemporalMap& map, const py::object& from, const py:
 
 py::array_t<uint64_t> changeHistogramPy(const TemporalMap& map, const py::object& from, const py::object& to) {
   const auto [from_s, to_s] = interval(from, to);
+  const ObjectLock lock(&map);
   std::vector<uint64_t> h;
   {
     py::gil_scoped_release release;
@@ -94,6 +99,8 @@ py::array_t<uint64_t> changeHistogramPy(const TemporalMap& map, const py::object
 }  // namespace
 
 void bindTemporal(py::module_& m) {
+  // Every method that reads or changes the map holds its ObjectLock: threads sharing one map
+  // run their calls one after another (even const calls: the change layers fill a cache).
   py::class_<TemporalMap>(m, "TemporalMap", "The 4D map: every observed state of a place, session by session.")
       .def(py::init([](double resolution_m, double colour_distance) {
              return TemporalMap(resolution_m, ChangeCriterion{0.0, colour_distance});
@@ -111,29 +118,42 @@ void bindTemporal(py::module_& m) {
       .def(
           "save",
           [](const TemporalMap& map, const std::filesystem::path& path) {
+            const ObjectLock lock(&map);
             py::gil_scoped_release release;
             writeTemporalMap(path, map, nlohmann::json::object());
           },
           py::arg("path"), "Writes the 4D map file (.cmap), atomically.")
-      .def_property_readonly("resolution_m", &TemporalMap::resolution_m, "Voxel edge length in metres.")
+      .def_property_readonly("resolution_m", &TemporalMap::resolution_m,
+                             "Voxel edge length in metres (fixed when the map is made: no lock).")
       .def_property_readonly(
-          "times_s", [](const TemporalMap& map) { return vectorArray(map.times()); },
+          "times_s",
+          [](const TemporalMap& map) {
+            const ObjectLock lock(&map);
+            return vectorArray(map.times());
+          },
           "Session times (seconds since the epoch), increasing, as a float64 array.")
       .def_property_readonly(
           "times",
           [](const TemporalMap& map) {
+            std::vector<double> times;
+            {
+              const ObjectLock lock(&map);
+              times = map.times();
+            }
             py::list out;
-            for (double t : map.times()) out.append(toDatetime(t));
+            for (double t : times) out.append(toDatetime(t));
             return out;
           },
           "Session times as aware datetime.datetime objects in UTC, increasing.")
       .def("add", &addSession, py::arg("session"), py::arg("time"), py::arg("name") = "", py::arg("replace") = false,
            "Adds a SessionMap observed at `time` (epoch seconds, or a datetime; naive datetimes are UTC); returns "
-           "what changed in the map. Raises UsageError for a time already stored unless replace=True.")
+           "what changed in the map. Raises UsageError for a time already stored unless replace=True, or one outside "
+           "the years 1 to 9999. Threads sharing the map run their calls on it one after another.")
       .def(
           "snapshot",
           [](const TemporalMap& map, const py::handle& time) {
             const double time_s = toSeconds(time, "time");
+            const ObjectLock lock(&map);
             py::gil_scoped_release release;
             return map.snapshot(time_s);
           },
@@ -160,8 +180,16 @@ void bindTemporal(py::module_& m) {
            py::arg("dark_surface_share") = DiffSettings::kDefaultDarkSurfaceShare,
            "What changed from the state at t1 to the state at t2 (epoch seconds or datetimes): the diff of the two snapshots, visiting "
            "only what changed in between. Settings as chronomap.diff.")
-      .def("__len__", &TemporalMap::sessionCount)
-      .def("__eq__", [](const TemporalMap& a, const TemporalMap& b) { return a == b; });
+      .def("__len__",
+           [](const TemporalMap& map) {
+             const ObjectLock lock(&map);
+             return map.sessionCount();
+           })
+      .def("__eq__", [](const TemporalMap& a, const TemporalMap& b) {
+        const ObjectLock lock(&a, &b);
+        py::gil_scoped_release release;
+        return a == b;
+      });
 }
 
 }  // namespace chronomap::python

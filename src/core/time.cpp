@@ -112,18 +112,15 @@ bool parseIso(std::string_view s, double& out) {
 
 }  // namespace
 
-namespace {
-
-double inRange(double v, const std::string& quoted) {
-  if (v < kEarliestTime_s || v > kLatestTime_s) {
-    throw UsageError("time " + quoted + " lies outside the years 1 to 9999 (seconds since the epoch from " +
+double checkTime(double seconds, const std::string& what) {
+  if (std::isnan(seconds)) throw UsageError(what + " is not a number (give seconds since the epoch)");
+  if (seconds < kEarliestTime_s || seconds > kLatestTime_s) {
+    throw UsageError(what + " lies outside the years 1 to 9999 (seconds since the epoch from " +
                      std::to_string(static_cast<int64_t>(kEarliestTime_s)) + " to " +
                      std::to_string(static_cast<int64_t>(kLatestTime_s)) + ")");
   }
-  return v;
+  return seconds;
 }
-
-}  // namespace
 
 double parseTime(std::string_view text) {
   std::string_view s = text;
@@ -139,13 +136,13 @@ double parseTime(std::string_view text) {
     if (ec != std::errc{} || end != s.data() + s.size() || !std::isfinite(v)) {
       throw UsageError("time " + quoted + " is neither ISO-8601 (2012-03-01T10:00:00Z) nor seconds since the epoch");
     }
-    return inRange(v, quoted);
+    return checkTime(v, "time " + quoted);
   }
   double v = 0.0;
   if (!parseIso(s, v)) {
     throw UsageError("time " + quoted + " is not a valid ISO-8601 time (expected e.g. 2012-03-01T10:00:00Z)");
   }
-  return inRange(v, quoted);
+  return checkTime(v, "time " + quoted);
 }
 
 std::string formatTime(double seconds) {

@@ -190,12 +190,12 @@ void integrateParallel(const FrameSource& source, SessionMap& map, const Integra
             size_t in_flight = 0;
             for (const std::atomic<size_t>& bytes : scratch) in_flight += bytes.load(std::memory_order_relaxed);
             checkMapMemory(map, settings, in_flight);
+            total += buffers[b].stats;
+            if (progress) progress(static_cast<size_t>(total.frames), n);  // may throw to stop
           } catch (...) {
             CHRONOMAP_HAPPENS_BEFORE(&merge_turn);  // to the caller, which rethrows
             throw;
           }
-          total += buffers[b].stats;
-          if (progress) progress(static_cast<size_t>(total.frames), n);
           {
             std::lock_guard<std::mutex> lock(free_mutex);
             free_buffers.push_back(b);
@@ -206,8 +206,8 @@ void integrateParallel(const FrameSource& source, SessionMap& map, const Integra
     try {
       tbb::parallel_pipeline(tokens, stages);
     } catch (...) {
-      // A stage threw (a bad frame, the memory limit): TBB has waited for the others, and
-      // the stages that ran marked what they touched.
+      // A stage threw (a bad frame, the memory limit, a progress callback stopping the work):
+      // TBB has waited for the others, and the stages that ran marked what they touched.
       CHRONOMAP_HAPPENS_AFTER(&source_turn);
       CHRONOMAP_HAPPENS_AFTER(&handed_over);
       CHRONOMAP_HAPPENS_AFTER(&merge_turn);

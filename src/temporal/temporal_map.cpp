@@ -7,6 +7,7 @@
 #include <limits>
 
 #include "chronomap/core/error.h"
+#include "chronomap/core/format.h"
 #include "chronomap/core/offset_quantiser.h"
 #include "chronomap/core/time.h"
 #include "pool_limits.h"
@@ -234,7 +235,7 @@ std::optional<uint32_t> TemporalMap::rankAtOrBefore(double time_s) const {
 }
 
 AddReport TemporalMap::add(double time_s, const SessionMap& session, const AddSettings& options) {
-  if (!std::isfinite(time_s)) throw UsageError("session time must be a finite number of seconds");
+  checkTime(time_s, "session time " + exactNumber(time_s));
   if (session.resolution_m() != resolution_m()) {
     throw UsageError("session resolution " + std::to_string(session.resolution_m()) +
                      " m differs from the 4D map's " + std::to_string(resolution_m()) + " m");

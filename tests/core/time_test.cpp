@@ -1,5 +1,9 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <limits>
+#include <string>
+
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
 
@@ -47,6 +51,34 @@ TEST(Time, RefusesTimesOutsideFourDigitYears) {
   }
   EXPECT_EQ(formatTime(1e300), "invalid-time");  // never a year in the past
   EXPECT_EQ(formatTime(-1e300), "invalid-time");
+}
+
+TEST(Time, CheckTimeIsParseTimesRangeForNumbers) {
+  // Python's times arrive as numbers; checkTime gives them the rule and words parseTime gives text.
+  EXPECT_EQ(checkTime(kEarliestTime_s, "t"), kEarliestTime_s);
+  EXPECT_EQ(checkTime(kLatestTime_s, "t"), kLatestTime_s);
+  const double nan = std::nan(""), inf = std::numeric_limits<double>::infinity();
+  for (double bad : {1e300, -1e300, kLatestTime_s + 1, kEarliestTime_s - 1, inf, -inf, nan}) {
+    EXPECT_THROW(checkTime(bad, "t"), UsageError) << bad;
+  }
+  try {
+    checkTime(1e300, "time 1e+300");
+    FAIL();
+  } catch (const UsageError& e) {
+    std::string expected;
+    try {
+      parseTime("1e300");
+    } catch (const UsageError& text) {
+      expected = text.what();
+    }
+    EXPECT_EQ(std::string(e.what()), "time 1e+300" + expected.substr(expected.find(" lies outside")));
+  }
+  try {
+    checkTime(nan, "t1 nan");
+    FAIL();
+  } catch (const UsageError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("t1 nan is not a number", 0), 0u) << e.what();
+  }
 }
 
 TEST(Time, FormatsAndRoundTrips) {

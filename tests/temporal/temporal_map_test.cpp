@@ -4,9 +4,12 @@
 #include <map>
 #include <optional>
 #include <random>
+#include <string>
 #include <tuple>
+#include <vector>
 
 #include "chronomap/core/error.h"
+#include "chronomap/core/time.h"
 #include "chronomap/temporal/temporal_map.h"
 #include "builders.h"
 
@@ -266,6 +269,25 @@ TEST(TemporalMap, RejectsDuplicateTimesUnlessReplacing) {
   EXPECT_THROW(map.add(std::nan(""), a), UsageError);
   EXPECT_THROW(map.add(2, SessionMap(0.1)), UsageError);
   EXPECT_THROW(map.remove(3), UsageError);
+}
+
+TEST(TemporalMap, RefusesTimesNoCommandCouldName) {
+  // A session at 1e300 s could be stored and never named again by `--time` (years 1 to 9999).
+  TemporalMap map(0.05);
+  SessionMap a(0.05);
+  a.add(at(0, 0, 0), occupiedVoxelExact(1));
+  for (double bad : {1e300, -1e300, kLatestTime_s + 1.0, kEarliestTime_s - 1.0}) {
+    try {
+      map.add(bad, a);
+      ADD_FAILURE() << bad << " was stored";
+    } catch (const UsageError& e) {
+      EXPECT_NE(std::string(e.what()).find("lies outside the years 1 to 9999"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_EQ(map.sessionCount(), 0u);
+  map.add(kEarliestTime_s, a);
+  map.add(kLatestTime_s, a);
+  EXPECT_EQ(map.times(), (std::vector<double>{kEarliestTime_s, kLatestTime_s}));
 }
 
 TEST(TemporalMap, ChangeInsideACompressedCubeRefinesIt) {

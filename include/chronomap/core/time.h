@@ -19,6 +19,13 @@ double parseTime(std::string_view text);
 inline constexpr double kEarliestTime_s = -62135596800.0;
 inline constexpr double kLatestTime_s = 253402300799.0;
 
+/// `seconds` when it is a time chronomap accepts: a number within [kEarliestTime_s,
+/// kLatestTime_s]. Every front end checks the times it is given with this (parseTime does, for
+/// text), so that no session is stored at a time no command can name.
+/// @throw UsageError "WHAT lies outside the years 1 to 9999 (...)" or "WHAT is not a number",
+/// where `what` names the value ("time '1e300'", "t1 1e+300").
+double checkTime(double seconds, const std::string& what);
+
 /// Formats seconds since the epoch as ISO-8601 UTC ("2012-03-01T10:00:00Z"; fractional
 /// seconds to the millisecond when present); "invalid-time" outside [kEarliestTime_s, kLatestTime_s].
 std::string formatTime(double seconds);

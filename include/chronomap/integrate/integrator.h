@@ -131,12 +131,13 @@ class RayAccumulator {
   std::unique_ptr<Impl> impl_;
 };
 
-/// Called after each frame is merged: (frames done, frames in all).
+/// Called after each frame is merged: (frames done, frames in all). It may throw to stop the
+/// integration; the exception leaves integrate().
 using ProgressFn = std::function<void(size_t, size_t)>;
 
 /// Integrates every frame of `source` into `map`, in frame order.
 /// @throw UsageError for bad settings or when the map or a frame needs more memory than
-/// settings.memory_limit_bytes; whatever source.load throws for bad frames.
+/// settings.memory_limit_bytes; whatever source.load throws for bad frames, or `progress`.
 IntegrationStats integrate(const FrameSource& source, SessionMap& map, const IntegratorSettings& settings = {},
                            const ProgressFn& progress = {});
 

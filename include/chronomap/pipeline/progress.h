@@ -9,7 +9,9 @@
 
 namespace chronomap {
 
-/// Callbacks for long work; either may be empty.
+/// Callbacks for long work; either may be empty. Either may throw to stop the work (the Python
+/// bindings do on Ctrl-C): the exception leaves the pipeline call as an error would, and nothing
+/// is written.
 struct Progress {
   /// A step begins: one line for a person ("registering 6 session(s), 3 round(s)").
   std::function<void(const std::string& message)> step;

@@ -108,8 +108,9 @@ class TemporalMap {
   const ChangeCriterion& criterion() const { return criterion_; }
 
   /// Adds a session observed at `time_s` (seconds since the epoch).
-  /// @throw UsageError for a non-finite time, a different resolution, or a time already
-  /// stored when options.replace is false.
+  /// @throw UsageError for a time checkTime refuses (core/time.h: NaN, or outside the years 1
+  /// to 9999, which no command could name), a different resolution, or a time already stored
+  /// when options.replace is false.
   AddReport add(double time_s, const SessionMap& session, const AddSettings& options = {});
   /// Removes the session stored at `time_s`, as if it had never been added.
   /// @throw UsageError when no session has that time.
