@@ -99,7 +99,7 @@ void printIntegrated(const IntegrateCmdOptions& o, const IntegratedSession& sess
   const SessionMap& map = session.map;
   const SessionMapCounts counts = map.counts();
   std::cout << "integrated " << stats.frames << " frame(s) of " << o.dataset << " (" << session.format << ")";
-  if (session.frames_dropped) {
+  if (session.frames_dropped || !session.dropped_reasons.empty()) {
     std::cout << ", " << session.frames_dropped << " frame(s) dropped ("
               << (session.dropped_reasons.empty() ? "without pose or colour" : session.dropped_reasons) << ")";
   }

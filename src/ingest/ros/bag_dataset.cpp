@@ -180,6 +180,7 @@ std::string BagDataset::droppedReasons() const {
   if (without_pose_) out << without_pose_ << " without a pose within " << pose_tolerance_s_ << " s";
   if (without_pose_ && without_colour_) out << ", ";
   if (without_colour_) out << without_colour_ << " without colour within " << colour_tolerance_s_ << " s";
+  if (!lost_.empty()) out << (without_pose_ || without_colour_ ? "; " : "") << lost_;
   return out.str();
 }
 

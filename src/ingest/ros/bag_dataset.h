@@ -116,6 +116,8 @@ class BagDataset : public Dataset {
   /// Pairs what the reader's pass gathered into frames. @throw DataError when no frame is left
   /// or the depth camera has no intrinsics.
   void assemble(const Topics& t, const DatasetSettings& s, Gathered g);
+  /// What the storage could not read (a file cut short), said with the dropped frames.
+  void noteWhatWasLost(std::string note) { lost_ = std::move(note); }
   /// The message behind a handle of Stamped::message, decoded (a CompressedImage when
   /// `compressed`). @throw Error naming the bag.
   virtual ImageMessage image(uint64_t message, bool compressed) const = 0;
@@ -147,6 +149,7 @@ class BagDataset : public Dataset {
   double depth_scale_ = kDefaultDepthScale;
   double pose_tolerance_s_ = 0.0, colour_tolerance_s_ = 0.0;
   size_t without_pose_ = 0, without_colour_ = 0;
+  std::string lost_;
 };
 
 }  // namespace chronomap::bag

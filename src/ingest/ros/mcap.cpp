@@ -181,15 +181,22 @@ Reader::Reader(const fs::path& path) : path_(path) {
     if (std::memcmp(head, kMagic, static_cast<size_t>(std::min<uint64_t>(size_, 5))) != 0) {
       fail(0, "not an MCAP file (no MCAP magic)");
     }
-    if (size_ < least) fail(0, "too short for an MCAP file (" + std::to_string(size_) + " bytes; truncated?)");
+    if (size_ < 8 + kRecordHead) fail(0, "too short for an MCAP file (" + std::to_string(size_) + " bytes; truncated?)");
     if (head[5] != '0') fail(5, "MCAP major version '" + std::string(1, static_cast<char>(head[5])) + "' is not read");
     if (std::memcmp(head, kMagic, 8) != 0) fail(0, "not an MCAP file (no MCAP magic)");
     uint8_t op = 0;
     readBytes(8, 1, &op);
     if (op != kHeader) fail(8, "the first record is not a header");
+    if (size_ < least) {
+      truncated_ = true;
+      return;
+    }
     uint8_t tail[8];
     readBytes(size_ - 8, 8, tail);
-    if (std::memcmp(tail, kMagic, 8) != 0) fail(size_ - 8, "no MCAP magic at the end (a truncated file?)");
+    if (std::memcmp(tail, kMagic, 8) != 0) {
+      truncated_ = true;  // no footer to trust: the data section is scanned up to the cut
+      return;
+    }
     const uint64_t footer_at = size_ - 8 - kRecordHead - kFooterContent;
     const std::vector<uint8_t> footer = readVector(footer_at, kRecordHead + kFooterContent);
     Cursor fc(footer, path_.string() + ": footer");
@@ -367,23 +374,39 @@ void Reader::forEachMessage(const std::function<void(const Message&)>& fn) {
     }
     return;
   }
-  // No chunk index: the data section, record by record, with its CRC.
+  // No chunk index: the data section, record by record, with its CRC. A truncated file ends at
+  // the first record the cut left incomplete.
   uint64_t pos = 8;
   uint32_t crc = crcOf(std::span<const uint8_t>(kMagic, 8));
+  messages_read_ = 0;
+  const auto counted = [&](const Message& m) {
+    ++messages_read_;
+    fn(m);
+  };
   while (true) {
-    if (size_ - pos < kRecordHead) fail(pos, "the file ends inside a record (truncated?)");
+    if (size_ - pos < kRecordHead) {
+      if (!truncated_) fail(pos, "the file ends inside a record (truncated?)");
+      intact_bytes_ = pos;
+      break;
+    }
     uint8_t head[kRecordHead];
     readBytes(pos, kRecordHead, head);
     Cursor hc(head, path_.string() + ": " + offsetText(pos));
     const uint8_t op = hc.u8();
     const uint64_t len = hc.u64();
     if (op == kFooter) break;  // no data end record: an older writer
-    if (len > size_ - pos - kRecordHead) fail(pos, "the record's length runs past the end of the file (truncated?)");
+    if (len > size_ - pos - kRecordHead) {
+      if (!truncated_) fail(pos, "the record's length runs past the end of the file (truncated?)");
+      intact_bytes_ = pos;
+      break;
+    }
     if (op == kDataEnd) {
       const std::vector<uint8_t> body = readVector(pos + kRecordHead, len);
       Cursor c(body, path_.string() + ": data end at " + offsetText(pos));
       const uint32_t stated = c.u32();
       if (stated != 0 && stated != crc) fail(pos, "the data section's CRC does not match");
+      intact_bytes_ = pos + kRecordHead + len;
+      data_whole_ = true;
       break;
     }
     crc = crcOf(head, crc);
@@ -392,14 +415,27 @@ void Reader::forEachMessage(const std::function<void(const Message&)>& fn) {
     crc = crcOf(body, crc);
     pos += kRecordHead + len;
     const std::string where = path_.string() + ": " + offsetText(at);
-    if (record(op, body, where, MessageRef::kNoChunk, at + kRecordHead, fn)) continue;
+    if (record(op, body, where, MessageRef::kNoChunk, at + kRecordHead, counted)) continue;
     if (op == kChunk) {
       const auto records = chunk(at);
-      chunkRecords(at, *records, fn);
+      chunkRecords(at, *records, counted);
     } else if (op == kHeader && at != 8) {
       fail(at, "a second header record");
     }
   }
+}
+
+std::string Reader::truncationNote() const {
+  if (!truncated_) return {};
+  if (intact_bytes_ == 0) return "cut short (no MCAP magic at its end): not read yet";
+  if (data_whole_) {
+    return "cut short (no MCAP magic at its end) after its data section: all " + std::to_string(messages_read_) +
+           " message(s) read; only the index after them (the last " + std::to_string(size_ - intact_bytes_) +
+           " bytes) is lost";
+  }
+  return "cut short (no MCAP magic at its end): " + std::to_string(messages_read_) +
+         " message(s) read from its first " + std::to_string(intact_bytes_) + " bytes; the last " +
+         std::to_string(size_ - intact_bytes_) + " bytes (an incomplete record) are lost";
 }
 
 MessageBytes Reader::message(const MessageRef& ref) const {

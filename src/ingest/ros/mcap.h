@@ -79,6 +79,13 @@ class Reader {
   const std::map<uint16_t, Channel>& channels() const { return channels_; }
   /// True when the summary's chunk indexes lead the reading (else the data section is scanned).
   bool indexed() const { return !chunk_offsets_.empty(); }
+  /// A file cut short (a recorder killed, a copy interrupted): no magic at its end. It is read
+  /// as `mcap recover` reads one: the data section record by record up to the first record the
+  /// cut left incomplete. After forEachMessage, what was read and what was lost, in words
+  /// ("cut short at byte 5,000 of ...: 31 messages read, the last 2,113 bytes lost"); empty for
+  /// a whole file.
+  bool truncated() const { return truncated_; }
+  std::string truncationNote() const;
   const std::filesystem::path& path() const { return path_; }
 
  private:
@@ -103,6 +110,10 @@ class Reader {
   std::map<uint16_t, Schema> schemas_;
   std::map<uint16_t, Channel> channels_;
   std::vector<uint64_t> chunk_offsets_;  ///< from the summary's chunk indexes, in file order
+  bool truncated_ = false;
+  uint64_t intact_bytes_ = 0;     ///< where the first incomplete record starts (truncated files)
+  uint64_t messages_read_ = 0;    ///< messages met before it
+  bool data_whole_ = false;       ///< the cut lies after the data section's end record
   mutable std::mutex mutex_;
   mutable uint64_t cached_at_ = MessageRef::kNoChunk;
   mutable std::shared_ptr<const std::vector<uint8_t>> cached_;

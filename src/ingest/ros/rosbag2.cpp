@@ -125,11 +125,18 @@ class MessageStore {
   virtual std::map<std::string, std::pair<std::string, uint64_t>> topics(const std::set<std::string>& types_first,
                                                                          const Visit& first) = 0;
   virtual mcap::MessageBytes message(uint64_t handle) const = 0;
+  /// What the last pass could not read and why ("FILE: cut short ..."); empty when it read all.
+  virtual std::string note() const { return {}; }
 };
 
 class McapStore : public MessageStore {
  public:
-  explicit McapStore(const fs::path& path) : reader_(path) {}
+  explicit McapStore(const fs::path& path) : reader_(path), path_(path) {}
+
+  std::string note() const override {
+    const std::string note = reader_.truncationNote();
+    return note.empty() ? note : path_.filename().string() + " " + note;
+  }
 
   void forEach(const std::set<std::string>* wanted, const Visit& fn) override {
     refs_.clear();
@@ -167,6 +174,7 @@ class McapStore : public MessageStore {
     return it == reader_.schemas().end() ? none : it->second.name;
   }
   mcap::Reader reader_;
+  fs::path path_;
   std::vector<mcap::MessageRef> refs_;
 };
 
@@ -331,6 +339,15 @@ class SplitStore : public MessageStore {
     for (const fs::path& file : files) parts_.push_back(openStore(file));
   }
 
+  std::string note() const override {
+    std::string out;
+    for (const auto& part : parts_) {
+      const std::string note = part->note();
+      if (!note.empty()) out += (out.empty() ? "" : "; ") + note;
+    }
+    return out;
+  }
+
   void forEach(const std::set<std::string>* wanted, const Visit& fn) override {
     refs_.clear();
     for (size_t p = 0; p < parts_.size(); ++p) {
@@ -472,6 +489,7 @@ class Ros2BagDataset : public bag::BagDataset {
         g.colour_k = bag::intrinsicsOf(cdr::cameraInfo(m.data, source).k, source);
       }
     });
+    noteWhatWasLost(store_->note());
     assemble(t, s, std::move(g));
   }
 
