@@ -6,6 +6,7 @@
 #include "bindings.h"
 #include "chronomap/analysis/colour.h"
 #include "chronomap/analysis/costmap.h"
+#include "chronomap/analysis/fitted_on.h"
 #include "chronomap/analysis/rhythm.h"
 #include "chronomap/store/colour_file.h"
 #include "chronomap/store/rhythm_file.h"
@@ -129,16 +130,26 @@ void bindRhythm(py::module_& m) {
            "where no model was fitted (the voxel never changed while learning).")
       .def(
           "predict_map",
-          [](const RhythmModels& r, const TemporalMap& map, const py::handle& time, const std::string& model) {
+          [](const RhythmModels& r, const TemporalMap& map, const py::handle& time, const std::string& model,
+             bool allow_other_map) {
             const double t = toSeconds(time, "time");
             const RhythmModel which = parseRhythmModel(model);
             const ObjectLock lock(&map);
+            // The model must have been fitted on this map, as for `chronomap predict --rhythm`.
+            const std::string warning = checkFittedOn(
+                r, map, {"the model", "the map", "fit one on this map with RhythmModels.fit(map)",
+                         "allow_other_map=True", allow_other_map});
+            if (!warning.empty() && PyErr_WarnEx(PyExc_UserWarning, warning.c_str(), 1) < 0) {
+              throw py::error_already_set();  // warnings turned into errors
+            }
             py::gil_scoped_release release;
             return predictMap(map, r, which, t);
           },
-          py::arg("map"), py::arg("time"), py::arg("model") = "combined",
+          py::arg("map"), py::arg("time"), py::arg("model") = "combined", py::arg("allow_other_map") = false,
           "The SessionMap predicted at `time`, as `chronomap predict` writes it: modelled voxels carry the "
-          "model's probability, the rest their last observed state.");
+          "model's probability, the rest their last observed state. A model fitted on another map (other "
+          "sessions, another fingerprint, another resolution) raises ValueError; allow_other_map=True warns "
+          "instead (another resolution is always refused).");
   py::class_<PyColourModel>(m, "ColourModel",
                             "Colour by time of day (docs/colour.md): per voxel weights under a few light curves of the "
                             "day shared by the map, learned from the colour changes a 4D map keeps.")

@@ -112,6 +112,17 @@ def test_rhythm_models_predict_and_costmap(tmp_path, before, after):
     assert models.predict_map(m, morning, model="hourly").state(np.array([BOX]))[0] == chronomap.FREE
     with pytest.raises(chronomap.UsageError):
         models.predict(np.array([BOX]), afternoon, model="fourier")
+    # A model belongs to the map it was fitted on: on another map (the same times, other voxels)
+    # it is refused as `chronomap predict --rhythm` refuses it, unless allowed with a warning.
+    other = chronomap.TemporalMap(RESOLUTION_M)
+    for d in range(14):
+        other.add(after, day0 + datetime.timedelta(days=d, hours=8))
+        other.add(before, day0 + datetime.timedelta(days=d, hours=14))
+    with pytest.raises(ValueError, match="fingerprint"):
+        back.predict_map(other, afternoon)
+    with pytest.warns(UserWarning):
+        back.predict_map(other, afternoon, allow_other_map=True)
+    assert back.predict_map(m, afternoon, model="hourly").state(np.array([BOX]))[0] == chronomap.OCCUPIED
     # The costmap over the box's height: its cells lethal in the afternoon.
     cost, origin, resolution = chronomap.costmap(predicted, z_min_m=1.4, z_max_m=1.6, robot_radius_m=0.0)
     assert cost.dtype == np.int8 and cost.ndim == 2 and resolution == pytest.approx(RESOLUTION_M)
