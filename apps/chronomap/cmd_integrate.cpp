@@ -33,16 +33,18 @@ struct IntegrateCmdOptions {
 
 /// `integrate run.bag --list`: the bag's topics, types and message counts.
 int listBagTopics(const IntegrateCmdOptions& o) {
-  const std::vector<BagTopic> topics = chronomap::listBagTopics(o.dataset);
+  std::string note;
+  const std::vector<BagTopic> topics = chronomap::listBagTopics(o.dataset, &note);
   if (o.json) {
     nlohmann::json out = nlohmann::json::array();
     for (const auto& t : topics) {
       out.push_back({{"topic", t.name}, {"type", t.type}, {"messages", t.messages}, {"encoding", t.encoding}});
     }
     std::cout << out.dump() << "\n";
+    if (!note.empty()) std::cerr << "chronomap: warning: " << note << "\n";
     return 0;
   }
-  std::cout << o.dataset << ": " << topics.size() << " topic(s)\n";
+  std::cout << o.dataset << ": " << topics.size() << " topic(s)" << (note.empty() ? "" : " (" + note + ")") << "\n";
   for (const auto& t : topics) {
     std::cout << "  " << t.name << "  " << t.type << "  " << t.messages << " message(s)";
     if (!t.encoding.empty()) std::cout << "  " << t.encoding;

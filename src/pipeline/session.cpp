@@ -26,10 +26,11 @@ std::string parseRecordingFormat(const std::string& name) {
   return parseDatasetFormat(name);
 }
 
-std::vector<BagTopic> listBagTopics(const std::filesystem::path& path) {
+std::vector<BagTopic> listBagTopics(const std::filesystem::path& path, std::string* note) {
 #if CHRONOMAP_HAVE_ROS
-  return listBag(path);
+  return listBag(path, note);
 #else
+  (void)note;
   throw UsageError(path.string() + ": this chronomap was built without the ROS bag readers (CHRONOMAP_ROS=OFF)");
 #endif
 }

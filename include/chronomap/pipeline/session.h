@@ -53,7 +53,7 @@ std::string parseRecordingFormat(const std::string& name);
 
 /// The topics of a ROS 1 or ROS 2 bag (ingest/ros/rosbag.h's listBag).
 /// @throw UsageError when chronomap was built without the bag readers; as listBag otherwise.
-std::vector<BagTopic> listBagTopics(const std::filesystem::path& path);
+std::vector<BagTopic> listBagTopics(const std::filesystem::path& path, std::string* note = nullptr);
 
 /// openDataset after registerReaders(): what the CLI, Python and the workflows open recordings with.
 std::unique_ptr<Dataset> openRecording(const std::filesystem::path& path, const DatasetSettings& settings = {});

@@ -524,7 +524,7 @@ std::unique_ptr<Dataset> openRos2Bag(const fs::path& path, const DatasetSettings
   return std::make_unique<Ros2BagDataset>(path, settings);
 }
 
-std::vector<BagTopic> listRos2Bag(const fs::path& path) {
+std::vector<BagTopic> listRos2Bag(const fs::path& path, std::string* note) {
   const std::vector<fs::path> files = storageFiles(path);
   const fs::path file = bagName(path, files);
   const auto store = openStore(files);
@@ -532,13 +532,15 @@ std::vector<BagTopic> listRos2Bag(const fs::path& path) {
   const bag::TopicMap topics = topicMap(*store, file, &ros2_types);
   std::vector<BagTopic> out;
   for (const auto& [name, info] : topics) out.push_back({name, ros2_types[name], info.messages, info.encoding});
+  if (note) *note = store->note();
   return out;
 }
 
-std::vector<BagTopic> listBag(const fs::path& path) {
+std::vector<BagTopic> listBag(const fs::path& path, std::string* note) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw UsageError(path.string() + ": no such file or folder");
-  return isRos2Bag(path) ? listRos2Bag(path) : listRosBag1(path);
+  if (note) note->clear();
+  return isRos2Bag(path) ? listRos2Bag(path, note) : listRosBag1(path);
 }
 
 }  // namespace chronomap

@@ -20,6 +20,6 @@ bool isRos2Bag(const std::filesystem::path& path);
 std::unique_ptr<Dataset> openRos2Bag(const std::filesystem::path& path, const DatasetSettings& settings);
 
 /// The topics of a ROS 2 bag, with their ROS 2 type names ("sensor_msgs/msg/Image").
-std::vector<BagTopic> listRos2Bag(const std::filesystem::path& path);
+std::vector<BagTopic> listRos2Bag(const std::filesystem::path& path, std::string* note = nullptr);
 
 }  // namespace chronomap

@@ -272,6 +272,9 @@ TEST_F(Ros2BagTest, ATruncatedMcapIsReadUpToTheCutAndSaysWhatWasLost) {
       EXPECT_GT(dataset->size(), 0u);
       EXPECT_NE(dataset->droppedReasons().find("cut.mcap cut short (no MCAP magic at its end)"), std::string::npos)
           << dataset->droppedReasons();
+      std::string note;
+      listBag(cut, &note);
+      EXPECT_NE(note.find("cut short"), std::string::npos) << note;
       if (keep == bytes.size() / 2) {
         EXPECT_LT(dataset->size(), whole->size());
         EXPECT_NE(dataset->droppedReasons().find("bytes (an incomplete record) are lost"), std::string::npos);

@@ -19,9 +19,10 @@ struct BagTopic {
   std::string encoding;  ///< sensor_msgs/Image: the first message's encoding ("16UC1", "rgb8"); else empty
 };
 
-/// The topics of a ROS 1 or ROS 2 bag, by name. @throw UsageError when the file does not exist;
-/// FormatError naming the file when it cannot be read.
-std::vector<BagTopic> listBag(const std::filesystem::path& path);
+/// The topics of a ROS 1 or ROS 2 bag, by name. `note`, when given, receives what could not be
+/// read (an MCAP file cut short: the counts are of what is intact), or is cleared.
+/// @throw UsageError when the file does not exist; FormatError naming the file when it cannot be read.
+std::vector<BagTopic> listBag(const std::filesystem::path& path, std::string* note = nullptr);
 
 /// True when this build reads ROS 1 bags (it was built with librosbag).
 bool rosBagSupported();
