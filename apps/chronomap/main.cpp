@@ -3,7 +3,6 @@
 
 #include <cstdio>
 #include <iostream>
-#include <regex>
 #include <vector>
 
 #include "chronomap/core/error.h"
@@ -17,10 +16,12 @@ int fail(int code, const std::string& message) { return chronomap::cli::printErr
 /// CLI11's words for a parse error, with a repeated flag said plainly ("--at: At Most 1 required
 /// but received 2" becomes "--at was given 2 times; give it once").
 std::string parseErrorMessage(const std::string& what) {
-  static const std::regex repeated("^(-[^:]*): At Most 1 required but received ([0-9]+)$");
-  std::smatch m;
-  if (std::regex_match(what, m, repeated)) return m[1].str() + " was given " + m[2].str() + " times; give it once";
-  return what;
+  static const std::string kRepeated = ": At Most 1 required but received ";
+  const size_t at = what.find(kRepeated);
+  if (at == std::string::npos || what.rfind('-', 0) != 0) return what;
+  const std::string count = what.substr(at + kRepeated.size());
+  if (count.empty() || count.find_first_not_of("0123456789") != std::string::npos) return what;
+  return what.substr(0, at) + " was given " + count + " times; give it once";
 }
 
 int run(int argc, char** argv) {
