@@ -2,6 +2,12 @@
 
 namespace chronomap {
 
+void ChangeSettings::validate() const {
+  diff.validate();
+  segment.validate();
+  moves.validate();
+}
+
 ChangeSettings recommendedChangeSettings() {
   ChangeSettings s;
   s.diff.mode = DiffMode::Band;
@@ -11,6 +17,12 @@ ChangeSettings recommendedChangeSettings() {
   s.diff.dark_surface_radius_voxels = DiffSettings::kDarkSurfaceRadius;
   s.segment.connectivity = Connectivity::Vertex;
   s.segment.min_voxels = kRecommendedMinObjectVoxels;
+  return s;
+}
+
+ChangeSettings rawChangeSettings() {
+  ChangeSettings s;
+  s.moves.pair = false;
   return s;
 }
 
