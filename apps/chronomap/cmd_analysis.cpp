@@ -75,13 +75,6 @@ nlohmann::json colourDiff(const DiffCmdOptions& o, const MapRef& before, const M
   return j;
 }
 
-/// The settings a --preset names.
-ChangeSettings presetSettings(const std::string& preset) {
-  if (preset == "recommended") return recommendedChangeSettings();
-  if (preset == "raw") return rawChangeSettings();
-  throw UsageError("--preset '" + preset + "' is not a preset: give recommended (the default) or raw");
-}
-
 template <class T, class V>
 void setIfGiven(T& field, const std::optional<V>& value) {
   if (value) field = static_cast<T>(*value);
@@ -89,7 +82,7 @@ void setIfGiven(T& field, const std::optional<V>& value) {
 
 /// The settings of the command: the preset's, each flag given replacing one, checked.
 ChangeSettings changeSettingsOf(const DiffCmdOptions& o) {
-  ChangeSettings s = presetSettings(o.preset);
+  ChangeSettings s = changeSettingsNamed(o.preset);
   DiffSettings& d = s.diff;
   if (o.mode) {
     const DiffMode mode = parseDiffMode(*o.mode);
@@ -122,7 +115,7 @@ ChangeSettings changeSettingsOf(const DiffCmdOptions& o) {
 
 /// The preset's name, and whether flags changed its settings.
 std::string presetLabel(const DiffCmdOptions& o, const ChangeSettings& settings) {
-  const bool same = changeSettingsJson(settings) == changeSettingsJson(presetSettings(o.preset));
+  const bool same = changeSettingsJson(settings) == changeSettingsJson(changeSettingsNamed(o.preset));
   return same ? o.preset : o.preset + ", changed by flags";
 }
 

@@ -1,5 +1,7 @@
 #include "chronomap/analysis/change_preset.h"
 
+#include "chronomap/core/error.h"
+
 namespace chronomap {
 
 void ChangeSettings::validate() const {
@@ -24,6 +26,12 @@ ChangeSettings rawChangeSettings() {
   ChangeSettings s;
   s.moves.pair = false;
   return s;
+}
+
+ChangeSettings changeSettingsNamed(const std::string& preset) {
+  if (preset == "recommended") return recommendedChangeSettings();
+  if (preset == "raw") return rawChangeSettings();
+  throw UsageError("--preset '" + preset + "' is not a preset: give recommended (the default) or raw");
 }
 
 }  // namespace chronomap

@@ -5,6 +5,7 @@
 /// from these (docs/changes.md explains each rule and how its constant was chosen).
 
 #include <cstdint>
+#include <string>
 
 #include "chronomap/analysis/diff.h"
 #include "chronomap/analysis/moves.h"
@@ -38,5 +39,10 @@ ChangeSettings recommendedChangeSettings();
 /// The plain thesis diff: hard mode with every real-data rule off (DiffSettings{}), every
 /// face-connected component an object (SegmentSettings{}), no moves. `chronomap diff --preset raw`.
 ChangeSettings rawChangeSettings();
+
+/// The settings a preset's name gives: "recommended" or "raw" (`chronomap diff --preset`, the
+/// Python package's `preset`).
+/// @throw UsageError naming `preset` and the presets for any other name.
+ChangeSettings changeSettingsNamed(const std::string& preset);
 
 }  // namespace chronomap
