@@ -27,6 +27,7 @@ from ._chronomap import (  # noqa: F401
     UsageError,
     add_session,
     build,
+    changes,
     costmap,
     diff,
     formats,
@@ -39,6 +40,6 @@ from ._chronomap import (  # noqa: F401
 __all__ = [
     "APPEARED", "FREE", "OCCUPIED", "UNCHANGED", "UNKNOWN", "VANISHED",
     "ColourModel", "Component", "DataError", "DiffMap", "Error", "FormatError", "Integrator", "IoError", "RhythmModels",
-    "SessionMap", "TemporalMap", "UsageError", "add_session", "build", "costmap", "diff", "formats", "integrate_dataset", "read_color_png",
+    "SessionMap", "TemporalMap", "UsageError", "add_session", "build", "changes", "costmap", "diff", "formats", "integrate_dataset", "read_color_png",
     "read_depth_png", "segment",
 ]

@@ -1,7 +1,7 @@
 # Type stubs of the chronomap package (the extension module chronomap._chronomap).
 import datetime
 from os import PathLike
-from typing import Any, Callable, Optional, Sequence, Union
+from typing import Any, Callable, Optional, Sequence, Union, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -115,6 +115,10 @@ class Component:
 def diff(before: SessionMap, after: SessionMap, mode: str = "hard", alpha: float = -1.0,
          neighbourhood_voxels: int = 0, min_shift_voxels: float = 0.0, kept_surface_radius_voxels: int = 0,
          kept_surface_share: float = 0.9) -> DiffMap: ...
+@overload
+def changes(before: SessionMap, after: SessionMap, preset: str = "recommended") -> list[dict[str, Any]]: ...
+@overload
+def changes(map: TemporalMap, t0: _Time, t1: _Time, preset: str = "recommended") -> list[dict[str, Any]]: ...
 def segment(diff: DiffMap, connectivity: str = "face", color_tolerance: float = -1.0, min_voxels: int = 1,
             min_value: float = 0.5) -> list[Component]: ...
 

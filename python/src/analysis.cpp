@@ -2,7 +2,10 @@
 
 #include <string>
 
+#include <nlohmann/json.hpp>
+
 #include "bindings.h"
+#include "chronomap/analysis/changes.h"
 #include "chronomap/analysis/diff.h"
 #include "chronomap/analysis/segment.h"
 
@@ -53,6 +56,34 @@ py::list segmentPy(const DiffMap& changes, const std::string& connectivity, doub
   py::list out;
   for (Component& c : result.components) out.append(py::cast(std::move(c)));
   return out;
+}
+
+/// The objects as the command line prints them (changedObjectsJson), as Python lists and dicts.
+py::object objectsToPython(const Changes& changes) {
+  return py::module_::import("json").attr("loads")(changedObjectsJson(changes.objects).dump());
+}
+
+py::object changesOfSessions(const SessionMap& before, const SessionMap& after, const std::string& preset) {
+  const ChangeSettings settings = changeSettingsNamed(preset);
+  Changes result;
+  {
+    py::gil_scoped_release release;
+    result = findChanges(before, after, settings);
+  }
+  return objectsToPython(result);
+}
+
+py::object changesOfTimes(const TemporalMap& map, const py::handle& t0, const py::handle& t1,
+                          const std::string& preset) {
+  const ChangeSettings settings = changeSettingsNamed(preset);
+  const double t0_s = toSeconds(t0, "t0"), t1_s = toSeconds(t1, "t1");
+  Changes result;
+  {
+    const ObjectLock lock(&map);
+    py::gil_scoped_release release;
+    result = findChanges(map, t0_s, t1_s, settings);
+  }
+  return objectsToPython(result);
 }
 
 template <class T, class Fn>
@@ -140,6 +171,16 @@ void bindAnalysis(py::module_& m) {
   m.def("segment", &segmentPy, py::arg("diff"), py::arg("connectivity") = "face", py::arg("color_tolerance") = -1.0,
         py::arg("min_voxels") = 1, py::arg("min_value") = 0.5,
         "Connected components of a DiffMap, largest first: a list of Component.");
+  const char* changes_doc =
+      "What changed, and which objects (docs/changes.md): the list `chronomap diff --json` prints as "
+      "\"objects\", from the same library call (findChanges). Each object is a dict: id, kind ('appeared', "
+      "'vanished' or 'moved'), voxels, centroid, size, bbox_min, bbox_max (metres), colour (r, g, b), "
+      "components, and for a move from and to ({voxels, centroid, size}) and distance_m. preset: "
+      "'recommended' (the default, as chronomap diff) or 'raw' (the plain hard diff, every component, no moves).";
+  m.def("changes", &changesOfSessions, py::arg("before"), py::arg("after"), py::arg("preset") = "recommended",
+        changes_doc);
+  m.def("changes", &changesOfTimes, py::arg("map"), py::arg("t0"), py::arg("t1"), py::arg("preset") = "recommended",
+        "The same for a TemporalMap from its state at t0 to its state at t1 (epoch seconds or datetimes).");
 }
 
 }  // namespace chronomap::python

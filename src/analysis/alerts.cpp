@@ -102,29 +102,6 @@ std::string reasonFor(const Alert& a, bool occupied_now, double time_s, double r
   return buf;
 }
 
-double colourDistance(const Rgb& a, const Rgb& b) {
-  const double dr = a.r - b.r, dg = a.g - b.g, db = a.b - b.b;
-  return std::sqrt(dr * dr + dg * dg + db * db);
-}
-
-/// How unlike two objects are, or nothing when they cannot be the halves of one move.
-std::optional<double> moveDissimilarity(const Component& gone, const Component& come, const MoveSettings& s) {
-  if (gone.kind != ChangeKind::Vanished || come.kind != ChangeKind::Appeared) return std::nullopt;
-  const double small = static_cast<double>(std::min(gone.voxels, come.voxels));
-  const double large = static_cast<double>(std::max(gone.voxels, come.voxels));
-  const double height = std::abs((gone.bbox_max_m.z() - gone.bbox_min_m.z()) - (come.bbox_max_m.z() - come.bbox_min_m.z()));
-  const double colour = colourDistance(gone.mean_colour, come.mean_colour);
-  if (small <= 0.0 || large > s.max_size_ratio * small || height > s.max_height_difference_m ||
-      colour > s.max_colour_distance) {
-    return std::nullopt;
-  }
-  // Each difference as a share of what it may be, summed: the likeliest pairs are matched first.
-  const double size = s.max_size_ratio > 1.0 ? std::log(large / small) / std::log(s.max_size_ratio) : 0.0;
-  const double h = s.max_height_difference_m > 0.0 ? height / s.max_height_difference_m : 0.0;
-  const double c = s.max_colour_distance > 0.0 ? colour / s.max_colour_distance : 0.0;
-  return size + h + c;
-}
-
 std::string place(const Eigen::Vector3d& p) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "(%.2f, %.2f, %.2f)", p.x(), p.y(), p.z());
@@ -135,25 +112,13 @@ std::string place(const Eigen::Vector3d& p) {
 /// (each object in one move at most). A move is at most as likely as its less likely half (the
 /// largest joint probability its two halves allow, whatever ties them), so both halves get the
 /// larger score, and a reason that names the other half.
-void pairMoves(std::vector<Alert>& alerts, const MoveSettings& settings) {
-  struct Candidate {
-    double dissimilarity;
-    size_t gone, come;
-  };
-  std::vector<Candidate> candidates;
-  for (size_t i = 0; i < alerts.size(); ++i) {
-    for (size_t j = 0; j < alerts.size(); ++j) {
-      if (auto d = moveDissimilarity(alerts[i].component, alerts[j].component, settings)) {
-        candidates.push_back({*d, i, j});
-      }
-    }
-  }
-  std::stable_sort(candidates.begin(), candidates.end(),
-                   [](const Candidate& x, const Candidate& y) { return x.dissimilarity < y.dissimilarity; });
-  for (const Candidate& m : candidates) {
-    Alert& gone = alerts[m.gone];
-    Alert& come = alerts[m.come];
-    if (gone.moved_with != 0 || come.moved_with != 0) continue;
+void pairMovedHalves(std::vector<Alert>& alerts, const MoveSettings& settings) {
+  std::vector<Component> components;
+  components.reserve(alerts.size());
+  for (const Alert& a : alerts) components.push_back(a.component);
+  for (const MovePair& m : pairMoves(components, settings)) {
+    Alert& gone = alerts[m.vanished];
+    Alert& come = alerts[m.appeared];
     gone.moved_with = come.component.id;
     come.moved_with = gone.component.id;
     const double distance_m = (come.component.centroid_m - gone.component.centroid_m).norm();
@@ -199,16 +164,6 @@ void EvidenceSettings::validate() const {
   }
   if (!(all_hours_observations > 0.0) || !std::isfinite(all_hours_observations)) {
     throw UsageError("the strength of the all-hours evidence must be a positive number of observations");
-  }
-}
-
-void MoveSettings::validate() const {
-  if (!(max_size_ratio >= 1.0) || !std::isfinite(max_size_ratio)) {
-    throw UsageError("the size ratio of a move's halves must be a number of at least 1");
-  }
-  if (!(max_height_difference_m >= 0.0) || !std::isfinite(max_height_difference_m) || !(max_colour_distance >= 0.0) ||
-      !std::isfinite(max_colour_distance)) {
-    throw UsageError("a move's height and colour differences must be numbers of at least 0");
   }
 }
 
@@ -371,7 +326,7 @@ AlertReport findAlerts(const TemporalMap& map, double time_s, const AlertSetting
     a.reason = reasonFor(a, occupied_now, t, map.resolution_m());
     report.alerts.push_back(std::move(a));
   }
-  if (settings.moves.pair) pairMoves(report.alerts, settings.moves);
+  pairMovedHalves(report.alerts, settings.moves);
   std::stable_sort(report.alerts.begin(), report.alerts.end(),
                    [](const Alert& x, const Alert& y) { return x.score_bits > y.score_bits; });
   return report;

@@ -1,6 +1,14 @@
 #include "chronomap/analysis/change_preset.h"
 
+#include "chronomap/core/error.h"
+
 namespace chronomap {
+
+void ChangeSettings::validate() const {
+  diff.validate();
+  segment.validate();
+  moves.validate();
+}
 
 ChangeSettings recommendedChangeSettings() {
   ChangeSettings s;
@@ -12,6 +20,18 @@ ChangeSettings recommendedChangeSettings() {
   s.segment.connectivity = Connectivity::Vertex;
   s.segment.min_voxels = kRecommendedMinObjectVoxels;
   return s;
+}
+
+ChangeSettings rawChangeSettings() {
+  ChangeSettings s;
+  s.moves.pair = false;
+  return s;
+}
+
+ChangeSettings changeSettingsNamed(const std::string& preset) {
+  if (preset == "recommended") return recommendedChangeSettings();
+  if (preset == "raw") return rawChangeSettings();
+  throw UsageError("--preset '" + preset + "' is not a preset: give recommended (the default) or raw");
 }
 
 }  // namespace chronomap

@@ -59,6 +59,12 @@ DiffMap diffMaps(const MapRef& a, const MapRef& b, const DiffSettings& settings,
   return diff(ma, mb, settings);
 }
 
+Changes changesBetween(const MapRef& before, const MapRef& after, const ChangeSettings& settings,
+                       const TileCacheSettings& cache) {
+  settings.validate();
+  return changesOf(diffMaps(before, after, settings.diff, cache), settings);
+}
+
 ColourDiffReport colourDiffMaps(const MapRef& before, const MapRef& after, const ColourDiffSettings& settings) {
   if (!before.time_s || !after.time_s || before.path != after.path) {
     throw UsageError("--colour compares two times of one 4D map: give A and B as MAP.cmap@TIME");

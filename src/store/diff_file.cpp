@@ -21,9 +21,9 @@ void put16(std::vector<uint8_t>& out, uint16_t v) {
 
 uint16_t get16(const uint8_t* p) { return static_cast<uint16_t>(p[0] | (p[1] << 8)); }
 
-}  // namespace
-
-void writeDiffMap(const std::filesystem::path& path, const DiffMap& diff, const nlohmann::json& meta) {
+/// The diff's file with `extra` (a JSON object) added to its metadata.
+void writeDiffFile(const std::filesystem::path& path, const DiffMap& diff, const nlohmann::json& meta,
+                   const nlohmann::json& extra) {
   CmapHeader header;
   header.kind = MapKind::Diff;
   header.resolution_m = diff.resolution_m();
@@ -56,11 +56,34 @@ void writeDiffMap(const std::filesystem::path& path, const DiffMap& diff, const 
   j["dark_surface_brightness"] = diff.settings().dark_surface_brightness;
   j["dark_surface_contrast"] = diff.settings().dark_surface_contrast;
   j["dark_surface_share"] = diff.settings().dark_surface_share;
+  if (extra.is_object()) j.update(extra);
   const std::string text = j.dump();
   std::vector<CmapBlock> blocks(2);
   blocks[0] = {"META", std::vector<uint8_t>(text.begin(), text.end())};
   blocks[1] = {"CELL", std::move(cells)};
   writeFileAtomic(path, encodeCmap(header, blocks));
+}
+
+}  // namespace
+
+void writeDiffMap(const std::filesystem::path& path, const DiffMap& diff, const nlohmann::json& meta) {
+  writeDiffFile(path, diff, meta, nullptr);
+}
+
+void writeDiffMap(const std::filesystem::path& path, const Changes& changes, const ChangeSettings& settings,
+                  const std::string& preset, const nlohmann::json& meta) {
+  nlohmann::json record{{"preset", preset},
+                        {"settings", changeSettingsJson(settings)},
+                        {"objects", changedObjectsJson(changes.objects)}};
+  writeDiffFile(path, changes.diff, meta, {{"changes", std::move(record)}});
+}
+
+nlohmann::json diffChangesOf(const CmapFile& file, const std::string& source) {
+  if (file.header.kind != MapKind::Diff) {
+    throw FormatError(source + ": holds a " + std::string(toString(file.header.kind)) + " map, not a diff");
+  }
+  const nlohmann::json j = metadataOf(file);
+  return j.is_object() && j.contains("changes") ? j["changes"] : nlohmann::json();
 }
 
 DiffMap diffMapFrom(const CmapFile& file, const std::string& source) {

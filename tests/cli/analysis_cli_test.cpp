@@ -7,6 +7,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "chronomap/analysis/changes.h"
 #include "chronomap/analysis/segment.h"
 #include "chronomap/store/cmap.h"
 #include "chronomap/store/diff_file.h"
@@ -62,12 +63,97 @@ TEST(AnalysisCli, HelpForEveryCommand) {
   }
 }
 
+/// The analytic changes scene (builders.h) as a 4D map of two sessions, at 100 s and 200 s.
+TemporalMap writeChangesScene(const fs::path& path) {
+  TemporalMap map(0.05);
+  map.add(100.0, test::changesScene(false));
+  map.add(200.0, test::changesScene(true));
+  writeTemporalMap(path, map, {});
+  return map;
+}
+
+TEST(AnalysisCli, DiffWithoutFlagsGivesTheRecommendedAnswer) {
+  test::TempDir tmp;
+  const std::string m = (tmp / "m.cmap").string();
+  const TemporalMap map = writeChangesScene(m);
+  const Changes expected = findChanges(map, 100.0, 200.0);  // the library's defaults
+  ASSERT_EQ(expected.objects.size(), 3u);
+  auto run = [&](const std::string& out, const std::string& flags) {
+    const auto r = test::runCommand(cli() + " diff " + m + "@100 " + m + "@200 -o " + (tmp / out).string() + flags);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return r;
+  };
+  const auto plain = run("d.cmap", " --json");
+  const auto j = nlohmann::json::parse(plain.out);
+  EXPECT_EQ(j["objects"], changedObjectsJson(expected.objects));
+  EXPECT_EQ(j["preset"], "recommended");
+  EXPECT_EQ(j["mode"], "band");
+  EXPECT_EQ(j["settings"], changeSettingsJson(recommendedChangeSettings()));
+  EXPECT_EQ(j["changed_voxels"], expected.appeared_voxels + expected.vanished_voxels);
+  EXPECT_EQ(j["objects"][2]["kind"], "moved");
+  // The file holds the same diff, and the objects and settings in its metadata.
+  EXPECT_EQ(readDiffMap(tmp / "d.cmap"), expected.diff);
+  const nlohmann::json kept = diffChangesOf(readCmap(tmp / "d.cmap"), "d.cmap");
+  EXPECT_EQ(kept["objects"], changedObjectsJson(expected.objects));
+  EXPECT_EQ(kept["settings"], changeSettingsJson(recommendedChangeSettings()));
+  EXPECT_EQ(kept["preset"], "recommended");
+
+  // --preset raw: the plain hard diff; the patch before the wall is a change there, the small box
+  // an object, and the moved box two.
+  const auto raw = nlohmann::json::parse(run("raw.cmap", " --preset raw --json").out);
+  const Changes plain_diff = findChanges(map, 100.0, 200.0, rawChangeSettings());
+  EXPECT_EQ(readDiffMap(tmp / "raw.cmap"), diff(map, 100.0, 200.0));
+  EXPECT_EQ(raw["objects"], changedObjectsJson(plain_diff.objects));
+  EXPECT_EQ(raw["objects"].size(), 6u);
+  EXPECT_EQ(raw["mode"], "hard");
+  EXPECT_NE(raw["changed_voxels"], j["changed_voxels"]);
+  EXPECT_NE(readDiffMap(tmp / "raw.cmap"), readDiffMap(tmp / "d.cmap"));
+
+  // Expert flags change single settings: raw plus the recommended flags is the default answer,
+  // and the default with --min-voxels 1 keeps the small box too.
+  const auto spelled = nlohmann::json::parse(
+      run("s.cmap", " --preset raw --mode band --neighbourhood 1 --min-shift 0.5 --kept-surface 3 --dark-surface 2 "
+                    "--connectivity vertex --min-voxels 20 --moves --json")
+          .out);
+  EXPECT_EQ(spelled["objects"], j["objects"]);
+  EXPECT_EQ(spelled["settings"], j["settings"]);
+  EXPECT_EQ(spelled["preset"], "raw, changed by flags");
+  const auto small = nlohmann::json::parse(run("m1.cmap", " --min-voxels 1 --json").out);
+  EXPECT_EQ(small["objects"].size(), 4u);
+  EXPECT_EQ(small["settings"]["segment"]["min_voxels"], 1);
+  const auto apart = nlohmann::json::parse(run("nm.cmap", " --no-moves --json").out);
+  EXPECT_EQ(apart["objects"].size(), 4u);
+  const auto both = test::runCommand(cli() + " diff " + m + "@100 " + m + "@200 --moves --no-moves -o " +
+                                     (tmp / "b.cmap").string());
+  EXPECT_EQ(both.exit_code, 2);
+  EXPECT_NE(both.err.find("--moves and --no-moves were both given"), std::string::npos) << both.err;
+
+  // Text: the objects, the move with its distance.
+  const auto text = run("t.cmap", "");
+  EXPECT_NE(text.out.find("band diff (recommended settings): "), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("3 objects: 1 appeared, 1 vanished, 1 moved"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find(", 0.90 m\n"), std::string::npos) << text.out;
+}
+
+TEST(AnalysisCli, DiffHelpPrintsTheDefaults) {
+  const auto r = test::runCommand(cli() + " diff --help");
+  ASSERT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.out.find("--mode band --alpha 0.1 --neighbourhood 1 --min-shift 0.5 --kept-surface 3"), std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("--connectivity vertex --min-voxels 20 --moves"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("raw (the plain thesis diff"), std::string::npos) << r.out;
+  const auto bad = test::runCommand(cli() + " diff a.cmap b.cmap --preset fancy -o d.cmap");
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("--preset 'fancy' is not a preset: give recommended (the default) or raw"), std::string::npos)
+      << bad.err;
+}
+
 TEST(AnalysisCli, DiffThenSegmentFindsTheBox) {
   test::TempDir tmp;
   writePair(tmp / "a.cmap", tmp / "b.cmap");
   const auto d = test::runCommand(cli() + " diff " + (tmp / "a.cmap").string() + " " + (tmp / "b.cmap").string() +
                                   " -o " + (tmp / "d.cmap").string() + " --ply " + (tmp / "d.ply").string() +
-                                  " --json");
+                                  " --json --preset raw");
   ASSERT_EQ(d.exit_code, 0) << d.err;
   const auto dj = nlohmann::json::parse(d.out);
   EXPECT_EQ(dj["mode"], "hard");
@@ -119,7 +205,7 @@ TEST(AnalysisCli, DiffOfTwoTimesOfA4DMap) {
   map.add(200, readSessionMap(tmp / "b.cmap"));
   writeTemporalMap(tmp / "m.cmap", map, {});
   const std::string m = (tmp / "m.cmap").string();
-  const auto r = test::runCommand(cli() + " diff " + m + "@150 " + m + "@200 --mode band -o " +
+  const auto r = test::runCommand(cli() + " diff " + m + "@150 " + m + "@200 --preset raw --mode band -o " +
                                   (tmp / "d.cmap").string() + " --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(nlohmann::json::parse(r.out)["changed_voxels"], 9);

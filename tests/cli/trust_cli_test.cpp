@@ -202,8 +202,8 @@ TEST(TrustCli, OutOfRangeValuesAreRefusedNotReplacedByDefaults) {
        tmp / "s.cmap"},
       {cat("integrate ", dataset.string(), " --pose 0,0,nan,0,0,0,1 -o ", (tmp / "s.cmap").string()), "--pose",
        tmp / "s.cmap"},
-      // A value the mode does not use is refused, not ignored.
-      {cat("diff ", a, " ", b, " --alpha 0.3 -o ", (tmp / "d.cmap").string()), "threshold and band modes only",
+      // A value the mode does not use is refused, not ignored (raw: hard mode, which has no alpha).
+      {cat("diff ", a, " ", b, " --preset raw --alpha 0.3 -o ", (tmp / "d.cmap").string()), "threshold and band modes only",
        tmp / "d.cmap"},
       // Negative counts used to wrap to huge ones (no component kept); a negative tolerance meant "no colour".
       {cat("segment ", d, " --min-voxels -1 -o ", (tmp / "objects").string()), "--min-voxels", tmp / "objects"},

@@ -112,4 +112,33 @@ SessionMap randomTileRegionSession(std::mt19937_64& rng, std::vector<uint8_t>& w
   return m;
 }
 
+SessionMap changesScene(bool later) {
+  struct Box {
+    int x0, x1, y0, y1, z0, z1;  // inclusive
+    Rgb colour;
+    bool contains(int x, int y, int z) const { return x >= x0 && x <= x1 && y >= y0 && y <= y1 && z >= z0 && z <= z1; }
+  };
+  const Box wall{34, 34, 0, 15, 0, 9, Rgb{128, 128, 128}};
+  const std::vector<Box> boxes =
+      later ? std::vector<Box>{wall,
+                               {12, 14, 2, 4, 1, 8, Rgb{40, 40, 200}},
+                               {20, 22, 10, 12, 1, 3, Rgb{40, 200, 40}},
+                               {12, 13, 12, 13, 1, 2, Rgb{200, 200, 40}},
+                               {31, 31, 5, 9, 3, 7, Rgb{150, 150, 150}}}
+            : std::vector<Box>{wall, {2, 5, 2, 5, 1, 4, Rgb{200, 40, 40}}, {2, 4, 10, 12, 1, 3, Rgb{40, 200, 40}}};
+  SessionMap s(0.05);
+  for (int z = 0; z < 10; ++z) {
+    for (int y = 0; y < 16; ++y) {
+      for (int x = 0; x < 36; ++x) {
+        const Box* in = nullptr;
+        for (const Box& b : boxes) {
+          if (b.contains(x, y, z)) in = &b;
+        }
+        s.add(at(x, y, z), in ? occupiedVoxel(in->colour) : freeVoxel());
+      }
+    }
+  }
+  return s;
+}
+
 }  // namespace chronomap::test

@@ -52,6 +52,15 @@ inline constexpr int kTileRegionLo = -6, kTileRegionHi = 10;
 /// (a later session refines a cube of the top below tile level).
 SessionMap randomTileRegionSession(std::mt19937_64& rng, std::vector<uint8_t>& world, bool far_parts);
 
+/// The changes scene (docs/changes.md's analytic case), 0.05 m voxels: the block x 0..35,
+/// y 0..15, z 0..9 observed, free but for its objects; a grey wall at x = 34 in both states.
+/// Earlier: a red 4 x 4 x 4 box A at (2..5, 2..5, 1..4) and a green 3 x 3 x 3 box C at
+/// (2..4, 10..12, 1..3). Later: A gone; a blue 3 x 3 x 8 box B at (12..14, 2..4, 1..8); C moved
+/// by 18 voxels (0.9 m) in x to (20..22, 10..12, 1..3); a 2 x 2 x 2 box D at (12..13, 12..13,
+/// 1..2), too small for an object; and a 5 x 5 patch P one voxel thick at x = 31, y 5..9, z 3..7,
+/// three voxels before the wall, which the weak-change rule takes for the wall measured nearer.
+SessionMap changesScene(bool later);
+
 /// A cloud of the given points (no colour).
 PointCloud cloudOf(std::initializer_list<Eigen::Vector3f> points);
 

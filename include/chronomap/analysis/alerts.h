@@ -18,7 +18,7 @@
 /// y, when it was seen in both states within the window, can make the change ordinary (a chair
 /// moved a few centimetres from where it stood at this hour before). The score is -log2 of the
 /// larger probability, in bits. A vanished and an appeared object of the session that look
-/// alike (size, height, colour: MoveSettings) are one object moved, scored as one: the move is
+/// alike (size, height, colour: MoveSettings, pairMoves() in analysis/moves.h) are one object moved, scored as one: the move is
 /// at most as likely as its less likely half, and both halves get that score.
 
 #include <cstdint>
@@ -28,6 +28,7 @@
 
 #include "chronomap/analysis/change_preset.h"
 #include "chronomap/analysis/diff.h"
+#include "chronomap/analysis/moves.h"
 #include "chronomap/analysis/segment.h"
 #include "chronomap/temporal/temporal_map.h"
 
@@ -44,21 +45,6 @@ struct EvidenceSettings {
   /// an hour holds on average in three weeks of two sessions a day (42 * 3 h / 24 h * 5 / 7).
   double all_hours_observations = 3.0;
   /// @throw UsageError for a weight outside 0..1 or a strength that is not positive and finite.
-  void validate() const;
-};
-
-/// When a vanished and an appeared object of one session are one object moved.
-struct MoveSettings {
-  bool pair = true;  ///< look for moves at all
-  /// The larger object holds at most this many times the voxels of the smaller one (the two
-  /// halves are seen from different places, so rarely in full both times).
-  double max_size_ratio = 2.0;
-  /// Their heights (bounding boxes' z extents) differ by at most this, metres.
-  double max_height_difference_m = 0.15;
-  /// Their mean colours differ by at most this (8-bit RGB distance; the light of the two
-  /// sessions differs, so a chair's two halves are not quite the same colour).
-  double max_colour_distance = 60.0;
-  /// @throw UsageError for a ratio below 1 or a distance that is negative or not finite.
   void validate() const;
 };
 

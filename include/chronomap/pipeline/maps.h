@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "chronomap/analysis/change_frequency.h"
+#include "chronomap/analysis/changes.h"
 #include "chronomap/analysis/colour.h"
 #include "chronomap/analysis/diff.h"
 #include "chronomap/analysis/segment.h"
@@ -42,6 +43,14 @@ SessionMap loadSessionMap(const MapRef& ref, const CmapFile& file);
 /// @throw UsageError when a tiled map is compared with anything but another time of itself.
 DiffMap diffMaps(const MapRef& before, const MapRef& after, const DiffSettings& settings,
                  const TileCacheSettings& cache = {});
+
+/// What changed from `before` to `after`, and which objects (analysis/changes.h): the diff of
+/// diffMaps() with settings.diff, segmented and paired into moves as changesOf() does. The call
+/// `chronomap diff` makes; the default is the recommended settings.
+/// @throw UsageError as diffMaps() and for bad settings.
+Changes changesBetween(const MapRef& before, const MapRef& after,
+                       const ChangeSettings& settings = recommendedChangeSettings(),
+                       const TileCacheSettings& cache = {});
 
 /// The colour part of a diff between two times of one 4D map.
 struct ColourDiffReport {
