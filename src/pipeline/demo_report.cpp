@@ -1,5 +1,6 @@
 #include "demo_report.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <iomanip>
 #include <sstream>
@@ -18,7 +19,13 @@ std::string percent(double v) {
   return s.str();
 }
 
-std::string eventName(const ChangeEvent& e) { return std::string(toString(e.object_kind)) + " " + toString(e.kind); }
+/// "door opened", "chair moved": the kind in words, after the object's kind unless it names it.
+std::string eventName(const ChangeEvent& e) {
+  std::string kind = toString(e.kind);
+  std::replace(kind.begin(), kind.end(), '_', ' ');
+  const std::string object = toString(e.object_kind);
+  return kind.rfind(object + " ", 0) == 0 ? kind : object + " " + kind;
+}
 
 void introduction(std::ostream& md, const DemoReportInput& in) {
   md << "# chronomap demo: the simulated office\n\n"
@@ -43,7 +50,7 @@ void sessionTable(std::ostream& md, const DemoReportInput& in) {
      << "|---|---|---|---|---|---|---|---|---|---|\n";
   for (size_t s = 0; s < in.sessions.size(); ++s) {
     const DemoSession& d = in.sessions[s];
-    md << "| " << s << " | " << formatTime(in.simulated.times_s[s]) << " | " << d.stats.frames << " | "
+    md << "| " << s + 1 << " | " << formatTime(in.simulated.times_s[s]) << " | " << d.stats.frames << " | "
        << d.stats.points << " | " << d.registered_score.predicted << " | " << percent(d.score.precision) << " | "
        << percent(d.score.recall) << " | " << percent(d.registered_score.precision) << " | "
        << percent(d.registered_score.recall) << " | " << in.map.sessions()[s].nodes_added << " |\n";
@@ -72,11 +79,11 @@ void mapAndPictures(std::ostream& md, const DemoReportInput& in) {
      << "The map as last observed, from above (each column shows its highest occupied voxel in its mean "
      << "colour; light grey is free space, dark is never observed):\n\n"
      << "![Top view of the latest snapshot](images/map_topview.png)\n\n"
-     << "Session 0's points from above, as the camera saw them:\n\n"
-     << "![Session 0 point cloud](images/session_00_cloud.png)\n\n"
+     << "Session 1's points from above, as the camera saw them:\n\n"
+     << "![Session 1 point cloud](images/session_00_cloud.png)\n\n"
      << "One recorded frame, colour and depth (black: no depth; blue near, red far):\n\n"
      << "![RGB frame](images/frame_rgb.png) ![Depth frame](images/frame_depth.png)\n\n"
-     << "The camera path of session 0, true and as the localisation estimated it:\n\n"
+     << "The camera path of session 1, true and as the localisation estimated it:\n\n"
      << "![Trajectory](images/trajectory.png)\n\n";
 }
 
@@ -100,14 +107,21 @@ void componentTable(std::ostream& md, const DemoPair& p) {
 }
 
 void pairSection(std::ostream& md, const DemoPair& p, const SegmentSettings& segment) {
-  md << "### Session " << p.from << " → " << p.from + 1 << "\n\n"
-     << "The simulator made " << p.events.size() << " changes (";
-  for (size_t i = 0; i < p.events.size(); ++i) md << (i ? ", " : "") << eventName(p.events[i]);
-  md << "); " << p.score.events_observable << " of them were observed in both sessions and " << p.score.events_found
-     << " found. The diff holds " << p.score.changed_voxels << " changed voxels, in "
-     << p.segmentation.components.size() << " components of at least " << segment.min_voxels << " voxels ("
-     << p.segmentation.dropped << " smaller ones dropped).\n\n"
-     << "![Changes from session " << p.from << " to " << p.from + 1 << "](images/" << p.name << ".png)\n\n";
+  // Sessions are numbered from 1 here, as the viewer and people count them.
+  const size_t from = p.from + 1, to = p.from + 2;
+  md << "### Session " << from << " → " << to << "\n\n";
+  if (p.events.empty()) {
+    md << "The simulator made no change.";
+  } else {
+    md << "The simulator made " << countOf(p.events.size(), "change") << " (";
+    for (size_t i = 0; i < p.events.size(); ++i) md << (i ? ", " : "") << eventName(p.events[i]);
+    md << "); " << p.score.events_observable << " of them " << (p.score.events_observable == 1 ? "was" : "were")
+       << " observed in both sessions and " << p.score.events_found << " found.";
+  }
+  md << " The diff holds " << countOf(p.score.changed_voxels, "changed voxel") << ", in "
+     << countOf(p.segmentation.components.size(), "component") << " of at least " << segment.min_voxels
+     << " voxels (" << p.segmentation.dropped << " smaller ones dropped).\n\n"
+     << "![Changes from session " << from << " to " << to << "](images/" << p.name << ".png)\n\n";
   componentTable(md, p);
 }
 
