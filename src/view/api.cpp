@@ -12,6 +12,7 @@
 
 #include "assets.h"
 #include "printable.h"
+#include "chronomap/analysis/changes.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/format.h"
 #include "chronomap/core/time.h"
@@ -203,11 +204,31 @@ Reply Api::snapshot(const Query& query) const {
 }
 
 Reply Api::diffReply(const Query& query) const {
-  onlyParameters("/api/diff", query, {"from", "to", "t0", "t1", "min_voxels"});
+  onlyParameters("/api/diff", query, {"from", "to", "t0", "t1", "min_voxels", "format"});
   DiffRequest r{0.0, 0.0, settings_.diff, settings_.segment};
   r.t0_s = requestedTime(map_, query, "from", "t0");
   r.t1_s = requestedTime(map_, query, "to", "t1");
   if (const auto* m = find(query, "min_voxels")) r.segment.min_voxels = parseCount(*m, "min_voxels", 1, 1u << 30, "an object size in voxels");
+  const std::string* format = find(query, "format");
+  if (format && *format != "binary" && *format != "json") {
+    throw UsageError(received("format", *format) + " is not a reply format: expected json (the objects) or binary "
+                                                   "(the default: cells for drawing)");
+  }
+  if (format && *format == "json") {
+    // The objects as every front door lists them: the one call, with the viewer's settings.
+    ChangeSettings s = recommendedChangeSettings();
+    s.diff = r.diff;
+    s.segment = r.segment;
+    const Changes changes = findChanges(map_, r.t0_s, r.t1_s, s);
+    return json({{"t0", r.t0_s},
+                 {"t1", r.t1_s},
+                 {"from", formatTime(r.t0_s)},
+                 {"to", formatTime(r.t1_s)},
+                 {"appeared_voxels", changes.appeared_voxels},
+                 {"vanished_voxels", changes.vanished_voxels},
+                 {"settings", changeSettingsJson(s)},
+                 {"objects", changedObjectsJson(changes.objects)}});
+  }
   return binary(encodeDiff(diffObjects(map_, r), r, settings_.max_diff_cells));
 }
 

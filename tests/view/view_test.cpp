@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "assets.h"
+#include "chronomap/analysis/changes.h"
 #include "chronomap/core/error.h"
 #include "chronomap/view/api.h"
 #include "chronomap/view/packet.h"
@@ -196,6 +197,15 @@ TEST(ViewApi, AnswersAndRefusals) {
   EXPECT_EQ(readPacket(snap.body).header["occupied_voxels"], referenceCells(map, 2000, 0).size());
   EXPECT_EQ(get("/api/snapshot", {{"t", "1970-01-01T00:50:00Z"}}).status, 200);  // 3000 s
   EXPECT_EQ(get("/api/diff", {{"from", "0"}, {"to", "3"}}).status, 200);
+  // The objects as JSON: the one call's list (findChanges with the recommended settings), as
+  // `chronomap diff --json` and Python print it.
+  const Reply objects = get("/api/diff", {{"t0", "1000"}, {"t1", "4000"}, {"format", "json"}});
+  ASSERT_EQ(objects.status, 200) << objects.body;
+  const auto listed = nlohmann::json::parse(objects.body);
+  EXPECT_FALSE(listed["objects"].empty());
+  EXPECT_EQ(listed["objects"], changedObjectsJson(findChanges(map, 1000, 4000).objects));
+  EXPECT_EQ(listed["settings"], changeSettingsJson(recommendedChangeSettings()));
+  EXPECT_EQ(get("/api/diff", {{"from", "0"}, {"to", "3"}, {"format", "xml"}}).status, 400);
   EXPECT_EQ(get("/api/history", {{"key", "32770,32768,32768"}}).status, 200);
   // Anything else of the disk or of the API: 404.
   for (const char* path : {"/../etc/passwd", "/etc/passwd", "/api", "/api/", "/api/map/x", "/viewer.js/..", "/index.htm"}) {
