@@ -266,11 +266,12 @@ void appendToFile(const fs::path& path, uint64_t keep_bytes, const std::vector<u
   const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);
   if (fd < 0) throw IoError(path.string() + ": cannot open for appending (" + std::strerror(errno) + ")");
   struct stat st {};
-  if (::fstat(fd, &st) == 0 && !S_ISREG(st.st_mode)) {
+  const bool stated = ::fstat(fd, &st) == 0;
+  if (stated && !S_ISREG(st.st_mode)) {  // replaced by something else since the check above
     ::close(fd);
     throw IoError(path.string() + ": is " + nonRegularKind(st) + ", not a regular file; nothing was written");
   }
-  if (::fstat(fd, &st) != 0 || static_cast<uint64_t>(st.st_size) < keep_bytes) {
+  if (!stated || static_cast<uint64_t>(st.st_size) < keep_bytes) {
     ::close(fd);
     throw IoError(path.string() + ": changed while it was being read; nothing was written");
   }
