@@ -75,10 +75,13 @@ struct CubeStore {
   int64_t side = 0;
   std::vector<uint32_t> end;
 
+  /// Makes room for a cube of side `s`. The cells are all zero between frames (each frame
+  /// zeroes what it wrote), so a buffer large enough is reused whatever side it last had: the
+  /// side follows each frame's farthest point and changes from frame to frame.
   void ensure(int64_t s) {
-    if (side == s) return;
     side = s;
-    end.assign(static_cast<size_t>(s * s * s), 0u);
+    const size_t cells = static_cast<size_t>(s * s * s);
+    if (end.size() < cells) end.assign(cells, 0u);
   }
 };
 
