@@ -62,6 +62,10 @@ void addCriterionFlags(CLI::App* app, ChangeCriterion& c) {
                   "new map only: also store a change when the mean colour moves farther than this "
                   "(8-bit RGB units; 0 = off)")
       ->capture_default_str();
+  app->add_option("--surface-shift", c.surface_shift_voxels,
+                  "new map only: also store a change when the hits in an occupied voxel moved farther than this "
+                  "(voxels; 0 = off): what the diff's shift test reads")
+      ->capture_default_str();
 }
 
 nlohmann::json addReportJson(const AddReport& r, double time_s, int64_t nodes_added) {

@@ -102,12 +102,15 @@ void bindTemporal(py::module_& m) {
   // Every method that reads or changes the map holds its ObjectLock: threads sharing one map
   // run their calls one after another (even const calls: the change layers fill a cache).
   py::class_<TemporalMap>(m, "TemporalMap", "The 4D map: every observed state of a place, session by session.")
-      .def(py::init([](double resolution_m, double colour_distance) {
-             return TemporalMap(resolution_m, ChangeCriterion{0.0, colour_distance});
+      .def(py::init([](double resolution_m, double colour_distance, double surface_shift_voxels) {
+             return TemporalMap(resolution_m, ChangeCriterion{0.0, colour_distance, surface_shift_voxels});
            }),
            py::arg("resolution_m") = 0.05, py::arg("color_distance") = 0.0,
+           py::arg("surface_shift_voxels") = ChangeCriterion::kRecommendedSurfaceShift,
            "An empty 4D map. color_distance > 0 also stores a change when a voxel's mean colour moves farther than "
-           "that (8-bit RGB units), as `chronomap build --color-distance` does; ColourModel learns from those.")
+           "that (8-bit RGB units), as `chronomap build --color-distance` does; ColourModel learns from those. "
+           "surface_shift_voxels > 0 also stores one when the hits in an occupied voxel moved farther than that "
+           "(voxels), as `chronomap build --surface-shift` does; the change search's shift test reads them.")
       .def_static(
           "open",
           [](const std::filesystem::path& path) {

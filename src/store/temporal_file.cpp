@@ -167,7 +167,8 @@ std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::j
   nlohmann::json j = nlohmann::json::object();
   j["user"] = meta.is_object() ? meta : nlohmann::json::object();
   j["criterion"] = {{"probability_threshold", map.criterion().probability_threshold},
-                    {"color_distance", map.criterion().colour_distance}};
+                    {"color_distance", map.criterion().colour_distance},
+                    {"surface_shift_voxels", map.criterion().surface_shift_voxels}};
   nlohmann::json sessions = nlohmann::json::array();
   std::vector<uint8_t> coverage;
   for (const SessionRecord& s : compacted.sessions()) {
@@ -217,6 +218,7 @@ TemporalMap decodeTemporalBlocks(const CmapFile& file, const std::string& source
     if (j.contains("criterion")) {
       criterion.probability_threshold = j["criterion"].value("probability_threshold", 0.0);
       criterion.colour_distance = j["criterion"].value("color_distance", 0.0);
+      criterion.surface_shift_voxels = j["criterion"].value("surface_shift_voxels", 0.0);
       criterion.validate();
     }
     for (const auto& s : j["sessions"]) {

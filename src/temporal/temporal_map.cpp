@@ -40,6 +40,11 @@ bool ChangeCriterion::differs(const VoxelCounters& before, const VoxelCounters& 
     const double dr = a.r - b.r, dg = a.g - b.g, db = a.b - b.b;
     if (std::sqrt(dr * dr + dg * dg + db * db) > colour_distance) return true;
   }
+  if (surface_shift_voxels > 0.0 && before.hits > 0 && after.hits > 0) {
+    double d2 = 0.0;
+    for (int axis = 0; axis < 3; ++axis) d2 += std::pow(after.meanOffset(axis) - before.meanOffset(axis), 2);
+    if (d2 > surface_shift_voxels * surface_shift_voxels) return true;
+  }
   return false;
 }
 
@@ -49,6 +54,9 @@ void ChangeCriterion::validate() const {
   }
   if (!std::isfinite(colour_distance) || colour_distance < 0.0) {
     throw UsageError("colour distance must be a non-negative number, got " + std::to_string(colour_distance));
+  }
+  if (!(surface_shift_voxels >= 0.0 && surface_shift_voxels <= 2.0)) {
+    throw UsageError("surface shift must lie in [0, 2] voxels, got " + std::to_string(surface_shift_voxels));
   }
 }
 
@@ -654,10 +662,7 @@ TemporalMap TemporalMap::fromParts(double resolution_m, ChangeCriterion criterio
 
 bool operator==(const TemporalMap& a, const TemporalMap& b) {
   if (a.resolution_m() != b.resolution_m() || a.sessions_.size() != b.sessions_.size()) return false;
-  if (a.criterion_.probability_threshold != b.criterion_.probability_threshold ||
-      a.criterion_.colour_distance != b.criterion_.colour_distance) {
-    return false;
-  }
+  if (!(a.criterion_ == b.criterion_)) return false;
   for (size_t i = 0; i < a.sessions_.size(); ++i) {
     const auto& x = a.sessions_[i];
     const auto& y = b.sessions_[i];

@@ -244,8 +244,7 @@ void checkTileFits(const TemporalMap& top, int tile_level, const TileKey& key, c
     throw FormatError(source + ": resolution " + std::to_string(tile.resolution_m()) + " m differs from the index's " +
                       std::to_string(top.resolution_m()) + " m");
   }
-  if (tile.criterion().probability_threshold != top.criterion().probability_threshold ||
-      tile.criterion().colour_distance != top.criterion().colour_distance) {
+  if (!(tile.criterion() == top.criterion())) {
     throw FormatError(source + ": its change criterion differs from the index's");
   }
   bool same = tile.sessionCount() == top.sessionCount();
