@@ -46,6 +46,8 @@ struct DiffCmdOptions {
   std::optional<double> dark_below;
   std::optional<double> dark_contrast;
   std::optional<double> dark_share;
+  bool seen_at_both = false;
+  bool last_observed = false;
   std::optional<std::string> connectivity;
   std::optional<uint64_t> min_voxels;
   bool moves = false;
@@ -104,6 +106,9 @@ ChangeSettings changeSettingsOf(const DiffCmdOptions& o) {
   setIfGiven(d.dark_surface_brightness, o.dark_below);
   setIfGiven(d.dark_surface_contrast, o.dark_contrast);
   setIfGiven(d.dark_surface_share, o.dark_share);
+  if (o.seen_at_both && o.last_observed) throw UsageError("--seen-at-both and --last-observed were both given; give one");
+  if (o.seen_at_both) d.seen_at_both = true;
+  if (o.last_observed) d.seen_at_both = false;
   if (o.connectivity) s.segment.connectivity = parseConnectivity(*o.connectivity);
   setIfGiven(s.segment.min_voxels, o.min_voxels);
   if (o.moves && o.no_moves) throw UsageError("--moves and --no-moves were both given; give one");
@@ -273,7 +278,7 @@ std::string presetFlags(const ChangeSettings& s) {
           " --kept-share " + exactNumber(d.kept_surface_share) + " --dark-surface " +
           std::to_string(d.dark_surface_radius_voxels) + " --dark-below " + exactNumber(d.dark_surface_brightness) +
           " --dark-contrast " + exactNumber(d.dark_surface_contrast) + " --dark-share " +
-          exactNumber(d.dark_surface_share) + "; objects: --connectivity " + toString(s.segment.connectivity) +
+          exactNumber(d.dark_surface_share) + (d.seen_at_both ? " --seen-at-both" : " --last-observed") + "; objects: --connectivity " + toString(s.segment.connectivity) +
           " --min-voxels " + std::to_string(s.segment.min_voxels) + (s.moves.pair ? " --moves" : " --no-moves");
   return text;
 }
@@ -305,6 +310,12 @@ void addFalseChangeRules(CLI::App* app, DiffCmdOptions& o) {
                   "in (0, 1]");
   app->add_option("--dark-share", o.dark_share,
                   "the share of an object's voxels --dark-surface needs dark (and darker), in (0, 1]");
+  app->add_flag("--seen-at-both", o.seen_at_both,
+                "MAP@T1 MAP@T2: compare what the sessions in effect at T1 and T2 observed, as a diff of those two "
+                "session maps does (a voxel neither saw is unknown)");
+  app->add_flag("--last-observed", o.last_observed,
+                "MAP@T1 MAP@T2: compare each voxel as last observed up to each time, so a change that the "
+                "sessions between missed shows up at the first session that saw it");
 }
 
 /// The objects' settings: how changes join, the smallest object, moves.

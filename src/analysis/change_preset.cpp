@@ -17,6 +17,7 @@ ChangeSettings recommendedChangeSettings() {
   s.diff.min_shift_voxels = DiffSettings::kRecommendedMinShift;
   s.diff.kept_surface_radius_voxels = DiffSettings::kRecommendedKeptSurfaceRadius;
   s.diff.dark_surface_radius_voxels = DiffSettings::kDarkSurfaceRadius;
+  s.diff.seen_at_both = true;
   s.segment.connectivity = Connectivity::Vertex;
   s.segment.min_voxels = kRecommendedMinObjectVoxels;
   return s;

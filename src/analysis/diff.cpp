@@ -1,5 +1,7 @@
 #include "chronomap/analysis/diff.h"
 
+#include "chronomap/temporal/coverage.h"
+
 #include <algorithm>
 #include <cmath>
 #include <unordered_map>
@@ -443,6 +445,15 @@ DiffMap diff(const TemporalMap& map, double t1_s, double t2_s, const DiffSetting
   if (!std::isfinite(t1_s) || !std::isfinite(t2_s)) throw UsageError("diff times must be finite");
   DiffMap d(map.resolution_m(), settings);
   const auto r1 = map.rankAtOrBefore(t1_s), r2 = map.rankAtOrBefore(t2_s);
+  // With seen_at_both: what the two sessions in effect observed (none: nothing was).
+  std::optional<CoverageIndex> seen1, seen2;
+  if (settings.seen_at_both) {
+    seen1.emplace(r1 ? map.sessions()[*r1].coverage : Coverage{});
+    seen2.emplace(r2 ? map.sessions()[*r2].coverage : Coverage{});
+  }
+  auto seen = [](const std::optional<CoverageIndex>& c, const VoxelKey& k, int level) {
+    return !c || c->overlap(k, level) == CoverageIndex::Overlap::Full;
+  };
   // Entry valid at rank r (none before the list's first entry, or before any session). The
   // search gallops back from the newest entry, so its cost follows how far back in the list the
   // time lies, not how long the history is: a diff of recent times stays as fast as the map grows.
@@ -470,7 +481,9 @@ DiffMap diff(const TemporalMap& map, double t1_s, double t2_s, const DiffSetting
   DiffStats local;
   auto compare = [&](const VoxelKey& k, int level, std::span<const TemporalMap::Entry> e) {
     ++local.lists_compared;
-    auto cell = compareVoxel(valueAt(e, r1), valueAt(e, r2), settings);
+    const VoxelCounters none{};
+    auto cell = compareVoxel(seen(seen1, k, level) ? valueAt(e, r1) : none,
+                             seen(seen2, k, level) ? valueAt(e, r2) : none, settings);
     if (!cell) return;
     cell->key = k;
     cell->level = static_cast<uint8_t>(level);
@@ -484,10 +497,12 @@ DiffMap diff(const TemporalMap& map, double t1_s, double t2_s, const DiffSetting
     const uint32_t lo = std::min(n1, n2), hi = std::max(n1, n2);
     local.inner_nodes_visited = map.forEachListChangedIn(lo, hi, compare);
   }
-  auto countersAt = [&map](double t) {
-    return [&map, t](const VoxelKey& k) { return map.valueAt(k, t).value_or(VoxelCounters{}); };
+  auto countersAt = [&map, &seen](double t, const std::optional<CoverageIndex>& c) {
+    return [&map, &seen, &c, t](const VoxelKey& k) {
+      return seen(c, k, 0) ? map.valueAt(k, t).value_or(VoxelCounters{}) : VoxelCounters{};
+    };
   };
-  applyRules(d.cells_, settings, countersAt(t1_s), countersAt(t2_s));
+  applyRules(d.cells_, settings, countersAt(t1_s, seen1), countersAt(t2_s, seen2));
   // Both walks visit lists in slot order, which is Morton order: the cells are sorted already.
   if (stats) *stats = local;
   return d;

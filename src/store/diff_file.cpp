@@ -56,6 +56,7 @@ void writeDiffFile(const std::filesystem::path& path, const DiffMap& diff, const
   j["dark_surface_brightness"] = diff.settings().dark_surface_brightness;
   j["dark_surface_contrast"] = diff.settings().dark_surface_contrast;
   j["dark_surface_share"] = diff.settings().dark_surface_share;
+  j["seen_at_both"] = diff.settings().seen_at_both;
   if (extra.is_object()) j.update(extra);
   const std::string text = j.dump();
   std::vector<CmapBlock> blocks(2);
@@ -103,6 +104,7 @@ DiffMap diffMapFrom(const CmapFile& file, const std::string& source) {
     settings.dark_surface_brightness = j.value("dark_surface_brightness", DiffSettings::kDefaultDarkSurfaceBrightness);
     settings.dark_surface_contrast = j.value("dark_surface_contrast", DiffSettings::kDefaultDarkSurfaceContrast);
     settings.dark_surface_share = j.value("dark_surface_share", DiffSettings::kDefaultDarkSurfaceShare);
+    settings.seen_at_both = j.value("seen_at_both", false);
     settings.validate();
   } catch (const std::exception& e) {
     throw FormatError(source + ": invalid diff settings (" + e.what() + ")");

@@ -1,5 +1,7 @@
 #include "chronomap/store/tiled_map.h"
 
+#include <map>
+
 #include <algorithm>
 
 #include "chronomap/core/error.h"
@@ -124,9 +126,33 @@ DiffMap TiledMap::diff(double t1_s, double t2_s, const DiffSettings& settings, c
   };
   gather(index_.top);
   for (const TileKey& key : tilesMeeting(box)) gather(*tile(key));
+  // With seen_at_both the rules read only what the session in effect observed: each part holds
+  // its own share of every session's coverage.
+  // (The tile is held with its coverage, so that its address names it while the map is used.)
+  std::map<std::pair<const TemporalMap*, uint32_t>, std::pair<std::shared_ptr<const TemporalMap>, CoverageIndex>> seen;
+  auto valueSeen = [&](const VoxelKey& k, double t) {
+    std::shared_ptr<const TemporalMap> held;
+    const TemporalMap* part = &index_.top;
+    if (index_.top.history(k).empty()) {
+      held = tile(tileOf(k, index_.tile_level));
+      if (!held) return VoxelCounters{};
+      part = held.get();
+    }
+    if (settings.seen_at_both) {
+      const auto rank = part->rankAtOrBefore(t);
+      if (!rank) return VoxelCounters{};
+      auto it = seen.find({part, *rank});
+      if (it == seen.end()) {
+        it = seen.emplace(std::make_pair(part, *rank),
+                          std::make_pair(held, CoverageIndex(part->sessions()[*rank].coverage))).first;
+      }
+      if (!it->second.second.contains(k)) return VoxelCounters{};
+    }
+    return part->valueAt(k, t).value_or(VoxelCounters{});
+  };
   applyNeighbourhoodRule(
-      cells, settings, [&](const VoxelKey& k) { return valueAt(k, t1_s).value_or(VoxelCounters{}); },
-      [&](const VoxelKey& k) { return valueAt(k, t2_s).value_or(VoxelCounters{}); });
+      cells, settings, [&](const VoxelKey& k) { return valueSeen(k, t1_s); },
+      [&](const VoxelKey& k) { return valueSeen(k, t2_s); });
   return DiffMap::fromCells(resolution_m(), settings, std::move(cells));
 }
 

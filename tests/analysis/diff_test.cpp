@@ -7,6 +7,7 @@
 #include <random>
 
 #include "chronomap/analysis/diff.h"
+#include "chronomap/temporal/temporal_map.h"
 #include "builders.h"
 #include "chronomap/core/error.h"
 
@@ -226,30 +227,33 @@ TEST(Diff, MinShiftTellsAMovedSurfaceFromAShiftedOne) {
 
 // A surface that moves within its voxel: the hits stay in the same voxels, only where in them
 // they ended changes. Only the recorded hit positions can see it.
-TEST(Diff, MinShiftSeesAMoveWithinOneVoxel) {
-  // A wall of 6 x 6 voxels at x = 4 whose hits end 0.4 voxels below the centre (x = 4.1 in
-  // voxel units from the voxel's lower corner), then 0.35 above it (4.85): moved 0.75 voxels.
-  // A thin sheet behind it (x = 5) is occupied only afterwards, so the diff has cells to test.
-  auto wall = [](float offset, bool sheet) {
-    SessionMap m(0.05);
-    for (int z = 0; z < 6; ++z) {
-      for (int y = 0; y < 6; ++y) {
-        for (int x = 0; x < 10; ++x) {
-          VoxelCounters c = test::freeVoxel(0.25f);
-          if (x == 4) {
-            c = withProbability(0.9, 10);
-            c.offset[0] = 10.0f * offset;
-          } else if (x == 5 && sheet) {
-            c = withProbability(0.9, 2);
-            c.offset[0] = 2.0f * -0.45f;
-          }
-          m.add(test::at(x, y, z, kBase), c);
+/// A wall of 6 x 6 voxels at x = 4 whose hits end `offset` voxels from the centre, free space
+/// around it, and with `sheet` a thin sheet behind it (x = 5).
+SessionMap subVoxelWall(float offset, bool sheet) {
+  SessionMap m(0.05);
+  for (int z = 0; z < 6; ++z) {
+    for (int y = 0; y < 6; ++y) {
+      for (int x = 0; x < 10; ++x) {
+        VoxelCounters c = test::freeVoxel(0.25f);
+        if (x == 4) {
+          c = withProbability(0.9, 10);
+          c.offset[0] = 10.0f * offset;
+        } else if (x == 5 && sheet) {
+          c = withProbability(0.9, 2);
+          c.offset[0] = 2.0f * -0.45f;
         }
+        m.add(test::at(x, y, z, kBase), c);
       }
     }
-    return m;
-  };
-  const SessionMap before = wall(-0.4f, false), after = wall(0.35f, true);
+  }
+  return m;
+}
+
+TEST(Diff, MinShiftSeesAMoveWithinOneVoxel) {
+  // The wall's hits end 0.4 voxels below the centre (x = 4.1 in voxel units from the voxel's
+  // lower corner), then 0.35 above it (4.85): moved 0.75 voxels. The thin sheet behind it is
+  // occupied only afterwards, so the diff has cells to test.
+  const SessionMap before = subVoxelWall(-0.4f, false), after = subVoxelWall(0.35f, true);
   // Before: 360 hits at 4 - 0.4; after: 360 at 4 + 0.35 and 72 at 5 - 0.45. Mean x, per row of
   // the 3 x 3 window (10 and 2 hits a voxel): 3.6 before, (10 * 4.35 + 2 * 4.55) / 12 after.
   const double after_x = (10.0 * 4.35 + 2.0 * 4.55) / 12.0;
@@ -270,6 +274,63 @@ TEST(Diff, MinShiftSeesAMoveWithinOneVoxel) {
   s.min_shift_voxels = DiffSettings::kRecommendedMinShift;
   EXPECT_EQ(diff(before, after, s).voxelCount(), 36u) << "the sheet appeared where the wall moved";
   EXPECT_TRUE(diff(before_c, after_c, s).empty()) << "at the centres the move is a sixth of a voxel";
+}
+
+// The 4D map keeps a surface's new position when it moved by half a voxel or more within its
+// voxels (ChangeCriterion::surface_shift_voxels): its diff then finds the sub-voxel move the two
+// session maps show. Without (the map kept the first position while the state stayed) it did not.
+TEST(Diff, AFourDMapKeepsWhatTheShiftTestReads) {
+  const SessionMap before = subVoxelWall(-0.4f, false), after = subVoxelWall(0.35f, true);
+  DiffSettings s;
+  s.neighbourhood_voxels = 1;
+  s.min_shift_voxels = DiffSettings::kRecommendedMinShift;
+  TemporalMap map(0.05);  // the default criterion
+  map.add(1000, before);
+  map.add(2000, after);
+  EXPECT_EQ(diff(map, 1000, 2000, s), diff(before, after, s));
+  EXPECT_EQ(diff(map, 1000, 2000, s).voxelCount(), 36u);
+  TemporalMap first_positions(0.05, ChangeCriterion{0.0, 0.0, 0.0});
+  first_positions.add(1000, before);
+  first_positions.add(2000, after);
+  EXPECT_TRUE(diff(first_positions, 1000, 2000, s).empty());
+  EXPECT_GT(map.counts().entries, first_positions.counts().entries);
+}
+
+// seen_at_both: a box seen in session 1, out of session 2's view, gone in session 3. As last
+// observed, session 2's time still holds the box, so 2 -> 3 shows it vanish; compared as the two
+// sessions saw it, 2 -> 3 has nothing (session 2 saw none of it) and 1 -> 3 has the box, as the
+// session maps' diffs do.
+TEST(Diff, SeenAtBothComparesWhatTheTwoSessionsObserved) {
+  auto room = [](bool box, bool box_seen) {
+    SessionMap m(0.05);
+    for (int z = 0; z < 4; ++z) {
+      for (int y = 0; y < 8; ++y) {
+        for (int x = 0; x < 8; ++x) {
+          const bool in_box = x >= 4 && y >= 4 && z < 2;
+          if (in_box && !box_seen) continue;
+          m.add(test::at(x, y, z, kBase), in_box && box ? withProbability(0.9) : test::freeVoxel(0.25f));
+        }
+      }
+    }
+    return m;
+  };
+  const SessionMap s1 = room(true, true), s2 = room(true, false), s3 = room(false, true);
+  TemporalMap map(0.05);
+  map.add(1000, s1);
+  map.add(2000, s2);
+  map.add(3000, s3);
+  DiffSettings last;
+  EXPECT_EQ(diff(map, 2000, 3000, last).voxelCount(), 32u);
+  DiffSettings seen;
+  seen.seen_at_both = true;
+  EXPECT_TRUE(diff(map, 2000, 3000, seen).empty());
+  EXPECT_EQ(diff(map, 2000, 3000, seen), diff(s2, s3, seen));
+  EXPECT_EQ(diff(map, 1000, 3000, seen).voxelCount(), 32u);
+  EXPECT_EQ(diff(map, 1000, 3000, seen), diff(s1, s3, seen));
+  // The rules read only what was seen: a vanished voxel beside the box's unseen part is one.
+  seen.neighbourhood_voxels = 1;
+  last.neighbourhood_voxels = 1;
+  EXPECT_EQ(diff(map, 1000, 3000, seen), diff(s1, s3, seen));
 }
 
 // The weak-change rule. A wall at x = 6, free space in front of it. In b, part of a session's

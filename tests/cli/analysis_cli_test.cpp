@@ -113,7 +113,7 @@ TEST(AnalysisCli, DiffWithoutFlagsGivesTheRecommendedAnswer) {
   // and the default with --min-voxels 1 keeps the small box too.
   const auto spelled = nlohmann::json::parse(
       run("s.cmap", " --preset raw --mode band --neighbourhood 1 --min-shift 0.5 --kept-surface 3 --dark-surface 2 "
-                    "--connectivity vertex --min-voxels 20 --moves --json")
+                    "--seen-at-both --connectivity vertex --min-voxels 20 --moves --json")
           .out);
   EXPECT_EQ(spelled["objects"], j["objects"]);
   EXPECT_EQ(spelled["settings"], j["settings"]);

@@ -97,7 +97,7 @@ nlohmann::json changedObjectsJson(const std::vector<ChangedObject>& objects);
 
 /// The settings as JSON: {"diff": {"mode", "alpha", "neighbourhood_voxels", "min_shift_voxels",
 /// "kept_surface_radius_voxels", "kept_surface_share", "dark_surface_radius_voxels",
-/// "dark_surface_brightness", "dark_surface_contrast", "dark_surface_share"}, "segment":
+/// "dark_surface_brightness", "dark_surface_contrast", "dark_surface_share", "seen_at_both"}, "segment":
 /// {"connectivity", "min_voxels", "colour_tolerance", "min_value"}, "moves": {"pair",
 /// "max_size_ratio", "max_height_difference_m", "max_colour_distance"}}.
 nlohmann::json changeSettingsJson(const ChangeSettings& settings);

@@ -113,6 +113,13 @@ struct DiffSettings {
   /// The dark_surface_radius_voxels measured on the 3DMatch room and floor66 (docs/changes.md): at 3
   /// the dark chairs floor66 sees only near the floor are dropped.
   static constexpr int kDarkSurfaceRadius = 2;
+  /// 4D maps only (diff(map, t1, t2)): compare what the sessions in effect at the two times (the
+  /// last at or before each) observed, as a diff of those two session maps does: a voxel's state
+  /// at a time counts as unknown unless that session's coverage holds the voxel (a cube: all of
+  /// it), for the rules' neighbourhoods too. false (the default): each voxel as last observed up
+  /// to each time, so a change no session between saw shows up at the first session that did,
+  /// and a surface last seen weeks ago still counts as the neighbour of a change.
+  bool seen_at_both = false;
 
   /// Threshold mode's default: a voxel must move by more than 0.4 in probability, so a free
   /// voxel (P near 0) must become clearly occupied (P > 0.4) to count.
