@@ -15,6 +15,23 @@ double colourDistance(const Rgb& a, const Rgb& b) {
   return std::sqrt(dr * dr + dg * dg + db * db);
 }
 
+/// True when the two footprints are alike: their longer horizontal sides, and their shorter
+/// ones, within `ratio` of each other, each side with kFootprintSlack_m added (a side seen one
+/// or two voxels thick is a thin side, whatever its exact width). A door leaf (5 cm by 90 cm)
+/// is not a robot (50 by 50 cm) however alike their voxel counts, heights and colours.
+constexpr double kFootprintSlack_m = 0.1;
+bool sameFootprint(const Component& a, const Component& b, double ratio) {
+  auto sides = [](const Component& c) {
+    const double x = c.bbox_max_m.x() - c.bbox_min_m.x() + kFootprintSlack_m;
+    const double y = c.bbox_max_m.y() - c.bbox_min_m.y() + kFootprintSlack_m;
+    return std::make_pair(std::min(x, y), std::max(x, y));
+  };
+  const auto [a_short, a_long] = sides(a);
+  const auto [b_short, b_long] = sides(b);
+  return std::max(a_short, b_short) <= ratio * std::min(a_short, b_short) &&
+         std::max(a_long, b_long) <= ratio * std::min(a_long, b_long);
+}
+
 /// How unlike two objects are, or nothing when they cannot be the halves of one move.
 std::optional<double> moveDissimilarity(const Component& gone, const Component& come, const MoveSettings& s) {
   if (gone.kind != ChangeKind::Vanished || come.kind != ChangeKind::Appeared) return std::nullopt;
@@ -23,7 +40,7 @@ std::optional<double> moveDissimilarity(const Component& gone, const Component& 
   const double height = std::abs((gone.bbox_max_m.z() - gone.bbox_min_m.z()) - (come.bbox_max_m.z() - come.bbox_min_m.z()));
   const double colour = colourDistance(gone.mean_colour, come.mean_colour);
   if (small <= 0.0 || large > s.max_size_ratio * small || height > s.max_height_difference_m ||
-      colour > s.max_colour_distance) {
+      colour > s.max_colour_distance || !sameFootprint(gone, come, s.max_size_ratio)) {
     return std::nullopt;
   }
   // Each difference as a share of what it may be, summed: the likeliest pairs are matched first.

@@ -6,6 +6,7 @@
 
 #include "builders.h"
 #include "chronomap/analysis/changes.h"
+#include "chronomap/analysis/moves.h"
 #include "chronomap/core/error.h"
 
 namespace chronomap {
@@ -110,6 +111,33 @@ TEST(Changes, BadSettingsAreRefused) {
   s = recommendedChangeSettings();
   s.diff.neighbourhood_voxels = 9;
   EXPECT_THROW(findChanges(test::changesScene(false), test::changesScene(true), s), UsageError);
+}
+
+/// A component with the given kind, voxels and bounding box (metres), grey.
+Component part(ChangeKind kind, uint64_t voxels, Eigen::Vector3d lo, Eigen::Vector3d hi) {
+  Component c;
+  c.kind = kind;
+  c.voxels = voxels;
+  c.bbox_min_m = lo;
+  c.bbox_max_m = hi;
+  c.centroid_m = (lo + hi) / 2.0;
+  c.mean_colour = Rgb{120, 120, 120};
+  return c;
+}
+
+// The demo's sessions 1 -> 2 paired a closed door leaf that vanished with a robot that appeared
+// 3.5 m away: alike in voxels, height and colour, not in footprint. A box moved whole, seen from
+// another side (a thinner slice, fewer voxels), is still a move.
+TEST(Moves, AThinLeafIsNotASquareObjectMoved) {
+  const Component door = part(ChangeKind::Vanished, 700, {6.0, 1.6, 0.0}, {6.05, 2.5, 1.0});
+  const Component robot = part(ChangeKind::Appeared, 800, {2.5, 0.2, 0.0}, {3.0, 0.7, 1.0});
+  EXPECT_TRUE(pairMoves({door, robot}, MoveSettings{}).empty());
+  const Component box_then = part(ChangeKind::Vanished, 400, {1.0, 1.0, 0.0}, {1.5, 1.4, 0.5});
+  const Component box_now = part(ChangeKind::Appeared, 250, {3.0, 1.0, 0.0}, {3.4, 1.3, 0.5});
+  const std::vector<MovePair> moves = pairMoves({door, box_then, robot, box_now}, MoveSettings{});
+  ASSERT_EQ(moves.size(), 1u);
+  EXPECT_EQ(moves[0].vanished, 1u);
+  EXPECT_EQ(moves[0].appeared, 3u);
 }
 
 }  // namespace

@@ -15,7 +15,9 @@ namespace chronomap {
 struct MoveSettings {
   bool pair = true;  ///< look for moves at all
   /// The larger object holds at most this many times the voxels of the smaller one (the two
-  /// halves are seen from different places, so rarely in full both times).
+  /// halves are seen from different places, so rarely in full both times), and their
+  /// footprints' longer sides, and shorter sides, lie within this ratio too (each side with
+  /// 0.1 m added: a thin side is thin whatever its exact width).
   double max_size_ratio = 2.0;
   /// Their heights (bounding boxes' z extents) differ by at most this, metres.
   double max_height_difference_m = 0.15;
