@@ -259,7 +259,7 @@ inline TemporalMap buildWeeksMap(const WeeksSim& w, const std::vector<size_t>& w
     }
     return m;
   }
-  build(build);
+  chronomap::build(build);
   TemporalMap m = readTemporalMap(build.map);
   std::error_code ec;
   std::filesystem::remove(build.map, ec);
