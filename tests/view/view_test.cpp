@@ -403,6 +403,19 @@ TEST(ViewTour, HoldsEverySessionsOccupiedVoxelsAndTheBundle) {
   }
   EXPECT_EQ(report.level, 0);
   EXPECT_EQ(report.diffs, 4u);  // three consecutive pairs and the first to the last
+  // Each pair's objects are the one call's, as the server lists them (/api/diff?format=json), so
+  // the tour's "What changed" panel shows the objects and numbers chronomap diff --json prints.
+  const Api api(map, "four.cmap");
+  size_t listed = 0;
+  for (const auto& d : p.header["diffs"]) {
+    const std::string from = std::to_string(d["from"].get<int>()), to = std::to_string(d["to"].get<int>());
+    const Reply r = api.get("/api/diff", {{"from", from}, {"to", to}, {"format", "json"}});
+    ASSERT_EQ(r.status, 200) << r.body;
+    ASSERT_TRUE(d.contains("objects")) << from << " -> " << to;
+    EXPECT_EQ(d["objects"], nlohmann::json::parse(r.body)["objects"]) << from << " -> " << to;
+    listed += d["objects"].size();
+  }
+  EXPECT_GT(listed, 0u);
   // The cells occupied in session s per the 2-bit states are that session's occupied voxels.
   const auto keys = p.values<uint16_t>("keys");
   const auto states = p.values<uint8_t>("states");
