@@ -138,7 +138,8 @@ nlohmann::json addDiffs(PacketWriter& w, const TemporalMap& map, const TourSetti
     }
     diffs.push_back({{"from", from}, {"to", to}, {"first", levels.size()}, {"count", sent}, {"cells", cells.size()},
                      {"voxels", o.diff.voxelCount()}, {"components", std::move(components)},
-                     {"objects", changedObjectsJson(o.objects)}, {"dropped", o.segmentation.dropped}});
+                     {"objects", changedObjectsJson(o.objects)}, {"appeared_voxels", o.appeared_voxels},
+                     {"vanished_voxels", o.vanished_voxels}, {"dropped", o.segmentation.dropped}});
     for (size_t i = 0; i < sent; ++i) {
       keys.insert(keys.end(), {cells[i].key.x, cells[i].key.y, cells[i].key.z});
       levels.push_back(cells[i].level);

@@ -65,7 +65,7 @@ try {
     const c = window.chronomap;
     await c.setSession(1);
     const d = await c.showDiff(0, 1);
-    return d.components.length;
+    return d.objects.length;
   });
   await page.evaluate(() => window.chronomap.nextFrame());
   await page.screenshot({ path: `${prefix}-diff.png` });
