@@ -630,6 +630,7 @@ function setPlaying(on) {
 // reply) only draw them, coloured by the object their component belongs to.
 
 const KIND_COLOUR = { appeared: APPEARED, vanished: VANISHED, moved: MOVED };
+const ARROW = 0xf4f6fa;  // light, to stand out on the moved object's amber voxels
 
 function clearDiff() {
   state.diff = null;
@@ -711,7 +712,7 @@ function addObject(o) {
     const length = from.distanceTo(to);
     if (length > 0) {
       const head = Math.min(0.4 * length, 0.25);
-      const arrow = new THREE.ArrowHelper(to.clone().sub(from).normalize(), from, length, colour.getHex(), head, 0.6 * head);
+      const arrow = new THREE.ArrowHelper(to.clone().sub(from).normalize(), from, length, ARROW, head, 0.6 * head);
       arrow.traverse((x) => { if (x.material) { x.material.depthTest = false; x.renderOrder = 10; } });
       arrow.userData = { from: from.toArray(), to: to.toArray() };
       group.add(arrow);
@@ -948,7 +949,7 @@ function updateLegend() {
   if (state.diff) {
     html += `<div class="key"><span class="sw appeared"></span>appeared (numbered, framed)</div>` +
       `<div class="key"><span class="sw vanished"></span>vanished</div>` +
-      `<div class="key"><span class="sw moved"></span>moved: arrow from where it stood (darker)</div>`;
+      `<div class="key"><span class="sw moved"></span>moved (where it stood: paler), arrow from there</div>`;
   }
   html += '<div class="dim" style="margin-top:6px">drag: orbit · right drag: pan · wheel: zoom · click: history</div>';
   L.innerHTML = html;
