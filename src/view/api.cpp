@@ -106,14 +106,17 @@ Api::Api(const TemporalMap& map, std::string name, ApiSettings settings)
 namespace {
 
 // The time a request names with `session` (a rank) or `time` (seconds or ISO-8601), which must
-// lie within the map's sessions.
-double requestedTime(const TemporalMap& map, const Query& query, const std::string& session, const std::string& time) {
+// lie within the map's sessions, or up to `beyond_last_s` past the last one (predictions).
+double requestedTime(const TemporalMap& map, const Query& query, const std::string& session, const std::string& time,
+                     double beyond_last_s = 0.0) {
   if (map.sessionCount() == 0) throw UsageError("the map holds no session");
   const auto* rank = find(query, session);
   const auto* t = find(query, time);
   const size_t n = map.sessionCount();
-  const std::string first = formatTime(map.sessions().front().time_s), last = formatTime(map.sessions().back().time_s);
-  const std::string times = "seconds since the epoch or ISO-8601 (e.g. 2012-03-01T10:00:00Z) from " + first + " to " + last;
+  const double last_s = map.sessions().back().time_s + beyond_last_s;
+  const std::string first = formatTime(map.sessions().front().time_s), last = formatTime(last_s);
+  const std::string times = "seconds since the epoch or ISO-8601 (e.g. 2012-03-01T10:00:00Z) from " + first + " to " + last +
+                            (beyond_last_s > 0 ? " (a week past the last session)" : "");
   if (rank && t) throw UsageError("give " + session + "= or " + time + "=, not both");
   if (!rank && !t) {
     throw UsageError("give one of " + session + "=RANK (a session number from 0 to " + std::to_string(n - 1) + ") or " + time +
@@ -129,7 +132,12 @@ double requestedTime(const TemporalMap& map, const Query& query, const std::stri
   } catch (const UsageError&) {
     throw UsageError(received(time, *t) + " is not a time: expected " + times);
   }
-  if (s < map.sessions().front().time_s || s > map.sessions().back().time_s) {
+  if (beyond_last_s > 0 && s > last_s) {
+    throw UsageError(received(time, *t) + " lies more than a week past the map's last session (" +
+                     formatTime(map.sessions().back().time_s) + "): the temporal models predict up to " + last +
+                     "; expected a time from " + first + " to " + last);
+  }
+  if (s < map.sessions().front().time_s || s > last_s) {
     throw UsageError(received(time, *t) + " lies outside the map's sessions: expected a time from " + first + " to " + last);
   }
   return s;
@@ -147,11 +155,12 @@ RhythmModel requestedModel(const std::string& text) {
   throw UsageError(received("model", text) + " is not a temporal model: expected " + names);
 }
 
-// What a prediction or cost-map request names: its time (as requestedTime) and the temporal
-// model (`model`, the combined one by default).
+// What a prediction or cost-map request names: its time (as requestedTime, any time from the
+// first session to a week past the last) and the temporal model (`model`, the combined one by
+// default).
 std::pair<double, RhythmModel> predictionRequest(const TemporalMap& map, const std::string& path, const Query& query) {
   onlyParameters(path, query, {"session", "t", "model"});
-  const double time_s = requestedTime(map, query, "session", "t");
+  const double time_s = requestedTime(map, query, "session", "t", kPredictionHorizon_s);
   RhythmModel model = RhythmModel::Combined;
   if (const auto* m = find(query, "model")) model = requestedModel(*m);
   return {time_s, model};

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 
+#include "chronomap/analysis/changes.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/file.h"
 #include "chronomap/view/api.h"
@@ -119,21 +120,31 @@ nlohmann::json addDiffs(PacketWriter& w, const TemporalMap& map, const TourSetti
   std::vector<uint8_t> levels, kinds;
   std::vector<uint32_t> component;
   nlohmann::json diffs = nlohmann::json::array();
+  // The objects of the one call (findChanges), as /api/diff?format=json lists them.
+  ChangeSettings change_settings = recommendedChangeSettings();
+  change_settings.diff = settings.diff;
+  change_settings.segment = settings.segment;
   for (const auto& [from, to] : pairs) {
-    DiffRequest r{sessions[from].time_s, sessions[to].time_s, settings.diff, settings.segment};
-    const DiffObjects o = diffObjects(map, r);
+    const Changes o = findChanges(map, sessions[from].time_s, sessions[to].time_s, change_settings);
     const auto cells = o.diff.cells();
     const size_t sent = std::min(cells.size(), settings.max_diff_cells);
+    std::vector<uint32_t> component_of_cell(sent, 0);
     nlohmann::json components = nlohmann::json::array();
-    for (const auto& c : o.segmentation.components) components.push_back(componentJson(c));
+    for (const auto& c : o.segmentation.components) {
+      components.push_back(componentJson(c));
+      for (const uint32_t cell : c.cells) {
+        if (cell < sent) component_of_cell[cell] = c.id;
+      }
+    }
     diffs.push_back({{"from", from}, {"to", to}, {"first", levels.size()}, {"count", sent}, {"cells", cells.size()},
                      {"voxels", o.diff.voxelCount()}, {"components", std::move(components)},
-                     {"dropped", o.segmentation.dropped}});
+                     {"objects", changedObjectsJson(o.objects)}, {"appeared_voxels", o.appeared_voxels},
+                     {"vanished_voxels", o.vanished_voxels}, {"dropped", o.segmentation.dropped}});
     for (size_t i = 0; i < sent; ++i) {
       keys.insert(keys.end(), {cells[i].key.x, cells[i].key.y, cells[i].key.z});
       levels.push_back(cells[i].level);
       kinds.push_back(static_cast<uint8_t>(cells[i].kind));
-      component.push_back(o.component_of_cell[i]);
+      component.push_back(component_of_cell[i]);
     }
   }
   w.add("diff_keys", std::span<const uint16_t>(keys));

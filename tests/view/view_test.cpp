@@ -12,6 +12,8 @@
 #include "assets.h"
 #include "chronomap/analysis/changes.h"
 #include "chronomap/core/error.h"
+#include "chronomap/core/format.h"
+#include "chronomap/core/time.h"
 #include "chronomap/view/api.h"
 #include "chronomap/view/packet.h"
 #include "chronomap/view/scene.h"
@@ -354,6 +356,41 @@ TEST(ViewApi, PredictionsAreTheTemporalModels) {
   EXPECT_EQ(Api(map, "four.cmap", given).get("/api/costmap", {{"session", "0"}}).status, 400);
 }
 
+// The prediction layer may be asked for any time from the first session to a week past the last
+// (the viewer's date and hour field), not only for session times; beyond a week it is refused
+// with a message that says the limit.
+TEST(ViewApi, PredictionsReachAWeekPastTheLastSession) {
+  const TemporalMap map = fourSessions();  // sessions at 1000 .. 4000 s
+  const Api api(map, "four.cmap");
+  const double inf = std::numeric_limits<double>::infinity();
+  const RhythmModels models = fitRhythm(map, -inf, inf);
+  const double later_s = 4000.0 + 3 * 24 * 3600.0 + 1800.0;
+  for (const std::string& t : {std::string("2500"), exactNumber(later_s), std::string("1970-01-08T01:06:40Z")}) {
+    const Reply r = api.get("/api/predict", {{"t", t}});
+    ASSERT_EQ(r.status, 200) << t << ": " << r.body;
+    const Packet p = readPacket(r.body);
+    const double time_s = p.header["time_s"].get<double>();
+    EXPECT_EQ(time_s, parseTime(t));
+    const auto prob = p.values<float>("p");
+    ASSERT_EQ(prob.size(), models.voxels.size());
+    for (size_t i = 0; i < prob.size(); i += 37) {
+      ASSERT_FLOAT_EQ(prob[i], static_cast<float>(RhythmModels::predict(models.voxels[i], RhythmModel::Combined, time_s)));
+    }
+    EXPECT_EQ(api.get("/api/costmap", {{"t", t}}).status, 200) << t;
+  }
+  // 1970-01-08T01:06:40Z is exactly a week past the last session (4000 s); a second later is not.
+  for (const char* path : {"/api/predict", "/api/costmap"}) {
+    const Reply r = api.get(path, {{"t", "1970-01-08T01:06:41Z"}});
+    ASSERT_EQ(r.status, 400) << path;
+    const std::string error = nlohmann::json::parse(r.body)["error"];
+    EXPECT_NE(error.find("more than a week past the map's last session (1970-01-01T01:06:40Z)"), std::string::npos) << error;
+    EXPECT_NE(error.find("1970-01-08T01:06:40Z"), std::string::npos) << error;
+    EXPECT_EQ(api.get(path, {{"t", "999"}}).status, 400) << path;  // before the first session
+  }
+  // Snapshots and diffs keep to the sessions' times.
+  EXPECT_EQ(api.get("/api/snapshot", {{"t", exactNumber(later_s)}}).status, 400);
+}
+
 TEST(ViewTour, HoldsEverySessionsOccupiedVoxelsAndTheBundle) {
   const TemporalMap map = fourSessions();
   TourReport report;
@@ -366,6 +403,19 @@ TEST(ViewTour, HoldsEverySessionsOccupiedVoxelsAndTheBundle) {
   }
   EXPECT_EQ(report.level, 0);
   EXPECT_EQ(report.diffs, 4u);  // three consecutive pairs and the first to the last
+  // Each pair's objects are the one call's, as the server lists them (/api/diff?format=json), so
+  // the tour's "What changed" panel shows the objects and numbers chronomap diff --json prints.
+  const Api api(map, "four.cmap");
+  size_t listed = 0;
+  for (const auto& d : p.header["diffs"]) {
+    const std::string from = std::to_string(d["from"].get<int>()), to = std::to_string(d["to"].get<int>());
+    const Reply r = api.get("/api/diff", {{"from", from}, {"to", to}, {"format", "json"}});
+    ASSERT_EQ(r.status, 200) << r.body;
+    ASSERT_TRUE(d.contains("objects")) << from << " -> " << to;
+    EXPECT_EQ(d["objects"], nlohmann::json::parse(r.body)["objects"]) << from << " -> " << to;
+    listed += d["objects"].size();
+  }
+  EXPECT_GT(listed, 0u);
   // The cells occupied in session s per the 2-bit states are that session's occupied voxels.
   const auto keys = p.values<uint16_t>("keys");
   const auto states = p.values<uint8_t>("states");

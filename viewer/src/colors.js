@@ -22,4 +22,7 @@ export function gradientCss(fn) {
 
 export const APPEARED = [60, 207, 110];
 export const VANISHED = [255, 90, 90];
+// A moved object: where it is now, and (paler) where it stood.
+export const MOVED = [255, 176, 32];
+export const MOVED_FROM = [214, 196, 160];
 export const css = (c) => `rgb(${c.map(Math.round).join(',')})`;

@@ -58,31 +58,41 @@ export class ServerSource {
     this.snapshots.set(id, p);
     return p;
   }
+  /** The changes from session `from` to `to`: the changed cells for drawing (the binary reply:
+   *  keys, levels, kinds, component) and the objects of the one call (format=json: the list
+   *  `chronomap diff --json` prints), asked for at once. */
   async diff(from, to) {
-    const p = readPacket(await (await fetchOk(`api/diff?from=${from}&to=${to}`)).arrayBuffer());
-    return { ...p.header, keys: p.arrays.keys, levels: p.arrays.levels, kinds: p.arrays.kinds,
-             component: p.arrays.component, bytes: p.bytes };
+    const [cells, listed] = await Promise.all([
+      fetchOk(`api/diff?from=${from}&to=${to}`).then((r) => r.arrayBuffer()),
+      fetchOk(`api/diff?from=${from}&to=${to}&format=json`).then((r) => r.json())]);
+    const p = readPacket(cells);
+    return { ...p.header, from, to, keys: p.arrays.keys, levels: p.arrays.levels, kinds: p.arrays.kinds,
+             component: p.arrays.component, bytes: p.bytes, objects: listed.objects,
+             appeared_voxels: listed.appeared_voxels, vanished_voxels: listed.vanished_voxels };
   }
   async history(key, level) {
     return (await fetchOk(`api/history?key=${key.join(',')}&level=${level}`)).json();
   }
-  /** The navigation cost map at session `rank` (chronomap costmap's defaults): width, height,
-   *  resolution_m, origin_m, z band, cost (u8, 255 unknown). */
-  async costmap(rank, model = 'combined') {
-    const q = readPacket(await (await fetchOk(`api/costmap?session=${rank}&model=${model}`)).arrayBuffer());
-    return { ...q.header, rank, cost: q.arrays.cost, bytes: q.bytes };
+  /** The navigation cost map at `at` (chronomap costmap's defaults): width, height,
+   *  resolution_m, origin_m, z band, cost (u8, 255 unknown). `at`: { rank } (a session) or
+   *  { time } (an ISO-8601 time, up to a week past the last session). */
+  async costmap(at, model = 'combined') {
+    const q = readPacket(await (await fetchOk(`api/costmap?${whenQuery(at)}&model=${model}`)).arrayBuffer());
+    return { ...q.header, rank: at.rank, at: whenId(at), cost: q.arrays.cost, bytes: q.bytes };
   }
   /** The server fits temporal models (or has them from --rhythm). */
   get predicts() { return true; }
-  /** Every modelled cube's predicted probability of occupancy at session `rank`: keys (corners),
-   *  levels and p. The first request fits the models on the server (seconds on a large map). */
-  async prediction(rank, model = 'combined') {
-    const id = `${rank}/${model}`;
+  /** Every modelled cube's predicted probability of occupancy at `at` (as for costmap): keys
+   *  (corners), levels and p. The first request fits the models on the server (seconds on a
+   *  large map). */
+  async prediction(at, model = 'combined') {
+    const id = `${whenId(at)}/${model}`;
     if (!this.predictions) this.predictions = new Map();
     if (!this.predictions.has(id)) {
-      const p = fetchOk(`api/predict?session=${rank}&model=${model}`).then((r) => r.arrayBuffer()).then((b) => {
+      const p = fetchOk(`api/predict?${whenQuery(at)}&model=${model}`).then((r) => r.arrayBuffer()).then((b) => {
         const q = readPacket(b);
-        return { ...q.header, rank, keys: q.arrays.keys, levels: q.arrays.levels, p: q.arrays.p, bytes: q.bytes };
+        return { ...q.header, rank: at.rank, at: whenId(at), keys: q.arrays.keys, levels: q.arrays.levels, p: q.arrays.p,
+                 bytes: q.bytes };
       });
       this.predictions.set(id, p);
       p.catch(() => this.predictions.delete(id));
@@ -91,6 +101,10 @@ export class ServerSource {
     return this.predictions.get(id);
   }
 }
+
+/** A time the page asks about: { rank } (a session) or { time } (ISO-8601), as a query and an id. */
+const whenQuery = (at) => (at.time !== undefined ? `t=${encodeURIComponent(at.time)}` : `session=${at.rank}`);
+export const whenId = (at) => (at.time !== undefined ? at.time : `session ${at.rank}`);
 
 function snapshotFrom(p) {
   const h = p.header;
@@ -175,6 +189,8 @@ export class TourSource {
       entries.push({ time_s: info.sessions[s].time_s, time: info.sessions[s].time, session: s, state: names[st],
                      color: st === 2 ? Array.from(a.colors.subarray(3 * cell, 3 * cell + 3)) : [0, 0, 0], level });
     }
-    return { key, level, entries, approximate: level > 0 };
+    // The centre of the cell in metres, as the server gives a voxel's (historyJson's center_m).
+    const centre = key.map((k) => (k - info.key_origin + (1 << level) / 2) * info.resolution_m);
+    return { key, level, entries, approximate: level > 0, center_m: cell >= 0 ? centre : undefined };
   }
 }

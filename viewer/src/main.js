@@ -3,8 +3,8 @@
 
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
-import { ServerSource, TourSource } from './data.js';
-import { viridis, heat, gradientCss, APPEARED, VANISHED, css } from './colors.js';
+import { ServerSource, TourSource, whenId } from './data.js';
+import { viridis, heat, gradientCss, APPEARED, VANISHED, MOVED, MOVED_FROM, css } from './colors.js';
 
 const $ = (id) => document.getElementById(id);
 const state = {
@@ -120,11 +120,27 @@ function cellPredictions(snap, pred) {
   return out;
 }
 
+// The time the prediction layer and the cost map are for: the date and hour field's when one was
+// chosen (up to a week past the last session), else the slider's session.
+function predictionTime(rank) {
+  return state.predictAt ? { time: state.predictAt } : { rank };
+}
 async function loadPrediction(rank) {
   if (state.colorMode !== 'predicted' || !state.source.predicts) return;
-  const t0 = performance.now();
-  const pred = await state.source.prediction(rank);
-  if (state.rank === rank) { state.prediction = pred; state.lastPredictionMs = performance.now() - t0; }
+  const t0 = performance.now(), at = predictionTime(rank);
+  let pred = null;
+  try {
+    pred = await state.source.prediction(at);
+  } catch (e) {
+    // A time the server refuses (more than a week past the last session) is said beside the field.
+    $('predictnote').textContent = String(e.message || e).replace(/^[^:]*: /, '');
+    return;
+  }
+  if (whenId(predictionTime(state.rank)) === pred.at) {
+    state.prediction = pred;
+    state.lastPredictionMs = performance.now() - t0;
+    $('predictnote').textContent = '';
+  }
 }
 function colorOf(snap, i) {
   switch (state.colorMode) {
@@ -475,7 +491,7 @@ function drawSnapshot() {
   const snap = withDetail(state.snap, state.detail);
   state.shown = snap;
   computeBounds(snap);
-  state.cellP = state.colorMode === 'predicted' && state.prediction && state.prediction.rank === snap.rank ?
+  state.cellP = state.colorMode === 'predicted' && state.prediction && state.prediction.at === whenId(predictionTime(snap.rank)) ?
     cellPredictions(snap, state.prediction) : null;
   state.maxChanges = 1;
   for (let i = 0; i < snap.count; ++i) state.maxChanges = Math.max(state.maxChanges, snap.changes[i]);
@@ -490,6 +506,7 @@ function drawSnapshot() {
   // Opaque unless a diff is shown over it (blending costs a software renderer every pixel).
   voxelUniforms.opacity.value = state.diff ? 0.28 : 1;
   setVoxelMaterials((m) => { m.transparent = !!state.diff; m.depthWrite = !state.diff; });
+  drawChanged();
   redraw();
   updateStats();
   updateLegend();
@@ -507,6 +524,7 @@ async function setSession(rank) {
   state.rank = rank;
   $('time').value = rank;
   $('timelabel').textContent = sessionLabel(rank);
+  if (!state.predictAt && $('predictat')) $('predictat').value = fieldTime(state.info.sessions[rank].time_s);
   const t0 = performance.now();
   const [snap] = await Promise.all([state.source.snapshot(rank, state.budget), loadPrediction(rank), loadCostmap(rank)]);
   if (state.rank !== rank) return;  // a later move of the slider won
@@ -606,92 +624,220 @@ function setPlaying(on) {
 
 // ---------------------------------------------------------------------------------------------
 // What changed
+//
+// The objects are the one call's (findChanges: the list `chronomap diff --json` prints, with
+// moves), from /api/diff?format=json or the tour's copy of it; the changed cells (the binary
+// reply) only draw them, coloured by the object their component belongs to.
+
+const KIND_COLOUR = { appeared: APPEARED, vanished: VANISHED, moved: MOVED };
+const ARROW = 0xf4f6fa;  // light, to stand out on the moved object's amber voxels
 
 function clearDiff() {
   state.diff = null;
   if (changed) { scene.remove(changed); changed.dispose(); changed = null; }
   frames.clear();
   $('tags').innerHTML = '';
+  $('leaders').innerHTML = '';
+  state.labels = [];
+  state.arrows = [];
   redraw();
   $('objects').innerHTML = '';
   $('diffsum').textContent = '';
   $('showdiff').classList.remove('on');
+  $('showdiff').textContent = 'Show changes';
+}
+
+// Per component id, the object it belongs to and whether it is a move's old place.
+function objectOfComponent(objects) {
+  const out = new Map();
+  for (const o of objects) {
+    o.components.forEach((c, k) => out.set(c, { object: o, old: o.kind === 'moved' && k === 0 }));
+  }
+  return out;
+}
+
+function cellColour(d, i, owners) {
+  const owner = owners.get(d.component[i]);
+  if (owner && owner.object.kind === 'moved') return owner.old ? MOVED_FROM : MOVED;
+  return d.kinds[i] === 1 ? APPEARED : VANISHED;
+}
+
+// The changed cells below the height cut, as the map's voxels are cut (cutHeightKey).
+function drawChanged() {
+  const d = state.diff;
+  if (!d) return;
+  const cut = cutHeightKey();
+  if (changed && state.diffCut === cut) return;
+  if (changed) { scene.remove(changed); changed.dispose(); }
+  const n = d.keys.length / 3, owners = objectOfComponent(d.objects);
+  changed = instanced(n, new THREE.MeshLambertMaterial());
+  const colors = changed.instanceColor.array;
+  let m = 0;
+  for (let i = 0; i < n; ++i) {
+    if (d.keys[3 * i + 2] >= cut) continue;
+    const size = cellCenter(d.keys, d.levels, i, tmp) * 0.98;
+    mat.compose(tmp, quat, scl.set(size, size, size));
+    changed.setMatrixAt(m, mat);
+    srgb.setRGB(...cellColour(d, i, owners).map((v) => v / 255), THREE.SRGBColorSpace);
+    colors.set([srgb.r, srgb.g, srgb.b], 3 * m);
+    ++m;
+  }
+  changed.count = m;
+  state.diffDrawn = m;
+  state.diffCut = cut;
+  scene.add(changed);
+  // An object wholly above the cut is hidden with its frame, arrow and label.
+  const cutM = (cut - state.info.key_origin) * state.info.resolution_m;
+  for (const f of frames.children) f.visible = f.userData.bottom < cutM;
+  redraw();
+}
+
+// A move's old place: its centroid and size (the json's `from`) as a box.
+const placeBox = (p) => new THREE.Box3().setFromCenterAndSize(new THREE.Vector3(...p.centroid), new THREE.Vector3(...p.size));
+
+function addObject(o) {
+  const colour = new THREE.Color(css(KIND_COLOUR[o.kind]));
+  const b = new THREE.Box3(new THREE.Vector3(...o.bbox_min), new THREE.Vector3(...o.bbox_max));
+  b.expandByScalar(state.info.resolution_m);
+  const group = new THREE.Group();
+  group.add(new THREE.Box3Helper(b, colour));
+  let bottom = b.min.z;
+  if (o.kind === 'moved') {
+    // Where it stood, framed dimmer, and an arrow from there to where it is now (centroids),
+    // drawn over the voxels so that it stays visible inside the object.
+    const old = placeBox(o.from).expandByScalar(state.info.resolution_m);
+    group.add(new THREE.Box3Helper(old, new THREE.Color(css(MOVED_FROM))));
+    bottom = Math.min(bottom, old.min.z);
+    const from = new THREE.Vector3(...o.from.centroid), to = new THREE.Vector3(...o.to.centroid);
+    const length = from.distanceTo(to);
+    if (length > 0) {
+      const head = Math.min(0.4 * length, 0.25);
+      const arrow = new THREE.ArrowHelper(to.clone().sub(from).normalize(), from, length, ARROW, head, 0.6 * head);
+      arrow.traverse((x) => { if (x.material) { x.material.depthTest = false; x.renderOrder = 10; } });
+      arrow.userData = { from: from.toArray(), to: to.toArray() };
+      group.add(arrow);
+      group.userData.arrow = arrow;
+    }
+  }
+  const tag = document.createElement('div');
+  tag.className = `tag ${o.kind}`;
+  tag.textContent = o.id;
+  $('tags').appendChild(tag);
+  group.userData = { ...group.userData, object: o, tag, bottom, top: new THREE.Vector3((b.min.x + b.max.x) / 2, (b.min.y + b.max.y) / 2, b.max.z) };
+  frames.add(group);
 }
 
 async function showDiff(from, to) {
-  clearDiff();
+  $('from').value = from;
+  $('to').value = to;
+  const asked = `${from}/${to}`;
+  state.diffAsked = asked;
   const d = await state.source.diff(from, to);
+  if (state.diffAsked !== asked) return state.diff;  // a later choice won
+  clearDiff();
   state.diff = d;
   $('showdiff').classList.add('on');
-  const n = d.keys.length / 3;
-  changed = instanced(n, new THREE.MeshLambertMaterial());
-  const colors = changed.instanceColor.array;
-  for (let i = 0; i < n; ++i) {
-    const size = cellCenter(d.keys, d.levels, i, tmp) * 0.98;
-    mat.compose(tmp, quat, scl.set(size, size, size));
-    changed.setMatrixAt(i, mat);
-    srgb.setRGB(...(d.kinds[i] === 1 ? APPEARED : VANISHED).map((v) => v / 255), THREE.SRGBColorSpace);
-    colors.set([srgb.r, srgb.g, srgb.b], 3 * i);
-  }
-  changed.count = n;
-  scene.add(changed);
-  for (const c of d.components) {
-    const b = new THREE.Box3(new THREE.Vector3(...c.bbox_min_m), new THREE.Vector3(...c.bbox_max_m));
-    const pad = state.info.resolution_m;
-    b.expandByScalar(pad);
-    const helper = new THREE.Box3Helper(b, new THREE.Color(css(c.kind === 'appeared' ? APPEARED : VANISHED)));
-    helper.userData = c;
-    frames.add(helper);
-    const tag = document.createElement('div');
-    tag.className = `tag ${c.kind}`;
-    tag.textContent = c.id;
-    $('tags').appendChild(tag);
-    helper.userData.tag = tag;
-    helper.userData.top = new THREE.Vector3((b.min.x + b.max.x) / 2, (b.min.y + b.max.y) / 2, b.max.z);
-  }
+  $('showdiff').textContent = 'Hide changes';
+  for (const o of d.objects) addObject(o);
+  // The moves' arrows as drawn: tail and tip (metres), for tests and the console.
+  state.arrows = frames.children.filter((g) => g.userData.arrow).map((g) => {
+    const a = g.userData.arrow, dir = new THREE.Vector3(0, 1, 0).applyQuaternion(a.quaternion);
+    return { id: g.userData.object.id, tail: a.position.toArray(), tip: a.position.clone().addScaledVector(dir, a.cone.position.y).toArray() };
+  });
   listObjects(d);
-  drawSnapshot();
-  redraw();
+  // The slider shows the later state, where the changes are seen.
+  if (state.rank !== to) await setSession(to);
+  else drawSnapshot();
   return d;
 }
 
-function listObjects(d) {
-  const fmtVol = (v) => (v >= 0.1 ? `${v.toFixed(2)} m³` : `${(v * 1000).toFixed(1)} L`);
-  $('diffsum').textContent = `${d.components.length} object${d.components.length === 1 ? '' : 's'}, ${d.voxels} voxels` +
-    (d.cells_sent < d.cells ? ` (${d.cells_sent} of ${d.cells} cells drawn)` : '');
-  const list = $('objects');
-  for (const c of d.components) {
-    const row = document.createElement('div');
-    row.className = 'obj';
-    const sz = c.bbox_max_m.map((v, k) => (v - c.bbox_min_m[k]).toFixed(2)).join(' × ');
-    row.innerHTML = `<span class="num ${c.kind}">${c.id}</span>` +
-      `<span>${c.kind} <span class="dim">${sz} m</span></span><span class="dim">${c.voxels} vox · ${fmtVol(c.volume_m3)}</span>`;
-    row.title = `centre ${c.centroid_m.map((v) => v.toFixed(2)).join(', ')} m`;
-    row.addEventListener('click', () => focusOn(c));
-    list.appendChild(row);
-  }
-  if (!d.components.length) list.innerHTML = '<div class="dim">nothing changed between these times</div>';
+// The panel's choices: shown at once, in place of what was shown; a pair the tour does not hold
+// is said in the panel.
+function showChosen() {
+  showDiff(Number($('from').value), Number($('to').value)).catch((e) => {
+    clearDiff();
+    drawSnapshot();
+    $('diffsum').textContent = String(e.message || e);
+  });
 }
 
+function listObjects(d) {
+  const total = d.appeared_voxels !== undefined ? d.appeared_voxels + d.vanished_voxels : d.voxels;
+  $('diffsum').textContent = `${d.objects.length} object${d.objects.length === 1 ? '' : 's'}, ${total} changed voxels` +
+    (d.cells_sent < d.cells ? ` (${d.cells_sent} of ${d.cells} cells drawn)` : '');
+  const list = $('objects');
+  for (const o of d.objects) {
+    const row = document.createElement('div');
+    row.className = 'obj';
+    const sz = o.size.map((v) => v.toFixed(2)).join(' × ');
+    const what = o.kind === 'moved' ? `moved ${o.distance_m.toFixed(2)} m` : o.kind;
+    row.innerHTML = `<span class="num ${o.kind}">${o.id}</span>` +
+      `<span>${what} <span class="dim">${sz} m</span></span><span class="dim">${o.voxels} vox</span>`;
+    row.title = `centre ${o.centroid.map((v) => v.toFixed(2)).join(', ')} m` +
+      (o.kind === 'moved' ? `, from ${o.from.centroid.map((v) => v.toFixed(2)).join(', ')} m` : '');
+    row.addEventListener('click', () => focusOn(o));
+    list.appendChild(row);
+  }
+  if (!d.objects.length) list.innerHTML = '<div class="dim">nothing changed between these times</div>';
+}
+
+/** Flies to an object: the json's fields (centroid, bbox_min, bbox_max) or a component's (_m). */
 function focusOn(c) {
-  const center = new THREE.Vector3(...c.centroid_m);
-  const size = Math.max(...c.bbox_max_m.map((v, k) => v - c.bbox_min_m[k]), 0.5);
+  const centroid = c.centroid ?? c.centroid_m, lo = c.bbox_min ?? c.bbox_min_m, hi = c.bbox_max ?? c.bbox_max_m;
+  const center = new THREE.Vector3(...centroid);
+  const size = Math.max(...hi.map((v, k) => v - lo[k]), 0.5);
   const dir = camera.position.clone().sub(controls.target).normalize();
   controls.target.copy(center);
   camera.position.copy(center).addScaledVector(dir, size * 4 + 1);
   controls.update();
 }
 
+// Labels: each first tried just above its object's frame, else at the nearest free spot on
+// rings around it (8 directions, 14 px apart), so that no two overlap; a label placed away from
+// its spot gets a leader line to the object's top.
+const LABEL_GAP = 4, RING_PX = 14, RINGS = 12;
+const overlaps = (a, b) => a.x < b.x + b.w + 2 && b.x < a.x + a.w + 2 && a.y < b.y + b.h + 2 && b.y < a.y + a.h + 2;
+// The panels on screen: labels are not placed over them (unless their object lies under one).
+function panelRects() {
+  return [...document.querySelectorAll('.panel')].filter((p) => p.offsetParent !== null || getComputedStyle(p).display !== 'none')
+    .map((p) => p.getBoundingClientRect()).filter((r) => r.width > 0)
+    .map((r) => ({ x: r.left, y: r.top, w: r.width, h: r.height }));
+}
 function placeTags() {
-  const w = window.innerWidth, h = window.innerHeight;
+  const w = window.innerWidth, h = window.innerHeight, placed = [], leaders = [];
+  const panels = frames.children.length ? panelRects() : [];
+  state.labels = [];
   for (const f of frames.children) {
     const p = f.userData.top.clone().project(camera);
     const tag = f.userData.tag;
-    const visible = p.z < 1 && Math.abs(p.x) < 1.05 && Math.abs(p.y) < 1.05;
+    const visible = f.visible && p.z < 1 && Math.abs(p.x) < 1.05 && Math.abs(p.y) < 1.05;
     tag.style.display = visible ? '' : 'none';
-    tag.style.left = `${((p.x + 1) / 2) * w}px`;
-    tag.style.top = `${((1 - p.y) / 2) * h - 4}px`;
+    if (!visible) continue;
+    const ax = ((p.x + 1) / 2) * w, ay = ((1 - p.y) / 2) * h;
+    const tw = tag.offsetWidth, th = tag.offsetHeight;
+    const home = { x: ax - tw / 2, y: ay - th - LABEL_GAP, w: tw, h: th };
+    let at = home;
+    search: for (let ring = 0; ring <= RINGS; ++ring) {
+      for (let k = 0; k < (ring ? 8 : 1); ++k) {
+        const a = (k / 8) * 2 * Math.PI - Math.PI / 2;
+        const c = { ...home, x: home.x + Math.cos(a) * ring * RING_PX * 1.6, y: home.y + Math.sin(a) * ring * RING_PX };
+        const inside = c.x >= 0 && c.y >= 0 && c.x + c.w <= w && c.y + c.h <= h;
+        if (inside && !placed.some((q) => overlaps(c, q)) && !panels.some((q) => overlaps(c, q))) { at = c; break search; }
+      }
+    }
+    placed.push(at);
+    tag.style.left = `${at.x}px`;
+    tag.style.top = `${at.y}px`;
+    const moved = Math.hypot(at.x - home.x, at.y - home.y) > 1;
+    if (moved) {
+      // From the label's edge nearest the object to the object's top.
+      const lx = Math.min(Math.max(ax, at.x), at.x + at.w), ly = Math.min(Math.max(ay, at.y), at.y + at.h);
+      leaders.push(`<line x1="${lx}" y1="${ly}" x2="${ax}" y2="${ay}" stroke="${css(KIND_COLOUR[f.userData.object.kind])}" ` +
+                   'stroke-width="1.5"/><circle cx="' + ax + '" cy="' + ay + '" r="2.5" fill="#e5e9f0"/>');
+    }
+    state.labels.push({ id: f.userData.object.id, x: at.x, y: at.y, w: at.w, h: at.h, anchor: [ax, ay], leader: moved });
   }
+  $('leaders').innerHTML = leaders.join('');
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -783,7 +929,8 @@ function updateLegend() {
   }
   if (mode === 'predicted') {
     const p = state.prediction;
-    html = `<div>predicted probability of occupancy at this time (${p ? p.model : 'combined'} model, docs/rhythm.md)</div>` +
+    const when = state.predictAt ? `${state.predictAt.replace('T', ' ').replace(':00Z', ' UTC')}` : 'the slider\'s time';
+    html = `<div>predicted probability of occupancy at ${when} (${p ? p.model : 'combined'} model, docs/rhythm.md)</div>` +
       `<div class="ramp" style="background:${gradientCss(viridis)}"></div><div class="ends"><span>0</span><span>1</span></div>` +
       `<div class="key"><span class="sw" style="background:${css(NO_MODEL)}"></span>never changed: no model</div>`;
     if (p && p.fit_s > 0) html += `<div class="dim">models fitted on the server in ${p.fit_s.toFixed(p.fit_s < 1 ? 2 : 1)} s</div>`;
@@ -801,7 +948,8 @@ function updateLegend() {
   }
   if (state.diff) {
     html += `<div class="key"><span class="sw appeared"></span>appeared (numbered, framed)</div>` +
-      `<div class="key"><span class="sw vanished"></span>vanished</div>`;
+      `<div class="key"><span class="sw vanished"></span>vanished</div>` +
+      `<div class="key"><span class="sw moved"></span>moved (where it stood: paler), arrow from there</div>`;
   }
   html += '<div class="dim" style="margin-top:6px">drag: orbit · right drag: pan · wheel: zoom · click: history</div>';
   L.innerHTML = html;
@@ -845,9 +993,16 @@ function wire() {
   $('reset').addEventListener('click', resetCamera);
   if ($('costmap')) $('costmap').addEventListener('click', () => setCostmap(!state.costmapOn).catch(report));
   $('showdiff').addEventListener('click', () => {
-    if (state.diff) { clearDiff(); drawSnapshot(); return; }
-    showDiff(Number($('from').value), Number($('to').value)).catch(report);
+    if (state.diff) { state.diffAsked = null; clearDiff(); drawSnapshot(); return; }
+    showChosen();
   });
+  // A new choice of times shows its changes at once.
+  $('from').addEventListener('change', showChosen);
+  $('to').addEventListener('change', showChosen);
+  if ($('predictat')) {
+    $('predictat').addEventListener('change', () => setPredictionTime($('predictat').value).catch(report));
+    $('predictnow').addEventListener('click', () => setPredictionTime('').catch(report));
+  }
   let down = null;
   renderer.domElement.addEventListener('pointerdown', (e) => { down = [e.clientX, e.clientY]; });
   renderer.domElement.addEventListener('pointerup', (e) => {
@@ -898,7 +1053,12 @@ async function main() {
     (state.source.kind === 'tour' ? ' · tour file' : '');
   $('time').max = state.info.sessions.length - 1;
   fillSessionSelects();
-  if (!state.source.predicts) { $('predictedmode').remove(); $('costmaprow').remove(); }
+  if (!state.source.predicts) {
+    $('predictedmode').remove(); $('costmaprow').remove(); $('predictrow').remove();
+  } else {
+    state.rank = state.info.sessions.length - 1;
+    setPredictionLimits();
+  }
   wire();
   animate();
   const last = state.info.sessions.length - 1;
@@ -920,8 +1080,8 @@ function costColor(c) {
 }
 async function loadCostmap(rank) {
   if (!state.costmapOn || !state.source.predicts) return;
-  const cm = await state.source.costmap(rank);
-  if (state.rank !== rank || !state.costmapOn) return;
+  const cm = await state.source.costmap(predictionTime(rank));
+  if (whenId(predictionTime(state.rank)) !== cm.at || !state.costmapOn) return;
   state.costmap = cm;
   if (costLayer) { scene.remove(costLayer); costLayer.geometry.dispose(); costLayer.material.map.dispose(); costLayer.material.dispose(); }
   const rgba = new Uint8Array(4 * cm.width * cm.height);
@@ -959,11 +1119,48 @@ async function setCostmap(on) {
 async function setColorMode(mode) {
   state.colorMode = mode;
   $('colormode').value = mode;
+  if ($('predictrow')) $('predictrow').style.display = mode === 'predicted' ? '' : 'none';
   if (mode === 'predicted') {
     $('busy').style.display = 'block';
     $('busy').textContent = 'predicting occupancy (the first time, the server fits the temporal models)';
     try { await loadPrediction(state.rank); } finally { $('busy').style.display = 'none'; }
   }
+  drawSnapshot();
+}
+
+// The date and hour field (UTC): from the first session to a week past the last. A value of ''
+// follows the slider again.
+const WEEK_S = 7 * 24 * 3600;
+const fieldTime = (s) => new Date(Math.floor(s / 60) * 60000).toISOString().slice(0, 16);
+function setPredictionLimits() {
+  const s = state.info.sessions;
+  $('predictat').min = fieldTime(s[0].time_s + 59.999);
+  $('predictat').max = fieldTime(s[s.length - 1].time_s + WEEK_S);
+  $('predictat').value = fieldTime(s[state.rank].time_s);
+}
+async function setPredictionTime(value) {
+  const s = state.info.sessions, last = s[s.length - 1];
+  const at = value ? Date.parse(`${value.slice(0, 16)}:00Z`) / 1000 : NaN;
+  if (value && !(at >= s[0].time_s && at <= last.time_s + WEEK_S)) {
+    // What the server would answer (it refuses the same times), said without asking it.
+    const show = (t) => fieldTime(t).replace('T', ' ');
+    $('predictnote').textContent = at > last.time_s ?
+      `${value.replace('T', ' ')} UTC lies more than a week past the map's last session (${show(last.time_s)}): ` +
+      `the temporal models predict up to ${show(last.time_s + WEEK_S)} UTC` :
+      `${value.replace('T', ' ')} UTC lies before the map's first session (${show(s[0].time_s)} UTC)`;
+    return;
+  }
+  $('predictnote').textContent = '';
+  state.predictAt = value ? `${value.slice(0, 16)}:00Z` : null;
+  $('predictat').value = value ? value.slice(0, 16) : fieldTime(state.info.sessions[state.rank].time_s);
+  $('predictnow').disabled = !value;
+  $('busy').style.display = 'block';
+  $('busy').textContent = 'predicting occupancy (the first time, the server fits the temporal models)';
+  try {
+    await Promise.all([loadPrediction(state.rank), loadCostmap(state.rank).catch((e) => {
+      $('predictnote').textContent = String(e.message || e).replace(/^[^:]*: /, '');
+    })]);
+  } finally { $('busy').style.display = 'none'; }
   drawSnapshot();
 }
 
@@ -975,6 +1172,7 @@ state.clearDiff = () => { clearDiff(); drawSnapshot(); };
 state.selectCell = (i) => selectCell(i);
 state.setColorMode = (m) => setColorMode(m);
 state.setCostmap = (on) => setCostmap(on);
+state.setPredictionTime = (value) => setPredictionTime(value);
 state.toggleTopView = () => $('topview').click();
 /** Cuts at `metres` above the map's origin (the slider's value nearest to it). */
 state.setCut = (metres) => {

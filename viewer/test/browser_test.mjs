@@ -26,12 +26,13 @@ if (!fs.existsSync(map)) {
   run('build', map, ...sessions.map((s) => path.join(work, 'sim', s)), '--fast');
 }
 const sessions = json('stats', map).per_session;
-// What the command line reports: occupied voxels per session, objects between sessions 1 and 2.
+// What the command line reports: occupied voxels per session, the objects `chronomap diff` (its
+// defaults: the one call) lists between sessions 1 and 2 and between 1 and 3.
 const occupied = sessions.map((s, i) => json('snapshot', map, '--at', String(s.time_s), '-o', path.join(work, `snap${i}.cmap`)).occupied);
-const diffFile = path.join(work, 'diff01.cmap');
-run('diff', `${map}@${sessions[0].time_s}`, `${map}@${sessions[1].time_s}`, '--mode', 'band', '--neighbourhood', '1',
-    '--min-shift', '0.5', '--kept-surface', '3', '-o', diffFile);
-const objects = json('segment', diffFile, '--connectivity', 'vertex', '--min-voxels', '20').components;
+const cliObjects = (from, to) => json('diff', `${map}@${sessions[from].time_s}`, `${map}@${sessions[to].time_s}`,
+                                      '-o', path.join(work, `diff${from}${to}.cmap`)).objects;
+const objects = cliObjects(0, 1), objects02 = cliObjects(0, 2);
+const brief = (list) => JSON.stringify(list.map((o) => [o.id, o.kind, o.voxels, o.size.map((v) => v.toFixed(3))]));
 
 const tour = path.join(work, 'tour.html');
 run('export', map, '-o', tour);
@@ -103,6 +104,63 @@ async function compareWithReference(page, label) {
   check(differing <= 0.03, `${label}: the last session from the first view differs from the reference in ${(differing * 100).toFixed(2)}% of the pixels`);
 }
 
+// The largest difference between the page's probabilities of `shown.picks` and those of
+// `chronomap predict` at time_s (its map, added to a 4D map of its own, read back with
+// `chronomap history`).
+function differenceFromPredict(shown, time_s) {
+  const predicted = path.join(work, 'predicted.cmap'), single = path.join(work, 'predicted4d.cmap');
+  fs.rmSync(single, { force: true });
+  run('predict', map, '--at', String(time_s), '-o', predicted);
+  run('add', single, predicted, '--time', String(time_s));
+  let worst = 0;
+  for (const v of shown.picks) {
+    const point = v.key.map((k) => ((k - shown.origin + 0.5) * shown.res).toFixed(4)).join(',');
+    const h = json('history', single, '--point', point);
+    const cli = h.entries.length ? h.entries[h.entries.length - 1].probability : NaN;
+    worst = Math.max(worst, Number.isNaN(cli) ? Infinity : Math.abs(cli - v.p));
+  }
+  return worst;
+}
+
+// The prediction layer at a date and hour of the field rather than a session: two days and a few
+// hours after the last session, equal to chronomap predict at that time; more than a week after
+// it, the server's refusal is said beside the field.
+async function checkPredictionAnyTime(page) {
+  const later = new Date(Math.floor(sessions[sessions.length - 1].time_s / 3600 + 2 * 24 + 5) * 3600e3).toISOString().slice(0, 16);
+  const tooLate = new Date(Math.floor(sessions[sessions.length - 1].time_s / 3600 + 8 * 24) * 3600e3).toISOString().slice(0, 16);
+  const set = async (value) => page.evaluate(async (v) => {
+    const c = window.chronomap, field = document.getElementById('predictat');
+    if (!field) return null;
+    await c.setColorMode('predicted');
+    field.value = v;
+    field.dispatchEvent(new Event('change'));
+    await new Promise((resolve) => setTimeout(resolve, 50));
+    while (document.getElementById('busy').style.display !== 'none') await new Promise((resolve) => setTimeout(resolve, 50));
+    await c.nextFrame();
+    const p = c.prediction, picks = [];
+    for (let k = 0; p && k < p.levels.length && picks.length < 6; k += Math.max(1, Math.floor(p.levels.length / 6))) {
+      if (p.levels[k] === 0) picks.push({ key: Array.from(p.keys.subarray(3 * k, 3 * k + 3)), p: p.p[k] });
+    }
+    let coloured = 0;
+    for (let i = 0; c.cellP && i < c.shown.count; ++i) if (!Number.isNaN(c.cellP[i])) ++coloured;
+    return { time_s: p ? p.time_s : null, picks, coloured, origin: c.info.key_origin, res: c.info.resolution_m,
+             legend: document.getElementById('legend').textContent, note: document.getElementById('predictnote').textContent,
+             errors: c.errors.length };
+  }, value);
+  const at = await set(later);
+  const expected = Date.parse(`${later}:00Z`) / 1000;
+  const worst = at && at.time_s === expected ? differenceFromPredict(at, expected) : Infinity;
+  check(at !== null && at.time_s === expected && at.coloured > 0 && worst < 1e-3 && at.legend.includes(later.replace('T', ' ')),
+        `server: predicted occupancy at ${later} UTC (2 days past the last session): ${at && at.coloured} cells coloured, largest difference from chronomap predict ${worst}`);
+  const refused = await set(tooLate);
+  check(refused !== null && /more than a week past/.test(refused.note) && refused.errors === 0,
+        `server: ${tooLate} (8 days past) is refused beside the field: '${refused && refused.note}'`);
+  await page.evaluate(async () => {
+    if (window.chronomap.setPredictionTime) await window.chronomap.setPredictionTime('');
+    await window.chronomap.setColorMode('color');
+  });
+}
+
 // Colour by predicted occupancy at session 2: the page's probabilities of a few modelled voxels
 // equal those of `chronomap predict` at that time (its map, added to a 4D map of its own, read
 // back with `chronomap history`), and every drawn cell with a model is coloured by one.
@@ -125,17 +183,7 @@ async function checkPrediction(page) {
   }, rank);
   check(shown.rank === rank && shown.cubes > 0 && shown.picks.length >= 3 && shown.coloured > 0 && /predicted/.test(shown.legend),
         `server: predicted occupancy at session ${rank + 1}: ${shown.cubes} modelled cubes, ${shown.coloured} drawn cells coloured by one`);
-  const predicted = path.join(work, 'predicted.cmap'), single = path.join(work, 'predicted4d.cmap');
-  fs.rmSync(single, { force: true });
-  run('predict', map, '--at', String(sessions[rank].time_s), '-o', predicted);
-  run('add', single, predicted, '--time', String(sessions[rank].time_s));
-  let worst = 0;
-  for (const v of shown.picks) {
-    const point = v.key.map((k) => ((k - shown.origin + 0.5) * shown.res).toFixed(4)).join(',');
-    const h = json('history', single, '--point', point);
-    const cli = h.entries.length ? h.entries[h.entries.length - 1].probability : NaN;
-    worst = Math.max(worst, Number.isNaN(cli) ? Infinity : Math.abs(cli - v.p));
-  }
+  const worst = differenceFromPredict(shown, sessions[rank].time_s);
   check(worst < 1e-3, `server: the page's predicted probabilities of ${shown.picks.length} voxels equal chronomap predict's (largest difference ${worst})`);
   // The cost map layer: the server's grid, drawn on the floor, in the legend.
   const cost = await page.evaluate(async () => {
@@ -151,6 +199,128 @@ async function checkPrediction(page) {
         `server: the cost map layer at session ${rank + 1}: ${cost.known} of ${cost.cells} cells known`);
   await page.screenshot({ path: path.join(work, 'server-predicted.png') });
   await page.evaluate(async () => { await window.chronomap.setCostmap(false); await window.chronomap.setColorMode('color'); });
+}
+
+// The "What changed" panel's controls: a new "to" shows its changes at once (the objects of
+// chronomap diff --json, the slider at "to"), the button hides and says so, the changed voxels
+// obey the height cut, and the labels of objects close together on screen (seen from afar) do
+// not overlap (leader lines).
+async function checkChangesPanel(page, label) {
+  await page.select('#to', '2');
+  const shown = await page.waitForFunction(() => {
+    const c = window.chronomap;
+    return c.diff && c.diff.to === 2 && c.rank === 2 && c.loadedRank === 2 ?
+      { objects: c.diff.objects, slider: document.getElementById('time').value } : null;
+  }, { timeout: 5000 }).then((h) => h.jsonValue()).catch(() => null);
+  check(shown !== null && brief(shown.objects) === brief(objects02) && shown.slider === '2',
+        `${label}: choosing 'to' session 3 shows its changes at once: ${shown ? brief(shown.objects) : 'nothing'}; chronomap diff --json lists ${brief(objects02)}`);
+  const cut = await page.evaluate(async () => {
+    const c = window.chronomap, d = c.diff;
+    if (!d) return null;
+    const n = d.keys.length / 3, zs = [];
+    for (let i = 0; i < n; ++i) zs.push(d.keys[3 * i + 2]);
+    zs.sort((a, b) => a - b);
+    const r = c.info.resolution_m, o = c.info.key_origin;
+    c.setCut((zs[Math.floor(n / 2)] - o) * r);
+    await c.nextFrame();
+    const b = c.bounds, key = b.zmin + c.cut * (b.zmax - b.zmin);
+    const below = zs.filter((z) => z < key).length;
+    const result = { total: n, below, drawn: c.diffDrawn };
+    c.setCut(100);
+    return result;
+  });
+  check(cut !== null && cut.drawn === cut.below && cut.below > 0 && cut.below < cut.total,
+        `${label}: with the height cut through the changes, ${cut && cut.drawn} changed cells drawn; ${cut && cut.below} of ${cut && cut.total} lie below it`);
+  const labels = await page.evaluate(async () => {
+    const c = window.chronomap;
+    // From afar (16 times the map's extent), the objects stand close together on screen.
+    await c.showDiff(0, 1);
+    const far = 4 * c.extent;
+    c.focusOn({ centroid_m: [c.center.x, c.center.y, c.center.z], bbox_min_m: [0, 0, 0], bbox_max_m: [far, far, far] });
+    await c.nextFrame();
+    await c.nextFrame();
+    const rects = [...document.querySelectorAll('#tags .tag')].filter((t) => t.style.display !== 'none')
+      .map((t) => t.getBoundingClientRect());
+    let overlapping = 0;
+    for (let i = 0; i < rects.length; ++i) {
+      for (let j = i + 1; j < rects.length; ++j) {
+        const a = rects[i], b = rects[j];
+        if (a.left < b.right && b.left < a.right && a.top < b.bottom && b.top < a.bottom) ++overlapping;
+      }
+    }
+    // Where each label would stand just above its object: some of those spots overlap.
+    const homes = (c.labels || []).map((l) => ({ ...l, x: l.anchor[0] - l.w / 2, y: l.anchor[1] - l.h - 4 }));
+    let crowded = 0, away = 0;
+    homes.forEach((a, i) => {
+      if (Math.hypot(a.x - c.labels[i].x, a.y - c.labels[i].y) > 1) ++away;
+      for (const b of homes.slice(i + 1)) if (a.x < b.x + b.w && b.x < a.x + a.w && a.y < b.y + b.h && b.y < a.y + a.h) ++crowded;
+    });
+    return { shown: rects.length, overlapping, crowded, away, leaders: document.querySelectorAll('#leaders line').length };
+  });
+  await page.screenshot({ path: path.join(work, `${label}-labels.png`) });
+  await page.evaluate(() => document.getElementById('reset').click());
+  check(labels.shown === objects.length && labels.crowded > 0 && labels.overlapping === 0 && labels.away > 0 &&
+        labels.leaders === labels.away,
+        `${label}: seen from afar, ${labels.shown} labels (${labels.crowded} pairs would overlap above their objects): ` +
+        `${labels.overlapping} pairs overlap, ${labels.away} moved away with ${labels.leaders} leader lines`);
+  const hidden = await page.evaluate(async () => {
+    document.getElementById('showdiff').click();
+    await window.chronomap.nextFrame();
+    return { button: document.getElementById('showdiff').textContent, diff: window.chronomap.diff,
+             tags: document.querySelectorAll('#tags .tag').length };
+  });
+  check(hidden.button === 'Show changes' && hidden.diff === null && hidden.tags === 0,
+        `${label}: the button hides the changes and then says '${hidden.button}'`);
+}
+
+// A move, as the server lists one (the vanished and the appeared object of sessions 1 to 2 made
+// one moved object, answered in place of /api/diff?format=json): drawn as an arrow from the
+// old centroid to the new, listed with its distance.
+async function checkMove(page) {
+  const real = await page.evaluate(async () => (await fetch('api/diff?from=0&to=1&format=json')).json());
+  const a = real.objects.find((o) => o.kind === 'appeared'), v = real.objects.find((o) => o.kind === 'vanished');
+  const place = (o) => ({ voxels: o.voxels, centroid: o.centroid, size: o.size });
+  const move = { ...a, id: 1, kind: 'moved', voxels: a.voxels + v.voxels, components: [v.components[0], a.components[0]],
+                 from: place(v), to: place(a), distance_m: Math.hypot(...a.centroid.map((x, k) => x - v.centroid[k])) };
+  const rest = real.objects.filter((o) => o !== a && o !== v).map((o, k) => ({ ...o, id: k + 2 }));
+  const answer = JSON.stringify({ ...real, objects: [move, ...rest] });
+  await page.setRequestInterception(true);
+  const respond = (r) => (/api\/diff\?from=0&to=1&format=json$/.test(r.url()) ?
+    r.respond({ status: 200, contentType: 'application/json', body: answer }) : r.continue());
+  page.on('request', respond);
+  const drawn = await page.evaluate(async () => {
+    const c = window.chronomap;
+    await c.showDiff(0, 1);
+    await c.nextFrame();
+    return { arrows: (c.arrows || []).map((x) => ({ id: x.id, tail: x.tail, tip: x.tip })),
+             row: document.querySelector('#objects .obj') ? document.querySelector('#objects .obj').textContent : '' };
+  });
+  page.off('request', respond);
+  await page.setRequestInterception(false);
+  await page.screenshot({ path: path.join(work, 'server-move.png') });
+  await page.evaluate(() => window.chronomap.clearDiff());
+  const near = (p, q) => p && q && Math.hypot(...p.map((x, k) => x - q[k])) < 1e-4;
+  const arrow = drawn.arrows[0];
+  check(drawn.arrows.length === 1 && arrow.id === 1 && near(arrow.tail, v.centroid) && near(arrow.tip, a.centroid) &&
+        drawn.row.includes(`moved ${move.distance_m.toFixed(2)} m`),
+        `server: a moved object is drawn as an arrow from ${JSON.stringify(v.centroid)} to ${JSON.stringify(a.centroid)}: ${JSON.stringify(drawn.arrows)}; listed as '${drawn.row}'`);
+}
+
+// The history panel gives the voxel's position in metres (the centre of the selected cell).
+async function checkHistoryPosition(page, label) {
+  const h = await page.evaluate(async () => {
+    const c = window.chronomap, s = c.shown;
+    let i = 0;
+    while (i < s.count && s.levels[i] !== 0) ++i;
+    await c.selectCell(i);
+    const r = c.info.resolution_m, o = c.info.key_origin;
+    return { expected: [0, 1, 2].map((a) => (s.keys[3 * i + a] - o + 0.5) * r),
+             text: document.getElementById('histsub').textContent };
+  });
+  const m = h.text.match(/at (-?[\d.]+), (-?[\d.]+), (-?[\d.]+) m/);
+  const said = m ? m.slice(1).map(Number) : null;
+  check(said !== null && said.every((v, a) => Math.abs(v - h.expected[a]) < 0.0051),
+        `${label}: the history panel says where the voxel is: '${h.text}' (its centre: ${h.expected.map((v) => v.toFixed(3)).join(', ')} m)`);
 }
 
 async function checkPage(url, label) {
@@ -177,14 +347,17 @@ async function checkPage(url, label) {
   const diff = await page.evaluate(async () => {
     const d = await window.chronomap.showDiff(0, 1);
     await window.chronomap.nextFrame();
-    return { components: d.components.map((c) => [c.kind, c.voxels]), rows: document.querySelectorAll('#objects .obj').length,
-             tags: document.querySelectorAll('#tags .tag').length };
+    return { objects: d.objects || [], rows: document.querySelectorAll('#objects .obj').length,
+             tags: document.querySelectorAll('#tags .tag').length, button: document.getElementById('showdiff').textContent,
+             rank: window.chronomap.rank, slider: document.getElementById('time').value };
   });
-  const expected = objects.map((c) => [c.kind, c.voxels]);
-  check(JSON.stringify(diff.components) === JSON.stringify(expected),
-        `${label}: the diff of sessions 1 and 2 shows ${diff.components.length} objects ${JSON.stringify(diff.components)}; chronomap segment reports ${JSON.stringify(expected)}`);
-  check(diff.rows === expected.length && diff.tags === expected.length, `${label}: each object listed (${diff.rows}) and numbered (${diff.tags})`);
+  check(brief(diff.objects) === brief(objects),
+        `${label}: the changes of sessions 1 to 2 list ${brief(diff.objects)}; chronomap diff --json lists ${brief(objects)}`);
+  check(diff.rows === objects.length && diff.tags === objects.length, `${label}: each object listed (${diff.rows}) and numbered (${diff.tags})`);
+  check(diff.button === 'Hide changes' && diff.rank === 1 && diff.slider === '1',
+        `${label}: with the changes shown the button says '${diff.button}' and the slider is at session ${diff.rank + 1} (the 'to' session is 2)`);
   await page.screenshot({ path: path.join(work, `${label}-diff.png`) });
+  await checkChangesPanel(page, label);
   const history = await page.evaluate(async () => {
     const c = window.chronomap;
     c.clearDiff();
@@ -196,6 +369,7 @@ async function checkPage(url, label) {
   });
   check(history.entries >= 2 && history.shown && history.rows === history.entries,
         `${label}: selecting the busiest voxel shows its history (${history.entries} entries, ${history.rows} rows)`);
+  await checkHistoryPosition(page, label);
   // Real clicks on the canvas (points of the first view, until one lands on a voxel rather than a
   // hole in the floor) pick a voxel and show its history.
   await page.evaluate(async () => {
@@ -214,7 +388,11 @@ async function checkPage(url, label) {
     if (clicked) break;
   }
   check(clicked !== null, `${label}: a click on the canvas picks voxel ${clicked} and shows its history`);
-  if (label === 'server') await checkPrediction(page);
+  if (label === 'server') {
+    await checkPrediction(page);
+    await checkPredictionAnyTime(page);
+    await checkMove(page);
+  }
   check(errors.length === 0, `${label}: no console errors${errors.length ? `: ${errors.join(' | ')}` : ''}`);
   await page.close();
 }

@@ -1,9 +1,10 @@
 // Screenshots of the viewer with headless Chromium, for docs/images and for looking at changes:
 //   node test/shoot.mjs URL OUT_PREFIX
 // writes OUT_PREFIX-map.png (last session), OUT_PREFIX-diff.png (objects between the first two
-// sessions), OUT_PREFIX-history.png (coloured by change count, the busiest voxel's history) and
+// sessions), OUT_PREFIX-move.png (the first moved object between consecutive sessions, if any), OUT_PREFIX-history.png (coloured by change count, the busiest voxel's history) and
 // OUT_PREFIX-top.png (top view, cut at 1.2 m), OUT_PREFIX-zoom.png (a coarse map zoomed in),
-// OUT_PREFIX-predicted.png (predicted occupancy and the cost map, `chronomap view` only), and prints timings as JSON (software WebGL): a
+// OUT_PREFIX-predicted.png (predicted occupancy and the cost map a day and a half past the last
+// session, `chronomap view` only), and prints timings as JSON (software WebGL): a
 // slider step's wall time split into fetch, building the mesh and drawing, and the processor
 // time Chromium spent per step (all its processes).
 import fs from 'node:fs';
@@ -65,10 +66,26 @@ try {
     const c = window.chronomap;
     await c.setSession(1);
     const d = await c.showDiff(0, 1);
-    return d.components.length;
+    return d.objects.length;
   });
   await page.evaluate(() => window.chronomap.nextFrame());
   await page.screenshot({ path: `${prefix}-diff.png` });
+  // The first pair of consecutive sessions with a moved object, flown to.
+  const moved = await page.evaluate(async () => {
+    const c = window.chronomap;
+    for (let r = 0; r + 1 < c.info.sessions.length; ++r) {
+      const d = await c.showDiff(r, r + 1);
+      const m = d.objects.find((o) => o.kind === 'moved');
+      if (!m) continue;
+      c.focusOn({ ...m, bbox_min: m.bbox_min.map((v, k) => Math.min(v, m.from.centroid[k] - m.from.size[k] / 2)),
+                  bbox_max: m.bbox_max.map((v, k) => Math.max(v, m.from.centroid[k] + m.from.size[k] / 2)) });
+      await c.nextFrame();
+      return { from: r, to: r + 1, id: m.id, distance_m: m.distance_m };
+    }
+    return null;
+  });
+  if (moved) await page.screenshot({ path: `${prefix}-move.png` });
+  await page.evaluate(() => document.getElementById('reset').click());
   await page.evaluate(async () => {
     const c = window.chronomap;
     c.clearDiff();
@@ -121,6 +138,14 @@ try {
       await c.nextFrame();
       steps.push(Math.round(performance.now() - t));
     }
+    // A day and a half past the last session, from the date and hour field.
+    const last = c.info.sessions[c.info.sessions.length - 1].time_s;
+    const later = new Date(Math.floor(last / 3600 + 36) * 3600e3).toISOString().slice(0, 16);
+    const field = document.getElementById('predictat');
+    field.value = later;
+    field.dispatchEvent(new Event('change'));
+    await new Promise((resolve) => setTimeout(resolve, 50));
+    while (document.getElementById('busy').style.display !== 'none') await new Promise((resolve) => setTimeout(resolve, 50));
     t = performance.now();
     await c.setCostmap(true);
     await c.nextFrame();
@@ -132,7 +157,7 @@ try {
   const memory = await page.evaluate(() => (performance.memory ? performance.memory.usedJSHeapSize : null));
   console.log(JSON.stringify({ first_picture_ms: firstPicture, slider_steps_ms: steps.map((x) => Math.round(x.total)),
                                step_parts_ms: steps.map((x) => [x.fetch, x.build, x.draw].map(Math.round)),
-                               step_cpu_ms: Math.round(stepCpuMs), objects, zoom, rhythm,
+                               step_cpu_ms: Math.round(stepCpuMs), objects, moved, zoom, rhythm,
                                js_heap_bytes: memory }));
 } finally {
   await browser.close();

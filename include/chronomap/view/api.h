@@ -17,6 +17,10 @@
 
 namespace chronomap {
 
+/// How far past a map's last session /api/predict and /api/costmap answer: a week (the temporal
+/// models have daily and weekly rhythms; beyond a week they only repeat them).
+inline constexpr double kPredictionHorizon_s = 7 * 24 * 3600.0;
+
 /// Limits of the API: what a request may ask for.
 struct ApiSettings {
   /// Cells of a snapshot when the request names no budget.
@@ -53,10 +57,12 @@ using Query = std::multimap<std::string, std::string>;
 ///  - `/api/history?key=x,y,z[&level=L]` JSON (historyJson);
 ///  - `/api/predict?session=R|t=T[&model=M]` a packet of every modelled cube's predicted
 ///    probability of occupancy at that time (encodePrediction; model: rhythm.h's names,
-///    default combined);
+///    default combined); T may lie up to kPredictionHorizon_s past the last session;
 ///  - `/api/costmap?session=R|t=T[&model=M]` a packet of the navigation cost map at that time
-///    (costmap() of predictMap(), the default CostmapSettings of `chronomap costmap`).
-/// Anything else is 404; a malformed or unknown parameter, a time outside the map's sessions or
+///    (costmap() of predictMap(), the default CostmapSettings of `chronomap costmap`), T as for
+///    /api/predict.
+/// Anything else is 404; a malformed or unknown parameter, a time outside the map's sessions (for
+/// predictions: before the first or more than a week past the last) or
 /// a budget above the limit is 400 with a JSON {"error": ...}. Safe to call from several threads
 /// at once (the map is only read; the constructor prepares its lazily built summaries).
 class Api {

@@ -45,7 +45,8 @@ struct TourReport {
 
 /// The tour's data as a packet (packet.h): header {"map": mapInfoJson, "level", "cells",
 /// "occupied_voxels": [per session], "diffs": [{"from", "to", "first", "count", "cells",
-/// "components": [...], "dropped"}]}, arrays "keys" (u16 x, y, z), "levels", "colors",
+/// "components": [...], "objects": [changedObjectsJson of findChanges, as /api/diff?format=json],
+/// "appeared_voxels", "vanished_voxels", "dropped"}]}, arrays "keys" (u16 x, y, z), "levels", "colors",
 /// "changes" (stored changes of the cell's busiest voxel), "states" (per cell, 2 bits per
 /// session in session order, 4 sessions a byte, lowest bits first: 0 unknown, 1 free,
 /// 2 occupied; the cell's most occupied state), then the diffs' cells one diff after another:
