@@ -76,7 +76,8 @@ Command addExport(CLI::App& root) {
       "export",
       "Export a session map: .ply writes the centres of occupied voxels with their mean colour; "
       ".ot writes an OctoMap ColorOcTree that octovis opens; .png draws the map seen from above "
-      "(highest occupied voxel per column in its colour, free space light, unobserved dark). "
+      "(highest occupied voxel per column in its colour, floor seen free with nothing hit in a quiet "
+      "floor tone, unobserved dark; axes in metres, a scale bar and a legend around it). "
       "Export a 4D map as .html: the viewer of `chronomap view` with the map inside, one file that "
       "opens in a browser from disk (every session, the objects changed between sessions).");
   app->add_option("MAP", o->input, "a session map (.ply, .ot, .png) or a 4D map (.html), as .cmap")->required();

@@ -1,6 +1,7 @@
 #include "chronomap/render/draw.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdlib>
 
 namespace chronomap {
@@ -33,10 +34,19 @@ constexpr Glyph kFont[] = {
     {'x', {0, 17, 10, 4, 10, 17, 0}},    {'#', {10, 10, 31, 10, 31, 10, 10}}, {'\'', {4, 4, 8, 0, 0, 0, 0}},
     {'>', {8, 4, 2, 1, 2, 4, 8}},        {'<', {2, 4, 8, 16, 8, 4, 2}},     {'^', {4, 10, 17, 0, 0, 0, 0}},
 };
+// The unit metre's lower-case m.
+constexpr uint8_t kMetre[7] = {0, 0, 26, 21, 21, 21, 21};
 constexpr uint8_t kBox[7] = {31, 17, 17, 17, 17, 17, 31};
 constexpr int kAdvance = 6;  // glyph width 5 plus one column of space
 
-const uint8_t* glyphOf(char c) {
+bool isLetter(char c) { return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z'); }
+
+const uint8_t* glyphOf(const std::string& text, size_t i) {
+  char c = text[i];
+  // A lone 'm' is the unit metre: "M" would read as mega.
+  if (c == 'm' && (i == 0 || !isLetter(text[i - 1])) && (i + 1 == text.size() || !isLetter(text[i + 1]))) {
+    return kMetre;
+  }
   // 'x' has its own glyph (a multiplication sign); other lower case letters are capitals.
   if (c != 'x' && c >= 'a' && c <= 'z') c = static_cast<char>(c - 'a' + 'A');
   for (const Glyph& g : kFont) {
@@ -58,7 +68,7 @@ int textWidth(const std::string& text, int scale) {
 
 void drawText(ImageRgb& image, int x, int y, const std::string& text, Rgb colour, int scale) {
   for (size_t i = 0; i < text.size(); ++i) {
-    const uint8_t* rows = glyphOf(text[i]);
+    const uint8_t* rows = glyphOf(text, i);
     const int gx = x + static_cast<int>(i) * kAdvance * scale;
     for (int r = 0; r < 7; ++r) {
       for (int c = 0; c < 5; ++c) {
@@ -98,6 +108,28 @@ void drawLine(ImageRgb& image, int x0, int y0, int x1, int y1, Rgb colour, int t
       err += dx;
       y0 += sy;
     }
+  }
+}
+
+void drawArrow(ImageRgb& image, int x0, int y0, int x1, int y1, Rgb colour, int thickness, int head_px) {
+  const double dx = x1 - x0, dy = y1 - y0;
+  const double length = std::hypot(dx, dy);
+  if (length < 1.0) {
+    drawLine(image, x0, y0, x1, y1, colour, thickness);
+    return;
+  }
+  const double head = std::min(static_cast<double>(head_px), length / 2);
+  const double ux = dx / length, uy = dy / length;
+  // The shaft stops where the head begins, so that a thick shaft does not blunt the tip.
+  const double bx = x1 - ux * head, by = y1 - uy * head;
+  drawLine(image, x0, y0, static_cast<int>(std::lround(bx)), static_cast<int>(std::lround(by)), colour, thickness);
+  // The head: a triangle of half-width head/2, filled by lines from the tip to its base.
+  const double half = head / 2;
+  const int steps = static_cast<int>(std::ceil(2 * half)) * 2;
+  for (int k = 0; k <= steps; ++k) {
+    const double t = -half + 2 * half * k / steps;
+    const int px = static_cast<int>(std::lround(bx - uy * t)), py = static_cast<int>(std::lround(by + ux * t));
+    drawLine(image, px, py, x1, y1, colour, 1);
   }
 }
 

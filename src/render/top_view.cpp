@@ -7,6 +7,7 @@
 
 #include "chronomap/core/error.h"
 #include "chronomap/render/draw.h"
+#include "top_view_parts.h"
 
 namespace chronomap {
 
@@ -31,38 +32,66 @@ ImageRgb renderCostmap(const Costmap& c) {
   return img;
 }
 
-ImageRgb renderTopView(const SessionMap& map, const TopViewSettings& settings) {
-  if (map.empty()) throw DataError("the map is empty: nothing to draw");
-  int lo[2] = {kKeysPerAxis, kKeysPerAxis}, hi[2] = {-1, -1};
-  int zlo = kKeysPerAxis, zhi = -1;
+namespace render_detail {
+
+namespace {
+
+// The largest picture side in pixels.
+constexpr int64_t kMaxSide_px = 8192;
+
+/// The key bounds (x, y) of the columns to draw: the map's leaves, cut to the window.
+void columnBounds(const SessionMap& map, const Eigen::AlignedBox2d& window_m, int lo[2], int hi[2]) {
+  lo[0] = lo[1] = kKeysPerAxis;
+  hi[0] = hi[1] = -1;
   map.forEachLeaf([&](const LeafView& l) {
     const int side = 1 << l.level;
     lo[0] = std::min(lo[0], int{l.key.x});
     lo[1] = std::min(lo[1], int{l.key.y});
     hi[0] = std::max(hi[0], l.key.x + side - 1);
     hi[1] = std::max(hi[1], l.key.y + side - 1);
-    if (l.counters.state() == VoxelState::Occupied) {
-      zlo = std::min(zlo, int{l.key.z});
-      zhi = std::max(zhi, int{l.key.z});
-    }
   });
+  if (window_m.isEmpty()) return;
+  const KeyGrid& g = map.grid();
+  const Eigen::Vector3d wlo = g.toKeySpace(Eigen::Vector3d(window_m.min().x(), window_m.min().y(), 0.0));
+  const Eigen::Vector3d whi = g.toKeySpace(Eigen::Vector3d(window_m.max().x(), window_m.max().y(), 0.0));
+  for (int a = 0; a < 2; ++a) {
+    lo[a] = std::max(lo[a], static_cast<int>(std::floor(wlo[a])));
+    hi[a] = std::min(hi[a], static_cast<int>(std::ceil(whi[a])) - 1);
+  }
+}
+
+}  // namespace
+
+Raster rasterOf(const SessionMap& map, const TopViewSettings& settings, const Eigen::AlignedBox2d& window_m) {
+  if (map.empty()) throw DataError("the map is empty: nothing to draw");
+  int lo[2], hi[2];
+  columnBounds(map, window_m, lo, hi);
+  if (hi[0] < lo[0] || hi[1] < lo[1]) throw DataError("the map has no column in the area to draw");
   const int ppv = std::max(1, settings.pixels_per_voxel);
   const int nx = hi[0] - lo[0] + 1, ny = hi[1] - lo[1] + 1;
-  if (static_cast<int64_t>(nx) * ppv > 8192 || static_cast<int64_t>(ny) * ppv > 8192) {
+  if (int64_t{nx} * ppv > kMaxSide_px || int64_t{ny} * ppv > kMaxSide_px) {
     throw DataError("the map is too large for a top view at this scale (" + std::to_string(nx) + " x " +
                     std::to_string(ny) + " voxels)");
   }
-  // Per column: highest occupied voxel (z, colour) or "free seen".
+  // Per column: highest occupied voxel (z, colour) or "seen".
   std::vector<int> top(static_cast<size_t>(nx) * ny, -1);
   std::vector<Rgb> colour(top.size());
   std::vector<uint8_t> seen(top.size(), 0);
+  int zlo = kKeysPerAxis, zhi = -1;
   map.forEachLeaf([&](const LeafView& l) {
     const VoxelState st = l.counters.state();
     if (st == VoxelState::Unknown) return;
     const int side = 1 << l.level;
-    for (int dy = 0; dy < side; ++dy) {
-      for (int dx = 0; dx < side; ++dx) {
-        const size_t i = static_cast<size_t>(l.key.y + dy - lo[1]) * nx + (l.key.x + dx - lo[0]);
+    const int x0 = std::max(int{l.key.x}, lo[0]), x1 = std::min(l.key.x + side - 1, hi[0]);
+    const int y0 = std::max(int{l.key.y}, lo[1]), y1 = std::min(l.key.y + side - 1, hi[1]);
+    if (x0 > x1 || y0 > y1) return;
+    if (st == VoxelState::Occupied) {
+      zlo = std::min(zlo, int{l.key.z});
+      zhi = std::max(zhi, int{l.key.z});
+    }
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        const size_t i = static_cast<size_t>(y - lo[1]) * nx + static_cast<size_t>(x - lo[0]);
         seen[i] = 1;
         if (st == VoxelState::Occupied && int{l.key.z} > top[i]) {
           top[i] = l.key.z;
@@ -71,76 +100,45 @@ ImageRgb renderTopView(const SessionMap& map, const TopViewSettings& settings) {
       }
     }
   });
-  ImageRgb img;
+  Raster r;
+  ImageRgb& img = r.image;
   img.width = static_cast<uint32_t>(nx * ppv);
   img.height = static_cast<uint32_t>(ny * ppv);
   img.pixels.resize(size_t{img.width} * img.height);
   const double zrange = std::max(1, zhi - zlo);
   for (int y = 0; y < ny; ++y) {
     for (int x = 0; x < nx; ++x) {
-      const size_t i = static_cast<size_t>(y) * nx + x;
+      const size_t i = static_cast<size_t>(y) * nx + static_cast<size_t>(x);
       Rgb c = seen[i] ? settings.free_colour : settings.unknown_colour;
       if (top[i] >= 0) {
         const double shade = 0.55 + 0.45 * (top[i] - zlo) / zrange;  // higher is brighter
         c = Rgb{static_cast<uint8_t>(colour[i].r * shade), static_cast<uint8_t>(colour[i].g * shade),
                 static_cast<uint8_t>(colour[i].b * shade)};
       }
-      for (int py = 0; py < ppv; ++py) {
-        const size_t row = static_cast<size_t>(ny - 1 - y) * static_cast<size_t>(ppv) + static_cast<size_t>(py);  // y up
-        for (int px = 0; px < ppv; ++px) img.pixels[row * img.width + static_cast<size_t>(x * ppv + px)] = c;
-      }
+      fillRect(img, x * ppv, (ny - 1 - y) * ppv, (x + 1) * ppv, (ny - y) * ppv, c);  // y up
     }
   }
-  return img;
+  const KeyGrid& g = map.grid();
+  const double res = g.resolution_m();
+  r.frame.x_min_m = (lo[0] - static_cast<double>(kKeyOrigin)) * res;
+  r.frame.y_max_m = (hi[1] + 1 - static_cast<double>(kKeyOrigin)) * res;
+  r.frame.metres_per_pixel = res / ppv;
+  r.frame.width_px = static_cast<int>(img.width);
+  r.frame.height_px = static_cast<int>(img.height);
+  return r;
 }
 
-ImageRgb renderChangeView(const SessionMap& background, const DiffMap& diff, const Segmentation& segmentation,
-                          const TopViewSettings& settings) {
-  ImageRgb img = renderTopView(background, settings);
-  // The same frame as renderTopView: the key bounds of the background's leaves, y up.
-  int lo_x = kKeysPerAxis, lo_y = kKeysPerAxis, hi_y = -1;
-  background.forEachLeaf([&](const LeafView& l) {
-    lo_x = std::min(lo_x, int{l.key.x});
-    lo_y = std::min(lo_y, int{l.key.y});
-    hi_y = std::max(hi_y, l.key.y + (1 << l.level) - 1);
-  });
-  const int ppv = std::max(1, settings.pixels_per_voxel);
-  for (Rgb& p : img.pixels) {  // fade the background so that the changes stand out
-    p = Rgb{static_cast<uint8_t>(160 + p.r * 3 / 8), static_cast<uint8_t>(160 + p.g * 3 / 8),
-            static_cast<uint8_t>(160 + p.b * 3 / 8)};
-  }
-  auto toPixel = [&](int kx, int ky) {
-    return std::pair<int, int>{(kx - lo_x) * ppv, (hi_y - ky) * ppv};
-  };
-  auto inside = [&](int x, int y) { return x >= 0 && y >= 0 && x < int(img.width) && y < int(img.height); };
-  for (const Component& c : segmentation.components) {
-    const Rgb colour = c.kind == ChangeKind::Appeared ? Rgb{20, 150, 40} : Rgb{210, 40, 30};
-    for (uint32_t idx : c.cells) {
-      const ChangeCell& cell = diff.cells()[idx];
-      const int side = 1 << cell.level;
-      const auto [x0, y0] = toPixel(cell.key.x, cell.key.y + side - 1);
-      for (int y = y0; y < y0 + side * ppv; ++y) {
-        for (int x = x0; x < x0 + side * ppv; ++x) {
-          if (inside(x, y)) img.pixels[static_cast<size_t>(y) * img.width + static_cast<size_t>(x)] = colour;
-        }
-      }
-    }
-  }
-  for (const Component& c : segmentation.components) {
-    const Rgb colour = c.kind == ChangeKind::Appeared ? Rgb{10, 90, 20} : Rgb{140, 20, 10};
-    const auto lo = diff.grid().keyOf(c.bbox_min_m + Eigen::Vector3d::Constant(diff.resolution_m() / 2));
-    const auto hi = diff.grid().keyOf(c.bbox_max_m - Eigen::Vector3d::Constant(diff.resolution_m() / 2));
-    if (!lo || !hi) continue;
-    const auto [x0, y0] = toPixel(lo->x, hi->y);
-    const auto [x1, y1] = toPixel(hi->x + 1, lo->y - 1);
-    const int m = 2;  // margin around the component
-    drawLine(img, x0 - m, y0 - m, x1 + m, y0 - m, colour);
-    drawLine(img, x0 - m, y1 + m, x1 + m, y1 + m, colour);
-    drawLine(img, x0 - m, y0 - m, x0 - m, y1 + m, colour);
-    drawLine(img, x1 + m, y0 - m, x1 + m, y1 + m, colour);
-    drawText(img, x1 + m + 2, y0 - m, std::to_string(c.id), colour, 2);
-  }
-  return img;
+}  // namespace render_detail
+
+TopView drawTopView(const SessionMap& map, const TopViewSettings& settings) {
+  render_detail::Raster r = render_detail::rasterOf(map, settings);
+  render_detail::drawAreaNames(r.image, r.frame, settings.areas, settings.area_name_colour);
+  return render_detail::framed(std::move(r), settings,
+                               render_detail::backgroundLegend(settings, [](Rgb c) { return c; }));
+}
+
+ImageRgb renderTopView(const SessionMap& map, const TopViewSettings& settings) {
+  return drawTopView(map, settings).image;
 }
 
 ImageRgb renderPointsTopView(const std::vector<Eigen::Vector3f>& points, const std::vector<Rgb>& colours,
