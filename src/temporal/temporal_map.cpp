@@ -236,7 +236,7 @@ void TemporalMap::shiftSessions(uint32_t from, int delta) {
 }
 
 std::optional<uint32_t> TemporalMap::rankAtOrBefore(double time_s) const {
-  const auto it = std::upper_bound(sessions_.begin(), sessions_.end(), time_s,
+  const auto it = std::upper_bound(sessions_.begin(), sessions_.end(), time_s + kTimeSlack_s,
                                    [](double t, const SessionRecord& s) { return t < s.time_s; });
   if (it == sessions_.begin()) return std::nullopt;
   return static_cast<uint32_t>(it - sessions_.begin() - 1);

@@ -137,7 +137,7 @@ double requestedTime(const TemporalMap& map, const Query& query, const std::stri
                      formatTime(map.sessions().back().time_s) + "): the temporal models predict up to " + last +
                      "; expected a time from " + first + " to " + last);
   }
-  if (s < map.sessions().front().time_s || s > last_s) {
+  if (s < map.sessions().front().time_s - TemporalMap::kTimeSlack_s || s > last_s + TemporalMap::kTimeSlack_s) {
     throw UsageError(received(time, *t) + " lies outside the map's sessions: expected a time from " + first + " to " + last);
   }
   return s;

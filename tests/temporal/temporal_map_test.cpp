@@ -926,5 +926,20 @@ TEST(Coverage, DecodeAcceptsExactlyTheCanonicalEncodings) {
   }
 }
 
+// chronomap prints times to the millisecond; a printed time given back names its session, also
+// when the session's own time lies a fraction of a millisecond after it (the demo's office:
+// `diff MAP@T5 MAP@T6` with the printed times compared sessions 4 and 5).
+TEST(TemporalMap, APrintedTimeNamesItsSession) {
+  TemporalMap map(0.05);
+  const double t1 = 1330601575.1434, t2 = 1330697774.3704;
+  map.add(t1, test::randomSessionMap(1, 8, 0.2));
+  map.add(t2, test::randomSessionMap(2, 8, 0.2));
+  EXPECT_EQ(map.rankAtOrBefore(parseTime(formatTime(t1))), 0u);
+  EXPECT_EQ(map.rankAtOrBefore(parseTime(formatTime(t2))), 1u);
+  EXPECT_LT(parseTime(formatTime(t2)), t2);
+  EXPECT_EQ(map.rankAtOrBefore(t2 - 0.002), 0u) << "two milliseconds before is before";
+  EXPECT_FALSE(map.rankAtOrBefore(t1 - 0.002));
+}
+
 }  // namespace
 }  // namespace chronomap

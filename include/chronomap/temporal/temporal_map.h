@@ -171,8 +171,11 @@ class TemporalMap {
   template <class Fn>
   size_t forEachListChangedIn(uint32_t first, uint32_t end, Fn&& fn) const;
 
-  /// Rank (index in sessions()) of the last session with a time <= time_s, or nothing.
+  /// Rank (index in sessions()) of the last session with a time <= time_s + kTimeSlack_s, or
+  /// nothing: chronomap prints times to the millisecond, and a printed time given back names its
+  /// session (the printed time may lie up to half a millisecond before it).
   std::optional<uint32_t> rankAtOrBefore(double time_s) const;
+  static constexpr double kTimeSlack_s = 0.0005 + 1e-6;
   /// Number of sessions with a time <= time_s: sessions in (t0, t1] have the ranks
   /// [ranksThrough(t0), ranksThrough(t1)).
   uint32_t ranksThrough(double time_s) const {
