@@ -16,7 +16,7 @@ namespace {
 
 /// How near a time must lie to a session's to name it: half a millisecond, the rounding of the
 /// printed times, plus what the decimal digits lose.
-constexpr double kSessionMatch_s = 0.0005 + 1e-6;
+constexpr double kSessionMatch_s = TemporalMap::kTimeSlack_s;
 
 
 constexpr double kDay_s = 86400.0;
@@ -231,8 +231,11 @@ AlertReport findAlerts(const TemporalMap& map, double time_s, const AlertSetting
   if (history.times_s.empty()) throw UsageError("no session lies before the end of the history");
   report.history_sessions = static_cast<uint32_t>(history.times_s.size());
 
-  report.diff = diff(map.snapshot(report.previous_time_s), map.snapshot(report.time_s), settings.diff);
-  report.segmentation = segment(report.diff, settings.segment);
+  Changes changes = findChanges(map, report.previous_time_s, report.time_s,
+                                ChangeSettings{settings.diff, settings.segment, settings.moves});
+  report.diff = std::move(changes.diff);
+  report.segmentation = std::move(changes.segmentation);
+  report.objects = std::move(changes.objects);
 
   const int r = settings.neighbourhood_voxels;
   const double t = report.time_s;

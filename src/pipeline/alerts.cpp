@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "chronomap/analysis/changes.h"
 #include "chronomap/core/time.h"
 #include "chronomap/store/diff_file.h"
 #include "chronomap/export/export.h"
@@ -64,6 +65,39 @@ SessionMap crop(const SessionMap& map, const Eigen::Vector3d& lo, const Eigen::V
 
 }  // namespace
 
+namespace {
+
+/// The changed objects (findChanges' list, as `chronomap diff --json` prints it), most unusual
+/// first: each with the score of its component (a move: of its halves, which pairing made equal),
+/// its rank and its reason; the `top` first (0: all).
+nlohmann::json rankedObjectsJson(const AlertReport& report, size_t top) {
+  const nlohmann::json objects = changedObjectsJson(report.objects);
+  std::vector<std::pair<size_t, const Alert*>> ranked;  // object index, its highest-scored alert
+  for (size_t i = 0; i < report.objects.size(); ++i) {
+    const Alert* best = nullptr;
+    for (const Alert& a : report.alerts) {
+      const auto& ids = report.objects[i].components;
+      if (std::find(ids.begin(), ids.end(), a.component.id) == ids.end()) continue;
+      if (!best || a.score_bits > best->score_bits) best = &a;
+    }
+    if (best) ranked.push_back({i, best});
+  }
+  std::stable_sort(ranked.begin(), ranked.end(),
+                   [](const auto& x, const auto& y) { return x.second->score_bits > y.second->score_bits; });
+  nlohmann::json list = nlohmann::json::array();
+  for (size_t r = 0; r < ranked.size() && (top == 0 || r < top); ++r) {
+    nlohmann::json o = objects[ranked[r].first];
+    o["rank"] = r + 1;
+    o["score_bits"] = ranked[r].second->score_bits;
+    o["probability"] = ranked[r].second->probability;
+    o["reason"] = ranked[r].second->reason;
+    list.push_back(std::move(o));
+  }
+  return list;
+}
+
+}  // namespace
+
 nlohmann::json alertsJson(const AlertReport& report, size_t top) {
   nlohmann::json list = nlohmann::json::array();
   const size_t n = count(report, top);
@@ -95,7 +129,8 @@ nlohmann::json alertsJson(const AlertReport& report, size_t top) {
           {"time_s", report.time_s},
           {"previous", formatTime(report.previous_time_s)},
           {"history_sessions", report.history_sessions},
-          {"objects", report.alerts.size()},
+          {"objects", rankedObjectsJson(report, top)},
+          {"components", report.alerts.size()},
           {"dropped_small", report.segmentation.dropped},
           {"changed_voxels", report.diff.voxelCount()},
           {"alerts", list}};

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "chronomap/analysis/change_preset.h"
+#include "chronomap/analysis/changes.h"
 #include "chronomap/analysis/diff.h"
 #include "chronomap/analysis/moves.h"
 #include "chronomap/analysis/segment.h"
@@ -50,23 +51,11 @@ struct EvidenceSettings {
 
 /// Settings of findAlerts().
 struct AlertSettings {
-  /// The diff between the previous session and the session at T. Default: the recommended
-  /// neighbourhood rule and shift test (analysis/change_preset.h) in hard mode, without the
-  /// surface rules.
-  DiffSettings diff = [] {
-    const DiffSettings preset = recommendedChangeSettings().diff;
-    DiffSettings d;
-    d.neighbourhood_voxels = preset.neighbourhood_voxels;
-    d.min_shift_voxels = preset.min_shift_voxels;
-    return d;
-  }();
-  /// Its components; smaller ones are not objects (the recommended 20 voxels, 2.5 litres; face
-  /// connectivity).
-  SegmentSettings segment = [] {
-    SegmentSettings s;
-    s.min_voxels = kRecommendedMinObjectVoxels;
-    return s;
-  }();
+  /// The changes between the previous session and the session at T, found as every front door
+  /// finds them (findChanges, analysis/changes.h): the recommended diff and objects by default.
+  DiffSettings diff = recommendedChangeSettings().diff;
+  /// Its components; smaller ones are not objects (the recommended 20 voxels, 2.5 litres).
+  SegmentSettings segment = recommendedChangeSettings().segment;
   /// How far the object's space is shifted (x and y, voxels) to look for the same change nearby (0..6).
   int neighbourhood_voxels = 3;
   /// Only sessions with times before this are history (default: every session before T).
@@ -137,6 +126,8 @@ struct AlertReport {
   uint32_t history_sessions = 0;  ///< sessions whose observations were evidence
   DiffMap diff;
   Segmentation segmentation;
+  /// The changed objects, as findChanges() gives them (a move's two components are one object).
+  std::vector<ChangedObject> objects;
   /// Every component of the segmentation, by decreasing score (ties: by id).
   std::vector<Alert> alerts;
 };
