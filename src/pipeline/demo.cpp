@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "chronomap/analysis/change_frequency.h"
+#include "chronomap/analysis/changes.h"
 #include "chronomap/analysis/diff.h"
 #include "chronomap/analysis/segment.h"
 #include "chronomap/core/error.h"
@@ -26,6 +27,7 @@
 #include "chronomap/sim/building.h"
 #include "chronomap/sim/change_truth.h"
 #include "chronomap/view/tour.h"
+#include "demo_pictures.h"
 #include "demo_report.h"
 
 namespace chronomap {
@@ -51,7 +53,7 @@ std::vector<DemoSession> integrateSessions(const DemoSettings& s, const Simulati
   std::vector<DemoSession> sessions;
   for (size_t k = 0; k < simulated.session_dirs.size(); ++k) {
     IntegratedSession i = integrateDataset(simulated.session_dirs[k], session_settings, {}, s.progress,
-                                           "session " + std::to_string(k));
+                                           "session " + std::to_string(k + 1));
     const SessionMap truth_map =
         readSessionMap(s.output / "data" / "truth" / numbered("occupancy_%02zu.cmap", k));
     std::vector<VoxelKey> truth;
@@ -81,7 +83,7 @@ void registerAll(const DemoSettings& s, const SimulationSummary& simulated,
   for (size_t k = 0; k < sessions.size(); ++k) {
     sessions[k].map = std::move(maps[k]);
     sessions[k].registered_score = scoreOccupancy(sessions[k].map, sessions[k].truth);
-    writeSessionMap(s.output / "sessions" / numbered("session_%02zu.cmap", k), sessions[k].map,
+    writeSessionMap(s.output / "sessions" / numbered("session_%02zu.cmap", k + 1), sessions[k].map,
                         {{"created_by", "chronomap demo"}, {"recorded_at", simulated.times_s[k]}, {"registered", true}});
   }
 }
@@ -91,37 +93,39 @@ TemporalMap buildMap(const SimulationSummary& simulated, const std::vector<DemoS
                      const fs::path& path) {
   TemporalMap map(sessions.front().map.resolution_m());
   for (size_t k = 0; k < sessions.size(); ++k) {
-    map.add(simulated.times_s[k], sessions[k].map, AddSettings{false, numbered("session_%02zu", k)});
+    map.add(simulated.times_s[k], sessions[k].map, AddSettings{false, numbered("session_%02zu", k + 1)});
   }
   writeTemporalMap(path, map, {{"created_by", "chronomap demo"}});
   return map;
 }
 
-/// Step 5: what changed between consecutive sessions, and which objects: diff, segment, score.
-std::vector<DemoPair> findChanges(const DemoSettings& s, const std::vector<DemoSession>& sessions,
+/// Step 5: what changed between consecutive sessions, and which objects: the one call every
+/// front door asks (findChanges on the 4D map, recommended settings), scored against the truth.
+/// Sessions are numbered from 1 in every name, as in the report and the viewer.
+std::vector<DemoPair> changesStep(const DemoSettings& s, const SimulationSummary& simulated,
+                                  const std::vector<DemoSession>& sessions, const TemporalMap& map,
                                   const fs::path& images) {
   fs::create_directories(s.output / "changes");
   const std::vector<ChangeEvent> truth_events = readTruthEvents(s.output / "data" / "scene.json");
-  const DemoChangeSettings cs = demoChangeSettings();
+  const ChangeSettings settings = recommendedChangeSettings();
+  const std::vector<Room> rooms = readRooms(s.output / "data" / "scene.json");
   std::vector<DemoPair> pairs;
   for (size_t k = 1; k < sessions.size(); ++k) {
     DemoPair p;
     p.from = k - 1;
-    p.name = numbered("diff_%02zu", k - 1) + numbered("_%02zu", k);
+    p.name = numbered("diff_%02zu", k) + numbered("_%02zu", k + 1);
     p.events = eventsFrom(truth_events, static_cast<uint32_t>(k - 1));
-    const DiffMap d = diff(sessions[k - 1].map, sessions[k].map, cs.diff);
-    p.segmentation = segment(d, cs.segment);
-    p.score = scoreChanges(d, p.segmentation, p.events, sessions[k - 1].map, sessions[k].map);
-    writeDiffMap(s.output / "changes" / (p.name + ".cmap"), d, {{"created_by", "chronomap demo"}});
-    TopViewSettings view;
-    view.pixels_per_voxel = 3;
-    writePng(images / (p.name + ".png"), renderChangeView(sessions[k].map, d, p.segmentation, view));
+    p.changes = findChanges(map, simulated.times_s[k - 1], simulated.times_s[k], settings);
+    p.score = scoreChanges(p.changes.diff, p.changes.segmentation, p.events, sessions[k - 1].map, sessions[k].map);
+    writeDiffMap(s.output / "changes" / (p.name + ".cmap"), p.changes, settings, "recommended",
+                 {{"created_by", "chronomap demo"}});
+    p.pictures = drawChangePictures(images, p.name, map.snapshot(simulated.times_s[k]), p.changes, rooms);
     pairs.push_back(std::move(p));
   }
   return pairs;
 }
 
-/// Session 0's points from above, every second point of every frame.
+/// Session 1's points from above, every second point of every frame.
 ImageRgb sessionCloudView(const fs::path& dir) {
   const auto dataset = openRecording(dir);
   std::vector<Eigen::Vector3f> points;
@@ -144,7 +148,7 @@ std::vector<Eigen::Vector3d> trajectoryPositions(const fs::path& path) {
   return out;
 }
 
-/// Session 0's camera path, true and estimated.
+/// Session 1's camera path, true and estimated.
 ImageRgb trajectoryPlot(const fs::path& dir) {
   PlotSeries truth{"true path", Rgb{40, 90, 200}, {}, {}}, estimate{"estimated path", Rgb{220, 80, 40}, {}, {}};
   for (const auto& p : trajectoryPositions(dir / "groundtruth.txt")) {
@@ -156,7 +160,7 @@ ImageRgb trajectoryPlot(const fs::path& dir) {
     estimate.y.push_back(p.y());
   }
   PlotSettings ps;
-  ps.title = "Session 0: camera path";
+  ps.title = "Session 1: camera path";
   ps.x_label = "x (m)";
   ps.y_label = "y (m)";
   return renderLinePlot({truth, estimate}, ps);
@@ -164,11 +168,10 @@ ImageRgb trajectoryPlot(const fs::path& dir) {
 
 /// Step 6: the pictures beside the changes.
 void drawPictures(const SimulationSummary& simulated, const TemporalMap& map, const fs::path& images) {
-  TopViewSettings view;
-  view.pixels_per_voxel = 3;
-  writePng(images / "map_topview.png", renderTopView(map.snapshot(simulated.times_s.back()), view));
+  drawMapPicture(images / "map_topview.png", map.snapshot(simulated.times_s.back()),
+                 readRooms(simulated.session_dirs.front().parent_path() / "scene.json"));
   const fs::path& first = simulated.session_dirs.front();
-  writePng(images / "session_00_cloud.png", sessionCloudView(first));
+  writePng(images / "session_01_cloud.png", sessionCloudView(first));
   // One frame as recorded: colour and depth (from the middle of the first session).
   const auto names = parseStampedList(readTextFile(first / "depth.txt"), "depth.txt");
   const auto& mid = names[names.size() / 2];
@@ -235,7 +238,7 @@ DemoResult runDemo(const DemoSettings& settings) {
   const TemporalMap map = buildMap(simulated, sessions, r.map);
 
   s.progress.say("[5/6] finding what changed between consecutive sessions");
-  const std::vector<DemoPair> pairs = findChanges(s, sessions, r.images);
+  const std::vector<DemoPair> pairs = changesStep(s, simulated, sessions, map, r.images);
 
   s.progress.say("[6/6] drawing the report");
   drawPictures(simulated, map, r.images);
@@ -252,9 +255,10 @@ DemoResult runDemo(const DemoSettings& settings) {
   r.map = settings.output / "office.cmap";
   r.report = settings.output / "report.md";
   r.tour = settings.output / "tour.html";
-  const std::string report =
-      demoReport({settings, sim_settings, simulated, sessions, pairs, map, r, changes, map_bytes, kDriftKnots});
+  const DemoReportInput input{settings, sim_settings, simulated, sessions, pairs, map, r, changes, map_bytes, kDriftKnots};
+  const std::string report = demoReport(input), json = demoReportJson(input);
   writeFileAtomic(s.output / "report.md", std::vector<uint8_t>(report.begin(), report.end()));
+  writeFileAtomic(s.output / "report.json", std::vector<uint8_t>(json.begin(), json.end()));
   staged.commit();
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   return r;

@@ -5,7 +5,10 @@
 #include <iomanip>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
+
 #include "chronomap/analysis/change_preset.h"
+#include "chronomap/analysis/changes.h"
 #include "chronomap/core/format.h"
 #include "chronomap/core/time.h"
 
@@ -80,33 +83,67 @@ void mapAndPictures(std::ostream& md, const DemoReportInput& in) {
      << "colour; light grey is free space, dark is never observed):\n\n"
      << "![Top view of the latest snapshot](images/map_topview.png)\n\n"
      << "Session 1's points from above, as the camera saw them:\n\n"
-     << "![Session 1 point cloud](images/session_00_cloud.png)\n\n"
+     << "![Session 1 point cloud](images/session_01_cloud.png)\n\n"
      << "One recorded frame, colour and depth (black: no depth; blue near, red far):\n\n"
      << "![RGB frame](images/frame_rgb.png) ![Depth frame](images/frame_depth.png)\n\n"
      << "The camera path of session 1, true and as the localisation estimated it:\n\n"
      << "![Trajectory](images/trajectory.png)\n\n";
 }
 
-void componentTable(std::ostream& md, const DemoPair& p) {
-  if (!p.segmentation.components.empty()) {
-    md << "| id | kind | voxels | volume (litres) | centroid x, y, z (m) | size x, y, z (m) | colour | truth |\n"
-       << "|---|---|---|---|---|---|---|---|\n";
+/// The truth events the object's components overlap most, in words; "no event (false)" if none.
+std::string objectTruth(const DemoPair& p, const ChangedObject& o) {
+  std::vector<int> events;
+  for (uint32_t id : o.components) {
+    const auto& comps = p.changes.segmentation.components;
+    for (size_t c = 0; c < comps.size(); ++c) {
+      const int e = comps[c].id == id ? p.score.component_event[c] : -1;
+      if (e >= 0 && std::find(events.begin(), events.end(), e) == events.end()) events.push_back(e);
+    }
   }
-  for (size_t c = 0; c < p.segmentation.components.size(); ++c) {
-    const Component& comp = p.segmentation.components[c];
-    const Eigen::Vector3d size = comp.bbox_max_m - comp.bbox_min_m;
-    char line[256];
-    std::snprintf(line, sizeof line, "| %u | %s | %llu | %.1f | %.2f, %.2f, %.2f | %.2f, %.2f, %.2f | #%02x%02x%02x | ",
-                  comp.id, toString(comp.kind), static_cast<unsigned long long>(comp.voxels), comp.volume_m3 * 1000.0,
-                  comp.centroid_m.x(), comp.centroid_m.y(), comp.centroid_m.z(), size.x(), size.y(), size.z(),
-                  comp.mean_colour.r, comp.mean_colour.g, comp.mean_colour.b);
-    const int e = p.score.component_event[c];
-    md << line << (e >= 0 ? eventName(p.events[static_cast<size_t>(e)]) : std::string("no event (false)")) << " |\n";
+  if (events.empty()) return "no event (false)";
+  std::string out;
+  for (int e : events) out += (out.empty() ? "" : ", ") + eventName(p.events[static_cast<size_t>(e)]);
+  return out;
+}
+
+void objectTable(std::ostream& md, const DemoPair& p) {
+  if (p.changes.objects.empty()) return;
+  md << "| object | kind | voxels | centroid x, y, z (m) | size x, y, z (m) | colour | truth |\n"
+     << "|---|---|---|---|---|---|---|\n";
+  for (const ChangedObject& o : p.changes.objects) {
+    const Eigen::Vector3d size = o.size_m();
+    char line[320];
+    std::snprintf(line, sizeof line, "| %u | %s | %llu | %.2f, %.2f, %.2f | %.2f, %.2f, %.2f | #%02x%02x%02x | ", o.id,
+                  toString(o.kind), static_cast<unsigned long long>(o.voxels), o.centroid_m.x(), o.centroid_m.y(),
+                  o.centroid_m.z(), size.x(), size.y(), size.z(), o.mean_colour.r, o.mean_colour.g, o.mean_colour.b);
+    md << line;
+    if (o.kind == ObjectChange::Moved) {
+      std::snprintf(line, sizeof line, "%.2f m from %.2f, %.2f; ", o.distance_m, o.from.centroid_m.x(),
+                    o.from.centroid_m.y());
+      md << line;
+    }
+    md << objectTruth(p, o) << " |\n";
   }
   md << "\n";
 }
 
-void pairSection(std::ostream& md, const DemoPair& p, const SegmentSettings& segment) {
+/// "3 objects: 1 appeared, 1 vanished, 1 moved".
+std::string objectCounts(const std::vector<ChangedObject>& objects) {
+  size_t n[3] = {0, 0, 0};
+  for (const ChangedObject& o : objects) ++n[static_cast<int>(o.kind)];
+  std::string out = countOf(objects.size(), "object");
+  if (objects.empty()) return out;
+  out += ":";
+  const char* sep = " ";
+  for (ObjectChange k : {ObjectChange::Appeared, ObjectChange::Vanished, ObjectChange::Moved}) {
+    if (!n[static_cast<int>(k)]) continue;
+    out += sep + std::to_string(n[static_cast<int>(k)]) + " " + toString(k);
+    sep = ", ";
+  }
+  return out;
+}
+
+void pairSection(std::ostream& md, const DemoPair& p, const DemoReportInput& in) {
   // Sessions are numbered from 1 here, as the viewer and people count them.
   const size_t from = p.from + 1, to = p.from + 2;
   md << "### Session " << from << " → " << to << "\n\n";
@@ -118,39 +155,46 @@ void pairSection(std::ostream& md, const DemoPair& p, const SegmentSettings& seg
     md << "); " << p.score.events_observable << " of them " << (p.score.events_observable == 1 ? "was" : "were")
        << " observed in both sessions and " << p.score.events_found << " found.";
   }
-  md << " The diff holds " << countOf(p.score.changed_voxels, "changed voxel") << ", in "
-     << countOf(p.segmentation.components.size(), "component") << " of at least " << segment.min_voxels
-     << " voxels (" << p.segmentation.dropped << " smaller ones dropped).\n\n"
+  const Changes& c = p.changes;
+  md << " " << countOf(c.appeared_voxels + c.vanished_voxels, "voxel") << " changed (" << c.appeared_voxels
+     << " appeared, " << c.vanished_voxels << " vanished): " << objectCounts(c.objects);
+  if (c.segmentation.dropped) md << " (and " << countOf(c.segmentation.dropped, "smaller piece") << " left out)";
+  md << ". `chronomap diff " << in.result.map.filename().string() << "@" << formatTime(in.simulated.times_s[p.from])
+     << " " << in.result.map.filename().string() << "@" << formatTime(in.simulated.times_s[p.from + 1])
+     << " --json` lists the same objects.\n\n"
      << "![Changes from session " << from << " to " << to << "](images/" << p.name << ".png)\n\n";
-  componentTable(md, p);
+  objectTable(md, p);
+  if (p.pictures.size() > 1) {
+    md << "Close-ups, by object:\n\n";
+    for (size_t i = 1; i < p.pictures.size() && i - 1 < p.changes.objects.size(); ++i) {
+      md << "![Object " << p.changes.objects[i - 1].id << "](images/" << p.pictures[i] << ") ";
+    }
+    md << "\n\n";
+  }
 }
 
 void changes(std::ostream& md, const DemoReportInput& in) {
   const ChangeScore& total = in.changes;
-  const SegmentSettings segment = demoChangeSettings().segment;
+  const ChangeSettings settings = recommendedChangeSettings();
   md << "## What changed, and which objects\n\n"
-     << "Each pair of consecutive registered session maps was compared (`chronomap diff`, band mode: "
-     << "probabilities within 0.5 ± 0.1 count as unknown; a voxel is no change when the other session saw a "
-     << "surface within one voxel, unless that surface moved by half a voxel or more, measured from where in "
-     << "the voxels the rays ended, nor when the surface the other session saw within three voxels is still seen "
-     << "there, nor when the object lies within two voxels of the other session's surface and is mostly dark and "
-     << "darker than it: "
-     << "`--neighbourhood 1 --min-shift 0.5 --kept-surface 3 --dark-surface 2`) and the changed voxels split into "
-     << "objects "
-     << "(`chronomap segment`, vertex connectivity, at least " << segment.min_voxels << " voxels). "
-     << "Green appeared, red vanished; each object is framed and numbered. Over all pairs: " << total.events_found
-     << " of " << total.events_observable << " observable change events found, " << total.false_components
-     << " components that match no event, voxel precision " << percent(total.precision()) << " and recall "
-     << percent(total.recall()) << " (within one voxel of the truth). The diffs are in `changes/`.\n\n";
-  for (const DemoPair& p : in.pairs) pairSection(md, p, segment);
+     << "Each pair of consecutive sessions was compared in the 4D map, each voxel as last observed at the "
+     << "two sessions' times, by the one call every front door asks (`findChanges`: `chronomap diff "
+     << "MAP@T1 MAP@T2`, the viewer, `alerts`, Python's `chronomap.changes`) with the recommended settings "
+     << "(docs/changes.md): band mode, a voxel is no change when the other time saw a surface within one voxel "
+     << "unless it moved by half a voxel or more, nor when a weak change lies by a surface that is still seen, "
+     << "nor when a dark object lies by a darker surface; the changed voxels form objects (vertex connectivity, "
+     << "at least " << settings.segment.min_voxels << " voxels), and a vanished and an appeared object that look "
+     << "alike are one object moved, drawn as an arrow from its old place to its new (the legend of each picture "
+     << "names the colours); each object is framed and numbered as in the "
+     << "tables and in `report.json`. Over all pairs: " << total.events_found << " of " << total.events_observable
+     << " observable change events found, " << countOf(total.false_components, "piece")
+     << " that match no event, voxel precision " << percent(total.precision()) << " and recall "
+     << percent(total.recall()) << " (within one voxel of the truth). The diffs, each with its objects, are in "
+     << "`changes/`.\n\n";
+  for (const DemoPair& p : in.pairs) pairSection(md, p, in);
 }
 
 }  // namespace
-
-DemoChangeSettings demoChangeSettings() {
-  const ChangeSettings preset = recommendedChangeSettings();
-  return {preset.diff, preset.segment};
-}
 
 std::string demoReport(const DemoReportInput& in) {
   std::ostringstream md;
@@ -159,14 +203,32 @@ std::string demoReport(const DemoReportInput& in) {
   mapAndPictures(md, in);
   changes(md, in);
   const std::string map = in.result.map.string();
+  const std::string t1 = formatTime(in.simulated.times_s[0]), t2 = formatTime(in.simulated.times_s[1]);
   md << "## Try next\n\n```sh\n"
      << "chronomap view " << map << "                 # the viewer at http://127.0.0.1:8765/\n"
      << "chronomap stats " << map << "\n"
-     << "chronomap snapshot " << map << " --at " << formatTime(in.simulated.times_s.front()) << " -o first.ply\n"
+     << "chronomap snapshot " << map << " --at " << t1 << " -o first.ply\n"
      << "chronomap changes " << map << " --min 2 -o busy.ply\n"
-     << "chronomap segment " << (in.settings.output / "changes" / "diff_00_01.cmap").string()
-     << " --connectivity vertex --min-voxels 20\n```\n";
+     << "chronomap diff " << map << "@" << t1 << " " << map << "@" << t2 << " -o d.cmap --json   # sessions 1 -> 2\n"
+     << "```\n";
   return md.str();
+}
+
+std::string demoReportJson(const DemoReportInput& in) {
+  nlohmann::json pairs = nlohmann::json::array();
+  for (const DemoPair& p : in.pairs) {
+    pairs.push_back({{"from", p.from + 1},
+                     {"to", p.from + 2},
+                     {"from_time", formatTime(in.simulated.times_s[p.from])},
+                     {"to_time", formatTime(in.simulated.times_s[p.from + 1])},
+                     {"changed_voxels", p.changes.appeared_voxels + p.changes.vanished_voxels},
+                     {"objects", changedObjectsJson(p.changes.objects)}});
+  }
+  const nlohmann::json out = {{"map", in.result.map.filename().string()},
+                              {"numbering", "sessions are numbered from 1"},
+                              {"settings", changeSettingsJson(recommendedChangeSettings())},
+                              {"pairs", pairs}};
+  return out.dump(2) + "\n";
 }
 
 }  // namespace chronomap

@@ -4,8 +4,7 @@
 #include <string>
 #include <vector>
 
-#include "chronomap/analysis/diff.h"
-#include "chronomap/analysis/segment.h"
+#include "chronomap/analysis/changes.h"
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/pipeline/demo.h"
 #include "chronomap/sim/building.h"
@@ -27,18 +26,12 @@ struct DemoSession {
 /// The changes between sessions `from` and `from + 1`.
 struct DemoPair {
   size_t from = 0;
-  std::string name;  ///< "diff_00_01": of its diff in changes/ and its picture in images/
+  std::string name;  ///< "diff_01_02" (sessions from 1): of its diff in changes/ and its picture in images/
   std::vector<ChangeEvent> events;
-  Segmentation segmentation;
+  Changes changes;   ///< findChanges() of the 4D map between the two sessions' times
+  std::vector<std::string> pictures;  ///< in images/: the pair's top view, then a close-up per object
   ChangeScore score;
 };
-
-/// How the demo diffs and segments: the recommended settings for registered sessions.
-struct DemoChangeSettings {
-  DiffSettings diff;
-  SegmentSettings segment;
-};
-DemoChangeSettings demoChangeSettings();
 
 /// Everything the report states.
 struct DemoReportInput {
@@ -56,5 +49,9 @@ struct DemoReportInput {
 
 /// report.md.
 std::string demoReport(const DemoReportInput& in);
+
+/// report.json: {"numbering": ..., "pairs": [{"from", "to", "from_time", "to_time", "objects"}]}
+/// in session order, sessions numbered from 1; "objects" is changedObjectsJson() of each pair.
+std::string demoReportJson(const DemoReportInput& in);
 
 }  // namespace chronomap

@@ -687,7 +687,7 @@ TEST(SimulatorCli, Demo) {
   EXPECT_GT(d["events_found"].get<int>(), 0);
   EXPECT_LT(d["nodes_4d"].get<uint64_t>(), d["nodes_separate"].get<uint64_t>());
   const std::string report = readTextFile(tmp / "demo" / "report.md");
-  for (const char* image : {"map_topview.png", "session_00_cloud.png", "frame_rgb.png", "frame_depth.png",
+  for (const char* image : {"map_topview.png", "session_01_cloud.png", "frame_rgb.png", "frame_depth.png",
                             "trajectory.png", "storage.png"}) {
     EXPECT_NE(report.find(std::string("images/") + image), std::string::npos) << image;
     EXPECT_GT(fs::file_size(tmp / "demo" / "images" / image), 500u) << image;

@@ -134,7 +134,7 @@ TEST(ViewPacket, RoundTripAndBadInput) {
 TEST(ViewDiff, SameObjectsAsDiffAndSegmentWithTheDemosSettings) {
   const TemporalMap map = fourSessions();
   // The viewer's defaults are the demo's, which docs/changes.md measured.
-  const auto demo = demoChangeSettings();
+  const ChangeSettings demo = recommendedChangeSettings();
   const DiffRequest defaults = changeSettings();
   EXPECT_EQ(defaults.diff.mode, demo.diff.mode);
   EXPECT_EQ(defaults.diff.neighbourhood_voxels, demo.diff.neighbourhood_voxels);
