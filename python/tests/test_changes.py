@@ -61,3 +61,20 @@ def test_python_equals_the_command_line(moved_map, cli, tmp_path):
     out = subprocess.run([str(cli), "diff", f"{path}@100", f"{path}@200", "-o", str(tmp_path / "d.cmap"), "--json"],
                          check=True, capture_output=True, text=True)
     assert json.loads(out.stdout)["objects"] == chronomap.changes(m, 100.0, 200.0)
+
+
+def test_python_answers_as_the_demo_report(cli, tmp_path):
+    # The Python front door on `chronomap demo`'s office: every pair of report.json (sessions
+    # numbered from 1) lists the objects chronomap.changes() gives for the two sessions' times.
+    subprocess.run([str(cli), "demo", "--resolution-scale", "0.2", "-o", str(tmp_path / "demo")], check=True,
+                   capture_output=True, text=True)
+    report = json.loads((tmp_path / "demo" / "report.json").read_text())
+    m = chronomap.TemporalMap.open(tmp_path / "demo" / "office.cmap")
+    times = m.times_s
+    assert len(report["pairs"]) == len(times) - 1
+    listed = 0
+    for k, pair in enumerate(report["pairs"]):
+        assert (pair["from"], pair["to"]) == (k + 1, k + 2)
+        assert pair["objects"] == chronomap.changes(m, float(times[k]), float(times[k + 1])), pair["from"]
+        listed += len(pair["objects"])
+    assert listed > 0
