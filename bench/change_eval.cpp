@@ -141,6 +141,10 @@ struct OneCallScore {
   ChangeScore score;
   size_t objects = 0, moves = 0;
   size_t nodes = 0;  // of the 4D map
+  // Moves against the truth: a move whose two components overlap the same "moved" event most
+  // (true), one that pairs anything else (false), and moved events whose vanished and appeared
+  // halves are both objects of their own, unpaired (missed).
+  size_t true_moves = 0, false_moves = 0, missed_moves = 0;
 };
 
 // How the 4D map is read: the defaults, or one of them off.
@@ -160,9 +164,27 @@ OneCallScore scoreOneCall(const std::vector<SessionMap>& maps, const std::vector
     const std::vector<ChangeEvent> pair = eventsFrom(events, static_cast<uint32_t>(k - 1));
     const Changes c = four_d != FourD::No ? findChanges(map, 3600.0 * double(k), 3600.0 * double(k + 1), cs)
                                           : findChanges(maps[k - 1], maps[k], cs);
-    out.score += scoreChanges(c.diff, c.segmentation, pair, maps[k - 1], maps[k]);
+    const ChangeScore score = scoreChanges(c.diff, c.segmentation, pair, maps[k - 1], maps[k]);
+    out.score += score;
     out.objects += c.objects.size();
-    for (const ChangedObject& o : c.objects) out.moves += o.kind == ObjectChange::Moved;
+    auto eventOf = [&](uint32_t component) {
+      for (size_t i = 0; i < c.segmentation.components.size(); ++i) {
+        if (c.segmentation.components[i].id == component) return score.component_event[i];
+      }
+      return -1;
+    };
+    std::map<int, std::pair<bool, bool>> unpaired;  // moved event -> (a vanished object, an appeared one)
+    for (const ChangedObject& o : c.objects) {
+      if (o.kind == ObjectChange::Moved) {
+        ++out.moves;
+        const int a = eventOf(o.components[0]), b = eventOf(o.components[1]);
+        const bool same = a >= 0 && a == b && pair[size_t(a)].kind == EventKind::Moved;
+        ++(same ? out.true_moves : out.false_moves);
+      } else if (const int e = eventOf(o.components[0]); e >= 0 && pair[size_t(e)].kind == EventKind::Moved) {
+        (o.kind == ObjectChange::Vanished ? unpaired[e].first : unpaired[e].second) = true;
+      }
+    }
+    for (const auto& [e, halves] : unpaired) out.missed_moves += halves.first && halves.second;
   }
   if (four_d != FourD::No) out.nodes = map.counts().nodes();
   return out;
@@ -179,9 +201,10 @@ void printOneCall(const char* poses, const std::vector<SessionMap>& maps, const 
     const auto t = std::chrono::steady_clock::now();
     const OneCallScore o = scoreOneCall(maps, events, cs, four_d);
     const ChangeScore& c = o.score;
-    std::printf("%-9s %-13s | %9.3f %9.3f | %4zu/%-4zu | %10.2f | %11.2f %9.2f | %9zu | %6.2f\n", poses, name,
-                c.precision(), c.recall(), c.events_found, c.events_observable, double(c.false_components) / pairs,
-                double(o.objects) / pairs, double(o.moves) / pairs, o.nodes, seconds(t));
+    std::printf("%-9s %-13s | %9.3f %9.3f | %4zu/%-4zu | %10.2f | %11.2f %9.2f | %3zu %3zu %3zu | %9zu | %6.2f\n",
+                poses, name, c.precision(), c.recall(), c.events_found, c.events_observable,
+                double(c.false_components) / pairs, double(o.objects) / pairs, double(o.moves) / pairs, o.true_moves,
+                o.false_moves, o.missed_moves, o.nodes, seconds(t));
     for (const std::string& m : c.missed_events) std::printf("            missed: %s\n", m.c_str());
   }
 }
@@ -313,11 +336,16 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
   std::printf("findChanges with the defaults, of two session maps or of the 4D map of all sessions:\n"
               "(4D, 1st pos: the map keeps a voxel's first hit positions while its state stays; 4D, last obs: each voxel "
               "as last observed, not as the two sessions saw it)\n"
-              "poses     answered from | voxel_prec voxel_rec | objects   | false/pair | objects/pair moves/pair | 4D nodes  | seconds\n");
+              "poses     answered from | voxel_prec voxel_rec | objects   | false/pair | objects/pair moves/pair | moves: true false missed | 4D nodes  | seconds\n");
   ChangeSettings cs = recommendedChangeSettings();
   cs.diff = defaultDiff();
   printOneCall("register", registered, s.events, cs);
   printOneCall("true", s.truth_pose, s.events, cs);
+  std::printf("moves with alike footprints (MoveSettings::alike_footprints):\n");
+  ChangeSettings footprints = cs;
+  footprints.moves.alike_footprints = true;
+  printOneCall("register", registered, s.events, footprints);
+  printOneCall("true", s.truth_pose, s.events, footprints);
   std::printf("without the shift test (min shift 0):\n");
   const ChangeScore unshifted = row("register", registered, noShiftDiff(), defaultSegment(), true);
   row("true", s.truth_pose, noShiftDiff(), defaultSegment(), true);

@@ -138,7 +138,8 @@ nlohmann::json changeSettingsJson(const ChangeSettings& s) {
            {{"pair", s.moves.pair},
             {"max_size_ratio", s.moves.max_size_ratio},
             {"max_height_difference_m", s.moves.max_height_difference_m},
-            {"max_colour_distance", s.moves.max_colour_distance}}}};
+            {"max_colour_distance", s.moves.max_colour_distance},
+            {"alike_footprints", s.moves.alike_footprints}}}};
 }
 
 }  // namespace chronomap

@@ -40,7 +40,7 @@ std::optional<double> moveDissimilarity(const Component& gone, const Component& 
   const double height = std::abs((gone.bbox_max_m.z() - gone.bbox_min_m.z()) - (come.bbox_max_m.z() - come.bbox_min_m.z()));
   const double colour = colourDistance(gone.mean_colour, come.mean_colour);
   if (small <= 0.0 || large > s.max_size_ratio * small || height > s.max_height_difference_m ||
-      colour > s.max_colour_distance || !sameFootprint(gone, come, s.max_size_ratio)) {
+      colour > s.max_colour_distance || (s.alike_footprints && !sameFootprint(gone, come, s.max_size_ratio))) {
     return std::nullopt;
   }
   // Each difference as a share of what it may be, summed: the likeliest pairs are matched first.

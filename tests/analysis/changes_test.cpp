@@ -125,16 +125,20 @@ Component part(ChangeKind kind, uint64_t voxels, Eigen::Vector3d lo, Eigen::Vect
   return c;
 }
 
-// The demo's sessions 1 -> 2 paired a closed door leaf that vanished with a robot that appeared
-// 3.5 m away: alike in voxels, height and colour, not in footprint. A box moved whole, seen from
-// another side (a thinner slice, fewer voxels), is still a move.
-TEST(Moves, AThinLeafIsNotASquareObjectMoved) {
+// The demo's sessions 1 -> 2 pair a closed door leaf that vanished with a robot that appeared
+// 3.5 m away: alike in voxels, height and colour, not in footprint. With alike_footprints they are
+// not a move, while a box moved whole, seen from another side (a thinner slice, fewer voxels),
+// still is. (Off by default: on the office's seed 2 it lost true moves, docs/changes.md.)
+TEST(Moves, WithAlikeFootprintsAThinLeafIsNotASquareObjectMoved) {
+  MoveSettings footprints;
+  footprints.alike_footprints = true;
   const Component door = part(ChangeKind::Vanished, 700, {6.0, 1.6, 0.0}, {6.05, 2.5, 1.0});
   const Component robot = part(ChangeKind::Appeared, 800, {2.5, 0.2, 0.0}, {3.0, 0.7, 1.0});
-  EXPECT_TRUE(pairMoves({door, robot}, MoveSettings{}).empty());
+  EXPECT_EQ(pairMoves({door, robot}, MoveSettings{}).size(), 1u) << "the default pairs them";
+  EXPECT_TRUE(pairMoves({door, robot}, footprints).empty());
   const Component box_then = part(ChangeKind::Vanished, 400, {1.0, 1.0, 0.0}, {1.5, 1.4, 0.5});
   const Component box_now = part(ChangeKind::Appeared, 250, {3.0, 1.0, 0.0}, {3.4, 1.3, 0.5});
-  const std::vector<MovePair> moves = pairMoves({door, box_then, robot, box_now}, MoveSettings{});
+  const std::vector<MovePair> moves = pairMoves({door, box_then, robot, box_now}, footprints);
   ASSERT_EQ(moves.size(), 1u);
   EXPECT_EQ(moves[0].vanished, 1u);
   EXPECT_EQ(moves[0].appeared, 3u);

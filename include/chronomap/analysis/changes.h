@@ -99,7 +99,7 @@ nlohmann::json changedObjectsJson(const std::vector<ChangedObject>& objects);
 /// "kept_surface_radius_voxels", "kept_surface_share", "dark_surface_radius_voxels",
 /// "dark_surface_brightness", "dark_surface_contrast", "dark_surface_share", "seen_at_both"}, "segment":
 /// {"connectivity", "min_voxels", "colour_tolerance", "min_value"}, "moves": {"pair",
-/// "max_size_ratio", "max_height_difference_m", "max_colour_distance"}}.
+/// "max_size_ratio", "max_height_difference_m", "max_colour_distance", "alike_footprints"}}.
 nlohmann::json changeSettingsJson(const ChangeSettings& settings);
 
 }  // namespace chronomap
