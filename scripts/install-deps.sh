@@ -13,7 +13,9 @@ packages=(build-essential cmake pkg-config libeigen3-dev libtbb-dev libcli11-dev
           # builds UFOMap inside bench/integrate_vs_peers (../shared/peers).
           liblz4-dev libsqlite3-dev
           # MPI: `mpirun -np N chronomap build` (optional at build time; CI builds and tests it).
-          libopenmpi-dev openmpi-bin)
+          libopenmpi-dev openmpi-bin
+          # The Debian package (CPack): man pages from --help, and dpkg-shlibdeps for its dependencies.
+          help2man dpkg-dev)
 # The viewer's tests run node (three.js, esbuild and puppeteer-core come from npm, viewer/
 # package-lock.json); any node 18 or newer will do, Debian's when none is installed.
 command -v node >/dev/null || packages+=(nodejs)

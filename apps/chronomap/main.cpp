@@ -2,7 +2,9 @@
 // (2 for bad usage, 1 for bad data or a failed operation).
 
 #include <cstdio>
+#include <functional>
 #include <iostream>
+#include <string>
 #include <vector>
 
 #include "chronomap/core/error.h"
@@ -32,7 +34,8 @@ int run(int argc, char** argv) {
       "state, and ask it what the place looked like, what changed and how often."};
   app.name("chronomap");
   app.require_subcommand(1);
-  app.set_version_flag("--version", "chronomap 0.1.0");
+  app.set_version_flag("--version", std::function<std::string()>(cli::versionText),
+                       "the version, the commit, the file formats read and written, and the optional parts built");
   const std::vector<cli::Command> commands = {cli::addIntegrate(app), cli::addAdd(app),      cli::addBuild(app),
                                               cli::addSnapshot(app),  cli::addHistory(app),  cli::addChanges(app),
                                               cli::addPredict(app),   cli::addCostmap(app),  cli::addAlerts(app),

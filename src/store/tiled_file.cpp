@@ -16,9 +16,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-/// Version of the tile table inside the index's metadata (the container has its own).
-constexpr int kTileTableVersion = 1;
-
 uint32_t crc32Of(const std::vector<uint8_t>& bytes) {
   uLong c = crc32(0L, Z_NULL, 0);
   size_t at = 0;

@@ -18,6 +18,9 @@ namespace chronomap {
 
 /// The index's file name inside a tiled map's folder.
 inline constexpr const char* kTileIndexName = "index.cmap";
+/// Version of the tile table inside the index's metadata (the .cmap container has its own):
+/// the one this build writes and the only one it reads.
+inline constexpr int kTileTableVersion = 1;
 
 /// A tile's state at the map's last session, kept beside its history (a session map file), so
 /// that a snapshot of the latest time reads what it shows, not every session's entries.
