@@ -1,4 +1,4 @@
-// chronomap export SESSION.cmap -o OUT.ply|.ot|.png, or MAP.cmap -o TOUR.html
+// chronomap export SESSION.cmap -o OUT.ply|.ot|.png, or MAP.cmap -o TOUR.html|MAP.mcap
 
 #include <filesystem>
 #include <iostream>
@@ -7,6 +7,7 @@
 
 #include "chronomap/core/error.h"
 #include "chronomap/core/format.h"
+#include "chronomap/export/foxglove.h"
 #include "chronomap/store/cmap.h"
 #include "chronomap/core/file.h"
 #include "chronomap/store/temporal_file.h"
@@ -46,14 +47,32 @@ int runTour(const ExportOptions& o) {
   return 0;
 }
 
+int runFoxglove(const ExportOptions& o) {
+  const FoxgloveExport r = exportFoxglove(o.output, readTemporalMap(o.input));
+  if (o.json) {
+    nlohmann::json topics = nlohmann::json::array();
+    for (const FoxgloveTopic& t : r.topics) topics.push_back({{"topic", t.topic}, {"schema", t.schema}, {"messages", t.messages}});
+    std::cout << nlohmann::json{{"output", o.output}, {"format", "mcap"}, {"sessions", r.sessions}, {"points", r.points},
+                                {"objects", r.objects}, {"topics", topics}, {"bytes", r.bytes}}
+                     .dump()
+              << "\n";
+  } else {
+    std::cout << "wrote " << o.output << " (" << humanBytes(static_cast<double>(r.bytes)) << ": " << countOf(r.sessions, "session")
+              << ", " << countOf(r.points, "occupied voxel") << " over them, " << countOf(r.objects, "changed object")
+              << "); Foxglove plays it (docs/foxglove.md)\n";
+  }
+  return 0;
+}
+
 int runExport(const ExportOptions& o) {
   const std::string ext = std::filesystem::path(o.output).extension().string();
-  if (ext != ".ply" && ext != ".ot" && ext != ".png" && ext != ".html") {
-    throw UsageError("output '" + o.output + "' must end in .ply, .ot, .png or .html");
+  if (ext != ".ply" && ext != ".ot" && ext != ".png" && ext != ".html" && ext != ".mcap") {
+    throw UsageError("output '" + o.output + "' must end in .ply, .ot, .png, .html or .mcap");
   }
   if (o.pixels_per_voxel < 1 || o.pixels_per_voxel > 64) throw UsageError("--scale must be 1 to 64");
   refuseOverwritingInputs(o.output, {o.input});
   if (ext == ".html") return runTour(o);
+  if (ext == ".mcap") return runFoxglove(o);
   ExportSettings settings;
   settings.pixels_per_voxel = o.pixels_per_voxel;
   const size_t n = exportSessionMap(o.output, readSessionMap(o.input), settings);
@@ -79,9 +98,11 @@ Command addExport(CLI::App& root) {
       "(highest occupied voxel per column in its colour, floor seen free with nothing hit in a quiet "
       "floor tone, unobserved dark; axes in metres, a scale bar and a legend around it). "
       "Export a 4D map as .html: the viewer of `chronomap view` with the map inside, one file that "
-      "opens in a browser from disk (every session, the objects changed between sessions).");
-  app->add_option("MAP", o->input, "a session map (.ply, .ot, .png) or a 4D map (.html), as .cmap")->required();
-  app->add_option("-o,--output", o->output, "file to write (.ply, .ot, .png or .html)")->required();
+      "opens in a browser from disk (every session, the objects changed between sessions). "
+      "Export a 4D map as .mcap: a file Foxglove plays as a time series (per session its occupied voxels in "
+      "their colour and its cost map, per pair of sessions the changed objects as labelled boxes; docs/foxglove.md).");
+  app->add_option("MAP", o->input, "a session map (.ply, .ot, .png) or a 4D map (.html, .mcap), as .cmap")->required();
+  app->add_option("-o,--output", o->output, "file to write (.ply, .ot, .png, .html or .mcap)")->required();
   app->add_option("--scale", o->pixels_per_voxel, ".png: pixels per voxel edge")->capture_default_str();
   app->add_option("--max-voxels", o->max_voxels, ".html: most cells drawn; more voxels become coarser octree cubes")
       ->check(numberIn(1, 5e6))

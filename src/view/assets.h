@@ -5,6 +5,8 @@
 #include <string>
 #include <string_view>
 
+#include "chronomap/core/base64.h"
+
 namespace chronomap::viewer_assets {
 
 /// viewer/index.html as committed (generated source).
@@ -20,7 +22,7 @@ std::string scriptTag(const std::string& url);
 std::string inlineScript(std::string_view script);
 /// `bytes` base64-encoded inside <script type="application/octet-stream" id="chronomap-data">.
 std::string inlineData(const std::string& bytes);
-/// Standard base64 with padding.
-std::string base64(std::string_view bytes);
+/// Standard base64 with padding (core/base64.h).
+using chronomap::base64;
 
 }  // namespace chronomap::viewer_assets

@@ -13,14 +13,8 @@ command -v node >/dev/null || missing+=(node)
 command -v npm >/dev/null || missing+=(npm)
 chromium="${CHROMIUM:-$(command -v chromium || command -v chromium-browser || true)}"
 [ "$mode" = bundle ] || [ -n "$chromium" ] || missing+=(chromium)
-if ((${#missing[@]})); then
-  if [ "${CI:-}" = true ]; then
-    echo "missing: ${missing[*]} (scripts/install-deps.sh installs them)" >&2
-    exit 1
-  fi
-  echo "skipped: ${missing[*]} not installed"
-  exit 77
-fi
+source ../tests/support/missing_tools.sh
+skip_or_fail_missing "${missing[@]}"
 if [ ! -d node_modules ] || [ package-lock.json -nt node_modules ]; then
   npm ci --no-audit --no-fund >/dev/null
 fi

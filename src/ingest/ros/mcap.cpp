@@ -6,7 +6,6 @@
 #include <lz4frame.h>
 #include <sys/stat.h>
 #include <unistd.h>
-#include <zlib.h>
 #include <zstd.h>
 
 #include <algorithm>
@@ -15,27 +14,13 @@
 #include <string_view>
 
 #include "chronomap/core/error.h"
+#include "chronomap/ingest/mcap_records.h"
 
 namespace chronomap::mcap {
 
 namespace fs = std::filesystem;
 
 namespace {
-
-constexpr uint8_t kMagic[8] = {0x89, 'M', 'C', 'A', 'P', 0x30, '\r', '\n'};
-constexpr uint64_t kRecordHead = 9;  // opcode + u64 length
-constexpr uint64_t kFooterContent = 20;
-
-enum Op : uint8_t {
-  kHeader = 0x01,
-  kFooter = 0x02,
-  kSchema = 0x03,
-  kChannel = 0x04,
-  kMessage = 0x05,
-  kChunk = 0x06,
-  kChunkIndex = 0x08,
-  kDataEnd = 0x0F,
-};
 
 /// Little-endian fields of one record's content; a field past the end is a FormatError
 /// naming `where`.
@@ -80,16 +65,6 @@ class Cursor {
   size_t pos_ = 0;
   std::string where_;
 };
-
-uint32_t crcOf(std::span<const uint8_t> b, uint32_t crc = 0) {
-  // zlib's crc32 takes at most 4 GiB a call.
-  while (!b.empty()) {
-    const size_t n = std::min<size_t>(b.size(), 1u << 30);
-    crc = static_cast<uint32_t>(::crc32(crc, b.data(), static_cast<uInt>(n)));
-    b = b.subspan(n);
-  }
-  return crc;
-}
 
 std::vector<uint8_t> lz4Decompress(std::span<const uint8_t> in, uint64_t size, const std::string& where) {
   if (size > kMaxLz4Ratio * in.size() + 1024) {
@@ -249,7 +224,7 @@ void Reader::readSummary(uint64_t start, uint64_t end, uint64_t footer_at, uint3
   if (crc != 0) {
     // Everything from the summary's start through the footer's summary_offset_start field.
     const std::vector<uint8_t> between = readVector(end, footer_at + kRecordHead + 16 - end);
-    if (crcOf(between, crcOf(summary)) != crc) fail(start, "the summary section's CRC does not match");
+    if (crc32(between, crc32(summary)) != crc) fail(start, "the summary section's CRC does not match");
   }
   std::vector<std::pair<uint64_t, uint64_t>> chunks;  // (offset, length)
   uint64_t pos = 0;
@@ -310,7 +285,7 @@ std::shared_ptr<const std::vector<uint8_t>> Reader::chunk(uint64_t offset) const
   } else {
     fail(offset, "unknown chunk compression '" + compression + "' (read: none, lz4, zstd)");
   }
-  if (uncompressed_crc != 0 && crcOf(out) != uncompressed_crc) fail(offset, "the chunk's CRC does not match its data");
+  if (uncompressed_crc != 0 && crc32(out) != uncompressed_crc) fail(offset, "the chunk's CRC does not match its data");
   return std::make_shared<const std::vector<uint8_t>>(std::move(out));
 }
 
@@ -377,7 +352,7 @@ void Reader::forEachMessage(const std::function<void(const Message&)>& fn) {
   // No chunk index: the data section, record by record, with its CRC. A truncated file ends at
   // the first record the cut left incomplete.
   uint64_t pos = 8;
-  uint32_t crc = crcOf(std::span<const uint8_t>(kMagic, 8));
+  uint32_t crc = crc32(std::span<const uint8_t>(kMagic, 8));
   messages_read_ = 0;
   const auto counted = [&](const Message& m) {
     ++messages_read_;
@@ -409,10 +384,10 @@ void Reader::forEachMessage(const std::function<void(const Message&)>& fn) {
       data_whole_ = true;
       break;
     }
-    crc = crcOf(head, crc);
+    crc = crc32(head, crc);
     const uint64_t at = pos;
     const std::vector<uint8_t> body = readVector(pos + kRecordHead, len);
-    crc = crcOf(body, crc);
+    crc = crc32(body, crc);
     pos += kRecordHead + len;
     const std::string where = path_.string() + ": " + offsetText(at);
     if (record(op, body, where, MessageRef::kNoChunk, at + kRecordHead, counted)) continue;
