@@ -4,7 +4,7 @@ set -euo pipefail
 packages=(build-essential cmake pkg-config libeigen3-dev libtbb-dev libcli11-dev nlohmann-json3-dev
           libpng-dev libjpeg62-turbo-dev zlib1g-dev libbz2-dev libzstd-dev liblzf-dev liboctomap-dev libgtest-dev
           libbenchmark-dev pybind11-dev python3-dev python3-numpy python3-pytest python3-open3d python3-matplotlib
-          python3-pip python3-venv libcpp-httplib-dev chromium
+          python3-pip python3-venv python3-build libcpp-httplib-dev chromium
           # ROS 1 bags: librosbag and the generated message headers; the tests write bags with
           # Debian's python3-rosbag and read the simulator's PNGs with python3-pil.
           librosbag-dev libsensor-msgs-dev libgeometry-msgs-dev libnav-msgs-dev libtf2-msgs-dev

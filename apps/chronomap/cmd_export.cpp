@@ -1,4 +1,4 @@
-// chronomap export SESSION.cmap -o OUT.ply|.ot|.png, or MAP.cmap -o TOUR.html|MAP.mcap
+// chronomap export MAP.cmap -o OUT.ply|.ot|.png [--at T], -o TOUR.html or -o MAP.mcap: MAP a session map or a 4D map
 
 #include <filesystem>
 #include <iostream>
@@ -8,6 +8,7 @@
 #include "chronomap/core/error.h"
 #include "chronomap/core/format.h"
 #include "chronomap/export/foxglove.h"
+#include "chronomap/core/time.h"
 #include "chronomap/store/cmap.h"
 #include "chronomap/core/file.h"
 #include "chronomap/store/temporal_file.h"
@@ -22,6 +23,7 @@ namespace {
 struct ExportOptions {
   std::string input;
   std::string output;
+  std::string at;
   int pixels_per_voxel = 2;
   size_t max_voxels = TourSettings{}.max_voxels;
   size_t max_diff_cells = TourSettings{}.max_diff_cells;
@@ -32,7 +34,8 @@ int runTour(const ExportOptions& o) {
   TourSettings settings;
   settings.max_voxels = o.max_voxels;
   settings.max_diff_cells = o.max_diff_cells;
-  const TemporalMap map = readTemporalMap(o.input);
+  if (!o.at.empty()) throw UsageError("--at picks the time of a .ply, .ot or .png; a tour (.html) holds every session");
+  const TemporalMap map = temporalMapOfFile(o.input);
   const auto r = writeTour(o.output, map, std::filesystem::path(o.input).filename().string(), settings);
   if (o.json) {
     std::cout << nlohmann::json{{"output", o.output}, {"format", "html"}, {"elements", r.cells},
@@ -48,7 +51,8 @@ int runTour(const ExportOptions& o) {
 }
 
 int runFoxglove(const ExportOptions& o) {
-  const FoxgloveExport r = exportFoxglove(o.output, readTemporalMap(o.input));
+  if (!o.at.empty()) throw UsageError("--at picks the time of a .ply, .ot or .png; a .mcap holds every session");
+  const FoxgloveExport r = exportFoxglove(o.output, temporalMapOfFile(o.input));
   if (o.json) {
     nlohmann::json topics = nlohmann::json::array();
     for (const FoxgloveTopic& t : r.topics) topics.push_back({{"topic", t.topic}, {"schema", t.schema}, {"messages", t.messages}});
@@ -64,6 +68,20 @@ int runFoxglove(const ExportOptions& o) {
   return 0;
 }
 
+void printExported(const ExportOptions& o, const std::string& ext, size_t n, std::optional<double> time_s) {
+  const std::string what = ext == ".ply"  ? " occupied voxel centres"
+                           : ext == ".ot" ? " OctoMap ColorOcTree leaves"
+                                          : " pixels, top view";
+  if (o.json) {
+    nlohmann::json j{{"output", o.output}, {"format", ext.substr(1)}, {"elements", n}};
+    if (time_s) j["time"] = formatTime(*time_s), j["time_s"] = *time_s;
+    std::cout << j.dump() << "\n";
+  } else {
+    std::cout << "wrote " << o.output << " (" << n << what << ")"
+              << (time_s ? ": the 4D map as last observed at " + formatTime(*time_s) : "") << "\n";
+  }
+}
+
 int runExport(const ExportOptions& o) {
   const std::string ext = std::filesystem::path(o.output).extension().string();
   if (ext != ".ply" && ext != ".ot" && ext != ".png" && ext != ".html" && ext != ".mcap") {
@@ -75,15 +93,8 @@ int runExport(const ExportOptions& o) {
   if (ext == ".mcap") return runFoxglove(o);
   ExportSettings settings;
   settings.pixels_per_voxel = o.pixels_per_voxel;
-  const size_t n = exportSessionMap(o.output, readSessionMap(o.input), settings);
-  const std::string what = ext == ".ply"  ? " occupied voxel centres"
-                           : ext == ".ot" ? " OctoMap ColorOcTree leaves"
-                                          : " pixels, top view";
-  if (o.json) {
-    std::cout << nlohmann::json{{"output", o.output}, {"format", ext.substr(1)}, {"elements", n}}.dump() << "\n";
-  } else {
-    std::cout << "wrote " << o.output << " (" << n << what << ")\n";
-  }
+  const OneState state = stateOfMap(o.input, o.at.empty() ? std::nullopt : std::optional(parseTime(o.at)));
+  printExported(o, ext, exportSessionMap(o.output, state.map, settings), state.time_s);
   return 0;
 }
 
@@ -93,16 +104,20 @@ Command addExport(CLI::App& root) {
   auto o = std::make_shared<ExportOptions>();
   CLI::App* app = root.add_subcommand(
       "export",
-      "Export a session map: .ply writes the centres of occupied voxels with their mean colour; "
+      "Export a session map, or a 4D map as last observed (at its last session, or --at): .ply writes the "
+      "centres of occupied voxels with their mean colour; "
       ".ot writes an OctoMap ColorOcTree that octovis opens; .png draws the map seen from above "
       "(highest occupied voxel per column in its colour, floor seen free with nothing hit in a quiet "
       "floor tone, unobserved dark; axes in metres, a scale bar and a legend around it). "
-      "Export a 4D map as .html: the viewer of `chronomap view` with the map inside, one file that "
-      "opens in a browser from disk (every session, the objects changed between sessions). "
+      "Export a 4D map or a session map as .html: the viewer of `chronomap view` with the map inside, one "
+      "file that opens in a browser from disk (every session, the objects changed between sessions). "
       "Export a 4D map as .mcap: a file Foxglove plays as a time series (per session its occupied voxels in "
       "their colour and its cost map, per pair of sessions the changed objects as labelled boxes; docs/foxglove.md).");
-  app->add_option("MAP", o->input, "a session map (.ply, .ot, .png) or a 4D map (.html, .mcap), as .cmap")->required();
+  app->add_option("MAP", o->input, "a session map or a 4D map (.cmap); .mcap: a 4D map")->required();
   app->add_option("-o,--output", o->output, "file to write (.ply, .ot, .png, .html or .mcap)")->required();
+  app->add_option("--at", o->at,
+                  ".ply, .ot, .png of a 4D map: the map as last observed at this time (ISO-8601 or epoch seconds; "
+                  "default: its last session)");
   app->add_option("--scale", o->pixels_per_voxel, ".png: pixels per voxel edge")->capture_default_str();
   app->add_option("--max-voxels", o->max_voxels, ".html: most cells drawn; more voxels become coarser octree cubes")
       ->check(numberIn(1, 5e6))

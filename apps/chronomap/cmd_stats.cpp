@@ -73,7 +73,7 @@ void printTemporalText(const StatsOptions& o, const TemporalStats& s) {
   const auto& h = s.file.header;
   const TemporalMap& map = s.map;
   const TemporalCounts& c = s.counts;
-  std::cout << o.file << ": 4d map, format version " << h.version << "\n"
+  std::cout << o.file << ": 4D map, format version " << h.version << "\n"
             << "  resolution:  " << h.resolution_m << " m\n"
             << "  bounds:      [" << h.bounds_min_m.transpose() << "] .. [" << h.bounds_max_m.transpose() << "] m\n"
             << "  sessions:    " << map.sessionCount();
@@ -163,7 +163,7 @@ int runStats(const StatsOptions& o) {
   if (file.header.kind == MapKind::Temporal) return runTemporalStats(o, file);
   if (file.header.kind == MapKind::Diff) return runDiffStats(o, file);
   if (file.header.kind != MapKind::Session) {
-    throw DataError(o.file + ": stats for " + std::string(toString(file.header.kind)) +
+    throw DataError(o.file + ": stats for " + std::string(kindName(file.header.kind)) +
                     " maps are not supported by this build");
   }
   if (!o.plot.empty()) throw UsageError("--plot draws the storage of a 4D map; " + o.file + " is a session map");
@@ -195,7 +195,7 @@ int runStats(const StatsOptions& o) {
     std::cout << j.dump() << "\n";
     return 0;
   }
-  std::cout << o.file << ": " << toString(h.kind) << " map, format version " << h.version << "\n"
+  std::cout << o.file << ": " << kindName(h.kind) << " map, format version " << h.version << "\n"
             << "  resolution:  " << h.resolution_m << " m\n"
             << "  bounds:      [" << h.bounds_min_m.transpose() << "] .. [" << h.bounds_max_m.transpose() << "] m\n"
             << "  voxels:      " << c.occupied_voxels << " occupied, " << c.free_voxels << " free\n"

@@ -1,4 +1,4 @@
-// chronomap view MAP.cmap [--port N] [--host ADDR]: the 4D viewer in the browser.
+// chronomap view MAP.cmap [--port N] [--host ADDR]: the 4D viewer in the browser (a 4D map or a session map).
 
 #include <iostream>
 #include <memory>
@@ -6,6 +6,7 @@
 #include "chronomap/analysis/fitted_on.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/format.h"
+#include "chronomap/pipeline/maps.h"
 #include "chronomap/store/rhythm_file.h"
 #include "chronomap/store/temporal_file.h"
 #include "chronomap/view/server.h"
@@ -24,8 +25,8 @@ struct ViewOptions {
 };
 
 int runView(ViewOptions o) {
-  requireExtension(o.map, ".cmap", "4D map");
-  const TemporalMap map = readTemporalMap(o.map);
+  requireExtension(o.map, ".cmap", "4D map or session map");
+  const TemporalMap map = temporalMapOfFile(o.map);
   o.server.api.default_max_voxels = o.budget;
   if (!o.rhythm.empty()) {
     o.server.api.rhythm = std::make_shared<const RhythmModels>(readRhythmModels(o.rhythm));
@@ -50,10 +51,10 @@ Command addView(CLI::App& root) {
   auto o = std::make_shared<ViewOptions>();
   CLI::App* app = root.add_subcommand(
       "view",
-      "Serve a 4D map to a web browser: a local server for the map and the viewer's page (built into "
+      "Serve a 4D map (or a session map, as a 4D map of one time) to a web browser: a local server for the map and the viewer's page (built into "
       "chronomap), where a time slider plays the sessions, changed objects are framed and numbered, and "
       "a click on a voxel shows its history. Listens on 127.0.0.1 unless --host names another address.");
-  app->add_option("MAP", o->map, "a 4D map (.cmap)")->required();
+  app->add_option("MAP", o->map, "a 4D map or a session map (.cmap)")->required();
   app->add_option("--port", o->server.port, "port to listen on (0: any free port)")
       ->check(numberIn(0, 65535))
       ->capture_default_str();

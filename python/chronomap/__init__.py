@@ -2,8 +2,9 @@
 
 The classes and functions are those of the C++ library (built as the extension module
 ``chronomap._chronomap``); names carry their units (``resolution_m``, ``time_s``). Times are
-epoch seconds or ``datetime.datetime`` (naive ones are UTC). ``chronomap.o3d`` converts to
-and from Open3D when ``open3d`` is importable.
+epoch seconds, ISO-8601 strings (as the command line takes them) or ``datetime.datetime``
+(naive ones are UTC). ``chronomap.o3d`` converts to and from Open3D when ``open3d`` is
+importable.
 """
 
 from ._chronomap import (  # noqa: F401

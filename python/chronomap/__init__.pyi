@@ -1,15 +1,34 @@
 # Type stubs of the chronomap package (the extension module chronomap._chronomap).
 import datetime
 from os import PathLike
-from typing import Any, Callable, Optional, Sequence, Union, overload
+from typing import Any, Callable, Literal, Optional, Sequence, TypedDict, Union, overload
 
 import numpy as np
 import numpy.typing as npt
 
 _Path = Union[str, PathLike[str]]
 _Array = npt.ArrayLike
-_Time = Union[float, int, datetime.datetime]
+# Epoch seconds, ISO-8601 text as the command line takes it ("2026-01-05T03:00:00Z", "2026-01-05";
+# no zone means UTC), or a datetime (naive ones are UTC).
+_Time = Union[float, int, str, datetime.datetime]
 _Progress = Optional[Callable[[str, int, int], Any]]
+
+class _HistoryEntry(TypedDict):
+    """One stored change of a voxel, with the names of `chronomap history --json`."""
+    time: datetime.datetime
+    time_s: float
+    state: Literal["unknown", "free", "occupied"]
+    probability: float
+    hits: int
+    length_m: float
+    color: tuple[int, int, int]
+    level: int
+
+class _PoseCorrection(TypedDict):
+    """A session's correction by registration (align/pose_correction.h)."""
+    model: Literal["world", "per-pose"]
+    motion: npt.NDArray[np.float64]
+    per_frame: Optional[npt.NDArray[np.float64]]
 
 UNKNOWN: int
 FREE: int
@@ -79,7 +98,7 @@ class TemporalMap:
     def times(self) -> list[datetime.datetime]: ...
     def add(self, session: SessionMap, time: _Time, name: str = "", replace: bool = False) -> dict[str, Any]: ...
     def snapshot(self, time: _Time) -> SessionMap: ...
-    def history(self, point: _Array) -> list[tuple[float, int]]: ...
+    def history(self, point: _Array) -> list[_HistoryEntry]: ...
     def change_counts(self, from_time: Optional[_Time] = None, to_time: Optional[_Time] = None,
                       min_changes: int = 1) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.uint32]]: ...
     def change_histogram(self, from_time: Optional[_Time] = None,
@@ -125,7 +144,7 @@ def segment(diff: DiffMap, connectivity: str = "face", color_tolerance: float = 
 def build(map: _Path, datasets: Sequence[_Path], times: Optional[Sequence[Optional[_Time]]] = None,
           resolution_m: float = 0.05, fast: bool = False, max_range_m: float = 3.0, threads: int = 0,
           format: str = "auto", register: bool = False, registration_rounds: int = 3, realign: bool = False,
-          replace: bool = False, progress: _Progress = None) -> dict[str, Any]: ...
+          replace: bool = False, progress: _Progress = None, carve_beyond_range: bool = False) -> dict[str, Any]: ...
 def add_session(map: _Path, session: _Path, time: Optional[_Time] = None, replace: bool = False,
                 write: str = "auto", realign: bool = False) -> dict[str, Any]: ...
 

@@ -180,7 +180,7 @@ void bindAnalysis(py::module_& m) {
   m.def("changes", &changesOfSessions, py::arg("before"), py::arg("after"), py::arg("preset") = "recommended",
         changes_doc);
   m.def("changes", &changesOfTimes, py::arg("map"), py::arg("t0"), py::arg("t1"), py::arg("preset") = "recommended",
-        "The same for a TemporalMap from its state at t0 to its state at t1 (epoch seconds or datetimes).");
+        "The same for a TemporalMap from its state at t0 to its state at t1 (epoch seconds, ISO-8601 strings or datetimes).");
 }
 
 }  // namespace chronomap::python

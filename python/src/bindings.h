@@ -87,10 +87,11 @@ class LongCall {
   std::shared_ptr<py::error_already_set> raised_;  // by the callback
 };
 
-/// A time as epoch seconds: a real number, or a datetime.datetime (naive ones are taken as
-/// UTC), checked by checkTime (core/time.h) as the command line checks its times.
-/// @throw py::type_error for anything else, naming `name`; UsageError (a ValueError) for NaN
-/// or a time outside the years 1 to 9999, naming `name` and the value.
+/// A time as epoch seconds: a real number, an ISO-8601 string as the command line takes it
+/// (parseTime, core/time.h: "2012-03-01T10:00:00Z"; no zone means UTC), or a datetime.datetime
+/// (naive ones are taken as UTC), checked by checkTime as the command line checks its times.
+/// @throw py::type_error for anything else, naming `name`; UsageError (a ValueError) for NaN,
+/// a time outside the years 1 to 9999 or text parseTime refuses, naming `name` and the value.
 double toSeconds(const py::handle& time, const char* name);
 /// Epoch seconds as an aware datetime.datetime in UTC.
 py::object toDatetime(double time_s);

@@ -1,5 +1,5 @@
 // The workflows on 4D map files (build, chronomap::addSession) and what the bindings
-// share for them: times as epoch seconds or datetimes, checked as the command line checks them.
+// share for them: times as epoch seconds, ISO-8601 strings or datetimes, checked as the command line checks them.
 // (Progress forwarded to Python, and Ctrl-C: LongCall in guards.cpp.)
 
 #include <filesystem>
@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "bindings.h"
+#include "chronomap/core/error.h"
 #include "chronomap/core/format.h"
 #include "chronomap/core/time.h"
 #include "chronomap/pipeline/map4d.h"
@@ -22,10 +23,21 @@ double toSeconds(const py::handle& time, const char* name) {
     const double seconds = t.attr("timestamp")().cast<double>();
     return checkTime(seconds, std::string(name) + " " + exactNumber(seconds));
   }
+  if (py::isinstance<py::str>(time)) {
+    // The command line's own parser and checks: ISO-8601 ("2012-03-01T10:00:00Z", a zone or
+    // none, a date alone) or seconds as text, the same times --time and MAP@T take.
+    try {
+      return parseTime(time.cast<std::string>());
+    } catch (const UsageError& e) {
+      // parseTime names the value as "time '...'": name the argument instead ("t1 '...'").
+      const std::string what = e.what();
+      throw UsageError(std::string(name) + (what.rfind("time ", 0) == 0 ? what.substr(4) : ": " + what));
+    }
+  }
   if (py::isinstance<py::bool_>(time) || !(py::isinstance<py::float_>(time) || py::isinstance<py::int_>(time) ||
                                             py::hasattr(time, "__float__"))) {
     std::string msg(name);
-    msg.append(": expected epoch seconds or a datetime.datetime, got ");
+    msg.append(": expected epoch seconds, an ISO-8601 string or a datetime.datetime, got ");
     throw py::type_error(msg.append(py::str(py::type::handle_of(time).attr("__name__")).cast<std::string>()));
   }
   const double seconds = time.cast<double>();
@@ -39,6 +51,26 @@ py::object toDatetime(double time_s) {
 
 namespace {
 
+/// Rigid motions as an (N, 4, 4) float64 array of their matrices.
+py::object posesArray(const std::vector<Eigen::Isometry3d>& poses) {
+  std::vector<double> values;
+  values.reserve(poses.size() * 16);
+  for (const Eigen::Isometry3d& T : poses) {
+    for (int r = 0; r < 4; ++r) {
+      for (int c = 0; c < 4; ++c) values.push_back(T.matrix()(r, c));
+    }
+  }
+  return vectorArray(std::move(values)).attr("reshape")(static_cast<py::ssize_t>(poses.size()), 4, 4);
+}
+
+py::dict correctionDict(const PoseCorrection& c) {
+  py::dict d;
+  d["model"] = toString(c.model);
+  d["motion"] = posesArray({c.motion}).attr("__getitem__")(0);
+  d["per_frame"] = c.per_frame.empty() ? py::object(py::none()) : py::object(posesArray(c.per_frame));
+  return d;
+}
+
 py::dict builtSessionDict(const BuiltSession& b) {
   py::dict d;
   d["dataset"] = b.dataset;
@@ -51,7 +83,10 @@ py::dict builtSessionDict(const BuiltSession& b) {
   if (b.correction) {
     const Eigen::Isometry3d& c = b.correction->motion;
     d["registration_m"] = vector3Array(c.translation());
+    d["correction"] = correctionDict(*b.correction);
   }
+  d["recorded_poses"] = posesArray(b.recorded_poses);
+  d["poses"] = posesArray(b.poses);
   if (b.realigned_voxels) d["realigned_voxels"] = *b.realigned_voxels;
   return d;
 }
@@ -135,14 +170,16 @@ void bindPipeline(py::module_& m) {
         "Builds or extends the 4D map file `map` from recordings, one session each, as `chronomap build` "
         "does: integrated, ordered by time, registered to their consensus (register=True) and re-aligned "
         "(realign=True) when asked, added and written once, atomically. `times`: one per dataset (epoch "
-        "seconds, datetime, or None for the dataset's own first timestamp), or None. `progress(label, done, "
+        "seconds, ISO-8601 string, datetime, or None for the dataset's own first timestamp), or None. `progress(label, done, "
         "total)` is called as work advances; Ctrl-C stops the work at the next frame, writing nothing. Returns a "
-        "summary dict with one entry per added session.");
+        "summary dict with one entry per added session (in time order): `poses` and `recorded_poses` ((F, 4, 4) "
+        "T_world_sensor of each frame, as integrated and as the recording gives them) and, with registration, "
+        "`correction` (`model`, `motion` (4, 4), `per_frame` (F, 4, 4) or None) and `registration_m`.");
   m.def("add_session", &addSessionPy, py::arg("map"), py::arg("session"), py::arg("time") = py::none(),
         py::arg("replace") = false, py::arg("write") = "auto", py::arg("realign") = false,
         "Adds the session map file `session` to the 4D map file `map` (created when missing), as `chronomap "
         "add` does: appended or rewritten (`write`: 'auto', 'append', 'rewrite'), under the map's file "
-        "lock. `time`: epoch seconds or datetime; default the time the session file records.");
+        "lock. `time`: epoch seconds, ISO-8601 string or datetime; default the time the session file records.");
 }
 
 }  // namespace chronomap::python

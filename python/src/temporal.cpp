@@ -23,8 +23,19 @@ py::list historyOf(const TemporalMap& map, const py::handle& point) {
   py::list out;
   const auto key = map.grid().keyOf(p);
   if (!key) return out;
+  // The entries of `chronomap history --json`, with the same names (time a datetime here).
   for (const HistoryEntry& e : map.history(*key)) {
-    out.append(py::make_tuple(e.time_s, static_cast<int>(e.counters.state())));
+    const Rgb rgb = e.counters.meanColour();
+    py::dict d;
+    d["time"] = toDatetime(e.time_s);
+    d["time_s"] = e.time_s;
+    d["state"] = toString(e.counters.state());
+    d["probability"] = e.counters.probability();
+    d["hits"] = e.counters.hits;
+    d["length_m"] = e.counters.length_m;
+    d["color"] = py::make_tuple(rgb.r, rgb.g, rgb.b);
+    d["level"] = e.level;
+    out.append(std::move(d));
   }
   return out;
 }
@@ -149,7 +160,7 @@ void bindTemporal(py::module_& m) {
           },
           "Session times as aware datetime.datetime objects in UTC, increasing.")
       .def("add", &addSession, py::arg("session"), py::arg("time"), py::arg("name") = "", py::arg("replace") = false,
-           "Adds a SessionMap observed at `time` (epoch seconds, or a datetime; naive datetimes are UTC); returns "
+           "Adds a SessionMap observed at `time` (epoch seconds, an ISO-8601 string, or a datetime; naive ones are UTC); returns "
            "what changed in the map. Raises UsageError for a time already stored unless replace=True, or one outside "
            "the years 1 to 9999. Threads sharing the map run their calls on it one after another.")
       .def(
@@ -161,11 +172,13 @@ void bindTemporal(py::module_& m) {
             return map.snapshot(time_s);
           },
           py::arg("time"),
-          "The SessionMap as most recently observed at `time` (epoch seconds or datetime; empty before the first "
+          "The SessionMap as most recently observed at `time` (epoch seconds, ISO-8601 string or datetime; empty before the first "
           "session).")
       .def("history", &historyOf, py::arg("point"),
-           "The history of the voxel containing `point` (3,): a list of (time_s, state), empty when never "
-           "observed.")
+           "The history of the voxel containing `point` (3,), as `chronomap history --json` lists it: one dict "
+           "per stored change with `time` (UTC datetime), `time_s`, `state` ('unknown', 'free', 'occupied'), "
+           "`probability`, `hits`, `length_m`, `color` (r, g, b; mean of the hits) and `level` (0: the voxel, "
+           "k: a uniform cube of 2^k voxels a side); empty when never observed.")
       .def("change_counts", &changeCounts, py::arg("from_time") = py::none(), py::arg("to_time") = py::none(),
            py::arg("min_changes") = 1,
            "How often each part changed (the thesis' Figure 6b): (centers (N, 3) float64, counts (N,) uint32) of "
@@ -181,7 +194,7 @@ void bindTemporal(py::module_& m) {
            py::arg("dark_surface_brightness") = DiffSettings::kDefaultDarkSurfaceBrightness,
            py::arg("dark_surface_contrast") = DiffSettings::kDefaultDarkSurfaceContrast,
            py::arg("dark_surface_share") = DiffSettings::kDefaultDarkSurfaceShare,
-           "What changed from the state at t1 to the state at t2 (epoch seconds or datetimes): the diff of the two snapshots, visiting "
+           "What changed from the state at t1 to the state at t2 (epoch seconds, ISO-8601 strings or datetimes): the diff of the two snapshots, visiting "
            "only what changed in between. Settings as chronomap.diff.")
       .def("__len__",
            [](const TemporalMap& map) {

@@ -60,6 +60,8 @@ def test_times_as_datetimes(before, after):
     assert np.array_equal(m.snapshot(noon).occupied_centers(), before.occupied_centers())
     assert m.diff(t1, m.times[1]).voxel_count(chronomap.APPEARED) == 64
     with pytest.raises(TypeError, match="time"):
+        m.snapshot([2026, 3, 2])
+    with pytest.raises(chronomap.UsageError, match="time 'yesterday' is neither ISO-8601"):  # text as the CLI reads it
         m.snapshot("yesterday")
     with pytest.raises(TypeError, match="time"):
         m.snapshot(True)

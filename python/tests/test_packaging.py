@@ -26,7 +26,7 @@ def test_wheel_installs_an_importable_package(tmp_path, monkeypatch):
     backend = load_backend()
     assert backend.get_requires_for_build_wheel() == []
     package = pathlib.Path(chronomap.__file__).resolve().parent
-    monkeypatch.setattr(backend, "_build_package", lambda: package)
+    monkeypatch.setattr(backend, "_build_package", lambda config_settings=None: package)
     name = backend.build_wheel(str(tmp_path / "dist"))
     version = backend._version()
     assert name.startswith(f"chronomap-{version}-cp{sys.version_info.major}{sys.version_info.minor}-")

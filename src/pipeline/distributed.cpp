@@ -139,6 +139,11 @@ std::vector<uint8_t> encodePending(const Pending& p) {
   const IntegratedSession& s = p.session;
   nlohmann::json positions = nlohmann::json::array();
   for (const auto& q : s.sensor_positions) positions.push_back({q.x(), q.y(), q.z()});
+  nlohmann::json poses = nlohmann::json::array();
+  for (const auto& T : s.poses) {
+    const Eigen::Matrix<double, 3, 4> m = T.matrix().topRows<3>();
+    poses.push_back(std::vector<double>(m.data(), m.data() + 12));  // column-major
+  }
   const IntegrationStats& st = s.stats;
   const nlohmann::json meta = {
       {"index", p.index},
@@ -150,7 +155,8 @@ std::vector<uint8_t> encodePending(const Pending& p) {
       {"stats",
        {st.frames, st.points, st.points_invalid, st.points_out_of_range, st.points_outside_map, st.rays,
         st.voxel_updates, st.seconds}},
-      {"sensor_positions", std::move(positions)}};
+      {"sensor_positions", std::move(positions)},
+      {"poses", std::move(poses)}};
   return encodeSessionMap(s.map, meta, /*zstd_level=*/1, /*version=*/1);
 }
 
@@ -168,10 +174,18 @@ Pending decodePending(const std::vector<uint8_t>& bytes, size_t index, int from)
   for (const auto& q : meta.at("sensor_positions")) {
     positions.emplace_back(q.at(0).get<double>(), q.at(1).get<double>(), q.at(2).get<double>());
   }
+  std::vector<Eigen::Isometry3d> poses;
+  for (const auto& q : meta.at("poses")) {
+    const std::vector<double> v = q.get<std::vector<double>>();
+    if (v.size() != 12) throw Error(source + ": a pose of " + std::to_string(v.size()) + " numbers, not 12");
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.matrix().topRows<3>() = Eigen::Map<const Eigen::Matrix<double, 3, 4>>(v.data());
+    poses.push_back(T);
+  }
   return {index, meta.at("time_s").get<double>(),
           IntegratedSession{sessionMapFrom(file, source), stats, recorded_at, meta.at("format").get<std::string>(),
                             meta.at("frames_dropped").get<size_t>(), std::move(positions),
-                            meta.at("dropped_reasons").get<std::string>()}};
+                            meta.at("dropped_reasons").get<std::string>(), std::move(poses)}};
 }
 
 /// Bytes a recording holds on disk (a folder's files, or the file): a measure of its work.

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "chronomap/core/error.h"
+#include "chronomap/core/format.h"
 #include "chronomap/core/time.h"
 #include "chronomap/ingest/cloud_io.h"
 #include "chronomap/store/diff_file.h"
@@ -37,7 +38,7 @@ SessionMap loadSessionMap(const MapRef& ref, const CmapFile& file) {
     if (!ref.time_s) throw UsageError(path + " is a 4D map: say which time to compare, as " + path + "@TIME");
     return temporalMapFrom(file, path).snapshot(*ref.time_s);
   }
-  throw UsageError(path + " holds a " + std::string(toString(file.header.kind)) +
+  throw UsageError(path + " holds a " + std::string(kindName(file.header.kind)) +
                    " map; diff compares session maps and 4D maps");
 }
 
@@ -86,6 +87,39 @@ SessionMap snapshotAt(const TemporalMap& map, double time_s, const std::string& 
                      (map.sessionCount() ? " (the first is at " + formatTime(map.sessions().front().time_s) + ")" : ""));
   }
   return map.snapshot(time_s);
+}
+
+OneState stateOfMap(const fs::path& path, std::optional<double> time_s) {
+  const CmapFile file = readCmap(path);
+  const std::string name = path.string();
+  if (file.header.kind == MapKind::Session) {
+    if (time_s) throw UsageError(name + " is a session map: it has one time, so --at is not for it");
+    return {sessionMapFrom(file, name), std::nullopt};
+  }
+  if (file.header.kind != MapKind::Temporal) {
+    throw UsageError(name + " holds a " + std::string(kindName(file.header.kind)) +
+                     " map; a session map or a 4D map is drawn");
+  }
+  const TemporalMap map = temporalMapFrom(file, name);
+  if (map.sessionCount() == 0) throw UsageError(name + " is a 4D map with no session: nothing to draw");
+  const double t = time_s ? *time_s : map.sessions().back().time_s;
+  return {snapshotAt(map, t, name), t};
+}
+
+TemporalMap temporalMapOfFile(const fs::path& path) {
+  const CmapFile file = readCmap(path);
+  const std::string name = path.string();
+  if (file.header.kind == MapKind::Temporal) return temporalMapFrom(file, name);
+  if (file.header.kind != MapKind::Session) {
+    throw UsageError(name + " holds a " + std::string(kindName(file.header.kind)) +
+                     " map; the viewer opens a session map or a 4D map");
+  }
+  const SessionMap session = sessionMapFrom(file, name);
+  const nlohmann::json meta = metadataOf(file);
+  const double t = meta.contains("recorded_at") && meta["recorded_at"].is_number() ? meta["recorded_at"].get<double>() : 0.0;
+  TemporalMap map(session.resolution_m());
+  map.add(checkTime(t, name + ": recorded_at " + exactNumber(t)), session, AddSettings{false, path.filename().string()});
+  return map;
 }
 
 size_t exportSessionMap(const fs::path& path, const SessionMap& map, const ExportSettings& settings) {

@@ -52,9 +52,13 @@ IntegratedSession integrateDataset(const std::filesystem::path& path, const Sess
                                    const std::string& label) {
   auto dataset = openRecording(path, settings.dataset);
   IntegratedSession out{SessionMap(settings.resolution_m), {}, dataset->recordedAt(), dataset->format(),
-                        dataset->framesDropped(), {}, dataset->droppedReasons()};
+                        dataset->framesDropped(), {}, dataset->droppedReasons(), {}};
   out.sensor_positions.reserve(dataset->size());
-  for (size_t i = 0; i < dataset->size(); ++i) out.sensor_positions.push_back(dataset->poseOf(i).translation());
+  out.poses.reserve(dataset->size());
+  for (size_t i = 0; i < dataset->size(); ++i) {
+    out.poses.push_back(dataset->poseOf(i));
+    out.sensor_positions.push_back(out.poses.back().translation());
+  }
   // Without a correction the dataset is read directly (frames already in memory are not copied).
   const CorrectedFrames frames(*dataset, correction);
   const FrameSource& source = correction.isIdentity() ? static_cast<const FrameSource&>(*dataset) : frames;

@@ -182,6 +182,8 @@ const char* toString(MapKind kind) {
   return "unknown";
 }
 
+const char* kindName(MapKind kind) { return kind == MapKind::Temporal ? "4D" : toString(kind); }
+
 const CmapBlock* CmapFile::find(const std::string& tag) const {
   for (const auto& b : blocks) {
     if (b.tag == tag) return &b;
@@ -381,7 +383,11 @@ void poolsOfVersion1(const CmapFile& file, const std::string& source, std::vecto
 
 SessionMap sessionMapFrom(const CmapFile& file, const std::string& source) {
   if (file.header.kind != MapKind::Session) {
-    throw FormatError(source + ": holds a " + std::string(toString(file.header.kind)) + " map, not a session map");
+    // A 4D map where one state is wanted: say how to take one.
+    const std::string hint = file.header.kind == MapKind::Temporal
+                                 ? " (one time of it: chronomap snapshot MAP --at TIME -o SESSION.cmap)"
+                                 : "";
+    throw FormatError(source + ": holds a " + std::string(kindName(file.header.kind)) + " map, not a session map" + hint);
   }
   std::vector<SessionMap::Children> inner;
   std::vector<VoxelCounters> leaves;

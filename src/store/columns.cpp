@@ -181,7 +181,7 @@ void requireExactly(const CmapFile& file, const std::string& source, const std::
   for (const CmapBlock& b : file.blocks) {
     if (std::none_of(tags.begin(), tags.end(), [&](const char* t) { return b.tag == t; })) {
       throw FormatError(source + ": block '" + b.tag + "' is not part of a format version " +
-                        std::to_string(file.header.version) + " " + toString(file.header.kind) +
+                        std::to_string(file.header.version) + " " + kindName(file.header.kind) +
                         " map (the file is damaged or from a newer chronomap)");
     }
   }

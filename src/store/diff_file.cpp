@@ -81,7 +81,7 @@ void writeDiffMap(const std::filesystem::path& path, const Changes& changes, con
 
 nlohmann::json diffChangesOf(const CmapFile& file, const std::string& source) {
   if (file.header.kind != MapKind::Diff) {
-    throw FormatError(source + ": holds a " + std::string(toString(file.header.kind)) + " map, not a diff");
+    throw FormatError(source + ": holds a " + std::string(kindName(file.header.kind)) + " map, not a diff");
   }
   const nlohmann::json j = metadataOf(file);
   return j.is_object() && j.contains("changes") ? j["changes"] : nlohmann::json();
@@ -89,7 +89,7 @@ nlohmann::json diffChangesOf(const CmapFile& file, const std::string& source) {
 
 DiffMap diffMapFrom(const CmapFile& file, const std::string& source) {
   if (file.header.kind != MapKind::Diff) {
-    throw FormatError(source + ": holds a " + std::string(toString(file.header.kind)) + " map, not a diff");
+    throw FormatError(source + ": holds a " + std::string(kindName(file.header.kind)) + " map, not a diff");
   }
   DiffSettings settings;
   try {

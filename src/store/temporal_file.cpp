@@ -264,7 +264,7 @@ TemporalMap decodeTemporalBlocks(const CmapFile& file, const std::string& source
 
 TemporalMap temporalMapFrom(const CmapFile& file, const std::string& source) {
   if (file.header.kind != MapKind::Temporal) {
-    throw FormatError(source + ": holds a " + std::string(toString(file.header.kind)) + " map, not a 4D map");
+    throw FormatError(source + ": holds a " + std::string(kindName(file.header.kind)) + " map, not a 4D map");
   }
   TemporalMap map = decodeTemporalBlocks(file, source);
   for (size_t i = 0; i < file.appended.size(); ++i) {

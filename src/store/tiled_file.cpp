@@ -126,7 +126,7 @@ uint64_t writeTileIndex(const fs::path& folder, const TemporalMap& top, int tile
 TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& source) {
   const CmapFile file = decodeCmap(bytes, source);
   if (file.header.kind != MapKind::Tiled) {
-    throw FormatError(source + ": holds a " + std::string(toString(file.header.kind)) + " map, not a tile index");
+    throw FormatError(source + ": holds a " + std::string(kindName(file.header.kind)) + " map, not a tile index");
   }
   TileIndex index{0, decodeTemporalBlocks(file, source), {}};
   const CmapBlock& meta = file.block("META", source);

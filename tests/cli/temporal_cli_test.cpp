@@ -311,6 +311,52 @@ TEST(TemporalCli, AddSnapshotHistoryChangesStats) {
   EXPECT_GT(fs::file_size(tmp / "storage.png"), 1000u);
 }
 
+// export draws what a user has: a 4D map as last observed (at its last session, or --at), as
+// chronomap snapshot writes it, and messages name the map kind "4D".
+TEST(TemporalCli, ExportOfA4DMapWritesItsLatestStateOrTheOneAt) {
+  test::TempDir tmp;
+  writeSessions(tmp);
+  const std::string map = (tmp / "m.cmap").string();
+  const char* times[] = {"2012-03-01T10:00:00Z", "2012-03-02T10:00:00Z", "2012-03-03T10:00:00Z"};
+  TemporalMap expected(0.05);
+  for (int i = 0; i < 3; ++i) expected.add(parseTime(times[i]), readSessionMap(sessionFile(tmp, i)));
+  writeTemporalMap(map, expected, {});
+  for (const char* ext : {".ply", ".ot", ".png"}) {
+    const fs::path latest = tmp / (std::string("latest") + ext), snap = tmp / (std::string("snap") + ext);
+    auto r = test::runCommand(cli() + " export " + map + " -o " + latest.string() + " --json");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(nlohmann::json::parse(r.out)["time"], times[2]) << ext;
+    r = test::runCommand(cli() + " snapshot " + map + " --at " + times[2] + " -o " + snap.string());
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(bytesOf(latest), bytesOf(snap)) << ext;  // one answer: the snapshot's
+  }
+  const SessionMap second = expected.snapshot(parseTime("2012-03-02T12:00:00Z"));
+  auto r = test::runCommand(cli() + " export " + map + " -o " + (tmp / "second.ply").string() +
+                            " --at 2012-03-02T12:00:00Z");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("the 4D map as last observed at 2012-03-02T12:00:00Z"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("(" + std::to_string(second.counts().occupied_voxels) + " occupied voxel centres)"),
+            std::string::npos) << r.out;
+  // A time before the first session, --at on a session map or for a tour: refused, nothing written.
+  r = test::runCommand(cli() + " export " + map + " -o " + (tmp / "early.ply").string() + " --at 2000-01-01");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("no session at or before"), std::string::npos) << r.err;
+  r = test::runCommand(cli() + " export " + sessionFile(tmp, 0).string() + " -o " + (tmp / "s.ply").string() +
+                       " --at 2012-03-01");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.err.find("is a session map: it has one time"), std::string::npos) << r.err;
+  r = test::runCommand(cli() + " export " + map + " -o " + (tmp / "t.html").string() + " --at 2012-03-01");
+  EXPECT_EQ(r.exit_code, 2);
+  for (const char* name : {"early.ply", "s.ply", "t.html"}) EXPECT_FALSE(fs::exists(tmp / name)) << name;
+  // "4D" in what people read; the JSON's kind stays the file's own name.
+  r = test::runCommand(cli() + " stats " + map);
+  EXPECT_NE(r.out.find(": 4D map, format version"), std::string::npos) << r.out;
+  r = test::runCommand(cli() + " add " + (tmp / "other.cmap").string() + " " + map + " --time 2012-03-04");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("holds a 4D map, not a session map (one time of it: chronomap snapshot"), std::string::npos)
+      << r.err;
+}
+
 TEST(TemporalCli, BadInputChangesNothing) {
   test::TempDir tmp;
   writeSessions(tmp);

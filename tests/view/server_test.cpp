@@ -186,7 +186,7 @@ TEST(ViewCli, ViewPrintsTheAddressAndServesTheMap) {
   waitpid(pid, &status, 0);
 }
 
-TEST(ViewCli, ExportHtmlWritesATourAndRefusesSessionMapsForIt) {
+TEST(ViewCli, ExportHtmlWritesATourAndRefusesAnotherExtension) {
   test::TempDir dir;
   writeTemporalMap(dir / "three.cmap", threeSessions(), {});
   const auto r = test::runCommand(test::cli() + " export " + (dir / "three.cmap").string() + " -o " +
@@ -204,6 +204,58 @@ TEST(ViewCli, ExportHtmlWritesATourAndRefusesSessionMapsForIt) {
   const auto bad = test::runCommand(test::cli() + " export " + (dir / "three.cmap").string() + " -o " +
                                     (dir / "tour.htm").string());
   EXPECT_EQ(bad.exit_code, 2);
+}
+
+// A session map opens where a 4D map does: as a 4D map of its one time (the time its file
+// records), in chronomap view and in export -o tour.html.
+TEST(ViewCli, ASessionMapOpensAsA4DMapOfItsOneTime) {
+  test::TempDir dir;
+  const SessionMap session = threeSessions().snapshot(3000.0);
+  writeSessionMap(dir / "one.cmap", session, {{"recorded_at", 1330596000.0}});
+  const auto r = test::runCommand(test::cli() + " export " + (dir / "one.cmap").string() + " -o " +
+                                  (dir / "tour.html").string() + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto summary = nlohmann::json::parse(r.out);
+  EXPECT_EQ(summary["diffs"], 0);
+  EXPECT_GT(summary["elements"].get<size_t>(), 0u);
+  EXPECT_GT(std::filesystem::file_size(dir / "tour.html"), 100000u);  // the viewer and the map
+
+  const std::string out = (dir / "view.out").string(), err = (dir / "view.err").string();
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    std::freopen(out.c_str(), "w", stdout);
+    std::freopen(err.c_str(), "w", stderr);
+    execl(test::cli().c_str(), "chronomap", "view", (dir / "one.cmap").c_str(), "--port", "0", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  std::string line;
+  for (int i = 0; i < 500 && line.find("http://") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    std::ifstream f(out);
+    std::getline(f, line);
+  }
+  const size_t at = line.find("http://127.0.0.1:");
+  if (at == std::string::npos) {
+    kill(pid, SIGTERM);
+    waitpid(pid, nullptr, 0);
+    std::ifstream e(err);
+    std::string why((std::istreambuf_iterator<char>(e)), std::istreambuf_iterator<char>());
+    FAIL() << line << why;
+  }
+  EXPECT_NE(line.find("(1 session)"), std::string::npos) << line;
+  httplib::Client c("127.0.0.1", std::stoi(line.substr(at + 17)));
+  const auto info = c.Get("/api/map");
+  const auto snap = c.Get("/api/snapshot?session=0");
+  kill(pid, SIGTERM);
+  waitpid(pid, nullptr, 0);
+  ASSERT_TRUE(info && snap);
+  const auto map = nlohmann::json::parse(info->body);
+  ASSERT_EQ(map["sessions"].size(), 1u);
+  EXPECT_EQ(map["sessions"][0]["time"], "2012-03-01T10:00:00Z");
+  EXPECT_EQ(map["sessions"][0]["name"], "one.cmap");
+  EXPECT_EQ(snap->status, 200);
+  EXPECT_GT(snap->body.size(), 100u);
 }
 
 }  // namespace

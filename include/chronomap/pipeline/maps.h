@@ -68,6 +68,23 @@ ColourDiffReport colourDiffMaps(const MapRef& before, const MapRef& after, const
 /// The 4D map's snapshot at `time_s`. @throw UsageError when no session lies at or before it.
 SessionMap snapshotAt(const TemporalMap& map, double time_s, const std::string& name);
 
+/// A map file as one state, for the exports that draw one (.ply, .ot, .png).
+struct OneState {
+  SessionMap map;
+  std::optional<double> time_s;  ///< the 4D map's time that was taken; none for a session map
+};
+/// The session map file `path` as it is, or the 4D map file's snapshot at `time_s` (default:
+/// its last session's time, the map as last observed).
+/// @throw UsageError for a time given with a session map, a time before the 4D map's first
+/// session, an empty 4D map, or another kind of file; what the readers throw.
+OneState stateOfMap(const std::filesystem::path& path, std::optional<double> time_s);
+
+/// A map file as a 4D map, for the viewer and the tour: a 4D map as it is, a session map as a
+/// 4D map of that one session, at the time its file records (`recorded_at`; 1970-01-01T00:00:00Z
+/// when it records none).
+/// @throw UsageError for another kind of file; what the readers throw.
+TemporalMap temporalMapOfFile(const std::filesystem::path& path);
+
 /// How exportSessionMap() writes.
 struct ExportSettings {
   int pixels_per_voxel = 2;  ///< .png

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
 #include "chronomap/align/pose_correction.h"
@@ -40,6 +41,7 @@ struct IntegratedSession {
   size_t frames_dropped = 0;
   std::vector<Eigen::Vector3d> sensor_positions;  ///< of every frame, as recorded (before the correction)
   std::string dropped_reasons;  ///< why frames were dropped, when the reader says (Dataset::droppedReasons)
+  std::vector<Eigen::Isometry3d> poses;  ///< T_world_sensor of every frame, as recorded (before the correction)
 };
 
 /// Registers every reader this build has (the bag readers of ingest/ros when built with them)

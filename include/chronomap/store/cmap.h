@@ -19,6 +19,9 @@ namespace chronomap {
 enum class MapKind : uint32_t { Session = 1, Temporal = 2, Diff = 3, Tiled = 4 };
 /// "session", "4d", "diff", "tiled".
 const char* toString(MapKind kind);
+/// Its name in messages: "session", "4D", "diff", "tiled" (toString's names are the files' and
+/// the JSON outputs' own, "4d" among them).
+const char* kindName(MapKind kind);
 
 /// The format version this build writes and the newest it reads. Version 2 stores session and
 /// 4D maps field by field, hit positions quantised; version 3 also quantises the ray lengths and
