@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# The figures the captions of README.md and docs/ quote against what the current code measures
+# (ctest's DocFigures, so CI's): chronomap demo at its defaults (seed 1, 320 x 240, the run
+# scripts/make-doc-images.sh makes the office's pictures from; about 20 s) and the study room's
+# integration (1 s), then scripts/doc_figures.py check against docs/images/figures.json.
+#   tests/docs/doc_figures.sh CLI WORKDIR
+# Without the study room's frames (../shared/data, or CHRONOMAP_DATA_DIR) it is skipped (77),
+# except under CI=true, where a missing file is a failure.
+set -euo pipefail
+cli="$1"
+work="$2"
+repo="$(cd "$(dirname "$0")/../.." && pwd)"
+data="${CHRONOMAP_DATA_DIR:-$repo/../shared/data}"
+room="$data/3dmatch/3dmatch"
+if [ ! -d "$room" ]; then
+  if [ "${CI:-}" = true ]; then
+    echo "missing: $room (the study room's frames)" >&2
+    exit 1
+  fi
+  echo "skipped: $room missing"
+  exit 77
+fi
+rm -rf "$work"
+mkdir -p "$work"
+"$cli" demo -o "$work/demo" >/dev/null
+"$cli" integrate "$room" --resolution 0.04 --max-range 6 -o "$work/room.cmap" --json >"$work/room.json"
+python3 "$repo/scripts/doc_figures.py" check "$repo/docs/images/figures.json" --demo "$work/demo" --room "$work/room.json"
