@@ -55,8 +55,10 @@ def test_the_wheel_installs_into_a_fresh_environment_and_the_readme_example_runs
     run(python, "-m", "pip", "install", "--no-deps", wheels[0], env=env)
     where = run(python, "-c", "import chronomap; print(chronomap.__file__)", cwd=tmp_path, env=env).strip()
     assert where.startswith(str(tmp_path / "env")), where
-    # The README's example, as a user pastes it from the repository root (its data path there).
-    code = readme_example().replace('"../shared/data/', f'"{_data_dir()}/')
+    # The README's example, as a user pastes it with the placeholder replaced by their folder.
+    example = readme_example()
+    assert '"PATH/TO/3dmatch"' in example, "the README's example no longer names its folder PATH/TO/3dmatch"
+    code = example.replace('"PATH/TO/3dmatch"', f'"{_data_dir()}/3dmatch/3dmatch"')
     out = run(python, "-c", code, cwd=REPO, env=env).splitlines()
     assert len(out) == 2, out
     assert re.match(r"\(\d+, 3\) uint8 \(array\(\[", out[0]), out[0]
