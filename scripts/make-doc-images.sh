@@ -42,6 +42,13 @@ for g in ${groups//,/ }; do
     *) echo "make-doc-images.sh: no group '$g' (office, viewer, room, python, architecture)" >&2; exit 2 ;;
   esac
 done
+missing=()
+has viewer && { command -v node >/dev/null || missing+=(nodejs); command -v chromium >/dev/null || missing+=(chromium); }
+has architecture && { command -v dot >/dev/null || missing+=(graphviz); }
+if ((${#missing[@]})); then
+  echo "make-doc-images.sh: missing ${missing[*]} (apt-get install ${missing[*]}, or leave the group out with --only)" >&2
+  exit 1
+fi
 if [ -z "$work" ]; then
   work="$(mktemp -d)"
   trap 'rm -rf "$work"' EXIT
