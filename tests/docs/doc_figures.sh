@@ -3,14 +3,15 @@
 # (ctest's DocFigures, so CI's): chronomap demo at its defaults (seed 1, 320 x 240, the run
 # scripts/make-doc-images.sh makes the office's pictures from; about 20 s) and the study room's
 # integration (1 s), then scripts/doc_figures.py check against docs/images/figures.json.
-#   tests/docs/doc_figures.sh CLI WORKDIR
-# Without the study room's frames (../shared/data, or CHRONOMAP_DATA_DIR) it is skipped (77),
+#   tests/docs/doc_figures.sh CLI WORKDIR [DATA_DIR]
+# Without the study room's frames (CHRONOMAP_DATA_DIR, else DATA_DIR: the build's
+# CHRONOMAP_DATA_DIR, by default ../shared/data) it is skipped (77),
 # except under CI=true, where a missing file is a failure.
 set -euo pipefail
 cli="$1"
 work="$2"
 repo="$(cd "$(dirname "$0")/../.." && pwd)"
-data="${CHRONOMAP_DATA_DIR:-$repo/../shared/data}"
+data="${CHRONOMAP_DATA_DIR:-${3:-$repo/../shared/data}}"
 room="$data/3dmatch/3dmatch"
 if [ ! -d "$room" ]; then
   if [ "${CI:-}" = true ]; then
