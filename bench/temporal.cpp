@@ -14,6 +14,7 @@
 // estimated poses and added at its recorded time: the thesis' storage study replayed.
 //
 // Usage: temporal [--sessions N] [--move F] [--plot storage.png] [--quick] [--sim DIR] [--octomap-every N]
+// [--surface-shift VOXELS] (the 4D map's ChangeCriterion::surface_shift_voxels; default 0.5, 0 off)
 // [--rounds N] (--rounds: rounds of the interleaved snapshot timing, best of each; 9 by default)
 // (--octomap-every N: convert only every Nth session to OctoMap, reusing its size for the others;
 // 0 never, for long runs such as --sessions 365 whose OctoMap figures are then not measured)
@@ -225,6 +226,7 @@ int main(int argc, char** argv) {
   int octomap_every = 1;
   int rounds = 9;
   std::string sim_dir;
+  ChangeCriterion criterion;  // --surface-shift V: ChangeCriterion::surface_shift_voxels
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--sessions") && i + 1 < argc) {
       sessions = std::atoi(argv[++i]);
@@ -238,13 +240,15 @@ int main(int argc, char** argv) {
       rounds = std::max(1, std::atoi(argv[++i]));
     } else if (!std::strcmp(argv[i], "--octomap-every") && i + 1 < argc) {
       octomap_every = std::atoi(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--surface-shift") && i + 1 < argc) {
+      criterion.surface_shift_voxels = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--quick")) {
       sessions = 12;
       octomap_every = 4;
     } else {
       std::fprintf(stderr,
                    "usage: temporal [--sessions N] [--move F] [--plot storage.png] [--quick] [--sim DIR] "
-                   "[--octomap-every N]\n");
+                   "[--octomap-every N] [--surface-shift VOXELS]\n");
       return 2;
     }
   }
@@ -268,7 +272,7 @@ int main(int argc, char** argv) {
   for (int i = 0; i < 40; ++i) world.boxes.push_back(randomBox(rng));
   rasterise(world);
 
-  TemporalMap map(kResolution);
+  TemporalMap map(kResolution, criterion);
   std::vector<double> sep_nodes, nodes_4d, octo_bytes;
   double separate = 0.0, octomap_total = 0.0, add_seconds = 0.0, add_cpu_seconds = 0.0, octo_last = 0.0;
   uint64_t separate_bytes = 0;
