@@ -8,6 +8,7 @@ CI=true, where it fails.
 import os
 import pathlib
 import shutil
+import subprocess
 
 import pytest
 
@@ -58,3 +59,12 @@ def before():
 def after():
     """The same room with the box."""
     return scenes.session(with_box=True)
+
+
+@pytest.fixture(scope="session")
+def building(tmp_path_factory, cli):
+    """The simulator's tiny building at a quarter resolution: its session folders, in order."""
+    out = tmp_path_factory.mktemp("sim") / "tiny"
+    subprocess.run([str(cli), "simulate", "--preset", "tiny", "--resolution-scale", "0.25", "-o", str(out)],
+                   check=True, capture_output=True)
+    return sorted(out.glob("session_*"))

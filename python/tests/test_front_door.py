@@ -105,14 +105,6 @@ def test_history_names_each_state_with_its_counters_as_the_cli_lists_them(tmp_pa
         assert mine["probability"] == pytest.approx(theirs["probability"], rel=1e-12)
 
 
-@pytest.fixture(scope="module")
-def building(tmp_path_factory, cli):
-    out = tmp_path_factory.mktemp("sim") / "tiny"
-    subprocess.run([str(cli), "simulate", "--preset", "tiny", "--resolution-scale", "0.25", "-o", str(out)],
-                   check=True, capture_output=True)
-    return sorted(out.glob("session_*"))
-
-
 def trajectory(folder):
     """The poses of a TUM folder's trajectory.txt: (F, 4, 4)."""
     rows = np.loadtxt(folder / "trajectory.txt", comments="#")

@@ -9,14 +9,6 @@ import pytest
 import chronomap
 
 
-@pytest.fixture(scope="module")
-def building(tmp_path_factory, cli):
-    out = tmp_path_factory.mktemp("sim") / "tiny"
-    subprocess.run([str(cli), "simulate", "--preset", "tiny", "--resolution-scale", "0.25", "-o", str(out)],
-                   check=True, capture_output=True)
-    return sorted(out.glob("session_*"))
-
-
 def same_maps(a_path, b_path):
     a, b = chronomap.TemporalMap.open(a_path), chronomap.TemporalMap.open(b_path)
     return a == b

@@ -154,36 +154,61 @@ TEST(ViewServer, AnAddressInUseIsAnError) {
   EXPECT_THROW(second.bind(), IoError);
 }
 
+/// `chronomap view MAP --port 0` in a child process: its pid, the first line it printed (the
+/// address, once it serves) and what it wrote to stderr when it did not.
+struct ServedChild {
+  pid_t pid = -1;
+  std::string line;
+  int port = 0;  ///< 0: it printed no address
+  std::string err;
+  void stop() {
+    if (pid <= 0) return;
+    kill(pid, SIGTERM);
+    waitpid(pid, nullptr, 0);
+    pid = -1;
+  }
+};
+
+ServedChild serveInChild(const std::filesystem::path& map, const std::filesystem::path& dir) {
+  const std::string out = (dir / "view.out").string(), err = (dir / "view.err").string();
+  ServedChild child;
+  child.pid = fork();
+  if (child.pid == 0) {
+    std::freopen(out.c_str(), "w", stdout);
+    std::freopen(err.c_str(), "w", stderr);
+    execl(test::cli().c_str(), "chronomap", "view", map.c_str(), "--port", "0", static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  for (int i = 0; i < 500 && child.line.find("http://") == std::string::npos; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    std::ifstream f(out);
+    std::getline(f, child.line);
+  }
+  const size_t at = child.line.find("http://127.0.0.1:");
+  if (at != std::string::npos) {
+    child.port = std::stoi(child.line.substr(at + 17));
+  } else {
+    std::ifstream e(err);
+    child.err.assign(std::istreambuf_iterator<char>(e), std::istreambuf_iterator<char>());
+  }
+  return child;
+}
+
 TEST(ViewCli, ViewPrintsTheAddressAndServesTheMap) {
   test::TempDir dir;
   writeTemporalMap(dir / "three.cmap", threeSessions(), {});
-  const std::string out = (dir / "view.out").string();
-  const pid_t pid = fork();
-  ASSERT_GE(pid, 0);
-  if (pid == 0) {
-    std::freopen(out.c_str(), "w", stdout);
-    execl(test::cli().c_str(), "chronomap", "view", (dir / "three.cmap").c_str(), "--port", "0", static_cast<char*>(nullptr));
-    _exit(127);
-  }
-  std::string line;
-  for (int i = 0; i < 500 && line.find("http://") == std::string::npos; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    std::ifstream f(out);
-    std::getline(f, line);
-  }
-  const size_t at = line.find("http://127.0.0.1:");
-  ASSERT_NE(at, std::string::npos) << line;
-  const int port = std::stoi(line.substr(at + 17));
-  httplib::Client c("127.0.0.1", port);
+  ServedChild child = serveInChild(dir / "three.cmap", dir.path());
+  ASSERT_GT(child.pid, 0);
+  if (!child.port) child.stop();
+  ASSERT_NE(child.port, 0) << child.line << child.err;
+  httplib::Client c("127.0.0.1", child.port);
   const auto page = c.Get("/");
+  const auto js = c.Get("/viewer.js");
+  child.stop();
   ASSERT_TRUE(page);
   EXPECT_NE(page->body.find("<script src=\"viewer.js\"></script>"), std::string::npos);
-  const auto js = c.Get("/viewer.js");
   ASSERT_TRUE(js);
   EXPECT_GT(js->body.size(), 100000u);  // three.js and the page's code
-  kill(pid, SIGTERM);
-  int status = 0;
-  waitpid(pid, &status, 0);
 }
 
 TEST(ViewCli, ExportHtmlWritesATourAndRefusesAnotherExtension) {
@@ -220,35 +245,15 @@ TEST(ViewCli, ASessionMapOpensAsA4DMapOfItsOneTime) {
   EXPECT_GT(summary["elements"].get<size_t>(), 0u);
   EXPECT_GT(std::filesystem::file_size(dir / "tour.html"), 100000u);  // the viewer and the map
 
-  const std::string out = (dir / "view.out").string(), err = (dir / "view.err").string();
-  const pid_t pid = fork();
-  ASSERT_GE(pid, 0);
-  if (pid == 0) {
-    std::freopen(out.c_str(), "w", stdout);
-    std::freopen(err.c_str(), "w", stderr);
-    execl(test::cli().c_str(), "chronomap", "view", (dir / "one.cmap").c_str(), "--port", "0", static_cast<char*>(nullptr));
-    _exit(127);
-  }
-  std::string line;
-  for (int i = 0; i < 500 && line.find("http://") == std::string::npos; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    std::ifstream f(out);
-    std::getline(f, line);
-  }
-  const size_t at = line.find("http://127.0.0.1:");
-  if (at == std::string::npos) {
-    kill(pid, SIGTERM);
-    waitpid(pid, nullptr, 0);
-    std::ifstream e(err);
-    std::string why((std::istreambuf_iterator<char>(e)), std::istreambuf_iterator<char>());
-    FAIL() << line << why;
-  }
-  EXPECT_NE(line.find("(1 session)"), std::string::npos) << line;
-  httplib::Client c("127.0.0.1", std::stoi(line.substr(at + 17)));
+  ServedChild child = serveInChild(dir / "one.cmap", dir.path());
+  ASSERT_GT(child.pid, 0);
+  if (!child.port) child.stop();
+  ASSERT_NE(child.port, 0) << child.line << child.err;
+  EXPECT_NE(child.line.find("(1 session)"), std::string::npos) << child.line;
+  httplib::Client c("127.0.0.1", child.port);
   const auto info = c.Get("/api/map");
   const auto snap = c.Get("/api/snapshot?session=0");
-  kill(pid, SIGTERM);
-  waitpid(pid, nullptr, 0);
+  child.stop();
   ASSERT_TRUE(info && snap);
   const auto map = nlohmann::json::parse(info->body);
   ASSERT_EQ(map["sessions"].size(), 1u);
