@@ -44,7 +44,8 @@ for p in libtbb libpng python3-numpy; do
   grep -q "$p" <<<"$depends" || { echo "Depends lacks $p"; exit 1; }
 done
 tr ',' '\n' <<<"$depends" | sed 's/|.*//; s/(.*//; s/ //g' | while read -r p; do
-  dpkg-query -W -f='${Status}\n' "$p" 2>/dev/null | grep -q "install ok installed" || { echo "dependency $p not installed"; exit 1; }
+  status="$(dpkg-query -W -f='${Status}\n' "$p" 2>/dev/null || true)"
+  grep -q "install ok installed" <<<"$status" || { echo "dependency $p not installed"; exit 1; }
 done
 
 # Unpacked into a throwaway root, run from its PATH.
@@ -52,8 +53,9 @@ root="$work/root"
 dpkg -x "$deb" "$root"
 export PATH="$root/usr/bin:$PATH"
 [ "$(command -v chronomap)" = "$root/usr/bin/chronomap" ]
-chronomap --version | head -1 | grep -qx "chronomap $version"
-if ldd "$root/usr/bin/chronomap" | grep -q "libchronomap_\|not found"; then
+version_line="$(chronomap --version)"
+[ "${version_line%%$'\n'*}" = "chronomap $version" ]
+if grep -q "libchronomap_\|not found" <<<"$(ldd "$root/usr/bin/chronomap")"; then
   ldd "$root/usr/bin/chronomap"
   exit 1
 fi

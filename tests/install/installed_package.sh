@@ -24,7 +24,10 @@ grep -q '^CHRONOMAP_MAN_PAGES:BOOL=ON' "$build/CMakeCache.txt" && expected+=(sha
 for f in "${expected[@]}"; do
   [ -e "$prefix/$f" ] || { echo "missing from the installed prefix: $f"; exit 1; }
 done
-"$prefix/bin/chronomap" --version | head -1 | grep -qx "chronomap $(sed -n 's/^CMAKE_PROJECT_VERSION:STATIC=//p' "$build/CMakeCache.txt")"
+# (Outputs are read whole before grep: with pipefail, `grep -q` leaving early makes the writer
+# die of SIGPIPE and the pipeline fail now and then.)
+version_line="$("$prefix/bin/chronomap" --version)"
+[ "${version_line%%$'\n'*}" = "chronomap $(sed -n 's/^CMAKE_PROJECT_VERSION:STATIC=//p' "$build/CMakeCache.txt")" ]
 
 # examples/cpp against the prefix: the shared libraries (when installed), then the static ones.
 configure=(-G Ninja -DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_CXX_COMPILER="$cxx")
@@ -45,8 +48,9 @@ for kind in "${kinds[@]}"; do
 done
 if [ "$shared" = ON ]; then
   # The shared build links chronomap's libraries, the static one does not.
-  ldd "$work/example_SHARED/four_d_map" | grep -q "libchronomap_pipeline.so"
-  ! ldd "$work/example_STATIC/four_d_map" | grep -q "libchronomap_"
+  shared_libs="$(ldd "$work/example_SHARED/four_d_map")" static_libs="$(ldd "$work/example_STATIC/four_d_map")"
+  grep -q "libchronomap_pipeline.so" <<<"$shared_libs"
+  ! grep -q "libchronomap_" <<<"$static_libs"
 fi
 
 # Components: the parts this build has are found, one it cannot have fails find_package.
@@ -76,5 +80,5 @@ printf '#include <cstdio>\n#include "chronomap/version.h"\nint main() { std::pri
   >"$work/pc.cpp"
 # shellcheck disable=SC2046
 "$cxx" -std=c++20 $(pkg-config --cflags chronomap) "$work/pc.cpp" -o "$work/pc" $(pkg-config --libs chronomap)
-LD_LIBRARY_PATH="$prefix/$libdir" "$work/pc" | grep -qx "$(pkg-config --modversion chronomap)"
+[ "$(LD_LIBRARY_PATH="$prefix/$libdir" "$work/pc")" = "$(pkg-config --modversion chronomap)" ]
 echo "installed package: OK"
