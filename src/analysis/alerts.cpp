@@ -108,17 +108,18 @@ std::string place(const Eigen::Vector3d& p) {
   return buf;
 }
 
-/// Joins the vanished and appeared objects that look alike into moves, the likeliest pairs first
-/// (each object in one move at most). A move is at most as likely as its less likely half (the
+/// Joins the two halves of every move findChanges() found (its moved objects: the vanished
+/// component, then the appeared one). A move is at most as likely as its less likely half (the
 /// largest joint probability its two halves allow, whatever ties them), so both halves get the
 /// larger score, and a reason that names the other half.
-void pairMovedHalves(std::vector<Alert>& alerts, const MoveSettings& settings) {
-  std::vector<Component> components;
-  components.reserve(alerts.size());
-  for (const Alert& a : alerts) components.push_back(a.component);
-  for (const MovePair& m : pairMoves(components, settings)) {
-    Alert& gone = alerts[m.vanished];
-    Alert& come = alerts[m.appeared];
+void pairMovedHalves(std::vector<Alert>& alerts, const std::vector<ChangedObject>& objects) {
+  auto alertOf = [&alerts](uint32_t component) -> Alert& {
+    return *std::find_if(alerts.begin(), alerts.end(), [&](const Alert& a) { return a.component.id == component; });
+  };
+  for (const ChangedObject& moved : objects) {
+    if (moved.kind != ObjectChange::Moved) continue;
+    Alert& gone = alertOf(moved.components[0]);
+    Alert& come = alertOf(moved.components[1]);
     gone.moved_with = come.component.id;
     come.moved_with = gone.component.id;
     const double distance_m = (come.component.centroid_m - gone.component.centroid_m).norm();
@@ -329,7 +330,7 @@ AlertReport findAlerts(const TemporalMap& map, double time_s, const AlertSetting
     a.reason = reasonFor(a, occupied_now, t, map.resolution_m());
     report.alerts.push_back(std::move(a));
   }
-  pairMovedHalves(report.alerts, settings.moves);
+  pairMovedHalves(report.alerts, report.objects);
   std::stable_sort(report.alerts.begin(), report.alerts.end(),
                    [](const Alert& x, const Alert& y) { return x.score_bits > y.score_bits; });
   return report;
