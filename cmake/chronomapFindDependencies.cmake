@@ -22,6 +22,18 @@ macro(_chronomap_find_package)
   endif()
 endmacro()
 
+# chronomap_dep::NAME as an interface target of `includes` and `libraries` (global in the
+# project, local to the directory that finds the installed package).
+function(_chronomap_dependency_target name includes libraries)
+  if(CHRONOMAP_DEPS_FOR_PACKAGE)
+    add_library(chronomap_dep::${name} INTERFACE IMPORTED)
+  else()
+    add_library(chronomap_dep::${name} INTERFACE IMPORTED GLOBAL)
+  endif()
+  set_target_properties(chronomap_dep::${name} PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${includes}"
+                                                          INTERFACE_LINK_LIBRARIES "${libraries}")
+endfunction()
+
 # A library without a CMake package: chronomap_dep::NAME from its header and library files.
 # Returns false in OUT_FOUND when either is missing.
 function(_chronomap_import_library name header library out_found)
@@ -36,14 +48,7 @@ function(_chronomap_import_library name header library out_found)
     set(${out_found} FALSE PARENT_SCOPE)
     return()
   endif()
-  if(CHRONOMAP_DEPS_FOR_PACKAGE)
-    add_library(chronomap_dep::${name} INTERFACE IMPORTED)
-  else()
-    add_library(chronomap_dep::${name} INTERFACE IMPORTED GLOBAL)
-  endif()
-  set_target_properties(chronomap_dep::${name} PROPERTIES
-    INTERFACE_INCLUDE_DIRECTORIES "${CHRONOMAP_DEP_${name}_INCLUDE_DIR}"
-    INTERFACE_LINK_LIBRARIES "${CHRONOMAP_DEP_${name}_LIBRARY}")
+  _chronomap_dependency_target(${name} "${CHRONOMAP_DEP_${name}_INCLUDE_DIR}" "${CHRONOMAP_DEP_${name}_LIBRARY}")
 endfunction()
 
 # Stops: with a message in the project, as a failed find_package(chronomap) in the package.
@@ -85,13 +90,7 @@ endif()
 
 if(NOT TARGET chronomap_dep::octomap)
   _chronomap_find_package(octomap)
-  if(CHRONOMAP_DEPS_FOR_PACKAGE)
-    add_library(chronomap_dep::octomap INTERFACE IMPORTED)
-  else()
-    add_library(chronomap_dep::octomap INTERFACE IMPORTED GLOBAL)
-  endif()
-  set_target_properties(chronomap_dep::octomap PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${OCTOMAP_INCLUDE_DIRS}"
-                                                          INTERFACE_LINK_LIBRARIES "${OCTOMAP_LIBRARIES}")
+  _chronomap_dependency_target(octomap "${OCTOMAP_INCLUDE_DIRS}" "${OCTOMAP_LIBRARIES}")
 endif()
 
 # ROS 2 bags: lz4 frames inside MCAP chunks, and SQLite for the .db3 storage.
@@ -135,13 +134,7 @@ if(CHRONOMAP_DEPS_ROS1 AND NOT TARGET chronomap_dep::rosbag)
     list(APPEND _chronomap_ros_libraries ${CHRONOMAP_ROS_${lib}_LIBRARY})
   endforeach()
   list(REMOVE_DUPLICATES _chronomap_ros_includes)
-  if(CHRONOMAP_DEPS_FOR_PACKAGE)
-    add_library(chronomap_dep::rosbag INTERFACE IMPORTED)
-  else()
-    add_library(chronomap_dep::rosbag INTERFACE IMPORTED GLOBAL)
-  endif()
-  set_target_properties(chronomap_dep::rosbag PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${_chronomap_ros_includes}"
-                                                         INTERFACE_LINK_LIBRARIES "${_chronomap_ros_libraries}")
+  _chronomap_dependency_target(rosbag "${_chronomap_ros_includes}" "${_chronomap_ros_libraries}")
 endif()
 
 if(CHRONOMAP_DEPS_MPI)
