@@ -231,12 +231,16 @@ nlohmann::json builtJson(const BuiltSession& b) {
   j["dataset"] = b.dataset.string();
   j["points"] = b.points;
   j["nodes_separate"] = b.nodes_separate;
+  j["warnings"] = b.warnings;
   return j;
 }
 
 void printBuilt(const BuildCmdOptions& o, const BuildResult& r) {
   nlohmann::json reports = nlohmann::json::array();
-  for (const auto& b : r.added) reports.push_back(builtJson(b));
+  for (const auto& b : r.added) {
+    for (const std::string& w : b.warnings) printWarning(b.dataset.string() + ": " + w);
+    reports.push_back(builtJson(b));
+  }
   if (o.json) {
     std::cout << nlohmann::json{{"map", o.map},         {"created", r.created},       {"sessions", r.sessions},
                                 {"nodes", r.nodes},      {"file_bytes", r.file_bytes}, {"added", reports}}
@@ -289,7 +293,9 @@ int runStreamBuild(const BuildCmdOptions& o, BuildSettings& s) {
                             {"spilled_bytes", r.stats.spilled_bytes},
                             {"peak_parts_bytes", r.stats.peak_parts_bytes},
                             {"peak_group_bytes", r.stats.peak_group_bytes},
-                            {"added", added}};
+                            {"added", added},
+                            {"warnings", r.warnings}};
+  for (const std::string& w : r.warnings) printWarning(w);
   if (o.json) {
     std::cout << j.dump() << "\n";
     return 0;

@@ -92,7 +92,8 @@ nlohmann::json integrateJson(const IntegrateCmdOptions& o, const IntegratedSessi
           {"file_bytes", file_bytes},
           {"resolution_m", session.map.resolution_m()},
           {"seconds", stats.seconds},
-          {"output", o.output}};
+          {"output", o.output},
+          {"warnings", session.warnings}};
 }
 
 void printIntegrated(const IntegrateCmdOptions& o, const IntegratedSession& session, uint64_t file_bytes,
@@ -130,6 +131,7 @@ int runIntegrate(const IntegrateCmdOptions& o) {
       integrateDataset(o.dataset, settings, {}, terminalProgress(o.json));
   writeSessionMap(o.output, session.map, sessionMetadata(o.dataset, session, settings));
   const auto file_bytes = std::filesystem::file_size(o.output);
+  for (const std::string& w : session.warnings) printWarning(o.dataset + ": " + w);
   if (o.json) {
     std::cout << integrateJson(o, session, file_bytes).dump() << "\n";
   } else {

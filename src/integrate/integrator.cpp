@@ -6,6 +6,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <iomanip>
 #include <mutex>
 #include <sstream>
 #include <string>
@@ -35,6 +36,35 @@ IntegrationStats& IntegrationStats::operator+=(const IntegrationStats& o) {
   voxel_updates += o.voxel_updates;
   seconds += o.seconds;
   return *this;
+}
+
+std::vector<std::string> droppedPointsWarnings(const IntegrationStats& stats, const IntegratorSettings& settings) {
+  std::vector<std::string> lines;
+  const uint64_t valid = stats.points + stats.points_out_of_range + stats.points_outside_map;
+  const auto share = [valid](uint64_t n) {
+    std::ostringstream s;
+    s << n << " of " << valid << " valid points (" << std::fixed << std::setprecision(1)
+      << 100.0 * static_cast<double>(n) / static_cast<double>(valid) << "%)";
+    return s.str();
+  };
+  const auto over = [valid](uint64_t n) {
+    return valid > 0 && static_cast<double>(n) > kDroppedPointsWarnFraction * static_cast<double>(valid);
+  };
+  if (over(stats.points_out_of_range)) {
+    std::ostringstream s;
+    s << share(stats.points_out_of_range) << " lie beyond --max-range " << settings.max_range_m << " m; "
+      << (settings.carve_beyond_range ? "the free space before them is kept, their surfaces are not"
+                                      : "they were dropped, with the free space before them")
+      << ": give --max-range what the sensor delivers to keep them"
+      << (settings.carve_beyond_range ? "" : " (or --carve-beyond-range for their free space)");
+    lines.push_back(s.str());
+  }
+  if (over(stats.points_outside_map)) {
+    lines.push_back(share(stats.points_outside_map) +
+                    " fall outside the map's extent and were dropped: use a coarser --resolution (the map spans " +
+                    std::to_string(kKeysPerAxis) + " voxels per axis around the origin), or poses nearer the origin");
+  }
+  return lines;
 }
 
 namespace integrate_detail {

@@ -156,7 +156,8 @@ std::vector<uint8_t> encodePending(const Pending& p) {
        {st.frames, st.points, st.points_invalid, st.points_out_of_range, st.points_outside_map, st.rays,
         st.voxel_updates, st.seconds}},
       {"sensor_positions", std::move(positions)},
-      {"poses", std::move(poses)}};
+      {"poses", std::move(poses)},
+      {"warnings", s.warnings}};
   return encodeSessionMap(s.map, meta, /*zstd_level=*/1, /*version=*/1);
 }
 
@@ -185,7 +186,8 @@ Pending decodePending(const std::vector<uint8_t>& bytes, size_t index, int from)
   return {index, meta.at("time_s").get<double>(),
           IntegratedSession{sessionMapFrom(file, source), stats, recorded_at, meta.at("format").get<std::string>(),
                             meta.at("frames_dropped").get<size_t>(), std::move(positions),
-                            meta.at("dropped_reasons").get<std::string>(), std::move(poses)}};
+                            meta.at("dropped_reasons").get<std::string>(), std::move(poses),
+                            meta.value("warnings", std::vector<std::string>{})}};
 }
 
 /// Bytes a recording holds on disk (a folder's files, or the file): a measure of its work.

@@ -178,6 +178,7 @@ BuildResult pipeline_detail::finishBuild(const BuildSettings& s, TemporalMap& ma
     b.points = p.session.stats.points;
     if (!corrections.empty()) b.correction = corrections[i];
     b.recorded_poses = p.session.poses;
+    b.warnings = p.session.warnings;
     b.poses.reserve(b.recorded_poses.size());
     for (size_t f = 0; f < b.recorded_poses.size(); ++f) {
       b.poses.push_back(b.correction ? b.correction->apply(b.recorded_poses[f], f) : b.recorded_poses[f]);

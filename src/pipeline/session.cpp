@@ -52,7 +52,7 @@ IntegratedSession integrateDataset(const std::filesystem::path& path, const Sess
                                    const std::string& label) {
   auto dataset = openRecording(path, settings.dataset);
   IntegratedSession out{SessionMap(settings.resolution_m), {}, dataset->recordedAt(), dataset->format(),
-                        dataset->framesDropped(), {}, dataset->droppedReasons(), {}};
+                        dataset->framesDropped(), {}, dataset->droppedReasons(), {}, {}};
   out.sensor_positions.reserve(dataset->size());
   out.poses.reserve(dataset->size());
   for (size_t i = 0; i < dataset->size(); ++i) {
@@ -69,6 +69,7 @@ IntegratedSession integrateDataset(const std::filesystem::path& path, const Sess
                     " m in " + std::to_string(out.stats.frames) + " frame(s) (" +
                     std::to_string(out.stats.pointsSkipped()) + " skipped); nothing to write");
   }
+  out.warnings = droppedPointsWarnings(out.stats, settings.integrator);
   return out;
 }
 

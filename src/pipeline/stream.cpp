@@ -459,10 +459,14 @@ StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size
   s.tile_size_m = tile_size_m;
   s.memory_limit_bytes = memory_limit_bytes;
   s.progress = b.progress;
-  return streamIntoTiles(s, b.datasets.size(), [&](size_t i) {
+  std::vector<std::string> warnings;
+  StreamResult result = streamIntoTiles(s, b.datasets.size(), [&](size_t i) {
     pipeline_detail::Pending p = pipeline_detail::integrateOne(b, i);
+    for (const std::string& w : p.session.warnings) warnings.push_back(b.datasets[i].string() + ": " + w);
     return StreamSession{p.time_s, b.datasets[i].filename().string(), std::move(p.session.map)};
   });
+  result.warnings = std::move(warnings);
+  return result;
 }
 
 StreamResult streamAddSession(const AddSessionSettings& a, size_t memory_limit_bytes) {

@@ -75,6 +75,29 @@ TEST(Cli, IntegrateStatsExportOnRealFrames) {
 
 // Hit positions: recorded by default (every occupied voxel's offsets lie within half a voxel per
 // hit and are not all zero), none with --no-positions; the rest of the map is the same.
+TEST(Cli, IntegrateSaysWhenTheRangeDropsMoreThanATenthOfThePoints) {
+  CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
+  test::TempDir tmp;
+  // The default 3 m drops about half of these frames' points: stderr and --json say so.
+  const auto r = test::runCommand(cli() + " integrate " + root.string() + " -o " + (tmp / "a.cmap").string() +
+                                  " --fast --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  const uint64_t beyond = j["points_out_of_range"].get<uint64_t>();
+  ASSERT_GT(beyond, j["points"].get<uint64_t>() / 10);
+  ASSERT_EQ(j["warnings"].size(), 1u);
+  const std::string warning = j["warnings"][0].get<std::string>();
+  EXPECT_NE(warning.find(std::to_string(beyond) + " of "), std::string::npos) << warning;
+  EXPECT_NE(warning.find("--max-range 3 m"), std::string::npos) << warning;
+  EXPECT_NE(r.err.find("chronomap: warning: " + root.string() + ": " + warning), std::string::npos) << r.err;
+  // A range that keeps them says nothing.
+  const auto far = test::runCommand(cli() + " integrate " + root.string() + " -o " + (tmp / "b.cmap").string() +
+                                    " --fast --max-range 10 --json");
+  ASSERT_EQ(far.exit_code, 0) << far.err;
+  EXPECT_TRUE(nlohmann::json::parse(far.out)["warnings"].empty());
+  EXPECT_EQ(far.err.find("warning"), std::string::npos) << far.err;
+}
+
 TEST(Cli, IntegrateRecordsHitPositionsUnlessToldNot) {
   CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
   test::TempDir tmp;

@@ -665,5 +665,30 @@ TEST(Integrator, CoarseCarvingPicksItsLevelFromTheResolution) {
   }
 }
 
+TEST(DroppedPointsWarnings, OnlyPastATenthOfTheValidPoints) {
+  IntegratorSettings settings;
+  settings.max_range_m = 2.5;
+  IntegrationStats stats;
+  stats.points = 90;
+  stats.points_invalid = 500;  // NaN and zero depth are not the limits' doing: not counted
+  stats.points_out_of_range = 10;  // 10 of 100 valid: exactly a tenth
+  EXPECT_TRUE(droppedPointsWarnings(stats, settings).empty());
+  stats.points_out_of_range = 11;  // 11 of 101
+  auto lines = droppedPointsWarnings(stats, settings);
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_EQ(lines[0].rfind("11 of 101 valid points (10.9%) lie beyond --max-range 2.5 m; they were dropped", 0), 0u)
+      << lines[0];
+  settings.carve_beyond_range = true;
+  lines = droppedPointsWarnings(stats, settings);
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_NE(lines[0].find("the free space before them is kept"), std::string::npos) << lines[0];
+  stats.points_out_of_range = 0;
+  stats.points_outside_map = 50;  // 50 of 140
+  lines = droppedPointsWarnings(stats, settings);
+  ASSERT_EQ(lines.size(), 1u);
+  EXPECT_EQ(lines[0].rfind("50 of 140 valid points (35.7%) fall outside the map's extent", 0), 0u) << lines[0];
+  EXPECT_TRUE(droppedPointsWarnings(IntegrationStats{}, settings).empty());
+}
+
 }  // namespace
 }  // namespace chronomap

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -91,6 +92,15 @@ struct IntegrationStats {
   uint64_t pointsSkipped() const { return points_invalid + points_out_of_range + points_outside_map; }
   IntegrationStats& operator+=(const IntegrationStats& o);
 };
+
+/// Share of the valid points (finite, not at the sensor) that a limit may drop before
+/// droppedPointsWarnings() says so: above it the limit, not the sensor, shapes the map.
+inline constexpr double kDroppedPointsWarnFraction = 0.10;
+
+/// One line per limit that dropped more than kDroppedPointsWarnFraction of the valid points of
+/// `stats`: the range (IntegratorSettings::max_range_m; with carve_beyond_range the points' free
+/// space is kept, their hits are not) and the map's extent. Empty when no limit did.
+std::vector<std::string> droppedPointsWarnings(const IntegrationStats& stats, const IntegratorSettings& settings);
 
 /// The voxels one frame touches and what it adds to each, in a fixed order.
 struct VoxelDeltas {

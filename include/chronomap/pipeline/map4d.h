@@ -51,6 +51,7 @@ struct BuiltSession {
   /// correction applied; the same poses without registration).
   std::vector<Eigen::Isometry3d> recorded_poses, poses;
   std::optional<size_t> realigned_voxels;     ///< with re-alignment
+  std::vector<std::string> warnings;          ///< IntegratedSession::warnings
 };
 
 /// What build() did.

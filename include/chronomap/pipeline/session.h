@@ -42,6 +42,8 @@ struct IntegratedSession {
   std::vector<Eigen::Vector3d> sensor_positions;  ///< of every frame, as recorded (before the correction)
   std::string dropped_reasons;  ///< why frames were dropped, when the reader says (Dataset::droppedReasons)
   std::vector<Eigen::Isometry3d> poses;  ///< T_world_sensor of every frame, as recorded (before the correction)
+  /// Limits that dropped many of the points (droppedPointsWarnings); the front doors print them.
+  std::vector<std::string> warnings;
 };
 
 /// Registers every reader this build has (the bag readers of ingest/ros when built with them)

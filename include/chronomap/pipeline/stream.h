@@ -66,6 +66,8 @@ struct StreamResult {
   std::vector<double> added_times;      ///< in time order
   std::vector<int64_t> nodes_added;     ///< per added session, as TemporalMap::add counts them
   StreamStats stats;
+  /// streamBuild: the limits that dropped many points, "DATASET: what" (IntegratedSession::warnings).
+  std::vector<std::string> warnings;
 };
 
 /// Adds `count` sessions, made one at a time by `produce(i)`, to the tiled map in
