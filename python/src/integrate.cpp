@@ -45,7 +45,12 @@ SessionMap integrateDatasetPy(const std::filesystem::path& path, double resoluti
   settings.dataset.depth_scale = depth_scale;
   LongCall call(progress);
   const Progress report = call.progress();
-  return call.run([&] { return integrateDataset(path, settings, {}, report).map; });
+  IntegratedSession session = call.run([&] { return integrateDataset(path, settings, {}, report); });
+  for (const std::string& w : session.warnings) {
+    const std::string text = path.string() + ": " + w;
+    if (PyErr_WarnEx(PyExc_UserWarning, text.c_str(), 1) < 0) throw py::error_already_set();  // warnings as errors
+  }
+  return std::move(session.map);
 }
 
 /// (fx, fy, cx, cy) or a 3x3 K matrix. @throw UsageError (a ValueError) naming the values when

@@ -4,6 +4,7 @@ import json
 import subprocess
 import threading
 import time
+import warnings
 
 import numpy as np
 import pytest
@@ -36,6 +37,14 @@ def test_integrate_dataset_equals_the_cli(tmp_path, threedmatch, cli, fast):
     theirs.save(tmp_path / "theirs.cmap")
     assert (tmp_path / "ours.cmap").read_bytes() == (tmp_path / "theirs.cmap").read_bytes()
     assert chronomap.SessionMap.open(tmp_path / "ours.cmap") == theirs
+
+
+def test_a_range_that_drops_more_than_a_tenth_of_the_points_warns(threedmatch):
+    with pytest.warns(UserWarning, match=r"of \d+ valid points \(\d+\.\d%\) lie beyond --max-range 3 m"):
+        chronomap.integrate_dataset(threedmatch, fast=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        chronomap.integrate_dataset(threedmatch, fast=True, max_range_m=10.0)
 
 
 @pytest.mark.parametrize("fast", [False, True])
