@@ -287,7 +287,7 @@ std::string presetFlags(const ChangeSettings& s) {
 void addFalseChangeRules(CLI::App* app, DiffCmdOptions& o) {
   app->add_option("--neighbourhood", o.neighbourhood,
                   "ignore a voxel that appeared (vanished) when the other map is occupied within this many voxels: "
-                  "surfaces shifted by localisation error are not changes (0..3; 0 compares twins only)");
+                  "surfaces shifted by localisation error are not changes (0..4; 0 compares twins only)");
   app->add_option("--min-shift", o.min_shift_voxels,
                   "voxels: with --neighbourhood, keep a voxel near a surface when that surface moved at least this far "
                   "(the mean position of the hits around it, from where in each voxel the rays ended); 0 drops them "
@@ -297,13 +297,13 @@ void addFalseChangeRules(CLI::App* app, DiffCmdOptions& o) {
                   "voxels: a voxel that appeared (vanished) is no change when the surface the other map holds within "
                   "this many voxels is still seen, unchanged, by this map (--kept-share of its occupied voxels): "
                   "the same surface measured at another depth by some of a session's frames, as dark glossy "
-                  "materials give on real depth cameras (0..3; 0: off; docs/changes.md)");
+                  "materials give on real depth cameras (0..4; 0: off; docs/changes.md)");
   app->add_option("--kept-share", o.kept_share, "the share --kept-surface needs still occupied, in (0, 1]");
   app->add_option("--dark-surface", o.dark_surface,
                   "voxels: an object (touching voxels that appeared, or that vanished) is no change when every one "
                   "of its voxels lies within this many voxels of a surface the other map sees and at least "
                   "--dark-share of them are dark (colour darker than --dark-below) and darker than that surface: "
-                  "active depth cameras measure dark surfaces centimetres off (0..3; 0: off; docs/changes.md)");
+                  "active depth cameras measure dark surfaces centimetres off (0..4; 0: off; docs/changes.md)");
   app->add_option("--dark-below", o.dark_below, "the mean colour (0..255) below which --dark-surface calls a surface dark");
   app->add_option("--dark-contrast", o.dark_contrast,
                   "--dark-surface needs the surface darker than this share of the other map's surface around it, "

@@ -12,7 +12,7 @@
 namespace chronomap {
 
 namespace {
-constexpr int kMaxNeighbourhood = 3;
+constexpr int kMaxNeighbourhood = 4;
 // The weak-change rule's "same surface": mean hit positions less than half a voxel apart.
 constexpr double kKeptSurfaceOffset = 0.5;
 }  // namespace

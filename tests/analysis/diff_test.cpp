@@ -161,7 +161,7 @@ TEST(Diff, NeighbourhoodIgnoresShiftedSurfacesButNotObjects) {
   const DiffMap near = diff(a, b, s);
   EXPECT_EQ(near.voxelCount(ChangeKind::Vanished), 0u);
   EXPECT_EQ(near.voxelCount(ChangeKind::Appeared), 4u) << "only the box";
-  s.neighbourhood_voxels = 4;
+  s.neighbourhood_voxels = 5;
   EXPECT_THROW(s.validate(), UsageError);
 }
 
@@ -406,7 +406,7 @@ TEST(Diff, KeptSurfaceDropsADepthErrorInFrontOfASurfaceStillSeen) {
 
   // Off by default; checked.
   EXPECT_EQ(DiffSettings{}.kept_surface_radius_voxels, 0);
-  s.kept_surface_radius_voxels = 4;
+  s.kept_surface_radius_voxels = 5;
   EXPECT_THROW(s.validate(), UsageError);
   s.kept_surface_radius_voxels = 3;
   s.kept_surface_share = 0.0;
@@ -476,7 +476,7 @@ TEST(Diff, DarkSurfaceDropsADarkSurfaceSeenNearASurfaceOfTheOtherMap) {
 
   // Off by default; checked.
   EXPECT_EQ(DiffSettings{}.dark_surface_radius_voxels, 0);
-  s.dark_surface_radius_voxels = 4;
+  s.dark_surface_radius_voxels = 5;
   EXPECT_THROW(s.validate(), UsageError);
   s.dark_surface_radius_voxels = 3;
   for (double b : {-1.0, 256.0, std::nan("")}) {

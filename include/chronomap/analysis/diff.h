@@ -130,9 +130,9 @@ struct DiffSettings {
   /// alpha with the default applied.
   double effectiveAlpha() const;
   /// @throw UsageError for an alpha that is not finite, or not in [0, 1) (threshold) or
-  /// [0, 0.5) (band), a neighbourhood outside 0..3, a min_shift_voxels that is not finite or is
-  /// negative, a kept_surface_radius_voxels outside 0..3, a kept_surface_share outside (0, 1],
-  /// a dark_surface_radius_voxels outside 0..3 or a dark_surface_brightness outside [0, 255].
+  /// [0, 0.5) (band), a neighbourhood outside 0..4, a min_shift_voxels that is not finite or is
+  /// negative, a kept_surface_radius_voxels outside 0..4, a kept_surface_share outside (0, 1],
+  /// a dark_surface_radius_voxels outside 0..4 or a dark_surface_brightness outside [0, 255].
   void validate() const;
 };
 
@@ -207,7 +207,7 @@ std::optional<ChangeCell> compareVoxel(const VoxelCounters& before, const VoxelC
 /// hits within `radius_voxels` (Chebyshev) of `key` on each side, over the voxels both maps
 /// know (a hit lies at its voxel's centre plus the voxel's mean offset,
 /// VoxelCounters::offset); nothing when either side has no hits there.
-/// @throw UsageError for different resolutions or a radius outside 0..3.
+/// @throw UsageError for different resolutions or a radius outside 0..4.
 std::optional<double> surfaceShift(const SessionMap& before, const SessionMap& after, const VoxelKey& key,
                                    int radius_voxels);
 
