@@ -14,6 +14,8 @@
 //   --poses        true: integrate with the true poses; registered (default): as
 //                  `chronomap build --register`
 //   --scale        image size of the simulation made here (default 0.25)
+//   --sensor NAME  ideal (default), kinect or realsense: the sensor of the simulations made here
+//                  (SimulationSettings::sensor); a folder given keeps its own
 //   --max-range    integration range, metres (default 3, as chronomap build)
 //   --out DIR      also write `chronomap alerts -o` output per test session (DIR/session_NN)
 //   --free-share S, --all-hours-observations K, --no-moves: AlertSettings other than the
@@ -90,10 +92,11 @@ int main(int argc, char** argv) {
     else if (a == "--free-share") free_share = std::stod(value());
     else if (a == "--all-hours-observations") all_hours = std::stod(value());
     else if (a == "--no-moves") pair_moves = false;
+    else if (a == "--sensor") bench::setSimSensor(value());
     else {
       std::fprintf(stderr, "usage: alerts_eval [--sim DIR] [--learn-days D] [--poses true|registered] [--scale S] "
                            "[--max-range M] [--out DIR] [--map FILE] [--free-share S] [--all-hours-observations K] "
-                           "[--no-moves]\n");
+                           "[--no-moves] [--sensor ideal|kinect|realsense]\n");
       return 2;
     }
   }

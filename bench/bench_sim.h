@@ -16,6 +16,7 @@
 
 #include "chronomap/align/register.h"
 #include "chronomap/store/cmap.h"
+#include "chronomap/core/error.h"
 #include "chronomap/core/file.h"
 #include "chronomap/pipeline/map4d.h"
 #include "chronomap/ingest/dataset.h"
@@ -33,6 +34,23 @@ inline std::string argValue(int& i, int argc, char** argv) {
     std::exit(2);
   }
   return argv[++i];
+}
+
+/// The sensor the programs simulate with when they simulate (`--sensor NAME`:
+/// SimulationSettings::sensor, ideal by default); a folder given to them keeps its own.
+inline std::string& simSensor() {
+  static std::string name = "ideal";
+  return name;
+}
+/// Sets simSensor(); exits with status 2 and the reason for a name that is not a sensor.
+inline void setSimSensor(const std::string& name) {
+  try {
+    parseSensorKind(name);
+  } catch (const Error& e) {
+    std::fprintf(stderr, "%s\n", e.what());
+    std::exit(2);
+  }
+  simSensor() = name;
 }
 
 inline double seconds(std::chrono::steady_clock::time_point since) {
@@ -164,7 +182,8 @@ inline std::filesystem::path simulateTemporary(const std::string& preset, const 
   SimulationSettings s;
   s.preset = preset;
   s.resolution_scale = 0.5;
-  std::fprintf(stderr, "simulating %s into %s\n", preset.c_str(), dir.c_str());
+  s.sensor = simSensor();
+  std::fprintf(stderr, "simulating %s (%s sensor) into %s\n", preset.c_str(), s.sensor.c_str(), dir.c_str());
   chronomap::simulate(s, dir, {});
   return dir;
 }
@@ -209,7 +228,9 @@ inline std::filesystem::path simulateWeeks(const std::filesystem::path& tmp, dou
   s.preset = "weeks";
   s.resolution_scale = scale;
   s.rare_events = rare_events;
-  std::printf("simulating the weeks preset at %.2f of 640x480%s ...\n", scale, rare_events ? " with rare events" : "");
+  s.sensor = simSensor();
+  std::printf("simulating the weeks preset at %.2f of 640x480%s (%s sensor) ...\n", scale,
+              rare_events ? " with rare events" : "", s.sensor.c_str());
   std::fflush(stdout);
   chronomap::simulate(s, tmp / "weeks");
   return tmp / "weeks";

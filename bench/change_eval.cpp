@@ -18,6 +18,8 @@
 //                  resolution into a temporary folder)
 //   --floor66 DIR  also evaluate a floor66 simulation (not simulated by default: ~7 minutes)
 //   --quick        only the recommended settings, no sweep
+//   --sensor NAME  ideal (default), kinect or realsense: the sensor of the simulations made here
+//                  (SimulationSettings::sensor); a folder given keeps its own
 //   --register-model  world (default) or per-pose: the registration's correction model
 //                  (align/register.h) for the "register" and "reg+align" rows
 //   --register-rounds N  rigid registration rounds (default 3, as `chronomap build --register`)
@@ -623,9 +625,11 @@ int main(int argc, char** argv) {
       data = argv[++i];
     } else if (!std::strcmp(argv[i], "--quick")) {
       quick = true;
+    } else if (!std::strcmp(argv[i], "--sensor") && i + 1 < argc) {
+      bench::setSimSensor(argv[++i]);
     } else {
       std::fprintf(stderr,
-                   "usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] "
+                   "usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] [--sensor ideal|kinect|realsense] "
                    "[--register-model world|per-pose] [--drift-knots FRAMES] [--register-rounds N] "
                    "[--register-radius VOXELS] [--drift-rounds N] [--not-planar] [--drift-voxels] [--kept-surface R] "
                    "[--kept-share F] [--dark-surface R] [--dark-below B] [--dark-contrast C] [--dark-share F]\n");

@@ -9,6 +9,8 @@
 //   --floor66 DIR    a `chronomap simulate --preset floor66` output, for the storage cost only
 //                    (default: none, the floor66 rows are left out)
 //   --scale S        image size of the simulation made here (default 0.25)
+//   --sensor NAME  ideal (default), kinect or realsense: the sensor of the simulations made here
+//                  (SimulationSettings::sensor); a folder given keeps its own
 //   --learn-days D   days of history (default 21: three weeks; the last week tests)
 //   --distance D     the 4D map's colour distance for the model (default 10)
 //   --diff-distance  colour distance of the diff (default 30)
@@ -125,9 +127,11 @@ int main(int argc, char** argv) {
     else if (a == "--components") components = std::stoi(value());
     else if (a == "--bins") bins = std::stoi(value());
     else if (a == "--out") out_dir = value();
+    else if (a == "--sensor") bench::setSimSensor(value());
     else {
       std::fprintf(stderr, "usage: colour_eval [--weeks DIR] [--floor66 DIR] [--scale S] [--learn-days D] "
-                           "[--distance D] [--diff-distance D] [--components K] [--bins B] [--out DIR]\n");
+                           "[--distance D] [--diff-distance D] [--components K] [--bins B] [--out DIR] "
+                           "[--sensor ideal|kinect|realsense]\n");
       return 2;
     }
   }
@@ -155,7 +159,9 @@ int main(int argc, char** argv) {
     s.resolution_scale = scale;
     s.lighting = "daylight";
     s.repaint = true;
-    std::printf("simulating the weeks preset at %.2f of 640x480 with daylight and a repaint ...\n", scale);
+    s.sensor = bench::simSensor();
+    std::printf("simulating the weeks preset at %.2f of 640x480 with daylight and a repaint (%s sensor) ...\n", scale,
+                s.sensor.c_str());
     std::fflush(stdout);
     chronomap::simulate(s, tmp / "weeks");
     weeks_dir = (tmp / "weeks").string();

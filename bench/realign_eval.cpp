@@ -19,6 +19,8 @@
 //                   resolution into a temporary folder)
 //   --floor66 DIR   a floor66 simulation (default: simulate one at half resolution, ~7 minutes)
 //   --quick         no sweep
+//   --sensor NAME  ideal (default), kinect or realsense: the sensor of the simulations made here
+//                  (SimulationSettings::sensor); a folder given keeps its own
 //   --skip-floor66  office only (the last line then reports the office)
 //   --register-model  world (default) or per-pose: the registration's correction model
 //                   (align/register.h)
@@ -351,9 +353,11 @@ int main(int argc, char** argv) {
       quick = true;
     } else if (!std::strcmp(argv[i], "--skip-floor66")) {
       skip_floor66 = true;
+    } else if (!std::strcmp(argv[i], "--sensor") && i + 1 < argc) {
+      bench::setSimSensor(argv[++i]);
     } else {
       std::fprintf(stderr,
-                   "usage: realign_eval [--office DIR] [--floor66 DIR] [--quick] [--skip-floor66] "
+                   "usage: realign_eval [--office DIR] [--floor66 DIR] [--quick] [--skip-floor66] [--sensor ideal|kinect|realsense] "
                    "[--register-model world|per-pose] [--drift-knots FRAMES]\n");
       return 2;
     }

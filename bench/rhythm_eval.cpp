@@ -11,6 +11,8 @@
 //   --poses        true: integrate with the true poses; registered (default): the estimated
 //                  poses registered to the consensus, as `chronomap build --register` does
 //   --scale        image size of the simulation made here (default 0.25)
+//   --sensor NAME  ideal (default), kinect or realsense: the sensor of the simulations made here
+//                  (SimulationSettings::sensor); a folder given keeps its own
 //   --max-range    integration range, metres (default 3, as chronomap build)
 //   --no-carve     drop points beyond the range whole (default: free space carved along their
 //                  rays up to the range, --carve-beyond-range)
@@ -154,8 +156,10 @@ int main(int argc, char** argv) {
     else if (a == "--map") load_map = value();
     else if (a == "--save-map") save_map = value();
     else if (a == "--min-changes") min_changes = static_cast<uint32_t>(std::stoul(value()));
+    else if (a == "--sensor") bench::setSimSensor(value());
     else {
-      std::fprintf(stderr, "usage: rhythm_eval [--sim DIR] [--learn-days D] [--poses true|registered] [--scale S] [--no-carve]\n");
+      std::fprintf(stderr, "usage: rhythm_eval [--sim DIR] [--learn-days D] [--poses true|registered] [--scale S] [--no-carve] "
+                           "[--sensor ideal|kinect|realsense]\n");
       return 2;
     }
   }

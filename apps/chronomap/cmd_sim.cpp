@@ -138,7 +138,17 @@ Command addSimulate(CLI::App& root) {
   app->add_option("--resolution-scale", o->settings.resolution_scale,
                   "image size relative to 640 x 480 (0.1 .. 1; smaller is faster)")
       ->capture_default_str();
-  app->add_option("--noise", o->settings.noise_per_m2, "depth noise sigma = NOISE * z^2, metres (0 to 1)")
+  app->add_option("--sensor", o->settings.sensor,
+                  "the depth camera and odometry imitated: ideal (sigma = NOISE * z^2, dropouts at edges and on "
+                  "dark surfaces, a localiser's offset and small drift; the default, as before), kinect (Kinect v1: "
+                  "published noise growing with depth and incidence, disparity steps, lateral noise, 0.5-4.5 m, no "
+                  "depth at grazing incidence, dark and shiny surfaces lost or centimetres off, flying pixels at "
+                  "depth edges, poses from a drifting odometry in trajectory.txt) or realsense (the same with "
+                  "D435-like constants, 0.3-6 m); the truth and groundtruth.txt do not change; see docs/simulator.md")
+      ->check(CLI::IsMember({"ideal", "kinect", "realsense"}))
+      ->capture_default_str();
+  app->add_option("--noise", o->settings.noise_per_m2,
+                  "ideal sensor: depth noise sigma = NOISE * z^2, metres (0 to 1)")
       ->check(numberIn(0, 1))
       ->capture_default_str();
   app->add_option("--threads", o->settings.threads, "rendering threads, 0 = all cores (output does not depend on it)")

@@ -72,6 +72,37 @@ Eigen::Isometry3d cameraPose(const Eigen::Vector2d& p, double yaw) {
   return T;
 }
 
+// The estimated poses of a sensor model's odometry (OdometryModel): from the first true pose
+// with the session's localisation offset, each frame's planar motion (in the frame of the one
+// before) measured with errors that accumulate along the path.
+std::vector<Eigen::Isometry3d> odometryPoses(const std::vector<Shot>& shots, const OdometryModel& m, const Patrol& start,
+                                             Rng& rng) {
+  const double deg = std::numbers::pi / 180.0;
+  const double scale = 1.0 + m.scale_sigma * rng.normal();
+  const double yaw_bias_per_m = m.yaw_bias_deg_per_m * deg * rng.normal();
+  std::vector<Eigen::Isometry3d> poses;
+  if (shots.empty()) return poses;
+  Eigen::Vector2d p = shots[0].position + Eigen::Vector2d(start.offset_x_m, start.offset_y_m);
+  double yaw = shots[0].yaw + start.offset_yaw_rad;
+  poses.push_back(cameraPose(p, yaw));
+  for (size_t k = 1; k < shots.size(); ++k) {
+    const Eigen::Rotation2Dd before(shots[k - 1].yaw);
+    const Eigen::Vector2d motion = before.inverse() * (shots[k].position - shots[k - 1].position);
+    const double turn = std::remainder(shots[k].yaw - shots[k - 1].yaw, 2.0 * std::numbers::pi);
+    const double d = motion.norm();
+    const double n1 = rng.normal(), n2 = rng.normal(), n3 = rng.normal();
+    const Eigen::Vector2d measured =
+        scale * motion + m.translation_m_per_sqrt_m * std::sqrt(d) * Eigen::Vector2d(n1, n2);
+    const double measured_turn =
+        turn + (m.yaw_deg_per_sqrt_m * deg * std::sqrt(d) + m.yaw_deg_per_sqrt_rad * deg * std::sqrt(std::abs(turn))) * n3 +
+        yaw_bias_per_m * d;
+    p += Eigen::Rotation2Dd(yaw) * measured;
+    yaw += measured_turn;
+    poses.push_back(cameraPose(p, yaw));
+  }
+  return poses;
+}
+
 }  // namespace
 
 Patrol patrolSession(const SceneState& state, const SimulationSettings& settings, int session) {
@@ -92,6 +123,12 @@ Patrol patrolSession(const SceneState& state, const SimulationSettings& settings
     E.translation() += Eigen::Vector3d(dx, dy, 0.0);
     out.true_poses.push_back(T);
     out.estimated.push_back(E);
+  }
+  const SensorModel sensor = sensorModel(parseSensorKind(settings.sensor));
+  if (sensor.kind != SensorKind::Ideal) {
+    // Its own stream, so that the patrol and the offset stay those of the ideal sensor.
+    Rng odometry_rng(mix(settings.seed, 9000 + static_cast<uint64_t>(session)));
+    out.estimated = odometryPoses(shots, sensor.odometry, out, odometry_rng);
   }
   return out;
 }

@@ -6,6 +6,7 @@
 #include <limits>
 #include <numbers>
 
+#include "chronomap/core/error.h"
 #include "internal.h"
 
 namespace chronomap {
@@ -20,6 +21,63 @@ Camera kinectCamera(double scale) {
   c.cx = (c.width - 1) / 2.0;
   c.cy = (c.height - 1) / 2.0;
   return c;
+}
+
+const char* toString(SensorKind kind) {
+  switch (kind) {
+    case SensorKind::Ideal: return "ideal";
+    case SensorKind::Kinect: return "kinect";
+    case SensorKind::RealSense: return "realsense";
+  }
+  return "ideal";
+}
+
+SensorKind parseSensorKind(const std::string& name) {
+  for (const SensorKind k : {SensorKind::Ideal, SensorKind::Kinect, SensorKind::RealSense}) {
+    if (name == toString(k)) return k;
+  }
+  throw UsageError("--sensor must be ideal, kinect or realsense, not '" + name + "'");
+}
+
+SensorModel sensorModel(SensorKind kind) {
+  SensorModel s;
+  s.kind = kind;
+  if (kind == SensorKind::Kinect) {
+    // DepthCameraModel's defaults are the Kinect's (Nguyen, Izadi and Lovell 2012; a 7.5 cm
+    // baseline, 580 px focal length and 1/8 px disparity steps).
+    s.min_range_m = 0.5;
+    s.max_range_m = 4.5;
+  } else if (kind == SensorKind::RealSense) {
+    // D435-like: Intel's RMS error z^2 * 0.08 px / (focal * baseline) with a 5 cm baseline and
+    // 447 px (848 px wide at 87 degrees), 1/32 px disparity steps, a little more lost on dark
+    // and shiny surfaces and at slightly less grazing incidence (active stereo).
+    DepthCameraModel& c = s.camera;
+    c.axial_a_m = 0.001;
+    c.axial_b_per_m = 0.0036;
+    c.axial_z0_m = 0.0;
+    c.baseline_m = 0.05;
+    c.focal_px = 447.0;
+    c.disparity_step_px = 1.0 / 32.0;
+    c.max_incidence_deg = 75.0;
+    c.dark_dropout = 0.6;
+    c.dark_bias_m = 0.02;
+    c.shiny_dropout = 0.5;
+    c.shiny_bias_m = 0.03;
+    s.min_range_m = 0.3;
+    s.max_range_m = 6.0;
+  }
+  return s;
+}
+
+double axialSigma(const DepthCameraModel& c, double z, double theta) {
+  const double grazing = theta / std::max(std::numbers::pi / 2 - theta, 1e-3);
+  return c.axial_a_m + c.axial_b_per_m * (z - c.axial_z0_m) * (z - c.axial_z0_m) +
+         c.axial_incidence_m / std::sqrt(std::max(z, 1e-3)) * grazing * grazing;
+}
+
+double depthStep(const DepthCameraModel& c, double z) {
+  if (!(c.disparity_step_px > 0.0)) return 0.0;
+  return z * z * c.disparity_step_px / (c.baseline_m * c.focal_px);
 }
 
 Eigen::Vector3d lightingAt(double hour) {
@@ -435,7 +493,7 @@ class Tiles {
 
   // The nearest part along the ray of pixel (u, v), from the camera at `o` along unit `dir`.
   bool cast(const std::vector<Part>& parts, uint32_t u, uint32_t v, const Eigen::Vector3d& o,
-            const Eigen::Vector3d& dir, double& t, Rgb& colour) const {
+            const Eigen::Vector3d& dir, double& t, Rgb& colour, int& face, uint32_t& part) const {
     const Eigen::Vector3d inv(1.0 / dir.x(), 1.0 / dir.y(), 1.0 / dir.z());
     const size_t tile = size_t{v / kSize} * across_ + u / kSize;
     NearestHit hit;
@@ -447,6 +505,8 @@ class Tiles {
     if (hit.face < 0) return false;
     t = hit.t;
     colour = parts[hit.part].face_colours[static_cast<size_t>(hit.face)];
+    face = hit.face;
+    part = hit.part;
     return true;
   }
 
@@ -461,6 +521,94 @@ class Tiles {
   std::vector<Box> entries_;
 };
 
+// What the first pass of render() found at each pixel that the depth camera model needs.
+struct Surfaces {
+  std::vector<uint8_t> dark;   // the albedo is darker than SensorModel::dark_luminance
+  std::vector<uint8_t> shiny;  // the face hit is shiny (Part::shiny_faces)
+  std::vector<float> theta;    // incidence: the angle between the ray and the face's normal (radians)
+};
+
+// A pixel at a depth edge: a 4-neighbour with no depth or one more than 5% nearer or farther
+// (the ideal model's rule). `other` is the farthest such neighbour's depth (0: only missing ones).
+bool depthEdge(const std::vector<float>& depth, const Camera& cam, uint32_t u, uint32_t v, double& other) {
+  const double z = depth[size_t{v} * cam.width + u];
+  bool edge = false;
+  other = 0.0;
+  double gap = 0.0;
+  const int du[4] = {-1, 1, 0, 0}, dv[4] = {0, 0, -1, 1};
+  for (int k = 0; k < 4; ++k) {
+    const int64_t uu = static_cast<int64_t>(u) + du[k], vv = static_cast<int64_t>(v) + dv[k];
+    if (uu < 0 || vv < 0 || uu >= cam.width || vv >= cam.height) continue;
+    const double zn = depth[static_cast<size_t>(vv) * cam.width + static_cast<size_t>(uu)];
+    if (zn != 0.0 && std::abs(zn - z) <= 0.05 * z) continue;
+    edge = true;
+    if (zn != 0.0 && std::abs(zn - z) > gap) {
+      gap = std::abs(zn - z);
+      other = zn;
+    }
+  }
+  return edge;
+}
+
+// The depth camera model (DepthCameraModel, in its order) over a frame whose true depth and
+// surfaces are known. Eight draws per pixel whatever happens to it, so that each pixel's noise
+// depends on the seed and its place only.
+void depthCamera(RenderedFrame& f, const Surfaces& s, const Camera& cam, const SensorModel& sensor, uint64_t seed) {
+  const DepthCameraModel& m = sensor.camera;
+  const double max_theta = m.max_incidence_deg * std::numbers::pi / 180.0;
+  const double fb = m.baseline_m * m.focal_px;
+  Rng rng(seed);
+  for (uint32_t v = 0; v < cam.height; ++v) {
+    for (uint32_t u = 0; u < cam.width; ++u) {
+      double r[8];
+      for (double& x : r) x = rng.uniform();
+      const size_t i = size_t{v} * cam.width + u;
+      // Lateral noise: the pixel samples the scene a rounded Gaussian offset away.
+      const double grazing =
+          f.true_depth_m[i] > 0.0f ? s.theta[i] / std::max(std::numbers::pi / 2 - s.theta[i], 1e-3) : 0.0;
+      const double sigma_l = m.lateral_px + m.lateral_incidence_px * grazing;
+      const double radius = std::sqrt(-2.0 * std::log(std::max(r[0], 1e-300)));
+      auto offset = [&](double n, uint32_t at, uint32_t size) {
+        const double d = std::clamp(std::round(sigma_l * n), -m.lateral_max_px, m.lateral_max_px);
+        return static_cast<uint32_t>(std::clamp(static_cast<int64_t>(at) + static_cast<int64_t>(d), int64_t{0},
+                                                static_cast<int64_t>(size) - 1));
+      };
+      const uint32_t us = offset(radius * std::cos(2.0 * std::numbers::pi * r[1]), u, cam.width);
+      const uint32_t vs = offset(radius * std::sin(2.0 * std::numbers::pi * r[1]), v, cam.height);
+      const size_t src = size_t{vs} * cam.width + us;
+      double z = f.true_depth_m[src];
+      if (z < sensor.min_range_m || z > sensor.max_range_m || s.theta[src] > max_theta) continue;
+      double other = 0.0;
+      if (depthEdge(f.true_depth_m, cam, us, vs, other)) {
+        if (r[4] < m.edge_dropout) continue;
+        if (r[4] < m.edge_dropout + m.flying_pixel) {
+          if (other == 0.0) continue;
+          z += (0.15 + 0.7 * r[5]) * (other - z);  // a flying pixel, between the two surfaces
+        }
+      }
+      if (s.dark[src]) {
+        if (r[6] < m.dark_dropout) continue;
+        z += m.dark_bias_m;
+      }
+      if (s.shiny[src]) {
+        if (r[7] < m.shiny_dropout) continue;
+        z += m.shiny_bias_m;
+      }
+      // Axial noise: the published spread includes the quantisation's, so the Gaussian part is
+      // what is left of it after the quantisation's step^2 / 12.
+      const double sigma = axialSigma(m, z, s.theta[src]), step = depthStep(m, z);
+      z += std::sqrt(std::max(sigma * sigma - step * step / 12.0, 0.0)) * Rng::normalOf(r[2], r[3]);
+      if (step > 0.0 && z > 0.0) {
+        const double disparity = std::round(fb / z / m.disparity_step_px) * m.disparity_step_px;
+        if (!(disparity > 0.0)) continue;
+        z = fb / disparity;
+      }
+      const double units = std::round(z * sensor.depth_scale);
+      if (units >= 1.0 && units <= 65535.0) f.depth.pixels[i] = static_cast<uint16_t>(units);
+    }
+  }
+}
+
 }  // namespace
 
 RenderedFrame Renderer::render(const Camera& cam, const Eigen::Isometry3d& T, const SensorModel& sensor, double hour,
@@ -472,7 +620,14 @@ RenderedFrame Renderer::render(const Camera& cam, const Eigen::Isometry3d& T, co
   f.rgb.pixels.assign(n, Rgb{});
   f.depth.pixels.assign(n, 0);
   f.true_depth_m.assign(n, 0.0f);
-  std::vector<uint8_t> dark(n, 0);
+  Surfaces surfaces;
+  std::vector<uint8_t>& dark = surfaces.dark;
+  dark.assign(n, 0);
+  const bool camera_model = sensor.kind != SensorKind::Ideal;
+  if (camera_model) {
+    surfaces.shiny.assign(n, 0);
+    surfaces.theta.assign(n, 0.0f);
+  }
   const Eigen::Vector3d light = lightingAt(hour);
   const Eigen::Matrix3d R = T.rotation();
   const Eigen::Vector3d o = T.translation();
@@ -484,10 +639,16 @@ RenderedFrame Renderer::render(const Camera& cam, const Eigen::Isometry3d& T, co
       const Eigen::Vector3d d = R * (d_cam / norm);
       double t = 0.0;
       Rgb c;
-      if (!tiles.cast(parts_, u, v, o, d, t, c)) continue;
+      int face = 0;
+      uint32_t part = 0;
+      if (!tiles.cast(parts_, u, v, o, d, t, c, face, part)) continue;
       const size_t i = size_t{v} * cam.width + u;
       const double z = t / norm;
       f.true_depth_m[i] = static_cast<float>(z);
+      if (camera_model) {
+        surfaces.shiny[i] = (parts_[part].shiny_faces >> face) & 1u;
+        surfaces.theta[i] = static_cast<float>(std::acos(std::min(1.0, std::abs(d[face / 2]))));
+      }
       // A faint checker texture on every surface so that colour varies along it.
       const Eigen::Vector3d p = o + t * d;
       const bool checker = (static_cast<int64_t>(std::floor(p.x() / 0.25)) + static_cast<int64_t>(std::floor(p.y() / 0.25)) +
@@ -500,6 +661,10 @@ RenderedFrame Renderer::render(const Camera& cam, const Eigen::Isometry3d& T, co
       const Eigen::Vector3d l = daylight ? daylight->at(hour, p) : light;
       f.rgb.pixels[i] = Rgb{ch(c.r, l.x()), ch(c.g, l.y()), ch(c.b, l.z())};
     }
+  }
+  if (camera_model) {
+    depthCamera(f, surfaces, cam, sensor, seed);
+    return f;
   }
   Rng rng(seed);
   for (uint32_t v = 0; v < cam.height; ++v) {

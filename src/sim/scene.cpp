@@ -41,6 +41,26 @@ Rgb randomColour(Rng& rng, int lo, int hi) {
           static_cast<uint8_t>(lo + rng.below(hi - lo))};
 }
 
+// The shiny faces of a new object's parts, by kind (no randomness, so that the scene, its truth
+// and every ideal frame stay as they were): the top of a desk or table (varnish), a robot all
+// over and the cleaning cart's handle (metal).
+void markShinyFaces(ObjectKind kind, std::vector<Part>& parts) {
+  constexpr uint8_t kTop = 1u << 5, kAll = 0x3f;
+  if (parts.empty()) return;
+  const auto highest = std::max_element(parts.begin(), parts.end(), [](const Part& a, const Part& b) {
+    return a.box.max().z() < b.box.max().z();
+  });
+  switch (kind) {
+    case ObjectKind::Desk:
+    case ObjectKind::Table: highest->shiny_faces = kTop; break;
+    case ObjectKind::Robot:
+      for (Part& p : parts) p.shiny_faces = kAll;
+      break;
+    case ObjectKind::Cart: highest->shiny_faces = kAll; break;
+    default: break;
+  }
+}
+
 struct Builder {
   SceneState s;
   uint32_t next_id = 0;
@@ -49,6 +69,7 @@ struct Builder {
     o.id = next_id++;
     o.kind = kind;
     o.room = room;
+    markShinyFaces(kind, parts);
     o.parts = std::move(parts);
     s.objects.push_back(std::move(o));
     return s.objects.back();

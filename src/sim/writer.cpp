@@ -182,6 +182,7 @@ void checkSettings(const SimulationSettings& settings, int sessions) {
   if (settings.lighting != "fixed" && settings.lighting != "daylight") {
     throw UsageError("--lighting must be fixed or daylight, not '" + settings.lighting + "'");
   }
+  parseSensorKind(settings.sensor);
 }
 
 struct SessionTimes {
@@ -470,8 +471,10 @@ void Simulation::writeFrames(int s, const fs::path& dir, const sim_detail::Patro
   });
   std::string rgb_txt = "# color images\n# timestamp filename\n", depth_txt = "# depth maps\n# timestamp filename\n";
   std::string gt = "# true camera poses\n# timestamp tx ty tz qx qy qz qw\n";
-  std::string traj =
-      "# estimated camera poses (localisation with offset and drift)\n# timestamp tx ty tz qx qy qz qw\n";
+  std::string traj = rig_.sensor.kind == SensorKind::Ideal
+                         ? "# estimated camera poses (localisation with offset and drift)\n# timestamp tx ty tz qx qy qz qw\n"
+                         : "# estimated camera poses (odometry from the localisation offset, drifting)\n"
+                           "# timestamp tx ty tz qx qy qz qw\n";
   for (size_t i = 0; i < frames; ++i) {
     const double stamp = times_[static_cast<size_t>(s)] + 0.5 * static_cast<double>(i);
     rgb_txt += stamps[i] + " rgb/" + stamps[i] + ".png\n";
@@ -584,6 +587,42 @@ nlohmann::json Simulation::lightingJson() const {
           {"daylight", sun}};
 }
 
+// A sensor model other than the ideal one, with every constant (docs/simulator.md).
+nlohmann::json sensorJson(const SensorModel& sensor) {
+  const DepthCameraModel& c = sensor.camera;
+  const OdometryModel& o = sensor.odometry;
+  return {{"model", toString(sensor.kind)},
+          {"depth_scale", sensor.depth_scale},
+          {"min_range_m", sensor.min_range_m},
+          {"max_range_m", sensor.max_range_m},
+          {"dark_luminance", sensor.dark_luminance},
+          {"axial_sigma", "a + b (z - z0)^2 + c / sqrt(z) * theta^2 / (pi/2 - theta)^2 (Nguyen, Izadi, Lovell 2012)"},
+          {"axial_a_m", c.axial_a_m},
+          {"axial_b_per_m", c.axial_b_per_m},
+          {"axial_z0_m", c.axial_z0_m},
+          {"axial_incidence_m", c.axial_incidence_m},
+          {"lateral_px", c.lateral_px},
+          {"lateral_incidence_px", c.lateral_incidence_px},
+          {"lateral_max_px", c.lateral_max_px},
+          {"baseline_m", c.baseline_m},
+          {"focal_px", c.focal_px},
+          {"disparity_step_px", c.disparity_step_px},
+          {"max_incidence_deg", c.max_incidence_deg},
+          {"edge_dropout", c.edge_dropout},
+          {"flying_pixel", c.flying_pixel},
+          {"dark_dropout", c.dark_dropout},
+          {"dark_bias_m", c.dark_bias_m},
+          {"shiny_dropout", c.shiny_dropout},
+          {"shiny_bias_m", c.shiny_bias_m},
+          {"shiny", "the tops of desks and tables, robots, the cleaning cart's handle"},
+          {"odometry",
+           {{"translation_m_per_sqrt_m", o.translation_m_per_sqrt_m},
+            {"yaw_deg_per_sqrt_m", o.yaw_deg_per_sqrt_m},
+            {"yaw_deg_per_sqrt_rad", o.yaw_deg_per_sqrt_rad},
+            {"scale_sigma", o.scale_sigma},
+            {"yaw_bias_deg_per_m", o.yaw_bias_deg_per_m}}}};
+}
+
 void Simulation::writeScene() {
   const Camera& camera = rig_.camera;
   const SensorModel& sensor = rig_.sensor;
@@ -608,6 +647,7 @@ void Simulation::writeScene() {
                           {"rooms", nlohmann::json::array()},
                           {"sessions", sessions_json_},
                           {"events", EventSpool::kMarker}};
+  if (sensor.kind != SensorKind::Ideal) scene["sensor"] = sensorJson(sensor);
   if (rhythmic_) scene["schedule"] = scheduleJson();
   if (use_daylight_) scene["lighting"] = lightingJson();
   if (settings_.repaint) scene["repaints"] = repaints_json_;
@@ -637,7 +677,7 @@ SimulationSummary simulate(const SimulationSettings& settings, const fs::path& o
   checkSettings(settings, sessions);
   const KeyGrid grid(settings.voxel_resolution_m);
   const Camera camera = kinectCamera(settings.resolution_scale);
-  SensorModel sensor;
+  SensorModel sensor = sensorModel(parseSensorKind(settings.sensor));
   sensor.noise_per_m2 = settings.noise_per_m2;
   // Written whole or not at all: into a staging folder beside `out`, moved into place at the end.
   StagedFolder staged(out);

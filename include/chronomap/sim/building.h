@@ -47,6 +47,12 @@ struct SimulationSettings {
   bool repaint = false;
   /// "site" only: how many floors are stacked and patrolled (1 .. 50; kSiteFloors by default).
   int floors = kSiteFloors;
+  /// The depth camera and odometry imitated (parseSensorKind): "ideal" (the default: the clean
+  /// z^2 Gaussian of noise_per_m2 and the localisation above, as before sensors could be chosen),
+  /// "kinect" or "realsense" (sensorModel(): published noise, quantisation, lateral noise, range,
+  /// grazing, dark and shiny surfaces, flying pixels, and estimated poses from a drifting
+  /// odometry). The true poses, the truth files and the colour images do not depend on it.
+  std::string sensor = "ideal";
 };
 
 /// What simulate() wrote.

@@ -28,6 +28,10 @@ ObjectKind parseObjectKind(const std::string& name);
 struct Part {
   Eigen::AlignedBox3d box;
   std::array<Rgb, 6> face_colours;
+  /// Bit f set: face f (same order) is shiny (varnish, metal), which an active depth camera
+  /// loses or measures off (DepthCameraModel); the ideal sensor ignores it. Set by kind when the
+  /// scene is built: desk tops, table tops, robots and the cleaning cart's handle.
+  uint8_t shiny_faces = 0;
 };
 
 /// An object of the scene. Its parts are in world coordinates for the current state.
