@@ -7,6 +7,8 @@
 // more unusual).
 //
 // Usage: alerts_eval [--sim DIR] [--learn-days D] [--poses true|registered] [--scale S]
+//   --seeds A-B    simulate seeds A to B (with --sensor NAME, through that sensor) and run once on each;
+//                  prints every figure's mean, min and max (seeds.h). Train on 1-5, report 6-15.
 //                    [--max-range M] [--out DIR]
 //   --sim DIR      a `chronomap simulate --preset weeks --rare-events` output (default: simulated
 //                  here, seed 1)
@@ -38,6 +40,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bench_sim.h"
+#include "seeds.h"
 #include "chronomap/analysis/alerts.h"
 #include "chronomap/core/time.h"
 #include "chronomap/store/temporal_file.h"
@@ -72,6 +75,13 @@ double auc(const std::vector<Scored>& s, double Scored::*key) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  {  // --seeds A-B: this program once per simulated seed, and the spread of its figures (seeds.h)
+    SimulationSettings s;
+    s.preset = "weeks";
+    s.resolution_scale = 0.25;
+    s.rare_events = true;
+    if (const int rc = bench::runOverSeeds(argc, argv, "--sim", s); rc >= 0) return rc;
+  }
   fs::path sim_dir, out_dir, map_file;
   int learn_days = 21;
   std::string poses = "registered";

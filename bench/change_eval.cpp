@@ -11,6 +11,8 @@
 //    PCL grabber sequence of a static scene (the false change rate).
 //
 // Usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] [--register-model M] [--drift-knots N]
+//   --seeds A-B    simulate seeds A to B (with --sensor NAME, through that sensor) and run once on each;
+//                  prints every figure's mean, min and max (seeds.h). Train on 1-5, report 6-15.
 //                    [--register-rounds N] [--register-radius R] [--drift-rounds N] [--not-planar]
 //                    [--drift-voxels] [--kept-surface R] [--kept-share F] [--dark-surface R]
 //                    [--dark-below B] [--dark-contrast C] [--dark-share F]
@@ -75,6 +77,7 @@
 #include "chronomap/sim/building.h"
 #include "chronomap/sim/change_truth.h"
 #include "bench_sim.h"
+#include "seeds.h"
 
 using namespace chronomap;
 namespace fs = std::filesystem;
@@ -582,6 +585,12 @@ double evaluateGrabber(const fs::path& dir) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  {  // --seeds A-B: this program once per simulated seed, and the spread of its figures (seeds.h)
+    SimulationSettings s;
+    s.preset = "office";
+    s.resolution_scale = 0.5;
+    if (const int rc = bench::runOverSeeds(argc, argv, "--office", s); rc >= 0) return rc;
+  }
   fs::path office, floor66, data = CHRONOMAP_DEFAULT_DATA_DIR;
   bool quick = false;
   int rounds = 3;

@@ -3,6 +3,8 @@
 // false colour changes a diff reports at sunset with and without the lighting-invariant test.
 //
 // Usage: colour_eval [--weeks DIR] [--floor66 DIR] [--scale S] [--learn-days D] [--distance D]
+//   --seeds A-B    simulate seeds A to B (with --sensor NAME, through that sensor) and run once on each;
+//                  prints every figure's mean, min and max (seeds.h). Train on 1-5, report 6-15.
 //                    [--diff-distance D] [--components K] [--out DIR]
 //   --weeks DIR      a `chronomap simulate --preset weeks --lighting daylight --repaint` output
 //                    (default: simulated here at --scale into a temporary folder)
@@ -31,6 +33,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bench_sim.h"
+#include "seeds.h"
 #include "chronomap/analysis/colour.h"
 #include "chronomap/core/time.h"
 #include "chronomap/store/temporal_file.h"
@@ -112,6 +115,14 @@ std::array<double, 3> clamp255(std::array<double, 3> a) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  {  // --seeds A-B: this program once per simulated seed, and the spread of its figures (seeds.h)
+    SimulationSettings s;
+    s.preset = "weeks";
+    s.resolution_scale = 0.25;
+    s.lighting = "daylight";
+    s.repaint = true;
+    if (const int rc = bench::runOverSeeds(argc, argv, "--weeks", s); rc >= 0) return rc;
+  }
   std::string weeks_dir, floor_dir, out_dir;
   double scale = 0.25, distance = 10.0, diff_distance = 30.0;
   int learn_days = 21, components = 2, bins = 24;

@@ -15,6 +15,8 @@
 // better alignment as loss.) Then sweeps over the settings.
 //
 // Usage: realign_eval [--office DIR] [--floor66 DIR] [--quick] [--skip-floor66] [--register-model M] [--drift-knots N]
+//   --seeds A-B    simulate seeds A to B (with --sensor NAME, through that sensor) and run once on each;
+//                  prints every figure's mean, min and max (seeds.h). Train on 1-5, report 6-15.
 //   --office DIR    a `chronomap simulate --preset office` output (default: simulate one at half
 //                   resolution into a temporary folder)
 //   --floor66 DIR   a floor66 simulation (default: simulate one at half resolution, ~7 minutes)
@@ -44,6 +46,7 @@
 #include <vector>
 
 #include "bench_sim.h"
+#include "seeds.h"
 #include "chronomap/align/consensus.h"
 #include "chronomap/align/realign.h"
 #include "chronomap/align/register.h"
@@ -336,6 +339,12 @@ Evaluation evaluate(const std::string& name, const fs::path& dir, bool sweep, bo
 }  // namespace
 
 int main(int argc, char** argv) {
+  {  // --seeds A-B: this program once per simulated seed, and the spread of its figures (seeds.h)
+    SimulationSettings s;
+    s.preset = "office";
+    s.resolution_scale = 0.5;
+    if (const int rc = bench::runOverSeeds(argc, argv, "--office", s); rc >= 0) return rc;
+  }
   fs::path office, floor66;
   bool quick = false, skip_floor66 = false;
   CorrectionModel model = CorrectionModel::World;

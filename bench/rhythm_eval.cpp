@@ -5,6 +5,8 @@
 // latest snapshot of the learning weeks, and the mean occupancy over its sessions.
 //
 // Usage: rhythm_eval [--sim DIR] [--learn-days D] [--poses true|registered] [--scale S]
+//   --seeds A-B    simulate seeds A to B (with --sensor NAME, through that sensor) and run once on each;
+//                  prints every figure's mean, min and max (seeds.h). Train on 1-5, report 6-15.
 //                    [--max-range M] [--min-changes N] [--robot-height H]
 //   --sim DIR      a `chronomap simulate --preset weeks` output (default: simulated here, seed 1)
 //   --learn-days   days of sessions to learn from (default 21: three weeks; the rest test)
@@ -61,6 +63,7 @@
 #include "chronomap/pipeline/map4d.h"
 #include "chronomap/sim/building.h"
 #include "bench_sim.h"
+#include "seeds.h"
 
 using namespace chronomap;
 namespace fs = std::filesystem;
@@ -122,6 +125,12 @@ std::optional<Eigen::Vector2i> nearestFree(const Costmap& truth, const Eigen::Ve
 }  // namespace
 
 int main(int argc, char** argv) {
+  {  // --seeds A-B: this program once per simulated seed, and the spread of its figures (seeds.h)
+    SimulationSettings s;
+    s.preset = "weeks";
+    s.resolution_scale = 0.25;
+    if (const int rc = bench::runOverSeeds(argc, argv, "--sim", s); rc >= 0) return rc;
+  }
   fs::path sim_dir;
   int learn_days = 21;
   std::string poses = "registered";
