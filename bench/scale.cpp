@@ -193,7 +193,7 @@ int main(int argc, char** argv) {
     std::ifstream in(work / "night.json");
     const nlohmann::json j = nlohmann::json::parse(in);
     nights.push_back({{"night", k + 1}, {"peak_rss_mib", r.max_rss_mib}, {"cpu_s", r.cpu()}, {"wall_s", r.wall_s},
-                      {"tiles", j["tiles"]},
+                      {"tiles", j["tiles"]}, {"tiles_rewritten", j["tiles_written"]}, {"tiles_kept", j["tiles_kept"]},
                       {"bytes", j["index_bytes"].get<uint64_t>() + j["tile_bytes"].get<uint64_t>()},
                       {"peak_parts_mib", j["peak_parts_bytes"].get<double>() / 1048576.0},
                       {"peak_group_mib", j["peak_group_bytes"].get<double>() / 1048576.0}, {"spills", j["spills"]}});
@@ -206,6 +206,8 @@ int main(int argc, char** argv) {
   out["peak_rss_mib"] = stream_peak;
   out["stream_cpu_s"] = stream_cpu;
   out["bytes_on_disk"] = nights.empty() ? 0 : nights.back()["bytes"].get<uint64_t>();
+  // Only the tiles a night's sessions reach are rewritten (the others keep their files).
+  out["tiles_rewritten_last_night"] = nights.empty() ? 0 : nights.back()["tiles_rewritten"].get<size_t>();
   folders.resize(std::min<size_t>(folders.size(), static_cast<size_t>(std::max(whole, 0))));
 
   // One process, one thread; then two ranks of one thread each (the same file).

@@ -142,6 +142,12 @@ int main(int argc, char** argv) {
     // The same 4D map cut into tiles of 2 voxels: its index (fuzz_cmap reads kind "tiled" too).
     writeTiledMap(root / "tiled", splitIntoTiles(four_d, 1), {{"seed", true}});
     fs::copy_file(root / "tiled" / kTileIndexName, root / "cmap/tile_index.cmap", fs::copy_options::overwrite_existing);
+    // Its table as version 2: a tile listed with the first session only (a tile the streaming
+    // build kept while a later session was added elsewhere).
+    TileIndex kept = readTileIndex(root / "tiled");
+    if (!kept.tiles.empty()) kept.tiles.front().sessions = 1;
+    writeTileIndex(root / "tiled", kept.top, kept.tile_level, kept.tiles, {{"seed", true}});
+    fs::copy_file(root / "tiled" / kTileIndexName, root / "cmap/tile_index_v2.cmap", fs::copy_options::overwrite_existing);
     fs::remove_all(root / "tiled");
     // The same 4D map with a third session appended as `chronomap add` appends it.
     writeTemporalMap(root / "cmap/four_d_appended.cmap", four_d, {{"seed", true}});

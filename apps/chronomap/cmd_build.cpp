@@ -289,6 +289,7 @@ int runStreamBuild(const BuildCmdOptions& o, BuildSettings& s) {
                             {"largest_group_tiles", r.stats.largest_group_tiles},
                             {"tiles_read", r.stats.tiles_read},
                             {"tiles_written", r.stats.tiles_written},
+                            {"tiles_kept", r.stats.tiles_kept},
                             {"spills", r.stats.spills},
                             {"spilled_bytes", r.stats.spilled_bytes},
                             {"peak_parts_bytes", r.stats.peak_parts_bytes},

@@ -32,7 +32,7 @@ std::string versionText() {
       << "commit: " << buildCommit() << "\n"
       << "file formats:\n"
       << "  .cmap (session, 4D, diff and tiled maps): " << readsWrites(1, kCmapFormatVersion) << "\n"
-      << "  tiled map tile table (index.cmap): " << readsWrites(kTileTableVersion, kTileTableVersion) << "\n"
+      << "  tiled map tile table (index.cmap): " << readsWrites(kOldestTileTableVersion, kTileTableVersion) << "\n"
       << "  .rhythm (rhythm models): " << readsWrites(1, kRhythmVersion) << "\n"
       << "  .colour (colour models): " << readsWrites(1, kColourVersion) << "\n"
       << "built with:\n"

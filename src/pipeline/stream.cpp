@@ -162,7 +162,7 @@ class TileStream {
   void addSessions(size_t count, const std::function<StreamSession(size_t)>& produce);
   void formGroups();
   void writeGroups();
-  void rewriteUnreached();
+  void keepUnreached();
   /// The top with the groups' parts in place, every session's record with its coverage
   /// outside the tiles, compacted as a written map is; sorts the entries.
   TemporalMap newTop();
@@ -363,26 +363,18 @@ void TileStream::addGroupSessions(const Cube& g, TemporalMap& work) {
   }
 }
 
-// 4. The tiles no session reached: the new sessions' records (nothing observed there).
-void TileStream::rewriteUnreached() {
+// 4. The tiles no session reached keep their files, neither read nor written: their rows say
+// how many of the sessions they hold, and readTile adds the later ones as unobserved (nothing
+// observed there, no entry), which is what rewriting them with the new records would store.
+void TileStream::keepUnreached() {
   if (!index_) return;
   for (const TileEntry& e : index_->tiles) {
     if (done_.count(e.key)) continue;
-    const TemporalMap old = readTile(s_.folder, *index_, e);
-    ++result_.stats.tiles_read;
-    std::vector<SessionRecord> records = old.sessions();
-    for (const NewSession& n : added_) {
-      SessionRecord r;
-      r.time_s = n.time_s;
-      r.name = n.name;
-      r.coverage = Coverage::fromRanges({});
-      records.push_back(std::move(r));
-    }
-    const TemporalMap tile =
-        TemporalMap::fromParts(old.resolution_m(), old.criterion(), old.parts(), std::move(records));
-    entries_.push_back(writeTileFile(s_.folder, e.key, generation_, tile));
-    result_.tile_bytes += entries_.back().diskBytes();
-    ++result_.stats.tiles_written;
+    TileEntry kept = e;
+    kept.sessions = e.sessions.value_or(top_.sessionCount());
+    entries_.push_back(std::move(kept));
+    result_.tile_bytes += e.diskBytes();
+    ++result_.stats.tiles_kept;
   }
 }
 
@@ -426,7 +418,7 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
   stream.addSessions(count, produce);
   stream.formGroups();
   stream.writeGroups();
-  stream.rewriteUnreached();
+  stream.keepUnreached();
   // 5. The top, then the index, swapped in by one rename; then the old files go.
   const TemporalMap new_top = stream.newTop();
   const std::vector<TileEntry>& entries = stream.entries();

@@ -67,7 +67,7 @@ namespace {
 TileEntry writeTileAndLatest(const fs::path& folder, const TileKey& key, const std::string& name,
                              const TemporalMap& tile) {
   const std::vector<uint8_t> bytes = encodeTemporalMap(tile, nlohmann::json::object());
-  TileEntry e{key, name, bytes.size(), crc32Of(bytes), std::nullopt};
+  TileEntry e{key, name, bytes.size(), crc32Of(bytes), std::nullopt, std::nullopt};
   writeFileAtomic(folder / e.file, bytes);
   if (tile.sessionCount() > 0) {
     const SessionMap state = tile.snapshot(tile.sessions().back().time_s);
@@ -78,12 +78,24 @@ TileEntry writeTileAndLatest(const fs::path& folder, const TileKey& key, const s
   return e;
 }
 
-nlohmann::json rowOf(const TileEntry& t) {
-  nlohmann::json row = {{"key", {t.key.x, t.key.y, t.key.z}}, {"file", t.file}, {"bytes", t.bytes}, {"crc32", t.crc32}};
-  if (t.latest) {
-    row["latest"] = {{"file", t.latest->file}, {"bytes", t.latest->bytes}, {"crc32", t.latest->crc32}};
+/// The index's "tiles" member: version 2 only when a tile holds fewer than all `sessions`, so
+/// that a table without such a tile keeps version 1's bytes (and older builds read it).
+nlohmann::json tableOf(const std::vector<TileEntry>& tiles, int tile_level, size_t sessions) {
+  nlohmann::json list = nlohmann::json::array();
+  int version = 1;
+  for (const TileEntry& t : tiles) {
+    nlohmann::json row = {
+        {"key", {t.key.x, t.key.y, t.key.z}}, {"file", t.file}, {"bytes", t.bytes}, {"crc32", t.crc32}};
+    if (t.latest) {
+      row["latest"] = {{"file", t.latest->file}, {"bytes", t.latest->bytes}, {"crc32", t.latest->crc32}};
+    }
+    if (t.sessions && *t.sessions < sessions) {
+      row["sessions"] = *t.sessions;
+      version = 2;
+    }
+    list.push_back(std::move(row));
   }
-  return row;
+  return {{"tiles", {{"version", version}, {"level", tile_level}, {"list", std::move(list)}}}};
 }
 
 }  // namespace
@@ -92,15 +104,13 @@ TiledWriteResult writeTiledMap(const fs::path& folder, const SplitMap& split, co
   TiledWriteResult r;
   StagedFolder staged(folder);
   fs::create_directories(staged.path() / "tiles");
-  nlohmann::json table = nlohmann::json::array();
+  std::vector<TileEntry> entries;
   for (const Tile& t : split.tiles) {
-    const TileEntry e = writeTileAndLatest(staged.path(), t.key, tileFileName(t.key), t.map);
-    table.push_back(rowOf(e));
-    r.tile_bytes += e.diskBytes();
+    entries.push_back(writeTileAndLatest(staged.path(), t.key, tileFileName(t.key), t.map));
+    r.tile_bytes += entries.back().diskBytes();
     ++r.tiles;
   }
-  const nlohmann::json extra = {
-      {"tiles", {{"version", kTileTableVersion}, {"level", split.tile_level}, {"list", std::move(table)}}}};
+  const nlohmann::json extra = tableOf(entries, split.tile_level, split.top.sessionCount());
   const std::vector<uint8_t> index = encodeTemporalMap(split.top, meta, MapKind::Tiled, &extra);
   writeFileAtomic(staged.path() / kTileIndexName, index);
   r.index_bytes = index.size();
@@ -114,10 +124,7 @@ TileEntry writeTileFile(const fs::path& folder, const TileKey& key, uint64_t gen
 
 uint64_t writeTileIndex(const fs::path& folder, const TemporalMap& top, int tile_level,
                         const std::vector<TileEntry>& tiles, const nlohmann::json& meta) {
-  nlohmann::json table = nlohmann::json::array();
-  for (const TileEntry& t : tiles) table.push_back(rowOf(t));
-  const nlohmann::json extra = {
-      {"tiles", {{"version", kTileTableVersion}, {"level", tile_level}, {"list", std::move(table)}}}};
+  const nlohmann::json extra = tableOf(tiles, tile_level, top.sessionCount());
   const std::vector<uint8_t> index = encodeTemporalMap(top, meta, MapKind::Tiled, &extra);
   writeFileAtomic(folder / kTileIndexName, index);
   return index.size();
@@ -134,9 +141,10 @@ TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& 
   try {
     const nlohmann::json& t = j.at("tiles");
     const int version = t.at("version").get<int>();
-    if (version != kTileTableVersion) {
+    if (version < kOldestTileTableVersion || version > kTileTableVersion) {
       throw FormatError(source + ": tile table version " + std::to_string(version) + " is not one this build reads (" +
-                        std::to_string(kTileTableVersion) + ")");
+                        std::to_string(kOldestTileTableVersion) + " to " + std::to_string(kTileTableVersion) +
+                        "); a newer chronomap wrote it: read it with that version");
     }
     index.tile_level = t.at("level").get<int>();
     if (index.tile_level < kMinTileLevel || index.tile_level > kMaxTileLevel) {
@@ -164,6 +172,15 @@ TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& 
           throw FormatError(source + ": latest state file name '" + l.file + "' does not match its tile");
         }
         e.latest = std::move(l);
+      }
+      if (const auto held = row.find("sessions"); held != row.end()) {
+        const uint64_t n = held->get<uint64_t>();
+        if (version < 2 || n >= index.top.sessionCount()) {
+          throw FormatError(source + ": tile " + e.file + " lists " + std::to_string(n) + " sessions held, which a" +
+                            " version " + std::to_string(version) + " table of " +
+                            std::to_string(index.top.sessionCount()) + " sessions cannot hold");
+        }
+        e.sessions = static_cast<size_t>(n);
       }
       index.tiles.push_back(std::move(e));
     }
@@ -193,6 +210,20 @@ TemporalMap readTile(const fs::path& folder, const TileIndex& index, const TileE
       throw FormatError(source + ": tile file does not match the index (size or checksum differ)");
     }
     TemporalMap tile = temporalMapFrom(decodeCmap(bytes, source), source);
+    const std::vector<SessionRecord>& all = index.top.sessions();
+    const size_t held = entry.sessions.value_or(all.size());
+    if (held < all.size()) {  // (a tile that should hold all: checkTileFits names both counts)
+      if (tile.sessionCount() != held) {
+        throw FormatError(source + ": holds " + std::to_string(tile.sessionCount()) +
+                          " sessions but the index lists it with " + std::to_string(held));
+      }
+      try {
+        const auto first = all.begin() + static_cast<std::ptrdiff_t>(held);
+        tile.appendUnobservedSessions(std::vector<SessionRecord>(first, all.end()));
+      } catch (const UsageError& e) {
+        throw FormatError(source + ": its sessions do not come before the index's later ones: " + e.what());
+      }
+    }
     checkTileFits(index.top, index.tile_level, entry.key, tile, source);
     return tile;
   });

@@ -284,6 +284,27 @@ AddReport TemporalMap::add(double time_s, const SessionMap& session, const AddSe
   return report;
 }
 
+void TemporalMap::appendUnobservedSessions(const std::vector<SessionRecord>& later) {
+  double last = sessions_.empty() ? -std::numeric_limits<double>::infinity() : sessions_.back().time_s;
+  for (const SessionRecord& s : later) {
+    if (!std::isfinite(s.time_s) || !(s.time_s > last)) {
+      throw UsageError("an unobserved session at " + formatTime(s.time_s) + " is not after the map's last session");
+    }
+    last = s.time_s;
+  }
+  sessions_.reserve(sessions_.size() + later.size());
+  for (const SessionRecord& s : later) {
+    SessionRecord r;
+    r.time_s = s.time_s;
+    r.name = s.name;
+    r.coverage = Coverage::fromRanges({});
+    sessions_.push_back(std::move(r));
+  }
+  // No entry names the new ranks: the lists, coarse intervals (open-ended ones stay open) and
+  // the change summary read the same; only the coverage cache is indexed by rank.
+  coverage_cache_.clear();
+}
+
 void TemporalMap::remove(double time_s) {
   auto it = std::lower_bound(sessions_.begin(), sessions_.end(), time_s,
                              [](const SessionRecord& s, double t) { return s.time_s < t; });

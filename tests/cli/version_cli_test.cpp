@@ -35,7 +35,8 @@ TEST(VersionCli, NamesTheVersionFromTheProjectAndTheFormatsOfTheStore) {
   const std::string cmap = std::to_string(kCmapFormatVersion);
   EXPECT_EQ(lineAfter(r.out, "  .cmap (session, 4D, diff and tiled maps): "), "reads 1 to " + cmap + ", writes " + cmap);
   EXPECT_EQ(lineAfter(r.out, "  tiled map tile table (index.cmap): "),
-            "reads and writes " + std::to_string(kTileTableVersion));
+            "reads " + std::to_string(kOldestTileTableVersion) + " to " + std::to_string(kTileTableVersion) +
+                ", writes " + std::to_string(kTileTableVersion));
   const std::string rhythm = std::to_string(kRhythmVersion);
   EXPECT_EQ(lineAfter(r.out, "  .rhythm (rhythm models): "), "reads 1 to " + rhythm + ", writes " + rhythm);
   const std::string colour = std::to_string(kColourVersion);

@@ -16,6 +16,9 @@
 #include "chronomap/store/tiled_file.h"
 #include "chronomap/pipeline/stream.h"
 #include "chronomap/pipeline/tiles.h"
+#include "chronomap/analysis/diff.h"
+#include "chronomap/core/time.h"
+#include "chronomap/store/tiled_map.h"
 #include "chronomap/temporal/tiles.h"
 #include "test_support.h"
 
@@ -215,6 +218,170 @@ TEST(Stream, AFailedAddLeavesThePreviousTiledMap) {
                    1, [&](size_t) -> StreamSession { throw IoError("unreadable"); }),
                IoError);
   EXPECT_FALSE(fs::exists(dir / "new"));
+}
+
+// A room of 12 x 6 x 6 voxels from x = x0 (tiles of 8 voxels: 2 tiles, none uniform):
+// occupied where `world` says (drifting by a few flips a night), free with binary-fraction
+// lengths elsewhere, one voxel in ten unobserved.
+SessionMap roomSession(std::mt19937_64& rng, std::vector<uint8_t>& world, int x0) {
+  for (int i = 0; i < 30; ++i) world[rng() % world.size()] ^= 1;
+  SessionMap m(0.05);
+  for (int z = 0; z < 6; ++z) {
+    for (int y = 0; y < 6; ++y) {
+      for (int x = 0; x < 12; ++x) {
+        if (rng() % 10 == 0) continue;
+        const bool occ = world[static_cast<size_t>((z * 6 + y) * 12 + x)] != 0;
+        m.add(at(x0 + x, y, z), occ ? occupiedVoxelExact(1 + static_cast<uint32_t>(rng() % 3))
+                                    : freeVoxel(0.125f * static_cast<float>(1 + rng() % 4)));
+      }
+    }
+  }
+  return m;
+}
+
+// The index's files (each tile's history and latest state) of the tiles whose x lies in
+// [x_lo, x_hi), with a hash of their bytes.
+std::map<std::string, size_t> roomFiles(const fs::path& folder, int x_lo, int x_hi) {
+  const TileIndex index = readTileIndex(folder);
+  std::map<std::string, size_t> out;
+  auto hashOf = [](const std::vector<uint8_t>& b) { return std::hash<std::string>{}(std::string(b.begin(), b.end())); };
+  for (const TileEntry& e : index.tiles) {
+    const int x = static_cast<int>(e.key.x) - static_cast<int>(tileOf(at(0, 0, 0), 3).x);
+    if (x < x_lo || x >= x_hi) continue;
+    out[e.file] = hashOf(readFileBytes(folder / e.file));
+    if (e.latest) out[e.latest->file] = hashOf(readFileBytes(folder / e.latest->file));
+  }
+  return out;
+}
+
+// Issue 46: a night that observes one room rewrites that room's tiles only; the other room's
+// files keep their names and bytes, and every query at every session answers as the whole map.
+TEST(Stream, ANightObservingOneRoomRewritesOnlyThatRoomsTiles) {
+  std::mt19937_64 rng(46);
+  std::vector<uint8_t> world_a(12 * 6 * 6), world_b(12 * 6 * 6);
+  for (auto& w : world_a) w = rng() % 6 == 0;
+  for (auto& w : world_b) w = rng() % 6 == 0;
+  constexpr int kRoomB = 40;  // room A: tiles x 0..1, room B: tiles x 5..6
+  // Night 0 sees both rooms, then A, B, A alone (one batch a night).
+  const std::vector<std::vector<char>> seen = {{'A', 'B'}, {'A'}, {'B'}, {'A'}};
+  std::vector<SessionMap> sessions;
+  for (const auto& rooms : seen) {
+    SessionMap night(0.05);
+    for (const char room : rooms) {
+      night.merge(room == 'A' ? roomSession(rng, world_a, 0) : roomSession(rng, world_b, kRoomB));
+    }
+    sessions.push_back(std::move(night));
+  }
+  test::TempDir dir;
+  const fs::path folder = dir / "tiled";
+  std::vector<std::vector<int>> batches;
+  for (int n = 0; n < static_cast<int>(seen.size()); ++n) {
+    std::map<std::string, size_t> before_a, before_b;
+    if (n >= 1) before_a = roomFiles(folder, 0, 2), before_b = roomFiles(folder, 5, 7);
+    const StreamResult r = stream(folder, sessions, {n}, 3, 0);
+    batches.push_back({n});
+    if (n < 1) continue;
+    const bool a = seen[static_cast<size_t>(n)][0] == 'A';
+    const auto& untouched_before = a ? before_b : before_a;
+    const auto& touched_before = a ? before_a : before_b;
+    const auto untouched_after = a ? roomFiles(folder, 5, 7) : roomFiles(folder, 0, 2);
+    const auto touched_after = a ? roomFiles(folder, 0, 2) : roomFiles(folder, 5, 7);
+    EXPECT_EQ(r.tiles, 4u);
+    EXPECT_EQ(r.stats.tiles_written, 2u) << "night " << n;
+    EXPECT_EQ(r.stats.tiles_kept, 2u) << "night " << n;
+    EXPECT_EQ(r.stats.tiles_read, 2u) << "night " << n;  // the kept tiles are not even read
+    EXPECT_EQ(untouched_after.size(), 4u);  // 2 tiles, each with its latest state
+    EXPECT_EQ(untouched_after, untouched_before) << "night " << n << ": the room not seen was rewritten";
+    for (const auto& [file, bytes] : touched_before) EXPECT_FALSE(touched_after.count(file)) << file;
+  }
+  // The answers: joined, the whole map built night by night, to the byte; through TiledMap,
+  // every session's snapshot, the diffs between sessions (with the coverage rule, which reads
+  // each tile's own coverage) and every voxel's history.
+  const TemporalMap whole = wholeBuild(sessions, batches);
+  const TemporalMap streamed = joined(folder);
+  ASSERT_TRUE(streamed == whole);
+  EXPECT_EQ(encodeTemporalMap(streamed, nlohmann::json::object()), encodeTemporalMap(whole, nlohmann::json::object()));
+  TiledMap tiled(folder, {0});
+  const std::vector<double> times = whole.times();
+  for (const double t : times) EXPECT_TRUE(tiled.snapshot(t) == whole.snapshot(t)) << formatTime(t);
+  DiffSettings d;
+  d.seen_at_both = true;
+  d.neighbourhood_voxels = 1;
+  for (size_t i = 0; i < times.size(); ++i) {
+    for (size_t j = i + 1; j < times.size(); ++j) {
+      EXPECT_TRUE(tiled.diff(times[i], times[j], d) == diff(whole, times[i], times[j], d)) << i << " " << j;
+    }
+  }
+  for (const int x0 : {0, kRoomB}) {
+    for (int z = 0; z < 6; ++z) {
+      for (int y = 0; y < 6; ++y) {
+        for (int x = 0; x < 12; ++x) {
+          const std::vector<HistoryEntry> got = tiled.history(at(x0 + x, y, z)), want = whole.history(at(x0 + x, y, z));
+          ASSERT_EQ(got.size(), want.size());
+          for (size_t k = 0; k < got.size(); ++k) {
+            EXPECT_EQ(got[k].time_s, want[k].time_s);
+            EXPECT_EQ(got[k].counters, want[k].counters);
+          }
+        }
+      }
+    }
+  }
+}
+
+int tableVersion(const fs::path& folder) {
+  const CmapFile f = decodeCmap(readFileBytes(folder / kTileIndexName), "index");
+  return metadataOf(f)["tiles"]["version"].get<int>();
+}
+
+// The index lists a kept tile with the sessions its file holds (table version 2, written only
+// then); what disagrees with the file, or a table version this build does not know, is refused
+// naming the file.
+TEST(Stream, AKeptTileIsListedWithTheSessionsItsFileHolds) {
+  std::mt19937_64 rng(7);
+  std::vector<uint8_t> world_a(12 * 6 * 6, 0), world_b(12 * 6 * 6, 0);
+  SessionMap both = roomSession(rng, world_a, 0);
+  both.merge(roomSession(rng, world_b, 40));
+  const std::vector<SessionMap> sessions = {both, roomSession(rng, world_a, 0)};
+  test::TempDir dir;
+  const fs::path folder = dir / "tiled";
+  stream(folder, sessions, {0}, 3, 0);
+  EXPECT_EQ(tableVersion(folder), 1);  // every tile holds every session: as before
+  stream(folder, sessions, {1}, 3, 0);
+  EXPECT_EQ(tableVersion(folder), 2);
+  TileIndex index = readTileIndex(folder);
+  ASSERT_EQ(index.tiles.size(), 4u);
+  for (const TileEntry& e : index.tiles) {
+    const bool room_b = e.key.x >= tileOf(at(40, 0, 0), 3).x;
+    EXPECT_EQ(e.sessions, room_b ? std::optional<size_t>(1) : std::nullopt);
+    EXPECT_EQ(readTile(folder, index, e).sessionCount(), 2u);  // the later session added, unobserved
+  }
+  // A row that claims another count than its file holds.
+  const TileEntry kept = index.tiles.back();
+  index.tiles.back().sessions = 0;
+  writeTileIndex(folder, index.top, index.tile_level, index.tiles, nlohmann::json::object());
+  index = readTileIndex(folder);
+  try {
+    readTile(folder, index, index.tiles.back());
+    FAIL() << "no error";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find(index.tiles.back().file), std::string::npos) << e.what();
+  }
+  // A count in a version 1 table, a count of every session or more, a newer table version.
+  auto indexWith = [&](int version, const nlohmann::json& sessions_held) {
+    nlohmann::json row = {{"key", {kept.key.x, kept.key.y, kept.key.z}}, {"file", kept.file},
+                          {"bytes", kept.bytes}, {"crc32", kept.crc32}, {"sessions", sessions_held}};
+    const nlohmann::json extra = {{"tiles", {{"version", version}, {"level", 3}, {"list", {row}}}}};
+    return encodeTemporalMap(index.top, nlohmann::json::object(), MapKind::Tiled, &extra);
+  };
+  EXPECT_NO_THROW(decodeTileIndex(indexWith(2, 1), "index"));
+  EXPECT_THROW(decodeTileIndex(indexWith(1, 1), "index"), FormatError);
+  EXPECT_THROW(decodeTileIndex(indexWith(2, 2), "index"), FormatError);
+  try {
+    decodeTileIndex(indexWith(3, 1), "index");
+    FAIL() << "no error";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("tile table version 3"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Stream, BadInputIsRefused) {

@@ -4,9 +4,10 @@
 /// to the tile grid as they are integrated (their parts held under a memory budget, spilled to
 /// disk beyond it), then each tile, or each group of tiles that a uniform cube above tile level
 /// ties together, is read, has the sessions added in time order, and is written under new file
-/// names; the index is swapped in last. The result is the tiled map that building the whole
-/// map then `tile` would give, byte for byte after `untile`, while memory holds one session map,
-/// the budget's parts and one group of tiles.
+/// names; the tiles no new session reached keep their files (the index records how many
+/// sessions each holds); the index is swapped in last. The result reads as the tiled map that
+/// building the whole map then `tile` would give, byte for byte after `untile`, while memory
+/// holds one session map, the budget's parts and one group of tiles.
 
 #include <cstddef>
 #include <cstdint>
@@ -48,7 +49,8 @@ struct StreamStats {
   size_t groups = 0;            ///< tiles or groups of tiles processed
   size_t largest_group_tiles = 0;
   size_t tiles_read = 0;
-  size_t tiles_written = 0;
+  size_t tiles_written = 0;     ///< tiles the new sessions reached, rewritten
+  size_t tiles_kept = 0;        ///< tiles no new session reached: their files kept, not read
   size_t spills = 0;               ///< times the parts were written out to make room
   uint64_t spilled_bytes = 0;
   size_t peak_parts_bytes = 0;     ///< most bytes of session parts held at once (<= the limit)

@@ -19,8 +19,13 @@ namespace chronomap {
 /// The index's file name inside a tiled map's folder.
 inline constexpr const char* kTileIndexName = "index.cmap";
 /// Version of the tile table inside the index's metadata (the .cmap container has its own):
-/// the one this build writes and the only one it reads.
-inline constexpr int kTileTableVersion = 1;
+/// the newest this build reads and writes. Version 2 adds a row's `sessions`: a tile that the
+/// last runs of the streaming build did not reach keeps its file, which holds the first
+/// `sessions` sessions of the index's table only (the later ones observed nothing there). A
+/// table whose every tile holds every session is written as version 1, as before.
+inline constexpr int kTileTableVersion = 2;
+/// The oldest tile table version this build reads.
+inline constexpr int kOldestTileTableVersion = 1;
 
 /// A tile's state at the map's last session, kept beside its history (a session map file), so
 /// that a snapshot of the latest time reads what it shows, not every session's entries.
@@ -37,6 +42,9 @@ struct TileEntry {
   uint64_t bytes = 0;   ///< size of the tile's file
   uint32_t crc32 = 0;   ///< CRC-32 of the tile's file
   std::optional<LatestState> latest;  ///< absent in folders written before it existed
+  /// Sessions the tile's file holds: the first ones of the index's table (the later ones did
+  /// not reach the tile; readTile adds them as unobserved). Absent: every session.
+  std::optional<size_t> sessions;
   /// Bytes the tile takes on disk: its file and its latest state's.
   uint64_t diskBytes() const { return bytes + (latest ? latest->bytes : 0); }
 };
@@ -76,7 +84,8 @@ TiledWriteResult writeTiledMap(const std::filesystem::path& folder, const SplitM
 TileEntry writeTileFile(const std::filesystem::path& folder, const TileKey& key, uint64_t generation,
                         const TemporalMap& tile);
 /// Writes the index of a tiled map (atomically: the previous index stays until the rename).
-/// @return the bytes written.
+/// A row whose `sessions` is below top.sessionCount() is written with it (table version 2);
+/// without such a row the table is version 1. @return the bytes written.
 uint64_t writeTileIndex(const std::filesystem::path& folder, const TemporalMap& top, int tile_level,
                         const std::vector<TileEntry>& tiles, const nlohmann::json& meta);
 
@@ -85,7 +94,9 @@ TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& 
 /// Reads `folder`/index.cmap. @throw IoError, FormatError.
 TileIndex readTileIndex(const std::filesystem::path& folder);
 /// Reads one tile, checking its size and checksum against the index and that it fits it
-/// (resolution, criterion, the sessions' times, nothing outside its cube).
+/// (resolution, criterion, the sessions' times, nothing outside its cube). A tile whose file
+/// holds only the first entry.sessions sessions gets the index's later ones appended as
+/// unobserved (TemporalMap::appendUnobservedSessions): the map that rewriting it would store.
 /// @throw IoError (missing file), FormatError naming the tile's file.
 TemporalMap readTile(const std::filesystem::path& folder, const TileIndex& index, const TileEntry& entry);
 

@@ -126,6 +126,11 @@ class TemporalMap {
   /// Removes the session stored at `time_s`, as if it had never been added.
   /// @throw UsageError when no session has that time.
   void remove(double time_s);
+  /// Appends sessions, after the last, that observed nothing in this map (their times and names
+  /// kept, coverage empty, node counts zero): what a map that no later session reached (a tile
+  /// the streaming build left as it was) holds, without rebuilding it. Entries stay as they are.
+  /// @throw UsageError for a time not after the previous one.
+  void appendUnobservedSessions(const std::vector<SessionRecord>& later);
 
   /// Session times in increasing order.
   std::vector<double> times() const;
