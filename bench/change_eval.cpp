@@ -20,6 +20,7 @@
 //                  resolution into a temporary folder)
 //   --floor66 DIR  also evaluate a floor66 simulation (not simulated by default: ~7 minutes)
 //   --quick        only the recommended settings, no sweep
+//   --min-shift S  the shift test's threshold, voxels (default DiffSettings::kRecommendedMinShift)
 //   --sensor NAME  ideal (default), kinect or realsense: the sensor of the simulations made here
 //                  (SimulationSettings::sensor); a folder given keeps its own
 //   --register-model  world (default) or per-pose: the registration's correction model
@@ -96,6 +97,7 @@ int g_dark_surface = DiffSettings::kDarkSurfaceRadius;  // --dark-surface
 double g_dark_below = DiffSettings::kDefaultDarkSurfaceBrightness;   // --dark-below
 double g_dark_contrast = DiffSettings::kDefaultDarkSurfaceContrast;  // --dark-contrast
 double g_dark_share = DiffSettings::kDefaultDarkSurfaceShare;        // --dark-share
+double g_min_shift = DiffSettings::kRecommendedMinShift;             // --min-shift
 
 DiffSettings defaultDiff() {
   DiffSettings d = recommendedChangeSettings().diff;
@@ -105,6 +107,7 @@ DiffSettings defaultDiff() {
   d.dark_surface_brightness = g_dark_below;
   d.dark_surface_contrast = g_dark_contrast;
   d.dark_surface_share = g_dark_share;
+  d.min_shift_voxels = g_min_shift;
   return d;
 }
 
@@ -616,6 +619,8 @@ int main(int argc, char** argv) {
       g_dark_below = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--dark-contrast") && i + 1 < argc) {
       g_dark_contrast = std::atof(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--min-shift") && i + 1 < argc) {
+      g_min_shift = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--dark-share") && i + 1 < argc) {
       g_dark_share = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--not-planar")) {
@@ -641,7 +646,7 @@ int main(int argc, char** argv) {
                    "usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] [--sensor ideal|kinect|realsense] "
                    "[--register-model world|per-pose] [--drift-knots FRAMES] [--register-rounds N] "
                    "[--register-radius VOXELS] [--drift-rounds N] [--not-planar] [--drift-voxels] [--kept-surface R] "
-                   "[--kept-share F] [--dark-surface R] [--dark-below B] [--dark-contrast C] [--dark-share F]\n");
+                   "[--kept-share F] [--min-shift S] [--dark-surface R] [--dark-below B] [--dark-contrast C] [--dark-share F]\n");
       return 2;
     }
   }
