@@ -91,7 +91,7 @@ std::string upLine(const ChosenUp& up) {
   line << toString(up.axis) << " (" << (up.from == "auto" ? "estimated" : up.from == "map" ? "the map's" : "given");
   if (up.estimate) {
     line << ": a floor of " << static_cast<int>(std::lround(100 * up.estimate->floor_share[static_cast<size_t>(up.axis)]))
-         << "% of " << up.estimate->points << " points in " << up.estimate->frames << " frame(s)";
+         << "% of " << up.estimate->points << " sampled cells in " << up.estimate->frames << " frame(s)";
   }
   line << "), turned to +z";
   return line.str();

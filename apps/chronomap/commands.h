@@ -92,7 +92,7 @@ struct IntegrateFlags {
 };
 /// The up axis a command used, for --json ("up", "up_from", and auto's floor share).
 nlohmann::json upJson(const ChosenUp& up);
-/// The same for people: "-y (estimated: a floor of 31% of 120000 points in 1 frame(s)), turned to +z".
+/// The same for people: "-y (estimated: a floor of 7% of 16730 sampled cells in 1 frame(s)), turned to +z".
 std::string upLine(const ChosenUp& up);
 /// Registers the integration flags on a subcommand.
 void addIntegrateFlags(CLI::App* app, IntegrateFlags& flags);
