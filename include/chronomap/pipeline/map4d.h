@@ -49,8 +49,9 @@ struct BuiltSession {
   uint64_t nodes_separate = 0; ///< nodes of the session map on its own
   uint64_t points = 0;         ///< points integrated
   std::optional<PoseCorrection> correction;   ///< with registration
-  /// T_world_sensor of every frame as the recording gives it, and as integrated (with the
-  /// correction applied; the same poses without registration).
+  /// T_world_sensor of every frame as the recording gives it (turned for the map's up axis,
+  /// docs/frames.md), and as integrated (with the correction applied; the same poses without
+  /// registration).
   std::vector<Eigen::Isometry3d> recorded_poses, poses;
   std::optional<size_t> realigned_voxels;     ///< with re-alignment
 };
