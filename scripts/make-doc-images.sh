@@ -9,7 +9,8 @@
 #                 (the pair of sessions 1 and 2), office_frame_rgb.png, office_frame_depth.png
 #   viewer        chronomap view on the demo's map, viewer/test/shoot.mjs in headless Chromium:
 #                 viewer_office_diff.png, _move.png, _history.png, _predicted.png (needs office)
-#   room          the 3DMatch study room (../shared/data, or CHRONOMAP_DATA_DIR): room_topview.png
+#   room          the 3DMatch study room (../shared/data, or CHRONOMAP_DATA_DIR): room_topview.png,
+#                 and upright (--up auto) with a Kinect cloud of pcl-kinect: frames_*.png
 #   python        examples/show_changes.py on the demo's map: python_show_changes.png (needs office)
 #   architecture  Graphviz's dot on docs/images/architecture.dot: architecture.png
 # Not made by this script yet (their own programs say how; their captions' figures are kept in
@@ -114,6 +115,14 @@ if has room; then
   "$cli" integrate "$data/3dmatch/3dmatch" --resolution 0.04 --max-range 6 -o "$work/room.cmap" --json \
     >"$work/room.json"
   "$cli" export "$work/room.cmap" -o "$images/room_topview.png" >/dev/null
+  # The same frames upright (docs/frames.md): 3DMatch's world has +y up, which --up auto finds.
+  "$cli" integrate "$data/3dmatch/3dmatch" --resolution 0.04 --max-range 6 --up auto -o "$work/room_up.cmap" >/dev/null
+  "$cli" export "$work/room_up.cmap" -o "$images/frames_room_up.png" >/dev/null
+  # One Kinect cloud in its optical frame (y down, z forward), as recorded and with --up auto (-y).
+  "$cli" integrate "$data/pcl-kinect/office1.pcd" --max-range 6 -o "$work/office1.cmap" >/dev/null
+  "$cli" export "$work/office1.cmap" -o "$images/frames_office1_recorded.png" >/dev/null
+  "$cli" integrate "$data/pcl-kinect/office1.pcd" --max-range 6 --up auto -o "$work/office1_up.cmap" >/dev/null
+  "$cli" export "$work/office1_up.cmap" -o "$images/frames_office1_up.png" >/dev/null
   measure+=(--room "$work/room.json")
 fi
 

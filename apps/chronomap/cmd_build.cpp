@@ -242,12 +242,13 @@ void printBuilt(const BuildCmdOptions& o, const BuildResult& r) {
     reports.push_back(builtJson(b));
   }
   if (o.json) {
-    std::cout << nlohmann::json{{"map", o.map},         {"created", r.created},       {"sessions", r.sessions},
-                                {"nodes", r.nodes},      {"file_bytes", r.file_bytes}, {"added", reports}}
-                     .dump()
-              << "\n";
+    nlohmann::json j{{"map", o.map},     {"created", r.created},       {"sessions", r.sessions},
+                     {"nodes", r.nodes}, {"file_bytes", r.file_bytes}, {"added", reports}};
+    if (r.up.from != "default") j.update(upJson(r.up));
+    std::cout << j.dump() << "\n";
     return;
   }
+  if (r.up.from != "default") std::cout << "  up: " << upLine(r.up) << "\n";
   for (const auto& j : reports) {
     std::cout << "  " << j["time"].get<std::string>() << "  " << j["dataset"].get<std::string>() << ": "
               << j["nodes_added"].get<int64_t>() << " nodes added (" << j["nodes_separate"].get<uint64_t>()

@@ -73,11 +73,37 @@ int listFormats(bool json) {
   return 0;
 }
 
+}  // namespace
+
+nlohmann::json upJson(const ChosenUp& up) {
+  nlohmann::json j = {{"up", toString(up.axis)}, {"up_from", up.from}};
+  if (up.estimate) {
+    j["up_floor_share"] = up.estimate->floor_share[static_cast<size_t>(up.axis)];
+    nlohmann::json scores = nlohmann::json::object();
+    for (size_t k = 0; k < kUpAxes.size(); ++k) scores[toString(kUpAxes[k])] = up.estimate->scores[k];
+    j["up_scores"] = scores;
+  }
+  return j;
+}
+
+std::string upLine(const ChosenUp& up) {
+  std::ostringstream line;
+  line << toString(up.axis) << " (" << (up.from == "auto" ? "estimated" : up.from == "map" ? "the map's" : "given");
+  if (up.estimate) {
+    line << ": a floor of " << static_cast<int>(std::lround(100 * up.estimate->floor_share[static_cast<size_t>(up.axis)]))
+         << "% of " << up.estimate->points << " sampled cells in " << up.estimate->frames << " frame(s)";
+  }
+  line << "), turned to +z";
+  return line.str();
+}
+
+namespace {
+
 nlohmann::json integrateJson(const IntegrateCmdOptions& o, const IntegratedSession& session,
                              uint64_t file_bytes) {
   const IntegrationStats& stats = session.stats;
   const SessionMapCounts counts = session.map.counts();
-  return {{"frames", stats.frames},
+  nlohmann::json j = {{"frames", stats.frames},
           {"frames_dropped", session.frames_dropped},
           {"points", stats.points},
           {"points_skipped", stats.pointsSkipped()},
@@ -94,6 +120,8 @@ nlohmann::json integrateJson(const IntegrateCmdOptions& o, const IntegratedSessi
           {"seconds", stats.seconds},
           {"output", o.output},
           {"warnings", session.warnings}};
+  if (session.up.from != "default") j.update(upJson(session.up));
+  return j;
 }
 
 void printIntegrated(const IntegrateCmdOptions& o, const IntegratedSession& session, uint64_t file_bytes,
@@ -115,8 +143,10 @@ void printIntegrated(const IntegrateCmdOptions& o, const IntegratedSession& sess
             << counts.compressed_leaves << " compressed), " << humanBytes(static_cast<double>(map.memoryBytes()))
             << " in memory\n"
             << "  time:    " << stats.seconds << " s ("
-            << (stats.seconds > 0 ? static_cast<double>(stats.points) / stats.seconds / 1e6 : 0.0) << " M points/s)\n"
-            << "wrote " << o.output << " (" << humanBytes(static_cast<double>(file_bytes)) << ")\n";
+            << (stats.seconds > 0 ? static_cast<double>(stats.points) / stats.seconds / 1e6 : 0.0) << " M points/s)"
+            << "\n";
+  if (session.up.from != "default") std::cout << "  up:      " << upLine(session.up) << "\n";
+  std::cout << "wrote " << o.output << " (" << humanBytes(static_cast<double>(file_bytes)) << ")\n";
 }
 
 int runIntegrate(const IntegrateCmdOptions& o) {
@@ -188,6 +218,17 @@ static std::string formatHelp() {
   return names + " (--list-formats says what each reads)";
 }
 
+/// --up: an axis, auto, or nothing given.
+static UpSettings upSettings(const std::string& v) {
+  if (v.empty()) return {};
+  if (v == "auto") return {std::nullopt, true};
+  try {
+    return {parseUpAxis(v), false};
+  } catch (const UsageError&) {
+    throw UsageError("--up must be +x, -x, +y, -y, +z, -z or auto, not '" + v + "'");
+  }
+}
+
 SessionSettings sessionSettings(const IntegrateFlags& f) {
   SessionSettings s;
   s.resolution_m = f.resolution_m;
@@ -212,6 +253,7 @@ SessionSettings sessionSettings(const IntegrateFlags& f) {
   s.integrator.hit_positions = !f.no_positions;
   s.integrator.carve_level = parseCarveLevel(f.carve_level);
   if (f.memory_limit_gib) s.integrator.memory_limit_bytes = memoryLimitFromGib(*f.memory_limit_gib);
+  s.up = upSettings(f.up);
   return s;
 }
 
@@ -264,6 +306,10 @@ void addIntegrateFlags(CLI::App* app, IntegrateFlags& f) {
                 "them whole (as OctoMap does): space seen through, such as an open doorway before a far wall, is then "
                 "observed free");
   app->add_option("--format", f.format, formatHelp())->capture_default_str();
+  app->add_option("--up", f.up,
+                  "which axis of the recording's world frame is up: +x, -x, +y, -y, +z or -z (a camera's optical "
+                  "frame: -y), or auto (estimated from the floor: docs/frames.md); the frames are turned so that it "
+                  "becomes +z and the map records the turn. Default +z (build: the map's own)");
   app->add_flag("--fast", f.fast,
                 "bundle the points of a frame that end in the same voxel into one weighted ray "
                 "(much faster; see docs/integration.md for how far the counters may differ)");

@@ -66,7 +66,21 @@ void printTemporalJson(const StatsOptions& o, const TemporalStats& s) {
                       {"bounds_min", {h.bounds_min_m.x(), h.bounds_min_m.y(), h.bounds_min_m.z()}},
                       {"bounds_max", {h.bounds_max_m.x(), h.bounds_max_m.y(), h.bounds_max_m.z()}}};
   if (!o.plot.empty()) j["plot"] = o.plot;
+  const nlohmann::json meta = userMetadataOf(s.file);
+  for (const char* key : {"up", "up_from", "world_rotation"}) {
+    if (meta.contains(key)) j[key] = meta[key];
+  }
   std::cout << j.dump() << "\n";
+}
+
+/// The up line of a map whose recordings were turned (--up): which axis, how chosen, the rotation.
+void printUp(const nlohmann::json& meta) {
+  if (!meta.is_object() || !meta.contains("up")) return;
+  std::cout << "  up:          " << meta["up"].get<std::string>() << " of the recordings";
+  if (meta.contains("up_from")) std::cout << " (" << meta["up_from"].get<std::string>() << ")";
+  std::cout << ", turned to +z";
+  if (meta.contains("world_rotation")) std::cout << " by R = " << meta["world_rotation"].dump();
+  std::cout << " (a point p of the recordings is R p here)\n";
 }
 
 void printTemporalText(const StatsOptions& o, const TemporalStats& s) {
@@ -75,8 +89,9 @@ void printTemporalText(const StatsOptions& o, const TemporalStats& s) {
   const TemporalCounts& c = s.counts;
   std::cout << o.file << ": 4D map, format version " << h.version << "\n"
             << "  resolution:  " << h.resolution_m << " m\n"
-            << "  bounds:      [" << h.bounds_min_m.transpose() << "] .. [" << h.bounds_max_m.transpose() << "] m\n"
-            << "  sessions:    " << map.sessionCount();
+            << "  bounds:      [" << h.bounds_min_m.transpose() << "] .. [" << h.bounds_max_m.transpose() << "] m\n";
+  printUp(userMetadataOf(s.file));
+  std::cout << "  sessions:    " << map.sessionCount();
   if (map.sessionCount()) {
     std::cout << " (" << formatTime(map.sessions().front().time_s) << " .. " << formatTime(map.sessions().back().time_s)
               << ")";
@@ -204,6 +219,7 @@ int runStats(const StatsOptions& o) {
             << "  memory:      " << humanBytes(static_cast<double>(map.memoryBytes())) << " (" << per_leaf
             << " bytes per leaf)\n"
             << "  file:        " << humanBytes(static_cast<double>(file.file_bytes)) << "\n";
+  printUp(meta);
   if (!meta.empty()) std::cout << "  metadata:    " << meta.dump() << "\n";
   return 0;
 }

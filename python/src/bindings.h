@@ -22,6 +22,7 @@
 #include "chronomap/core/counters.h"
 #include "chronomap/core/image.h"
 #include "chronomap/pipeline/progress.h"
+#include "chronomap/pipeline/session.h"
 
 namespace chronomap::python {
 
@@ -95,6 +96,10 @@ class LongCall {
 double toSeconds(const py::handle& time, const char* name);
 /// Epoch seconds as an aware datetime.datetime in UTC.
 py::object toDatetime(double time_s);
+
+/// The `up` argument of integrate_dataset() and build() (`--up`, docs/frames.md): None (+z; build:
+/// the map's own), an axis ("+x" .. "-z") or "auto". @throw UsageError (a ValueError) naming `up`.
+UpSettings toUpSettings(const py::object& up);
 
 /// The settings of diff() and TemporalMap.diff(). @throw UsageError for an unknown mode.
 DiffSettings diffSettings(const std::string& mode, double alpha, int neighbourhood_voxels, double min_shift_voxels,

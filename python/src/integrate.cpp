@@ -33,8 +33,10 @@ int toCarveLevel(const py::object& level) {
 
 SessionMap integrateDatasetPy(const std::filesystem::path& path, double resolution_m, bool fast, double max_range_m,
                               int threads, const std::string& format, std::optional<double> depth_scale,
-                              const py::object& progress, bool carve_beyond_range, const py::object& carve_level) {
+                              const py::object& progress, bool carve_beyond_range, const py::object& carve_level,
+                              const py::object& up) {
   SessionSettings settings;
+  settings.up = toUpSettings(up);
   settings.integrator.carve_level = toCarveLevel(carve_level);
   settings.resolution_m = resolution_m;
   settings.integrator.fast = fast;
@@ -192,14 +194,16 @@ void bindIntegrate(py::module_& m) {
   m.def("integrate_dataset", &integrateDatasetPy, py::arg("path"), py::arg("resolution_m") = 0.05,
         py::arg("fast") = false, py::arg("max_range_m") = 3.0, py::arg("threads") = 0, py::arg("format") = "auto",
         py::arg("depth_scale") = py::none(), py::arg("progress") = py::none(), py::arg("carve_beyond_range") = false,
-        py::arg("carve_level") = "auto",
+        py::arg("carve_level") = "auto", py::arg("up") = py::none(),
         "Integrates the recording at `path` (any format formats() lists, as "
         "`chronomap integrate` reads it) into a SessionMap. `progress`, if given, is called as "
         "progress(label, done, total) after each frame (on another thread, with the GIL). The GIL is released while "
         "it runs; Ctrl-C stops it at the next frame with KeyboardInterrupt. "
         "carve_beyond_range=True carves free space along the rays of points beyond max_range_m, up to the "
         "range (`--carve-beyond-range`). carve_level (fast mode): free space far from the surfaces in cubes of "
-        "2**L voxels per axis; 'auto' is 2 at 0.025 m and finer, 0 (off) above (`--carve-level`).");
+        "2**L voxels per axis; 'auto' is 2 at 0.025 m and finer, 0 (off) above (`--carve-level`). "
+        "up: which axis of the recording's world frame is up ('+x' .. '-z', or 'auto': estimated from the floor; "
+        "None: +z), the frames turned so that it becomes +z (`--up`, docs/frames.md).");
 
   py::class_<IncrementalIntegrator>(m, "Integrator",
                                     "Integrates frames one at a time; finish() gives the map integrate_dataset gives "

@@ -15,6 +15,21 @@
 
 namespace chronomap::python {
 
+UpSettings toUpSettings(const py::object& up) {
+  if (up.is_none()) return {};
+  if (py::isinstance<py::str>(up)) {
+    const std::string name = up.cast<std::string>();
+    if (name == "auto") return {std::nullopt, true};
+    try {
+      return {parseUpAxis(name), false};
+    } catch (const UsageError&) {
+      // refused below, naming the argument
+    }
+  }
+  throw UsageError("up must be '+x', '-x', '+y', '-y', '+z', '-z', 'auto' or None, not " +
+                   py::repr(up).cast<std::string>());
+}
+
 double toSeconds(const py::handle& time, const char* name) {
   const py::module_ datetime = py::module_::import("datetime");
   if (py::isinstance(time, datetime.attr("datetime"))) {
@@ -94,7 +109,7 @@ py::dict builtSessionDict(const BuiltSession& b) {
 py::dict buildPy(const std::filesystem::path& map, const std::vector<std::filesystem::path>& datasets,
                  const py::object& times, double resolution_m, bool fast, double max_range_m, int threads,
                  const std::string& format, bool register_sessions, int registration_rounds, bool realign,
-                 bool replace, const py::object& progress, bool carve_beyond_range) {
+                 bool replace, const py::object& progress, bool carve_beyond_range, const py::object& up) {
   BuildSettings settings;
   settings.map = map;
   settings.datasets = datasets;
@@ -109,6 +124,7 @@ py::dict buildPy(const std::filesystem::path& map, const std::vector<std::filesy
   settings.session.integrator.carve_beyond_range = carve_beyond_range;
   settings.session.integrator.threads = threads;
   settings.session.dataset.format = parseRecordingFormat(format);
+  settings.session.up = toUpSettings(up);
   if (register_sessions) {
     RegistrationSettings r;
     r.rounds = registration_rounds;
@@ -124,6 +140,8 @@ py::dict buildPy(const std::filesystem::path& map, const std::vector<std::filesy
   d["sessions"] = result.sessions;
   d["nodes"] = result.nodes;
   d["file_bytes"] = result.file_bytes;
+  d["up"] = toString(result.up.axis);
+  d["up_from"] = result.up.from;
   py::list added;
   for (const auto& b : result.added) added.append(builtSessionDict(b));
   d["added"] = added;
@@ -166,10 +184,13 @@ void bindPipeline(py::module_& m) {
         py::arg("resolution_m") = 0.05, py::arg("fast") = false, py::arg("max_range_m") = 3.0, py::arg("threads") = 0,
         py::arg("format") = "auto", py::arg("register") = false, py::arg("registration_rounds") = 3,
         py::arg("realign") = false, py::arg("replace") = false, py::arg("progress") = py::none(),
-        py::arg("carve_beyond_range") = false,
+        py::arg("carve_beyond_range") = false, py::arg("up") = py::none(),
         "Builds or extends the 4D map file `map` from recordings, one session each, as `chronomap build` "
         "does: integrated, ordered by time, registered to their consensus (register=True) and re-aligned "
-        "(realign=True) when asked, added and written once, atomically. `times`: one per dataset (epoch "
+        "(realign=True) when asked, added and written once, atomically. `up`: which axis of the recordings' "
+        "world frame is up ('+x' .. '-z', 'auto': estimated from the floor on the first recording; None: +z, or "
+        "the map's own), every recording turned so that it becomes +z (`--up`, docs/frames.md); the summary's "
+        "`up` and `up_from` say which. `times`: one per dataset (epoch "
         "seconds, ISO-8601 string, datetime, or None for the dataset's own first timestamp), or None. `progress(label, done, "
         "total)` is called as work advances; Ctrl-C stops the work at the next frame, writing nothing. Returns a "
         "summary dict with one entry per added session (in time order): `poses` and `recorded_poses` ((F, 4, 4) "

@@ -95,3 +95,15 @@ def test_build_releases_the_gil(tmp_path, building):
         done.set()
         t.join()
     assert len(ticks) > 5
+
+
+def test_up_turns_the_recording_and_a_bad_one_names_the_argument(tmp_path, threedmatch):
+    # 3DMatch's world has +y up: auto finds it, and the map is the one up='+y' gives.
+    estimated = chronomap.integrate_dataset(threedmatch, fast=True, up="auto")
+    assert estimated == chronomap.integrate_dataset(threedmatch, fast=True, up="+y")
+    assert estimated != chronomap.integrate_dataset(threedmatch, fast=True)
+    for bad in ("sideways", 3, "Y"):
+        with pytest.raises(ValueError, match="up must be"):
+            chronomap.integrate_dataset(threedmatch, fast=True, up=bad)
+    summary = chronomap.build(tmp_path / "m.cmap", [threedmatch], times=[0.0], fast=True, up="auto")
+    assert (summary["up"], summary["up_from"]) == ("+y", "auto")

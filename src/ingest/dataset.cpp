@@ -5,6 +5,7 @@
 
 #include "chronomap/core/error.h"
 #include "chronomap/core/file.h"
+#include "chronomap/core/pose.h"
 #include "chronomap/ingest/registry.h"
 #include "text_util.h"
 
@@ -67,6 +68,33 @@ Eigen::Matrix4d parseMatrix4(const std::string& text, const std::string& name) {
   return m;
 }
 
+namespace {
+
+/// Another dataset read with its world frame turned (DatasetSettings::world_rotation).
+class RotatedDataset : public Dataset {
+ public:
+  RotatedDataset(std::unique_ptr<Dataset> inner, const Eigen::Matrix3d& rotation) : inner_(std::move(inner)) {
+    rotation_.linear() = rotation;
+  }
+  size_t size() const override { return inner_->size(); }
+  Frame load(size_t i) const override {
+    Frame f = inner_->load(i);
+    f.T_world_sensor = rotation_ * f.T_world_sensor;
+    return f;
+  }
+  Eigen::Isometry3d poseOf(size_t i) const override { return rotation_ * inner_->poseOf(i); }
+  std::string format() const override { return inner_->format(); }
+  size_t framesDropped() const override { return inner_->framesDropped(); }
+  std::string droppedReasons() const override { return inner_->droppedReasons(); }
+  std::optional<double> recordedAt() const override { return inner_->recordedAt(); }
+
+ private:
+  std::unique_ptr<Dataset> inner_;
+  Eigen::Isometry3d rotation_ = Eigen::Isometry3d::Identity();
+};
+
+}  // namespace
+
 std::unique_ptr<Dataset> openDataset(const fs::path& path, const DatasetSettings& options) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw UsageError(path.string() + ": no such file or folder");
@@ -77,7 +105,12 @@ std::unique_ptr<Dataset> openDataset(const fs::path& path, const DatasetSettings
   const DatasetReader reader =
       options.format == "auto" ? detectDatasetReader(path) : datasetReaderNamed(options.format);
   if (!reader.takes_pose && options.pose) throw UsageError("--pose applies to a single cloud file");
-  return reader.open(path, options);
+  if (!options.world_rotation || options.world_rotation->isIdentity()) return reader.open(path, options);
+  const Eigen::Matrix3d& r = *options.world_rotation;
+  if (!r.allFinite() || !(r.transpose() * r).isIdentity(kRotationOrthonormalityTolerance) || r.determinant() < 0.0) {
+    throw UsageError(path.string() + ": the world rotation is not a proper rotation");
+  }
+  return std::make_unique<RotatedDataset>(reader.open(path, options), r);
 }
 
 }  // namespace chronomap

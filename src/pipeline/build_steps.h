@@ -26,8 +26,17 @@ Pending integrateOne(const BuildSettings& s, size_t i);
 /// Sorts the sessions by time. @throw UsageError when two have the same time.
 void sortByTime(const BuildSettings& s, std::vector<Pending>& pending);
 /// Registers and re-aligns the sorted sessions when asked, adds them to `map` and writes it once,
-/// atomically.
-BuildResult finishBuild(const BuildSettings& s, TemporalMap& map, bool created, std::vector<Pending>& pending);
+/// atomically, with the metadata `stored` and the sessions' up (mapMetadata).
+BuildResult finishBuild(const BuildSettings& s, TemporalMap& map, bool created, std::vector<Pending>& pending,
+                        const ChosenUp& up, const nlohmann::json& stored);
+/// `given` with every recording read for `up` (its axis given, the world rotation set), saying so
+/// when it was estimated.
+BuildSettings withUp(const BuildSettings& given, const ChosenUp& up);
+/// The up axis' members of a map's metadata ("up", "up_from", "world_rotation": ChosenUp::metadata).
+nlohmann::json upKeysOf(const nlohmann::json& meta);
+/// The metadata a build writes: the up the map stored (`stored`'s up keys) when `up` is the map's
+/// own, else `up`'s (ChosenUp::metadata; nothing for +z as recorded, as before --up existed).
+nlohmann::json mapMetadata(const nlohmann::json& stored, const ChosenUp& up);
 /// The time of the session `add` reads from `file`: the given one, else the file's recorded_at.
 /// @throw UsageError when there is neither.
 double sessionTime(const AddSessionSettings& s, const CmapFile& file);

@@ -186,7 +186,7 @@ Pending decodePending(const std::vector<uint8_t>& bytes, size_t index, int from)
   return {index, meta.at("time_s").get<double>(),
           IntegratedSession{sessionMapFrom(file, source), stats, recorded_at, meta.at("format").get<std::string>(),
                             meta.at("frames_dropped").get<size_t>(), std::move(positions),
-                            meta.at("dropped_reasons").get<std::string>(), std::move(poses),
+                            meta.at("dropped_reasons").get<std::string>(), std::move(poses), ChosenUp{},
                             meta.value("warnings", std::vector<std::string>{})}};
 }
 
@@ -244,14 +244,24 @@ std::optional<BuildResult> buildOnRanks(const BuildSettings& settings, const Ran
   std::optional<FileLock> lock;
   std::optional<TemporalMap> map;
   bool created = false;
+  nlohmann::json stored;
+  ChosenUp up;
   steps.run(0, [&] {
     pipeline_detail::checkInputs(s);
-    if (!root) return;
+    if (!root) {
+      // Every rank reads the recordings with the same up: the map's own (its metadata), or auto's
+      // estimate on the first dataset, which every rank finds alike.
+      const bool exists = std::filesystem::exists(s.map);
+      up = chooseBuildUp(s, !exists, exists ? userMetadataOf(readCmap(s.map)) : nlohmann::json::object());
+      return;
+    }
     lock.emplace(s.map, FileLock::Missing::LockFolder);  // held to the end, as build() holds it
-    map.emplace(openOrCreate(s.map, s.session.resolution_m, s.criterion, created));
+    map.emplace(openOrCreate(s.map, s.session.resolution_m, s.criterion, created, nullptr, &stored));
     pipeline_detail::refuseClashes(s, *map);
+    up = chooseBuildUp(s, created, stored);
   });
   steps.agree();
+  s = pipeline_detail::withUp(s, up);
 
   // The recordings shared out by size (shareOutRecordings), the same on every rank.
   std::vector<uintmax_t> sizes(n);
@@ -301,7 +311,7 @@ std::optional<BuildResult> buildOnRanks(const BuildSettings& settings, const Ran
       std::vector<uint8_t>().swap(received[i]);
     }
     pipeline_detail::sortByTime(s, pending);
-    result = pipeline_detail::finishBuild(s, *map, created, pending);
+    result = pipeline_detail::finishBuild(s, *map, created, pending, up, stored);
   });
   steps.agree();
   return result;

@@ -129,16 +129,64 @@ std::vector<size_t> realignPending(const BuildSettings& s, std::vector<Pending>&
 }  // namespace
 
 TemporalMap openOrCreate(const fs::path& path, double resolution_m, const ChangeCriterion& criterion, bool& created,
-                         TemporalFileLayout* layout) {
+                         TemporalFileLayout* layout, nlohmann::json* meta) {
   created = !fs::exists(path);
+  if (meta) *meta = nlohmann::json::object();
   if (created) return TemporalMap(resolution_m, criterion);
-  TemporalMap map = readTemporalMap(path, layout);
+  TemporalMap map;
+  if (meta) {
+    const CmapFile file = readCmap(path);
+    map = temporalMapFrom(file, path.string());
+    if (layout) *layout = layoutOf(file);
+    *meta = userMetadataOf(file);
+  } else {
+    map = readTemporalMap(path, layout);
+  }
   if (map.resolution_m() != resolution_m) {
     throw UsageError(path.string() + ": the 4D map has resolution " + std::to_string(map.resolution_m()) +
                      " m but the session has " + std::to_string(resolution_m) + " m");
   }
   return map;
 }
+
+ChosenUp chooseBuildUp(const BuildSettings& s, bool created, const nlohmann::json& stored) {
+  if (created) return s.datasets.empty() ? ChosenUp{} : chooseUp(s.session.up, s.datasets[0], s.session.dataset);
+  const ChosenUp own = storedUp(stored, s.map.string());
+  if (s.session.up.axis && !s.session.up.estimate && *s.session.up.axis != own.axis) {
+    throw UsageError(std::string("--up ") + toString(*s.session.up.axis) + ": " + s.map.string() +
+                     " holds sessions with up " + toString(own.axis) +
+                     (own.from == "map" ? "" : " (as recorded)") + "; give --up " + toString(own.axis) +
+                     " (or none), or build a new map");
+  }
+  return own;
+}
+
+namespace pipeline_detail {
+
+BuildSettings withUp(const BuildSettings& given, const ChosenUp& up) {
+  BuildSettings s = given;
+  s.session.up = {up.axis, false};
+  s.session.dataset.world_rotation.reset();
+  if (up.axis != UpAxis::PlusZ) s.session.dataset.world_rotation = uprightRotation(up.axis);
+  if (up.from == "auto") {
+    s.progress.say(std::string("up: ") + toString(up.axis) + " (estimated from " + s.datasets[0].string() + ")");
+  }
+  return s;
+}
+
+nlohmann::json upKeysOf(const nlohmann::json& meta) {
+  nlohmann::json out = nlohmann::json::object();
+  for (const char* key : {"up", "up_from", "world_rotation"}) {
+    if (meta.is_object() && meta.contains(key)) out[key] = meta[key];
+  }
+  return out;
+}
+
+nlohmann::json mapMetadata(const nlohmann::json& stored, const ChosenUp& up) {
+  return up.from == "map" ? upKeysOf(stored) : up.metadata();
+}
+
+}  // namespace pipeline_detail
 
 BuildResult build(const BuildSettings& given) {
   pipeline_detail::checkInputs(given);
@@ -151,17 +199,24 @@ BuildResult build(const BuildSettings& given) {
   // map that does not exist yet locks its folder: two commands creating it run one after the other.
   const FileLock lock(s.map, FileLock::Missing::LockFolder);
   bool created = false;
-  TemporalMap map = openOrCreate(s.map, s.session.resolution_m, s.criterion, created);
+  nlohmann::json stored;
+  TemporalMap map = openOrCreate(s.map, s.session.resolution_m, s.criterion, created, nullptr, &stored);
   pipeline_detail::refuseClashes(s, map);
+  // One up for every session, chosen before the first is read (auto: estimated on the first).
+  const ChosenUp up = chooseBuildUp(s, created, stored);
+  s = pipeline_detail::withUp(s, up);
   std::vector<Pending> pending;
   for (size_t i = 0; i < s.datasets.size(); ++i) pending.push_back(pipeline_detail::integrateOne(s, i));
   pipeline_detail::sortByTime(s, pending);
-  return pipeline_detail::finishBuild(s, map, created, pending);
+  return pipeline_detail::finishBuild(s, map, created, pending, up, stored);
 }
 
-BuildResult pipeline_detail::finishBuild(const BuildSettings& s, TemporalMap& map, bool created, std::vector<Pending>& pending) {
+BuildResult pipeline_detail::finishBuild(const BuildSettings& s, TemporalMap& map, bool created,
+                                         std::vector<Pending>& pending, const ChosenUp& up,
+                                         const nlohmann::json& stored) {
   BuildResult result;
   result.created = created;
+  result.up = up;
   std::vector<PoseCorrection> corrections;
   if (s.registration) corrections = registerPending(s, pending);
   std::vector<size_t> moved;
@@ -187,7 +242,7 @@ BuildResult pipeline_detail::finishBuild(const BuildSettings& s, TemporalMap& ma
     result.added.push_back(std::move(b));
   }
   // One atomic write at the end: a crash leaves the previous map (or none) on disk.
-  writeTemporalMap(s.map, map, {});
+  writeTemporalMap(s.map, map, mapMetadata(stored, up));
   result.sessions = map.sessionCount();
   result.nodes = map.counts().nodes();
   result.file_bytes = fs::file_size(s.map);
@@ -230,7 +285,20 @@ AddSessionResult addSession(const AddSessionSettings& s) {
   // when the first created the map).
   const FileLock lock(s.map, FileLock::Missing::LockFolder);
   TemporalFileLayout layout;
-  TemporalMap map = openOrCreate(s.map, session.resolution_m(), s.criterion, r.created, &layout);
+  nlohmann::json stored;
+  TemporalMap map = openOrCreate(s.map, session.resolution_m(), s.criterion, r.created, &layout, &stored);
+  // One up for every session of a map: a new map takes the session's (and records it).
+  const nlohmann::json session_meta = metadataOf(file);
+  const ChosenUp session_up = storedUp(session_meta, s.session.string());
+  const ChosenUp map_up = r.created ? session_up : storedUp(stored, s.map.string());
+  if (session_up.axis != map_up.axis) {
+    throw UsageError(s.session.string() + " was integrated with up " + toString(session_up.axis) + " but " +
+                     s.map.string() + " holds sessions with up " + toString(map_up.axis) +
+                     "; integrate it again with --up " + toString(map_up.axis));
+  }
+  r.up = map_up.axis;
+  // What a rewrite keeps of the map's metadata: its up (a new map: the session's).
+  const nlohmann::json meta = pipeline_detail::upKeysOf(r.created ? session_meta : stored);
   if (s.realign) {
     // The consensus of every session stored so far (each time's snapshot) and this one.
     SessionMap avg = map.sessionCount() ? consensus(map, map.sessions().front().time_s, map.sessions().back().time_s)
@@ -257,7 +325,7 @@ AddSessionResult addSession(const AddSessionSettings& s) {
     appendToFile(s.map, layout.completeBytes(), record);
     r.record_bytes = record.size();
   } else {
-    writeTemporalMap(s.map, map, {});
+    writeTemporalMap(s.map, map, meta);
   }
   r.nodes_added = nodesAddedAt(map, r.time_s);
   r.sessions = map.sessionCount();

@@ -47,12 +47,54 @@ size_t defaultDepthCacheBytes() {
   return std::min(cap, static_cast<size_t>(pages) / 4 * static_cast<size_t>(page));
 }
 
-IntegratedSession integrateDataset(const std::filesystem::path& path, const SessionSettings& settings,
+nlohmann::json ChosenUp::metadata() const {
+  if (from == "default" && axis == UpAxis::PlusZ) return nlohmann::json::object();
+  const Eigen::Matrix3d r = uprightRotation(axis);
+  nlohmann::json rows = nlohmann::json::array();
+  for (int i = 0; i < 3; ++i) rows.push_back({r(i, 0), r(i, 1), r(i, 2)});
+  return {{"up", toString(axis)}, {"up_from", from}, {"world_rotation", rows}};
+}
+
+ChosenUp chooseUp(const UpSettings& up, const std::filesystem::path& path, const DatasetSettings& dataset) {
+  ChosenUp out;
+  if (up.estimate) {
+    DatasetSettings as_recorded = dataset;
+    as_recorded.world_rotation.reset();
+    as_recorded.colour = false;
+    UpEstimateSettings estimate;
+    // A bag's clouds may come from a lidar (up +z in its frame), not a camera: no upright cue.
+    if (!dataset.bag.cloud_topic.empty()) estimate.sensor_up.setZero();
+    out.estimate = estimateUpAxis(*openRecording(path, as_recorded), estimate);
+    out.axis = out.estimate->axis;
+    out.from = "auto";
+  } else if (up.axis) {
+    out.axis = *up.axis;
+    out.from = "given";
+  }
+  return out;
+}
+
+ChosenUp storedUp(const nlohmann::json& meta, const std::string& source) {
+  ChosenUp out;
+  if (!meta.is_object() || !meta.contains("up")) return out;
+  try {
+    out.axis = parseUpAxis(meta.at("up").get<std::string>());
+  } catch (const std::exception& e) {
+    throw FormatError(source + ": the metadata's up axis is unreadable (" + e.what() + ")");
+  }
+  out.from = "map";
+  return out;
+}
+
+IntegratedSession integrateDataset(const std::filesystem::path& path, const SessionSettings& given,
                                    const PoseCorrection& correction, const Progress& progress,
                                    const std::string& label) {
+  SessionSettings settings = given;
+  const ChosenUp up = chooseUp(given.up, path, given.dataset);
+  if (up.axis != UpAxis::PlusZ) settings.dataset.world_rotation = uprightRotation(up.axis);
   auto dataset = openRecording(path, settings.dataset);
   IntegratedSession out{SessionMap(settings.resolution_m), {}, dataset->recordedAt(), dataset->format(),
-                        dataset->framesDropped(), {}, dataset->droppedReasons(), {}, {}};
+                        dataset->framesDropped(), {}, dataset->droppedReasons(), {}, up, {}};
   out.sensor_positions.reserve(dataset->size());
   out.poses.reserve(dataset->size());
   for (size_t i = 0; i < dataset->size(); ++i) {
@@ -87,6 +129,7 @@ nlohmann::json sessionMetadata(const std::filesystem::path& dataset, const Integ
   const int carve_level = carveLevelFor(settings.integrator, session.map.resolution_m());
   if (carve_level > 0) meta["carve_level"] = carve_level;
   if (session.recorded_at) meta["recorded_at"] = *session.recorded_at;
+  meta.update(session.up.metadata());
   return meta;
 }
 
@@ -98,6 +141,11 @@ std::vector<PoseCorrection> registerDatasets(std::vector<SessionMap>& maps, std:
   // re-integration their occupancy only: there the colour images are left unread.
   // Every frame is read up to 8 times: its depth image is decoded once while the cache has room.
   SessionSettings full = settings;
+  // One up for every session and every pass, the drift fit's reads included: estimated once, on the first.
+  if (!paths.empty()) {
+    full.up = {chooseUp(settings.up, paths[0], settings.dataset).axis, false};
+    if (*full.up.axis != UpAxis::PlusZ) full.dataset.world_rotation = uprightRotation(*full.up.axis);
+  }
   if (registration.depth_cache_bytes > 0 && !full.dataset.depth_cache) {
     full.dataset.depth_cache = std::make_shared<DepthImageCache>(registration.depth_cache_bytes);
   }

@@ -422,7 +422,8 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
   // 5. The top, then the index, swapped in by one rename; then the old files go.
   const TemporalMap new_top = stream.newTop();
   const std::vector<TileEntry>& entries = stream.entries();
-  const nlohmann::json meta = {{"created_by", "chronomap build --tiles"}};
+  nlohmann::json meta = {{"created_by", "chronomap build --tiles"}};
+  if (s.metadata.is_object()) meta.update(s.metadata);
   result.index_bytes = writeTileIndex(s.folder, new_top, level, entries, meta);
   cleanup.armed = false;
   TileIndex written{level, TemporalMap(new_top.resolution_m()), entries};
@@ -444,7 +445,14 @@ StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size
   if (b.realign) throw UsageError("--realign cannot be used with --tiles (it needs every session at once)");
   if (b.replace) throw UsageError("--replace cannot be used with --tiles");
   pipeline_detail::checkInputs(b);
+  // One up for every session, the tiled map's own when it records one (as build() chooses it).
+  const bool created = !isTiledMap(b.map);
+  const nlohmann::json stored =
+      created ? nlohmann::json::object() : userMetadataOf(readCmap(b.map / kTileIndexName));
+  const ChosenUp up = chooseBuildUp(b, created, stored);
+  const BuildSettings with_up = pipeline_detail::withUp(b, up);
   StreamSettings s;
+  s.metadata = pipeline_detail::mapMetadata(stored, up);
   s.folder = b.map;
   s.resolution_m = b.session.resolution_m;
   s.criterion = b.criterion;
@@ -453,7 +461,7 @@ StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size
   s.progress = b.progress;
   std::vector<std::string> warnings;
   StreamResult result = streamIntoTiles(s, b.datasets.size(), [&](size_t i) {
-    pipeline_detail::Pending p = pipeline_detail::integrateOne(b, i);
+    pipeline_detail::Pending p = pipeline_detail::integrateOne(with_up, i);
     for (const std::string& w : p.session.warnings) warnings.push_back(b.datasets[i].string() + ": " + w);
     return StreamSession{p.time_s, b.datasets[i].filename().string(), std::move(p.session.map)};
   });
@@ -470,6 +478,16 @@ StreamResult streamAddSession(const AddSessionSettings& a, size_t memory_limit_b
   SessionMap session = sessionMapFrom(file, a.session.string());
   const double time_s = pipeline_detail::sessionTime(a, file);
   StreamSettings s;
+  // The map keeps its up axis; a session of another is refused (as addSession refuses it).
+  const nlohmann::json stored = userMetadataOf(readCmap(a.map / kTileIndexName));
+  const ChosenUp map_up = storedUp(stored, a.map.string());
+  const ChosenUp session_up = storedUp(metadataOf(file), a.session.string());
+  if (session_up.axis != map_up.axis) {
+    throw UsageError(a.session.string() + " was integrated with up " + toString(session_up.axis) + " but " +
+                     a.map.string() + " holds sessions with up " + toString(map_up.axis) +
+                     "; integrate it again with --up " + toString(map_up.axis));
+  }
+  s.metadata = pipeline_detail::upKeysOf(stored);
   s.folder = a.map;
   s.resolution_m = session.resolution_m();
   s.criterion = a.criterion;

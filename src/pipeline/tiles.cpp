@@ -10,6 +10,7 @@
 #include "chronomap/core/file.h"
 #include "chronomap/store/temporal_file.h"
 #include "chronomap/pipeline/maps.h"
+#include "build_steps.h"
 
 namespace chronomap {
 
@@ -37,14 +38,16 @@ TileResult tileMap(const TileSettings& s) {
   if (fs::exists(s.folder) && fs::exists(s.map) && fs::equivalent(s.folder, s.map)) {
     throw UsageError("output '" + s.folder.string() + "' is the input");
   }
-  TemporalMap map = readTemporalMap(s.map);
+  const CmapFile file = readCmap(s.map);
+  TemporalMap map = temporalMapFrom(file, s.map.string());
   TileResult r;
   r.tile_level = s.tile_size_m ? tileLevelFor(*s.tile_size_m, map.resolution_m()) : kDefaultTileLevel;
   r.tile_size_m = std::ldexp(map.resolution_m(), r.tile_level);
   map.compact();  // as the file holds it: the join then gives back the same layout
   const SplitMap split = splitIntoTiles(map, r.tile_level);
   split.top.forEachList([&](const VoxelKey&, int, std::span<const TemporalMap::Entry>) { ++r.top_lists; });
-  const nlohmann::json meta = {{"created_by", "chronomap tile"}, {"source", s.map.string()}};
+  nlohmann::json meta = {{"created_by", "chronomap tile"}, {"source", s.map.string()}};
+  meta.update(pipeline_detail::upKeysOf(userMetadataOf(file)));  // the map's up goes with it (docs/frames.md)
   const TiledWriteResult w = writeTiledMap(s.folder, split, meta);
   r.tiles = w.tiles;
   r.index_bytes = w.index_bytes;
@@ -62,7 +65,9 @@ size_t untileMap(const fs::path& folder, const fs::path& map) {
   std::vector<const Tile*> refs;
   for (const Tile& t : tiles) refs.push_back(&t);
   const TemporalMap joined = joinTiles(index.top, index.tile_level, refs);
-  writeTemporalMap(map, joined, {{"created_by", "chronomap untile"}, {"source", folder.string()}});
+  nlohmann::json meta = {{"created_by", "chronomap untile"}, {"source", folder.string()}};
+  meta.update(pipeline_detail::upKeysOf(userMetadataOf(readCmap(folder / kTileIndexName))));
+  writeTemporalMap(map, joined, meta);
   return joined.sessionCount();
 }
 

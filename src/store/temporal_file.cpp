@@ -134,6 +134,12 @@ TemporalMap::Parts partsOfVersion2(const CmapFile& file, const std::string& sour
 
 }  // namespace
 
+nlohmann::json userMetadataOf(const CmapFile& file) {
+  const nlohmann::json meta = metadataOf(file);
+  if (meta.is_object() && meta.contains("user") && meta["user"].is_object()) return meta["user"];
+  return nlohmann::json::object();
+}
+
 void writeTemporalMap(const std::filesystem::path& path, const TemporalMap& map, const nlohmann::json& meta) {
   writeFileAtomic(path, encodeTemporalMap(map, meta));
 }

@@ -37,6 +37,30 @@ TEST(Cli, BadUsageExitsWithTwo) {
   EXPECT_FALSE(fs::exists(tmp / "o.cmap"));
 }
 
+TEST(Cli, UpTurnsTheRecordingAndABadOneNamesTheFlag) {
+  test::TempDir tmp;
+  const std::string wall = test::writeWallDataset(tmp.path(), "wall", 2.0f).string();
+  for (const std::string& cmd : {"integrate " + wall + " -o " + (tmp / "o.cmap").string(),
+                                 "build " + (tmp / "m.cmap").string() + " " + wall + " --times 0"}) {
+    const auto bad = test::runCommand(cli() + " " + cmd + " --up sideways");
+    EXPECT_EQ(bad.exit_code, 2) << cmd;
+    EXPECT_NE(bad.err.find("--up must be +x, -x, +y, -y, +z, -z or auto, not 'sideways'"), std::string::npos)
+        << bad.err;
+  }
+  EXPECT_FALSE(fs::exists(tmp / "o.cmap"));
+  EXPECT_FALSE(fs::exists(tmp / "m.cmap"));
+  // The wall at x = 2 m seen from the origin, with +x up, lies 2 m above the sensor.
+  const auto r = test::runCommand(cli() + " integrate " + wall + " -o " + (tmp / "o.cmap").string() + " --up +x --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["up"], "+x");
+  const auto s = test::runCommand(cli() + " stats " + (tmp / "o.cmap").string() + " --json");
+  ASSERT_EQ(s.exit_code, 0) << s.err;
+  const auto j = nlohmann::json::parse(s.out);
+  EXPECT_EQ(j["metadata"]["up"], "+x");
+  EXPECT_NEAR(j["bounds_max"][2].get<double>(), 2.0, 0.1);
+  EXPECT_LT(j["bounds_max"][0].get<double>(), 0.6);
+}
+
 TEST(Cli, IntegrateStatsExportOnRealFrames) {
   CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
   test::TempDir tmp;

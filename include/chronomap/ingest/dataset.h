@@ -128,6 +128,10 @@ struct DatasetSettings {
   /// Image datasets (TUM, 3DMatch, ScanNet): decoded depth images are looked up here before a
   /// file is read, and kept here when they fit (the same frames as without it).
   std::shared_ptr<DepthImageCache> depth_cache;
+  /// Turns the recording's world frame: every pose T_world_sensor becomes R * T_world_sensor (its
+  /// points with it), so that a recording whose up is another axis is read with z up
+  /// (align/up_axis.h's uprightRotation). None: the frame as recorded. A proper rotation.
+  std::optional<Eigen::Matrix3d> world_rotation;
 };
 
 /// Frames of one recording. load() reads and decodes one frame; safe from several threads.

@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "chronomap/align/pose_correction.h"
 #include "chronomap/align/realign.h"
 #include "chronomap/store/temporal_file.h"
@@ -47,8 +49,9 @@ struct BuiltSession {
   uint64_t nodes_separate = 0; ///< nodes of the session map on its own
   uint64_t points = 0;         ///< points integrated
   std::optional<PoseCorrection> correction;   ///< with registration
-  /// T_world_sensor of every frame as the recording gives it, and as integrated (with the
-  /// correction applied; the same poses without registration).
+  /// T_world_sensor of every frame as the recording gives it (turned for the map's up axis,
+  /// docs/frames.md), and as integrated (with the correction applied; the same poses without
+  /// registration).
   std::vector<Eigen::Isometry3d> recorded_poses, poses;
   std::optional<size_t> realigned_voxels;     ///< with re-alignment
   std::vector<std::string> warnings;          ///< IntegratedSession::warnings
@@ -61,6 +64,7 @@ struct BuildResult {
   size_t nodes = 0;     ///< of the map now
   uint64_t file_bytes = 0;
   std::vector<BuiltSession> added;  ///< in time order
+  ChosenUp up;  ///< the up axis of the map's sessions
 };
 
 /// Integrates every dataset, sorts the sessions by time, registers and re-aligns them when
@@ -103,6 +107,7 @@ struct AddSessionResult {
   int64_t nodes_added = 0;
   uint64_t record_bytes = 0;   ///< bytes appended
   std::optional<size_t> realigned_voxels;
+  UpAxis up = UpAxis::PlusZ;  ///< the map's up axis (the session's must be the same)
   size_t sessions = 0;
   size_t nodes = 0;
   uint64_t file_bytes = 0;
@@ -113,9 +118,16 @@ struct AddSessionResult {
 /// @throw UsageError when the time is neither given nor recorded, or resolutions differ.
 AddSessionResult addSession(const AddSessionSettings& settings);
 
-/// The 4D map at `path`, or a new one when the file does not exist (`created` says which).
+/// The 4D map at `path`, or a new one when the file does not exist (`created` says which);
+/// `meta`, when given, receives the stored metadata block (an empty object for a new map).
 /// @throw UsageError when the stored map has another resolution.
 TemporalMap openOrCreate(const std::filesystem::path& path, double resolution_m, const ChangeCriterion& criterion,
-                         bool& created, TemporalFileLayout* layout = nullptr);
+                         bool& created, TemporalFileLayout* layout = nullptr, nlohmann::json* meta = nullptr);
+
+/// The up axis a build into a map uses (docs/frames.md): a map that exists keeps its own (what
+/// its metadata `stored` records, else +z as recorded), which --up auto reuses and a different
+/// --up is refused for; a new map takes the given axis, or auto's estimate on the first dataset.
+/// @throw UsageError naming --up for an axis other than the map's; as chooseUp.
+ChosenUp chooseBuildUp(const BuildSettings& settings, bool created, const nlohmann::json& stored);
 
 }  // namespace chronomap

@@ -16,6 +16,7 @@
 
 #include "chronomap/align/pose_correction.h"
 #include "chronomap/align/register.h"
+#include "chronomap/align/up_axis.h"
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/ingest/dataset.h"
 #include "chronomap/ingest/registry.h"
@@ -25,12 +26,42 @@
 
 namespace chronomap {
 
+/// Which way is up in the recordings' world frame (docs/frames.md). The frames are turned so
+/// that it becomes +z (DatasetSettings::world_rotation) before anything else reads them: the
+/// maps, and every view, cost map and route computed from them, then have z up.
+struct UpSettings {
+  std::optional<UpAxis> axis;  ///< given (--up); none: +z, as recorded (build: the map's own when it records one)
+  bool estimate = false;       ///< --up auto: estimateUpAxis on the recording (build: on the first one); axis unused
+};
+
+/// The up axis a recording or a build uses, and where it came from.
+struct ChosenUp {
+  UpAxis axis = UpAxis::PlusZ;
+  /// "default" (+z, as recorded), "given" (--up), "auto" (estimated), "map" (the 4D map's own).
+  std::string from = "default";
+  std::optional<UpEstimate> estimate;  ///< when estimated
+  /// The metadata a map records for it ("up", "up_from", "world_rotation": the rotation applied
+  /// to the recordings' world frame, row by row); empty for +z as recorded, so that such maps keep
+  /// their bytes.
+  nlohmann::json metadata() const;
+};
+
 /// How a recording becomes a session map: how it is read, and how it is integrated.
 struct SessionSettings {
   double resolution_m = 0.05;
   DatasetSettings dataset;
   IntegratorSettings integrator;
+  UpSettings up;
 };
+
+/// The up axis `up` asks for: the given one, or (estimate) the one estimateUpAxis finds in the
+/// recording at `path` as read with `dataset` (its world_rotation ignored).
+/// @throw as openRecording and estimateUpAxis.
+ChosenUp chooseUp(const UpSettings& up, const std::filesystem::path& path, const DatasetSettings& dataset);
+
+/// The up a 4D map's metadata records: its "up" (from "map"), else +z as recorded; nothing for
+/// metadata that is not an object. @throw FormatError naming `source` for an unknown axis.
+ChosenUp storedUp(const nlohmann::json& meta, const std::string& source);
 
 /// A recording integrated into a session map.
 struct IntegratedSession {
@@ -41,7 +72,8 @@ struct IntegratedSession {
   size_t frames_dropped = 0;
   std::vector<Eigen::Vector3d> sensor_positions;  ///< of every frame, as recorded (before the correction)
   std::string dropped_reasons;  ///< why frames were dropped, when the reader says (Dataset::droppedReasons)
-  std::vector<Eigen::Isometry3d> poses;  ///< T_world_sensor of every frame, as recorded (before the correction)
+  std::vector<Eigen::Isometry3d> poses;  ///< T_world_sensor of every frame, as read (turned upright, before the correction)
+  ChosenUp up;  ///< the up axis the frames were turned for
   /// Limits that dropped many of the points (droppedPointsWarnings); the front doors print them.
   std::vector<std::string> warnings;
 };
@@ -62,7 +94,8 @@ std::vector<BagTopic> listBagTopics(const std::filesystem::path& path, std::stri
 /// openDataset after registerReaders(): what the CLI, Python and the workflows open recordings with.
 std::unique_ptr<Dataset> openRecording(const std::filesystem::path& path, const DatasetSettings& settings = {});
 
-/// Opens and integrates the recording at `path`, every pose corrected by `correction`; reports
+/// Opens and integrates the recording at `path` (its frames turned for settings.up, chooseUp),
+/// every pose corrected by `correction`; reports
 /// the frames as work labelled `label` (none when empty).
 /// @throw DataError when no point could be integrated; whatever the reader throws for bad input.
 IntegratedSession integrateDataset(const std::filesystem::path& path, const SessionSettings& settings,
@@ -90,7 +123,7 @@ struct RegistrationSettings {
 };
 
 /// Registers the session maps integrated from `paths` (in that order, with `sensor_positions` as
-/// recorded) to their consensus, integrating each recording again with its correction (in
+/// read: turned for settings.up, whose auto is estimated on the first path) to their consensus, integrating each recording again with its correction (in
 /// parallel, unreported); `maps` become the corrected sessions. `reports`, when given, receives
 /// each session's last registration report. @return each session's correction.
 std::vector<PoseCorrection> registerDatasets(std::vector<SessionMap>& maps, std::span<const std::filesystem::path> paths,

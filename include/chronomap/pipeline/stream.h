@@ -41,6 +41,8 @@ struct StreamSettings {
   /// Most bytes of session parts held in memory before they are spilled to files in the
   /// folder (then read back one group at a time). 0: no limit.
   size_t memory_limit_bytes = size_t{1} << 30;
+  /// Added to the index's metadata (the up axis of the sessions, ChosenUp::metadata).
+  nlohmann::json metadata = nlohmann::json::object();
   Progress progress;
 };
 

@@ -24,6 +24,9 @@ std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::j
 std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::json& meta,
                                        MapKind kind = MapKind::Temporal, const nlohmann::json* extra = nullptr,
                                        uint32_t version = kCmapFormatVersion);
+/// The metadata a 4D map or tile index was written with (writeTemporalMap's `meta`: its metadata
+/// block's "user" object), or an empty object.
+nlohmann::json userMetadataOf(const CmapFile& file);
 /// `map` with every entry's counters asStored (io/cmap.h): what writing and reading it gives.
 TemporalMap asStored(const TemporalMap& map);
 /// How a 4D map file is laid out: a base written in one piece (writeTemporalMap), then the
