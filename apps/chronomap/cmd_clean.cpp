@@ -52,6 +52,7 @@ void printClean(const CleanOptions& o, const CleanResult& r) {
 }
 
 int runClean(CleanOptions& o) {
+  requireExtension(o.output, ".pcd", "static map (-o)");
   checkOutputs({{o.output, "-o"}}, {o.input});
   o.settings.dataset.format = parseRecordingFormat(o.format);
   o.settings.points.fast = !o.exact;

@@ -54,10 +54,14 @@ Box walkerBox(const Walker& w, double time_s) {
   return Box{at - half, at + half + Eigen::Vector3d(0.0, 0.0, w.size_m.z()), Rgb{255, 0, 255}};
 }
 
-DynamicMapWriter::DynamicMapWriter(fs::path folder, size_t gt_stride)
-    : folder_(std::move(folder)), gt_stride_(std::max<size_t>(1, gt_stride)) {
+DynamicMapWriter::DynamicMapWriter(const fs::path& folder, size_t gt_stride)
+    : staged_(std::make_unique<StagedFolder>(folder)),
+      folder_(staged_->path()),
+      gt_stride_(std::max<size_t>(1, gt_stride)) {
   fs::create_directories(folder_ / "pcd");
 }
+
+DynamicMapWriter::~DynamicMapWriter() = default;
 
 void DynamicMapWriter::add(const Frame& frame, const std::vector<uint8_t>& dynamic) {
   if (!dynamic.empty() && dynamic.size() != frame.cloud.points.size()) {
@@ -90,6 +94,7 @@ void DynamicMapWriter::finish() {
   PcdExtras extras;
   extras.intensity = gt_labels_;
   writePcd(folder_ / "gt_cloud.pcd", gt_, PcdEncoding::Binary, &extras);
+  staged_->commit();
 }
 
 size_t DynamicMapWriter::gtDynamic() const {
@@ -143,6 +148,7 @@ Frame renderRingFrame(const DynamicMapSimSettings& s, const BoxRoom& room, const
   const Eigen::Vector3d position(0.3 * std::cos(turn), 0.3 * std::sin(turn), 1.2);
   const double time_s = static_cast<double>(i) / s.frame_rate_hz;
   std::vector<Box> people;
+  people.reserve(walkers.size());
   for (const Walker& w : walkers) people.push_back(walkerBox(w, time_s));
   Frame joined;
   dynamic.clear();

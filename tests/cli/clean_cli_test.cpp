@@ -56,6 +56,9 @@ TEST(CleanCli, ABadViewpointStopsWithTheFileNamedAndNothingWritten) {
   EXPECT_EQ(r.exit_code, 1) << r.err;
   EXPECT_NE(r.err.find("000000.pcd: PCD VIEWPOINT has 6 values"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(tmp / "c.pcd"));
+  const auto ply = test::runCommand(cli() + " clean " + (tmp / "seq").string() + " -o " + (tmp / "c.ply").string());
+  EXPECT_EQ(ply.exit_code, 2) << ply.err;
+  EXPECT_NE(ply.err.find("must end in .pcd"), std::string::npos) << ply.err;
   const auto help = test::runCommand(cli() + " clean --help");
   EXPECT_EQ(help.exit_code, 0);
   EXPECT_NE(help.out.find("VIEWPOINT"), std::string::npos);

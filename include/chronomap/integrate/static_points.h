@@ -7,9 +7,10 @@
 /// Each frame is cast on its own (the integrator's ray accumulation, exact or fast mode), so a
 /// voxel's history is a count of frames: those with a point in it (occupied then) and those
 /// whose rays crossed it for at least `free_length_voxels` voxel lengths with no point in it
-/// (observed free then), each ray counting as free only up to a margin before its point. A person walking through a room leaves voxels occupied in a few frames
-/// and observed free in many; a wall's voxels are occupied whenever they are seen, and observed
-/// free only where rays graze it, now and then.
+/// (observed free then), each ray counting as free only up to a margin before its point. A
+/// person walking through a room leaves voxels occupied in a few frames and observed free in
+/// many; a wall's voxels are occupied whenever they are seen, and observed free only where rays
+/// graze it, now and then.
 
 #include <cstddef>
 #include <cstdint>

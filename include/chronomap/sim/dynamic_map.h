@@ -11,10 +11,12 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <vector>
 
 #include <Eigen/Geometry>
 
+#include "chronomap/core/file.h"
 #include "chronomap/core/frame.h"
 #include "chronomap/sim/box_room.h"
 
@@ -35,13 +37,19 @@ Box walkerBox(const Walker& walker, double time_s);
 /// Writes frames as a dynamic-map sequence, one at a time.
 class DynamicMapWriter {
  public:
-  /// Creates `folder`/pcd (the folder may exist; frames in it are replaced). Every
-  /// `gt_stride`-th valid point of the frames (in order) goes to gt_cloud.pcd.
-  DynamicMapWriter(std::filesystem::path folder, size_t gt_stride);
+  /// Writes into a staging folder beside `folder`, moved into place by finish() (pcd/ and
+  /// gt_cloud.pcd replace what `folder` had; nothing changes there when finish() is not reached).
+  /// Every `gt_stride`-th valid point of the frames (in order) goes to gt_cloud.pcd.
+  /// @throw IoError when the staging folder cannot be created.
+  DynamicMapWriter(const std::filesystem::path& folder, size_t gt_stride);
+  ~DynamicMapWriter();
+  DynamicMapWriter(const DynamicMapWriter&) = delete;
+  DynamicMapWriter& operator=(const DynamicMapWriter&) = delete;
   /// Writes frame number frames() as pcd/NNNNNN.pcd: its valid points (not NaN) in the world frame,
   /// binary, its pose as VIEWPOINT. `dynamic` (one entry per point, or empty: all static) labels them.
   void add(const Frame& frame, const std::vector<uint8_t>& dynamic);
-  /// Writes gt_cloud.pcd (x y z intensity, binary). Call once, after the last frame.
+  /// Writes gt_cloud.pcd (x y z intensity, binary) and moves the sequence into place. Call once,
+  /// after the last frame.
   void finish();
   size_t frames() const { return frames_; }
   uint64_t points() const { return points_; }
@@ -50,7 +58,8 @@ class DynamicMapWriter {
   size_t gtDynamic() const;
 
  private:
-  std::filesystem::path folder_;
+  std::unique_ptr<StagedFolder> staged_;
+  std::filesystem::path folder_;  // the staging folder
   size_t gt_stride_;
   size_t frames_ = 0;
   uint64_t points_ = 0, dynamic_points_ = 0;
