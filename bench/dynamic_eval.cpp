@@ -8,7 +8,8 @@
 // Usage:
 //   dynamic_eval SEQ [--resolution R] [--max-range M] [--radius 0.05] [--free-length V]
 //                    [--min-free-frames N] [--min-free-ratio F] [--free-margin M] [--free-margin-growth G]
-//                    [--dilation V] [--exact] [--save DIR] [--no-baseline]
+//                    [--dilation V] [--spread STEPS] [--spread-fraction F] [--exact] [--save DIR]
+//                    [--no-baseline]
 //   dynamic_eval --score GT.pcd MAP.pcd [--radius 0.05]     (score any method's output)
 //   dynamic_eval --make-real DATASET -o SEQ [--repeat 8] [--people 2] [--seed 1] [--pixel-step 2]
 //                    [--gt-stride 8] [--intrinsics fx,fy,cx,cy]
@@ -300,6 +301,8 @@ Options parse(int argc, char** argv) {
     else if (a == "--free-margin") o.points.free_margin_m = std::stod(value());
     else if (a == "--free-margin-growth") o.points.free_margin_per_m2 = std::stod(value());
     else if (a == "--dilation") o.points.occupied_dilation_voxels = std::stoi(value());
+    else if (a == "--spread") o.points.spread_steps = std::stoi(value());
+    else if (a == "--spread-fraction") o.points.spread_fraction = std::stod(value());
     else if (a == "--exact") o.points.fast = false;
     else if (a == "--no-baseline") o.baseline = false;
     else if (a == "--repeat") o.repeat = std::stoul(value());

@@ -98,6 +98,12 @@ Command addClean(CLI::App& root) {
   app->add_option("--min-free-ratio", s.min_free_ratio, "... and at least this fraction of the frames that saw it occupied")
       ->check(numberIn(0, 1e6))
       ->capture_default_str();
+  app->add_option("--spread", s.spread_steps, "steps grown into a frame's voxels whose neighbours in the frame are ...")
+      ->check(numberIn(0, 1000))
+      ->capture_default_str();
+  app->add_option("--spread-fraction", s.spread_fraction, "... at least this fraction dynamic")
+      ->check(numberIn(0, 1))
+      ->capture_default_str();
   app->add_option("--threads", s.threads, "worker threads, 0 = all cores (output does not depend on it)")
       ->check(numberIn(0, kMaxThreads))
       ->capture_default_str();

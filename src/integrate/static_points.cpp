@@ -26,6 +26,9 @@ void checkSettings(const StaticPointSettings& s) {
     throw UsageError("static points: the free length, the free ratio and the free margins must not be negative");
   }
   if (s.min_free_frames == 0) throw UsageError("static points: at least one frame must observe a voxel free");
+  if (s.spread_steps < 0 || !(s.spread_fraction >= 0.0 && s.spread_fraction <= 1.0)) {
+    throw UsageError("static points: the spread steps must not be negative and the spread fraction must lie in [0, 1]");
+  }
   if (s.occupied_dilation_voxels < 0 || s.occupied_dilation_voxels > 3) {
     throw UsageError("static points: the occupied dilation must lie in [0, 3] voxels");
   }
@@ -187,9 +190,43 @@ struct Judged {
   uint64_t in = 0, invalid = 0, unjudged = 0, dynamic = 0;
 };
 
+/// The voxels of one frame (its sorted occupied codes) whose points go: those judged dynamic,
+/// grown spread_steps times into the frame's voxels with at least spread_fraction of their
+/// neighbours in the frame dynamic (a person's parts never seen free, beside parts that were).
+std::vector<uint64_t> dynamicInFrame(const std::vector<uint64_t>& occupied, const std::vector<uint64_t>& surface,
+                                     const std::vector<VoxelFrameCounts>& counts, const StaticPointSettings& s) {
+  std::vector<uint64_t> dynamic;
+  for (uint64_t code : occupied) {
+    const size_t index = indexOf(surface, code);
+    if (index < surface.size() && isDynamicVoxel(counts[index], s)) dynamic.push_back(code);
+  }
+  for (int step = 0; step < s.spread_steps && !dynamic.empty(); ++step) {
+    std::vector<uint64_t> grown;
+    for (uint64_t code : occupied) {
+      if (contains(dynamic, code)) continue;
+      const VoxelKey key = mortonDecode(code);
+      int in_frame = 0, moving = 0;
+      for (int d = 0; d < 27; ++d) {
+        const int x = key.x + d % 3 - 1, y = key.y + d / 3 % 3 - 1, z = key.z + d / 9 - 1;
+        if (d == 13 || x < 0 || y < 0 || z < 0 || x > 0xffff || y > 0xffff || z > 0xffff) continue;
+        const uint64_t n = mortonEncode({static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)});
+        if (!contains(occupied, n)) continue;
+        ++in_frame;
+        moving += contains(dynamic, n) ? 1 : 0;
+      }
+      if (moving > 0 && moving >= s.spread_fraction * in_frame) grown.push_back(code);
+    }
+    if (grown.empty()) break;
+    dynamic.insert(dynamic.end(), grown.begin(), grown.end());
+    std::sort(dynamic.begin(), dynamic.end());
+  }
+  return dynamic;
+}
+
 Judged judgeFrame(const Frame& frame, const KeyGrid& grid, const std::vector<uint64_t>& surface,
                   const std::vector<VoxelFrameCounts>& counts, const StaticPointSettings& s) {
   Judged out;
+  const std::vector<uint64_t> dynamic = dynamicInFrame(occupiedCodes(frame, grid, s), surface, counts, s);
   const Eigen::Vector3d origin = frame.T_world_sensor.translation();
   const double max_range_sq = s.max_range_m * s.max_range_m;
   for (size_t i = 0; i < frame.cloud.points.size(); ++i) {
@@ -203,12 +240,9 @@ Judged judgeFrame(const Frame& frame, const KeyGrid& grid, const std::vector<uin
     const std::optional<VoxelKey> key = grid.keyOf(w);
     if (!key || (w - origin).squaredNorm() > max_range_sq) {
       ++out.unjudged;
-    } else {
-      const size_t index = indexOf(surface, mortonEncode(*key));
-      if (index < surface.size() && isDynamicVoxel(counts[index], s)) {
-        ++out.dynamic;
-        continue;
-      }
+    } else if (contains(dynamic, mortonEncode(*key))) {
+      ++out.dynamic;
+      continue;
     }
     out.kept.points.push_back(w.cast<float>());
   }

@@ -3,6 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <functional>
+
 #include "chronomap/integrate/static_points.h"
 #include "chronomap/sim/box_room.h"
 
@@ -55,6 +58,47 @@ TEST(StaticPoints, ABoxThatLeavesIsDroppedAndTheRoomKept) {
   s.threads = 1;
   const StaticPointResult one = staticPoints(source, s);
   EXPECT_EQ(one.points.points, r.points.points);
+}
+
+/// A sheet of points at x (metres), y in [y0, y1], z in [z0, z1], 2 cm apart, kept where `keep` says.
+void addSheet(std::vector<Eigen::Vector3f>& out, float x, float y0, float y1, float z0, float z1,
+              const std::function<bool(float, float)>& keep = {}) {
+  for (float y = y0; y <= y1 + 1e-4f; y += 0.02f) {
+    for (float z = z0; z <= z1 + 1e-4f; z += 0.02f) {
+      if (!keep || keep(y, z)) out.emplace_back(x, y, z);
+    }
+  }
+}
+
+TEST(StaticPoints, ThePartsOfAPersonNeverSeenFreeGoWithThePartsThatWere) {
+  // Frame 0: a person (a sheet at x = 1 m) in front of a wall at x = 2 m (the wall behind it
+  // hidden). Frames 1-5: the person gone; the wall returns only its lower half behind where the
+  // person stood (a window above), so only the person's lowest quarter is ever seen free.
+  auto wallAt = [](bool lower_only) {
+    std::vector<Eigen::Vector3f> points;
+    addSheet(points, 2.0f, -1.0f, 1.0f, 0.0f, 1.0f,
+             [&](float y, float z) { return std::abs(y) > 0.45f || (lower_only && z < 0.5f); });
+    return points;
+  };
+  std::vector<Frame> frames(6);
+  std::vector<Eigen::Vector3f> person;
+  addSheet(person, 1.0f, -0.2f, 0.2f, 0.0f, 1.0f);
+  for (size_t i = 0; i < frames.size(); ++i) {
+    frames[i].cloud.points = wallAt(i > 0);
+    if (i == 0) frames[i].cloud.points.insert(frames[i].cloud.points.end(), person.begin(), person.end());
+    frames[i].cloud.width = static_cast<uint32_t>(frames[i].cloud.points.size());
+  }
+  const FrameVector source(std::move(frames));
+  StaticPointSettings s;
+  s.spread_steps = 0;
+  const StaticPointResult alone = staticPoints(source, s);
+  EXPECT_GT(alone.points_dynamic, 0u);
+  EXPECT_LT(alone.points_dynamic, person.size() * 2 / 5);
+  s.spread_steps = 30;
+  s.spread_fraction = 0.3;
+  const StaticPointResult spread = staticPoints(source, s);
+  EXPECT_GE(spread.points_dynamic, person.size() * 95 / 100);
+  EXPECT_LE(spread.points_dynamic, person.size());  // the wall stays
 }
 
 }  // namespace

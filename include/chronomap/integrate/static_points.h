@@ -45,6 +45,11 @@ struct StaticPointSettings {
   /// ... and at least this fraction of the number of frames that saw it occupied (a surface
   /// grazed by rays in a few of the many frames that saw it stays).
   double min_free_ratio = 0.5;
+  /// A frame's points also go where their voxel has, among its 26 neighbours holding points of
+  /// the same frame, at least this fraction dynamic (grown this many steps; 0: off): the parts
+  /// of a person never seen free, beside the parts that were.
+  int spread_steps = 4;
+  double spread_fraction = 0.7;
   /// Fast mode (one ray per end voxel, weighted by its points) instead of exact ray casting.
   bool fast = true;
   /// Worker threads; 0 uses every core. The result does not depend on it.
