@@ -190,9 +190,21 @@ struct Judged {
   uint64_t in = 0, invalid = 0, unjudged = 0, dynamic = 0;
 };
 
+/// Calls `fn` with the Morton code of each of the 26 neighbours of `code` inside the key space.
+template <typename Fn>
+void forNeighbours(uint64_t code, Fn fn) {
+  const VoxelKey key = mortonDecode(code);
+  for (int d = 0; d < 27; ++d) {
+    const int x = key.x + d % 3 - 1, y = key.y + d / 3 % 3 - 1, z = key.z + d / 9 - 1;
+    if (d == 13 || x < 0 || y < 0 || z < 0 || x > 0xffff || y > 0xffff || z > 0xffff) continue;
+    fn(mortonEncode({static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)}));
+  }
+}
+
 /// The voxels of one frame (its sorted occupied codes) whose points go: those judged dynamic,
 /// grown spread_steps times into the frame's voxels with at least spread_fraction of their
 /// neighbours in the frame dynamic (a person's parts never seen free, beside parts that were).
+/// Each step looks only at the neighbours of the voxels the step before added.
 std::vector<uint64_t> dynamicInFrame(const std::vector<uint64_t>& occupied, const std::vector<uint64_t>& surface,
                                      const std::vector<VoxelFrameCounts>& counts, const StaticPointSettings& s) {
   std::vector<uint64_t> dynamic;
@@ -200,25 +212,29 @@ std::vector<uint64_t> dynamicInFrame(const std::vector<uint64_t>& occupied, cons
     const size_t index = indexOf(surface, code);
     if (index < surface.size() && isDynamicVoxel(counts[index], s)) dynamic.push_back(code);
   }
-  for (int step = 0; step < s.spread_steps && !dynamic.empty(); ++step) {
-    std::vector<uint64_t> grown;
-    for (uint64_t code : occupied) {
-      if (contains(dynamic, code)) continue;
-      const VoxelKey key = mortonDecode(code);
+  std::vector<uint64_t> added = dynamic, candidates, grown;
+  for (int step = 0; step < s.spread_steps && !added.empty(); ++step) {
+    candidates.clear();
+    for (uint64_t code : added) {
+      forNeighbours(code, [&](uint64_t n) {
+        if (contains(occupied, n) && !contains(dynamic, n)) candidates.push_back(n);
+      });
+    }
+    std::sort(candidates.begin(), candidates.end());
+    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+    grown.clear();
+    for (uint64_t code : candidates) {
       int in_frame = 0, moving = 0;
-      for (int d = 0; d < 27; ++d) {
-        const int x = key.x + d % 3 - 1, y = key.y + d / 3 % 3 - 1, z = key.z + d / 9 - 1;
-        if (d == 13 || x < 0 || y < 0 || z < 0 || x > 0xffff || y > 0xffff || z > 0xffff) continue;
-        const uint64_t n = mortonEncode({static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)});
-        if (!contains(occupied, n)) continue;
+      forNeighbours(code, [&](uint64_t n) {
+        if (!contains(occupied, n)) return;
         ++in_frame;
         moving += contains(dynamic, n) ? 1 : 0;
-      }
+      });
       if (moving > 0 && moving >= s.spread_fraction * in_frame) grown.push_back(code);
     }
-    if (grown.empty()) break;
     dynamic.insert(dynamic.end(), grown.begin(), grown.end());
     std::sort(dynamic.begin(), dynamic.end());
+    added = grown;
   }
   return dynamic;
 }
