@@ -124,7 +124,10 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
   }
   metadataOf(file);
 #elif defined(FUZZ_PCD)
-  parsePcd(bytes, name);
+  // With the extras too: the intensity field, and the VIEWPOINT as the dynamic-map reader takes it.
+  PcdExtras extras;
+  parsePcd(bytes, name, &extras);
+  if (!extras.viewpoint.empty()) pcdViewpointPose(extras.viewpoint, name);
 #elif defined(FUZZ_PLY)
   parsePly(bytes, name);
 #elif defined(FUZZ_XYZ)

@@ -10,6 +10,7 @@
 #include "chronomap/core/format.h"
 #include "chronomap/pipeline/demo.h"
 #include "chronomap/sim/building.h"
+#include "chronomap/sim/dynamic_map.h"
 #include "commands.h"
 #include "progress.h"
 
@@ -20,11 +21,46 @@ namespace {
 struct SimulateOptions {
   SimulationSettings settings;
   std::string output;
+  std::string format = "tum";
+  DynamicMapSimSettings dynamic;  ///< --format dynamic-map: frames and people
+  CLI::Option* resolution_scale = nullptr;  ///< given: dynamic-map takes it, else its own default
   bool json = false;
 };
 
+/// --format dynamic-map: the box room with people walking, as the dynamic-map benchmark's folders.
+int runSimulateDynamicMap(const SimulateOptions& o) {
+  DynamicMapSimSettings settings = o.dynamic;
+  settings.seed = o.settings.seed;
+  settings.noise_per_m2 = o.settings.noise_per_m2;
+  if (o.resolution_scale->count() > 0) settings.resolution_scale = o.settings.resolution_scale;
+  std::unique_ptr<ProgressBar> bar;
+  const DynamicMapSimSummary s = simulateDynamicMap(settings, o.output, [&](size_t done, size_t total) {
+    if (!bar && !o.json) bar = std::make_unique<ProgressBar>("simulating dynamic-map", total);
+    if (bar) bar->update(done);
+  });
+  if (bar) bar->finish();
+  if (o.json) {
+    std::cout << nlohmann::json{{"format", "dynamic-map"}, {"seed", settings.seed},     {"frames", s.frames},
+                                {"people", settings.people}, {"points", s.points},      {"dynamic_points", s.dynamic_points},
+                                {"gt_points", s.gt_points},  {"gt_dynamic", s.gt_dynamic}, {"seconds", s.seconds},
+                                {"output", o.output}}
+                     .dump()
+              << "\n";
+  } else {
+    std::cout << "simulated " << s.frames << " frames (" << settings.cameras << " cameras round) of the box room with "
+              << settings.people << " people walking ("
+              << s.points << " points, " << s.dynamic_points << " on people) in " << std::fixed << std::setprecision(1)
+              << s.seconds << " s\n"
+              << "  " << o.output << "/pcd/NNNNNN.pcd   frames in the world frame, the sensor pose in VIEWPOINT\n"
+              << "  " << o.output << "/gt_cloud.pcd     " << s.gt_points << " points, intensity 1 on the "
+              << s.gt_dynamic << " dynamic ones\n";
+  }
+  return 0;
+}
+
 int runSimulate(const SimulateOptions& o) {
   checkOutputs({{o.output, "-o", true}}, {});
+  if (o.format == "dynamic-map") return runSimulateDynamicMap(o);
   std::unique_ptr<ProgressBar> bar;
   const SimulationSummary s = chronomap::simulate(o.settings, o.output, [&](size_t done, size_t total) {
     if (!bar) bar = std::make_unique<ProgressBar>("simulating " + o.settings.preset, total);
@@ -113,6 +149,17 @@ int runDemo(const DemoCmdOptions& o) {
   return 0;
 }
 
+/// --format and the dynamic-map sequence's own flags.
+void addDynamicMapFlags(CLI::App* app, SimulateOptions& o) {
+  app->add_option("--format", o.format,
+                  "tum (the building's sessions) or dynamic-map (the box room with people walking, as the "
+                  "dynamic-map benchmark's folders: pcd/*.pcd and a labelled gt_cloud.pcd; --frames, --people)")
+      ->check(CLI::IsMember({"tum", "dynamic-map"}))
+      ->capture_default_str();
+  app->add_option("--frames", o.dynamic.frames, "dynamic-map: frames")->check(numberIn(1, 100000))->capture_default_str();
+  app->add_option("--people", o.dynamic.people, "dynamic-map: people walking")->check(numberIn(0, 100))->capture_default_str();
+}
+
 }  // namespace
 
 Command addSimulate(CLI::App& root) {
@@ -135,9 +182,10 @@ Command addSimulate(CLI::App& root) {
   app->add_option("--floors", o->settings.floors, "site only: floors stacked and patrolled (1 to 50)")
       ->check(numberIn(1, 50))
       ->capture_default_str();
-  app->add_option("--resolution-scale", o->settings.resolution_scale,
-                  "image size relative to 640 x 480 (0.1 .. 1; smaller is faster)")
-      ->capture_default_str();
+  o->resolution_scale = app->add_option("--resolution-scale", o->settings.resolution_scale,
+                                        "image size relative to 640 x 480 (0.1 .. 1; smaller is faster; "
+                                        "dynamic-map: each camera's, default 0.25)")
+                            ->capture_default_str();
   app->add_option("--sensor", o->settings.sensor,
                   "the depth camera and odometry imitated: ideal (sigma = NOISE * z^2, dropouts at edges and on "
                   "dark surfaces, a localiser's offset and small drift; the default, as before), kinect (Kinect v1: "
@@ -167,6 +215,7 @@ Command addSimulate(CLI::App& root) {
                 "weeks only: rare events on top of the routines in the last quarter of the sessions (a parcel left "
                 "in the corridor at night, an item taken from a shelf, a door open at night, a chair in the "
                 "corridor, a person at night), labelled \"rare\" in scene.json");
+  addDynamicMapFlags(app, *o);
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runSimulate(*o); }};
 }

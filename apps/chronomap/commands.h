@@ -42,6 +42,7 @@ Command addAlerts(CLI::App& root);
 Command addDiff(CLI::App& root);
 Command addSegment(CLI::App& root);
 Command addSimulate(CLI::App& root);
+Command addClean(CLI::App& root);
 Command addDemo(CLI::App& root);
 Command addView(CLI::App& root);
 Command addTile(CLI::App& root);

@@ -41,7 +41,8 @@ int run(int argc, char** argv) {
                                               cli::addPredict(app),   cli::addCostmap(app),  cli::addAlerts(app),
                                               cli::addDiff(app),      cli::addSegment(app),  cli::addStats(app),
                                               cli::addExport(app),    cli::addSimulate(app), cli::addDemo(app),
-                                              cli::addView(app),      cli::addTile(app),     cli::addUntile(app)};
+                                              cli::addView(app),      cli::addTile(app),     cli::addUntile(app),
+                                              cli::addClean(app)};
 
   try {
     app.parse(argc, argv);

@@ -3,17 +3,22 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <limits>
 #include <sstream>
 
 #include "chronomap/core/error.h"
 #include "chronomap/ingest/cloud_io.h"
 #include "chronomap/core/file.h"
+#include "chronomap/core/pose.h"
 #include "text_util.h"
 
 namespace chronomap {
 
 namespace {
+
+/// Longest PCD header readPcdViewpoint looks through.
+constexpr size_t kPcdHeaderMaxBytes = 64 * 1024;
 
 struct PcdField {
   std::string name;
@@ -29,6 +34,7 @@ struct PcdHeader {
   std::string data;
   size_t header_bytes = 0;
   size_t point_bytes = 0;
+  std::vector<std::string> viewpoint;  // the VIEWPOINT line's values, as written
 };
 
 double readScalar(const uint8_t* p, const PcdField& f) {
@@ -109,7 +115,7 @@ PcdHeader parseHeader(const std::vector<uint8_t>& bytes, const std::string& name
     } else if (key == "POINTS" && values.size() == 1) {
       h.points = number(values[0]);
     } else if (key == "VIEWPOINT") {
-      continue;  // metadata; the pose comes from the dataset
+      h.viewpoint = values;  // checked by pcdViewpointPose where a reader takes the pose from it
     } else if (key == "DATA" && values.size() == 1) {
       h.data = values[0];
       have_data = true;
@@ -143,6 +149,17 @@ PcdHeader parseHeader(const std::vector<uint8_t>& bytes, const std::string& name
   return h;
 }
 
+/// The first `max_bytes` of a file (all of it when compressed: .bz2 is read whole).
+std::vector<uint8_t> readPrefix(const std::filesystem::path& path, size_t max_bytes) {
+  if (path.extension() == ".bz2") return readFileBytes(path);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw IoError(path.string() + ": cannot open for reading");
+  std::vector<uint8_t> out(max_bytes);
+  in.read(reinterpret_cast<char*>(out.data()), static_cast<std::streamsize>(max_bytes));
+  out.resize(static_cast<size_t>(in.gcount()));
+  return out;
+}
+
 const PcdField* findField(const PcdHeader& h, std::initializer_list<const char*> names) {
   for (const char* n : names) {
     for (const auto& f : h.fields) {
@@ -158,8 +175,40 @@ PointCloud readPcd(const std::filesystem::path& path) {
   return readNamingMemory(path, [&] { return parsePcd(readFileBytes(path), path.string()); });
 }
 
-PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name) {
+PointCloud readPcd(const std::filesystem::path& path, PcdExtras& extras) {
+  return readNamingMemory(path, [&] { return parsePcd(readFileBytes(path), path.string(), &extras); });
+}
+
+std::vector<std::string> readPcdViewpoint(const std::filesystem::path& path) {
+  // The header only: a sequence's poses are read when it is opened, its points frame by frame.
+  std::vector<uint8_t> head = readPrefix(path, kPcdHeaderMaxBytes);
+  const std::string text(head.begin(), head.end());
+  if (text.find("\nDATA") == std::string::npos && text.rfind("DATA", 0) != 0) {
+    throw FormatError(path.string() + ": PCD header has no DATA line in its first " +
+                      std::to_string(kPcdHeaderMaxBytes) + " bytes");
+  }
+  return parseHeader(head, path.string()).viewpoint;
+}
+
+Eigen::Isometry3d pcdViewpointPose(const std::vector<std::string>& values, const std::string& name) {
+  if (values.empty()) {
+    throw DataError(name + ": PCD has no VIEWPOINT line; the sensor pose must be given there as 'VIEWPOINT tx ty tz qw qx qy qz'");
+  }
+  if (values.size() != 7) {
+    throw DataError(name + ": PCD VIEWPOINT has " + std::to_string(values.size()) +
+                    " values, expected 7 (tx ty tz qw qx qy qz)");
+  }
+  double v[7];
+  for (size_t i = 0; i < 7; ++i) v[i] = parseDouble(values[i], name + ": PCD VIEWPOINT value " + std::to_string(i + 1));
+  return poseFromTranslationQuaternion({v[0], v[1], v[2]}, v[4], v[5], v[6], v[3], name + ": PCD VIEWPOINT");
+}
+
+PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name, PcdExtras* extras) {
   const PcdHeader h = parseHeader(bytes, name);
+  if (extras) {
+    extras->viewpoint = h.viewpoint;
+    extras->intensity.clear();
+  }
   const PcdField* fx = findField(h, {"x"});
   const PcdField* fy = findField(h, {"y"});
   const PcdField* fz = findField(h, {"z"});
@@ -170,6 +219,7 @@ PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name) 
   const PcdField* frgb = findField(h, {"rgb", "rgba"});
   if (frgb && frgb->size != 4) throw FormatError(name + ": PCD rgb field is not 4 bytes");
   const PcdField* flabel = findField(h, {"label"});
+  const PcdField* fintensity = extras ? findField(h, {"intensity"}) : nullptr;
 
   PointCloud cloud;
   const size_t n = static_cast<size_t>(h.points);
@@ -209,6 +259,7 @@ PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name) 
   cloud.points.resize(capacity);
   if (frgb) cloud.colours.resize(capacity);
   if (flabel) cloud.labels.resize(capacity);
+  if (fintensity) extras->intensity.resize(capacity);
 
   if (h.data == "ascii") {
     std::string text(reinterpret_cast<const char*>(data), available);
@@ -245,6 +296,7 @@ PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name) 
         if (&f == flabel) {
           cloud.labels[i] = static_cast<uint32_t>(checkedInteger(num(), 0.0, 4294967295.0, ctx + " label"));
         }
+        if (&f == fintensity) extras->intensity[i] = static_cast<float>(num());
         t += static_cast<size_t>(f.count);
       }
       ++i;
@@ -276,6 +328,7 @@ PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name) 
     cloud.points[i] = Eigen::Vector3f(toFloat(readScalar(at(*fx, i), *fx)), toFloat(readScalar(at(*fy, i), *fy)),
                                       toFloat(readScalar(at(*fz, i), *fz)));
     if (frgb) cloud.colours[i] = unpackRgb(readPacked(at(*frgb, i)));
+    if (fintensity) extras->intensity[i] = static_cast<float>(readScalar(at(*fintensity, i), *fintensity));
     if (flabel) {
       const double label = readScalar(at(*flabel, i), *flabel);
       cloud.labels[i] = static_cast<uint32_t>(
@@ -285,18 +338,31 @@ PointCloud parsePcd(const std::vector<uint8_t>& bytes, const std::string& name) 
   return cloud;
 }
 
-void writePcd(const std::filesystem::path& path, const PointCloud& cloud, PcdEncoding encoding) {
+void writePcd(const std::filesystem::path& path, const PointCloud& cloud, PcdEncoding encoding,
+              const PcdExtras* extras) {
   const size_t n = cloud.points.size();
   const bool rgb = cloud.hasColours();
   const bool label = cloud.hasLabels();
+  const bool intensity = extras && !extras->intensity.empty();
+  if (intensity && extras->intensity.size() != n) {
+    throw UsageError(path.string() + ": " + std::to_string(extras->intensity.size()) + " intensities for " +
+                     std::to_string(n) + " points");
+  }
+  std::string viewpoint = "0 0 0 1 0 0 0";
+  if (extras && !extras->viewpoint.empty()) {
+    if (extras->viewpoint.size() != 7) throw UsageError(path.string() + ": a PCD VIEWPOINT takes 7 values");
+    viewpoint.clear();
+    for (const std::string& v : extras->viewpoint) viewpoint += (viewpoint.empty() ? "" : " ") + v;
+  }
   const uint32_t width = (cloud.width * cloud.height == n) ? cloud.width : static_cast<uint32_t>(n);
   const uint32_t height = (cloud.width * cloud.height == n) ? cloud.height : 1;
   std::ostringstream hdr;
-  hdr << "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z" << (rgb ? " rgb" : "")
-      << (label ? " label" : "") << "\nSIZE 4 4 4" << (rgb ? " 4" : "") << (label ? " 4" : "")
-      << "\nTYPE F F F" << (rgb ? " U" : "") << (label ? " U" : "") << "\nCOUNT 1 1 1" << (rgb ? " 1" : "")
-      << (label ? " 1" : "") << "\nWIDTH " << width << "\nHEIGHT " << height << "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS "
-      << n << "\nDATA "
+  hdr << "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS x y z" << (intensity ? " intensity" : "")
+      << (rgb ? " rgb" : "") << (label ? " label" : "") << "\nSIZE 4 4 4" << (intensity ? " 4" : "")
+      << (rgb ? " 4" : "") << (label ? " 4" : "") << "\nTYPE F F F" << (intensity ? " F" : "") << (rgb ? " U" : "")
+      << (label ? " U" : "") << "\nCOUNT 1 1 1" << (intensity ? " 1" : "") << (rgb ? " 1" : "") << (label ? " 1" : "")
+      << "\nWIDTH " << width << "\nHEIGHT " << height << "\nVIEWPOINT " << viewpoint << "\nPOINTS " << n
+      << "\nDATA "
       << (encoding == PcdEncoding::Ascii ? "ascii" : encoding == PcdEncoding::Binary ? "binary" : "binary_compressed")
       << "\n";
   const std::string header = hdr.str();
@@ -315,6 +381,7 @@ void writePcd(const std::filesystem::path& path, const PointCloud& cloud, PcdEnc
     for (size_t i = 0; i < n; ++i) {
       const auto& p = cloud.points[i];
       body << p.x() << ' ' << p.y() << ' ' << p.z();
+      if (intensity) body << ' ' << extras->intensity[i];
       if (rgb) body << ' ' << packed(i);
       if (label) body << ' ' << cloud.labels[i];
       body << '\n';
@@ -324,6 +391,7 @@ void writePcd(const std::filesystem::path& path, const PointCloud& cloud, PcdEnc
   } else if (encoding == PcdEncoding::Binary) {
     for (size_t i = 0; i < n; ++i) {
       append(out, cloud.points[i].data(), 12);
+      if (intensity) append(out, &extras->intensity[i], 4);
       if (rgb) {
         const uint32_t v = packed(i);
         append(out, &v, 4);
@@ -335,6 +403,7 @@ void writePcd(const std::filesystem::path& path, const PointCloud& cloud, PcdEnc
     for (int a = 0; a < 3; ++a) {
       for (size_t i = 0; i < n; ++i) append(soa, &cloud.points[i][a], 4);
     }
+    if (intensity) append(soa, extras->intensity.data(), 4 * n);
     if (rgb) {
       for (size_t i = 0; i < n; ++i) {
         const uint32_t v = packed(i);

@@ -8,6 +8,7 @@ namespace chronomap::readers {
 DatasetReader tum();
 DatasetReader threeDMatch();
 DatasetReader scanNet();
+DatasetReader dynamicMap();
 DatasetReader clouds();
 
 }  // namespace chronomap::readers

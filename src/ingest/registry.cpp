@@ -20,6 +20,7 @@ struct Registry {
       readers::threeDMatch(),
       readers::scanNet(),
       readers::clouds(),
+      readers::dynamicMap(),
   };
 };
 

@@ -4,6 +4,9 @@
 #include <limits>
 #include <numbers>
 #include <random>
+#include <string>
+
+#include "chronomap/core/error.h"
 
 namespace chronomap {
 
@@ -103,6 +106,41 @@ Frame renderFrame(const BoxRoom& room, const PinholeCamera& cam, const Eigen::Is
     }
   }
   return frame;
+}
+
+size_t insertBoxesByDepth(Frame& frame, const PinholeCamera& cam, const std::vector<Box>& boxes,
+                          std::vector<uint8_t>& inserted, double noise_per_m2, uint64_t seed, Rgb colour) {
+  PointCloud& cloud = frame.cloud;
+  if (cloud.width != cam.width || cloud.height != cam.height || cloud.points.size() != size_t{cam.width} * cam.height) {
+    throw UsageError("inserting boxes by depth: the frame is " + std::to_string(cloud.width) + " x " +
+                     std::to_string(cloud.height) + ", the camera " + std::to_string(cam.width) + " x " +
+                     std::to_string(cam.height));
+  }
+  inserted.resize(cloud.points.size(), 0);
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  const Eigen::Matrix3d R = frame.T_world_sensor.linear();
+  const Eigen::Vector3d o = frame.T_world_sensor.translation();
+  size_t replaced = 0;
+  for (uint32_t v = 0; v < cam.height; ++v) {
+    for (uint32_t u = 0; u < cam.width; ++u) {
+      const size_t i = size_t{v} * cam.width + u;
+      const Eigen::Vector3d ray_c((u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, 1.0);  // z = 1: t is depth
+      const Eigen::Vector3d d = R * ray_c;
+      double t = std::numeric_limits<double>::infinity();
+      for (const Box& b : boxes) t = std::min(t, hitOutside(b, o, d));
+      const Eigen::Vector3f& p = cloud.points[i];
+      const bool has_depth = p.allFinite() && p.z() > 0.0f;
+      if (!std::isfinite(t) || (has_depth && !(t < static_cast<double>(p.z())))) continue;
+      double z = t;
+      if (noise_per_m2 > 0.0) z += gauss(rng) * noise_per_m2 * z * z;
+      cloud.points[i] = (ray_c * z).cast<float>();
+      if (cloud.hasColours()) cloud.colours[i] = colour;
+      inserted[i] = 1;
+      ++replaced;
+    }
+  }
+  return replaced;
 }
 
 std::vector<Frame> benchmarkSequence(size_t frames, const PinholeCamera& camera) {

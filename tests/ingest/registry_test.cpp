@@ -57,11 +57,13 @@ std::string usageMessage(const std::function<void()>& f) {
 
 TEST(Registry, BuiltInReadersInDetectionOrderWithTheirAliases) {
   const std::vector<DatasetReader> readers = datasetReaders();
-  ASSERT_GE(readers.size(), 4u);
+  ASSERT_GE(readers.size(), 5u);
   EXPECT_EQ(readers[0].name, "tum");
   EXPECT_EQ(readers[1].name, "3dmatch");
   EXPECT_EQ(readers[2].name, "scannet");
   EXPECT_EQ(readers[3].name, "clouds");
+  EXPECT_EQ(readers[4].name, "dynamic-map");
+  EXPECT_EQ(parseDatasetFormat("dynamicmap"), "dynamic-map");
   for (const DatasetReader& r : readers) {
     EXPECT_FALSE(r.description.empty()) << r.name;
     EXPECT_EQ(datasetReaderNamed(r.name).name, r.name);
