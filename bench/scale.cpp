@@ -6,6 +6,7 @@
 //   scale [--sessions N] [--whole W] [--floors F] [--scale S] [--memory-limit GIB] [--sim DIR] [--work DIR]
 //   scale --query DIR
 //
+// CHRONOMAP_CLI=PATH runs that chronomap instead of the one built beside it.
 // --query measures only the queries on a tiled map folder an earlier run left (DIR/stream).
 // --sim reuses simulated sessions (any TUM session folders session_*), else `chronomap simulate
 // --preset site` writes them. --whole 0 skips the whole-map builds. Last line: one JSON object.
@@ -109,6 +110,7 @@ void measureQueries(const fs::path& folder, size_t tiles, nlohmann::json& out) {
     }
     const std::string key = last ? "snapshot_room_ms_cold" : "snapshot_room_ms_cold_history";
     out[key] = best(total);
+    if (!last) out["snapshot_mid_ms_cold"] = best(total);  // issue 46's name: the middle session's time
     out[key + "_first"] = total.front();
     out[key + "_median"] = median(total);
     if (last) out["index_open_ms"] = best(open);
@@ -159,7 +161,9 @@ int main(int argc, char** argv) {
     std::cout << out.dump() << "\n";
     return 0;
   }
-  const std::string cli = CHRONOMAP_CLI_PATH, mpirun = CHRONOMAP_MPIEXEC;
+  // CHRONOMAP_CLI: another chronomap to run (a copy, so that a long run survives rebuilds).
+  const char* cli_env = std::getenv("CHRONOMAP_CLI");
+  const std::string cli = cli_env && *cli_env ? cli_env : CHRONOMAP_CLI_PATH, mpirun = CHRONOMAP_MPIEXEC;
   fs::remove_all(work);
   fs::create_directories(work);
   const fs::path log = work / "log.txt";
@@ -208,6 +212,11 @@ int main(int argc, char** argv) {
   out["bytes_on_disk"] = nights.empty() ? 0 : nights.back()["bytes"].get<uint64_t>();
   // Only the tiles a night's sessions reach are rewritten (the others keep their files).
   out["tiles_rewritten_last_night"] = nights.empty() ? 0 : nights.back()["tiles_rewritten"].get<size_t>();
+  // Night N's processor time against night 10's (issue 46: night 365's at most 1.2x night 10's).
+  if (nights.size() >= 10) {
+    out["night_cpu_ratio_" + std::to_string(nights.size()) + "_10"] =
+        nights.back()["cpu_s"].get<double>() / nights[9]["cpu_s"].get<double>();
+  }
   folders.resize(std::min<size_t>(folders.size(), static_cast<size_t>(std::max(whole, 0))));
 
   // One process, one thread; then two ranks of one thread each (the same file).
