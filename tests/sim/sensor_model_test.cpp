@@ -12,22 +12,12 @@
 #include "chronomap/sim/building.h"
 #include "sim/internal.h"
 #include "test_support.h"
+#include "builders.h"
 
 namespace chronomap {
 namespace {
 
 namespace fs = std::filesystem;
-
-// A camera at `position` looking horizontally along yaw (0: +x).
-Eigen::Isometry3d sensorPose(const Eigen::Vector3d& position, double yaw) {
-  const Eigen::Vector3d forward(std::cos(yaw), std::sin(yaw), 0.0), right(std::sin(yaw), -std::cos(yaw), 0.0);
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear().col(0) = right;
-  T.linear().col(1) = forward.cross(right);
-  T.linear().col(2) = forward;
-  T.translation() = position;
-  return T;
-}
 
 // A scene of one wall facing -x at x = `x_m`, all faces `colour`, shiny faces as given.
 SceneState wallScene(double x_m, Rgb colour, uint8_t shiny_faces = 0) {
@@ -62,7 +52,7 @@ TEST(SensorModel, KinectAndRealSenseNoiseOnAFlatWallFollowsTheirFormula) {
       size_t n = 0, off_lattice = 0;
       double worst = 0.0;
       for (uint64_t seed = 1; seed <= 2; ++seed) {
-        const RenderedFrame f = renderer.render(camera, sensorPose(Eigen::Vector3d::Zero(), 0.0), sensor, 12.0, seed);
+        const RenderedFrame f = renderer.render(camera, test::cameraLooking(Eigen::Vector3d::Zero(), 0.0), sensor, 12.0, seed);
         for (uint32_t v = 0; v < camera.height; ++v) {
           for (uint32_t u = 0; u < camera.width; ++u) {
             const uint16_t d = f.depth.pixels[size_t{v} * camera.width + u];
@@ -96,7 +86,7 @@ TEST(SensorModel, KinectAndRealSenseNoiseOnAFlatWallFollowsTheirFormula) {
 
 TEST(SensorModel, NoDepthBeyondTheRangeOrAtGrazingIncidence) {
   const Camera camera = kinectCamera(0.25);
-  const Eigen::Isometry3d square_on = sensorPose(Eigen::Vector3d::Zero(), 0.0);
+  const Eigen::Isometry3d square_on = test::cameraLooking(Eigen::Vector3d::Zero(), 0.0);
   auto measured = [&](double wall_m, SensorKind kind) {
     const RenderedFrame f = Renderer(wallScene(wall_m, kLightGrey)).render(camera, square_on, sensorModel(kind), 12.0, 7);
     return static_cast<size_t>(std::count_if(f.depth.pixels.begin(), f.depth.pixels.end(), [](uint16_t d) { return d > 0; }));
@@ -111,7 +101,7 @@ TEST(SensorModel, NoDepthBeyondTheRangeOrAtGrazingIncidence) {
   // A wall seen obliquely: yaw 62 degrees puts the incidence from about 33 to 90 degrees.
   for (const SensorKind kind : {SensorKind::Kinect, SensorKind::RealSense}) {
     const SensorModel sensor = sensorModel(kind);
-    const Eigen::Isometry3d T = sensorPose(Eigen::Vector3d::Zero(), 62.0 * std::numbers::pi / 180.0);
+    const Eigen::Isometry3d T = test::cameraLooking(Eigen::Vector3d::Zero(), 62.0 * std::numbers::pi / 180.0);
     const RenderedFrame f = Renderer(wallScene(1.0, kLightGrey)).render(camera, T, sensor, 12.0, 3);
     size_t grazing = 0, grazing_measured = 0, moderate = 0, moderate_measured = 0;
     for (uint32_t v = 0; v < camera.height; ++v) {
@@ -139,7 +129,7 @@ TEST(SensorModel, NoDepthBeyondTheRangeOrAtGrazingIncidence) {
 
 TEST(SensorModel, DarkAndShinySurfacesAreLostOrMeasuredCentimetresOff) {
   const Camera camera = kinectCamera(0.25);
-  const Eigen::Isometry3d T = sensorPose(Eigen::Vector3d::Zero(), 0.0);
+  const Eigen::Isometry3d T = test::cameraLooking(Eigen::Vector3d::Zero(), 0.0);
   const SensorModel sensor = sensorModel(SensorKind::Kinect);
   struct Case {
     Rgb colour;
@@ -184,7 +174,7 @@ TEST(SensorModel, FlyingPixelsOnlyAtDepthEdges) {
   const auto w = static_cast<int64_t>(camera.width), h = static_cast<int64_t>(camera.height);
   size_t flying = 0, measured = 0;
   for (int view = 0; view < 3; ++view) {
-    const RenderedFrame f = renderer.render(camera, sensorPose(Eigen::Vector3d::Zero(), 0.2 * (view - 1)), sensor, 12.0, 40 + view);
+    const RenderedFrame f = renderer.render(camera, test::cameraLooking(Eigen::Vector3d::Zero(), 0.2 * (view - 1)), sensor, 12.0, 40 + view);
     const auto truth = [&](int64_t u, int64_t v) { return double{f.true_depth_m[static_cast<size_t>(v * w + u)]}; };
     for (int64_t v = 0; v < h; ++v) {
       for (int64_t u = 0; u < w; ++u) {
@@ -233,7 +223,7 @@ TEST(SensorModel, IdealSensorKeepsItsBytes) {
   const SceneState scene = makeScene("office", 4);
   const Renderer renderer(scene);
   const Camera camera = kinectCamera(0.25);
-  const Eigen::Isometry3d T = sensorPose({3.0, 1.0, 1.2}, 1.0);
+  const Eigen::Isometry3d T = test::cameraLooking({3.0, 1.0, 1.2}, 1.0);
   auto hash = [](const RenderedFrame& f) {
     uint64_t x = 0xcbf29ce484222325ULL;
     auto add = [&x](uint8_t b) { x = (x ^ b) * 0x100000001b3ULL; };

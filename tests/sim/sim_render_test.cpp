@@ -11,6 +11,7 @@
 
 #include "chronomap/sim/render.h"
 #include "chronomap/sim/scene.h"
+#include "builders.h"
 
 namespace chronomap {
 namespace {
@@ -148,17 +149,6 @@ Hit fast(const Renderer& r, const Eigen::Vector3d& o, const Eigen::Vector3d& d) 
   return h;
 }
 
-Eigen::Isometry3d lookingAt(const Eigen::Vector3d& position, double yaw, double pitch) {
-  const Eigen::Vector3d forward(std::cos(yaw) * std::cos(pitch), std::sin(yaw) * std::cos(pitch), std::sin(pitch));
-  const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitZ()).normalized();
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear().col(0) = right;
-  T.linear().col(1) = forward.cross(right);
-  T.linear().col(2) = forward;
-  T.translation() = position;
-  return T;
-}
-
 // A scene of boxes on a 0.5 m lattice with sizes in whole lattice steps, many touching,
 // overlapping or sharing faces with others of other colours: rays meet equally near parts often.
 SceneState latticeScene(uint64_t seed, int boxes) {
@@ -292,7 +282,7 @@ TEST(Renderer, FramesEqualThoseOfEveryPartTested) {
     for (int view = 0; view < views; ++view) {
       Eigen::Vector3d at(c.x() + 0.7 * view, c.y() - 0.3, 1.2 + (site ? kSiteFloorHeight_m * (view % kSiteFloors) : 0.0));
       if (view == views - 1) at = renderer.parts()[renderer.parts().size() / 2].box.center();
-      const Eigen::Isometry3d T = lookingAt(at, 1.3 * view + 0.2, view % 3 == 0 ? -0.2 : (view % 3 == 1 ? -0.9 : 0.5));
+      const Eigen::Isometry3d T = test::cameraLooking(at, 1.3 * view + 0.2, view % 3 == 0 ? -0.2 : (view % 3 == 1 ? -0.9 : 0.5));
       const RenderedFrame f = renderer.render(cam, T, sensor, hour, 7 + view);
       const Eigen::Matrix3d R = T.rotation();
       for (uint32_t v = 0; v < cam.height; ++v) {

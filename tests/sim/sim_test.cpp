@@ -15,6 +15,7 @@
 #include "chronomap/sim/change_truth.h"
 #include "sim/internal.h"
 #include "test_support.h"
+#include "builders.h"
 
 namespace chronomap {
 namespace {
@@ -31,17 +32,6 @@ std::vector<fs::path> filesBelow(const fs::path& root) {
   }
   std::sort(out.begin(), out.end());
   return out;
-}
-
-// A camera in the tiny room looking at a wall straight on.
-Eigen::Isometry3d lookingAt(const Eigen::Vector3d& position, double yaw) {
-  const Eigen::Vector3d forward(std::cos(yaw), std::sin(yaw), 0.0), right(std::sin(yaw), -std::cos(yaw), 0.0);
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear().col(0) = right;
-  T.linear().col(1) = forward.cross(right);
-  T.linear().col(2) = forward;
-  T.translation() = position;
-  return T;
 }
 
 // Distance from p to the nearest surface of a present part.
@@ -92,7 +82,7 @@ TEST(Simulator, DepthNoiseFollowsTheModel) {
   double sum = 0.0, sum2 = 0.0;
   size_t n = 0;
   for (int view = 0; view < 4; ++view) {
-    const auto f = renderer.render(camera, lookingAt({1.0, 1.75, 1.2}, 1.5708 * view), sensor, 12.0, 100 + view);
+    const auto f = renderer.render(camera, test::cameraLooking({1.0, 1.75, 1.2}, 1.5708 * view), sensor, 12.0, 100 + view);
     for (size_t i = 0; i < f.true_depth_m.size(); ++i) {
       const double z = f.true_depth_m[i];
       if (z < 1.0 || f.depth.pixels[i] == 0) continue;
@@ -118,7 +108,7 @@ TEST(Simulator, FramesReprojectOntoTheTrueSurfaces) {
   const CameraIntrinsics k{camera.fx, camera.fy, camera.cx, camera.cy};
   size_t points = 0;
   for (double yaw : {0.0, 1.0, 2.0, 3.0, 4.5}) {
-    const Eigen::Isometry3d T = lookingAt({3.0, 1.0, 1.2}, yaw);
+    const Eigen::Isometry3d T = test::cameraLooking({3.0, 1.0, 1.2}, yaw);
     const auto f = renderer.render(camera, T, sensor, 10.0, 1);
     const PointCloud cloud = depthToCloud(f.depth, &f.rgb, k, sensor.depth_scale, "frame");
     for (const auto& p : cloud.points) {

@@ -141,4 +141,15 @@ SessionMap changesScene(bool later) {
   return s;
 }
 
+Eigen::Isometry3d cameraLooking(const Eigen::Vector3d& position, double yaw, double pitch) {
+  const Eigen::Vector3d forward(std::cos(yaw) * std::cos(pitch), std::sin(yaw) * std::cos(pitch), std::sin(pitch));
+  const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitZ()).normalized();
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear().col(0) = right;
+  T.linear().col(1) = forward.cross(right);
+  T.linear().col(2) = forward;
+  T.translation() = position;
+  return T;
+}
+
 }  // namespace chronomap::test

@@ -7,6 +7,8 @@
 #include <random>
 #include <vector>
 
+#include <Eigen/Geometry>
+
 #include "chronomap/core/counters.h"
 #include "chronomap/core/key.h"
 #include "chronomap/core/point_cloud.h"
@@ -63,5 +65,9 @@ SessionMap changesScene(bool later);
 
 /// A cloud of the given points (no colour).
 PointCloud cloudOf(std::initializer_list<Eigen::Vector3f> points);
+
+/// A camera at `position` in its optical frame (x right, y down, z forward) looking along
+/// `yaw` (radians, 0: +x) and `pitch` (radians, up positive), its x axis level.
+Eigen::Isometry3d cameraLooking(const Eigen::Vector3d& position, double yaw, double pitch = 0.0);
 
 }  // namespace chronomap::test
