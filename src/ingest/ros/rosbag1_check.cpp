@@ -23,7 +23,8 @@ namespace {
 
 constexpr char kMagic[] = "#ROSBAG V2.0\n";
 constexpr size_t kMagicBytes = sizeof(kMagic) - 1;
-constexpr uint8_t kOpMessage = 0x02, kOpBagHeader = 0x03, kOpIndex = 0x04, kOpChunk = 0x05, kOpChunkInfo = 0x06;
+constexpr uint8_t kOpMessage = 0x02, kOpBagHeader = 0x03, kOpIndex = 0x04, kOpChunk = 0x05, kOpChunkInfo = 0x06,
+                  kOpConnection = 0x07;
 /// Larger headers mean a broken length: real ones hold a few named fields and a message definition.
 constexpr uint32_t kMaxHeaderBytes = 16u << 20;
 /// librosbag holds a chunk in memory; real recorders write chunks of about 768 KiB.
@@ -51,19 +52,33 @@ struct Fields {
   bool start_time_zero = false;
 };
 
-Fields parseFields(const uint8_t* p, uint32_t n, const fs::path& path, uint64_t offset) {
-  Fields f;
+/// Calls `fn(name, value, end)` for every "name=value" field of the `n` bytes at `p` (`end`: where
+/// the field ends, from `p`); `what` names them in errors ("a header", "a connection's header").
+template <class Fn>
+void forEachField(const uint8_t* p, uint32_t n, const fs::path& path, uint64_t offset, const char* what, Fn fn) {
   uint32_t at = 0;
   while (at < n) {
-    if (n - at < 4) fail(path, offset, "a header field's length is cut off");
+    if (n - at < 4) fail(path, offset, std::string(what) + "'s field length is cut off");
     const uint32_t len = u32(p + at);
     at += 4;
-    if (len > n - at) fail(path, offset, "a header field runs past its header");
+    if (len > n - at) fail(path, offset, std::string(what) + "'s field runs past it");
     const std::string_view field(reinterpret_cast<const char*>(p + at), len);
     at += len;
     const auto eq = field.find('=');
-    if (eq == std::string_view::npos) fail(path, offset, "a header field has no '='");
-    const std::string_view name = field.substr(0, eq), value = field.substr(eq + 1);
+    if (eq == std::string_view::npos) fail(path, offset, std::string(what) + "'s field has no '='");
+    fn(field.substr(0, eq), field.substr(eq + 1), at);
+  }
+}
+
+/// A connection record's data is a header of its own (topic, type, md5sum, message_definition),
+/// which librosbag parses without checking its fields' lengths: checked here.
+void checkConnectionHeader(const uint8_t* p, uint32_t n, const fs::path& path, uint64_t offset) {
+  forEachField(p, n, path, offset, "a connection's header", [](std::string_view, std::string_view, uint32_t) {});
+}
+
+Fields parseFields(const uint8_t* p, uint32_t n, const fs::path& path, uint64_t offset) {
+  Fields f;
+  forEachField(p, n, path, offset, "a record header", [&](std::string_view name, std::string_view value, uint32_t at) {
     if (name == "op") {
       if (value.size() != 1) fail(path, offset, "the op field is not one byte");
       f.op = static_cast<uint8_t>(value[0]);
@@ -79,7 +94,7 @@ Fields parseFields(const uint8_t* p, uint32_t n, const fs::path& path, uint64_t 
     } else if ((name == "size" || name == "count") && value.size() == 4) {
       (name == "size" ? f.size : f.count) = u32(reinterpret_cast<const uint8_t*>(value.data()));
     }
-  }
+  });
   if (!f.op) fail(path, offset, "a record header has no op field");
   return f;
 }
@@ -101,6 +116,7 @@ std::set<uint32_t> chunkMessages(const std::vector<uint8_t>& chunk, const fs::pa
     const uint32_t data_len = u32(chunk.data() + at);
     at += 4;
     if (data_len > chunk.size() - at) fail(path, offset, "a record's data in the chunk runs past the chunk");
+    if (*f.op == kOpConnection) checkConnectionHeader(chunk.data() + at, data_len, path, offset);
     at += data_len;
     if (*f.op == kOpMessage) messages.insert(start);
   }
@@ -197,6 +213,9 @@ BagStructure checkBagStructure(const fs::path& path) {
           ++out.zero_time_messages;
         }
       }
+    } else if (*f.op == kOpConnection) {
+      read(data, data_len, "a connection record");
+      checkConnectionHeader(data.data(), data_len, path, record);
     } else {
       if (data_len > file_size - at) fail(path, record, "a record's data runs past the end of the file (truncated?)");
       in.seekg(static_cast<std::streamoff>(data_len), std::ios::cur);

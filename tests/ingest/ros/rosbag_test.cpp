@@ -372,6 +372,30 @@ TEST_F(RosBagTest, CorruptChunksAreFormatErrorsNotCrashes) {
   }
 }
 
+// Found by fuzz_bag (2026-12-05): a connection record's data is a header of its own (topic, type,
+// md5sum, message_definition) that librosbag's ros::Header::parse reads without checking a
+// field's length against the data: a length past it read beyond the buffer (heap overflow under
+// AddressSanitizer). checkBagStructure checks those fields too, inside chunks and at the top level.
+TEST_F(RosBagTest, AConnectionHeaderFieldPastItsDataIsAFormatError) {
+  const auto seed = test::bytesOf(bag("tiny/none.bag"));
+  const std::string text(seed.begin(), seed.end());
+  const size_t first = text.find("md5sum="), last = text.rfind("md5sum=");
+  ASSERT_NE(first, std::string::npos);
+  ASSERT_LT(first, last) << "a connection in the chunk and one after the index";
+  for (const size_t at : {first, last}) {
+    auto bytes = seed;
+    const uint32_t huge = 9767;  // the length fuzz_bag found: past the connection's 2,199 bytes
+    std::memcpy(bytes.data() + at - 4, &huge, 4);
+    const fs::path bad = *dir_ / "bad_connection.bag";
+    test::writeBytes(bad, bytes);
+    SCOPED_TRACE("md5sum field at byte " + std::to_string(at));
+    const std::string what = messageOf<FormatError>([&] { openDataset(bad, bagSettings()); });
+    EXPECT_NE(what.find("bad_connection.bag: not a readable ROS 1 bag: at byte "), std::string::npos) << what;
+    EXPECT_NE(what.find("a connection's header's field runs past it"), std::string::npos) << what;
+    EXPECT_THROW(listBag(bad), FormatError);
+  }
+}
+
 TEST_F(RosBagTest, TheCommandLineListsAndIntegratesABag) {
   const auto listed = test::runCommand(test::cli() + " integrate " + bag("tf.bag").string() + " --list");
   ASSERT_EQ(listed.exit_code, 0) << listed.err;
