@@ -63,6 +63,13 @@ void inBatches(const FrameSource& source, size_t threads, size_t progress_offset
   }
 }
 
+/// fn(frame i of `source`): the frame it holds, else the one it loads.
+template <typename Fn>
+auto onFrame(const FrameSource& source, size_t i, Fn fn) {
+  if (const Frame* resident = source.resident(i)) return fn(*resident);
+  return fn(source.load(i));
+}
+
 /// The voxels a frame's points lie in (within the range), as sorted unique Morton codes.
 std::vector<uint64_t> occupiedCodes(const Frame& frame, const KeyGrid& grid, const StaticPointSettings& s) {
   std::vector<uint64_t> codes;
@@ -84,16 +91,7 @@ std::vector<uint64_t> dilated(const std::vector<uint64_t>& codes, int radius) {
   std::vector<uint64_t> out;
   out.reserve(codes.size() * static_cast<size_t>((2 * radius + 1) * (2 * radius + 1) * (2 * radius + 1)));
   for (uint64_t code : codes) {
-    const VoxelKey key = mortonDecode(code);
-    for (int dz = -radius; dz <= radius; ++dz) {
-      for (int dy = -radius; dy <= radius; ++dy) {
-        for (int dx = -radius; dx <= radius; ++dx) {
-          const int x = key.x + dx, y = key.y + dy, z = key.z + dz;
-          if (x < 0 || y < 0 || z < 0 || x > 0xffff || y > 0xffff || z > 0xffff) continue;
-          out.push_back(mortonEncode({static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)}));
-        }
-      }
-    }
+    forEachKeyInCube(mortonDecode(code), radius, [&](const VoxelKey& k) { out.push_back(mortonEncode(k)); });
   }
   std::sort(out.begin(), out.end());
   out.erase(std::unique(out.begin(), out.end()), out.end());
@@ -153,10 +151,7 @@ std::vector<uint64_t> surfaceVoxels(const FrameSource& source, const KeyGrid& gr
   std::vector<uint64_t> surface;
   inBatches(
       source, threads, 0, 3 * source.size(), progress,
-      [&](size_t i) {
-        const Frame* resident = source.resident(i);
-        return resident ? occupiedCodes(*resident, grid, s) : occupiedCodes(source.load(i), grid, s);
-      },
+      [&](size_t i) { return onFrame(source, i, [&](const Frame& f) { return occupiedCodes(f, grid, s); }); },
       [&](size_t, const std::vector<uint64_t>& codes) { surface.insert(surface.end(), codes.begin(), codes.end()); });
   std::sort(surface.begin(), surface.end());
   surface.erase(std::unique(surface.begin(), surface.end()), surface.end());
@@ -173,9 +168,8 @@ std::vector<VoxelFrameCounts> countFrames(const FrameSource& source, const KeyGr
   inBatches(
       source, threads, source.size(), 3 * source.size(), progress,
       [&](size_t i) {
-        const Frame* resident = source.resident(i);
-        return resident ? frameEvidence(*resident, grid, s, surface, accumulators.local())
-                        : frameEvidence(source.load(i), grid, s, surface, accumulators.local());
+        return onFrame(source, i,
+                       [&](const Frame& f) { return frameEvidence(f, grid, s, surface, accumulators.local()); });
       },
       [&](size_t, const FrameEvidence& e) {
         for (uint32_t index : e.occupied) ++counts[index].occupied_frames;
@@ -193,12 +187,10 @@ struct Judged {
 /// Calls `fn` with the Morton code of each of the 26 neighbours of `code` inside the key space.
 template <typename Fn>
 void forNeighbours(uint64_t code, Fn fn) {
-  const VoxelKey key = mortonDecode(code);
-  for (int d = 0; d < 27; ++d) {
-    const int x = key.x + d % 3 - 1, y = key.y + d / 3 % 3 - 1, z = key.z + d / 9 - 1;
-    if (d == 13 || x < 0 || y < 0 || z < 0 || x > 0xffff || y > 0xffff || z > 0xffff) continue;
-    fn(mortonEncode({static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)}));
-  }
+  forEachKeyInCube(mortonDecode(code), 1, [&](const VoxelKey& k) {
+    const uint64_t n = mortonEncode(k);
+    if (n != code) fn(n);
+  });
 }
 
 /// The voxels of one frame (its sorted occupied codes) whose points go: those judged dynamic,
@@ -289,9 +281,7 @@ StaticPointResult staticPoints(const FrameSource& source, const StaticPointSetti
     inBatches(
         source, threads, 2 * source.size(), 3 * source.size(), progress,
         [&](size_t i) {
-          const Frame* resident = source.resident(i);
-          return resident ? judgeFrame(*resident, grid, surface, counts, s)
-                          : judgeFrame(source.load(i), grid, surface, counts, s);
+          return onFrame(source, i, [&](const Frame& f) { return judgeFrame(f, grid, surface, counts, s); });
         },
         [&](size_t, const Judged& j) {
           r.points.points.insert(r.points.points.end(), j.kept.points.begin(), j.kept.points.end());
