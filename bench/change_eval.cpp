@@ -596,12 +596,8 @@ int main(int argc, char** argv) {
   }
   fs::path office, floor66, data = CHRONOMAP_DEFAULT_DATA_DIR;
   bool quick = false;
-  int rounds = 3;
-  RegisterSettings reg;
-  // As the README's `build --register --register-drift 20 --register-planar --register-points`.
-  reg.drift_knot_frames = 20;
-  reg.planar = true;
-  reg.drift_points = true;
+  int rounds = recommendedRegistration().rounds;
+  RegisterSettings reg = recommendedRegistration().align;  // as the README's `build --register ...`
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--drift-knots") && i + 1 < argc) {
       reg.drift_knot_frames = std::atoi(argv[++i]);

@@ -124,11 +124,7 @@ SessionMaker threeDMatch(const fs::path& root, const fs::path& tmp, const std::v
       positions.push_back(std::move(s.sensor_positions));
     }
     if (registered) {
-      RegistrationSettings registration;
-      registration.align.drift_knot_frames = 20;
-      registration.align.planar = true;
-      registration.align.drift_points = true;
-      registerDatasets(maps, paths, positions, settings, registration);
+      registerDatasets(maps, paths, positions, settings, recommendedRegistration());
     }
     return maps;
   };

@@ -66,10 +66,7 @@ void printTemporalJson(const StatsOptions& o, const TemporalStats& s) {
                       {"bounds_min", {h.bounds_min_m.x(), h.bounds_min_m.y(), h.bounds_min_m.z()}},
                       {"bounds_max", {h.bounds_max_m.x(), h.bounds_max_m.y(), h.bounds_max_m.z()}}};
   if (!o.plot.empty()) j["plot"] = o.plot;
-  const nlohmann::json meta = userMetadataOf(s.file);
-  for (const char* key : {"up", "up_from", "world_rotation"}) {
-    if (meta.contains(key)) j[key] = meta[key];
-  }
+  j.update(upKeysOf(userMetadataOf(s.file)));
   std::cout << j.dump() << "\n";
 }
 

@@ -32,8 +32,10 @@ BuildResult finishBuild(const BuildSettings& s, TemporalMap& map, bool created, 
 /// `given` with every recording read for `up` (its axis given, the world rotation set), saying so
 /// when it was estimated.
 BuildSettings withUp(const BuildSettings& given, const ChosenUp& up);
-/// The up axis' members of a map's metadata ("up", "up_from", "world_rotation": ChosenUp::metadata).
-nlohmann::json upKeysOf(const nlohmann::json& meta);
+/// Refuses a session whose up axis is not its map's: `session_up` read from the session file
+/// `session`, `map_up` from the map `map`. @throw UsageError naming both and the --up to give.
+void refuseOtherUp(const std::filesystem::path& session, const ChosenUp& session_up, const std::filesystem::path& map,
+                   const ChosenUp& map_up);
 /// The metadata a build writes: the up the map stored (`stored`'s up keys) when `up` is the map's
 /// own, else `up`'s (ChosenUp::metadata; nothing for +z as recorded, as before --up existed).
 nlohmann::json mapMetadata(const nlohmann::json& stored, const ChosenUp& up);

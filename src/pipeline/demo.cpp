@@ -36,11 +36,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// The demo's registration: as the README's `build --register --register-drift 20
-// --register-planar --register-points`.
-constexpr int kRegisterRounds = 3;
-constexpr int kDriftKnots = 20;
-
 std::string numbered(const char* pattern, size_t n) {
   char name[64];
   std::snprintf(name, sizeof name, pattern, n);
@@ -64,15 +59,12 @@ std::vector<DemoSession> integrateSessions(const DemoSettings& s, const Simulati
   return sessions;
 }
 
-/// Step 3: registration to the consensus of all sessions, each integrated again with its
-/// correction, scored again and written to sessions/.
+/// Step 3: registration to the consensus of all sessions (recommendedRegistration(), as the
+/// README's `build --register ...`), each integrated again with its correction, scored again and
+/// written to sessions/.
 void registerAll(const DemoSettings& s, const SimulationSummary& simulated,
                       const SessionSettings& session_settings, std::vector<DemoSession>& sessions) {
-  RegistrationSettings registration;
-  registration.rounds = kRegisterRounds;
-  registration.align.drift_knot_frames = kDriftKnots;
-  registration.align.planar = true;
-  registration.align.drift_points = true;
+  const RegistrationSettings registration = recommendedRegistration();
   std::vector<SessionMap> maps;
   std::vector<std::vector<Eigen::Vector3d>> positions;
   for (DemoSession& d : sessions) {
@@ -255,7 +247,8 @@ DemoResult runDemo(const DemoSettings& settings) {
   r.map = settings.output / "office.cmap";
   r.report = settings.output / "report.md";
   r.tour = settings.output / "tour.html";
-  const DemoReportInput input{settings, sim_settings, simulated, sessions, pairs, map, r, changes, map_bytes, kDriftKnots};
+  const DemoReportInput input{settings, sim_settings, simulated, sessions, pairs, map, r, changes, map_bytes,
+                              recommendedRegistration().align.drift_knot_frames};
   const std::string report = demoReport(input), json = demoReportJson(input);
   writeFileAtomic(s.output / "report.md", std::vector<uint8_t>(report.begin(), report.end()));
   writeFileAtomic(s.output / "report.json", std::vector<uint8_t>(json.begin(), json.end()));

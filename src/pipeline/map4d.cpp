@@ -174,12 +174,11 @@ BuildSettings withUp(const BuildSettings& given, const ChosenUp& up) {
   return s;
 }
 
-nlohmann::json upKeysOf(const nlohmann::json& meta) {
-  nlohmann::json out = nlohmann::json::object();
-  for (const char* key : {"up", "up_from", "world_rotation"}) {
-    if (meta.is_object() && meta.contains(key)) out[key] = meta[key];
-  }
-  return out;
+void refuseOtherUp(const fs::path& session, const ChosenUp& session_up, const fs::path& map, const ChosenUp& map_up) {
+  if (session_up.axis == map_up.axis) return;
+  throw UsageError(session.string() + " was integrated with up " + toString(session_up.axis) + " but " +
+                   map.string() + " holds sessions with up " + toString(map_up.axis) +
+                   "; integrate it again with --up " + toString(map_up.axis));
 }
 
 nlohmann::json mapMetadata(const nlohmann::json& stored, const ChosenUp& up) {
@@ -291,14 +290,10 @@ AddSessionResult addSession(const AddSessionSettings& s) {
   const nlohmann::json session_meta = metadataOf(file);
   const ChosenUp session_up = storedUp(session_meta, s.session.string());
   const ChosenUp map_up = r.created ? session_up : storedUp(stored, s.map.string());
-  if (session_up.axis != map_up.axis) {
-    throw UsageError(s.session.string() + " was integrated with up " + toString(session_up.axis) + " but " +
-                     s.map.string() + " holds sessions with up " + toString(map_up.axis) +
-                     "; integrate it again with --up " + toString(map_up.axis));
-  }
+  pipeline_detail::refuseOtherUp(s.session, session_up, s.map, map_up);
   r.up = map_up.axis;
   // What a rewrite keeps of the map's metadata: its up (a new map: the session's).
-  const nlohmann::json meta = pipeline_detail::upKeysOf(r.created ? session_meta : stored);
+  const nlohmann::json meta = upKeysOf(r.created ? session_meta : stored);
   if (s.realign) {
     // The consensus of every session stored so far (each time's snapshot) and this one.
     SessionMap avg = map.sessionCount() ? consensus(map, map.sessions().front().time_s, map.sessions().back().time_s)

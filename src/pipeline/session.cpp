@@ -74,6 +74,14 @@ ChosenUp chooseUp(const UpSettings& up, const std::filesystem::path& path, const
   return out;
 }
 
+nlohmann::json upKeysOf(const nlohmann::json& meta) {
+  nlohmann::json out = nlohmann::json::object();
+  for (const char* key : {"up", "up_from", "world_rotation"}) {
+    if (meta.is_object() && meta.contains(key)) out[key] = meta[key];
+  }
+  return out;
+}
+
 ChosenUp storedUp(const nlohmann::json& meta, const std::string& source) {
   ChosenUp out;
   if (!meta.is_object() || !meta.contains("up")) return out;
@@ -131,6 +139,15 @@ nlohmann::json sessionMetadata(const std::filesystem::path& dataset, const Integ
   if (session.recorded_at) meta["recorded_at"] = *session.recorded_at;
   meta.update(session.up.metadata());
   return meta;
+}
+
+RegistrationSettings recommendedRegistration() {
+  RegistrationSettings r;
+  r.rounds = 3;
+  r.align.drift_knot_frames = 20;
+  r.align.planar = true;
+  r.align.drift_points = true;
+  return r;
 }
 
 std::vector<PoseCorrection> registerDatasets(std::vector<SessionMap>& maps, std::span<const std::filesystem::path> paths,

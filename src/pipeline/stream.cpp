@@ -481,13 +481,8 @@ StreamResult streamAddSession(const AddSessionSettings& a, size_t memory_limit_b
   // The map keeps its up axis; a session of another is refused (as addSession refuses it).
   const nlohmann::json stored = userMetadataOf(readCmap(a.map / kTileIndexName));
   const ChosenUp map_up = storedUp(stored, a.map.string());
-  const ChosenUp session_up = storedUp(metadataOf(file), a.session.string());
-  if (session_up.axis != map_up.axis) {
-    throw UsageError(a.session.string() + " was integrated with up " + toString(session_up.axis) + " but " +
-                     a.map.string() + " holds sessions with up " + toString(map_up.axis) +
-                     "; integrate it again with --up " + toString(map_up.axis));
-  }
-  s.metadata = pipeline_detail::upKeysOf(stored);
+  pipeline_detail::refuseOtherUp(a.session, storedUp(metadataOf(file), a.session.string()), a.map, map_up);
+  s.metadata = upKeysOf(stored);
   s.folder = a.map;
   s.resolution_m = session.resolution_m();
   s.criterion = a.criterion;

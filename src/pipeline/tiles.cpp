@@ -47,7 +47,7 @@ TileResult tileMap(const TileSettings& s) {
   const SplitMap split = splitIntoTiles(map, r.tile_level);
   split.top.forEachList([&](const VoxelKey&, int, std::span<const TemporalMap::Entry>) { ++r.top_lists; });
   nlohmann::json meta = {{"created_by", "chronomap tile"}, {"source", s.map.string()}};
-  meta.update(pipeline_detail::upKeysOf(userMetadataOf(file)));  // the map's up goes with it (docs/frames.md)
+  meta.update(upKeysOf(userMetadataOf(file)));  // the map's up goes with it (docs/frames.md)
   const TiledWriteResult w = writeTiledMap(s.folder, split, meta);
   r.tiles = w.tiles;
   r.index_bytes = w.index_bytes;
@@ -66,7 +66,7 @@ size_t untileMap(const fs::path& folder, const fs::path& map) {
   for (const Tile& t : tiles) refs.push_back(&t);
   const TemporalMap joined = joinTiles(index.top, index.tile_level, refs);
   nlohmann::json meta = {{"created_by", "chronomap untile"}, {"source", folder.string()}};
-  meta.update(pipeline_detail::upKeysOf(userMetadataOf(readCmap(folder / kTileIndexName))));
+  meta.update(upKeysOf(userMetadataOf(readCmap(folder / kTileIndexName))));
   writeTemporalMap(map, joined, meta);
   return joined.sessionCount();
 }

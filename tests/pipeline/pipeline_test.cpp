@@ -49,12 +49,9 @@ TEST(PipelineRegister, DepthCacheChangesNoCorrectionAndKeepsItsBudget) {
   const SimulationSummary simulated = chronomap::simulate(sim_settings, tmp / "sim");
   SessionSettings settings;
   settings.integrator.fast = true;
-  RegistrationSettings registration;
+  RegistrationSettings registration = recommendedRegistration();
   registration.rounds = 1;
-  registration.align.drift_knot_frames = 20;
   registration.align.drift_rounds = 1;
-  registration.align.planar = true;
-  registration.align.drift_points = true;
   // Without a cache, and with one given in the settings with room for a third of the images
   // (used from the first integration on).
   const size_t frame_bytes = 160 * 120 * sizeof(uint16_t);

@@ -83,11 +83,7 @@ struct StaticRoomSplit {
       maps.push_back(std::move(s.map));
       positions.push_back(std::move(s.sensor_positions));
     }
-    RegistrationSettings registration;
-    registration.align.drift_knot_frames = 20;
-    registration.align.planar = true;
-    registration.align.drift_points = true;
-    registerDatasets(maps, paths, positions, settings, registration);
+    registerDatasets(maps, paths, positions, settings, recommendedRegistration());
     TemporalMap built(0.05);
     built.add(1000, maps[0]);
     built.add(2000, maps[1]);

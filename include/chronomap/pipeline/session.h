@@ -59,6 +59,10 @@ struct SessionSettings {
 /// @throw as openRecording and estimateUpAxis.
 ChosenUp chooseUp(const UpSettings& up, const std::filesystem::path& path, const DatasetSettings& dataset);
 
+/// The up axis' members of a map's metadata ("up", "up_from", "world_rotation": ChosenUp::metadata),
+/// an empty object when it has none.
+nlohmann::json upKeysOf(const nlohmann::json& meta);
+
 /// The up a 4D map's metadata records: its "up" (from "map"), else +z as recorded; nothing for
 /// metadata that is not an object. @throw FormatError naming `source` for an unknown axis.
 ChosenUp storedUp(const nlohmann::json& meta, const std::string& source);
@@ -121,6 +125,12 @@ struct RegistrationSettings {
   /// are decoded once each. 0: none kept. The corrections do not depend on it.
   size_t depth_cache_bytes = defaultDepthCacheBytes();
 };
+
+/// The registration the README recommends for a robot's sessions and the demo runs: 3 rounds,
+/// then the drift per frame with knots every 20 frames, planar (x, y and heading), fitted on the
+/// frames' points. `chronomap build --register --register-drift 20 --register-planar
+/// --register-points`.
+RegistrationSettings recommendedRegistration();
 
 /// Registers the session maps integrated from `paths` (in that order, with `sensor_positions` as
 /// read: turned for settings.up, whose auto is estimated on the first path) to their consensus, integrating each recording again with its correction (in
