@@ -194,9 +194,7 @@ void forNeighbours(uint64_t code, Fn fn) {
 }
 
 /// The voxels of one frame (its sorted occupied codes) whose points go: those judged dynamic,
-/// grown spread_steps times into the frame's voxels with at least spread_fraction of their
-/// neighbours in the frame dynamic (a person's parts never seen free, beside parts that were).
-/// Each step looks only at the neighbours of the voxels the step before added.
+/// grown by spreadDynamic (a person's parts never seen free, beside parts that were).
 std::vector<uint64_t> dynamicInFrame(const std::vector<uint64_t>& occupied, const std::vector<uint64_t>& surface,
                                      const std::vector<VoxelFrameCounts>& counts, const StaticPointSettings& s) {
   std::vector<uint64_t> dynamic;
@@ -204,31 +202,7 @@ std::vector<uint64_t> dynamicInFrame(const std::vector<uint64_t>& occupied, cons
     const size_t index = indexOf(surface, code);
     if (index < surface.size() && isDynamicVoxel(counts[index], s)) dynamic.push_back(code);
   }
-  std::vector<uint64_t> added = dynamic, candidates, grown;
-  for (int step = 0; step < s.spread_steps && !added.empty(); ++step) {
-    candidates.clear();
-    for (uint64_t code : added) {
-      forNeighbours(code, [&](uint64_t n) {
-        if (contains(occupied, n) && !contains(dynamic, n)) candidates.push_back(n);
-      });
-    }
-    std::sort(candidates.begin(), candidates.end());
-    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
-    grown.clear();
-    for (uint64_t code : candidates) {
-      int in_frame = 0, moving = 0;
-      forNeighbours(code, [&](uint64_t n) {
-        if (!contains(occupied, n)) return;
-        ++in_frame;
-        moving += contains(dynamic, n) ? 1 : 0;
-      });
-      if (moving > 0 && moving >= s.spread_fraction * in_frame) grown.push_back(code);
-    }
-    dynamic.insert(dynamic.end(), grown.begin(), grown.end());
-    std::sort(dynamic.begin(), dynamic.end());
-    added = grown;
-  }
-  return dynamic;
+  return spreadDynamic(occupied, std::move(dynamic), s.spread_steps, s.spread_fraction);
 }
 
 Judged judgeFrame(const Frame& frame, const KeyGrid& grid, const std::vector<uint64_t>& surface,
@@ -262,6 +236,35 @@ Judged judgeFrame(const Frame& frame, const KeyGrid& grid, const std::vector<uin
 bool isDynamicVoxel(const VoxelFrameCounts& c, const StaticPointSettings& s) {
   return c.free_frames >= s.min_free_frames &&
          static_cast<double>(c.free_frames) >= s.min_free_ratio * static_cast<double>(c.occupied_frames);
+}
+
+std::vector<uint64_t> spreadDynamic(const std::vector<uint64_t>& occupied, std::vector<uint64_t> dynamic, int steps,
+                                    double fraction) {
+  std::vector<uint64_t> added = dynamic, candidates, grown;
+  for (int step = 0; step < steps && !added.empty(); ++step) {
+    candidates.clear();
+    for (uint64_t code : added) {
+      forNeighbours(code, [&](uint64_t n) {
+        if (contains(occupied, n) && !contains(dynamic, n)) candidates.push_back(n);
+      });
+    }
+    std::sort(candidates.begin(), candidates.end());
+    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+    grown.clear();
+    for (uint64_t code : candidates) {
+      int in_frame = 0, moving = 0;
+      forNeighbours(code, [&](uint64_t n) {
+        if (!contains(occupied, n)) return;
+        ++in_frame;
+        moving += contains(dynamic, n) ? 1 : 0;
+      });
+      if (moving > 0 && moving >= fraction * in_frame) grown.push_back(code);
+    }
+    dynamic.insert(dynamic.end(), grown.begin(), grown.end());
+    std::sort(dynamic.begin(), dynamic.end());
+    added = grown;
+  }
+  return dynamic;
 }
 
 StaticPointResult staticPoints(const FrameSource& source, const StaticPointSettings& s, const ProgressFn& progress) {

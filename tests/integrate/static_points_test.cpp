@@ -3,8 +3,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
+#include <random>
+#include <set>
 
 #include "chronomap/integrate/static_points.h"
 #include "chronomap/sim/box_room.h"
@@ -99,6 +102,70 @@ TEST(StaticPoints, ThePartsOfAPersonNeverSeenFreeGoWithThePartsThatWere) {
   const StaticPointResult spread = staticPoints(source, s);
   EXPECT_GE(spread.points_dynamic, person.size() * 95 / 100);
   EXPECT_LE(spread.points_dynamic, person.size());  // the wall stays
+}
+
+// spreadDynamic looks only at the neighbours of the voxels the step before added; the slow
+// reference looks at every occupied voxel on every step. Random frames (a 6-voxel block, at the
+// key space's corner every other time), random seeds, steps and fractions: the same sets.
+std::vector<uint64_t> spreadReference(const std::vector<uint64_t>& occupied, std::vector<uint64_t> dynamic, int steps,
+                                      double fraction) {
+  const std::set<uint64_t> in_frame(occupied.begin(), occupied.end());
+  std::set<uint64_t> moving(dynamic.begin(), dynamic.end());
+  for (int step = 0; step < steps; ++step) {
+    std::vector<uint64_t> grown;
+    for (uint64_t code : occupied) {
+      if (moving.count(code)) continue;
+      const VoxelKey k = mortonDecode(code);
+      int neighbours = 0, dynamic_neighbours = 0;
+      for (int dz = -1; dz <= 1; ++dz) {
+        for (int dy = -1; dy <= 1; ++dy) {
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int x = k.x + dx, y = k.y + dy, z = k.z + dz;
+            if ((dx == 0 && dy == 0 && dz == 0) || x < 0 || y < 0 || z < 0) continue;
+            const uint64_t n = mortonEncode({static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)});
+            if (!in_frame.count(n)) continue;
+            ++neighbours;
+            dynamic_neighbours += moving.count(n) ? 1 : 0;
+          }
+        }
+      }
+      if (dynamic_neighbours > 0 && dynamic_neighbours >= fraction * neighbours) grown.push_back(code);
+    }
+    if (grown.empty()) break;
+    moving.insert(grown.begin(), grown.end());
+  }
+  return {moving.begin(), moving.end()};
+}
+
+TEST(StaticPoints, TheSpreadEqualsTheSlowReferenceOnRandomFrames) {
+  std::mt19937_64 random(7);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  size_t grew = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    const uint16_t base = trial % 2 ? 0 : 1000;
+    const double density = 0.3 + 0.6 * unit(random), seeds = 0.05 + 0.3 * unit(random);
+    std::vector<uint64_t> occupied, dynamic;
+    for (uint16_t z = 0; z < 6; ++z) {
+      for (uint16_t y = 0; y < 6; ++y) {
+        for (uint16_t x = 0; x < 6; ++x) {
+          if (unit(random) >= density) continue;
+          const uint64_t code =
+              mortonEncode({static_cast<uint16_t>(base + x), static_cast<uint16_t>(base + y), static_cast<uint16_t>(base + z)});
+          occupied.push_back(code);
+          if (unit(random) < seeds) dynamic.push_back(code);
+        }
+      }
+    }
+    std::sort(occupied.begin(), occupied.end());
+    std::sort(dynamic.begin(), dynamic.end());
+    const int steps = static_cast<int>(random() % 6);
+    const double fraction = std::vector<double>{0.0, 0.3, 0.5, 0.7, 1.0}[random() % 5];
+    const std::vector<uint64_t> fast = spreadDynamic(occupied, dynamic, steps, fraction);
+    ASSERT_EQ(fast, spreadReference(occupied, dynamic, steps, fraction))
+        << "trial " << trial << ", " << steps << " steps, fraction " << fraction;
+    grew += fast.size() > dynamic.size() ? 1 : 0;
+  }
+  EXPECT_GT(grew, 50u) << "the random frames must exercise the spread";
 }
 
 }  // namespace

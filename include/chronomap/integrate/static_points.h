@@ -79,6 +79,14 @@ struct VoxelFrameCounts {
 /// Whether a voxel with these counts is dynamic under `settings`.
 bool isDynamicVoxel(const VoxelFrameCounts& counts, const StaticPointSettings& settings);
 
+/// One frame's dynamic voxels grown into its other voxels (Morton codes; `occupied` and
+/// `dynamic` sorted, `dynamic` a subset of `occupied`): `steps` times, every occupied voxel with
+/// a dynamic neighbour (26-neighbourhood) and at least `fraction` of its occupied neighbours
+/// dynamic joins them. Each step looks only at the neighbours of the voxels the step before
+/// added (the others' counts did not change). @return the grown set, sorted.
+std::vector<uint64_t> spreadDynamic(const std::vector<uint64_t>& occupied, std::vector<uint64_t> dynamic, int steps,
+                                    double fraction);
+
 /// The static points of `source` (see the file comment). `progress` gets (done, total) units of
 /// three passes over the frames (the voxels with points, their histories, the points judged):
 /// 3 * frames in all.
