@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # The Debian package (issue 45): CPack makes chronomap_VERSION_amd64.deb from the build, with its
 # dependencies from dpkg-shlibdeps; it holds the CLI, the libraries, the headers, the CMake
-# package, the pkg-config file, the Python module and the man pages. It is unpacked with
-# `dpkg -x` into a throwaway root (no maintainer scripts, no change to this machine's package
-# database, no root rights or container needed), its dependencies are checked to be installed
-# here, and `chronomap demo` runs from the root's PATH. The CLI and the Python module link
-# chronomap's static libraries, so neither needs LD_LIBRARY_PATH; the shared libraries find each
+# package, the pkg-config file, the Python module and the man pages. It is installed with
+# `dpkg --root ROOT -i` into a throwaway root with its own package database (this machine's
+# database and files do not change; no container is needed; its dependencies are checked
+# against this machine's database, which the root's empty one cannot do, hence --force-depends),
+# `chronomap demo` runs from the root's PATH, and `dpkg --root ROOT -r` removes every file it
+# installed. The CLI and the Python module link chronomap's static libraries, so neither needs LD_LIBRARY_PATH; the shared libraries find each
 # other beside themselves ($ORIGIN).
 #   debian_package.sh BUILD_DIR WORK_DIR
 # Exits 77 (skipped) without dpkg-deb, dpkg-shlibdeps or the man pages, except under CI=true.
@@ -48,9 +49,16 @@ tr ',' '\n' <<<"$depends" | sed 's/|.*//; s/(.*//; s/ //g' | while read -r p; do
   grep -q "install ok installed" <<<"$status" || { echo "dependency $p not installed"; exit 1; }
 done
 
-# Unpacked into a throwaway root, run from its PATH.
+# Installed into a throwaway root with its own package database, run from its PATH. The
+# maintainer scripts (ldconfig) run outside the root (--force-script-chrootless): the root has
+# no shell to run them in.
 root="$work/root"
-dpkg -x "$deb" "$root"
+mkdir -p "$root/var/lib/dpkg/info" "$root/var/lib/dpkg/updates"
+touch "$root/var/lib/dpkg/status"
+dpkg_root=(dpkg --root="$root" --force-depends --force-script-chrootless)
+"${dpkg_root[@]}" -i "$deb" >"$work/dpkg.log" 2>&1 || { cat "$work/dpkg.log"; exit 1; }
+[ "$(dpkg-query --root="$root" -W -f='${Status} ${Version}' chronomap)" = "install ok installed $version" ] ||
+  { echo "dpkg did not record chronomap $version as installed"; exit 1; }
 export PATH="$root/usr/bin:$PATH"
 [ "$(command -v chronomap)" = "$root/usr/bin/chronomap" ]
 version_line="$(chronomap --version)"
@@ -66,4 +74,8 @@ start=$SECONDS
 chronomap demo --resolution-scale 0.2 -o "$work/demo" >"$work/demo.log" 2>&1 || { tail -20 "$work/demo.log"; exit 1; }
 [ -s "$work/demo/report.md" ] || { echo "chronomap demo wrote no report.md"; exit 1; }
 echo "chronomap demo --resolution-scale 0.2 from the package: $((SECONDS - start)) s"
+# Removed: none of its files is left in the root.
+"${dpkg_root[@]}" -r chronomap >>"$work/dpkg.log" 2>&1 || { cat "$work/dpkg.log"; exit 1; }
+left="$(find "$root" -path "$root/var/lib/dpkg" -prune -o ! -type d -print | head -5)"
+[ -z "$left" ] || { echo "dpkg -r left files: $left"; exit 1; }
 echo "Debian package: OK"
