@@ -79,6 +79,7 @@ nlohmann::json upJson(const ChosenUp& up) {
   nlohmann::json j = {{"up", toString(up.axis)}, {"up_from", up.from}};
   if (up.estimate) {
     j["up_floor_share"] = up.estimate->floor_share[static_cast<size_t>(up.axis)];
+    j["up_sampled_cells"] = up.estimate->points;
     nlohmann::json scores = nlohmann::json::object();
     for (size_t k = 0; k < kUpAxes.size(); ++k) scores[toString(kUpAxes[k])] = up.estimate->scores[k];
     j["up_scores"] = scores;

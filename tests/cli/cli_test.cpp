@@ -61,6 +61,30 @@ TEST(Cli, UpTurnsTheRecordingAndABadOneNamesTheFlag) {
   EXPECT_LT(j["bounds_max"][0].get<double>(), 0.6);
 }
 
+// --up auto on the study room: +y, and --json says what the text says (the floor's share of the
+// sampled cells; scripts/make-doc-images.sh quotes both in docs/frames.md).
+TEST(Cli, UpAutoOnTheStudyRoomPrintsTheFloorItFoundInTextAndJson) {
+  CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
+  test::TempDir tmp;
+  const std::string cmd = cli() + " integrate " + root.string() + " --resolution 0.04 --max-range 6 --up auto -o " +
+                          (tmp / "room.cmap").string();
+  const auto r = test::runCommand(cmd + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["up"], "+y");
+  EXPECT_EQ(j["up_from"], "auto");
+  const double share = j["up_floor_share"].get<double>();
+  const uint64_t cells = j["up_sampled_cells"].get<uint64_t>();
+  EXPECT_GT(share, 0.0);
+  EXPECT_LT(share, 1.0);
+  EXPECT_GT(cells, 1000u);
+  const auto t = test::runCommand(cmd);
+  ASSERT_EQ(t.exit_code, 0) << t.err;
+  const std::string said = "a floor of " + std::to_string(static_cast<int>(std::lround(100 * share))) + "% of " +
+                           std::to_string(cells) + " sampled cells";
+  EXPECT_NE(t.out.find(said), std::string::npos) << said << "\n" << t.out;
+}
+
 TEST(Cli, IntegrateStatsExportOnRealFrames) {
   CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
   test::TempDir tmp;
