@@ -3,12 +3,15 @@
 the occupancy the combined model predicts for that time from a 4D map of the learning weeks, and
 the cost map `chronomap costmap` writes for it, each seen from above over a height band.
 
-Usage: PYTHONPATH=build/ci/python /usr/bin/python3 bench/rhythm_picture.py SIM MAP SESSION COST.png OUT.png
+Usage: PYTHONPATH=build/ci/python /usr/bin/python3 bench/rhythm_picture.py SIM MAP SESSION COST.png OUT.png [FIGURES.json]
   SIM      a `chronomap simulate --preset weeks` output (scene.json, truth/occupancy_NN.cmap)
   MAP      the 4D map of the learning sessions
   SESSION  the test session's index in scene.json
   COST.png the picture `chronomap costmap MAP --at <the session's time> -o COST.yaml` wrote (its
            YAML beside it), at the default 0.05 m cells
+  FIGURES  also write what the picture shows, for its caption (scripts/make-doc-images.sh): the
+           session's time and weekday, the learning sessions, the doors open in the truth, and
+           the predicted probability on the doorways (the doors' voxels free in the truth then)
 """
 import json
 import re
@@ -64,9 +67,38 @@ def main(sim, map_path, session, cost_png, out):
         picture.paste(Image.fromarray(pixels).resize((width * scale, height * scale), Image.NEAREST), (0, top + pad))
         draw.text((6, top + 5), title, fill=(0, 0, 0))
     picture.save(out)
+    return {"session": session, "time": when, "weekday": WEEKDAYS[scene["sessions"][session]["weekday"]],
+            "learn_sessions": len(temporal), **doors(scene, session, predicted, truth, time_s)}
+
+
+WEEKDAYS = ["Monday", "Tuesday", "Wednesday", "Thursday", "Friday", "Saturday", "Sunday"]
+
+
+def doors(scene, session, predicted, truth, time_s):
+    """How many doors are open in the truth at `session`, and on the doors' voxels in the band that
+    the truth has free then (the doorways) the share the model predicts occupied (above 0.5)."""
+    res = scene["voxel_resolution_m"]
+    state, keys = {}, {}
+    for e in scene["events"]:
+        if e.get("object_kind") != "door":
+            continue
+        keys.setdefault(e["object"], set()).update(map(tuple, e["voxels"]))
+        if e["to_session"] <= session:
+            state[e["object"]] = e["kind"] == "door_opened"
+        else:  # before its first event a door is in the state that event leaves
+            state.setdefault(e["object"], e["kind"] == "door_closed")
+    points = np.array(sorted(k for ks in keys.values() for k in ks), dtype=float)
+    points = (points - 32768 + 0.5) * res
+    points = points[(points[:, 2] > Z_MIN) & (points[:, 2] < Z_MAX)]
+    free = ~(truth.probability(points) > 0.5)  # the truth stores what is occupied
+    p = predicted.probability(points[free])
+    return {"doors": len(state), "doors_open": sum(state.values()),
+            "doorway_voxels": int(free.sum()), "doorway_predicted_occupied": float(np.mean(p > 0.5))}
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 6:
+    if len(sys.argv) not in (6, 7):
         sys.exit(__doc__)
-    main(sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4], sys.argv[5])
+    figures = main(sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4], sys.argv[5])
+    if len(sys.argv) == 7:
+        Path(sys.argv[6]).write_text(json.dumps(figures, indent=2) + "\n")

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """The figures that the captions of README.md and docs/*.md quote, measured and checked.
 
-    scripts/doc_figures.py measure FIGURES.json [--demo DIR] [--room JSON] [--shots JSON]
-    scripts/doc_figures.py check FIGURES.json [--demo DIR] [--room JSON]
+    scripts/doc_figures.py measure FIGURES.json [--demo DIR] [--room DIR] [--weeks DIR] [--floor66 DIR]
+    scripts/doc_figures.py check FIGURES.json [--demo DIR] [--room DIR]
 
 A caption is the italic paragraph under a picture (or, without one, the picture's alt text). Each
 caption key of FIGURES.json ("DOC IMAGE", e.g. "docs/viewer.md viewer_office_diff.png") holds the
@@ -19,8 +19,9 @@ check (ctest's DocFigures runs it, so CI does) fails when
     number typed into a caption by hand, or left over from an older picture, fails);
   - a picture of the docs has figures in its caption but no key, or a key names no picture;
   - given --demo or --room, a key measured from them differs from what they measure now.
-The demo runs at its defaults (seed 1, 320 x 240) in about 20 s; what only the slow groups of
-make-doc-images.sh measure (floor66, weeks, colour) is checked against FIGURES.json alone.
+The demo runs at its defaults (seed 1, 320 x 240) in about 20 s; what only the groups of
+make-doc-images.sh that CI does not run measure (weeks, floor66: the simulations and the
+benchmark programs) is checked against FIGURES.json alone.
 """
 import argparse
 import json
@@ -149,17 +150,114 @@ def office(demo):
     return keys
 
 
-def room(integrate_json):
-    """The key of the study room's picture, from `chronomap integrate --json`."""
-    r = json.loads(Path(integrate_json).read_text())
-    return {"docs/integration.md room_topview.png": {
+def room(folder):
+    """The keys of the study room's and pcl-kinect's pictures, from `chronomap integrate --json`
+    (room.json; room_up.json and office1_up.json with --up auto) in `folder`."""
+    folder = Path(folder)
+    r = json.loads((folder / "room.json").read_text())
+    keys = {"docs/integration.md room_topview.png": {
         "measured": "chronomap integrate 3dmatch --resolution 0.04 --max-range 6",
         "figures": {"frames": f"{WORDS[r['frames']]} 3DMatch frames", "resolution": f"{r['resolution_m']:g} m"},
         "given": {"range": "6 m range", "flags": "--resolution 0.04 --max-range 6"}}}
 
+    def floor(j, sampled):
+        return f"a floor of {100 * j['up_floor_share']:.0f}% of {sampled}{j['up_sampled_cells']:,} {'sampled ' if sampled else ''}cells"
+
+    if (folder / "room_up.json").exists():
+        u = json.loads((folder / "room_up.json").read_text())
+        keys["docs/frames.md frames_room_up.png"] = {
+            "measured": "chronomap integrate 3dmatch --resolution 0.04 --max-range 6 --up auto --json",
+            "figures": {"frames": f"The {WORDS[u['frames']]} 3DMatch frames", "up": f"{u['up']} found",
+                        "floor": floor(u, "")},
+            "given": {"resolution": "at 0.04 m with a 6 m range"}}
+    if (folder / "office1_up.json").exists():
+        u = json.loads((folder / "office1_up.json").read_text())
+        keys["docs/frames.md frames_office1_recorded.png"] = {
+            "measured": "chronomap integrate pcl-kinect/office1.pcd --max-range 6 --up auto --json",
+            "figures": {"up": f"finds {u['up']}", "floor": floor(u, "the ")},
+            "given": {"image": "640 x 480", "range": "6 m range", "camera": "the camera at (0, 0)",
+                      "far wall": "far wall 5 m away"}}
+    return keys
+
+
+def last_json(path):
+    """The JSON object a benchmark program prints last."""
+    return json.loads(Path(path).read_text().strip().split("\n")[-1])
+
+
+def weeks(folder):
+    """The keys of the weeks pictures, from make-doc-images.sh's weeks group."""
+    w = Path(folder)
+    keys = {}
+    r = json.loads((w / "rhythm_picture.json").read_text())
+    nav = last_json(w / "rhythm_eval.txt")
+    found, plans = round(nav["nav_found_costmap"] * nav["nav_plans_costmap"]), nav["nav_plans_costmap"]
+    doors = ("all three doors open" if r["doors_open"] == r["doors"] == 3
+             else f"{WORDS.get(r['doors_open'], r['doors_open'])} of its {r['doors']} doors open")
+    keys["docs/rhythm.md weeks_predicted_vs_true.png"] = {
+        "measured": "rhythm_eval --poses true, chronomap costmap, bench/rhythm_picture.py (weeks, seed 1)",
+        "figures": {"session": f"Test session {r['session']} ({r['weekday']} {r['time'][11:16]}",
+                    "doors": doors,
+                    "learning sessions": f"the {r['learn_sessions']} sessions of the first three weeks",
+                    "doorways": f"{100 * r['doorway_predicted_occupied']:.0f}% of the doorways' voxels",
+                    "routes": f"{found} of the {plans} routes",
+                    "time": f"--at {r['time']}"},
+        "given": {"band": "over 0.2–1.4 m", "cost map": "--lethal 0.7 --z-min 0.2 --z-max 1.4 --robot-radius 0.25",
+                  "test sessions": "14 test sessions"}}
+    # The night's alerts: alerts_eval's rows of that session (rank, label).
+    rows = [line.split(" | ") for line in (w / "alerts_eval.txt").read_text().split("\n")
+            if line.startswith("| 48 |")]
+    ranked = {int(row[2]): row[7] for row in rows}
+    first = ranked[1].removeprefix("rare: ").rsplit(" ", 1)[0]
+    doors = [k for k, label in sorted(ranked.items()) if label.endswith("door door_closed")]
+    keys["docs/alerts.md alerts_night.png"] = {
+        "measured": "alerts_eval --poses true --map, chronomap alerts --top 5 (weeks with rare events, seed 1)",
+        "figures": {"first": f"first (1) {first}",
+                    "doors": f"then ({doors[0]}–{doors[-1]}) the doors shut for the night" if doors else "no door"},
+        "given": {"session": "session 48"}}
+    # The colour picture: the sessions colour_eval drew.
+    scene = json.loads((w / "colour_sim" / "scene.json").read_text())
+    drawn = re.findall(r"^top views at session (\d+) \(\S+T(\d\d:\d\d)", (w / "colour_eval.txt").read_text(), re.M)
+    (m, m_hm), (e, e_hm) = drawn
+    day = lambda i: ["Monday", "Tuesday", "Wednesday", "Thursday", "Friday", "Saturday", "Sunday"][
+        scene["sessions"][int(i)]["weekday"]]
+    keys["docs/colour.md colour_predicted_vs_true.png"] = {
+        "measured": "colour_eval --out, bench/colour_picture.py (weeks with daylight and a repaint, seed 1)",
+        "figures": {"morning session": f"{m_hm} on {day(m)} of the test week", "evening session": f"{e_hm} on its {day(e)}",
+                    "evening": f"At {e_hm}", "labels": f"OUT.png {m_hm} {e_hm}"},
+        "given": {"hours asked": "nearest 09:30 and 20:30"}}
+    return keys
+
+
+def floor66(folder):
+    """The keys of the floor66 pictures, from make-doc-images.sh's floor66 group."""
+    f = Path(folder)
+    t = last_json(f / "temporal.txt")
+    build = json.loads((f / "build.json").read_text())
+    last = json.loads((f / "last.json").read_text())
+    zoom = json.loads((f / "shot.json").read_text())["zoom"]
+    return {
+        "docs/temporal.md floor66_storage.png": {
+            "measured": "bench/temporal --sim on chronomap simulate --preset floor66 --resolution-scale 0.5",
+            "figures": {"sessions": f"the {t['sessions']} simulated sessions",
+                        "separate": f"{t['nodes_separate'] / 1e6:.1f} M nodes",
+                        "4D": f"the 4D map {t['nodes_4d'] / 1e6:.1f} M",
+                        "share": f"{100 * t['nodes_4d'] / t['nodes_separate']:.1f}%"},
+            "given": {"thesis": "the thesis measured 93 M and 14 M on its 66 real sessions"}},
+        "docs/viewer.md viewer_floor66_zoom.png": {
+            "measured": "chronomap build --fast, chronomap snapshot and shoot.mjs on the floor66 simulation",
+            "figures": {"sessions": f"{build['sessions']} sessions",
+                        "occupied": f"{last['occupied']:,} occupied voxels at the last one",
+                        "cells": f"{zoom['cells']:,} cells in view"},
+            "given": {"level": "cubes of 2³ voxels"}}}
+
 
 def measured(args):
     keys = {}
+    if args.floor66:
+        keys.update(floor66(args.floor66))
+    if args.weeks:
+        keys.update(weeks(args.weeks))
     if args.demo:
         keys.update(office(args.demo))
     if args.room:
@@ -217,7 +315,10 @@ def main():
     parser.add_argument("command", choices=["measure", "check"])
     parser.add_argument("figures", type=Path)
     parser.add_argument("--demo", help="the folder chronomap demo wrote")
-    parser.add_argument("--room", help="chronomap integrate --json of the study room")
+    parser.add_argument("--room", help="the folder of chronomap integrate --json of the study room (room.json; "
+                        "room_up.json and office1_up.json with --up auto)")
+    parser.add_argument("--weeks", help="the folder make-doc-images.sh's weeks group wrote")
+    parser.add_argument("--floor66", help="the folder make-doc-images.sh's floor66 group wrote")
     args = parser.parse_args()
     figures = json.loads(args.figures.read_text()) if args.figures.exists() else {}
     if args.command == "measure":

@@ -4,7 +4,7 @@
 #
 #   scripts/make-doc-images.sh [--only GROUP,...] [--work DIR] [--build DIR]
 #
-# GROUP (default: office,viewer,room,python,architecture):
+# GROUP (default: office,viewer,room,python,architecture; weeks and floor66 only when named):
 #   office        chronomap demo (seed 1, 320 x 240): office_topview.png, office_changes_00_01.png
 #                 (the pair of sessions 1 and 2), office_frame_rgb.png, office_frame_depth.png
 #   viewer        chronomap view on the demo's map, viewer/test/shoot.mjs in headless Chromium:
@@ -13,15 +13,19 @@
 #                 and upright (--up auto) with a Kinect cloud of pcl-kinect: frames_*.png
 #   python        examples/show_changes.py on the demo's map: python_show_changes.png (needs office)
 #   architecture  Graphviz's dot on docs/images/architecture.dot: architecture.png
-# Not made by this script yet (their own programs say how; their captions' figures are kept in
-# figures.json as the pictures were measured, marked "measured": null): floor66_storage.png and
-# viewer_floor66_zoom.png (bench/temporal and shoot.mjs on the floor66 preset, about an hour on
-# 2 cores), alerts_night.png, weeks_predicted_vs_true.png (bench/rhythm_picture.py) and
-# colour_predicted_vs_true.png (bench/colour_picture.py) on the weeks preset.
+#   weeks         the weeks preset (seed 1, 0.25 of 640 x 480, true poses), three simulations:
+#                 weeks_predicted_vs_true.png (rhythm_eval --save-map, chronomap costmap,
+#                 bench/rhythm_picture.py), alerts_night.png (alerts_eval --map with rare events,
+#                 chronomap alerts -o) and colour_predicted_vs_true.png (colour_eval --out with
+#                 daylight and a repaint, bench/colour_picture.py); about 2 minutes
+#   floor66       the floor66 preset (66 sessions, 0.5 of 640 x 480): floor66_storage.png
+#                 (bench/temporal --sim --plot) and viewer_floor66_zoom.png (chronomap build,
+#                 chronomap view, shoot.mjs); about 5 minutes on 2 cores
 #
-# Builds chronomap and the Python module in build/release (cmake --preset release), or in the
-# configured build folder --build names. The office groups take about 2 minutes after the build
-# on 2 cores. --work keeps what they made (the demo's folder, the viewer's shots) in DIR.
+# Builds chronomap and the Python module (and, for weeks and floor66, the benchmark programs) in
+# build/release (cmake --preset release), or in the configured build folder --build names. The
+# office groups take about 2 minutes after the build on 2 cores. --work keeps what they made (the
+# demo's folder, the viewer's shots, the simulations) in DIR.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 repo="$PWD"
@@ -33,18 +37,19 @@ while (($#)); do
     --only) groups="$2"; shift 2 ;;
     --work) work="$2"; shift 2 ;;
     --build) build="$(realpath "$2")"; shift 2 ;;
-    -h|--help) sed -n '2,25p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,33p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "make-doc-images.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
 done
 has() { [[ ",$groups," == *",$1,"* ]]; }
 for g in ${groups//,/ }; do
-  case "$g" in office|viewer|room|python|architecture) ;;
-    *) echo "make-doc-images.sh: no group '$g' (office, viewer, room, python, architecture)" >&2; exit 2 ;;
+  case "$g" in office|viewer|room|python|architecture|weeks|floor66) ;;
+    *) echo "make-doc-images.sh: no group '$g' (office, viewer, room, python, architecture, weeks, floor66)" >&2
+       exit 2 ;;
   esac
 done
 missing=()
-has viewer && { command -v node >/dev/null || missing+=(nodejs); command -v chromium >/dev/null || missing+=(chromium); }
+{ has viewer || has floor66; } && { command -v node >/dev/null || missing+=(nodejs); command -v chromium >/dev/null || missing+=(chromium); }
 has architecture && { command -v dot >/dev/null || missing+=(graphviz); }
 if ((${#missing[@]})); then
   echo "make-doc-images.sh: missing ${missing[*]} (apt-get install ${missing[*]}, or leave the group out with --only)" >&2
@@ -58,12 +63,20 @@ mkdir -p "$work"
 images="$repo/docs/images"
 data="${CHRONOMAP_DATA_DIR:-$repo/../shared/data}"
 
+benches=()
+has weeks && benches+=(rhythm_eval alerts_eval colour_eval)
+has floor66 && benches+=(temporal)
 if [ -z "$build" ]; then
-  cmake --preset release >/dev/null
+  if ((${#benches[@]})); then cmake --preset release -DCHRONOMAP_BUILD_BENCH=ON >/dev/null
+  else cmake --preset release >/dev/null; fi
   build="$repo/build/release"
+elif ((${#benches[@]})) && ! grep -q '^CHRONOMAP_BUILD_BENCH:BOOL=ON' "$build/CMakeCache.txt"; then
+  echo "make-doc-images.sh: the weeks and floor66 groups need $build configured with -DCHRONOMAP_BUILD_BENCH=ON" >&2
+  exit 1
 fi
 targets=(--target chronomap_cli)
-has python && targets+=(--target _chronomap)
+{ has python || has weeks; } && targets+=(--target _chronomap)
+for b in "${benches[@]}"; do targets+=(--target "$b"); done
 cmake --build "$build" -j"${CMAKE_BUILD_PARALLEL_LEVEL:-$(nproc)}" "${targets[@]}"
 cli="$build/apps/chronomap/chronomap"
 measure=()
@@ -80,24 +93,29 @@ if has office; then
   cp "$work/demo/images/frame_depth.png" "$images/office_frame_depth.png"
 fi
 
-if has viewer; then
-  echo "== viewer: chronomap view and shoot.mjs"
+# shoot MAP PREFIX: chronomap view on MAP, viewer/test/shoot.mjs's pictures as PREFIX-*.png and its
+# figures as PREFIX.json.
+shoot() {
   (cd viewer && { [ -d node_modules ] && [ node_modules -nt package-lock.json ] || npm ci --no-audit --no-fund >/dev/null; })
-  "$cli" view "$work/demo/office.cmap" --port 0 >"$work/view.log" 2>&1 &
-  server=$!
-  url=""
-  for _ in $(seq 100); do
-    url="$(grep -o 'http://127\.0\.0\.1:[0-9]*/' "$work/view.log" | head -1 || true)"
+  "$cli" view "$1" --port 0 >"$2-view.log" 2>&1 &
+  local server=$! url="" status=0
+  for _ in $(seq 600); do
+    url="$(grep -o 'http://127\.0\.0\.1:[0-9]*/' "$2-view.log" | head -1 || true)"
     [ -n "$url" ] && break
     sleep 0.2
   done
-  [ -n "$url" ] || { cat "$work/view.log" >&2; kill "$server"; exit 1; }
-  status=0
+  [ -n "$url" ] || { cat "$2-view.log" >&2; kill "$server"; exit 1; }
   CHROMIUM="${CHROMIUM:-$(command -v chromium || command -v chromium-browser)}" \
-    node viewer/test/shoot.mjs "$url" "$work/shot" >"$work/shots.json" || status=$?
+    node viewer/test/shoot.mjs "$url" "$2" >"$2.json" || status=$?
   kill "$server"
   wait "$server" 2>/dev/null || true
   ((status == 0)) || exit "$status"
+}
+
+if has viewer; then
+  echo "== viewer: chronomap view and shoot.mjs"
+  shoot "$work/demo/office.cmap" "$work/shot"
+  cp "$work/shot.json" "$work/shots.json"
   for view in diff move history predicted; do
     cp "$work/shot-$view.png" "$images/viewer_office_$view.png"
   done
@@ -112,18 +130,21 @@ fi
 
 if has room; then
   echo "== room: the 3DMatch study room"
-  "$cli" integrate "$data/3dmatch/3dmatch" --resolution 0.04 --max-range 6 -o "$work/room.cmap" --json \
-    >"$work/room.json"
-  "$cli" export "$work/room.cmap" -o "$images/room_topview.png" >/dev/null
+  mkdir -p "$work/room"
+  r="$work/room"
+  "$cli" integrate "$data/3dmatch/3dmatch" --resolution 0.04 --max-range 6 -o "$r/room.cmap" --json >"$r/room.json"
+  "$cli" export "$r/room.cmap" -o "$images/room_topview.png" >/dev/null
   # The same frames upright (docs/frames.md): 3DMatch's world has +y up, which --up auto finds.
-  "$cli" integrate "$data/3dmatch/3dmatch" --resolution 0.04 --max-range 6 --up auto -o "$work/room_up.cmap" >/dev/null
-  "$cli" export "$work/room_up.cmap" -o "$images/frames_room_up.png" >/dev/null
+  "$cli" integrate "$data/3dmatch/3dmatch" --resolution 0.04 --max-range 6 --up auto -o "$r/room_up.cmap" --json \
+    >"$r/room_up.json"
+  "$cli" export "$r/room_up.cmap" -o "$images/frames_room_up.png" >/dev/null
   # One Kinect cloud in its optical frame (y down, z forward), as recorded and with --up auto (-y).
-  "$cli" integrate "$data/pcl-kinect/office1.pcd" --max-range 6 -o "$work/office1.cmap" >/dev/null
-  "$cli" export "$work/office1.cmap" -o "$images/frames_office1_recorded.png" >/dev/null
-  "$cli" integrate "$data/pcl-kinect/office1.pcd" --max-range 6 --up auto -o "$work/office1_up.cmap" >/dev/null
-  "$cli" export "$work/office1_up.cmap" -o "$images/frames_office1_up.png" >/dev/null
-  measure+=(--room "$work/room.json")
+  "$cli" integrate "$data/pcl-kinect/office1.pcd" --max-range 6 -o "$r/office1.cmap" >/dev/null
+  "$cli" export "$r/office1.cmap" -o "$images/frames_office1_recorded.png" >/dev/null
+  "$cli" integrate "$data/pcl-kinect/office1.pcd" --max-range 6 --up auto -o "$r/office1_up.cmap" --json \
+    >"$r/office1_up.json"
+  "$cli" export "$r/office1_up.cmap" -o "$images/frames_office1_up.png" >/dev/null
+  measure+=(--room "$r")
 fi
 
 if has python; then
@@ -136,6 +157,49 @@ fi
 if has architecture; then
   echo "== architecture: dot"
   dot -Tpng "$images/architecture.dot" -o "$images/architecture.png"
+fi
+
+if has weeks; then
+  echo "== weeks: rhythm_eval, alerts_eval and colour_eval (true poses)"
+  w="$work/weeks"
+  mkdir -p "$w"
+  # The rhythm: the combined model's prediction and the cost map at test session 43.
+  "$cli" simulate --preset weeks --resolution-scale 0.25 -o "$w/sim" >/dev/null
+  "$build/bench/rhythm_eval" --sim "$w/sim" --poses true --z-min 0.2 --robot-height 1.4 --lethal 0.7 \
+    --save-map "$w/learn.cmap" >"$w/rhythm_eval.txt"
+  at="$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["sessions"][43]["time"])' "$w/sim/scene.json")"
+  "$cli" costmap "$w/learn.cmap" --at "$at" --lethal 0.7 --z-min 0.2 --z-max 1.4 --robot-radius 0.25 \
+    -o "$w/cost.yaml" >/dev/null
+  PYTHONPATH="$build/python" /usr/bin/python3 bench/rhythm_picture.py "$w/sim" "$w/learn.cmap" 43 "$w/cost.png" \
+    "$images/weeks_predicted_vs_true.png" "$w/rhythm_picture.json"
+  # The alerts of the night session 48 (03:35 on the Thursday of the test week).
+  "$cli" simulate --preset weeks --resolution-scale 0.25 --rare-events -o "$w/rare" >/dev/null
+  "$build/bench/alerts_eval" --sim "$w/rare" --poses true --map "$w/rare.cmap" >"$w/alerts_eval.txt"
+  at="$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["sessions"][48]["time"])' "$w/rare/scene.json")"
+  "$cli" alerts "$w/rare.cmap" --at "$at" --history-to 2012-03-26T00:00:00Z --top 5 -o "$w/night" >"$w/alerts.txt"
+  cp "$w/night/alerts.png" "$images/alerts_night.png"
+  # The colour model: the test sessions nearest 09:30 and 20:30.
+  "$cli" simulate --preset weeks --resolution-scale 0.25 --lighting daylight --repaint -o "$w/colour_sim" >/dev/null
+  "$build/bench/colour_eval" --weeks "$w/colour_sim" --out "$w/colour" >"$w/colour_eval.txt"
+  mapfile -t hours < <(sed -n 's/^top views at session [0-9]* ([0-9-]*T\([0-9]*:[0-9]*\).*/\1/p' "$w/colour_eval.txt")
+  ((${#hours[@]} == 2)) || { echo "colour_eval named ${#hours[@]} sessions for its top views, not 2" >&2; exit 1; }
+  /usr/bin/python3 bench/colour_picture.py "$w/colour" "$images/colour_predicted_vs_true.png" "${hours[@]}"
+  measure+=(--weeks "$w")
+fi
+
+if has floor66; then
+  echo "== floor66: bench/temporal and the viewer"
+  f="$work/floor66"
+  mkdir -p "$f"
+  "$cli" simulate --preset floor66 --resolution-scale 0.5 -o "$f/sim" >/dev/null
+  "$build/bench/temporal" --sim "$f/sim" --plot "$images/floor66_storage.png" >"$f/temporal.txt"
+  # The same 4D map as bench/temporal's (fast mode, the estimated poses), for the viewer.
+  "$cli" build "$f/floor66.cmap" "$f"/sim/session_* --fast --json >"$f/build.json" 2>"$f/build.log"
+  last="$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["added"][-1]["time"])' "$f/build.json")"
+  "$cli" snapshot "$f/floor66.cmap" --at "$last" -o "$f/last.cmap" --json >"$f/last.json"
+  shoot "$f/floor66.cmap" "$f/shot"
+  cp "$f/shot-zoom.png" "$images/viewer_floor66_zoom.png"
+  measure+=(--floor66 "$f")
 fi
 
 python3 scripts/doc_figures.py measure "$images/figures.json" "${measure[@]}"
