@@ -2,7 +2,8 @@
 # Every picture of README.md and docs/ from the current code and the simulator's fixed seeds, and
 # the figures their captions quote (docs/images/figures.json, checked by ctest's DocFigures):
 #
-#   scripts/make-doc-images.sh [--only GROUP,...] [--work DIR] [--build DIR]
+#   scripts/make-doc-images.sh [--only GROUP,...] [--work DIR] [--build DIR] [--no-build]
+#                              [--images DIR] [--check]
 #
 # GROUP (default: office,viewer,room,python,architecture; weeks and floor66 only when named):
 #   office        chronomap demo (seed 1, 320 x 240): office_topview.png, office_changes_00_01.png
@@ -25,19 +26,30 @@
 # Builds chronomap and the Python module (and, for weeks and floor66, the benchmark programs) in
 # build/release (cmake --preset release), or in the configured build folder --build names. The
 # office groups take about 2 minutes after the build on 2 cores. --work keeps what they made (the
-# demo's folder, the viewer's shots, the simulations) in DIR.
+# demo's folder, the viewer's shots, the simulations) in DIR. --no-build runs the programs already
+# built in --build. --images DIR writes the pictures there instead of docs/images. --check (with
+# --images) changes nothing in docs/: it fails when a figure the groups measured differs from
+# docs/images/figures.json or a picture they made differs, byte for byte, from the one in
+# docs/images (the viewer's screenshots are not compared: the browser's drawing varies). ctest's
+# DocFiguresWeeks runs `--only weeks --check`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 repo="$PWD"
 groups="office,viewer,room,python,architecture"
 work=""
 build=""
+images="$repo/docs/images"
+no_build=0
+check=0
 while (($#)); do
   case "$1" in
     --only) groups="$2"; shift 2 ;;
+    --images) mkdir -p "$2"; images="$(realpath "$2")"; shift 2 ;;
+    --no-build) no_build=1; shift ;;
+    --check) check=1; shift ;;
     --work) work="$2"; shift 2 ;;
     --build) build="$(realpath "$2")"; shift 2 ;;
-    -h|--help) sed -n '2,33p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    -h|--help) sed -n '2,38p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "make-doc-images.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -60,13 +72,16 @@ if [ -z "$work" ]; then
   trap 'rm -rf "$work"' EXIT
 fi
 mkdir -p "$work"
-images="$repo/docs/images"
+touch "$work/.started"
 data="${CHRONOMAP_DATA_DIR:-$repo/../shared/data}"
 
 benches=()
 has weeks && benches+=(rhythm_eval alerts_eval colour_eval)
 has floor66 && benches+=(temporal)
-if [ -z "$build" ]; then
+if ((no_build)) && [ -z "$build" ]; then
+  echo "make-doc-images.sh: --no-build needs --build DIR" >&2
+  exit 2
+elif [ -z "$build" ]; then
   if ((${#benches[@]})); then cmake --preset release -DCHRONOMAP_BUILD_BENCH=ON >/dev/null
   else cmake --preset release >/dev/null; fi
   build="$repo/build/release"
@@ -77,7 +92,7 @@ fi
 targets=(--target chronomap_cli)
 { has python || has weeks; } && targets+=(--target _chronomap)
 for b in "${benches[@]}"; do targets+=(--target "$b"); done
-cmake --build "$build" -j"${CMAKE_BUILD_PARALLEL_LEVEL:-$(nproc)}" "${targets[@]}"
+((no_build)) || cmake --build "$build" -j"${CMAKE_BUILD_PARALLEL_LEVEL:-$(nproc)}" "${targets[@]}"
 cli="$build/apps/chronomap/chronomap"
 measure=()
 
@@ -156,7 +171,7 @@ fi
 
 if has architecture; then
   echo "== architecture: dot"
-  dot -Tpng "$images/architecture.dot" -o "$images/architecture.png"
+  dot -Tpng "$repo/docs/images/architecture.dot" -o "$images/architecture.png"
 fi
 
 if has weeks; then
@@ -202,5 +217,26 @@ if has floor66; then
   measure+=(--floor66 "$f")
 fi
 
-python3 scripts/doc_figures.py measure "$images/figures.json" "${measure[@]}"
-python3 scripts/doc_figures.py check "$images/figures.json"
+figures="$repo/docs/images/figures.json"
+if ((check)); then
+  status=0
+  python3 scripts/doc_figures.py check "$figures" "${measure[@]}" || status=1
+  stale=()
+  if [ "$images" != "$repo/docs/images" ]; then
+    while read -r made; do
+      name="$(basename "$made")"
+      [[ "$name" == viewer_* ]] && continue
+      cmp -s "$made" "$repo/docs/images/$name" || stale+=("$name")
+    done < <(find "$images" -maxdepth 1 -name '*.png' -newer "$work/.started")
+  fi
+  if ((${#stale[@]})); then
+    echo "make-doc-images.sh: docs/images differs from what the code draws now: ${stale[*]}" \
+         "(scripts/make-doc-images.sh --only $groups remakes them)" >&2
+    exit 1
+  fi
+  ((status == 0)) || exit 1
+  echo "make-doc-images.sh: the pictures of $groups are those in docs/images"
+else
+  python3 scripts/doc_figures.py measure "$figures" "${measure[@]}"
+  python3 scripts/doc_figures.py check "$figures"
+fi
