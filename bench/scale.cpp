@@ -4,12 +4,16 @@
 // allows (--sessions), not the preset's year.
 //
 //   scale [--sessions N] [--whole W] [--floors F] [--scale S] [--memory-limit GIB] [--sim DIR] [--work DIR]
+//         [--plot PNG]
 //   scale --query DIR
+//   scale --plot-from OUTPUT --plot PNG
 //
 // CHRONOMAP_CLI=PATH runs that chronomap instead of the one built beside it.
 // --query measures only the queries on a tiled map folder an earlier run left (DIR/stream).
 // --sim reuses simulated sessions (any TUM session folders session_*), else `chronomap simulate
 // --preset site` writes them. --whole 0 skips the whole-map builds. Last line: one JSON object.
+// --plot draws the nights (peak RSS, processor and wall time, tiles rewritten, bytes on disk) as
+// one PNG (docs/scale.md); --plot-from draws it from what an earlier run printed.
 
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -30,7 +34,9 @@
 #include <string>
 #include <vector>
 
+#include "chronomap/ingest/png.h"
 #include "chronomap/pipeline/tiles.h"
+#include "chronomap/render/plot.h"
 
 extern char** environ;
 
@@ -134,13 +140,61 @@ void measureQueries(const fs::path& folder, size_t tiles, nlohmann::json& out) {
 
 }  // namespace
 
+namespace {
+
+/// The nights of a streaming run as four plots stacked: peak RSS (with the 1 GiB target),
+/// processor and wall seconds, tiles rewritten and held, and the map's MiB on disk.
+chronomap::ImageRgb plotNights(const nlohmann::json& nights) {
+  using chronomap::PlotSeries;
+  std::vector<double> n, rss, cpu, wall, rewritten, tiles, mib, target;
+  for (const auto& night : nights) {
+    n.push_back(night["night"].get<double>());
+    rss.push_back(night["peak_rss_mib"].get<double>());
+    cpu.push_back(night["cpu_s"].get<double>());
+    wall.push_back(night["wall_s"].get<double>());
+    rewritten.push_back(night["tiles_rewritten"].get<double>());
+    tiles.push_back(night["tiles"].get<double>());
+    mib.push_back(night["bytes"].get<double>() / 1048576.0);
+    target.push_back(1024.0);
+  }
+  const auto plot = [&](std::vector<PlotSeries> series, const std::string& title, const std::string& y) {
+    chronomap::PlotSettings settings;
+    settings.title = title;
+    settings.x_label = "night";
+    settings.y_label = y;
+    settings.height = 300;
+    return chronomap::renderLinePlot(series, settings);
+  };
+  const std::vector<chronomap::ImageRgb> panels = {
+      plot({{"peak RSS", {31, 119, 180}, n, rss}, {"target 1 GiB", {214, 39, 40}, n, target}},
+           "Peak resident memory of each night's build", "MiB"),
+      plot({{"processor", {44, 160, 44}, n, cpu}, {"wall", {127, 127, 127}, n, wall}}, "Time of each night's build",
+           "seconds"),
+      plot({{"rewritten", {255, 127, 14}, n, rewritten}, {"in the map", {0, 0, 0}, n, tiles}},
+           "Tiles rewritten by each night", "tiles"),
+      plot({{"on disk", {148, 103, 189}, n, mib}}, "The tiled map's size after each night", "MiB")};
+  chronomap::ImageRgb out;
+  out.width = panels[0].width;
+  for (const auto& p : panels) out.height += p.height;
+  out.pixels.reserve(static_cast<size_t>(out.width) * out.height);
+  for (const auto& p : panels) out.pixels.insert(out.pixels.end(), p.pixels.begin(), p.pixels.end());
+  return out;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
   int sessions = 4, floors = 3, whole = 4;
   double scale = 0.5;
   std::string memory_limit = "0.25";
-  fs::path sim, query, work = fs::temp_directory_path() / "chronomap_bench_scale";
-  for (int i = 1; i + 1 < argc; i += 2) {
+  fs::path sim, query, plot, plot_from, work = fs::temp_directory_path() / "chronomap_bench_scale";
+  for (int i = 1; i < argc; i += 2) {
     const std::string a = argv[i];
+    if (a == "-h" || a == "--help" || i + 1 == argc) {
+      std::cerr << "usage: scale [--sessions N] [--whole W] [--floors F] [--scale S] [--memory-limit GIB] [--sim DIR] "
+                   "[--work DIR] [--plot PNG] | --query DIR | --plot-from OUTPUT --plot PNG (bench/scale.cpp says more)\n";
+      return a == "-h" || a == "--help" ? 0 : 2;
+    }
     if (a == "--sessions") sessions = std::atoi(argv[i + 1]);
     else if (a == "--floors") floors = std::atoi(argv[i + 1]);
     else if (a == "--whole") whole = std::atoi(argv[i + 1]);
@@ -149,10 +203,25 @@ int main(int argc, char** argv) {
     else if (a == "--sim") sim = argv[i + 1];
     else if (a == "--work") work = argv[i + 1];
     else if (a == "--query") query = argv[i + 1];
+    else if (a == "--plot") plot = argv[i + 1];
+    else if (a == "--plot-from") plot_from = argv[i + 1];
     else {
       std::cerr << "unknown option " << a << "\n";
       return 2;
     }
+  }
+  if (!plot_from.empty()) {  // the picture of an earlier run: the last line of its output
+    std::ifstream in(plot_from);
+    std::string line, last;
+    while (std::getline(in, line)) {
+      if (!line.empty()) last = line;
+    }
+    if (plot.empty() || last.empty()) {
+      std::cerr << (plot.empty() ? "--plot-from needs --plot PNG\n" : plot_from.string() + " holds no output\n");
+      return 2;
+    }
+    chronomap::writePng(plot, plotNights(nlohmann::json::parse(last)["stream_nights"]));
+    return 0;
   }
   if (!query.empty()) {
     nlohmann::json out;
@@ -206,6 +275,7 @@ int main(int argc, char** argv) {
     stream_cpu += r.cpu();
   }
   out["stream_nights"] = nights;
+  if (!plot.empty() && !nights.empty()) chronomap::writePng(plot, plotNights(nights));
   out["stream_memory_limit_gib"] = memory_limit;
   out["peak_rss_mib"] = stream_peak;
   out["stream_cpu_s"] = stream_cpu;
