@@ -65,10 +65,14 @@ struct SimSessions {
   std::vector<std::vector<Eigen::Vector3d>> positions;  // each session's sensor positions (estimated poses)
 };
 
-// How the benchmarks integrate simulated sessions: fast mode at 0.05 m.
+// How the benchmarks integrate simulated sessions: fast mode at 0.05 m. The environment's
+// CHRONOMAP_BENCH_DEPTH_EDGES=R also drops depth-edge points (IntegratorSettings::
+// depth_edge_ratio, `--depth-edges R`) in every benchmark that integrates through here, to
+// measure the rule without a flag in each program.
 inline SessionSettings simSessionSettings() {
   SessionSettings s;
   s.integrator.fast = true;
+  if (const char* r = std::getenv("CHRONOMAP_BENCH_DEPTH_EDGES"); r && *r) s.integrator.depth_edge_ratio = std::atof(r);
   return s;
 }
 
@@ -267,7 +271,7 @@ inline TemporalMap buildWeeksMap(const WeeksSim& w, const std::vector<size_t>& w
     build.datasets.push_back(w.dirs[i]);
     build.times_s.emplace_back(w.times[i]);
   }
-  build.session.integrator.fast = true;
+  build.session = simSessionSettings();  // fast mode (and CHRONOMAP_BENCH_DEPTH_EDGES)
   build.session.integrator.max_range_m = max_range_m;
   build.session.integrator.carve_beyond_range = carve_beyond_range;
   build.registration = RegistrationSettings{};

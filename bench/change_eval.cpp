@@ -30,6 +30,8 @@
 //                  `chronomap build --register --register-drift 20`; 0: rigid corrections only)
 //   --register-radius R, --drift-rounds N  the registration's neighbourhood (voxels) and rounds
 //                  of drift correction (RegisterSettings; defaults as the library's)
+//   --drift-per-frame M, --drift-yaw-per-frame DEG  the drift fit's smoothness prior: the random
+//                  walk's step per frame (RegisterSettings::drift_per_frame_m, _yaw_per_frame_deg)
 //   --not-planar   also fit a vertical offset (without RegisterSettings::planar, which the
 //                  default registration, as --register-planar, uses)
 //   --drift-voxels  the drift fit on voxel centres (without RegisterSettings::drift_points, which
@@ -605,6 +607,10 @@ int main(int argc, char** argv) {
       reg.radius_voxels = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--drift-rounds") && i + 1 < argc) {
       reg.drift_rounds = std::atoi(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--drift-per-frame") && i + 1 < argc) {
+      reg.drift_per_frame_m = std::atof(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--drift-yaw-per-frame") && i + 1 < argc) {
+      reg.drift_yaw_per_frame_deg = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--kept-surface") && i + 1 < argc) {
       g_kept_surface = std::atoi(argv[++i]);
     } else if (!std::strcmp(argv[i], "--kept-share") && i + 1 < argc) {

@@ -109,6 +109,7 @@ nlohmann::json integrateJson(const IntegrateCmdOptions& o, const IntegratedSessi
           {"points", stats.points},
           {"points_skipped", stats.pointsSkipped()},
           {"points_invalid", stats.points_invalid},
+          {"points_depth_edges", stats.points_depth_edges},
           {"points_out_of_range", stats.points_out_of_range},
           {"points_outside_map", stats.points_outside_map},
           {"rays", stats.rays},
@@ -137,7 +138,9 @@ void printIntegrated(const IntegrateCmdOptions& o, const IntegratedSession& sess
   }
   std::cout << "\n  points:  " << stats.points << " cast, " << stats.pointsSkipped() << " skipped ("
             << stats.points_invalid << " invalid, " << stats.points_out_of_range << " beyond " << max_range_m
-            << " m, " << stats.points_outside_map << " outside the map)\n"
+            << " m, " << stats.points_outside_map << " outside the map"
+            << (stats.points_depth_edges ? ", " + std::to_string(stats.points_depth_edges) + " at depth edges" : "")
+            << ")\n"
             << "  voxels:  " << counts.occupied_voxels << " occupied, " << counts.free_voxels << " free at "
             << map.resolution_m() << " m\n"
             << "  nodes:   " << counts.inner_nodes + counts.leaves << " (" << counts.leaves << " leaves, "
@@ -248,6 +251,7 @@ SessionSettings sessionSettings(const IntegrateFlags& f) {
   if (f.pose_tolerance_s) s.dataset.bag.pose_tolerance_s = *f.pose_tolerance_s;
   s.integrator.max_range_m = f.max_range_m;
   s.integrator.carve_beyond_range = f.carve_beyond_range;
+  s.integrator.depth_edge_ratio = f.depth_edge_ratio;
   s.integrator.fast = f.fast;
   s.integrator.threads = f.threads;
   s.integrator.compress_free = !f.no_compress;
@@ -306,6 +310,12 @@ void addIntegrateFlags(CLI::App* app, IntegrateFlags& f) {
                 "carve free space along the rays of points beyond --max-range, up to the range, instead of discarding "
                 "them whole (as OctoMap does): space seen through, such as an open doorway before a far wall, is then "
                 "observed free");
+  app->add_option("--depth-edges", f.depth_edge_ratio,
+                  "depth images: drop a point whose range differs from a neighbouring pixel's by more than this "
+                  "share of its own (0.05: 5 cm at 1 m): the flying pixels a depth camera makes at the edges of "
+                  "objects (docs/integration.md); 0 = off")
+      ->check(numberIn(0.0, 1e6))
+      ->capture_default_str();
   app->add_option("--format", f.format, formatHelp())->capture_default_str();
   app->add_option("--up", f.up,
                   "which axis of the recording's world frame is up: +x, -x, +y, -y, +z or -z (a camera's optical "

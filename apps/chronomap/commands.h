@@ -76,6 +76,7 @@ struct IntegrateFlags {
   double resolution_m = 0.05;
   double max_range_m = IntegratorSettings{}.max_range_m;
   bool carve_beyond_range = false;
+  double depth_edge_ratio = 0.0;  ///< --depth-edges; 0: off
   std::string format = "auto";
   bool fast = false;
   int threads = 0;

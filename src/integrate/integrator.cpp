@@ -35,7 +35,37 @@ IntegrationStats& IntegrationStats::operator+=(const IntegrationStats& o) {
   rays += o.rays;
   voxel_updates += o.voxel_updates;
   seconds += o.seconds;
+  points_depth_edges += o.points_depth_edges;
   return *this;
+}
+
+std::vector<uint8_t> depthEdgeMask(const PointCloud& cloud, double ratio) {
+  const size_t w = cloud.width, h = cloud.height;
+  if (!(ratio > 0.0) || h < 2 || w * h != cloud.size()) return {};
+  std::vector<float> range(cloud.size());
+  for (size_t i = 0; i < range.size(); ++i) {
+    const float r = cloud.points[i].norm();
+    range[i] = std::isfinite(r) && r > 0.0f ? r : 0.0f;  // 0: invalid, never compared
+  }
+  std::vector<uint8_t> drop(cloud.size(), 0);
+  const float share = static_cast<float>(ratio);
+  for (size_t y = 0; y < h; ++y) {
+    for (size_t x = 0; x < w; ++x) {
+      const float r = range[y * w + x];
+      if (r == 0.0f) continue;
+      const float limit = share * r;
+      for (size_t ny = y > 0 ? y - 1 : 0; ny <= std::min(y + 1, h - 1) && !drop[y * w + x]; ++ny) {
+        for (size_t nx = x > 0 ? x - 1 : 0; nx <= std::min(x + 1, w - 1); ++nx) {
+          const float q = range[ny * w + nx];
+          if (q != 0.0f && std::abs(q - r) > limit) {
+            drop[y * w + x] = 1;
+            break;
+          }
+        }
+      }
+    }
+  }
+  return drop;
 }
 
 std::vector<std::string> droppedPointsWarnings(const IntegrationStats& stats, const IntegratorSettings& settings) {
@@ -105,6 +135,9 @@ void checkSettings(const IntegratorSettings& settings) {
                      std::to_string(kMaxCarveLevel));
   }
   if (settings.carve_level > 0 && !settings.fast) throw UsageError("carving free space coarser needs fast mode");
+  if (!std::isfinite(settings.depth_edge_ratio) || settings.depth_edge_ratio < 0.0) {
+    throw UsageError("the depth edge ratio must be 0 (off) or a positive share of a point's range");
+  }
 }
 
 

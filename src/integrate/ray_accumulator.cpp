@@ -221,6 +221,8 @@ struct RayAccumulator::Impl {
   // The frame being accumulated: its cloud, its sensor origin in the working frame, the rotation
   // from sensor metres to working voxel units (row-major).
   const PointCloud* cloud = nullptr;
+  Frame edge_frame;  // the frame without its depth-edge points (IntegratorSettings::depth_edge_ratio)
+  void accumulateFrame(const Frame& frame, VoxelDeltas& out);
   double origin[3] = {0.0, 0.0, 0.0};
   double rotation[9] = {};
   std::vector<EndEntry> ends;  // ends[0] unused so that index 0 means "none"
@@ -712,11 +714,39 @@ size_t RayAccumulator::scratchBytes() const {
   const Impl& m = *impl_;
   return capacityBytes(m.points) + capacityBytes(m.cell_index) + capacityBytes(m.ends) + capacityBytes(m.beyond_ends) +
          capacityBytes(m.dense.length) + capacityBytes(m.dense.end) + capacityBytes(m.hash.slots) +
-         capacityBytes(m.cube.end) + capacityBytes(m.coarse_length) + capacityBytes(m.fine_rays);
+         capacityBytes(m.cube.end) + capacityBytes(m.coarse_length) + capacityBytes(m.fine_rays) +
+         capacityBytes(m.edge_frame.cloud.points) + capacityBytes(m.edge_frame.cloud.colours);
 }
 
 void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
   Impl& s = *impl_;
+  const std::vector<uint8_t> edges = depthEdgeMask(frame.cloud, s.settings.depth_edge_ratio);
+  if (edges.empty()) {
+    s.accumulateFrame(frame, out);
+    return;
+  }
+  // The frame without its depth-edge points (NaN: cast as invalid points, then counted apart).
+  Frame& f = s.edge_frame;
+  f.cloud.points = frame.cloud.points;
+  f.cloud.colours = frame.cloud.colours;
+  f.cloud.width = frame.cloud.width;
+  f.cloud.height = frame.cloud.height;
+  f.T_world_sensor = frame.T_world_sensor;
+  f.timestamp_s = frame.timestamp_s;
+  f.source = frame.source;
+  uint64_t dropped = 0;
+  for (size_t i = 0; i < edges.size(); ++i) {
+    if (!edges[i]) continue;
+    f.cloud.points[i].setConstant(std::numeric_limits<float>::quiet_NaN());
+    ++dropped;
+  }
+  s.accumulateFrame(f, out);
+  out.stats.points_invalid -= dropped;
+  out.stats.points_depth_edges = dropped;
+}
+
+void RayAccumulator::Impl::accumulateFrame(const Frame& frame, VoxelDeltas& out) {
+  Impl& s = *this;
   out.keys.clear();
   out.deltas.clear();
   out.cube_keys.clear();

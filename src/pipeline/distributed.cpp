@@ -154,7 +154,7 @@ std::vector<uint8_t> encodePending(const Pending& p) {
       {"recorded_at", s.recorded_at ? nlohmann::json(*s.recorded_at) : nlohmann::json()},
       {"stats",
        {st.frames, st.points, st.points_invalid, st.points_out_of_range, st.points_outside_map, st.rays,
-        st.voxel_updates, st.seconds}},
+        st.voxel_updates, st.seconds, st.points_depth_edges}},
       {"sensor_positions", std::move(positions)},
       {"poses", std::move(poses)},
       {"warnings", s.warnings}};
@@ -168,7 +168,8 @@ Pending decodePending(const std::vector<uint8_t>& bytes, size_t index, int from)
   const nlohmann::json meta = metadataOf(file);
   if (meta.value("index", size_t{0}) != index) throw Error(source + ": another dataset's session arrived");
   const nlohmann::json& st = meta.at("stats");
-  const IntegrationStats stats{st.at(0), st.at(1), st.at(2), st.at(3), st.at(4), st.at(5), st.at(6), st.at(7)};
+  const IntegrationStats stats{st.at(0), st.at(1), st.at(2), st.at(3), st.at(4),
+                               st.at(5), st.at(6), st.at(7), st.size() > 8 ? st.at(8).get<uint64_t>() : uint64_t{0}};
   std::optional<double> recorded_at;
   if (!meta.at("recorded_at").is_null()) recorded_at = meta.at("recorded_at").get<double>();
   std::vector<Eigen::Vector3d> positions;

@@ -85,6 +85,28 @@ TEST(Cli, UpAutoOnTheStudyRoomPrintsTheFloorItFoundInTextAndJson) {
   EXPECT_NE(t.out.find(said), std::string::npos) << said << "\n" << t.out;
 }
 
+// --depth-edges on real depth images: points at depth steps are dropped and counted apart, every
+// pixel is still accounted for, and a negative ratio is refused before anything is written.
+TEST(Cli, DepthEdgesDropsAndCountsThePointsAtDepthStepsOfRealFrames) {
+  CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
+  test::TempDir tmp;
+  const std::string base = cli() + " integrate " + root.string() + " --max-range 6 -o " + (tmp / "room.cmap").string();
+  const auto off = test::runCommand(base + " --json");
+  const auto on = test::runCommand(base + " --depth-edges 0.05 --json");
+  ASSERT_EQ(off.exit_code, 0) << off.err;
+  ASSERT_EQ(on.exit_code, 0) << on.err;
+  const auto a = nlohmann::json::parse(off.out), b = nlohmann::json::parse(on.out);
+  EXPECT_EQ(a["points_depth_edges"], 0);
+  const uint64_t dropped = b["points_depth_edges"].get<uint64_t>();
+  EXPECT_GT(dropped, 1000u);
+  EXPECT_LT(dropped, 5u * 640u * 480u / 5u);  // edges, not the picture
+  EXPECT_EQ(b["points"].get<uint64_t>() + b["points_skipped"].get<uint64_t>(), 5u * 640u * 480u);
+  EXPECT_EQ(b["points_invalid"], a["points_invalid"]);
+  EXPECT_LT(b["occupied"].get<uint64_t>(), a["occupied"].get<uint64_t>());
+  const auto bad = test::runCommand(base + " --depth-edges -0.1");
+  EXPECT_EQ(bad.exit_code, 2) << bad.err;
+}
+
 TEST(Cli, IntegrateStatsExportOnRealFrames) {
   CHRONOMAP_REQUIRE_DATA(root, "3dmatch/3dmatch");
   test::TempDir tmp;

@@ -71,7 +71,18 @@ struct IntegratorSettings {
   /// to float rounding; per-voxel lengths differ. 0: off (the maps are those of before, bit for bit).
   /// kCarveAuto (the default): carveLevelFor() picks it from the map's resolution.
   int carve_level = kCarveAuto;
+  /// Organized clouds (depth images): a point is dropped when the range of one of its eight
+  /// neighbouring pixels differs from its own by more than this share of its range. That removes
+  /// the flying pixels a depth camera makes between a foreground edge and the background behind
+  /// it (and the one pixel on either side of every depth step). 0: off, the default (the maps are
+  /// those of before, bit for bit). Unorganized clouds (height 1) are cast as they are.
+  double depth_edge_ratio = 0.0;
 };
+
+/// The points of `cloud` that IntegratorSettings::depth_edge_ratio `ratio` drops (1: dropped),
+/// one per point; empty when the cloud is not organized (height 1 or width x height != size) or
+/// `ratio` is 0. Invalid points (not finite, or at the sensor) are neither dropped nor compared.
+std::vector<uint8_t> depthEdgeMask(const PointCloud& cloud, double ratio);
 
 /// The carve level integration uses at `resolution_m`: the settings' own, or for kCarveAuto 0 in
 /// exact mode and in fast mode at resolutions coarser than kCarveAutoCoarsestResolutionM, and 2
@@ -88,8 +99,11 @@ struct IntegrationStats {
   uint64_t rays = 0;                ///< rays cast (fewer than points in fast mode)
   uint64_t voxel_updates = 0;       ///< per-frame unique voxels merged into the map
   double seconds = 0.0;
+  uint64_t points_depth_edges = 0;  ///< dropped at depth edges (IntegratorSettings::depth_edge_ratio)
 
-  uint64_t pointsSkipped() const { return points_invalid + points_out_of_range + points_outside_map; }
+  uint64_t pointsSkipped() const {
+    return points_invalid + points_out_of_range + points_outside_map + points_depth_edges;
+  }
   IntegrationStats& operator+=(const IntegrationStats& o);
 };
 
