@@ -34,8 +34,9 @@ int toCarveLevel(const py::object& level) {
 SessionMap integrateDatasetPy(const std::filesystem::path& path, double resolution_m, bool fast, double max_range_m,
                               int threads, const std::string& format, std::optional<double> depth_scale,
                               const py::object& progress, bool carve_beyond_range, const py::object& carve_level,
-                              const py::object& up) {
+                              const py::object& up, double depth_edges) {
   SessionSettings settings;
+  settings.integrator.depth_edge_ratio = depth_edges;
   settings.up = toUpSettings(up);
   settings.integrator.carve_level = toCarveLevel(carve_level);
   settings.resolution_m = resolution_m;
@@ -159,8 +160,9 @@ void addPoints(IncrementalIntegrator& integrator, const py::handle& points_world
 
 std::unique_ptr<IncrementalIntegrator> makeIntegrator(double resolution_m, double max_range_m, bool fast,
                                                       bool compress_free, bool carve_beyond_range,
-                                                      const py::object& carve_level) {
+                                                      const py::object& carve_level, double depth_edges) {
   IntegratorSettings settings;
+  settings.depth_edge_ratio = depth_edges;
   settings.carve_level = toCarveLevel(carve_level);
   settings.max_range_m = max_range_m;
   settings.carve_beyond_range = carve_beyond_range;
@@ -194,7 +196,7 @@ void bindIntegrate(py::module_& m) {
   m.def("integrate_dataset", &integrateDatasetPy, py::arg("path"), py::arg("resolution_m") = 0.05,
         py::arg("fast") = false, py::arg("max_range_m") = 3.0, py::arg("threads") = 0, py::arg("format") = "auto",
         py::arg("depth_scale") = py::none(), py::arg("progress") = py::none(), py::arg("carve_beyond_range") = false,
-        py::arg("carve_level") = "auto", py::arg("up") = py::none(),
+        py::arg("carve_level") = "auto", py::arg("up") = py::none(), py::arg("depth_edges") = 0.0,
         "Integrates the recording at `path` (any format formats() lists, as "
         "`chronomap integrate` reads it) into a SessionMap. `progress`, if given, is called as "
         "progress(label, done, total) after each frame (on another thread, with the GIL). The GIL is released while "
@@ -203,14 +205,16 @@ void bindIntegrate(py::module_& m) {
         "range (`--carve-beyond-range`). carve_level (fast mode): free space far from the surfaces in cubes of "
         "2**L voxels per axis; 'auto' is 2 at 0.025 m and finer, 0 (off) above (`--carve-level`). "
         "up: which axis of the recording's world frame is up ('+x' .. '-z', or 'auto': estimated from the floor; "
-        "None: +z), the frames turned so that it becomes +z (`--up`, docs/frames.md).");
+        "None: +z), the frames turned so that it becomes +z (`--up`, docs/frames.md). depth_edges: drop a depth "
+        "image's points whose range differs from a neighbouring pixel's by more than this share of their own (flying "
+        "pixels at object edges; 0: off, `--depth-edges`, docs/integration.md).");
 
   py::class_<IncrementalIntegrator>(m, "Integrator",
                                     "Integrates frames one at a time; finish() gives the map integrate_dataset gives "
                                     "for the same frames and settings.")
       .def(py::init(&makeIntegrator), py::arg("resolution_m") = 0.05, py::arg("max_range_m") = 3.0,
            py::arg("fast") = false, py::arg("compress_free") = true, py::arg("carve_beyond_range") = false,
-           py::arg("carve_level") = "auto")
+           py::arg("carve_level") = "auto", py::arg("depth_edges") = 0.0)
       .def("add_frame", &addFrame, py::arg("depth"), py::arg("intrinsics"), py::arg("T_world_camera"),
            py::arg("rgb") = py::none(), py::arg("depth_scale") = 1000.0,
            "Adds a depth image: (H, W) uint16 with depth_scale units per metre, or float32 metres (0 = no "

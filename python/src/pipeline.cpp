@@ -109,7 +109,8 @@ py::dict builtSessionDict(const BuiltSession& b) {
 py::dict buildPy(const std::filesystem::path& map, const std::vector<std::filesystem::path>& datasets,
                  const py::object& times, double resolution_m, bool fast, double max_range_m, int threads,
                  const std::string& format, bool register_sessions, int registration_rounds, bool realign,
-                 bool replace, const py::object& progress, bool carve_beyond_range, const py::object& up) {
+                 bool replace, const py::object& progress, bool carve_beyond_range, const py::object& up,
+                 double depth_edges) {
   BuildSettings settings;
   settings.map = map;
   settings.datasets = datasets;
@@ -122,6 +123,7 @@ py::dict buildPy(const std::filesystem::path& map, const std::vector<std::filesy
   settings.session.integrator.fast = fast;
   settings.session.integrator.max_range_m = max_range_m;
   settings.session.integrator.carve_beyond_range = carve_beyond_range;
+  settings.session.integrator.depth_edge_ratio = depth_edges;
   settings.session.integrator.threads = threads;
   settings.session.dataset.format = parseRecordingFormat(format);
   settings.session.up = toUpSettings(up);
@@ -184,7 +186,7 @@ void bindPipeline(py::module_& m) {
         py::arg("resolution_m") = 0.05, py::arg("fast") = false, py::arg("max_range_m") = 3.0, py::arg("threads") = 0,
         py::arg("format") = "auto", py::arg("register") = false, py::arg("registration_rounds") = 3,
         py::arg("realign") = false, py::arg("replace") = false, py::arg("progress") = py::none(),
-        py::arg("carve_beyond_range") = false, py::arg("up") = py::none(),
+        py::arg("carve_beyond_range") = false, py::arg("up") = py::none(), py::arg("depth_edges") = 0.0,
         "Builds or extends the 4D map file `map` from recordings, one session each, as `chronomap build` "
         "does: integrated, ordered by time, registered to their consensus (register=True) and re-aligned "
         "(realign=True) when asked, added and written once, atomically. `up`: which axis of the recordings' "

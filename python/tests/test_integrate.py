@@ -74,6 +74,24 @@ def test_carving_beyond_the_range_equals_the_cli_and_adds_free_space(tmp_path, t
     assert integrator.finish() == carved
 
 
+def test_depth_edges_equal_the_cli_and_drop_flying_pixels(tmp_path, threedmatch, cli):
+    cli_file = tmp_path / "cli.cmap"
+    subprocess.run([str(cli), "integrate", str(threedmatch), "-o", str(cli_file), "--fast", "--depth-edges", "0.05"],
+                   check=True, capture_output=True)
+    edged = chronomap.integrate_dataset(threedmatch, fast=True, depth_edges=0.05)
+    edged.save(tmp_path / "edged.cmap")  # files keep hit positions quantised
+    assert chronomap.SessionMap.open(tmp_path / "edged.cmap") == chronomap.SessionMap.open(cli_file)
+    plain = chronomap.integrate_dataset(threedmatch, fast=True)
+    assert edged.counts()["occupied_voxels"] < plain.counts()["occupied_voxels"]
+    k, frames = frames_of(threedmatch)
+    integrator = chronomap.Integrator(resolution_m=0.05, fast=True, depth_edges=0.05)
+    for depth, rgb, pose in frames:
+        integrator.add_frame(depth, k, pose, rgb=rgb, depth_scale=1000.0)
+    assert integrator.finish() == edged
+    with pytest.raises(ValueError, match="depth edge ratio"):
+        chronomap.integrate_dataset(threedmatch, depth_edges=-0.1)
+
+
 def test_carve_level_auto_is_two_in_fast_mode_at_two_centimetres(threedmatch):
     auto = chronomap.integrate_dataset(threedmatch, resolution_m=0.02, fast=True)
     assert auto == chronomap.integrate_dataset(threedmatch, resolution_m=0.02, fast=True, carve_level=2)
