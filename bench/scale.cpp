@@ -13,7 +13,8 @@
 // --sim reuses simulated sessions (any TUM session folders session_*), else `chronomap simulate
 // --preset site` writes them. --whole 0 skips the whole-map builds. Last line: one JSON object.
 // --plot draws the nights (peak RSS, processor and wall time, tiles rewritten, bytes on disk) as
-// one PNG (docs/scale.md); --plot-from draws it from what an earlier run printed.
+// one PNG (docs/scale.md); --plot-from draws it from what an earlier run printed: its last line,
+// or, for a run stopped before the end, the night lines it wrote to stderr.
 
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -148,13 +149,13 @@ chronomap::ImageRgb plotNights(const nlohmann::json& nights) {
   using chronomap::PlotSeries;
   std::vector<double> n, rss, cpu, wall, rewritten, tiles, mib, target;
   for (const auto& night : nights) {
-    n.push_back(night["night"].get<double>());
-    rss.push_back(night["peak_rss_mib"].get<double>());
-    cpu.push_back(night["cpu_s"].get<double>());
-    wall.push_back(night["wall_s"].get<double>());
-    rewritten.push_back(night["tiles_rewritten"].get<double>());
-    tiles.push_back(night["tiles"].get<double>());
-    mib.push_back(night["bytes"].get<double>() / 1048576.0);
+    n.push_back(night.at("night").get<double>());
+    rss.push_back(night.at("peak_rss_mib").get<double>());
+    cpu.push_back(night.at("cpu_s").get<double>());
+    wall.push_back(night.at("wall_s").get<double>());
+    rewritten.push_back(night.at("tiles_rewritten").get<double>());
+    tiles.push_back(night.at("tiles").get<double>());
+    mib.push_back(night.at("bytes").get<double>() / 1048576.0);
     target.push_back(1024.0);
   }
   const auto plot = [&](std::vector<PlotSeries> series, const std::string& title, const std::string& y) {
@@ -210,17 +211,30 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  if (!plot_from.empty()) {  // the picture of an earlier run: the last line of its output
-    std::ifstream in(plot_from);
-    std::string line, last;
-    while (std::getline(in, line)) {
-      if (!line.empty()) last = line;
-    }
-    if (plot.empty() || last.empty()) {
-      std::cerr << (plot.empty() ? "--plot-from needs --plot PNG\n" : plot_from.string() + " holds no output\n");
+  if (!plot_from.empty()) {  // the picture of an earlier run: its last line's nights, or its night lines
+    if (plot.empty()) {
+      std::cerr << "--plot-from needs --plot PNG\n";
       return 2;
     }
-    chronomap::writePng(plot, plotNights(nlohmann::json::parse(last)["stream_nights"]));
+    std::ifstream in(plot_from);
+    std::string line;
+    nlohmann::json nights = nlohmann::json::array();
+    while (std::getline(in, line)) {
+      const nlohmann::json j = nlohmann::json::parse(line, nullptr, /*allow_exceptions=*/false);
+      if (!j.is_object()) continue;
+      if (j.contains("stream_nights")) nights = j["stream_nights"];  // a finished run's last line
+      else if (j.contains("night")) nights.push_back(j);               // a night of a stopped run
+    }
+    if (nights.empty()) {
+      std::cerr << plot_from.string() << " holds no night of bench/scale\n";
+      return 2;
+    }
+    try {
+      chronomap::writePng(plot, plotNights(nights));
+    } catch (const std::exception& e) {
+      std::cerr << plot_from.string() << ": " << e.what() << "\n";
+      return 1;
+    }
     return 0;
   }
   if (!query.empty()) {

@@ -33,6 +33,9 @@
 # docs/images (the viewer's screenshots are not compared: the browser's drawing varies). ctest's
 # DocFiguresWeeks runs `--only weeks --check`.
 set -euo pipefail
+caller="$PWD"
+# A path as the caller meant it (relative to where the script was started), made absolute.
+absolute() { case "$1" in /*) printf '%s\n' "$1" ;; *) printf '%s\n' "$caller/$1" ;; esac; }
 cd "$(dirname "$0")/.."
 repo="$PWD"
 groups="office,viewer,room,python,architecture"
@@ -44,15 +47,19 @@ check=0
 while (($#)); do
   case "$1" in
     --only) groups="$2"; shift 2 ;;
-    --images) mkdir -p "$2"; images="$(realpath "$2")"; shift 2 ;;
+    --images) images="$(absolute "$2")"; mkdir -p "$images"; images="$(realpath "$images")"; shift 2 ;;
     --no-build) no_build=1; shift ;;
     --check) check=1; shift ;;
-    --work) work="$2"; shift 2 ;;
-    --build) build="$(realpath "$2")"; shift 2 ;;
-    -h|--help) sed -n '2,38p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --work) work="$(absolute "$2")"; shift 2 ;;
+    --build) build="$(realpath "$(absolute "$2")")"; shift 2 ;;
+    -h|--help) sed -n '2,34p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "make-doc-images.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
 done
+if ((check)) && [ "$images" = "$repo/docs/images" ]; then
+  echo "make-doc-images.sh: --check compares what it makes with docs/images: give --images another folder" >&2
+  exit 2
+fi
 has() { [[ ",$groups," == *",$1,"* ]]; }
 for g in ${groups//,/ }; do
   case "$g" in office|viewer|room|python|architecture|weeks|floor66) ;;
@@ -85,7 +92,7 @@ elif [ -z "$build" ]; then
   if ((${#benches[@]})); then cmake --preset release -DCHRONOMAP_BUILD_BENCH=ON >/dev/null
   else cmake --preset release >/dev/null; fi
   build="$repo/build/release"
-elif ((${#benches[@]})) && ! grep -q '^CHRONOMAP_BUILD_BENCH:BOOL=ON' "$build/CMakeCache.txt"; then
+elif ((${#benches[@]})) && ! grep -Eqi '^CHRONOMAP_BUILD_BENCH:BOOL=(ON|1|TRUE|YES|Y)$' "$build/CMakeCache.txt"; then
   echo "make-doc-images.sh: the weeks and floor66 groups need $build configured with -DCHRONOMAP_BUILD_BENCH=ON" >&2
   exit 1
 fi

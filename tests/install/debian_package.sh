@@ -9,13 +9,16 @@
 # installed. The CLI and the Python module link chronomap's static libraries, so neither needs LD_LIBRARY_PATH; the shared libraries find each
 # other beside themselves ($ORIGIN).
 #   debian_package.sh BUILD_DIR WORK_DIR
-# Exits 77 (skipped) without dpkg-deb, dpkg-shlibdeps or the man pages, except under CI=true.
+# Exits 77 (skipped) without dpkg-deb, dpkg-shlibdeps, the man pages or root rights, except under
+# CI=true.
 set -euo pipefail
 build="$1" work="$2"
 missing=""
 command -v dpkg-deb >/dev/null || missing+=" dpkg-deb"
 command -v dpkg-shlibdeps >/dev/null || missing+=" dpkg-shlibdeps (dpkg-dev)"
 grep -q '^CHRONOMAP_MAN_PAGES:BOOL=ON' "$build/CMakeCache.txt" || missing+=" help2man"
+# dpkg installs only as root, even into a throwaway root (CI runs as root).
+[ "$(id -u)" = 0 ] || missing+=" root rights (dpkg installs only as root)"
 if [ -n "$missing" ]; then
   echo "the Debian package needs:$missing (scripts/install-deps.sh installs them)"
   [ "${CI:-}" = true ] && exit 1
@@ -55,7 +58,7 @@ done
 root="$work/root"
 mkdir -p "$root/var/lib/dpkg/info" "$root/var/lib/dpkg/updates"
 touch "$root/var/lib/dpkg/status"
-dpkg_root=(dpkg --root="$root" --force-depends --force-script-chrootless)
+dpkg_root=(dpkg --root="$root" --log="$work/dpkg-actions.log" --force-depends --force-script-chrootless)
 "${dpkg_root[@]}" -i "$deb" >"$work/dpkg.log" 2>&1 || { cat "$work/dpkg.log"; exit 1; }
 [ "$(dpkg-query --root="$root" -W -f='${Status} ${Version}' chronomap)" = "install ok installed $version" ] ||
   { echo "dpkg did not record chronomap $version as installed"; exit 1; }

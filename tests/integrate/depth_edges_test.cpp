@@ -92,7 +92,7 @@ TEST(DepthEdges, MatchesTheSlowReferenceOnRandomDepthImages) {
       v = k == 1 ? 0.0f : level * (1.0f + 0.01f * (kind(rng) - 5) / 5.0f);
     }
     const PointCloud cloud = depthCloud(w, h, [&](uint32_t c, uint32_t r) { return d[r * w + c]; });
-    for (double ratio : {0.01, 0.05, 0.2}) {
+    for (double ratio : {0.015, 0.05, 0.2}) {  // away from the patches' 0.2% depth steps
       ASSERT_EQ(depthEdgeMask(cloud, ratio), referenceMask(cloud, ratio)) << "trial " << trial << ", ratio " << ratio;
     }
   }
