@@ -13,6 +13,7 @@ Usage: PYTHONPATH=build/ci/python /usr/bin/python3 bench/rhythm_picture.py SIM M
            session's time and weekday, the learning sessions, the doors open in the truth, and
            the predicted probability on the doorways (the doors' voxels free in the truth then)
 """
+import calendar
 import json
 import re
 import sys
@@ -67,14 +68,11 @@ def main(sim, map_path, session, cost_png, out):
         picture.paste(Image.fromarray(pixels).resize((width * scale, height * scale), Image.NEAREST), (0, top + pad))
         draw.text((6, top + 5), title, fill=(0, 0, 0))
     picture.save(out)
-    return {"session": session, "time": when, "weekday": WEEKDAYS[scene["sessions"][session]["weekday"]],
-            "learn_sessions": len(temporal), **doors(scene, session, predicted, truth, time_s)}
+    return {"session": session, "time": when, "weekday": calendar.day_name[scene["sessions"][session]["weekday"]],
+            "learn_sessions": len(temporal), **doors(scene, session, predicted, truth)}
 
 
-WEEKDAYS = ["Monday", "Tuesday", "Wednesday", "Thursday", "Friday", "Saturday", "Sunday"]
-
-
-def doors(scene, session, predicted, truth, time_s):
+def doors(scene, session, predicted, truth):
     """How many doors are open in the truth at `session`, and on the doors' voxels in the band that
     the truth has free then (the doorways) the share the model predicts occupied (above 0.5)."""
     res = scene["voxel_resolution_m"]

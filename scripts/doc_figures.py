@@ -2,7 +2,7 @@
 """The figures that the captions of README.md and docs/*.md quote, measured and checked.
 
     scripts/doc_figures.py measure FIGURES.json [--demo DIR] [--room DIR] [--weeks DIR] [--floor66 DIR]
-    scripts/doc_figures.py check FIGURES.json [--demo DIR] [--room DIR]
+    scripts/doc_figures.py check FIGURES.json [--demo DIR] [--room DIR] [--weeks DIR] [--floor66 DIR]
 
 A caption is the italic paragraph under a picture (or, without one, the picture's alt text). Each
 caption key of FIGURES.json ("DOC IMAGE", e.g. "docs/viewer.md viewer_office_diff.png") holds the
@@ -18,12 +18,14 @@ check (ctest's DocFigures runs it, so CI does) fails when
   - a caption lacks one of its figures, or quotes a number that none of its figures holds (so a
     number typed into a caption by hand, or left over from an older picture, fails);
   - a picture of the docs has figures in its caption but no key, or a key names no picture;
-  - given --demo or --room, a key measured from them differs from what they measure now.
+  - given --demo, --room, --weeks or --floor66, a key measured from them differs from what they
+    measure now.
 The demo runs at its defaults (seed 1, 320 x 240) in about 20 s; what only the groups of
 make-doc-images.sh that CI does not run measure (weeks, floor66: the simulations and the
 benchmark programs) is checked against FIGURES.json alone.
 """
 import argparse
+import calendar
 import json
 import re
 import sys
@@ -160,21 +162,22 @@ def room(folder):
         "figures": {"frames": f"{WORDS[r['frames']]} 3DMatch frames", "resolution": f"{r['resolution_m']:g} m"},
         "given": {"range": "6 m range", "flags": "--resolution 0.04 --max-range 6"}}}
 
-    def floor(j, sampled):
-        return f"a floor of {100 * j['up_floor_share']:.0f}% of {sampled}{j['up_sampled_cells']:,} {'sampled ' if sampled else ''}cells"
+    def floor(j, cells):
+        """The caption's words for --up auto's floor: `cells` says how it names the sampled cells."""
+        return f"a floor of {100 * j['up_floor_share']:.0f}% of {cells.format(j['up_sampled_cells'])}"
 
     if (folder / "room_up.json").exists():
         u = json.loads((folder / "room_up.json").read_text())
         keys["docs/frames.md frames_room_up.png"] = {
             "measured": "chronomap integrate 3dmatch --resolution 0.04 --max-range 6 --up auto --json",
             "figures": {"frames": f"The {WORDS[u['frames']]} 3DMatch frames", "up": f"{u['up']} found",
-                        "floor": floor(u, "")},
+                        "floor": floor(u, "{:,} cells")},
             "given": {"resolution": "at 0.04 m with a 6 m range"}}
     if (folder / "office1_up.json").exists():
         u = json.loads((folder / "office1_up.json").read_text())
         keys["docs/frames.md frames_office1_recorded.png"] = {
             "measured": "chronomap integrate pcl-kinect/office1.pcd --max-range 6 --up auto --json",
-            "figures": {"up": f"finds {u['up']}", "floor": floor(u, "the ")},
+            "figures": {"up": f"finds {u['up']}", "floor": floor(u, "the {:,} sampled cells")},
             "given": {"image": "640 x 480", "range": "6 m range", "camera": "the camera at (0, 0)",
                       "far wall": "far wall 5 m away"}}
     return keys
@@ -219,8 +222,7 @@ def weeks(folder):
     scene = json.loads((w / "colour_sim" / "scene.json").read_text())
     drawn = re.findall(r"^top views at session (\d+) \(\S+T(\d\d:\d\d)", (w / "colour_eval.txt").read_text(), re.M)
     (m, m_hm), (e, e_hm) = drawn
-    day = lambda i: ["Monday", "Tuesday", "Wednesday", "Thursday", "Friday", "Saturday", "Sunday"][
-        scene["sessions"][int(i)]["weekday"]]
+    day = lambda i: calendar.day_name[scene["sessions"][int(i)]["weekday"]]
     keys["docs/colour.md colour_predicted_vs_true.png"] = {
         "measured": "colour_eval --out, bench/colour_picture.py (weeks with daylight and a repaint, seed 1)",
         "figures": {"morning session": f"{m_hm} on {day(m)} of the test week", "evening session": f"{e_hm} on its {day(e)}",

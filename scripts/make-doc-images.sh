@@ -181,6 +181,9 @@ if has architecture; then
   dot -Tpng "$repo/docs/images/architecture.dot" -o "$images/architecture.png"
 fi
 
+# json_at FILE EXPR: the value at EXPR (Python subscripts, e.g. '["sessions"][43]["time"]') of a JSON file.
+json_at() { python3 -c "import json, sys; print(json.load(open(sys.argv[1]))$2)" "$1"; }
+
 if has weeks; then
   echo "== weeks: rhythm_eval, alerts_eval and colour_eval (true poses)"
   w="$work/weeks"
@@ -189,7 +192,7 @@ if has weeks; then
   "$cli" simulate --preset weeks --resolution-scale 0.25 -o "$w/sim" >/dev/null
   "$build/bench/rhythm_eval" --sim "$w/sim" --poses true --z-min 0.2 --robot-height 1.4 --lethal 0.7 \
     --save-map "$w/learn.cmap" >"$w/rhythm_eval.txt"
-  at="$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["sessions"][43]["time"])' "$w/sim/scene.json")"
+  at="$(json_at "$w/sim/scene.json" '["sessions"][43]["time"]')"
   "$cli" costmap "$w/learn.cmap" --at "$at" --lethal 0.7 --z-min 0.2 --z-max 1.4 --robot-radius 0.25 \
     -o "$w/cost.yaml" >/dev/null
   PYTHONPATH="$build/python" /usr/bin/python3 bench/rhythm_picture.py "$w/sim" "$w/learn.cmap" 43 "$w/cost.png" \
@@ -197,7 +200,7 @@ if has weeks; then
   # The alerts of the night session 48 (03:35 on the Thursday of the test week).
   "$cli" simulate --preset weeks --resolution-scale 0.25 --rare-events -o "$w/rare" >/dev/null
   "$build/bench/alerts_eval" --sim "$w/rare" --poses true --map "$w/rare.cmap" >"$w/alerts_eval.txt"
-  at="$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["sessions"][48]["time"])' "$w/rare/scene.json")"
+  at="$(json_at "$w/rare/scene.json" '["sessions"][48]["time"]')"
   "$cli" alerts "$w/rare.cmap" --at "$at" --history-to 2012-03-26T00:00:00Z --top 5 -o "$w/night" >"$w/alerts.txt"
   cp "$w/night/alerts.png" "$images/alerts_night.png"
   # The colour model: the test sessions nearest 09:30 and 20:30.
@@ -217,7 +220,7 @@ if has floor66; then
   "$build/bench/temporal" --sim "$f/sim" --plot "$images/floor66_storage.png" >"$f/temporal.txt"
   # The same 4D map as bench/temporal's (fast mode, the estimated poses), for the viewer.
   "$cli" build "$f/floor66.cmap" "$f"/sim/session_* --fast --json >"$f/build.json" 2>"$f/build.log"
-  last="$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["added"][-1]["time"])' "$f/build.json")"
+  last="$(json_at "$f/build.json" '["added"][-1]["time"]')"
   "$cli" snapshot "$f/floor66.cmap" --at "$last" -o "$f/last.cmap" --json >"$f/last.json"
   shoot "$f/floor66.cmap" "$f/shot"
   cp "$f/shot-zoom.png" "$images/viewer_floor66_zoom.png"

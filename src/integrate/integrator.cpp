@@ -47,23 +47,21 @@ std::vector<uint8_t> depthEdgeMask(const PointCloud& cloud, double ratio) {
     const float r = cloud.points[i].norm();
     range[i] = std::isfinite(r) && r > 0.0f ? r : 0.0f;  // 0: invalid, never compared
   }
-  std::vector<uint8_t> drop(cloud.size(), 0);
   const float share = static_cast<float>(ratio);
-  for (size_t y = 0; y < h; ++y) {
-    for (size_t x = 0; x < w; ++x) {
-      const float r = range[y * w + x];
-      if (r == 0.0f) continue;
-      const float limit = share * r;
-      for (size_t ny = y > 0 ? y - 1 : 0; ny <= std::min(y + 1, h - 1) && !drop[y * w + x]; ++ny) {
-        for (size_t nx = x > 0 ? x - 1 : 0; nx <= std::min(x + 1, w - 1); ++nx) {
-          const float q = range[ny * w + nx];
-          if (q != 0.0f && std::abs(q - r) > limit) {
-            drop[y * w + x] = 1;
-            break;
-          }
-        }
+  // Whether valid pixel (x, y) has a valid neighbour whose range differs by more than the share.
+  const auto atEdge = [&](size_t x, size_t y) {
+    const float limit = share * range[y * w + x];
+    for (size_t ny = y > 0 ? y - 1 : 0; ny <= std::min(y + 1, h - 1); ++ny) {
+      for (size_t nx = x > 0 ? x - 1 : 0; nx <= std::min(x + 1, w - 1); ++nx) {
+        const float q = range[ny * w + nx];
+        if (q != 0.0f && std::abs(q - range[y * w + x]) > limit) return true;
       }
     }
+    return false;
+  };
+  std::vector<uint8_t> drop(cloud.size(), 0);
+  for (size_t y = 0; y < h; ++y) {
+    for (size_t x = 0; x < w; ++x) drop[y * w + x] = range[y * w + x] != 0.0f && atEdge(x, y) ? 1 : 0;
   }
   return drop;
 }

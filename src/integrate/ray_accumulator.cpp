@@ -715,32 +715,25 @@ size_t RayAccumulator::scratchBytes() const {
   return capacityBytes(m.points) + capacityBytes(m.cell_index) + capacityBytes(m.ends) + capacityBytes(m.beyond_ends) +
          capacityBytes(m.dense.length) + capacityBytes(m.dense.end) + capacityBytes(m.hash.slots) +
          capacityBytes(m.cube.end) + capacityBytes(m.coarse_length) + capacityBytes(m.fine_rays) +
-         capacityBytes(m.edge_frame.cloud.points) + capacityBytes(m.edge_frame.cloud.colours);
+         capacityBytes(m.edge_frame.cloud.points) + capacityBytes(m.edge_frame.cloud.colours) +
+         capacityBytes(m.edge_frame.cloud.labels);
 }
 
 void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
   Impl& s = *impl_;
   const std::vector<uint8_t> edges = depthEdgeMask(frame.cloud, s.settings.depth_edge_ratio);
-  if (edges.empty()) {
+  const auto dropped = static_cast<uint64_t>(std::count(edges.begin(), edges.end(), uint8_t{1}));
+  if (dropped == 0) {
     s.accumulateFrame(frame, out);
     return;
   }
   // The frame without its depth-edge points (NaN: cast as invalid points, then counted apart).
-  Frame& f = s.edge_frame;
-  f.cloud.points = frame.cloud.points;
-  f.cloud.colours = frame.cloud.colours;
-  f.cloud.width = frame.cloud.width;
-  f.cloud.height = frame.cloud.height;
-  f.T_world_sensor = frame.T_world_sensor;
-  f.timestamp_s = frame.timestamp_s;
-  f.source = frame.source;
-  uint64_t dropped = 0;
+  // Copy-assigned into the scratch frame, whose buffers keep their capacity from frame to frame.
+  s.edge_frame = frame;
   for (size_t i = 0; i < edges.size(); ++i) {
-    if (!edges[i]) continue;
-    f.cloud.points[i].setConstant(std::numeric_limits<float>::quiet_NaN());
-    ++dropped;
+    if (edges[i]) s.edge_frame.cloud.points[i].setConstant(std::numeric_limits<float>::quiet_NaN());
   }
-  s.accumulateFrame(f, out);
+  s.accumulateFrame(s.edge_frame, out);
   out.stats.points_invalid -= dropped;
   out.stats.points_depth_edges = dropped;
 }
