@@ -174,6 +174,8 @@ class TileStream {
 
  private:
   void addSession(size_t i, StreamSession& session);
+  const TileEntry* storedTileOf(const Cube& g) const;
+  void rewriteStoredTile(const Cube& g, const TileEntry& e);
   TemporalMap groupBase(const Cube& g, std::vector<SessionRecord>& records);
   void addGroupSessions(const Cube& g, TemporalMap& work);
 
@@ -291,6 +293,11 @@ void TileStream::writeGroups() {
   fs::create_directories(s_.folder / "tiles");
   for (const Cube& g : groups_) {
     s_.progress.advance("tiles", result_.stats.groups, groups_.size());
+    if (const TileEntry* e = storedTileOf(g)) {
+      rewriteStoredTile(g, *e);
+      ++result_.stats.groups;
+      continue;
+    }
     std::vector<SessionRecord> records;
     TemporalMap work = groupBase(g, records);
     addGroupSessions(g, work);
@@ -310,6 +317,36 @@ void TileStream::writeGroups() {
     group_cubes_.push_back(g);
     ++result_.stats.groups;
   }
+}
+
+// The stored tile whose cube the group is, if any. Such a group holds nothing but that tile: the
+// top has no node inside a stored tile's cube, and a uniform cube of the top around it would have
+// been the group.
+const TileEntry* TileStream::storedTileOf(const Cube& g) const {
+  if (!index_ || g.level != level_) return nullptr;
+  const TileEntry* e = index_->find(tileOf(g.corner, level_));
+  return e && tileCorner(e->key, level_) == g.corner ? e : nullptr;
+}
+
+// A group that is one stored tile: the tile read, the sessions added, written again. The same
+// bytes as the general path (the top cut to the cube, the tile joined in, the group split
+// again), without its three copies of the tile; the top keeps its nodes around the tile.
+void TileStream::rewriteStoredTile(const Cube& g, const TileEntry& e) {
+  TemporalMap work = readTile(s_.folder, *index_, e);
+  ++result_.stats.tiles_read;
+  done_.insert(e.key);
+  result_.stats.largest_group_tiles = std::max<size_t>(result_.stats.largest_group_tiles, 1);
+  std::vector<SessionRecord> records = work.sessions();
+  addGroupSessions(g, work);
+  result_.stats.peak_group_bytes = std::max(result_.stats.peak_group_bytes, work.memoryBytes());
+  for (SessionRecord& r : clipped(std::vector<SessionRecord>(all_.begin() + base_rank_, all_.end()), g)) {
+    records.push_back(std::move(r));
+  }
+  work.replaceSessionRecords(std::move(records));
+  work.compact();
+  entries_.push_back(writeTileFile(s_.folder, e.key, generation_, work));
+  result_.tile_bytes += entries_.back().diskBytes();
+  ++result_.stats.tiles_written;
 }
 
 // The group's part of the stored map: the top's part with the group's tiles joined in; `records`

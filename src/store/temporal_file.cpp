@@ -1,6 +1,7 @@
 #include "chronomap/store/temporal_file.h"
 
 #include <cstring>
+#include <optional>
 #include <type_traits>
 #include <nlohmann/json.hpp>
 
@@ -151,8 +152,12 @@ std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::j
 std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::json& meta, MapKind kind,
                                        const nlohmann::json* extra, uint32_t version) {
   if (version < 1 || version > kCmapFormatVersion) throw UsageError("4D maps are written in format version 1, 2 or 3");
-  TemporalMap compacted = map;
-  compacted.compact();
+  std::optional<TemporalMap> copy;  // a map compacted already is written as it is
+  if (!map.isCompact()) {
+    copy = map;
+    copy->compact();
+  }
+  const TemporalMap& compacted = copy ? *copy : map;
   const TemporalMap::Parts parts = compacted.parts();
 
   CmapHeader header;

@@ -86,6 +86,7 @@ TemporalMap::Layout TemporalMap::layout() const {
 }
 
 void TemporalMap::relayout() {
+  compact_ = false;
   const Layout order = layout();
   std::vector<uint32_t> new_inner(inner_.size(), kEmpty), new_list(lists_.size(), kEmpty);
   for (size_t i = 0; i < order.inner.size(); ++i) new_inner[order.inner[i]] = static_cast<uint32_t>(i);

@@ -244,6 +244,7 @@ std::optional<uint32_t> TemporalMap::rankAtOrBefore(double time_s) const {
 
 AddReport TemporalMap::add(double time_s, const SessionMap& session, const AddSettings& options) {
   checkTime(time_s, "session time " + exactNumber(time_s));
+  compact_ = false;
   if (session.resolution_m() != resolution_m()) {
     throw UsageError("session resolution " + std::to_string(session.resolution_m()) +
                      " m differs from the 4D map's " + std::to_string(resolution_m()) + " m");
@@ -285,6 +286,7 @@ AddReport TemporalMap::add(double time_s, const SessionMap& session, const AddSe
 }
 
 void TemporalMap::appendUnobservedSessions(const std::vector<SessionRecord>& later) {
+  compact_ = false;
   double last = sessions_.empty() ? -std::numeric_limits<double>::infinity() : sessions_.back().time_s;
   for (const SessionRecord& s : later) {
     if (!std::isfinite(s.time_s) || !(s.time_s > last)) {
@@ -305,7 +307,24 @@ void TemporalMap::appendUnobservedSessions(const std::vector<SessionRecord>& lat
   coverage_cache_.clear();
 }
 
+void TemporalMap::replaceSessionRecords(std::vector<SessionRecord> records) {
+  if (records.size() != sessions_.size()) {
+    throw UsageError(std::to_string(records.size()) + " session records given for a map of " +
+                     std::to_string(sessions_.size()) + " sessions");
+  }
+  for (size_t i = 0; i < records.size(); ++i) {
+    if (records[i].time_s != sessions_[i].time_s) {
+      throw UsageError("session record " + std::to_string(i) + " is at " + formatTime(records[i].time_s) +
+                       ", not at the map's " + formatTime(sessions_[i].time_s));
+    }
+  }
+  sessions_ = std::move(records);
+  coverage_cache_.clear();
+  compact_ = false;
+}
+
 void TemporalMap::remove(double time_s) {
+  compact_ = false;
   auto it = std::lower_bound(sessions_.begin(), sessions_.end(), time_s,
                              [](const SessionRecord& s, double t) { return s.time_s < t; });
   if (it == sessions_.end() || it->time_s != time_s) {
@@ -579,6 +598,7 @@ void TemporalMap::buildChangeMasks() const {
 }
 
 size_t TemporalMap::compact() {
+  if (compact_) return 0;
   const size_t lists_before = live_lists_;
   change_masks_valid_ = false;
   Ref root = 0;
@@ -587,6 +607,7 @@ size_t TemporalMap::compact() {
   const size_t relayouts = relayouts_;
   *this = fromParts(resolution_m(), criterion_, std::move(p), std::move(sessions_));
   relayouts_ = relayouts + 1;
+  compact_ = true;
   return lists_before - live_lists_;
 }
 

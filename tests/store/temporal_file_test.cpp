@@ -61,6 +61,41 @@ TEST(TemporalFile, RoundTripReadsBackIdentically) {
   EXPECT_EQ(bytesOf(tmp / "m.cmap"), bytesOf(tmp / "again.cmap"));
 }
 
+// A map compacted already is written without compacting a copy: the bytes are those of the
+// same map compacted by the writer; records replaced in place are written as given.
+TEST(TemporalFile, ACompactedMapIsWrittenAsItIs) {
+  TemporalMap map = sampleMap(5, 7);
+  const std::vector<uint8_t> by_writer = encodeTemporalMap(map, nlohmann::json::object());
+  EXPECT_FALSE(map.isCompact());
+  map.compact();
+  ASSERT_TRUE(map.isCompact());
+  EXPECT_EQ(map.compact(), 0u);  // at once: nothing to merge
+  EXPECT_EQ(encodeTemporalMap(map, nlohmann::json::object()), by_writer);
+
+  std::vector<SessionRecord> records = map.sessions();
+  for (SessionRecord& r : records) r.name = "renamed";
+  map.replaceSessionRecords(records);
+  EXPECT_FALSE(map.isCompact());
+  const TemporalMap rebuilt = TemporalMap::fromParts(map.resolution_m(), map.criterion(), map.parts(), records);
+  EXPECT_TRUE(map == rebuilt);
+  map.compact();
+  EXPECT_EQ(encodeTemporalMap(map, nlohmann::json::object()), encodeTemporalMap(rebuilt, nlohmann::json::object()));
+
+  records.pop_back();
+  EXPECT_THROW(map.replaceSessionRecords(records), UsageError);
+  records = map.sessions();
+  records.back().time_s += 1.0;
+  EXPECT_THROW(map.replaceSessionRecords(records), UsageError);
+
+  // Adding a session ends it: compacting again merges and re-lays out what the add made.
+  map.add(1e6, test::randomSessionMap(99));
+  EXPECT_FALSE(map.isCompact());
+  TemporalMap fresh = TemporalMap::fromParts(map.resolution_m(), map.criterion(), map.parts(), map.sessions());
+  EXPECT_EQ(encodeTemporalMap(map, nlohmann::json::object()), encodeTemporalMap(fresh, nlohmann::json::object()));
+  map.remove(1e6);
+  EXPECT_FALSE(map.isCompact());
+}
+
 TEST(TemporalFile, EmptyMapRoundTrips) {
   test::TempDir tmp;
   writeTemporalMap(tmp / "e.cmap", TemporalMap(0.1), {});

@@ -131,6 +131,10 @@ class TemporalMap {
   /// the streaming build left as it was) holds, without rebuilding it. Entries stay as they are.
   /// @throw UsageError for a time not after the previous one.
   void appendUnobservedSessions(const std::vector<SessionRecord>& later);
+  /// Replaces the sessions' records (coverage, name, node counts) with `records`, of the same
+  /// sessions: as many, at the same times. The history is untouched.
+  /// @throw UsageError when the counts or a time differ.
+  void replaceSessionRecords(std::vector<SessionRecord> records);
 
   /// Session times in increasing order.
   std::vector<double> times() const;
@@ -209,6 +213,9 @@ class TemporalMap {
   /// lengths are summed, as in §2.1's compression) and re-lays the pools out as files hold them.
   /// @return the number of lists removed.
   size_t compact();
+  /// True when compact() ran last and nothing changed the map since (add, remove, relayout,
+  /// appendUnobservedSessions): compacting it again would change nothing, so it returns at once.
+  bool isCompact() const { return compact_; }
 
   /// Re-lays the inner nodes and list records out in place in the order files hold them (see
   /// parts()): what a snapshot of the latest time reads first, depth first, then the subtrees
@@ -360,6 +367,7 @@ class TemporalMap {
   std::pair<size_t, Layout> scatteredHot() const;
   size_t hot_inner_at_layout_ = 0, hot_lists_at_layout_ = 0;  // the block: the first of each pool
   size_t relayouts_ = 0;
+  bool compact_ = false;  // see isCompact()
 
   KeyGrid grid_;
   ChangeCriterion criterion_;
