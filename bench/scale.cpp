@@ -4,7 +4,7 @@
 // allows (--sessions), not the preset's year.
 //
 //   scale [--sessions N] [--whole W] [--floors F] [--scale S] [--memory-limit GIB] [--sim DIR] [--work DIR]
-//         [--plot PNG]
+//         [--plot PNG] [--first-night K] [--last-night L] [--earlier OUTPUT]
 //   scale --query DIR
 //   scale --plot-from OUTPUT --plot PNG
 //
@@ -15,6 +15,10 @@
 // --plot draws the nights (peak RSS, processor and wall time, tiles rewritten, bytes on disk) as
 // one PNG (docs/scale.md); --plot-from draws it from what an earlier run printed: its last line,
 // or, for a run stopped before the end, the night lines it wrote to stderr.
+// A long run in pieces (with --sim): --last-night L stops after night L; --first-night K goes on
+// from the tiled map DIR/stream that an earlier run left with nights 1..K-1 (the work folder is
+// kept); --earlier OUTPUT adds the nights an earlier run printed that this one did not build (for
+// night 10's figure, the ratio and the plot; each such night is marked "earlier": true).
 
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -143,6 +147,20 @@ void measureQueries(const fs::path& folder, size_t tiles, nlohmann::json& out) {
 
 namespace {
 
+/// The nights in what a run printed: its last line's, or the night lines of a stopped run.
+nlohmann::json nightsPrinted(const fs::path& output) {
+  std::ifstream in(output);
+  std::string line;
+  nlohmann::json nights = nlohmann::json::array();
+  while (std::getline(in, line)) {
+    const nlohmann::json j = nlohmann::json::parse(line, nullptr, /*allow_exceptions=*/false);
+    if (!j.is_object()) continue;
+    if (j.contains("stream_nights")) nights = j["stream_nights"];  // a finished run's last line
+    else if (j.contains("night")) nights.push_back(j);               // a night of a stopped run
+  }
+  return nights;
+}
+
 /// The nights of a streaming run as four plots stacked: peak RSS (with the 1 GiB target),
 /// processor and wall seconds, tiles rewritten and held, and the map's MiB on disk.
 chronomap::ImageRgb plotNights(const nlohmann::json& nights) {
@@ -185,15 +203,15 @@ chronomap::ImageRgb plotNights(const nlohmann::json& nights) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  int sessions = 4, floors = 3, whole = 4;
+  int sessions = 4, floors = 3, whole = 4, first_night = 1, last_night = 0;
   double scale = 0.5;
   std::string memory_limit = "0.25";
-  fs::path sim, query, plot, plot_from, work = fs::temp_directory_path() / "chronomap_bench_scale";
+  fs::path sim, query, plot, plot_from, earlier, work = fs::temp_directory_path() / "chronomap_bench_scale";
   for (int i = 1; i < argc; i += 2) {
     const std::string a = argv[i];
     if (a == "-h" || a == "--help" || i + 1 == argc) {
       std::cerr << "usage: scale [--sessions N] [--whole W] [--floors F] [--scale S] [--memory-limit GIB] [--sim DIR] "
-                   "[--work DIR] [--plot PNG] | --query DIR | --plot-from OUTPUT --plot PNG (bench/scale.cpp says more)\n";
+                   "[--work DIR] [--plot PNG] [--first-night K] [--last-night L] [--earlier OUTPUT] | --query DIR | --plot-from OUTPUT --plot PNG (bench/scale.cpp says more)\n";
       return a == "-h" || a == "--help" ? 0 : 2;
     }
     if (a == "--sessions") sessions = std::atoi(argv[i + 1]);
@@ -206,6 +224,9 @@ int main(int argc, char** argv) {
     else if (a == "--query") query = argv[i + 1];
     else if (a == "--plot") plot = argv[i + 1];
     else if (a == "--plot-from") plot_from = argv[i + 1];
+    else if (a == "--first-night") first_night = std::atoi(argv[i + 1]);
+    else if (a == "--last-night") last_night = std::atoi(argv[i + 1]);
+    else if (a == "--earlier") earlier = argv[i + 1];
     else {
       std::cerr << "unknown option " << a << "\n";
       return 2;
@@ -216,15 +237,7 @@ int main(int argc, char** argv) {
       std::cerr << "--plot-from needs --plot PNG\n";
       return 2;
     }
-    std::ifstream in(plot_from);
-    std::string line;
-    nlohmann::json nights = nlohmann::json::array();
-    while (std::getline(in, line)) {
-      const nlohmann::json j = nlohmann::json::parse(line, nullptr, /*allow_exceptions=*/false);
-      if (!j.is_object()) continue;
-      if (j.contains("stream_nights")) nights = j["stream_nights"];  // a finished run's last line
-      else if (j.contains("night")) nights.push_back(j);               // a night of a stopped run
-    }
+    const nlohmann::json nights = nightsPrinted(plot_from);
     if (nights.empty()) {
       std::cerr << plot_from.string() << " holds no night of bench/scale\n";
       return 2;
@@ -247,7 +260,15 @@ int main(int argc, char** argv) {
   // CHRONOMAP_CLI: another chronomap to run (a copy, so that a long run survives rebuilds).
   const char* cli_env = std::getenv("CHRONOMAP_CLI");
   const std::string cli = cli_env && *cli_env ? cli_env : CHRONOMAP_CLI_PATH, mpirun = CHRONOMAP_MPIEXEC;
-  fs::remove_all(work);
+  if ((first_night != 1 || last_night != 0) && sim.empty()) {
+    std::cerr << "--first-night and --last-night need --sim (the nights of one simulation)\n";
+    return 2;
+  }
+  if (first_night < 1 || last_night < 0 || (last_night && last_night < first_night)) {
+    std::cerr << "--first-night must be 1 or more, and --last-night at least --first-night\n";
+    return 2;
+  }
+  if (first_night == 1) fs::remove_all(work);  // else the earlier run's DIR/stream goes on
   fs::create_directories(work);
   const fs::path log = work / "log.txt";
   nlohmann::json out;
@@ -265,6 +286,7 @@ int main(int argc, char** argv) {
     if (e.is_directory() && session) folders.push_back(e.path().string());
   }
   std::sort(folders.begin(), folders.end());
+  if (last_night) folders.resize(std::min<size_t>(folders.size(), static_cast<size_t>(last_night)));
   out["sessions"] = folders.size();
   const std::string load_before = loadAverage();
 
@@ -272,7 +294,16 @@ int main(int argc, char** argv) {
   nlohmann::json nights = nlohmann::json::array();
   double stream_peak = 0.0, stream_cpu = 0.0;
   const fs::path stream_folder = work / "stream";
-  for (size_t k = 0; k < folders.size(); ++k) {
+  if (first_night > 1) {
+    const size_t held = isTiledMap(stream_folder) ? TiledMap(stream_folder).sessions().size() : 0;
+    if (held != static_cast<size_t>(first_night - 1)) {
+      std::cerr << stream_folder.string() << " holds " << held << " nights, not the " << first_night - 1
+                << " before --first-night " << first_night << "\n";
+      return 2;
+    }
+    out["first_night"] = first_night;
+  }
+  for (size_t k = static_cast<size_t>(first_night - 1); k < folders.size(); ++k) {
     const Run r = run({cli, "build", stream_folder.string(), folders[k], "--tiles", "--tile-size", "3.2",
                        "--memory-limit", memory_limit, "--threads", "1", "--json"},
                       work / "night.json");
@@ -288,18 +319,32 @@ int main(int argc, char** argv) {
     stream_peak = std::max(stream_peak, r.max_rss_mib);
     stream_cpu += r.cpu();
   }
+  if (!earlier.empty()) {  // an earlier piece's nights that this run did not build
+    for (nlohmann::json night : nightsPrinted(earlier)) {
+      const auto number = night.at("night").get<size_t>();
+      if (number >= static_cast<size_t>(first_night) && number <= folders.size()) continue;
+      night["earlier"] = true;
+      nights.push_back(std::move(night));
+    }
+    std::stable_sort(nights.begin(), nights.end(), [](const nlohmann::json& a, const nlohmann::json& b) {
+      return a.at("night").get<size_t>() < b.at("night").get<size_t>();
+    });
+  }
+  for (const auto& night : nights) stream_peak = std::max(stream_peak, night.at("peak_rss_mib").get<double>());
   out["stream_nights"] = nights;
   if (!plot.empty() && !nights.empty()) chronomap::writePng(plot, plotNights(nights));
   out["stream_memory_limit_gib"] = memory_limit;
   out["peak_rss_mib"] = stream_peak;
-  out["stream_cpu_s"] = stream_cpu;
+  out["stream_cpu_s"] = stream_cpu;  // the nights this run built
   out["bytes_on_disk"] = nights.empty() ? 0 : nights.back()["bytes"].get<uint64_t>();
   // Only the tiles a night's sessions reach are rewritten (the others keep their files).
   out["tiles_rewritten_last_night"] = nights.empty() ? 0 : nights.back()["tiles_rewritten"].get<size_t>();
   // Night N's processor time against night 10's (issue 46: night 365's at most 1.2x night 10's).
-  if (nights.size() >= 10) {
-    out["night_cpu_ratio_" + std::to_string(nights.size()) + "_10"] =
-        nights.back()["cpu_s"].get<double>() / nights[9]["cpu_s"].get<double>();
+  const auto night10 = std::find_if(nights.begin(), nights.end(),
+                                    [](const nlohmann::json& n) { return n.at("night").get<size_t>() == 10; });
+  if (night10 != nights.end() && nights.back()["night"].get<size_t>() >= 10) {
+    out["night_cpu_ratio_" + std::to_string(nights.back()["night"].get<size_t>()) + "_10"] =
+        nights.back()["cpu_s"].get<double>() / (*night10)["cpu_s"].get<double>();
   }
   folders.resize(std::min<size_t>(folders.size(), static_cast<size_t>(std::max(whole, 0))));
 
