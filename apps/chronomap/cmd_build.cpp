@@ -214,20 +214,32 @@ std::vector<std::optional<double>> buildTimes(const BuildCmdOptions& o) {
   return times;
 }
 
+/// A session's registration in its --json object: the motion, its model, the largest drift step.
+void addCorrection(nlohmann::json& j, const PoseCorrection& correction) {
+  const Eigen::Isometry3d& c = correction.motion;
+  j["registration_m"] = {c.translation().x(), c.translation().y(), c.translation().z()};
+  j["registration_deg"] = Eigen::AngleAxisd(c.linear()).angle() * 180.0 / std::numbers::pi;
+  j["registration_model"] = toString(correction.model);
+  if (!correction.per_frame.empty()) {
+    double largest = 0.0;
+    for (const auto& f : correction.per_frame) largest = std::max(largest, f.translation().norm());
+    j["drift_correction_max_m"] = largest;
+  }
+}
+
+/// The registration of a session's --json object (addCorrection), as text: ", moved by ...".
+void printCorrection(const nlohmann::json& j) {
+  if (!j.contains("registration_m")) return;
+  const auto& t = j["registration_m"];
+  std::cout << ", moved by (" << std::fixed << std::setprecision(3) << t[0].get<double>() << ", "
+            << t[1].get<double>() << ", " << t[2].get<double>() << ") m, " << std::setprecision(2)
+            << j["registration_deg"].get<double>() << " deg" << std::defaultfloat;
+}
+
 nlohmann::json builtJson(const BuiltSession& b) {
   nlohmann::json j = addReportJson(b.report, b.time_s, b.nodes_added);
   if (b.realigned_voxels) j["realigned_voxels"] = *b.realigned_voxels;
-  if (b.correction) {
-    const Eigen::Isometry3d& c = b.correction->motion;
-    j["registration_m"] = {c.translation().x(), c.translation().y(), c.translation().z()};
-    j["registration_deg"] = Eigen::AngleAxisd(c.linear()).angle() * 180.0 / std::numbers::pi;
-    j["registration_model"] = toString(b.correction->model);
-    if (!b.correction->per_frame.empty()) {
-      double largest = 0.0;
-      for (const auto& f : b.correction->per_frame) largest = std::max(largest, f.translation().norm());
-      j["drift_correction_max_m"] = largest;
-    }
-  }
+  if (b.correction) addCorrection(j, *b.correction);
   j["dataset"] = b.dataset.string();
   j["points"] = b.points;
   j["nodes_separate"] = b.nodes_separate;
@@ -253,12 +265,7 @@ void printBuilt(const BuildCmdOptions& o, const BuildResult& r) {
     std::cout << "  " << j["time"].get<std::string>() << "  " << j["dataset"].get<std::string>() << ": "
               << j["nodes_added"].get<int64_t>() << " nodes added (" << j["nodes_separate"].get<uint64_t>()
               << " on its own)";
-    if (j.contains("registration_m")) {
-      const auto& t = j["registration_m"];
-      std::cout << ", moved by (" << std::fixed << std::setprecision(3) << t[0].get<double>() << ", "
-                << t[1].get<double>() << ", " << t[2].get<double>() << ") m, " << std::setprecision(2)
-                << j["registration_deg"].get<double>() << " deg" << std::defaultfloat;
-    }
+    printCorrection(j);
     if (j.contains("realigned_voxels")) std::cout << ", " << j["realigned_voxels"].get<size_t>() << " voxels re-aligned";
     std::cout << "\n";
   }
@@ -278,6 +285,7 @@ int runStreamBuild(const BuildCmdOptions& o, BuildSettings& s) {
   for (size_t i = 0; i < r.added_times.size(); ++i) {
     added.push_back({{"time", formatTime(r.added_times[i])}, {"time_s", r.added_times[i]},
                      {"nodes_added", r.nodes_added[i]}});
+    if (i < r.corrections.size()) addCorrection(added.back(), r.corrections[i]);
   }
   const nlohmann::json j = {{"map", o.map},
                             {"created", r.created},
@@ -303,7 +311,9 @@ int runStreamBuild(const BuildCmdOptions& o, BuildSettings& s) {
     return 0;
   }
   for (const auto& a : added) {
-    std::cout << "  " << a["time"].get<std::string>() << ": " << a["nodes_added"].get<int64_t>() << " nodes added\n";
+    std::cout << "  " << a["time"].get<std::string>() << ": " << a["nodes_added"].get<int64_t>() << " nodes added";
+    printCorrection(a);
+    std::cout << "\n";
   }
   std::cout << (r.created ? "created " : "updated ") << o.map << ": " << r.sessions << " session(s), " << r.tiles
             << " tiles of " << j["tile_size_m"].get<double>() << " m, "
@@ -429,8 +439,9 @@ Command addBuild(CLI::App& root) {
                 "build into a tiled map folder (created when missing), tile by tile: memory holds one session, "
                 "the session parts up to --memory-limit (default 0.25 GiB; the rest spilled to files; integration then "
                 "keeps its default limit) and one tile "
-                "or group of tiles; sessions must come after the map's last; no --register, --realign or --replace "
-                "(docs/scale.md)");
+                "or group of tiles; sessions must come after the map's last; with --register the given recordings are "
+                "registered among themselves first, as without --tiles (their session maps held together); no "
+                "--realign or --replace (docs/scale.md)");
   app->add_option("--tile-size", o->tile_size_m,
                   "with --tiles, for a new tiled map: tile edge in metres, a power-of-two number of voxels "
                   "(default 128 voxels)")

@@ -25,6 +25,12 @@ void refuseClashes(const BuildSettings& s, const TemporalMap& map);
 Pending integrateOne(const BuildSettings& s, size_t i);
 /// Sorts the sessions by time. @throw UsageError when two have the same time.
 void sortByTime(const BuildSettings& s, std::vector<Pending>& pending);
+/// Registers the sorted sessions against the consensus of them all (s.registration, which must be
+/// set): each session's map becomes its recording integrated again with the correction found.
+std::vector<PoseCorrection> registerPending(const BuildSettings& s, std::vector<Pending>& pending);
+/// `given` with a depth image cache for registration's second read of every frame (when asked
+/// for and not set yet).
+BuildSettings withRegistrationCache(const BuildSettings& given);
 /// Registers and re-aligns the sorted sessions when asked, adds them to `map` and writes it once,
 /// atomically, with the metadata `stored` and the sessions' up (mapMetadata).
 BuildResult finishBuild(const BuildSettings& s, TemporalMap& map, bool created, std::vector<Pending>& pending,

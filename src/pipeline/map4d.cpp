@@ -87,13 +87,9 @@ void sortByTime(const BuildSettings& s, std::vector<Pending>& pending) {
 
 }  // namespace pipeline_detail
 
-namespace {
-
 using pipeline_detail::Pending;
 
-/// Each session's correction against the consensus of all given; the sessions become the
-/// recordings integrated again with it.
-std::vector<PoseCorrection> registerPending(const BuildSettings& s, std::vector<Pending>& pending) {
+std::vector<PoseCorrection> pipeline_detail::registerPending(const BuildSettings& s, std::vector<Pending>& pending) {
   std::vector<SessionMap> maps;
   std::vector<std::vector<Eigen::Vector3d>> positions;
   std::vector<fs::path> paths;
@@ -110,6 +106,16 @@ std::vector<PoseCorrection> registerPending(const BuildSettings& s, std::vector<
   for (size_t i = 0; i < pending.size(); ++i) pending[i].session.map = std::move(maps[i]);
   return found;
 }
+
+BuildSettings pipeline_detail::withRegistrationCache(const BuildSettings& given) {
+  BuildSettings s = given;
+  if (s.registration && s.registration->depth_cache_bytes > 0 && !s.session.dataset.depth_cache) {
+    s.session.dataset.depth_cache = std::make_shared<DepthImageCache>(s.registration->depth_cache_bytes);
+  }
+  return s;
+}
+
+namespace {
 
 /// Re-aligns every session against the consensus of all given; @return the voxels each moved.
 std::vector<size_t> realignPending(const BuildSettings& s, std::vector<Pending>& pending) {
@@ -190,10 +196,7 @@ nlohmann::json mapMetadata(const nlohmann::json& stored, const ChosenUp& up) {
 BuildResult build(const BuildSettings& given) {
   pipeline_detail::checkInputs(given);
   // Registration reads every frame again: the first read already keeps the decoded depth images.
-  BuildSettings s = given;
-  if (s.registration && s.registration->depth_cache_bytes > 0 && !s.session.dataset.depth_cache) {
-    s.session.dataset.depth_cache = std::make_shared<DepthImageCache>(s.registration->depth_cache_bytes);
-  }
+  BuildSettings s = pipeline_detail::withRegistrationCache(given);
   // Held to the end: an add to the same map meanwhile would otherwise be lost by the rewrite. A
   // map that does not exist yet locks its folder: two commands creating it run one after the other.
   const FileLock lock(s.map, FileLock::Missing::LockFolder);

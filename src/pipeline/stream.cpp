@@ -477,8 +477,6 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
 }
 
 StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size_m, size_t memory_limit_bytes) {
-  if (b.registration) throw UsageError("--register cannot be used with --tiles: the streaming build adds sessions tile "
-                                       "by tile and registration needs every session at once");
   if (b.realign) throw UsageError("--realign cannot be used with --tiles (it needs every session at once)");
   if (b.replace) throw UsageError("--replace cannot be used with --tiles");
   pipeline_detail::checkInputs(b);
@@ -497,12 +495,27 @@ StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size
   s.memory_limit_bytes = memory_limit_bytes;
   s.progress = b.progress;
   std::vector<std::string> warnings;
-  StreamResult result = streamIntoTiles(s, b.datasets.size(), [&](size_t i) {
-    pipeline_detail::Pending p = pipeline_detail::integrateOne(with_up, i);
-    for (const std::string& w : p.session.warnings) warnings.push_back(b.datasets[i].string() + ": " + w);
-    return StreamSession{p.time_s, b.datasets[i].filename().string(), std::move(p.session.map)};
-  });
+  auto sessionOf = [&](pipeline_detail::Pending& p) {
+    for (const std::string& w : p.session.warnings) warnings.push_back(b.datasets[p.index].string() + ": " + w);
+    return StreamSession{p.time_s, b.datasets[p.index].filename().string(), std::move(p.session.map)};
+  };
+  if (!b.registration) {
+    StreamResult result = streamIntoTiles(s, b.datasets.size(), [&](size_t i) {
+      pipeline_detail::Pending p = pipeline_detail::integrateOne(with_up, i);
+      return sessionOf(p);
+    });
+    result.warnings = std::move(warnings);
+    return result;
+  }
+  // Registration: the recordings integrated, sorted and registered as build() does, then streamed.
+  const BuildSettings r = pipeline_detail::withRegistrationCache(with_up);
+  std::vector<pipeline_detail::Pending> pending;
+  for (size_t i = 0; i < b.datasets.size(); ++i) pending.push_back(pipeline_detail::integrateOne(r, i));
+  pipeline_detail::sortByTime(r, pending);
+  std::vector<PoseCorrection> corrections = pipeline_detail::registerPending(r, pending);
+  StreamResult result = streamIntoTiles(s, pending.size(), [&](size_t k) { return sessionOf(pending[k]); });
   result.warnings = std::move(warnings);
+  result.corrections = std::move(corrections);
   return result;
 }
 

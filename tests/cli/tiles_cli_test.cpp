@@ -140,14 +140,14 @@ TEST(TilesCli, StreamingBuildGivesTheWholeBuildTiled) {
   EXPECT_LE(j["peak_parts_bytes"].get<size_t>(), 1073742u);
   EXPECT_TRUE(untiled(tmp, st) == expected);
 
-  // Bad input leaves the tiled map as it was: an earlier session, registration, another tile size.
+  // Bad input leaves the tiled map as it was: an earlier session, re-alignment, another tile size.
   const std::vector<uint8_t>& before = expected;  // what st holds now
   const test::CommandResult earlier = runCommand(cli() + " build " + st + s[1]);
   EXPECT_EQ(earlier.exit_code, 2);
   EXPECT_NE(earlier.err.find("not after the tiled map's last session"), std::string::npos) << earlier.err;
-  const test::CommandResult reg = runCommand(cli() + " build " + (tmp / "r").string() + s[0] + " --tiles --register");
+  const test::CommandResult reg = runCommand(cli() + " build " + (tmp / "r").string() + s[0] + " --tiles --realign");
   EXPECT_EQ(reg.exit_code, 2);
-  EXPECT_NE(reg.err.find("--register cannot be used with --tiles"), std::string::npos) << reg.err;
+  EXPECT_NE(reg.err.find("--realign cannot be used with --tiles"), std::string::npos) << reg.err;
   EXPECT_FALSE(fs::exists(tmp / "r"));
   EXPECT_EQ(runCommand(cli() + " build " + st + s[3] + " --tile-size 0.8").exit_code, 2);
   EXPECT_TRUE(untiled(tmp, st) == before);
@@ -162,6 +162,40 @@ TEST(TilesCli, StreamingBuildGivesTheWholeBuildTiled) {
     const std::vector<uint8_t> now = untiled(tmp, tmp / "k");
     EXPECT_TRUE(now == half || now == expected) << "killed after " << after << " s";
   }
+}
+
+// Registration in the streaming build: the night's recordings registered among themselves as the
+// whole build registers them, so the tiles are the whole build's, cut; the JSON gives each
+// session's correction, the whole build's.
+TEST(TilesCli, StreamingBuildRegistersAsTheWholeBuild) {
+  test::TempDir tmp;
+  const std::vector<std::string> s = tinySessions(tmp);
+  const std::string w = (tmp / "w.cmap").string(), wt = (tmp / "wt").string(), st = (tmp / "st").string();
+  const test::CommandResult whole = runCommand(cli() + " build " + w + s[0] + s[1] + s[2] + " --register --json");
+  ASSERT_EQ(whole.exit_code, 0) << whole.err;
+  ASSERT_EQ(runCommand(cli() + " build " + w + s[3] + " --register").exit_code, 0);
+  ASSERT_EQ(runCommand(cli() + " tile " + w + " -o " + wt + " --tile-size 1.6").exit_code, 0);
+  const std::vector<uint8_t> expected = untiled(tmp, wt);
+
+  const test::CommandResult night =
+      runCommand(cli() + " build " + st + s[2] + s[0] + s[1] + " --tiles --tile-size 1.6 --register --json");
+  ASSERT_EQ(night.exit_code, 0) << night.err;
+  const nlohmann::json added = nlohmann::json::parse(night.out)["added"];
+  const nlohmann::json built = nlohmann::json::parse(whole.out)["added"];
+  ASSERT_EQ(added.size(), 3u);
+  ASSERT_EQ(built.size(), 3u);
+  double moved = 0.0;
+  for (size_t i = 0; i < 3; ++i) {
+    ASSERT_TRUE(added[i].contains("registration_m")) << added[i].dump();
+    EXPECT_EQ(added[i]["registration_m"], built[i]["registration_m"]) << i;
+    EXPECT_EQ(added[i]["registration_deg"], built[i]["registration_deg"]) << i;
+    for (const auto& v : added[i]["registration_m"]) moved += std::abs(v.get<double>());
+  }
+  EXPECT_GT(moved, 0.0);  // the tiny scene's recorded poses are off: registration moved something
+  const test::CommandResult text = runCommand(cli() + " build " + st + s[3] + " --register");
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_NE(text.out.find("moved by ("), std::string::npos) << text.out;
+  EXPECT_TRUE(untiled(tmp, st) == expected);
 }
 
 TEST(TilesCli, AddToATiledFolderStreamsTheSession) {

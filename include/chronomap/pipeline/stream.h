@@ -69,6 +69,8 @@ struct StreamResult {
   uint64_t tile_bytes = 0;
   std::vector<double> added_times;      ///< in time order
   std::vector<int64_t> nodes_added;     ///< per added session, as TemporalMap::add counts them
+  /// streamBuild with registration: each added session's correction, in time order (else empty).
+  std::vector<PoseCorrection> corrections;
   StreamStats stats;
   /// streamBuild: the limits that dropped many points, "DATASET: what" (IntegratedSession::warnings).
   std::vector<std::string> warnings;
@@ -84,8 +86,10 @@ StreamResult streamIntoTiles(const StreamSettings& settings, size_t count,
                              const std::function<StreamSession(size_t)>& produce);
 
 /// build() into a tiled map folder: each recording integrated and cut to the tiles in turn,
-/// then streamIntoTiles. Registration, re-alignment and replacing are not supported (they need
-/// every session at once). @throw UsageError for them; what build() throws.
+/// then streamIntoTiles. With registration (as build() registers: the given recordings against
+/// the consensus of them all, not against the stored sessions), every recording is integrated
+/// and registered first, so their session maps are held together, as build() holds them.
+/// Re-alignment and replacing are not supported (they need the stored map at once). @throw UsageError for them; what build() throws.
 StreamResult streamBuild(const BuildSettings& settings, std::optional<double> tile_size_m, size_t memory_limit_bytes);
 
 /// addSession() into an existing tiled map folder: the session map file streamed in
