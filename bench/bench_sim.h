@@ -76,6 +76,17 @@ inline SessionSettings simSessionSettings() {
   return s;
 }
 
+// The change criterion of the benchmarks' 4D maps: the default, with the evidence rule from the
+// environment when set (CHRONOMAP_BENCH_MIN_FREE_LENGTH=M, CHRONOMAP_BENCH_MIN_HITS=N, as
+// `build --min-free-length M --min-hits N`), to measure it without a flag in each program.
+inline ChangeCriterion benchCriterion() {
+  ChangeCriterion c;
+  if (const char* m = std::getenv("CHRONOMAP_BENCH_MIN_FREE_LENGTH"); m && *m) c.min_free_length_m = std::atof(m);
+  if (const char* n = std::getenv("CHRONOMAP_BENCH_MIN_HITS"); n && *n) c.min_hits = static_cast<uint32_t>(std::atoi(n));
+  c.validate();
+  return c;
+}
+
 // How far a session's poses, with a correction applied, lie from its true poses
 // (groundtruth.txt): the mean error vector (the part one rigid offset would remove), the
 // spread of the errors around it (what is left to drift), the largest error, and the mean
@@ -275,8 +286,9 @@ inline TemporalMap buildWeeksMap(const WeeksSim& w, const std::vector<size_t>& w
   build.session.integrator.max_range_m = max_range_m;
   build.session.integrator.carve_beyond_range = carve_beyond_range;
   build.registration = RegistrationSettings{};
+  build.criterion = benchCriterion();
   if (true_poses) {
-    TemporalMap m(0.05);
+    TemporalMap m(0.05, build.criterion);
     for (size_t i : which) {
       SessionSettings ss = build.session;
       ss.dataset.trajectory = w.dirs[i] / "groundtruth.txt";

@@ -66,6 +66,14 @@ void addCriterionFlags(CLI::App* app, ChangeCriterion& c) {
                   "new map only: also store a change when the hits in an occupied voxel moved farther than this "
                   "(voxels; 0 = off): what the diff's shift test reads")
       ->capture_default_str();
+  app->add_option("--min-free-length", c.min_free_length_m,
+                  "new map only: a free observation with less ray length than this through a voxel (metres; "
+                  "a grazing ray, no hit) does not end its occupied state (0 = off; docs/temporal.md)")
+      ->capture_default_str();
+  app->add_option("--min-hits", c.min_hits,
+                  "new map only: an occupied observation with fewer hits does not end a free state, and the "
+                  "surface-shift test needs this many hits on both sides (0 = off; docs/temporal.md)")
+      ->capture_default_str();
 }
 
 nlohmann::json addReportJson(const AddReport& r, double time_s, int64_t nodes_added) {

@@ -113,15 +113,22 @@ void bindTemporal(py::module_& m) {
   // Every method that reads or changes the map holds its ObjectLock: threads sharing one map
   // run their calls one after another (even const calls: the change layers fill a cache).
   py::class_<TemporalMap>(m, "TemporalMap", "The 4D map: every observed state of a place, session by session.")
-      .def(py::init([](double resolution_m, double colour_distance, double surface_shift_voxels) {
-             return TemporalMap(resolution_m, ChangeCriterion{0.0, colour_distance, surface_shift_voxels});
+      .def(py::init([](double resolution_m, double colour_distance, double surface_shift_voxels,
+                       double min_free_length_m, uint32_t min_hits) {
+             ChangeCriterion c{0.0, colour_distance, surface_shift_voxels};
+             c.min_free_length_m = min_free_length_m;
+             c.min_hits = min_hits;
+             return TemporalMap(resolution_m, c);
            }),
            py::arg("resolution_m") = 0.05, py::arg("color_distance") = 0.0,
            py::arg("surface_shift_voxels") = ChangeCriterion::kRecommendedSurfaceShift,
+           py::arg("min_free_length_m") = 0.0, py::arg("min_hits") = 0,
            "An empty 4D map. color_distance > 0 also stores a change when a voxel's mean colour moves farther than "
            "that (8-bit RGB units), as `chronomap build --color-distance` does; ColourModel learns from those. "
            "surface_shift_voxels > 0 also stores one when the hits in an occupied voxel moved farther than that "
-           "(voxels), as `chronomap build --surface-shift` does; the change search's shift test reads them.")
+           "(voxels), as `chronomap build --surface-shift` does; the change search's shift test reads them. "
+           "min_free_length_m and min_hits are the evidence rule of `chronomap build --min-free-length` and "
+           "`--min-hits`: a grazing ray does not end an occupied state, a stray hit does not end a free one.")
       .def_static(
           "open",
           [](const std::filesystem::path& path) {

@@ -152,3 +152,19 @@ def test_build_returns_each_frames_pose_and_the_registrations_correction(tmp_pat
             assert np.allclose(T, corrected(c, R, i), atol=1e-9)
         moved += not np.array_equal(s["poses"], s["recorded_poses"])
     assert moved >= 1
+
+
+def test_the_evidence_rule_is_kept_with_the_map_and_bad_values_are_refused(tmp_path, before, after):
+    ruled = chronomap.TemporalMap(RESOLUTION_M, min_free_length_m=0.025, min_hits=2)
+    plain = chronomap.TemporalMap(RESOLUTION_M)
+    for m in (ruled, plain):
+        m.add(before, T1)
+        m.add(after, T2)
+    ruled.save(tmp_path / "ruled.cmap")
+    plain.save(tmp_path / "plain.cmap")
+    assert ruled != plain  # the criterion is part of the map
+    again = chronomap.TemporalMap.open(tmp_path / "ruled.cmap")
+    again.save(tmp_path / "again.cmap")
+    assert (tmp_path / "again.cmap").read_bytes() == (tmp_path / "ruled.cmap").read_bytes()
+    with pytest.raises(chronomap.UsageError, match="minimum free length"):
+        chronomap.TemporalMap(RESOLUTION_M, min_free_length_m=-1.0)

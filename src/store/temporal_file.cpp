@@ -180,6 +180,10 @@ std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::j
   j["criterion"] = {{"probability_threshold", map.criterion().probability_threshold},
                     {"color_distance", map.criterion().colour_distance},
                     {"surface_shift_voxels", map.criterion().surface_shift_voxels}};
+  // The evidence rule only when on, so that maps without it keep their bytes (older readers refuse
+  // nothing: they would read such a map without the rule, so a later add there would differ).
+  if (map.criterion().min_free_length_m > 0.0) j["criterion"]["min_free_length_m"] = map.criterion().min_free_length_m;
+  if (map.criterion().min_hits > 0) j["criterion"]["min_hits"] = map.criterion().min_hits;
   nlohmann::json sessions = nlohmann::json::array();
   std::vector<uint8_t> coverage;
   for (const SessionRecord& s : compacted.sessions()) {
@@ -230,6 +234,8 @@ TemporalMap decodeTemporalBlocks(const CmapFile& file, const std::string& source
       criterion.probability_threshold = j["criterion"].value("probability_threshold", 0.0);
       criterion.colour_distance = j["criterion"].value("color_distance", 0.0);
       criterion.surface_shift_voxels = j["criterion"].value("surface_shift_voxels", 0.0);
+      criterion.min_free_length_m = j["criterion"].value("min_free_length_m", 0.0);
+      criterion.min_hits = j["criterion"].value("min_hits", uint32_t{0});
       criterion.validate();
     }
     for (const auto& s : j["sessions"]) {

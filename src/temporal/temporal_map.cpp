@@ -31,7 +31,15 @@ VoxelCounters eighth(const VoxelCounters& c) {
 }  // namespace
 
 bool ChangeCriterion::differs(const VoxelCounters& before, const VoxelCounters& after) const {
-  if (before.state() != after.state()) return true;
+  const VoxelState was = before.state(), now = after.state();
+  if (was != now) {
+    if (was == VoxelState::Occupied && now == VoxelState::Free && after.hits == 0 &&
+        static_cast<double>(after.length_m) < min_free_length_m) {
+      return false;  // grazed, not seen through
+    }
+    if (was == VoxelState::Free && now == VoxelState::Occupied && after.hits < min_hits) return false;  // stray
+    return true;
+  }
   if (probability_threshold > 0.0 && std::abs(before.probability() - after.probability()) > probability_threshold) {
     return true;
   }
@@ -40,7 +48,8 @@ bool ChangeCriterion::differs(const VoxelCounters& before, const VoxelCounters& 
     const double dr = a.r - b.r, dg = a.g - b.g, db = a.b - b.b;
     if (std::sqrt(dr * dr + dg * dg + db * db) > colour_distance) return true;
   }
-  if (surface_shift_voxels > 0.0 && before.hits > 0 && after.hits > 0) {
+  if (surface_shift_voxels > 0.0 && before.hits > 0 && after.hits > 0 && before.hits >= min_hits &&
+      after.hits >= min_hits) {
     double d2 = 0.0;
     for (int axis = 0; axis < 3; ++axis) d2 += std::pow(after.meanOffset(axis) - before.meanOffset(axis), 2);
     if (d2 > surface_shift_voxels * surface_shift_voxels) return true;
@@ -55,6 +64,11 @@ void ChangeCriterion::validate() const {
   if (!std::isfinite(colour_distance) || colour_distance < 0.0) {
     throw UsageError("colour distance must be a non-negative number, got " + std::to_string(colour_distance));
   }
+  if (!(min_free_length_m >= 0.0) || !std::isfinite(min_free_length_m)) {
+    throw UsageError("minimum free length must be a non-negative number of metres, got " +
+                     std::to_string(min_free_length_m));
+  }
+  if (min_hits > 1000000) throw UsageError("minimum hits must lie in [0, 1000000], got " + std::to_string(min_hits));
   if (!(surface_shift_voxels >= 0.0 && surface_shift_voxels <= 2.0)) {
     throw UsageError("surface shift must lie in [0, 2] voxels, got " + std::to_string(surface_shift_voxels));
   }

@@ -313,6 +313,33 @@ TEST(TemporalCli, AddSnapshotHistoryChangesStats) {
 
 // export draws what a user has: a 4D map as last observed (at its last session, or --at), as
 // chronomap snapshot writes it, and messages name the map kind "4D".
+// --min-free-length and --min-hits (the evidence rule) go into a new map's criterion; the map
+// equals the library's built with it; a bad value exits 2 and writes nothing.
+TEST(TemporalCli, TheEvidenceRuleFlagsMakeTheMapsCriterion) {
+  test::TempDir tmp;
+  writeSessions(tmp);
+  const std::string map = (tmp / "e.cmap").string();
+  const char* times[] = {"2012-03-01T10:00:00Z", "2012-03-02T10:00:00Z"};
+  ChangeCriterion rule;
+  rule.min_free_length_m = 0.02;
+  rule.min_hits = 3;
+  TemporalMap expected(0.05, rule);
+  for (int i = 0; i < 2; ++i) {
+    const auto r = test::runCommand(cli() + " add " + map + " " + sessionFile(tmp, i).string() + " --time " +
+                                    times[i] + " --min-free-length 0.02 --min-hits 3");
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    expected.add(parseTime(times[i]), readSessionMap(sessionFile(tmp, i)));
+  }
+  const TemporalMap onDisk = readTemporalMap(map);
+  EXPECT_TRUE(onDisk.criterion() == rule);
+  EXPECT_EQ(onDisk.counts().nodes(), asStored(expected).counts().nodes());
+  const auto bad = test::runCommand(cli() + " add " + (tmp / "bad.cmap").string() + " " + sessionFile(tmp, 0).string() +
+                                    " --time " + times[0] + " --min-free-length -1");
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("minimum free length"), std::string::npos) << bad.err;
+  EXPECT_FALSE(fs::exists(tmp / "bad.cmap"));
+}
+
 TEST(TemporalCli, ExportOfA4DMapWritesItsLatestStateOrTheOneAt) {
   test::TempDir tmp;
   writeSessions(tmp);

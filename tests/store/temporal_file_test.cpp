@@ -96,6 +96,30 @@ TEST(TemporalFile, ACompactedMapIsWrittenAsItIs) {
   EXPECT_FALSE(map.isCompact());
 }
 
+// The evidence rule is stored with the map (and read back); a map without it has no such keys,
+// so its bytes are those of builds before the rule existed.
+TEST(TemporalFile, TheEvidenceRuleIsStoredOnlyWhenOn) {
+  test::TempDir tmp;
+  ChangeCriterion rule;
+  rule.min_free_length_m = 0.025;
+  rule.min_hits = 2;
+  TemporalMap with(0.05, rule), without(0.05);
+  with.add(1000.0, test::randomSessionMap(3));
+  without.add(1000.0, test::randomSessionMap(3));
+  writeTemporalMap(tmp / "with.cmap", with, {});
+  writeTemporalMap(tmp / "without.cmap", without, {});
+  EXPECT_TRUE(readTemporalMap(tmp / "with.cmap").criterion() == rule);
+  EXPECT_TRUE(readTemporalMap(tmp / "without.cmap").criterion() == ChangeCriterion{});
+  auto metaOf = [](const fs::path& path) {
+    const CmapBlock& meta = decodeCmap(bytesOf(path), path.string()).block("META", path.string());
+    return std::string(meta.data.begin(), meta.data.end());
+  };
+  EXPECT_NE(metaOf(tmp / "with.cmap").find("\"min_hits\":2"), std::string::npos);
+  EXPECT_NE(metaOf(tmp / "with.cmap").find("\"min_free_length_m\":0.025"), std::string::npos);
+  EXPECT_EQ(metaOf(tmp / "without.cmap").find("min_hits"), std::string::npos);
+  EXPECT_EQ(metaOf(tmp / "without.cmap").find("min_free_length_m"), std::string::npos);
+}
+
 TEST(TemporalFile, EmptyMapRoundTrips) {
   test::TempDir tmp;
   writeTemporalMap(tmp / "e.cmap", TemporalMap(0.1), {});

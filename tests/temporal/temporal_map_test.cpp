@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <limits>
 #include <map>
 #include <optional>
 #include <random>
@@ -239,6 +240,65 @@ TEST(TemporalMap, OnlyChangesCreateEntries) {
   EXPECT_EQ(h[1].time_s, 20);
   EXPECT_EQ(h[1].counters, occupiedVoxelExact(1));
   EXPECT_TRUE(map.history(at(9, 9, 9)).empty());
+}
+
+// The evidence rule (ChangeCriterion::min_free_length_m, min_hits): a grazing ray does not end
+// an occupied state, a stray hit does not end a free one, and one or two hits do not make a shift;
+// clear evidence still does, and without the rule every state change counts.
+TEST(TemporalMap, WeakObservationsDoNotChangeAStateUnderTheEvidenceRule) {
+  ChangeCriterion rule;
+  rule.min_free_length_m = 0.025;
+  rule.min_hits = 2;
+  auto shifted = [](uint32_t hits, float offset) {
+    VoxelCounters v = occupiedVoxelExact(hits);
+    v.offset[0] = offset * static_cast<float>(hits);  // mean offset `offset` voxels along x
+    return v;
+  };
+  const VoxelKey wall = at(1, 1, 1), space = at(2, 1, 1), thin = at(3, 1, 1), surface = at(4, 1, 1);
+  auto sessions = [&](bool strong) {
+    std::vector<SessionMap> out(2, SessionMap(0.05));
+    out[0].add(wall, occupiedVoxelExact(4));
+    out[0].add(space, freeVoxel(0.25f));
+    out[0].add(thin, shifted(1, -0.4f));
+    out[0].add(surface, shifted(strong ? 3 : 1, -0.4f));
+    out[1].add(wall, freeVoxel(strong ? 0.05f : 0.01f));   // seen through, or grazed (10 mm)
+    out[1].add(space, occupiedVoxelExact(strong ? 2 : 1));  // an object, or one stray hit
+    out[1].add(thin, shifted(strong ? 2 : 1, 0.4f));        // moved 0.8 voxel: two hits, or one
+    out[1].add(surface, shifted(strong ? 3 : 1, 0.4f));
+    return out;
+  };
+  for (const bool strong : {false, true}) {
+    TemporalMap with(0.05, rule), without(0.05);
+    for (const TemporalMap* m : {&with, &without}) {
+      TemporalMap& map = const_cast<TemporalMap&>(*m);
+      const std::vector<SessionMap> s = sessions(strong);
+      map.add(10, s[0]);
+      map.add(20, s[1]);
+    }
+    for (const VoxelKey& k : {wall, space, surface}) {
+      EXPECT_EQ(without.history(k).size(), 2u) << "without the rule every change counts";
+    }
+    if (strong) {
+      for (const VoxelKey& k : {wall, space, surface}) EXPECT_EQ(with.history(k).size(), 2u) << "clear evidence";
+      // Two hits on one side, one on the other: the shift test needs two on both.
+      EXPECT_EQ(with.history(thin).size(), 1u);
+      EXPECT_EQ(with.snapshot(20).stateOf(wall), VoxelState::Free);
+      EXPECT_EQ(with.snapshot(20).stateOf(space), VoxelState::Occupied);
+    } else {
+      for (const VoxelKey& k : {wall, space, surface, thin}) EXPECT_EQ(with.history(k).size(), 1u) << "weak evidence";
+      EXPECT_EQ(with.snapshot(20).stateOf(wall), VoxelState::Occupied);  // the state before stays
+      EXPECT_EQ(with.snapshot(20).stateOf(space), VoxelState::Free);
+      EXPECT_EQ(*with.snapshot(20).find(wall), occupiedVoxelExact(4));
+    }
+  }
+  ChangeCriterion bad = rule;
+  bad.min_free_length_m = -1.0;
+  EXPECT_THROW(bad.validate(), UsageError);
+  bad.min_free_length_m = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(bad.validate(), UsageError);
+  bad = rule;
+  bad.min_hits = 2000000;
+  EXPECT_THROW(bad.validate(), UsageError);
 }
 
 TEST(TemporalMap, UnobservedSpaceIsNeverAChange) {

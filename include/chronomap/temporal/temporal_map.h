@@ -36,6 +36,14 @@ struct ChangeCriterion {
   /// find, a chair moved by 37 mm among them (8 of 9 without), for 0.4 % more nodes; on
   /// floor66 (66 sessions) it costs 15.5 % more nodes (258 of 258 events, 257 without).
   static constexpr double kRecommendedSurfaceShift = 0.5;
+  /// > 0: a weak observation does not change a voxel's state (hysteresis against sampling noise):
+  /// free from less ray length than this through the voxel (metres; a ray that grazed it, no hit)
+  /// does not end an occupied state. 0: off (every state change counts).
+  double min_free_length_m = 0.0;
+  /// > 0: occupied from fewer hits than this does not end a free state (a stray hit), and the
+  /// surface-shift test needs at least this many hits on both sides (the mean position of one or
+  /// two hits is mostly noise). 0 or 1: off (every hit counts).
+  uint32_t min_hits = 0;
 
   friend bool operator==(const ChangeCriterion&, const ChangeCriterion&) = default;
   /// True when `after` is a change from `before` (both known).
