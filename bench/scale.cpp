@@ -322,7 +322,7 @@ int main(int argc, char** argv) {
   if (!earlier.empty()) {  // an earlier piece's nights that this run did not build
     for (nlohmann::json night : nightsPrinted(earlier)) {
       const auto number = night.at("night").get<size_t>();
-      if (number >= static_cast<size_t>(first_night) && number <= folders.size()) continue;
+      if (number >= static_cast<size_t>(first_night)) continue;  // this run's, or past its last
       night["earlier"] = true;
       nights.push_back(std::move(night));
     }
@@ -348,7 +348,9 @@ int main(int argc, char** argv) {
   }
   folders.resize(std::min<size_t>(folders.size(), static_cast<size_t>(std::max(whole, 0))));
 
-  // One process, one thread; then two ranks of one thread each (the same file).
+  // One process, one thread; then two ranks of one thread each (the same file). An earlier
+  // piece's files (--first-night keeps the work folder) go first.
+  for (const char* name : {"one.cmap", "two.cmap", "ranks.txt"}) fs::remove(work / name);
   auto buildArgs = [&](const fs::path& map) {
     std::vector<std::string> a = {cli, "build", map.string(), "--threads", "1", "--json"};
     a.insert(a.end(), folders.begin(), folders.end());

@@ -176,6 +176,7 @@ class TileStream {
   void addSession(size_t i, StreamSession& session);
   const TileEntry* storedTileOf(const Cube& g) const;
   void rewriteStoredTile(const Cube& g, const TileEntry& e);
+  void writeSplit(const Cube& g, const TemporalMap& work);
   TemporalMap groupBase(const Cube& g, std::vector<SessionRecord>& records);
   void addGroupSessions(const Cube& g, TemporalMap& work);
 
@@ -307,14 +308,7 @@ void TileStream::writeGroups() {
     }
     work = TemporalMap::fromParts(work.resolution_m(), work.criterion(), work.parts(), std::move(records));
     work.compact();
-    SplitMap split = splitIntoTiles(work, level_);
-    for (const Tile& t : split.tiles) {
-      entries_.push_back(writeTileFile(s_.folder, t.key, generation_, t.map));
-      result_.tile_bytes += entries_.back().diskBytes();
-      ++result_.stats.tiles_written;
-    }
-    group_tops_.push_back(std::move(split.top));
-    group_cubes_.push_back(g);
+    writeSplit(g, work);
     ++result_.stats.groups;
   }
 }
@@ -344,9 +338,29 @@ void TileStream::rewriteStoredTile(const Cube& g, const TileEntry& e) {
   }
   work.replaceSessionRecords(std::move(records));
   work.compact();
+  const std::vector<HistoryEntry> corner = work.history(g.corner);
+  if (!corner.empty() && corner.front().level >= level_) {
+    // Compaction made the whole tile one uniform cube (not seen with later sessions only): it
+    // belongs in the top, as the general path's split puts it.
+    writeSplit(g, work);
+    return;
+  }
   entries_.push_back(writeTileFile(s_.folder, e.key, generation_, work));
   result_.tile_bytes += entries_.back().diskBytes();
   ++result_.stats.tiles_written;
+}
+
+// A group's compacted map cut into tiles (written under the new generation's names) and its part
+// of the top (kept for newTop()).
+void TileStream::writeSplit(const Cube& g, const TemporalMap& work) {
+  SplitMap split = splitIntoTiles(work, level_);
+  for (const Tile& t : split.tiles) {
+    entries_.push_back(writeTileFile(s_.folder, t.key, generation_, t.map));
+    result_.tile_bytes += entries_.back().diskBytes();
+    ++result_.stats.tiles_written;
+  }
+  group_tops_.push_back(std::move(split.top));
+  group_cubes_.push_back(g);
 }
 
 // The group's part of the stored map: the top's part with the group's tiles joined in; `records`
@@ -507,11 +521,21 @@ StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size
     result.warnings = std::move(warnings);
     return result;
   }
-  // Registration: the recordings integrated, sorted and registered as build() does, then streamed.
+  // Registration: the recordings integrated, sorted and registered as build() does, then streamed;
+  // a time the tiled map cannot take is refused before the registration's long work.
   const BuildSettings r = pipeline_detail::withRegistrationCache(with_up);
   std::vector<pipeline_detail::Pending> pending;
   for (size_t i = 0; i < b.datasets.size(); ++i) pending.push_back(pipeline_detail::integrateOne(r, i));
   pipeline_detail::sortByTime(r, pending);
+  if (!created) {
+    const TileIndex index = readTileIndex(b.map);
+    const std::vector<SessionRecord>& stored_sessions = index.top.sessions();
+    if (!stored_sessions.empty() && pending.front().time_s <= stored_sessions.back().time_s) {
+      throw UsageError(b.datasets[pending.front().index].string() + " (" + formatTime(pending.front().time_s) +
+                       ") is not after the tiled map's last session (" + formatTime(stored_sessions.back().time_s) +
+                       "): the streaming build only adds later sessions (join with `untile` to add earlier ones)");
+    }
+  }
   std::vector<PoseCorrection> corrections = pipeline_detail::registerPending(r, pending);
   StreamResult result = streamIntoTiles(s, pending.size(), [&](size_t k) { return sessionOf(pending[k]); });
   result.warnings = std::move(warnings);

@@ -234,8 +234,15 @@ TemporalMap decodeTemporalBlocks(const CmapFile& file, const std::string& source
       criterion.probability_threshold = j["criterion"].value("probability_threshold", 0.0);
       criterion.colour_distance = j["criterion"].value("color_distance", 0.0);
       criterion.surface_shift_voxels = j["criterion"].value("surface_shift_voxels", 0.0);
-      criterion.min_free_length_m = j["criterion"].value("min_free_length_m", 0.0);
-      criterion.min_hits = j["criterion"].value("min_hits", uint32_t{0});
+      const nlohmann::json& c = j["criterion"];
+      if (c.contains("min_free_length_m") && !c["min_free_length_m"].is_number()) {
+        throw FormatError(source + ": the criterion's min_free_length_m is not a number");
+      }
+      if (c.contains("min_hits") && (!c["min_hits"].is_number_unsigned() || c["min_hits"].get<uint64_t>() > 1000000)) {
+        throw FormatError(source + ": the criterion's min_hits is not a whole number in [0, 1000000]");
+      }
+      criterion.min_free_length_m = c.value("min_free_length_m", 0.0);
+      criterion.min_hits = static_cast<uint32_t>(c.value("min_hits", uint64_t{0}));
       criterion.validate();
     }
     for (const auto& s : j["sessions"]) {

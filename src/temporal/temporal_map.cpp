@@ -76,6 +76,7 @@ void ChangeCriterion::validate() const {
 
 TemporalMap::TemporalMap(double resolution_m, ChangeCriterion criterion) : grid_(resolution_m), criterion_(criterion) {
   criterion_.validate();
+  if (criterion_.min_hits == 1) criterion_.min_hits = 0;  // the same rule (off), stored the same way
   inner_.emplace_back();
   inner_[0].fill(kEmpty);
   coarse_span_.emplace_back();
@@ -267,6 +268,10 @@ AddReport TemporalMap::add(double time_s, const SessionMap& session, const AddSe
   auto it = std::lower_bound(sessions_.begin(), sessions_.end(), time_s,
                              [](const SessionRecord& s, double t) { return s.time_s < t; });
   if (it != sessions_.end() && it->time_s == time_s) {
+    if (options.replace && criterion_.hasEvidenceRule() && it + 1 != sessions_.end()) {
+      throw UsageError("this 4D map's change criterion has the evidence rule (--min-free-length, --min-hits), which "
+                       "takes sessions in time order only: only its last session can be replaced");
+    }
     if (!options.replace) {
       throw UsageError("the 4D map already holds a session at " + formatTime(time_s) +
                        " (ask to replace it, or give another time)");
@@ -278,6 +283,11 @@ AddReport TemporalMap::add(double time_s, const SessionMap& session, const AddSe
   }
   const auto rank = static_cast<uint32_t>(it - sessions_.begin());
   report.out_of_order = rank < sessions_.size();
+  if (report.out_of_order && criterion_.hasEvidenceRule()) {
+    throw UsageError("this 4D map's change criterion has the evidence rule (--min-free-length, --min-hits), which "
+                     "takes sessions in time order only: " + formatTime(time_s) + " is before its last session (" +
+                     formatTime(sessions_.back().time_s) + ")");
+  }
   if (report.out_of_order) shiftSessions(rank, +1);
   SessionRecord record;
   record.time_s = time_s;
@@ -345,6 +355,10 @@ void TemporalMap::remove(double time_s) {
     throw UsageError("the 4D map holds no session at " + formatTime(time_s));
   }
   const auto rank = static_cast<uint32_t>(it - sessions_.begin());
+  if (criterion_.hasEvidenceRule() && rank + 1 != sessions_.size()) {
+    throw UsageError("this 4D map's change criterion has the evidence rule (--min-free-length, --min-hits), which "
+                     "takes sessions in time order only: only its last session can be removed");
+  }
   coverage_cache_.clear();
   change_masks_valid_ = false;
   removeBelow(0, kTreeDepth, VoxelKey{}, rank);

@@ -311,10 +311,9 @@ TEST(TemporalCli, AddSnapshotHistoryChangesStats) {
   EXPECT_GT(fs::file_size(tmp / "storage.png"), 1000u);
 }
 
-// export draws what a user has: a 4D map as last observed (at its last session, or --at), as
-// chronomap snapshot writes it, and messages name the map kind "4D".
 // --min-free-length and --min-hits (the evidence rule) go into a new map's criterion; the map
-// equals the library's built with it; a bad value exits 2 and writes nothing.
+// reads as the library's built with it (every snapshot, the node count); a bad value exits 2 and
+// writes nothing.
 TEST(TemporalCli, TheEvidenceRuleFlagsMakeTheMapsCriterion) {
   test::TempDir tmp;
   writeSessions(tmp);
@@ -332,6 +331,7 @@ TEST(TemporalCli, TheEvidenceRuleFlagsMakeTheMapsCriterion) {
   }
   const TemporalMap onDisk = readTemporalMap(map);
   EXPECT_TRUE(onDisk.criterion() == rule);
+  for (const double t : expected.times()) EXPECT_TRUE(onDisk.snapshot(t) == asStored(expected).snapshot(t)) << t;
   EXPECT_EQ(onDisk.counts().nodes(), asStored(expected).counts().nodes());
   const auto bad = test::runCommand(cli() + " add " + (tmp / "bad.cmap").string() + " " + sessionFile(tmp, 0).string() +
                                     " --time " + times[0] + " --min-free-length -1");
@@ -340,6 +340,8 @@ TEST(TemporalCli, TheEvidenceRuleFlagsMakeTheMapsCriterion) {
   EXPECT_FALSE(fs::exists(tmp / "bad.cmap"));
 }
 
+// export draws what a user has: a 4D map as last observed (at its last session, or --at), as
+// chronomap snapshot writes it, and messages name the map kind "4D".
 TEST(TemporalCli, ExportOfA4DMapWritesItsLatestStateOrTheOneAt) {
   test::TempDir tmp;
   writeSessions(tmp);

@@ -196,6 +196,12 @@ TEST(TilesCli, StreamingBuildRegistersAsTheWholeBuild) {
   ASSERT_EQ(text.exit_code, 0) << text.err;
   EXPECT_NE(text.out.find("moved by ("), std::string::npos) << text.out;
   EXPECT_TRUE(untiled(tmp, st) == expected);
+  // An earlier recording is refused before registration, the folder unchanged.
+  const test::CommandResult earlier = runCommand(cli() + " build " + st + s[0] + s[3] + " --register");
+  EXPECT_EQ(earlier.exit_code, 2);
+  EXPECT_NE(earlier.err.find("not after the tiled map's last session"), std::string::npos) << earlier.err;
+  EXPECT_EQ(earlier.err.find("registering"), std::string::npos) << earlier.err;
+  EXPECT_TRUE(untiled(tmp, st) == expected);
 }
 
 TEST(TilesCli, AddToATiledFolderStreamsTheSession) {

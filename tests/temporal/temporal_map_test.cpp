@@ -291,6 +291,26 @@ TEST(TemporalMap, WeakObservationsDoNotChangeAStateUnderTheEvidenceRule) {
       EXPECT_EQ(*with.snapshot(20).find(wall), occupiedVoxelExact(4));
     }
   }
+  // In time order only: an earlier session, removing or replacing one before the last, refused
+  // with the map unchanged; the last one may be replaced or removed.
+  TemporalMap ordered(0.05, rule);
+  const std::vector<SessionMap> s = sessions(true);
+  ordered.add(10, s[0]);
+  ordered.add(20, s[1]);
+  const TemporalMap kept = ordered;
+  EXPECT_THROW(ordered.add(5, s[1]), UsageError);
+  EXPECT_THROW(ordered.add(10, s[1], {true, ""}), UsageError);
+  EXPECT_THROW(ordered.remove(10), UsageError);
+  EXPECT_TRUE(ordered == kept);
+  ordered.add(20, s[0], {true, ""});
+  EXPECT_EQ(ordered.sessionCount(), 2u);
+  ordered.remove(20);
+  EXPECT_EQ(ordered.sessionCount(), 1u);
+  // min_hits 1 is the rule off: the same criterion as 0.
+  ChangeCriterion one;
+  one.min_hits = 1;
+  EXPECT_TRUE(TemporalMap(0.05, one).criterion() == ChangeCriterion{});
+
   ChangeCriterion bad = rule;
   bad.min_free_length_m = -1.0;
   EXPECT_THROW(bad.validate(), UsageError);

@@ -44,6 +44,11 @@ struct ChangeCriterion {
   /// surface-shift test needs at least this many hits on both sides (the mean position of one or
   /// two hits is mostly noise). 0 or 1: off (every hit counts).
   uint32_t min_hits = 0;
+  /// True when min_free_length_m or min_hits (above 1) hold observations back. Such a map takes
+  /// sessions in time order only (add after the last, remove or replace the last): a session
+  /// added before a later one would re-decide that one's entry against the wrong state, since the
+  /// map cannot tell a later observation the rule held back from one that confirmed the state.
+  bool hasEvidenceRule() const { return min_free_length_m > 0.0 || min_hits > 1; }
 
   friend bool operator==(const ChangeCriterion&, const ChangeCriterion&) = default;
   /// True when `after` is a change from `before` (both known).
@@ -105,7 +110,8 @@ struct TemporalCounts {
 /// Entries are created only where a session observed a cube and its state changed under the
 /// ChangeCriterion; unobserved space adds nothing. Sessions may be added in any time order:
 /// the per-session Coverage tells which later session observed a voxel next, so the state seen
-/// at every time is that of the most recent observation, exactly as if added in time order.
+/// at every time is that of the most recent observation, exactly as if added in time order
+/// (not under the criterion's evidence rule, which takes sessions in time order only).
 class TemporalMap {
  public:
   /// One stored entry: the session (rank in time order) and the counters from then on.
@@ -222,7 +228,8 @@ class TemporalMap {
   /// @return the number of lists removed.
   size_t compact();
   /// True when compact() ran last and nothing changed the map since (add, remove, relayout,
-  /// appendUnobservedSessions): compacting it again would change nothing, so it returns at once.
+  /// appendUnobservedSessions, replaceSessionRecords): compacting it again would change nothing,
+  /// so it returns at once.
   bool isCompact() const { return compact_; }
 
   /// Re-lays the inner nodes and list records out in place in the order files hold them (see
