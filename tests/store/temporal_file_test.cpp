@@ -113,7 +113,8 @@ TEST(TemporalFile, TheEvidenceRuleIsStoredOnlyWhenOn) {
   EXPECT_TRUE(readTemporalMap(tmp / "with.cmap").criterion() == rule);
   EXPECT_TRUE(readTemporalMap(tmp / "without.cmap").criterion() == ChangeCriterion{});
   auto metaOf = [](const fs::path& path) {
-    const CmapBlock& meta = decodeCmap(bytesOf(path), path.string()).block("META", path.string());
+    const CmapFile file = decodeCmap(bytesOf(path), path.string());
+    const CmapBlock& meta = file.block("META", path.string());
     return std::string(meta.data.begin(), meta.data.end());
   };
   EXPECT_NE(metaOf(tmp / "with.cmap").find("\"min_hits\":2"), std::string::npos);
