@@ -5,7 +5,7 @@
 #   scripts/make-doc-images.sh [--only GROUP,...] [--work DIR] [--build DIR] [--no-build]
 #                              [--images DIR] [--check]
 #
-# GROUP (default: office,viewer,room,python,architecture; weeks and floor66 only when named):
+# GROUP (default: office,viewer,room,python,architecture; weeks, floor66 and year only when named):
 #   office        chronomap demo (seed 1, 320 x 240): office_topview.png, office_changes_00_01.png
 #                 (the pair of sessions 1 and 2), office_frame_rgb.png, office_frame_depth.png
 #   viewer        chronomap view on the demo's map, viewer/test/shoot.mjs in headless Chromium:
@@ -22,6 +22,9 @@
 #   floor66       the floor66 preset (66 sessions, 0.5 of 640 x 480): floor66_storage.png
 #                 (bench/temporal --sim --plot) and viewer_floor66_zoom.png (chronomap build,
 #                 chronomap view, shoot.mjs); about 5 minutes on 2 cores
+#   year          bench/scale --plot-from docs/images/year_nights.json: year_nights.png, the nights
+#                 of the year run that docs/scale.md describes (the run itself, over an hour, is
+#                 bench/scale's; its output is kept in that file); a second
 #
 # Builds chronomap and the Python module (and, for weeks and floor66, the benchmark programs) in
 # build/release (cmake --preset release), or in the configured build folder --build names. The
@@ -62,8 +65,8 @@ if ((check)) && [ "$images" = "$repo/docs/images" ]; then
 fi
 has() { [[ ",$groups," == *",$1,"* ]]; }
 for g in ${groups//,/ }; do
-  case "$g" in office|viewer|room|python|architecture|weeks|floor66) ;;
-    *) echo "make-doc-images.sh: no group '$g' (office, viewer, room, python, architecture, weeks, floor66)" >&2
+  case "$g" in office|viewer|room|python|architecture|weeks|floor66|year) ;;
+    *) echo "make-doc-images.sh: no group '$g' (office, viewer, room, python, architecture, weeks, floor66, year)" >&2
        exit 2 ;;
   esac
 done
@@ -85,6 +88,7 @@ data="${CHRONOMAP_DATA_DIR:-$repo/../shared/data}"
 benches=()
 has weeks && benches+=(rhythm_eval alerts_eval colour_eval)
 has floor66 && benches+=(temporal)
+has year && benches+=(scale)
 if ((no_build)) && [ -z "$build" ]; then
   echo "make-doc-images.sh: --no-build needs --build DIR" >&2
   exit 2
@@ -93,7 +97,7 @@ elif [ -z "$build" ]; then
   else cmake --preset release >/dev/null; fi
   build="$repo/build/release"
 elif ((${#benches[@]})) && ! grep -Eqi '^CHRONOMAP_BUILD_BENCH:BOOL=(ON|1|TRUE|YES|Y)$' "$build/CMakeCache.txt"; then
-  echo "make-doc-images.sh: the weeks and floor66 groups need $build configured with -DCHRONOMAP_BUILD_BENCH=ON" >&2
+  echo "make-doc-images.sh: the weeks, floor66 and year groups need $build configured with -DCHRONOMAP_BUILD_BENCH=ON" >&2
   exit 1
 fi
 targets=(--target chronomap_cli)
@@ -225,6 +229,11 @@ if has floor66; then
   shoot "$f/floor66.cmap" "$f/shot"
   cp "$f/shot-zoom.png" "$images/viewer_floor66_zoom.png"
   measure+=(--floor66 "$f")
+fi
+
+if has year; then
+  echo "== year: bench/scale --plot-from"
+  "$build/bench/scale" --plot-from "$repo/docs/images/year_nights.json" --plot "$images/year_nights.png"
 fi
 
 figures="$repo/docs/images/figures.json"
