@@ -32,6 +32,13 @@ struct NewSession {
   uint64_t nodes_separate = 0;
 };
 
+/// Refuses session `name` at `time_s`, not after the tiled map's last session at `last_s`.
+[[noreturn]] void refuseEarlier(const std::string& name, double time_s, double last_s) {
+  throw UsageError(name + " (" + formatTime(time_s) + ") is not after the tiled map's last session (" +
+                   formatTime(last_s) + "): the streaming build only adds later sessions (join with `untile` to add "
+                   "earlier ones)");
+}
+
 /// The cube at `level` that holds `key`.
 Cube cubeAt(const VoxelKey& key, int level) { return Cube{cellCorner(key, level), level}; }
 
@@ -228,10 +235,7 @@ void TileStream::addSession(size_t i, StreamSession& session) {
   }
   if (!std::isfinite(session.time_s)) throw UsageError(session.name + ": session time must be finite");
   if (top.sessionCount() && session.time_s <= top.sessions().back().time_s) {
-    throw UsageError(session.name + " (" + formatTime(session.time_s) +
-                     ") is not after the tiled map's last session (" +
-                     formatTime(top.sessions().back().time_s) +
-                     "): the streaming build only adds later sessions (join with `untile` to add earlier ones)");
+    refuseEarlier(session.name, session.time_s, top.sessions().back().time_s);
   }
   added_.push_back(NewSession{i, session.time_s, session.name, Coverage(session.map),
                               session.map.innerCount() + session.map.leafCount()});
@@ -531,9 +535,7 @@ StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size
     const TileIndex index = readTileIndex(b.map);
     const std::vector<SessionRecord>& stored_sessions = index.top.sessions();
     if (!stored_sessions.empty() && pending.front().time_s <= stored_sessions.back().time_s) {
-      throw UsageError(b.datasets[pending.front().index].string() + " (" + formatTime(pending.front().time_s) +
-                       ") is not after the tiled map's last session (" + formatTime(stored_sessions.back().time_s) +
-                       "): the streaming build only adds later sessions (join with `untile` to add earlier ones)");
+      refuseEarlier(b.datasets[pending.front().index].string(), pending.front().time_s, stored_sessions.back().time_s);
     }
   }
   std::vector<PoseCorrection> corrections = pipeline_detail::registerPending(r, pending);

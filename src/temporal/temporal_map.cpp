@@ -28,6 +28,13 @@ VoxelCounters eighth(const VoxelCounters& c) {
   return part;
 }
 
+/// Refuses what the evidence rule cannot do exactly (ChangeCriterion::hasEvidenceRule): `what`
+/// says what was asked.
+[[noreturn]] void refuseOutOfOrder(const std::string& what) {
+  throw UsageError("this 4D map's change criterion has the evidence rule (--min-free-length, --min-hits), which "
+                   "takes sessions in time order only: " + what);
+}
+
 }  // namespace
 
 bool ChangeCriterion::differs(const VoxelCounters& before, const VoxelCounters& after) const {
@@ -269,8 +276,7 @@ AddReport TemporalMap::add(double time_s, const SessionMap& session, const AddSe
                              [](const SessionRecord& s, double t) { return s.time_s < t; });
   if (it != sessions_.end() && it->time_s == time_s) {
     if (options.replace && criterion_.hasEvidenceRule() && it + 1 != sessions_.end()) {
-      throw UsageError("this 4D map's change criterion has the evidence rule (--min-free-length, --min-hits), which "
-                       "takes sessions in time order only: only its last session can be replaced");
+      refuseOutOfOrder("only its last session can be replaced");
     }
     if (!options.replace) {
       throw UsageError("the 4D map already holds a session at " + formatTime(time_s) +
@@ -284,9 +290,7 @@ AddReport TemporalMap::add(double time_s, const SessionMap& session, const AddSe
   const auto rank = static_cast<uint32_t>(it - sessions_.begin());
   report.out_of_order = rank < sessions_.size();
   if (report.out_of_order && criterion_.hasEvidenceRule()) {
-    throw UsageError("this 4D map's change criterion has the evidence rule (--min-free-length, --min-hits), which "
-                     "takes sessions in time order only: " + formatTime(time_s) + " is before its last session (" +
-                     formatTime(sessions_.back().time_s) + ")");
+    refuseOutOfOrder(formatTime(time_s) + " is before its last session (" + formatTime(sessions_.back().time_s) + ")");
   }
   if (report.out_of_order) shiftSessions(rank, +1);
   SessionRecord record;
@@ -356,8 +360,7 @@ void TemporalMap::remove(double time_s) {
   }
   const auto rank = static_cast<uint32_t>(it - sessions_.begin());
   if (criterion_.hasEvidenceRule() && rank + 1 != sessions_.size()) {
-    throw UsageError("this 4D map's change criterion has the evidence rule (--min-free-length, --min-hits), which "
-                     "takes sessions in time order only: only its last session can be removed");
+    refuseOutOfOrder("only its last session can be removed");
   }
   coverage_cache_.clear();
   change_masks_valid_ = false;

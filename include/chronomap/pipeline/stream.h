@@ -89,7 +89,8 @@ StreamResult streamIntoTiles(const StreamSettings& settings, size_t count,
 /// then streamIntoTiles. With registration (as build() registers: the given recordings against
 /// the consensus of them all, not against the stored sessions), every recording is integrated
 /// and registered first, so their session maps are held together, as build() holds them.
-/// Re-alignment and replacing are not supported (they need the stored map at once). @throw UsageError for them; what build() throws.
+/// Re-alignment and replacing are not supported (they need the stored map at once).
+/// @throw UsageError for them; what build() throws.
 StreamResult streamBuild(const BuildSettings& settings, std::optional<double> tile_size_m, size_t memory_limit_bytes);
 
 /// addSession() into an existing tiled map folder: the session map file streamed in
