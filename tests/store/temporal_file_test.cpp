@@ -121,6 +121,30 @@ TEST(TemporalFile, TheEvidenceRuleIsStoredOnlyWhenOn) {
   EXPECT_NE(metaOf(tmp / "with.cmap").find("\"min_free_length_m\":0.025"), std::string::npos);
   EXPECT_EQ(metaOf(tmp / "without.cmap").find("min_hits"), std::string::npos);
   EXPECT_EQ(metaOf(tmp / "without.cmap").find("min_free_length_m"), std::string::npos);
+
+  // A rule the file states badly is refused naming the file: a negative, fractional, huge or
+  // textual hit count, a textual or negative length.
+  const CmapFile good = decodeCmap(bytesOf(tmp / "with.cmap"), "with.cmap");
+  const std::vector<std::pair<const char*, nlohmann::json>> bad = {
+      {"min_hits", -3}, {"min_hits", 2.5}, {"min_hits", 2000000}, {"min_hits", "two"},
+      {"min_free_length_m", "far"}, {"min_free_length_m", -0.5}};
+  for (const auto& [key, value] : bad) {
+    CmapFile f = good;
+    for (CmapBlock& b : f.blocks) {
+      if (b.tag != "META") continue;
+      nlohmann::json j = nlohmann::json::parse(b.data.begin(), b.data.end());
+      j["criterion"][key] = value;
+      const std::string text = j.dump();
+      b.data.assign(text.begin(), text.end());
+    }
+    writeFileAtomic(tmp / "bad.cmap", encodeCmap(f.header, f.blocks));
+    try {
+      readTemporalMap(tmp / "bad.cmap");
+      ADD_FAILURE() << key << " = " << value.dump() << " was read";
+    } catch (const FormatError& e) {
+      EXPECT_NE(std::string(e.what()).find("bad.cmap"), std::string::npos) << e.what();
+    }
+  }
 }
 
 TEST(TemporalFile, EmptyMapRoundTrips) {
