@@ -32,6 +32,8 @@
 //                  of drift correction (RegisterSettings; defaults as the library's)
 //   --drift-per-frame M, --drift-yaw-per-frame DEG  the drift fit's smoothness prior: the random
 //                  walk's step per frame (RegisterSettings::drift_per_frame_m, _yaw_per_frame_deg)
+//   --keep-mean    take the motion all sessions' corrections share out after every round
+//                  (RegisterSettings::keep_mean, as `build --register-keep-mean`)
 //   --not-planar   also fit a vertical offset (without RegisterSettings::planar, which the
 //                  default registration, as --register-planar, uses)
 //   --drift-voxels  the drift fit on voxel centres (without RegisterSettings::drift_points, which
@@ -625,6 +627,8 @@ int main(int argc, char** argv) {
       g_min_shift = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--dark-share") && i + 1 < argc) {
       g_dark_share = std::atof(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--keep-mean")) {
+      reg.keep_mean = true;
     } else if (!std::strcmp(argv[i], "--not-planar")) {
       reg.planar = false;
     } else if (!std::strcmp(argv[i], "--drift-voxels")) {

@@ -173,6 +173,8 @@ struct BuildCmdOptions {
   double register_radius = RegisterSettings{}.radius_voxels;
   bool register_planar = false;
   bool register_points = false;
+  bool register_keep_mean = false;
+  double register_drift_yaw = RegisterSettings{}.drift_yaw_per_frame_deg;
   std::optional<double> register_cache_gib;
   bool tiles = false;
   std::optional<double> tile_size_m;
@@ -190,6 +192,13 @@ std::optional<RegistrationSettings> registrationSettings(const BuildCmdOptions& 
   }
   if (o.register_drift > 0 && !o.register_sessions) throw UsageError("--register-drift needs --register");
   s.align.drift_knot_frames = o.register_drift;
+  if (!(o.register_drift_yaw > 0.0 && o.register_drift_yaw <= 10.0)) {
+    throw UsageError("--register-drift-yaw must lie in (0, 10] degrees per frame");
+  }
+  if (o.register_drift_yaw != RegisterSettings{}.drift_yaw_per_frame_deg && o.register_drift <= 0) {
+    throw UsageError("--register-drift-yaw needs --register-drift");
+  }
+  s.align.drift_yaw_per_frame_deg = o.register_drift_yaw;
   if (!(o.register_radius >= 1.0 && o.register_radius <= 8.0)) {
     throw UsageError("--register-radius must lie in [1, 8] voxels");
   }
@@ -201,6 +210,8 @@ std::optional<RegistrationSettings> registrationSettings(const BuildCmdOptions& 
   if (o.register_points && o.register_drift <= 0) throw UsageError("--register-points needs --register-drift");
   s.align.planar = o.register_planar;
   s.align.drift_points = o.register_points;
+  if (o.register_keep_mean && !o.register_sessions) throw UsageError("--register-keep-mean needs --register");
+  s.align.keep_mean = o.register_keep_mean;
   if (o.register_cache_gib) {
     if (!o.register_sessions) throw UsageError("--register-cache needs --register");
     s.depth_cache_bytes = gibToBytes(*o.register_cache_gib);
@@ -396,6 +407,47 @@ Command addAdd(CLI::App& root) {
   return {app, [o] { return runAdd(*o); }};
 }
 
+/// build's --register flags.
+void addRegisterFlags(CLI::App* app, BuildCmdOptions& o) {
+  app->add_flag("--register", o.register_sessions,
+                "register each session to the consensus of all given and integrate it again with the "
+                "correction (removes the part of the localisation error that is one offset per session; "
+                "docs/realign.md)");
+  app->add_option("--register-model", o.register_model,
+                  "what a correction is: world (one rigid motion of the session's map frame) or per-pose (the same "
+                  "position and heading offset of every pose, turned about each pose; docs/realign.md compares them)")
+      ->capture_default_str();
+  app->add_option("--register-drift", o.register_drift,
+                  "after the rigid rounds, also correct each session's drift: every frame gets its own position and "
+                  "heading correction, linear between knots this many frames apart (0: none; docs/realign.md)")
+      ->capture_default_str();
+  app->add_option("--register-drift-yaw", o.register_drift_yaw,
+                  "the drift fit's smoothness: how far (degrees) the heading error may wander from one frame to the "
+                  "next; larger follows an odometry's heading drift more closely (docs/changes.md has the figures)")
+      ->capture_default_str();
+  app->add_option("--register-rounds", o.register_rounds,
+                  "registration rounds, each against the consensus the previous one left")
+      ->capture_default_str();
+  app->add_option("--register-radius", o.register_radius,
+                  "how far (voxels) each surface voxel looks for the consensus' surfaces; smaller resolves finer "
+                  "offsets once sessions lie close (docs/changes.md has the office figures)")
+      ->capture_default_str();
+  app->add_flag("--register-planar", o.register_planar,
+                "correct x, y and heading only, never the height: the error of a robot's 2D localisation "
+                "(docs/realign.md)");
+  app->add_flag("--register-points", o.register_points,
+                "fit the drift against the sessions' points rather than voxel centres, which resolves offsets "
+                "below a voxel (docs/realign.md has the office figures)");
+  app->add_flag("--register-keep-mean", o.register_keep_mean,
+                "after every round, take out the motion all sessions' corrections share, so that registration moves "
+                "the sessions against each other and the map stays where their mean put it (docs/realign.md)");
+  app->add_option("--register-cache", o.register_cache_gib,
+                  "GiB of decoded depth images kept between registration's passes over the frames (default 3, or "
+                  "a quarter of the machine's memory if less; 0: none; about 154 KB a frame at 320 x 240); the "
+                  "corrections do not depend on it")
+      ->check(numberIn(0, 1e6));
+}
+
 Command addBuild(CLI::App& root) {
   auto o = std::make_shared<BuildCmdOptions>();
   CLI::App* app = root.add_subcommand(
@@ -412,36 +464,7 @@ Command addBuild(CLI::App& root) {
   app->add_flag("--replace", o->replace, "replace sessions stored at the same times");
   addCriterionFlags(app, o->criterion);
   addIntegrateFlags(app, o->integrate);
-  app->add_flag("--register", o->register_sessions,
-                "register each session to the consensus of all given and integrate it again with the "
-                "correction (removes the part of the localisation error that is one offset per session; "
-                "docs/realign.md)");
-  app->add_option("--register-model", o->register_model,
-                  "what a correction is: world (one rigid motion of the session's map frame) or per-pose (the same "
-                  "position and heading offset of every pose, turned about each pose; docs/realign.md compares them)")
-      ->capture_default_str();
-  app->add_option("--register-drift", o->register_drift,
-                  "after the rigid rounds, also correct each session's drift: every frame gets its own position and "
-                  "heading correction, linear between knots this many frames apart (0: none; docs/realign.md)")
-      ->capture_default_str();
-  app->add_option("--register-rounds", o->register_rounds,
-                  "registration rounds, each against the consensus the previous one left")
-      ->capture_default_str();
-  app->add_option("--register-radius", o->register_radius,
-                  "how far (voxels) each surface voxel looks for the consensus' surfaces; smaller resolves finer "
-                  "offsets once sessions lie close (docs/changes.md has the office figures)")
-      ->capture_default_str();
-  app->add_flag("--register-planar", o->register_planar,
-                "correct x, y and heading only, never the height: the error of a robot's 2D localisation "
-                "(docs/realign.md)");
-  app->add_flag("--register-points", o->register_points,
-                "fit the drift against the sessions' points rather than voxel centres, which resolves offsets "
-                "below a voxel (docs/realign.md has the office figures)");
-  app->add_option("--register-cache", o->register_cache_gib,
-                  "GiB of decoded depth images kept between registration's passes over the frames (default 3, or "
-                  "a quarter of the machine's memory if less; 0: none; about 154 KB a frame at 320 x 240); the "
-                  "corrections do not depend on it")
-      ->check(numberIn(0, 1e6));
+  addRegisterFlags(app, *o);
   addRealignFlags(app, o->realign);
   app->add_flag("--tiles", o->tiles,
                 "build into a tiled map folder (created when missing), tile by tile: memory holds one session, "

@@ -86,6 +86,83 @@ Eigen::Matrix3d rotationOf(const Eigen::Vector3d& omega) {
   return Eigen::AngleAxisd(omega.norm(), omega.normalized()).toRotationMatrix();
 }
 
+/// A small rigid motion of the whole map, linearised: p moves by w x p + v (w a rotation vector
+/// about the world's origin), summed over the corrections it is the mean of.
+struct CommonMotion {
+  Eigen::Vector3d w = Eigen::Vector3d::Zero(), v = Eigen::Vector3d::Zero();
+  double count = 0.0;
+
+  static Eigen::Vector3d rotationVector(const Eigen::Matrix3d& r) {
+    const Eigen::AngleAxisd a(r);
+    return a.angle() * a.axis();
+  }
+  /// The motion of the whole map that moves the pose at `sensor` as `c` does (a turn about the
+  /// sensor, then a translation): the same turn, and w x sensor + v = c's translation.
+  void addPerPose(const Eigen::Isometry3d& c, const Eigen::Vector3d& sensor) {
+    const Eigen::Vector3d wc = rotationVector(c.linear());
+    w += wc;
+    v += c.translation() - wc.cross(sensor);
+    count += 1.0;
+  }
+  Eigen::Isometry3d mean() const {
+    Eigen::Isometry3d g = Eigen::Isometry3d::Identity();
+    if (count == 0.0) return g;
+    g.linear() = rotationOf(w / count);
+    g.translation() = v / count;
+    return g;
+  }
+};
+
+/// Takes the motion the sessions' rigid corrections `steps` share out of each (keep_mean): their
+/// mean rotation vector and translation, as a motion of the map frame (World) or of every pose
+/// (PerPose).
+void removeCommonMotion(std::vector<Eigen::Isometry3d>& steps, CorrectionModel model) {
+  if (steps.size() < 2) return;
+  Eigen::Vector3d w = Eigen::Vector3d::Zero(), v = Eigen::Vector3d::Zero();
+  for (const Eigen::Isometry3d& t : steps) {
+    w += CommonMotion::rotationVector(t.linear());
+    v += t.translation();
+  }
+  const double n = static_cast<double>(steps.size());
+  Eigen::Isometry3d g = Eigen::Isometry3d::Identity();
+  g.linear() = rotationOf(w / n);
+  g.translation() = v / n;
+  for (Eigen::Isometry3d& t : steps) {
+    if (model == CorrectionModel::World) {
+      t = g.inverse() * t;
+    } else {
+      Eigen::Isometry3d inverse_turn = Eigen::Isometry3d::Identity();
+      inverse_turn.linear() = g.linear().transpose();
+      inverse_turn.translation() = -g.translation();
+      t = PoseCorrection::perPose(inverse_turn, t);
+    }
+  }
+}
+
+/// The same for the drift rounds' per-frame steps `per_frame[k][i]` (a turn about the sensor at
+/// `sensors[k][i]`, then a translation): the rigid motion of the whole map that best matches
+/// every frame's step is taken out of each, exactly (G^-1 applied after the step).
+void removeCommonDrift(std::vector<std::vector<Eigen::Isometry3d>>& per_frame,
+                       const std::vector<std::vector<Eigen::Vector3d>>& sensors) {
+  size_t with_frames = 0;
+  CommonMotion common;
+  for (size_t k = 0; k < per_frame.size(); ++k) {
+    with_frames += per_frame[k].empty() ? 0 : 1;
+    for (size_t i = 0; i < per_frame[k].size(); ++i) common.addPerPose(per_frame[k][i], sensors[k][i]);
+  }
+  if (with_frames < 2) return;
+  const Eigen::Isometry3d g = common.mean();
+  const Eigen::Matrix3d back = g.linear().transpose();
+  for (size_t k = 0; k < per_frame.size(); ++k) {
+    for (size_t i = 0; i < per_frame[k].size(); ++i) {
+      Eigen::Isometry3d& c = per_frame[k][i];
+      const Eigen::Vector3d& s = sensors[k][i];
+      c.linear() = back * c.linear();
+      c.translation() = back * (s + c.translation() - g.translation()) - s;
+    }
+  }
+}
+
 /// For each point, the mean of the sensor positions within `range` of it, or the nearest one.
 std::vector<Eigen::Vector3d> observersOf(const std::vector<Eigen::Vector3d>& points,
                                          std::span<const Eigen::Vector3d> sensors, double range) {
@@ -783,6 +860,23 @@ std::vector<SessionDriftInput> pointsAndSamples(const std::vector<SessionMap>& s
   return inputs;
 }
 
+/// Every frame's sensor position with `corrections` applied (for the frames `steps` has).
+std::vector<std::vector<Eigen::Vector3d>> sensorPositions(const SessionFrames& frames,
+                                                          const std::vector<PoseCorrection>& corrections,
+                                                          const std::vector<std::vector<Eigen::Isometry3d>>& steps) {
+  std::vector<std::vector<Eigen::Vector3d>> out(steps.size());
+  for (size_t k = 0; k < steps.size(); ++k) {
+    if (steps[k].empty()) continue;
+    const std::unique_ptr<FrameSource> source = frames(k);
+    if (!source) throw UsageError("registration with drift: no frames for session " + std::to_string(k));
+    out[k].reserve(steps[k].size());
+    for (size_t i = 0; i < steps[k].size(); ++i) {
+      out[k].push_back(corrections[k].apply(source->poseOf(i), i).translation());
+    }
+  }
+  return out;
+}
+
 }  // namespace
 
 std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, const Reintegrate& reintegrate,
@@ -806,6 +900,7 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
   for (int round = 0; round < rounds; ++round) {
     const RegistrationTarget target(consensus(std::span<const SessionMap>(sessions)));
     std::vector<RegisterReport> found(sessions.size());
+    std::vector<Eigen::Isometry3d> steps(sessions.size(), Eigen::Isometry3d::Identity());
     // Each session against the same target: independent, so in parallel (each writes its own slot).
     parallelFor(sessions.size(), 0, [&](size_t k) {
       std::vector<Eigen::Vector3d> positions;
@@ -814,9 +909,12 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
         positions = sensor_positions[k];
         for (Eigen::Vector3d& c : positions) c += corrections[k].motion.translation();
       }
-      const Eigen::Isometry3d t = registerToConsensus(sessions[k], target, settings, &found[k], positions);
-      corrections[k] = corrections[k].then(PoseCorrection{t, settings.model, {}});
+      steps[k] = registerToConsensus(sessions[k], target, settings, &found[k], positions);
     });
+    if (settings.keep_mean) removeCommonMotion(steps, settings.model);
+    for (size_t k = 0; k < sessions.size(); ++k) {
+      corrections[k] = corrections[k].then(PoseCorrection{steps[k], settings.model, {}});
+    }
     if (reports) {
       for (size_t k = 0; k < sessions.size(); ++k) {
         const RegisterReport& r = found[k];
@@ -838,8 +936,9 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
       if (settings.drift_points) inputs = pointsAndSamples(sessions, frames, corrections, target, settings);
       // The samples were taken for the points' surface; without points they are the voxels'.
       const bool prepared = !inputs.empty() && !target.points().empty();
+      std::vector<std::vector<Eigen::Isometry3d>> steps(sessions.size());
       parallelFor(sessions.size(), 0, [&](size_t k) {
-        std::vector<Eigen::Isometry3d> per_frame;
+        std::vector<Eigen::Isometry3d>& per_frame = steps[k];
         if (prepared) {
           per_frame = inputs[k].sensors.empty() ? std::vector<Eigen::Isometry3d>{}
                                                 : solveDrift(inputs[k].sensors, inputs[k].samples, true,
@@ -849,9 +948,12 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
           if (!source) throw UsageError("registration with drift: no frames for session " + std::to_string(k));
           per_frame = fitDrift(CorrectedFrames(*source, corrections[k]), sessions[k], target, settings, &found[k]);
         }
-        PoseCorrection drift{Eigen::Isometry3d::Identity(), settings.model, std::move(per_frame)};
-        corrections[k] = corrections[k].then(drift);
       });
+      if (settings.keep_mean) removeCommonDrift(steps, sensorPositions(frames, corrections, steps));
+      for (size_t k = 0; k < sessions.size(); ++k) {
+        PoseCorrection drift{Eigen::Isometry3d::Identity(), settings.model, std::move(steps[k])};
+        corrections[k] = corrections[k].then(drift);
+      }
       if (reports) {
         for (size_t k = 0; k < sessions.size(); ++k) {
           (*reports)[k].iterations += found[k].iterations;

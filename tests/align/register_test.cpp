@@ -95,11 +95,20 @@ TEST(RegisterToConsensus, RejectsBadSettings) {
   EXPECT_THROW(registerToConsensus(SessionMap(0.05), SessionMap(0.1)), UsageError);
 }
 
-TEST(RegisterSessions, BringsTheOddSessionToTheOthersAndReintegratesIt) {
+namespace {
+
+// Four sessions' poses: three agree, the fourth lies 5 cm off in x.
+std::vector<Eigen::Isometry3d> threeAndAnOddOne() {
   Eigen::Isometry3d shift = Eigen::Isometry3d::Identity();
   shift.translation() = Eigen::Vector3d(0.05, 0.0, 0.0);
-  const std::vector<Eigen::Isometry3d> poses = {Eigen::Isometry3d::Identity(), Eigen::Isometry3d::Identity(),
-                                                Eigen::Isometry3d::Identity(), shift};
+  return {Eigen::Isometry3d::Identity(), Eigen::Isometry3d::Identity(), Eigen::Isometry3d::Identity(), shift};
+}
+
+}  // namespace
+
+TEST(RegisterSessions, BringsTheOddSessionToTheOthersAndReintegratesIt) {
+  const std::vector<Eigen::Isometry3d> poses = threeAndAnOddOne();
+  const Eigen::Isometry3d& shift = poses[3];
   std::vector<SessionMap> sessions;
   for (const auto& p : poses) sessions.push_back(room(p));
   std::atomic<size_t> calls = 0, last_calls = 0;  // sessions are integrated again in parallel
@@ -427,22 +436,29 @@ TEST(RegisterSessions, CorrectsDriftFromTheFramesAndReintegrates) {
   EXPECT_THROW(registerSessions(sessions, reintegrate, 1, settings), UsageError);
 }
 
+namespace {
+
+// Every sixth point of the hall's frames (enough for the fit, in a fraction of the time), the
+// poses moved by `dx` metres in x.
+FrameVector thinned(const FrameVector& frames, double dx = 0.0) {
+  std::vector<Frame> out = frames.frames();
+  for (Frame& f : out) {
+    std::vector<Eigen::Vector3f> kept;
+    for (size_t j = 0; j < f.cloud.points.size(); j += 6) kept.push_back(f.cloud.points[j]);
+    f.cloud.points = std::move(kept);
+    f.cloud.width = static_cast<uint32_t>(f.cloud.points.size());
+    f.T_world_sensor.translation().x() += dx;
+  }
+  return FrameVector(std::move(out));
+}
+
+}  // namespace
+
 TEST(RegisterSessions, OnePassForPointsAndSamplesGivesTheCorrectionsOfSeparatePasses) {
   // registerSessions reads every frame once per drift round for both the target's point sums and
   // the drift samples, in parallel batches; the reference reads them twice, serially
   // (RegistrationTarget::addPoints session after session, then fitDrift). Bit for bit the same.
   const DriftingHall d;
-  // Every sixth point of the hall's frames: enough for the fit, in a fraction of the time.
-  const auto thinned = [](const FrameVector& frames) {
-    std::vector<Frame> out = frames.frames();
-    for (Frame& f : out) {
-      std::vector<Eigen::Vector3f> kept;
-      for (size_t j = 0; j < f.cloud.points.size(); j += 6) kept.push_back(f.cloud.points[j]);
-      f.cloud.points = std::move(kept);
-      f.cloud.width = static_cast<uint32_t>(f.cloud.points.size());
-    }
-    return FrameVector(std::move(out));
-  };
   const FrameVector truth = thinned(d.true_frames), drifting = thinned(d.frames);
   const std::vector<const FrameVector*> sources = {&truth, &drifting, &drifting};
   std::vector<SessionMap> sessions;
@@ -500,4 +516,78 @@ TEST(RegisterSessions, OnePassForPointsAndSamplesGivesTheCorrectionsOfSeparatePa
   EXPECT_LT(d.meanError(found[2]), 0.8 * d.meanError({}));
   // More frames than one batch of the pass.
   EXPECT_GT(sources.size() * d.frames.size(), 16u);
+}
+
+TEST(RegisterSessions, KeepMeanMovesTheSessionsAgainstEachOtherNotTheMap) {
+  // Three sessions agree and one lies 5 cm off in x. Registration alone brings the odd one to the
+  // three (RegisterSessions.BringsTheOddSessionToTheOthersAndReintegratesIt); with keep_mean the
+  // four meet where their mean lay: the corrections add up to nothing and still bring the odd
+  // session into the others' voxels.
+  const std::vector<Eigen::Isometry3d> poses = threeAndAnOddOne();
+  std::vector<SessionMap> sessions;
+  for (const auto& p : poses) sessions.push_back(room(p));
+  RegisterSettings settings;
+  settings.keep_mean = true;
+  const auto corrections = registerSessions(
+      sessions, [&](size_t k, const PoseCorrection& c, bool) { return room(c.motion * poses[k]); }, 3, settings);
+  ASSERT_EQ(corrections.size(), poses.size());
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  double turn = 0.0;
+  for (const PoseCorrection& c : corrections) {
+    sum += c.motion.translation();
+    turn += Eigen::AngleAxisd(c.motion.linear()).angle();
+  }
+  EXPECT_LT(sum.norm(), 1e-4) << sum.transpose();
+  EXPECT_LT(turn, 1e-3);
+  // The three moved by a quarter of the offset, the odd one by three quarters.
+  for (size_t k = 0; k < 3; ++k) EXPECT_GT(corrections[k].motion.translation().x(), 0.005);
+  const double apart = corrections[3].motion.translation().x() - corrections[0].motion.translation().x();
+  EXPECT_GT(apart, -0.0626);
+  EXPECT_LT(apart, -0.0126);
+  EXPECT_EQ(sessions[3], sessions[0]);
+}
+
+TEST(RegisterSessions, KeepMeanTakesTheSharedMotionOutOfTheDriftRounds) {
+  // Two sessions with the true poses and a drifting one that also lies 2 cm off in x: without
+  // keep_mean the two pull the third to them and the map as a whole moves by its mean correction
+  // (about 2/3 cm); with it, every frame's correction, rigid and drift parts together, leaves
+  // the mean motion of the map (one rigid motion fitted to all frames) at nothing.
+  const DriftingHall d;
+  const FrameVector truth = thinned(d.true_frames, 0.0), drifting = thinned(d.frames, 0.02);
+  const std::vector<const FrameVector*> sources = {&truth, &truth, &drifting};
+  const auto meanMotion = [&](bool keep_mean) {
+    std::vector<SessionMap> sessions;
+    for (const FrameSource* s : sources) sessions.push_back(DriftingHall::seen(*s));
+    RegisterSettings settings;
+    settings.max_points = 2000;
+    settings.drift_knot_frames = 4;
+    settings.drift_rounds = 1;
+    settings.planar = true;
+    settings.keep_mean = keep_mean;
+    const auto corrections = registerSessions(
+        sessions, [&](size_t k, const PoseCorrection& c, bool) { return DriftingHall::seen(*sources[k], c); }, 1,
+        settings, nullptr, {},
+        [&](size_t k) -> std::unique_ptr<FrameSource> { return std::make_unique<FrameVector>(sources[k]->frames()); });
+    // The rigid motion of the whole map that best matches every frame's correction: its turn
+    // (rotation vectors' mean) and its translation (what is left of each frame's move).
+    Eigen::Vector3d w = Eigen::Vector3d::Zero(), v = Eigen::Vector3d::Zero();
+    double n = 0.0;
+    for (size_t k = 0; k < sources.size(); ++k) {
+      EXPECT_EQ(corrections[k].per_frame.size(), sources[k]->size());
+      for (size_t i = 0; i < sources[k]->size(); ++i) {
+        const Eigen::Isometry3d before = sources[k]->poseOf(i), after = corrections[k].apply(before, i);
+        const Eigen::AngleAxisd turn(after.linear() * before.linear().transpose());
+        const Eigen::Vector3d wi = turn.angle() * turn.axis();
+        w += wi;
+        v += after.translation() - before.translation() - wi.cross(before.translation());
+        n += 1.0;
+      }
+    }
+    return std::make_pair((w / n).norm(), (v / n).norm());
+  };
+  const auto [free_turn, free_move] = meanMotion(false);
+  EXPECT_GT(free_move, 0.004);  // the map followed the two
+  const auto [kept_turn, kept_move] = meanMotion(true);
+  EXPECT_LT(kept_move, 0.0005) << "without keep_mean " << free_move;
+  EXPECT_LT(kept_turn, 1e-4) << "without keep_mean " << free_turn;
 }

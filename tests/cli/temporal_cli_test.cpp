@@ -708,13 +708,34 @@ TEST(SimulatorCli, SimulateAndBuildWithRegistration) {
     ASSERT_TRUE(a.contains("drift_correction_max_m"));
     EXPECT_LT(a["drift_correction_max_m"].get<double>(), 0.2);
   }
+  // Keep the mean: the two sessions' rigid corrections are opposite, the map stays between them.
+  r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "k.cmap").string() + " " +
+                       (tmp / "sim" / "session_00").string() + " " + (tmp / "sim" / "session_01").string() +
+                       " --fast --json --register --register-rounds 1 --register-planar --register-keep-mean"
+                       " --register-drift 5 --register-drift-yaw 0.05");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto kept = nlohmann::json::parse(r.out);
+  ASSERT_EQ(kept["added"].size(), 2u);
+  for (int c = 0; c < 2; ++c) {
+    const double a = kept["added"][0]["registration_m"][c].get<double>(),
+                 b = kept["added"][1]["registration_m"][c].get<double>();
+    EXPECT_NEAR(a + b, 0.0, 1e-6) << c;
+  }
   for (const auto& [bad, flag] : std::vector<std::pair<const char*, const char*>>{
            {" --register-planar", "--register-planar"}, {" --register --register-points", "--register-points"},
-           {" --register-cache 1", "--register-cache"}}) {
+           {" --register-cache 1", "--register-cache"}, {" --register-keep-mean", "--register-keep-mean"}}) {
     r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "n.cmap").string() + " " +
                          (tmp / "sim" / "session_00").string() + bad);
     EXPECT_EQ(r.exit_code, 2) << bad;
     EXPECT_NE(r.err.find(std::string(flag) + " needs"), std::string::npos) << bad << ": " << r.err;
+    EXPECT_FALSE(fs::exists(tmp / "n.cmap"));
+  }
+  for (const char* bad : {" --register --register-drift-yaw 0.05", " --register --register-drift 5 --register-drift-yaw 0",
+                          " --register --register-drift 5 --register-drift-yaw nan"}) {
+    r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "n.cmap").string() + " " +
+                         (tmp / "sim" / "session_00").string() + bad);
+    EXPECT_EQ(r.exit_code, 2) << bad;
+    EXPECT_NE(r.err.find("--register-drift-yaw"), std::string::npos) << bad << ": " << r.err;
     EXPECT_FALSE(fs::exists(tmp / "n.cmap"));
   }
   for (const char* bad : {" --register-drift 5", " --register --register-drift -1"}) {

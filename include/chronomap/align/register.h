@@ -63,6 +63,14 @@ struct RegisterSettings {
   /// points all sessions put in the target's voxels around it (RegistrationTarget::addPoints),
   /// so offsets below a voxel are seen. Samples where the surface is no plane are left out.
   bool drift_points = false;
+  /// registerSessions(): after every round, the part of the corrections that all sessions share
+  /// is taken out (one small rigid motion of the whole map, the mean of the sessions' rigid
+  /// corrections, and in the drift rounds the one fitted to every frame's correction), so that
+  /// registration moves the sessions against each other and the map as a whole stays where the
+  /// sessions' mean put it. Registering sessions to each other cannot observe where the whole
+  /// map lies: without this the sessions follow the drift most of them share, as they move
+  /// together towards the consensus round after round.
+  bool keep_mean = false;
 
   /// @throw UsageError for values out of range.
   void validate() const;
