@@ -270,9 +270,50 @@ inline WeeksSim readWeeks(const std::filesystem::path& dir, int learn_days) {
   return w;
 }
 
+// The registration of `chronomap build --register` (RegistrationSettings{}), or the one
+// CHRONOMAP_BENCH_REGISTER names: comma-separated words, "recommended" (the README's pipeline,
+// recommendedRegistration()), "radius=V", "knots=F", "yaw=DEG", "rounds=N", "planar", "points",
+// "keep-mean" (as build's --register-radius, --register-drift, --register-drift-yaw,
+// --register-rounds, --register-planar, --register-points, --register-keep-mean).
+inline RegistrationSettings benchRegistration() {
+  RegistrationSettings r;
+  const char* env = std::getenv("CHRONOMAP_BENCH_REGISTER");
+  if (!env || !*env) return r;
+  std::string words = env;
+  for (size_t start = 0; start <= words.size();) {
+    const size_t comma = std::min(words.find(',', start), words.size());
+    const std::string w = words.substr(start, comma - start);
+    const size_t eq = w.find('=');
+    const std::string key = w.substr(0, eq);
+    const double value = eq == std::string::npos ? 0.0 : std::atof(w.c_str() + eq + 1);
+    if (w == "recommended") {
+      r = recommendedRegistration();
+    } else if (key == "radius") {
+      r.align.radius_voxels = value;
+    } else if (key == "knots") {
+      r.align.drift_knot_frames = static_cast<int>(value);
+    } else if (key == "yaw") {
+      r.align.drift_yaw_per_frame_deg = value;
+    } else if (key == "rounds") {
+      r.rounds = static_cast<int>(value);
+    } else if (w == "planar") {
+      r.align.planar = true;
+    } else if (w == "points") {
+      r.align.drift_points = true;
+    } else if (w == "keep-mean") {
+      r.align.keep_mean = true;
+    } else if (!w.empty()) {
+      throw UsageError("CHRONOMAP_BENCH_REGISTER: unknown word '" + w + "'");
+    }
+    start = comma + 1;
+  }
+  r.align.validate();
+  return r;
+}
+
 // The 4D map of the sessions `which` of `w`, fast mode at 0.05 m with `max_range_m`: with true
 // poses each session integrated with its groundtruth.txt and added in memory; else as
-// `chronomap build --register` does it, written to `scratch` (a .cmap path) and read back.
+// `chronomap build --register` does it (or with CHRONOMAP_BENCH_REGISTER's registration), written to `scratch` (a .cmap path) and read back.
 inline TemporalMap buildWeeksMap(const WeeksSim& w, const std::vector<size_t>& which, bool true_poses,
                                  double max_range_m, const std::filesystem::path& scratch,
                                  bool carve_beyond_range = false) {
@@ -285,7 +326,7 @@ inline TemporalMap buildWeeksMap(const WeeksSim& w, const std::vector<size_t>& w
   build.session = simSessionSettings();  // fast mode (and CHRONOMAP_BENCH_DEPTH_EDGES)
   build.session.integrator.max_range_m = max_range_m;
   build.session.integrator.carve_beyond_range = carve_beyond_range;
-  build.registration = RegistrationSettings{};
+  build.registration = benchRegistration();
   build.criterion = benchCriterion();
   if (true_poses) {
     TemporalMap m(0.05, build.criterion);
