@@ -271,10 +271,11 @@ inline WeeksSim readWeeks(const std::filesystem::path& dir, int learn_days) {
 }
 
 // The registration of `chronomap build --register` (RegistrationSettings{}), or the one
-// CHRONOMAP_BENCH_REGISTER names: comma-separated words, "recommended" (the README's pipeline,
-// recommendedRegistration()), "radius=V", "knots=F", "yaw=DEG", "rounds=N", "planar", "points",
-// "keep-mean" (as build's --register-radius, --register-drift, --register-drift-yaw,
-// --register-rounds, --register-planar, --register-points, --register-keep-mean).
+// CHRONOMAP_BENCH_REGISTER names: comma-separated words, "recommended" first if at all (the
+// README's pipeline, recommendedRegistration()), then changes to it: "radius=V", "knots=F",
+// "yaw=DEG", "rounds=N", "planar", "points", "keep-mean" (as build's --register-radius,
+// --register-drift, --register-drift-yaw, --register-rounds, --register-planar,
+// --register-points, --register-keep-mean).
 inline RegistrationSettings benchRegistration() {
   RegistrationSettings r;
   const char* env = std::getenv("CHRONOMAP_BENCH_REGISTER");
@@ -285,8 +286,16 @@ inline RegistrationSettings benchRegistration() {
     const std::string w = words.substr(start, comma - start);
     const size_t eq = w.find('=');
     const std::string key = w.substr(0, eq);
-    const double value = eq == std::string::npos ? 0.0 : std::atof(w.c_str() + eq + 1);
+    double value = 0.0;
+    if (eq != std::string::npos) {
+      char* end = nullptr;
+      value = std::strtod(w.c_str() + eq + 1, &end);
+      if (end == w.c_str() + eq + 1 || *end != '\0' || !std::isfinite(value)) {
+        throw UsageError("CHRONOMAP_BENCH_REGISTER: '" + w + "' needs a number after '='");
+      }
+    }
     if (w == "recommended") {
+      if (start != 0) throw UsageError("CHRONOMAP_BENCH_REGISTER: 'recommended' must come first");
       r = recommendedRegistration();
     } else if (key == "radius") {
       r.align.radius_voxels = value;

@@ -11,6 +11,7 @@
 //    PCL grabber sequence of a static scene (the false change rate).
 //
 // Usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] [--register-model M] [--drift-knots N]
+//                    [--keep-mean]
 //   --seeds A-B    simulate seeds A to B (with --sensor NAME, through that sensor) and run once on each;
 //                  prints every figure's mean, min and max (seeds.h). Train on 1-5, report 6-15.
 //                    [--register-rounds N] [--register-radius R] [--drift-rounds N] [--not-planar]

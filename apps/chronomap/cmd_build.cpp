@@ -423,7 +423,8 @@ void addRegisterFlags(CLI::App* app, BuildCmdOptions& o) {
       ->capture_default_str();
   app->add_option("--register-drift-yaw", o.register_drift_yaw,
                   "the drift fit's smoothness: how far (degrees) the heading error may wander from one frame to the "
-                  "next; larger follows an odometry's heading drift more closely (docs/changes.md has the figures)")
+                  "next, in (0, 10], needs --register-drift; larger follows an odometry's heading drift more closely "
+                  "(docs/changes.md has the figures)")
       ->capture_default_str();
   app->add_option("--register-rounds", o.register_rounds,
                   "registration rounds, each against the consensus the previous one left")

@@ -721,6 +721,10 @@ TEST(SimulatorCli, SimulateAndBuildWithRegistration) {
                  b = kept["added"][1]["registration_m"][c].get<double>();
     EXPECT_NEAR(a + b, 0.0, 1e-6) << c;
   }
+  EXPECT_GT(std::abs(kept["added"][0]["registration_m"][0].get<double>()) +
+                std::abs(kept["added"][0]["registration_m"][1].get<double>()),
+            1e-4);  // the sessions did move against each other
+  for (const auto& a : kept["added"]) EXPECT_TRUE(a.contains("drift_correction_max_m"));
   for (const auto& [bad, flag] : std::vector<std::pair<const char*, const char*>>{
            {" --register-planar", "--register-planar"}, {" --register --register-points", "--register-points"},
            {" --register-cache 1", "--register-cache"}, {" --register-keep-mean", "--register-keep-mean"}}) {

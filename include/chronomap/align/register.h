@@ -64,8 +64,9 @@ struct RegisterSettings {
   /// so offsets below a voxel are seen. Samples where the surface is no plane are left out.
   bool drift_points = false;
   /// registerSessions(): after every round, the part of the corrections that all sessions share
-  /// is taken out (one small rigid motion of the whole map, the mean of the sessions' rigid
-  /// corrections, and in the drift rounds the one fitted to every frame's correction), so that
+  /// is taken out (the mean of the sessions' rigid corrections: a motion of the whole map with
+  /// CorrectionModel::World, the mean per-pose offset with PerPose; in the drift rounds one rigid
+  /// motion of the whole map fitted to every frame's correction, every frame counting once), so that
   /// registration moves the sessions against each other and the map as a whole stays where the
   /// sessions' mean put it. Registering sessions to each other cannot observe where the whole
   /// map lies: without this the sessions follow the drift most of them share, as they move
