@@ -87,28 +87,29 @@ Eigen::Matrix3d rotationOf(const Eigen::Vector3d& omega) {
 }
 
 /// A small rigid motion of the whole map, linearised: p moves by w x p + v (w a rotation vector
-/// about the world's origin), summed over the corrections it is the mean of.
+/// about the world's origin), fitted to many frames' corrections: its turn is their mean turn,
+/// and it moves the mean of their sensor positions as they move it on average.
 struct CommonMotion {
-  Eigen::Vector3d w = Eigen::Vector3d::Zero(), v = Eigen::Vector3d::Zero();
+  Eigen::Vector3d w = Eigen::Vector3d::Zero(), t = Eigen::Vector3d::Zero(), s = Eigen::Vector3d::Zero();
   double count = 0.0;
 
   static Eigen::Vector3d rotationVector(const Eigen::Matrix3d& r) {
     const Eigen::AngleAxisd a(r);
     return a.angle() * a.axis();
   }
-  /// The motion of the whole map that moves the pose at `sensor` as `c` does (a turn about the
-  /// sensor, then a translation): the same turn, and w x sensor + v = c's translation.
+  /// A frame's correction `c` (a turn about the sensor at `sensor`, then a translation).
   void addPerPose(const Eigen::Isometry3d& c, const Eigen::Vector3d& sensor) {
-    const Eigen::Vector3d wc = rotationVector(c.linear());
-    w += wc;
-    v += c.translation() - wc.cross(sensor);
+    w += rotationVector(c.linear());
+    t += c.translation();
+    s += sensor;
     count += 1.0;
   }
   Eigen::Isometry3d mean() const {
     Eigen::Isometry3d g = Eigen::Isometry3d::Identity();
     if (count == 0.0) return g;
-    g.linear() = rotationOf(w / count);
-    g.translation() = v / count;
+    const Eigen::Vector3d turn = w / count;
+    g.linear() = rotationOf(turn);
+    g.translation() = t / count - turn.cross(s / count);
     return g;
   }
 };
