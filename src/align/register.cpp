@@ -119,15 +119,11 @@ struct CommonMotion {
 /// (PerPose).
 void removeCommonMotion(std::vector<Eigen::Isometry3d>& steps, CorrectionModel model) {
   if (steps.size() < 2) return;
-  Eigen::Vector3d w = Eigen::Vector3d::Zero(), v = Eigen::Vector3d::Zero();
-  for (const Eigen::Isometry3d& t : steps) {
-    w += CommonMotion::rotationVector(t.linear());
-    v += t.translation();
-  }
-  const double n = static_cast<double>(steps.size());
-  Eigen::Isometry3d g = Eigen::Isometry3d::Identity();
-  g.linear() = rotationOf(w / n);
-  g.translation() = v / n;
+  // Each step is a turn about the origin, then a translation (World), or the same about each
+  // pose (PerPose): the mean of the turns and translations either way.
+  CommonMotion common;
+  for (const Eigen::Isometry3d& t : steps) common.addPerPose(t, Eigen::Vector3d::Zero());
+  const Eigen::Isometry3d g = common.mean();
   for (Eigen::Isometry3d& t : steps) {
     if (model == CorrectionModel::World) {
       t = g.inverse() * t;
