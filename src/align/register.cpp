@@ -857,23 +857,6 @@ std::vector<SessionDriftInput> pointsAndSamples(const std::vector<SessionMap>& s
   return inputs;
 }
 
-/// Every frame's sensor position with `corrections` applied (for the frames `steps` has).
-std::vector<std::vector<Eigen::Vector3d>> sensorPositions(const SessionFrames& frames,
-                                                          const std::vector<PoseCorrection>& corrections,
-                                                          const std::vector<std::vector<Eigen::Isometry3d>>& steps) {
-  std::vector<std::vector<Eigen::Vector3d>> out(steps.size());
-  for (size_t k = 0; k < steps.size(); ++k) {
-    if (steps[k].empty()) continue;
-    const std::unique_ptr<FrameSource> source = frames(k);
-    if (!source) throw UsageError("registration with drift: no frames for session " + std::to_string(k));
-    out[k].reserve(steps[k].size());
-    for (size_t i = 0; i < steps[k].size(); ++i) {
-      out[k].push_back(corrections[k].apply(source->poseOf(i), i).translation());
-    }
-  }
-  return out;
-}
-
 }  // namespace
 
 std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, const Reintegrate& reintegrate,
@@ -934,19 +917,27 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
       // The samples were taken for the points' surface; without points they are the voxels'.
       const bool prepared = !inputs.empty() && !target.points().empty();
       std::vector<std::vector<Eigen::Isometry3d>> steps(sessions.size());
+      // Each frame's sensor position as corrected so far (for keep_mean), gathered in the same pass.
+      std::vector<std::vector<Eigen::Vector3d>> sensors(sessions.size());
       parallelFor(sessions.size(), 0, [&](size_t k) {
         std::vector<Eigen::Isometry3d>& per_frame = steps[k];
         if (prepared) {
           per_frame = inputs[k].sensors.empty() ? std::vector<Eigen::Isometry3d>{}
                                                 : solveDrift(inputs[k].sensors, inputs[k].samples, true,
                                                              sessions[k].grid(), target, settings, &found[k]);
+          if (settings.keep_mean) sensors[k] = std::move(inputs[k].sensors);
         } else {
           const std::unique_ptr<FrameSource> source = frames(k);
           if (!source) throw UsageError("registration with drift: no frames for session " + std::to_string(k));
-          per_frame = fitDrift(CorrectedFrames(*source, corrections[k]), sessions[k], target, settings, &found[k]);
+          const CorrectedFrames corrected(*source, corrections[k]);
+          per_frame = fitDrift(corrected, sessions[k], target, settings, &found[k]);
+          if (settings.keep_mean) {
+            sensors[k].reserve(per_frame.size());
+            for (size_t i = 0; i < per_frame.size(); ++i) sensors[k].push_back(corrected.poseOf(i).translation());
+          }
         }
       });
-      if (settings.keep_mean) removeCommonDrift(steps, sensorPositions(frames, corrections, steps));
+      if (settings.keep_mean) removeCommonDrift(steps, sensors);
       for (size_t k = 0; k < sessions.size(); ++k) {
         PoseCorrection drift{Eigen::Isometry3d::Identity(), settings.model, std::move(steps[k])};
         corrections[k] = corrections[k].then(drift);
