@@ -55,7 +55,10 @@ BoxMetres parseBox(const std::string& text) {
 
 nlohmann::json tileStatsJson(const std::optional<TileCacheStats>& s) {
   if (!s) return nullptr;
-  return {{"tiles_loaded", s->loads}, {"tiles_evicted", s->evictions}, {"peak_tile_bytes", s->peak_resident_bytes}};
+  // Tiles read from disk whole or at one time (readTileSnapshot); latest states not counted.
+  return {{"tiles_loaded", s->loads + s->time_reads},
+          {"tiles_evicted", s->evictions},
+          {"peak_tile_bytes", s->peak_resident_bytes}};
 }
 
 int runSnapshot(const SnapshotCmdOptions& o) {

@@ -120,7 +120,20 @@ std::vector<uint8_t> readFileBytes(const fs::path& path) {
   return readNamingMemory(path, [&] {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw IoError(path.string() + ": cannot open (" + std::strerror(errno) + ")");
-    std::vector<uint8_t> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    // In large reads (the size it has now, then whatever it grew by), not a byte at a time.
+    std::error_code ec;
+    const uintmax_t size = fs::file_size(path, ec);
+    std::vector<uint8_t> bytes(ec ? 0 : static_cast<size_t>(size));
+    in.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    size_t got = static_cast<size_t>(in.gcount());
+    if (in && in.peek() != std::char_traits<char>::eof()) {
+      while (in) {
+        bytes.resize(std::max<size_t>(2 * bytes.size(), got + (size_t{1} << 16)));
+        in.read(reinterpret_cast<char*>(bytes.data() + got), static_cast<std::streamsize>(bytes.size() - got));
+        got += static_cast<size_t>(in.gcount());
+      }
+    }
+    bytes.resize(got);
     if (in.bad()) throw IoError(path.string() + ": read failed");
     if (path.extension() == ".bz2") return bunzip(bytes, path);
     return bytes;

@@ -1,6 +1,7 @@
 #include "columns.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 
@@ -389,6 +390,70 @@ void decodeCounters(const CmapFile& file, const std::string& source, size_t n,
     }
   }
   residuals.expectEnd();
+}
+
+void decodeCountersOf(const CmapFile& file, const std::string& source, size_t n, const std::vector<size_t>& records,
+                      const std::function<VoxelCounters&(size_t)>& at) {
+  for (size_t k = 0; k < records.size(); ++k) {
+    if (records[k] >= n || (k > 0 && records[k] <= records[k - 1])) {
+      throw UsageError("decodeCountersOf: records must be increasing and below the record count");
+    }
+  }
+  if (file.header.version == 2) {  // varints: every record decoded, the ones asked kept
+    std::vector<VoxelCounters> all(n);
+    decodeCounters(file, source, n, [&](size_t i) -> VoxelCounters& { return all[i]; });
+    for (size_t k = 0; k < records.size(); ++k) at(k) = all[records[k]];
+    return;
+  }
+  // Version 3: fixed-width planes; a record's place among those with hits is a count of flags.
+  const CmapBlock& lengths = file.block(kQuantisedLengths, source);
+  if (lengths.data.size() != 2 * n) {
+    throw FormatError(blockName(source, kQuantisedLengths) + " does not match the tree");
+  }
+  const CmapBlock& hit_block = file.block(kHitPlanes, source);
+  const size_t flag_bytes = (n + 7) / 8;
+  if (hit_block.data.size() < flag_bytes) throw FormatError(blockName(source, kHitPlanes) + " is truncated");
+  const uint8_t* flags = hit_block.data.data();
+  size_t m = 0;
+  for (size_t b = 0; b < flag_bytes; ++b) m += static_cast<size_t>(std::popcount(flags[b]));
+  if (n % 8 != 0 && (flags[n / 8] >> (n % 8)) != 0) {
+    throw FormatError(blockName(source, kHitPlanes) + " flags records that do not exist");
+  }
+  if (hit_block.data.size() != flag_bytes + 4 * m) {
+    throw FormatError(blockName(source, kHitPlanes) + " does not match the tree");
+  }
+  const CmapBlock& means = file.block(kColours, source);
+  const CmapBlock& positions = file.block(kPositions, source);
+  if (means.data.size() != 3 * m) throw FormatError(blockName(source, kColours) + " does not match the hit counts");
+  if (positions.data.size() != 3 * m) {
+    throw FormatError(blockName(source, kPositions) + " does not match the hit counts");
+  }
+  const uint8_t* planes = flags + flag_bytes;
+  size_t byte_at = 0, before = 0;  // `before`: records with hits in the bytes of flags before byte_at
+  for (size_t k = 0; k < records.size(); ++k) {
+    const size_t i = records[k];
+    for (; byte_at < i / 8; ++byte_at) before += static_cast<size_t>(std::popcount(flags[byte_at]));
+    VoxelCounters& c = at(k);
+    c = VoxelCounters{};
+    const uint32_t code = lengths.data[i] | uint32_t{lengths.data[n + i]} << 8;
+    if (code >= kFirstNonFiniteLengthCode) {
+      throw FormatError(blockName(source, kQuantisedLengths) + " holds an impossible length");
+    }
+    c.length_m = dequantiseLength(static_cast<uint16_t>(code));
+    if (!((flags[i / 8] >> (i % 8)) & 1)) continue;
+    const auto lower = static_cast<uint8_t>(flags[i / 8] & ((1u << (i % 8)) - 1));  // flags before i in its byte
+    const size_t h_at = before + static_cast<size_t>(std::popcount(lower));
+    uint32_t h = 0;
+    for (int b = 0; b < 4; ++b) h |= static_cast<uint32_t>(planes[b * m + h_at]) << (8 * b);
+    if (h == 0) throw FormatError(blockName(source, kHitPlanes) + " flags a record without hits");
+    c.hits = h;
+    for (int ch = 0; ch < 3; ++ch) {
+      channel(c, ch) = static_cast<uint32_t>(std::min<int64_t>(int64_t{means.data[ch * m + h_at]} * h, 0xffffffffll));
+      const uint8_t q = positions.data[ch * m + h_at];
+      if (q > 2 * kOffsetLevels) throw FormatError(blockName(source, kPositions) + " holds an impossible position");
+      c.offset[ch] = dequantiseOffset(q, h);
+    }
+  }
 }
 
 }  // namespace chronomap::columns

@@ -108,6 +108,14 @@ void encodeCounters(size_t n, const std::function<const VoxelCounters&(size_t)>&
 void decodeCounters(const CmapFile& file, const std::string& source, size_t n,
                     const std::function<VoxelCounters&(size_t)>& at);
 
+/// decodeCounters for the records `records` alone (increasing indices below `n`): `at(k)` is
+/// given record records[k]'s counters. Version 3 reads only their bytes of the planes (the
+/// sizes of the blocks are checked as decodeCounters checks them, the values of the records
+/// read only); version 2 decodes every record.
+/// @throw FormatError as decodeCounters; UsageError for records out of order or range.
+void decodeCountersOf(const CmapFile& file, const std::string& source, size_t n, const std::vector<size_t>& records,
+                      const std::function<VoxelCounters&(size_t)>& at);
+
 /// Checks that `file` holds exactly the blocks `tags`, each once. Version 2 readers refuse other
 /// blocks (a block the format gains comes with a new version), so that a damaged tag, which no
 /// checksum covers, is an error rather than a block silently missing.

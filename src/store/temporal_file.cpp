@@ -221,14 +221,18 @@ std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::j
   return encodeCmap(header, blocks);
 }
 
-TemporalMap decodeTemporalBlocks(const CmapFile& file, const std::string& source) {
+namespace {
+
+/// The change criterion and the session records (coverages left empty) of a 4D map's META block.
+void describedIn(const CmapFile& file, const std::string& source, ChangeCriterion& criterion,
+                 std::vector<SessionRecord>& sessions) {
   const CmapBlock& meta_block = file.block("META", source);
   const nlohmann::json j = nlohmann::json::parse(meta_block.data.begin(), meta_block.data.end(), nullptr, false);
   if (j.is_discarded() || !j.is_object() || !j.contains("sessions") || !j["sessions"].is_array()) {
     throw FormatError(source + ": 4D map metadata is not a valid JSON description");
   }
-  ChangeCriterion criterion;
-  std::vector<SessionRecord> sessions;
+  criterion = ChangeCriterion{};
+  sessions.clear();
   try {
     if (j.contains("criterion")) {
       criterion.probability_threshold = j["criterion"].value("probability_threshold", 0.0);
@@ -258,6 +262,14 @@ TemporalMap decodeTemporalBlocks(const CmapFile& file, const std::string& source
   } catch (const UsageError& e) {
     throw FormatError(source + ": 4D map metadata is malformed: " + e.what());
   }
+}
+
+}  // namespace
+
+TemporalMap decodeTemporalBlocks(const CmapFile& file, const std::string& source) {
+  ChangeCriterion criterion;
+  std::vector<SessionRecord> sessions;
+  describedIn(file, source, criterion, sessions);
   const CmapBlock& cov = file.block("COVR", source);
   size_t pos = 0;
   for (SessionRecord& s : sessions) {
@@ -284,6 +296,66 @@ TemporalMap decodeTemporalBlocks(const CmapFile& file, const std::string& source
   } catch (const UsageError& e) {
     throw FormatError(source + ": " + e.what());
   }
+}
+
+StoredSnapshot snapshotOfColumns(const CmapFile& file, const std::string& source, uint32_t rank) {
+  if (file.header.kind != MapKind::Temporal) {
+    throw FormatError(source + ": holds a " + std::string(kindName(file.header.kind)) + " map, not a 4D map");
+  }
+  if (file.header.version < 2 || !file.appended.empty()) {
+    throw UsageError(source +
+                     ": only a 4D map of format version 2 or later without appended sessions is read at one time");
+  }
+  columns::requireExactly(file, source,
+                          columns::withCounterTags(file.header.version,
+                                                   {"META", columns::kTreeMasks, columns::kTreeRefs, kListSizes,
+                                                    kEntrySessions},
+                                                   {"COVR"}));
+  StoredSnapshot out{SessionMap(file.header.resolution_m), {}, {}};
+  describedIn(file, source, out.criterion, out.sessions);  // (coverage: not read)
+  size_t lists = 0;
+  const std::vector<TemporalMap::Children> inner = columns::decodeTree(file, source, lists);
+  // Each list's entry valid at `rank`: its last one of a session at or before it. Every
+  // session number is read (varints, one list after another) and checked as fromParts checks it.
+  columns::ByteReader sizes(file.block(kListSizes, source).data, source + ": block '" + kListSizes + "'");
+  const CmapBlock& session_block = file.block(kEntrySessions, source);
+  columns::ByteReader sessions(session_block.data, source + ": block '" + kEntrySessions + "'");
+  std::vector<size_t> chosen;  // entry indices, increasing
+  std::vector<uint32_t> chosen_list;
+  chosen.reserve(lists);
+  chosen_list.reserve(lists);
+  size_t at = 0;
+  for (size_t l = 0; l < lists; ++l) {
+    const uint64_t n = sizes.varint();
+    if (n == 0 || n > 0xffffu) sizes.fail("holds a history list of impossible length");
+    uint64_t previous = 0;
+    std::optional<size_t> valid;
+    for (uint64_t k = 0; k < n; ++k, ++at) {
+      const uint64_t gap = sessions.varint();
+      if (gap > 0xffffffffu) sessions.fail("holds an impossible session number");
+      const uint64_t v = gap + (k == 0 ? 0 : previous + 1);
+      if (v > 0xffffffffu) sessions.fail("holds an impossible session number");
+      if (v >= out.sessions.size()) throw FormatError(source + ": 4D map has a history entry with an invalid session");
+      if (v <= rank) valid = at;
+      previous = v;
+    }
+    if (valid) {
+      chosen.push_back(*valid);
+      chosen_list.push_back(static_cast<uint32_t>(l));
+    }
+  }
+  sizes.expectEnd();
+  sessions.expectEnd();
+  std::vector<std::optional<VoxelCounters>> states(lists);
+  std::vector<VoxelCounters> values(chosen.size());
+  columns::decodeCountersOf(file, source, at, chosen, [&](size_t k) -> VoxelCounters& { return values[k]; });
+  for (size_t k = 0; k < chosen.size(); ++k) states[chosen_list[k]] = values[k];
+  try {
+    out.map = TemporalMap::snapshotOfStates(file.header.resolution_m, inner, states);
+  } catch (const FormatError& e) {
+    throw FormatError(source + ": " + e.what());
+  }
+  return out;
 }
 
 TemporalMap temporalMapFrom(const CmapFile& file, const std::string& source) {

@@ -200,32 +200,88 @@ TileIndex readTileIndex(const fs::path& folder) {
   return readNamingMemory(path, [&] { return decodeTileIndex(readFileBytes(path), path.string()); });
 }
 
+namespace {
+
+/// A tile's file, decoded, once its size and checksum match the index's row.
+CmapFile tileFile(const fs::path& path, const TileEntry& entry) {
+  const std::string source = path.string();
+  const std::vector<uint8_t> bytes = readFileBytes(path);
+  if (bytes.size() != entry.bytes || crc32Of(bytes) != entry.crc32) {
+    throw FormatError(source + ": tile file does not match the index (size or checksum differ)");
+  }
+  return decodeCmap(bytes, source);
+}
+
+/// The tile of `file` with the index's later sessions appended, checked against the index.
+TemporalMap tileOfFile(const CmapFile& file, const std::string& source, const TileIndex& index,
+                       const TileEntry& entry) {
+  TemporalMap tile = temporalMapFrom(file, source);
+  const std::vector<SessionRecord>& all = index.top.sessions();
+  const size_t held = entry.sessions.value_or(all.size());
+  if (held < all.size()) {  // (a tile that should hold all: checkTileFits names both counts)
+    if (tile.sessionCount() != held) {
+      throw FormatError(source + ": holds " + std::to_string(tile.sessionCount()) +
+                        " sessions but the index lists it with " + std::to_string(held));
+    }
+    try {
+      const auto first = all.begin() + static_cast<std::ptrdiff_t>(held);
+      tile.appendUnobservedSessions(std::vector<SessionRecord>(first, all.end()));
+    } catch (const UsageError& e) {
+      throw FormatError(source + ": its sessions do not come before the index's later ones: " + e.what());
+    }
+  }
+  checkTileFits(index.top, index.tile_level, entry.key, tile, source);
+  return tile;
+}
+
+}  // namespace
+
 TemporalMap readTile(const fs::path& folder, const TileIndex& index, const TileEntry& entry) {
   const fs::path path = folder / entry.file;
   const std::string source = path.string();
   if (!fs::exists(path)) throw IoError(source + ": tile file missing (listed in the index)");
+  return readNamingMemory(path, [&] { return tileOfFile(tileFile(path, entry), source, index, entry); });
+}
+
+SessionMap readTileSnapshot(const fs::path& folder, const TileIndex& index, const TileEntry& entry, double time_s) {
+  const fs::path path = folder / entry.file;
+  const std::string source = path.string();
+  if (!fs::exists(path)) throw IoError(source + ": tile file missing (listed in the index)");
   return readNamingMemory(path, [&] {
-    const std::vector<uint8_t> bytes = readFileBytes(path);
-    if (bytes.size() != entry.bytes || crc32Of(bytes) != entry.crc32) {
-      throw FormatError(source + ": tile file does not match the index (size or checksum differ)");
+    const CmapFile file = tileFile(path, entry);
+    const auto rank = index.top.rankAtOrBefore(time_s);
+    if (!rank || file.header.kind != MapKind::Temporal || file.header.version < 2 || !file.appended.empty()) {
+      return tileOfFile(file, source, index, entry).snapshot(time_s);  // (what the fast read does not cover)
     }
-    TemporalMap tile = temporalMapFrom(decodeCmap(bytes, source), source);
+    StoredSnapshot stored = snapshotOfColumns(file, source, *rank);
+    // readTile's checks of the tile against the index (checkTileFits's), on what was read: the
+    // resolution, criterion and session times; the snapshot's leaves inside the tile.
+    if (file.header.resolution_m != index.top.resolution_m()) {
+      throw FormatError(source + ": resolution " + std::to_string(file.header.resolution_m) +
+                        " m differs from the index's " + std::to_string(index.top.resolution_m()) + " m");
+    }
+    if (!(stored.criterion == index.top.criterion())) {
+      throw FormatError(source + ": its change criterion differs from the index's");
+    }
     const std::vector<SessionRecord>& all = index.top.sessions();
     const size_t held = entry.sessions.value_or(all.size());
-    if (held < all.size()) {  // (a tile that should hold all: checkTileFits names both counts)
-      if (tile.sessionCount() != held) {
-        throw FormatError(source + ": holds " + std::to_string(tile.sessionCount()) +
-                          " sessions but the index lists it with " + std::to_string(held));
-      }
-      try {
-        const auto first = all.begin() + static_cast<std::ptrdiff_t>(held);
-        tile.appendUnobservedSessions(std::vector<SessionRecord>(first, all.end()));
-      } catch (const UsageError& e) {
-        throw FormatError(source + ": its sessions do not come before the index's later ones: " + e.what());
-      }
+    if (held < all.size() && stored.sessions.size() != held) {
+      throw FormatError(source + ": holds " + std::to_string(stored.sessions.size()) +
+                        " sessions but the index lists it with " + std::to_string(held));
     }
-    checkTileFits(index.top, index.tile_level, entry.key, tile, source);
-    return tile;
+    bool same = stored.sessions.size() == held;
+    for (size_t i = 0; same && i < held; ++i) same = stored.sessions[i].time_s == all[i].time_s;
+    if (!same) {
+      const size_t count = held < all.size() ? all.size() : stored.sessions.size();
+      throw FormatError(source + ": its sessions (" + std::to_string(count) +
+                        ") do not match the index's sessions table (" + std::to_string(all.size()) + ")");
+    }
+    bool inside = true;
+    stored.map.forEachLeaf([&](const LeafView& leaf) {
+      inside = inside && leaf.level <= index.tile_level && tileOf(leaf.key, index.tile_level) == entry.key;
+    });
+    if (!inside) throw FormatError(source + " holds nodes outside its tile");
+    return std::move(stored.map);
   });
 }
 

@@ -75,6 +75,10 @@ SessionMap TiledMap::snapshot(double time_s, const std::optional<VoxelBox>& box)
     if (latest && entry && entry->latest && !held_.count(key)) {
       out.merge(readLatestState(folder_, index_, *entry));
       ++stats_.latest_reads;
+    } else if (entry && !held_.count(key)) {
+      // An earlier time of a tile not held: read at that time alone, not held (issue 46).
+      out.merge(readTileSnapshot(folder_, index_, *entry, time_s));
+      ++stats_.time_reads;
     } else {
       out.merge(tile(key)->snapshot(time_s));
     }

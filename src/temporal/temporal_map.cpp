@@ -494,6 +494,96 @@ SessionMap TemporalMap::snapshot(double time_s, SnapshotVisits* visits) const {
   return out;
 }
 
+SessionMap TemporalMap::snapshotOfStates(double resolution_m, const std::vector<Children>& inner_in,
+                                         const std::vector<std::optional<VoxelCounters>>& valid) {
+  SessionMap out(resolution_m);
+  const std::vector<int> list_level = listLevelsOf(inner_in, valid.size());
+  for (size_t i = 0; i < valid.size(); ++i) {
+    if (!valid[i]) continue;
+    if (!std::isfinite(valid[i]->length_m) || valid[i]->length_m < 0.0f) {
+      throw FormatError("4D map has an invalid ray length");
+    }
+    if (!valid[i]->offsetsValid()) throw FormatError("4D map has an invalid hit position");
+    if (list_level[i] > 0 && !valid[i]->isKnownFreeWithoutHits()) {
+      throw FormatError("4D map has a uniform cube that is not known-free");
+    }
+  }
+  // As store() then valueOf() give it: no part without hits or colour, offsets quantised.
+  auto stored = [](const VoxelCounters& c) {
+    VoxelCounters v;
+    v.length_m = c.length_m;
+    if (c.hits == 0 && c.red == 0 && c.green == 0 && c.blue == 0) return v;
+    v.hits = c.hits;
+    v.red = c.red;
+    v.green = c.green;
+    v.blue = c.blue;
+    if (c.hits > 0) {
+      for (int a = 0; a < 3; ++a) v.offset[a] = dequantiseOffset(quantiseOffset(c.offset[a], c.hits), c.hits);
+    }
+    return v;
+  };
+  auto listAt = [&](Ref r) -> const std::optional<VoxelCounters>& { return valid[index(r)]; };
+  // The coarse entry of every inner node valid now (rebuildCoarse's intervals at this one rank):
+  // all 8 children read free without hits, lengths summed in slot order. Bottom up; -1: none.
+  std::vector<float> coarse(inner_in.size(), -1.0f);
+  auto coarseOf = [&](auto&& self, uint32_t node) -> void {
+    bool all = node != 0;  // the root is never one leaf
+    float sum = 0.0f;
+    for (const Ref r : inner_in[node]) {
+      if (isInner(r)) {
+        self(self, r);
+        if (coarse[r] < 0.0f) all = false;
+        else sum += coarse[r];
+      } else if (isList(r)) {
+        const auto& v = listAt(r);
+        if (!v || !(v->length_m > 0.0f) || v->hits != 0) all = false;
+        else sum += v->length_m;
+      } else {
+        all = false;
+      }
+    }
+    if (all) coarse[node] = sum;
+  };
+  coarseOf(coarseOf, 0);
+  std::vector<SessionMap::Children> inner;
+  std::vector<VoxelCounters> leaves;
+  // snapshot()'s depth-first copy, node for node.
+  auto build = [&](auto&& self, uint32_t node) -> SessionMap::Ref {
+    const auto me = static_cast<uint32_t>(inner.size());
+    inner.emplace_back();
+    bool any = false;
+    for (int slot = 0; slot < 8; ++slot) {
+      const Ref r = inner_in[node][slot];
+      SessionMap::Ref out_ref = SessionMap::kEmpty;
+      if (isInner(r)) {
+        if (coarse[r] >= 0.0f) {
+          VoxelCounters v;
+          v.length_m = coarse[r];
+          leaves.push_back(v);
+          out_ref = static_cast<uint32_t>(leaves.size() - 1) | SessionMap::kLeafBit;
+        } else {
+          out_ref = self(self, r);
+        }
+      } else if (isList(r)) {
+        if (const auto& v = listAt(r)) {
+          leaves.push_back(stored(*v));
+          out_ref = static_cast<uint32_t>(leaves.size() - 1) | SessionMap::kLeafBit;
+        }
+      }
+      inner[me][slot] = out_ref;
+      any = any || out_ref != SessionMap::kEmpty;
+    }
+    if (!any && me != 0) {
+      inner.pop_back();
+      return SessionMap::kEmpty;
+    }
+    return me;
+  };
+  build(build, 0);
+  out.adoptPools(std::move(inner), std::move(leaves));
+  return out;
+}
+
 std::vector<HistoryEntry> TemporalMap::history(const VoxelKey& key) const {
   std::vector<HistoryEntry> h;
   uint32_t node = 0;
@@ -642,6 +732,39 @@ size_t TemporalMap::compact() {
   return lists_before - live_lists_;
 }
 
+std::vector<int> TemporalMap::listLevelsOf(const std::vector<Children>& inner, size_t lists) {
+  if (inner.empty()) throw FormatError("4D map has no root node");
+  if (inner.size() >= kMaxIndex || lists >= kMaxIndex) throw FormatError("4D map too large");
+  // Shape: every node reached once from the root, lists only, inner nodes above unit level.
+  std::vector<uint8_t> inner_seen(inner.size(), 0), list_seen(lists, 0);
+  std::vector<int> list_level(lists, 0);
+  std::vector<std::pair<uint32_t, int>> stack{{0u, kTreeDepth}};
+  inner_seen[0] = 1;
+  size_t inner_reached = 1, lists_reached = 0;
+  while (!stack.empty()) {
+    auto [node, level] = stack.back();
+    stack.pop_back();
+    for (Ref r : inner[node]) {
+      if (r == kEmpty) continue;
+      const uint32_t i = index(r);
+      if (isList(r)) {
+        if (i >= lists || list_seen[i]) throw FormatError("4D map has an invalid list reference");
+        list_seen[i] = 1;
+        list_level[i] = level - 1;
+        ++lists_reached;
+      } else {
+        if (level - 1 == 0) throw FormatError("4D map has an inner node below unit level");
+        if (i >= inner.size() || inner_seen[i]) throw FormatError("4D map has an invalid node reference");
+        inner_seen[i] = 1;
+        ++inner_reached;
+        stack.emplace_back(i, level - 1);
+      }
+    }
+  }
+  if (inner_reached != inner.size() || lists_reached != lists) throw FormatError("4D map has unreachable nodes");
+  return list_level;
+}
+
 TemporalMap TemporalMap::fromParts(double resolution_m, ChangeCriterion criterion, Parts parts,
                                    std::vector<SessionRecord> sessions) {
   TemporalMap m(resolution_m, criterion);
@@ -664,35 +787,7 @@ TemporalMap TemporalMap::fromParts(double resolution_m, ChangeCriterion criterio
     offsets[i] = at;
     at += parts.list_sizes[i];
   }
-  // Shape: every node reached once from the root, lists only, inner nodes above unit level.
-  std::vector<uint8_t> inner_seen(parts.inner.size(), 0), list_seen(parts.list_sizes.size(), 0);
-  std::vector<int> list_level(parts.list_sizes.size(), 0);
-  std::vector<std::pair<uint32_t, int>> stack{{0u, kTreeDepth}};
-  inner_seen[0] = 1;
-  size_t inner_reached = 1, lists_reached = 0;
-  while (!stack.empty()) {
-    auto [node, level] = stack.back();
-    stack.pop_back();
-    for (Ref r : parts.inner[node]) {
-      if (r == kEmpty) continue;
-      const uint32_t i = index(r);
-      if (isList(r)) {
-        if (i >= parts.list_sizes.size() || list_seen[i]) throw FormatError("4D map has an invalid list reference");
-        list_seen[i] = 1;
-        list_level[i] = level - 1;
-        ++lists_reached;
-      } else {
-        if (level - 1 == 0) throw FormatError("4D map has an inner node below unit level");
-        if (i >= parts.inner.size() || inner_seen[i]) throw FormatError("4D map has an invalid node reference");
-        inner_seen[i] = 1;
-        ++inner_reached;
-        stack.emplace_back(i, level - 1);
-      }
-    }
-  }
-  if (inner_reached != parts.inner.size() || lists_reached != parts.list_sizes.size()) {
-    throw FormatError("4D map has unreachable nodes");
-  }
+  const std::vector<int> list_level = listLevelsOf(parts.inner, parts.list_sizes.size());
   for (size_t i = 0; i < parts.list_sizes.size(); ++i) {
     for (uint64_t k = 0; k < parts.list_sizes[i]; ++k) {
       const Entry& e = parts.entries[offsets[i] + k];

@@ -286,10 +286,15 @@ TEST(Tiles, ARegionTouchesOnlyTheTilesItNeeds) {
   tiled.snapshot(sessionTime(3), box);  // the last session: the tile's latest state alone
   EXPECT_EQ(tiled.cacheStats().latest_reads, 1u);
   EXPECT_EQ(tiled.cacheStats().loads, 0u);
-  tiled.snapshot(sessionTime(2), box);  // an earlier time: the tile's history
+  tiled.snapshot(sessionTime(2), box);  // an earlier time: the tile read at that time alone
+  EXPECT_EQ(tiled.cacheStats().time_reads, 1u);
+  EXPECT_EQ(tiled.cacheStats().loads, 0u);
+  tiled.history(at(0, 0, 0));  // its history: the tile read whole, and held
   EXPECT_EQ(tiled.cacheStats().loads, 1u);
   tiled.snapshot(sessionTime(3), box);  // the tile is held now: no file read
+  tiled.snapshot(sessionTime(2), box);
   EXPECT_EQ(tiled.cacheStats().latest_reads, 1u);
+  EXPECT_EQ(tiled.cacheStats().time_reads, 1u);
   EXPECT_EQ(tiled.cacheStats().loads, 1u);
   const TileKey first = tileOf(at(0, 0, 0), 3);
   const auto other = std::find_if(tiled.index().tiles.begin(), tiled.index().tiles.end(),
@@ -298,6 +303,39 @@ TEST(Tiles, ARegionTouchesOnlyTheTilesItNeeds) {
   tiled.history(tileCorner(other->key, 3));  // a voxel of another tile: that tile alone
   EXPECT_EQ(tiled.cacheStats().loads, 2u);
   EXPECT_GT(tiled.index().tiles.size(), 8u);
+}
+
+// A tile read at one time (issue 46) gives the snapshot of the tile read whole, node for node
+// (the same pools in the same order, so the same bytes), at every session's time, between
+// them, before the first and after the last, with coarse free cubes among its nodes.
+TEST_P(TilesProperty, ATileReadAtOneTimeIsItsSnapshotNodeForNode) {
+  const TemporalMap map = randomMap(GetParam(), 6);
+  test::TempDir dir;
+  writeTiledMap(dir / "tiled", splitIntoTiles(map, 3), nlohmann::json::object());
+  const TileIndex index = readTileIndex(dir / "tiled");
+  std::vector<double> times{sessionTime(0) - 1.0};
+  for (int i = 0; i < 6; ++i) times.insert(times.end(), {sessionTime(i), sessionTime(i) + 1800.0});
+  size_t coarse = 0, leaves = 0;
+  for (const TileEntry& e : index.tiles) {
+    const TemporalMap tile = readTile(dir / "tiled", index, e);
+    for (const double t : times) {
+      TemporalMap::SnapshotVisits visits;
+      const SessionMap whole = tile.snapshot(t, &visits);
+      const SessionMap read = readTileSnapshot(dir / "tiled", index, e, t);
+      coarse += visits.coarse;
+      leaves += whole.leafPool().size();
+      ASSERT_EQ(read.innerPool(), whole.innerPool()) << e.file << " at " << t;
+      ASSERT_EQ(read.leafPool().size(), whole.leafPool().size());
+      for (size_t i = 0; i < whole.leafPool().size(); ++i) ASSERT_TRUE(read.leafPool()[i] == whole.leafPool()[i]);
+      EXPECT_EQ(encodeSessionMap(read, nlohmann::json::object()), encodeSessionMap(whole, nlohmann::json::object()));
+    }
+  }
+  EXPECT_GT(coarse, 0u);
+  EXPECT_GT(leaves, 0u);
+  TiledMap tiled(dir / "tiled", {0});
+  EXPECT_TRUE(tiled.snapshot(sessionTime(2)) == map.snapshot(sessionTime(2)));
+  EXPECT_EQ(tiled.cacheStats().time_reads, index.tiles.size());
+  EXPECT_EQ(tiled.cacheStats().loads, 0u);
 }
 
 TEST(Tiles, TileSizesArePowersOfTwoVoxels) {
@@ -345,6 +383,7 @@ TEST(Tiles, BadInputGivesOneClearError) {
   bytes[bytes.size() / 2] ^= 0x40;
   test::writeBytes(dir / "tiled" / index.tiles[1].file, bytes);
   EXPECT_THROW(readTile(dir / "tiled", index, index.tiles[1]), FormatError);
+  EXPECT_THROW(readTileSnapshot(dir / "tiled", index, index.tiles[1], sessionTime(1)), FormatError);
 
   // A corrupt index.
   std::vector<uint8_t> idx = test::bytesOf(dir / "tiled" / kTileIndexName);
@@ -375,6 +414,12 @@ TEST(Tiles, BadInputGivesOneClearError) {
   } catch (const FormatError& e) {
     EXPECT_NE(std::string(e.what()).find("sessions"), std::string::npos) << e.what();
   }
+  try {
+    readTileSnapshot(dir / "mixed", mixed_index, mixed_index.tiles[0], sessionTime(1));
+    FAIL() << "no error";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("sessions"), std::string::npos) << e.what();
+  }
 
   // A tile filed under another tile's key.
   SplitMap moved{3, split.top, {}};
@@ -383,6 +428,12 @@ TEST(Tiles, BadInputGivesOneClearError) {
   const TileIndex moved_index = readTileIndex(dir / "moved");
   try {
     readTile(dir / "moved", moved_index, moved_index.tiles[0]);
+    FAIL() << "no error";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("outside its tile"), std::string::npos) << e.what();
+  }
+  try {
+    readTileSnapshot(dir / "moved", moved_index, moved_index.tiles[0], sessionTime(1));
     FAIL() << "no error";
   } catch (const FormatError& e) {
     EXPECT_NE(std::string(e.what()).find("outside its tile"), std::string::npos) << e.what();

@@ -42,6 +42,22 @@ struct TemporalFileLayout {
 };
 TemporalFileLayout layoutOf(const CmapFile& file);
 
+/// One time of a 4D map file, read without building the map (a tile read for a snapshot,
+/// store/tiled_file.h).
+struct StoredSnapshot {
+  SessionMap map;                       ///< the map at its session `rank`'s time
+  ChangeCriterion criterion;            ///< as the file lists it
+  std::vector<SessionRecord> sessions;  ///< as the file lists them, coverages left empty
+};
+/// temporalMapFrom(file, source).snapshot(t) for a time t of session `rank` (a rank past the
+/// file's sessions: its last), node for node, from the file's columns: the tree, every session
+/// number, and the counters of the entries valid then only (not the other entries' counters,
+/// nor the coverages, so a file damaged there alone reads). Cost: decoding the blocks, then
+/// about one entry per history list instead of building every history.
+/// @throw FormatError naming `source` as temporalMapFrom for what it reads; UsageError for a
+/// file of format version 1 or with appended sessions (read those with temporalMapFrom).
+StoredSnapshot snapshotOfColumns(const CmapFile& file, const std::string& source, uint32_t rank);
+
 /// Reads a 4D map: the base, then each appended session added again in file order.
 /// @throw IoError, FormatError naming the file.
 TemporalMap readTemporalMap(const std::filesystem::path& path, TemporalFileLayout* layout = nullptr);

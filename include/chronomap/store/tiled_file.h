@@ -100,6 +100,14 @@ TileIndex readTileIndex(const std::filesystem::path& folder);
 /// @throw IoError (missing file), FormatError naming the tile's file.
 TemporalMap readTile(const std::filesystem::path& folder, const TileIndex& index, const TileEntry& entry);
 
+/// readTile(...).snapshot(time_s), without building the tile: its file is checked against the
+/// index as readTile checks it, then read at that one time (snapshotOfColumns: the entries
+/// valid then, not the whole history). Files it does not cover (format version 1, appended
+/// sessions, a time before the first session) are read by readTile.
+/// @throw IoError (missing file), FormatError naming the tile's file.
+SessionMap readTileSnapshot(const std::filesystem::path& folder, const TileIndex& index, const TileEntry& entry,
+                            double time_s);
+
 /// Reads a tile's latest state (entry.latest must be set), checking its size and checksum
 /// against the index and that it lies inside the tile's cube at the index's resolution.
 /// @throw IoError (missing file), FormatError naming the file.

@@ -30,6 +30,7 @@ struct TileCacheSettings {
 struct TileCacheStats {
   size_t loads = 0;      ///< tiles read from disk
   size_t latest_reads = 0;  ///< latest states read from disk (snapshots of the last session's time)
+  size_t time_reads = 0;    ///< tiles read at one earlier time (snapshots), not held
   size_t hits = 0;       ///< requests answered by a tile already held
   size_t evictions = 0;  ///< tiles dropped to stay under the limit
   size_t resident_bytes = 0;
@@ -77,7 +78,8 @@ class TiledMap {
   /// `box`, or of everything. Every voxel in the box reads as in the joined map's snapshot;
   /// without a box the result is that snapshot, bit for bit. At or after the last session's
   /// time a tile not held reads its latest state instead of its history (the same voxels; not
-  /// kept in the cache).
+  /// kept in the cache); before it, a tile not held is read at that time alone
+  /// (readTileSnapshot: the entries valid then, not the tile's whole history; not kept either).
   SessionMap snapshot(double time_s, const std::optional<VoxelBox>& box = {});
   /// TemporalMap::history of the voxel: one tile read at most.
   std::vector<HistoryEntry> history(const VoxelKey& key);

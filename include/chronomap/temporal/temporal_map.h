@@ -170,6 +170,14 @@ class TemporalMap {
   /// snapshot's size, not every refinement ever made. The result is bit for bit the expanded
   /// snapshot after compressFree().
   SessionMap snapshot(double time_s, SnapshotVisits* visits = nullptr) const;
+  /// snapshot() of a map whose tree is `inner` (checked as fromParts checks it) at a time at
+  /// which list i holds `valid[i]` (its entry valid then; none before its first), without the
+  /// rest of the histories: the same nodes in the same order (coarse cubes included), for a
+  /// reader that decodes one time of a file (store/tiled_file.h). The values are taken as the
+  /// map would store them (offsets quantised). @throw FormatError for a tree fromParts refuses
+  /// (`valid` holding one value per list) or a value it refuses.
+  static SessionMap snapshotOfStates(double resolution_m, const std::vector<Children>& inner,
+                                     const std::vector<std::optional<VoxelCounters>>& valid);
   /// The entries of the voxel `key` in time order (empty when it was never observed).
   std::vector<HistoryEntry> history(const VoxelKey& key) const;
   /// Entries valid in the voxel `key` at `time_s`, if any.
@@ -254,6 +262,9 @@ class TemporalMap {
   /// @throw FormatError if they do not form a valid map.
   static TemporalMap fromParts(double resolution_m, ChangeCriterion criterion, Parts parts,
                                std::vector<SessionRecord> sessions);
+  /// The level of each of the `lists` lists of the tree `inner`. @throw FormatError unless every
+  /// node and list is reached once from the root, no inner node below unit level.
+  static std::vector<int> listLevelsOf(const std::vector<Children>& inner, size_t lists);
 
   /// Same resolution, criterion, sessions and histories (layout may differ).
   friend bool operator==(const TemporalMap& a, const TemporalMap& b);
