@@ -273,9 +273,10 @@ inline WeeksSim readWeeks(const std::filesystem::path& dir, int learn_days) {
 // The registration of `chronomap build --register` (RegistrationSettings{}), or the one
 // CHRONOMAP_BENCH_REGISTER names: comma-separated words, "recommended" first if at all (the
 // README's pipeline, recommendedRegistration()), then changes to it: "radius=V", "knots=F",
-// "yaw=DEG", "rounds=N", "planar", "points", "keep-mean" (as build's --register-radius,
-// --register-drift, --register-drift-yaw, --register-rounds, --register-planar,
-// --register-points, --register-keep-mean).
+// "yaw=DEG", "rounds=N", "drift-rounds=N", "fine=V", "planar", "points", "keep-mean" (as build's
+// --register-radius, --register-drift, --register-drift-yaw, --register-rounds,
+// --register-drift-rounds, --register-fine-radius, --register-planar, --register-points,
+// --register-keep-mean).
 inline RegistrationSettings benchRegistration() {
   RegistrationSettings r;
   const char* env = std::getenv("CHRONOMAP_BENCH_REGISTER");
@@ -305,6 +306,10 @@ inline RegistrationSettings benchRegistration() {
       r.align.drift_yaw_per_frame_deg = value;
     } else if (key == "rounds") {
       r.rounds = static_cast<int>(value);
+    } else if (key == "drift-rounds") {
+      r.align.drift_rounds = static_cast<int>(value);
+    } else if (key == "fine") {
+      r.align.fine_radius_voxels = value;
     } else if (w == "planar") {
       r.align.planar = true;
     } else if (w == "points") {

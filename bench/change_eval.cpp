@@ -31,6 +31,8 @@
 //                  `chronomap build --register --register-drift 20`; 0: rigid corrections only)
 //   --register-radius R, --drift-rounds N  the registration's neighbourhood (voxels) and rounds
 //                  of drift correction (RegisterSettings; defaults as the library's)
+//   --fine-radius R  the neighbourhood of the drift rounds after the first
+//                  (RegisterSettings::fine_radius_voxels, as `build --register-fine-radius`)
 //   --drift-per-frame M, --drift-yaw-per-frame DEG  the drift fit's smoothness prior: the random
 //                  walk's step per frame (RegisterSettings::drift_per_frame_m, _yaw_per_frame_deg)
 //   --keep-mean    take the motion all sessions' corrections share out after every round
@@ -322,7 +324,9 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
                                       std::to_string(reg.drift_knot_frames) + " frames"
                                 : "";
   const std::string options =
-      std::string(reg.planar ? ", planar" : "") + (reg.drift_points ? ", drift on points" : "");
+      std::string(reg.planar ? ", planar" : "") + (reg.drift_points ? ", drift on points" : "") +
+      (reg.fine_radius_voxels > 0.0 ? ", later drift rounds at " + std::to_string(reg.fine_radius_voxels).substr(0, 4) + " voxels" : "") +
+      (reg.keep_mean ? ", mean kept" : "");
   std::printf("registered (%d rounds, %s corrections%s; radius %.2f voxels%s) and re-aligned in %.1f s\n", rounds,
               toString(reg.model), drift.c_str(), reg.radius_voxels, options.c_str(),
               seconds(reg_start));
@@ -610,6 +614,8 @@ int main(int argc, char** argv) {
       reg.radius_voxels = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--drift-rounds") && i + 1 < argc) {
       reg.drift_rounds = std::atoi(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--fine-radius") && i + 1 < argc) {
+      reg.fine_radius_voxels = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--drift-per-frame") && i + 1 < argc) {
       reg.drift_per_frame_m = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--drift-yaw-per-frame") && i + 1 < argc) {
@@ -652,7 +658,7 @@ int main(int argc, char** argv) {
       std::fprintf(stderr,
                    "usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] [--sensor ideal|kinect|realsense] "
                    "[--register-model world|per-pose] [--drift-knots FRAMES] [--register-rounds N] "
-                   "[--register-radius VOXELS] [--drift-rounds N] [--not-planar] [--drift-voxels] [--kept-surface R] "
+                   "[--register-radius VOXELS] [--drift-rounds N] [--fine-radius VOXELS] [--not-planar] [--drift-voxels] [--kept-surface R] "
                    "[--kept-share F] [--min-shift S] [--dark-surface R] [--dark-below B] [--dark-contrast C] [--dark-share F]\n");
       return 2;
     }

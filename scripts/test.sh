@@ -2,7 +2,7 @@
 # Builds and runs every test: a release build with warnings as errors, then the same suite under
 # AddressSanitizer + UndefinedBehaviorSanitizer, then the multi-threaded tests (integration,
 # registration, the simulator's threaded renderer) under ThreadSanitizer; the simulator's long
-# scenario tests and the keep-mean registration tests (serial code on top of the threaded rounds,
+# scenario tests and the keep-mean and fine-radius registration tests (serial code on top of the threaded rounds,
 # about a minute under TSan) use the same threads and run only in the other two. Set
 # CHRONOMAP_SKIP_SANITIZERS=1 to skip the sanitizer runs.
 set -euo pipefail
@@ -21,5 +21,5 @@ if [ "${CHRONOMAP_SKIP_SANITIZERS:-0}" != 1 ]; then
   cmake --build --preset tsan -j"$jobs" --target chronomap_threaded_tests
   TSAN_OPTIONS="halt_on_error=1 suppressions=$PWD/tests/tsan.supp" \
     ctest --preset tsan -j"$jobs" -R '^(Integrator|RegisterSessions|Simulator)\.' \
-      -E '^Simulator\.(TheWeeksPreset|ChangeEvents|RareEvents)|^RegisterSessions\.KeepMean'
+      -E '^Simulator\.(TheWeeksPreset|ChangeEvents|RareEvents)|^RegisterSessions\.(KeepMean|FineRadius)'
 fi

@@ -175,11 +175,43 @@ struct BuildCmdOptions {
   bool register_points = false;
   bool register_keep_mean = false;
   double register_drift_yaw = RegisterSettings{}.drift_yaw_per_frame_deg;
+  int register_drift_rounds = RegisterSettings{}.drift_rounds;
+  double register_fine_radius = 0.0;
   std::optional<double> register_cache_gib;
   bool tiles = false;
   std::optional<double> tile_size_m;
   bool json = false;
 };
+
+/// The drift part of the registration flags (--register-drift and the flags that need it).
+void setDriftSettings(const BuildCmdOptions& o, RegisterSettings& align) {
+  if (o.register_drift < 0 || o.register_drift > 100000) {
+    throw UsageError("--register-drift must be a number of frames in [0, 100000] (0: no drift correction)");
+  }
+  if (o.register_drift > 0 && !o.register_sessions) throw UsageError("--register-drift needs --register");
+  align.drift_knot_frames = o.register_drift;
+  if (!(o.register_drift_yaw > 0.0 && o.register_drift_yaw <= 10.0)) {
+    throw UsageError("--register-drift-yaw must lie in (0, 10] degrees per frame");
+  }
+  if (o.register_drift_yaw != RegisterSettings{}.drift_yaw_per_frame_deg && o.register_drift <= 0) {
+    throw UsageError("--register-drift-yaw needs --register-drift");
+  }
+  align.drift_yaw_per_frame_deg = o.register_drift_yaw;
+  if (o.register_drift_rounds < 1 || o.register_drift_rounds > 10) {
+    throw UsageError("--register-drift-rounds must lie in [1, 10]");
+  }
+  if (o.register_drift_rounds != RegisterSettings{}.drift_rounds && o.register_drift <= 0) {
+    throw UsageError("--register-drift-rounds needs --register-drift");
+  }
+  align.drift_rounds = o.register_drift_rounds;
+  if (o.register_fine_radius != 0.0 && !(o.register_fine_radius >= 1.0 && o.register_fine_radius <= 8.0)) {
+    throw UsageError("--register-fine-radius must lie in [1, 8] voxels");
+  }
+  if (o.register_fine_radius != 0.0 && o.register_drift <= 0) {
+    throw UsageError("--register-fine-radius needs --register-drift");
+  }
+  align.fine_radius_voxels = o.register_fine_radius;
+}
 
 /// The registration the flags ask for; refuses values out of range and flags without --register.
 std::optional<RegistrationSettings> registrationSettings(const BuildCmdOptions& o) {
@@ -187,18 +219,7 @@ std::optional<RegistrationSettings> registrationSettings(const BuildCmdOptions& 
   RegistrationSettings s;
   s.rounds = o.register_rounds;
   s.align.model = parseCorrectionModel(o.register_model);
-  if (o.register_drift < 0 || o.register_drift > 100000) {
-    throw UsageError("--register-drift must be a number of frames in [0, 100000] (0: no drift correction)");
-  }
-  if (o.register_drift > 0 && !o.register_sessions) throw UsageError("--register-drift needs --register");
-  s.align.drift_knot_frames = o.register_drift;
-  if (!(o.register_drift_yaw > 0.0 && o.register_drift_yaw <= 10.0)) {
-    throw UsageError("--register-drift-yaw must lie in (0, 10] degrees per frame");
-  }
-  if (o.register_drift_yaw != RegisterSettings{}.drift_yaw_per_frame_deg && o.register_drift <= 0) {
-    throw UsageError("--register-drift-yaw needs --register-drift");
-  }
-  s.align.drift_yaw_per_frame_deg = o.register_drift_yaw;
+  setDriftSettings(o, s.align);
   if (!(o.register_radius >= 1.0 && o.register_radius <= 8.0)) {
     throw UsageError("--register-radius must lie in [1, 8] voxels");
   }
@@ -425,6 +446,15 @@ void addRegisterFlags(CLI::App* app, BuildCmdOptions& o) {
                   "the drift fit's smoothness: how far (degrees) the heading error may wander from one frame to the "
                   "next, in (0, 10], needs --register-drift; larger follows an odometry's heading drift more closely "
                   "(docs/changes.md has the figures)")
+      ->capture_default_str();
+  app->add_option("--register-drift-rounds", o.register_drift_rounds,
+                  "rounds of drift correction, each against the consensus the previous one left, in [1, 10]; needs "
+                  "--register-drift")
+      ->capture_default_str();
+  app->add_option("--register-fine-radius", o.register_fine_radius,
+                  "the neighbourhood (voxels, in [1, 8]) of the drift rounds after the first: a wide --register-radius "
+                  "reaches a large drift, a narrower one refines once the sessions lie close (0: --register-radius "
+                  "throughout; docs/changes.md has the figures); needs --register-drift")
       ->capture_default_str();
   app->add_option("--register-rounds", o.register_rounds,
                   "registration rounds, each against the consensus the previous one left")

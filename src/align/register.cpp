@@ -32,6 +32,9 @@ void RegisterSettings::validate() const {
     throw UsageError("registration: the drift knot spacing must lie in [0, 1000000] frames");
   }
   if (drift_rounds < 1 || drift_rounds > 10) throw UsageError("registration: drift rounds must lie in [1, 10]");
+  if (!std::isfinite(fine_radius_voxels) || (fine_radius_voxels != 0.0 && (fine_radius_voxels < 1.0 || fine_radius_voxels > 8.0))) {
+    throw UsageError("registration: the fine radius must be 0 (none) or lie in [1, 8] voxels");
+  }
   if (!std::isfinite(drift_per_frame_m) || drift_per_frame_m <= 0.0 || !std::isfinite(drift_yaw_per_frame_deg) ||
       drift_yaw_per_frame_deg <= 0.0) {
     throw UsageError("registration: the drift per frame must be > 0");
@@ -910,10 +913,12 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
   }
   if (settings.drift_knot_frames > 0) {
     for (int round = 0; round < settings.drift_rounds; ++round) {
+      RegisterSettings now = settings;
+      if (round > 0 && settings.fine_radius_voxels > 0.0) now.radius_voxels = settings.fine_radius_voxels;
       RegistrationTarget target(consensus(std::span<const SessionMap>(sessions)));
       std::vector<RegisterReport> found(sessions.size());
       std::vector<SessionDriftInput> inputs;
-      if (settings.drift_points) inputs = pointsAndSamples(sessions, frames, corrections, target, settings);
+      if (settings.drift_points) inputs = pointsAndSamples(sessions, frames, corrections, target, now);
       // The samples were taken for the points' surface; without points they are the voxels'.
       const bool prepared = !inputs.empty() && !target.points().empty();
       std::vector<std::vector<Eigen::Isometry3d>> steps(sessions.size());
@@ -924,13 +929,13 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
         if (prepared) {
           per_frame = inputs[k].sensors.empty() ? std::vector<Eigen::Isometry3d>{}
                                                 : solveDrift(inputs[k].sensors, inputs[k].samples, true,
-                                                             sessions[k].grid(), target, settings, &found[k]);
+                                                             sessions[k].grid(), target, now, &found[k]);
           if (settings.keep_mean) sensors[k] = std::move(inputs[k].sensors);
         } else {
           const std::unique_ptr<FrameSource> source = frames(k);
           if (!source) throw UsageError("registration with drift: no frames for session " + std::to_string(k));
           const CorrectedFrames corrected(*source, corrections[k]);
-          per_frame = fitDrift(corrected, sessions[k], target, settings, &found[k]);
+          per_frame = fitDrift(corrected, sessions[k], target, now, &found[k]);
           if (settings.keep_mean) {
             sensors[k].reserve(per_frame.size());
             for (size_t i = 0; i < per_frame.size(); ++i) sensors[k].push_back(corrected.poseOf(i).translation());

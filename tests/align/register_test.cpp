@@ -92,6 +92,14 @@ TEST(RegisterToConsensus, RejectsBadSettings) {
   s = {};
   s.min_step_m = std::nan("");
   EXPECT_THROW(s.validate(), UsageError);
+  for (const double fine : {0.5, 9.0, -1.0, std::nan("")}) {
+    s = {};
+    s.fine_radius_voxels = fine;
+    EXPECT_THROW(s.validate(), UsageError) << fine;
+  }
+  s = {};
+  s.fine_radius_voxels = 2.0;
+  EXPECT_NO_THROW(s.validate());
   EXPECT_THROW(registerToConsensus(SessionMap(0.05), SessionMap(0.1)), UsageError);
 }
 
@@ -626,4 +634,43 @@ TEST(RegisterSessions, KeepMeanTakesASharedTurnOut) {
   const auto [kept_turn, kept_move] = meanMapMotion(sources, true);
   EXPECT_LT(kept_turn, 1e-5) << "without keep_mean " << free_turn;
   EXPECT_LT(kept_move, 0.001) << "without keep_mean " << free_move;
+}
+
+TEST(RegisterSessions, FineRadiusRefinesTheLaterDriftRounds) {
+  // Three sessions of the hall with the true poses and one that drifts, registered with a wide
+  // neighbourhood (4 voxels) and three drift rounds on the points: the rounds after the first at
+  // 2 voxels (RegisterSettings::fine_radius_voxels) bring every session closer to the truth.
+  const DriftingHall d;
+  const FrameVector truth = thinned(d.true_frames), drifting = thinned(d.frames);
+  const std::vector<const FrameVector*> sources = {&truth, &truth, &truth, &drifting};
+  auto run = [&](double fine) {
+    std::vector<SessionMap> sessions;
+    for (const FrameSource* s : sources) sessions.push_back(DriftingHall::seen(*s));
+    RegisterSettings settings;
+    settings.max_points = 2000;
+    settings.radius_voxels = 4.0;
+    settings.drift_knot_frames = 4;
+    settings.drift_rounds = 3;
+    settings.drift_points = true;
+    settings.planar = true;
+    settings.fine_radius_voxels = fine;
+    const auto corrections = registerSessions(
+        sessions, [&](size_t k, const PoseCorrection& c, bool) { return DriftingHall::seen(*sources[k], c); }, 1,
+        settings, nullptr, {},
+        [&](size_t k) -> std::unique_ptr<FrameSource> { return std::make_unique<FrameVector>(sources[k]->frames()); });
+    // Mean distance of every corrected sensor position from the truth, every session.
+    double sum = 0.0, n = 0.0;
+    for (size_t k = 0; k < sources.size(); ++k) {
+      for (size_t j = 0; j < sources[k]->size(); ++j) {
+        sum += (corrections[k].apply(sources[k]->poseOf(j), j).translation() - d.hall.sensors[j]).norm();
+        n += 1.0;
+      }
+    }
+    return sum / n;
+  };
+  // The wide neighbourhood throughout leaves the sensors 6.42 mm from the truth on average; with
+  // the later two rounds at 2 voxels, 6.22 mm (measured).
+  const double wide = run(0.0), fine = run(2.0);
+  EXPECT_LT(fine, wide - 0.0001);
+  EXPECT_LT(fine, 0.0064);
 }

@@ -712,7 +712,7 @@ TEST(SimulatorCli, SimulateAndBuildWithRegistration) {
   r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "k.cmap").string() + " " +
                        (tmp / "sim" / "session_00").string() + " " + (tmp / "sim" / "session_01").string() +
                        " --fast --json --register --register-rounds 1 --register-planar --register-keep-mean"
-                       " --register-drift 5 --register-drift-yaw 0.05");
+                       " --register-drift 5 --register-drift-yaw 0.05 --register-drift-rounds 2 --register-fine-radius 1.5");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto kept = nlohmann::json::parse(r.out);
   ASSERT_EQ(kept["added"].size(), 2u);
@@ -740,6 +740,18 @@ TEST(SimulatorCli, SimulateAndBuildWithRegistration) {
                          (tmp / "sim" / "session_00").string() + bad);
     EXPECT_EQ(r.exit_code, 2) << bad;
     EXPECT_NE(r.err.find("--register-drift-yaw"), std::string::npos) << bad << ": " << r.err;
+    EXPECT_FALSE(fs::exists(tmp / "n.cmap"));
+  }
+  for (const auto& [bad, flag] : std::vector<std::pair<const char*, const char*>>{
+           {" --register --register-drift-rounds 3", "--register-drift-rounds needs"},
+           {" --register --register-drift 5 --register-drift-rounds 0", "--register-drift-rounds must"},
+           {" --register --register-fine-radius 2", "--register-fine-radius needs"},
+           {" --register --register-drift 5 --register-fine-radius 0.5", "--register-fine-radius must"},
+           {" --register --register-drift 5 --register-fine-radius nan", "--register-fine-radius"}}) {
+    r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "n.cmap").string() + " " +
+                         (tmp / "sim" / "session_00").string() + bad);
+    EXPECT_EQ(r.exit_code, 2) << bad;
+    EXPECT_NE(r.err.find(flag), std::string::npos) << bad << ": " << r.err;
     EXPECT_FALSE(fs::exists(tmp / "n.cmap"));
   }
   for (const char* bad : {" --register-drift 5", " --register --register-drift -1"}) {

@@ -50,6 +50,11 @@ struct RegisterSettings {
   int drift_knot_frames = 0;
   /// Rounds of drift correction, each against the consensus the previous round left.
   int drift_rounds = 2;
+  /// The neighbourhood (voxels) of the drift rounds after the first (0: radius_voxels in every
+  /// round). A wide radius reaches an odometry's large drift in the first round but leaves a
+  /// wobble of its own (the neighbourhood's centre is not on the surface); the later rounds, with
+  /// the sessions close, refine with a narrower one (docs/changes.md has the figures).
+  double fine_radius_voxels = 0.0;
   /// The smoothness prior: how far the localisation is expected to wander from one frame to the
   /// next (standard deviation of a random walk per frame, metres and degrees).
   double drift_per_frame_m = 0.002;
