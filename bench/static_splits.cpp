@@ -11,7 +11,8 @@
 //
 // Every split is built as `chronomap build` does by default (exact rays at 0.05 m, no
 // registration) and, with --registered, also as the README's recommended pipeline does (`build
-// --fast --register --register-drift 20 --register-planar --register-points`), and diffed with
+// --fast --register --register-drift 20 --register-planar --register-points`, or the
+// registration CHRONOMAP_BENCH_REGISTER names, as bench_sim.h reads it), and diffed with
 // the recommended settings (findChanges' defaults), then with each rule's radius one voxel
 // smaller and one larger: the neighbourhood rule, the kept-surface rule, the dark-surface rule.
 //
@@ -23,6 +24,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <functional>
@@ -42,6 +44,8 @@
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/pipeline/session.h"
 #include "chronomap/temporal/temporal_map.h"
+
+#include "bench_sim.h"
 
 using namespace chronomap;
 namespace fs = std::filesystem;
@@ -124,7 +128,10 @@ SessionMaker threeDMatch(const fs::path& root, const fs::path& tmp, const std::v
       positions.push_back(std::move(s.sensor_positions));
     }
     if (registered) {
-      registerDatasets(maps, paths, positions, settings, recommendedRegistration());
+      // The README's registration, or the one CHRONOMAP_BENCH_REGISTER names (bench_sim.h).
+      const char* env = std::getenv("CHRONOMAP_BENCH_REGISTER");
+      registerDatasets(maps, paths, positions, settings,
+                       env && *env ? bench::benchRegistration() : recommendedRegistration());
     }
     return maps;
   };
