@@ -21,6 +21,9 @@
 //   --robot-height the top of the band the costmaps read, metres (default 1.8)
 //   --z-min        its bottom, metres (default 0.05, as chronomap costmap)
 //   --lethal       probability above which a cell is an obstacle (default 0.5, as chronomap costmap)
+//   --min-occupied-sessions N  the combined model's cost map takes a modelled voxel for an obstacle
+//                  only where the learning sessions saw it occupied at least N times
+//                  (CostmapSettings::min_occupied_sessions; default 0: off)
 //   --min-changes  model the voxels that changed at least this often while learning (default 1)
 //   --no-groups    fit without grouping co-changing voxels into objects (RhythmGroupSettings)
 //   --group-correlation C, --group-common N, --group-voxels N, --group-gain G: the grouping's
@@ -140,6 +143,7 @@ int main(int argc, char** argv) {
   bool carve = true;
   double floor_clearance_m = CostmapSettings{}.z_min_m;
   double lethal = CostmapSettings{}.lethal_probability;
+  uint32_t min_occupied_sessions = CostmapSettings{}.min_occupied_sessions;
   double robot_height_m = 1.8;
   fs::path load_map, save_map;
   RhythmGroupSettings grouping;
@@ -155,6 +159,7 @@ int main(int argc, char** argv) {
     else if (a == "--no-carve") carve = false;
     else if (a == "--z-min") floor_clearance_m = std::stod(value());
     else if (a == "--lethal") lethal = std::stod(value());
+    else if (a == "--min-occupied-sessions") min_occupied_sessions = static_cast<uint32_t>(std::stoul(value()));
     else if (a == "--robot-height") robot_height_m = std::stod(value());
     else if (a == "--no-groups") grouping.enabled = false;
     else if (a == "--group-correlation") grouping.min_correlation = std::stod(value());
@@ -282,6 +287,7 @@ int main(int argc, char** argv) {
   nav.z_max_m = robot_height_m;
   nav.z_min_m = floor_clearance_m;
   nav.lethal_probability = lethal;
+  nav.min_occupied_sessions = min_occupied_sessions;
   const SessionMap latest = map.snapshot(times[learn.back()]);
   struct Planner {
     const char* name;

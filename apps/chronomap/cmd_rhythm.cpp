@@ -222,6 +222,11 @@ Command addCostmap(CLI::App& root) {
                   "(above 0.5, space as likely free as not stays passable at a high cost)")
       ->check(numberIn(0.01, 0.99))
       ->capture_default_str();
+  app->add_option("--min-occupied-sessions", o->settings.min_occupied_sessions,
+                  "a voxel that changed while learning is an obstacle only where the learning sessions saw it "
+                  "occupied at least this often; below, a stray hit, it stays passable at a high cost (0: off)")
+      ->check(numberIn(0, 1e6))
+      ->capture_default_str();
   addLearnFlags(app, o->learn);
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runCostmap(*o); }};

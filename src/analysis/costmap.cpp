@@ -55,10 +55,19 @@ Costmap costmap(const SessionMap& map, const CostmapSettings& s, const RhythmMod
   std::vector<uint8_t> known(cells, 0);
   std::vector<float> probability(cells, 0.0f), change(cells, 0.0f);
   auto index = [&](int kx, int ky) { return static_cast<size_t>(ky - ky0) * static_cast<size_t>(out.width) + static_cast<size_t>(kx - kx0); };
+  const auto lethal = static_cast<float>(s.lethal_probability);
+  // A modelled voxel seen occupied in fewer learning sessions than min_occupied_sessions: not
+  // enough evidence for an obstacle.
+  auto stray = [&](const LeafView& leaf) {
+    if (!models || s.min_occupied_sessions <= 1) return false;
+    const VoxelRhythm* v = models->find(leaf.key);
+    return v && std::lround(static_cast<double>(v->mean) * v->observations) < static_cast<long>(s.min_occupied_sessions);
+  };
   map.forEachLeaf([&](const LeafView& leaf) {
     if (!inBand(leaf.key, leaf.level)) return;
     const int size = 1 << leaf.level;
-    const auto p = static_cast<float>(leaf.counters.probability());
+    auto p = static_cast<float>(leaf.counters.probability());
+    if (p > lethal && stray(leaf)) p = lethal;
     for (int y = 0; y < size; ++y) {
       for (int x = 0; x < size; ++x) {
         const size_t i = index(leaf.key.x + x, leaf.key.y + y);
@@ -83,7 +92,6 @@ Costmap costmap(const SessionMap& map, const CostmapSettings& s, const RhythmMod
     }
   }
   out.cost.assign(cells, Costmap::kUnknown);
-  const auto lethal = static_cast<float>(s.lethal_probability);
   for (size_t i = 0; i < cells; ++i) {
     if (!known[i]) continue;
     if (probability[i] > lethal) {

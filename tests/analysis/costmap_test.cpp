@@ -119,6 +119,48 @@ TEST(Costmap, TheLethalProbabilityMovesTheObstacleThreshold) {
   }
 }
 
+TEST(Costmap, AModelledVoxelSeenOccupiedTooRarelyIsNoObstacle) {
+  // Three voxels predicted occupied with P = 0.9 in a row: (0) modelled, occupied in 1 of 21
+  // learning sessions (a stray hit); (1) modelled, occupied in 3 of 20; (2) never changed, so not
+  // modelled. With min_occupied_sessions 3 only the stray one is held at the threshold: passable,
+  // costing 98 x (0.5 x 0.5 / 0.5 + 0.5 x its change share 4m(1 - m)).
+  SessionMap m(0.05);
+  const auto key = [](int x) { return VoxelKey{static_cast<uint16_t>(32768 + x), 32768, 32770}; };
+  VoxelCounters likely;  // P = 0.9
+  likely.hits = 1;
+  likely.length_m = static_cast<float>(-1.0 / std::log(0.1));
+  for (int x = 0; x < 3; ++x) m.add(key(x), likely);
+  RhythmModels models;
+  models.resolution_m = 0.05;
+  VoxelRhythm stray, thrice;
+  stray.corner = key(0);
+  stray.observations = 21;
+  stray.mean = 1.0f / 21.0f;
+  thrice.corner = key(1);
+  thrice.observations = 20;
+  thrice.mean = 3.0f / 20.0f;
+  models.voxels = {stray, thrice};
+  CostmapSettings s;
+  s.robot_radius_m = 0.0;
+  Costmap c = costmap(m, s, &models);  // off by default: all three lethal
+  ASSERT_EQ(c.width, 3);
+  for (int x = 0; x < 3; ++x) EXPECT_EQ(c.at(x, 0), Costmap::kLethal) << x;
+  for (uint32_t off : {0u, 1u}) {
+    s.min_occupied_sessions = off;
+    EXPECT_EQ(costmap(m, s, &models).cost, c.cost) << off;
+  }
+  s.min_occupied_sessions = 3;
+  c = costmap(m, s, &models);
+  const double share = 4.0 * (1.0 / 21.0) * (1.0 - 1.0 / 21.0);
+  EXPECT_EQ(c.at(0, 0), std::lround(98.0 * (0.5 * 1.0 + 0.5 * share)));
+  EXPECT_EQ(c.at(1, 0), Costmap::kLethal);
+  EXPECT_EQ(c.at(2, 0), Costmap::kLethal);
+  s.min_occupied_sessions = 4;  // now the voxel seen occupied three times is held too
+  EXPECT_LT(costmap(m, s, &models).at(1, 0), Costmap::kInscribed);
+  // Without models the rule has nothing to read: every voxel as before.
+  EXPECT_EQ(costmap(m, s).at(0, 0), Costmap::kLethal);
+}
+
 TEST(Costmap, MapServerFilesFollowTheConventions) {
   test::TempDir tmp;
   Costmap c;

@@ -27,6 +27,12 @@ struct CostmapSettings {
   /// probability raises the cost in proportion. Above 0.5, space that is as likely free as not
   /// (a door open half the time at that hour) stays passable at a high cost.
   double lethal_probability = 0.5;
+  /// With `models`: a modelled voxel (one that changed while learning) is an obstacle only when
+  /// the learning sessions saw it occupied at least this often (round(mean x observations)); a
+  /// voxel seen occupied fewer times (a stray hit: a flying pixel, depth noise) has its probability
+  /// held at lethal_probability, passable at a high cost. 0 or 1: off (the default). Voxels that
+  /// never changed, and maps without models, are read as before.
+  uint32_t min_occupied_sessions = 0;
 };
 
 /// A 2D grid of costs in the map_server convention: -1 unknown, 0 free .. 100 lethal. Cell (i, j)
@@ -48,7 +54,8 @@ struct Costmap {
 /// The costs of `map` over the settings' band: a column is lethal when a voxel in the band is
 /// likely occupied (P > lethal_probability), else it costs its highest probability and its voxels' change share
 /// (`models`, when given: the share of each voxel's learning observations that differ from the
-/// one before), scaled into 0..98; unknown when the band holds no known voxel; then every cell
+/// one before), scaled into 0..98 (settings.min_occupied_sessions holds back modelled voxels seen
+/// occupied too rarely); unknown when the band holds no known voxel; then every cell
 /// within the robot's radius of a lethal cell becomes kInscribed.
 /// @throw UsageError for an empty band or a negative radius.
 Costmap costmap(const SessionMap& map, const CostmapSettings& settings, const RhythmModels* models = nullptr);
