@@ -170,13 +170,13 @@ struct BuildCmdOptions {
   int register_rounds = 3;
   std::string register_model = "world";
   int register_drift = 0;
-  double register_radius = RegisterSettings{}.radius_voxels;
+  std::optional<double> register_radius;  // given or not: the flags that need another say so
   bool register_planar = false;
   bool register_points = false;
   bool register_keep_mean = false;
-  double register_drift_yaw = RegisterSettings{}.drift_yaw_per_frame_deg;
-  int register_drift_rounds = RegisterSettings{}.drift_rounds;
-  double register_fine_radius = 0.0;
+  std::optional<double> register_drift_yaw;
+  std::optional<int> register_drift_rounds;
+  std::optional<double> register_fine_radius;
   std::optional<double> register_cache_gib;
   bool tiles = false;
   std::optional<double> tile_size_m;
@@ -190,27 +190,27 @@ void setDriftSettings(const BuildCmdOptions& o, RegisterSettings& align) {
   }
   if (o.register_drift > 0 && !o.register_sessions) throw UsageError("--register-drift needs --register");
   align.drift_knot_frames = o.register_drift;
-  if (!(o.register_drift_yaw > 0.0 && o.register_drift_yaw <= 10.0)) {
-    throw UsageError("--register-drift-yaw must lie in (0, 10] degrees per frame");
+  if (o.register_drift_yaw) {
+    if (!(*o.register_drift_yaw > 0.0 && *o.register_drift_yaw <= 10.0)) {
+      throw UsageError("--register-drift-yaw must lie in (0, 10] degrees per frame");
+    }
+    if (o.register_drift <= 0) throw UsageError("--register-drift-yaw needs --register-drift");
+    align.drift_yaw_per_frame_deg = *o.register_drift_yaw;
   }
-  if (o.register_drift_yaw != RegisterSettings{}.drift_yaw_per_frame_deg && o.register_drift <= 0) {
-    throw UsageError("--register-drift-yaw needs --register-drift");
+  if (o.register_drift_rounds) {
+    if (*o.register_drift_rounds < 1 || *o.register_drift_rounds > 10) {
+      throw UsageError("--register-drift-rounds must lie in [1, 10]");
+    }
+    if (o.register_drift <= 0) throw UsageError("--register-drift-rounds needs --register-drift");
+    align.drift_rounds = *o.register_drift_rounds;
   }
-  align.drift_yaw_per_frame_deg = o.register_drift_yaw;
-  if (o.register_drift_rounds < 1 || o.register_drift_rounds > 10) {
-    throw UsageError("--register-drift-rounds must lie in [1, 10]");
+  if (o.register_fine_radius) {
+    if (!(*o.register_fine_radius >= 1.0 && *o.register_fine_radius <= 8.0)) {
+      throw UsageError("--register-fine-radius must lie in [1, 8] voxels");
+    }
+    if (o.register_drift <= 0) throw UsageError("--register-fine-radius needs --register-drift");
+    align.fine_radius_voxels = *o.register_fine_radius;
   }
-  if (o.register_drift_rounds != RegisterSettings{}.drift_rounds && o.register_drift <= 0) {
-    throw UsageError("--register-drift-rounds needs --register-drift");
-  }
-  align.drift_rounds = o.register_drift_rounds;
-  if (o.register_fine_radius != 0.0 && !(o.register_fine_radius >= 1.0 && o.register_fine_radius <= 8.0)) {
-    throw UsageError("--register-fine-radius must lie in [1, 8] voxels");
-  }
-  if (o.register_fine_radius != 0.0 && o.register_drift <= 0) {
-    throw UsageError("--register-fine-radius needs --register-drift");
-  }
-  align.fine_radius_voxels = o.register_fine_radius;
 }
 
 /// The registration the flags ask for; refuses values out of range and flags without --register.
@@ -220,13 +220,13 @@ std::optional<RegistrationSettings> registrationSettings(const BuildCmdOptions& 
   s.rounds = o.register_rounds;
   s.align.model = parseCorrectionModel(o.register_model);
   setDriftSettings(o, s.align);
-  if (!(o.register_radius >= 1.0 && o.register_radius <= 8.0)) {
-    throw UsageError("--register-radius must lie in [1, 8] voxels");
+  if (o.register_radius) {
+    if (!(*o.register_radius >= 1.0 && *o.register_radius <= 8.0)) {
+      throw UsageError("--register-radius must lie in [1, 8] voxels");
+    }
+    if (!o.register_sessions) throw UsageError("--register-radius needs --register");
+    s.align.radius_voxels = *o.register_radius;
   }
-  if (o.register_radius != RegisterSettings{}.radius_voxels && !o.register_sessions) {
-    throw UsageError("--register-radius needs --register");
-  }
-  s.align.radius_voxels = o.register_radius;
   if (o.register_planar && !o.register_sessions) throw UsageError("--register-planar needs --register");
   if (o.register_points && o.register_drift <= 0) throw UsageError("--register-points needs --register-drift");
   s.align.planar = o.register_planar;
@@ -444,25 +444,21 @@ void addRegisterFlags(CLI::App* app, BuildCmdOptions& o) {
       ->capture_default_str();
   app->add_option("--register-drift-yaw", o.register_drift_yaw,
                   "the drift fit's smoothness: how far (degrees) the heading error may wander from one frame to the "
-                  "next, in (0, 10], needs --register-drift; larger follows an odometry's heading drift more closely "
-                  "(docs/changes.md has the figures)")
-      ->capture_default_str();
+                  "next, in (0, 10] (default 0.01), needs --register-drift; larger follows an odometry's heading drift "
+                  "more closely (docs/changes.md has the figures)");
   app->add_option("--register-drift-rounds", o.register_drift_rounds,
-                  "rounds of drift correction, each against the consensus the previous one left, in [1, 10]; needs "
-                  "--register-drift")
-      ->capture_default_str();
+                  "rounds of drift correction, each against the consensus the previous one left, in [1, 10] (default "
+                  "2); needs --register-drift");
   app->add_option("--register-fine-radius", o.register_fine_radius,
                   "the neighbourhood (voxels, in [1, 8]) of the drift rounds after the first: a wide --register-radius "
-                  "reaches a large drift, a narrower one refines once the sessions lie close (0: --register-radius "
-                  "throughout; docs/changes.md has the figures); needs --register-drift")
-      ->capture_default_str();
+                  "reaches a large drift, a narrower one refines once the sessions lie close (without it: "
+                  "--register-radius throughout; docs/changes.md has the figures); needs --register-drift");
   app->add_option("--register-rounds", o.register_rounds,
                   "registration rounds, each against the consensus the previous one left")
       ->capture_default_str();
   app->add_option("--register-radius", o.register_radius,
                   "how far (voxels) each surface voxel looks for the consensus' surfaces; smaller resolves finer "
-                  "offsets once sessions lie close (docs/changes.md has the office figures)")
-      ->capture_default_str();
+                  "offsets once sessions lie close, in [1, 8] (default 2; docs/changes.md has the office figures)");
   app->add_flag("--register-planar", o.register_planar,
                 "correct x, y and heading only, never the height: the error of a robot's 2D localisation "
                 "(docs/realign.md)");

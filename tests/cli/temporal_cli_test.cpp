@@ -744,6 +744,9 @@ TEST(SimulatorCli, SimulateAndBuildWithRegistration) {
   }
   for (const auto& [bad, flag] : std::vector<std::pair<const char*, const char*>>{
            {" --register --register-drift-rounds 3", "--register-drift-rounds needs"},
+           {" --register --register-drift-rounds 2", "--register-drift-rounds needs"},  // the default, given
+           {" --register --register-drift-yaw 0.01", "--register-drift-yaw needs"},     // likewise
+           {" --register-radius 2", "--register-radius needs"},
            {" --register --register-drift 5 --register-drift-rounds 0", "--register-drift-rounds must"},
            {" --register --register-fine-radius 2", "--register-fine-radius needs"},
            {" --register --register-drift 5 --register-fine-radius 0.5", "--register-fine-radius must"},
