@@ -261,43 +261,82 @@ void encodeLengthsAndHits(size_t n, size_t m, const std::function<const VoxelCou
   blocks.push_back({kHitPlanes, std::move(flags)});
 }
 
-/// Reads version 3's QLEN and PHIT; returns how many of the `n` records have hits.
-size_t decodeLengthsAndHits(const CmapFile& file, const std::string& source, size_t n,
-                            const std::function<VoxelCounters&(size_t)>& at) {
-  const CmapBlock& lengths = file.block(kQuantisedLengths, source);
-  if (lengths.data.size() != 2 * n) {
-    throw FormatError(blockName(source, kQuantisedLengths) + " does not match the tree");
+/// Version 3's QLEN and PHIT for `n` records, checked against each other: the lengths' codes,
+/// one flag a record (it has hits) and the flagged records' hits, byte plane after byte plane.
+struct LengthsAndHits {
+  LengthsAndHits(const CmapFile& file, const std::string& source_in, size_t n_in) : source(source_in), n(n_in) {
+    const CmapBlock& length_block = file.block(kQuantisedLengths, source);
+    if (length_block.data.size() != 2 * n) {
+      throw FormatError(blockName(source, kQuantisedLengths) + " does not match the tree");
+    }
+    const CmapBlock& hit_block = file.block(kHitPlanes, source);
+    const size_t flag_bytes = (n + 7) / 8;
+    if (hit_block.data.size() < flag_bytes) throw FormatError(blockName(source, kHitPlanes) + " is truncated");
+    lengths = length_block.data.data();
+    flags = hit_block.data.data();
+    for (size_t b = 0; b < flag_bytes; ++b) with_hits += static_cast<size_t>(std::popcount(flags[b]));
+    if (n % 8 != 0 && (flags[n / 8] >> (n % 8)) != 0) {
+      throw FormatError(blockName(source, kHitPlanes) + " flags records that do not exist");
+    }
+    if (hit_block.data.size() != flag_bytes + 4 * with_hits) {
+      throw FormatError(blockName(source, kHitPlanes) + " does not match the tree");
+    }
+    planes = flags + flag_bytes;
   }
-  const CmapBlock& hit_block = file.block(kHitPlanes, source);
-  const size_t flag_bytes = (n + 7) / 8;
-  if (hit_block.data.size() < flag_bytes) throw FormatError(blockName(source, kHitPlanes) + " is truncated");
-  const uint8_t* flags = hit_block.data.data();
-  size_t m = 0;
-  for (size_t i = 0; i < n; ++i) m += (flags[i / 8] >> (i % 8)) & 1;
-  if (n % 8 != 0 && (flags[n / 8] >> (n % 8)) != 0) {
-    throw FormatError(blockName(source, kHitPlanes) + " flags records that do not exist");
-  }
-  if (hit_block.data.size() != flag_bytes + 4 * m) {
-    throw FormatError(blockName(source, kHitPlanes) + " does not match the tree");
-  }
-  const uint8_t* planes = flags + flag_bytes;
-  size_t k = 0;
-  for (size_t i = 0; i < n; ++i) {
-    VoxelCounters& c = at(i);
-    const uint32_t code = lengths.data[i] | uint32_t{lengths.data[n + i]} << 8;
+  bool flagged(size_t i) const { return (flags[i / 8] >> (i % 8)) & 1; }
+  /// Record i's ray length. @throw FormatError for a code that is no length.
+  float lengthOf(size_t i) const {
+    const uint32_t code = lengths[i] | uint32_t{lengths[n + i]} << 8;
     if (code >= kFirstNonFiniteLengthCode) {
       throw FormatError(blockName(source, kQuantisedLengths) + " holds an impossible length");
     }
-    c.length_m = dequantiseLength(static_cast<uint16_t>(code));
-    c.hits = 0;
-    if (!((flags[i / 8] >> (i % 8)) & 1)) continue;
+    return dequantiseLength(static_cast<uint16_t>(code));
+  }
+  /// The hits of the k-th flagged record. @throw FormatError for none.
+  uint32_t hitsOf(size_t k) const {
     uint32_t h = 0;
-    for (int b = 0; b < 4; ++b) h |= static_cast<uint32_t>(planes[b * m + k]) << (8 * b);
+    for (int b = 0; b < 4; ++b) h |= static_cast<uint32_t>(planes[b * with_hits + k]) << (8 * b);
     if (h == 0) throw FormatError(blockName(source, kHitPlanes) + " flags a record without hits");
-    c.hits = h;
+    return h;
+  }
+
+  const std::string& source;
+  size_t n;
+  size_t with_hits = 0;
+  const uint8_t* lengths = nullptr;
+  const uint8_t* flags = nullptr;
+  const uint8_t* planes = nullptr;
+};
+
+/// The mean colours and hit positions (COLR, CPOS) of `with_hits` records, checked for size.
+struct HitBlocks {
+  const CmapBlock& means;
+  const CmapBlock& positions;
+};
+HitBlocks hitBlocksOf(const CmapFile& file, const std::string& source, size_t with_hits) {
+  const CmapBlock& means = file.block(kColours, source);
+  const CmapBlock& positions = file.block(kPositions, source);
+  if (means.data.size() != 3 * with_hits) throw FormatError(blockName(source, kColours) + " does not match the hit counts");
+  if (positions.data.size() != 3 * with_hits) {
+    throw FormatError(blockName(source, kPositions) + " does not match the hit counts");
+  }
+  return {means, positions};
+}
+
+/// Reads version 3's QLEN and PHIT; returns how many of the `n` records have hits.
+size_t decodeLengthsAndHits(const CmapFile& file, const std::string& source, size_t n,
+                            const std::function<VoxelCounters&(size_t)>& at) {
+  const LengthsAndHits v3(file, source, n);
+  size_t k = 0;
+  for (size_t i = 0; i < n; ++i) {
+    VoxelCounters& c = at(i);
+    c.length_m = v3.lengthOf(i);
+    c.hits = 0;
+    if (!v3.flagged(i)) continue;
+    c.hits = v3.hitsOf(k);
     ++k;
   }
-  return m;
+  return v3.with_hits;
 }
 
 }  // namespace
@@ -364,12 +403,7 @@ void decodeCounters(const CmapFile& file, const std::string& source, size_t n,
   } else {
     with_hits = decodeLengthsAndHits(file, source, n, at);
   }
-  const CmapBlock& means = file.block(kColours, source);
-  const CmapBlock& positions = file.block(kPositions, source);
-  if (means.data.size() != 3 * with_hits) throw FormatError(blockName(source, kColours) + " does not match the hit counts");
-  if (positions.data.size() != 3 * with_hits) {
-    throw FormatError(blockName(source, kPositions) + " does not match the hit counts");
-  }
+  const auto [means, positions] = hitBlocksOf(file, source, with_hits);
   static const std::vector<uint8_t> kNone;
   ByteReader residuals(exact ? file.block(kColourResiduals, source).data : kNone, blockName(source, kColourResiduals));
   for (int ch = 0; ch < 3; ++ch) {
@@ -406,46 +440,21 @@ void decodeCountersOf(const CmapFile& file, const std::string& source, size_t n,
     return;
   }
   // Version 3: fixed-width planes; a record's place among those with hits is a count of flags.
-  const CmapBlock& lengths = file.block(kQuantisedLengths, source);
-  if (lengths.data.size() != 2 * n) {
-    throw FormatError(blockName(source, kQuantisedLengths) + " does not match the tree");
-  }
-  const CmapBlock& hit_block = file.block(kHitPlanes, source);
-  const size_t flag_bytes = (n + 7) / 8;
-  if (hit_block.data.size() < flag_bytes) throw FormatError(blockName(source, kHitPlanes) + " is truncated");
-  const uint8_t* flags = hit_block.data.data();
-  size_t m = 0;
-  for (size_t b = 0; b < flag_bytes; ++b) m += static_cast<size_t>(std::popcount(flags[b]));
-  if (n % 8 != 0 && (flags[n / 8] >> (n % 8)) != 0) {
-    throw FormatError(blockName(source, kHitPlanes) + " flags records that do not exist");
-  }
-  if (hit_block.data.size() != flag_bytes + 4 * m) {
-    throw FormatError(blockName(source, kHitPlanes) + " does not match the tree");
-  }
-  const CmapBlock& means = file.block(kColours, source);
-  const CmapBlock& positions = file.block(kPositions, source);
-  if (means.data.size() != 3 * m) throw FormatError(blockName(source, kColours) + " does not match the hit counts");
-  if (positions.data.size() != 3 * m) {
-    throw FormatError(blockName(source, kPositions) + " does not match the hit counts");
-  }
-  const uint8_t* planes = flags + flag_bytes;
+  const LengthsAndHits v3(file, source, n);
+  const size_t m = v3.with_hits;
+  const auto [means, positions] = hitBlocksOf(file, source, m);
+  const uint8_t* flags = v3.flags;
   size_t byte_at = 0, before = 0;  // `before`: records with hits in the bytes of flags before byte_at
   for (size_t k = 0; k < records.size(); ++k) {
     const size_t i = records[k];
     for (; byte_at < i / 8; ++byte_at) before += static_cast<size_t>(std::popcount(flags[byte_at]));
     VoxelCounters& c = at(k);
     c = VoxelCounters{};
-    const uint32_t code = lengths.data[i] | uint32_t{lengths.data[n + i]} << 8;
-    if (code >= kFirstNonFiniteLengthCode) {
-      throw FormatError(blockName(source, kQuantisedLengths) + " holds an impossible length");
-    }
-    c.length_m = dequantiseLength(static_cast<uint16_t>(code));
-    if (!((flags[i / 8] >> (i % 8)) & 1)) continue;
+    c.length_m = v3.lengthOf(i);
+    if (!v3.flagged(i)) continue;
     const auto lower = static_cast<uint8_t>(flags[i / 8] & ((1u << (i % 8)) - 1));  // flags before i in its byte
     const size_t h_at = before + static_cast<size_t>(std::popcount(lower));
-    uint32_t h = 0;
-    for (int b = 0; b < 4; ++b) h |= static_cast<uint32_t>(planes[b * m + h_at]) << (8 * b);
-    if (h == 0) throw FormatError(blockName(source, kHitPlanes) + " flags a record without hits");
+    const uint32_t h = v3.hitsOf(h_at);
     c.hits = h;
     for (int ch = 0; ch < 3; ++ch) {
       channel(c, ch) = static_cast<uint32_t>(std::min<int64_t>(int64_t{means.data[ch * m + h_at]} * h, 0xffffffffll));
