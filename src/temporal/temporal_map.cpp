@@ -423,60 +423,42 @@ std::vector<double> TemporalMap::times() const {
   return t;
 }
 
-SessionMap TemporalMap::snapshot(double time_s, SnapshotVisits* visits) const {
-  SnapshotVisits seen;
-  if (visits) *visits = seen;
-  SessionMap out(resolution_m());
-  const auto rank = rankAtOrBefore(time_s);
-  if (!rank) return out;
-  const uint32_t last = *rank;
+template <class CoarseFn, class ListFn>
+void TemporalMap::copyTree(const std::vector<Children>& tree, CoarseFn&& coarse, ListFn&& list, size_t reserve_inner,
+                           size_t reserve_leaves, SessionMap& out, SnapshotVisits& seen) {
   std::vector<SessionMap::Children> inner;
   std::vector<VoxelCounters> leaves;
-  inner.reserve(inner_.size());
-  leaves.reserve(live_lists_);
-  // Depth-first copy; a node is reserved before its children and dropped again when none of
-  // them holds anything at this time (it is then the last node in the pool).
+  inner.reserve(reserve_inner);
+  leaves.reserve(reserve_leaves);
+  auto leaf = [&](const VoxelCounters& v) {
+    leaves.push_back(v);
+    return static_cast<uint32_t>(leaves.size() - 1) | SessionMap::kLeafBit;
+  };
   auto build = [&](auto&& self, uint32_t node) -> SessionMap::Ref {
     const auto me = static_cast<uint32_t>(inner.size());
     inner.emplace_back();
     ++seen.inner;
     bool any = false;
     for (int slot = 0; slot < 8; ++slot) {
-      const Ref r = inner_[node][slot];
+      const Ref r = tree[node][slot];
       SessionMap::Ref out_ref = SessionMap::kEmpty;
       if (isInner(r)) {
-        if (const Coarse* c = coarseAt(r, last)) {
-          // The whole cube reads free without hits now: one leaf, as compressFree() makes it.
+        if (const std::optional<float> length = coarse(r)) {
+          // The whole cube reads free without hits: one leaf, as compressFree() makes it.
           VoxelCounters v;
-          v.length_m = c->length_m;
-          leaves.push_back(v);
-          out_ref = static_cast<uint32_t>(leaves.size() - 1) | SessionMap::kLeafBit;
+          v.length_m = *length;
+          out_ref = leaf(v);
           ++seen.coarse;
         } else {
           out_ref = self(self, r);
         }
       } else if (isList(r)) {
         ++seen.lists;
-        const List& l = lists_[index(r)];
-        if (l.first.session <= last) {
-          // The newest entry is valid: it is kept in the list record itself, so the snapshot of
-          // the latest time never reads the entry arena.
-          leaves.push_back(valueOf(l.first));
+        leaves.emplace_back();
+        if (list(r, leaves.back())) {
           out_ref = static_cast<uint32_t>(leaves.size() - 1) | SessionMap::kLeafBit;
-        } else if (l.size > 1 && entriesOf(l)[0].session <= last) {
-          // An older entry: binary search, so that long histories do not slow snapshots down.
-          const Stored* e = entriesOf(l);
-          size_t lo = 1, hi = l.size - 1;  // e[lo - 1] <= last < e[hi]
-          while (lo < hi) {
-            const size_t mid = (lo + hi) / 2;
-            if (e[mid].session <= last) {
-              lo = mid + 1;
-            } else {
-              hi = mid;
-            }
-          }
-          leaves.push_back(valueOf(e[lo - 1]));
-          out_ref = static_cast<uint32_t>(leaves.size() - 1) | SessionMap::kLeafBit;
+        } else {
+          leaves.pop_back();
         }
       }
       inner[me][slot] = out_ref;
@@ -490,6 +472,43 @@ SessionMap TemporalMap::snapshot(double time_s, SnapshotVisits* visits) const {
   };
   build(build, 0);
   out.adoptPools(std::move(inner), std::move(leaves));
+}
+
+SessionMap TemporalMap::snapshot(double time_s, SnapshotVisits* visits) const {
+  SnapshotVisits seen;
+  if (visits) *visits = seen;
+  SessionMap out(resolution_m());
+  const auto rank = rankAtOrBefore(time_s);
+  if (!rank) return out;
+  const uint32_t last = *rank;
+  auto coarse = [&](Ref r) -> std::optional<float> {
+    if (const Coarse* c = coarseAt(r, last)) return c->length_m;
+    return std::nullopt;
+  };
+  auto list = [&](Ref r, VoxelCounters& v) {
+    const List& l = lists_[index(r)];
+    // The newest entry is valid: it is kept in the list record itself, so the snapshot of the
+    // latest time never reads the entry arena.
+    if (l.first.session <= last) {
+      v = valueOf(l.first);
+      return true;
+    }
+    if (l.size <= 1 || entriesOf(l)[0].session > last) return false;
+    // An older entry: binary search, so that long histories do not slow snapshots down.
+    const Stored* e = entriesOf(l);
+    size_t lo = 1, hi = l.size - 1;  // e[lo - 1] <= last < e[hi]
+    while (lo < hi) {
+      const size_t mid = (lo + hi) / 2;
+      if (e[mid].session <= last) {
+        lo = mid + 1;
+      } else {
+        hi = mid;
+      }
+    }
+    v = valueOf(e[lo - 1]);
+    return true;
+  };
+  copyTree(inner_, coarse, list, inner_.size(), live_lists_, out, seen);
   if (visits) *visits = seen;
   return out;
 }
@@ -545,42 +564,15 @@ SessionMap TemporalMap::snapshotOfStates(double resolution_m, const std::vector<
     if (all) coarse[node] = sum;
   };
   coarseOf(coarseOf, 0);
-  std::vector<SessionMap::Children> inner;
-  std::vector<VoxelCounters> leaves;
-  // snapshot()'s depth-first copy, node for node.
-  auto build = [&](auto&& self, uint32_t node) -> SessionMap::Ref {
-    const auto me = static_cast<uint32_t>(inner.size());
-    inner.emplace_back();
-    bool any = false;
-    for (int slot = 0; slot < 8; ++slot) {
-      const Ref r = inner_in[node][slot];
-      SessionMap::Ref out_ref = SessionMap::kEmpty;
-      if (isInner(r)) {
-        if (coarse[r] >= 0.0f) {
-          VoxelCounters v;
-          v.length_m = coarse[r];
-          leaves.push_back(v);
-          out_ref = static_cast<uint32_t>(leaves.size() - 1) | SessionMap::kLeafBit;
-        } else {
-          out_ref = self(self, r);
-        }
-      } else if (isList(r)) {
-        if (const auto& v = listAt(r)) {
-          leaves.push_back(stored(*v));
-          out_ref = static_cast<uint32_t>(leaves.size() - 1) | SessionMap::kLeafBit;
-        }
-      }
-      inner[me][slot] = out_ref;
-      any = any || out_ref != SessionMap::kEmpty;
-    }
-    if (!any && me != 0) {
-      inner.pop_back();
-      return SessionMap::kEmpty;
-    }
-    return me;
-  };
-  build(build, 0);
-  out.adoptPools(std::move(inner), std::move(leaves));
+  SnapshotVisits seen;
+  copyTree(
+      inner_in, [&](Ref r) -> std::optional<float> { return coarse[r] >= 0.0f ? std::optional<float>(coarse[r]) : std::nullopt; },
+      [&](Ref r, VoxelCounters& out_v) {
+        const auto& v = listAt(r);
+        if (v) out_v = stored(*v);
+        return v.has_value();
+      },
+      0, 0, out, seen);
   return out;
 }
 

@@ -308,6 +308,14 @@ class TemporalMap {
   void packHitParts(std::vector<List>& lists);
   /// The entries of `l`, decoded into `scratch`.
   std::span<const Entry> decoded(const List& l, std::vector<Entry>& scratch) const;
+  /// The depth-first copy of the tree `tree` that snapshot() and snapshotOfStates() make into
+  /// `out`'s pools: `coarse(r)` gives the length of the one free leaf an inner node reads as at
+  /// that time (std::optional<float>, none: descend), `list(r, v)` whether a list holds a value valid
+  /// then, written to v. A node is reserved before its children and dropped again when
+  /// none of them holds anything (it is then the last node in the pool). Counts into `seen`.
+  template <class CoarseFn, class ListFn>
+  static void copyTree(const std::vector<Children>& tree, CoarseFn&& coarse, ListFn&& list, size_t reserve_inner,
+                       size_t reserve_leaves, SessionMap& out, SnapshotVisits& seen);
   static bool isList(Ref r) { return r != kEmpty && (r & kListBit) != 0; }
   static bool isInner(Ref r) { return r != kEmpty && (r & kListBit) == 0; }
   static uint32_t index(Ref r) { return r & ~kListBit; }
