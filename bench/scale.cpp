@@ -4,7 +4,7 @@
 // allows (--sessions), not the preset's year.
 //
 //   scale [--sessions N] [--whole W] [--floors F] [--scale S] [--memory-limit GIB] [--sim DIR] [--work DIR]
-//         [--plot PNG] [--first-night K] [--last-night L] [--earlier OUTPUT]
+//         [--plot PNG] [--first-night K] [--last-night L] [--earlier OUTPUT] [--tile-windows N]
 //   scale --query DIR
 //   scale --plot-from OUTPUT --plot PNG
 //
@@ -19,6 +19,7 @@
 // from the tiled map DIR/stream that an earlier run left with nights 1..K-1 (the work folder is
 // kept); --earlier OUTPUT adds the nights an earlier run printed that this one did not build (for
 // night 10's figure, the ratio and the plot; each such night is marked "earlier": true).
+// --tile-windows N passes `build --tile-windows N` (sessions per window file; 0: none) each night.
 
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -206,13 +207,13 @@ chronomap::ImageRgb plotNights(const nlohmann::json& nights) {
 int main(int argc, char** argv) {
   int sessions = 4, floors = 3, whole = 4, first_night = 1, last_night = 0;
   double scale = 0.5;
-  std::string memory_limit = "0.25";
+  std::string memory_limit = "0.25", tile_windows;
   fs::path sim, query, plot, plot_from, earlier, work = fs::temp_directory_path() / "chronomap_bench_scale";
   for (int i = 1; i < argc; i += 2) {
     const std::string a = argv[i];
     if (a == "-h" || a == "--help" || i + 1 == argc) {
       std::cerr << "usage: scale [--sessions N] [--whole W] [--floors F] [--scale S] [--memory-limit GIB] [--sim DIR] "
-                   "[--work DIR] [--plot PNG] [--first-night K] [--last-night L] [--earlier OUTPUT] | --query DIR | --plot-from OUTPUT --plot PNG (bench/scale.cpp says more)\n";
+                   "[--work DIR] [--plot PNG] [--first-night K] [--last-night L] [--earlier OUTPUT] [--tile-windows N] | --query DIR | --plot-from OUTPUT --plot PNG (bench/scale.cpp says more)\n";
       return a == "-h" || a == "--help" ? 0 : 2;
     }
     if (a == "--sessions") sessions = std::atoi(argv[i + 1]);
@@ -228,6 +229,7 @@ int main(int argc, char** argv) {
     else if (a == "--first-night") first_night = std::atoi(argv[i + 1]);
     else if (a == "--last-night") last_night = std::atoi(argv[i + 1]);
     else if (a == "--earlier") earlier = argv[i + 1];
+    else if (a == "--tile-windows") tile_windows = argv[i + 1];
     else {
       std::cerr << "unknown option " << a << "\n";
       return 2;
@@ -305,15 +307,16 @@ int main(int argc, char** argv) {
     out["first_night"] = first_night;
   }
   for (size_t k = static_cast<size_t>(first_night - 1); k < folders.size(); ++k) {
-    const Run r = run({cli, "build", stream_folder.string(), folders[k], "--tiles", "--tile-size", "3.2",
-                       "--memory-limit", memory_limit, "--threads", "1", "--json"},
-                      work / "night.json");
+    std::vector<std::string> a = {cli, "build", stream_folder.string(), folders[k], "--tiles", "--tile-size", "3.2",
+                                  "--memory-limit", memory_limit, "--threads", "1", "--json"};
+    if (!tile_windows.empty()) a.insert(a.end(), {"--tile-windows", tile_windows});
+    const Run r = run(a, work / "night.json");
     if (r.exit_code != 0) return 1;
     std::ifstream in(work / "night.json");
     const nlohmann::json j = nlohmann::json::parse(in);
     nights.push_back({{"night", k + 1}, {"peak_rss_mib", r.max_rss_mib}, {"cpu_s", r.cpu()}, {"wall_s", r.wall_s},
                       {"tiles", j["tiles"]}, {"tiles_rewritten", j["tiles_written"]}, {"tiles_kept", j["tiles_kept"]},
-                      {"bytes", j["index_bytes"].get<uint64_t>() + j["tile_bytes"].get<uint64_t>()},
+                      {"windows_written", j["windows_written"]}, {"bytes", j["index_bytes"].get<uint64_t>() + j["tile_bytes"].get<uint64_t>()},
                       {"peak_parts_mib", j["peak_parts_bytes"].get<double>() / 1048576.0},
                       {"peak_group_mib", j["peak_group_bytes"].get<double>() / 1048576.0}, {"spills", j["spills"]}});
     std::cerr << nights.back().dump() << "\n";

@@ -180,6 +180,7 @@ struct BuildCmdOptions {
   std::optional<double> register_cache_gib;
   bool tiles = false;
   std::optional<double> tile_size_m;
+  std::optional<uint32_t> tile_windows;
   bool json = false;
 };
 
@@ -320,7 +321,7 @@ int runStreamBuild(const BuildCmdOptions& o, BuildSettings& s) {
   const double gib = o.integrate.memory_limit_gib.value_or(kDefaultPartsGib);
   // --memory-limit is the parts' budget here; integration keeps its own default limit.
   s.session.integrator.memory_limit_bytes = defaultMemoryLimitBytes();
-  const StreamResult r = streamBuild(s, o.tile_size_m, gibToBytes(gib));
+  const StreamResult r = streamBuild(s, o.tile_size_m, gibToBytes(gib), o.tile_windows.value_or(kDefaultWindowSessions));
   nlohmann::json added = nlohmann::json::array();
   for (size_t i = 0; i < r.added_times.size(); ++i) {
     added.push_back({{"time", formatTime(r.added_times[i])}, {"time_s", r.added_times[i]},
@@ -339,6 +340,7 @@ int runStreamBuild(const BuildCmdOptions& o, BuildSettings& s) {
                             {"tiles_read", r.stats.tiles_read},
                             {"tiles_written", r.stats.tiles_written},
                             {"tiles_kept", r.stats.tiles_kept},
+                            {"windows_written", r.stats.windows_written},
                             {"spills", r.stats.spills},
                             {"spilled_bytes", r.stats.spilled_bytes},
                             {"peak_parts_bytes", r.stats.peak_parts_bytes},
@@ -370,6 +372,7 @@ int runBuild(const BuildCmdOptions& o) {
   if (!tiled) {
     requireExtension(o.map, ".cmap", "4D map");
     if (o.tile_size_m) throw UsageError("--tile-size needs --tiles");
+    if (o.tile_windows) throw UsageError("--tile-windows needs --tiles");
   }
   BuildSettings s;
   s.realign = realignSettings(o.realign);
@@ -504,6 +507,12 @@ Command addBuild(CLI::App& root) {
                   "with --tiles, for a new tiled map: tile edge in metres, a power-of-two number of voxels "
                   "(default 128 voxels)")
       ->check(numberIn(1e-6, 1e6));
+  app->add_option("--tile-windows", o->tile_windows,
+                  "with --tiles: sessions per window file of a tile's history (default " +
+                      std::to_string(kDefaultWindowSessions) +
+                      "; 0: none): a snapshot of an older time reads the window that holds it, not the whole history; "
+                      "a map that has windows keeps their size (docs/scale.md)")
+      ->check(CLI::Range(0, 65535));
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runBuild(*o); }};
 }

@@ -87,6 +87,7 @@ void removeLeftovers(const fs::path& folder, const TileIndex* index) {
     for (const TileEntry& e : index->tiles) {
       named.insert(e.file);
       if (e.latest) named.insert(e.latest->file);
+      for (const WindowFile& w : e.windows) named.insert(w.file);
     }
   }
   std::error_code ec;
@@ -162,8 +163,9 @@ uint64_t nextGeneration(const std::optional<TileIndex>& index) {
 class TileStream {
  public:
   TileStream(const StreamSettings& s, const std::optional<TileIndex>& index, const TemporalMap& top, int level,
-             uint64_t generation, StreamResult& result)
-      : s_(s), index_(index), top_(top), level_(level), generation_(generation), result_(result),
+             uint64_t generation, uint32_t window_sessions, StreamResult& result)
+      : s_(s), index_(index), top_(top), level_(level), generation_(generation), window_sessions_(window_sessions),
+        result_(result),
         parts_(s.folder / (".parts-" + std::to_string(::getpid())), s.memory_limit_bytes) {}
 
   void addSessions(size_t count, const std::function<StreamSession(size_t)>& produce);
@@ -192,6 +194,7 @@ class TileStream {
   const TemporalMap& top_;
   const int level_;
   const uint64_t generation_;
+  const uint32_t window_sessions_;
   StreamResult& result_;
   PartStore parts_;
   std::vector<NewSession> added_;
@@ -349,7 +352,9 @@ void TileStream::rewriteStoredTile(const Cube& g, const TileEntry& e) {
     writeSplit(g, work);
     return;
   }
-  entries_.push_back(writeTileFile(s_.folder, e.key, generation_, work));
+  // The windows written before hold earlier sessions only, which these did not change.
+  entries_.push_back(writeTileFile(s_.folder, e.key, generation_, work, window_sessions_, e.windows));
+  result_.stats.windows_written += entries_.back().windows.size() - e.windows.size();
   result_.tile_bytes += entries_.back().diskBytes();
   ++result_.stats.tiles_written;
 }
@@ -359,7 +364,8 @@ void TileStream::rewriteStoredTile(const Cube& g, const TileEntry& e) {
 void TileStream::writeSplit(const Cube& g, const TemporalMap& work) {
   SplitMap split = splitIntoTiles(work, level_);
   for (const Tile& t : split.tiles) {
-    entries_.push_back(writeTileFile(s_.folder, t.key, generation_, t.map));
+    entries_.push_back(writeTileFile(s_.folder, t.key, generation_, t.map, window_sessions_));
+    result_.stats.windows_written += entries_.back().windows.size();
     result_.tile_bytes += entries_.back().diskBytes();
     ++result_.stats.tiles_written;
   }
@@ -469,7 +475,8 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
   const uint64_t generation = nextGeneration(index);
   removeLeftovers(s.folder, index ? &*index : nullptr);
 
-  TileStream stream(s, index, top, level, generation, result);
+  const uint32_t window_sessions = index && index->window_sessions > 0 ? index->window_sessions : s.window_sessions;
+  TileStream stream(s, index, top, level, generation, window_sessions, result);
   stream.addSessions(count, produce);
   stream.formGroups();
   stream.writeGroups();
@@ -479,9 +486,9 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
   const std::vector<TileEntry>& entries = stream.entries();
   nlohmann::json meta = {{"created_by", "chronomap build --tiles"}};
   if (s.metadata.is_object()) meta.update(s.metadata);
-  result.index_bytes = writeTileIndex(s.folder, new_top, level, entries, meta);
+  result.index_bytes = writeTileIndex(s.folder, new_top, level, entries, meta, window_sessions);
   cleanup.armed = false;
-  TileIndex written{level, TemporalMap(new_top.resolution_m()), entries};
+  TileIndex written{level, window_sessions, TemporalMap(new_top.resolution_m()), entries};
   removeLeftovers(s.folder, &written);
 
   result.stats.spills = stream.partStats().spills;
@@ -494,7 +501,8 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
   return result;
 }
 
-StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size_m, size_t memory_limit_bytes) {
+StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size_m, size_t memory_limit_bytes,
+                         uint32_t window_sessions) {
   if (b.realign) throw UsageError("--realign cannot be used with --tiles (it needs every session at once)");
   if (b.replace) throw UsageError("--replace cannot be used with --tiles");
   pipeline_detail::checkInputs(b);
@@ -511,6 +519,7 @@ StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size
   s.criterion = b.criterion;
   s.tile_size_m = tile_size_m;
   s.memory_limit_bytes = memory_limit_bytes;
+  s.window_sessions = window_sessions;
   s.progress = b.progress;
   std::vector<std::string> warnings;
   auto sessionOf = [&](pipeline_detail::Pending& p) {

@@ -149,11 +149,13 @@ std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::j
   return encodeTemporalMap(map, meta, MapKind::Temporal, nullptr, version);
 }
 
-std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::json& meta, MapKind kind,
-                                       const nlohmann::json* extra, uint32_t version) {
+namespace {
+
+std::vector<uint8_t> encodeTemporal(const TemporalMap& map, const nlohmann::json& meta, MapKind kind,
+                                    const nlohmann::json* extra, uint32_t version, bool compact) {
   if (version < 1 || version > kCmapFormatVersion) throw UsageError("4D maps are written in format version 1, 2 or 3");
   std::optional<TemporalMap> copy;  // a map compacted already is written as it is
-  if (!map.isCompact()) {
+  if (compact && !map.isCompact()) {
     copy = map;
     copy->compact();
   }
@@ -219,6 +221,17 @@ std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::j
       version);
   blocks.push_back({"COVR", std::move(coverage)});
   return encodeCmap(header, blocks);
+}
+
+}  // namespace
+
+std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::json& meta, MapKind kind,
+                                       const nlohmann::json* extra, uint32_t version) {
+  return encodeTemporal(map, meta, kind, extra, version, true);
+}
+
+std::vector<uint8_t> encodeTemporalMapAsItIs(const TemporalMap& map, const nlohmann::json& meta) {
+  return encodeTemporal(map, meta, MapKind::Temporal, nullptr, kCmapFormatVersion, false);
 }
 
 namespace {

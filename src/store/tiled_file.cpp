@@ -9,6 +9,7 @@
 #include "chronomap/store/cmap.h"
 #include "chronomap/core/file.h"
 #include "chronomap/store/temporal_file.h"
+#include "chronomap/temporal/window.h"
 
 namespace chronomap {
 
@@ -61,14 +62,40 @@ std::string latestFileName(const std::string& tile_file) {
   return tile_file.substr(0, tile_file.size() - 5) + ".latest.cmap";
 }
 
+std::string windowFileName(const std::string& tile_file, size_t j) {
+  return tile_file.substr(0, tile_file.size() - 5) + ".w" + std::to_string(j) + ".cmap";
+}
+
 namespace {
 
-/// Writes a tile's file and its latest state under `name` in `folder`; its row of the table.
+/// True when `file` is windowFileName(tileFileName(key, g), j) for some generation g.
+bool isWindowFileOf(const TileKey& key, const std::string& file, size_t j) {
+  const std::string tail = ".w" + std::to_string(j) + ".cmap";
+  if (file.size() <= tail.size() || file.compare(file.size() - tail.size(), tail.size(), tail) != 0) return false;
+  return tileGeneration(key, file.substr(0, file.size() - tail.size()) + ".cmap").has_value();
+}
+
+}  // namespace
+
+namespace {
+
+/// Writes a tile's file and its latest state under `name` in `folder`, and its windows after
+/// `kept` (see writeTileFile); its row of the table.
 TileEntry writeTileAndLatest(const fs::path& folder, const TileKey& key, const std::string& name,
-                             const TemporalMap& tile) {
+                             const TemporalMap& tile, uint32_t window_sessions, std::vector<WindowFile> kept) {
   const std::vector<uint8_t> bytes = encodeTemporalMap(tile, nlohmann::json::object());
-  TileEntry e{key, name, bytes.size(), crc32Of(bytes), std::nullopt, std::nullopt};
+  TileEntry e{key, name, bytes.size(), crc32Of(bytes), std::nullopt, std::nullopt, std::move(kept)};
   writeFileAtomic(folder / e.file, bytes);
+  if (window_sessions > 0) {
+    for (size_t j = e.windows.size(); (j + 1) * window_sessions <= tile.sessionCount(); ++j) {
+      const TemporalMap window =
+          historyWindow(tile, static_cast<uint32_t>(j * window_sessions), window_sessions);
+      const std::vector<uint8_t> w =
+          encodeTemporalMapAsItIs(window, {{"window", {{"first_session", j * window_sessions}}}});
+      e.windows.push_back(WindowFile{windowFileName(name, j), w.size(), crc32Of(w)});
+      writeFileAtomic(folder / e.windows.back().file, w);
+    }
+  }
   if (tile.sessionCount() > 0) {
     const SessionMap state = tile.snapshot(tile.sessions().back().time_s);
     const std::vector<uint8_t> latest = encodeSessionMap(state, nlohmann::json::object());
@@ -78,11 +105,13 @@ TileEntry writeTileAndLatest(const fs::path& folder, const TileKey& key, const s
   return e;
 }
 
-/// The index's "tiles" member: version 2 only when a tile holds fewer than all `sessions`, so
-/// that a table without such a tile keeps version 1's bytes (and older builds read it).
-nlohmann::json tableOf(const std::vector<TileEntry>& tiles, int tile_level, size_t sessions) {
+/// The index's "tiles" member: version 2 only when a tile holds fewer than all `sessions`, 3
+/// only when a tile has windows, so that a table without either keeps version 1's bytes (and
+/// older builds read it).
+nlohmann::json tableOf(const std::vector<TileEntry>& tiles, int tile_level, size_t sessions, uint32_t window_sessions) {
   nlohmann::json list = nlohmann::json::array();
   int version = 1;
+  bool windows = false;
   for (const TileEntry& t : tiles) {
     nlohmann::json row = {
         {"key", {t.key.x, t.key.y, t.key.z}}, {"file", t.file}, {"bytes", t.bytes}, {"crc32", t.crc32}};
@@ -91,26 +120,39 @@ nlohmann::json tableOf(const std::vector<TileEntry>& tiles, int tile_level, size
     }
     if (t.sessions && *t.sessions < sessions) {
       row["sessions"] = *t.sessions;
-      version = 2;
+      version = std::max(version, 2);
+    }
+    if (!t.windows.empty()) {
+      nlohmann::json w = nlohmann::json::array();
+      for (const WindowFile& f : t.windows) w.push_back({{"file", f.file}, {"bytes", f.bytes}, {"crc32", f.crc32}});
+      row["windows"] = std::move(w);
+      version = 3;
+      windows = true;
     }
     list.push_back(std::move(row));
   }
-  return {{"tiles", {{"version", version}, {"level", tile_level}, {"list", std::move(list)}}}};
+  nlohmann::json table = {{"version", version}, {"level", tile_level}, {"list", std::move(list)}};
+  if (windows) {
+    if (window_sessions == 0) throw UsageError("a tile table with windows needs their session count");
+    table["window_sessions"] = window_sessions;
+  }
+  return {{"tiles", std::move(table)}};
 }
 
 }  // namespace
 
-TiledWriteResult writeTiledMap(const fs::path& folder, const SplitMap& split, const nlohmann::json& meta) {
+TiledWriteResult writeTiledMap(const fs::path& folder, const SplitMap& split, const nlohmann::json& meta,
+                               uint32_t window_sessions) {
   TiledWriteResult r;
   StagedFolder staged(folder);
   fs::create_directories(staged.path() / "tiles");
   std::vector<TileEntry> entries;
   for (const Tile& t : split.tiles) {
-    entries.push_back(writeTileAndLatest(staged.path(), t.key, tileFileName(t.key), t.map));
+    entries.push_back(writeTileAndLatest(staged.path(), t.key, tileFileName(t.key), t.map, window_sessions, {}));
     r.tile_bytes += entries.back().diskBytes();
     ++r.tiles;
   }
-  const nlohmann::json extra = tableOf(entries, split.tile_level, split.top.sessionCount());
+  const nlohmann::json extra = tableOf(entries, split.tile_level, split.top.sessionCount(), window_sessions);
   const std::vector<uint8_t> index = encodeTemporalMap(split.top, meta, MapKind::Tiled, &extra);
   writeFileAtomic(staged.path() / kTileIndexName, index);
   r.index_bytes = index.size();
@@ -118,13 +160,14 @@ TiledWriteResult writeTiledMap(const fs::path& folder, const SplitMap& split, co
   return r;
 }
 
-TileEntry writeTileFile(const fs::path& folder, const TileKey& key, uint64_t generation, const TemporalMap& tile) {
-  return writeTileAndLatest(folder, key, tileFileName(key, generation), tile);
+TileEntry writeTileFile(const fs::path& folder, const TileKey& key, uint64_t generation, const TemporalMap& tile,
+                        uint32_t window_sessions, std::vector<WindowFile> kept) {
+  return writeTileAndLatest(folder, key, tileFileName(key, generation), tile, window_sessions, std::move(kept));
 }
 
 uint64_t writeTileIndex(const fs::path& folder, const TemporalMap& top, int tile_level,
-                        const std::vector<TileEntry>& tiles, const nlohmann::json& meta) {
-  const nlohmann::json extra = tableOf(tiles, tile_level, top.sessionCount());
+                        const std::vector<TileEntry>& tiles, const nlohmann::json& meta, uint32_t window_sessions) {
+  const nlohmann::json extra = tableOf(tiles, tile_level, top.sessionCount(), window_sessions);
   const std::vector<uint8_t> index = encodeTemporalMap(top, meta, MapKind::Tiled, &extra);
   writeFileAtomic(folder / kTileIndexName, index);
   return index.size();
@@ -135,7 +178,7 @@ TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& 
   if (file.header.kind != MapKind::Tiled) {
     throw FormatError(source + ": holds a " + std::string(kindName(file.header.kind)) + " map, not a tile index");
   }
-  TileIndex index{0, decodeTemporalBlocks(file, source), {}};
+  TileIndex index{0, 0, decodeTemporalBlocks(file, source), {}};
   const CmapBlock& meta = file.block("META", source);
   const nlohmann::json j = nlohmann::json::parse(meta.data.begin(), meta.data.end(), nullptr, false);
   try {
@@ -149,6 +192,14 @@ TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& 
     index.tile_level = t.at("level").get<int>();
     if (index.tile_level < kMinTileLevel || index.tile_level > kMaxTileLevel) {
       throw FormatError(source + ": invalid tile level " + std::to_string(index.tile_level));
+    }
+    if (const auto k = t.find("window_sessions"); k != t.end()) {
+      const uint64_t n = k->get<uint64_t>();
+      if (version < 3 || n == 0 || n > 0xffffu) {
+        throw FormatError(source + ": invalid window session count " + std::to_string(n) + " in a version " +
+                          std::to_string(version) + " tile table");
+      }
+      index.window_sessions = static_cast<uint32_t>(n);
     }
     const uint32_t max_key = (uint32_t{1} << (kTreeDepth - index.tile_level)) - 1;
     for (const nlohmann::json& row : t.at("list")) {
@@ -181,6 +232,22 @@ TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& 
                             std::to_string(index.top.sessionCount()) + " sessions cannot hold");
         }
         e.sessions = static_cast<size_t>(n);
+      }
+      if (const auto windows = row.find("windows"); windows != row.end()) {
+        if (index.window_sessions == 0) throw FormatError(source + ": tile " + e.file + " lists windows without their size");
+        for (const nlohmann::json& w : *windows) {
+          WindowFile f{w.at("file").get<std::string>(), w.at("bytes").get<uint64_t>(), w.at("crc32").get<uint32_t>()};
+          if (!isWindowFileOf(e.key, f.file, e.windows.size())) {
+            throw FormatError(source + ": window file name '" + f.file + "' does not match its tile and place");
+          }
+          e.windows.push_back(std::move(f));
+        }
+        const uint64_t held = e.sessions.value_or(index.top.sessionCount());
+        if (e.windows.size() * uint64_t{index.window_sessions} > held) {
+          throw FormatError(source + ": tile " + e.file + " lists " + std::to_string(e.windows.size()) +
+                            " windows of " + std::to_string(index.window_sessions) + " sessions but holds " +
+                            std::to_string(held) + " sessions");
+        }
       }
       index.tiles.push_back(std::move(e));
     }
@@ -243,45 +310,89 @@ TemporalMap readTile(const fs::path& folder, const TileIndex& index, const TileE
   return readNamingMemory(path, [&] { return tileOfFile(tileFile(path, entry), source, index, entry); });
 }
 
+namespace {
+
+/// The snapshot read from a tile's file, or from a window (`window_first`: the rank of its first
+/// session in the index), checked against the index as readTile checks the tile: resolution,
+/// criterion, the sessions' times, every leaf inside the tile.
+SessionMap checkedSnapshot(StoredSnapshot stored, const CmapFile& file, const std::string& source,
+                           const TileIndex& index, const TileEntry& entry, std::optional<size_t> window_first) {
+  if (file.header.resolution_m != index.top.resolution_m()) {
+    throw FormatError(source + ": resolution " + std::to_string(file.header.resolution_m) +
+                      " m differs from the index's " + std::to_string(index.top.resolution_m()) + " m");
+  }
+  if (!(stored.criterion == index.top.criterion())) {
+    throw FormatError(source + ": its change criterion differs from the index's");
+  }
+  const std::vector<SessionRecord>& all = index.top.sessions();
+  const size_t held = entry.sessions.value_or(all.size());
+  const size_t first = window_first.value_or(0);
+  if (!window_first && held < all.size() && stored.sessions.size() != held) {
+    throw FormatError(source + ": holds " + std::to_string(stored.sessions.size()) +
+                      " sessions but the index lists it with " + std::to_string(held));
+  }
+  // A tile's file holds every session it holds; a window a run of them.
+  bool same = !window_first ? stored.sessions.size() == held : first + stored.sessions.size() <= held;
+  for (size_t i = 0; same && i < stored.sessions.size(); ++i) same = stored.sessions[i].time_s == all[first + i].time_s;
+  if (!same) {
+    if (window_first) {
+      throw FormatError(source + ": its sessions do not match the index's sessions table from session " +
+                        std::to_string(first + 1));
+    }
+    const size_t count = held < all.size() ? all.size() : stored.sessions.size();
+    throw FormatError(source + ": its sessions (" + std::to_string(count) +
+                      ") do not match the index's sessions table (" + std::to_string(all.size()) + ")");
+  }
+  bool inside = true;
+  stored.map.forEachLeaf([&](const LeafView& leaf) {
+    inside = inside && leaf.level <= index.tile_level && tileOf(leaf.key, index.tile_level) == entry.key;
+  });
+  if (!inside) throw FormatError(source + " holds nodes outside its tile");
+  return std::move(stored.map);
+}
+
+/// The snapshot at session `rank` from the tile's window that holds it.
+SessionMap windowSnapshot(const fs::path& folder, const TileIndex& index, const TileEntry& entry, uint32_t rank) {
+  const size_t j = rank / index.window_sessions;
+  const WindowFile& w = entry.windows[j];
+  const fs::path path = folder / w.file;
+  const std::string source = path.string();
+  if (!fs::exists(path)) throw IoError(source + ": window file missing (listed in the index)");
+  return readNamingMemory(path, [&] {
+    const std::vector<uint8_t> bytes = readFileBytes(path);
+    if (bytes.size() != w.bytes || crc32Of(bytes) != w.crc32) {
+      throw FormatError(source + ": window file does not match the index (size or checksum differ)");
+    }
+    const CmapFile file = decodeCmap(bytes, source);
+    if (file.header.version < 2 || !file.appended.empty()) {
+      throw FormatError(source + ": a window file is a 4D map of format version 2 or later without appended sessions");
+    }
+    const size_t first = j * index.window_sessions;
+    StoredSnapshot stored = snapshotOfColumns(file, source, static_cast<uint32_t>(rank - first));
+    if (stored.sessions.size() < index.window_sessions) {
+      throw FormatError(source + ": a window holds " + std::to_string(stored.sessions.size()) + " sessions, not " +
+                        std::to_string(index.window_sessions));
+    }
+    return checkedSnapshot(std::move(stored), file, source, index, entry, first);
+  });
+}
+
+}  // namespace
+
 SessionMap readTileSnapshot(const fs::path& folder, const TileIndex& index, const TileEntry& entry, double time_s) {
+  const auto rank = index.top.rankAtOrBefore(time_s);
+  if (rank && index.window_sessions > 0 && *rank / index.window_sessions < entry.windows.size()) {
+    return windowSnapshot(folder, index, entry, *rank);
+  }
   const fs::path path = folder / entry.file;
   const std::string source = path.string();
   if (!fs::exists(path)) throw IoError(source + ": tile file missing (listed in the index)");
   return readNamingMemory(path, [&] {
     const CmapFile file = tileFile(path, entry);
-    const auto rank = index.top.rankAtOrBefore(time_s);
     if (!rank || file.header.kind != MapKind::Temporal || file.header.version < 2 || !file.appended.empty()) {
       return tileOfFile(file, source, index, entry).snapshot(time_s);  // (what the fast read does not cover)
     }
-    StoredSnapshot stored = snapshotOfColumns(file, source, *rank);
-    // readTile's checks of the tile against the index (checkTileFits's), on what was read: the
-    // resolution, criterion and session times; the snapshot's leaves inside the tile.
-    if (file.header.resolution_m != index.top.resolution_m()) {
-      throw FormatError(source + ": resolution " + std::to_string(file.header.resolution_m) +
-                        " m differs from the index's " + std::to_string(index.top.resolution_m()) + " m");
-    }
-    if (!(stored.criterion == index.top.criterion())) {
-      throw FormatError(source + ": its change criterion differs from the index's");
-    }
-    const std::vector<SessionRecord>& all = index.top.sessions();
-    const size_t held = entry.sessions.value_or(all.size());
-    if (held < all.size() && stored.sessions.size() != held) {
-      throw FormatError(source + ": holds " + std::to_string(stored.sessions.size()) +
-                        " sessions but the index lists it with " + std::to_string(held));
-    }
-    bool same = stored.sessions.size() == held;
-    for (size_t i = 0; same && i < held; ++i) same = stored.sessions[i].time_s == all[i].time_s;
-    if (!same) {
-      const size_t count = held < all.size() ? all.size() : stored.sessions.size();
-      throw FormatError(source + ": its sessions (" + std::to_string(count) +
-                        ") do not match the index's sessions table (" + std::to_string(all.size()) + ")");
-    }
-    bool inside = true;
-    stored.map.forEachLeaf([&](const LeafView& leaf) {
-      inside = inside && leaf.level <= index.tile_level && tileOf(leaf.key, index.tile_level) == entry.key;
-    });
-    if (!inside) throw FormatError(source + " holds nodes outside its tile");
-    return std::move(stored.map);
+    return checkedSnapshot(snapshotOfColumns(file, source, *rank), file, source, index, entry, std::nullopt);
   });
 }
 

@@ -132,13 +132,31 @@ TEST(TilesCli, StreamingBuildGivesTheWholeBuildTiled) {
   ASSERT_EQ(first.exit_code, 0) << first.err;
   EXPECT_TRUE(nlohmann::json::parse(first.out)["created"].get<bool>());
   const std::vector<uint8_t> half = untiled(tmp, st);
-  const test::CommandResult second = runCommand(cli() + " build " + st + s[2] + s[3] + " --memory-limit 0.001 --json");
+  // (With windows of 2 sessions: each tile then gets those of sessions 1-2 and 3-4.)
+  const test::CommandResult second =
+      runCommand(cli() + " build " + st + s[2] + s[3] + " --memory-limit 0.001 --tile-windows 2 --json");
   ASSERT_EQ(second.exit_code, 0) << second.err;
   const nlohmann::json j = nlohmann::json::parse(second.out);
   EXPECT_EQ(j["sessions"], 4);
   EXPECT_GT(j["spills"].get<size_t>(), 0u);
   EXPECT_LE(j["peak_parts_bytes"].get<size_t>(), 1073742u);
   EXPECT_TRUE(untiled(tmp, st) == expected);
+  const TileIndex index = readTileIndex(st);
+  EXPECT_EQ(index.window_sessions, 2u);
+  size_t windows = 0;
+  for (const TileEntry& e : index.tiles) windows += e.windows.size();
+  EXPECT_EQ(j["windows_written"].get<size_t>(), windows);
+  EXPECT_GT(windows, index.tiles.size());
+  // The earlier sessions' snapshots, read from the windows, are the whole map's.
+  for (size_t k = 0; k < 3; ++k) {
+    const std::string at = nlohmann::json(index.top.sessions()[k].time_s).dump();
+    ASSERT_EQ(runCommand(cli() + " snapshot " + st + " --at " + at + " -o " + (tmp / "a.cmap").string()).exit_code, 0);
+    ASSERT_EQ(runCommand(cli() + " snapshot " + w + " --at " + at + " -o " + (tmp / "b.cmap").string()).exit_code, 0);
+    EXPECT_TRUE(readSessionMap(tmp / "a.cmap") == readSessionMap(tmp / "b.cmap")) << "session " << k + 1;
+  }
+  const test::CommandResult no_tiles = runCommand(cli() + " build " + (tmp / "x.cmap").string() + s[0] + " --tile-windows 2");
+  EXPECT_EQ(no_tiles.exit_code, 2);
+  EXPECT_NE(no_tiles.err.find("--tile-windows needs --tiles"), std::string::npos) << no_tiles.err;
 
   // Bad input leaves the tiled map as it was: an earlier session, re-alignment, another tile size.
   const std::vector<uint8_t>& before = expected;  // what st holds now

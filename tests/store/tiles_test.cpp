@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <set>
@@ -13,6 +14,7 @@
 #include "chronomap/store/tiled_file.h"
 #include "chronomap/pipeline/tiles.h"
 #include "chronomap/temporal/tiles.h"
+#include "chronomap/temporal/window.h"
 #include "test_support.h"
 
 namespace chronomap {
@@ -307,35 +309,136 @@ TEST(Tiles, ARegionTouchesOnlyTheTilesItNeeds) {
 
 // A tile read at one time (issue 46) gives the snapshot of the tile read whole, node for node
 // (the same pools in the same order, so the same bytes), at every session's time, between
-// them, before the first and after the last, with coarse free cubes among its nodes.
+// them, before the first and after the last, with coarse free cubes among its nodes: from its
+// file, and from its windows where it has them (runs of 2 sessions: all 6; of 4: the first 4).
 TEST_P(TilesProperty, ATileReadAtOneTimeIsItsSnapshotNodeForNode) {
   const TemporalMap map = randomMap(GetParam(), 6);
-  test::TempDir dir;
-  writeTiledMap(dir / "tiled", splitIntoTiles(map, 3), nlohmann::json::object());
-  const TileIndex index = readTileIndex(dir / "tiled");
-  std::vector<double> times{sessionTime(0) - 1.0};
-  for (int i = 0; i < 6; ++i) times.insert(times.end(), {sessionTime(i), sessionTime(i) + 1800.0});
-  size_t coarse = 0, leaves = 0;
-  for (const TileEntry& e : index.tiles) {
-    const TemporalMap tile = readTile(dir / "tiled", index, e);
-    for (const double t : times) {
-      TemporalMap::SnapshotVisits visits;
-      const SessionMap whole = tile.snapshot(t, &visits);
-      const SessionMap read = readTileSnapshot(dir / "tiled", index, e, t);
-      coarse += visits.coarse;
-      leaves += whole.leafPool().size();
-      ASSERT_EQ(read.innerPool(), whole.innerPool()) << e.file << " at " << t;
-      ASSERT_EQ(read.leafPool().size(), whole.leafPool().size());
-      for (size_t i = 0; i < whole.leafPool().size(); ++i) ASSERT_TRUE(read.leafPool()[i] == whole.leafPool()[i]);
-      EXPECT_EQ(encodeSessionMap(read, nlohmann::json::object()), encodeSessionMap(whole, nlohmann::json::object()));
+  for (const uint32_t window_sessions : {0u, 2u, 4u}) {
+    test::TempDir dir;
+    writeTiledMap(dir / "tiled", splitIntoTiles(map, 3), nlohmann::json::object(), window_sessions);
+    const TileIndex index = readTileIndex(dir / "tiled");
+    EXPECT_EQ(index.window_sessions, window_sessions);
+    std::vector<double> times{sessionTime(0) - 1.0};
+    for (int i = 0; i < 6; ++i) times.insert(times.end(), {sessionTime(i), sessionTime(i) + 1800.0});
+    size_t coarse = 0, leaves = 0;
+    for (const TileEntry& e : index.tiles) {
+      EXPECT_EQ(e.windows.size(), window_sessions ? 6 / window_sessions : 0) << e.file;
+      const TemporalMap tile = readTile(dir / "tiled", index, e);
+      // Each window is written as it is, not compacted: compaction would merge sibling lists
+      // that agree inside the window only, and their sums would then differ from the tile's.
+      for (size_t j = 0; j < e.windows.size(); ++j) {
+        const TemporalMap::Parts want = historyWindow(tile, static_cast<uint32_t>(j * window_sessions), window_sessions).parts();
+        const TemporalMap::Parts got = readTemporalMap(dir / "tiled" / e.windows[j].file).parts();
+        EXPECT_TRUE(got.inner == want.inner && got.list_sizes == want.list_sizes && got.entries == want.entries)
+            << e.windows[j].file;
+      }
+      for (const double t : times) {
+        TemporalMap::SnapshotVisits visits;
+        const SessionMap whole = tile.snapshot(t, &visits);
+        const SessionMap read = readTileSnapshot(dir / "tiled", index, e, t);
+        coarse += visits.coarse;
+        leaves += whole.leafPool().size();
+        ASSERT_EQ(read.innerPool(), whole.innerPool()) << e.file << " at " << t << ", windows of " << window_sessions;
+        ASSERT_EQ(read.leafPool().size(), whole.leafPool().size());
+        for (size_t i = 0; i < whole.leafPool().size(); ++i) ASSERT_TRUE(read.leafPool()[i] == whole.leafPool()[i]);
+        EXPECT_EQ(encodeSessionMap(read, nlohmann::json::object()), encodeSessionMap(whole, nlohmann::json::object()));
+      }
+    }
+    EXPECT_GT(coarse, 0u);
+    EXPECT_GT(leaves, 0u);
+    TiledMap tiled(dir / "tiled", {0});
+    EXPECT_TRUE(tiled.snapshot(sessionTime(2)) == map.snapshot(sessionTime(2)));
+    EXPECT_EQ(tiled.cacheStats().time_reads, index.tiles.size());
+    EXPECT_EQ(tiled.cacheStats().loads, 0u);
+    // The windows change nothing else: the map untiled is the map.
+    untileMap(dir / "tiled", dir / "whole.cmap");
+    EXPECT_TRUE(readTemporalMap(dir / "whole.cmap") == map);
+  }
+}
+
+// A window of a map's history (temporal/window.h) answers every time inside it as the map
+// does, node for node, for every run of sessions; it holds fewer entries than the map.
+TEST_P(TilesProperty, AHistoryWindowAnswersItsTimesAsTheMap) {
+  const TemporalMap map = randomMap(GetParam() + 100, 7);
+  for (uint32_t first = 0; first < 7; ++first) {
+    for (uint32_t count = 1; first + count <= 7; ++count) {
+      const TemporalMap window = historyWindow(map, first, count);
+      ASSERT_GE(window.sessionCount(), count);
+      EXPECT_EQ(window.sessions()[0].time_s, map.sessions()[first].time_s);
+      EXPECT_LE(window.counts().entries, map.counts().entries);
+      for (uint32_t r = first; r < first + count; ++r) {
+        for (const double t : {sessionTime(static_cast<int>(r)), sessionTime(static_cast<int>(r)) + 1800.0}) {
+          const SessionMap a = window.snapshot(t), b = map.snapshot(t);
+          ASSERT_EQ(a.innerPool(), b.innerPool()) << first << "+" << count << " at session " << r;
+          ASSERT_TRUE(a == b) << first << "+" << count << " at session " << r;
+        }
+      }
     }
   }
-  EXPECT_GT(coarse, 0u);
-  EXPECT_GT(leaves, 0u);
-  TiledMap tiled(dir / "tiled", {0});
-  EXPECT_TRUE(tiled.snapshot(sessionTime(2)) == map.snapshot(sessionTime(2)));
-  EXPECT_EQ(tiled.cacheStats().time_reads, index.tiles.size());
-  EXPECT_EQ(tiled.cacheStats().loads, 0u);
+  EXPECT_LT(historyWindow(map, 5, 2).counts().entries, map.counts().entries);
+  EXPECT_THROW(historyWindow(map, 0, 0), UsageError);
+  EXPECT_THROW(historyWindow(map, 6, 2), UsageError);
+  EXPECT_THROW(historyWindow(map, 7, 1), UsageError);
+}
+
+// A window file changed, missing or misnamed: the time it holds fails naming it; the tile read
+// whole and the latest time do not need it. An index whose windows do not fit is refused.
+TEST(Tiles, ABadWindowGivesOneClearError) {
+  const TemporalMap map = randomMap(8, 5);
+  test::TempDir dir;
+  writeTiledMap(dir / "tiled", splitIntoTiles(map, 3), nlohmann::json::object(), 2);
+  const TileIndex index = readTileIndex(dir / "tiled");
+  const TileEntry& e = index.tiles[0];
+  ASSERT_EQ(e.windows.size(), 2u);
+  EXPECT_EQ(e.windows[1].file, windowFileName(e.file, 1));
+  std::vector<uint8_t> bytes = test::bytesOf(dir / "tiled" / e.windows[1].file);
+  bytes[bytes.size() / 2] ^= 0x08;
+  test::writeBytes(dir / "tiled" / e.windows[1].file, bytes);
+  try {
+    readTileSnapshot(dir / "tiled", index, e, sessionTime(3));
+    FAIL() << "no error";
+  } catch (const FormatError& x) {
+    EXPECT_NE(std::string(x.what()).find(e.windows[1].file), std::string::npos) << x.what();
+  }
+  EXPECT_NO_THROW(readTileSnapshot(dir / "tiled", index, e, sessionTime(1)));  // window 0
+  EXPECT_NO_THROW(readTileSnapshot(dir / "tiled", index, e, sessionTime(4)));  // no window: the file
+  EXPECT_NO_THROW(readTile(dir / "tiled", index, e));
+  fs::remove(dir / "tiled" / e.windows[1].file);
+  EXPECT_THROW(readTileSnapshot(dir / "tiled", index, e, sessionTime(2)), IoError);
+  // Another tile's window in its place: its size and checksum differ from the row's.
+  fs::copy_file(dir / "tiled" / index.tiles[1].windows[1].file, dir / "tiled" / e.windows[1].file);
+  EXPECT_THROW(readTileSnapshot(dir / "tiled", index, e, sessionTime(2)), FormatError);
+
+  // The index: a window named for another tile or place, more windows than sessions, windows
+  // in a table of version 2 or without their size.
+  const CmapFile file = readCmap(dir / "tiled" / kTileIndexName);
+  const nlohmann::json table = {{"tiles", metadataOf(file).at("tiles")}};
+  auto indexWith = [&](const std::function<void(nlohmann::json&)>& change) {
+    nlohmann::json t = table;
+    change(t["tiles"]);
+    return encodeTemporalMap(index.top, userMetadataOf(file), MapKind::Tiled, &t);
+  };
+  auto refused = [&](const std::function<void(nlohmann::json&)>& change, const std::string& what) {
+    try {
+      decodeTileIndex(indexWith(change), "index");
+      ADD_FAILURE() << "no error for " << what;
+    } catch (const FormatError& x) {
+      EXPECT_NE(std::string(x.what()).find(what), std::string::npos) << x.what();
+    }
+  };
+  EXPECT_EQ(decodeTileIndex(indexWith([](nlohmann::json&) {}), "index").tiles[0].windows.size(), 2u);
+  refused([](nlohmann::json& t) { t["list"][0]["windows"][1]["file"] = t["list"][1]["windows"][1]["file"]; },
+          "window file name");
+  refused([](nlohmann::json& t) { t["list"][0]["windows"][0]["file"] = t["list"][0]["windows"][1]["file"]; },
+          "window file name");
+  refused([](nlohmann::json& t) {
+    nlohmann::json extra = t["list"][0]["windows"][1];
+    extra["file"] = windowFileName(t["list"][0]["file"].get<std::string>(), 2);
+    t["list"][0]["windows"].push_back(extra);
+  }, "windows of 2 sessions");
+  refused([](nlohmann::json& t) { t["version"] = 2; }, "window session count");
+  refused([](nlohmann::json& t) { t["window_sessions"] = 0; }, "window session count");
+  refused([](nlohmann::json& t) { t.erase("window_sessions"); }, "without their size");
 }
 
 TEST(Tiles, TileSizesArePowersOfTwoVoxels) {

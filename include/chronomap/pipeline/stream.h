@@ -19,6 +19,7 @@
 
 #include "chronomap/octree/session_map.h"
 #include "chronomap/pipeline/map4d.h"
+#include "chronomap/store/tiled_file.h"
 #include "chronomap/temporal/temporal_map.h"
 
 namespace chronomap {
@@ -43,6 +44,10 @@ struct StreamSettings {
   size_t memory_limit_bytes = size_t{1} << 30;
   /// Added to the index's metadata (the up axis of the sessions, ChosenUp::metadata).
   nlohmann::json metadata = nlohmann::json::object();
+  /// Sessions per window file of a tile's history (store/tiled_file.h): a rewritten tile gets
+  /// the windows of the runs of this many sessions it holds whole. A map that records a count
+  /// keeps it. 0: none written (the windows a map has are kept).
+  uint32_t window_sessions = kDefaultWindowSessions;
   Progress progress;
 };
 
@@ -53,6 +58,7 @@ struct StreamStats {
   size_t tiles_read = 0;
   size_t tiles_written = 0;     ///< tiles the new sessions reached, rewritten
   size_t tiles_kept = 0;        ///< tiles no new session reached: their files kept, not read
+  size_t windows_written = 0;   ///< window files written (the rewritten tiles' new whole runs of sessions)
   size_t spills = 0;               ///< times the parts were written out to make room
   uint64_t spilled_bytes = 0;
   size_t peak_parts_bytes = 0;     ///< most bytes of session parts held at once (<= the limit)
@@ -91,7 +97,8 @@ StreamResult streamIntoTiles(const StreamSettings& settings, size_t count,
 /// and registered first, so their session maps are held together, as build() holds them.
 /// Re-alignment and replacing are not supported (they need the stored map at once).
 /// @throw UsageError for them; what build() throws.
-StreamResult streamBuild(const BuildSettings& settings, std::optional<double> tile_size_m, size_t memory_limit_bytes);
+StreamResult streamBuild(const BuildSettings& settings, std::optional<double> tile_size_m, size_t memory_limit_bytes,
+                         uint32_t window_sessions = kDefaultWindowSessions);
 
 /// addSession() into an existing tiled map folder: the session map file streamed in
 /// (streamIntoTiles), at the time given or the one its file records.

@@ -24,6 +24,10 @@ std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::j
 std::vector<uint8_t> encodeTemporalMap(const TemporalMap& map, const nlohmann::json& meta,
                                        MapKind kind = MapKind::Temporal, const nlohmann::json* extra = nullptr,
                                        uint32_t version = kCmapFormatVersion);
+/// encodeTemporalMap(map, meta) without compacting the map first: its lists stay as they are, so
+/// that its snapshots keep their nodes and sums bit for bit (a tile's history window, whose
+/// lists compaction could merge where the whole history's cannot be; store/tiled_file.h).
+std::vector<uint8_t> encodeTemporalMapAsItIs(const TemporalMap& map, const nlohmann::json& meta);
 /// The metadata a 4D map or tile index was written with (writeTemporalMap's `meta`: its metadata
 /// block's "user" object), or an empty object.
 nlohmann::json userMetadataOf(const CmapFile& file);

@@ -22,8 +22,14 @@ inline constexpr const char* kTileIndexName = "index.cmap";
 /// the newest this build reads and writes. Version 2 adds a row's `sessions`: a tile that the
 /// last runs of the streaming build did not reach keeps its file, which holds the first
 /// `sessions` sessions of the index's table only (the later ones observed nothing there). A
-/// table whose every tile holds every session is written as version 1, as before.
-inline constexpr int kTileTableVersion = 2;
+/// table whose every tile holds every session is written as version 1, as before. Version 3
+/// adds window files (a row's `windows`, the table's `window_sessions`); a table without them
+/// keeps version 1's or 2's bytes.
+inline constexpr int kTileTableVersion = 3;
+/// Sessions per window file (docs/file-format.md, "Window files"), as the writers choose it when
+/// a folder does not record one: a snapshot of an older time reads one window, whose entries
+/// grow with these sessions, not with the tile's whole history.
+inline constexpr uint32_t kDefaultWindowSessions = 8;
 /// The oldest tile table version this build reads.
 inline constexpr int kOldestTileTableVersion = 1;
 
@@ -31,6 +37,14 @@ inline constexpr int kOldestTileTableVersion = 1;
 /// that a snapshot of the latest time reads what it shows, not every session's entries.
 struct LatestState {
   std::string file;     ///< latestFileName(the tile's file)
+  uint64_t bytes = 0;   ///< size of the file
+  uint32_t crc32 = 0;   ///< CRC-32 of the file
+};
+
+/// A window of a tile's history (temporal/window.h): historyWindow(tile, j * K, K) for the j-th
+/// window of a table with K window sessions, written once, when the tile first held those sessions.
+struct WindowFile {
+  std::string file;     ///< windowFileName(a tile file name, j)
   uint64_t bytes = 0;   ///< size of the file
   uint32_t crc32 = 0;   ///< CRC-32 of the file
 };
@@ -45,13 +59,23 @@ struct TileEntry {
   /// Sessions the tile's file holds: the first ones of the index's table (the later ones did
   /// not reach the tile; readTile adds them as unobserved). Absent: every session.
   std::optional<size_t> sessions;
-  /// Bytes the tile takes on disk: its file and its latest state's.
-  uint64_t diskBytes() const { return bytes + (latest ? latest->bytes : 0); }
+  /// Its history's windows in time order: the j-th holds the sessions of rank [j * K, (j + 1) * K)
+  /// for the table's K (TileIndex::window_sessions). Windows exist for whole runs of K sessions
+  /// the tile holds, from the first on.
+  std::vector<WindowFile> windows;
+  /// Bytes the tile takes on disk: its file, its latest state's and its windows'.
+  uint64_t diskBytes() const {
+    uint64_t n = bytes + (latest ? latest->bytes : 0);
+    for (const WindowFile& w : windows) n += w.bytes;
+    return n;
+  }
 };
 
 /// A decoded tile index.
 struct TileIndex {
   int tile_level = 0;
+  /// Sessions per window file; 0 when the table records none (no tile has windows).
+  uint32_t window_sessions = 0;
   TemporalMap top;               ///< see SplitMap::top
   std::vector<TileEntry> tiles;  ///< sorted by key
   /// The row of tile `key`, or null when the map holds nothing there.
@@ -67,6 +91,10 @@ std::string tileFileName(const TileKey& key, uint64_t generation = 0);
 std::optional<uint64_t> tileGeneration(const TileKey& key, const std::string& file);
 /// The file name of a tile's latest state: its file's name with `.latest` before `.cmap`.
 std::string latestFileName(const std::string& tile_file);
+/// The file name of a tile's j-th window: the name of the tile's file when the window was
+/// written, with `.wJ` before `.cmap` (a window keeps its name when later generations rewrite
+/// the tile).
+std::string windowFileName(const std::string& tile_file, size_t j);
 
 /// What writeTiledMap wrote.
 struct TiledWriteResult {
@@ -77,17 +105,24 @@ struct TiledWriteResult {
 
 /// Writes `split` into the folder `folder` as a whole (staged, then moved into place: an
 /// error leaves the folder as it was). `meta` (a JSON object) is stored in the index.
-TiledWriteResult writeTiledMap(const std::filesystem::path& folder, const SplitMap& split, const nlohmann::json& meta);
+/// Every tile gets its windows of `window_sessions` sessions (0: none).
+TiledWriteResult writeTiledMap(const std::filesystem::path& folder, const SplitMap& split, const nlohmann::json& meta,
+                               uint32_t window_sessions = kDefaultWindowSessions);
 
 /// Writes one tile's file (atomically) into the folder as tileFileName(key, generation), and
-/// its latest state beside it. @return its row of the tile table.
+/// its latest state beside it. With `window_sessions` K > 0 the tile keeps the windows `kept`
+/// (written before, for its first sessions) and gets those of the whole runs of K sessions
+/// after them that it holds, written under this generation's names. @return its row of the
+/// tile table.
 TileEntry writeTileFile(const std::filesystem::path& folder, const TileKey& key, uint64_t generation,
-                        const TemporalMap& tile);
+                        const TemporalMap& tile, uint32_t window_sessions = 0, std::vector<WindowFile> kept = {});
 /// Writes the index of a tiled map (atomically: the previous index stays until the rename).
 /// A row whose `sessions` is below top.sessionCount() is written with it (table version 2);
-/// without such a row the table is version 1. @return the bytes written.
+/// rows with windows make it version 3, with `window_sessions` (which must then be > 0);
+/// without either the table is version 1. @return the bytes written.
 uint64_t writeTileIndex(const std::filesystem::path& folder, const TemporalMap& top, int tile_level,
-                        const std::vector<TileEntry>& tiles, const nlohmann::json& meta);
+                        const std::vector<TileEntry>& tiles, const nlohmann::json& meta,
+                        uint32_t window_sessions = 0);
 
 /// Decodes an index file image. @throw FormatError naming `source`.
 TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& source);
@@ -100,10 +135,12 @@ TileIndex readTileIndex(const std::filesystem::path& folder);
 /// @throw IoError (missing file), FormatError naming the tile's file.
 TemporalMap readTile(const std::filesystem::path& folder, const TileIndex& index, const TileEntry& entry);
 
-/// readTile(...).snapshot(time_s), without building the tile: its file is checked against the
-/// index as readTile checks it, then read at that one time (snapshotOfColumns: the entries
-/// valid then, not the whole history). Files it does not cover (format version 1, appended
-/// sessions, a time before the first session) are read by readTile.
+/// readTile(...).snapshot(time_s), without building the tile: from the window holding that time
+/// when the tile has one, else from its file; either is checked against the index as readTile
+/// checks the tile (size, checksum, resolution, criterion, the sessions' times, nothing outside
+/// its cube), then read at that one time (snapshotOfColumns: the entries valid then, not the
+/// whole history). Files it does not cover (format version 1, appended sessions, a time before
+/// the first session) are read by readTile.
 /// @throw IoError (missing file), FormatError naming the tile's file.
 SessionMap readTileSnapshot(const std::filesystem::path& folder, const TileIndex& index, const TileEntry& entry,
                             double time_s);
