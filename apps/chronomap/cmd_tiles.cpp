@@ -24,6 +24,7 @@ struct TileCmdOptions {
   std::string map;
   std::string output;
   std::optional<double> tile_size_m;
+  uint32_t tile_windows = kDefaultWindowSessions;
   bool json = false;
 };
 
@@ -33,6 +34,7 @@ int runTile(const TileCmdOptions& o) {
   s.map = o.map;
   s.folder = o.output;
   s.tile_size_m = o.tile_size_m;
+  s.window_sessions = o.tile_windows;
   const TileResult r = tileMap(s);
   if (o.json) {
     std::cout << nlohmann::json{{"output", o.output},         {"tile_size_m", r.tile_size_m},
@@ -80,6 +82,11 @@ Command addTile(CLI::App& root) {
   app->add_option("--tile-size", o->tile_size_m,
                   "tile edge in metres: a power-of-two number of voxels (default 128 voxels, 6.4 m at 5 cm)")
       ->check(numberIn(1e-6, 1e6));
+  app->add_option("--tile-windows", o->tile_windows,
+                  "sessions per window file of a tile's history (0: none): a snapshot of an older time reads the "
+                  "window that holds it, not the whole history (docs/scale.md)")
+      ->default_val(kDefaultWindowSessions)
+      ->check(CLI::Range(0, 65535));
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runTile(*o); }};
 }

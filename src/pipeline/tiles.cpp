@@ -48,7 +48,7 @@ TileResult tileMap(const TileSettings& s) {
   split.top.forEachList([&](const VoxelKey&, int, std::span<const TemporalMap::Entry>) { ++r.top_lists; });
   nlohmann::json meta = {{"created_by", "chronomap tile"}, {"source", s.map.string()}};
   meta.update(upKeysOf(userMetadataOf(file)));  // the map's up goes with it (docs/frames.md)
-  const TiledWriteResult w = writeTiledMap(s.folder, split, meta);
+  const TiledWriteResult w = writeTiledMap(s.folder, split, meta, s.window_sessions);
   r.tiles = w.tiles;
   r.index_bytes = w.index_bytes;
   r.tile_bytes = w.tile_bytes;

@@ -37,6 +37,15 @@ TEST(TilesCli, TiledFolderAnswersAsTheMap) {
   ASSERT_EQ(runCommand(cli() + " snapshot " + m + " --at 2500 -o " + (tmp / "b.cmap").string()).exit_code, 0);
   EXPECT_TRUE(readSessionMap(tmp / "a.cmap") == readSessionMap(tmp / "b.cmap"));
 
+  // With windows of one session each: every earlier time read from them, the same answer.
+  const std::string t1 = (tmp / "t1").string();
+  ASSERT_EQ(runCommand(cli() + " tile " + m + " -o " + t1 + " --tile-size 0.2 --tile-windows 1").exit_code, 0);
+  EXPECT_EQ(readTileIndex(t1).window_sessions, 1u);
+  EXPECT_EQ(readTileIndex(t1).tiles[0].windows.size(), 3u);
+  EXPECT_EQ(readTileIndex(t).window_sessions, 0u);  // 3 sessions: no whole run of 8
+  ASSERT_EQ(runCommand(cli() + " snapshot " + t1 + " --at 2500 -o " + (tmp / "a1.cmap").string()).exit_code, 0);
+  EXPECT_TRUE(readSessionMap(tmp / "a1.cmap") == readSessionMap(tmp / "b.cmap"));
+
   // A box inside one tile reads one tile.
   const test::CommandResult box = runCommand(cli() + " snapshot " + t + " --at 2500 --box 0,0,0,0.15,0.15,0.15 -o " +
                                              (tmp / "c.cmap").string() + " --memory-limit 0.001 --json");

@@ -39,6 +39,8 @@ struct TileSettings {
   std::filesystem::path folder;  ///< the tiled map to write (replaced as a whole)
   /// Tile edge in metres; unset: 2^kDefaultTileLevel voxels.
   std::optional<double> tile_size_m;
+  /// Sessions per window file of each tile's history (store/tiled_file.h); 0: none.
+  uint32_t window_sessions = kDefaultWindowSessions;
 };
 
 /// What tileMap() wrote.
