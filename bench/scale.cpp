@@ -94,7 +94,8 @@ double msSince(std::chrono::steady_clock::time_point start) {
 
 /// The queries on a tiled map folder (3.2 m tiles): a cold snapshot of one room of the first
 /// floor (office 2 of floor66) at the last session's time (the tiles' latest states) and at the
-/// middle session's (their histories), then voxel histories in it once its tiles are held.
+/// middle session's (their history windows where they have them; then again from the tiles'
+/// files alone, "_without_windows"), then voxel histories in it once its tiles are held.
 /// "Cold": a new TiledMap, its cache empty (the files may sit in the system's page cache); best
 /// and median of five.
 void measureQueries(const fs::path& folder, size_t tiles, nlohmann::json& out) {
@@ -105,25 +106,31 @@ void measureQueries(const fs::path& folder, size_t tiles, nlohmann::json& out) {
     std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
     return v[v.size() / 2];
   };
-  for (const bool last : {true, false}) {
+  for (const int which : {0, 1, 2}) {  // the latest time; the middle one; the middle one without windows
+    const bool last = which == 0;
     std::vector<double> total, open;
     for (int rep = 0; rep < 5; ++rep) {
       const auto start = std::chrono::steady_clock::now();
-      TiledMap map(folder);
+      TileCacheSettings settings;
+      settings.read_windows = which != 2;
+      TiledMap map(folder, settings);
       open.push_back(msSince(start));
       const VoxelBox box = voxelBoxOf(map.grid(), lo, hi);
       const auto& sessions = map.sessions();
       const double t = last ? sessions.back().time_s : sessions[(sessions.size() - 1) / 2].time_s;
       const SessionMap room = map.snapshot(t, box);
       total.push_back(msSince(start));
-      const std::string key = last ? "" : "_history";
+      const std::string key = last ? "" : which == 1 ? "_history" : "_history_without_windows";
       const TileCacheStats& c = map.cacheStats();
       out["snapshot_room_tiles" + key] = c.loads + c.latest_reads + c.time_reads;
+      out["snapshot_room_windows" + key] = c.window_reads;
       out["room_nodes" + key] = room.innerCount() + room.leafCount();
     }
-    const std::string key = last ? "snapshot_room_ms_cold" : "snapshot_room_ms_cold_history";
+    const std::string key = last        ? "snapshot_room_ms_cold"
+                            : which == 1 ? "snapshot_room_ms_cold_history"
+                                         : "snapshot_room_ms_cold_history_without_windows";
     out[key] = best(total);
-    if (!last) out["snapshot_mid_ms_cold"] = best(total);  // issue 46's name: the middle session's time
+    if (which == 1) out["snapshot_mid_ms_cold"] = best(total);  // issue 46's name: the middle session's time
     out[key + "_first"] = total.front();
     out[key + "_median"] = median(total);
     if (last) out["index_open_ms"] = best(open);

@@ -57,6 +57,7 @@ nlohmann::json tileStatsJson(const std::optional<TileCacheStats>& s) {
   if (!s) return nullptr;
   // Tiles read from disk whole or at one time (readTileSnapshot); latest states not counted.
   return {{"tiles_loaded", s->loads + s->time_reads},
+          {"windows_read", s->window_reads},
           {"tiles_evicted", s->evictions},
           {"peak_tile_bytes", s->peak_resident_bytes}};
 }

@@ -379,11 +379,15 @@ SessionMap windowSnapshot(const fs::path& folder, const TileIndex& index, const 
 
 }  // namespace
 
-SessionMap readTileSnapshot(const fs::path& folder, const TileIndex& index, const TileEntry& entry, double time_s) {
+bool readsWindowAt(const TileIndex& index, const TileEntry& entry, double time_s) {
   const auto rank = index.top.rankAtOrBefore(time_s);
-  if (rank && index.window_sessions > 0 && *rank / index.window_sessions < entry.windows.size()) {
-    return windowSnapshot(folder, index, entry, *rank);
-  }
+  return rank && index.window_sessions > 0 && *rank / index.window_sessions < entry.windows.size();
+}
+
+SessionMap readTileSnapshot(const fs::path& folder, const TileIndex& index, const TileEntry& entry, double time_s,
+                            bool read_windows) {
+  const auto rank = index.top.rankAtOrBefore(time_s);
+  if (read_windows && readsWindowAt(index, entry, time_s)) return windowSnapshot(folder, index, entry, *rank);
   const fs::path path = folder / entry.file;
   const std::string source = path.string();
   if (!fs::exists(path)) throw IoError(source + ": tile file missing (listed in the index)");

@@ -77,8 +77,9 @@ SessionMap TiledMap::snapshot(double time_s, const std::optional<VoxelBox>& box)
       ++stats_.latest_reads;
     } else if (entry && !held_.count(key)) {
       // An earlier time of a tile not held: read at that time alone, not held (issue 46).
-      out.merge(readTileSnapshot(folder_, index_, *entry, time_s));
+      out.merge(readTileSnapshot(folder_, index_, *entry, time_s, settings_.read_windows));
       ++stats_.time_reads;
+      if (settings_.read_windows && readsWindowAt(index_, *entry, time_s)) ++stats_.window_reads;
     } else {
       out.merge(tile(key)->snapshot(time_s));
     }

@@ -349,7 +349,11 @@ TEST_P(TilesProperty, ATileReadAtOneTimeIsItsSnapshotNodeForNode) {
     TiledMap tiled(dir / "tiled", {0});
     EXPECT_TRUE(tiled.snapshot(sessionTime(2)) == map.snapshot(sessionTime(2)));
     EXPECT_EQ(tiled.cacheStats().time_reads, index.tiles.size());
+    EXPECT_EQ(tiled.cacheStats().window_reads, window_sessions ? index.tiles.size() : 0u);
     EXPECT_EQ(tiled.cacheStats().loads, 0u);
+    TiledMap without(dir / "tiled", {0, false});  // the tiles' files: the same answer
+    EXPECT_TRUE(without.snapshot(sessionTime(2)) == map.snapshot(sessionTime(2)));
+    EXPECT_EQ(without.cacheStats().window_reads, 0u);
     // The windows change nothing else: the map untiled is the map.
     untileMap(dir / "tiled", dir / "whole.cmap");
     EXPECT_TRUE(readTemporalMap(dir / "whole.cmap") == map);

@@ -142,8 +142,11 @@ TemporalMap readTile(const std::filesystem::path& folder, const TileIndex& index
 /// whole history). Files it does not cover (format version 1, appended sessions, a time before
 /// the first session) are read by readTile.
 /// @throw IoError (missing file), FormatError naming the tile's file.
+/// `read_windows` false reads the tile's file even where a window holds the time.
 SessionMap readTileSnapshot(const std::filesystem::path& folder, const TileIndex& index, const TileEntry& entry,
-                            double time_s);
+                            double time_s, bool read_windows = true);
+/// True when readTileSnapshot reads `time_s` of the tile from one of its windows.
+bool readsWindowAt(const TileIndex& index, const TileEntry& entry, double time_s);
 
 /// Reads a tile's latest state (entry.latest must be set), checking its size and checksum
 /// against the index and that it lies inside the tile's cube at the index's resolution.

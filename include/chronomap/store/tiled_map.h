@@ -24,6 +24,9 @@ struct TileCacheSettings {
   /// tiles are dropped whole to make room. 0: no limit. A single tile larger than the limit is
   /// still read, and held alone.
   size_t memory_limit_bytes = size_t{1} << 30;
+  /// Read an older time of a tile from its history window when it has one (store/tiled_file.h);
+  /// false: from the tile's file, as before windows existed (the same answer; for benchmarks).
+  bool read_windows = true;
 };
 
 /// The cache's own accounting.
@@ -31,6 +34,7 @@ struct TileCacheStats {
   size_t loads = 0;      ///< tiles read from disk
   size_t latest_reads = 0;  ///< latest states read from disk (snapshots of the last session's time)
   size_t time_reads = 0;    ///< tiles read at one earlier time (snapshots), not held
+  size_t window_reads = 0;  ///< of those, read from a history window
   size_t hits = 0;       ///< requests answered by a tile already held
   size_t evictions = 0;  ///< tiles dropped to stay under the limit
   size_t resident_bytes = 0;
