@@ -149,6 +149,15 @@ int main(int argc, char** argv) {
     writeTileIndex(root / "tiled", kept.top, kept.tile_level, kept.tiles, {{"seed", true}});
     fs::copy_file(root / "tiled" / kTileIndexName, root / "cmap/tile_index_v2.cmap", fs::copy_options::overwrite_existing);
     fs::remove_all(root / "tiled");
+    // With history windows of one session (table version 3), and a window file (a 4D map).
+    writeTiledMap(root / "tiled", splitIntoTiles(four_d, 1), {{"seed", true}}, 1);
+    const TileIndex windowed = readTileIndex(root / "tiled");
+    fs::copy_file(root / "tiled" / kTileIndexName, root / "cmap/tile_index_v3.cmap", fs::copy_options::overwrite_existing);
+    if (!windowed.tiles.empty() && !windowed.tiles.front().windows.empty()) {
+      fs::copy_file(root / "tiled" / windowed.tiles.front().windows.back().file, root / "cmap/tile_window.cmap",
+                    fs::copy_options::overwrite_existing);
+    }
+    fs::remove_all(root / "tiled");
     // The same 4D map with a third session appended as `chronomap add` appends it.
     writeTemporalMap(root / "cmap/four_d_appended.cmap", four_d, {{"seed", true}});
     const AddSettings options{false, "appended"};
