@@ -75,10 +75,6 @@ bool isWindowFileOf(const TileKey& key, const std::string& file, size_t j) {
   return tileGeneration(key, file.substr(0, file.size() - tail.size()) + ".cmap").has_value();
 }
 
-}  // namespace
-
-namespace {
-
 /// Writes a tile's file and its latest state under `name` in `folder`, and its windows after
 /// `kept` (see writeTileFile); its row of the table.
 TileEntry writeTileAndLatest(const fs::path& folder, const TileKey& key, const std::string& name,
