@@ -25,6 +25,8 @@
 #   year          bench/scale --plot-from docs/images/year_nights.json: year_nights.png, the nights
 #                 of the year run that docs/scale.md describes (the run itself, over an hour, is
 #                 bench/scale's; its output is kept in that file); a second
+#                 (year_one_floor_windows.png) from year_one_floor_windows.json, the year of one
+#                 floor with history windows
 #
 # Builds chronomap and the Python module (and, for weeks and floor66, the benchmark programs) in
 # build/release (cmake --preset release), or in the configured build folder --build names. The
@@ -234,6 +236,8 @@ fi
 if has year; then
   echo "== year: bench/scale --plot-from"
   "$build/bench/scale" --plot-from "$repo/docs/images/year_nights.json" --plot "$images/year_nights.png"
+  "$build/bench/scale" --plot-from "$repo/docs/images/year_one_floor_windows.json" \
+    --plot "$images/year_one_floor_windows.png"
 fi
 
 figures="$repo/docs/images/figures.json"

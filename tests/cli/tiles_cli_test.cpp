@@ -42,7 +42,7 @@ TEST(TilesCli, TiledFolderAnswersAsTheMap) {
   ASSERT_EQ(runCommand(cli() + " tile " + m + " -o " + t1 + " --tile-size 0.2 --tile-windows 1").exit_code, 0);
   EXPECT_EQ(readTileIndex(t1).window_sessions, 1u);
   EXPECT_EQ(readTileIndex(t1).tiles[0].windows.size(), 3u);
-  EXPECT_EQ(readTileIndex(t).window_sessions, 0u);  // 3 sessions: no whole run of 8
+  EXPECT_EQ(readTileIndex(t).window_sessions, 0u);  // 3 sessions: no whole run of the default's
   ASSERT_EQ(runCommand(cli() + " snapshot " + t1 + " --at 2500 -o " + (tmp / "a1.cmap").string()).exit_code, 0);
   EXPECT_TRUE(readSessionMap(tmp / "a1.cmap") == readSessionMap(tmp / "b.cmap"));
 
