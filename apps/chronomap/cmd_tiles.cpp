@@ -40,13 +40,15 @@ int runTile(const TileCmdOptions& o) {
     std::cout << nlohmann::json{{"output", o.output},         {"tile_size_m", r.tile_size_m},
                                 {"tile_level", r.tile_level}, {"tiles", r.tiles},
                                 {"top_lists", r.top_lists},   {"index_bytes", r.index_bytes},
-                                {"tile_bytes", r.tile_bytes}, {"map_bytes", r.map_bytes}}
+                                {"tile_bytes", r.tile_bytes}, {"map_bytes", r.map_bytes},
+                                {"windows", r.windows}}
                      .dump()
               << "\n";
   } else {
     std::cout << "wrote " << o.output << ": " << r.tiles << " tile(s) of " << r.tile_size_m << " m ("
-              << (1 << r.tile_level) << " voxels), " << r.tile_bytes << " bytes, index " << r.index_bytes
-              << " bytes (the map: " << r.map_bytes << " bytes)\n";
+              << (1 << r.tile_level) << " voxels), " << r.tile_bytes << " bytes";
+    if (r.windows > 0) std::cout << " with " << r.windows << " history window(s)";
+    std::cout << ", index " << r.index_bytes << " bytes (the map: " << r.map_bytes << " bytes)\n";
   }
   return 0;
 }

@@ -52,6 +52,7 @@ TileResult tileMap(const TileSettings& s) {
   r.tiles = w.tiles;
   r.index_bytes = w.index_bytes;
   r.tile_bytes = w.tile_bytes;
+  r.windows = w.windows;
   r.map_bytes = fs::file_size(s.map);
   return r;
 }

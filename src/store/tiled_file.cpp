@@ -146,6 +146,7 @@ TiledWriteResult writeTiledMap(const fs::path& folder, const SplitMap& split, co
   for (const Tile& t : split.tiles) {
     entries.push_back(writeTileAndLatest(staged.path(), t.key, tileFileName(t.key), t.map, window_sessions, {}));
     r.tile_bytes += entries.back().diskBytes();
+    r.windows += entries.back().windows.size();
     ++r.tiles;
   }
   const nlohmann::json extra = tableOf(entries, split.tile_level, split.top.sessionCount(), window_sessions);

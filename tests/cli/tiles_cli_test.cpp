@@ -39,7 +39,10 @@ TEST(TilesCli, TiledFolderAnswersAsTheMap) {
 
   // With windows of one session each: every earlier time read from them, the same answer.
   const std::string t1 = (tmp / "t1").string();
-  ASSERT_EQ(runCommand(cli() + " tile " + m + " -o " + t1 + " --tile-size 0.2 --tile-windows 1").exit_code, 0);
+  const test::CommandResult windowed = runCommand(cli() + " tile " + m + " -o " + t1 + " --tile-size 0.2 --tile-windows 1 --json");
+  ASSERT_EQ(windowed.exit_code, 0) << windowed.err;
+  EXPECT_EQ(nlohmann::json::parse(windowed.out)["windows"], 27 * 3);
+  EXPECT_EQ(tj["windows"], 0);
   EXPECT_EQ(readTileIndex(t1).window_sessions, 1u);
   EXPECT_EQ(readTileIndex(t1).tiles[0].windows.size(), 3u);
   EXPECT_EQ(readTileIndex(t).window_sessions, 0u);  // 3 sessions: no whole run of the default's

@@ -50,8 +50,9 @@ struct TileResult {
   size_t tiles = 0;
   size_t top_lists = 0;  ///< uniform cubes of tile size or larger, kept in the index
   uint64_t index_bytes = 0;
-  uint64_t tile_bytes = 0;
+  uint64_t tile_bytes = 0;  ///< latest states and history windows included
   uint64_t map_bytes = 0;  ///< the input file
+  size_t windows = 0;      ///< history windows written
 };
 
 /// Cuts a 4D map file into a tiled map folder. @throw UsageError for a bad tile size, an

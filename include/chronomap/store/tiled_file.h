@@ -101,8 +101,9 @@ std::string windowFileName(const std::string& tile_file, size_t j);
 /// What writeTiledMap wrote.
 struct TiledWriteResult {
   uint64_t index_bytes = 0;
-  uint64_t tile_bytes = 0;  ///< all tiles together, their latest states included
+  uint64_t tile_bytes = 0;  ///< all tiles together, their latest states and windows included
   size_t tiles = 0;
+  size_t windows = 0;       ///< history windows written
 };
 
 /// Writes `split` into the folder `folder` as a whole (staged, then moved into place: an
