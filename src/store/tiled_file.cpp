@@ -266,14 +266,29 @@ TileIndex readTileIndex(const fs::path& folder) {
 
 namespace {
 
-/// A tile's file, decoded, once its size and checksum match the index's row.
-CmapFile tileFile(const fs::path& path, const TileEntry& entry) {
+/// @throw IoError when `path`, a `what` file ("tile", "window", "latest state") the index lists,
+/// is missing.
+void requireListed(const fs::path& path, const char* what) {
+  if (!fs::exists(path)) throw IoError(path.string() + ": " + what + " file missing (listed in the index)");
+}
+
+/// The `what` file at `path`, decoded, once its size and checksum match the index's row.
+CmapFile listedFile(const fs::path& path, uint64_t bytes_listed, uint32_t crc32_listed, const char* what) {
   const std::string source = path.string();
   const std::vector<uint8_t> bytes = readFileBytes(path);
-  if (bytes.size() != entry.bytes || crc32Of(bytes) != entry.crc32) {
-    throw FormatError(source + ": tile file does not match the index (size or checksum differ)");
+  if (bytes.size() != bytes_listed || crc32Of(bytes) != crc32_listed) {
+    throw FormatError(source + ": " + what + " file does not match the index (size or checksum differ)");
   }
   return decodeCmap(bytes, source);
+}
+
+/// True when every leaf of `map` lies inside the tile `key`.
+bool insideTile(const SessionMap& map, const TileIndex& index, const TileKey& key) {
+  bool inside = true;
+  map.forEachLeaf([&](const LeafView& leaf) {
+    inside = inside && leaf.level <= index.tile_level && tileOf(leaf.key, index.tile_level) == key;
+  });
+  return inside;
 }
 
 /// The tile of `file` with the index's later sessions appended, checked against the index.
@@ -303,8 +318,10 @@ TemporalMap tileOfFile(const CmapFile& file, const std::string& source, const Ti
 TemporalMap readTile(const fs::path& folder, const TileIndex& index, const TileEntry& entry) {
   const fs::path path = folder / entry.file;
   const std::string source = path.string();
-  if (!fs::exists(path)) throw IoError(source + ": tile file missing (listed in the index)");
-  return readNamingMemory(path, [&] { return tileOfFile(tileFile(path, entry), source, index, entry); });
+  requireListed(path, "tile");
+  return readNamingMemory(path, [&] {
+    return tileOfFile(listedFile(path, entry.bytes, entry.crc32, "tile"), source, index, entry);
+  });
 }
 
 namespace {
@@ -340,11 +357,7 @@ SessionMap checkedSnapshot(StoredSnapshot stored, const CmapFile& file, const st
     throw FormatError(source + ": its sessions (" + std::to_string(count) +
                       ") do not match the index's sessions table (" + std::to_string(all.size()) + ")");
   }
-  bool inside = true;
-  stored.map.forEachLeaf([&](const LeafView& leaf) {
-    inside = inside && leaf.level <= index.tile_level && tileOf(leaf.key, index.tile_level) == entry.key;
-  });
-  if (!inside) throw FormatError(source + " holds nodes outside its tile");
+  if (!insideTile(stored.map, index, entry.key)) throw FormatError(source + " holds nodes outside its tile");
   return std::move(stored.map);
 }
 
@@ -354,13 +367,9 @@ SessionMap windowSnapshot(const fs::path& folder, const TileIndex& index, const 
   const WindowFile& w = entry.windows[j];
   const fs::path path = folder / w.file;
   const std::string source = path.string();
-  if (!fs::exists(path)) throw IoError(source + ": window file missing (listed in the index)");
+  requireListed(path, "window");
   return readNamingMemory(path, [&] {
-    const std::vector<uint8_t> bytes = readFileBytes(path);
-    if (bytes.size() != w.bytes || crc32Of(bytes) != w.crc32) {
-      throw FormatError(source + ": window file does not match the index (size or checksum differ)");
-    }
-    const CmapFile file = decodeCmap(bytes, source);
+    const CmapFile file = listedFile(path, w.bytes, w.crc32, "window");
     if (file.header.version < 2 || !file.appended.empty()) {
       throw FormatError(source + ": a window file is a 4D map of format version 2 or later without appended sessions");
     }
@@ -387,9 +396,9 @@ SessionMap readTileSnapshot(const fs::path& folder, const TileIndex& index, cons
   if (read_windows && readsWindowAt(index, entry, time_s)) return windowSnapshot(folder, index, entry, *rank);
   const fs::path path = folder / entry.file;
   const std::string source = path.string();
-  if (!fs::exists(path)) throw IoError(source + ": tile file missing (listed in the index)");
+  requireListed(path, "tile");
   return readNamingMemory(path, [&] {
-    const CmapFile file = tileFile(path, entry);
+    const CmapFile file = listedFile(path, entry.bytes, entry.crc32, "tile");
     if (!rank || file.header.kind != MapKind::Temporal || file.header.version < 2 || !file.appended.empty()) {
       return tileOfFile(file, source, index, entry).snapshot(time_s);  // (what the fast read does not cover)
     }
@@ -401,21 +410,13 @@ SessionMap readLatestState(const fs::path& folder, const TileIndex& index, const
   if (!entry.latest) throw UsageError("tile " + entry.file + " has no latest state");
   const fs::path path = folder / entry.latest->file;
   const std::string source = path.string();
-  if (!fs::exists(path)) throw IoError(source + ": latest state file missing (listed in the index)");
+  requireListed(path, "latest state");
   return readNamingMemory(path, [&] {
-    const std::vector<uint8_t> bytes = readFileBytes(path);
-    if (bytes.size() != entry.latest->bytes || crc32Of(bytes) != entry.latest->crc32) {
-      throw FormatError(source + ": latest state file does not match the index (size or checksum differ)");
-    }
-    SessionMap state = sessionMapFrom(decodeCmap(bytes, source), source);
+    SessionMap state = sessionMapFrom(listedFile(path, entry.latest->bytes, entry.latest->crc32, "latest state"), source);
     if (state.resolution_m() != index.top.resolution_m()) {
       throw FormatError(source + ": resolution differs from the index's");
     }
-    bool inside = true;
-    state.forEachLeaf([&](const LeafView& leaf) {
-      inside = inside && leaf.level <= index.tile_level && tileOf(leaf.key, index.tile_level) == entry.key;
-    });
-    if (!inside) throw FormatError(source + " holds voxels outside its tile");
+    if (!insideTile(state, index, entry.key)) throw FormatError(source + " holds voxels outside its tile");
     return state;
   });
 }
