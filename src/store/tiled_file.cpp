@@ -82,10 +82,11 @@ TileEntry writeTileAndLatest(const fs::path& folder, const TileKey& key, const s
   const std::vector<uint8_t> bytes = encodeTemporalMap(tile, nlohmann::json::object());
   TileEntry e{key, name, bytes.size(), crc32Of(bytes), std::nullopt, std::nullopt, std::move(kept)};
   writeFileAtomic(folder / e.file, bytes);
-  if (window_sessions > 0) {
+  if (window_sessions > 0 && (e.windows.size() + 1) * window_sessions <= tile.sessionCount()) {
+    const TemporalMap::Parts parts = tile.parts();  // once for all the windows written
     for (size_t j = e.windows.size(); (j + 1) * window_sessions <= tile.sessionCount(); ++j) {
       const TemporalMap window =
-          historyWindow(tile, static_cast<uint32_t>(j * window_sessions), window_sessions);
+          historyWindow(tile, parts, static_cast<uint32_t>(j * window_sessions), window_sessions);
       const std::vector<uint8_t> w =
           encodeTemporalMapAsItIs(window, {{"window", {{"first_session", j * window_sessions}}}});
       e.windows.push_back(WindowFile{windowFileName(name, j), w.size(), crc32Of(w)});

@@ -10,6 +10,10 @@
 namespace chronomap {
 
 TemporalMap historyWindow(const TemporalMap& map, uint32_t first, uint32_t count) {
+  return historyWindow(map, map.parts(), first, count);
+}
+
+TemporalMap historyWindow(const TemporalMap& map, const TemporalMap::Parts& whole, uint32_t first, uint32_t count) {
   const size_t sessions = map.sessionCount();
   if (count == 0 || first >= sessions || count > sessions - first) {
     throw UsageError("history window of sessions " + std::to_string(first) + " to " +
@@ -17,13 +21,13 @@ TemporalMap historyWindow(const TemporalMap& map, uint32_t first, uint32_t count
                      std::to_string(sessions) + " sessions");
   }
   const uint32_t last = first + count - 1;
-  TemporalMap::Parts parts = map.parts();
+  TemporalMap::Parts parts{whole.inner, whole.list_sizes, {}};
   std::vector<TemporalMap::Entry> entries;
   entries.reserve(parts.list_sizes.size() * 2);
   uint32_t end = last;  // the last session the window holds
   size_t at = 0;
   for (uint32_t& size : parts.list_sizes) {
-    const TemporalMap::Entry* list = parts.entries.data() + at;
+    const TemporalMap::Entry* list = whole.entries.data() + at;
     at += size;
     // The entry valid at `first` (the last one at or before it), if any, then those of the window.
     size_t k = 0;

@@ -23,5 +23,8 @@ namespace chronomap {
 /// same entries in the same order). Times after it answer nothing useful.
 /// @throw UsageError when count is 0 or the window does not lie inside the map's sessions.
 TemporalMap historyWindow(const TemporalMap& map, uint32_t first, uint32_t count);
+/// The same from `parts`, map.parts(): for several windows of one map, which parts() would
+/// otherwise copy whole for each.
+TemporalMap historyWindow(const TemporalMap& map, const TemporalMap::Parts& parts, uint32_t first, uint32_t count);
 
 }  // namespace chronomap
