@@ -128,8 +128,9 @@ nlohmann::json measureSession(const std::string& name, const SessionMap& map, in
       std::fclose(f);
     }
   }
-  const double err = positionError(map.leafPool(), back2.leafPool());
-  const LengthError lerr = lengthError(map.leafPool(), back2.leafPool());
+  const std::vector<VoxelCounters> leaves = map.pools().leaves, leaves_back = back2.pools().leaves;
+  const double err = positionError(leaves, leaves_back);
+  const LengthError lerr = lengthError(leaves, leaves_back);
   std::printf("\nlargest relative length error %.3g, largest |P change| %.3g, states changed %zu\n", lerr.relative,
               lerr.probability, lerr.states_changed);
   std::printf("\ncurrent / version 1: %.3f; encode %.2f / %.2f ms, decode %.2f / %.2f ms (CPU, best of %d); "

@@ -203,8 +203,7 @@ struct SessionWalk {
   void walk(Ref ra, Ref rb, int level, const VoxelKey& corner) {
     if (ra == SessionMap::kEmpty || rb == SessionMap::kEmpty) return;
     if (isLeaf(ra) && isLeaf(rb)) {
-      const auto cell = compareVoxel(a.leafPool()[ra & ~SessionMap::kLeafBit],
-                                     b.leafPool()[rb & ~SessionMap::kLeafBit], settings);
+      const auto cell = compareVoxel(a.leaf(ra), b.leaf(rb), settings);
       if (cell) {
         out.push_back(*cell);
         out.back().key = corner;

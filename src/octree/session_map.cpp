@@ -10,6 +10,7 @@ namespace chronomap {
 
 namespace {
 constexpr uint32_t kMaxPoolIndex = 0x7ffffffeu;
+constexpr uint32_t kMaxLeafIndex = 0x3ffffffeu;  // below the free-leaf bit
 
 /// Makes room for one more node in a full pool by growing it 4x, not 2x: each growth copies the
 /// pool into fresh pages (page faults, then freeing the old ones), and integration at 0.02 m
@@ -31,11 +32,48 @@ SessionMap::Children emptyChildren() {
 
 SessionMap::SessionMap(double resolution_m) : grid_(resolution_m) { inner_.push_back(emptyChildren()); }
 
+bool SessionMap::freeOnly(const VoxelCounters& c) {
+  return (c.hits | c.red | c.green | c.blue | std::bit_cast<uint32_t>(c.offset[0]) |
+          std::bit_cast<uint32_t>(c.offset[1]) | std::bit_cast<uint32_t>(c.offset[2])) == 0;
+}
+
 SessionMap::Ref SessionMap::newLeaf(const VoxelCounters& c) {
-  if (leaves_.size() >= kMaxPoolIndex) throw Error("session map is full: more than 2^31 leaves");
+  if (freeOnly(c)) {
+    if (free_.size() >= kMaxLeafIndex) throw Error("session map is full: more than 2^30 free leaves");
+    roomForOne(free_);
+    free_.push_back(c.length_m);
+    return static_cast<Ref>(free_.size() - 1) | kLeafBit | kFreeBit;
+  }
+  if (leaves_.size() >= kMaxLeafIndex) throw Error("session map is full: more than 2^30 leaves");
   roomForOne(leaves_);
   leaves_.push_back(c);
   return static_cast<Ref>(leaves_.size() - 1) | kLeafBit;
+}
+
+void SessionMap::addToLeaf(Ref& ref, const VoxelCounters& delta) {
+  if (!isFreeLeaf(ref)) {
+    leaves_[index(ref)] += delta;
+  } else if (freeOnly(delta)) {
+    free_[index(ref)] += delta.length_m;
+  } else {
+    // The same additions as in the full pool: the other counters start at zero.
+    VoxelCounters c;
+    c.length_m = free_[index(ref)];
+    c += delta;
+    ref = newLeaf(c);  // the free slot stays behind until compressFree()
+    ++moved_;
+  }
+}
+
+void SessionMap::setLeaf(Ref& ref, const VoxelCounters& c) {
+  if (!isFreeLeaf(ref)) {
+    leaves_[index(ref)] = c;
+  } else if (freeOnly(c)) {
+    free_[index(ref)] = c.length_m;
+  } else {
+    ref = newLeaf(c);
+    ++moved_;
+  }
 }
 
 SessionMap::Ref SessionMap::newInner() {
@@ -46,13 +84,13 @@ SessionMap::Ref SessionMap::newInner() {
 }
 
 uint32_t SessionMap::splitLeaf(uint32_t parent, int slot) {
-  const uint32_t leaf = index(inner_[parent][slot]);
-  VoxelCounters part = leaves_[leaf];
+  Ref first = inner_[parent][slot];
+  VoxelCounters part = leaf(first);
   part.length_m /= 8.0f;  // compressed leaves never hold hits or colour
   const Ref node = newInner();
   // The first child reuses the old leaf's slot so that splitting does not grow the pool by 8.
-  leaves_[leaf] = part;
-  inner_[node][0] = leaf | kLeafBit;
+  setLeaf(first, part);
+  inner_[node][0] = first;
   for (int i = 1; i < 8; ++i) {
     const Ref child = newLeaf(part);
     inner_[node][i] = child;
@@ -118,7 +156,9 @@ void SessionMap::addMany(std::span<const VoxelKey> keys, std::span<const VoxelCo
       const Ref leaf = newLeaf(deltas[i]);
       inner_[node][slot] = leaf;
     } else {
-      leaves_[index(r)] += deltas[i];
+      Ref ref = r;
+      addToLeaf(ref, deltas[i]);
+      inner_[node][slot] = ref;
     }
   }
 }
@@ -129,7 +169,9 @@ void SessionMap::spreadInto(uint32_t parent, int slot, int level, const VoxelCou
     const Ref leaf = newLeaf(sums);
     inner_[parent][slot] = leaf;
   } else if (isLeaf(r)) {
-    leaves_[index(r)] += sums;  // a leaf of the cube's own size
+    Ref ref = r;
+    addToLeaf(ref, sums);  // a leaf of the cube's own size
+    inner_[parent][slot] = ref;
   } else {
     VoxelCounters part = sums;  // level > 0: a known-free cube without hits
     part.length_m /= 8.0f;
@@ -169,7 +211,7 @@ void SessionMap::addCubes(std::span<const VoxelKey> corners, int level, std::spa
 void SessionMap::mergeInto(uint32_t parent, int slot, int level, const SessionMap& other, Ref src) {
   if (src == kEmpty) return;
   if (isLeaf(src)) {
-    spreadInto(parent, slot, level, other.leaves_[index(src)]);
+    spreadInto(parent, slot, level, other.leaf(src));
     return;
   }
   const uint32_t node = descend(parent, slot);
@@ -199,7 +241,9 @@ void SessionMap::assign(const VoxelKey& key, const std::optional<VoxelCounters>&
     const Ref leaf = newLeaf(*value);
     inner_[node][slot] = leaf;
   } else {
-    leaves_[index(r)] = *value;
+    Ref ref = r;
+    setLeaf(ref, *value);
+    inner_[node][slot] = ref;
   }
 }
 
@@ -209,7 +253,7 @@ std::optional<LeafView> SessionMap::findLeaf(const VoxelKey& key) const {
     const Ref r = inner_[node][childSlot(key, child_level)];
     if (r == kEmpty) return std::nullopt;
     if (isLeaf(r)) {
-      return LeafView{cellCorner(key, child_level), child_level, leaves_[index(r)]};
+      return LeafView{cellCorner(key, child_level), child_level, leaf(r)};
     }
     node = r;
   }
@@ -233,7 +277,7 @@ bool SessionMap::compressBelow(Ref& r, size_t& inner_count, size_t& leaf_count) 
   if (r == kEmpty) return false;
   if (isLeaf(r)) {
     ++leaf_count;
-    return leaves_[index(r)].isKnownFreeWithoutHits();
+    return leaf(r).isKnownFreeWithoutHits();
   }
   bool all_free = true;
   for (int i = 0; i < 8; ++i) {
@@ -246,30 +290,36 @@ bool SessionMap::compressBelow(Ref& r, size_t& inner_count, size_t& leaf_count) 
     return false;
   }
   VoxelCounters sum;
-  for (int i = 0; i < 8; ++i) sum.length_m += leaves_[index(inner_[r][i])].length_m;
+  for (int i = 0; i < 8; ++i) sum.length_m += leaf(inner_[r][i]).length_m;
   // Reuse the first child's leaf slot; the others become garbage that compaction drops.
-  const uint32_t leaf = index(inner_[r][0]);
-  leaves_[leaf] = sum;
-  r = leaf | kLeafBit;
+  Ref first = inner_[r][0];
+  setLeaf(first, sum);
+  r = first;
   leaf_count -= 7;  // the 8 children counted above are one leaf now
   return true;
 }
 
-SessionMap::Ref SessionMap::copyInto(Ref r, std::vector<Children>& inner, std::vector<VoxelCounters>& leaves) const {
+SessionMap::Ref SessionMap::copyInto(Ref r, std::vector<Children>& inner, std::vector<VoxelCounters>& leaves,
+                                     std::vector<float>* free, bool keep_empty) const {
   if (r == kEmpty) return kEmpty;
   if (isLeaf(r)) {
-    leaves.push_back(leaves_[index(r)]);
+    const VoxelCounters c = leaf(r);
+    if (free && freeOnly(c)) {
+      free->push_back(c.length_m);
+      return static_cast<Ref>(free->size() - 1) | kLeafBit | kFreeBit;
+    }
+    leaves.push_back(c);
     return static_cast<Ref>(leaves.size() - 1) | kLeafBit;
   }
   const Ref out = static_cast<Ref>(inner.size());
   inner.push_back(emptyChildren());
   bool any = false;
   for (int i = 0; i < 8; ++i) {
-    const Ref c = copyInto(inner_[r][i], inner, leaves);
+    const Ref c = copyInto(inner_[r][i], inner, leaves, free, keep_empty);
     inner[out][i] = c;
     any = any || c != kEmpty;
   }
-  if (!any && r != 0) {  // an inner node left without children (assign() emptied it)
+  if (!any && r != 0 && !keep_empty) {  // an inner node left without children (assign() emptied it)
     inner.pop_back();
     return kEmpty;
   }
@@ -277,7 +327,7 @@ SessionMap::Ref SessionMap::copyInto(Ref r, std::vector<Children>& inner, std::v
 }
 
 size_t SessionMap::compressFree() {
-  const size_t before = leaves_.size();
+  const size_t before = leafCount();
   Ref root = 0;
   size_t inner_count = 0, leaf_count = 0;  // what stays reachable: the size of the new pools
   compressBelow(root, inner_count, leaf_count);
@@ -285,16 +335,47 @@ size_t SessionMap::compressFree() {
   // inner nodes left without children are dropped), so that they need no growth nor
   // shrinking copy: reserving the old pools' sizes instead faulted in their whole size, 7x the
   // compressed map's at 0.02 m.
+  // The leaves are counted, not sorted by pool: each pool is reserved for all of them and
+  // shrunk after (capacity that no page backs costs address space only).
   std::vector<Children> inner;
   std::vector<VoxelCounters> leaves;
+  std::vector<float> free;
   inner.reserve(inner_count);
   leaves.reserve(leaf_count);
-  copyInto(0, inner, leaves);
+  free.reserve(leaf_count);
+  copyInto(0, inner, leaves, &free, /*keep_empty=*/false);
   inner.shrink_to_fit();
   leaves.shrink_to_fit();
+  free.shrink_to_fit();
   inner_ = std::move(inner);
   leaves_ = std::move(leaves);
-  return before - leaves_.size();
+  free_ = std::move(free);
+  moved_ = 0;
+  return before - leafCount();
+}
+
+SessionMap::Pools SessionMap::pools() const {
+  Pools p;
+  p.inner.reserve(inner_.size());
+  p.leaves.reserve(leafCount());
+  copyInto(0, p.inner, p.leaves, nullptr, /*keep_empty=*/true);
+  return p;
+}
+
+void SessionMap::separateFree() {
+  // Depth first, as compressFree() lays the pools out: a map read back has the layout of the
+  // one written.
+  std::vector<Children> inner;
+  std::vector<VoxelCounters> leaves;
+  std::vector<float> free;
+  inner.reserve(inner_.size());
+  copyInto(0, inner, leaves, &free, /*keep_empty=*/true);
+  leaves.shrink_to_fit();
+  free.shrink_to_fit();
+  inner_ = std::move(inner);
+  leaves_ = std::move(leaves);
+  free_ = std::move(free);
+  moved_ = 0;
 }
 
 SessionMapCounts SessionMap::counts() const {
@@ -319,16 +400,18 @@ SessionMapCounts SessionMap::counts() const {
 }
 
 size_t SessionMap::memoryBytes() const {
-  return sizeof(*this) + inner_.size() * sizeof(Children) + leaves_.size() * sizeof(VoxelCounters);
+  return sizeof(*this) + inner_.size() * sizeof(Children) + leaves_.size() * sizeof(VoxelCounters) +
+         free_.size() * sizeof(float);
 }
 
 size_t SessionMap::reservedBytes() const {
-  return sizeof(*this) + inner_.capacity() * sizeof(Children) + leaves_.capacity() * sizeof(VoxelCounters);
+  return sizeof(*this) + inner_.capacity() * sizeof(Children) + leaves_.capacity() * sizeof(VoxelCounters) +
+         free_.capacity() * sizeof(float);
 }
 
 void SessionMap::assignPools(std::vector<Children> inner, std::vector<VoxelCounters> leaves) {
   if (inner.empty()) throw FormatError("session map has no root node");
-  if (inner.size() > kMaxPoolIndex || leaves.size() > kMaxPoolIndex) throw FormatError("session map too large");
+  if (inner.size() > kMaxPoolIndex || leaves.size() > kMaxLeafIndex) throw FormatError("session map too large");
   // Every node must be reachable exactly once from the root, inner nodes only above unit level,
   // leaves finite and non-negative, compressed leaves free of hits.
   std::vector<uint8_t> inner_seen(inner.size(), 0);
@@ -341,7 +424,7 @@ void SessionMap::assignPools(std::vector<Children> inner, std::vector<VoxelCount
     stack.pop_back();
     for (Ref r : inner[node]) {
       if (r == kEmpty) continue;
-      const uint32_t i = index(r);
+      const uint32_t i = r & ~kLeafBit;  // a set free-leaf bit reads as an index past the end
       if (isLeaf(r)) {
         if (i >= leaves.size() || leaf_seen[i]) throw FormatError("session map has an invalid leaf reference");
         leaf_seen[i] = 1;
@@ -366,6 +449,8 @@ void SessionMap::assignPools(std::vector<Children> inner, std::vector<VoxelCount
   }
   inner_ = std::move(inner);
   leaves_ = std::move(leaves);
+  free_.clear();
+  separateFree();
 }
 
 bool operator==(const SessionMap& a, const SessionMap& b) {

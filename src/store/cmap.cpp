@@ -333,10 +333,12 @@ std::vector<uint8_t> encodeSessionMap(const SessionMap& map, const nlohmann::jso
   blocks[0].tag = "META";
   const std::string text = meta.is_null() ? "{}" : meta.dump();
   blocks[0].data.assign(text.begin(), text.end());
-  const auto& leaves = map.leafPool();
+  // Depth first, whatever the layout in memory (a map's free leaves have a pool of their own).
+  const SessionMap::Pools pools = map.pools();
+  const auto& leaves = pools.leaves;
   if (version == 1) {
     header.version = 1;
-    const auto& inner = map.innerPool();
+    const auto& inner = pools.inner;
     CmapBlock& tree = blocks.emplace_back(CmapBlock{"INNR", std::vector<uint8_t>(inner.size() * sizeof(SessionMap::Children))});
     copyBytes(tree.data.data(), inner.data(), tree.data.size());
     CmapBlock counters{"LEAF", std::vector<uint8_t>(leaves.size() * kCounterRecordBytes)};
@@ -350,7 +352,7 @@ std::vector<uint8_t> encodeSessionMap(const SessionMap& map, const nlohmann::jso
     return encodeCmap(header, blocks, zstd_level);
   }
   header.version = version;
-  columns::encodeTree(map.innerPool(), blocks);
+  columns::encodeTree(pools.inner, blocks);
   columns::encodeCounters(leaves.size(), [&](size_t i) -> const VoxelCounters& { return leaves[i]; }, blocks, version);
   return encodeCmap(header, blocks, zstd_level);
 }
@@ -424,10 +426,10 @@ VoxelCounters asStored(const VoxelCounters& c) {
 }
 
 SessionMap asStored(const SessionMap& map) {
-  std::vector<VoxelCounters> leaves = map.leafPool();
-  for (VoxelCounters& c : leaves) c = asStored(c);
+  SessionMap::Pools pools = map.pools();
+  for (VoxelCounters& c : pools.leaves) c = asStored(c);
   SessionMap out(map.resolution_m());
-  out.assignPools(map.innerPool(), std::move(leaves));
+  out.assignPools(std::move(pools.inner), std::move(pools.leaves));
   return out;
 }
 

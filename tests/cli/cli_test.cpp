@@ -180,11 +180,12 @@ TEST(Cli, IntegrateRecordsHitPositionsUnlessToldNot) {
   EXPECT_EQ(metadataOf(file)["hit_positions"], true);
   EXPECT_EQ(metadataOf(readCmap(tmp / "bare.cmap"))["hit_positions"], false);
   const SessionMap with = sessionMapFrom(file, "room.cmap"), bare = readSessionMap(tmp / "bare.cmap");
-  ASSERT_EQ(with.leafCount(), bare.leafCount());
+  const std::vector<VoxelCounters> with_leaves = with.pools().leaves, bare_leaves = bare.pools().leaves;
+  ASSERT_EQ(with_leaves.size(), bare_leaves.size());
   size_t placed = 0;
-  for (size_t i = 0; i < with.leafCount(); ++i) {
-    VoxelCounters a = with.leafPool()[i];
-    const VoxelCounters& b = bare.leafPool()[i];
+  for (size_t i = 0; i < with_leaves.size(); ++i) {
+    VoxelCounters a = with_leaves[i];
+    const VoxelCounters& b = bare_leaves[i];
     EXPECT_TRUE(a.offsetsValid());
     placed += a.hits > 0 && (a.offset[0] != 0.0f || a.offset[1] != 0.0f || a.offset[2] != 0.0f);
     for (float o : b.offset) EXPECT_EQ(o, 0.0f);

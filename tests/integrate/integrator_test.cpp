@@ -412,9 +412,16 @@ TEST(Integrator, ResultsDoNotDependOnThreadCount) {
       blocks[0].tag = "INNR";
       blocks[0].data.assign(reinterpret_cast<const uint8_t*>(map.innerPool().data()),
                             reinterpret_cast<const uint8_t*>(map.innerPool().data() + map.innerPool().size()));
+      // Every leaf behind its reference, in the order of the references (the pools' layout).
       blocks[1].tag = "LEAF";
-      blocks[1].data.assign(reinterpret_cast<const uint8_t*>(map.leafPool().data()),
-                            reinterpret_cast<const uint8_t*>(map.leafPool().data() + map.leafPool().size()));
+      for (const SessionMap::Children& c : map.innerPool()) {
+        for (const SessionMap::Ref r : c) {
+          if (r == SessionMap::kEmpty || (r & SessionMap::kLeafBit) == 0) continue;
+          const VoxelCounters v = map.leaf(r);
+          blocks[1].data.insert(blocks[1].data.end(), reinterpret_cast<const uint8_t*>(&v),
+                                reinterpret_cast<const uint8_t*>(&v + 1));
+        }
+      }
       const auto bytes = encodeCmap(h, blocks, 0);
       if (threads == 1) {
         reference = bytes;

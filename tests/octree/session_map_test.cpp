@@ -1,14 +1,19 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
+#include <cmath>
 #include <map>
 #include <tuple>
 #include <optional>
 #include <random>
 
+#include <nlohmann/json.hpp>
+
 #include "chronomap/core/error.h"
 #include "chronomap/octree/session_map.h"
 #include "chronomap/octree/voxel_queries.h"
+#include "chronomap/store/cmap.h"
 #include "builders.h"
 
 namespace chronomap {
@@ -195,6 +200,44 @@ TEST(SessionMap, RefiningACompressedNodeSplitsItEvenly) {
   }
 }
 
+// Leaves rays only crossed keep their length alone (4 bytes, not 32); a hit moves the leaf to
+// the pool of whole counters, with the sums the whole counters would have had, bit for bit.
+TEST(SessionMap, FreeLeavesHoldOnlyALengthAndMoveWhenHit) {
+  SessionMap m(0.05);
+  constexpr uint16_t kVoxels = 1000;
+  const auto key = [](uint16_t i) { return VoxelKey{static_cast<uint16_t>(2 * i), 0, 0}; };  // no 8 siblings
+  const auto length = [](uint16_t i) { return 0.01f * static_cast<float>(i % 37 + 1); };
+  for (uint16_t i = 0; i < kVoxels; ++i) m.add(key(i), freeVoxel(length(i)));
+  const auto bytes = [&](size_t full, size_t free) {
+    return sizeof(SessionMap) + m.innerCount() * sizeof(SessionMap::Children) + full * sizeof(VoxelCounters) +
+           free * sizeof(float);
+  };
+  EXPECT_EQ(m.memoryBytes(), bytes(0, kVoxels));
+  const std::vector<uint8_t> before = encodeSessionMap(m, nlohmann::json::object());
+  for (uint16_t i = 0; i < kVoxels; i += 100) m.add(key(i), hit(0.003f, 2, 90));
+  EXPECT_EQ(m.leafCount(), kVoxels);
+  EXPECT_EQ(m.memoryBytes(), bytes(10, kVoxels));  // the moved leaves' old slots until compressFree()
+  for (uint16_t i = 0; i < kVoxels; ++i) {
+    VoxelCounters want = freeVoxel(length(i));
+    if (i % 100 == 0) want += hit(0.003f, 2, 90);
+    const std::optional<VoxelCounters> got = m.find(key(i));
+    ASSERT_TRUE(got && *got == want) << i;
+    ASSERT_EQ(std::bit_cast<uint32_t>(got->length_m), std::bit_cast<uint32_t>(want.length_m)) << i;
+  }
+  const std::vector<uint8_t> with_moved = encodeSessionMap(m, nlohmann::json::object());
+  EXPECT_EQ(m.compressFree(), 0u);
+  EXPECT_EQ(m.memoryBytes(), bytes(10, kVoxels - 10));
+  // Files hold the tree, not the pools' layout: the slots left behind change no byte.
+  EXPECT_EQ(encodeSessionMap(m, nlohmann::json::object()), with_moved);
+  EXPECT_NE(with_moved, before);
+  // Counters that only look free (a negative zero offset) stay whole: they read back bit for bit.
+  VoxelCounters signed_zero = freeVoxel(0.02f);
+  signed_zero.offset[1] = -0.0f;
+  m.add(key(kVoxels), signed_zero);
+  EXPECT_TRUE(std::signbit(m.find(key(kVoxels))->offset[1]));
+  EXPECT_EQ(m.memoryBytes(), bytes(11, kVoxels - 10));
+}
+
 TEST(SessionMap, RefinementThroughSeveralLevels) {
   SessionMap m(0.1);
   for (uint16_t x = 0; x < 8; ++x)
@@ -234,6 +277,8 @@ TEST(SessionMap, AssignPoolsRejectsInvalidTrees) {
   inner[0][1] = SessionMap::kEmpty;
   EXPECT_THROW(m.assignPools(inner, {freeVoxel(1.0f), freeVoxel(1.0f)}), FormatError);  // unreachable leaf
   EXPECT_THROW(m.assignPools(inner, {freeVoxel(std::nanf(""))}), FormatError);
+  inner[0][0] = SessionMap::kLeafBit | 0x40000000u;  // bit 30 set: past the end, not leaf 0
+  EXPECT_THROW(m.assignPools(inner, {freeVoxel(1.0f)}), FormatError);
 }
 
 // ---------------------------------------------------------------------------------------------

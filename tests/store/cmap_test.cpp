@@ -54,7 +54,7 @@ TEST(Cmap, SessionMapRoundTripsWithMetadata) {
   EXPECT_EQ(metadataOf(f)["frames"], 3);
   const SessionMap back = sessionMapFrom(f, "m.cmap");
   EXPECT_TRUE(back == asStored(m));
-  EXPECT_EQ(back.innerPool(), m.innerPool());
+  EXPECT_EQ(back.pools().inner, m.pools().inner);
   EXPECT_EQ(back.counts().compressed_leaves, 1u);
   // Bounds cover the known voxels.
   EXPECT_NEAR(f.header.bounds_max_m.x(), (31008 - 32768) * 0.05, 1e-9);
@@ -227,13 +227,14 @@ TEST(Cmap, FilesWithoutHitPositionsReadWithHitsAtTheCentres) {
   ASSERT_NE(f.find("HPOS"), nullptr);
   std::erase_if(f.blocks, [](const CmapBlock& b) { return b.tag == "HPOS"; });
   const SessionMap old = sessionMapFrom(decodeCmap(encodeCmap(f.header, f.blocks), "old.cmap"), "old.cmap");
-  ASSERT_EQ(old.leafCount(), m.leafCount());
+  const std::vector<VoxelCounters> leaves = m.pools().leaves, old_leaves = old.pools().leaves;
+  ASSERT_EQ(old_leaves.size(), leaves.size());
   size_t with_hits = 0;
-  for (size_t i = 0; i < m.leafCount(); ++i) {
-    VoxelCounters expected = m.leafPool()[i];
+  for (size_t i = 0; i < leaves.size(); ++i) {
+    VoxelCounters expected = leaves[i];
     with_hits += expected.hits > 0 && expected.offset[0] != 0.0f;
     for (float& o : expected.offset) o = 0.0f;
-    EXPECT_EQ(old.leafPool()[i], expected);
+    EXPECT_EQ(old_leaves[i], expected);
   }
   EXPECT_GT(with_hits, 100u) << "the sample map has positions to lose";
 }
@@ -242,9 +243,10 @@ TEST(Cmap, RejectsImpossibleHitPositions) {
   const SessionMap m = sampleMap();
   const CmapFile f = decodeCmap(encodeSessionMap(m, nullptr, 3, 1), "m.cmap");
   // The first leaf with hits, and one without (format version 1 stores the sums as floats).
+  const std::vector<VoxelCounters> leaves = m.pools().leaves;  // in the file's order
   size_t hit = 0, empty = 0;
-  while (m.leafPool()[hit].hits == 0) ++hit;
-  while (m.leafPool()[empty].hits != 0) ++empty;
+  while (leaves[hit].hits == 0) ++hit;
+  while (leaves[empty].hits != 0) ++empty;
   auto withPositions = [&](auto&& mutate) {
     CmapFile g = f;
     for (CmapBlock& b : g.blocks) {
@@ -258,7 +260,7 @@ TEST(Cmap, RejectsImpossibleHitPositions) {
   EXPECT_THROW(sessionMapFrom(withPositions([&](auto& d) { setFloat(d, hit * 12, std::nanf("")); }), "crafted.cmap"),
                FormatError);
   // Beyond half a voxel per hit: no ray ends outside its voxel.
-  const float too_far = 0.51f * static_cast<float>(m.leafPool()[hit].hits);
+  const float too_far = 0.51f * static_cast<float>(leaves[hit].hits);
   EXPECT_THROW(sessionMapFrom(withPositions([&](auto& d) { setFloat(d, hit * 12 + 4, too_far); }), "crafted.cmap"),
                FormatError);
   EXPECT_THROW(sessionMapFrom(withPositions([&](auto& d) { setFloat(d, empty * 12, 0.1f); }), "crafted.cmap"),
@@ -305,12 +307,13 @@ TEST(Cmap, RandomMapsRoundTripWithinTheStatedBounds) {
     const SessionMap m = randomCounters(seed, resolution_m);
     const std::vector<uint8_t> bytes = encodeSessionMap(m, {{"seed", seed}});
     const SessionMap back = sessionMapFrom(decodeCmap(bytes, "r.cmap"), "r.cmap");
-    ASSERT_EQ(back.innerPool(), m.innerPool()) << "seed " << seed;
-    ASSERT_EQ(back.leafCount(), m.leafCount());
+    const SessionMap::Pools pm = m.pools(), pb = back.pools();
+    ASSERT_EQ(pb.inner, pm.inner) << "seed " << seed;
+    ASSERT_EQ(pb.leaves.size(), pm.leaves.size());
     double worst_m = 0.0, worst_length = 0.0;
-    for (size_t i = 0; i < m.leafCount(); ++i) {
-      const VoxelCounters& a = m.leafPool()[i];
-      const VoxelCounters& b = back.leafPool()[i];
+    for (size_t i = 0; i < pm.leaves.size(); ++i) {
+      const VoxelCounters& a = pm.leaves[i];
+      const VoxelCounters& b = pb.leaves[i];
       ASSERT_EQ(b.hits, a.hits) << "leaf " << i << ": hits exact";
       EXPECT_EQ(b.meanColour(), a.meanColour()) << "leaf " << i << ": mean colour exact";
       EXPECT_EQ(b.state(), a.state()) << "leaf " << i << ": the state never changes";
@@ -384,10 +387,11 @@ TEST(Cmap, VersionTwoFilesStillReadExactly) {
   EXPECT_EQ(f.header.version, 2u);
   ASSERT_NE(f.find("CRES"), nullptr);
   const SessionMap back = sessionMapFrom(f, "two.cmap");
-  ASSERT_EQ(back.leafCount(), m.leafCount());
-  for (size_t i = 0; i < m.leafCount(); ++i) {
-    const VoxelCounters& a = m.leafPool()[i];
-    const VoxelCounters& b = back.leafPool()[i];
+  const SessionMap::Pools pm = m.pools(), pb = back.pools();
+  ASSERT_EQ(pb.leaves.size(), pm.leaves.size());
+  for (size_t i = 0; i < pm.leaves.size(); ++i) {
+    const VoxelCounters& a = pm.leaves[i];
+    const VoxelCounters& b = pb.leaves[i];
     ASSERT_EQ(std::memcmp(&a, &b, offsetof(VoxelCounters, offset)), 0) << "leaf " << i << ": length, hits, colour exact";
   }
   // Written again, it takes the current version, smaller, quantised once.
@@ -401,12 +405,12 @@ TEST(Cmap, HitsAtTheCentreStayThereExactly) {
   // Maps made without positions (every hit at its voxel's centre) keep their positions bit for
   // bit (lengths and colour sums as asStored).
   SessionMap m = randomCounters(7, 0.05);
-  std::vector<VoxelCounters> leaves = m.leafPool();
-  for (VoxelCounters& c : leaves) c.offset[0] = c.offset[1] = c.offset[2] = 0.0f;
-  m.assignPools(m.innerPool(), leaves);
+  SessionMap::Pools pools = m.pools();
+  for (VoxelCounters& c : pools.leaves) c.offset[0] = c.offset[1] = c.offset[2] = 0.0f;
+  m.assignPools(std::move(pools.inner), std::move(pools.leaves));
   const SessionMap back = sessionMapFrom(decodeCmap(encodeSessionMap(m, nullptr), "c.cmap"), "c.cmap");
-  EXPECT_EQ(back.leafPool(), asStored(m).leafPool());
-  for (const VoxelCounters& c : back.leafPool()) {
+  EXPECT_EQ(back.pools().leaves, asStored(m).pools().leaves);
+  for (const VoxelCounters& c : back.pools().leaves) {
     EXPECT_TRUE(c.offset[0] == 0.0f && c.offset[1] == 0.0f && c.offset[2] == 0.0f);
   }
 }
@@ -420,7 +424,7 @@ TEST(Cmap, VersionOneFilesStillReadExactly) {
   ASSERT_NE(f.find("INNR"), nullptr);
   const SessionMap back = sessionMapFrom(f, "old.cmap");
   EXPECT_EQ(back.innerPool(), m.innerPool());
-  EXPECT_EQ(back.leafPool(), m.leafPool()) << "version 1 keeps positions as floats";
+  EXPECT_EQ(back.pools().leaves, m.pools().leaves) << "version 1 keeps positions as floats";
   EXPECT_EQ(metadataOf(f)["old"], true);
   // Written again, it takes the current version, smaller even for these random counters.
   const std::vector<uint8_t> now = encodeSessionMap(back, {{"old", true}});

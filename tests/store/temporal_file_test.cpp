@@ -393,8 +393,7 @@ TEST(TemporalFile, AppendedSessionsReadBackAsTheMapThatAddedThem) {
 void expectSameSnapshot(const TemporalMap& a, const TemporalMap& b, double t) {
   const SessionMap sa = a.snapshot(t), sb = b.snapshot(t);
   ASSERT_EQ(sa.innerPool(), sb.innerPool()) << "t=" << t;
-  ASSERT_EQ(sa.leafPool().size(), sb.leafPool().size()) << "t=" << t;
-  for (size_t i = 0; i < sa.leafPool().size(); ++i) ASSERT_EQ(sa.leafPool()[i], sb.leafPool()[i]) << "t=" << t;
+  ASSERT_TRUE(test::samePools(sa, sb)) << "t=" << t;
 }
 
 // The block of test::randomSessionMap, every voxel free, compressed.
@@ -428,10 +427,10 @@ TEST(TemporalFile, AMapBuiltInMemoryAnswersAsItsFile) {
   for (double t : times) {
     expectSameSnapshot(stored, back, t);
     // Positions are kept in memory as the file keeps them: they read back bit for bit.
-    const SessionMap a = compacted.snapshot(t), b = back.snapshot(t);
-    ASSERT_EQ(a.leafPool().size(), b.leafPool().size());
-    for (size_t i = 0; i < a.leafPool().size(); ++i) {
-      for (int axis = 0; axis < 3; ++axis) ASSERT_EQ(a.leafPool()[i].offset[axis], b.leafPool()[i].offset[axis]);
+    const SessionMap::Pools a = compacted.snapshot(t).pools(), b = back.snapshot(t).pools();
+    ASSERT_EQ(a.leaves.size(), b.leaves.size());
+    for (size_t i = 0; i < a.leaves.size(); ++i) {
+      for (int axis = 0; axis < 3; ++axis) ASSERT_EQ(a.leaves[i].offset[axis], b.leaves[i].offset[axis]);
     }
   }
   size_t with_hits = 0, voxels = 0;

@@ -337,10 +337,9 @@ TEST_P(TilesProperty, ATileReadAtOneTimeIsItsSnapshotNodeForNode) {
         const SessionMap whole = tile.snapshot(t, &visits);
         const SessionMap read = readTileSnapshot(dir / "tiled", index, e, t);
         coarse += visits.coarse;
-        leaves += whole.leafPool().size();
+        leaves += whole.leafCount();
         ASSERT_EQ(read.innerPool(), whole.innerPool()) << e.file << " at " << t << ", windows of " << window_sessions;
-        ASSERT_EQ(read.leafPool().size(), whole.leafPool().size());
-        for (size_t i = 0; i < whole.leafPool().size(); ++i) ASSERT_TRUE(read.leafPool()[i] == whole.leafPool()[i]);
+        ASSERT_TRUE(test::samePools(read, whole));
         EXPECT_EQ(encodeSessionMap(read, nlohmann::json::object()), encodeSessionMap(whole, nlohmann::json::object()));
       }
     }

@@ -10,6 +10,11 @@ VoxelKey at(int x, int y, int z, int origin) {
   return VoxelKey{static_cast<uint16_t>(origin + x), static_cast<uint16_t>(origin + y), static_cast<uint16_t>(origin + z)};
 }
 
+bool samePools(const SessionMap& a, const SessionMap& b) {
+  const SessionMap::Pools pa = a.pools(), pb = b.pools();
+  return pa.inner == pb.inner && pa.leaves == pb.leaves;
+}
+
 VoxelCounters freeVoxel(float length) {
   VoxelCounters c;
   c.length_m = length;

@@ -20,6 +20,10 @@ namespace chronomap::test {
 /// kKeyOrigin; a test region that straddles the root's centre starts a few voxels below it).
 VoxelKey at(int x, int y, int z, int origin = kKeyOrigin);
 
+/// True when two session maps are equal node for node: the same pools when laid out depth first
+/// (SessionMap::pools(): the same tree, leaf by leaf).
+bool samePools(const SessionMap& a, const SessionMap& b);
+
 /// A voxel crossed by rays of `length` metres in all, none ending in it.
 VoxelCounters freeVoxel(float length = 0.05f);
 

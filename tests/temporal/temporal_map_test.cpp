@@ -471,7 +471,8 @@ TEST_P(TemporalProperty, InOrderSnapshotsHistoriesAndCountsMatchTheReference) {
   const double t = sessionTime(n - 1);
   const SessionMap snap = map.snapshot(t);
   SessionMap checked(0.05);  // the snapshot's pools pass the reader's validation
-  EXPECT_NO_THROW(checked.assignPools(snap.innerPool(), snap.leafPool()));
+  SessionMap::Pools pools = snap.pools();
+  EXPECT_NO_THROW(checked.assignPools(std::move(pools.inner), std::move(pools.leaves)));
   for (int z = 0; z < kSide; ++z) {
     for (int y = 0; y < kSide; ++y) {
       for (int x = 0; x < kSide; ++x) {
@@ -603,11 +604,10 @@ SessionMap denseSnapshot(const TemporalMap& map, double t) {
 void expectSnapshotIsDenseCompressed(const TemporalMap& map, double t) {
   const SessionMap snap = map.snapshot(t);
   const SessionMap dense = denseSnapshot(map, t);
-  ASSERT_EQ(snap.innerPool(), dense.innerPool()) << "t=" << t;
-  ASSERT_EQ(snap.leafPool().size(), dense.leafPool().size()) << "t=" << t;
-  for (size_t i = 0; i < snap.leafPool().size(); ++i) {
-    ASSERT_EQ(snap.leafPool()[i], dense.leafPool()[i]) << "leaf " << i << " t=" << t;
-  }
+  const SessionMap::Pools a = snap.pools(), b = dense.pools();
+  ASSERT_EQ(a.inner, b.inner) << "t=" << t;
+  ASSERT_EQ(a.leaves.size(), b.leaves.size()) << "t=" << t;
+  for (size_t i = 0; i < a.leaves.size(); ++i) ASSERT_EQ(a.leaves[i], b.leaves[i]) << "leaf " << i << " t=" << t;
 }
 
 // Every session time, and times between, before and after them.
@@ -708,7 +708,7 @@ TEST(TemporalMap, CoarseLengthsSumTheVoxelsValidThen) {
   const SessionMap s2 = map.snapshot(sessionTime(2));
   ASSERT_EQ(s2.leafCount(), 1u);
   // 4095 voxels kept 0.25 (0.5 confirmed free: not a change), the one that changed back 0.125.
-  EXPECT_EQ(s2.leafPool()[0].length_m, 4095 * 0.25f + 0.125f);
+  EXPECT_EQ(s2.pools().leaves[0].length_m, 4095 * 0.25f + 0.125f);
   EXPECT_EQ(s2.stateOf(at(5, 5, 5)), VoxelState::Free);
   expectSnapshotIsDenseCompressed(map, sessionTime(2));
 }
@@ -773,9 +773,7 @@ void expectSameAnswers(const TemporalMap& a, const TemporalMap& b) {
   for (double t : probes) {
     TemporalMap::SnapshotVisits va, vb;
     const SessionMap sa = a.snapshot(t, &va), sb = b.snapshot(t, &vb);
-    ASSERT_EQ(sa.innerPool(), sb.innerPool()) << "t=" << t;
-    ASSERT_EQ(sa.leafPool().size(), sb.leafPool().size()) << "t=" << t;
-    for (size_t i = 0; i < sa.leafPool().size(); ++i) ASSERT_EQ(sa.leafPool()[i], sb.leafPool()[i]) << "t=" << t;
+    ASSERT_TRUE(test::samePools(sa, sb)) << "t=" << t;
     EXPECT_EQ(va.inner, vb.inner);
     EXPECT_EQ(va.lists, vb.lists);
     EXPECT_EQ(va.coarse, vb.coarse);

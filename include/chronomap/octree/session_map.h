@@ -35,10 +35,12 @@ struct SessionMapCounts {
 
 /// An octree of VoxelCounters with a fixed depth (kTreeDepth) and resolution.
 ///
-/// Storage is two flat pools addressed by 32-bit references: inner nodes (8 child references,
-/// 32 bytes) and leaves (20 bytes of counters). No node owns heap memory. A leaf above unit level
-/// is a compressed known-free node: its counters are the sums of the 2^(3k) unit voxels it
-/// replaced; when an update reaches inside it, it is split evenly into 8 children.
+/// Storage is three flat pools addressed by 32-bit references: inner nodes (8 child references,
+/// 32 bytes), leaves with every counter (32 bytes) and free leaves, whose only non-zero counter
+/// is the ray length (4 bytes: most of a map's leaves, which rays crossed and none ended in). A
+/// free leaf that a hit reaches moves to the other pool. No node owns heap memory. A leaf above
+/// unit level is a compressed known-free node: its counters are the sums of the 2^(3k) unit
+/// voxels it replaced; when an update reaches inside it, it is split evenly into 8 children.
 class SessionMap {
  public:
   /// @throw UsageError for a resolution that is not a finite positive number.
@@ -95,7 +97,7 @@ class SessionMap {
   /// Counts nodes and voxel states (linear in the number of nodes).
   SessionMapCounts counts() const;
   /// Number of leaves (unit and compressed).
-  size_t leafCount() const { return leaves_.size(); }
+  size_t leafCount() const { return leaves_.size() + free_.size() - moved_; }
   /// Number of inner nodes, the root included.
   size_t innerCount() const { return inner_.size(); }
   /// Bytes of node storage in use (pool sizes, not capacities).
@@ -103,17 +105,31 @@ class SessionMap {
   /// Bytes reserved by the pools (what the process really holds).
   size_t reservedBytes() const;
   /// True when nothing was ever added.
-  bool empty() const { return leaves_.empty(); }
+  bool empty() const { return leaves_.empty() && free_.empty(); }
 
-  /// Low-level access for serialisation: references are kEmpty, an inner index, or
-  /// kLeafBit | leaf index. The root is inner node 0.
+  /// Low-level access: references are kEmpty, an inner index, or a leaf (kLeafBit set; which
+  /// pool and where is the map's own business: read it with leaf()). The root is inner node 0.
   using Ref = uint32_t;
   static constexpr Ref kEmpty = 0xffffffffu;
   static constexpr Ref kLeafBit = 0x80000000u;
   using Children = std::array<Ref, 8>;
   const std::vector<Children>& innerPool() const { return inner_; }
-  const std::vector<VoxelCounters>& leafPool() const { return leaves_; }
-  /// Replaces the pools (used by readers).
+  /// The counters of leaf reference `r` (one of innerPool()'s).
+  VoxelCounters leaf(Ref r) const {
+    if ((r & kFreeBit) == 0) return leaves_[index(r)];
+    VoxelCounters c;
+    c.length_m = free_[index(r)];
+    return c;
+  }
+  /// The tree as two pools in depth-first order (inner nodes in pre-order, leaves in visit
+  /// order), with leaf references kLeafBit | index into `leaves`: what writers store, whatever
+  /// the pools' layout in memory.
+  struct Pools {
+    std::vector<Children> inner;
+    std::vector<VoxelCounters> leaves;
+  };
+  Pools pools() const;
+  /// Replaces the pools (used by readers): leaf references kLeafBit | index into `leaves`.
   /// @throw FormatError if the pools do not form a valid tree of depth kTreeDepth.
   void assignPools(std::vector<Children> inner, std::vector<VoxelCounters> leaves);
 
@@ -121,15 +137,31 @@ class SessionMap {
 
  private:
   friend class TemporalMap;  // builds snapshots whose pools are valid by construction
+  /// Every leaf stays in the full pool (a snapshot is built and read, not integrated into).
   void adoptPools(std::vector<Children> inner, std::vector<VoxelCounters> leaves) {
     inner_ = std::move(inner);
     leaves_ = std::move(leaves);
+    free_.clear();
+    moved_ = 0;
   }
 
+  /// Set with kLeafBit: a free leaf, an index into free_.
+  static constexpr Ref kFreeBit = 0x40000000u;
   static bool isLeaf(Ref r) { return r != kEmpty && (r & kLeafBit) != 0; }
   static bool isInner(Ref r) { return r != kEmpty && (r & kLeafBit) == 0; }
-  static uint32_t index(Ref r) { return r & ~kLeafBit; }
+  static bool isFreeLeaf(Ref r) { return (r & (kLeafBit | kFreeBit)) == (kLeafBit | kFreeBit) && r != kEmpty; }
+  static uint32_t index(Ref r) { return r & ~(kLeafBit | kFreeBit); }
+  /// True for counters a free leaf holds exactly: nothing but a length (bit for bit: a
+  /// negative zero offset is kept in the other pool).
+  static bool freeOnly(const VoxelCounters& c);
+  /// A new leaf holding `c`, in the pool that fits it.
   Ref newLeaf(const VoxelCounters& c);
+  /// Adds `delta` to the leaf `ref`, moving it to the full pool when it no longer fits the free one.
+  void addToLeaf(Ref& ref, const VoxelCounters& delta);
+  /// Sets the leaf `ref` to `c` (in place when its pool fits `c`).
+  void setLeaf(Ref& ref, const VoxelCounters& c);
+  /// Moves every free-only leaf to the free pool, laying the pools out depth first.
+  void separateFree();
   Ref newInner();
   /// Replaces the compressed leaf in slot `slot` of inner node `parent` (leaf at `level`) by an
   /// inner node whose 8 children hold an eighth of its counters each.
@@ -145,18 +177,23 @@ class SessionMap {
   /// the inner nodes and leaves that stay reachable below `r` to the counts.
   bool compressBelow(Ref& r, size_t& inner_count, size_t& leaf_count);
   /// Copies the subtree `r` depth first into fresh pools; returns its new reference.
-  Ref copyInto(Ref r, std::vector<Children>& inner, std::vector<VoxelCounters>& leaves) const;
+  /// Leaves go to `leaves` or, free-only, to `free`; `keep_empty` keeps inner nodes without
+  /// children (pools()) instead of dropping them (compressFree()).
+  Ref copyInto(Ref r, std::vector<Children>& inner, std::vector<VoxelCounters>& leaves, std::vector<float>* free,
+               bool keep_empty) const;
 
   KeyGrid grid_;
   std::vector<Children> inner_;
   std::vector<VoxelCounters> leaves_;
+  std::vector<float> free_;
+  size_t moved_ = 0;  ///< slots of free_ left behind by leaves that moved to leaves_
 };
 
 template <class Fn>
 void SessionMap::forEachLeaf(Fn&& fn) const {
   walkPoolTree(
       inner_, kLeafBit, [](uint32_t) { return true; },
-      [&](Ref r, const VoxelKey& k, int level) { fn(LeafView{k, level, leaves_[index(r)]}); });
+      [&](Ref r, const VoxelKey& k, int level) { fn(LeafView{k, level, leaf(r)}); });
 }
 
 }  // namespace chronomap
