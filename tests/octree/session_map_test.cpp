@@ -238,6 +238,107 @@ TEST(SessionMap, FreeLeavesHoldOnlyALengthAndMoveWhenHit) {
   EXPECT_EQ(m.memoryBytes(), bytes(11, kVoxels - 10));
 }
 
+// Every operation that writes counters (add, addMany, addCube, merge, assign), in random
+// sequences that hit free leaves, move them to the whole counters, refine compressed cubes and
+// forget voxels, against a dense reference of unit voxels. Lengths are binary fractions, so
+// spreading a cube (a division by 8 a level) and the sums stay exact and the maps must agree bit
+// for bit with the reference, whatever pool each leaf lies in.
+TEST(SessionMap, EveryWriteMatchesADenseReferenceOnRandomSequences) {
+  constexpr int kSide = 16;
+  using Dense = std::map<VoxelKey, VoxelCounters>;
+  const auto key = [](int x, int y, int z) { return at(x, y, z); };
+  for (uint64_t seed = 1; seed <= 25; ++seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_int_distribution<int> coord(0, kSide - 1), small(1, 8), pick(0, 99);
+    const auto randomDelta = [&](bool free) {
+      VoxelCounters d = freeVoxel(static_cast<float>(small(rng)) / 16.0f);
+      if (free) return d;
+      d.hits = static_cast<uint32_t>(small(rng));
+      d.red = d.hits * 10;
+      d.offset[pick(rng) % 3] = 0.25f * static_cast<float>(d.hits);
+      return d;
+    };
+    // Adds a cube of `level` at a random aligned corner to a map and its reference.
+    const auto addCube = [&](SessionMap& m, Dense& ref) {
+      const int level = 1 + pick(rng) % 2, size = 1 << level;
+      const int x = coord(rng) / size * size, y = coord(rng) / size * size, z = coord(rng) / size * size;
+      const float length = static_cast<float>(small(rng)) * static_cast<float>(size * size * size) / 16.0f;
+      m.addCube(key(x, y, z), level, freeVoxel(length));
+      for (int dz = 0; dz < size; ++dz) {
+        for (int dy = 0; dy < size; ++dy) {
+          for (int dx = 0; dx < size; ++dx) ref[key(x + dx, y + dy, z + dz)] += freeVoxel(length / static_cast<float>(size * size * size));
+        }
+      }
+    };
+    SessionMap m(0.05);
+    Dense ref;
+    for (int op = 0; op < 400; ++op) {
+      const int kind = pick(rng);
+      if (kind < 50) {  // one voxel, free or hit
+        const VoxelKey k = key(coord(rng), coord(rng), coord(rng));
+        const VoxelCounters d = randomDelta(kind < 30);
+        m.add(k, d);
+        ref[k] += d;
+      } else if (kind < 65) {
+        addCube(m, ref);
+      } else if (kind < 80) {  // a batch, with repeated keys
+        std::vector<VoxelKey> keys;
+        std::vector<VoxelCounters> deltas;
+        for (int i = 0; i < 20; ++i) {
+          keys.push_back(key(coord(rng) % 4, coord(rng), coord(rng) % 4));
+          deltas.push_back(randomDelta(i % 3 != 0));
+          ref[keys.back()] += deltas.back();
+        }
+        m.addMany(keys, deltas);
+      } else if (kind < 90) {  // another map merged in
+        SessionMap other(0.05);
+        Dense other_ref;
+        addCube(other, other_ref);
+        for (int i = 0; i < 5; ++i) {
+          const VoxelKey k = key(coord(rng), coord(rng), coord(rng));
+          const VoxelCounters d = randomDelta(i % 2 == 0);
+          other.add(k, d);
+          other_ref[k] += d;
+        }
+        m.merge(other);
+        for (const auto& [k, c] : other_ref) ref[k] += c;
+      } else {  // a voxel set or forgotten
+        const VoxelKey k = key(coord(rng), coord(rng), coord(rng));
+        if (kind < 95) {
+          m.assign(k, std::nullopt);
+          ref.erase(k);
+        } else {
+          const VoxelCounters v = randomDelta(kind < 97);
+          m.assign(k, v);
+          ref[k] = v;
+        }
+      }
+    }
+    size_t voxels = 0;
+    for (int z = 0; z < kSide; ++z) {
+      for (int y = 0; y < kSide; ++y) {
+        for (int x = 0; x < kSide; ++x) {
+          const auto it = ref.find(key(x, y, z));
+          const std::optional<VoxelCounters> got = m.find(key(x, y, z));
+          ASSERT_EQ(got.has_value(), it != ref.end()) << "seed " << seed << " at " << x << "," << y << "," << z;
+          if (!got) continue;
+          ++voxels;
+          ASSERT_EQ(*got, it->second) << "seed " << seed << " at " << x << "," << y << "," << z;
+        }
+      }
+    }
+    EXPECT_EQ(voxels, ref.size());
+    // The file holds the tree whatever the pools' layout: the pools laid out again write the same
+    // bytes, and they read back as the map.
+    SessionMap::Pools pools = m.pools();
+    SessionMap copy(0.05);
+    copy.assignPools(std::move(pools.inner), std::move(pools.leaves));
+    const std::vector<uint8_t> bytes = encodeSessionMap(m, nlohmann::json::object());
+    EXPECT_EQ(encodeSessionMap(copy, nlohmann::json::object()), bytes) << "seed " << seed;
+    EXPECT_TRUE(sessionMapFrom(decodeCmap(bytes, "m.cmap"), "m.cmap") == asStored(m)) << "seed " << seed;
+  }
+}
+
 TEST(SessionMap, RefinementThroughSeveralLevels) {
   SessionMap m(0.1);
   for (uint16_t x = 0; x < 8; ++x)
