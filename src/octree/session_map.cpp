@@ -151,14 +151,11 @@ void SessionMap::addMany(std::span<const VoxelKey> keys, std::span<const VoxelCo
     const VoxelKey& key = keys[i];
     const uint32_t node = path.parentOf(key, 0, down);
     const int slot = childSlot(key, 0);
-    const Ref r = inner_[node][slot];
+    Ref& r = inner_[node][slot];  // newLeaf() grows the leaf pools only: r stays valid
     if (r == kEmpty) {
-      const Ref leaf = newLeaf(deltas[i]);
-      inner_[node][slot] = leaf;
+      r = newLeaf(deltas[i]);
     } else {
-      Ref ref = r;
-      addToLeaf(ref, deltas[i]);
-      inner_[node][slot] = ref;
+      addToLeaf(r, deltas[i]);
     }
   }
 }
@@ -169,9 +166,7 @@ void SessionMap::spreadInto(uint32_t parent, int slot, int level, const VoxelCou
     const Ref leaf = newLeaf(sums);
     inner_[parent][slot] = leaf;
   } else if (isLeaf(r)) {
-    Ref ref = r;
-    addToLeaf(ref, sums);  // a leaf of the cube's own size
-    inner_[parent][slot] = ref;
+    addToLeaf(inner_[parent][slot], sums);  // a leaf of the cube's own size
   } else {
     VoxelCounters part = sums;  // level > 0: a known-free cube without hits
     part.length_m /= 8.0f;
@@ -241,9 +236,7 @@ void SessionMap::assign(const VoxelKey& key, const std::optional<VoxelCounters>&
     const Ref leaf = newLeaf(*value);
     inner_[node][slot] = leaf;
   } else {
-    Ref ref = r;
-    setLeaf(ref, *value);
-    inner_[node][slot] = ref;
+    setLeaf(inner_[node][slot], *value);
   }
 }
 
@@ -273,16 +266,18 @@ VoxelState SessionMap::stateOf(const VoxelKey& key) const {
   return c ? c->state() : VoxelState::Unknown;
 }
 
-bool SessionMap::compressBelow(Ref& r, size_t& inner_count, size_t& leaf_count) {
+bool SessionMap::compressBelow(Ref& r, size_t& inner_count, size_t& leaf_count, size_t& free_count) {
   if (r == kEmpty) return false;
   if (isLeaf(r)) {
+    const VoxelCounters c = leaf(r);
     ++leaf_count;
-    return leaf(r).isKnownFreeWithoutHits();
+    if (freeOnly(c)) ++free_count;
+    return c.isKnownFreeWithoutHits();
   }
   bool all_free = true;
   for (int i = 0; i < 8; ++i) {
     Ref child = inner_[r][i];
-    all_free = compressBelow(child, inner_count, leaf_count) && all_free;
+    all_free = compressBelow(child, inner_count, leaf_count, free_count) && all_free;
     inner_[r][i] = child;
   }
   if (!all_free || r == 0) {  // the root is never replaced
@@ -290,7 +285,12 @@ bool SessionMap::compressBelow(Ref& r, size_t& inner_count, size_t& leaf_count) 
     return false;
   }
   VoxelCounters sum;
-  for (int i = 0; i < 8; ++i) sum.length_m += leaf(inner_[r][i]).length_m;
+  for (int i = 0; i < 8; ++i) {
+    const VoxelCounters c = leaf(inner_[r][i]);
+    sum.length_m += c.length_m;
+    if (freeOnly(c)) --free_count;
+  }
+  ++free_count;  // the sum holds a length alone
   // Reuse the first child's leaf slot; the others become garbage that compaction drops.
   Ref first = inner_[r][0];
   setLeaf(first, sum);
@@ -329,24 +329,20 @@ SessionMap::Ref SessionMap::copyInto(Ref r, std::vector<Children>& inner, std::v
 size_t SessionMap::compressFree() {
   const size_t before = leafCount();
   Ref root = 0;
-  size_t inner_count = 0, leaf_count = 0;  // what stays reachable: the size of the new pools
-  compressBelow(root, inner_count, leaf_count);
+  size_t inner_count = 0, leaf_count = 0, free_count = 0;  // what stays reachable: the new pools' sizes
+  compressBelow(root, inner_count, leaf_count, free_count);
   // Compaction: copy the reachable tree depth first into fresh pools of that size (at most:
   // inner nodes left without children are dropped), so that they need no growth nor
   // shrinking copy: reserving the old pools' sizes instead faulted in their whole size, 7x the
   // compressed map's at 0.02 m.
-  // The leaves are counted, not sorted by pool: each pool is reserved for all of them and
-  // shrunk after (capacity that no page backs costs address space only).
   std::vector<Children> inner;
   std::vector<VoxelCounters> leaves;
   std::vector<float> free;
   inner.reserve(inner_count);
-  leaves.reserve(leaf_count);
-  free.reserve(leaf_count);
+  leaves.reserve(leaf_count - free_count);
+  free.reserve(free_count);
   copyInto(0, inner, leaves, &free, /*keep_empty=*/false);
   inner.shrink_to_fit();
-  leaves.shrink_to_fit();
-  free.shrink_to_fit();
   inner_ = std::move(inner);
   leaves_ = std::move(leaves);
   free_ = std::move(free);
@@ -365,13 +361,15 @@ SessionMap::Pools SessionMap::pools() const {
 void SessionMap::separateFree() {
   // Depth first, as compressFree() lays the pools out: a map read back has the layout of the
   // one written.
+  // Every leaf of the pools is reachable (assignPools checked it): each pool is reserved exactly.
+  const auto free_count = static_cast<size_t>(std::count_if(leaves_.begin(), leaves_.end(), freeOnly));
   std::vector<Children> inner;
   std::vector<VoxelCounters> leaves;
   std::vector<float> free;
   inner.reserve(inner_.size());
+  leaves.reserve(leaves_.size() - free_count);
+  free.reserve(free_count);
   copyInto(0, inner, leaves, &free, /*keep_empty=*/true);
-  leaves.shrink_to_fit();
-  free.shrink_to_fit();
   inner_ = std::move(inner);
   leaves_ = std::move(leaves);
   free_ = std::move(free);
@@ -449,7 +447,6 @@ void SessionMap::assignPools(std::vector<Children> inner, std::vector<VoxelCount
   }
   inner_ = std::move(inner);
   leaves_ = std::move(leaves);
-  free_.clear();
   separateFree();
 }
 

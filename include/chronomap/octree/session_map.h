@@ -175,7 +175,8 @@ class SessionMap {
   void spreadInto(uint32_t parent, int slot, int level, const VoxelCounters& sums);
   /// compressFree's post-order pass: true when `r` is (now) a known-free leaf without hits. Adds
   /// the inner nodes and leaves that stay reachable below `r` to the counts.
-  bool compressBelow(Ref& r, size_t& inner_count, size_t& leaf_count);
+  /// `free_count` counts the leaves among them that belong in the free pool.
+  bool compressBelow(Ref& r, size_t& inner_count, size_t& leaf_count, size_t& free_count);
   /// Copies the subtree `r` depth first into fresh pools; returns its new reference.
   /// Leaves go to `leaves` or, free-only, to `free`; `keep_empty` keeps inner nodes without
   /// children (pools()) instead of dropping them (compressFree()).
