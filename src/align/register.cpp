@@ -309,6 +309,24 @@ void RegistrationTarget::addKeyedPoints(std::span<const KeyedPoint> points) {
   for (const KeyedPoint& p : points) adder.add(p.code, p.point);
 }
 
+void RegistrationTarget::addMapPoints(const SessionMap& map) {
+  if (map.resolution_m() != resolution_m()) {
+    throw UsageError("registration: the prior consensus and the target have different resolutions");
+  }
+  const double res = resolution_m();
+  map.forEachLeaf([&](const LeafView& l) {
+    if (l.level != 0 || l.counters.hits == 0) return;
+    const uint64_t code = mortonEncode(l.key);
+    if (!surface_.contains(code)) return;
+    const double hits = l.counters.hits;
+    Eigen::Vector3d sum = grid_.centerOf(l.key) * hits;
+    if (l.counters.offsetsValid()) {
+      for (int a = 0; a < 3; ++a) sum[a] += static_cast<double>(l.counters.offset[a]) * res;
+    }
+    points_.tryEmplace(code, Eigen::Vector4d::Zero()) += Eigen::Vector4d(sum.x(), sum.y(), sum.z(), hits);
+  });
+}
+
 Eigen::Isometry3d registerToConsensus(const SessionMap& session, const SessionMap& consensus,
                                       const RegisterSettings& settings, RegisterReport* report,
                                       std::span<const Eigen::Vector3d> sensor_positions) {
@@ -866,9 +884,20 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
                                              int rounds, const RegisterSettings& settings,
                                              std::vector<RegisterReport>* reports,
                                              std::span<const std::vector<Eigen::Vector3d>> sensor_positions,
-                                             const SessionFrames& frames) {
+                                             const SessionFrames& frames, const SessionMap* prior) {
   settings.validate();
   if (sessions.empty()) throw UsageError("registration of no sessions");
+  if (prior && prior->resolution_m() != sessions.front().resolution_m()) {
+    throw UsageError("registration: the prior consensus has another resolution than the sessions");
+  }
+  // Every round's consensus: the sessions as they are now, after the prior when there is one.
+  const auto consensusNow = [&] {
+    if (!prior) return consensus(std::span<const SessionMap>(sessions));
+    std::vector<const SessionMap*> all{prior};
+    for (const SessionMap& m : sessions) all.push_back(&m);
+    return consensus(std::span<const SessionMap* const>(all));
+  };
+  const bool keep_mean = settings.keep_mean && !prior;
   if (rounds < 1 || rounds > 10) throw UsageError("registration: rounds must lie in [1, 10]");
   const bool per_pose = settings.model == CorrectionModel::PerPose;
   if (per_pose && sensor_positions.size() != sessions.size()) {
@@ -881,7 +910,7 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
                                           PoseCorrection{Eigen::Isometry3d::Identity(), settings.model, {}});
   if (reports) reports->assign(sessions.size(), {});
   for (int round = 0; round < rounds; ++round) {
-    const RegistrationTarget target(consensus(std::span<const SessionMap>(sessions)));
+    const RegistrationTarget target(consensusNow());
     std::vector<RegisterReport> found(sessions.size());
     std::vector<Eigen::Isometry3d> steps(sessions.size(), Eigen::Isometry3d::Identity());
     // Each session against the same target: independent, so in parallel (each writes its own slot).
@@ -894,7 +923,7 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
       }
       steps[k] = registerToConsensus(sessions[k], target, settings, &found[k], positions);
     });
-    if (settings.keep_mean) removeCommonMotion(steps, settings.model);
+    if (keep_mean) removeCommonMotion(steps, settings.model);
     for (size_t k = 0; k < sessions.size(); ++k) {
       corrections[k] = corrections[k].then(PoseCorrection{steps[k], settings.model, {}});
     }
@@ -915,9 +944,10 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
     for (int round = 0; round < settings.drift_rounds; ++round) {
       RegisterSettings now = settings;
       if (round > 0 && settings.fine_radius_voxels > 0.0) now.radius_voxels = settings.fine_radius_voxels;
-      RegistrationTarget target(consensus(std::span<const SessionMap>(sessions)));
+      RegistrationTarget target(consensusNow());
       std::vector<RegisterReport> found(sessions.size());
       std::vector<SessionDriftInput> inputs;
+      if (settings.drift_points && prior) target.addMapPoints(*prior);
       if (settings.drift_points) inputs = pointsAndSamples(sessions, frames, corrections, target, now);
       // The samples were taken for the points' surface; without points they are the voxels'.
       const bool prepared = !inputs.empty() && !target.points().empty();
@@ -930,19 +960,19 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
           per_frame = inputs[k].sensors.empty() ? std::vector<Eigen::Isometry3d>{}
                                                 : solveDrift(inputs[k].sensors, inputs[k].samples, true,
                                                              sessions[k].grid(), target, now, &found[k]);
-          if (settings.keep_mean) sensors[k] = std::move(inputs[k].sensors);
+          if (keep_mean) sensors[k] = std::move(inputs[k].sensors);
         } else {
           const std::unique_ptr<FrameSource> source = frames(k);
           if (!source) throw UsageError("registration with drift: no frames for session " + std::to_string(k));
           const CorrectedFrames corrected(*source, corrections[k]);
           per_frame = fitDrift(corrected, sessions[k], target, now, &found[k]);
-          if (settings.keep_mean) {
+          if (keep_mean) {
             sensors[k].reserve(per_frame.size());
             for (size_t i = 0; i < per_frame.size(); ++i) sensors[k].push_back(corrected.poseOf(i).translation());
           }
         }
       });
-      if (settings.keep_mean) removeCommonDrift(steps, sensors);
+      if (keep_mean) removeCommonDrift(steps, sensors);
       for (size_t k = 0; k < sessions.size(); ++k) {
         PoseCorrection drift{Eigen::Isometry3d::Identity(), settings.model, std::move(steps[k])};
         corrections[k] = corrections[k].then(drift);

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <memory>
 #include <numbers>
+#include <span>
 #include <vector>
 
 #include "chronomap/align/consensus.h"
@@ -524,6 +525,68 @@ TEST(RegisterSessions, OnePassForPointsAndSamplesGivesTheCorrectionsOfSeparatePa
   EXPECT_LT(d.meanError(found[2]), 0.8 * d.meanError({}));
   // More frames than one batch of the pass.
   EXPECT_GT(sources.size() * d.frames.size(), 16u);
+}
+
+// A night of the streaming build: the night's sessions registered against the consensus of the
+// sessions stored before (the prior). Two sessions that agree with each other, 5 cm off the
+// stored ones: among themselves nothing moves; with the prior both are brought into the stored
+// sessions' voxels, and keep_mean (which would take their shared motion out again) is not
+// applied.
+TEST(RegisterSessions, APriorConsensusAnchorsTheNightsSessions) {
+  const std::vector<Eigen::Isometry3d> poses = threeAndAnOddOne();
+  const Eigen::Isometry3d& shift = poses[3];
+  const std::vector<SessionMap> stored = {room(poses[0]), room(poses[1]), room(poses[2])};
+  const SessionMap prior = consensus(std::span<const SessionMap>(stored));
+  const auto again = [&](size_t, const PoseCorrection& c, bool) { return room(c.motion * shift); };
+  std::vector<SessionMap> among = {room(shift), room(shift)};
+  for (const PoseCorrection& c : registerSessions(among, again, 3)) EXPECT_LT(c.motion.translation().norm(), 1e-9);
+  for (bool keep_mean : {false, true}) {
+    RegisterSettings settings;
+    settings.keep_mean = keep_mean;
+    std::vector<SessionMap> night = {room(shift), room(shift)};
+    const auto corrections = registerSessions(night, again, 3, settings, nullptr, {}, {}, &prior);
+    ASSERT_EQ(corrections.size(), 2u);
+    for (size_t k = 0; k < 2; ++k) {
+      const Eigen::Isometry3d& m = corrections[k].motion;
+      EXPECT_GT(m.translation().x(), -0.0626) << keep_mean;
+      EXPECT_LT(m.translation().x(), -0.0126) << keep_mean;
+      EXPECT_LT(std::abs(m.translation().y()), 0.005) << keep_mean;
+      EXPECT_LT(std::abs(m.translation().z()), 0.005) << keep_mean;
+      EXPECT_LT(Eigen::AngleAxisd(m.linear()).angle(), 1e-3) << keep_mean;
+      EXPECT_NE(night[k], room(shift)) << keep_mean;  // integrated again with the correction
+    }
+  }
+  const SessionMap coarse(0.1);
+  std::vector<SessionMap> night = {room(shift)};
+  EXPECT_THROW(registerSessions(night, again, 1, {}, nullptr, {}, {}, &coarse), UsageError);
+}
+
+// A stored consensus has no frames: its hits count as points at their mean position in the voxel.
+TEST(RegistrationTarget, AddsAMapsHitsAtTheirMeanPosition) {
+  SessionMap map(0.05);
+  VoxelCounters hit = occupiedVoxel({1, 1, 1}, 4);
+  hit.offset[0] = 0.4f;  // voxels, summed over the 4 hits: a mean of 0.1 voxel
+  hit.offset[1] = -0.2f;
+  map.add(at(100, 100, 100), hit);
+  VoxelCounters no_offsets = occupiedVoxel({1, 1, 1}, 2);
+  no_offsets.offset[2] = 5.0f;  // impossible for 2 hits: the centre stands in
+  map.add(at(102, 100, 100), no_offsets);
+  SessionMap target_map = map;
+  target_map.add(at(104, 100, 100), occupiedVoxel({1, 1, 1}, 3));  // in the surface, not in `map`
+  RegistrationTarget target(target_map);
+  SessionMap outside = map;
+  outside.add(at(110, 100, 100), occupiedVoxel({1, 1, 1}, 3));  // not in the surface: left out
+  target.addMapPoints(outside);
+  ASSERT_EQ(target.points().size(), 2u);
+  const Eigen::Vector4d* a = target.points().find(mortonEncode(at(100, 100, 100)));
+  const Eigen::Vector4d* b = target.points().find(mortonEncode(at(102, 100, 100)));
+  ASSERT_NE(a, nullptr);
+  ASSERT_NE(b, nullptr);
+  EXPECT_EQ(a->w(), 4.0);
+  EXPECT_TRUE((a->head<3>() / 4.0).isApprox(map.grid().centerOf(at(100, 100, 100)) + Eigen::Vector3d(0.005, -0.0025, 0.0), 1e-9));
+  EXPECT_EQ(b->w(), 2.0);
+  EXPECT_TRUE((b->head<3>() / 2.0).isApprox(map.grid().centerOf(at(102, 100, 100)), 1e-9));
+  EXPECT_THROW(target.addMapPoints(SessionMap(0.1)), UsageError);
 }
 
 TEST(RegisterSessions, KeepMeanMovesTheSessionsAgainstEachOtherNotTheMap) {

@@ -114,6 +114,12 @@ class RegistrationTarget {
   /// sums, bit for bit. @throw UsageError for a pose that is not finite.
   void keyPoints(const Frame& frame, double max_range_m, std::vector<KeyedPoint>& out) const;
   void addKeyedPoints(std::span<const KeyedPoint> points);
+  /// Adds the hits of `map`'s occupied unit voxels that lie in the surface to the point sums,
+  /// each voxel's hits at their mean position (the voxel centre plus the mean hit offset, or the
+  /// centre where the map kept no offsets): the points of sessions whose frames are not at hand,
+  /// such as a stored consensus (registerSessions' prior).
+  /// @throw UsageError when `map`'s resolution is not the target's.
+  void addMapPoints(const SessionMap& map);
   /// Sum of the added points (x, y, z) and their number (w), by Morton code.
   const VoxelTable<Eigen::Vector4d>& points() const { return points_; }
 
@@ -175,13 +181,17 @@ using Reintegrate = std::function<SessionMap(size_t index, const PoseCorrection&
 /// (required by the PerPose model, ignored by World). With settings.drift_knot_frames > 0,
 /// drift_rounds more rounds follow, each fitting every session's drift (fitDrift()) on the
 /// frames `frames` gives, corrected as integrated last, and integrating it again.
+/// `prior`, when given, is the consensus of sessions registered before (a tiled map's stored
+/// sessions, the streaming build): it joins every round's consensus as it is, never moved, and
+/// its hits join the drift fit's points (RegistrationTarget::addMapPoints). It anchors where the
+/// map lies, so keep_mean is not applied with it.
 /// @return the correction of each session (with per-frame parts after a drift correction).
 /// @throw UsageError for no sessions, rounds outside [1, 10], bad settings, missing positions or
-/// frames.
+/// frames, a prior of another resolution.
 std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, const Reintegrate& reintegrate,
                                              int rounds = 3, const RegisterSettings& settings = {},
                                              std::vector<RegisterReport>* reports = nullptr,
                                              std::span<const std::vector<Eigen::Vector3d>> sensor_positions = {},
-                                             const SessionFrames& frames = {});
+                                             const SessionFrames& frames = {}, const SessionMap* prior = nullptr);
 
 }  // namespace chronomap
