@@ -365,6 +365,7 @@ int runStreamBuild(const BuildCmdOptions& o, BuildSettings& s) {
                             {"peak_parts_bytes", r.stats.peak_parts_bytes},
                             {"peak_group_bytes", r.stats.peak_group_bytes},
                             {"added", added},
+                            {"consensus_sessions", r.consensus_sessions},
                             {"warnings", r.warnings}};
   for (const std::string& w : r.warnings) printWarning(w);
   if (o.json) {
@@ -382,7 +383,9 @@ int runStreamBuild(const BuildCmdOptions& o, BuildSettings& s) {
             << " tile group(s) added to, parts held at most "
             << humanBytes(static_cast<double>(r.stats.peak_parts_bytes))
             << " (" << r.stats.spills << " spill(s)), largest working map "
-            << humanBytes(static_cast<double>(r.stats.peak_group_bytes)) << "\n";
+            << humanBytes(static_cast<double>(r.stats.peak_group_bytes));
+  if (r.consensus_sessions > 0) std::cout << "; the registration's consensus holds " << r.consensus_sessions << " session(s)";
+  std::cout << "\n";
   return 0;
 }
 
@@ -520,8 +523,9 @@ Command addBuild(CLI::App& root) {
                 "the session parts up to --memory-limit (default 0.25 GiB; the rest spilled to files; integration then "
                 "keeps its default limit) and one tile "
                 "or group of tiles; sessions must come after the map's last; with --register the given recordings are "
-                "registered among themselves first, as without --tiles (their session maps held together); no "
-                "--realign or --replace (docs/scale.md)");
+                "registered first, as without --tiles (their session maps held together), and also against the "
+                "consensus of the sessions stored before, which the folder keeps from its first registered run on; "
+                "no --realign or --replace (docs/scale.md)");
   app->add_option("--tile-size", o->tile_size_m,
                   "with --tiles, for a new tiled map: tile edge in metres, a power-of-two number of voxels "
                   "(default 128 voxels)")

@@ -27,7 +27,9 @@ Pending integrateOne(const BuildSettings& s, size_t i);
 void sortByTime(const BuildSettings& s, std::vector<Pending>& pending);
 /// Registers the sorted sessions against the consensus of them all (s.registration, which must be
 /// set): each session's map becomes its recording integrated again with the correction found.
-std::vector<PoseCorrection> registerPending(const BuildSettings& s, std::vector<Pending>& pending);
+/// `prior`: the consensus of the sessions registered before (the streaming build's stored ones).
+std::vector<PoseCorrection> registerPending(const BuildSettings& s, std::vector<Pending>& pending,
+                                            const SessionMap* prior = nullptr);
 /// `given` with a depth image cache for registration's second read of every frame (when asked
 /// for and not set yet).
 BuildSettings withRegistrationCache(const BuildSettings& given);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <memory>
+#include <optional>
 #include <span>
 #include <sstream>
 #include <utility>
@@ -89,7 +90,8 @@ void sortByTime(const BuildSettings& s, std::vector<Pending>& pending) {
 
 using pipeline_detail::Pending;
 
-std::vector<PoseCorrection> pipeline_detail::registerPending(const BuildSettings& s, std::vector<Pending>& pending) {
+std::vector<PoseCorrection> pipeline_detail::registerPending(const BuildSettings& s, std::vector<Pending>& pending,
+                                                            const SessionMap* prior) {
   std::vector<SessionMap> maps;
   std::vector<std::vector<Eigen::Vector3d>> positions;
   std::vector<fs::path> paths;
@@ -99,8 +101,9 @@ std::vector<PoseCorrection> pipeline_detail::registerPending(const BuildSettings
     paths.push_back(s.datasets[p.index]);
   }
   s.progress.say("registering " + std::to_string(maps.size()) + " session(s), " +
-                 std::to_string(s.registration->rounds) + " round(s)");
-  std::vector<PoseCorrection> found = registerDatasets(maps, paths, positions, s.session, *s.registration);
+                 std::to_string(s.registration->rounds) + " round(s)" +
+                 (prior ? ", with the stored sessions' consensus" : ""));
+  std::vector<PoseCorrection> found = registerDatasets(maps, paths, positions, s.session, *s.registration, nullptr, prior);
   // Nothing reads the frames again: the decoded depth images go before the sessions are added.
   if (s.session.dataset.depth_cache) s.session.dataset.depth_cache->clear();
   for (size_t i = 0; i < pending.size(); ++i) pending[i].session.map = std::move(maps[i]);
@@ -220,7 +223,16 @@ BuildResult pipeline_detail::finishBuild(const BuildSettings& s, TemporalMap& ma
   result.created = created;
   result.up = up;
   std::vector<PoseCorrection> corrections;
-  if (s.registration) corrections = registerPending(s, pending);
+  if (s.registration) {
+    // Sessions added to a map that holds some are registered against those too: the 4D map's
+    // consensus over its sessions joins every round's consensus, unmoved (not when replacing,
+    // where it would hold the sessions being replaced).
+    std::optional<SessionMap> prior;
+    if (map.sessionCount() > 0 && !s.replace) {
+      prior = consensus(map, map.sessions().front().time_s, map.sessions().back().time_s);
+    }
+    corrections = registerPending(s, pending, prior ? &*prior : nullptr);
+  }
   std::vector<size_t> moved;
   if (s.realign) moved = realignPending(s, pending);
   for (size_t i = 0; i < pending.size(); ++i) {

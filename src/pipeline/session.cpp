@@ -153,7 +153,7 @@ RegistrationSettings recommendedRegistration() {
 std::vector<PoseCorrection> registerDatasets(std::vector<SessionMap>& maps, std::span<const std::filesystem::path> paths,
                                              std::span<const std::vector<Eigen::Vector3d>> sensor_positions,
                                              const SessionSettings& settings, const RegistrationSettings& registration,
-                                             std::vector<RegisterReport>* reports) {
+                                             std::vector<RegisterReport>* reports, const SessionMap* prior) {
   // The drift fit needs the frames' points only, and the maps before each session's last
   // re-integration their occupancy only: there the colour images are left unread.
   // Every frame is read up to 8 times: its depth image is decoded once while the cache has room.
@@ -174,7 +174,7 @@ std::vector<PoseCorrection> registerDatasets(std::vector<SessionMap>& maps, std:
         return integrateDataset(paths[k], last ? full : geometry, c, {}, "").map;
       },
       registration.rounds, registration.align, reports, sensor_positions,
-      [&](size_t k) -> std::unique_ptr<FrameSource> { return openRecording(paths[k], geometry.dataset); });
+      [&](size_t k) -> std::unique_ptr<FrameSource> { return openRecording(paths[k], geometry.dataset); }, prior);
 }
 
 }  // namespace chronomap

@@ -7,8 +7,10 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
+#include <span>
 
 #include "build_steps.h"
+#include "chronomap/align/consensus.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
 #include "chronomap/store/cmap.h"
@@ -81,8 +83,10 @@ std::vector<SessionRecord> clipped(const std::vector<SessionRecord>& all, const 
 }
 
 /// Removes what a killed earlier run left: tile files the index does not name, parts folders.
-void removeLeftovers(const fs::path& folder, const TileIndex* index) {
+/// `also`: a file the index's metadata names (the consensus), or empty.
+void removeLeftovers(const fs::path& folder, const TileIndex* index, const std::string& also = {}) {
   std::set<std::string> named;
+  if (!also.empty()) named.insert(also);
   if (index) {
     for (const TileEntry& e : index->tiles) {
       named.insert(e.file);
@@ -150,12 +154,14 @@ int tileLevelOf(const StreamSettings& s, const std::optional<TileIndex>& index, 
   return level;
 }
 
-/// The generation this build writes its tiles under: one past the stored map's newest.
-uint64_t nextGeneration(const std::optional<TileIndex>& index) {
+/// The generation this build writes its tiles under: one past the stored map's newest (its
+/// tiles' and its consensus file's).
+uint64_t nextGeneration(const std::optional<TileIndex>& index, const std::optional<StoredConsensus>& consensus) {
   uint64_t generation = 0;
   if (index) {
     for (const TileEntry& e : index->tiles) generation = std::max(generation, *tileGeneration(e.key, e.file));
   }
+  if (consensus) generation = std::max(generation, *consensusGeneration(consensus->file));
   return generation + 1;
 }
 
@@ -467,17 +473,35 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
 
   StreamResult result;
   std::optional<TileIndex> index;
-  if (isTiledMap(s.folder)) index = readTileIndex(s.folder);
+  std::optional<StoredConsensus> consensus_before;
+  if (isTiledMap(s.folder)) {
+    index = readTileIndex(s.folder);
+    consensus_before = readStoredConsensus(s.folder, userMetadataOf(readCmap(s.folder / kTileIndexName)),
+                                           index->top.resolution_m());
+  }
   result.created = !index;
   const TemporalMap top = index ? index->top : TemporalMap(s.resolution_m, s.criterion);
   const int level = tileLevelOf(s, index, top);
   result.tile_level = level;
-  const uint64_t generation = nextGeneration(index);
-  removeLeftovers(s.folder, index ? &*index : nullptr);
+  const uint64_t generation = nextGeneration(index, consensus_before);
+  removeLeftovers(s.folder, index ? &*index : nullptr, consensus_before ? consensus_before->file : std::string());
+
+  // The consensus of every session, each added to it as it arrives (one session map at a time).
+  std::optional<StoredConsensus> consensus = std::move(consensus_before);
+  if (!consensus && s.keep_consensus) consensus = StoredConsensus{SessionMap(top.resolution_m()), 0, ""};
+  const std::function<StreamSession(size_t)> summed = [&](size_t i) {
+    StreamSession session = produce(i);
+    if (consensus) {
+      const SessionMap* both[] = {&consensus->map, &session.map};
+      consensus->map = chronomap::consensus(std::span<const SessionMap* const>(both));
+      ++consensus->sessions;
+    }
+    return session;
+  };
 
   const uint32_t window_sessions = index && index->window_sessions > 0 ? index->window_sessions : s.window_sessions;
   TileStream stream(s, index, top, level, generation, window_sessions, result);
-  stream.addSessions(count, produce);
+  stream.addSessions(count, summed);
   stream.formGroups();
   stream.writeGroups();
   stream.keepUnreached();
@@ -486,10 +510,16 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
   const std::vector<TileEntry>& entries = stream.entries();
   nlohmann::json meta = {{"created_by", "chronomap build --tiles"}};
   if (s.metadata.is_object()) meta.update(s.metadata);
+  std::string consensus_file;
+  if (consensus) {
+    meta[kConsensusKey] = writeStoredConsensus(s.folder, generation, consensus->map, consensus->sessions);
+    consensus_file = meta[kConsensusKey]["file"].get<std::string>();
+    result.consensus_sessions = consensus->sessions;
+  }
   result.index_bytes = writeTileIndex(s.folder, new_top, level, entries, meta, window_sessions);
   cleanup.armed = false;
   TileIndex written{level, window_sessions, TemporalMap(new_top.resolution_m()), entries};
-  removeLeftovers(s.folder, &written);
+  removeLeftovers(s.folder, &written, consensus_file);
 
   result.stats.spills = stream.partStats().spills;
   result.stats.spilled_bytes = stream.partStats().spilled_bytes;
@@ -535,19 +565,30 @@ StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size
     return result;
   }
   // Registration: the recordings integrated, sorted and registered as build() does, then streamed;
-  // a time the tiled map cannot take is refused before the registration's long work.
+  // a time the tiled map cannot take is refused before the registration's long work. The stored
+  // sessions take part through their consensus, when the map keeps one.
   const BuildSettings r = pipeline_detail::withRegistrationCache(with_up);
   std::vector<pipeline_detail::Pending> pending;
   for (size_t i = 0; i < b.datasets.size(); ++i) pending.push_back(pipeline_detail::integrateOne(r, i));
   pipeline_detail::sortByTime(r, pending);
+  std::optional<StoredConsensus> prior;
   if (!created) {
     const TileIndex index = readTileIndex(b.map);
     const std::vector<SessionRecord>& stored_sessions = index.top.sessions();
     if (!stored_sessions.empty() && pending.front().time_s <= stored_sessions.back().time_s) {
       refuseEarlier(b.datasets[pending.front().index].string(), pending.front().time_s, stored_sessions.back().time_s);
     }
+    prior = readStoredConsensus(b.map, stored, index.top.resolution_m());
+    if (!prior && !stored_sessions.empty()) {
+      warnings.push_back(b.map.string() + ": keeps no consensus of its " + std::to_string(stored_sessions.size()) +
+                         " stored session(s) (built without --register), so this run registers its recordings "
+                         "among themselves only; the consensus starts with them");
+    }
   }
-  std::vector<PoseCorrection> corrections = pipeline_detail::registerPending(r, pending);
+  std::vector<PoseCorrection> corrections =
+      pipeline_detail::registerPending(r, pending, prior ? &prior->map : nullptr);
+  prior.reset();  // streamIntoTiles reads it again, under the folder's lock
+  s.keep_consensus = true;
   StreamResult result = streamIntoTiles(s, pending.size(), [&](size_t k) { return sessionOf(pending[k]); });
   result.warnings = std::move(warnings);
   result.corrections = std::move(corrections);

@@ -424,4 +424,66 @@ SessionMap readLatestState(const fs::path& folder, const TileIndex& index, const
 
 bool isTiledMap(const fs::path& path) { return fs::is_directory(path) && fs::exists(path / kTileIndexName); }
 
+std::string consensusFileName(uint64_t generation) { return "tiles/consensus.g" + std::to_string(generation) + ".cmap"; }
+
+std::optional<uint64_t> consensusGeneration(const std::string& file) {
+  const std::string head = "tiles/consensus.g", tail = ".cmap";
+  if (file.size() <= head.size() + tail.size() || file.compare(0, head.size(), head) != 0 ||
+      file.compare(file.size() - tail.size(), tail.size(), tail) != 0) {
+    return std::nullopt;
+  }
+  const std::string digits = file.substr(head.size(), file.size() - head.size() - tail.size());
+  if (digits.size() > 18 || digits[0] == '0' ||
+      !std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+    return std::nullopt;
+  }
+  return std::stoull(digits);
+}
+
+std::optional<StoredConsensus> readStoredConsensus(const fs::path& folder, const nlohmann::json& meta,
+                                                   double resolution_m) {
+  if (!meta.is_object() || !meta.contains(kConsensusKey)) return std::nullopt;
+  const std::string index_source = (folder / kTileIndexName).string();
+  const nlohmann::json& row = meta.at(kConsensusKey);
+  StoredConsensus out{SessionMap(resolution_m), 0, ""};
+  uint64_t bytes_listed = 0;
+  try {
+    out.file = row.at("file").get<std::string>();
+    bytes_listed = row.at("bytes").get<uint64_t>();
+    out.sessions = row.at("sessions").get<uint64_t>();
+  } catch (const nlohmann::json::exception& e) {
+    throw FormatError(index_source + ": the consensus entry is unreadable (" + e.what() + ")");
+  }
+  if (!consensusGeneration(out.file)) {
+    throw FormatError(index_source + ": the consensus file name '" + out.file + "' is not one the build writes");
+  }
+  const fs::path path = folder / out.file;
+  const std::string source = path.string();
+  requireListed(path, "consensus");
+  out.map = readNamingMemory(path, [&] {
+    const std::vector<uint8_t> bytes = readFileBytes(path);
+    if (bytes.size() != bytes_listed) {
+      throw FormatError(source + ": consensus file does not match the index (" + std::to_string(bytes.size()) +
+                        " bytes, listed with " + std::to_string(bytes_listed) + ")");
+    }
+    SessionMap map = sessionMapFrom(decodeCmap(bytes, source), source);
+    if (map.resolution_m() != resolution_m) throw FormatError(source + ": resolution differs from the index's");
+    return map;
+  });
+  return out;
+}
+
+nlohmann::json writeStoredConsensus(const fs::path& folder, uint64_t generation, const SessionMap& map,
+                                    uint64_t sessions) {
+  const std::string file = consensusFileName(generation);
+  const nlohmann::json meta = {{"created_by", "chronomap build --tiles"},
+                               {"content", "the consensus of the tiled map's sessions"},
+                               {"sessions", sessions}};
+  // Version 1: lengths and offsets as the sums hold them (versions 2 and 3 quantise them).
+  const std::vector<uint8_t> bytes = encodeSessionMap(map, meta, /*zstd_level=*/3, /*version=*/1);
+  fs::create_directories(folder / "tiles");
+  writeFileAtomic(folder / file, bytes);
+  return {{"file", file}, {"bytes", bytes.size()}, {"sessions", sessions}};
+}
+
 }  // namespace chronomap

@@ -194,24 +194,26 @@ TEST(TilesCli, StreamingBuildGivesTheWholeBuildTiled) {
   }
 }
 
-// Registration in the streaming build: the night's recordings registered among themselves as the
-// whole build registers them, so the tiles are the whole build's, cut; the JSON gives each
-// session's correction, the whole build's. One round of registration each (the property does
-// not depend on the rounds; three took over a minute under the sanitizers).
+// Registration in the streaming build. The first run registers its recordings among themselves
+// as the whole build registers them, so the tiles are the whole build's, cut; the JSON gives each
+// session's correction, the whole build's. A later run registers against the stored sessions'
+// consensus too (as `build MAP.cmap --register` registers against the 4D map's consensus), and
+// every run sums its sessions into that consensus. One round of registration each (the
+// properties do not depend on the rounds; three took over a minute under the sanitizers).
 TEST(TilesCli, StreamingBuildRegistersAsTheWholeBuild) {
   test::TempDir tmp;
   const std::vector<std::string> s = tinySessions(tmp);
   const std::string w = (tmp / "w.cmap").string(), wt = (tmp / "wt").string(), st = (tmp / "st").string();
   const test::CommandResult whole = runCommand(cli() + " build " + w + s[0] + s[1] + s[2] + " --register --register-rounds 1 --json");
   ASSERT_EQ(whole.exit_code, 0) << whole.err;
-  ASSERT_EQ(runCommand(cli() + " build " + w + s[3] + " --register --register-rounds 1").exit_code, 0);
   ASSERT_EQ(runCommand(cli() + " tile " + w + " -o " + wt + " --tile-size 1.6").exit_code, 0);
   const std::vector<uint8_t> expected = untiled(tmp, wt);
 
   const test::CommandResult night =
       runCommand(cli() + " build " + st + s[2] + s[0] + s[1] + " --tiles --tile-size 1.6 --register --register-rounds 1 --json");
   ASSERT_EQ(night.exit_code, 0) << night.err;
-  const nlohmann::json added = nlohmann::json::parse(night.out)["added"];
+  const nlohmann::json first = nlohmann::json::parse(night.out);
+  const nlohmann::json added = first["added"];
   const nlohmann::json built = nlohmann::json::parse(whole.out)["added"];
   ASSERT_EQ(added.size(), 3u);
   ASSERT_EQ(built.size(), 3u);
@@ -223,16 +225,46 @@ TEST(TilesCli, StreamingBuildRegistersAsTheWholeBuild) {
     for (const auto& v : added[i]["registration_m"]) moved += std::abs(v.get<double>());
   }
   EXPECT_GT(moved, 0.0);  // the tiny scene's recorded poses are off: registration moved something
-  const test::CommandResult text = runCommand(cli() + " build " + st + s[3] + " --register --register-rounds 1");
-  ASSERT_EQ(text.exit_code, 0) << text.err;
-  EXPECT_NE(text.out.find("moved by ("), std::string::npos) << text.out;
   EXPECT_TRUE(untiled(tmp, st) == expected);
+  EXPECT_EQ(first["consensus_sessions"], 3);
+  EXPECT_TRUE(first["warnings"].empty()) << first["warnings"].dump();
+
+  // The next night: against the stored sessions (the folder's consensus of them; a .cmap's, its
+  // 4D map's consensus), where the same recording registered alone has nothing to move towards.
+  const std::string fresh = (tmp / "fresh.cmap").string();
+  const auto movedBy = [](const std::string& out) {
+    const nlohmann::json report = nlohmann::json::parse(out);  // held: the loop reads into it
+    double sum = 0.0;
+    for (const auto& v : report["added"][0]["registration_m"]) sum += std::abs(v.get<double>());
+    return sum;
+  };
+  const test::CommandResult alone = runCommand(cli() + " build " + fresh + s[3] + " --register --register-rounds 1 --json");
+  ASSERT_EQ(alone.exit_code, 0) << alone.err;
+  EXPECT_LT(movedBy(alone.out), 1e-6);
+  const test::CommandResult added_to_map = runCommand(cli() + " build " + w + s[3] + " --register --register-rounds 1 --json");
+  ASSERT_EQ(added_to_map.exit_code, 0) << added_to_map.err;
+  EXPECT_GT(movedBy(added_to_map.out), 1e-3) << added_to_map.out;
+  const test::CommandResult next = runCommand(cli() + " build " + st + s[3] + " --register --register-rounds 1 --json");
+  ASSERT_EQ(next.exit_code, 0) << next.err;
+  EXPECT_EQ(nlohmann::json::parse(next.out)["consensus_sessions"], 4);
+  EXPECT_GT(movedBy(next.out), 1e-3) << next.out;
+  const std::vector<uint8_t> after_night = untiled(tmp, st);
   // An earlier recording is refused before registration, the folder unchanged.
   const test::CommandResult earlier = runCommand(cli() + " build " + st + s[0] + s[3] + " --register --register-rounds 1");
   EXPECT_EQ(earlier.exit_code, 2);
   EXPECT_NE(earlier.err.find("not after the tiled map's last session"), std::string::npos) << earlier.err;
   EXPECT_EQ(earlier.err.find("registering"), std::string::npos) << earlier.err;
-  EXPECT_TRUE(untiled(tmp, st) == expected);
+  EXPECT_TRUE(untiled(tmp, st) == after_night);
+
+  // A folder built without registration keeps no consensus: a registered run says so and starts one.
+  const std::string plain = (tmp / "plain").string();
+  const test::CommandResult unregistered = runCommand(cli() + " build " + plain + s[0] + s[1] + " --tiles --tile-size 1.6 --json");
+  ASSERT_EQ(unregistered.exit_code, 0) << unregistered.err;
+  EXPECT_EQ(nlohmann::json::parse(unregistered.out)["consensus_sessions"], 0);
+  const test::CommandResult started = runCommand(cli() + " build " + plain + s[2] + " --register --register-rounds 1");
+  ASSERT_EQ(started.exit_code, 0) << started.err;
+  EXPECT_NE(started.err.find("keeps no consensus of its 2 stored session(s)"), std::string::npos) << started.err;
+  EXPECT_NE(started.out.find("the registration's consensus holds 1 session(s)"), std::string::npos) << started.out;
 }
 
 TEST(TilesCli, AddToATiledFolderStreamsTheSession) {

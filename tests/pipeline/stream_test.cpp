@@ -8,7 +8,9 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <span>
 
+#include "chronomap/align/consensus.h"
 #include "chronomap/core/error.h"
 #include "chronomap/store/cmap.h"
 #include "chronomap/core/file.h"
@@ -220,6 +222,80 @@ TEST(Stream, AFailedAddLeavesThePreviousTiledMap) {
                    1, [&](size_t) -> StreamSession { throw IoError("unreadable"); }),
                IoError);
   EXPECT_FALSE(fs::exists(dir / "new"));
+}
+
+// The consensus a tiled map keeps for the streaming build's registration: started when asked,
+// then every session summed into it one at a time in the order given, whoever streams; its file
+// swaps with the index (the old one goes, a failed run keeps it), and a damaged one is refused
+// naming it, the folder unchanged.
+TEST(Stream, TheStoredConsensusSumsEverySessionAndSwapsWithTheIndex) {
+  const std::vector<SessionMap> sessions = randomSessions(11, 5);
+  test::TempDir dir;
+  const fs::path folder = dir / "tiled";
+  const auto metaOf = [&] { return userMetadataOf(readCmap(folder / kTileIndexName)); };
+  const auto summed = [&](const std::vector<int>& order) {
+    SessionMap sum(0.05);
+    for (const int i : order) {
+      const SessionMap* both[] = {&sum, &sessions[static_cast<size_t>(i)]};
+      sum = consensus(std::span<const SessionMap* const>(both));
+    }
+    return sum;
+  };
+  // Without it asked for, none is kept.
+  stream(dir / "plain", sessions, {0, 1}, 3, 0);
+  EXPECT_FALSE(userMetadataOf(readCmap(dir / "plain" / kTileIndexName)).contains(kConsensusKey));
+  EXPECT_FALSE(readStoredConsensus(dir / "plain", userMetadataOf(readCmap(dir / "plain" / kTileIndexName)), 0.05));
+  StreamSettings s;
+  s.folder = folder;
+  s.tile_size_m = std::ldexp(0.05, 3);
+  s.keep_consensus = true;
+  const StreamResult first = streamIntoTiles(s, 2, [&](size_t k) {
+    const int i = k == 0 ? 1 : 0;  // given out of time order: summed as given
+    return StreamSession{timeOf(i), nameOf(i), sessions[static_cast<size_t>(i)]};
+  });
+  EXPECT_EQ(first.consensus_sessions, 2u);
+  std::optional<StoredConsensus> stored = readStoredConsensus(folder, metaOf(), 0.05);
+  ASSERT_TRUE(stored);
+  EXPECT_EQ(stored->sessions, 2u);
+  EXPECT_TRUE(stored->map == summed({1, 0}));
+  const std::string first_file = stored->file;
+  EXPECT_EQ(consensusGeneration(first_file), 1u);
+  // A later run that does not ask still sums its sessions; the old file goes.
+  const StreamResult second = stream(folder, sessions, {2}, 3, 0);
+  EXPECT_EQ(second.consensus_sessions, 3u);
+  stored = readStoredConsensus(folder, metaOf(), 0.05);
+  ASSERT_TRUE(stored);
+  EXPECT_EQ(stored->sessions, 3u);
+  EXPECT_TRUE(stored->map == summed({1, 0, 2}));
+  EXPECT_NE(stored->file, first_file);
+  EXPECT_FALSE(fs::exists(folder / first_file));
+  EXPECT_TRUE(joined(folder) == wholeBuild(sessions, {{0, 1}, {2}}));  // the tiles as without it
+  // A failed run keeps the index and the consensus as they were.
+  const auto before = filesOf(folder);
+  EXPECT_THROW(streamIntoTiles(s, 2,
+                               [&](size_t k) -> StreamSession {
+                                 if (k == 1) throw IoError("recording cannot be read");
+                                 return {timeOf(3), nameOf(3), sessions[3]};
+                               }),
+               IoError);
+  EXPECT_EQ(filesOf(folder), before);
+  // A damaged consensus is refused naming it; nothing changes.
+  std::vector<uint8_t> bytes = readFileBytes(folder / stored->file);
+  bytes[bytes.size() / 2] ^= 0x20;
+  writeFileAtomic(folder / stored->file, bytes);
+  const auto damaged = filesOf(folder);
+  try {
+    stream(folder, sessions, {3}, 3, 0);
+    ADD_FAILURE() << "a damaged consensus was read";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(stored->file), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(filesOf(folder), damaged);
+  fs::remove(folder / stored->file);
+  EXPECT_THROW(stream(folder, sessions, {3}, 3, 0), IoError);
+  EXPECT_EQ(consensusGeneration("tiles/consensus.g0.cmap"), std::nullopt);
+  EXPECT_EQ(consensusGeneration("tiles/consensus.g12.cmap"), 12u);
+  EXPECT_EQ(consensusGeneration("tiles/0_0_0.g12.cmap"), std::nullopt);
 }
 
 // A room of 12 x 6 x 6 voxels from x = x0 (tiles of 8 voxels: 2 tiles, none uniform):

@@ -135,10 +135,13 @@ RegistrationSettings recommendedRegistration();
 /// Registers the session maps integrated from `paths` (in that order, with `sensor_positions` as
 /// read: turned for settings.up, whose auto is estimated on the first path) to their consensus, integrating each recording again with its correction (in
 /// parallel, unreported); `maps` become the corrected sessions. `reports`, when given, receives
-/// each session's last registration report. @return each session's correction.
+/// each session's last registration report. `prior`: the consensus of sessions registered
+/// before, joined to every round's consensus unmoved (registerSessions). @return each
+/// session's correction.
 std::vector<PoseCorrection> registerDatasets(std::vector<SessionMap>& maps, std::span<const std::filesystem::path> paths,
                                              std::span<const std::vector<Eigen::Vector3d>> sensor_positions,
                                              const SessionSettings& settings, const RegistrationSettings& registration,
-                                             std::vector<RegisterReport>* reports = nullptr);
+                                             std::vector<RegisterReport>* reports = nullptr,
+                                             const SessionMap* prior = nullptr);
 
 }  // namespace chronomap

@@ -48,6 +48,10 @@ struct StreamSettings {
   /// the windows of the runs of this many sessions it holds whole. A map that records a count
   /// keeps it. 0: none written (the windows a map has are kept).
   uint32_t window_sessions = kDefaultWindowSessions;
+  /// Start the consensus of the map's sessions (store/tiled_file.h, StoredConsensus) when the
+  /// map keeps none: the streaming build's registration does. A map that keeps one has every
+  /// session added to it, whatever this says.
+  bool keep_consensus = false;
   Progress progress;
 };
 
@@ -80,6 +84,8 @@ struct StreamResult {
   StreamStats stats;
   /// streamBuild: the limits that dropped many points, "DATASET: what" (IntegratedSession::warnings).
   std::vector<std::string> warnings;
+  /// Session maps summed into the map's stored consensus now (0: the map keeps none).
+  uint64_t consensus_sessions = 0;
 };
 
 /// Adds `count` sessions, made one at a time by `produce(i)`, to the tiled map in
@@ -92,10 +98,11 @@ StreamResult streamIntoTiles(const StreamSettings& settings, size_t count,
                              const std::function<StreamSession(size_t)>& produce);
 
 /// build() into a tiled map folder: each recording integrated and cut to the tiles in turn,
-/// then streamIntoTiles. With registration (as build() registers: the given recordings against
-/// the consensus of them all, not against the stored sessions), every recording is integrated
-/// and registered first, so their session maps are held together, as build() holds them.
-/// Re-alignment and replacing are not supported (they need the stored map at once).
+/// then streamIntoTiles. With registration, every recording is integrated and registered first
+/// (their session maps held together, as build() holds them), as build() registers: against the
+/// consensus of them all, joined by the consensus of the stored sessions when the map keeps one
+/// (StoredConsensus; registerSessions' prior), which the run starts when it has none. Re-alignment
+/// and replacing are not supported (they need the stored map at once).
 /// @throw UsageError for them; what build() throws.
 StreamResult streamBuild(const BuildSettings& settings, std::optional<double> tile_size_m, size_t memory_limit_bytes,
                          uint32_t window_sessions = kDefaultWindowSessions);

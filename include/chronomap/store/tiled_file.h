@@ -159,4 +159,29 @@ SessionMap readLatestState(const std::filesystem::path& folder, const TileIndex&
 /// True when `path` is a folder holding an index.cmap.
 bool isTiledMap(const std::filesystem::path& path);
 
+/// The consensus of a tiled map's sessions, the streaming build's registration prior
+/// (docs/scale.md, "Registration"): the sum (consensus()) of every session map streamed in since
+/// it was started, one session after another in the order they were added. One session map file
+/// in tiles/, in format version 1 (the counters exact), named by the index metadata's
+/// kConsensusKey entry: {"file", "bytes", "sessions"}.
+struct StoredConsensus {
+  SessionMap map;
+  uint64_t sessions = 0;  ///< session maps summed into it
+  std::string file;       ///< relative to the folder
+};
+inline constexpr const char* kConsensusKey = "consensus";
+/// The file generation `generation`'s consensus is written to: tiles/consensus.gN.cmap.
+std::string consensusFileName(uint64_t generation);
+/// The generation of a consensus file name; nullopt for any other name.
+std::optional<uint64_t> consensusGeneration(const std::string& file);
+/// The consensus the index metadata `meta` names; nullopt when it names none.
+/// @throw FormatError naming the file for a bad entry, a missing file, one of another size or
+/// resolution, or what the session map reader finds.
+std::optional<StoredConsensus> readStoredConsensus(const std::filesystem::path& folder, const nlohmann::json& meta,
+                                                   double resolution_m);
+/// Writes `map` as generation `generation`'s consensus of `sessions` session maps; returns the
+/// metadata entry naming it (kConsensusKey's value).
+nlohmann::json writeStoredConsensus(const std::filesystem::path& folder, uint64_t generation, const SessionMap& map,
+                                    uint64_t sessions);
+
 }  // namespace chronomap
