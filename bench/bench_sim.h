@@ -8,12 +8,14 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <span>
 #include <string>
 #include <unistd.h>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "chronomap/align/consensus.h"
 #include "chronomap/align/register.h"
 #include "chronomap/store/cmap.h"
 #include "chronomap/core/error.h"
@@ -152,6 +154,30 @@ inline std::vector<SessionMap> registerSimulation(const SimSessions& s, const Re
   auto found = registerDatasets(maps, s.dirs, s.positions, simSessionSettings(), {rounds, settings}, reports);
   if (corrections) *corrections = std::move(found);
   return maps;
+}
+
+// Registers the sessions as the streaming build does night by night, one recording a night
+// (`chronomap build DIR --tiles --register ...` once per session, in time order): each against
+// the consensus of the sessions registered before it (registerSessions' prior), which then has
+// the corrected session summed into it, as the tiled map keeps it.
+inline std::vector<SessionMap> registerSimulationNightly(const SimSessions& s, const RegisterSettings& settings,
+                                                         int rounds, std::vector<PoseCorrection>* corrections = nullptr) {
+  std::vector<SessionMap> out;
+  SessionMap running(s.estimated.front().resolution_m());
+  for (size_t k = 0; k < s.estimated.size(); ++k) {
+    std::vector<SessionMap> night = {s.estimated[k]};
+    const std::vector<std::filesystem::path> paths = {s.dirs[k]};
+    const std::vector<std::vector<Eigen::Vector3d>> positions = {s.positions[k]};
+    auto found = registerDatasets(night, paths, positions, simSessionSettings(), {rounds, settings}, nullptr,
+                                  k > 0 ? &running : nullptr);
+    const SessionMap* both[] = {&running, &night.front()};
+    running = consensus(std::span<const SessionMap* const>(both));
+    if (corrections) corrections->push_back(found.front());
+    out.push_back(std::move(night.front()));
+    std::fprintf(stderr, "\r  registered night %zu/%zu", k + 1, s.estimated.size());
+  }
+  std::fprintf(stderr, "\n");
+  return out;
 }
 
 // The same with the library's settings but for the model and the drift knots.

@@ -35,6 +35,9 @@
 //                  (RegisterSettings::fine_radius_voxels, as `build --register-fine-radius`)
 //   --drift-per-frame M, --drift-yaw-per-frame DEG  the drift fit's smoothness prior: the random
 //                  walk's step per frame (RegisterSettings::drift_per_frame_m, _yaw_per_frame_deg)
+//   --nightly      also register the sessions one at a time in time order, each against the
+//                  consensus of those before it (the streaming build's registration, one recording
+//                  a night: `build DIR --tiles --register ...` per session), and score them ("nightly")
 //   --keep-mean    take the motion all sessions' corrections share out after every round
 //                  (RegisterSettings::keep_mean, as `build --register-keep-mean`)
 //   --not-planar   also fit a vertical offset (without RegisterSettings::planar, which the
@@ -105,6 +108,7 @@ double g_dark_below = DiffSettings::kDefaultDarkSurfaceBrightness;   // --dark-b
 double g_dark_contrast = DiffSettings::kDefaultDarkSurfaceContrast;  // --dark-contrast
 double g_dark_share = DiffSettings::kDefaultDarkSurfaceShare;        // --dark-share
 double g_min_shift = DiffSettings::kRecommendedMinShift;             // --min-shift
+bool g_nightly = false;  // --nightly
 
 DiffSettings defaultDiff() {
   DiffSettings d = recommendedChangeSettings().diff;
@@ -331,6 +335,16 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
               toString(reg.model), drift.c_str(), reg.radius_voxels, options.c_str(),
               seconds(reg_start));
   bench::printPoseErrors(s.dirs, corrections);
+  std::vector<SessionMap> nightly;
+  if (g_nightly) {
+    const auto night_start = std::chrono::steady_clock::now();
+    std::vector<PoseCorrection> night_corrections;
+    nightly = bench::registerSimulationNightly(s, reg, rounds, &night_corrections);
+    std::printf("registered night by night (each session against the consensus of those before it, as the "
+                "streaming build registers one recording a night) in %.1f s\n",
+                seconds(night_start));
+    bench::printPoseErrors(s.dirs, night_corrections);
+  }
 
   auto row = [&](const char* poses, const std::vector<SessionMap>& maps, const DiffSettings& ds,
                  const SegmentSettings& ss, bool verbose = false) {
@@ -352,6 +366,7 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
   std::printf("poses     mode       alpha nbhd shift  conn    min_v | voxel_prec voxel_rec | objects  recall | "
               "false/pair >1 false | seconds\n");
   const ChangeScore headline = row("register", registered, defaultDiff(), defaultSegment(), true);
+  if (g_nightly) row("nightly", nightly, defaultDiff(), defaultSegment(), true);
   row("true", s.truth_pose, defaultDiff(), defaultSegment(), true);
   row("reg+align", realigned, defaultDiff(), defaultSegment(), true);
   row("estimated", s.estimated, defaultDiff(), defaultSegment(), true);
@@ -362,6 +377,7 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
   ChangeSettings cs = recommendedChangeSettings();
   cs.diff = defaultDiff();
   printOneCall("register", registered, s.events, cs);
+  if (g_nightly) printOneCall("nightly", nightly, s.events, cs);
   printOneCall("true", s.truth_pose, s.events, cs);
   std::printf("moves with alike footprints (MoveSettings::alike_footprints):\n");
   ChangeSettings footprints = cs;
@@ -634,6 +650,8 @@ int main(int argc, char** argv) {
       g_min_shift = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--dark-share") && i + 1 < argc) {
       g_dark_share = std::atof(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--nightly")) {
+      g_nightly = true;
     } else if (!std::strcmp(argv[i], "--keep-mean")) {
       reg.keep_mean = true;
     } else if (!std::strcmp(argv[i], "--not-planar")) {
@@ -659,7 +677,7 @@ int main(int argc, char** argv) {
                    "usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] [--sensor ideal|kinect|realsense] "
                    "[--register-model world|per-pose] [--drift-knots FRAMES] [--register-rounds N] "
                    "[--register-radius VOXELS] [--drift-rounds N] [--fine-radius VOXELS] [--not-planar] [--drift-voxels] [--kept-surface R] "
-                   "[--kept-share F] [--min-shift S] [--dark-surface R] [--dark-below B] [--dark-contrast C] [--dark-share F]\n");
+                   "[--kept-share F] [--min-shift S] [--dark-surface R] [--dark-below B] [--dark-contrast C] [--dark-share F] [--nightly]\n");
       return 2;
     }
   }
