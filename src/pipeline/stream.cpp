@@ -488,7 +488,10 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
 
   // The consensus of every session, each added to it as it arrives (one session map at a time).
   std::optional<StoredConsensus> consensus = std::move(consensus_before);
-  if (!consensus && s.keep_consensus) consensus = StoredConsensus{SessionMap(top.resolution_m()), 0, ""};
+  if (!consensus && s.keep_consensus) {
+    consensus = s.first_consensus ? std::move(*s.first_consensus)
+                                  : StoredConsensus{SessionMap(top.resolution_m()), 0, ""};
+  }
   const std::function<StreamSession(size_t)> summed = [&](size_t i) {
     StreamSession session = produce(i);
     if (consensus) {
@@ -529,6 +532,18 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
   for (const NewSession& n : stream.added()) result.added_times.push_back(n.time_s);
   result.nodes_added = std::move(stream.nodesAdded());
   return result;
+}
+
+SessionMap consensusOfTiles(const fs::path& folder) {
+  const TileIndex index = readTileIndex(folder);
+  const std::vector<SessionRecord>& sessions = index.top.sessions();
+  if (sessions.empty()) return SessionMap(index.top.resolution_m());
+  const double t0 = sessions.front().time_s, t1 = sessions.back().time_s;
+  // The parts are disjoint (the top's slot is empty where a tile hangs): summed once at the end.
+  std::vector<SessionMap> parts;
+  parts.push_back(consensus(index.top, t0, t1));
+  for (const TileEntry& e : index.tiles) parts.push_back(consensus(readTile(folder, index, e), t0, t1));
+  return consensus(std::span<const SessionMap>(parts));
 }
 
 StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size_m, size_t memory_limit_bytes,
@@ -580,13 +595,19 @@ StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size
     }
     prior = readStoredConsensus(b.map, stored, index.top.resolution_m());
     if (!prior && !stored_sessions.empty()) {
-      warnings.push_back(b.map.string() + ": keeps no consensus of its " + std::to_string(stored_sessions.size()) +
-                         " stored session(s) (built without --register), so this run registers its recordings "
-                         "among themselves only; the consensus starts with them");
+      const std::string n = std::to_string(stored_sessions.size());
+      b.progress.say("computing the consensus of the " + n + " stored session(s) from their histories");
+      prior = StoredConsensus{consensusOfTiles(b.map), stored_sessions.size(), ""};
+      warnings.push_back(b.map.string() + ": kept no consensus of its " + n +
+                         " stored session(s) (built without --register, or cut by `tile`): computed once from "
+                         "their histories, every tile read, and kept from now on");
+      // Stored by this run (the folder's lock is not held yet: a run in between would make it stale).
+      s.first_consensus = std::make_shared<StoredConsensus>(std::move(*prior));
+      prior.reset();
     }
   }
-  std::vector<PoseCorrection> corrections =
-      pipeline_detail::registerPending(r, pending, prior ? &prior->map : nullptr);
+  std::vector<PoseCorrection> corrections = pipeline_detail::registerPending(
+      r, pending, prior ? &prior->map : s.first_consensus ? &s.first_consensus->map : nullptr);
   prior.reset();  // streamIntoTiles reads it again, under the folder's lock
   s.keep_consensus = true;
   StreamResult result = streamIntoTiles(s, pending.size(), [&](size_t k) { return sessionOf(pending[k]); });

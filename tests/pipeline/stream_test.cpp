@@ -298,6 +298,37 @@ TEST(Stream, TheStoredConsensusSumsEverySessionAndSwapsWithTheIndex) {
   EXPECT_EQ(consensusGeneration("tiles/0_0_0.g12.cmap"), std::nullopt);
 }
 
+// A folder that keeps no consensus: the stored sessions' consensus computed tile by tile from
+// their histories is the joined 4D map's consensus over all its sessions, voxel for voxel.
+TEST(Stream, TheConsensusOfTilesIsTheJoinedMapsConsensus) {
+  const std::vector<SessionMap> sessions = randomSessions(12, 4);
+  test::TempDir dir;
+  const fs::path folder = dir / "tiled";
+  stream(folder, sessions, {0, 1}, 3, 0);
+  stream(folder, sessions, {2, 3}, 3, 0);
+  const TemporalMap whole = joined(folder);
+  const SessionMap expected = consensus(whole, timeOf(0), timeOf(3));
+  const SessionMap got = consensusOfTiles(folder);
+  size_t leaves = 0;
+  expected.forEachLeaf([&](const LeafView& l) {
+    ++leaves;
+    for (const VoxelKey& k : {l.key, VoxelKey{static_cast<uint16_t>(l.key.x + (1 << l.level) - 1), l.key.y, l.key.z}}) {
+      const auto a = expected.find(k), b = got.find(k);
+      ASSERT_EQ(a.has_value(), b.has_value());
+      if (a) {
+        EXPECT_TRUE(test::nearlyEqual(*a, *b)) << k.x << " " << k.y << " " << k.z;
+      }
+    }
+  });
+  EXPECT_GT(leaves, 100u);
+  size_t got_leaves = 0;
+  got.forEachLeaf([&](const LeafView& l) {
+    ++got_leaves;
+    EXPECT_TRUE(expected.find(l.key).has_value()) << l.key.x << " " << l.key.y << " " << l.key.z;
+  });
+  EXPECT_GT(got_leaves, 100u);
+}
+
 // A room of 12 x 6 x 6 voxels from x = x0 (tiles of 8 voxels: 2 tiles, none uniform):
 // occupied where `world` says (drifting by a few flips a night), free with binary-fraction
 // lengths elsewhere, one voxel in ten unobserved.

@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -52,6 +53,9 @@ struct StreamSettings {
   /// map keeps none: the streaming build's registration does. A map that keeps one has every
   /// session added to it, whatever this says.
   bool keep_consensus = false;
+  /// With keep_consensus, what the consensus starts from when the map keeps none (moved from;
+  /// the streaming build's consensusOfTiles() for a folder that had none), else empty.
+  std::shared_ptr<StoredConsensus> first_consensus;
   Progress progress;
 };
 
@@ -97,11 +101,19 @@ struct StreamResult {
 StreamResult streamIntoTiles(const StreamSettings& settings, size_t count,
                              const std::function<StreamSession(size_t)>& produce);
 
+/// The consensus of a tiled map's stored sessions computed from their histories: the 4D map's
+/// consensus over all its sessions (consensus(map, t0, t1), as `build MAP.cmap --register`
+/// takes it), summed tile by tile, so that one tile's history is in memory at a time beside the
+/// parts. Every tile is read once. Empty for a map without sessions.
+/// @throw what the tile readers throw.
+SessionMap consensusOfTiles(const std::filesystem::path& folder);
+
 /// build() into a tiled map folder: each recording integrated and cut to the tiles in turn,
 /// then streamIntoTiles. With registration, every recording is integrated and registered first
 /// (their session maps held together, as build() holds them), as build() registers: against the
 /// consensus of them all, joined by the consensus of the stored sessions when the map keeps one
-/// (StoredConsensus; registerSessions' prior), which the run starts when it has none. Re-alignment
+/// (StoredConsensus; registerSessions' prior); a map that keeps none gets one from its histories
+/// (consensusOfTiles), stored from then on. Re-alignment
 /// and replacing are not supported (they need the stored map at once).
 /// @throw UsageError for them; what build() throws.
 StreamResult streamBuild(const BuildSettings& settings, std::optional<double> tile_size_m, size_t memory_limit_bytes,
