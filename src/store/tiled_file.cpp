@@ -42,20 +42,30 @@ std::string tileFileName(const TileKey& key, uint64_t generation) {
   return name + ".cmap";
 }
 
-std::optional<uint64_t> tileGeneration(const TileKey& key, const std::string& file) {
-  if (file == tileFileName(key)) return 0;
-  const std::string stem = tileFileName(key);
-  const std::string head = stem.substr(0, stem.size() - 5) + ".g";
-  if (file.size() <= head.size() + 5 || file.compare(0, head.size(), head) != 0 ||
-      file.compare(file.size() - 5, 5, ".cmap") != 0) {
+namespace {
+
+/// N when `file` is `head` N ".cmap", N a generation as the writers spell it (decimal, no leading
+/// zero, at most 18 digits); else nullopt.
+std::optional<uint64_t> generationAfter(const std::string& head, const std::string& file) {
+  const std::string tail = ".cmap";
+  if (file.size() <= head.size() + tail.size() || file.compare(0, head.size(), head) != 0 ||
+      file.compare(file.size() - tail.size(), tail.size(), tail) != 0) {
     return std::nullopt;
   }
-  const std::string digits = file.substr(head.size(), file.size() - head.size() - 5);
-  if (digits.empty() || digits.size() > 18 || digits[0] == '0' ||
+  const std::string digits = file.substr(head.size(), file.size() - head.size() - tail.size());
+  if (digits.size() > 18 || digits[0] == '0' ||
       !std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; })) {
     return std::nullopt;
   }
   return std::stoull(digits);
+}
+
+}  // namespace
+
+std::optional<uint64_t> tileGeneration(const TileKey& key, const std::string& file) {
+  const std::string stem = tileFileName(key);
+  if (file == stem) return 0;
+  return generationAfter(stem.substr(0, stem.size() - 5) + ".g", file);
 }
 
 std::string latestFileName(const std::string& tile_file) {
@@ -427,17 +437,7 @@ bool isTiledMap(const fs::path& path) { return fs::is_directory(path) && fs::exi
 std::string consensusFileName(uint64_t generation) { return "tiles/consensus.g" + std::to_string(generation) + ".cmap"; }
 
 std::optional<uint64_t> consensusGeneration(const std::string& file) {
-  const std::string head = "tiles/consensus.g", tail = ".cmap";
-  if (file.size() <= head.size() + tail.size() || file.compare(0, head.size(), head) != 0 ||
-      file.compare(file.size() - tail.size(), tail.size(), tail) != 0) {
-    return std::nullopt;
-  }
-  const std::string digits = file.substr(head.size(), file.size() - head.size() - tail.size());
-  if (digits.size() > 18 || digits[0] == '0' ||
-      !std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; })) {
-    return std::nullopt;
-  }
-  return std::stoull(digits);
+  return generationAfter("tiles/consensus.g", file);
 }
 
 std::optional<StoredConsensus> readStoredConsensus(const fs::path& folder, const nlohmann::json& meta,
@@ -447,9 +447,11 @@ std::optional<StoredConsensus> readStoredConsensus(const fs::path& folder, const
   const nlohmann::json& row = meta.at(kConsensusKey);
   StoredConsensus out{SessionMap(resolution_m), 0, ""};
   uint64_t bytes_listed = 0;
+  uint32_t crc32_listed = 0;
   try {
     out.file = row.at("file").get<std::string>();
     bytes_listed = row.at("bytes").get<uint64_t>();
+    crc32_listed = row.at("crc32").get<uint32_t>();
     out.sessions = row.at("sessions").get<uint64_t>();
   } catch (const nlohmann::json::exception& e) {
     throw FormatError(index_source + ": the consensus entry is unreadable (" + e.what() + ")");
@@ -461,12 +463,7 @@ std::optional<StoredConsensus> readStoredConsensus(const fs::path& folder, const
   const std::string source = path.string();
   requireListed(path, "consensus");
   out.map = readNamingMemory(path, [&] {
-    const std::vector<uint8_t> bytes = readFileBytes(path);
-    if (bytes.size() != bytes_listed) {
-      throw FormatError(source + ": consensus file does not match the index (" + std::to_string(bytes.size()) +
-                        " bytes, listed with " + std::to_string(bytes_listed) + ")");
-    }
-    SessionMap map = sessionMapFrom(decodeCmap(bytes, source), source);
+    SessionMap map = sessionMapFrom(listedFile(path, bytes_listed, crc32_listed, "consensus"), source);
     if (map.resolution_m() != resolution_m) throw FormatError(source + ": resolution differs from the index's");
     return map;
   });
@@ -483,7 +480,7 @@ nlohmann::json writeStoredConsensus(const fs::path& folder, uint64_t generation,
   const std::vector<uint8_t> bytes = encodeSessionMap(map, meta, /*zstd_level=*/3, /*version=*/1);
   fs::create_directories(folder / "tiles");
   writeFileAtomic(folder / file, bytes);
-  return {{"file", file}, {"bytes", bytes.size()}, {"sessions", sessions}};
+  return {{"file", file}, {"bytes", bytes.size()}, {"crc32", crc32Of(bytes)}, {"sessions", sessions}};
 }
 
 }  // namespace chronomap

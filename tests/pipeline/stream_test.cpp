@@ -291,6 +291,32 @@ TEST(Stream, TheStoredConsensusSumsEverySessionAndSwapsWithTheIndex) {
     EXPECT_NE(std::string(e.what()).find(stored->file), std::string::npos) << e.what();
   }
   EXPECT_EQ(filesOf(folder), damaged);
+  // Truncated and empty files, and entries that are not what the build writes, read directly.
+  const auto refused = [&](const nlohmann::json& meta, const std::string& expected) {
+    try {
+      readStoredConsensus(folder, meta, 0.05);
+      ADD_FAILURE() << "read: " << meta.dump();
+    } catch (const FormatError& e) {
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
+    }
+  };
+  bytes.resize(bytes.size() / 2);
+  writeFileAtomic(folder / stored->file, bytes);
+  refused(metaOf(), stored->file);
+  writeFileAtomic(folder / stored->file, {});
+  refused(metaOf(), stored->file);
+  nlohmann::json entry = metaOf();
+  entry[kConsensusKey]["file"] = "tiles/../index.cmap";
+  refused(entry, "is not one the build writes");
+  for (const char* member : {"file", "bytes", "crc32", "sessions"}) {
+    entry = metaOf();
+    entry[kConsensusKey].erase(member);
+    refused(entry, "the consensus entry is unreadable");
+  }
+  entry = metaOf();
+  entry[kConsensusKey]["sessions"] = "three";
+  refused(entry, "the consensus entry is unreadable");
+  refused({{kConsensusKey, nullptr}}, "the consensus entry is unreadable");
   fs::remove(folder / stored->file);
   EXPECT_THROW(stream(folder, sessions, {3}, 3, 0), IoError);
   EXPECT_EQ(consensusGeneration("tiles/consensus.g0.cmap"), std::nullopt);

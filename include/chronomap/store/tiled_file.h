@@ -163,7 +163,7 @@ bool isTiledMap(const std::filesystem::path& path);
 /// (docs/scale.md, "Registration"): the sum (consensus()) of every session map streamed in since
 /// it was started, one session after another in the order they were added. One session map file
 /// in tiles/, in format version 1 (the counters exact), named by the index metadata's
-/// kConsensusKey entry: {"file", "bytes", "sessions"}.
+/// kConsensusKey entry: {"file", "bytes", "crc32", "sessions"}.
 struct StoredConsensus {
   SessionMap map;
   uint64_t sessions = 0;  ///< session maps summed into it
@@ -175,8 +175,8 @@ std::string consensusFileName(uint64_t generation);
 /// The generation of a consensus file name; nullopt for any other name.
 std::optional<uint64_t> consensusGeneration(const std::string& file);
 /// The consensus the index metadata `meta` names; nullopt when it names none.
-/// @throw FormatError naming the file for a bad entry, a missing file, one of another size or
-/// resolution, or what the session map reader finds.
+/// @throw FormatError naming the file for a bad entry, one of another size, CRC-32 or resolution,
+/// or what the session map reader finds; IoError for a missing file.
 std::optional<StoredConsensus> readStoredConsensus(const std::filesystem::path& folder, const nlohmann::json& meta,
                                                    double resolution_m);
 /// Writes `map` as generation `generation`'s consensus of `sessions` session maps; returns the
