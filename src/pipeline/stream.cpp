@@ -597,18 +597,18 @@ StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size
     if (!prior && !stored_sessions.empty()) {
       const std::string n = std::to_string(stored_sessions.size());
       b.progress.say("computing the consensus of the " + n + " stored session(s) from their histories");
-      prior = StoredConsensus{consensusOfTiles(b.map), stored_sessions.size(), ""};
+      prior = StoredConsensus{consensusOfTiles(b.map), stored_sessions.size(), ""};  // no file yet
       warnings.push_back(b.map.string() + ": kept no consensus of its " + n +
                          " stored session(s) (built without --register, or cut by `tile`): computed once from "
                          "their histories, every tile read, and kept from now on");
-      // Stored by this run (the folder's lock is not held yet: a run in between would make it stale).
-      s.first_consensus = std::make_shared<StoredConsensus>(std::move(*prior));
-      prior.reset();
     }
   }
-  std::vector<PoseCorrection> corrections = pipeline_detail::registerPending(
-      r, pending, prior ? &prior->map : s.first_consensus ? &s.first_consensus->map : nullptr);
-  prior.reset();  // streamIntoTiles reads it again, under the folder's lock
+  std::vector<PoseCorrection> corrections =
+      pipeline_detail::registerPending(r, pending, prior ? &prior->map : nullptr);
+  // A computed consensus goes on to be stored; a stored one streamIntoTiles reads again, under
+  // the folder's lock.
+  if (prior && prior->file.empty()) s.first_consensus = std::make_shared<StoredConsensus>(std::move(*prior));
+  prior.reset();
   s.keep_consensus = true;
   StreamResult result = streamIntoTiles(s, pending.size(), [&](size_t k) { return sessionOf(pending[k]); });
   result.warnings = std::move(warnings);
