@@ -320,7 +320,7 @@ void TileStream::writeGroups() {
       records.push_back(std::move(r));
     }
     work = TemporalMap::fromParts(work.resolution_m(), work.criterion(), work.parts(), std::move(records));
-    work.compact();
+    work.compact(TemporalMap::Relayout::kWhenMerged);  // written, then dropped
     writeSplit(g, work);
     ++result_.stats.groups;
   }
@@ -350,7 +350,7 @@ void TileStream::rewriteStoredTile(const Cube& g, const TileEntry& e) {
     records.push_back(std::move(r));
   }
   work.replaceSessionRecords(std::move(records));
-  work.compact();
+  work.compact(TemporalMap::Relayout::kWhenMerged);  // written, then dropped
   const std::vector<HistoryEntry> corner = work.history(g.corner);
   if (!corner.empty() && corner.front().level >= level_) {
     // Compaction made the whole tile one uniform cube (not seen with later sessions only): it

@@ -710,12 +710,17 @@ void TemporalMap::buildChangeMasks() const {
   change_masks_valid_ = true;
 }
 
-size_t TemporalMap::compact() {
+size_t TemporalMap::compact(Relayout relayout) {
   if (compact_) return 0;
   const size_t lists_before = live_lists_;
   change_masks_valid_ = false;
   Ref root = 0;
   compactBelow(root, kTreeDepth);
+  if (relayout == Relayout::kWhenMerged && live_lists_ == lists_before) {
+    // Nothing merged: the tree is as it was, its coarse entries still hold.
+    compact_ = true;
+    return 0;
+  }
   Parts p = parts();
   const size_t relayouts = relayouts_;
   *this = fromParts(resolution_m(), criterion_, std::move(p), std::move(sessions_));

@@ -256,7 +256,7 @@ void checkTileFits(const TemporalMap& top, int tile_level, const TileKey& key, c
   // Every history list inside the cube, below tile level (a walk, not a copy of the pools; the
   // join checks the shape of the path as it grafts).
   bool inside = true;
-  tile.forEachList([&](const VoxelKey& corner, int level, std::span<const TemporalMap::Entry>) {
+  tile.forEachListPlace([&](const VoxelKey& corner, int level) {
     inside = inside && level < tile_level && tileOf(corner, tile_level) == key;
   });
   if (!inside) throw FormatError(source + " holds nodes outside its tile");

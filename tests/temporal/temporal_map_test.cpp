@@ -848,6 +848,47 @@ TEST_P(TemporalProperty, RelayoutChangesNoAnswer) {
   expectEverySnapshotMatches(relaid, ref);
 }
 
+// compact(Relayout::kWhenMerged), for a map about to be written: the same parts (what a file
+// holds) and answers as compact(), re-laid out only when lists were merged.
+TEST_P(TemporalProperty, CompactingWithoutARelayoutGivesTheSameParts) {
+  std::mt19937_64 rng(GetParam() + 6000);
+  World world;
+  world.init(rng);
+  TemporalMap map(0.05);
+  size_t skipped = 0, merged = 0;
+  for (int i = 0; i < 8; ++i) {
+    if (rng() % 2 == 0) world.change(rng, 60);
+    // Among random sessions, free space not compressed in the session map (a length per
+    // voxel), which compaction merges where a cube's voxels share their sessions.
+    SessionMap uneven(0.05);
+    for (int z = 0; z < kSide; ++z) {
+      for (int y = 0; y < kSide; ++y) {
+        for (int x = 0; x < kSide; ++x) uneven.add(at(x, y, z), freeVoxel(0.1f + 0.01f * static_cast<float>(rng() % 8)));
+      }
+    }
+    map.add(sessionTime(i), i % 3 == 0 ? uneven : randomSession(rng, world));
+    TemporalMap relaid = map, kept = map;
+    const size_t relayouts = kept.relayouts();
+    const size_t removed = relaid.compact();
+    ASSERT_EQ(kept.compact(TemporalMap::Relayout::kWhenMerged), removed);
+    (removed == 0 ? skipped : merged) += 1;
+    EXPECT_EQ(kept.relayouts(), relayouts + (removed == 0 ? 0 : 1));
+    EXPECT_TRUE(kept.isCompact());
+    const TemporalMap::Parts a = relaid.parts(), b = kept.parts();
+    ASSERT_EQ(a.inner, b.inner) << "after session " << i;
+    ASSERT_EQ(a.list_sizes, b.list_sizes);
+    ASSERT_EQ(a.entries.size(), b.entries.size());
+    for (size_t k = 0; k < a.entries.size(); ++k) {
+      ASSERT_EQ(a.entries[k].session, b.entries[k].session);
+      ASSERT_EQ(a.entries[k].value, b.entries[k].value);
+    }
+    expectSameAnswers(relaid, kept);
+    map = std::move(kept);  // the next session lands in pools that were not re-laid out
+  }
+  EXPECT_GT(skipped, 0u);
+  EXPECT_GT(merged, 0u);
+}
+
 TEST(TemporalMap, PartsInThePlainDepthFirstOrderReadTheSame) {
   // Files written before the two-layer order hold the pools plainly depth first: re-lay a map's
   // parts that way and read them back: the same map, the same snapshots bit for bit.

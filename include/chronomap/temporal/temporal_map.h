@@ -192,6 +192,10 @@ class TemporalMap {
   /// Calls fn(const VoxelKey& corner, int level, std::span<const Entry>) for every slot list.
   template <class Fn>
   void forEachList(Fn&& fn) const;
+  /// Calls fn(const VoxelKey& corner, int level) for every slot list, in the order forEachList
+  /// visits them, without decoding its entries.
+  template <class Fn>
+  void forEachListPlace(Fn&& fn) const;
 
   /// Calls fn(const VoxelKey& corner, int level, std::span<const Entry>) for every slot list
   /// that holds a change (an entry after its first) by a session of rank in [first, end).
@@ -231,10 +235,16 @@ class TemporalMap {
   };
   MemoryUse memoryUse() const;
 
+  /// When compact() re-lays the pools out.
+  enum class Relayout {
+    kAlways,      ///< as files hold them, for snapshots of the map in memory
+    kWhenMerged,  ///< only when lists were merged: for a map about to be written and dropped
+                  ///< (a file's bytes do not depend on the pools' order in memory)
+  };
   /// Merges 8 sibling lists with the same sessions and no hits into one (states stay exact;
   /// lengths are summed, as in §2.1's compression) and re-lays the pools out as files hold them.
   /// @return the number of lists removed.
-  size_t compact();
+  size_t compact(Relayout relayout = Relayout::kAlways);
   /// True when compact() ran last and nothing changed the map since (add, remove, relayout,
   /// appendUnobservedSessions, replaceSessionRecords): compacting it again would change nothing,
   /// so it returns at once.
@@ -430,6 +440,12 @@ void TemporalMap::forEachList(Fn&& fn) const {
   walkPoolTree(
       inner_, kListBit, [](uint32_t) { return true; },
       [&](Ref r, const VoxelKey& k, int level) { fn(k, level, decoded(lists_[index(r)], scratch)); });
+}
+
+template <class Fn>
+void TemporalMap::forEachListPlace(Fn&& fn) const {
+  walkPoolTree(
+      inner_, kListBit, [](uint32_t) { return true; }, [&](Ref, const VoxelKey& k, int level) { fn(k, level); });
 }
 
 template <class Fn>
