@@ -201,10 +201,20 @@ uint16_t quantiseLength(float length_m, uint32_t hits) {
   uint32_t code = (bits + (1u << (kShift - 1))) >> kShift;
   if (code >= kFirstNonFiniteLengthCode) code = bits >> kShift;  // the largest floats: truncated, not infinite
   if (code == 0) code = 1;  // the smallest subnormals: a positive length stays positive
+  if (hits == 0) return static_cast<uint16_t>(code);  // free at any positive length: no state to keep
   VoxelCounters original, stored;
   original.length_m = length_m;
   original.hits = stored.hits = hits;
   stored.length_m = dequantiseLength(static_cast<uint16_t>(code));
+  // P > 0.5 exactly when hits / length > ln 2: both lengths clearly on one side of the boundary
+  // keep the state without computing P (exp is within an ulp; the margin is many).
+  constexpr double kLn2 = 0.69314718055994531, kMargin = 1e-9;
+  const double x0 = static_cast<double>(hits) / static_cast<double>(length_m);
+  const double x1 = static_cast<double>(hits) / static_cast<double>(stored.length_m);
+  if ((x0 > kLn2 * (1 + kMargin) && x1 > kLn2 * (1 + kMargin)) ||
+      (x0 < kLn2 * (1 - kMargin) && x1 < kLn2 * (1 - kMargin))) {
+    return static_cast<uint16_t>(code);
+  }
   if (stored.state() != original.state()) {
     // The state's boundary lies between the length and its nearest code: the code on the
     // length's side of it keeps the state (P is monotonic in the length).

@@ -346,6 +346,16 @@ TEST(Cmap, QuantisedLengthsNeverChangeAVoxelsState) {
   // length keeps the state, stays within the bound, and is its own quantisation.
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> near(-1e-3, 1e-3);
+  // The slow reference (normal floats): the nearest float with an 8-bit mantissa, then the
+  // neighbour on the length's side when the state, computed with exp, differs.
+  auto reference = [](const VoxelCounters& c) {
+    const float step = std::ldexp(1.0f, std::ilogb(c.length_m) - 8);
+    const float nearest = std::floor(c.length_m / step + 0.5f) * step;  // halves up, as the code's bits round
+    VoxelCounters s = c;
+    s.length_m = nearest;
+    if (s.state() != c.state()) s.length_m = nearest > c.length_m ? nearest - step : nearest + step;
+    return s.length_m;
+  };
   size_t stepped = 0;
   for (int i = 0; i < 20000; ++i) {
     VoxelCounters c;
@@ -356,6 +366,7 @@ TEST(Cmap, QuantisedLengthsNeverChangeAVoxelsState) {
     if (i % 4 == 0) length = std::nextafter(static_cast<float>(boundary), i % 8 ? 0.0f : 1e30f);
     c.length_m = length;
     const VoxelCounters s = asStored(c);
+    ASSERT_EQ(s.length_m, reference(c)) << c.hits << " hits, length " << length;
     ASSERT_EQ(s.state(), c.state()) << c.hits << " hits, length " << length;
     ASSERT_LE(std::abs(double{s.length_m} / double{length} - 1.0), kLengthRelativeError) << c.hits << " " << length;
     ASSERT_EQ(asStored(s).length_m, s.length_m);
