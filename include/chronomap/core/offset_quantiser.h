@@ -14,11 +14,20 @@ namespace chronomap {
 /// as the byte q + 127 (0..254). Zero, a hit at the centre, is kept exactly.
 inline constexpr int kOffsetLevels = 127;
 
+/// std::round(x) (halves away from zero) for |x| <= 2^31, without a library call: the fraction
+/// x - trunc(x) is exact there.
+inline double roundHalfAway(double x) {
+  const auto t = static_cast<double>(static_cast<int64_t>(x));
+  return std::abs(x - t) >= 0.5 ? t + std::copysign(1.0, x) : t;
+}
+
 /// The byte of an offset sum `sum` over `hits` hits (127 without hits).
 inline uint8_t quantiseOffset(float sum, uint32_t hits) {
   if (hits == 0) return kOffsetLevels;
   const double mean = static_cast<double>(sum) / static_cast<double>(hits);
-  const double q = std::round(mean * (2 * kOffsetLevels));
+  // Clamped a level beyond the range first (rounding is monotonic, so the byte is the same).
+  const double x = std::clamp(mean * (2 * kOffsetLevels), -double{kOffsetLevels + 1}, double{kOffsetLevels + 1});
+  const double q = roundHalfAway(x);
   return static_cast<uint8_t>(std::clamp(q, -double{kOffsetLevels}, double{kOffsetLevels}) + kOffsetLevels);
 }
 
