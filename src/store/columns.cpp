@@ -374,16 +374,25 @@ void encodeCounters(size_t n, const std::function<const VoxelCounters&(size_t)>&
   // Colours: the mean (a byte, as smooth as the surfaces) and, in version 2, the sum's remainder
   // beyond mean * hits (small, often zero), each channel's stream after the other's.
   std::vector<uint8_t> means(3 * with_hits), positions(3 * with_hits);
-  for (int ch = 0; ch < 3; ++ch) {
-    size_t k = 0;
-    for (size_t i = 0; i < n; ++i) {
-      const VoxelCounters& c = at(i);
-      if (c.hits == 0) continue;
-      const uint8_t mean = meanChannel(channel(c, ch), c.hits);
-      means[ch * with_hits + k] = mean;
-      if (version == 2) residuals.svarint(static_cast<int64_t>(channel(c, ch)) - static_cast<int64_t>(mean) * c.hits);
+  size_t k = 0;  // one pass over the records, the three channels of each at once
+  for (size_t i = 0; i < n; ++i) {
+    const VoxelCounters& c = at(i);
+    if (c.hits == 0) continue;
+    for (int ch = 0; ch < 3; ++ch) {
+      means[ch * with_hits + k] = meanChannel(channel(c, ch), c.hits);
       positions[ch * with_hits + k] = quantiseOffset(c.offset[ch], c.hits);
-      ++k;
+    }
+    ++k;
+  }
+  if (version == 2) {  // the residuals' stream: each channel's after the other's
+    for (int ch = 0; ch < 3; ++ch) {
+      k = 0;
+      for (size_t i = 0; i < n; ++i) {
+        const VoxelCounters& c = at(i);
+        if (c.hits == 0) continue;
+        residuals.svarint(static_cast<int64_t>(channel(c, ch)) - static_cast<int64_t>(means[ch * with_hits + k]) * c.hits);
+        ++k;
+      }
     }
   }
   blocks.push_back({kColours, std::move(means)});
@@ -416,20 +425,32 @@ void decodeCounters(const CmapFile& file, const std::string& source, size_t n,
   const auto [means, positions] = hitBlocksOf(file, source, with_hits);
   static const std::vector<uint8_t> kNone;
   ByteReader residuals(exact ? file.block(kColourResiduals, source).data : kNone, blockName(source, kColourResiduals));
-  for (int ch = 0; ch < 3; ++ch) {
+  // One record's channel from its mean, the residual (version 2) and its position byte.
+  auto decodeChannel = [&](VoxelCounters& c, int ch, size_t k) {
+    const int64_t residual = exact ? residuals.svarint() : 0;
+    if (residual > kMaxResidual || residual < -kMaxResidual) residuals.fail("holds an impossible colour sum");
+    int64_t sum = int64_t{means.data[ch * with_hits + k]} * c.hits + residual;
+    if (!exact) sum = std::min<int64_t>(sum, 0xffffffffll);  // as storedColourSum caps it
+    if (sum < 0 || sum > 0xffffffffll) residuals.fail("holds an impossible colour sum");
+    channel(c, ch) = static_cast<uint32_t>(sum);
+    const uint8_t q = positions.data[ch * with_hits + k];
+    if (q > 2 * kOffsetLevels) throw FormatError(blockName(source, kPositions) + " holds an impossible position");
+    c.offset[ch] = dequantiseOffset(q, c.hits);
+  };
+  if (exact) {  // version 2's residuals come each channel after the other
+    for (int ch = 0; ch < 3; ++ch) {
+      size_t k = 0;
+      for (size_t i = 0; i < n; ++i) {
+        VoxelCounters& c = at(i);
+        if (c.hits > 0) decodeChannel(c, ch, k++);
+      }
+    }
+  } else {  // one pass, the three channels of each record at once
     size_t k = 0;
     for (size_t i = 0; i < n; ++i) {
       VoxelCounters& c = at(i);
       if (c.hits == 0) continue;
-      const int64_t residual = exact ? residuals.svarint() : 0;
-      if (residual > kMaxResidual || residual < -kMaxResidual) residuals.fail("holds an impossible colour sum");
-      int64_t sum = int64_t{means.data[ch * with_hits + k]} * c.hits + residual;
-      if (!exact) sum = std::min<int64_t>(sum, 0xffffffffll);  // as storedColourSum caps it
-      if (sum < 0 || sum > 0xffffffffll) residuals.fail("holds an impossible colour sum");
-      channel(c, ch) = static_cast<uint32_t>(sum);
-      const uint8_t q = positions.data[ch * with_hits + k];
-      if (q > 2 * kOffsetLevels) throw FormatError(blockName(source, kPositions) + " holds an impossible position");
-      c.offset[ch] = dequantiseOffset(q, c.hits);
+      for (int ch = 0; ch < 3; ++ch) decodeChannel(c, ch, k);
       ++k;
     }
   }
