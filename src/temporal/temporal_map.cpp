@@ -3,6 +3,7 @@
 #include "chronomap/temporal/temporal_map.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
 
@@ -803,18 +804,33 @@ TemporalMap TemporalMap::fromParts(double resolution_m, ChangeCriterion criterio
   m.inner_ = std::move(parts.inner);
   m.coarse_span_.assign(m.inner_.size(), CoarseSpan{});
   m.coarse_dirty_.assign(m.inner_.size(), 1);
+  // Each list's block at its final capacity (the one insertEntry's doubling reaches), and the
+  // hit parts stored in the order packHitParts lays them out: every list's newest entry first,
+  // in list order, then the older entries.
   m.lists_.resize(parts.list_sizes.size());
+  m.hit_parts_.reserve(static_cast<size_t>(std::count_if(parts.entries.begin(), parts.entries.end(), [](const Entry& e) {
+    return e.value.hits != 0 || e.value.red != 0 || e.value.green != 0 || e.value.blue != 0;  // as store() keeps a part
+  })));
+  for (size_t i = 0; i < parts.list_sizes.size(); ++i) {
+    const uint32_t n = parts.list_sizes[i];
+    const Entry& newest = parts.entries[offsets[i] + n - 1];
+    List& l = m.lists_[i];
+    l.first = m.store(newest.session, newest.value);
+    l.size = static_cast<uint16_t>(n);
+    if (n >= 2) {
+      const auto capacity_log2 = static_cast<uint8_t>(std::max(1u, std::bit_width(n - 1)));
+      l.block = m.allocBlock(capacity_log2);
+      l.capacity_log2 = capacity_log2;
+      m.arena_[l.block + n - 1] = l.first;
+    }
+    ++m.live_lists_;
+    m.live_entries_ += n;
+  }
   for (size_t i = 0; i < parts.list_sizes.size(); ++i) {
     const Entry* e = parts.entries.data() + offsets[i];
-    const uint32_t n = parts.list_sizes[i];
-    List& l = m.lists_[i];
-    l.first = m.store(e[0].session, e[0].value);
-    l.size = 1;
-    ++m.live_lists_;
-    ++m.live_entries_;
-    for (uint32_t k = 1; k < n; ++k) m.insertEntry(static_cast<uint32_t>(i), k, m.store(e[k].session, e[k].value));
+    const List& l = m.lists_[i];
+    for (uint32_t k = 0; k + 1 < l.size; ++k) m.arena_[l.block + k] = m.store(e[k].session, e[k].value);
   }
-  m.packHitParts(m.lists_);
   m.sessions_ = std::move(sessions);
   m.updateCoarse();
   m.packCoarse();  // in node order, as the pools are laid out
