@@ -45,7 +45,7 @@ TileResult tileMap(const TileSettings& s) {
   r.tile_size_m = std::ldexp(map.resolution_m(), r.tile_level);
   map.compact();  // as the file holds it: the join then gives back the same layout
   const SplitMap split = splitIntoTiles(map, r.tile_level);
-  split.top.forEachList([&](const VoxelKey&, int, std::span<const TemporalMap::Entry>) { ++r.top_lists; });
+  split.top.forEachListPlace([&](const VoxelKey&, int) { ++r.top_lists; });
   nlohmann::json meta = {{"created_by", "chronomap tile"}, {"source", s.map.string()}};
   meta.update(upKeysOf(userMetadataOf(file)));  // the map's up goes with it (docs/frames.md)
   const TiledWriteResult w = writeTiledMap(s.folder, split, meta, s.window_sessions);

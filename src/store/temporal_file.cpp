@@ -167,7 +167,7 @@ std::vector<uint8_t> encodeTemporal(const TemporalMap& map, const nlohmann::json
   header.resolution_m = map.resolution_m();
   bool any = false;
   Eigen::Vector3d lo = Eigen::Vector3d::Zero(), hi = Eigen::Vector3d::Zero();
-  compacted.forEachList([&](const VoxelKey& k, int level, std::span<const TemporalMap::Entry>) {
+  compacted.forEachListPlace([&](const VoxelKey& k, int level) {
     const Eigen::Vector3d a = map.grid().cornerOf(k);
     const Eigen::Vector3d b = a + Eigen::Vector3d::Constant(map.resolution_m() * (1 << level));
     lo = any ? lo.cwiseMin(a) : a;
