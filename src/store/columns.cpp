@@ -422,7 +422,9 @@ void decodeCounters(const CmapFile& file, const std::string& source, size_t n,
   } else {
     with_hits = decodeLengthsAndHits(file, source, n, at);
   }
-  const auto [means, positions] = hitBlocksOf(file, source, with_hits);
+  const HitBlocks hit_blocks = hitBlocksOf(file, source, with_hits);
+  const CmapBlock& means = hit_blocks.means;  // references, not bindings: the lambda below captures them
+  const CmapBlock& positions = hit_blocks.positions;
   static const std::vector<uint8_t> kNone;
   ByteReader residuals(exact ? file.block(kColourResiduals, source).data : kNone, blockName(source, kColourResiduals));
   // One record's channel from its mean, the residual (version 2) and its position byte.
