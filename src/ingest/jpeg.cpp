@@ -42,6 +42,17 @@ void onMessage(j_common_ptr info, int level) {
   if (level < 0) ++info->err->num_warnings;
 }
 
+/// Sets `error` to `message`. decode() sets its messages through this and the helper below, never
+/// inlined: a string built in its own frame is a local that GCC (at -O1) warns a longjmp might
+/// clobber.
+[[gnu::noinline]] void say(std::string& error, const char* message) { error = message; }
+
+/// Says in `error` that the image declares more pixels than its bytes allow.
+[[gnu::noinline]] void tooLarge(uint64_t width, uint64_t height, size_t bytes, std::string& error) {
+  error = "declares " + std::to_string(width) + " x " + std::to_string(height) + " pixels in " +
+          std::to_string(bytes) + " bytes; refusing to decode it";
+}
+
 /// Plain data only across setjmp: the buffer belongs to `out`.
 bool decode(const std::vector<uint8_t>& file, ImageRgb& out, std::string& error) {
   jpeg_decompress_struct info;
@@ -51,7 +62,7 @@ bool decode(const std::vector<uint8_t>& file, ImageRgb& out, std::string& error)
   err.base.emit_message = onMessage;
   if (setjmp(err.jump)) {
     jpeg_destroy_decompress(&info);
-    error = err.message[0] ? err.message : "corrupt JPEG";
+    say(error, err.message[0] ? err.message : "corrupt JPEG");
     return false;
   }
   jpeg_create_decompress(&info);
@@ -61,8 +72,7 @@ bool decode(const std::vector<uint8_t>& file, ImageRgb& out, std::string& error)
   const uint64_t pixels = uint64_t{info.image_width} * info.image_height;
   const uint64_t allowance = std::max(kMinAllowance, uint64_t{file.size()} * kMaxExpansion);
   if (info.image_width > kMaxImageSide || info.image_height > kMaxImageSide || pixels * 3 > allowance) {
-    error = "declares " + std::to_string(info.image_width) + " x " + std::to_string(info.image_height) +
-            " pixels in " + std::to_string(file.size()) + " bytes; refusing to decode it";
+    tooLarge(info.image_width, info.image_height, file.size(), error);
     jpeg_destroy_decompress(&info);
     return false;
   }
@@ -80,7 +90,7 @@ bool decode(const std::vector<uint8_t>& file, ImageRgb& out, std::string& error)
   const long warnings = err.base.num_warnings;
   jpeg_destroy_decompress(&info);
   if (warnings > 0) {
-    error = "corrupt or truncated JPEG data";
+    say(error, "corrupt or truncated JPEG data");
     return false;
   }
   return true;
