@@ -25,7 +25,7 @@ uint32_t TemporalMap::newInner() {
 
 TemporalMap::Stored TemporalMap::store(uint32_t session, const VoxelCounters& value) {
   Stored s{session, value.length_m, kNoPart};
-  if (value.hits == 0 && value.red == 0 && value.green == 0 && value.blue == 0) return s;
+  if (!keepsHitPart(value)) return s;
   HitPart p{value.hits, value.red, value.green, value.blue, {}, 0};
   for (int a = 0; a < 3; ++a) p.offset[a] = quantiseOffset(value.offset[a], value.hits);
   if (!free_hit_parts_.empty()) {

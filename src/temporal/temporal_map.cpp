@@ -808,9 +808,8 @@ TemporalMap TemporalMap::fromParts(double resolution_m, ChangeCriterion criterio
   // hit parts stored in the order packHitParts lays them out: every list's newest entry first,
   // in list order, then the older entries.
   m.lists_.resize(parts.list_sizes.size());
-  m.hit_parts_.reserve(static_cast<size_t>(std::count_if(parts.entries.begin(), parts.entries.end(), [](const Entry& e) {
-    return e.value.hits != 0 || e.value.red != 0 || e.value.green != 0 || e.value.blue != 0;  // as store() keeps a part
-  })));
+  m.hit_parts_.reserve(static_cast<size_t>(
+      std::count_if(parts.entries.begin(), parts.entries.end(), [](const Entry& e) { return keepsHitPart(e.value); })));
   for (size_t i = 0; i < parts.list_sizes.size(); ++i) {
     const uint32_t n = parts.list_sizes[i];
     const Entry& newest = parts.entries[offsets[i] + n - 1];

@@ -302,7 +302,11 @@ class TemporalMap {
     uint8_t capacity_log2 = 0;
     uint8_t unused = 0;
   };
-  /// An entry as stored (a part taken when it has hits or colour).
+  /// True when store() keeps a hit part for `value`: it has hits or colour.
+  static bool keepsHitPart(const VoxelCounters& value) {
+    return value.hits != 0 || value.red != 0 || value.green != 0 || value.blue != 0;
+  }
+  /// An entry as stored (a part taken when keepsHitPart).
   Stored store(uint32_t session, const VoxelCounters& value);
   /// Frees the part of a stored entry that is dropped.
   void release(const Stored& s);
