@@ -14,6 +14,7 @@
 #include "chronomap/core/error.h"
 #include "chronomap/core/file.h"
 #include "chronomap/ingest/png.h"
+#include "setjmp_message.h"
 
 namespace chronomap {
 
@@ -42,12 +43,8 @@ void onMessage(j_common_ptr info, int level) {
   if (level < 0) ++info->err->num_warnings;
 }
 
-/// Sets `error` to `message`. decode() sets its messages through this and the helper below, never
-/// inlined: a string built in its own frame is a local that GCC (at -O1) warns a longjmp might
-/// clobber.
-[[gnu::noinline]] void say(std::string& error, const char* message) { error = message; }
-
-/// Says in `error` that the image declares more pixels than its bytes allow.
+/// Says in `error` that the image declares more pixels than its bytes allow (outside decode(),
+/// as setMessage is).
 [[gnu::noinline]] void tooLarge(uint64_t width, uint64_t height, size_t bytes, std::string& error) {
   error = "declares " + std::to_string(width) + " x " + std::to_string(height) + " pixels in " +
           std::to_string(bytes) + " bytes; refusing to decode it";
@@ -62,7 +59,7 @@ bool decode(const std::vector<uint8_t>& file, ImageRgb& out, std::string& error)
   err.base.emit_message = onMessage;
   if (setjmp(err.jump)) {
     jpeg_destroy_decompress(&info);
-    say(error, err.message[0] ? err.message : "corrupt JPEG");
+    setMessage(error, err.message[0] ? err.message : "corrupt JPEG");
     return false;
   }
   jpeg_create_decompress(&info);
@@ -90,7 +87,7 @@ bool decode(const std::vector<uint8_t>& file, ImageRgb& out, std::string& error)
   const long warnings = err.base.num_warnings;
   jpeg_destroy_decompress(&info);
   if (warnings > 0) {
-    say(error, "corrupt or truncated JPEG data");
+    setMessage(error, "corrupt or truncated JPEG data");
     return false;
   }
   return true;

@@ -9,6 +9,7 @@
 
 #include "chronomap/core/error.h"
 #include "chronomap/core/file.h"
+#include "setjmp_message.h"
 
 namespace chronomap {
 
@@ -54,7 +55,8 @@ constexpr png_byte kSkippedChunks[] = {'i', 'C', 'C', 'P', 0, 'z', 'T', 'X', 't'
 
 /// Checks, after png_read_info and before anything is allocated, that the image the header
 /// declares could be held by the file: its samples (a lower bound of the decompressed data, with
-/// or without interlacing) must not exceed what `file_size` bytes of deflate can expand to.
+/// or without interlacing) must not exceed what `file_size` bytes of deflate can expand to. Not
+/// inlined into decode(), whose setjmp frame must hold no string (setjmp_message.h).
 [[gnu::noinline]] bool declaredSizeFits(png_structp png, png_infop info, size_t file_size, std::string& error) {
   const uint64_t w = png_get_image_width(png, info), h = png_get_image_height(png, info);
   const uint64_t bits_per_pixel = uint64_t{png_get_bit_depth(png, info)} * png_get_channels(png, info);
@@ -76,12 +78,8 @@ struct Decoded {
   std::vector<png_bytep> rows;  // owned here, not in decode(): a longjmp skips destructors
 };
 
-/// Sets `error` to `message`. The functions that call setjmp set their messages through this and
-/// the helpers below, never inlined: a string built in their own frame is a local that GCC (at
-/// -O1) warns a longjmp might clobber.
-[[gnu::noinline]] void say(std::string& error, const char* message) { error = message; }
-
-/// Says in `error` that the image is not a 16-bit grey depth image.
+/// Says in `error` that the image is not a 16-bit grey depth image (outside decode(), as
+/// setMessage is).
 [[gnu::noinline]] void notADepthImage(int depth, int colour_type, std::string& error) {
   error = "expected a 16-bit single-channel depth image, found " + std::to_string(depth) + "-bit " +
           (colour_type == PNG_COLOR_TYPE_GRAY ? "grey" : "colour");
@@ -95,18 +93,18 @@ bool decode(const std::vector<uint8_t>& file, bool want16, Decoded& out, std::st
   ctx.data = file.data();
   ctx.size = file.size();
   if (file.size() < 8 || png_sig_cmp(file.data(), 0, 8) != 0) {
-    say(error, "not a PNG file (bad signature)");
+    setMessage(error, "not a PNG file (bad signature)");
     return false;
   }
   png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &ctx, onError, onWarning);
   if (!png) {
-    say(error, "cannot allocate PNG decoder");
+    setMessage(error, "cannot allocate PNG decoder");
     return false;
   }
   png_infop info = png_create_info_struct(png);
   if (!info || setjmp(png_jmpbuf(png))) {
     png_destroy_read_struct(&png, &info, nullptr);
-    say(error, ctx.message[0] ? ctx.message : "corrupt PNG");
+    setMessage(error, ctx.message[0] ? ctx.message : "corrupt PNG");
     return false;
   }
   png_set_user_limits(png, kMaxImageSide, kMaxImageSide);
@@ -143,7 +141,7 @@ bool decode(const std::vector<uint8_t>& file, bool want16, Decoded& out, std::st
   const size_t rowbytes = png_get_rowbytes(png, info);
   if ((want16 && rowbytes != size_t{out.width} * 2) || (!want16 && rowbytes != size_t{out.width} * 3)) {
     png_destroy_read_struct(&png, &info, nullptr);
-    say(error, "unsupported PNG layout");
+    setMessage(error, "unsupported PNG layout");
     return false;
   }
   out.bytes.resize(rowbytes * out.height);
@@ -161,13 +159,13 @@ bool encode(uint32_t w, uint32_t h, bool sixteen, const uint8_t* data, std::vect
   ctx.out = &out;
   png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &ctx, onError, onWarning);
   if (!png) {
-    say(error, "cannot allocate PNG encoder");
+    setMessage(error, "cannot allocate PNG encoder");
     return false;
   }
   png_infop info = png_create_info_struct(png);
   if (!info || setjmp(png_jmpbuf(png))) {
     png_destroy_write_struct(&png, &info);
-    say(error, ctx.message[0] ? ctx.message : "PNG encoding failed");
+    setMessage(error, ctx.message[0] ? ctx.message : "PNG encoding failed");
     return false;
   }
   png_set_write_fn(png, &ctx, writeToMemory, flushNothing);
