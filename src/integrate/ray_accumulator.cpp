@@ -13,6 +13,7 @@
 #include "chronomap/core/error.h"
 #include "chronomap/integrate/ray.h"
 #include "bundle_rays.h"
+#include "farthest.h"
 
 namespace chronomap {
 
@@ -779,11 +780,12 @@ WorkingFrame RayAccumulator::Impl::setUp(const Frame& frame) {
   // map's diagonal reaches no further voxel than the diagonal itself, so the bias stops there
   // and stays in integer range.
   const double inv_res = 1.0 / grid.resolution_m();
-  float farthest_sq = 0.0f;
-  for (const Eigen::Vector3f& p : frame.cloud.points) {
-    const float r2 = p.squaredNorm();
-    if (r2 > farthest_sq && r2 <= std::numeric_limits<float>::max()) farthest_sq = r2;  // NaN compares false
-  }
+  // A point whose squared norm (a float) is at least `stop` lies at the range or beyond, which
+  // is then the reach: the rest of the points need not be read.
+  const float stop = integrate_detail::rangeStop(settings.max_range_m);
+  static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "points are read as a flat float array");
+  const float farthest_sq = integrate_detail::farthestSquaredNorm(
+      frame.cloud.points.empty() ? nullptr : frame.cloud.points[0].data(), frame.cloud.points.size(), stop);
   const double reach_m = std::min(settings.max_range_m, std::sqrt(static_cast<double>(farthest_sq)));
   const double reach_voxels = std::min(reach_m * inv_res, kMapDiagonalVoxels);
   w.bias = static_cast<int64_t>(std::ceil(reach_voxels)) + 2;
