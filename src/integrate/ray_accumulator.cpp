@@ -214,6 +214,12 @@ struct RayAccumulator::Impl {
     settings.carve_level = carveLevelFor(s, g.resolution_m());
     hash.max_bytes = s.memory_limit_bytes;
     hash.resolution_m = g.resolution_m();
+    // The side of the range cube of a frame that reaches the whole range (setUp()'s bias), when
+    // fast mode's one pass can take such a cube: the cube's buffer is made that large at once.
+    const double reach_voxels = std::min(s.max_range_m * (1.0 / g.resolution_m()), kMapDiagonalVoxels);
+    const int64_t side = 2 * (static_cast<int64_t>(std::ceil(reach_voxels)) + 2) + 1;
+    const double cells = static_cast<double>(side) * static_cast<double>(side) * static_cast<double>(side);
+    cube_room = cells <= static_cast<double>(s.cube_max_cells) ? side : 0;
   }
   KeyGrid grid;
   IntegratorSettings settings;
@@ -231,6 +237,7 @@ struct RayAccumulator::Impl {
   DenseStore dense;
   HashStore hash;
   CubeStore cube;
+  int64_t cube_room = 0;  // CubeStore::ensure()'s room
   // Coarse carving (settings.carve_level > 0): key of working cell 0, the frame's deltas (the
   // cubes go straight there), the coarse cells' lengths in voxel units.
   int64_t key_origin[3] = {0, 0, 0};
@@ -860,7 +867,7 @@ uint64_t RayAccumulator::Impl::bundleCube(const WorkingFrame& w, int32_t lo[3], 
                                           IntegrationStats& st) {
   const PointCloud& c_cloud = *cloud;
   const size_t n = c_cloud.points.size();
-  cube.ensure(w.side);
+  cube.ensure(w.side, cube_room);
   const int64_t sy = w.side, sz = w.side * w.side;
   uint32_t* end = cube.end.data();
   static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "points are read as a flat float array");

@@ -4,6 +4,7 @@
 /// into (ray_accumulator.cpp), and what integrate(), IncrementalIntegrator and the accumulator
 /// share.
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <utility>
@@ -77,11 +78,16 @@ struct CubeStore {
 
   /// Makes room for a cube of side `s`. The cells are all zero between frames (each frame
   /// zeroes what it wrote), so a buffer large enough is reused whatever side it last had: the
-  /// side follows each frame's farthest point and changes from frame to frame.
-  void ensure(int64_t s) {
+  /// side follows each frame's farthest point and changes from frame to frame. A new buffer has
+  /// room for a cube of side `room` (the largest the range allows) when that is larger, so that
+  /// it grows once: growing with the frames' sides zeroed the buffer again at every new largest
+  /// side (on the synthetic benchmark frames at 0.05 m, fast mode, 10 % of the time).
+  void ensure(int64_t s, int64_t room) {
     side = s;
-    const size_t cells = static_cast<size_t>(s * s * s);
-    if (end.size() < cells) end.assign(cells, 0u);
+    const auto need = static_cast<size_t>(s * s * s);
+    if (end.size() >= need) return;
+    const auto r = static_cast<size_t>(std::max<int64_t>(room, 0));
+    end.assign(std::max(need, r * r * r), 0u);
   }
 };
 
