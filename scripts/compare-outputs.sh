@@ -4,6 +4,7 @@
 # and every JSON summary they print, byte for byte (timings left out).
 #
 #   scripts/compare-outputs.sh [BASE]
+#   BASE_BIN=old/chronomap HEAD_BIN=new/chronomap scripts/compare-outputs.sh   (two builds at hand)
 #
 # The commands: integrate the 3DMatch recording (exact and fast), simulate the office preset,
 # build a 4D map of it with registration (as the README recommends), diff and segment two of
@@ -18,15 +19,23 @@ jobs="$(nproc)"
 rm -rf "$work"
 mkdir -p "$work"
 
-echo "building $base_rev and the working tree"
-git worktree add --detach "$work/base-src" "$base_rev" >/dev/null
-trap 'git worktree remove --force "$work/base-src" >/dev/null 2>&1 || true' EXIT
-for side in base head; do
-  src="$root"
-  [ "$side" = base ] && src="$work/base-src"
-  cmake -S "$src" -B "$work/$side-build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DCHRONOMAP_BUILD_TESTS=OFF >/dev/null
-  cmake --build "$work/$side-build" -j"$jobs" --target chronomap_cli >/dev/null
-done
+base_bin="${BASE_BIN:-$work/base-build/apps/chronomap/chronomap}"
+head_bin="${HEAD_BIN:-$work/head-build/apps/chronomap/chronomap}"
+if [ -n "${BASE_BIN:-}" ] && [ -n "${HEAD_BIN:-}" ]; then
+  base_bin="$(realpath "$BASE_BIN")"
+  head_bin="$(realpath "$HEAD_BIN")"
+  echo "comparing $base_bin and $head_bin"
+else
+  echo "building $base_rev and the working tree"
+  git worktree add --detach "$work/base-src" "$base_rev" >/dev/null
+  trap 'git worktree remove --force "$work/base-src" >/dev/null 2>&1 || true' EXIT
+  for side in base head; do
+    src="$root"
+    [ "$side" = base ] && src="$work/base-src"
+    cmake -S "$src" -B "$work/$side-build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DCHRONOMAP_BUILD_TESTS=OFF >/dev/null
+    cmake --build "$work/$side-build" -j"$jobs" --target chronomap_cli >/dev/null
+  done
+fi
 
 # Runs every command with one build's binary in its own folder; JSON summaries to *.json.
 run_all() {
@@ -51,10 +60,10 @@ run_all() {
   "$bin" demo -o demo --json >demo.json
   cd - >/dev/null
 }
-for side in base head; do
-  echo "running $side"
-  run_all "$work/$side-build/apps/chronomap/chronomap" "$work/$side-out"
-done
+echo "running base"
+run_all "$base_bin" "$work/base-out"
+echo "running head"
+run_all "$head_bin" "$work/head-out"
 
 # Timings differ from run to run: drop every "seconds" key before comparing JSON.
 python3 - "$work/base-out" "$work/head-out" <<'PY'
