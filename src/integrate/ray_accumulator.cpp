@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cfloat>
 #include <cmath>
 #include <limits>
@@ -185,6 +186,31 @@ inline size_t castDense(const double origin[3], const double end[3], float weigh
   }
   length[idx] += weight * static_cast<float>((1.0 - t) * len);
   return static_cast<size_t>(idx);
+}
+
+/// Calls emit(k) for every k in [0, n) whose cell holds ray length or an end entry, in
+/// increasing order: the emission's test, four cells at a time where the CPU has SSE2 (most
+/// cells of a frame's box hold neither; one at a time, the test was about a fifth of the
+/// one-pass path's own time on the 3DMatch frames at 0.05 m). `emit` may clear the cell it is
+/// called for.
+template <class Emit>
+inline void forEachFilledCell(const float* length, const uint32_t* end, size_t n, Emit&& emit) {
+  size_t k = 0;
+#if defined(__SSE2__)
+  const __m128 zero = _mm_setzero_ps();
+  const __m128i zero_i = _mm_setzero_si128();
+  for (; k + 4 <= n; k += 4) {
+    const int has_length = _mm_movemask_ps(_mm_cmpgt_ps(_mm_loadu_ps(length + k), zero));
+    const __m128i e = _mm_loadu_si128(reinterpret_cast<const __m128i*>(end + k));
+    const int no_end = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(e, zero_i)));
+    for (auto filled = static_cast<unsigned>(has_length | (~no_end & 0xF)); filled != 0; filled &= filled - 1) {
+      emit(k + static_cast<size_t>(std::countr_zero(filled)));
+    }
+  }
+#endif
+  for (; k < n; ++k) {
+    if (length[k] > 0.0f || end[k] != 0) emit(k);
+  }
 }
 
 /// A working cell packed 21 bits per axis, x lowest: sorting the codes is raster order.
@@ -847,17 +873,15 @@ void RayAccumulator::Impl::accumulateCube(const WorkingFrame& w, VoxelDeltas& ou
   uint32_t* end = cube.end.data();
   const int64_t sy = w.side, sz = w.side * w.side;
   const int64_t* oc = w.oc;
-  size_t idx = 0;
+  const auto nx = static_cast<size_t>(hi[0] - lo[0] + 1);
+  const float* l_row = length;
   for (int64_t z = lo[2]; z <= hi[2]; ++z) {
-    for (int64_t y = lo[1]; y <= hi[1]; ++y) {
-      const size_t row = static_cast<size_t>(sy * y + sz * z);
-      for (int64_t x = lo[0]; x <= hi[0]; ++x, ++idx) {
-        uint32_t& e = end[row + static_cast<size_t>(x)];
-        if (length[idx] > 0.0f || e != 0) {
-          emitCell(oc[0] + x, oc[1] + y, oc[2] + z, length[idx], e, out);
-          e = 0;
-        }
-      }
+    for (int64_t y = lo[1]; y <= hi[1]; ++y, l_row += nx) {
+      uint32_t* e_row = end + static_cast<size_t>(sy * y + sz * z + lo[0]);
+      forEachFilledCell(l_row, e_row, nx, [&](size_t k) {
+        emitCell(oc[0] + lo[0] + static_cast<int64_t>(k), oc[1] + y, oc[2] + z, l_row[k], e_row[k], out);
+        e_row[k] = 0;
+      });
     }
   }
   finishFrame(w, settings.carve_beyond_range && out_of_range > 0, out);
