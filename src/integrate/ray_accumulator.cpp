@@ -748,7 +748,7 @@ size_t RayAccumulator::scratchBytes() const {
   const Impl& m = *impl_;
   return capacityBytes(m.points) + capacityBytes(m.cell_index) + capacityBytes(m.ends) + capacityBytes(m.beyond_ends) +
          capacityBytes(m.dense.length) + capacityBytes(m.dense.end) + capacityBytes(m.hash.slots) +
-         capacityBytes(m.cube.end) + capacityBytes(m.coarse_length) + capacityBytes(m.fine_rays) +
+         m.cube.block.bytes() + capacityBytes(m.coarse_length) + capacityBytes(m.fine_rays) +
          capacityBytes(m.edge_frame.cloud.points) + capacityBytes(m.edge_frame.cloud.colours) +
          capacityBytes(m.edge_frame.cloud.labels);
 }
@@ -870,7 +870,7 @@ void RayAccumulator::Impl::accumulateCube(const WorkingFrame& w, VoxelDeltas& ou
   // cube cells read so the cube is clean for the next frame.
   out.keys.reserve(ends.size() * 8);
   out.deltas.reserve(ends.size() * 8);
-  uint32_t* end = cube.end.data();
+  uint32_t* end = cube.end;
   const int64_t sy = w.side, sz = w.side * w.side;
   const int64_t* oc = w.oc;
   const auto nx = static_cast<size_t>(hi[0] - lo[0] + 1);
@@ -884,6 +884,7 @@ void RayAccumulator::Impl::accumulateCube(const WorkingFrame& w, VoxelDeltas& ou
       });
     }
   }
+  cube.clean = true;
   finishFrame(w, settings.carve_beyond_range && out_of_range > 0, out);
 }
 
@@ -892,8 +893,9 @@ uint64_t RayAccumulator::Impl::bundleCube(const WorkingFrame& w, int32_t lo[3], 
   const PointCloud& c_cloud = *cloud;
   const size_t n = c_cloud.points.size();
   cube.ensure(w.side, cube_room);
+  cube.clean = false;  // until the emission has cleared what this frame writes
   const int64_t sy = w.side, sz = w.side * w.side;
-  uint32_t* end = cube.end.data();
+  uint32_t* end = cube.end;
   static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "points are read as a flat float array");
   // Chunks small enough that the cell indices stay in cache between the two loops.
   constexpr size_t kChunk = 8192;

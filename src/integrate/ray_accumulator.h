@@ -14,6 +14,7 @@
 #endif
 
 #include "chronomap/integrate/integrator.h"
+#include "zero_pages.h"
 
 namespace chronomap::integrate_detail {
 
@@ -74,20 +75,41 @@ struct alignas(64) EndEntry {
 /// far smaller and stays in cache.)
 struct CubeStore {
   int64_t side = 0;
-  std::vector<uint32_t> end;
+  uint32_t* end = nullptr;  // in `block`
+  size_t cells = 0;         // room in `block`
+  ZeroPages block;
+  bool clean = true;  // every cell is zero (false while a frame uses the cube)
 
-  /// Makes room for a cube of side `s`. The cells are all zero between frames (each frame
-  /// zeroes what it wrote), so a buffer large enough is reused whatever side it last had: the
-  /// side follows each frame's farthest point and changes from frame to frame. A new buffer has
-  /// room for a cube of side `room` (the largest the range allows) when that is larger, so that
-  /// it grows once: growing with the frames' sides zeroed the buffer again at every new largest
-  /// side (on the synthetic benchmark frames at 0.05 m, fast mode, 10 % of the time).
+  CubeStore() = default;
+  CubeStore(const CubeStore&) = delete;
+  CubeStore& operator=(const CubeStore&) = delete;
+  /// A clean block goes back to the pool for the next integration.
+  ~CubeStore() {
+    if (clean) ZeroPool::giveBack(std::move(block));
+  }
+
+  /// Makes room for a cube of side `s`, every cell zero. The cells are all zero between frames
+  /// (each frame zeroes what it wrote), so a block large enough is reused whatever side it last
+  /// had: the side follows each frame's farthest point and changes from frame to frame. A new
+  /// block has room for a cube of side `room` (the largest the range allows) when that is
+  /// larger, so that it is taken once (growing with the frames' sides zeroed it again at every
+  /// new largest side: 10 % of the time on the synthetic benchmark frames at 0.05 m); it comes
+  /// from the pool, zero already, when an earlier integration left one.
   void ensure(int64_t s, int64_t room) {
     side = s;
     const auto need = static_cast<size_t>(s * s * s);
-    if (end.size() >= need) return;
+    if (cells >= need) {
+      if (!clean) std::fill(end, end + cells, 0u);  // a frame stopped half way (an exception)
+      clean = true;
+      return;
+    }
     const auto r = static_cast<size_t>(std::max<int64_t>(room, 0));
-    end.assign(std::max(need, r * r * r), 0u);
+    const size_t want = std::max(need, r * r * r);
+    if (clean) ZeroPool::giveBack(std::move(block));
+    block = ZeroPool::take(want * sizeof(uint32_t));
+    end = static_cast<uint32_t*>(block.data());
+    cells = block.bytes() / sizeof(uint32_t);
+    clean = true;
   }
 };
 

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -13,6 +14,8 @@
 #include "chronomap/store/cmap.h"
 #include "chronomap/sim/box_room.h"
 #include "test_support.h"
+#include "integrate/ray_accumulator.h"
+#include "integrate/zero_pages.h"
 
 namespace chronomap {
 namespace {
@@ -282,6 +285,80 @@ TEST(Integrator, AnyRangeBeyondTheSceneGivesTheSameMapForAnyPoints) {
       EXPECT_EQ(leafSummary(map), leafSummary(reference)) << "fast=" << fast << " range=" << range;
     }
   }
+}
+
+// Fast mode's range cube goes back to a pool, zero, when an integration ends, and the next one
+// takes it (integrate/zero_pages.h): maps made with a kept cube, after other frames used it and
+// after a frame was refused half way, are the maps made with a new one, on one and two threads.
+TEST(Integrator, FastModeMakesTheSameMapsWithAKeptCube) {
+  auto randomFrames = [](uint32_t seed, double x0) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    std::vector<Frame> frames;
+    for (int f = 0; f < 3; ++f) {
+      PointCloud cloud;
+      for (int i = 0; i < 3000; ++i) {
+        const Eigen::Vector3f d(u(rng), u(rng), 1.0f + 0.5f * u(rng));
+        cloud.points.push_back(d.normalized() * (0.5f + 1.2f * (u(rng) + 1.0f)));
+        cloud.colours.push_back(Rgb{static_cast<uint8_t>(i % 251), 7, static_cast<uint8_t>(f)});
+      }
+      cloud.width = static_cast<uint32_t>(cloud.points.size());
+      Frame frame = frameAt({x0 + 0.2 * f, -0.071, 0.029}, cloud);
+      frame.T_world_sensor.linear() = Eigen::AngleAxisd(0.4 + f, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+      frames.push_back(std::move(frame));
+    }
+    return FrameVector(std::move(frames));
+  };
+  const FrameVector a = randomFrames(3, 0.013), b = randomFrames(4, -0.4);
+  IntegratorSettings s = exactUncompressed();
+  s.fast = true;
+  s.max_range_m = 3.0;
+  auto bytesOf = [&](const FrameVector& frames, int threads) {
+    s.threads = threads;
+    SessionMap map(0.05);
+    integrate(frames, map, s);
+    EXPECT_GT(map.counts().occupied_voxels, 500u);
+    return encodeSessionMap(map, nlohmann::json::object());
+  };
+  integrate_detail::ZeroPool::clear();
+  const std::vector<uint8_t> first = bytesOf(a, 1);
+  EXPECT_EQ(integrate_detail::ZeroPool::keptBlocks(), 1u);  // the cube, given back
+  const std::vector<uint8_t> other = bytesOf(b, 1);
+  EXPECT_NE(other, first);
+  EXPECT_EQ(bytesOf(a, 1), first);
+  EXPECT_EQ(bytesOf(a, 2), first);
+  EXPECT_EQ(bytesOf(b, 2), other);
+  // A frame refused after a good one: the next integration is still exact.
+  std::vector<Frame> broken{a.load(0), a.load(1)};
+  broken[1].T_world_sensor.translation() = Eigen::Vector3d(1e9, 0, 0);
+  EXPECT_THROW(bytesOf(FrameVector(std::move(broken)), 1), DataError);
+  EXPECT_EQ(bytesOf(a, 1), first);
+  integrate_detail::ZeroPool::clear();
+}
+
+// A cube left with written cells (a frame that stopped between bundling and emission, which
+// only running out of memory can do) is cleared before its next frame and never kept.
+TEST(Integrator, ACubeLeftDirtyIsClearedAndNotKept) {
+  integrate_detail::ZeroPool::clear();
+  {
+    integrate_detail::CubeStore cube;
+    cube.ensure(5, 0);
+    ASSERT_GE(cube.cells, 125u);
+    cube.clean = false;
+    for (size_t i = 0; i < cube.cells; i += 7) cube.end[i] = 3;
+    cube.ensure(4, 0);  // room enough: the same block, cleared
+    EXPECT_TRUE(cube.clean);
+    EXPECT_EQ(std::count(cube.end, cube.end + cube.cells, 0u), static_cast<std::ptrdiff_t>(cube.cells));
+    cube.clean = false;
+    cube.end[1] = 9;
+  }
+  EXPECT_EQ(integrate_detail::ZeroPool::keptBlocks(), 0u);  // dirty: freed, not kept
+  {
+    integrate_detail::CubeStore cube;
+    cube.ensure(5, 0);
+  }
+  EXPECT_EQ(integrate_detail::ZeroPool::keptBlocks(), 1u);  // clean: kept
+  integrate_detail::ZeroPool::clear();
 }
 
 TEST(Integrator, ResolutionsOutsideTheLimitsAreRefused) {
