@@ -78,7 +78,9 @@ inline float rangeStop(double range_m) {
   while (stop > 0.0f && std::sqrt(static_cast<double>(std::nextafter(stop, 0.0f))) >= range_m) {
     stop = std::nextafter(stop, 0.0f);
   }
-  while (std::sqrt(static_cast<double>(stop)) < range_m) stop = std::nextafter(stop, std::numeric_limits<float>::infinity());
+  while (std::sqrt(static_cast<double>(stop)) < range_m) {
+    stop = std::nextafter(stop, std::numeric_limits<float>::infinity());
+  }
   return stop;
 }
 

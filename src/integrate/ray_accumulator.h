@@ -93,7 +93,7 @@ struct CubeStore {
   /// had: the side follows each frame's farthest point and changes from frame to frame. A new
   /// block has room for a cube of side `room` (the largest the range allows) when that is
   /// larger, so that it is taken once (growing with the frames' sides zeroed it again at every
-  /// new largest side: 10 % of the time on the synthetic benchmark frames at 0.05 m); it comes
+  /// new largest side: about 6 % of the time on the synthetic benchmark frames at 0.05 m); it comes
   /// from the pool, zero already, when an earlier integration left one.
   void ensure(int64_t s, int64_t room) {
     side = s;

@@ -25,7 +25,9 @@ ZeroPages::ZeroPages(size_t bytes) {
   const auto at = reinterpret_cast<uintptr_t>(p);
   const uintptr_t aligned = (at + kHugePage - 1) / kHugePage * kHugePage;
   if (aligned > at) munmap(p, aligned - at);
-  if (const size_t tail = kHugePage - (aligned - at); tail > 0) munmap(reinterpret_cast<void*>(aligned + rounded), tail);
+  if (const size_t tail = kHugePage - (aligned - at); tail > 0) {
+    munmap(reinterpret_cast<void*>(aligned + rounded), tail);
+  }
   // A hint: where the system has no huge pages to give, the block keeps small ones.
   (void)madvise(reinterpret_cast<void*>(aligned), rounded, MADV_HUGEPAGE);
   data_ = reinterpret_cast<void*>(aligned);

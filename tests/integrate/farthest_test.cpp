@@ -71,7 +71,8 @@ TEST(Farthest, SameFloatAsTheScalarLoopOnRandomClouds) {
       }
     }
     const float want = farthestByEigen(points), got = farthestFast(points);
-    ASSERT_EQ(std::bit_cast<uint32_t>(got), std::bit_cast<uint32_t>(want)) << "trial " << trial << ", " << n << " points";
+    ASSERT_EQ(std::bit_cast<uint32_t>(got), std::bit_cast<uint32_t>(want))
+        << "trial " << trial << ", " << n << " points";
   }
 }
 

@@ -304,7 +304,8 @@ TEST(Integrator, FastModeMakesTheSameMapsWithAKeptCube) {
       }
       cloud.width = static_cast<uint32_t>(cloud.points.size());
       Frame frame = frameAt({x0 + 0.2 * f, -0.071, 0.029}, cloud);
-      frame.T_world_sensor.linear() = Eigen::AngleAxisd(0.4 + f, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+      frame.T_world_sensor.linear() =
+          Eigen::AngleAxisd(0.4 + f, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
       frames.push_back(std::move(frame));
     }
     return FrameVector(std::move(frames));
