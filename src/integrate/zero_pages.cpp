@@ -6,7 +6,17 @@
 #include <new>
 #include <utility>
 #include <vector>
-#if defined(__linux__)
+// AddressSanitizer sees overflows of heap blocks only: its builds take calloc's.
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define CHRONOMAP_ZERO_PAGES_FROM_HEAP 1
+#endif
+#endif
+#if defined(__SANITIZE_ADDRESS__)
+#define CHRONOMAP_ZERO_PAGES_FROM_HEAP 1
+#endif
+#if defined(__linux__) && !defined(CHRONOMAP_ZERO_PAGES_FROM_HEAP)
+#define CHRONOMAP_ZERO_PAGES_MMAP 1
 #include <sys/mman.h>
 #endif
 
@@ -14,7 +24,7 @@ namespace chronomap::integrate_detail {
 
 ZeroPages::ZeroPages(size_t bytes) {
   if (bytes == 0) return;
-#if defined(__linux__)
+#if defined(CHRONOMAP_ZERO_PAGES_MMAP)
   // Whole huge pages at a huge page's boundary (what transparent huge pages need): one huge
   // page more is mapped, and what lies outside the aligned block is given back.
   constexpr size_t kHugePage = size_t{2} << 20;
@@ -55,7 +65,7 @@ ZeroPages& ZeroPages::operator=(ZeroPages&& other) noexcept {
 
 void ZeroPages::release() noexcept {
   if (!data_) return;
-#if defined(__linux__)
+#if defined(CHRONOMAP_ZERO_PAGES_MMAP)
   munmap(data_, bytes_);
 #else
   std::free(data_);

@@ -11,7 +11,8 @@ namespace chronomap::integrate_detail {
 /// A block of memory whose bytes are all zero when taken. On Linux it comes straight from the
 /// system (mmap): the kernel gives each page its zeros when the page is first written, so a
 /// large block costs only the pages that are used, and the block asks for transparent huge pages
-/// (MADV_HUGEPAGE: one fault for 2 MiB instead of 512). Elsewhere, calloc. Move-only.
+/// (MADV_HUGEPAGE: one fault for 2 MiB instead of 512). Elsewhere, and in AddressSanitizer
+/// builds (which check heap blocks only), calloc. Move-only.
 class ZeroPages {
  public:
   ZeroPages() = default;
