@@ -213,6 +213,18 @@ inline void forEachFilledCell(const float* length, const uint32_t* end, size_t n
   }
 }
 
+/// The working frame's bias (setUp()) for a reach of `reach_m`: the reach in voxels, up to the
+/// map's diagonal, rounded up, plus two. The range cube's side is 2 * bias + 1.
+inline int64_t biasForReach(double reach_m, double inv_res) {
+  return static_cast<int64_t>(std::ceil(std::min(reach_m * inv_res, kMapDiagonalVoxels))) + 2;
+}
+
+/// True when fast mode's one pass can take a range cube of side `side` (at most `max_cells`).
+inline bool cubeFits(int64_t side, size_t max_cells) {
+  const auto s = static_cast<double>(side);
+  return s * s * s <= static_cast<double>(max_cells);
+}
+
 /// A working cell packed 21 bits per axis, x lowest: sorting the codes is raster order.
 inline uint64_t packCell(int64_t x, int64_t y, int64_t z) {
   return static_cast<uint64_t>(x) | (static_cast<uint64_t>(y) << 21) | (static_cast<uint64_t>(z) << 42);
@@ -240,12 +252,10 @@ struct RayAccumulator::Impl {
     settings.carve_level = carveLevelFor(s, g.resolution_m());
     hash.max_bytes = s.memory_limit_bytes;
     hash.resolution_m = g.resolution_m();
-    // The side of the range cube of a frame that reaches the whole range (setUp()'s bias), when
-    // fast mode's one pass can take such a cube: the cube's buffer is made that large at once.
-    const double reach_voxels = std::min(s.max_range_m * (1.0 / g.resolution_m()), kMapDiagonalVoxels);
-    const int64_t side = 2 * (static_cast<int64_t>(std::ceil(reach_voxels)) + 2) + 1;
-    const double cells = static_cast<double>(side) * static_cast<double>(side) * static_cast<double>(side);
-    cube_room = cells <= static_cast<double>(s.cube_max_cells) ? side : 0;
+    // The side of the range cube of a frame that reaches the whole range, when fast mode's one
+    // pass can take such a cube: the cube's buffer is made that large at once.
+    const int64_t side = 2 * biasForReach(s.max_range_m, 1.0 / g.resolution_m()) + 1;
+    cube_room = cubeFits(side, s.cube_max_cells) ? side : 0;
   }
   KeyGrid grid;
   IntegratorSettings settings;
@@ -264,6 +274,9 @@ struct RayAccumulator::Impl {
   HashStore hash;
   CubeStore cube;
   int64_t cube_room = 0;  // CubeStore::ensure()'s room
+  // A point whose squared norm (a float) is at least this lies at the range or beyond, which is
+  // then the frame's reach: setUp() need not read the rest of the points.
+  const float range_stop = integrate_detail::rangeStop(settings.max_range_m);
   // Coarse carving (settings.carve_level > 0): key of working cell 0, the frame's deltas (the
   // cubes go straight there), the coarse cells' lengths in voxel units.
   int64_t key_origin[3] = {0, 0, 0};
@@ -785,9 +798,7 @@ void RayAccumulator::Impl::accumulateFrame(const Frame& frame, VoxelDeltas& out)
   const WorkingFrame w = s.setUp(frame);
   // Fast mode bundles in one pass over the cube. (Exact mode stays with two passes: its rays
   // touch every cell of the bounding box, and the smaller box grid measured faster.)
-  if (s.settings.fast && w.cube_inside &&
-      static_cast<double>(w.side) * static_cast<double>(w.side) * static_cast<double>(w.side) <=
-          static_cast<double>(s.settings.cube_max_cells)) {
+  if (s.settings.fast && w.cube_inside && cubeFits(w.side, s.settings.cube_max_cells)) {
     s.accumulateCube(w, out);
     return;
   }
@@ -813,15 +824,11 @@ WorkingFrame RayAccumulator::Impl::setUp(const Frame& frame) {
   // map's diagonal reaches no further voxel than the diagonal itself, so the bias stops there
   // and stays in integer range.
   const double inv_res = 1.0 / grid.resolution_m();
-  // A point whose squared norm (a float) is at least `stop` lies at the range or beyond, which
-  // is then the reach: the rest of the points need not be read.
-  const float stop = integrate_detail::rangeStop(settings.max_range_m);
   static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "points are read as a flat float array");
   const float farthest_sq = integrate_detail::farthestSquaredNorm(
-      frame.cloud.points.empty() ? nullptr : frame.cloud.points[0].data(), frame.cloud.points.size(), stop);
+      frame.cloud.points.empty() ? nullptr : frame.cloud.points[0].data(), frame.cloud.points.size(), range_stop);
   const double reach_m = std::min(settings.max_range_m, std::sqrt(static_cast<double>(farthest_sq)));
-  const double reach_voxels = std::min(reach_m * inv_res, kMapDiagonalVoxels);
-  w.bias = static_cast<int64_t>(std::ceil(reach_voxels)) + 2;
+  w.bias = biasForReach(reach_m, inv_res);
   const Eigen::Vector3d origin_u = grid.toKeySpace(origin_m);
   for (int a = 0; a < 3; ++a) {
     const int64_t cell = floorInt(origin_u[a]);
