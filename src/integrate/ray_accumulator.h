@@ -57,6 +57,23 @@ struct alignas(64) EndEntry {
   alignas(16) float sensor_sum[4] = {0.0f, 0.0f, 0.0f, 0.0f};
   int64_t cell[3] = {0, 0, 0};  // working-frame voxel
 
+  /// One more hit of colour (r, g, b): the four counters (which lie in this order) in one vector
+  /// add, where the CPU has one. The bundling loop's consecutive points often go to the same
+  /// entry, so each add waits for the last one's store: one store for the four measured faster
+  /// than four.
+  void addHit(uint8_t r, uint8_t g, uint8_t b) {
+#if defined(__SSE2__)
+    static_assert(offsetof(EndEntry, red) == 4 && offsetof(EndEntry, blue) == 12, "hits, red, green, blue in order");
+    const __m128i add = _mm_set_epi32(b, g, r, 1);
+    __m128i* counters = reinterpret_cast<__m128i*>(&hits);
+    _mm_store_si128(counters, _mm_add_epi32(_mm_load_si128(counters), add));
+#else
+    ++hits;
+    red += r;
+    green += g;
+    blue += b;
+#endif
+  }
   void addPoint(const Eigen::Vector3f& p) {
 #if defined(__SSE2__)
     // One vector add (the lanes round exactly as three scalar adds would).

@@ -287,6 +287,62 @@ TEST(Integrator, AnyRangeBeyondTheSceneGivesTheSameMapForAnyPoints) {
   }
 }
 
+// Every voxel's hits and colour sums are those of the points that end in it, counted here one
+// by one (points near voxel centres, so that no rounding decides their voxel), in both modes and
+// on every scratch path: the range cube, the box (a cube too large for its limit) and the list.
+TEST(Integrator, EveryPathSumsEachVoxelsHitsAndColours) {
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int> cell(-30, 30), byte(0, 255);
+  std::uniform_real_distribution<double> jitter(-0.3, 0.3);
+  const double res = 0.05;
+  const Eigen::Vector3d origin(0.5 * res, 0.5 * res, 0.5 * res);
+  PointCloud cloud;
+  struct Sums {
+    uint32_t hits = 0, red = 0, green = 0, blue = 0;
+  };
+  std::map<std::tuple<int, int, int>, Sums> expected;
+  for (int i = 0; i < 4000; ++i) {
+    // Few cells for many points: most voxels get several, in runs and alternating.
+    const int v[3] = {cell(rng) / 6, cell(rng) / 6, 8 + cell(rng) / 10};
+    Eigen::Vector3d p;
+    for (int a = 0; a < 3; ++a) p[a] = (v[a] + 0.5 + jitter(rng)) * res;
+    const Rgb c{static_cast<uint8_t>(byte(rng)), static_cast<uint8_t>(byte(rng)), static_cast<uint8_t>(byte(rng))};
+    cloud.points.push_back((p - origin).cast<float>());
+    cloud.colours.push_back(c);
+    Sums& e = expected[{v[0], v[1], v[2]}];
+    ++e.hits;
+    e.red += c.r;
+    e.green += c.g;
+    e.blue += c.b;
+  }
+  cloud.width = static_cast<uint32_t>(cloud.points.size());
+  const FrameVector frames({frameAt(origin, cloud)});
+  for (const bool fast : {false, true}) {
+    for (const int path : {0, 1, 2}) {  // fast mode's range cube, its box, the point list
+      for (const double range : {3.0, 1e6}) {
+        IntegratorSettings s = exactUncompressed();
+        s.fast = fast;
+        s.max_range_m = range;
+        if (path >= 1) s.cube_max_cells = 8;
+        if (path == 2) s.dense_grid_max_cells = 8;
+        SessionMap map(res);
+        integrate(frames, map, s);
+        for (const auto& [v, e] : expected) {
+          const auto key = map.grid().keyOf(Eigen::Vector3d((std::get<0>(v) + 0.5) * res, (std::get<1>(v) + 0.5) * res,
+                                                            (std::get<2>(v) + 0.5) * res));
+          ASSERT_TRUE(key);
+          const std::optional<VoxelCounters> c = map.find(*key);
+          ASSERT_TRUE(c);
+          EXPECT_EQ(c->hits, e.hits) << "fast=" << fast << " path=" << path << " range=" << range;
+          EXPECT_EQ(c->red, e.red);
+          EXPECT_EQ(c->green, e.green);
+          EXPECT_EQ(c->blue, e.blue);
+        }
+      }
+    }
+  }
+}
+
 // Fast mode's range cube goes back to a pool, zero, when an integration ends, and the next one
 // takes it (integrate/zero_pages.h): maps made with a kept cube, after other frames used it and
 // after a frame was refused half way, are the maps made with a new one, on one and two threads.
