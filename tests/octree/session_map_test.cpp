@@ -176,6 +176,87 @@ TEST(SessionMap, CompressionNeverMergesHitsOrUnknown) {
   EXPECT_EQ(m.leafCount(), 15u);
 }
 
+// compressFree() against a slow reference on random maps: level by level from the bottom, eight
+// sibling leaves of one level, all known free without hits, become their parent's leaf with the
+// sum of their lengths in slot order; the root's children stay. Maps are compressed two or three
+// times with adds in between, so that compressed leaves are refined and compressed again.
+TEST(SessionMap, CompressionMatchesASlowReferenceOnRandomMaps) {
+  using Leaves = std::map<std::tuple<int, uint16_t, uint16_t, uint16_t>, VoxelCounters>;  // level, corner
+  const auto leavesOf = [](const SessionMap& m) {
+    Leaves out;
+    m.forEachLeaf([&](const LeafView& l) { out[{l.level, l.key.x, l.key.y, l.key.z}] = l.counters; });
+    return out;
+  };
+  const auto reference = [](Leaves leaves) {
+    for (int level = 1; level < kTreeDepth; ++level) {
+      std::map<std::tuple<uint16_t, uint16_t, uint16_t>, std::map<int, VoxelCounters>> children;
+      for (const auto& [k, c] : leaves) {
+        if (std::get<0>(k) != level - 1) continue;
+        const VoxelKey key{std::get<1>(k), std::get<2>(k), std::get<3>(k)};
+        const VoxelKey parent = cellCorner(key, level);
+        children[{parent.x, parent.y, parent.z}][childSlot(key, level - 1)] = c;
+      }
+      for (const auto& [p, slots] : children) {
+        if (slots.size() != 8) continue;
+        bool all_free = true;
+        for (const auto& [slot, c] : slots) all_free = all_free && c.isKnownFreeWithoutHits();
+        if (!all_free) continue;
+        VoxelCounters sum;
+        for (const auto& [slot, c] : slots) sum.length_m += c.length_m;  // slots in order
+        for (const auto& [slot, c] : slots) {
+          const VoxelKey child{static_cast<uint16_t>(std::get<0>(p) + ((slot & 1) << (level - 1))),
+                               static_cast<uint16_t>(std::get<1>(p) + (((slot >> 1) & 1) << (level - 1))),
+                               static_cast<uint16_t>(std::get<2>(p) + (((slot >> 2) & 1) << (level - 1)))};
+          leaves.erase({level - 1, child.x, child.y, child.z});
+        }
+        leaves[{level, std::get<0>(p), std::get<1>(p), std::get<2>(p)}] = sum;
+      }
+    }
+    return leaves;
+  };
+  int merged_groups = 0;
+  for (uint32_t seed = 1; seed <= 40; ++seed) {
+    std::mt19937 rng(seed);
+    std::uniform_int_distribution<int> coord(0, 15), size_bits(0, 3), kind(0, 19);
+    std::uniform_real_distribution<float> length(0.001f, 0.2f);
+    SessionMap m(0.1);
+    const int rounds = 2 + static_cast<int>(seed % 2);
+    for (int round = 0; round < rounds; ++round) {
+      for (int block = 0; block < 12; ++block) {
+        // A random aligned block filled with free voxels (sometimes one short), with a hit or
+        // a zero length now and then.
+        const int side = 1 << size_bits(rng);
+        const int x0 = coord(rng) / side * side, y0 = coord(rng) / side * side, z0 = coord(rng) / side * side;
+        const bool one_short = kind(rng) == 0;
+        for (int x = x0; x < x0 + side; ++x) {
+          for (int y = y0; y < y0 + side; ++y) {
+            for (int z = z0; z < z0 + side; ++z) {
+              if (one_short && x == x0 && y == y0 && z == z0) continue;
+              const VoxelKey key{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)};
+              const int k = kind(rng);
+              m.add(key, k == 1 ? hit(length(rng), 1, 9) : k == 2 ? freeVoxel(0.0f) : freeVoxel(length(rng)));
+            }
+          }
+        }
+      }
+      const Leaves before = leavesOf(m);
+      const Leaves want = reference(before);
+      merged_groups += static_cast<int>(before.size() - want.size());
+      m.compressFree();
+      const Leaves got = leavesOf(m);
+      ASSERT_EQ(got.size(), want.size()) << "seed " << seed << " round " << round;
+      EXPECT_EQ(m.leafCount(), want.size());  // nothing left behind
+      for (const auto& [k, c] : want) {
+        const auto it = got.find(k);
+        ASSERT_NE(it, got.end()) << "seed " << seed << " level " << std::get<0>(k);
+        EXPECT_TRUE(it->second == c) << "seed " << seed;
+        EXPECT_EQ(std::bit_cast<uint32_t>(it->second.length_m), std::bit_cast<uint32_t>(c.length_m));
+      }
+    }
+  }
+  EXPECT_GT(merged_groups, 500);  // the random maps do compress
+}
+
 TEST(SessionMap, RefiningACompressedNodeSplitsItEvenly) {
   SessionMap m(0.1);
   for (uint16_t x = 0; x < 2; ++x) {

@@ -173,10 +173,12 @@ class SessionMap {
   void mergeInto(uint32_t parent, int slot, int level, const SessionMap& other, Ref src);
   /// Spreads `sums` of a known-free cube at `level` over slot `slot` of `parent`.
   void spreadInto(uint32_t parent, int slot, int level, const VoxelCounters& sums);
-  /// compressFree's post-order pass: true when `r` is (now) a known-free leaf without hits. Adds
-  /// the inner nodes and leaves that stay reachable below `r` to the counts.
-  /// `free_count` counts the leaves among them that belong in the free pool.
-  bool compressBelow(Ref& r, size_t& inner_count, size_t& leaf_count, size_t& free_count);
+  /// compressFree's pass: copyInto() (dropping inner nodes without children) that also replaces
+  /// an inner node other than the root, whose eight children are (after their own replacement)
+  /// leaves known free without hits, by one free leaf: the sum of their lengths in slot order.
+  /// `known_free` tells whether the copy of `r` is such a leaf.
+  Ref compressInto(Ref r, std::vector<Children>& inner, std::vector<VoxelCounters>& leaves, std::vector<float>& free,
+                   bool& known_free) const;
   /// Copies the subtree `r` depth first into fresh pools; returns its new reference.
   /// Leaves go to `leaves` or, free-only, to `free`; `keep_empty` keeps inner nodes without
   /// children (pools()) instead of dropping them (compressFree()).
