@@ -695,14 +695,15 @@ struct RayAccumulator::Impl {
     const DenseStore& d = dense;
     out.keys.reserve(ends.size() * 8);
     out.deltas.reserve(ends.size() * 8);
-    size_t idx = 0;
+    const auto nx = static_cast<size_t>(d.n[0]);
+    const float* l_row = d.length.data();
+    const uint32_t* e_row = d.end.data();
     for (int64_t z = 0; z < d.n[2]; ++z) {
-      for (int64_t y = 0; y < d.n[1]; ++y) {
-        for (int64_t x = 0; x < d.n[0]; ++x, ++idx) {
-          if (d.length[idx] > 0.0f || d.end[idx] != 0) {
-            emitCell(oc[0] + d.lo[0] + x, oc[1] + d.lo[1] + y, oc[2] + d.lo[2] + z, d.length[idx], d.end[idx], out);
-          }
-        }
+      for (int64_t y = 0; y < d.n[1]; ++y, l_row += nx, e_row += nx) {
+        forEachFilledCell(l_row, e_row, nx, [&](size_t k) {
+          emitCell(oc[0] + d.lo[0] + static_cast<int64_t>(k), oc[1] + d.lo[1] + y, oc[2] + d.lo[2] + z, l_row[k],
+                   e_row[k], out);
+        });
       }
     }
   }
