@@ -267,7 +267,7 @@ VoxelState SessionMap::stateOf(const VoxelKey& key) const {
 }
 
 SessionMap::Ref SessionMap::copyInto(Ref r, std::vector<Children>& inner, std::vector<VoxelCounters>& leaves,
-                                     std::vector<float>* free, bool keep_empty) const {
+                                     std::vector<float>* free) const {
   if (r == kEmpty) return kEmpty;
   if (isLeaf(r)) {
     const VoxelCounters c = leaf(r);
@@ -280,15 +280,9 @@ SessionMap::Ref SessionMap::copyInto(Ref r, std::vector<Children>& inner, std::v
   }
   const Ref out = static_cast<Ref>(inner.size());
   inner.push_back(emptyChildren());
-  bool any = false;
   for (int i = 0; i < 8; ++i) {
-    const Ref c = copyInto(inner_[r][i], inner, leaves, free, keep_empty);
+    const Ref c = copyInto(inner_[r][i], inner, leaves, free);
     inner[out][i] = c;
-    any = any || c != kEmpty;
-  }
-  if (!any && r != 0 && !keep_empty) {  // an inner node left without children (assign() emptied it)
-    inner.pop_back();
-    return kEmpty;
   }
   return out;
 }
@@ -350,7 +344,10 @@ size_t SessionMap::compressFree() {
   // goes (it measured faster than a counting pass that replaced them in place followed by the
   // copy). The pools are reserved at the old ones' sizes, which bound the new ones (pages are
   // only touched as they are written), then cut to what they hold: growing them instead copied
-  // them several times over.
+  // them several times over. The cut copies the compacted pools once more; peak RSS of a whole
+  // integration did not rise with it (the 3DMatch frames, fast, 6 m: 135.2 / 135.1 MB at 0.02 m,
+  // 224.5 / 227.0 MB at 0.01 m, 570.7 / 558.6 MB at 0.005 m, counting pass / this). Capacity
+  // left uncut would count against the memory limit (reservedBytes()).
   std::vector<Children> inner;
   std::vector<VoxelCounters> leaves;
   std::vector<float> free;
@@ -373,7 +370,7 @@ SessionMap::Pools SessionMap::pools() const {
   Pools p;
   p.inner.reserve(inner_.size());
   p.leaves.reserve(leafCount());
-  copyInto(0, p.inner, p.leaves, nullptr, /*keep_empty=*/true);
+  copyInto(0, p.inner, p.leaves, nullptr);
   return p;
 }
 
@@ -388,7 +385,7 @@ void SessionMap::separateFree() {
   inner.reserve(inner_.size());
   leaves.reserve(leaves_.size() - free_count);
   free.reserve(free_count);
-  copyInto(0, inner, leaves, &free, /*keep_empty=*/true);
+  copyInto(0, inner, leaves, &free);
   inner_ = std::move(inner);
   leaves_ = std::move(leaves);
   free_ = std::move(free);

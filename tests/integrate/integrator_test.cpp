@@ -287,9 +287,11 @@ TEST(Integrator, AnyRangeBeyondTheSceneGivesTheSameMapForAnyPoints) {
   }
 }
 
-// Every voxel's hits and colour sums are those of the points that end in it, counted here one
-// by one (points near voxel centres, so that no rounding decides their voxel), in both modes and
-// on every scratch path: the range cube, the box (a cube too large for its limit) and the list.
+// Every voxel's hits, colour sums and offset sums are those of the points that end in it,
+// counted here one by one (points near voxel centres, so that no rounding decides their voxel),
+// in both modes and on every scratch path: the range cube, the box (a cube too large for its
+// limit) and the list. More points than one bundling chunk (8,192), so later chunks are read
+// from their offset in the cloud.
 TEST(Integrator, EveryPathSumsEachVoxelsHitsAndColours) {
   std::mt19937 rng(11);
   std::uniform_int_distribution<int> cell(-30, 30), byte(0, 255);
@@ -299,9 +301,10 @@ TEST(Integrator, EveryPathSumsEachVoxelsHitsAndColours) {
   PointCloud cloud;
   struct Sums {
     uint32_t hits = 0, red = 0, green = 0, blue = 0;
+    double offset[3] = {0.0, 0.0, 0.0};  // voxels
   };
   std::map<std::tuple<int, int, int>, Sums> expected;
-  for (int i = 0; i < 4000; ++i) {
+  for (int i = 0; i < 10000; ++i) {
     // Few cells for many points: most voxels get several, in runs and alternating.
     const int v[3] = {cell(rng) / 6, cell(rng) / 6, 8 + cell(rng) / 10};
     Eigen::Vector3d p;
@@ -314,6 +317,7 @@ TEST(Integrator, EveryPathSumsEachVoxelsHitsAndColours) {
     e.red += c.r;
     e.green += c.g;
     e.blue += c.b;
+    for (int a = 0; a < 3; ++a) e.offset[a] += p[a] / res - (v[a] + 0.5);
   }
   cloud.width = static_cast<uint32_t>(cloud.points.size());
   const FrameVector frames({frameAt(origin, cloud)});
@@ -337,6 +341,7 @@ TEST(Integrator, EveryPathSumsEachVoxelsHitsAndColours) {
           EXPECT_EQ(c->red, e.red);
           EXPECT_EQ(c->green, e.green);
           EXPECT_EQ(c->blue, e.blue);
+          for (int a = 0; a < 3; ++a) EXPECT_NEAR(c->offset[a], e.offset[a], 1e-4 * e.hits);
         }
       }
     }

@@ -7,6 +7,7 @@
 #include <tuple>
 #include <optional>
 #include <random>
+#include <set>
 
 #include <nlohmann/json.hpp>
 
@@ -234,7 +235,9 @@ TEST(SessionMap, CompressionMatchesASlowReferenceOnRandomMaps) {
               if (one_short && x == x0 && y == y0 && z == z0) continue;
               const VoxelKey key{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)};
               const int k = kind(rng);
-              m.add(key, k == 1 ? hit(length(rng), 1, 9) : k == 2 ? freeVoxel(0.0f) : freeVoxel(length(rng)));
+              VoxelCounters c = k == 1 ? hit(length(rng), 1, 9) : k == 2 ? freeVoxel(0.0f) : freeVoxel(length(rng));
+              if (k == 3) c.offset[1] = -0.0f;  // free without hits, yet not free-only: the full pool
+              m.add(key, c);
             }
           }
         }
@@ -242,10 +245,26 @@ TEST(SessionMap, CompressionMatchesASlowReferenceOnRandomMaps) {
       const Leaves before = leavesOf(m);
       const Leaves want = reference(before);
       merged_groups += static_cast<int>(before.size() - want.size());
-      m.compressFree();
+      const size_t count_before = m.leafCount();  // garbage slots included
+      EXPECT_EQ(m.compressFree(), count_before - want.size());
       const Leaves got = leavesOf(m);
       ASSERT_EQ(got.size(), want.size()) << "seed " << seed << " round " << round;
       EXPECT_EQ(m.leafCount(), want.size());  // nothing left behind
+      // Each leaf in the pool that fits it, and the inner nodes exactly the leaves' ancestors.
+      size_t free_only = 0;
+      std::set<std::tuple<int, uint16_t, uint16_t, uint16_t>> ancestors;
+      for (const auto& [k, c] : want) {
+        free_only += (c.hits | c.red | c.green | c.blue | std::bit_cast<uint32_t>(c.offset[0]) |
+                      std::bit_cast<uint32_t>(c.offset[1]) | std::bit_cast<uint32_t>(c.offset[2])) == 0;
+        const VoxelKey key{std::get<1>(k), std::get<2>(k), std::get<3>(k)};
+        for (int level = std::get<0>(k) + 1; level <= kTreeDepth; ++level) {
+          const VoxelKey corner = cellCorner(key, level);
+          ancestors.insert({level, corner.x, corner.y, corner.z});
+        }
+      }
+      EXPECT_EQ(m.innerCount(), ancestors.size());
+      EXPECT_EQ(m.memoryBytes(), sizeof(SessionMap) + ancestors.size() * sizeof(SessionMap::Children) +
+                                     (want.size() - free_only) * sizeof(VoxelCounters) + free_only * sizeof(float));
       for (const auto& [k, c] : want) {
         const auto it = got.find(k);
         ASSERT_NE(it, got.end()) << "seed " << seed << " level " << std::get<0>(k);

@@ -179,11 +179,10 @@ class SessionMap {
   /// `known_free` tells whether the copy of `r` is such a leaf.
   Ref compressInto(Ref r, std::vector<Children>& inner, std::vector<VoxelCounters>& leaves, std::vector<float>& free,
                    bool& known_free) const;
-  /// Copies the subtree `r` depth first into fresh pools; returns its new reference.
-  /// Leaves go to `leaves` or, free-only, to `free`; `keep_empty` keeps inner nodes without
-  /// children (pools()) instead of dropping them (compressFree()).
-  Ref copyInto(Ref r, std::vector<Children>& inner, std::vector<VoxelCounters>& leaves, std::vector<float>* free,
-               bool keep_empty) const;
+  /// Copies the subtree `r` depth first into fresh pools, inner nodes without children
+  /// included (pools(), separateFree(); compressFree() drops them); returns its new reference.
+  /// Leaves go to `leaves` or, free-only and when `free` is given, to `free`.
+  Ref copyInto(Ref r, std::vector<Children>& inner, std::vector<VoxelCounters>& leaves, std::vector<float>* free) const;
 
   KeyGrid grid_;
   std::vector<Children> inner_;
