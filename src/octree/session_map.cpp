@@ -266,18 +266,20 @@ VoxelState SessionMap::stateOf(const VoxelKey& key) const {
   return c ? c->state() : VoxelState::Unknown;
 }
 
+SessionMap::Ref SessionMap::pushLeaf(const VoxelCounters& c, std::vector<VoxelCounters>& leaves,
+                                     std::vector<float>* free) {
+  if (free && freeOnly(c)) {
+    free->push_back(c.length_m);
+    return static_cast<Ref>(free->size() - 1) | kLeafBit | kFreeBit;
+  }
+  leaves.push_back(c);
+  return static_cast<Ref>(leaves.size() - 1) | kLeafBit;
+}
+
 SessionMap::Ref SessionMap::copyInto(Ref r, std::vector<Children>& inner, std::vector<VoxelCounters>& leaves,
                                      std::vector<float>* free) const {
   if (r == kEmpty) return kEmpty;
-  if (isLeaf(r)) {
-    const VoxelCounters c = leaf(r);
-    if (free && freeOnly(c)) {
-      free->push_back(c.length_m);
-      return static_cast<Ref>(free->size() - 1) | kLeafBit | kFreeBit;
-    }
-    leaves.push_back(c);
-    return static_cast<Ref>(leaves.size() - 1) | kLeafBit;
-  }
+  if (isLeaf(r)) return pushLeaf(leaf(r), leaves, free);
   const Ref out = static_cast<Ref>(inner.size());
   inner.push_back(emptyChildren());
   for (int i = 0; i < 8; ++i) {
@@ -294,12 +296,7 @@ SessionMap::Ref SessionMap::compressInto(Ref r, std::vector<Children>& inner, st
   if (isLeaf(r)) {
     const VoxelCounters c = leaf(r);
     known_free = c.isKnownFreeWithoutHits();
-    if (freeOnly(c)) {
-      free.push_back(c.length_m);
-      return static_cast<Ref>(free.size() - 1) | kLeafBit | kFreeBit;
-    }
-    leaves.push_back(c);
-    return static_cast<Ref>(leaves.size() - 1) | kLeafBit;
+    return pushLeaf(c, leaves, &free);
   }
   const Ref out = static_cast<Ref>(inner.size());
   inner.push_back(emptyChildren());
@@ -328,8 +325,7 @@ SessionMap::Ref SessionMap::compressInto(Ref r, std::vector<Children>& inner, st
       }
     }
     known_free = true;  // eight positive lengths, no hits
-    free.push_back(sum.length_m);  // free-only: a length alone
-    return static_cast<Ref>(free.size() - 1) | kLeafBit | kFreeBit;
+    return pushLeaf(sum, leaves, &free);  // free-only: a length alone
   }
   if (!any && r != 0) {  // an inner node left without children (assign() emptied it)
     inner.pop_back();

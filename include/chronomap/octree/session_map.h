@@ -179,6 +179,9 @@ class SessionMap {
   /// `known_free` tells whether the copy of `r` is such a leaf.
   Ref compressInto(Ref r, std::vector<Children>& inner, std::vector<VoxelCounters>& leaves, std::vector<float>& free,
                    bool& known_free) const;
+  /// Appends leaf `c` to `free` when it is free-only and `free` is given, else to `leaves`;
+  /// returns its reference in those pools.
+  static Ref pushLeaf(const VoxelCounters& c, std::vector<VoxelCounters>& leaves, std::vector<float>* free);
   /// Copies the subtree `r` depth first into fresh pools, inner nodes without children
   /// included (pools(), separateFree(); compressFree() drops them); returns its new reference.
   /// Leaves go to `leaves` or, free-only and when `free` is given, to `free`.
