@@ -9,6 +9,7 @@
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
 #include "chronomap/temporal/coverage.h"
+#include "day_kind.h"
 
 namespace chronomap {
 
@@ -18,15 +19,7 @@ namespace {
 /// printed times, plus what the decimal digits lose.
 constexpr double kSessionMatch_s = TemporalMap::kTimeSlack_s;
 
-
-constexpr double kDay_s = 86400.0;
-
-/// 0 for a weekday, 1 for Saturday and Sunday (UTC); the epoch's day 0 was a Thursday.
-int kindOfDay(double time_s) {
-  const auto day = static_cast<int64_t>(std::floor(time_s / kDay_s));
-  const int64_t weekday = ((day + 3) % 7 + 7) % 7;  // 0 Monday
-  return weekday >= 5 ? 1 : 0;
-}
+using analysis_detail::kindOfDay;
 
 /// Distance between two hours of the day, around midnight.
 double hourDistance(double a, double b) {

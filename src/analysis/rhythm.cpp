@@ -11,6 +11,7 @@
 #include "chronomap/core/error.h"
 #include "chronomap/core/format.h"
 #include "chronomap/temporal/coverage.h"
+#include "day_kind.h"
 #include "union_find.h"
 
 namespace chronomap {
@@ -19,12 +20,7 @@ namespace {
 
 constexpr double kHour_s = 3600.0;
 
-/// 0 for a weekday, 1 for Saturday and Sunday (UTC); the epoch's day 0 was a Thursday.
-int kindOfDay(double time_s) {
-  const auto day = static_cast<int64_t>(std::floor(time_s / 86400.0));
-  const int64_t weekday = ((day + 3) % 7 + 7) % 7;  // 0 Monday
-  return weekday >= 5 ? 1 : 0;
-}
+using analysis_detail::kindOfDay;
 
 /// The two-hour bin (0..11) of the UTC hour of day.
 int hourBin(double time_s) {

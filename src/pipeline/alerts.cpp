@@ -10,6 +10,7 @@
 #include "chronomap/core/file.h"
 #include "chronomap/ingest/png.h"
 #include "chronomap/render/top_view.h"
+#include "json_vec.h"
 
 namespace chronomap {
 
@@ -17,7 +18,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-nlohmann::json vec3(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+using pipeline_detail::vec3;
 
 size_t count(const AlertReport& report, size_t top) {
   return top == 0 ? report.alerts.size() : std::min(top, report.alerts.size());

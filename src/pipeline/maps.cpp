@@ -17,6 +17,7 @@
 #include "chronomap/store/temporal_file.h"
 #include "chronomap/render/colour.h"
 #include "chronomap/render/top_view.h"
+#include "json_vec.h"
 
 namespace chronomap {
 
@@ -158,7 +159,7 @@ size_t writeChangeFrequencyPly(const fs::path& path, const TemporalMap& map, con
 
 namespace {
 
-nlohmann::json vec3(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+using pipeline_detail::vec3;
 
 /// Removes the component files of an earlier segmentation into `folder` that this one did not
 /// write (component_NNNN.cmap and .ply beyond its components), so the folder matches its index.

@@ -48,6 +48,10 @@ inline const Eigen::Vector3d kOffset(0.013, 0.021, 0.017);
 
 // Centre of an object's parts in x, y (scene.cpp).
 Eigen::Vector2d centerOf(const Object& o);
+// Moves every part of `o` by `d`.
+inline void translate(Object& o, const Eigen::Vector3d& d) {
+  for (Part& p : o.parts) p.box.translate(d);
+}
 
 // One session's patrol (patrol.cpp): the true camera poses, the estimated ones (the true ones
 // with the session's localisation offset and a drift), one per frame, and the offset.

@@ -16,6 +16,7 @@ namespace {
 using sim_detail::kOffset;
 using sim_detail::mix;
 using sim_detail::Rng;
+using sim_detail::translate;
 
 constexpr double kWallHeight = 2.5;
 constexpr double kWallThickness = 0.1;
@@ -183,10 +184,6 @@ void furnish(Builder& b, int room_index, Rng& rng) {
     b.add(ObjectKind::Box, room_index,
           {solid({p.x() - s / 2, p.y() - s / 2, 0.0}, {p.x() + s / 2, p.y() + s / 2, s}, randomColour(rng, 90, 230))});
   }
-}
-
-void translate(Object& o, const Eigen::Vector3d& d) {
-  for (Part& p : o.parts) p.box.translate(d);
 }
 
 }  // namespace

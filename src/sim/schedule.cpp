@@ -18,6 +18,7 @@ namespace {
 using sim_detail::centerOf;
 using sim_detail::mix;
 using sim_detail::Rng;
+using sim_detail::translate;
 
 int roomIndex(const SceneState& s, const std::string& name) {
   for (size_t i = 0; i < s.rooms.size(); ++i) {
@@ -61,10 +62,6 @@ WeeksObjects weeksObjects(const SceneState& home) {
   }
   w.found = worker && cook && cart && office >= 0 && kitchen >= 0 && meeting >= 0;
   return w;
-}
-
-void translate(Object& o, const Eigen::Vector3d& d) {
-  for (Part& p : o.parts) p.box.translate(d);
 }
 
 /// Moves `o` (at home in `home_o`) by `d` from its home position.

@@ -13,7 +13,7 @@ namespace chronomap {
 
 namespace {
 
-constexpr char kMagic[4] = {'C', 'M', 'R', 'H'};
+constexpr char kRhythmMagic[4] = {'C', 'M', 'R', 'H'};
 
 void putVoxel(ByteWriter& w, const VoxelRhythm& v, uint32_t version) {
   w.put(v.corner.x);
@@ -50,7 +50,7 @@ std::vector<uint8_t> serialize(const RhythmModels& m, uint32_t version) {
                      std::to_string(version));
   }
   ByteWriter w;
-  for (char c : kMagic) w.put(c);
+  for (char c : kRhythmMagic) w.put(c);
   w.put(version);
   w.put(m.resolution_m);
   w.put(m.from_s);
@@ -151,7 +151,7 @@ void getGroups(ByteReader& r, RhythmModels& m) {
 
 RhythmModels deserializeRhythm(std::span<const uint8_t> bytes, const std::string& source) {
   ByteReader r{bytes, 0, source, "the model"};
-  for (char c : kMagic) {
+  for (char c : kRhythmMagic) {
     if (r.get<char>() != c) throw FormatError(source + ": not a chronomap rhythm model");
   }
   const auto version = r.get<uint32_t>();
