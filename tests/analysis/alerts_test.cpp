@@ -17,8 +17,8 @@ using test::at;
 using test::freeVoxel;
 using test::occupiedVoxel;
 
-constexpr double kMonday_s = 1330905600.0;  // 2012-03-05 00:00 UTC, a Monday
-constexpr double kHour = 3600.0;
+using test::kHour;
+using test::kMonday_s;
 
 double when(int day, double hour) { return kMonday_s + 86400.0 * day + kHour * hour; }
 

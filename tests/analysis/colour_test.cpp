@@ -20,7 +20,7 @@ namespace {
 using test::at;
 using test::occupiedVoxel;
 
-constexpr double kMonday_s = 1330905600.0;  // 2012-03-05 00:00 UTC
+using test::kMonday_s;
 
 /// An analytic day: a dim night light, lamps from 7 to 19, and a sun that is warm when low.
 std::array<double, 3> sunsetLight(double hour) {

@@ -21,8 +21,8 @@ using test::at;
 using test::freeVoxel;
 using test::occupiedVoxel;
 
-constexpr double kMonday_s = 1330905600.0;  // 2012-03-05 00:00 UTC, a Monday
-constexpr double kHour = 3600.0;
+using test::kHour;
+using test::kMonday_s;
 
 /// Occupied every weekday from 9:00 to 17:00 (UTC), free otherwise.
 bool officeHours(double t) {

@@ -11,11 +11,11 @@ namespace chronomap {
 namespace {
 
 // Cells near the root's centre, so that components cross the largest octree boundaries.
-constexpr int kBase = 32768 - 16;
+constexpr int kSegBase = 32768 - 16;
 
 ChangeCell cellAt(int x, int y, int z, int level = 0, ChangeKind kind = ChangeKind::Appeared, Rgb colour = {}) {
   ChangeCell c;
-  c.key = VoxelKey{static_cast<uint16_t>(kBase + x), static_cast<uint16_t>(kBase + y), static_cast<uint16_t>(kBase + z)};
+  c.key = VoxelKey{static_cast<uint16_t>(kSegBase + x), static_cast<uint16_t>(kSegBase + y), static_cast<uint16_t>(kSegBase + z)};
   c.level = static_cast<uint8_t>(level);
   c.kind = kind;
   c.colour = colour;
@@ -36,7 +36,7 @@ size_t countWith(const DiffMap& d, Connectivity c) {
 }
 
 TEST(Segment, ConnectivityDecidesWhatTouches) {
-  // Two voxels sharing a face, an edge, a vertex, or nothing. kBase + 15/16 straddles the
+  // Two voxels sharing a face, an edge, a vertex, or nothing. kSegBase + 15/16 straddles the
   // root's centre on every axis.
   const DiffMap face = diffOf({cellAt(15, 15, 15), cellAt(16, 15, 15)});
   const DiffMap edge = diffOf({cellAt(15, 15, 15), cellAt(16, 16, 15)});
@@ -48,7 +48,7 @@ TEST(Segment, ConnectivityDecidesWhatTouches) {
   EXPECT_EQ(countWith(vertex, Connectivity::Edge), 2u);
   EXPECT_EQ(countWith(vertex, Connectivity::Vertex), 1u);
   EXPECT_EQ(countWith(apart, Connectivity::Vertex), 2u);
-  // The same inside one small node (kBase + 2/3 share a parent at level 1 on every axis).
+  // The same inside one small node (kSegBase + 2/3 share a parent at level 1 on every axis).
   EXPECT_EQ(countWith(diffOf({cellAt(2, 2, 2), cellAt(3, 3, 3)}), Connectivity::Edge), 2u);
   EXPECT_EQ(countWith(diffOf({cellAt(2, 2, 2), cellAt(3, 3, 3)}), Connectivity::Vertex), 1u);
   EXPECT_EQ(countWith(diffOf({cellAt(2, 2, 2), cellAt(3, 3, 2)}), Connectivity::Edge), 1u);

@@ -11,7 +11,7 @@
 namespace chronomap {
 namespace {
 
-Rgb pixel(const ImageRgb& img, int x, int y) { return img.pixels[static_cast<size_t>(y) * img.width + static_cast<size_t>(x)]; }
+using test::pixel;
 
 /// The pixels of `colour` on the map (the frame's legend left out).
 std::vector<Eigen::Vector2i> pixelsOf(const TopView& v, Rgb colour) {

@@ -50,7 +50,7 @@ SessionMap floorMap(int nx, int ny, double resolution_m) {
   return m;
 }
 
-Rgb pixel(const ImageRgb& img, int x, int y) { return img.pixels[static_cast<size_t>(y) * img.width + static_cast<size_t>(x)]; }
+using test::pixel;
 
 int brightness(Rgb c) { return (c.r + c.g + c.b) / 3; }
 

@@ -13,7 +13,7 @@
 namespace chronomap {
 namespace {
 
-constexpr int kBase = kKeyOrigin - 16;
+constexpr int kTruthBase = kKeyOrigin - 16;
 
 
 VoxelCounters occupied() {
@@ -36,7 +36,7 @@ SessionMap room(std::initializer_list<Box> boxes) {
       for (int z = 0; z < 32; ++z) {
         bool in = false;
         for (const Box& b : boxes) in |= x >= b.x0 && x <= b.x1 && y >= b.y0 && y <= b.y1 && z >= b.z0 && z <= b.z1;
-        m.add(test::at(x, y, z, kBase), in ? occupied() : test::freeVoxel(0.5f));
+        m.add(test::at(x, y, z, kTruthBase), in ? occupied() : test::freeVoxel(0.5f));
       }
     }
   }
@@ -50,7 +50,7 @@ ChangeEvent eventOf(const Box& b, uint32_t object, EventKind kind) {
   e.kind = kind;
   for (int x = b.x0; x <= b.x1; ++x) {
     for (int y = b.y0; y <= b.y1; ++y) {
-      for (int z = b.z0; z <= b.z1; ++z) e.voxels.push_back(test::at(x, y, z, kBase));
+      for (int z = b.z0; z <= b.z1; ++z) e.voxels.push_back(test::at(x, y, z, kTruthBase));
     }
   }
   return e;
@@ -104,8 +104,8 @@ TEST(ChangeTruth, EventsOutsideTheObservedSpaceDoNotCount) {
   ChangeEvent e;
   e.object_kind = ObjectKind::Door;
   e.kind = EventKind::DoorOpened;
-  for (int i = 0; i < 19; ++i) e.voxels.push_back(test::at(i, 0, 0, kBase));
-  for (int i = 0; i < 40; ++i) e.voxels.push_back(test::at(i, 40, 0, kBase));
+  for (int i = 0; i < 19; ++i) e.voxels.push_back(test::at(i, 0, 0, kTruthBase));
+  for (int i = 0; i < 40; ++i) e.voxels.push_back(test::at(i, 40, 0, kTruthBase));
   const SessionMap m = room({});
   ChangeScore s = score(m, m, {e});
   EXPECT_EQ(s.events_observable, 0u);
@@ -113,7 +113,7 @@ TEST(ChangeTruth, EventsOutsideTheObservedSpaceDoNotCount) {
   EXPECT_EQ(s.truth_voxels, 19u);
   // Sums add up, missed events included.
   ChangeScore twice = s;
-  e.voxels.push_back(test::at(19, 0, 0, kBase));
+  e.voxels.push_back(test::at(19, 0, 0, kTruthBase));
   twice += score(m, m, {e});
   EXPECT_EQ(twice.events, 2u);
   EXPECT_EQ(twice.events_observable, 1u);

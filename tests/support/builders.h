@@ -10,11 +10,21 @@
 #include <Eigen/Geometry>
 
 #include "chronomap/core/counters.h"
+#include "chronomap/core/image.h"
 #include "chronomap/core/key.h"
 #include "chronomap/core/point_cloud.h"
 #include "chronomap/octree/session_map.h"
 
 namespace chronomap::test {
+
+/// A Monday the time tests count from: 2012-03-05 00:00 UTC.
+inline constexpr double kMonday_s = 1330905600.0;
+inline constexpr double kHour = 3600.0;  ///< seconds
+
+/// The pixel at column x, row y.
+inline Rgb pixel(const ImageRgb& img, int x, int y) {
+  return img.pixels[static_cast<size_t>(y) * img.width + static_cast<size_t>(x)];
+}
 
 /// The key of the voxel (x, y, z) voxels from `origin` on every axis (default the map origin,
 /// kKeyOrigin; a test region that straddles the root's centre starts a few voxels below it).

@@ -17,7 +17,7 @@
 namespace chronomap {
 namespace {
 
-constexpr int kSide = 16;  // the test region: kSide^3 voxels from the map origin
+constexpr int kMapSide = 16;  // the test region: kMapSide^3 voxels from the map origin
 
 using test::at;
 using test::freeVoxel;
@@ -58,9 +58,9 @@ struct Reference {
   }
 };
 
-// A world of kSide^3 voxels, mostly free, whose occupied voxels drift from session to session.
+// A world of kMapSide^3 voxels, mostly free, whose occupied voxels drift from session to session.
 struct World {
-  std::vector<uint8_t> occupied = std::vector<uint8_t>(kSide * kSide * kSide, 0);
+  std::vector<uint8_t> occupied = std::vector<uint8_t>(kMapSide * kMapSide * kMapSide, 0);
   void init(std::mt19937_64& rng) {
     for (auto& o : occupied) o = rng() % 10 == 0;
   }
@@ -77,14 +77,14 @@ SessionMap randomSession(std::mt19937_64& rng, const World& world) {
   const bool everything = rng() % 3 == 0;
   for (int a = 0; a < 3; ++a) {
     lo[a] = everything ? 0 : static_cast<int>(rng() % 8);
-    hi[a] = everything ? kSide : lo[a] + 4 + static_cast<int>(rng() % (kSide - lo[a] - 3));
+    hi[a] = everything ? kMapSide : lo[a] + 4 + static_cast<int>(rng() % (kMapSide - lo[a] - 3));
   }
   const bool holes = rng() % 2 == 0;
   for (int z = lo[2]; z < hi[2]; ++z) {
     for (int y = lo[1]; y < hi[1]; ++y) {
       for (int x = lo[0]; x < hi[0]; ++x) {
         if (holes && rng() % 10 == 0) continue;
-        bool occ = world.occupied[(z * kSide + y) * kSide + x] != 0;
+        bool occ = world.occupied[(z * kMapSide + y) * kMapSide + x] != 0;
         if (rng() % 40 == 0) occ = !occ;  // sensor noise
         VoxelCounters c;
         if (occ) {
@@ -106,9 +106,9 @@ SessionMap randomSession(std::mt19937_64& rng, const World& world) {
 
 void expectStatesMatch(const TemporalMap& map, const Reference& ref, double t) {
   const SessionMap snap = map.snapshot(t);
-  for (int z = 0; z < kSide; ++z) {
-    for (int y = 0; y < kSide; ++y) {
-      for (int x = 0; x < kSide; ++x) {
+  for (int z = 0; z < kMapSide; ++z) {
+    for (int y = 0; y < kMapSide; ++y) {
+      for (int x = 0; x < kMapSide; ++x) {
         ASSERT_EQ(snap.stateOf(at(x, y, z)), ref.state(at(x, y, z), t)) << "voxel " << x << "," << y << "," << z
                                                                          << " at t=" << t;
       }
@@ -118,9 +118,9 @@ void expectStatesMatch(const TemporalMap& map, const Reference& ref, double t) {
 
 // Histories: same times and states as the reference's chain; counters too when `exact`.
 void expectHistoriesMatch(const TemporalMap& map, const Reference& ref, bool exact) {
-  for (int z = 0; z < kSide; ++z) {
-    for (int y = 0; y < kSide; ++y) {
-      for (int x = 0; x < kSide; ++x) {
+  for (int z = 0; z < kMapSide; ++z) {
+    for (int y = 0; y < kMapSide; ++y) {
+      for (int x = 0; x < kMapSide; ++x) {
         const auto h = map.history(at(x, y, z));
         const auto c = ref.chain(at(x, y, z));
         ASSERT_EQ(h.size(), c.size()) << "voxel " << x << "," << y << "," << z;
@@ -148,9 +148,9 @@ void expectChangeCountsMatch(const TemporalMap& map, const Reference& ref, doubl
       }
     }
   });
-  for (int z = 0; z < kSide; ++z) {
-    for (int y = 0; y < kSide; ++y) {
-      for (int x = 0; x < kSide; ++x) {
+  for (int z = 0; z < kMapSide; ++z) {
+    for (int y = 0; y < kMapSide; ++y) {
+      for (int x = 0; x < kMapSide; ++x) {
         const auto c = ref.chain(at(x, y, z));
         uint32_t expected = 0;
         for (size_t i = 1; i < c.size(); ++i) expected += c[i].first > t0 && c[i].first <= t1;
@@ -473,9 +473,9 @@ TEST_P(TemporalProperty, InOrderSnapshotsHistoriesAndCountsMatchTheReference) {
   SessionMap checked(0.05);  // the snapshot's pools pass the reader's validation
   SessionMap::Pools pools = snap.pools();
   EXPECT_NO_THROW(checked.assignPools(std::move(pools.inner), std::move(pools.leaves)));
-  for (int z = 0; z < kSide; ++z) {
-    for (int y = 0; y < kSide; ++y) {
-      for (int x = 0; x < kSide; ++x) {
+  for (int z = 0; z < kMapSide; ++z) {
+    for (int y = 0; y < kMapSide; ++y) {
+      for (int x = 0; x < kMapSide; ++x) {
         const auto c = ref.chain(at(x, y, z));
         const auto got = snap.find(at(x, y, z));
         ASSERT_EQ(got.has_value(), !c.empty());
@@ -584,9 +584,9 @@ TEST(TemporalMap, PartsRoundTripAndRejectBrokenParts) {
 // then), as unit voxels, then compressed as every session map is.
 SessionMap denseSnapshot(const TemporalMap& map, double t) {
   SessionMap dense(map.resolution_m());
-  for (int z = 0; z < kSide; ++z) {
-    for (int y = 0; y < kSide; ++y) {
-      for (int x = 0; x < kSide; ++x) {
+  for (int z = 0; z < kMapSide; ++z) {
+    for (int y = 0; y < kMapSide; ++y) {
+      for (int x = 0; x < kMapSide; ++x) {
         std::optional<VoxelCounters> value;
         for (const HistoryEntry& e : map.history(at(x, y, z))) {
           if (e.time_s > t) break;
@@ -627,9 +627,9 @@ void expectEverySnapshotMatches(const TemporalMap& map, const Reference& ref) {
 // A 16^3 cube of free voxels (each `length`), compressed, with an optional occupied voxel.
 SessionMap freeCube(float length, std::optional<VoxelKey> occupied = std::nullopt) {
   SessionMap m(0.05);
-  for (int z = 0; z < kSide; ++z) {
-    for (int y = 0; y < kSide; ++y) {
-      for (int x = 0; x < kSide; ++x) {
+  for (int z = 0; z < kMapSide; ++z) {
+    for (int y = 0; y < kMapSide; ++y) {
+      for (int x = 0; x < kMapSide; ++x) {
         const VoxelKey k = at(x, y, z);
         m.add(k, occupied && k == *occupied ? occupiedVoxelExact(3) : freeVoxel(length));
       }
@@ -778,9 +778,9 @@ void expectSameAnswers(const TemporalMap& a, const TemporalMap& b) {
     EXPECT_EQ(va.lists, vb.lists);
     EXPECT_EQ(va.coarse, vb.coarse);
   }
-  for (int z = 0; z < kSide; ++z) {
-    for (int y = 0; y < kSide; ++y) {
-      for (int x = 0; x < kSide; ++x) {
+  for (int z = 0; z < kMapSide; ++z) {
+    for (int y = 0; y < kMapSide; ++y) {
+      for (int x = 0; x < kMapSide; ++x) {
         const auto ha = a.history(at(x, y, z)), hb = b.history(at(x, y, z));
         ASSERT_EQ(ha.size(), hb.size());
         for (size_t i = 0; i < ha.size(); ++i) {
@@ -861,9 +861,9 @@ TEST_P(TemporalProperty, CompactingWithoutARelayoutGivesTheSameParts) {
     // Among random sessions, free space not compressed in the session map (a length per
     // voxel), which compaction merges where a cube's voxels share their sessions.
     SessionMap uneven(0.05);
-    for (int z = 0; z < kSide; ++z) {
-      for (int y = 0; y < kSide; ++y) {
-        for (int x = 0; x < kSide; ++x) uneven.add(at(x, y, z), freeVoxel(0.1f + 0.01f * static_cast<float>(rng() % 8)));
+    for (int z = 0; z < kMapSide; ++z) {
+      for (int y = 0; y < kMapSide; ++y) {
+        for (int x = 0; x < kMapSide; ++x) uneven.add(at(x, y, z), freeVoxel(0.1f + 0.01f * static_cast<float>(rng() % 8)));
       }
     }
     map.add(sessionTime(i), i % 3 == 0 ? uneven : randomSession(rng, world));

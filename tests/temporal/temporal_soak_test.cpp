@@ -10,19 +10,19 @@
 namespace chronomap {
 namespace {
 
-constexpr int kSide = 16;
-constexpr uint16_t kBase = 32768;
+constexpr int kSoakSide = 16;
+constexpr uint16_t kSoakBase = 32768;
 
 VoxelKey at(int i) {
-  return {static_cast<uint16_t>(kBase + i % kSide), static_cast<uint16_t>(kBase + (i / kSide) % kSide),
-          static_cast<uint16_t>(kBase + i / (kSide * kSide))};
+  return {static_cast<uint16_t>(kSoakBase + i % kSoakSide), static_cast<uint16_t>(kSoakBase + (i / kSoakSide) % kSoakSide),
+          static_cast<uint16_t>(kSoakBase + i / (kSoakSide * kSoakSide))};
 }
 
 SessionMap observe(const std::vector<uint8_t>& world) {
   SessionMap m(0.05);
   std::vector<VoxelKey> keys;
   std::vector<VoxelCounters> values;
-  for (int i = 0; i < kSide * kSide * kSide; ++i) {
+  for (int i = 0; i < kSoakSide * kSoakSide * kSoakSide; ++i) {
     VoxelCounters c;
     c.length_m = 0.125f;
     if (world[static_cast<size_t>(i)]) c.hits = 2;
@@ -36,7 +36,7 @@ SessionMap observe(const std::vector<uint8_t>& world) {
 
 TEST(TemporalSoak, HundredsOfSessionsGrowWithTheChangesOnly) {
   std::mt19937_64 rng(11);
-  const int n = kSide * kSide * kSide;
+  const int n = kSoakSide * kSoakSide * kSoakSide;
   std::vector<uint8_t> world(static_cast<size_t>(n), 0);
   for (auto& w : world) w = rng() % 20 == 0;
   TemporalMap map(0.05);
