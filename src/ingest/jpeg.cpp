@@ -31,7 +31,7 @@ struct ErrorManager {
   char message[JMSG_LENGTH_MAX] = {0};
 };
 
-[[noreturn]] void onError(j_common_ptr info) {
+[[noreturn]] void jpegOnError(j_common_ptr info) {
   auto* err = reinterpret_cast<ErrorManager*>(info->err);
   (*info->err->format_message)(info, err->message);
   std::longjmp(err->jump, 1);
@@ -43,7 +43,7 @@ void onMessage(j_common_ptr info, int level) {
   if (level < 0) ++info->err->num_warnings;
 }
 
-/// Says in `error` that the image declares more pixels than its bytes allow (outside decode(),
+/// Says in `error` that the image declares more pixels than its bytes allow (outside decodeJpeg(),
 /// as setMessage is).
 [[gnu::noinline]] void tooLarge(uint64_t width, uint64_t height, size_t bytes, std::string& error) {
   error = "declares " + std::to_string(width) + " x " + std::to_string(height) + " pixels in " +
@@ -51,11 +51,11 @@ void onMessage(j_common_ptr info, int level) {
 }
 
 /// Plain data only across setjmp: the buffer belongs to `out`.
-bool decode(const std::vector<uint8_t>& file, ImageRgb& out, std::string& error) {
+bool decodeJpeg(const std::vector<uint8_t>& file, ImageRgb& out, std::string& error) {
   jpeg_decompress_struct info;
   ErrorManager err;
   info.err = jpeg_std_error(&err.base);
-  err.base.error_exit = onError;
+  err.base.error_exit = jpegOnError;
   err.base.emit_message = onMessage;
   if (setjmp(err.jump)) {
     jpeg_destroy_decompress(&info);
@@ -103,7 +103,7 @@ ImageRgb decodeJpegRgb(const std::vector<uint8_t>& bytes, const std::string& nam
   if (!looksLikeJpeg(bytes)) throw FormatError(name + ": not a JPEG file (bad signature)");
   ImageRgb image;
   std::string error;
-  if (!decode(bytes, image, error)) throw FormatError(name + ": " + error);
+  if (!decodeJpeg(bytes, image, error)) throw FormatError(name + ": " + error);
   return image;
 }
 

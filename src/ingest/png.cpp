@@ -23,7 +23,7 @@ struct PngContext {
   std::vector<uint8_t>* out = nullptr;
 };
 
-void onError(png_structp png, png_const_charp msg) {
+void pngOnError(png_structp png, png_const_charp msg) {
   auto* ctx = static_cast<PngContext*>(png_get_error_ptr(png));
   std::snprintf(ctx->message, sizeof(ctx->message), "%s", msg);
   longjmp(png_jmpbuf(png), 1);
@@ -56,7 +56,7 @@ constexpr png_byte kSkippedChunks[] = {'i', 'C', 'C', 'P', 0, 'z', 'T', 'X', 't'
 /// Checks, after png_read_info and before anything is allocated, that the image the header
 /// declares could be held by the file: its samples (a lower bound of the decompressed data, with
 /// or without interlacing) must not exceed what `file_size` bytes of deflate can expand to. Not
-/// inlined into decode(), whose setjmp frame must hold no string (setjmp_message.h).
+/// inlined into decodePng(), whose setjmp frame must hold no string (setjmp_message.h).
 [[gnu::noinline]] bool declaredSizeFits(png_structp png, png_infop info, size_t file_size, std::string& error) {
   const uint64_t w = png_get_image_width(png, info), h = png_get_image_height(png, info);
   const uint64_t bits_per_pixel = uint64_t{png_get_bit_depth(png, info)} * png_get_channels(png, info);
@@ -75,10 +75,10 @@ struct Decoded {
   int channels = 0;
   int bit_depth = 0;
   std::vector<uint8_t> bytes;  // rows, native-endian 16-bit samples when bit_depth == 16
-  std::vector<png_bytep> rows;  // owned here, not in decode(): a longjmp skips destructors
+  std::vector<png_bytep> rows;  // owned here, not in decodePng(): a longjmp skips destructors
 };
 
-/// Says in `error` that the image is not a 16-bit grey depth image (outside decode(), as
+/// Says in `error` that the image is not a 16-bit grey depth image (outside decodePng(), as
 /// setMessage is).
 [[gnu::noinline]] void notADepthImage(int depth, int colour_type, std::string& error) {
   error = "expected a 16-bit single-channel depth image, found " + std::to_string(depth) + "-bit " +
@@ -88,7 +88,7 @@ struct Decoded {
 /// Decodes `file` to either RGB8 (want16 = false) or raw grey samples (want16 = true).
 /// Only plain data lives in this frame across setjmp (buffers belong to `out`, whose destructor
 /// a longjmp cannot skip); errors come back as a message.
-bool decode(const std::vector<uint8_t>& file, bool want16, Decoded& out, std::string& error) {
+bool decodePng(const std::vector<uint8_t>& file, bool want16, Decoded& out, std::string& error) {
   PngContext ctx;
   ctx.data = file.data();
   ctx.size = file.size();
@@ -96,7 +96,7 @@ bool decode(const std::vector<uint8_t>& file, bool want16, Decoded& out, std::st
     setMessage(error, "not a PNG file (bad signature)");
     return false;
   }
-  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &ctx, onError, onWarning);
+  png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &ctx, pngOnError, onWarning);
   if (!png) {
     setMessage(error, "cannot allocate PNG decoder");
     return false;
@@ -157,7 +157,7 @@ bool encode(uint32_t w, uint32_t h, bool sixteen, const uint8_t* data, std::vect
             std::string& error) {
   PngContext ctx;
   ctx.out = &out;
-  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &ctx, onError, onWarning);
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, &ctx, pngOnError, onWarning);
   if (!png) {
     setMessage(error, "cannot allocate PNG encoder");
     return false;
@@ -194,7 +194,7 @@ ImageU16 readPngU16(const std::filesystem::path& path) {
 ImageRgb decodePngRgb(const std::vector<uint8_t>& file, const std::string& name) {
   Decoded d;
   std::string error;
-  if (!decode(file, false, d, error)) throw FormatError(name + ": " + error);
+  if (!decodePng(file, false, d, error)) throw FormatError(name + ": " + error);
   ImageRgb img;
   img.width = d.width;
   img.height = d.height;
@@ -206,7 +206,7 @@ ImageRgb decodePngRgb(const std::vector<uint8_t>& file, const std::string& name)
 ImageU16 decodePngU16(const std::vector<uint8_t>& file, const std::string& name) {
   Decoded d;
   std::string error;
-  if (!decode(file, true, d, error)) throw FormatError(name + ": " + error);
+  if (!decodePng(file, true, d, error)) throw FormatError(name + ": " + error);
   ImageU16 img;
   img.width = d.width;
   img.height = d.height;

@@ -148,3 +148,7 @@ size_t ZeroPool::keptBytes() {
 }
 
 }  // namespace chronomap::integrate_detail
+
+// Unity builds put the next file of the batch after this one.
+#undef CHRONOMAP_ZERO_PAGES_FROM_HEAP
+#undef CHRONOMAP_ZERO_PAGES_MMAP

@@ -16,7 +16,7 @@ namespace {
 constexpr uint64_t kSeed = 1;
 
 /// The time `hour` o'clock (UTC) on day `day` of the schedule.
-double at(int day, double hour) { return kScheduleStart_s + 86400.0 * day + 3600.0 * hour; }
+double scheduleTime(int day, double hour) { return kScheduleStart_s + 86400.0 * day + 3600.0 * hour; }
 
 /// The routine objects by routine name.
 std::map<std::string, std::vector<uint32_t>> routines(const SceneState& home) {
@@ -70,7 +70,7 @@ TEST(Schedule, AtNightEveryDoorIsShutAndNobodyIsIn) {
   const auto r = routines(home);
   for (int day = 0; day < 14; ++day) {
     SceneState s = home;
-    applySchedule(s, home, kSeed, at(day, 3.0));
+    applySchedule(s, home, kSeed, scheduleTime(day, 3.0));
     for (const char* door : {"office door", "kitchen door", "meeting-room door"}) {
       EXPECT_TRUE(object(s, r.at(door)[0]).present) << door << " on day " << day;  // present = shut
     }
@@ -96,7 +96,7 @@ TEST(Schedule, AWorkingDayMorningHasTheWorkerInAndTheMeetingOn) {
     return d.weekday == 0 && !d.worker_away && !d.meeting_cancelled;
   });
   SceneState s = home;
-  const std::vector<ScheduledChange> changes = applySchedule(s, home, kSeed, at(day, 10.5));
+  const std::vector<ScheduledChange> changes = applySchedule(s, home, kSeed, scheduleTime(day, 10.5));
   EXPECT_FALSE(object(s, r.at("office door")[0]).present);       // open
   EXPECT_FALSE(object(s, r.at("meeting-room door")[0]).present);  // open
   EXPECT_TRUE(object(s, r.at("office worker").back()).present);
@@ -112,11 +112,11 @@ TEST(Schedule, AWorkingDayMorningHasTheWorkerInAndTheMeetingOn) {
   EXPECT_EQ(named, (std::set<std::string>{"office door", "office worker", "kitchen door", "meeting-room door",
                                           "meetings"}));
   // The same time again changes nothing.
-  EXPECT_TRUE(applySchedule(s, home, kSeed, at(day, 10.5)).empty());
+  EXPECT_TRUE(applySchedule(s, home, kSeed, scheduleTime(day, 10.5)).empty());
   // On a day the meeting is cancelled, the chairs stay in.
   const int cancelled = firstDay(0, [](const ScheduleDay& d) { return d.weekday == 2 && d.meeting_cancelled; });
   SceneState c = home;
-  applySchedule(c, home, kSeed, at(cancelled, 10.5));
+  applySchedule(c, home, kSeed, scheduleTime(cancelled, 10.5));
   for (uint32_t id : r.at("meetings")) {
     EXPECT_EQ(sim_detail::centerOf(object(c, id)), sim_detail::centerOf(object(home, id)));
   }
@@ -127,14 +127,14 @@ TEST(Schedule, ExceptionsChangeTheDay) {
   const auto r = routines(home);
   const int away = firstDay(0, [](const ScheduleDay& d) { return d.worker_away; });
   SceneState s = home;
-  applySchedule(s, home, kSeed, at(away, 11.0));
+  applySchedule(s, home, kSeed, scheduleTime(away, 11.0));
   EXPECT_TRUE(object(s, r.at("office door")[0]).present);  // shut all day
   EXPECT_FALSE(object(s, r.at("office worker").back()).present);
   const int visit = firstDay(0, [](const ScheduleDay& d) { return d.weekend_visit; });
-  applySchedule(s, home, kSeed, at(visit, 11.0));
+  applySchedule(s, home, kSeed, scheduleTime(visit, 11.0));
   EXPECT_FALSE(object(s, r.at("office door")[0]).present);
   EXPECT_TRUE(object(s, r.at("office worker").back()).present);
-  applySchedule(s, home, kSeed, at(visit, 15.0));  // the visit ends at 14:00
+  applySchedule(s, home, kSeed, scheduleTime(visit, 15.0));  // the visit ends at 14:00
   EXPECT_FALSE(object(s, r.at("office worker").back()).present);
 }
 
@@ -143,28 +143,28 @@ TEST(Schedule, LunchAndCleaningKeepTheirHours) {
   const auto r = routines(home);
   const int tuesday = firstDay(0, [](const ScheduleDay& d) { return d.weekday == 1; });
   SceneState s = home;
-  applySchedule(s, home, kSeed, at(tuesday, 12.5));
+  applySchedule(s, home, kSeed, scheduleTime(tuesday, 12.5));
   EXPECT_TRUE(object(s, r.at("lunch").back()).present);
-  applySchedule(s, home, kSeed, at(tuesday, 13.6));
+  applySchedule(s, home, kSeed, scheduleTime(tuesday, 13.6));
   EXPECT_FALSE(object(s, r.at("lunch").back()).present);
   // The cart moves along the corridor during the cleaning hour and a half.
-  applySchedule(s, home, kSeed, at(tuesday, 19.1));
+  applySchedule(s, home, kSeed, scheduleTime(tuesday, 19.1));
   const Object& cart = object(s, r.at("cleaning")[0]);
   ASSERT_TRUE(cart.present);
   const double x_early = sim_detail::centerOf(cart).x();
-  const auto later = applySchedule(s, home, kSeed, at(tuesday, 20.4));
+  const auto later = applySchedule(s, home, kSeed, scheduleTime(tuesday, 20.4));
   ASSERT_EQ(later.size(), 1u);
   EXPECT_EQ(later[0].kind, EventKind::Moved);
   EXPECT_EQ(later[0].routine, "cleaning");
   EXPECT_GT(sim_detail::centerOf(object(s, r.at("cleaning")[0])).x(), x_early + 5.0);
-  const auto gone = applySchedule(s, home, kSeed, at(tuesday, 20.6));
+  const auto gone = applySchedule(s, home, kSeed, scheduleTime(tuesday, 20.6));
   ASSERT_EQ(gone.size(), 1u);
   EXPECT_EQ(gone[0].kind, EventKind::Left);
   // Saturday: no lunch, no cleaning.
   const int saturday = firstDay(0, [](const ScheduleDay& d) { return d.weekday == 5; });
-  applySchedule(s, home, kSeed, at(saturday, 12.5));
+  applySchedule(s, home, kSeed, scheduleTime(saturday, 12.5));
   EXPECT_FALSE(object(s, r.at("lunch").back()).present);
-  applySchedule(s, home, kSeed, at(saturday, 19.5));
+  applySchedule(s, home, kSeed, scheduleTime(saturday, 19.5));
   EXPECT_FALSE(object(s, r.at("cleaning")[0]).present);
 }
 
@@ -203,7 +203,7 @@ TEST(Schedule, RareEventsChangeWhatTheyName) {
                         {RareKind::PersonAtNight, 0, EventKind::Appeared, true}};
   for (const Case& c : cases) {
     SceneState s = home;
-    applySchedule(s, home, kSeed, at(2, 3.0));  // a Wednesday, 03:00: every door shut
+    applySchedule(s, home, kSeed, scheduleTime(2, 3.0));  // a Wednesday, 03:00: every door shut
     const SceneState before = s;
     const std::vector<uint32_t> changed = applyRareEvent(s, home, kSeed, 50, c.kind);
     const std::vector<ScheduledChange> changes = objectChanges(before, s);
@@ -222,7 +222,7 @@ TEST(Schedule, RareEventsChangeWhatTheyName) {
     }
     // The next session's schedule undoes it.
     SceneState next = s;
-    const auto undone = applySchedule(next, home, kSeed, at(2, 4.0));
+    const auto undone = applySchedule(next, home, kSeed, scheduleTime(2, 4.0));
     ASSERT_EQ(undone.size(), 1u) << describe(c.kind);
     EXPECT_EQ(undone[0].object, changes[0].object);
   }
@@ -240,7 +240,7 @@ TEST(Schedule, RareEventsChangeWhatTheyName) {
 TEST(Schedule, RareEventsFallInTheLastQuarterAtFittingHours) {
   // Two sessions a day for four weeks at varied hours.
   std::vector<double> times;
-  for (int i = 0; i < 56; ++i) times.push_back(at(i / 2, std::fmod(5.3 * i, 12.0) + (i % 2 ? 12.0 : 0.0)));
+  for (int i = 0; i < 56; ++i) times.push_back(scheduleTime(i / 2, std::fmod(5.3 * i, 12.0) + (i % 2 ? 12.0 : 0.0)));
   int night = 0, day = 0;
   std::set<RareKind> kinds;
   for (int s = 0; s < 56; ++s) {

@@ -13,7 +13,7 @@ namespace {
 constexpr int kSoakSide = 16;
 constexpr uint16_t kSoakBase = 32768;
 
-VoxelKey at(int i) {
+VoxelKey soakKey(int i) {
   return {static_cast<uint16_t>(kSoakBase + i % kSoakSide), static_cast<uint16_t>(kSoakBase + (i / kSoakSide) % kSoakSide),
           static_cast<uint16_t>(kSoakBase + i / (kSoakSide * kSoakSide))};
 }
@@ -26,7 +26,7 @@ SessionMap observe(const std::vector<uint8_t>& world) {
     VoxelCounters c;
     c.length_m = 0.125f;
     if (world[static_cast<size_t>(i)]) c.hits = 2;
-    keys.push_back(at(i));
+    keys.push_back(soakKey(i));
     values.push_back(c);
   }
   m.addMany(keys, values);
@@ -59,7 +59,7 @@ TEST(TemporalSoak, HundredsOfSessionsGrowWithTheChangesOnly) {
     if (s % 50 == 0 || s == sessions - 1) {
       const SessionMap snap = map.snapshot(100.0 * s);
       for (int i = 0; i < n; ++i) {
-        ASSERT_EQ(snap.stateOf(at(i)) == VoxelState::Occupied, world[static_cast<size_t>(i)] != 0) << s << " " << i;
+        ASSERT_EQ(snap.stateOf(soakKey(i)) == VoxelState::Occupied, world[static_cast<size_t>(i)] != 0) << s << " " << i;
       }
     }
   }
@@ -68,7 +68,7 @@ TEST(TemporalSoak, HundredsOfSessionsGrowWithTheChangesOnly) {
     const int s = static_cast<int>(rng() % sessions);
     const SessionMap snap = map.snapshot(100.0 * s + 50.0);
     for (int i = 0; i < n; ++i) {
-      ASSERT_EQ(snap.stateOf(at(i)) == VoxelState::Occupied, states[static_cast<size_t>(s)][static_cast<size_t>(i)] != 0);
+      ASSERT_EQ(snap.stateOf(soakKey(i)) == VoxelState::Occupied, states[static_cast<size_t>(s)][static_cast<size_t>(i)] != 0);
     }
   }
   const size_t entries = map.counts().entries - entries_after_warmup;
