@@ -6,8 +6,12 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstring>
+#include <exception>
 #include <iomanip>
+#include <map>
 #include <mutex>
+#include <type_traits>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -18,6 +22,7 @@
 #include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
 
+#include "chronomap/core/byte_buffer.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/format.h"
 #include "chronomap/core/happens_before.h"
@@ -160,6 +165,75 @@ size_t defaultMemoryLimitBytes() { return processMemoryBytes() / 2; }
 
 namespace {
 
+constexpr uint32_t kDeltasMagic = 0x4c444d43;  // "CMDL" in the file's byte order
+
+/// Appends the bytes of `values` as they lie in memory.
+template <class T>
+void putAll(ByteWriter& w, const std::vector<T>& values) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  const size_t at = w.bytes.size();
+  w.bytes.resize(at + values.size() * sizeof(T));
+  if (!values.empty()) std::memcpy(w.bytes.data() + at, values.data(), values.size() * sizeof(T));
+}
+
+/// Reads `count` values written by putAll.
+template <class T>
+void getAll(ByteReader& r, uint64_t count, std::vector<T>& out) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  if (count > (r.bytes.size() - r.pos) / sizeof(T)) throw FormatError(r.source + ": " + r.what + " ends early (truncated)");
+  out.resize(static_cast<size_t>(count));
+  if (count != 0) std::memcpy(out.data(), r.bytes.data() + r.pos, out.size() * sizeof(T));
+  r.pos += out.size() * sizeof(T);
+}
+
+}  // namespace
+
+std::vector<uint8_t> encodeDeltas(const VoxelDeltas& d) {
+  ByteWriter w;
+  w.bytes.reserve(64 + d.keys.size() * (sizeof(VoxelKey) + sizeof(VoxelCounters)) +
+                  d.cube_keys.size() * (sizeof(VoxelKey) + sizeof(float)));
+  w.put(kDeltasMagic);
+  w.put(static_cast<uint64_t>(d.keys.size()));
+  w.put(static_cast<uint64_t>(d.cube_keys.size()));
+  w.put(static_cast<int32_t>(d.cube_level));
+  const IntegrationStats& st = d.stats;
+  for (const uint64_t v : {st.frames, st.points, st.points_invalid, st.points_out_of_range, st.points_outside_map,
+                           st.rays, st.voxel_updates, st.points_depth_edges}) {
+    w.put(v);
+  }
+  w.put(st.seconds);
+  putAll(w, d.keys);
+  putAll(w, d.deltas);
+  putAll(w, d.cube_keys);
+  putAll(w, d.cube_length_m);
+  return std::move(w.bytes);
+}
+
+void decodeDeltas(std::span<const uint8_t> bytes, VoxelDeltas& out, const std::string& source) {
+  ByteReader r{bytes, 0, source, "a frame's deltas"};
+  if (r.get<uint32_t>() != kDeltasMagic) throw FormatError(source + ": not a frame's deltas");
+  const auto keys = r.get<uint64_t>(), cubes = r.get<uint64_t>();
+  out.cube_level = r.get<int32_t>();
+  if (cubes != 0 && (out.cube_level <= 0 || out.cube_level > kMaxCarveLevel)) {
+    throw FormatError(source + ": a cube level of " + std::to_string(out.cube_level));
+  }
+  IntegrationStats& st = out.stats;
+  for (uint64_t* v : {&st.frames, &st.points, &st.points_invalid, &st.points_out_of_range, &st.points_outside_map,
+                      &st.rays, &st.voxel_updates, &st.points_depth_edges}) {
+    *v = r.get<uint64_t>();
+  }
+  st.seconds = r.get<double>();
+  getAll(r, keys, out.keys);
+  getAll(r, keys, out.deltas);
+  getAll(r, cubes, out.cube_keys);
+  getAll(r, cubes, out.cube_length_m);
+  if (r.pos != bytes.size()) {
+    throw FormatError(source + ": " + std::to_string(bytes.size() - r.pos) + " byte(s) after a frame's deltas");
+  }
+}
+
+namespace {
+
 /// integrate() on the calling thread; adds each frame's stats to `total`.
 void integrateSerial(const FrameSource& source, SessionMap& map, const IntegratorSettings& settings,
                      const ProgressFn& progress, IntegrationStats& total) {
@@ -279,10 +353,72 @@ void integrateParallel(const FrameSource& source, SessionMap& map, const Integra
   });
 }
 
+/// Frames this process casts before their turn while it waits for others' (integrateShared): at
+/// most this many are held.
+constexpr size_t kMostCastAhead = 8;
+
+/// integrate() with frames cast by other processes too: frames are merged in frame order whoever
+/// cast them, so the map is integrateSerial's. Frames are handed out ahead of the one merged; while
+/// a handed-out frame has not arrived, this process casts the next free frame itself and holds its
+/// deltas (or what casting it threw) until its turn, so that an error is the first in frame order,
+/// as one process gives it.
+void integrateShared(const FrameSource& source, SessionMap& map, const IntegratorSettings& settings,
+                     const ProgressFn& progress, FrameSharing& sharing, IntegrationStats& total) {
+  const size_t n = source.size();
+  RayAccumulator acc(map.grid(), perThread(settings, 1));
+  struct Ahead {
+    VoxelDeltas deltas;
+    std::exception_ptr error;
+  };
+  std::map<size_t, Ahead> ahead;
+  size_t ahead_bytes = 0;
+  const auto cast = [&](size_t i, VoxelDeltas& out) {
+    if (const Frame* f = source.resident(i)) {
+      acc.accumulate(*f, out);
+    } else {
+      acc.accumulate(source.load(i), out);
+    }
+  };
+  VoxelDeltas deltas;
+  size_t next = 0;  // every frame from the merged ones to here is handed out or cast ahead
+  for (size_t i = 0; i < n; ++i) {
+    next = std::max(next, i);
+    next += sharing.handOut(next, n);
+    if (sharing.handedOut(i)) {
+      while (!sharing.collect(i, deltas, /*wait=*/false)) {
+        if (next >= n || ahead.size() >= kMostCastAhead) {
+          sharing.collect(i, deltas, /*wait=*/true);
+          break;
+        }
+        Ahead& a = ahead[next];
+        try {
+          cast(next, a.deltas);
+          ahead_bytes += deltaBytes(a.deltas);
+        } catch (...) {
+          a.error = std::current_exception();
+        }
+        ++next;
+        next += sharing.handOut(next, n);
+      }
+    } else if (const auto it = ahead.find(i); it != ahead.end()) {
+      if (it->second.error) std::rethrow_exception(it->second.error);
+      std::swap(deltas, it->second.deltas);
+      ahead_bytes -= deltaBytes(deltas);
+      ahead.erase(it);
+    } else {
+      cast(i, deltas);
+    }
+    mergeDeltas(map, deltas);
+    checkMapMemory(map, settings, acc.scratchBytes() + deltaBytes(deltas) + ahead_bytes);
+    total += deltas.stats;
+    if (progress) progress(i + 1, n);
+  }
+}
+
 }  // namespace
 
 IntegrationStats integrate(const FrameSource& source, SessionMap& map, const IntegratorSettings& settings,
-                           const ProgressFn& progress) {
+                           const ProgressFn& progress, FrameSharing* sharing) {
   checkSettings(settings);
   const auto start = std::chrono::steady_clock::now();
   IntegrationStats total;
@@ -294,7 +430,9 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
                                                 humanBytes(static_cast<double>(processMemoryBytes())) + ")");
   int threads = settings.threads > 0 ? settings.threads : static_cast<int>(std::thread::hardware_concurrency());
   threads = std::max(1, threads);
-  if (threads == 1 || n <= 1) {
+  if (sharing) {
+    integrateShared(source, map, settings, progress, *sharing, total);
+  } else if (threads == 1 || n <= 1) {
     integrateSerial(source, map, settings, progress, total);
   } else {
     integrateParallel(source, map, settings, progress, threads, total);

@@ -2,9 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <map>
 #include <random>
+#include <set>
+#include <span>
+#include <string>
 #include <nlohmann/json.hpp>
 #include <tuple>
 
@@ -809,6 +813,182 @@ TEST(Integrator, CoarseCarvingPicksItsLevelFromTheResolution) {
     EXPECT_TRUE(automatic == by_hand) << res;
     EXPECT_EQ(automatic == off, res > 0.03) << res;
   }
+}
+
+/// FrameSharing within one process, for the tests: the "other process" is an accumulator of its
+/// own that casts a handed-out frame when it is collected, its deltas passed through their bytes
+/// (encodeDeltas) as between processes. Room for handed-out frames and whether an answer has
+/// arrived are drawn at random.
+class LocalSharing : public FrameSharing {
+ public:
+  LocalSharing(const FrameSource& source, double resolution_m, const IntegratorSettings& settings, uint32_t seed,
+               size_t room)
+      : source_(source), accumulator_(KeyGrid(resolution_m), settings), random_(seed), room_(room) {}
+
+  size_t handOut(size_t first, size_t end) override {
+    size_t given = 0;
+    while (first + given < end && handed_.size() < room_ && coin()) handed_.insert(first + given++);
+    handed_out += given;
+    return given;
+  }
+  bool handedOut(size_t i) const override { return handed_.count(i) != 0; }
+  bool collect(size_t i, VoxelDeltas& out, bool wait) override {
+    EXPECT_FALSE(handed_.empty());
+    EXPECT_EQ(i, *handed_.begin()) << "collected out of frame order";
+    if (!wait && coin()) return false;
+    handed_.erase(i);
+    VoxelDeltas cast;
+    accumulator_.accumulate(source_.load(i), cast);  // what it throws is the answer
+    decodeDeltas(encodeDeltas(cast), out, "frame " + std::to_string(i));
+    return true;
+  }
+  size_t handed_out = 0;
+
+ private:
+  bool coin() { return std::uniform_int_distribution<int>(0, 1)(random_) == 1; }
+  const FrameSource& source_;
+  RayAccumulator accumulator_;
+  std::mt19937 random_;
+  size_t room_;
+  std::set<size_t> handed_;
+};
+
+/// Frames of which some cannot be read (load throws a DataError naming the frame).
+class FramesWithBadOnes : public FrameSource {
+ public:
+  FramesWithBadOnes(const FrameVector& frames, std::set<size_t> bad) : frames_(frames), bad_(std::move(bad)) {}
+  size_t size() const override { return frames_.size(); }
+  Frame load(size_t i) const override {
+    if (bad_.count(i)) throw DataError("frame " + std::to_string(i) + " is unreadable");
+    return frames_.load(i);
+  }
+
+ private:
+  const FrameVector& frames_;
+  std::set<size_t> bad_;
+};
+
+// Frames cast elsewhere (mpirun's ranks) and merged in frame order give the bytes of one process,
+// whichever frames were handed out and whenever their answers arrived.
+TEST(FrameSharing, SharedFramesGiveTheMapOfOneProcess) {
+  const PinholeCamera cam = smallCamera(120);
+  const FrameVector frames(benchmarkSequence(9, cam));
+  struct Case {
+    bool fast;
+    int carve_level;
+  };
+  for (const Case c : {Case{false, 0}, Case{true, 0}, Case{true, 2}}) {
+    IntegratorSettings s;
+    s.fast = c.fast;
+    s.carve_level = c.carve_level;
+    s.threads = 1;
+    SessionMap alone(0.05);
+    const IntegrationStats expected = integrate(frames, alone, s);
+    const std::vector<uint8_t> bytes = encodeSessionMap(alone, {});
+    size_t shared_somewhere = 0;
+    for (uint32_t seed = 0; seed < 12; ++seed) {
+      LocalSharing sharing(frames, 0.05, s, seed, seed % 5);
+      SessionMap map(0.05);
+      size_t progress_calls = 0;
+      const IntegrationStats stats = integrate(
+          frames, map, s,
+          [&](size_t done, size_t total) {
+            EXPECT_EQ(done, ++progress_calls);
+            EXPECT_EQ(total, frames.size());
+          },
+          &sharing);
+      EXPECT_EQ(encodeSessionMap(map, {}), bytes) << "fast " << c.fast << " carve " << c.carve_level << " seed " << seed;
+      EXPECT_EQ(stats.points, expected.points);
+      EXPECT_EQ(stats.frames, expected.frames);
+      EXPECT_EQ(stats.rays, expected.rays);
+      EXPECT_EQ(stats.voxel_updates, expected.voxel_updates);
+      EXPECT_EQ(progress_calls, frames.size());
+      EXPECT_LE(sharing.handed_out, frames.size());
+      if (sharing.handed_out > 0 && sharing.handed_out < frames.size()) ++shared_somewhere;
+    }
+    EXPECT_GE(shared_somewhere, 6u) << "most seeds cast frames in both places";
+  }
+}
+
+// A frame that cannot be read stops the integration with the error one process gives, the first
+// bad frame in frame order's, whether it was handed out or cast here (even ahead of its turn).
+TEST(FrameSharing, TheFirstBadFrameInFrameOrderStopsIt) {
+  const PinholeCamera cam = smallCamera(80);
+  const FrameVector frames(benchmarkSequence(10, cam));
+  IntegratorSettings s;
+  s.threads = 1;
+  std::mt19937 random(5);
+  for (int trial = 0; trial < 40; ++trial) {
+    std::set<size_t> bad;
+    const int count = std::uniform_int_distribution<int>(1, 3)(random);
+    for (int k = 0; k < count; ++k) bad.insert(std::uniform_int_distribution<size_t>(0, frames.size() - 1)(random));
+    const FramesWithBadOnes source(frames, bad);
+    SessionMap alone(0.05);
+    std::string expected;
+    try {
+      integrate(source, alone, s);
+    } catch (const DataError& e) {
+      expected = e.what();
+    }
+    ASSERT_EQ(expected, "frame " + std::to_string(*bad.begin()) + " is unreadable");
+    LocalSharing sharing(source, 0.05, s, static_cast<uint32_t>(trial), 1 + trial % 4);
+    SessionMap map(0.05);
+    size_t merged = 0;
+    try {
+      integrate(source, map, s, [&](size_t done, size_t) { merged = done; }, &sharing);
+      ADD_FAILURE() << "no error, trial " << trial;
+    } catch (const DataError& e) {
+      EXPECT_EQ(std::string(e.what()), expected) << "trial " << trial;
+    }
+    EXPECT_EQ(merged, *bad.begin()) << "the frames before the bad one were merged, trial " << trial;
+  }
+}
+
+// A frame's deltas travel as bytes (mpirun's ranks): read back bit for bit; bytes cut short, with
+// a byte too many, or of something else are refused with a FormatError.
+TEST(FrameSharing, DeltasReadBackExactlyAndRefuseOtherBytes) {
+  const PinholeCamera cam = smallCamera(120);
+  const FrameVector frames(benchmarkSequence(2, cam));
+  IntegratorSettings s;
+  s.fast = true;
+  s.carve_level = 2;
+  RayAccumulator acc(KeyGrid(0.05), s);
+  VoxelDeltas d;
+  acc.accumulate(frames.load(1), d);
+  ASSERT_FALSE(d.keys.empty());
+  ASSERT_FALSE(d.cube_keys.empty());
+  const std::vector<uint8_t> bytes = encodeDeltas(d);
+  VoxelDeltas back;
+  back.keys.resize(3);  // what was there before is replaced
+  decodeDeltas(bytes, back, "test");
+  EXPECT_EQ(back.keys, d.keys);
+  ASSERT_EQ(back.deltas.size(), d.deltas.size());
+  EXPECT_EQ(std::memcmp(back.deltas.data(), d.deltas.data(), d.deltas.size() * sizeof(VoxelCounters)), 0);
+  EXPECT_EQ(back.cube_keys, d.cube_keys);
+  EXPECT_EQ(back.cube_length_m, d.cube_length_m);
+  EXPECT_EQ(back.cube_level, d.cube_level);
+  EXPECT_EQ(back.stats.points, d.stats.points);
+  EXPECT_EQ(back.stats.rays, d.stats.rays);
+  EXPECT_EQ(back.stats.voxel_updates, d.stats.voxel_updates);
+  EXPECT_EQ(encodeDeltas(back), bytes);
+  std::mt19937 random(2);
+  for (int k = 0; k < 50; ++k) {
+    const size_t cut = std::uniform_int_distribution<size_t>(0, bytes.size() - 1)(random);
+    EXPECT_THROW(decodeDeltas(std::span<const uint8_t>(bytes).first(cut), back, "test"), FormatError) << cut;
+  }
+  std::vector<uint8_t> longer = bytes;
+  longer.push_back(0);
+  EXPECT_THROW(decodeDeltas(longer, back, "test"), FormatError);
+  std::vector<uint8_t> other = bytes;
+  other[0] ^= 1;
+  EXPECT_THROW(decodeDeltas(other, back, "test"), FormatError);
+  std::vector<uint8_t> level = bytes;
+  level[4 + 8 + 8] = 9;  // the cube level
+  EXPECT_THROW(decodeDeltas(level, back, "test"), FormatError);
+  VoxelDeltas empty;
+  decodeDeltas(encodeDeltas(VoxelDeltas{}), empty, "test");
+  EXPECT_TRUE(empty.keys.empty());
+  EXPECT_TRUE(empty.cube_keys.empty());
 }
 
 TEST(DroppedPointsWarnings, OnlyPastATenthOfTheValidPoints) {

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -155,14 +156,42 @@ class RayAccumulator {
   std::unique_ptr<Impl> impl_;
 };
 
+/// One frame's deltas as bytes, every counter bit for bit, for another process of the same build
+/// (`mpirun -np N chronomap build`: pipeline/distributed.h).
+std::vector<uint8_t> encodeDeltas(const VoxelDeltas& deltas);
+/// encodeDeltas() read back into `out`. @throw FormatError for bytes it did not write (a wrong
+/// length or count), naming `source`.
+void decodeDeltas(std::span<const uint8_t> bytes, VoxelDeltas& out, const std::string& source);
+
+/// Frames of one integration that other processes cast (`mpirun -np N chronomap build`). integrate()
+/// still merges every frame in frame order, whoever cast it, so the map is the same bytes.
+/// integrate() asks for frames in frame order: it hands frames out ahead of the one it merges,
+/// and casts frames itself while it waits for them (so that no process idles).
+class FrameSharing {
+ public:
+  virtual ~FrameSharing() = default;
+  /// Hands frames `first`, `first + 1`, ... (below `end`) to other processes, as many as they have
+  /// room for now. @return how many (0: none now).
+  virtual size_t handOut(size_t first, size_t end) = 0;
+  /// True when frame `i` was handed out and not collected yet.
+  virtual bool handedOut(size_t i) const = 0;
+  /// The deltas of frame `i`, which was handed out, into `out`. Called for the handed-out frames in
+  /// frame order. @return false when they have not arrived yet and `wait` is false.
+  /// @throw what casting the frame threw there (the same error this process would have given).
+  virtual bool collect(size_t i, VoxelDeltas& out, bool wait) = 0;
+};
+
 /// Called after each frame is merged: (frames done, frames in all). It may throw to stop the
 /// integration; the exception leaves integrate().
 using ProgressFn = std::function<void(size_t, size_t)>;
 
-/// Integrates every frame of `source` into `map`, in frame order.
+/// Integrates every frame of `source` into `map`, in frame order. With `sharing`, other processes
+/// cast frames too and this one casts on one thread (settings.threads is not used); the map is the
+/// same bytes either way.
 /// @throw UsageError for bad settings or when the map or a frame needs more memory than
 /// settings.memory_limit_bytes; whatever source.load throws for bad frames, or `progress`.
+/// Frames handed out and not collected when it throws are left to `sharing`.
 IntegrationStats integrate(const FrameSource& source, SessionMap& map, const IntegratorSettings& settings = {},
-                           const ProgressFn& progress = {});
+                           const ProgressFn& progress = {}, FrameSharing* sharing = nullptr);
 
 }  // namespace chronomap
