@@ -406,7 +406,7 @@ int runBuild(const BuildCmdOptions& o) {
   s.criterion = o.criterion;
   s.session = sessionSettings(o.integrate);
   if (tiled) return runStreamBuild(o, s);
-  // Under mpirun the ranks share the recordings out and rank 0 writes and reports; alone, one process.
+  // Under mpirun the ranks cast the recordings' frames and rank 0 merges, writes and reports; alone, one process.
   const Ranks ranks;
   s.progress = terminalProgress(o.json || ranks.rank() != 0);
   try {
@@ -505,8 +505,8 @@ Command addBuild(CLI::App& root) {
   CLI::App* app = root.add_subcommand(
       "build",
       "Integrate several recordings and add them to a 4D map in time order (the map is created when "
-      "missing and written once, atomically, at the end). Under mpirun -np N the recordings are shared out "
-      "over the N processes; the map is the same, byte for byte (docs/scale.md). With --tiles (or a tiled map "
+      "missing and written once, atomically, at the end). Under mpirun -np N the frames of every recording are cast "
+      "by the N processes (one thread each) and merged in frame order by the first; the map is the same, byte for byte (docs/scale.md). With --tiles (or a tiled map "
       "folder as MAP) the sessions are added tile by tile in bounded memory (the streaming build).");
   app->add_option("MAP", o->map, "the 4D map (.cmap), or with --tiles a tiled map folder")->required();
   app->add_option("DATASET", o->datasets, "dataset folders or files, one per session")->required();

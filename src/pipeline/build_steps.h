@@ -21,8 +21,9 @@ struct Pending {
 void checkInputs(const BuildSettings& s);
 /// Refuses known clashes with stored sessions before the long integration.
 void refuseClashes(const BuildSettings& s, const TemporalMap& map);
-/// Integrates dataset `i` (saying so) and finds its time. @throw UsageError when it has none.
-Pending integrateOne(const BuildSettings& s, size_t i);
+/// Integrates dataset `i` (saying so; with `sharing`, other processes cast some of its frames) and
+/// finds its time. @throw UsageError when it has none.
+Pending integrateOne(const BuildSettings& s, size_t i, FrameSharing* sharing = nullptr);
 /// Sorts the sessions by time. @throw UsageError when two have the same time.
 void sortByTime(const BuildSettings& s, std::vector<Pending>& pending);
 /// Registers the sorted sessions against the consensus of them all (s.registration, which must be

@@ -10,17 +10,24 @@
 #include <climits>
 #include <cstdint>
 #include <cstdlib>
+#include <deque>
+#include <exception>
 #include <filesystem>
-#include <sstream>
+#include <map>
+#include <memory>
+#include <span>
 #include <string>
 #include <thread>
 #include <utility>
 #include <vector>
 
 #include "build_steps.h"
+#include "chronomap/core/byte_buffer.h"
 #include "chronomap/core/error.h"
-#include "chronomap/store/cmap.h"
 #include "chronomap/core/file.h"
+#include "chronomap/integrate/integrator.h"
+#include "chronomap/pipeline/session.h"
+#include "chronomap/store/cmap.h"
 
 namespace chronomap {
 
@@ -103,109 +110,217 @@ class Steps {
   std::exception_ptr error_;
 };
 
-constexpr int kTag = 1;
-constexpr size_t kChunkBytes = size_t{1} << 30;  // MPI counts are ints
+// The messages of the frames shared out (SharedFrames, serveSharedFrames).
+constexpr int kControlTag = 1;  // rank 0 to the others: two uint64, what to do and with what
+constexpr int kFrameTag = 2;    // the others to rank 0: a frame's answer (FrameAnswer)
+enum Control : uint64_t {
+  kOpen = 1,   // open recording N (the settings' datasets) as integrateDataset opens it
+  kCast = 2,   // cast frame N of it and answer
+  kClose = 3,  // the recording is done (every frame handed out was answered)
+  kDone = 4,   // every recording is done
+};
+/// Frames handed to one rank and not yet collected, at most: it casts the next while the answers
+/// before are on their way.
+constexpr size_t kFramesPerRank = 4;
 
-void sendBytes(const std::vector<uint8_t>& bytes, int to) {
-  const uint64_t n = bytes.size();
+void sendControl(int to, Control what, uint64_t value) {
+  const uint64_t message[2] = {what, value};
   MPI_Request request = MPI_REQUEST_NULL;
-  MPI_Isend(&n, 1, MPI_UINT64_T, to, kTag, MPI_COMM_WORLD, &request);
+  MPI_Isend(message, 2, MPI_UINT64_T, to, kControlTag, MPI_COMM_WORLD, &request);
   waitGently(request);
-  for (size_t at = 0; at < bytes.size(); at += kChunkBytes) {
-    const int count = static_cast<int>(std::min(kChunkBytes, bytes.size() - at));
-    MPI_Isend(bytes.data() + at, count, MPI_BYTE, to, kTag, MPI_COMM_WORLD, &request);
+}
+
+/// A frame's answer as it travels: the frame, then its deltas (encodeDeltas) or the error that
+/// casting it threw (exit code and message).
+struct FrameAnswer {
+  static std::vector<uint8_t> deltas(uint64_t frame, const VoxelDeltas& d) {
+    ByteWriter w;
+    w.put(frame);
+    w.put(uint8_t{1});
+    std::vector<uint8_t> body = encodeDeltas(d);
+    w.bytes.insert(w.bytes.end(), body.begin(), body.end());
+    return std::move(w.bytes);
+  }
+  static std::vector<uint8_t> error(uint64_t frame, const std::exception_ptr& e) {
+    const ErrorReport report = describeError(e);
+    ByteWriter w;
+    w.put(frame);
+    w.put(uint8_t{0});
+    w.put(static_cast<int32_t>(report.exit_code));
+    w.bytes.insert(w.bytes.end(), report.message.begin(), report.message.end());
+    return std::move(w.bytes);
+  }
+  /// The deltas of `frame` into `out`. @throw the error the answer carries (UsageError for exit
+  /// code 2, else Error, with its message), or Error when it is not `frame`'s.
+  static void read(const std::vector<uint8_t>& bytes, uint64_t frame, int from, VoxelDeltas& out) {
+    const std::string source = "frame " + std::to_string(frame + 1) + " from rank " + std::to_string(from);
+    ByteReader r{bytes, 0, source, "the answer"};
+    if (r.get<uint64_t>() != frame) throw Error(source + ": another frame's answer arrived");
+    if (r.get<uint8_t>() == 1) {
+      decodeDeltas(std::span<const uint8_t>(bytes).subspan(r.pos), out, source);
+      return;
+    }
+    const auto code = r.get<int32_t>();
+    const std::string message(bytes.begin() + static_cast<std::ptrdiff_t>(r.pos), bytes.end());
+    if (code == 2) throw UsageError(message);
+    throw Error(message);
+  }
+};
+
+/// Rank 0's side of the frames shared out: hands frames to the ranks with the fewest waiting,
+/// collects their answers in frame order.
+class SharedFrames final : public FrameSharing {
+ public:
+  explicit SharedFrames(int ranks) : waiting_(static_cast<size_t>(ranks), 0) {}
+
+  /// Every other rank opens recording `dataset`.
+  void open(size_t dataset) {
+    cast_.assign(waiting_.size(), 0);
+    for (int r = 1; r < static_cast<int>(waiting_.size()); ++r) sendControl(r, kOpen, dataset);
+  }
+
+  size_t handOut(size_t first, size_t end) override {
+    size_t given = 0;
+    for (; first + given < end; ++given) {
+      size_t least = 0;  // no rank
+      for (size_t r = 1; r < waiting_.size(); ++r) {
+        if (waiting_[r] < kFramesPerRank && (least == 0 || waiting_[r] < waiting_[least])) least = r;
+      }
+      if (least == 0) break;
+      sendControl(static_cast<int>(least), kCast, first + given);
+      ++waiting_[least];
+      owner_[first + given] = static_cast<int>(least);
+    }
+    return given;
+  }
+
+  bool handedOut(size_t i) const override { return owner_.count(i) != 0; }
+
+  bool collect(size_t i, VoxelDeltas& out, bool wait) override {
+    const int from = owner_.at(i);
+    if (!receive(from, wait)) return false;
+    --waiting_[static_cast<size_t>(from)];
+    ++cast_[static_cast<size_t>(from)];
+    owner_.erase(i);
+    // Each rank answers its frames in the order it got them, and frames are collected in frame
+    // order: this answer is frame i's.
+    FrameAnswer::read(answer_, i, from, out);
+    return true;
+  }
+
+  /// Receives (and drops) the answers still on their way, then the other ranks close the recording.
+  void close() {
+    for (const auto& [frame, from] : owner_) receive(from, /*wait=*/true);
+    owner_.clear();
+    for (size_t r = 1; r < waiting_.size(); ++r) {
+      waiting_[r] = 0;
+      sendControl(static_cast<int>(r), kClose, 0);
+    }
+  }
+
+  /// How many frames of the recording open each rank cast (those not collected from another: rank
+  /// 0's), for `frames` in all: "rank 0 cast 12 frames, rank 1 10, rank 2 9".
+  std::string castBy(size_t frames) const {
+    size_t elsewhere = 0;
+    std::string others;
+    for (size_t r = 1; r < cast_.size(); ++r) {
+      elsewhere += cast_[r];
+      others += ", rank " + std::to_string(r) + " " + std::to_string(cast_[r]);
+    }
+    return "rank 0 cast " + std::to_string(frames - std::min(frames, elsewhere)) + " frame(s)" + others;
+  }
+
+  /// The other ranks stop serving frames.
+  void done() {
+    for (int r = 1; r < static_cast<int>(waiting_.size()); ++r) sendControl(r, kDone, 0);
+  }
+
+ private:
+  /// The next answer from rank `from` into answer_. @return false when none is there and `wait`
+  /// is false; waits for it without spinning otherwise (waitGently).
+  bool receive(int from, bool wait) {
+    MPI_Status status;
+    int there = 0;
+    for (MPI_Iprobe(from, kFrameTag, MPI_COMM_WORLD, &there, &status); !there && wait;
+         MPI_Iprobe(from, kFrameTag, MPI_COMM_WORLD, &there, &status)) {
+      std::this_thread::sleep_for(std::chrono::microseconds(250));
+    }
+    if (!there) return false;
+    int count = 0;
+    MPI_Get_count(&status, MPI_BYTE, &count);
+    answer_.resize(static_cast<size_t>(count));
+    MPI_Request request = MPI_REQUEST_NULL;
+    MPI_Irecv(answer_.data(), count, MPI_BYTE, from, kFrameTag, MPI_COMM_WORLD, &request);
     waitGently(request);
+    return true;
   }
-}
 
-std::vector<uint8_t> receiveBytes(int from) {
-  uint64_t n = 0;
-  MPI_Request request = MPI_REQUEST_NULL;
-  MPI_Irecv(&n, 1, MPI_UINT64_T, from, kTag, MPI_COMM_WORLD, &request);
-  waitGently(request);
-  std::vector<uint8_t> bytes(n);
-  for (size_t at = 0; at < bytes.size(); at += kChunkBytes) {
-    const int count = static_cast<int>(std::min(kChunkBytes, bytes.size() - at));
-    MPI_Irecv(bytes.data() + at, count, MPI_BYTE, from, kTag, MPI_COMM_WORLD, &request);
+  std::vector<size_t> waiting_;  // per rank: frames handed to it and not collected
+  std::vector<size_t> cast_;     // per rank: frames of the recording open it answered
+  std::map<size_t, int> owner_;  // frames handed out and not collected: the rank casting each
+  std::vector<uint8_t> answer_;
+};
+
+/// What the ranks other than 0 do while rank 0 integrates: cast the frames rank 0 hands them, of
+/// the recording it opened (as integrateDataset opens it), and answer with their deltas, until
+/// rank 0 is done. A frame that cannot be cast here (or a recording that does not open) is
+/// answered with the error, which rank 0 throws at that frame's turn: the error the process alone
+/// gives. Casting the next frame goes on while answers are on their way (kFramesPerRank).
+void serveSharedFrames(const BuildSettings& s) {
+  std::unique_ptr<Dataset> recording;
+  std::exception_ptr open_error;
+  std::optional<RayAccumulator> accumulator;
+  VoxelDeltas deltas;
+  std::deque<std::pair<std::vector<uint8_t>, MPI_Request>> answers;  // on their way, oldest first
+  const auto finishAnswers = [&](size_t at_most) {
+    for (; answers.size() > at_most; answers.pop_front()) waitGently(answers.front().second);
+  };
+  for (;;) {
+    uint64_t control[2] = {0, 0};
+    MPI_Request request = MPI_REQUEST_NULL;
+    MPI_Irecv(control, 2, MPI_UINT64_T, 0, kControlTag, MPI_COMM_WORLD, &request);
     waitGently(request);
+    if (control[0] == kOpen) {
+      recording.reset();
+      open_error = nullptr;
+      try {
+        const size_t i = static_cast<size_t>(control[1]);
+        if (i >= s.datasets.size()) throw Error("rank 0 asked for recording " + std::to_string(i + 1));
+        recording = openForIntegration(s.datasets[i], s.session);
+        if (!accumulator) accumulator.emplace(KeyGrid(s.session.resolution_m), s.session.integrator);
+      } catch (...) {
+        open_error = std::current_exception();
+      }
+    } else if (control[0] == kCast) {
+      const uint64_t frame = control[1];
+      std::vector<uint8_t> answer;
+      try {
+        if (open_error) std::rethrow_exception(open_error);
+        if (!recording || frame >= recording->size()) throw Error("rank 0 asked for a frame the recording lacks");
+        const size_t i = static_cast<size_t>(frame);
+        if (const Frame* f = recording->resident(i)) {
+          accumulator->accumulate(*f, deltas);
+        } else {
+          accumulator->accumulate(recording->load(i), deltas);
+        }
+        answer = FrameAnswer::deltas(frame, deltas);
+      } catch (...) {
+        answer = FrameAnswer::error(frame, std::current_exception());
+      }
+      if (answer.size() > static_cast<size_t>(INT_MAX)) {
+        answer = FrameAnswer::error(frame, std::make_exception_ptr(Error("a frame's deltas over 2 GiB")));
+      }
+      finishAnswers(kFramesPerRank - 1);
+      answers.emplace_back(std::move(answer), MPI_REQUEST_NULL);
+      std::vector<uint8_t>& bytes = answers.back().first;
+      MPI_Isend(bytes.data(), static_cast<int>(bytes.size()), MPI_BYTE, 0, kFrameTag, MPI_COMM_WORLD,
+                &answers.back().second);
+    } else {
+      finishAnswers(0);
+      recording.reset();
+      if (control[0] == kDone) return;
+    }
   }
-  return bytes;
-}
-
-/// A session integrated on another rank, as it travels: a session map file in format version 1,
-/// whose counters are stored as they are in memory (versions 2 and 3 quantise them), with
-/// the rest of the session in its metadata (JSON writes doubles so that they read back exactly).
-std::vector<uint8_t> encodePending(const Pending& p) {
-  const IntegratedSession& s = p.session;
-  nlohmann::json positions = nlohmann::json::array();
-  for (const auto& q : s.sensor_positions) positions.push_back({q.x(), q.y(), q.z()});
-  nlohmann::json poses = nlohmann::json::array();
-  for (const auto& T : s.poses) {
-    const Eigen::Matrix<double, 3, 4> m = T.matrix().topRows<3>();
-    poses.push_back(std::vector<double>(m.data(), m.data() + 12));  // column-major
-  }
-  const IntegrationStats& st = s.stats;
-  const nlohmann::json meta = {
-      {"index", p.index},
-      {"time_s", p.time_s},
-      {"format", s.format},
-      {"frames_dropped", s.frames_dropped},
-      {"dropped_reasons", s.dropped_reasons},
-      {"recorded_at", s.recorded_at ? nlohmann::json(*s.recorded_at) : nlohmann::json()},
-      {"stats",
-       {st.frames, st.points, st.points_invalid, st.points_out_of_range, st.points_outside_map, st.rays,
-        st.voxel_updates, st.seconds, st.points_depth_edges}},
-      {"sensor_positions", std::move(positions)},
-      {"poses", std::move(poses)},
-      {"warnings", s.warnings}};
-  return encodeSessionMap(s.map, meta, /*zstd_level=*/1, /*version=*/1);
-}
-
-Pending decodePending(const std::vector<uint8_t>& bytes, size_t index, int from) {
-  const std::string source = "the session map of dataset " + std::to_string(index + 1) + " from rank " +
-                             std::to_string(from);
-  const CmapFile file = decodeCmap(bytes, source);
-  const nlohmann::json meta = metadataOf(file);
-  if (meta.value("index", size_t{0}) != index) throw Error(source + ": another dataset's session arrived");
-  const nlohmann::json& st = meta.at("stats");
-  const IntegrationStats stats{st.at(0), st.at(1), st.at(2), st.at(3), st.at(4),
-                               st.at(5), st.at(6), st.at(7), st.size() > 8 ? st.at(8).get<uint64_t>() : uint64_t{0}};
-  std::optional<double> recorded_at;
-  if (!meta.at("recorded_at").is_null()) recorded_at = meta.at("recorded_at").get<double>();
-  std::vector<Eigen::Vector3d> positions;
-  for (const auto& q : meta.at("sensor_positions")) {
-    positions.emplace_back(q.at(0).get<double>(), q.at(1).get<double>(), q.at(2).get<double>());
-  }
-  std::vector<Eigen::Isometry3d> poses;
-  for (const auto& q : meta.at("poses")) {
-    const std::vector<double> v = q.get<std::vector<double>>();
-    if (v.size() != 12) throw Error(source + ": a pose of " + std::to_string(v.size()) + " numbers, not 12");
-    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    T.matrix().topRows<3>() = Eigen::Map<const Eigen::Matrix<double, 3, 4>>(v.data());
-    poses.push_back(T);
-  }
-  return {index, meta.at("time_s").get<double>(),
-          IntegratedSession{sessionMapFrom(file, source), stats, recorded_at, meta.at("format").get<std::string>(),
-                            meta.at("frames_dropped").get<size_t>(), std::move(positions),
-                            meta.at("dropped_reasons").get<std::string>(), std::move(poses), ChosenUp{},
-                            meta.value("warnings", std::vector<std::string>{})}};
-}
-
-/// Bytes a recording holds on disk (a folder's files, or the file): a measure of its work.
-uintmax_t recordingBytes(const std::filesystem::path& p) {
-  std::error_code ec;
-  if (!std::filesystem::is_directory(p, ec)) {
-    const uintmax_t size = std::filesystem::file_size(p, ec);
-    return ec ? 0 : size;
-  }
-  uintmax_t total = 0;
-  std::filesystem::recursive_directory_iterator it(p, ec), end;
-  for (; !ec && it != end; it.increment(ec)) {
-    std::error_code size_ec;
-    const uintmax_t size = it->is_regular_file(size_ec) ? it->file_size(size_ec) : 0;
-    if (!size_ec) total += size;
-  }
-  return total;
 }
 
 }  // namespace
@@ -264,53 +379,37 @@ std::optional<BuildResult> buildOnRanks(const BuildSettings& settings, const Ran
   steps.agree();
   s = pipeline_detail::withUp(s, up);
 
-  // The recordings shared out by size (shareOutRecordings), the same on every rank.
-  std::vector<uintmax_t> sizes(n);
-  for (size_t i = 0; i < n; ++i) sizes[i] = recordingBytes(s.datasets[i]);
-  const std::vector<int> owner = shareOutRecordings(sizes, ranks.size());
-  std::vector<Pending> mine;
-  for (size_t i = 0; i < n; ++i) {
-    if (owner[i] != ranks.rank()) continue;
-    const int key = static_cast<int>(std::min<size_t>(i, INT_MAX - 1));
-    if (!steps.run(key, [&] { mine.push_back(pipeline_detail::integrateOne(s, i)); })) break;
+  // Rank 0 integrates the recordings in the given order, the others casting frames with it; the
+  // first that fails ends the step, as in build().
+  std::vector<Pending> pending;
+  if (root) {
+    SharedFrames frames(ranks.size());
+    for (size_t i = 0; i < n; ++i) {
+      const int key = static_cast<int>(std::min<size_t>(i, INT_MAX - 1));
+      const bool integrated = steps.run(key, [&] {
+        frames.open(i);
+        try {
+          pending.push_back(pipeline_detail::integrateOne(s, i, &frames));
+        } catch (...) {
+          frames.close();
+          throw;
+        }
+        frames.close();
+        s.progress.say("  " + frames.castBy(pending.back().session.stats.frames));
+      });
+      if (!integrated) break;
+    }
+    frames.done();
+  } else {
+    steps.run(0, [&] { serveSharedFrames(s); });
   }
   steps.agree();
-
-  // Encoded before anything is sent, so that a failure here is agreed on too.
-  std::vector<std::vector<uint8_t>> encoded;
   if (!root) {
-    steps.run(0, [&] {
-      for (const Pending& p : mine) encoded.push_back(encodePending(p));
-    });
-    mine.clear();
-  }
-  steps.agree();
-  if (!root) {
-    for (const auto& bytes : encoded) sendBytes(bytes, 0);
     steps.agree();  // rank 0's adding and writing
     return std::nullopt;
   }
-  // Every byte received before anything can fail here, so that no rank waits on a send.
-  std::vector<std::vector<uint8_t>> received(n);
-  for (size_t i = 0; i < n; ++i) {
-    if (owner[i] != 0) received[i] = receiveBytes(owner[i]);
-  }
   BuildResult result;
   steps.run(0, [&] {
-    std::vector<Pending> pending;
-    size_t own = 0;
-    for (size_t i = 0; i < n; ++i) {
-      if (owner[i] == 0) {
-        pending.push_back(std::move(mine[own++]));
-        continue;
-      }
-      const int from = owner[i];
-      std::ostringstream step;
-      step << "[" << i + 1 << "/" << n << "] " << s.datasets[i].string() << " (integrated on rank " << from << ")";
-      s.progress.say(step.str());
-      pending.push_back(decodePending(received[i], i, from));
-      std::vector<uint8_t>().swap(received[i]);
-    }
     pipeline_detail::sortByTime(s, pending);
     result = pipeline_detail::finishBuild(s, *map, created, pending, up, stored);
   });

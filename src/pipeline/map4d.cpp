@@ -62,11 +62,11 @@ void refuseClashes(const BuildSettings& s, const TemporalMap& map) {
   }
 }
 
-Pending integrateOne(const BuildSettings& s, size_t i) {
+Pending integrateOne(const BuildSettings& s, size_t i, FrameSharing* sharing) {
   std::ostringstream step;  // (a chain of string + trips GCC 12's -Wrestrict)
   step << "[" << i + 1 << "/" << s.datasets.size() << "] " << s.datasets[i].string();
   s.progress.say(step.str());
-  IntegratedSession session = integrateDataset(s.datasets[i], s.session, {}, s.progress);
+  IntegratedSession session = integrateDataset(s.datasets[i], s.session, {}, s.progress, "integrating", sharing);
   const std::optional<double> given = givenTime(s, i);
   const std::optional<double> t = given ? given : session.recorded_at;
   if (!t) {
@@ -342,22 +342,6 @@ AddSessionResult addSession(const AddSessionSettings& s) {
   r.nodes = map.counts().nodes();
   r.file_bytes = fs::file_size(s.map);
   return r;
-}
-
-std::vector<int> shareOutRecordings(const std::vector<uintmax_t>& bytes, int ranks) {
-  // Largest first, each to the rank with the least so far (ties: the lower rank, then the
-  // earlier recording), so that the ranks finish together; the same on every rank.
-  std::vector<size_t> order(bytes.size());
-  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return bytes[a] > bytes[b]; });
-  std::vector<uintmax_t> load(static_cast<size_t>(std::max(ranks, 1)), 0);
-  std::vector<int> owner(bytes.size(), 0);
-  for (const size_t i : order) {
-    const auto least = static_cast<size_t>(std::min_element(load.begin(), load.end()) - load.begin());
-    owner[i] = static_cast<int>(least);
-    load[least] += bytes[i];
-  }
-  return owner;
 }
 
 }  // namespace chronomap

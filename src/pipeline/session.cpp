@@ -94,13 +94,23 @@ ChosenUp storedUp(const nlohmann::json& meta, const std::string& source) {
   return out;
 }
 
-IntegratedSession integrateDataset(const std::filesystem::path& path, const SessionSettings& given,
+std::unique_ptr<Dataset> openForIntegration(const std::filesystem::path& path, const SessionSettings& settings,
+                                            ChosenUp* up) {
+  const ChosenUp chosen = chooseUp(settings.up, path, settings.dataset);
+  if (up) *up = chosen;
+  if (chosen.axis == UpAxis::PlusZ) return openRecording(path, settings.dataset);
+  DatasetSettings dataset = settings.dataset;
+  dataset.world_rotation = uprightRotation(chosen.axis);
+  return openRecording(path, dataset);
+}
+
+IntegratedSession integrateDataset(const std::filesystem::path& path, const SessionSettings& settings,
                                    const PoseCorrection& correction, const Progress& progress,
-                                   const std::string& label) {
-  SessionSettings settings = given;
-  const ChosenUp up = chooseUp(given.up, path, given.dataset);
-  if (up.axis != UpAxis::PlusZ) settings.dataset.world_rotation = uprightRotation(up.axis);
-  auto dataset = openRecording(path, settings.dataset);
+                                   const std::string& label, FrameSharing* sharing) {
+  // Other processes cast the frames as the recording reads them (serveSharedFrames in distributed.cpp).
+  if (sharing && !correction.isIdentity()) throw Error("frames of a corrected recording are not shared");
+  ChosenUp up;
+  auto dataset = openForIntegration(path, settings, &up);
   IntegratedSession out{SessionMap(settings.resolution_m), {}, dataset->recordedAt(), dataset->format(),
                         dataset->framesDropped(), {}, dataset->droppedReasons(), {}, up, {}};
   out.sensor_positions.reserve(dataset->size());
@@ -112,8 +122,9 @@ IntegratedSession integrateDataset(const std::filesystem::path& path, const Sess
   // Without a correction the dataset is read directly (frames already in memory are not copied).
   const CorrectedFrames frames(*dataset, correction);
   const FrameSource& source = correction.isIdentity() ? static_cast<const FrameSource&>(*dataset) : frames;
-  out.stats = integrate(source, out.map, settings.integrator,
-                        [&](size_t done, size_t total) { progress.advance(label, done, total); });
+  out.stats = integrate(
+      source, out.map, settings.integrator, [&](size_t done, size_t total) { progress.advance(label, done, total); },
+      sharing);
   if (out.stats.points == 0) {
     throw DataError(path.string() + ": no valid points within " + std::to_string(settings.integrator.max_range_m) +
                     " m in " + std::to_string(out.stats.frames) + " frame(s) (" +

@@ -4,8 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "test_support.h"
 
@@ -84,8 +86,8 @@ TEST(MpiBuild, BadInputFailsOnEveryRankWithoutWaiting) {
   EXPECT_NE(r.exit_code, 124) << "timed out: a rank waited for another";
   EXPECT_NE(r.err.find("dataset '" + missing + "' does not exist"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(map));
-  // An empty folder found bad only by the rank that integrates it (the second of three, on rank
-  // 1): rank 0 gives the error the process alone gives.
+  // An empty folder (the second of three), found when rank 0 opens it: the error the process
+  // alone gives.
   fs::create_directories(tmp / "empty");
   const std::string with_bad = " " + (tmp / "sim" / "session_00").string() + " " + (tmp / "empty").string() + " " +
                                (tmp / "sim" / "session_01").string();
@@ -97,6 +99,55 @@ TEST(MpiBuild, BadInputFailsOnEveryRankWithoutWaiting) {
   const std::string message = alone.err.substr(0, alone.err.find('\n'));
   EXPECT_NE(r.err.find(message), std::string::npos) << "alone: " << alone.err << "\nranks: " << r.err;
   EXPECT_FALSE(fs::exists(map));
+}
+
+// One recording's frames are cast on every rank (rank 0 merging them in frame order): the bytes of
+// one process, and rank 0 says how many frames each rank cast.
+TEST(MpiBuild, OneRecordingsFramesAreCastOnEveryRank) {
+  test::TempDir tmp;
+  const std::string session = simulate(tmp, 1, 0.2);
+  const fs::path plain = tmp / "plain.cmap";
+  ASSERT_EQ(runCommand(cli() + " build " + plain.string() + session).exit_code, 0);
+  for (int n : {2, 3}) {
+    const fs::path map = tmp / ("ranks" + std::to_string(n) + ".cmap");
+    const test::CommandResult r = runCommand(mpirun(n) + cli() + " build " + map.string() + session);
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_TRUE(test::bytesOf(map) == test::bytesOf(plain)) << n << " ranks";
+    // "rank 0 cast F frame(s), rank 1 G, ...": every other rank cast some.
+    const size_t at = r.err.find("rank 0 cast ");
+    ASSERT_NE(at, std::string::npos) << r.err;
+    const std::string line = r.err.substr(at, r.err.find('\n', at) - at);
+    for (int k = 1; k < n; ++k) {
+      const std::string rank = ", rank " + std::to_string(k) + " ";
+      const size_t p = line.find(rank);
+      ASSERT_NE(p, std::string::npos) << line;
+      EXPECT_GT(std::stoul(line.substr(p + rank.size())), 0u) << line;
+    }
+  }
+}
+
+// A frame that cannot be read, wherever it is cast: the error the process alone gives, on every
+// rank count, without a hang, and no map written.
+TEST(MpiBuild, AnUnreadableFrameGivesTheErrorOfOneProcess) {
+  test::TempDir tmp;
+  const std::string sessions = simulate(tmp, 2, 0.1);
+  std::vector<fs::path> depths;
+  for (const auto& e : fs::directory_iterator(tmp / "sim" / "session_01" / "depth")) depths.push_back(e.path());
+  std::sort(depths.begin(), depths.end());
+  ASSERT_GT(depths.size(), 6u);
+  for (size_t k : {depths.size() / 2, depths.size() / 2 + 3}) fs::resize_file(depths[k], 20);  // cut short
+  const fs::path map = tmp / "m.cmap";
+  const test::CommandResult alone = runCommand(cli() + " build " + map.string() + sessions);
+  ASSERT_NE(alone.exit_code, 0);
+  ASSERT_FALSE(fs::exists(map));
+  const std::string message = alone.err.substr(alone.err.find("error"), alone.err.find('\n', alone.err.find("error")) - alone.err.find("error"));
+  EXPECT_NE(message.find(depths[depths.size() / 2].filename().string()), std::string::npos) << message;
+  for (int n : {2, 3}) {
+    const test::CommandResult r = runCommand(mpirun(n) + cli() + " build " + map.string() + sessions);
+    EXPECT_EQ(r.exit_code, alone.exit_code) << n << " ranks: " << r.err;
+    EXPECT_NE(r.err.find(message), std::string::npos) << "alone: " << alone.err << "\nranks: " << r.err;
+    EXPECT_FALSE(fs::exists(map));
+  }
 }
 
 TEST(MpiBuild, KilledRankLeavesThePreviousMap) {

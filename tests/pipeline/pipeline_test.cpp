@@ -3,13 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
-#include <limits>
-#include <random>
 
 #include "chronomap/core/error.h"
 #include "chronomap/store/cmap.h"
 #include "chronomap/store/temporal_file.h"
-#include "chronomap/pipeline/distributed.h"
 #include "chronomap/pipeline/map4d.h"
 #include "chronomap/ingest/png.h"
 #include "chronomap/pipeline/maps.h"
@@ -207,48 +204,6 @@ TEST(PipelineMaps, ExportsByExtension) {
   EXPECT_NE(small, large);
   EXPECT_THROW(exportSessionMap(tmp / "m.txt", map), UsageError);
   EXPECT_FALSE(fs::exists(tmp / "m.txt"));
-}
-
-// The recordings of an MPI build shared out by size: the four first nights of the site, by
-// frames, split 1228 / 1237 (round robin gave 1264 / 1201).
-TEST(ShareOut, LargestFirstToTheLeastLoadedRank) {
-  EXPECT_EQ(shareOutRecordings({668, 641, 596, 560}, 2), (std::vector<int>{0, 1, 1, 0}));
-  EXPECT_EQ(shareOutRecordings({5, 5, 5}, 3), (std::vector<int>{0, 1, 2}));  // ties: lower rank, earlier one
-  EXPECT_EQ(shareOutRecordings({}, 2), std::vector<int>{});
-  EXPECT_EQ(shareOutRecordings({7, 3}, 1), (std::vector<int>{0, 0}));
-}
-
-// Against every assignment (the slow reference): the largest rank's load is within Graham's
-// bound of the best, 4/3 - 1/(3m) of it, on random sizes.
-TEST(ShareOut, WithinTheGreedyBoundOfTheBestAssignment) {
-  std::mt19937 random(11);
-  for (int trial = 0; trial < 200; ++trial) {
-    const int ranks = std::uniform_int_distribution<int>(2, 3)(random);
-    const int n = std::uniform_int_distribution<int>(1, 8)(random);
-    std::vector<uintmax_t> bytes(static_cast<size_t>(n));
-    for (auto& b : bytes) b = std::uniform_int_distribution<uintmax_t>(1, 1000)(random);
-    const std::vector<int> owner = shareOutRecordings(bytes, ranks);
-    std::vector<uintmax_t> load(static_cast<size_t>(ranks), 0);
-    for (size_t i = 0; i < bytes.size(); ++i) {
-      ASSERT_GE(owner[i], 0);
-      ASSERT_LT(owner[i], ranks);
-      load[static_cast<size_t>(owner[i])] += bytes[i];
-    }
-    const uintmax_t greedy = *std::max_element(load.begin(), load.end());
-    uintmax_t best = std::numeric_limits<uintmax_t>::max();
-    size_t assignments = 1;
-    for (int i = 0; i < n; ++i) assignments *= static_cast<size_t>(ranks);
-    for (size_t code = 0; code < assignments; ++code) {
-      std::vector<uintmax_t> l(static_cast<size_t>(ranks), 0);
-      size_t c = code;
-      for (size_t i = 0; i < bytes.size(); ++i, c /= static_cast<size_t>(ranks)) {
-        l[c % static_cast<size_t>(ranks)] += bytes[i];
-      }
-      best = std::min(best, *std::max_element(l.begin(), l.end()));
-    }
-    EXPECT_LE(static_cast<double>(greedy), (4.0 / 3.0 - 1.0 / (3.0 * ranks)) * static_cast<double>(best) + 1e-9)
-        << "trial " << trial;
-  }
 }
 
 }  // namespace

@@ -1,28 +1,23 @@
 #pragma once
 /// @file
-/// build() spread over the processes of an MPI job (`mpirun -np N chronomap build ...`). The
-/// recordings are shared out by their size (shareOutRecordings); the session maps go to rank 0 whole and exactly
-/// (every counter bit for bit), which then does what build() does after integrating: sorts them
-/// by time, registers and re-aligns them when asked, adds them in time order and writes the map
-/// once, atomically, holding its file lock. The file is byte-identical whatever N, and to build()'s.
-/// Registration and re-alignment run on rank 0 alone (they need every session's map).
+/// build() spread over the processes of an MPI job (`mpirun -np N chronomap build ...`). Rank 0
+/// integrates every recording in turn and the other ranks cast its frames with it: frames are
+/// handed out ahead of the one rank 0 merges, each rank sends a frame's deltas (every counter bit
+/// for bit), and rank 0 merges every frame in frame order, casting frames itself while it waits
+/// (integrate()'s FrameSharing). Rank 0 then does what build() does after integrating: sorts the
+/// sessions by time, registers and re-aligns them when asked, adds them in time order and writes
+/// the map once, atomically, holding its file lock. The file is byte-identical whatever N, and to
+/// build()'s. Registration and re-alignment run on rank 0 alone (they need every session's map).
 ///
 /// Without MPI in the build (CMake CHRONOMAP_MPI=OFF, or no MPI found), or without mpirun, the
 /// same calls run on this process alone.
 
 #include <exception>
-#include <cstdint>
 #include <optional>
-#include <vector>
 
 #include "chronomap/pipeline/map4d.h"
 
 namespace chronomap {
-
-/// Which rank integrates each recording, from the bytes each holds on disk: largest first, each
-/// to the rank with the fewest bytes so far (ties: the lower rank), so that the ranks finish
-/// together. Depends only on the sizes and their order: the same on every rank.
-std::vector<int> shareOutRecordings(const std::vector<uintmax_t>& bytes, int ranks);
 
 /// True when this chronomap was built with MPI.
 bool mpiBuilt();

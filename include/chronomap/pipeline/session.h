@@ -98,13 +98,19 @@ std::vector<BagTopic> listBagTopics(const std::filesystem::path& path, std::stri
 /// openDataset after registerReaders(): what the CLI, Python and the workflows open recordings with.
 std::unique_ptr<Dataset> openRecording(const std::filesystem::path& path, const DatasetSettings& settings = {});
 
-/// Opens and integrates the recording at `path` (its frames turned for settings.up, chooseUp),
-/// every pose corrected by `correction`; reports
-/// the frames as work labelled `label` (none when empty).
+/// The recording at `path` opened as integrateDataset() opens it: its frames turned for
+/// settings.up (chooseUp), the axis chosen written to `up` when given.
+/// @throw as openRecording and chooseUp.
+std::unique_ptr<Dataset> openForIntegration(const std::filesystem::path& path, const SessionSettings& settings,
+                                            ChosenUp* up = nullptr);
+
+/// Opens and integrates the recording at `path` (openForIntegration), every pose corrected by
+/// `correction`; reports the frames as work labelled `label` (none when empty). With `sharing`,
+/// other processes cast some of its frames (integrate()); the map is the same.
 /// @throw DataError when no point could be integrated; whatever the reader throws for bad input.
 IntegratedSession integrateDataset(const std::filesystem::path& path, const SessionSettings& settings,
                                    const PoseCorrection& correction = {}, const Progress& progress = {},
-                                   const std::string& label = "integrating");
+                                   const std::string& label = "integrating", FrameSharing* sharing = nullptr);
 
 /// The metadata `chronomap integrate` writes into a session map file: what was read, how, and
 /// when it was recorded.
