@@ -417,17 +417,22 @@ void integrateShared(const FrameSource& source, SessionMap& map, const Integrato
 
 }  // namespace
 
+std::unique_ptr<MemoryActivity> integrationMemoryActivity(size_t frames, double resolution_m) {
+  std::ostringstream what;
+  what << "integrating " << frames << " frame(s) at resolution " << resolution_m << " m";
+  return std::make_unique<MemoryActivity>(what.str(),
+                                          "use a coarser --resolution, fewer --threads, or a --memory-limit below "
+                                          "the memory this process may use (" +
+                                              humanBytes(static_cast<double>(processMemoryBytes())) + ")");
+}
+
 IntegrationStats integrate(const FrameSource& source, SessionMap& map, const IntegratorSettings& settings,
                            const ProgressFn& progress, FrameSharing* sharing) {
   checkSettings(settings);
   const auto start = std::chrono::steady_clock::now();
   IntegrationStats total;
   const size_t n = source.size();
-  std::ostringstream what;
-  what << "integrating " << n << " frame(s) at resolution " << map.resolution_m() << " m";
-  const MemoryActivity activity(what.str(), "use a coarser --resolution, fewer --threads, or a --memory-limit below "
-                                            "the memory this process may use (" +
-                                                humanBytes(static_cast<double>(processMemoryBytes())) + ")");
+  const auto activity = integrationMemoryActivity(n, map.resolution_m());
   int threads = settings.threads > 0 ? settings.threads : static_cast<int>(std::thread::hardware_concurrency());
   threads = std::max(1, threads);
   if (sharing) {

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <climits>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <deque>
 #include <exception>
@@ -25,6 +26,7 @@
 #include "chronomap/core/byte_buffer.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/file.h"
+#include "chronomap/core/memory.h"
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/pipeline/session.h"
 #include "chronomap/store/cmap.h"
@@ -130,25 +132,39 @@ void sendControl(int to, Control what, uint64_t value) {
   waitGently(request);
 }
 
-/// A frame's answer as it travels: the frame, then its deltas (encodeDeltas) or the error that
-/// casting it threw (exit code and message).
+/// A frame's answer as it travels: the frame, the length of what follows, then its deltas
+/// (encodeDeltas) or the error that casting it threw (exit code and message); padded to whole
+/// blocks of kAnswerBlock bytes, the unit it is sent in (MPI counts are ints: blocks let an answer
+/// pass 2 GiB).
+constexpr int kAnswerBlock = 64;
+
+/// The MPI type of one block, committed while it lives.
+class BlockType {
+ public:
+  BlockType() {
+    MPI_Type_contiguous(kAnswerBlock, MPI_BYTE, &type_);
+    MPI_Type_commit(&type_);
+  }
+  ~BlockType() { MPI_Type_free(&type_); }
+  BlockType(const BlockType&) = delete;
+  BlockType& operator=(const BlockType&) = delete;
+  MPI_Datatype get() const { return type_; }
+
+ private:
+  MPI_Datatype type_ = MPI_DATATYPE_NULL;
+};
+
 struct FrameAnswer {
   static std::vector<uint8_t> deltas(uint64_t frame, const VoxelDeltas& d) {
-    ByteWriter w;
-    w.put(frame);
-    w.put(uint8_t{1});
     std::vector<uint8_t> body = encodeDeltas(d);
-    w.bytes.insert(w.bytes.end(), body.begin(), body.end());
-    return std::move(w.bytes);
+    return framed(frame, 1, body);
   }
   static std::vector<uint8_t> error(uint64_t frame, const std::exception_ptr& e) {
     const ErrorReport report = describeError(e);
     ByteWriter w;
-    w.put(frame);
-    w.put(uint8_t{0});
     w.put(static_cast<int32_t>(report.exit_code));
     w.bytes.insert(w.bytes.end(), report.message.begin(), report.message.end());
-    return std::move(w.bytes);
+    return framed(frame, 0, w.bytes);
   }
   /// The deltas of `frame` into `out`. @throw the error the answer carries (UsageError for exit
   /// code 2, else Error, with its message), or Error when it is not `frame`'s.
@@ -156,14 +172,31 @@ struct FrameAnswer {
     const std::string source = "frame " + std::to_string(frame + 1) + " from rank " + std::to_string(from);
     ByteReader r{bytes, 0, source, "the answer"};
     if (r.get<uint64_t>() != frame) throw Error(source + ": another frame's answer arrived");
-    if (r.get<uint8_t>() == 1) {
-      decodeDeltas(std::span<const uint8_t>(bytes).subspan(r.pos), out, source);
+    const auto length = r.get<uint64_t>();
+    const auto kind = r.get<uint8_t>();
+    if (length > bytes.size() - r.pos) throw Error(source + ": the answer ends early");
+    const auto body = std::span<const uint8_t>(bytes).subspan(r.pos, static_cast<size_t>(length));
+    if (kind == 1) {
+      decodeDeltas(body, out, source);
       return;
     }
-    const auto code = r.get<int32_t>();
-    const std::string message(bytes.begin() + static_cast<std::ptrdiff_t>(r.pos), bytes.end());
+    ByteReader e{body, 0, source, "the answer"};
+    const auto code = e.get<int32_t>();
+    const std::string message(body.begin() + static_cast<std::ptrdiff_t>(e.pos), body.end());
     if (code == 2) throw UsageError(message);
     throw Error(message);
+  }
+
+ private:
+  static std::vector<uint8_t> framed(uint64_t frame, uint8_t kind, const std::vector<uint8_t>& body) {
+    ByteWriter w;
+    w.bytes.reserve(body.size() + 17 + kAnswerBlock);
+    w.put(frame);
+    w.put(static_cast<uint64_t>(body.size()));
+    w.put(kind);
+    w.bytes.insert(w.bytes.end(), body.begin(), body.end());
+    w.bytes.resize((w.bytes.size() + kAnswerBlock - 1) / kAnswerBlock * kAnswerBlock, 0);
+    return std::move(w.bytes);
   }
 };
 
@@ -236,25 +269,40 @@ class SharedFrames final : public FrameSharing {
   }
 
  private:
-  /// The next answer from rank `from` into answer_. @return false when none is there and `wait`
-  /// is false; waits for it without spinning otherwise (waitGently).
+  /// The next answer from rank `from` into answer_. @return false when it has not all arrived
+  /// and `wait` is false (a large answer moves in pieces, each when the sending rank calls MPI:
+  /// the receive stays posted meanwhile, and this process goes on casting); waits for it without
+  /// spinning otherwise (waitGently).
   bool receive(int from, bool wait) {
-    MPI_Status status;
-    int there = 0;
-    for (MPI_Iprobe(from, kFrameTag, MPI_COMM_WORLD, &there, &status); !there && wait;
-         MPI_Iprobe(from, kFrameTag, MPI_COMM_WORLD, &there, &status)) {
-      std::this_thread::sleep_for(std::chrono::microseconds(250));
+    if (receiving_ == MPI_REQUEST_NULL) {
+      MPI_Status status;
+      int there = 0;
+      for (MPI_Iprobe(from, kFrameTag, MPI_COMM_WORLD, &there, &status); !there && wait;
+           MPI_Iprobe(from, kFrameTag, MPI_COMM_WORLD, &there, &status)) {
+        std::this_thread::sleep_for(std::chrono::microseconds(250));
+      }
+      if (!there) return false;
+      int blocks = 0;
+      MPI_Get_count(&status, block_.get(), &blocks);
+      answer_.resize(static_cast<size_t>(std::max(blocks, 0)) * kAnswerBlock);
+      MPI_Irecv(answer_.data(), blocks, block_.get(), from, kFrameTag, MPI_COMM_WORLD, &receiving_);
+      receiving_from_ = from;
     }
-    if (!there) return false;
-    int count = 0;
-    MPI_Get_count(&status, MPI_BYTE, &count);
-    answer_.resize(static_cast<size_t>(count));
-    MPI_Request request = MPI_REQUEST_NULL;
-    MPI_Irecv(answer_.data(), count, MPI_BYTE, from, kFrameTag, MPI_COMM_WORLD, &request);
-    waitGently(request);
+    if (receiving_from_ != from) throw Error("an answer from rank " + std::to_string(receiving_from_) + " is pending");
+    if (wait) {
+      waitGently(receiving_);
+    } else {
+      int done = 0;
+      MPI_Test(&receiving_, &done, MPI_STATUS_IGNORE);
+      if (!done) return false;
+    }
+    receiving_ = MPI_REQUEST_NULL;
     return true;
   }
 
+  BlockType block_;
+  MPI_Request receiving_ = MPI_REQUEST_NULL;  // the answer being received into answer_
+  int receiving_from_ = 0;
   std::vector<size_t> waiting_;  // per rank: frames handed to it and not collected
   std::vector<size_t> cast_;     // per rank: frames of the recording open it answered
   std::map<size_t, int> owner_;  // frames handed out and not collected: the rank casting each
@@ -267,6 +315,8 @@ class SharedFrames final : public FrameSharing {
 /// answered with the error, which rank 0 throws at that frame's turn: the error the process alone
 /// gives. Casting the next frame goes on while answers are on their way (kFramesPerRank).
 void serveSharedFrames(const BuildSettings& s) {
+  const BlockType block;
+  std::unique_ptr<MemoryActivity> activity;  // out of memory is said as integrate() says it
   std::unique_ptr<Dataset> recording;
   std::exception_ptr open_error;
   std::optional<RayAccumulator> accumulator;
@@ -282,11 +332,13 @@ void serveSharedFrames(const BuildSettings& s) {
     waitGently(request);
     if (control[0] == kOpen) {
       recording.reset();
+      activity.reset();
       open_error = nullptr;
       try {
         const size_t i = static_cast<size_t>(control[1]);
         if (i >= s.datasets.size()) throw Error("rank 0 asked for recording " + std::to_string(i + 1));
         recording = openForIntegration(s.datasets[i], s.session);
+        activity = integrationMemoryActivity(recording->size(), s.session.resolution_m);
         if (!accumulator) accumulator.emplace(KeyGrid(s.session.resolution_m), s.session.integrator);
       } catch (...) {
         open_error = std::current_exception();
@@ -307,19 +359,32 @@ void serveSharedFrames(const BuildSettings& s) {
       } catch (...) {
         answer = FrameAnswer::error(frame, std::current_exception());
       }
-      if (answer.size() > static_cast<size_t>(INT_MAX)) {
-        answer = FrameAnswer::error(frame, std::make_exception_ptr(Error("a frame's deltas over 2 GiB")));
+      if (answer.size() / kAnswerBlock > static_cast<size_t>(INT_MAX)) {
+        answer = FrameAnswer::error(frame, std::make_exception_ptr(Error("a frame's deltas over 128 GiB")));
       }
       finishAnswers(kFramesPerRank - 1);
       answers.emplace_back(std::move(answer), MPI_REQUEST_NULL);
       std::vector<uint8_t>& bytes = answers.back().first;
-      MPI_Isend(bytes.data(), static_cast<int>(bytes.size()), MPI_BYTE, 0, kFrameTag, MPI_COMM_WORLD,
-                &answers.back().second);
+      MPI_Isend(bytes.data(), static_cast<int>(bytes.size() / kAnswerBlock), block.get(), 0, kFrameTag,
+                MPI_COMM_WORLD, &answers.back().second);
     } else {
       finishAnswers(0);
       recording.reset();
+      activity.reset();
       if (control[0] == kDone) return;
     }
+  }
+}
+
+/// serveSharedFrames(), ending the job when anything leaves it (out of memory while an answer is
+/// made): rank 0 would otherwise wait for that rank's answers for ever.
+void serveSharedFramesOrAbort(const BuildSettings& s) {
+  try {
+    serveSharedFrames(s);
+  } catch (...) {
+    std::fprintf(stderr, "chronomap: rank serving frames stopped: %s\n",
+                 describeError(std::current_exception()).message.c_str());
+    MPI_Abort(MPI_COMM_WORLD, 1);
   }
 }
 
@@ -401,7 +466,7 @@ std::optional<BuildResult> buildOnRanks(const BuildSettings& settings, const Ran
     }
     frames.done();
   } else {
-    steps.run(0, [&] { serveSharedFrames(s); });
+    serveSharedFramesOrAbort(s);
   }
   steps.agree();
   if (!root) {

@@ -16,6 +16,8 @@
 
 namespace chronomap {
 
+class MemoryActivity;
+
 /// Half the machine's physical memory: the default memory limit of integration, which leaves
 /// room for a node pool growing (its old and new storage live side by side for a moment), the
 /// frames in flight and the rest of the process. 0 when the system does not say.
@@ -180,6 +182,11 @@ class FrameSharing {
   /// @throw what casting the frame threw there (the same error this process would have given).
   virtual bool collect(size_t i, VoxelDeltas& out, bool wait) = 0;
 };
+
+/// While it lives, running out of memory is reported as integrate() reports it for `frames` frames
+/// at `resolution_m` ("out of memory while integrating ..." with advice); for a process that casts
+/// another's frames (FrameSharing).
+std::unique_ptr<MemoryActivity> integrationMemoryActivity(size_t frames, double resolution_m);
 
 /// Called after each frame is merged: (frames done, frames in all). It may throw to stop the
 /// integration; the exception leaves integrate().
