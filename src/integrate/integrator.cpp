@@ -383,6 +383,7 @@ void integrateShared(const FrameSource& source, SessionMap& map, const Integrato
   size_t next = 0;  // every frame from the merged ones to here is handed out or cast ahead
   for (size_t i = 0; i < n; ++i) {
     next = std::max(next, i);
+    while (next < n && sharing.handedOut(next)) ++next;  // handed out before integrate() began
     next += sharing.handOut(next, n);
     if (sharing.handedOut(i)) {
       while (!sharing.collect(i, deltas, /*wait=*/false)) {
@@ -413,6 +414,7 @@ void integrateShared(const FrameSource& source, SessionMap& map, const Integrato
     total += deltas.stats;
     if (progress) progress(i + 1, n);
   }
+  sharing.framesDone();
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 // spread over MPI ranks (distributed.cpp), so that both run the same code in the same order.
 
 #include <cstddef>
+#include <optional>
 #include <vector>
 
 #include "chronomap/store/cmap.h"
@@ -34,10 +35,18 @@ std::vector<PoseCorrection> registerPending(const BuildSettings& s, std::vector<
 /// `given` with a depth image cache for registration's second read of every frame (when asked
 /// for and not set yet).
 BuildSettings withRegistrationCache(const BuildSettings& given);
+/// The time of dataset `i` as integrateOne will find it, known before integrating: the given one
+/// (--times), else the recording's own (opening it). Nothing when it has none or does not open.
+std::optional<double> timeBeforeIntegrating(const BuildSettings& s, size_t i);
+/// Adds one integrated session to `map` as finishBuild adds each, with its correction and the
+/// voxels re-alignment moved when there are, and says what it added.
+BuiltSession addPending(const BuildSettings& s, TemporalMap& map, const Pending& p,
+                        const std::optional<PoseCorrection>& correction, std::optional<size_t> realigned);
 /// Registers and re-aligns the sorted sessions when asked, adds them to `map` and writes it once,
-/// atomically, with the metadata `stored` and the sessions' up (mapMetadata).
+/// atomically, with the metadata `stored` and the sessions' up (mapMetadata). `added_before`: the
+/// sessions of this build already added (all earlier than `pending`), reported first.
 BuildResult finishBuild(const BuildSettings& s, TemporalMap& map, bool created, std::vector<Pending>& pending,
-                        const ChosenUp& up, const nlohmann::json& stored);
+                        const ChosenUp& up, const nlohmann::json& stored, std::vector<BuiltSession> added_before = {});
 /// `given` with every recording read for `up` (its axis given, the world rotation set), saying so
 /// when it was estimated.
 BuildSettings withUp(const BuildSettings& given, const ChosenUp& up);

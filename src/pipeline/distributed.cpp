@@ -124,6 +124,9 @@ enum Control : uint64_t {
 /// Frames handed to one rank and not yet collected, at most: it casts the next while the answers
 /// before are on their way.
 constexpr size_t kFramesPerRank = 4;
+/// The next recording's first frames handed to each rank while rank 0 adds the last one
+/// (SharedFrames::prefetch), and so the most answers a rank keeps on their way.
+constexpr size_t kPrefetchPerRank = 16;
 
 void sendControl(int to, Control what, uint64_t value) {
   const uint64_t message[2] = {what, value};
@@ -206,10 +209,31 @@ class SharedFrames final : public FrameSharing {
  public:
   explicit SharedFrames(int ranks) : waiting_(static_cast<size_t>(ranks), 0) {}
 
-  /// Every other rank opens recording `dataset`.
+  /// The recording integrated after the open one, if any: its first frames are handed out as soon
+  /// as the open one's are merged (framesDone).
+  void setNext(std::optional<size_t> dataset) { next_ = dataset; }
+
+  /// Every other rank opens recording `dataset` (unless prefetch() had them open it). Any frames
+  /// of another recording are all collected by now.
   void open(size_t dataset) {
+    if (open_ == dataset) return;
+    open_ = dataset;
     cast_.assign(waiting_.size(), 0);
     for (int r = 1; r < static_cast<int>(waiting_.size()); ++r) sendControl(r, kOpen, dataset);
+  }
+
+  /// Every other rank opens recording `dataset` and gets its first kPrefetchPerRank frames each,
+  /// to cast while rank 0 finishes the one before (compresses its map, adds its session) or opens
+  /// this one. Frames past the recording's end are answered with an error that close() drops.
+  void prefetch(size_t dataset) {
+    open(dataset);
+    const size_t others = waiting_.size() - 1;
+    for (size_t frame = 0; frame < kPrefetchPerRank * others; ++frame) {
+      const size_t r = 1 + frame % others;
+      sendControl(static_cast<int>(r), kCast, frame);
+      ++waiting_[r];
+      owner_[frame] = static_cast<int>(r);
+    }
   }
 
   size_t handOut(size_t first, size_t end) override {
@@ -229,6 +253,11 @@ class SharedFrames final : public FrameSharing {
 
   bool handedOut(size_t i) const override { return owner_.count(i) != 0; }
 
+  void framesDone() override {
+    done_cast_ = cast_;
+    if (next_) prefetch(*next_);
+  }
+
   bool collect(size_t i, VoxelDeltas& out, bool wait) override {
     const int from = owner_.at(i);
     if (!receive(from, wait)) return false;
@@ -245,20 +274,21 @@ class SharedFrames final : public FrameSharing {
   void close() {
     for (const auto& [frame, from] : owner_) receive(from, /*wait=*/true);
     owner_.clear();
+    open_ = kNone;
     for (size_t r = 1; r < waiting_.size(); ++r) {
       waiting_[r] = 0;
       sendControl(static_cast<int>(r), kClose, 0);
     }
   }
 
-  /// How many frames of the recording open each rank cast (those not collected from another: rank
-  /// 0's), for `frames` in all: "rank 0 cast 12 frames, rank 1 10, rank 2 9".
+  /// How many frames of the recording whose frames were last all merged each rank cast (those not
+  /// collected from another: rank 0's), for `frames` in all: "rank 0 cast 12 frames, rank 1 10, rank 2 9".
   std::string castBy(size_t frames) const {
     size_t elsewhere = 0;
     std::string others;
-    for (size_t r = 1; r < cast_.size(); ++r) {
-      elsewhere += cast_[r];
-      others += ", rank " + std::to_string(r) + " " + std::to_string(cast_[r]);
+    for (size_t r = 1; r < done_cast_.size(); ++r) {
+      elsewhere += done_cast_[r];
+      others += ", rank " + std::to_string(r) + " " + std::to_string(done_cast_[r]);
     }
     return "rank 0 cast " + std::to_string(frames - std::min(frames, elsewhere)) + " frame(s)" + others;
   }
@@ -303,8 +333,12 @@ class SharedFrames final : public FrameSharing {
   BlockType block_;
   MPI_Request receiving_ = MPI_REQUEST_NULL;  // the answer being received into answer_
   int receiving_from_ = 0;
+  static constexpr size_t kNone = ~size_t{0};
+  size_t open_ = kNone;          // the recording the other ranks have open
   std::vector<size_t> waiting_;  // per rank: frames handed to it and not collected
   std::vector<size_t> cast_;     // per rank: frames of the recording open it answered
+  std::vector<size_t> done_cast_;  // the same, of the recording whose frames were last all merged
+  std::optional<size_t> next_;
   std::map<size_t, int> owner_;  // frames handed out and not collected: the rank casting each
   std::vector<uint8_t> answer_;
 };
@@ -362,7 +396,7 @@ void serveSharedFrames(const BuildSettings& s) {
       if (answer.size() / kAnswerBlock > static_cast<size_t>(INT_MAX)) {
         answer = FrameAnswer::error(frame, std::make_exception_ptr(Error("a frame's deltas over 128 GiB")));
       }
-      finishAnswers(kFramesPerRank - 1);
+      finishAnswers(kPrefetchPerRank - 1);
       answers.emplace_back(std::move(answer), MPI_REQUEST_NULL);
       std::vector<uint8_t>& bytes = answers.back().first;
       MPI_Isend(bytes.data(), static_cast<int>(bytes.size() / kAnswerBlock), block.get(), 0, kFrameTag,
@@ -375,6 +409,77 @@ void serveSharedFrames(const BuildSettings& s) {
     }
   }
 }
+
+/// Rank 0's sessions added to the map as soon as every earlier one of the build is, while the other
+/// ranks cast the next recording's first frames (SharedFrames::prefetch), instead of all after the
+/// last frame: only without registration and re-alignment (which need every session), and when
+/// every recording's time is known before integrating and no two are the same (else sortByTime
+/// and finishBuild decide, as in build()). The sessions are added in time order as finishBuild
+/// adds them, so the map is the same; an error of an add is kept for the end, where build() would
+/// meet it, so that a recording that fails to integrate is still the error given.
+class AddingAsIntegrated {
+ public:
+  AddingAsIntegrated(const BuildSettings& s, TemporalMap& map) : s_(s), map_(map) {
+    if (s.registration || s.realign) return;
+    std::vector<std::pair<double, size_t>> times;
+    for (size_t i = 0; i < s.datasets.size(); ++i) {
+      const std::optional<double> t = pipeline_detail::timeBeforeIntegrating(s, i);
+      if (!t) return;
+      times.emplace_back(*t, i);
+    }
+    std::stable_sort(times.begin(), times.end());
+    for (size_t k = 1; k < times.size(); ++k) {
+      if (times[k].first == times[k - 1].first) return;
+    }
+    for (const auto& [t, i] : times) order_.push_back(i);
+    on_ = true;
+  }
+
+  bool on() const { return on_; }
+
+  /// Takes dataset p.index's integrated session: adds it, and those waiting for it, when every
+  /// earlier one is added.
+  void take(Pending p) {
+    if (!on_) {
+      rest_.push_back(std::move(p));
+      return;
+    }
+    const size_t index = p.index;
+    waiting_.emplace(index, std::move(p));
+    while (next_ < order_.size() && waiting_.count(order_[next_]) != 0) {
+      auto it = waiting_.find(order_[next_]);
+      if (!error_) {
+        try {
+          added_.push_back(pipeline_detail::addPending(s_, map_, it->second, std::nullopt, std::nullopt));
+        } catch (...) {
+          error_ = std::current_exception();
+        }
+      }
+      if (error_) rest_.push_back(std::move(it->second));
+      waiting_.erase(it);
+      ++next_;
+    }
+  }
+
+  /// After the last recording: throws what an add threw; else the sessions not added (in build()'s
+  /// order, for sortByTime and finishBuild) and those added.
+  std::pair<std::vector<Pending>, std::vector<BuiltSession>> finish() {
+    if (error_) std::rethrow_exception(error_);
+    for (auto& [index, p] : waiting_) rest_.push_back(std::move(p));
+    return {std::move(rest_), std::move(added_)};
+  }
+
+ private:
+  const BuildSettings& s_;
+  TemporalMap& map_;
+  bool on_ = false;
+  std::vector<size_t> order_;  // the datasets in time order
+  size_t next_ = 0;            // in order_: the first not added
+  std::map<size_t, Pending> waiting_;
+  std::vector<Pending> rest_;
+  std::vector<BuiltSession> added_;
+  std::exception_ptr error_;
+};
 
 /// serveSharedFrames(), ending the job when anything leaves it (out of memory while an answer is
 /// made): rank 0 would otherwise wait for that rank's answers for ever.
@@ -445,25 +550,25 @@ std::optional<BuildResult> buildOnRanks(const BuildSettings& settings, const Ran
   s = pipeline_detail::withUp(s, up);
 
   // Rank 0 integrates the recordings in the given order, the others casting frames with it; the
-  // first that fails ends the step, as in build().
-  std::vector<Pending> pending;
+  // first that fails ends the step, as in build(). Each session is added as soon as it can be
+  // (AddingAsIntegrated), while the others cast the next recording's first frames.
+  std::optional<AddingAsIntegrated> adding;
   if (root) {
     SharedFrames frames(ranks.size());
+    if (n > 0) frames.prefetch(0);
+    adding.emplace(s, *map);
     for (size_t i = 0; i < n; ++i) {
       const int key = static_cast<int>(std::min<size_t>(i, INT_MAX - 1));
       const bool integrated = steps.run(key, [&] {
         frames.open(i);
-        try {
-          pending.push_back(pipeline_detail::integrateOne(s, i, &frames));
-        } catch (...) {
-          frames.close();
-          throw;
-        }
-        frames.close();
-        s.progress.say("  " + frames.castBy(pending.back().session.stats.frames));
+        frames.setNext(i + 1 < n ? std::optional<size_t>(i + 1) : std::nullopt);
+        Pending p = pipeline_detail::integrateOne(s, i, &frames);
+        s.progress.say("  " + frames.castBy(p.session.stats.frames));
+        adding->take(std::move(p));
       });
       if (!integrated) break;
     }
+    frames.close();  // the answers still on their way (of frames handed out ahead, or of a failure)
     frames.done();
   } else {
     serveSharedFramesOrAbort(s);
@@ -475,8 +580,9 @@ std::optional<BuildResult> buildOnRanks(const BuildSettings& settings, const Ran
   }
   BuildResult result;
   steps.run(0, [&] {
+    auto [pending, added] = adding->finish();
     pipeline_detail::sortByTime(s, pending);
-    result = pipeline_detail::finishBuild(s, *map, created, pending, up, stored);
+    result = pipeline_detail::finishBuild(s, *map, created, pending, up, stored, std::move(added));
   });
   steps.agree();
   return result;

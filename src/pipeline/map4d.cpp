@@ -216,12 +216,44 @@ BuildResult build(const BuildSettings& given) {
   return pipeline_detail::finishBuild(s, map, created, pending, up, stored);
 }
 
+std::optional<double> pipeline_detail::timeBeforeIntegrating(const BuildSettings& s, size_t i) {
+  if (const std::optional<double> given = givenTime(s, i)) return given;
+  try {
+    return openForIntegration(s.datasets[i], s.session)->recordedAt();
+  } catch (const std::exception&) {
+    return std::nullopt;  // integrating it will say why
+  }
+}
+
+BuiltSession pipeline_detail::addPending(const BuildSettings& s, TemporalMap& map, const Pending& p,
+                                         const std::optional<PoseCorrection>& correction,
+                                         std::optional<size_t> realigned) {
+  const fs::path& dataset = s.datasets[p.index];
+  BuiltSession b;
+  b.dataset = dataset;
+  b.time_s = p.time_s;
+  b.report = map.add(p.time_s, p.session.map, AddSettings{s.replace, dataset.filename().string()});
+  b.nodes_added = nodesAddedAt(map, p.time_s);
+  b.nodes_separate = p.session.map.innerCount() + p.session.map.leafCount();
+  b.points = p.session.stats.points;
+  b.correction = correction;
+  b.recorded_poses = p.session.poses;
+  b.warnings = p.session.warnings;
+  b.poses.reserve(b.recorded_poses.size());
+  for (size_t f = 0; f < b.recorded_poses.size(); ++f) {
+    b.poses.push_back(b.correction ? b.correction->apply(b.recorded_poses[f], f) : b.recorded_poses[f]);
+  }
+  b.realigned_voxels = realigned;
+  return b;
+}
+
 BuildResult pipeline_detail::finishBuild(const BuildSettings& s, TemporalMap& map, bool created,
                                          std::vector<Pending>& pending, const ChosenUp& up,
-                                         const nlohmann::json& stored) {
+                                         const nlohmann::json& stored, std::vector<BuiltSession> added_before) {
   BuildResult result;
   result.created = created;
   result.up = up;
+  result.added = std::move(added_before);
   std::vector<PoseCorrection> corrections;
   if (s.registration) {
     // Sessions added to a map that holds some are registered against those too: the 4D map's
@@ -236,24 +268,9 @@ BuildResult pipeline_detail::finishBuild(const BuildSettings& s, TemporalMap& ma
   std::vector<size_t> moved;
   if (s.realign) moved = realignPending(s, pending);
   for (size_t i = 0; i < pending.size(); ++i) {
-    const Pending& p = pending[i];
-    const fs::path& dataset = s.datasets[p.index];
-    BuiltSession b;
-    b.dataset = dataset;
-    b.time_s = p.time_s;
-    b.report = map.add(p.time_s, p.session.map, AddSettings{s.replace, dataset.filename().string()});
-    b.nodes_added = nodesAddedAt(map, p.time_s);
-    b.nodes_separate = p.session.map.innerCount() + p.session.map.leafCount();
-    b.points = p.session.stats.points;
-    if (!corrections.empty()) b.correction = corrections[i];
-    b.recorded_poses = p.session.poses;
-    b.warnings = p.session.warnings;
-    b.poses.reserve(b.recorded_poses.size());
-    for (size_t f = 0; f < b.recorded_poses.size(); ++f) {
-      b.poses.push_back(b.correction ? b.correction->apply(b.recorded_poses[f], f) : b.recorded_poses[f]);
-    }
-    if (!moved.empty()) b.realigned_voxels = moved[i];
-    result.added.push_back(std::move(b));
+    result.added.push_back(addPending(s, map, pending[i],
+                                      corrections.empty() ? std::nullopt : std::optional<PoseCorrection>(corrections[i]),
+                                      moved.empty() ? std::nullopt : std::optional<size_t>(moved[i])));
   }
   // One atomic write at the end: a crash leaves the previous map (or none) on disk.
   writeTemporalMap(s.map, map, mapMetadata(stored, up));

@@ -126,6 +126,40 @@ TEST(MpiBuild, OneRecordingsFramesAreCastOnEveryRank) {
   }
 }
 
+// Rank 0 adds each session as soon as every earlier one is (while the others cast the next
+// recording's frames): recordings given out of time order, with registration (which adds them all
+// at the end), and with two at the same time (refused as one process refuses them) give one
+// process's bytes and report.
+TEST(MpiBuild, SessionsAreAddedInTimeOrderWhateverTheOrderGiven) {
+  test::TempDir tmp;
+  simulate(tmp, 3, 0.1);
+  const auto at = [&](int k) { return " " + (tmp / "sim" / ("session_0" + std::to_string(k))).string(); };
+  const std::string shuffled = at(2) + at(0) + at(1);
+  for (const std::string& flags : {std::string(" --json"), std::string(" --json --register")}) {
+    const fs::path plain = tmp / "plain.cmap", ranks = tmp / "ranks.cmap";
+    fs::remove(plain);
+    fs::remove(ranks);
+    const test::CommandResult one = runCommand(cli() + " build " + plain.string() + shuffled + flags);
+    ASSERT_EQ(one.exit_code, 0) << one.err;
+    const test::CommandResult two = runCommand(mpirun(2) + cli() + " build " + ranks.string() + shuffled + flags);
+    ASSERT_EQ(two.exit_code, 0) << two.err;
+    EXPECT_TRUE(test::bytesOf(ranks) == test::bytesOf(plain)) << flags;
+    EXPECT_EQ(withoutMap(two.out), withoutMap(one.out)) << flags;
+  }
+  const std::string same = " --times 2012-03-01T10:00:00Z,2012-03-02T10:00:00Z,2012-03-01T10:00:00Z";
+  const fs::path map = tmp / "same.cmap";
+  const test::CommandResult alone = runCommand(cli() + " build " + map.string() + at(0) + at(1) + at(2) + same);
+  ASSERT_EQ(alone.exit_code, 2) << alone.err;
+  const test::CommandResult r = runCommand(mpirun(2) + cli() + " build " + map.string() + at(0) + at(1) + at(2) + same);
+  EXPECT_EQ(r.exit_code, 2);
+  const size_t error = alone.err.find("error: ");
+  ASSERT_NE(error, std::string::npos) << alone.err;
+  const std::string message = alone.err.substr(error, alone.err.find('\n', error) - error);
+  EXPECT_NE(message.find("have the same time"), std::string::npos) << message;
+  EXPECT_NE(r.err.find(message), std::string::npos) << "alone: " << alone.err << "\nranks: " << r.err;
+  EXPECT_FALSE(fs::exists(map));
+}
+
 // A frame that cannot be read, wherever it is cast: the error the process alone gives, on every
 // rank count, without a hang, and no map written.
 TEST(MpiBuild, AnUnreadableFrameGivesTheErrorOfOneProcess) {

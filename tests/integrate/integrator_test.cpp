@@ -821,9 +821,19 @@ TEST(Integrator, CoarseCarvingPicksItsLevelFromTheResolution) {
 /// arrived are drawn at random.
 class LocalSharing : public FrameSharing {
  public:
+  /// `before`: frames 0 to before - 1 are handed out before integrate() begins (as mpirun's rank 0
+  /// hands out the next recording's first frames), whatever the room.
   LocalSharing(const FrameSource& source, double resolution_m, const IntegratorSettings& settings, uint32_t seed,
-               size_t room)
-      : source_(source), accumulator_(KeyGrid(resolution_m), settings), random_(seed), room_(room) {}
+               size_t room, size_t before = 0)
+      : source_(source), accumulator_(KeyGrid(resolution_m), settings), random_(seed), room_(room) {
+    for (size_t i = 0; i < std::min(before, source.size()); ++i) handed_.insert(i);
+    handed_out = handed_.size();
+  }
+  void framesDone() override {
+    EXPECT_TRUE(handed_.empty()) << "frames left handed out";
+    ++frames_done;
+  }
+  size_t frames_done = 0;
 
   size_t handOut(size_t first, size_t end) override {
     size_t given = 0;
@@ -887,7 +897,7 @@ TEST(FrameSharing, SharedFramesGiveTheMapOfOneProcess) {
     const std::vector<uint8_t> bytes = encodeSessionMap(alone, {});
     size_t shared_somewhere = 0;
     for (uint32_t seed = 0; seed < 12; ++seed) {
-      LocalSharing sharing(frames, 0.05, s, seed, seed % 5);
+      LocalSharing sharing(frames, 0.05, s, seed, seed % 5, seed % 3 == 0 ? seed / 3 : 0);
       SessionMap map(0.05);
       size_t progress_calls = 0;
       const IntegrationStats stats = integrate(
@@ -903,6 +913,7 @@ TEST(FrameSharing, SharedFramesGiveTheMapOfOneProcess) {
       EXPECT_EQ(stats.rays, expected.rays);
       EXPECT_EQ(stats.voxel_updates, expected.voxel_updates);
       EXPECT_EQ(progress_calls, frames.size());
+      EXPECT_EQ(sharing.frames_done, 1u);
       EXPECT_LE(sharing.handed_out, frames.size());
       if (sharing.handed_out > 0 && sharing.handed_out < frames.size()) ++shared_somewhere;
     }

@@ -168,7 +168,9 @@ void decodeDeltas(std::span<const uint8_t> bytes, VoxelDeltas& out, const std::s
 /// Frames of one integration that other processes cast (`mpirun -np N chronomap build`). integrate()
 /// still merges every frame in frame order, whoever cast it, so the map is the same bytes.
 /// integrate() asks for frames in frame order: it hands frames out ahead of the one it merges,
-/// and casts frames itself while it waits for them (so that no process idles).
+/// and casts frames itself while it waits for them (so that no process idles). Frames 0 to k may
+/// have been handed out before integrate() began (the next recording's first frames, handed out
+/// while the last one was being added).
 class FrameSharing {
  public:
   virtual ~FrameSharing() = default;
@@ -181,6 +183,9 @@ class FrameSharing {
   /// frame order. @return false when they have not arrived yet and `wait` is false.
   /// @throw what casting the frame threw there (the same error this process would have given).
   virtual bool collect(size_t i, VoxelDeltas& out, bool wait) = 0;
+  /// Every frame was merged (integrate() still compresses the map): the other processes may be
+  /// given what comes next.
+  virtual void framesDone() {}
 };
 
 /// While it lives, running out of memory is reported as integrate() reports it for `frames` frames
