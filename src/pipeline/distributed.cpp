@@ -27,6 +27,7 @@
 #include "chronomap/core/error.h"
 #include "chronomap/core/file.h"
 #include "chronomap/core/memory.h"
+#include "chronomap/core/time.h"
 #include "chronomap/integrate/integrator.h"
 #include "chronomap/pipeline/session.h"
 #include "chronomap/store/cmap.h"
@@ -213,10 +214,12 @@ class SharedFrames final : public FrameSharing {
   /// as the open one's are merged (framesDone).
   void setNext(std::optional<size_t> dataset) { next_ = dataset; }
 
-  /// Every other rank opens recording `dataset` (unless prefetch() had them open it). Any frames
-  /// of another recording are all collected by now.
+  /// Every other rank opens recording `dataset` (unless prefetch() had them open it). The answers
+  /// of the recording open before that were not collected (frames prefetched past its end) are
+  /// received and dropped first: they come before the new recording's on each rank.
   void open(size_t dataset) {
     if (open_ == dataset) return;
+    drop();
     open_ = dataset;
     cast_.assign(waiting_.size(), 0);
     for (int r = 1; r < static_cast<int>(waiting_.size()); ++r) sendControl(r, kOpen, dataset);
@@ -224,7 +227,8 @@ class SharedFrames final : public FrameSharing {
 
   /// Every other rank opens recording `dataset` and gets its first kPrefetchPerRank frames each,
   /// to cast while rank 0 finishes the one before (compresses its map, adds its session) or opens
-  /// this one. Frames past the recording's end are answered with an error that close() drops.
+  /// this one. Frames past the recording's end are answered with an error, dropped when the next
+  /// recording opens or at close().
   void prefetch(size_t dataset) {
     open(dataset);
     const size_t others = waiting_.size() - 1;
@@ -272,13 +276,9 @@ class SharedFrames final : public FrameSharing {
 
   /// Receives (and drops) the answers still on their way, then the other ranks close the recording.
   void close() {
-    for (const auto& [frame, from] : owner_) receive(from, /*wait=*/true);
-    owner_.clear();
+    drop();
     open_ = kNone;
-    for (size_t r = 1; r < waiting_.size(); ++r) {
-      waiting_[r] = 0;
-      sendControl(static_cast<int>(r), kClose, 0);
-    }
+    for (size_t r = 1; r < waiting_.size(); ++r) sendControl(static_cast<int>(r), kClose, 0);
   }
 
   /// How many frames of the recording whose frames were last all merged each rank cast (those not
@@ -299,6 +299,13 @@ class SharedFrames final : public FrameSharing {
   }
 
  private:
+  /// Receives and drops every answer not collected, in the order each rank was given its frames.
+  void drop() {
+    for (const auto& [frame, from] : owner_) receive(from, /*wait=*/true);
+    owner_.clear();
+    std::fill(waiting_.begin(), waiting_.end(), 0);
+  }
+
   /// The next answer from rank `from` into answer_. @return false when it has not all arrived
   /// and `wait` is false (a large answer moves in pieces, each when the sending rank calls MPI:
   /// the receive stays posted meanwhile, and this process goes on casting); waits for it without
@@ -356,7 +363,12 @@ void serveSharedFrames(const BuildSettings& s) {
   std::optional<RayAccumulator> accumulator;
   VoxelDeltas deltas;
   std::deque<std::pair<std::vector<uint8_t>, MPI_Request>> answers;  // on their way, oldest first
+  // Frees the answers sent, then waits for the oldest until at most `at_most` are on their way.
   const auto finishAnswers = [&](size_t at_most) {
+    for (int sent = 1; sent && !answers.empty(); ) {
+      MPI_Test(&answers.front().second, &sent, MPI_STATUS_IGNORE);
+      if (sent) answers.pop_front();
+    }
     for (; answers.size() > at_most; answers.pop_front()) waitGently(answers.front().second);
   };
   for (;;) {
@@ -419,20 +431,29 @@ void serveSharedFrames(const BuildSettings& s) {
 /// meet it, so that a recording that fails to integrate is still the error given.
 class AddingAsIntegrated {
  public:
-  AddingAsIntegrated(const BuildSettings& s, TemporalMap& map) : s_(s), map_(map) {
+  /// Never throws: anything that goes wrong here leaves the sessions to the end, as build() adds them.
+  AddingAsIntegrated(const BuildSettings& s, TemporalMap& map) noexcept : s_(s), map_(map) {
     if (s.registration || s.realign) return;
-    std::vector<std::pair<double, size_t>> times;
-    for (size_t i = 0; i < s.datasets.size(); ++i) {
-      const std::optional<double> t = pipeline_detail::timeBeforeIntegrating(s, i);
-      if (!t) return;
-      times.emplace_back(*t, i);
+    try {
+      std::vector<std::pair<double, size_t>> times;
+      for (size_t i = 0; i < s.datasets.size(); ++i) {
+        const std::optional<double> t = pipeline_detail::timeBeforeIntegrating(s, i);
+        if (!t) return;
+        times.emplace_back(*t, i);
+      }
+      std::stable_sort(times.begin(), times.end());
+      for (size_t k = 1; k < times.size(); ++k) {
+        if (times[k].first == times[k - 1].first) return;
+      }
+      times_.resize(s.datasets.size());
+      for (const auto& [t, i] : times) {
+        order_.push_back(i);
+        times_[i] = t;
+      }
+      on_ = true;
+    } catch (...) {
+      order_.clear();
     }
-    std::stable_sort(times.begin(), times.end());
-    for (size_t k = 1; k < times.size(); ++k) {
-      if (times[k].first == times[k - 1].first) return;
-    }
-    for (const auto& [t, i] : times) order_.push_back(i);
-    on_ = true;
   }
 
   bool on() const { return on_; }
@@ -445,6 +466,11 @@ class AddingAsIntegrated {
       return;
     }
     const size_t index = p.index;
+    if (p.time_s != times_.at(index) && !error_) {
+      error_ = std::make_exception_ptr(Error(s_.datasets[index].string() + " was recorded at " + formatTime(p.time_s) +
+                                             ", not at " + formatTime(times_[index]) +
+                                             " as it said when opened: did it change during the build?"));
+    }
     waiting_.emplace(index, std::move(p));
     while (next_ < order_.size() && waiting_.count(order_[next_]) != 0) {
       auto it = waiting_.find(order_[next_]);
@@ -474,6 +500,7 @@ class AddingAsIntegrated {
   TemporalMap& map_;
   bool on_ = false;
   std::vector<size_t> order_;  // the datasets in time order
+  std::vector<double> times_;  // each dataset's time, known before integrating
   size_t next_ = 0;            // in order_: the first not added
   std::map<size_t, Pending> waiting_;
   std::vector<Pending> rest_;
