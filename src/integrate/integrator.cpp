@@ -241,11 +241,7 @@ void integrateSerial(const FrameSource& source, SessionMap& map, const Integrato
   RayAccumulator acc(map.grid(), perThread(settings, 1));
   VoxelDeltas deltas;
   for (size_t i = 0; i < n; ++i) {
-    if (const Frame* f = source.resident(i)) {
-      acc.accumulate(*f, deltas);
-    } else {
-      acc.accumulate(source.load(i), deltas);
-    }
+    acc.accumulate(source, i, deltas);
     mergeDeltas(map, deltas);
     checkMapMemory(map, settings, acc.scratchBytes() + deltaBytes(deltas));
     total += deltas.stats;
@@ -302,11 +298,7 @@ void integrateParallel(const FrameSource& source, SessionMap& map, const Integra
                 free_buffers.pop_back();
               }
               try {
-                if (const Frame* f = source.resident(i)) {
-                  accumulators.local().accumulate(*f, buffers[b]);
-                } else {
-                  accumulators.local().accumulate(source.load(i), buffers[b]);
-                }
+                accumulators.local().accumulate(source, i, buffers[b]);
                 scratch[b].store(accumulators.local().scratchBytes() + deltaBytes(buffers[b]),
                                  std::memory_order_relaxed);
               } catch (...) {
@@ -372,13 +364,6 @@ void integrateShared(const FrameSource& source, SessionMap& map, const Integrato
   };
   std::map<size_t, Ahead> ahead;
   size_t ahead_bytes = 0;
-  const auto cast = [&](size_t i, VoxelDeltas& out) {
-    if (const Frame* f = source.resident(i)) {
-      acc.accumulate(*f, out);
-    } else {
-      acc.accumulate(source.load(i), out);
-    }
-  };
   VoxelDeltas deltas;
   size_t next = 0;  // every frame from the merged ones to here is handed out or cast ahead
   for (size_t i = 0; i < n; ++i) {
@@ -393,7 +378,7 @@ void integrateShared(const FrameSource& source, SessionMap& map, const Integrato
         }
         Ahead& a = ahead[next];
         try {
-          cast(next, a.deltas);
+          acc.accumulate(source, next, a.deltas);
           ahead_bytes += deltaBytes(a.deltas);
         } catch (...) {
           a.error = std::current_exception();
@@ -407,7 +392,7 @@ void integrateShared(const FrameSource& source, SessionMap& map, const Integrato
       ahead_bytes -= deltaBytes(deltas);
       ahead.erase(it);
     } else {
-      cast(i, deltas);
+      acc.accumulate(source, i, deltas);
     }
     mergeDeltas(map, deltas);
     checkMapMemory(map, settings, acc.scratchBytes() + deltaBytes(deltas) + ahead_bytes);

@@ -781,6 +781,14 @@ size_t RayAccumulator::scratchBytes() const {
          capacityBytes(m.edge_frame.cloud.labels);
 }
 
+void RayAccumulator::accumulate(const FrameSource& source, size_t i, VoxelDeltas& out) {
+  if (const Frame* resident = source.resident(i)) {
+    accumulate(*resident, out);
+  } else {
+    accumulate(source.load(i), out);
+  }
+}
+
 void RayAccumulator::accumulate(const Frame& frame, VoxelDeltas& out) {
   Impl& s = *impl_;
   const std::vector<uint8_t> edges = depthEdgeMask(frame.cloud, s.settings.depth_edge_ratio);

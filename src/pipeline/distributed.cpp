@@ -222,7 +222,7 @@ class SharedFrames final : public FrameSharing {
     drop();
     open_ = dataset;
     cast_.assign(waiting_.size(), 0);
-    for (int r = 1; r < static_cast<int>(waiting_.size()); ++r) sendControl(r, kOpen, dataset);
+    tellOthers(kOpen, dataset);
   }
 
   /// Every other rank opens recording `dataset` and gets its first kPrefetchPerRank frames each,
@@ -278,7 +278,7 @@ class SharedFrames final : public FrameSharing {
   void close() {
     drop();
     open_ = kNone;
-    for (size_t r = 1; r < waiting_.size(); ++r) sendControl(static_cast<int>(r), kClose, 0);
+    tellOthers(kClose, 0);
   }
 
   /// How many frames of the recording whose frames were last all merged each rank cast (those not
@@ -295,10 +295,14 @@ class SharedFrames final : public FrameSharing {
 
   /// The other ranks stop serving frames.
   void done() {
-    for (int r = 1; r < static_cast<int>(waiting_.size()); ++r) sendControl(r, kDone, 0);
+    tellOthers(kDone, 0);
   }
 
  private:
+  void tellOthers(Control what, uint64_t value) {
+    for (int r = 1; r < static_cast<int>(waiting_.size()); ++r) sendControl(r, what, value);
+  }
+
   /// Receives and drops every answer not collected, in the order each rank was given its frames.
   void drop() {
     for (const auto& [frame, from] : owner_) receive(from, /*wait=*/true);
@@ -395,12 +399,7 @@ void serveSharedFrames(const BuildSettings& s) {
       try {
         if (open_error) std::rethrow_exception(open_error);
         if (!recording || frame >= recording->size()) throw Error("rank 0 asked for a frame the recording lacks");
-        const size_t i = static_cast<size_t>(frame);
-        if (const Frame* f = recording->resident(i)) {
-          accumulator->accumulate(*f, deltas);
-        } else {
-          accumulator->accumulate(recording->load(i), deltas);
-        }
+        accumulator->accumulate(*recording, static_cast<size_t>(frame), deltas);
         answer = FrameAnswer::deltas(frame, deltas);
       } catch (...) {
         answer = FrameAnswer::error(frame, std::current_exception());
@@ -455,8 +454,6 @@ class AddingAsIntegrated {
       order_.clear();
     }
   }
-
-  bool on() const { return on_; }
 
   /// Takes dataset p.index's integrated session: adds it, and those waiting for it, when every
   /// earlier one is added.

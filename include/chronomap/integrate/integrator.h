@@ -150,6 +150,9 @@ class RayAccumulator {
   /// @throw DataError when the sensor pose is not finite or lies outside the map; UsageError when
   /// the frame's scratch space would pass settings.memory_limit_bytes.
   void accumulate(const Frame& frame, VoxelDeltas& out);
+  /// accumulate() of frame `i` of `source`: the frame it holds in memory (not copied), else the one
+  /// it loads. @throw also what source.load throws.
+  void accumulate(const FrameSource& source, size_t i, VoxelDeltas& out);
   /// The bytes its scratch holds now (every buffer's capacity), for the memory limit.
   size_t scratchBytes() const;
 
