@@ -204,30 +204,34 @@ inline size_t castDense(const double origin[3], const double end[3], float weigh
   return static_cast<size_t>(idx);
 }
 
-/// Calls emit(k) for every k in [0, n) whose cell holds ray length or an end entry, in
-/// increasing order: the emission's test, four cells at a time where the CPU has SSE2 (most
-/// cells of a frame's box hold neither; one at a time, the test was about a fifth of the
-/// one-pass path's own time on the 3DMatch frames at 0.05 m). `emit` may clear the cell it is
-/// called for.
+/// Calls emit(k) for every k in [0, n) whose cell is not all zero bits (a ray length or an end
+/// entry), in increasing order, four cells at a time where the CPU has SSE2 (most cells of a
+/// frame's box hold neither; one at a time, the test was about a fifth of the one-pass path's
+/// own time on the 3DMatch frames at 0.05 m). `emit` clears the cell it is called for (the
+/// stores are zero at rest) and emits it when it holds a positive length or an end entry
+/// (filled()): every written cell is visited, whatever its bits.
 template <class Emit>
-inline void forEachFilledCell(const float* length, const uint32_t* end, size_t n, Emit&& emit) {
+inline void forEachWrittenCell(const float* length, const uint32_t* end, size_t n, Emit&& emit) {
   size_t k = 0;
 #if defined(__SSE2__)
-  const __m128 zero = _mm_setzero_ps();
   const __m128i zero_i = _mm_setzero_si128();
   for (; k + 4 <= n; k += 4) {
-    const int has_length = _mm_movemask_ps(_mm_cmpgt_ps(_mm_loadu_ps(length + k), zero));
+    const __m128i l = _mm_loadu_si128(reinterpret_cast<const __m128i*>(length + k));
     const __m128i e = _mm_loadu_si128(reinterpret_cast<const __m128i*>(end + k));
-    const int no_end = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(e, zero_i)));
-    for (auto filled = static_cast<unsigned>(has_length | (~no_end & 0xF)); filled != 0; filled &= filled - 1) {
-      emit(k + static_cast<size_t>(std::countr_zero(filled)));
+    const int empty = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(_mm_or_si128(l, e), zero_i)));
+    for (auto written = static_cast<unsigned>(~empty & 0xF); written != 0; written &= written - 1) {
+      emit(k + static_cast<size_t>(std::countr_zero(written)));
     }
   }
 #endif
   for (; k < n; ++k) {
-    if (length[k] > 0.0f || end[k] != 0) emit(k);
+    if (std::bit_cast<uint32_t>(length[k]) != 0 || end[k] != 0) emit(k);
   }
 }
+
+/// Whether a cell forEachWrittenCell() visits is an update: ray length or an end entry (a cell
+/// that a ray only touched, length 0 as at a corner, is none).
+inline bool filled(float length, uint32_t end) { return length > 0.0f || end != 0; }
 
 /// The working frame's bias (setUp()) for a reach of `reach_m`: the reach in voxels, up to the
 /// map's diagonal, rounded up, plus two. The range cube's side is 2 * bias + 1.
@@ -485,7 +489,7 @@ struct RayAccumulator::Impl {
   void castBundles(const double o[3]) {
     DenseStore& d = dense;
     const int64_t stride[3] = {1, d.n[0], d.n[0] * d.n[1]};
-    float* length = d.length.data();
+    float* length = d.length;
     castBundleRays(o, d.lo, stride, [length](int64_t c, float v) { length[c] += v; });
   }
 
@@ -494,7 +498,7 @@ struct RayAccumulator::Impl {
   void castDenseAll(const double o[3]) {
     DenseStore& d = dense;
     const int64_t sy = d.n[0], sz = d.n[0] * d.n[1];
-    float* length = d.length.data();
+    float* length = d.length;
     if (!settings.fast) {
       for (const RelPoint& p : points) {
         const double end[3] = {p.u[0], p.u[1], p.u[2]};
@@ -636,18 +640,20 @@ struct RayAccumulator::Impl {
       // The frame's own rays are emitted by now: their store is free to reuse.
       DenseStore& d = dense;
       d.reset(lo, hi, /*with_end=*/false);
-      const std::vector<float>& length = d.length;
+      float* length = d.length;
       for (size_t i = 0; i < ends_u.size(); ++i) {
-        castDense(origin, ends_u[i].data(), weights[i], d.length.data(), d.lo, d.n[0], d.n[0] * d.n[1]);
+        castDense(origin, ends_u[i].data(), weights[i], length, d.lo, d.n[0], d.n[0] * d.n[1]);
       }
       size_t idx = 0;
       for (int64_t z = lo[2]; z <= hi[2]; ++z) {
         for (int64_t y = lo[1]; y <= hi[1]; ++y) {
           for (int64_t x = lo[0]; x <= hi[0]; ++x, ++idx) {
             if (length[idx] > 0.0f) cells.emplace_back(packCell(x, y, z), length[idx]);
+            length[idx] = 0.0f;  // the store is zero at rest
           }
         }
       }
+      d.rest();
     } else {
       std::unordered_map<uint64_t, float> length;
       for (size_t i = 0; i < ends_u.size(); ++i) {
@@ -691,21 +697,27 @@ struct RayAccumulator::Impl {
 
   /// Emits every cell of the bounding-box store that a ray crossed or ended in, in raster order
   /// (consecutive keys share most of their path in the tree); `oc` is the key of working cell 0.
+  /// Zeroes the store as it goes.
   void emitDense(const int64_t oc[3], VoxelDeltas& out) {
-    const DenseStore& d = dense;
+    DenseStore& d = dense;
     out.keys.reserve(ends.size() * 8);
     out.deltas.reserve(ends.size() * 8);
     const auto nx = static_cast<size_t>(d.n[0]);
-    const float* l_row = d.length.data();
-    const uint32_t* e_row = d.end.data();
+    float* l_row = d.length;
+    uint32_t* e_row = d.end;
     for (int64_t z = 0; z < d.n[2]; ++z) {
       for (int64_t y = 0; y < d.n[1]; ++y, l_row += nx, e_row += nx) {
-        forEachFilledCell(l_row, e_row, nx, [&](size_t k) {
-          emitCell(oc[0] + d.lo[0] + static_cast<int64_t>(k), oc[1] + d.lo[1] + y, oc[2] + d.lo[2] + z, l_row[k],
-                   e_row[k], out);
+        forEachWrittenCell(l_row, e_row, nx, [&](size_t k) {
+          if (filled(l_row[k], e_row[k])) {
+            emitCell(oc[0] + d.lo[0] + static_cast<int64_t>(k), oc[1] + d.lo[1] + y, oc[2] + d.lo[2] + z, l_row[k],
+                     e_row[k], out);
+          }
+          l_row[k] = 0.0f;
+          e_row[k] = 0;
         });
       }
     }
+    d.rest();
   }
 
   void emitCell(int64_t x, int64_t y, int64_t z, float length, uint32_t end, VoxelDeltas& out) const {
@@ -775,7 +787,7 @@ size_t deltaBytes(const VoxelDeltas& d) {
 size_t RayAccumulator::scratchBytes() const {
   const Impl& m = *impl_;
   return capacityBytes(m.points) + capacityBytes(m.cell_index) + capacityBytes(m.ends) + capacityBytes(m.beyond_ends) +
-         capacityBytes(m.dense.length) + capacityBytes(m.dense.end) + capacityBytes(m.hash.slots) +
+         m.dense.blockBytes() + capacityBytes(m.hash.slots) +
          m.cube.block.bytes() + capacityBytes(m.coarse_length) + capacityBytes(m.fine_rays) +
          capacityBytes(m.edge_frame.cloud.points) + capacityBytes(m.edge_frame.cloud.colours) +
          capacityBytes(m.edge_frame.cloud.labels);
@@ -895,26 +907,30 @@ void RayAccumulator::Impl::accumulateCube(const WorkingFrame& w, VoxelDeltas& ou
   const int64_t lo64[3] = {lo[0], lo[1], lo[2]}, hi64[3] = {hi[0], hi[1], hi[2]};
   d.reset(lo64, hi64, /*with_end=*/false);
   castBundles(w.o);
-  const float* length = d.length.data();
+  float* length = d.length;
   // Emit in raster order (consecutive keys share most of their path in the tree), zeroing the
-  // cube cells read so the cube is clean for the next frame.
+  // cube's and the box's cells read so that both are clean for the next frame.
   out.keys.reserve(ends.size() * 8);
   out.deltas.reserve(ends.size() * 8);
   uint32_t* end = cube.end;
   const int64_t sy = w.side, sz = w.side * w.side;
   const int64_t* oc = w.oc;
   const auto nx = static_cast<size_t>(hi[0] - lo[0] + 1);
-  const float* l_row = length;
+  float* l_row = length;
   for (int64_t z = lo[2]; z <= hi[2]; ++z) {
     for (int64_t y = lo[1]; y <= hi[1]; ++y, l_row += nx) {
       uint32_t* e_row = end + static_cast<size_t>(sy * y + sz * z + lo[0]);
-      forEachFilledCell(l_row, e_row, nx, [&](size_t k) {
-        emitCell(oc[0] + lo[0] + static_cast<int64_t>(k), oc[1] + y, oc[2] + z, l_row[k], e_row[k], out);
+      forEachWrittenCell(l_row, e_row, nx, [&](size_t k) {
+        if (filled(l_row[k], e_row[k])) {
+          emitCell(oc[0] + lo[0] + static_cast<int64_t>(k), oc[1] + y, oc[2] + z, l_row[k], e_row[k], out);
+        }
+        l_row[k] = 0.0f;
         e_row[k] = 0;
       });
     }
   }
   cube.clean = true;
+  d.rest();
   finishFrame(w, settings.carve_beyond_range && out_of_range > 0, out);
 }
 
@@ -988,7 +1004,7 @@ bool RayAccumulator::Impl::accumulateBox(const WorkingFrame& w, VoxelDeltas& out
     const size_t count = std::min(kChunk, n - begin);
     boxCells(c_cloud.points[begin].data(), count, w.Rm, w.of, w.max_range_sq, lo, static_cast<int32_t>(sy),
              static_cast<int32_t>(sz), cell_idx);
-    bundleChunk(cell_idx, begin, count, d.end.data(), [&](int32_t c) {
+    bundleChunk(cell_idx, begin, count, d.end, [&](int32_t c) {
       const int64_t cell[3] = {lo[0] + c % sy, lo[1] + (c / sy) % d.n[1], lo[2] + c / sz};
       return newEnd(cell);
     });

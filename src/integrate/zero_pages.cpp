@@ -1,5 +1,6 @@
 #include "zero_pages.h"
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdlib>
 #include <mutex>
@@ -90,7 +91,7 @@ Kept& kept() {
 
 }  // namespace
 
-ZeroPages ZeroPool::take(size_t bytes) {
+ZeroPages ZeroPool::take(size_t bytes, size_t room) {
   {
     Kept& k = kept();
     std::lock_guard<std::mutex> lock(k.mutex);
@@ -107,7 +108,7 @@ ZeroPages ZeroPool::take(size_t bytes) {
       return out;
     }
   }
-  return ZeroPages(bytes);
+  return ZeroPages(std::max(bytes, room));
 }
 
 void ZeroPool::giveBack(ZeroPages block) {

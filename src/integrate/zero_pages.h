@@ -1,8 +1,8 @@
 #pragma once
 /// @file
 /// Internal to the integrate module: memory that reads as zero when it is taken, for the range
-/// cube of fast mode (ray_accumulator.h, CubeStore), and a pool that keeps such blocks for the
-/// next integration.
+/// cube of fast mode and the bounding-box store (ray_accumulator.h, CubeStore and DenseStore),
+/// and a pool that keeps such blocks for the next integration.
 
 #include <cstddef>
 
@@ -34,17 +34,19 @@ class ZeroPages {
   size_t bytes_ = 0;
 };
 
-/// Blocks given back with every byte zero, for the next taker: a range cube is zero at rest (each
-/// frame clears the cells it wrote), so the next integration's cube need not be zeroed again (on
-/// the five 3DMatch frames at 0.05 m, zeroing a new 7.4 MiB cube was 7 % of fast mode's time).
+/// Blocks given back with every byte zero, for the next taker: a range cube and a box store are
+/// zero at rest (each frame clears the cells it wrote), so the next integration's need not be
+/// zeroed or faulted in again (on the five 3DMatch frames at 0.05 m, zeroing a new 7.4 MiB cube
+/// was 7 % of fast mode's time).
 /// Thread-safe. Keeps at most kMaxBlocks blocks and kMaxBytes in all; what it cannot keep it
 /// frees.
 class ZeroPool {
  public:
-  static constexpr size_t kMaxBlocks = 4;
+  static constexpr size_t kMaxBlocks = 8;
   static constexpr size_t kMaxBytes = size_t{64} << 20;
-  /// The smallest kept block of at least `bytes`, or a new one.
-  static ZeroPages take(size_t bytes);
+  /// The smallest kept block of at least `bytes`, or a new one of `room` bytes when that is
+  /// more (else `bytes`).
+  static ZeroPages take(size_t bytes, size_t room = 0);
   /// Keeps `block`, whose bytes must all be zero.
   static void giveBack(ZeroPages block);
   /// Frees every kept block (for tests).

@@ -388,7 +388,8 @@ TEST(Integrator, FastModeMakesTheSameMapsWithAKeptCube) {
   };
   integrate_detail::ZeroPool::clear();
   const std::vector<uint8_t> first = bytesOf(a, 1);
-  EXPECT_EQ(integrate_detail::ZeroPool::keptBlocks(), 1u);  // the cube, given back
+  // The cube and the box's lengths given back (and any smaller box a larger frame's replaced).
+  EXPECT_GE(integrate_detail::ZeroPool::keptBlocks(), 2u);
   const std::vector<uint8_t> other = bytesOf(b, 1);
   EXPECT_NE(other, first);
   EXPECT_EQ(bytesOf(a, 1), first);
@@ -424,6 +425,103 @@ TEST(Integrator, ACubeLeftDirtyIsClearedAndNotKept) {
     cube.ensure(5, 0);
   }
   EXPECT_EQ(integrate_detail::ZeroPool::keptBlocks(), 1u);  // clean: kept
+  integrate_detail::ZeroPool::clear();
+}
+
+// The same for the bounding-box store: cleared before its next frame, never kept dirty.
+TEST(Integrator, ABoxLeftDirtyIsClearedAndNotKept) {
+  integrate_detail::ZeroPool::clear();
+  const int64_t lo[3] = {0, 0, 0}, hi[3] = {4, 4, 4};
+  {
+    integrate_detail::DenseStore d;
+    d.reset(lo, hi);
+    ASSERT_GE(d.length_cells, 125u);
+    ASSERT_GE(d.end_cells, 125u);
+    for (size_t i = 0; i < 125; i += 7) {
+      d.length[i] = 1.5f;
+      d.end[i] = 3;
+    }
+    const int64_t hi2[3] = {3, 4, 2};
+    d.reset(lo, hi2);  // room enough: the same blocks, cleared (the earlier frame never read)
+    EXPECT_EQ(std::count(d.length, d.length + d.length_cells, 0.0f), static_cast<std::ptrdiff_t>(d.length_cells));
+    EXPECT_EQ(std::count(d.end, d.end + d.end_cells, 0u), static_cast<std::ptrdiff_t>(d.end_cells));
+    d.length[1] = 2.0f;
+  }
+  EXPECT_EQ(integrate_detail::ZeroPool::keptBlocks(), 0u);  // dirty: freed, not kept
+  {
+    integrate_detail::DenseStore d;
+    d.reset(lo, hi);
+    d.rest();
+  }
+  EXPECT_EQ(integrate_detail::ZeroPool::keptBlocks(), 2u);  // clean: both kept
+  integrate_detail::ZeroPool::clear();
+}
+
+// Every path that writes the scratch stores (the range cube, the bounding box in fast and in
+// exact mode, the rays carved beyond the range) leaves them zero: the blocks kept for the next
+// integration are zero, and an integration after others gives the bytes of one in a fresh
+// process, on one thread and on two.
+TEST(Integrator, EveryPathLeavesItsStoresZero) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  auto randomFrames = [&](double x0, float reach) {
+    std::vector<Frame> frames;
+    for (int f = 0; f < 3; ++f) {
+      PointCloud cloud;
+      for (int i = 0; i < 2000; ++i) {
+        const Eigen::Vector3f d(u(rng), u(rng), 1.0f + 0.5f * u(rng));
+        cloud.points.push_back(d.normalized() * (0.3f + reach * 0.5f * (u(rng) + 1.0f)));
+        cloud.colours.push_back(Rgb{static_cast<uint8_t>(i % 251), 9, static_cast<uint8_t>(f)});
+      }
+      cloud.width = static_cast<uint32_t>(cloud.points.size());
+      Frame frame = frameAt({x0 + 0.15 * f, 0.031, -0.047}, cloud);
+      frame.T_world_sensor.linear() =
+          Eigen::AngleAxisd(0.3 + f, Eigen::Vector3d(3, 1, 2).normalized()).toRotationMatrix();
+      frames.push_back(std::move(frame));
+    }
+    return FrameVector(std::move(frames));
+  };
+  const FrameVector a = randomFrames(0.02, 2.0f), b = randomFrames(-0.7, 3.0f);
+  struct Path {
+    const char* name;
+    IntegratorSettings settings;
+  };
+  std::vector<Path> paths;
+  IntegratorSettings s = exactUncompressed();
+  s.max_range_m = 3.5;
+  paths.push_back({"exact, the points' box", s});
+  s.fast = true;
+  paths.push_back({"fast, the range cube", s});
+  s.cube_max_cells = 1;
+  paths.push_back({"fast, the box", s});
+  s.max_range_m = 1.2;  // most points beyond: their rays carved to the range
+  s.carve_beyond_range = true;
+  paths.push_back({"fast, the box, carved beyond the range", s});
+  s.cube_max_cells = IntegratorSettings{}.cube_max_cells;
+  paths.push_back({"fast, the cube, carved beyond the range", s});
+  for (const Path& p : paths) {
+    IntegratorSettings settings = p.settings;
+    auto bytesOf = [&](const FrameVector& frames, int threads) {
+      settings.threads = threads;
+      SessionMap map(0.04);
+      integrate(frames, map, settings);
+      EXPECT_GT(map.counts().occupied_voxels, 300u) << p.name;
+      return encodeSessionMap(map, nlohmann::json::object());
+    };
+    integrate_detail::ZeroPool::clear();
+    const std::vector<uint8_t> first = bytesOf(a, 1), other = bytesOf(b, 1);
+    EXPECT_NE(other, first) << p.name;
+    EXPECT_GT(integrate_detail::ZeroPool::keptBlocks(), 0u) << p.name;
+    EXPECT_EQ(bytesOf(a, 1), first) << p.name;
+    EXPECT_EQ(bytesOf(a, 2), first) << p.name;
+    EXPECT_EQ(bytesOf(b, 2), other) << p.name;
+    // Every kept block reads zero.
+    while (integrate_detail::ZeroPool::keptBlocks() > 0) {
+      const integrate_detail::ZeroPages block = integrate_detail::ZeroPool::take(1);
+      const auto* bytes = static_cast<const unsigned char*>(block.data());
+      EXPECT_EQ(std::count(bytes, bytes + block.bytes(), 0), static_cast<std::ptrdiff_t>(block.bytes())) << p.name;
+    }
+  }
   integrate_detail::ZeroPool::clear();
 }
 

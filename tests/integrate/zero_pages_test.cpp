@@ -67,6 +67,14 @@ TEST(ZeroPool, GivesTheSmallestKeptBlockThatFitsAndKeepsItsLimits) {
   ZeroPages c = ZeroPool::take(100);  // nothing kept: a new block
   EXPECT_NE(c.data(), nullptr);
   EXPECT_TRUE(allZero(c));
+  // A new block has the room asked for; a kept one need only hold the bytes.
+  ZeroPages d = ZeroPool::take(100, size_t{1} << 20);
+  EXPECT_GE(d.bytes(), size_t{1} << 20);
+  EXPECT_TRUE(allZero(d));
+  const size_t d_bytes = d.bytes();
+  ZeroPool::giveBack(std::move(d));
+  ZeroPages e = ZeroPool::take(1000, size_t{4} << 20);
+  EXPECT_EQ(e.bytes(), d_bytes);
   // At most kMaxBlocks blocks: giving back more drops the smallest.
   for (size_t i = 0; i < ZeroPool::kMaxBlocks + 2; ++i) ZeroPool::giveBack(ZeroPages((i + 1) << 20));
   EXPECT_EQ(ZeroPool::keptBlocks(), ZeroPool::kMaxBlocks);
