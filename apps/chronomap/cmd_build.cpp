@@ -522,7 +522,7 @@ Command addBuild(CLI::App& root) {
                 "build into a tiled map folder (created when missing), tile by tile: memory holds one session, "
                 "the session parts up to --memory-limit (default 0.25 GiB; the rest spilled to files; integration then "
                 "keeps its default limit) and one tile "
-                "or group of tiles; sessions must come after the map's last; with --register the given recordings are "
+                "or group of tiles per thread (--threads groups at once; the files do not depend on it); sessions must come after the map's last; with --register the given recordings are "
                 "registered first, as without --tiles (their session maps held together), and also against the "
                 "consensus of the sessions stored before, which the folder keeps from its first registered run on; "
                 "no --realign or --replace (docs/scale.md)");

@@ -2,12 +2,21 @@
 
 #include <unistd.h>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/partitioner.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <exception>
 #include <map>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <span>
+#include <thread>
 
 #include "build_steps.h"
 #include "chronomap/align/consensus.h"
@@ -188,12 +197,24 @@ class TileStream {
   const PartStoreStats& partStats() const { return parts_.stats(); }
 
  private:
+  /// What one group's work gives: kept apart while groups run at once, joined in group order.
+  struct GroupOut {
+    std::vector<TileEntry> entries;
+    std::optional<TemporalMap> top;  // writeSplit()'s part of the top
+    StreamStats stats;               // tiles read and written, windows, the group's size
+    uint64_t tile_bytes = 0;
+    std::vector<int64_t> nodes_added;  // per added session
+    std::vector<TileKey> done;         // stored tiles read
+    std::exception_ptr error;
+  };
   void addSession(size_t i, StreamSession& session);
   const TileEntry* storedTileOf(const Cube& g) const;
-  void rewriteStoredTile(const Cube& g, const TileEntry& e);
-  void writeSplit(const Cube& g, const TemporalMap& work);
-  TemporalMap groupBase(const Cube& g, std::vector<SessionRecord>& records);
-  void addGroupSessions(const Cube& g, TemporalMap& work);
+  void writeGroup(const Cube& g, GroupOut& out);
+  void rewriteStoredTile(const Cube& g, const TileEntry& e, GroupOut& out);
+  void writeSplit(const TemporalMap& work, GroupOut& out);
+  TemporalMap groupBase(const Cube& g, std::vector<SessionRecord>& records, GroupOut& out);
+  void addGroupSessions(const Cube& g, TemporalMap& work, GroupOut& out);
+  void joinGroup(const Cube& g, GroupOut& out);
 
   const StreamSettings& s_;
   const std::optional<TileIndex>& index_;
@@ -203,6 +224,8 @@ class TileStream {
   const uint32_t window_sessions_;
   StreamResult& result_;
   PartStore parts_;
+  std::mutex parts_mutex_;     // parts_.take() from groups running at once
+  std::mutex progress_mutex_;  // s_.progress from them
   std::vector<NewSession> added_;
   std::map<Cube, std::vector<uint32_t>, CubeLess> sessions_of_cube_;  // session indices with parts there
   uint32_t base_rank_ = 0;
@@ -293,7 +316,11 @@ void TileStream::formGroups() {
 }
 
 // 3. Each group: its part of the top and its tiles, the sessions added in time order,
-// compacted, cut into tiles again, written under the new generation's names.
+// compacted, cut into tiles again, written under the new generation's names. Groups are
+// disjoint, so up to s_.threads of them run at once, each on its own thread; what each gives is
+// joined in group order, so the files, the top and the figures are the same for every thread
+// count. A failed group stops the groups after it from starting, and the error given is the
+// first group's in order, as one thread gives it.
 void TileStream::writeGroups() {
   all_ = top_.sessions();
   for (const NewSession& n : added_) {
@@ -305,25 +332,86 @@ void TileStream::writeGroups() {
     all_.push_back(std::move(r));
   }
   fs::create_directories(s_.folder / "tiles");
-  for (const Cube& g : groups_) {
-    s_.progress.advance("tiles", result_.stats.groups, groups_.size());
-    if (const TileEntry* e = storedTileOf(g)) {
-      rewriteStoredTile(g, *e);
-      ++result_.stats.groups;
-      continue;
+  const size_t n = groups_.size();
+  std::vector<GroupOut> outs(n);
+  int threads = s_.threads > 0 ? s_.threads : static_cast<int>(std::thread::hardware_concurrency());
+  threads = std::max(1, std::min<int>(threads, static_cast<int>(std::min<size_t>(n, 1024))));
+  if (threads == 1) {
+    for (size_t k = 0; k < n; ++k) {
+      s_.progress.advance("tiles", k, n);
+      writeGroup(groups_[k], outs[k]);
+      joinGroup(groups_[k], outs[k]);
     }
-    std::vector<SessionRecord> records;
-    TemporalMap work = groupBase(g, records);
-    addGroupSessions(g, work);
-    result_.stats.peak_group_bytes = std::max(result_.stats.peak_group_bytes, work.memoryBytes());
-    for (SessionRecord& r : clipped(std::vector<SessionRecord>(all_.begin() + base_rank_, all_.end()), g)) {
-      records.push_back(std::move(r));
-    }
-    work = TemporalMap::fromParts(work.resolution_m(), work.criterion(), work.parts(), std::move(records));
-    work.compact(TemporalMap::Relayout::kWhenMerged);  // written, then dropped
-    writeSplit(g, work);
-    ++result_.stats.groups;
+    return;
   }
+  std::atomic<size_t> first_failed{n}, finished{0};
+  tbb::task_arena arena(threads);
+  arena.execute([&] {
+    tbb::parallel_for(
+        tbb::blocked_range<size_t>(0, n, 1),
+        [&](const tbb::blocked_range<size_t>& range) {
+          for (size_t k = range.begin(); k != range.end(); ++k) {
+            if (k > first_failed.load()) continue;  // a group before it failed
+            try {
+              {
+                const std::lock_guard<std::mutex> lock(progress_mutex_);
+                s_.progress.advance("tiles", finished.load(), n);
+              }
+              writeGroup(groups_[k], outs[k]);
+            } catch (...) {
+              outs[k].error = std::current_exception();
+              size_t seen = first_failed.load();
+              while (k < seen && !first_failed.compare_exchange_weak(seen, k)) {
+              }
+            }
+            ++finished;
+          }
+        },
+        tbb::simple_partitioner());
+  });
+  for (size_t k = 0; k < n; ++k) {
+    if (outs[k].error) std::rethrow_exception(outs[k].error);
+    joinGroup(groups_[k], outs[k]);
+  }
+}
+
+// One group, read, added to and written; what it gives goes to `out`.
+void TileStream::writeGroup(const Cube& g, GroupOut& out) {
+  out.nodes_added.assign(added_.size(), 0);
+  if (const TileEntry* e = storedTileOf(g)) {
+    rewriteStoredTile(g, *e, out);
+    return;
+  }
+  std::vector<SessionRecord> records;
+  TemporalMap work = groupBase(g, records, out);
+  addGroupSessions(g, work, out);
+  out.stats.peak_group_bytes = std::max(out.stats.peak_group_bytes, work.memoryBytes());
+  for (SessionRecord& r : clipped(std::vector<SessionRecord>(all_.begin() + base_rank_, all_.end()), g)) {
+    records.push_back(std::move(r));
+  }
+  work = TemporalMap::fromParts(work.resolution_m(), work.criterion(), work.parts(), std::move(records));
+  work.compact(TemporalMap::Relayout::kWhenMerged);  // written, then dropped
+  writeSplit(work, out);
+}
+
+// A group's output joined to the build's, in group order.
+void TileStream::joinGroup(const Cube& g, GroupOut& out) {
+  for (TileEntry& e : out.entries) entries_.push_back(std::move(e));
+  if (out.top) {
+    group_tops_.push_back(std::move(*out.top));
+    group_cubes_.push_back(g);
+  }
+  StreamStats& st = result_.stats;
+  st.tiles_read += out.stats.tiles_read;
+  st.tiles_written += out.stats.tiles_written;
+  st.windows_written += out.stats.windows_written;
+  st.largest_group_tiles = std::max(st.largest_group_tiles, out.stats.largest_group_tiles);
+  st.peak_group_bytes = std::max(st.peak_group_bytes, out.stats.peak_group_bytes);
+  result_.tile_bytes += out.tile_bytes;
+  for (size_t k = 0; k < out.nodes_added.size(); ++k) nodes_added_[k] += out.nodes_added[k];
+  done_.insert(out.done.begin(), out.done.end());
+  ++st.groups;
+  out = GroupOut{};
 }
 
 // The stored tile whose cube the group is, if any. Such a group holds nothing but that tile: the
@@ -338,14 +426,14 @@ const TileEntry* TileStream::storedTileOf(const Cube& g) const {
 // A group that is one stored tile: the tile read, the sessions added, written again. The same
 // bytes as the general path (the top cut to the cube, the tile joined in, the group split
 // again), without its three copies of the tile; the top keeps its nodes around the tile.
-void TileStream::rewriteStoredTile(const Cube& g, const TileEntry& e) {
+void TileStream::rewriteStoredTile(const Cube& g, const TileEntry& e, GroupOut& out) {
   TemporalMap work = readTile(s_.folder, *index_, e);
-  ++result_.stats.tiles_read;
-  done_.insert(e.key);
-  result_.stats.largest_group_tiles = std::max<size_t>(result_.stats.largest_group_tiles, 1);
+  ++out.stats.tiles_read;
+  out.done.push_back(e.key);
+  out.stats.largest_group_tiles = std::max<size_t>(out.stats.largest_group_tiles, 1);
   std::vector<SessionRecord> records = work.sessions();
-  addGroupSessions(g, work);
-  result_.stats.peak_group_bytes = std::max(result_.stats.peak_group_bytes, work.memoryBytes());
+  addGroupSessions(g, work, out);
+  out.stats.peak_group_bytes = std::max(out.stats.peak_group_bytes, work.memoryBytes());
   for (SessionRecord& r : clipped(std::vector<SessionRecord>(all_.begin() + base_rank_, all_.end()), g)) {
     records.push_back(std::move(r));
   }
@@ -355,45 +443,44 @@ void TileStream::rewriteStoredTile(const Cube& g, const TileEntry& e) {
   if (!corner.empty() && corner.front().level >= level_) {
     // Compaction made the whole tile one uniform cube (not seen with later sessions only): it
     // belongs in the top, as the general path's split puts it.
-    writeSplit(g, work);
+    writeSplit(work, out);
     return;
   }
   // The windows written before hold earlier sessions only, which these did not change.
-  entries_.push_back(writeTileFile(s_.folder, e.key, generation_, work, window_sessions_, e.windows));
-  result_.stats.windows_written += entries_.back().windows.size() - e.windows.size();
-  result_.tile_bytes += entries_.back().diskBytes();
-  ++result_.stats.tiles_written;
+  out.entries.push_back(writeTileFile(s_.folder, e.key, generation_, work, window_sessions_, e.windows));
+  out.stats.windows_written += out.entries.back().windows.size() - e.windows.size();
+  out.tile_bytes += out.entries.back().diskBytes();
+  ++out.stats.tiles_written;
 }
 
 // A group's compacted map cut into tiles (written under the new generation's names) and its part
 // of the top (kept for newTop()).
-void TileStream::writeSplit(const Cube& g, const TemporalMap& work) {
+void TileStream::writeSplit(const TemporalMap& work, GroupOut& out) {
   SplitMap split = splitIntoTiles(work, level_);
   for (const Tile& t : split.tiles) {
-    entries_.push_back(writeTileFile(s_.folder, t.key, generation_, t.map, window_sessions_));
-    result_.stats.windows_written += entries_.back().windows.size();
-    result_.tile_bytes += entries_.back().diskBytes();
-    ++result_.stats.tiles_written;
+    out.entries.push_back(writeTileFile(s_.folder, t.key, generation_, t.map, window_sessions_));
+    out.stats.windows_written += out.entries.back().windows.size();
+    out.tile_bytes += out.entries.back().diskBytes();
+    ++out.stats.tiles_written;
   }
-  group_tops_.push_back(std::move(split.top));
-  group_cubes_.push_back(g);
+  out.top = std::move(split.top);
 }
 
 // The group's part of the stored map: the top's part with the group's tiles joined in; `records`
 // gets the stored sessions' records there (the top's coverage outside the tiles joined with the
 // tiles' own).
-TemporalMap TileStream::groupBase(const Cube& g, std::vector<SessionRecord>& records) {
+TemporalMap TileStream::groupBase(const Cube& g, std::vector<SessionRecord>& records, GroupOut& out) {
   std::vector<Tile> tiles;
   if (index_) {
     for (const TileEntry& e : index_->tiles) {
       if (g.contains(Cube{tileCorner(e.key, level_), level_})) {
         tiles.push_back(Tile{e.key, readTile(s_.folder, *index_, e)});
-        ++result_.stats.tiles_read;
-        done_.insert(e.key);
+        ++out.stats.tiles_read;
+        out.done.push_back(e.key);
       }
     }
   }
-  result_.stats.largest_group_tiles = std::max(result_.stats.largest_group_tiles, tiles.size());
+  out.stats.largest_group_tiles = std::max(out.stats.largest_group_tiles, tiles.size());
   records = clipped(top_.sessions(), g);
   TemporalMap work = restrictToCube(top_, g, records);
   if (!tiles.empty()) {
@@ -407,11 +494,16 @@ TemporalMap TileStream::groupBase(const Cube& g, std::vector<SessionRecord>& rec
 }
 
 // The new sessions' parts inside the group, added to `work` in time order.
-void TileStream::addGroupSessions(const Cube& g, TemporalMap& work) {
+void TileStream::addGroupSessions(const Cube& g, TemporalMap& work, GroupOut& out) {
   std::vector<std::vector<SessionPart>> by_session(added_.size());
-  for (const Cube& c : parts_.cubes()) {
+  for (const Cube& c : parts_.cubes()) {  // the set does not change while groups run
     if (!g.contains(c)) continue;
-    for (const SessionPart& p : parts_.take(c)) by_session[rank_of_[p.session] - base_rank_].push_back(p);
+    std::vector<SessionPart> parts;
+    {
+      const std::lock_guard<std::mutex> lock(parts_mutex_);
+      parts = parts_.take(c);
+    }
+    for (const SessionPart& p : parts) by_session[rank_of_[p.session] - base_rank_].push_back(p);
   }
   for (size_t k = 0; k < added_.size(); ++k) {
     SessionMap part(top_.resolution_m());
@@ -426,7 +518,7 @@ void TileStream::addGroupSessions(const Cube& g, TemporalMap& work) {
     by_session[k].clear();
     by_session[k].shrink_to_fit();
     work.add(added_[k].time_s, part, AddSettings{false, added_[k].name});
-    nodes_added_[k] += work.sessions()[base_rank_ + k].nodes_added;
+    out.nodes_added[k] += work.sessions()[base_rank_ + k].nodes_added;
   }
 }
 
@@ -565,6 +657,7 @@ StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size
   s.tile_size_m = tile_size_m;
   s.memory_limit_bytes = memory_limit_bytes;
   s.window_sessions = window_sessions;
+  s.threads = b.session.integrator.threads;  // --threads: the tiles' groups too
   s.progress = b.progress;
   std::vector<std::string> warnings;
   auto sessionOf = [&](pipeline_detail::Pending& p) {

@@ -66,8 +66,9 @@ TemporalMap wholeBuild(const std::vector<SessionMap>& sessions, const std::vecto
 
 StreamResult stream(const fs::path& folder, const std::vector<SessionMap>& sessions,
                               const std::vector<int>& batch, int tile_level, size_t limit,
-                              uint32_t window_sessions = kDefaultWindowSessions) {
+                              uint32_t window_sessions = kDefaultWindowSessions, int threads = 0) {
   StreamSettings s;
+  s.threads = threads;
   s.window_sessions = window_sessions;
   s.folder = folder;
   s.tile_size_m = std::ldexp(0.05, tile_level);
@@ -186,6 +187,77 @@ TEST(Stream, ABudgetBoundsThePartsHeldAndSpillsTheRest) {
   EXPECT_TRUE(joined(dir / "small") == joined(dir / "large"));
   EXPECT_EQ(small.nodes_added, large.nodes_added);
   EXPECT_FALSE(fs::exists(dir / "small" / ".parts-0"));
+}
+
+// Groups of tiles run at once on several threads: every file (tiles, latest states, windows,
+// the index) and every figure are one thread's; a failure in two groups gives the first group's
+// error in group order whatever the threads, and leaves the index and the files it names.
+TEST(Stream, ThreadsWriteTheSameFilesAndGiveTheFirstError) {
+  for (const uint64_t seed : {3u, 4u, 5u}) {
+    std::mt19937_64 rng(seed);
+    const int n = 9;
+    const std::vector<SessionMap> sessions = randomSessions(seed * 104729, n);
+    std::vector<std::vector<int>> batches(1);
+    for (int i = 0; i < n; ++i) {
+      if (i > 0 && rng() % 3 == 0) batches.emplace_back();
+      batches.back().push_back(i);
+    }
+    const size_t limit = rng() % 2 ? 0 : 800 + rng() % 4000;
+    test::TempDir dir;
+    for (const auto& b : batches) {
+      const StreamResult one = stream(dir / "one", sessions, b, 3, limit, 2, 1);
+      const StreamResult four = stream(dir / "four", sessions, b, 3, limit, 2, 4);
+      EXPECT_EQ(one.nodes_added, four.nodes_added) << "seed " << seed;
+      EXPECT_EQ(one.tile_bytes, four.tile_bytes);
+      EXPECT_EQ(one.stats.groups, four.stats.groups);
+      EXPECT_EQ(one.stats.tiles_read, four.stats.tiles_read);
+      EXPECT_EQ(one.stats.tiles_written, four.stats.tiles_written);
+      EXPECT_EQ(one.stats.windows_written, four.stats.windows_written);
+      EXPECT_EQ(one.stats.peak_group_bytes, four.stats.peak_group_bytes);
+      EXPECT_GT(one.stats.groups, 4u);
+      ASSERT_TRUE(filesOf(dir / "one") == filesOf(dir / "four")) << "seed " << seed;
+    }
+    // Two stored tiles damaged: the error names the first one a run reaches in group order.
+    const TileIndex index = readTileIndex(dir / "one");
+    ASSERT_GE(index.tiles.size(), 4u);
+    std::vector<std::string> messages;
+    for (const int threads : {1, 4}) {
+      const fs::path folder = dir / "damaged";  // the same path: the messages name it
+      fs::remove_all(folder);
+      fs::copy(dir / "one", folder, fs::copy_options::recursive);
+      for (const size_t t : {index.tiles.size() / 2, index.tiles.size() - 1}) {
+        std::vector<uint8_t> bytes = readFileBytes(folder / index.tiles[t].file);
+        bytes[bytes.size() / 2] ^= 0x5A;
+        writeFileAtomic(folder / index.tiles[t].file, bytes);
+      }
+      const auto before = filesOf(folder);
+      // Every session again, later: every tile is reached.
+      StreamSettings s;
+      s.folder = folder;
+      s.threads = threads;
+      try {
+        streamIntoTiles(s, 1, [&](size_t) {
+          // What every session observed: it reaches every tile.
+          return StreamSession{timeOf(n + 5), "again", consensus(std::span<const SessionMap>(sessions))};
+        });
+        ADD_FAILURE() << "a damaged tile was read";
+      } catch (const Error& e) {
+        messages.push_back(e.what());
+      }
+      // The index and every file it names as they were (the new generation's files a failed run
+      // wrote are the next run's to remove).
+      const auto after = filesOf(folder);
+      for (const auto& [name, bytes] : before) {
+        const auto it = after.find(name);
+        EXPECT_TRUE(it != after.end() && it->second == bytes) << name << ", " << threads << " thread(s)";
+      }
+    }
+    ASSERT_EQ(messages.size(), 2u);
+    EXPECT_EQ(messages[0], messages[1]);
+    EXPECT_TRUE(messages[0].find(index.tiles[index.tiles.size() / 2].file) != std::string::npos ||
+                messages[0].find(index.tiles.back().file) != std::string::npos)
+        << messages[0];
+  }
 }
 
 TEST(Stream, AFailedAddLeavesThePreviousTiledMap) {

@@ -7,7 +7,8 @@
 /// names; the tiles no new session reached keep their files (the index records how many
 /// sessions each holds); the index is swapped in last. The result reads as the tiled map that
 /// building the whole map then `tile` would give, byte for byte after `untile`, while memory
-/// holds one session map, the budget's parts and one group of tiles.
+/// holds one session map, the budget's parts and one group of tiles per thread
+/// (StreamSettings::threads).
 
 #include <cstddef>
 #include <cstdint>
@@ -56,6 +57,9 @@ struct StreamSettings {
   /// With keep_consensus, what the consensus starts from when the map keeps none (moved from;
   /// the streaming build's consensusOfTiles() for a folder that had none), else empty.
   std::shared_ptr<StoredConsensus> first_consensus;
+  /// Groups of tiles read, added to and written at once, each on its own thread (memory then
+  /// holds up to this many groups); 0: one per core. The files do not depend on it.
+  int threads = 0;
   Progress progress;
 };
 
