@@ -126,7 +126,8 @@ void printAdded(const AddCmdOptions& o, const AddSessionResult& r) {
 /// The streaming build's budget for session parts: --memory-limit, else 256 MiB.
 constexpr double kDefaultPartsGib = 0.25;
 
-/// The streaming build decodes and encodes one tile after another, each in buffers of a few MiB.
+/// The streaming build decodes and encodes one tile after another on each thread (a group of
+/// tiles per thread), each in buffers of a few MiB.
 /// glibc gives every freed block above its mmap threshold back to the kernel, so the next tile
 /// faulted the same memory in again, zeroed page by page. Blocks up to 32 MiB now come from the
 /// heap, which keeps what is freed (up to 1 GiB) for the next tile: one night added to the

@@ -122,8 +122,10 @@ struct CubeStore {
     }
     const auto r = static_cast<size_t>(std::max<int64_t>(room, 0));
     const size_t want = std::max(need, r * r * r);
-    if (clean) ZeroPool::giveBack(std::move(block));
-    block = ZeroPool::take(want * sizeof(uint32_t));
+    // Taken before the old block goes: a failed take leaves the cube as it was.
+    ZeroPages fresh = ZeroPool::take(want * sizeof(uint32_t));
+    ZeroPages old = std::exchange(block, std::move(fresh));
+    if (clean) ZeroPool::giveBack(std::move(old));
     end = static_cast<uint32_t*>(block.data());
     cells = block.bytes() / sizeof(uint32_t);
     clean = true;
@@ -142,6 +144,7 @@ struct DenseStore {
   float* length = nullptr;   // in `length_block`, `length_cells` cells
   uint32_t* end = nullptr;   // in `end_block`, `end_cells` cells
   size_t length_cells = 0, end_cells = 0;
+  size_t used_cells = 0, used_end_cells = 0;  // the largest boxes asked for
   ZeroPages length_block, end_block;
   bool clean = true;  // every cell of both blocks is zero (false while a frame uses the box)
 
@@ -170,20 +173,23 @@ struct DenseStore {
     }
     const size_t cells = static_cast<size_t>(n[0] * n[1] * n[2]);
     // A kept block large enough, else a new one with a quarter more room than asked, for the
-    // next frames' boxes (a block's pages cost only when written).
+    // next frames' boxes (a block's pages cost only when written). Each is taken before the old
+    // one goes back: a failed take leaves the store as it was.
     const size_t room = cells + cells / 4;
     if (cells > length_cells) {
-      ZeroPool::giveBack(std::move(length_block));
-      length_block = ZeroPool::take(cells * sizeof(float), room * sizeof(float));
+      ZeroPages fresh = ZeroPool::take(cells * sizeof(float), room * sizeof(float));
+      ZeroPool::giveBack(std::exchange(length_block, std::move(fresh)));
       length = static_cast<float*>(length_block.data());
       length_cells = length_block.bytes() / sizeof(float);
     }
     if (with_end && cells > end_cells) {
-      ZeroPool::giveBack(std::move(end_block));
-      end_block = ZeroPool::take(cells * sizeof(uint32_t), room * sizeof(uint32_t));
+      ZeroPages fresh = ZeroPool::take(cells * sizeof(uint32_t), room * sizeof(uint32_t));
+      ZeroPool::giveBack(std::exchange(end_block, std::move(fresh)));
       end = static_cast<uint32_t*>(end_block.data());
       end_cells = end_block.bytes() / sizeof(uint32_t);
     }
+    used_cells = std::max(used_cells, cells);
+    if (with_end) used_end_cells = std::max(used_end_cells, cells);
     clean = false;
   }
   /// Every cell the frame wrote has been zeroed again.
@@ -191,7 +197,9 @@ struct DenseStore {
   size_t cell(int64_t x, int64_t y, int64_t z) const {
     return static_cast<size_t>((x - lo[0]) + n[0] * ((y - lo[1]) + n[1] * (z - lo[2])));
   }
-  size_t blockBytes() const { return length_block.bytes() + end_block.bytes(); }
+  /// The most bytes a frame's box has used (what the memory limit counts; the blocks may hold
+  /// more, untouched, or what an earlier integration left in the pool).
+  size_t usedBytes() const { return used_cells * sizeof(float) + used_end_cells * sizeof(uint32_t); }
 };
 
 /// Open-addressing hash scratch for frames whose bounding box is too large for a dense grid.

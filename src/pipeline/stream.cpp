@@ -2,23 +2,17 @@
 
 #include <unistd.h>
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/partitioner.h>
-#include <tbb/task_arena.h>
-
 #include <algorithm>
 #include <atomic>
 #include <cmath>
-#include <exception>
 #include <map>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <span>
-#include <thread>
 
 #include "build_steps.h"
+#include "in_order.h"
 #include "chronomap/align/consensus.h"
 #include "chronomap/core/error.h"
 #include "chronomap/core/time.h"
@@ -205,7 +199,6 @@ class TileStream {
     uint64_t tile_bytes = 0;
     std::vector<int64_t> nodes_added;  // per added session
     std::vector<TileKey> done;         // stored tiles read
-    std::exception_ptr error;
   };
   void addSession(size_t i, StreamSession& session);
   const TileEntry* storedTileOf(const Cube& g) const;
@@ -334,45 +327,16 @@ void TileStream::writeGroups() {
   fs::create_directories(s_.folder / "tiles");
   const size_t n = groups_.size();
   std::vector<GroupOut> outs(n);
-  int threads = s_.threads > 0 ? s_.threads : static_cast<int>(std::thread::hardware_concurrency());
-  threads = std::max(1, std::min<int>(threads, static_cast<int>(std::min<size_t>(n, 1024))));
-  if (threads == 1) {
-    for (size_t k = 0; k < n; ++k) {
-      s_.progress.advance("tiles", k, n);
-      writeGroup(groups_[k], outs[k]);
-      joinGroup(groups_[k], outs[k]);
+  std::atomic<size_t> finished{0};
+  pipeline_detail::runInOrder(n, s_.threads, [&](size_t k) {
+    {
+      const std::lock_guard<std::mutex> lock(progress_mutex_);
+      s_.progress.advance("tiles", finished.load(), n);
     }
-    return;
-  }
-  std::atomic<size_t> first_failed{n}, finished{0};
-  tbb::task_arena arena(threads);
-  arena.execute([&] {
-    tbb::parallel_for(
-        tbb::blocked_range<size_t>(0, n, 1),
-        [&](const tbb::blocked_range<size_t>& range) {
-          for (size_t k = range.begin(); k != range.end(); ++k) {
-            if (k > first_failed.load()) continue;  // a group before it failed
-            try {
-              {
-                const std::lock_guard<std::mutex> lock(progress_mutex_);
-                s_.progress.advance("tiles", finished.load(), n);
-              }
-              writeGroup(groups_[k], outs[k]);
-            } catch (...) {
-              outs[k].error = std::current_exception();
-              size_t seen = first_failed.load();
-              while (k < seen && !first_failed.compare_exchange_weak(seen, k)) {
-              }
-            }
-            ++finished;
-          }
-        },
-        tbb::simple_partitioner());
+    writeGroup(groups_[k], outs[k]);
+    ++finished;
   });
-  for (size_t k = 0; k < n; ++k) {
-    if (outs[k].error) std::rethrow_exception(outs[k].error);
-    joinGroup(groups_[k], outs[k]);
-  }
+  for (size_t k = 0; k < n; ++k) joinGroup(groups_[k], outs[k]);
 }
 
 // One group, read, added to and written; what it gives goes to `out`.
@@ -632,9 +596,12 @@ SessionMap consensusOfTiles(const fs::path& folder) {
   if (sessions.empty()) return SessionMap(index.top.resolution_m());
   const double t0 = sessions.front().time_s, t1 = sessions.back().time_s;
   // The parts are disjoint (the top's slot is empty where a tile hangs): summed once at the end.
-  std::vector<SessionMap> parts;
-  parts.push_back(consensus(index.top, t0, t1));
-  for (const TileEntry& e : index.tiles) parts.push_back(consensus(readTile(folder, index, e), t0, t1));
+  // Tiles are read on every core, one tile's history in memory per thread.
+  std::vector<SessionMap> parts(index.tiles.size() + 1, SessionMap(index.top.resolution_m()));
+  parts[0] = consensus(index.top, t0, t1);
+  pipeline_detail::runInOrder(index.tiles.size(), 0, [&](size_t k) {
+    parts[k + 1] = consensus(readTile(folder, index, index.tiles[k]), t0, t1);
+  });
   return consensus(std::span<const SessionMap>(parts));
 }
 

@@ -11,6 +11,7 @@
 #include "chronomap/store/temporal_file.h"
 #include "chronomap/pipeline/maps.h"
 #include "build_steps.h"
+#include "in_order.h"
 
 namespace chronomap {
 
@@ -60,9 +61,11 @@ TileResult tileMap(const TileSettings& s) {
 size_t untileMap(const fs::path& folder, const fs::path& map) {
   refuseOverwritingInputs(map, {folder / kTileIndexName});
   const TileIndex index = readTileIndex(folder);
-  std::vector<Tile> tiles;
-  tiles.reserve(index.tiles.size());
-  for (const TileEntry& e : index.tiles) tiles.push_back(Tile{e.key, readTile(folder, index, e)});
+  // Read on every core; an unreadable tile gives the error reading them in order gives.
+  std::vector<Tile> tiles(index.tiles.size());
+  pipeline_detail::runInOrder(tiles.size(), 0, [&](size_t k) {
+    tiles[k] = Tile{index.tiles[k].key, readTile(folder, index, index.tiles[k])};
+  });
   std::vector<const Tile*> refs;
   for (const Tile& t : tiles) refs.push_back(&t);
   const TemporalMap joined = joinTiles(index.top, index.tile_level, refs);

@@ -446,6 +446,17 @@ TEST(Integrator, ABoxLeftDirtyIsClearedAndNotKept) {
     EXPECT_EQ(std::count(d.length, d.length + d.length_cells, 0.0f), static_cast<std::ptrdiff_t>(d.length_cells));
     EXPECT_EQ(std::count(d.end, d.end + d.end_cells, 0u), static_cast<std::ptrdiff_t>(d.end_cells));
     d.length[1] = 2.0f;
+    d.end[2] = 5;
+    // Grown while dirty (past a block rounded up to 2 MiB): cleared first, then given back.
+    const int64_t larger[3] = {100, 100, 100};
+    d.reset(lo, larger);
+    EXPECT_EQ(integrate_detail::ZeroPool::keptBlocks(), 2u);
+    while (integrate_detail::ZeroPool::keptBlocks() > 0) {
+      const integrate_detail::ZeroPages block = integrate_detail::ZeroPool::take(1);
+      const auto* bytes = static_cast<const unsigned char*>(block.data());
+      EXPECT_EQ(std::count(bytes, bytes + block.bytes(), 0), static_cast<std::ptrdiff_t>(block.bytes()));
+    }
+    d.length[3] = 1.0f;
   }
   EXPECT_EQ(integrate_detail::ZeroPool::keptBlocks(), 0u);  // dirty: freed, not kept
   {
@@ -481,24 +492,32 @@ TEST(Integrator, EveryPathLeavesItsStoresZero) {
     }
     return FrameVector(std::move(frames));
   };
-  const FrameVector a = randomFrames(0.02, 2.0f), b = randomFrames(-0.7, 3.0f);
+  // Near the map's edge (x = 1,300 m of its 1,310.72 m at 0.04 m) the range cube does not lie
+  // inside the map: fast mode takes the point list.
+  const FrameVector a = randomFrames(0.02, 2.0f), b = randomFrames(-0.7, 3.0f), edge = randomFrames(1300.0, 2.0f);
   struct Path {
     const char* name;
     IntegratorSettings settings;
+    const FrameVector* frames;
   };
   std::vector<Path> paths;
   IntegratorSettings s = exactUncompressed();
   s.max_range_m = 3.5;
-  paths.push_back({"exact, the points' box", s});
+  paths.push_back({"exact, the points' box", s, &a});
   s.fast = true;
-  paths.push_back({"fast, the range cube", s});
+  paths.push_back({"fast, the range cube", s, &a});
+  paths.push_back({"fast, the point list (the map's edge)", s, &edge});
+  s.carve_level = 2;
+  paths.push_back({"fast, the range cube, carved two levels coarser", s, &a});
   s.cube_max_cells = 1;
-  paths.push_back({"fast, the box", s});
+  paths.push_back({"fast, the box, carved two levels coarser", s, &a});
+  s.carve_level = 0;
+  paths.push_back({"fast, the box", s, &a});
   s.max_range_m = 1.2;  // most points beyond: their rays carved to the range
   s.carve_beyond_range = true;
-  paths.push_back({"fast, the box, carved beyond the range", s});
+  paths.push_back({"fast, the box, carved beyond the range", s, &a});
   s.cube_max_cells = IntegratorSettings{}.cube_max_cells;
-  paths.push_back({"fast, the cube, carved beyond the range", s});
+  paths.push_back({"fast, the cube, carved beyond the range", s, &a});
   for (const Path& p : paths) {
     IntegratorSettings settings = p.settings;
     auto bytesOf = [&](const FrameVector& frames, int threads) {
@@ -508,12 +527,31 @@ TEST(Integrator, EveryPathLeavesItsStoresZero) {
       EXPECT_GT(map.counts().occupied_voxels, 300u) << p.name;
       return encodeSessionMap(map, nlohmann::json::object());
     };
+    // Each frame cast by a new accumulator from an empty pool: nothing a frame left behind can
+    // reach the next.
+    auto alone = [&](const FrameVector& frames) {
+      SessionMap map(0.04);
+      for (size_t i = 0; i < frames.size(); ++i) {
+        integrate_detail::ZeroPool::clear();
+        RayAccumulator acc(map.grid(), integrate_detail::perThread(settings, 1));
+        VoxelDeltas deltas;
+        acc.accumulate(frames.load(i), deltas);
+        mergeDeltas(map, deltas);
+      }
+      if (settings.compress_free) map.compressFree();
+      return encodeSessionMap(map, nlohmann::json::object());
+    };
+    const FrameVector& mine = *p.frames;
     integrate_detail::ZeroPool::clear();
-    const std::vector<uint8_t> first = bytesOf(a, 1), other = bytesOf(b, 1);
+    const std::vector<uint8_t> first = bytesOf(mine, 1), other = bytesOf(b, 1);
+    EXPECT_EQ(first, alone(mine)) << p.name;
     EXPECT_NE(other, first) << p.name;
+    integrate_detail::ZeroPool::clear();
+    bytesOf(mine, 1);
+    bytesOf(b, 1);
     EXPECT_GT(integrate_detail::ZeroPool::keptBlocks(), 0u) << p.name;
-    EXPECT_EQ(bytesOf(a, 1), first) << p.name;
-    EXPECT_EQ(bytesOf(a, 2), first) << p.name;
+    EXPECT_EQ(bytesOf(mine, 1), first) << p.name;
+    EXPECT_EQ(bytesOf(mine, 2), first) << p.name;
     EXPECT_EQ(bytesOf(b, 2), other) << p.name;
     // Every kept block reads zero.
     while (integrate_detail::ZeroPool::keptBlocks() > 0) {

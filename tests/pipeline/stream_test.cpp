@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <random>
@@ -23,6 +24,7 @@
 #include "chronomap/store/tiled_map.h"
 #include "chronomap/temporal/tiles.h"
 #include "test_support.h"
+#include "pipeline/in_order.h"
 
 namespace chronomap::stream_test {
 
@@ -187,6 +189,40 @@ TEST(Stream, ABudgetBoundsThePartsHeldAndSpillsTheRest) {
   EXPECT_TRUE(joined(dir / "small") == joined(dir / "large"));
   EXPECT_EQ(small.nodes_added, large.nodes_added);
   EXPECT_FALSE(fs::exists(dir / "small" / ".parts-0"));
+}
+
+// runInOrder (the streaming build's groups, the tiles `untile` and the consensus read): on random
+// sets of failing pieces and thread counts, every piece before the first failing one runs once,
+// and the error is that piece's, as one thread gives it.
+TEST(InOrder, TheFirstFailingPieceInOrderIsTheError) {
+  std::mt19937 rng(17);
+  for (int round = 0; round < 60; ++round) {
+    const size_t n = 1 + rng() % 40;
+    std::vector<bool> fails(n);
+    for (size_t k = 0; k < n; ++k) fails[k] = rng() % 6 == 0;
+    const int threads = static_cast<int>(rng() % 5);  // 0: one per core
+    std::vector<std::atomic<int>> ran(n);
+    size_t first = n;
+    for (size_t k = 0; k < n && first == n; ++k) {
+      if (fails[k]) first = k;
+    }
+    try {
+      pipeline_detail::runInOrder(n, threads, [&](size_t k) {
+        ++ran[k];
+        if (fails[k]) throw DataError("piece " + std::to_string(k));
+      });
+      EXPECT_EQ(first, n) << "round " << round;
+    } catch (const DataError& e) {
+      EXPECT_EQ(std::string(e.what()), "piece " + std::to_string(first)) << "round " << round;
+    }
+    for (size_t k = 0; k < n; ++k) {
+      if (k <= first) {
+        EXPECT_EQ(ran[k].load(), 1) << "piece " << k << ", round " << round;
+      } else {
+        EXPECT_LE(ran[k].load(), 1) << "piece " << k << ", round " << round;
+      }
+    }
+  }
 }
 
 // Groups of tiles run at once on several threads: every file (tiles, latest states, windows,
