@@ -235,11 +235,73 @@ void decodeDeltas(std::span<const uint8_t> bytes, VoxelDeltas& out, const std::s
 namespace {
 
 /// integrate() on the calling thread; adds each frame's stats to `total`.
+/// Frames' deltas buffers kept between integrations in a process, with their capacity, so that a
+/// short integration does not fault their pages in again (as the scratch grids, ZeroPool): at
+/// most 8 buffers and 64 MiB in all; what does not fit is freed. Their contents do not matter
+/// (accumulate() clears a buffer first).
+class KeptDeltas {
+ public:
+  static constexpr size_t kMaxBuffers = 8;
+  static constexpr size_t kMaxBytes = size_t{64} << 20;
+  /// `n` buffers, the kept ones first.
+  static std::vector<VoxelDeltas> take(size_t n) {
+    std::vector<VoxelDeltas> out;
+    out.reserve(n);
+    {
+      const std::lock_guard<std::mutex> lock(mutex());
+      std::vector<VoxelDeltas>& k = kept();
+      while (out.size() < n && !k.empty()) {
+        out.push_back(std::move(k.back()));
+        k.pop_back();
+      }
+    }
+    out.resize(n);
+    return out;
+  }
+  static void giveBack(std::vector<VoxelDeltas>& buffers) noexcept {
+    const std::lock_guard<std::mutex> lock(mutex());
+    std::vector<VoxelDeltas>& k = kept();
+    size_t bytes = 0;
+    for (const VoxelDeltas& d : k) bytes += deltaBytes(d);
+    for (VoxelDeltas& d : buffers) {
+      const size_t b = deltaBytes(d);
+      if (b == 0 || k.size() >= kMaxBuffers || bytes + b > kMaxBytes || k.size() == k.capacity()) continue;
+      bytes += b;
+      k.push_back(std::move(d));
+    }
+    buffers.clear();
+  }
+
+ private:
+  static std::mutex& mutex() {
+    static std::mutex* const m = new std::mutex;  // never destroyed (giveBack at exit)
+    return *m;
+  }
+  static std::vector<VoxelDeltas>& kept() {
+    static std::vector<VoxelDeltas>* const k = [] {
+      auto* v = new std::vector<VoxelDeltas>;
+      v->reserve(kMaxBuffers);
+      return v;
+    }();
+    return *k;
+  }
+};
+
+/// Buffers from KeptDeltas, given back when the integration ends (or stops).
+struct DeltaBuffers {
+  std::vector<VoxelDeltas> buffers;
+  explicit DeltaBuffers(size_t n) : buffers(KeptDeltas::take(n)) {}
+  ~DeltaBuffers() { KeptDeltas::giveBack(buffers); }
+  DeltaBuffers(const DeltaBuffers&) = delete;
+  DeltaBuffers& operator=(const DeltaBuffers&) = delete;
+};
+
 void integrateSerial(const FrameSource& source, SessionMap& map, const IntegratorSettings& settings,
                      const ProgressFn& progress, IntegrationStats& total) {
   const size_t n = source.size();
   RayAccumulator acc(map.grid(), perThread(settings, 1));
-  VoxelDeltas deltas;
+  DeltaBuffers kept(1);
+  VoxelDeltas& deltas = kept.buffers[0];
   for (size_t i = 0; i < n; ++i) {
     acc.accumulate(source, i, deltas);
     mergeDeltas(map, deltas);
@@ -259,7 +321,8 @@ void integrateParallel(const FrameSource& source, SessionMap& map, const Integra
   // At most `tokens` frames are in flight, each in its own buffer; the stages pass buffer
   // numbers, and a merged buffer goes back to the free list.
   const size_t tokens = static_cast<size_t>(threads) * 2;
-  std::vector<VoxelDeltas> buffers(tokens);
+  DeltaBuffers kept(tokens);
+  std::vector<VoxelDeltas>& buffers = kept.buffers;
   // Each buffer's deltas plus the scratch of the accumulator that filled it, as it was then
   // (written by the casting stage before the hand-over, summed by the merging one).
   std::vector<std::atomic<size_t>> scratch(tokens);
