@@ -49,7 +49,11 @@ TileResult tileMap(const TileSettings& s) {
   split.top.forEachListPlace([&](const VoxelKey&, int) { ++r.top_lists; });
   nlohmann::json meta = {{"created_by", "chronomap tile"}, {"source", s.map.string()}};
   meta.update(upKeysOf(userMetadataOf(file)));  // the map's up goes with it (docs/frames.md)
-  const TiledWriteResult w = writeTiledMap(s.folder, split, meta, s.window_sessions);
+  // The tiles written on every core (their files do not depend on it).
+  const TiledWriteResult w =
+      writeTiledMap(s.folder, split, meta, s.window_sessions, [](size_t n, const std::function<void(size_t)>& piece) {
+        pipeline_detail::runInOrder(n, 0, piece);
+      });
   r.tiles = w.tiles;
   r.index_bytes = w.index_bytes;
   r.tile_bytes = w.tile_bytes;

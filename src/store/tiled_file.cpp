@@ -149,15 +149,23 @@ nlohmann::json tableOf(const std::vector<TileEntry>& tiles, int tile_level, size
 }  // namespace
 
 TiledWriteResult writeTiledMap(const fs::path& folder, const SplitMap& split, const nlohmann::json& meta,
-                               uint32_t window_sessions) {
+                               uint32_t window_sessions, const ForEachPiece& for_each) {
   TiledWriteResult r;
   StagedFolder staged(folder);
   fs::create_directories(staged.path() / "tiles");
-  std::vector<TileEntry> entries;
-  for (const Tile& t : split.tiles) {
-    entries.push_back(writeTileAndLatest(staged.path(), t.key, tileFileName(t.key), t.map, window_sessions, {}));
-    r.tile_bytes += entries.back().diskBytes();
-    r.windows += entries.back().windows.size();
+  std::vector<TileEntry> entries(split.tiles.size());
+  const std::function<void(size_t)> write = [&](size_t k) {
+    const Tile& t = split.tiles[k];
+    entries[k] = writeTileAndLatest(staged.path(), t.key, tileFileName(t.key), t.map, window_sessions, {});
+  };
+  if (for_each) {
+    for_each(entries.size(), write);
+  } else {
+    for (size_t k = 0; k < entries.size(); ++k) write(k);
+  }
+  for (const TileEntry& e : entries) {
+    r.tile_bytes += e.diskBytes();
+    r.windows += e.windows.size();
     ++r.tiles;
   }
   const nlohmann::json extra = tableOf(entries, split.tile_level, split.top.sessionCount(), window_sessions);

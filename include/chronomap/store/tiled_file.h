@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -106,11 +107,17 @@ struct TiledWriteResult {
   size_t windows = 0;       ///< history windows written
 };
 
+/// Runs piece(k) for every k in [0, n), in any order or at once, each piece touching only its
+/// own output; rethrows what a piece throws (the pipeline's runInOrder runs them on every core).
+using ForEachPiece = std::function<void(size_t n, const std::function<void(size_t)>& piece)>;
+
 /// Writes `split` into the folder `folder` as a whole (staged, then moved into place: an
 /// error leaves the folder as it was). `meta` (a JSON object) is stored in the index.
-/// Every tile gets its windows of `window_sessions` sessions (0: none).
+/// Every tile gets its windows of `window_sessions` sessions (0: none). The tiles are written
+/// through `for_each` (empty: one after another); the files do not depend on it.
 TiledWriteResult writeTiledMap(const std::filesystem::path& folder, const SplitMap& split, const nlohmann::json& meta,
-                               uint32_t window_sessions = kDefaultWindowSessions);
+                               uint32_t window_sessions = kDefaultWindowSessions,
+                               const ForEachPiece& for_each = {});
 
 /// Writes one tile's file (atomically) into the folder as tileFileName(key, generation), and
 /// its latest state beside it. With `window_sessions` K > 0 the tile keeps the windows `kept`
