@@ -327,7 +327,8 @@ void integrateParallel(const FrameSource& source, SessionMap& map, const Integra
   // (written by the casting stage before the hand-over, summed by the merging one).
   std::vector<std::atomic<size_t>> scratch(tokens);
   std::vector<size_t> free_buffers(tokens);
-  for (size_t b = 0; b < tokens; ++b) free_buffers[b] = b;
+  // Handed out from the back: the kept buffers (at the front) first.
+  for (size_t b = 0; b < tokens; ++b) free_buffers[b] = tokens - 1 - b;
   std::mutex free_mutex;
   tbb::task_arena arena(threads);
   // Hand-overs between the stages' threads, for ThreadSanitizer (core/happens_before.h). The

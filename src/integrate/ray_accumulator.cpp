@@ -788,7 +788,7 @@ size_t RayAccumulator::scratchBytes() const {
   const Impl& m = *impl_;
   return capacityBytes(m.points) + capacityBytes(m.cell_index) + capacityBytes(m.ends) + capacityBytes(m.beyond_ends) +
          m.dense.usedBytes() + capacityBytes(m.hash.slots) +
-         m.cube.block.bytes() + capacityBytes(m.coarse_length) + capacityBytes(m.fine_rays) +
+         m.cube.usedBytes() + capacityBytes(m.coarse_length) + capacityBytes(m.fine_rays) +
          capacityBytes(m.edge_frame.cloud.points) + capacityBytes(m.edge_frame.cloud.colours) +
          capacityBytes(m.edge_frame.cloud.labels);
 }

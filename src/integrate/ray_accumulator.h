@@ -94,6 +94,7 @@ struct CubeStore {
   int64_t side = 0;
   uint32_t* end = nullptr;  // in `block`
   size_t cells = 0;         // room in `block`
+  size_t used = 0;          // the most cells a cube was made for
   ZeroPages block;
   bool clean = true;  // every cell is zero (false while a frame uses the cube)
 
@@ -125,11 +126,15 @@ struct CubeStore {
     // Taken before the old block goes: a failed take leaves the cube as it was.
     ZeroPages fresh = ZeroPool::take(want * sizeof(uint32_t));
     ZeroPages old = std::exchange(block, std::move(fresh));
-    if (clean) ZeroPool::giveBack(std::move(old));
     end = static_cast<uint32_t*>(block.data());
     cells = block.bytes() / sizeof(uint32_t);
+    used = std::max(used, want);
+    if (clean) ZeroPool::giveBack(std::move(old));
     clean = true;
   }
+  /// The most bytes a cube has been given (what the memory limit counts; a block from the
+  /// pool may be larger).
+  size_t usedBytes() const { return used * sizeof(uint32_t); }
 };
 
 /// Dense scratch over the frame's bounding box: ray length (voxel units) and end-entry index
@@ -178,15 +183,17 @@ struct DenseStore {
     const size_t room = cells + cells / 4;
     if (cells > length_cells) {
       ZeroPages fresh = ZeroPool::take(cells * sizeof(float), room * sizeof(float));
-      ZeroPool::giveBack(std::exchange(length_block, std::move(fresh)));
+      ZeroPages old = std::exchange(length_block, std::move(fresh));
       length = static_cast<float*>(length_block.data());
       length_cells = length_block.bytes() / sizeof(float);
+      ZeroPool::giveBack(std::move(old));
     }
     if (with_end && cells > end_cells) {
       ZeroPages fresh = ZeroPool::take(cells * sizeof(uint32_t), room * sizeof(uint32_t));
-      ZeroPool::giveBack(std::exchange(end_block, std::move(fresh)));
+      ZeroPages old = std::exchange(end_block, std::move(fresh));
       end = static_cast<uint32_t*>(end_block.data());
       end_cells = end_block.bytes() / sizeof(uint32_t);
+      ZeroPool::giveBack(std::move(old));
     }
     used_cells = std::max(used_cells, cells);
     if (with_end) used_end_cells = std::max(used_end_cells, cells);

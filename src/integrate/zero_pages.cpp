@@ -84,8 +84,13 @@ struct Kept {
 };
 
 // Never destroyed: an accumulator destroyed during the program's exit may still give back.
+// Room for every block it keeps, so that giving back never allocates (nor throws).
 Kept& kept() {
-  static Kept* const k = new Kept;
+  static Kept* const k = [] {
+    auto* made = new Kept;
+    made->blocks.reserve(ZeroPool::kMaxBlocks);
+    return made;
+  }();
   return *k;
 }
 
@@ -111,7 +116,7 @@ ZeroPages ZeroPool::take(size_t bytes, size_t room) {
   return ZeroPages(std::max(bytes, room));
 }
 
-void ZeroPool::giveBack(ZeroPages block) {
+void ZeroPool::giveBack(ZeroPages block) noexcept {
   if (block.bytes() == 0 || block.bytes() > kMaxBytes) return;
   Kept& k = kept();
   std::lock_guard<std::mutex> lock(k.mutex);
@@ -125,8 +130,9 @@ void ZeroPool::giveBack(ZeroPages block) {
     k.bytes -= k.blocks[smallest].bytes();
     k.blocks.erase(k.blocks.begin() + static_cast<std::ptrdiff_t>(smallest));
   }
-  k.bytes += block.bytes();
-  k.blocks.push_back(std::move(block));
+  const size_t bytes = block.bytes();
+  k.blocks.push_back(std::move(block));  // within the reserved room: no allocation
+  k.bytes += bytes;
 }
 
 void ZeroPool::clear() {

@@ -47,8 +47,8 @@ class ZeroPool {
   /// The smallest kept block of at least `bytes`, or a new one of `room` bytes when that is
   /// more (else `bytes`).
   static ZeroPages take(size_t bytes, size_t room = 0);
-  /// Keeps `block`, whose bytes must all be zero.
-  static void giveBack(ZeroPages block);
+  /// Keeps `block`, whose bytes must all be zero (or frees it). Never throws.
+  static void giveBack(ZeroPages block) noexcept;
   /// Frees every kept block (for tests).
   static void clear();
   /// Blocks and bytes kept now (for tests).

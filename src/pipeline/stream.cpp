@@ -590,7 +590,7 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
   return result;
 }
 
-SessionMap consensusOfTiles(const fs::path& folder) {
+SessionMap consensusOfTiles(const fs::path& folder, int threads) {
   const TileIndex index = readTileIndex(folder);
   const std::vector<SessionRecord>& sessions = index.top.sessions();
   if (sessions.empty()) return SessionMap(index.top.resolution_m());
@@ -599,7 +599,7 @@ SessionMap consensusOfTiles(const fs::path& folder) {
   // Tiles are read on every core, one tile's history in memory per thread.
   std::vector<SessionMap> parts(index.tiles.size() + 1, SessionMap(index.top.resolution_m()));
   parts[0] = consensus(index.top, t0, t1);
-  pipeline_detail::runInOrder(index.tiles.size(), 0, [&](size_t k) {
+  pipeline_detail::runInOrder(index.tiles.size(), threads, [&](size_t k) {
     parts[k + 1] = consensus(readTile(folder, index, index.tiles[k]), t0, t1);
   });
   return consensus(std::span<const SessionMap>(parts));
@@ -657,7 +657,7 @@ StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size
     if (!prior && !stored_sessions.empty()) {
       const std::string n = std::to_string(stored_sessions.size());
       b.progress.say("computing the consensus of the " + n + " stored session(s) from their histories");
-      prior = StoredConsensus{consensusOfTiles(b.map), stored_sessions.size(), ""};  // no file yet
+      prior = StoredConsensus{consensusOfTiles(b.map, b.session.integrator.threads), stored_sessions.size(), ""};
       warnings.push_back(b.map.string() + ": kept no consensus of its " + n +
                          " stored session(s) (built without --register, or cut by `tile`): computed once from "
                          "their histories, every tile read, and kept from now on");

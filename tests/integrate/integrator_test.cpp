@@ -492,9 +492,9 @@ TEST(Integrator, EveryPathLeavesItsStoresZero) {
     }
     return FrameVector(std::move(frames));
   };
-  // Near the map's edge (x = 1,300 m of its 1,310.72 m at 0.04 m) the range cube does not lie
-  // inside the map: fast mode takes the point list.
-  const FrameVector a = randomFrames(0.02, 2.0f), b = randomFrames(-0.7, 3.0f), edge = randomFrames(1300.0, 2.0f);
+  // Near the map's edge (x = 1,309.5 m of its 1,310.72 m at 0.04 m, points up to 2.3 m away) the
+  // range cube does not lie inside the map: fast mode takes the point list.
+  const FrameVector a = randomFrames(0.02, 2.0f), b = randomFrames(-0.7, 3.0f), edge = randomFrames(1309.5, 2.0f);
   struct Path {
     const char* name;
     IntegratorSettings settings;
@@ -542,6 +542,10 @@ TEST(Integrator, EveryPathLeavesItsStoresZero) {
       return encodeSessionMap(map, nlohmann::json::object());
     };
     const FrameVector& mine = *p.frames;
+    if (&mine == &edge) {  // the path taken: points beyond the map's edge are counted
+      SessionMap probe(0.04);
+      EXPECT_GT(integrate(mine, probe, settings).points_outside_map, 0u);
+    }
     integrate_detail::ZeroPool::clear();
     const std::vector<uint8_t> first = bytesOf(mine, 1), other = bytesOf(b, 1);
     EXPECT_EQ(first, alone(mine)) << p.name;

@@ -108,9 +108,10 @@ StreamResult streamIntoTiles(const StreamSettings& settings, size_t count,
 /// The consensus of a tiled map's stored sessions computed from their histories: the 4D map's
 /// consensus over all its sessions (consensus(map, t0, t1), as `build MAP.cmap --register`
 /// takes it), summed tile by tile, so that one tile's history is in memory at a time beside the
-/// parts. Every tile is read once. Empty for a map without sessions.
-/// @throw what the tile readers throw.
-SessionMap consensusOfTiles(const std::filesystem::path& folder);
+/// parts. Every tile is read once, on up to `threads` threads (0: one per core; one tile's history
+/// in memory per thread). Empty for a map without sessions.
+/// @throw what the tile readers throw (the first unreadable tile's error in the index's order).
+SessionMap consensusOfTiles(const std::filesystem::path& folder, int threads = 0);
 
 /// build() into a tiled map folder: each recording integrated and cut to the tiles in turn,
 /// then streamIntoTiles. With registration, every recording is integrated and registered first
