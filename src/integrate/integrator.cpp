@@ -19,7 +19,6 @@
 #include <unistd.h>
 
 #include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_for.h>
 #include <tbb/parallel_pipeline.h>
 #include <tbb/task_arena.h>
 
@@ -469,20 +468,6 @@ void integrateShared(const FrameSource& source, SessionMap& map, const Integrato
 
 }  // namespace
 
-/// The free-space compression at the end of an integration, on `threads` threads (the same pools
-/// as on one: SessionMap::compressFree's pieces). The pieces' pools and the compressed ones are
-/// held beside the map for a moment: on one thread when that could pass `limit` (0: none).
-static void compressOnThreads(SessionMap& map, int threads, size_t limit) {
-  if (threads <= 1 || (limit != 0 && map.memoryBytes() > limit / 3)) {
-    map.compressFree();
-    return;
-  }
-  tbb::task_arena arena(threads);
-  map.compressFree([&](size_t n, const std::function<void(size_t)>& piece) {
-    arena.execute([&] { tbb::parallel_for(size_t{0}, n, [&](size_t k) { piece(k); }); });
-  });
-}
-
 std::unique_ptr<MemoryActivity> integrationMemoryActivity(size_t frames, double resolution_m) {
   std::ostringstream what;
   what << "integrating " << frames << " frame(s) at resolution " << resolution_m << " m";
@@ -508,7 +493,7 @@ IntegrationStats integrate(const FrameSource& source, SessionMap& map, const Int
   } else {
     integrateParallel(source, map, settings, progress, threads, total);
   }
-  if (settings.compress_free) compressOnThreads(map, sharing ? 1 : threads, settings.memory_limit_bytes);
+  if (settings.compress_free) map.compressFree();
   total.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return total;
 }

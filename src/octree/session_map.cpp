@@ -352,11 +352,6 @@ size_t SessionMap::compressFree() {
   free.reserve(leaves_.size() + free_.size());
   bool root_free = false;
   compressInto(0, inner, leaves, free, root_free);
-  return adoptCompressed(std::move(inner), std::move(leaves), std::move(free), before);
-}
-
-size_t SessionMap::adoptCompressed(std::vector<Children> inner, std::vector<VoxelCounters> leaves,
-                                   std::vector<float> free, size_t before) {
   inner.shrink_to_fit();
   leaves.shrink_to_fit();
   free.shrink_to_fit();
@@ -365,109 +360,6 @@ size_t SessionMap::adoptCompressed(std::vector<Children> inner, std::vector<Voxe
   free_ = std::move(free);
   moved_ = 0;
   return before - leafCount();
-}
-
-void SessionMap::collectAt(Ref r, int depth, std::vector<Ref>& out) const {
-  if (r == kEmpty) return;
-  if (depth == 0 || isLeaf(r)) {
-    out.push_back(r);
-    return;
-  }
-  for (int i = 0; i < 8; ++i) collectAt(inner_[r][i], depth - 1, out);
-}
-
-SessionMap::Ref SessionMap::assemble(Ref r, int depth, std::vector<CompressedPart>& parts, size_t& next,
-                                     std::vector<Children>& inner, std::vector<VoxelCounters>& leaves,
-                                     std::vector<float>& free, bool& known_free) const {
-  known_free = false;
-  if (r == kEmpty) return kEmpty;
-  if (depth == 0 || isLeaf(r)) {
-    // A piece: its pools appended, its references moved by the pools' sizes so far (a piece's
-    // pools are laid out depth first from 0, as they would have been from here).
-    CompressedPart& part = parts[next++];
-    known_free = part.known_free;
-    const auto inner_at = static_cast<Ref>(inner.size()), leaves_at = static_cast<Ref>(leaves.size()),
-               free_at = static_cast<Ref>(free.size());
-    auto moved = [&](Ref c) -> Ref {
-      if (c == kEmpty) return kEmpty;
-      if (!isLeaf(c)) return c + inner_at;
-      return isFreeLeaf(c) ? (index(c) + free_at) | kLeafBit | kFreeBit : (index(c) + leaves_at) | kLeafBit;
-    };
-    for (const Children& children : part.inner) {
-      Children& out = inner.emplace_back();
-      for (int i = 0; i < 8; ++i) out[i] = moved(children[i]);
-    }
-    leaves.insert(leaves.end(), part.leaves.begin(), part.leaves.end());
-    free.insert(free.end(), part.free.begin(), part.free.end());
-    const Ref out = moved(part.ref);
-    part = CompressedPart{};
-    return out;
-  }
-  // As compressInto() does for an inner node, with the children from above.
-  const Ref out = static_cast<Ref>(inner.size());
-  inner.push_back(emptyChildren());
-  bool any = false, all_free = true;
-  for (int i = 0; i < 8; ++i) {
-    bool child_free = false;
-    const Ref c = assemble(inner_[r][i], depth - 1, parts, next, inner, leaves, free, child_free);
-    inner[out][i] = c;
-    any = any || c != kEmpty;
-    all_free = all_free && child_free;
-  }
-  if (all_free && r != 0) {
-    const Children children = inner[out];
-    inner.pop_back();
-    VoxelCounters sum;
-    for (int i = 0; i < 8; ++i) {
-      sum.length_m += isFreeLeaf(children[i]) ? free[index(children[i])] : leaves[index(children[i])].length_m;
-    }
-    for (int i = 7; i >= 0; --i) {
-      if (isFreeLeaf(children[i])) {
-        free.pop_back();
-      } else {
-        leaves.pop_back();
-      }
-    }
-    known_free = true;
-    return pushLeaf(sum, leaves, &free);
-  }
-  if (!any && r != 0) {
-    inner.pop_back();
-    return kEmpty;
-  }
-  return out;
-}
-
-size_t SessionMap::compressFree(const ForEachPiece& for_each) {
-  // The subtrees two levels below the root (up to 64; a map near the origin spans the root's
-  // eight octants), each compressed on its own, then joined under the top as compressInto()
-  // would have laid them out.
-  constexpr int kDepth = 2;
-  std::vector<Ref> tops;
-  collectAt(0, kDepth, tops);
-  if (!for_each || tops.size() < 2) return compressFree();
-  const size_t before = leafCount();
-  std::vector<CompressedPart> parts(tops.size());
-  for_each(tops.size(), [&](size_t k) {
-    CompressedPart& p = parts[k];
-    p.ref = compressInto(tops[k], p.inner, p.leaves, p.free, p.known_free);
-  });
-  std::vector<Children> inner;
-  std::vector<VoxelCounters> leaves;
-  std::vector<float> free;
-  size_t inner_n = 0, leaves_n = 0, free_n = 0;
-  for (const CompressedPart& p : parts) {
-    inner_n += p.inner.size();
-    leaves_n += p.leaves.size();
-    free_n += p.free.size();
-  }
-  inner.reserve(inner_n + 1 + 8);
-  leaves.reserve(leaves_n + 1);
-  free.reserve(free_n + 8);
-  size_t next = 0;
-  bool root_free = false;
-  assemble(0, kDepth, parts, next, inner, leaves, free, root_free);
-  return adoptCompressed(std::move(inner), std::move(leaves), std::move(free), before);
 }
 
 SessionMap::Pools SessionMap::pools() const {

@@ -3,8 +3,6 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
-#include <cstring>
-#include <functional>
 #include <map>
 #include <tuple>
 #include <optional>
@@ -177,63 +175,6 @@ TEST(SessionMap, CompressionNeverMergesHitsOrUnknown) {
   }
   EXPECT_EQ(m.compressFree(), 0u);  // first group has a hit, second misses a child
   EXPECT_EQ(m.leafCount(), 15u);
-}
-
-// compressFree() in pieces (the subtrees two levels below the root compressed on their own, in
-// any order, then joined, as integrate() runs it on several threads) gives the pools compressFree()
-// gives, reference for reference and counter for counter, on random maps around the centre of the
-// key space (every octant of the root) and far from it, compressed and refined again.
-TEST(SessionMap, CompressionInPiecesGivesTheSamePools) {
-  const auto samePools = [](const SessionMap& a, const SessionMap& b) {
-    if (a.innerPool() != b.innerPool() || a.memoryBytes() != b.memoryBytes()) return false;
-    for (const SessionMap::Children& children : a.innerPool()) {
-      for (const SessionMap::Ref r : children) {
-        if (r == SessionMap::kEmpty || (r & SessionMap::kLeafBit) == 0) continue;
-        const VoxelCounters x = a.leaf(r), y = b.leaf(r);
-        if (std::memcmp(&x, &y, sizeof x) != 0) return false;
-      }
-    }
-    return true;
-  };
-  int pieces_seen = 0;
-  for (uint32_t seed = 1; seed <= 30; ++seed) {
-    std::mt19937 rng(seed);
-    std::uniform_int_distribution<int> coord(-16, 15), size_bits(0, 3), kind(0, 19), far(0, 3);
-    std::uniform_real_distribution<float> length(0.001f, 0.2f);
-    SessionMap m(0.1);
-    for (int round = 0; round < 3; ++round) {
-      for (int block = 0; block < 14; ++block) {
-        const int side = 1 << size_bits(rng);
-        // Around the centre (key 32768), or 2^14 keys away on some axes.
-        const int shift[3] = {far(rng) == 0 ? 16384 : 0, far(rng) == 0 ? -16384 : 0, 0};
-        const int x0 = 32768 + shift[0] + coord(rng) / side * side, y0 = 32768 + shift[1] + coord(rng) / side * side,
-                  z0 = 32768 + shift[2] + coord(rng) / side * side;
-        for (int x = x0; x < x0 + side; ++x) {
-          for (int y = y0; y < y0 + side; ++y) {
-            for (int z = z0; z < z0 + side; ++z) {
-              const VoxelKey key{static_cast<uint16_t>(x), static_cast<uint16_t>(y), static_cast<uint16_t>(z)};
-              const int k = kind(rng);
-              m.add(key, k == 1 ? hit(length(rng), 1, 9) : k == 2 ? freeVoxel(0.0f) : freeVoxel(length(rng)));
-            }
-          }
-        }
-      }
-      SessionMap serial = m, pieces = m;
-      const size_t removed = serial.compressFree();
-      size_t calls = 0;
-      // The pieces in reverse order, as threads may finish them.
-      EXPECT_EQ(pieces.compressFree([&](size_t n, const std::function<void(size_t)>& piece) {
-        calls = n;
-        for (size_t k = n; k-- > 0;) piece(k);
-      }),
-                removed);
-      pieces_seen += static_cast<int>(calls);
-      ASSERT_TRUE(samePools(serial, pieces)) << "seed " << seed << " round " << round;
-      EXPECT_TRUE(serial == pieces);
-      m = std::move(serial);
-    }
-  }
-  EXPECT_GT(pieces_seen, 30 * 3 * 8);  // every octant of the root, and more
 }
 
 // compressFree() against a slow reference on random maps: level by level from the bottom, eight

@@ -5,7 +5,6 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
-#include <functional>
 #include <optional>
 #include <span>
 #include <vector>
@@ -94,12 +93,6 @@ class SessionMap {
   /// nodes left without children are dropped).
   /// @return the number of leaves removed.
   size_t compressFree();
-  /// Runs piece(k) for every k in [0, n), in any order or at once (each piece touches only its
-  /// own output), rethrowing what a piece throws.
-  using ForEachPiece = std::function<void(size_t n, const std::function<void(size_t)>& piece)>;
-  /// compressFree() with the subtrees below the top levels compressed through `for_each` (on
-  /// several threads, as integrate() does): the same pools, bit for bit.
-  size_t compressFree(const ForEachPiece& for_each);
 
   /// Counts nodes and voxel states (linear in the number of nodes).
   SessionMapCounts counts() const;
@@ -186,24 +179,6 @@ class SessionMap {
   /// `known_free` tells whether the copy of `r` is such a leaf.
   Ref compressInto(Ref r, std::vector<Children>& inner, std::vector<VoxelCounters>& leaves, std::vector<float>& free,
                    bool& known_free) const;
-  /// One subtree compressed on its own (compressFree's pieces).
-  struct CompressedPart {
-    std::vector<Children> inner;
-    std::vector<VoxelCounters> leaves;
-    std::vector<float> free;
-    Ref ref = kEmpty;
-    bool known_free = false;
-  };
-  /// compressInto() of the top `depth` levels below `r` (depth levels of inner nodes, `r` at
-  /// depth 0), taking the subtrees at `depth` from `parts` in depth-first order (`next`: the
-  /// next one) and appending their pools; the same pools as compressInto() of `r`.
-  Ref assemble(Ref r, int depth, std::vector<CompressedPart>& parts, size_t& next, std::vector<Children>& inner,
-               std::vector<VoxelCounters>& leaves, std::vector<float>& free, bool& known_free) const;
-  /// The references at `depth` below `r` (inner nodes and leaves, not empty slots), depth first.
-  void collectAt(Ref r, int depth, std::vector<Ref>& out) const;
-  /// Replaces the pools with compressed ones and returns the leaves removed.
-  size_t adoptCompressed(std::vector<Children> inner, std::vector<VoxelCounters> leaves, std::vector<float> free,
-                         size_t before);
   /// Appends leaf `c` to `free` when it is free-only and `free` is given, else to `leaves`;
   /// returns its reference in those pools.
   static Ref pushLeaf(const VoxelCounters& c, std::vector<VoxelCounters>& leaves, std::vector<float>* free);
