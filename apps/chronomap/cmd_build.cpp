@@ -97,6 +97,7 @@ struct AddCmdOptions {
   ChangeCriterion criterion;
   RealignFlags realign;
   std::optional<double> memory_limit_gib;  ///< a tiled map: the streaming build's parts budget
+  std::optional<int> threads;              ///< a tiled map: groups of tiles at once
   bool json = false;
 };
 
@@ -152,6 +153,7 @@ int runAdd(const AddCmdOptions& o) {
   if (isTiledMapFolder(o.map)) {
     // A tiled map: the session streamed in tile by tile (docs/scale.md).
     keepFreedMemoryForTheNextTile();
+    s.threads = o.threads.value_or(0);
     const StreamResult r =
         streamAddSession(s, gibToBytes(o.memory_limit_gib.value_or(kDefaultPartsGib)));
     const nlohmann::json j = {{"map", o.map},           {"time", formatTime(r.added_times.at(0))},
@@ -169,6 +171,7 @@ int runAdd(const AddCmdOptions& o) {
   }
   requireExtension(o.map, ".cmap", "4D map");
   if (o.memory_limit_gib) throw UsageError("--memory-limit applies to a tiled map folder only");
+  if (o.threads) throw UsageError("--threads applies to a tiled map folder only");
   s.criterion = o.criterion;
   printAdded(o, chronomap::addSession(s));
   return 0;
@@ -450,6 +453,11 @@ Command addAdd(CLI::App& root) {
                   "MAP a tiled map folder: the session is added tile by tile (the streaming build, docs/scale.md), "
                   "holding its parts up to this many GiB (default 0.25)")
       ->check(numberIn(0, 1e6));
+  app->add_option("--threads", o->threads,
+                  "MAP a tiled map folder: groups of tiles read, added to and written at once, each on its own "
+                  "thread (memory holds one group per thread); 0 = all cores, the default (the files do not depend "
+                  "on it)")
+      ->check(CLI::Range(0, 4096));
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runAdd(*o); }};
 }

@@ -694,6 +694,7 @@ StreamResult streamAddSession(const AddSessionSettings& a, size_t memory_limit_b
   s.resolution_m = session.resolution_m();
   s.criterion = a.criterion;
   s.memory_limit_bytes = memory_limit_bytes;
+  s.threads = a.threads;
   return streamIntoTiles(s, 1, [&](size_t) {
     return StreamSession{time_s, a.session.filename().string(), std::move(session)};
   });

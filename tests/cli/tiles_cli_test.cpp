@@ -279,15 +279,28 @@ TEST(TilesCli, AddToATiledFolderStreamsTheSession) {
   // The whole map: add, then tile; the tiled folder: add (streamed).
   ASSERT_EQ(runCommand(cli() + " add " + m + " " + s).exit_code, 0);
   ASSERT_EQ(runCommand(cli() + " tile " + m + " -o " + (tmp / "w").string() + " --tile-size 0.2").exit_code, 0);
+  fs::copy(tmp / "t", tmp / "t1", fs::copy_options::recursive);
   const test::CommandResult r = runCommand(cli() + " add " + (tmp / "t").string() + " " + s + " --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(nlohmann::json::parse(r.out)["sessions"], 3);
   EXPECT_TRUE(untiled(tmp, tmp / "t") == untiled(tmp, tmp / "w"));
+  // On one thread: the same files, every one of them.
+  const test::CommandResult one = runCommand(cli() + " add " + (tmp / "t1").string() + " " + s + " --threads 1");
+  ASSERT_EQ(one.exit_code, 0) << one.err;
+  for (const auto& f : fs::recursive_directory_iterator(tmp / "t")) {
+    if (f.is_regular_file()) {
+      EXPECT_TRUE(test::bytesOf(f.path()) == test::bytesOf(tmp / "t1" / fs::relative(f.path(), tmp / "t")))
+          << f.path();
+    }
+  }
   // Options that do not apply: refused, the folder unchanged.
   const std::vector<uint8_t> before = untiled(tmp, tmp / "t");
   EXPECT_EQ(runCommand(cli() + " add " + (tmp / "t").string() + " " + s + " --time 4000 --replace").exit_code, 2);
   EXPECT_EQ(runCommand(cli() + " add " + (tmp / "t").string() + " " + s + " --time 2500").exit_code, 2);
   EXPECT_EQ(runCommand(cli() + " add " + m + " " + s + " --time 4000 --memory-limit 1").exit_code, 2);
+  const test::CommandResult threads = runCommand(cli() + " add " + m + " " + s + " --time 4000 --threads 2");
+  EXPECT_EQ(threads.exit_code, 2);
+  EXPECT_NE(threads.err.find("--threads applies to a tiled map folder only"), std::string::npos) << threads.err;
   EXPECT_TRUE(untiled(tmp, tmp / "t") == before);
 }
 

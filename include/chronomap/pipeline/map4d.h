@@ -96,6 +96,9 @@ struct AddSessionSettings {
   ChangeCriterion criterion;  ///< for a new map
   /// Re-align the session against the consensus of the stored sessions and itself first.
   std::optional<RealignSettings> realign;
+  /// A tiled map folder (streamAddSession): groups of tiles written at once, each on its own
+  /// thread (StreamSettings::threads); 0: one per core. The files do not depend on it.
+  int threads = 0;
 };
 
 /// What addSession() did.
