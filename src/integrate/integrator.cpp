@@ -234,7 +234,6 @@ void decodeDeltas(std::span<const uint8_t> bytes, VoxelDeltas& out, const std::s
 
 namespace {
 
-/// integrate() on the calling thread; adds each frame's stats to `total`.
 /// Frames' deltas buffers kept between integrations in a process, with their capacity, so that a
 /// short integration does not fault their pages in again (as the scratch grids, ZeroPool): at
 /// most 8 buffers and 64 MiB in all; what does not fit is freed. Their contents do not matter
@@ -296,6 +295,7 @@ struct DeltaBuffers {
   DeltaBuffers& operator=(const DeltaBuffers&) = delete;
 };
 
+/// integrate() on the calling thread; adds each frame's stats to `total`.
 void integrateSerial(const FrameSource& source, SessionMap& map, const IntegratorSettings& settings,
                      const ProgressFn& progress, IntegrationStats& total) {
   const size_t n = source.size();

@@ -204,14 +204,18 @@ inline size_t castDense(const double origin[3], const double end[3], float weigh
   return static_cast<size_t>(idx);
 }
 
-/// Calls emit(k) for every k in [0, n) whose cell is not all zero bits (a ray length or an end
-/// entry), in increasing order, four cells at a time where the CPU has SSE2 (most cells of a
-/// frame's box hold neither; one at a time, the test was about a fifth of the one-pass path's
-/// own time on the 3DMatch frames at 0.05 m). `emit` clears the cell it is called for (the
-/// stores are zero at rest) and emits it when it holds a positive length or an end entry
-/// (filled()): every written cell is visited, whatever its bits.
+/// Calls emit(k) for every k in [0, n) whose cell holds ray length or an end entry, in
+/// increasing order, and zeroes every cell written (whatever its bits: the stores are zero at
+/// rest), four cells at a time where the CPU has SSE2 (most cells of a frame's box hold neither;
+/// one at a time, the test was about a fifth of the one-pass path's own time on the 3DMatch
+/// frames at 0.05 m). A cell that a ray only touched (length 0, as at a corner) is no update.
 template <class Emit>
-inline void forEachWrittenCell(const float* length, const uint32_t* end, size_t n, Emit&& emit) {
+inline void emitAndClear(float* length, uint32_t* end, size_t n, Emit&& emit) {
+  auto visit = [&](size_t k) {
+    if (length[k] > 0.0f || end[k] != 0) emit(k);
+    length[k] = 0.0f;
+    end[k] = 0;
+  };
   size_t k = 0;
 #if defined(__SSE2__)
   const __m128i zero_i = _mm_setzero_si128();
@@ -220,18 +224,14 @@ inline void forEachWrittenCell(const float* length, const uint32_t* end, size_t 
     const __m128i e = _mm_loadu_si128(reinterpret_cast<const __m128i*>(end + k));
     const int empty = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(_mm_or_si128(l, e), zero_i)));
     for (auto written = static_cast<unsigned>(~empty & 0xF); written != 0; written &= written - 1) {
-      emit(k + static_cast<size_t>(std::countr_zero(written)));
+      visit(k + static_cast<size_t>(std::countr_zero(written)));
     }
   }
 #endif
   for (; k < n; ++k) {
-    if (std::bit_cast<uint32_t>(length[k]) != 0 || end[k] != 0) emit(k);
+    if (std::bit_cast<uint32_t>(length[k]) != 0 || end[k] != 0) visit(k);
   }
 }
-
-/// Whether a cell forEachWrittenCell() visits is an update: ray length or an end entry (a cell
-/// that a ray only touched, length 0 as at a corner, is none).
-inline bool filled(float length, uint32_t end) { return length > 0.0f || end != 0; }
 
 /// The working frame's bias (setUp()) for a reach of `reach_m`: the reach in voxels, up to the
 /// map's diagonal, rounded up, plus two. The range cube's side is 2 * bias + 1.
@@ -707,13 +707,9 @@ struct RayAccumulator::Impl {
     uint32_t* e_row = d.end;
     for (int64_t z = 0; z < d.n[2]; ++z) {
       for (int64_t y = 0; y < d.n[1]; ++y, l_row += nx, e_row += nx) {
-        forEachWrittenCell(l_row, e_row, nx, [&](size_t k) {
-          if (filled(l_row[k], e_row[k])) {
-            emitCell(oc[0] + d.lo[0] + static_cast<int64_t>(k), oc[1] + d.lo[1] + y, oc[2] + d.lo[2] + z, l_row[k],
-                     e_row[k], out);
-          }
-          l_row[k] = 0.0f;
-          e_row[k] = 0;
+        emitAndClear(l_row, e_row, nx, [&](size_t k) {
+          emitCell(oc[0] + d.lo[0] + static_cast<int64_t>(k), oc[1] + d.lo[1] + y, oc[2] + d.lo[2] + z, l_row[k],
+                   e_row[k], out);
         });
       }
     }
@@ -920,12 +916,8 @@ void RayAccumulator::Impl::accumulateCube(const WorkingFrame& w, VoxelDeltas& ou
   for (int64_t z = lo[2]; z <= hi[2]; ++z) {
     for (int64_t y = lo[1]; y <= hi[1]; ++y, l_row += nx) {
       uint32_t* e_row = end + static_cast<size_t>(sy * y + sz * z + lo[0]);
-      forEachWrittenCell(l_row, e_row, nx, [&](size_t k) {
-        if (filled(l_row[k], e_row[k])) {
-          emitCell(oc[0] + lo[0] + static_cast<int64_t>(k), oc[1] + y, oc[2] + z, l_row[k], e_row[k], out);
-        }
-        l_row[k] = 0.0f;
-        e_row[k] = 0;
+      emitAndClear(l_row, e_row, nx, [&](size_t k) {
+        emitCell(oc[0] + lo[0] + static_cast<int64_t>(k), oc[1] + y, oc[2] + z, l_row[k], e_row[k], out);
       });
     }
   }

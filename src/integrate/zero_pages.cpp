@@ -135,6 +135,11 @@ void ZeroPool::giveBack(ZeroPages block) noexcept {
   k.bytes += bytes;
 }
 
+void ZeroPool::replace(ZeroPages& block, size_t bytes, size_t room, bool clean) {
+  ZeroPages old = std::exchange(block, take(bytes, room));
+  if (clean) giveBack(std::move(old));
+}
+
 void ZeroPool::clear() {
   Kept& k = kept();
   std::lock_guard<std::mutex> lock(k.mutex);

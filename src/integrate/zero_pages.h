@@ -49,6 +49,9 @@ class ZeroPool {
   static ZeroPages take(size_t bytes, size_t room = 0);
   /// Keeps `block`, whose bytes must all be zero (or frees it). Never throws.
   static void giveBack(ZeroPages block) noexcept;
+  /// Replaces `block` by take(bytes, room), taken before the old block goes (back to the pool
+  /// when `clean`, else freed): a failed take leaves `block` as it was.
+  static void replace(ZeroPages& block, size_t bytes, size_t room, bool clean);
   /// Frees every kept block (for tests).
   static void clear();
   /// Blocks and bytes kept now (for tests).

@@ -199,6 +199,13 @@ class TileStream {
     uint64_t tile_bytes = 0;
     std::vector<int64_t> nodes_added;  // per added session
     std::vector<TileKey> done;         // stored tiles read
+    /// A tile written, `kept_windows` of its windows kept from before.
+    void wrote(TileEntry e, size_t kept_windows) {
+      stats.windows_written += e.windows.size() - kept_windows;
+      tile_bytes += e.diskBytes();
+      ++stats.tiles_written;
+      entries.push_back(std::move(e));
+    }
   };
   void addSession(size_t i, StreamSession& session);
   const TileEntry* storedTileOf(const Cube& g) const;
@@ -411,22 +418,14 @@ void TileStream::rewriteStoredTile(const Cube& g, const TileEntry& e, GroupOut& 
     return;
   }
   // The windows written before hold earlier sessions only, which these did not change.
-  out.entries.push_back(writeTileFile(s_.folder, e.key, generation_, work, window_sessions_, e.windows));
-  out.stats.windows_written += out.entries.back().windows.size() - e.windows.size();
-  out.tile_bytes += out.entries.back().diskBytes();
-  ++out.stats.tiles_written;
+  out.wrote(writeTileFile(s_.folder, e.key, generation_, work, window_sessions_, e.windows), e.windows.size());
 }
 
 // A group's compacted map cut into tiles (written under the new generation's names) and its part
 // of the top (kept for newTop()).
 void TileStream::writeSplit(const TemporalMap& work, GroupOut& out) {
   SplitMap split = splitIntoTiles(work, level_);
-  for (const Tile& t : split.tiles) {
-    out.entries.push_back(writeTileFile(s_.folder, t.key, generation_, t.map, window_sessions_));
-    out.stats.windows_written += out.entries.back().windows.size();
-    out.tile_bytes += out.entries.back().diskBytes();
-    ++out.stats.tiles_written;
-  }
+  for (const Tile& t : split.tiles) out.wrote(writeTileFile(s_.folder, t.key, generation_, t.map, window_sessions_), 0);
   out.top = std::move(split.top);
 }
 
