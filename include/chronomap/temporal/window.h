@@ -5,6 +5,7 @@
 /// whole history; docs/file-format.md, "Window files").
 
 #include <cstdint>
+#include <vector>
 
 #include "chronomap/temporal/temporal_map.h"
 
@@ -26,5 +27,29 @@ TemporalMap historyWindow(const TemporalMap& map, uint32_t first, uint32_t count
 /// The same from `parts`, map.parts(): for several windows of one map, which parts() would
 /// otherwise copy whole for each.
 TemporalMap historyWindow(const TemporalMap& map, const TemporalMap::Parts& parts, uint32_t first, uint32_t count);
+
+/// A window that goes on after `map`'s last session (docs/scale.md, "A tile as its windows"):
+/// `map`'s tree, each list holding its latest entry as the window's session 0, which stands for
+/// `map`'s last session (its time and name, no coverage): historyWindow(map, last, 1). Sessions
+/// added after it are the window's own; each decides its changes against the latest states as
+/// `map` would. Compacting the window with compact(relayout, &kept), `kept` its parts().inner
+/// as returned here, merges exactly what compacting the whole history would.
+/// @throw UsageError when `map` holds no session.
+TemporalMap continuedWindow(const TemporalMap& map);
+
+/// The whole history that a run of windows holds: windows[0] from the first session, and each
+/// later window continued from the one before it (continuedWindow) and added to and compacted
+/// as above. The result is the map that adding the same sessions to one map, compacting it after
+/// each, would give: the same tree, lists, entries and lengths, bit for bit. The last window's
+/// tree is the map's; a list that an earlier window held coarser (a refinement came later) takes
+/// that window's entries split as a refinement splits them, and a cube that it held finer (a
+/// merge came later) the merge of its lists, summed as compaction sums them. The sessions are
+/// the windows' own (session 0 of a continued window left out), node counts as each window
+/// counted them.
+/// @throw UsageError when there is no window, they differ in resolution or criterion, or a
+/// window's session 0 is not the time of the last session before it; FormatError when their
+/// trees do not join (a merge of lists that are not free on the same sessions, or a list with
+/// no entry).
+TemporalMap joinWindows(const std::vector<TemporalMap>& windows);
 
 }  // namespace chronomap

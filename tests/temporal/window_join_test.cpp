@@ -1,0 +1,244 @@
+// A history kept as windows (temporal/window.h: continuedWindow, joinWindows, compact with a
+// kept tree) against the same sessions added night by night to one map compacted after each.
+
+#include <gtest/gtest.h>
+
+#include <random>
+#include <string>
+#include <vector>
+
+#include "chronomap/core/error.h"
+#include "chronomap/temporal/window.h"
+#include "builders.h"
+
+namespace chronomap {
+namespace {
+
+using test::at;
+using test::freeVoxel;
+using test::occupiedVoxelExact;
+
+constexpr int kWindowSide = 16;
+
+double windowNightTime(int i) { return 5000.0 + 3600.0 * i; }
+
+/// One night: the occupied voxels of `occupied` and free space around them, observed in a box
+/// that differs from night to night (so neighbouring lists begin on different nights), sometimes
+/// with holes, half of the nights compressed (so later occupied voxels refine coarse free cubes),
+/// with lengths that are not binary fractions (so the order of every sum shows in the bits).
+SessionMap night(std::mt19937_64& rng, const std::vector<uint8_t>& occupied) {
+  SessionMap m(0.05);
+  int lo[3], hi[3];
+  const bool everything = rng() % 4 == 0;
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = everything ? 0 : static_cast<int>(rng() % 8);
+    hi[a] = everything ? kWindowSide : lo[a] + 4 + static_cast<int>(rng() % (kWindowSide - lo[a] - 3));
+  }
+  const bool holes = rng() % 3 == 0;
+  std::uniform_real_distribution<float> length(0.013f, 0.9f);
+  for (int z = lo[2]; z < hi[2]; ++z) {
+    for (int y = lo[1]; y < hi[1]; ++y) {
+      for (int x = lo[0]; x < hi[0]; ++x) {
+        if (holes && rng() % 12 == 0) continue;
+        if (occupied[(z * kWindowSide + y) * kWindowSide + x] != 0) {
+          m.add(at(x, y, z), occupiedVoxelExact(1 + static_cast<uint32_t>(rng() % 3), static_cast<uint8_t>(rng() % 256)));
+        } else {
+          m.add(at(x, y, z), freeVoxel(length(rng)));
+        }
+      }
+    }
+  }
+  if (rng() % 2 == 0) m.compressFree();
+  return m;
+}
+
+struct Built {
+  TemporalMap whole{0.05};
+  std::vector<TemporalMap> windows;
+  std::vector<TemporalMap> whole_at;  // the whole map when each window was closed
+  size_t refined_between_windows = 0;  // windows whose tree holds more inner nodes than the one before
+};
+
+/// `nights` nights of a seed, into one map and into windows of `k` nights. `keep_tree`: compact
+/// the open window with the tree it was continued with (as it must be); false: plainly.
+Built build(uint64_t seed, int nights, int k, bool keep_tree) {
+  std::mt19937_64 rng(seed);
+  std::vector<uint8_t> occupied(kWindowSide * kWindowSide * kWindowSide, 0);
+  for (auto& o : occupied) o = rng() % 25 == 0;
+  Built b;
+  TemporalMap open(0.05);
+  std::vector<TemporalMap::Children> kept = open.parts().inner;
+  int own = 0;
+  for (int i = 0; i < nights; ++i) {
+    for (int f = 0; f < 12; ++f) occupied[rng() % occupied.size()] ^= 1;
+    const SessionMap s = night(rng, occupied);
+    b.whole.add(windowNightTime(i), s);
+    b.whole.compact(TemporalMap::Relayout::kWhenMerged);
+    open.add(windowNightTime(i), s);
+    open.compact(TemporalMap::Relayout::kWhenMerged, keep_tree ? &kept : nullptr);
+    if (++own == k) {
+      b.windows.push_back(open);
+      b.whole_at.push_back(b.whole);
+      open = continuedWindow(open);
+      kept = open.parts().inner;
+      own = 0;
+    }
+  }
+  if (own > 0) {
+    b.windows.push_back(open);
+    b.whole_at.push_back(b.whole);
+  }
+  for (size_t j = 1; j < b.windows.size(); ++j) {
+    b.refined_between_windows += b.windows[j].counts().inner_nodes > b.windows[j - 1].counts().inner_nodes;
+  }
+  return b;
+}
+
+/// Same sessions (times, names, coverage; node counts are each window's own) and the same
+/// tree, lists and entries, bit for bit.
+::testing::AssertionResult sameHistory(const TemporalMap& joined, const TemporalMap& whole) {
+  if (joined.sessionCount() != whole.sessionCount()) return ::testing::AssertionFailure() << "session counts differ";
+  for (size_t i = 0; i < whole.sessionCount(); ++i) {
+    const SessionRecord &a = joined.sessions()[i], &b = whole.sessions()[i];
+    if (a.time_s != b.time_s || a.name != b.name || !(a.coverage == b.coverage)) {
+      return ::testing::AssertionFailure() << "session " << i << " differs";
+    }
+  }
+  const TemporalMap::Parts a = joined.parts(), b = whole.parts();
+  if (a.inner != b.inner) return ::testing::AssertionFailure() << "trees differ";
+  if (a.list_sizes != b.list_sizes) return ::testing::AssertionFailure() << "list sizes differ";
+  if (a.entries != b.entries) return ::testing::AssertionFailure() << "entries differ";
+  return ::testing::AssertionSuccess();
+}
+
+TEST(WindowJoin, JoinedWindowsAreTheWholeHistoryBitForBit) {
+  size_t refined = 0, windows = 0;
+  for (uint64_t seed = 1; seed <= 12; ++seed) {
+    const int k = 1 + static_cast<int>(seed % 4);  // 2, 3, 4, 1, ...
+    const Built b = build(seed, 14, k, true);
+    SCOPED_TRACE("seed " + std::to_string(seed) + ", windows of " + std::to_string(k));
+    windows += b.windows.size();
+    refined += b.refined_between_windows;
+    const TemporalMap joined = joinWindows(b.windows);
+    ASSERT_TRUE(sameHistory(joined, b.whole));
+    // Every window answers its own nights as the whole map did when the window was closed, node
+    // for node, and in the states the whole map answers now (a later refinement splits the
+    // lengths that a snapshot then sums again, which may round in the last bit).
+    int night_index = 0;
+    for (size_t j = 0; j < b.windows.size(); ++j) {
+      for (size_t r = j == 0 ? 0 : 1; r < b.windows[j].sessionCount(); ++r, ++night_index) {
+        const double t = windowNightTime(night_index);
+        ASSERT_EQ(b.windows[j].sessions()[r].time_s, t);
+        const SessionMap snap = b.windows[j].snapshot(t);
+        ASSERT_TRUE(snap == b.whole_at[j].snapshot(t)) << "window " << j << ", night " << night_index;
+        const SessionMap now = b.whole.snapshot(t);
+        for (int z = 0; z < kWindowSide; ++z) {
+          for (int y = 0; y < kWindowSide; ++y) {
+            for (int x = 0; x < kWindowSide; ++x) {
+              ASSERT_EQ(snap.stateOf(at(x, y, z)), now.stateOf(at(x, y, z))) << "night " << night_index;
+            }
+          }
+        }
+      }
+    }
+    ASSERT_EQ(night_index, 14);
+  }
+  EXPECT_GT(windows, 40u);
+  // Later windows refined cubes that earlier ones held whole: the join split their histories.
+  EXPECT_GT(refined, 10u);
+}
+
+TEST(WindowJoin, AWindowCompactedWithoutItsKeptTreeMergesWhatTheHistoryKeepsApart) {
+  // Lists first observed on different nights all carry one entry into a window: compacted
+  // plainly, the window merges some of them, which the whole history never does.
+  size_t differing = 0;
+  for (uint64_t seed = 1; seed <= 12; ++seed) {
+    const Built b = build(seed, 14, 2 + static_cast<int>(seed % 3), false);
+    try {
+      differing += !sameHistory(joinWindows(b.windows), b.whole);
+    } catch (const FormatError&) {
+      ++differing;  // or the windows no longer join at all
+    }
+  }
+  EXPECT_GT(differing, 0u);
+}
+
+TEST(WindowJoin, AContinuedWindowStartsFromTheLatestStates) {
+  const Built b = build(3, 6, 100, true);
+  ASSERT_EQ(b.windows.size(), 1u);
+  const TemporalMap& map = b.windows[0];
+  const TemporalMap next = continuedWindow(map);
+  ASSERT_EQ(next.sessionCount(), 1u);
+  EXPECT_EQ(next.sessions()[0].time_s, map.sessions().back().time_s);
+  EXPECT_EQ(next.counts().slots, map.counts().slots);
+  EXPECT_EQ(next.counts().entries, map.counts().slots);  // one entry a list
+  EXPECT_TRUE(next.snapshot(windowNightTime(5)) == map.snapshot(windowNightTime(5)));
+  // Joining a map with its continuation, nothing added, gives the map back.
+  EXPECT_TRUE(sameHistory(joinWindows({map, next}), map));
+  EXPECT_THROW(continuedWindow(TemporalMap(0.05)), UsageError);
+}
+
+TEST(WindowJoin, ACubeALaterWindowMergedIsMergedInTheEarlierOne) {
+  // Time-ordered nights compacted after each never merge after the night the lists were made;
+  // an earlier window left uncompacted shows the other branch of the join: its eight lists are
+  // merged as compaction merges them.
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<float> length(0.013f, 0.9f);
+  SessionMap free_cube(0.05);
+  for (int i = 0; i < 8; ++i) free_cube.add(at(2 + (i & 1), 4 + ((i >> 1) & 1), 6 + (i >> 2)), freeVoxel(length(rng)));
+  TemporalMap first(0.05);
+  first.add(windowNightTime(0), free_cube);
+  first.add(windowNightTime(1), free_cube);  // no change: no entry
+  ASSERT_EQ(first.counts().slots, 8u);
+  TemporalMap second = continuedWindow(first);
+  second.add(windowNightTime(2), free_cube);
+  EXPECT_EQ(second.compact(), 7u);  // plainly: the eight lists become one
+  TemporalMap whole = first;
+  whole.compact();
+  whole.add(windowNightTime(2), free_cube);
+  whole.compact();
+  ASSERT_EQ(whole.counts().slots, 1u);
+  EXPECT_TRUE(sameHistory(joinWindows({first, second}), whole));
+}
+
+TEST(WindowJoin, WindowsThatDoNotJoinAreRefused) {
+  const Built b = build(5, 9, 3, true);
+  ASSERT_EQ(b.windows.size(), 3u);
+  EXPECT_THROW(joinWindows({}), UsageError);
+  // Out of order, or one left out: the first session is not the one before.
+  EXPECT_THROW(joinWindows({b.windows[0], b.windows[2]}), UsageError);
+  EXPECT_THROW(joinWindows({b.windows[1], b.windows[0]}), UsageError);
+  // Another criterion.
+  ChangeCriterion other;
+  other.probability_threshold = 0.2;
+  const TemporalMap::Parts p1 = b.windows[1].parts();
+  EXPECT_THROW(joinWindows({b.windows[0], TemporalMap::fromParts(0.05, other, p1, b.windows[1].sessions())}),
+               UsageError);
+  // A carried state that is not the state the window before ends with.
+  TemporalMap::Parts changed = p1;
+  size_t at_entry = 0;
+  for (size_t i = 0; i < changed.list_sizes.size(); at_entry += changed.list_sizes[i++]) {
+    if (changed.entries[at_entry].session == 0 && changed.entries[at_entry].value.hits == 0) break;
+  }
+  ASSERT_LT(at_entry, changed.entries.size());
+  changed.entries[at_entry].value.length_m *= 1.5f;
+  const TemporalMap broken = TemporalMap::fromParts(0.05, {}, changed, b.windows[1].sessions());
+  try {
+    joinWindows({b.windows[0], broken, b.windows[2]});
+    ADD_FAILURE() << "a changed carried state joined";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("window 1"), std::string::npos) << e.what();
+  }
+  // A kept tree that is no tree.
+  TemporalMap w = b.windows[2];
+  std::vector<TemporalMap::Children> no_tree;
+  EXPECT_THROW(w.compact(TemporalMap::Relayout::kAlways, &no_tree), UsageError);
+  std::vector<TemporalMap::Children> bad = b.windows[2].parts().inner;
+  for (auto& c : bad[0]) {
+    if (c != TemporalMap::kEmpty && (c & TemporalMap::kListBit) == 0) c = 1000000;
+  }
+  EXPECT_THROW(w.compact(TemporalMap::Relayout::kAlways, &bad), UsageError);
+}
+
+}  // namespace
+}  // namespace chronomap
