@@ -50,6 +50,92 @@ TemporalMap historyWindow(const TemporalMap& map, const TemporalMap::Parts& whol
   return TemporalMap::fromParts(map.resolution_m(), map.criterion(), std::move(parts), std::move(records));
 }
 
+namespace {
+
+/// The window of `whole` (map's parts) over its sessions [first, last], carried at `first` when
+/// `carried`: lists first observed after `last` left out, with the inner nodes that then hold
+/// nothing; the rest numbered in the order they had.
+TemporalMap windowBetween(const TemporalMap& map, const TemporalMap::Parts& whole, uint32_t first, uint32_t last,
+                          bool carried) {
+  const size_t lists = whole.list_sizes.size();
+  std::vector<uint32_t> new_list(lists, TemporalMap::kEmpty);
+  TemporalMap::Parts parts;
+  parts.entries.reserve(whole.entries.size());
+  size_t at = 0;
+  for (size_t i = 0; i < lists; ++i) {
+    const TemporalMap::Entry* list = whole.entries.data() + at;
+    const uint32_t size = whole.list_sizes[i];
+    at += size;
+    if (list[0].session > last) continue;  // first observed after the window
+    size_t k = 0;
+    while (k + 1 < size && list[k + 1].session <= first) ++k;  // the entry valid at `first`
+    const size_t before = parts.entries.size();
+    if (carried) {
+      parts.entries.push_back({list[k].session <= first ? 0u : list[k].session - first, list[k].value});
+      ++k;
+    }
+    for (; k < size && list[k].session <= last; ++k) parts.entries.push_back({list[k].session - first, list[k].value});
+    new_list[i] = static_cast<uint32_t>(parts.list_sizes.size());
+    parts.list_sizes.push_back(static_cast<uint32_t>(parts.entries.size() - before));
+  }
+  // The inner nodes that still hold a list below them (the root always), in their order.
+  std::vector<uint8_t> holds(whole.inner.size(), 0);
+  auto mark = [&](auto&& self, uint32_t node) -> bool {
+    bool any = node == 0;
+    for (const uint32_t r : whole.inner[node]) {
+      if (r == TemporalMap::kEmpty) continue;
+      if ((r & TemporalMap::kListBit) != 0) {
+        any = any || new_list[r & ~TemporalMap::kListBit] != TemporalMap::kEmpty;
+      } else {
+        any = self(self, r) || any;
+      }
+    }
+    holds[node] = any;
+    return any;
+  };
+  mark(mark, 0);
+  std::vector<uint32_t> new_inner(whole.inner.size(), TemporalMap::kEmpty);
+  for (size_t i = 0; i < whole.inner.size(); ++i) {
+    if (!holds[i]) continue;
+    new_inner[i] = static_cast<uint32_t>(parts.inner.size());
+    parts.inner.emplace_back();
+  }
+  for (size_t i = 0; i < whole.inner.size(); ++i) {
+    if (!holds[i]) continue;
+    for (int c = 0; c < 8; ++c) {
+      const uint32_t r = whole.inner[i][c];
+      uint32_t& out = parts.inner[new_inner[i]][c];
+      if (r == TemporalMap::kEmpty) {
+        out = TemporalMap::kEmpty;
+      } else if ((r & TemporalMap::kListBit) != 0) {
+        const uint32_t l = new_list[r & ~TemporalMap::kListBit];
+        out = l == TemporalMap::kEmpty ? TemporalMap::kEmpty : l | TemporalMap::kListBit;
+      } else {
+        out = new_inner[r];  // kEmpty when nothing below it is left
+      }
+    }
+  }
+  std::vector<SessionRecord> records(map.sessions().begin() + first, map.sessions().begin() + last + 1);
+  if (carried) records.front().coverage = Coverage::fromRanges({});
+  return TemporalMap::fromParts(map.resolution_m(), map.criterion(), std::move(parts), std::move(records));
+}
+
+}  // namespace
+
+std::vector<TemporalMap> windowsOf(const TemporalMap& map, uint32_t k) {
+  if (k == 0) throw UsageError("windows of 0 sessions");
+  const size_t n = map.sessionCount();
+  if (n == 0) throw UsageError("a 4D map that holds no session has no windows");
+  const TemporalMap::Parts whole = map.parts();
+  std::vector<TemporalMap> out;
+  for (size_t start = 0; start < n; start += k) {
+    const auto last = static_cast<uint32_t>(std::min(n, start + k) - 1);
+    out.push_back(start == 0 ? windowBetween(map, whole, 0, last, false)
+                             : windowBetween(map, whole, static_cast<uint32_t>(start - 1), last, true));
+  }
+  return out;
+}
+
 TemporalMap continuedWindow(const TemporalMap& map) {
   if (map.sessionCount() == 0) throw UsageError("a window cannot continue a 4D map that holds no session");
   return historyWindow(map, static_cast<uint32_t>(map.sessionCount() - 1), 1);

@@ -201,6 +201,54 @@ TEST(WindowJoin, ACubeALaterWindowMergedIsMergedInTheEarlierOne) {
   EXPECT_TRUE(sameHistory(joinWindows({first, second}), whole));
 }
 
+TEST(WindowJoin, AHistoryCutIntoWindowsJoinsBackAndGoesOn) {
+  for (uint64_t seed = 20; seed < 26; ++seed) {
+    // Ten nights in one map; then cut, and five more nights both ways.
+    const Built first = build(seed, 10, 1000, true);
+    const TemporalMap& map = first.windows.front();
+    for (uint32_t k = 1; k <= 4; ++k) {
+      SCOPED_TRACE("seed " + std::to_string(seed) + ", windows of " + std::to_string(k));
+      std::vector<TemporalMap> windows = windowsOf(map, k);
+      ASSERT_EQ(windows.size(), (10 + k - 1) / k);
+      ASSERT_TRUE(sameHistory(joinWindows(windows), map));
+      for (size_t j = 0; j < windows.size(); ++j) {
+        const TemporalMap& w = windows[j];
+        ASSERT_EQ(w.sessionCount(), std::min<size_t>(10, (j + 1) * k) - j * k + (j > 0));
+        for (size_t r = j == 0 ? 0 : 1; r < w.sessionCount(); ++r) {
+          ASSERT_TRUE(w.snapshot(w.sessions()[r].time_s) == map.snapshot(w.sessions()[r].time_s));
+        }
+        EXPECT_LE(w.counts().slots, map.counts().slots);
+      }
+      // Go on from the last window: compacted with the tree of the one before it.
+      TemporalMap whole = map, open = windows.back();
+      windows.pop_back();
+      std::vector<TemporalMap::Children> kept =
+          windows.empty() ? TemporalMap(0.05).parts().inner : windows.back().parts().inner;
+      size_t own = open.sessionCount() - (windows.empty() ? 0 : 1);
+      std::mt19937_64 rng(seed * 31 + k);
+      std::vector<uint8_t> occupied(kWindowSide * kWindowSide * kWindowSide, 0);
+      for (auto& o : occupied) o = rng() % 25 == 0;
+      for (int i = 10; i < 15; ++i) {
+        const SessionMap s = night(rng, occupied);
+        whole.add(windowNightTime(i), s);
+        whole.compact(TemporalMap::Relayout::kWhenMerged);
+        open.add(windowNightTime(i), s);
+        open.compact(TemporalMap::Relayout::kWhenMerged, &kept);
+        if (++own == k) {
+          windows.push_back(open);
+          open = continuedWindow(open);
+          kept = open.parts().inner;
+          own = 0;
+        }
+      }
+      if (own > 0) windows.push_back(open);
+      ASSERT_TRUE(sameHistory(joinWindows(windows), whole));
+    }
+  }
+  EXPECT_THROW(windowsOf(TemporalMap(0.05), 2), UsageError);
+  EXPECT_THROW(windowsOf(build(1, 2, 5, true).windows.front(), 0), UsageError);
+}
+
 TEST(WindowJoin, WindowsThatDoNotJoinAreRefused) {
   const Built b = build(5, 9, 3, true);
   ASSERT_EQ(b.windows.size(), 3u);

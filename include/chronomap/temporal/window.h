@@ -37,6 +37,18 @@ TemporalMap historyWindow(const TemporalMap& map, const TemporalMap::Parts& part
 /// @throw UsageError when `map` holds no session.
 TemporalMap continuedWindow(const TemporalMap& map);
 
+/// `map`'s history cut into windows of `k` sessions as joinWindows joins them: window 0 holds
+/// sessions [0, k), window j > 0 continues window j - 1 (its session 0 carrying the states of
+/// session j·k - 1) and holds sessions [j·k, (j + 1)·k); the last may hold fewer. Each has
+/// `map`'s tree without the lists first observed after its last session (and the inner nodes
+/// left without children), so that joinWindows gives `map` back bit for bit, and its snapshot at
+/// any of its sessions is `map`'s, node for node. The sessions keep their records (coverage
+/// included) but for the carried session 0, whose coverage is left out. To go on adding
+/// sessions to the last window, compact it with the window before it's tree as the kept tree
+/// (compact(relayout, &kept)), or with none when it is the only one.
+/// @throw UsageError when k is 0 or `map` holds no session.
+std::vector<TemporalMap> windowsOf(const TemporalMap& map, uint32_t k);
+
 /// The whole history that a run of windows holds: windows[0] from the first session, and each
 /// later window continued from the one before it (continuedWindow) and added to and compacted
 /// as above. The result is the map that adding the same sessions to one map, compacting it after
