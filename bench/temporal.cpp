@@ -16,6 +16,11 @@
 // Usage: temporal [--sessions N] [--move F] [--plot storage.png] [--quick] [--sim DIR] [--octomap-every N]
 // [--surface-shift VOXELS] (the 4D map's ChangeCriterion::surface_shift_voxels; default 0.5, 0 off)
 // [--rounds N] (--rounds: rounds of the interleaved snapshot timing, best of each; 9 by default)
+// [--file-nights K] (each session also added as a night of the streaming build adds it to a tile:
+// the whole history's file read, added to, compacted and written again, against the history kept
+// as windows of K sessions, temporal/window.h, of which a night reads and writes the open one;
+// processor time per night, and the windows joined at the end compared with the whole file, bit
+// for bit)
 // (--octomap-every N: convert only every Nth session to OctoMap, reusing its size for the others;
 // 0 never, for long runs such as --sessions 365 whose OctoMap figures are then not measured)
 // The last line of output is one JSON object.
@@ -32,6 +37,7 @@
 #include <cstring>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -42,6 +48,7 @@
 #include "chronomap/ingest/png.h"
 #include "chronomap/store/temporal_file.h"
 #include "chronomap/temporal/temporal_map.h"
+#include "chronomap/temporal/window.h"
 
 using namespace chronomap;
 
@@ -217,6 +224,90 @@ double timeSnapshot(const TemporalMap& map) {
   return best;
 }
 
+// One tile's nights through files, two ways (--file-nights): the whole history, or windows.
+class FileNights {
+ public:
+  FileNights(uint32_t window_sessions, const ChangeCriterion& criterion)
+      : k_(window_sessions), whole_(encodeTemporalMap(TemporalMap(kResolution, criterion), {})),
+        open_(encodeTemporalMapAsItIs(TemporalMap(kResolution, criterion), {})) {}
+
+  void night(double time_s, const SessionMap& session) {
+    double cpu0 = threadCpuSeconds();
+    TemporalMap whole = decode(whole_);
+    whole.add(time_s, session);
+    whole.compact(TemporalMap::Relayout::kWhenMerged);
+    whole_ = encodeTemporalMap(whole, {});
+    whole_cpu_.push_back(threadCpuSeconds() - cpu0);
+
+    cpu0 = threadCpuSeconds();
+    TemporalMap open = decode(open_);
+    open.add(time_s, session);
+    open.compact(TemporalMap::Relayout::kWhenMerged);
+    if (++own_ == k_) {
+      closed_.push_back(encodeTemporalMapAsItIs(open, {}));
+      open = continuedWindow(open);
+      own_ = 0;
+    }
+    open_ = encodeTemporalMapAsItIs(open, {});
+    windows_cpu_.push_back(threadCpuSeconds() - cpu0);
+    whole_lists_ = whole.counts().slots;
+    open_lists_ = open.counts().slots;
+  }
+
+  /// Prints the figures; adds them to `out`. @return false when the windows do not join to the
+  /// whole file.
+  bool report(nlohmann::json& out) const {
+    std::vector<TemporalMap> windows;
+    for (const auto& w : closed_) windows.push_back(decode(w));
+    if (own_ > 0 || closed_.empty()) windows.push_back(decode(open_));
+    const TemporalMap joined = joinWindows(windows), whole = decode(whole_);
+    const TemporalMap::Parts a = joined.parts(), b = whole.parts();
+    const bool same = a.inner == b.inner && a.list_sizes == b.list_sizes && a.entries == b.entries &&
+                      joined.times() == whole.times();
+    size_t window_bytes = open_.size();
+    for (const auto& w : closed_) window_bytes += w.size();
+    const size_t n = whole_cpu_.size();
+    auto median = [&](const std::vector<double>& v, size_t from, size_t to) {
+      std::vector<double> part(v.begin() + static_cast<std::ptrdiff_t>(from), v.begin() + static_cast<std::ptrdiff_t>(to));
+      std::sort(part.begin(), part.end());
+      return part.empty() ? 0.0 : part[part.size() / 2];
+    };
+    // Nights 6-15 and the last ten (as bench/scale's night_cpu_ratio_365_10 takes its medians).
+    const size_t early_to = std::min<size_t>(n, 15), late_from = n >= 10 ? n - 10 : 0;
+    const double whole_early = median(whole_cpu_, std::min<size_t>(5, n), early_to);
+    const double whole_late = median(whole_cpu_, late_from, n);
+    const double win_early = median(windows_cpu_, std::min<size_t>(5, n), early_to);
+    const double win_late = median(windows_cpu_, late_from, n);
+    std::printf("\nnights through files (%zu): the whole history %.1f / %.1f ms (nights 6-15 / the last ten, "
+                "medians; %.2fx), windows of %u sessions %.1f / %.1f ms (%.2fx); last night %.1f against %.1f ms; "
+                "on disk %.2f MiB whole, %.2f MiB in %zu windows; the windows join to the whole file: %s\n",
+                n, 1e3 * whole_early, 1e3 * whole_late, whole_late / whole_early, k_, 1e3 * win_early, 1e3 * win_late,
+                win_late / win_early, 1e3 * whole_cpu_.back(), 1e3 * windows_cpu_.back(),
+                static_cast<double>(whole_.size()) / 1048576.0, static_cast<double>(window_bytes) / 1048576.0,
+                closed_.size() + 1, same ? "yes, bit for bit" : "NO");
+    std::printf("lists after the last night: %zu in the whole history, %zu in the open window\n", whole_lists_,
+                open_lists_);
+    out["file_night_ms_whole"] = {1e3 * whole_early, 1e3 * whole_late};
+    out["file_night_ms_windows"] = {1e3 * win_early, 1e3 * win_late};
+    out["file_night_cpu_ratio_whole"] = whole_late / whole_early;
+    out["file_night_cpu_ratio_windows"] = win_late / win_early;
+    out["file_window_sessions"] = k_;
+    out["file_windows_join_whole"] = same;
+    return same;
+  }
+
+ private:
+  static TemporalMap decode(const std::vector<uint8_t>& bytes) {
+    return temporalMapFrom(decodeCmap(bytes, "night"), "night");
+  }
+  uint32_t k_;
+  std::vector<uint8_t> whole_, open_;
+  std::vector<std::vector<uint8_t>> closed_;
+  uint32_t own_ = 0;
+  std::vector<double> whole_cpu_, windows_cpu_;
+  size_t whole_lists_ = 0, open_lists_ = 0;
+};
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -226,6 +317,7 @@ int main(int argc, char** argv) {
   int octomap_every = 1;
   int rounds = 9;
   std::string sim_dir;
+  int file_nights = 0;  // --file-nights K
   ChangeCriterion criterion;  // --surface-shift V: ChangeCriterion::surface_shift_voxels
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--sessions") && i + 1 < argc) {
@@ -240,6 +332,8 @@ int main(int argc, char** argv) {
       rounds = std::max(1, std::atoi(argv[++i]));
     } else if (!std::strcmp(argv[i], "--octomap-every") && i + 1 < argc) {
       octomap_every = std::atoi(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--file-nights") && i + 1 < argc) {
+      file_nights = std::max(0, std::atoi(argv[++i]));
     } else if (!std::strcmp(argv[i], "--surface-shift") && i + 1 < argc) {
       criterion.surface_shift_voxels = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--quick")) {
@@ -248,7 +342,7 @@ int main(int argc, char** argv) {
     } else {
       std::fprintf(stderr,
                    "usage: temporal [--sessions N] [--move F] [--plot storage.png] [--quick] [--sim DIR] "
-                   "[--octomap-every N] [--surface-shift VOXELS]\n");
+                   "[--octomap-every N] [--surface-shift VOXELS] [--rounds N] [--file-nights K]\n");
       return 2;
     }
   }
@@ -273,6 +367,8 @@ int main(int argc, char** argv) {
   rasterise(world);
 
   TemporalMap map(kResolution, criterion);
+  std::optional<FileNights> file_nights_run;
+  if (file_nights > 0) file_nights_run.emplace(static_cast<uint32_t>(file_nights), criterion);
   std::vector<double> sep_nodes, nodes_4d, octo_bytes;
   double separate = 0.0, octomap_total = 0.0, add_seconds = 0.0, add_cpu_seconds = 0.0, octo_last = 0.0;
   uint64_t separate_bytes = 0;
@@ -314,6 +410,7 @@ int main(int argc, char** argv) {
     map.add(time_s, session);
     add_cpu_seconds += threadCpuSeconds() - cpu0;
     const auto b = std::chrono::steady_clock::now();
+    if (file_nights_run) file_nights_run->night(time_s, session);
     add_seconds += seconds(a, b);
     const TemporalCounts c = map.counts();
     if (s == 0) {
@@ -455,7 +552,7 @@ int main(int argc, char** argv) {
     writePng(plot, renderStoragePlot(sep_nodes, nodes_4d, "Nodes after each session"));
     std::printf("wrote %s\n", plot.c_str());
   }
-  const nlohmann::json j = {{"sessions", sessions},
+  nlohmann::json j = {{"sessions", sessions},
                             {"nodes_separate", static_cast<uint64_t>(separate)},
                             {"nodes_4d", c.nodes()},
                             {"bytes_4d", map.memoryBytes()},
@@ -470,6 +567,7 @@ int main(int argc, char** argv) {
                             {"add_cpu_ms_per_session", 1e3 * add_cpu_seconds / sessions},
                             {"relayouts", map.relayouts()},
                             {"bytes_per_change", bytes_per_change}};
+  const bool joined = !file_nights_run || file_nights_run->report(j);
   std::printf("%s\n", j.dump().c_str());
-  return 0;
+  return joined ? 0 : 1;
 }

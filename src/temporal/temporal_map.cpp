@@ -650,13 +650,7 @@ TemporalMap::MemoryUse TemporalMap::memoryUse() const {
   return m;
 }
 
-float TemporalMap::sumOfEight(const float lengths[8]) {
-  float sum = lengths[0];
-  for (int i = 1; i < 8; ++i) sum += lengths[i];
-  return sum;
-}
-
-bool TemporalMap::compactBelow(Ref& r, int level, const std::vector<Children>* kept, uint32_t kept_node) {
+bool TemporalMap::compactBelow(Ref& r, int level) {
   // Returns true when `r` is (now) a list without hits, candidate for merging one level up.
   if (r == kEmpty) return false;
   if (isList(r)) {
@@ -670,16 +664,10 @@ bool TemporalMap::compactBelow(Ref& r, int level, const std::vector<Children>* k
   bool mergeable = true;
   for (int i = 0; i < 8; ++i) {
     Ref child = inner_[r][i];
-    // The kept tree's inner node at the child's place, if it has one there.
-    uint32_t kept_child = kEmpty;
-    if (kept_node != kEmpty && isInner((*kept)[kept_node][i])) {
-      kept_child = (*kept)[kept_node][i];
-      if (kept_child >= kept->size()) throw UsageError("compact: the kept tree refers to a node it does not hold");
-    }
-    mergeable = compactBelow(child, level - 1, kept, kept_child) && mergeable;
+    mergeable = compactBelow(child, level - 1) && mergeable;
     inner_[r][i] = child;
   }
-  if (!mergeable || r == 0 || kept_node != kEmpty) return false;
+  if (!mergeable || r == 0) return false;
   // Same sessions in all 8 lists: then every voxel of the cube read free at the same times.
   const List& first = lists_[index(inner_[r][0])];
   for (int i = 1; i < 8; ++i) {
@@ -690,12 +678,13 @@ bool TemporalMap::compactBelow(Ref& r, int level, const std::vector<Children>* k
     }
   }
   const uint32_t keep = index(inner_[r][0]);
-  for (size_t k = 0; k < first.size; ++k) {
-    float lengths[8];
-    for (int i = 0; i < 8; ++i) lengths[i] = entriesOf(lists_[index(inner_[r][i])])[k].length_m;
-    entriesOf(lists_[keep])[k].length_m = sumOfEight(lengths);
+  for (int i = 1; i < 8; ++i) {
+    const uint32_t other = index(inner_[r][i]);
+    for (size_t k = 0; k < first.size; ++k) {
+      entriesOf(lists_[keep])[k].length_m += entriesOf(lists_[other])[k].length_m;
+    }
+    freeList(other);
   }
-  for (int i = 1; i < 8; ++i) freeList(index(inner_[r][i]));
   List& merged = lists_[keep];
   if (merged.size >= 2) merged.first = entriesOf(merged)[merged.size - 1];
   r = keep | kListBit;  // the inner node becomes garbage that the re-layout drops
@@ -722,23 +711,22 @@ void TemporalMap::buildChangeMasks() const {
   change_masks_valid_ = true;
 }
 
-size_t TemporalMap::compact(Relayout relayout, const std::vector<Children>* kept) {
-  if (compact_ && kept == nullptr) return 0;
-  if (kept != nullptr && kept->empty()) throw UsageError("compact: the kept tree has no root");
+size_t TemporalMap::compact(Relayout relayout) {
+  if (compact_) return 0;
   const size_t lists_before = live_lists_;
   change_masks_valid_ = false;
   Ref root = 0;
-  compactBelow(root, kTreeDepth, kept, kept != nullptr ? 0u : kEmpty);
+  compactBelow(root, kTreeDepth);
   if (relayout == Relayout::kWhenMerged && live_lists_ == lists_before) {
     // Nothing merged: the tree is as it was, its coarse entries still hold.
-    compact_ = kept == nullptr;
+    compact_ = true;
     return 0;
   }
   Parts p = parts();
   const size_t relayouts = relayouts_;
   *this = fromParts(resolution_m(), criterion_, std::move(p), std::move(sessions_));
   relayouts_ = relayouts + 1;
-  compact_ = kept == nullptr;  // a plain compaction may still merge what the kept tree held back
+  compact_ = true;
   return lists_before - live_lists_;
 }
 

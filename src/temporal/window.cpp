@@ -2,12 +2,12 @@
 
 #include <algorithm>
 #include <array>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "chronomap/core/error.h"
-#include "chronomap/core/tree_walk.h"
 
 namespace chronomap {
 
@@ -138,7 +138,9 @@ std::vector<TemporalMap> windowsOf(const TemporalMap& map, uint32_t k) {
 
 TemporalMap continuedWindow(const TemporalMap& map) {
   if (map.sessionCount() == 0) throw UsageError("a window cannot continue a 4D map that holds no session");
-  return historyWindow(map, static_cast<uint32_t>(map.sessionCount() - 1), 1);
+  TemporalMap window = historyWindow(map, static_cast<uint32_t>(map.sessionCount() - 1), 1);
+  window.compact();  // lists whose carried states are free alike merge: the tree follows the place now
+  return window;
 }
 
 namespace {
@@ -159,72 +161,98 @@ struct WindowParts {
     }
     begin.push_back(at);
   }
-  void appendList(uint32_t list, Entries& out) const {
-    out.insert(out.end(), parts.entries.begin() + static_cast<std::ptrdiff_t>(begin[list]),
-               parts.entries.begin() + static_cast<std::ptrdiff_t>(begin[list + 1]));
+  std::span<const TemporalMap::Entry> list(uint32_t i) const {
+    return {parts.entries.data() + begin[i], parts.entries.data() + begin[i + 1]};
   }
 };
 
-[[noreturn]] void failJoin(size_t window, const VoxelKey& corner, int level, const std::string& what) {
-  throw FormatError("windows do not join: window " + std::to_string(window) + ", the cube at (" +
-                    std::to_string(corner.x) + ", " + std::to_string(corner.y) + ", " + std::to_string(corner.z) +
-                    ") of level " + std::to_string(level) + ": " + what);
-}
+/// What one window holds at a cube: an inner node, a list (there or `above` levels higher), or
+/// nothing.
+struct Held {
+  uint32_t ref = TemporalMap::kEmpty;
+  int above = 0;
+  bool isInner() const { return ref != TemporalMap::kEmpty && (ref & TemporalMap::kListBit) == 0; }
+  bool isList() const { return ref != TemporalMap::kEmpty && (ref & TemporalMap::kListBit) != 0; }
+};
 
-/// The entries of inner node `node` (a cube at `level`) merged as compaction merges them: its
-/// children merged first, then the eight lists' lengths summed per entry by sumOfEight.
-void mergedBelow(const WindowParts& w, size_t window, uint32_t node, int level, const VoxelKey& corner, Entries& out) {
-  std::array<Entries, 8> child;
-  for (int i = 0; i < 8; ++i) {
-    const uint32_t r = w.parts.inner[node][i];
-    const VoxelKey k = childCorner(corner, i, level - 1);
-    if (r == TemporalMap::kEmpty) failJoin(window, k, level - 1, "a later window merged a cube that this one did not observe whole");
-    if ((r & TemporalMap::kListBit) != 0) {
-      w.appendList(r & ~TemporalMap::kListBit, child[i]);
-    } else {
-      mergedBelow(w, window, r, level - 1, k, child[i]);
+/// Joins windows into one map's parts: the union of their trees, each list's entries from every
+/// window in turn.
+class Joiner {
+ public:
+  Joiner(const std::vector<TemporalMap>& windows, std::vector<uint32_t> base)
+      : windows_(windows), base_(std::move(base)) {
+    parts_.reserve(windows.size());
+    for (const TemporalMap& w : windows) parts_.emplace_back(w);
+  }
+
+  TemporalMap::Parts join() {
+    std::vector<Held> root(windows_.size(), Held{0, 0});
+    below(root, kTreeDepth, VoxelKey{});
+    return std::move(out_);
+  }
+
+ private:
+  /// The union's node for the cube (corner, level) that `held` describes per window.
+  uint32_t below(const std::vector<Held>& held, int level, const VoxelKey& corner) {
+    const bool inner = level == kTreeDepth || std::any_of(held.begin(), held.end(), [](const Held& h) { return h.isInner(); });
+    if (inner) {
+      const auto node = static_cast<uint32_t>(out_.inner.size());
+      out_.inner.emplace_back();
+      out_.inner.back().fill(TemporalMap::kEmpty);
+      std::vector<Held> child(held.size());
+      for (int slot = 0; slot < 8; ++slot) {
+        for (size_t j = 0; j < held.size(); ++j) {
+          const Held& h = held[j];
+          child[j] = h.isInner() ? Held{parts_[j].parts.inner[h.ref][slot], 0}
+                     : h.isList() ? Held{h.ref, h.above + 1}
+                                  : Held{};
+        }
+        const uint32_t r = below(child, level - 1, childCorner(corner, slot, level - 1));
+        out_.inner[node][slot] = r;
+      }
+      return node;
     }
-    for (const TemporalMap::Entry& e : child[i]) {
-      if (!(e.value.length_m > 0.0f && e.value.hits == 0)) {
-        failJoin(window, k, level - 1, "a later window merged a cube that this one holds as not free");
+    if (std::none_of(held.begin(), held.end(), [](const Held& h) { return h.isList(); })) return TemporalMap::kEmpty;
+    const size_t start = out_.entries.size();
+    for (size_t j = 0; j < held.size(); ++j) {
+      const bool before = out_.entries.size() > start;
+      if (!held[j].isList()) {
+        if (before) fail(j, corner, level, "a cube observed before it is missing from it");
+        continue;
+      }
+      const std::span<const TemporalMap::Entry> list = parts_[j].parts.entries.empty()
+                                                          ? std::span<const TemporalMap::Entry>{}
+                                                          : parts_[j].list(held[j].ref & ~TemporalMap::kListBit);
+      for (size_t k = 0; k < list.size(); ++k) {
+        TemporalMap::Entry e = list[k];
+        for (int l = 0; l < held[j].above; ++l) e.value.length_m /= 8.0f;  // as TemporalMap::refine splits
+        if (j > 0 && e.session == 0) {
+          // The state carried from the window before: the one the windows before end with.
+          if (!before || windows_[j].criterion().differs(out_.entries.back().value, e.value)) {
+            fail(j, corner, level, "its first session does not carry the state the windows before it end with");
+          }
+          continue;
+        }
+        if (j > 0) e.session = base_[j] + e.session - 1;
+        out_.entries.push_back(e);
       }
     }
-    if (child[i].size() != child[0].size() ||
-        !std::equal(child[i].begin(), child[i].end(), child[0].begin(),
-                    [](const auto& a, const auto& b) { return a.session == b.session; })) {
-      failJoin(window, corner, level, "a later window merged lists that this one holds on different sessions");
-    }
+    if (out_.entries.size() == start) fail(0, corner, level, "no window holds an entry of its own there");
+    out_.list_sizes.push_back(static_cast<uint32_t>(out_.entries.size() - start));
+    return static_cast<uint32_t>(out_.list_sizes.size() - 1) | TemporalMap::kListBit;
   }
-  out = child[0];
-  for (size_t k = 0; k < out.size(); ++k) {
-    float lengths[8];
-    for (int i = 0; i < 8; ++i) lengths[i] = child[i][k].value.length_m;
-    out[k].value.length_m = TemporalMap::sumOfEight(lengths);
-  }
-}
 
-/// The entries window `w` holds for the cube (corner, level), in its own session numbers: a
-/// list there, a coarser list's split as refinements split it, or the merge of a finer subtree.
-void entriesAt(const WindowParts& w, size_t window, const VoxelKey& corner, int level, Entries& out) {
-  out.clear();
-  uint32_t node = 0;
-  for (int child_level = kTreeDepth - 1; child_level >= level; --child_level) {
-    const uint32_t r = w.parts.inner[node][childSlot(corner, child_level)];
-    if (r == TemporalMap::kEmpty) return;
-    if ((r & TemporalMap::kListBit) != 0) {
-      w.appendList(r & ~TemporalMap::kListBit, out);
-      for (int l = child_level; l > level; --l) {
-        for (TemporalMap::Entry& e : out) e.value.length_m /= 8.0f;  // as TemporalMap::refine splits
-      }
-      return;
-    }
-    if (child_level == level) {
-      mergedBelow(w, window, r, level, corner, out);
-      return;
-    }
-    node = r;
+  [[noreturn]] static void fail(size_t window, const VoxelKey& corner, int level, const std::string& what) {
+    throw FormatError("windows do not join: window " + std::to_string(window) + ", the cube at (" +
+                      std::to_string(corner.x) + ", " + std::to_string(corner.y) + ", " + std::to_string(corner.z) +
+                      ") of level " + std::to_string(level) + ": " + what);
   }
-}
+
+  const std::vector<TemporalMap>& windows_;
+  std::vector<uint32_t> base_;
+  std::vector<WindowParts> parts_;
+  TemporalMap::Parts out_;
+};
 
 }  // namespace
 
@@ -248,49 +276,8 @@ TemporalMap joinWindows(const std::vector<TemporalMap>& windows) {
     base[j] = static_cast<uint32_t>(records.size());
     records.insert(records.end(), w.sessions().begin() + (j > 0 ? 1 : 0), w.sessions().end());
   }
-  std::vector<WindowParts> parts;
-  parts.reserve(windows.size());
-  for (const TemporalMap& w : windows) parts.emplace_back(w);
-  const TemporalMap::Parts& last = parts.back().parts;
-  const size_t lists = last.list_sizes.size();
-  std::vector<VoxelKey> corner(lists);
-  std::vector<int> level(lists, -1);
-  walkPoolTree(
-      last.inner, TemporalMap::kListBit, [](uint32_t) { return true; },
-      [&](uint32_t r, const VoxelKey& k, int l) {
-        const uint32_t i = r & ~TemporalMap::kListBit;
-        if (i >= lists) throw FormatError("windows do not join: the last window's tree refers to a list it does not hold");
-        corner[i] = k;
-        level[i] = l;
-      });
-  TemporalMap::Parts out{last.inner, {}, {}};
-  out.list_sizes.reserve(lists);
-  out.entries.reserve(last.entries.size() * 2);
-  Entries scratch;
-  for (size_t i = 0; i < lists; ++i) {
-    if (level[i] < 0) throw FormatError("windows do not join: the last window's tree does not reach every list");
-    const size_t start = out.entries.size();
-    for (size_t j = 0; j < windows.size(); ++j) {
-      entriesAt(parts[j], j, corner[i], level[i], scratch);
-      const bool before = out.entries.size() > start;
-      if (j > 0 && before) {
-        // A continued window carries the state before it as its session 0: the same value.
-        if (scratch.empty() || scratch.front().session != 0 || !(scratch.front().value == out.entries.back().value)) {
-          failJoin(j, corner[i], level[i], "its first session does not carry the state the windows before it end with");
-        }
-      }
-      for (TemporalMap::Entry e : scratch) {
-        if (j > 0) {
-          if (e.session == 0) continue;
-          e.session = base[j] + e.session - 1;
-        }
-        out.entries.push_back(e);
-      }
-    }
-    if (out.entries.size() == start) failJoin(windows.size() - 1, corner[i], level[i], "no window holds an entry for this list");
-    out.list_sizes.push_back(static_cast<uint32_t>(out.entries.size() - start));
-  }
-  return TemporalMap::fromParts(first.resolution_m(), first.criterion(), std::move(out), std::move(records));
+  TemporalMap::Parts parts = Joiner(windows, std::move(base)).join();
+  return TemporalMap::fromParts(first.resolution_m(), first.criterion(), std::move(parts), std::move(records));
 }
 
 }  // namespace chronomap

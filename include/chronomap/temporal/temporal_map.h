@@ -242,21 +242,9 @@ class TemporalMap {
                   ///< (a file's bytes do not depend on the pools' order in memory)
   };
   /// Merges 8 sibling lists with the same sessions and no hits into one (states stay exact;
-  /// lengths are summed by sumOfEight, as in §2.1's compression) and re-lays the pools out as
-  /// files hold them.
-  ///
-  /// `kept`: a window's tree when it was continued (temporal/window.h, the `inner` of its parts()
-  /// then): no inner node at a place where `kept` holds one is merged away. Those nodes' lists
-  /// were not mergeable at the compaction before the window, and their earlier histories, which
-  /// the window does not hold, keep them so; the lists below a node the window made (refining a
-  /// list it held, or in new space) share one earlier history, so the window alone decides for
-  /// them as the whole history would. The map is then not isCompact() afterwards.
+  /// lengths are summed, as in §2.1's compression) and re-lays the pools out as files hold them.
   /// @return the number of lists removed.
-  /// @throw UsageError for a `kept` tree without a root or with a reference past its end.
-  size_t compact(Relayout relayout = Relayout::kAlways, const std::vector<Children>* kept = nullptr);
-  /// The length of a merged cube from its eight children's, in the one order that compaction
-  /// and joining windows use: child 0's, then children 1 to 7 added one after another.
-  static float sumOfEight(const float lengths[8]);
+  size_t compact(Relayout relayout = Relayout::kAlways);
   /// True when compact() ran last and nothing changed the map since (add, remove, relayout,
   /// appendUnobservedSessions, replaceSessionRecords): compacting it again would change nothing,
   /// so it returns at once.
@@ -375,9 +363,7 @@ class TemporalMap {
   void removeFromList(uint32_t node, int slot, int level, const VoxelKey& corner, uint32_t rank);
   /// Adds `delta` to every entry's session number that is >= `from`.
   void shiftSessions(uint32_t from, int delta);
-  /// compact() below `r` at `level`; `kept_node`: the kept tree's inner node at r's place, or
-  /// kEmpty where it holds none (or there is no kept tree).
-  bool compactBelow(Ref& r, int level, const std::vector<Children>* kept, uint32_t kept_node);
+  bool compactBelow(Ref& r, int level);
 
   // Coarse entries (the versioned inner slots): per inner node, the rank intervals [from, to)
   // in which every voxel of its cube reads free without hits, with the cube's summed length as
