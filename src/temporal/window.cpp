@@ -78,20 +78,28 @@ TemporalMap windowBetween(const TemporalMap& map, const TemporalMap::Parts& whol
     new_list[i] = static_cast<uint32_t>(parts.list_sizes.size());
     parts.list_sizes.push_back(static_cast<uint32_t>(parts.entries.size() - before));
   }
-  // The inner nodes that still hold a list below them (the root always), in their order.
+  // The inner nodes kept, in their order: the root, those that still hold a list below them,
+  // and those that held none in `map` either (a removed session leaves such nodes behind, and
+  // the map keeps them); a node whose lists all came later goes.
   std::vector<uint8_t> holds(whole.inner.size(), 0);
-  auto mark = [&](auto&& self, uint32_t node) -> bool {
-    bool any = node == 0;
+  struct Below {
+    bool had = false, has = false;  // a list below it in `map`; one in the window
+  };
+  auto mark = [&](auto&& self, uint32_t node) -> Below {
+    Below b;
     for (const uint32_t r : whole.inner[node]) {
       if (r == TemporalMap::kEmpty) continue;
       if ((r & TemporalMap::kListBit) != 0) {
-        any = any || new_list[r & ~TemporalMap::kListBit] != TemporalMap::kEmpty;
+        b.had = true;
+        b.has = b.has || new_list[r & ~TemporalMap::kListBit] != TemporalMap::kEmpty;
       } else {
-        any = self(self, r) || any;
+        const Below c = self(self, r);
+        b.had = b.had || c.had;
+        b.has = b.has || c.has;
       }
     }
-    holds[node] = any;
-    return any;
+    holds[node] = node == 0 || b.has || !b.had;
+    return b;
   };
   mark(mark, 0);
   std::vector<uint32_t> new_inner(whole.inner.size(), TemporalMap::kEmpty);
@@ -220,15 +228,17 @@ class Joiner {
         if (before) fail(j, corner, level, "a cube observed before it is missing from it");
         continue;
       }
-      const std::span<const TemporalMap::Entry> list = parts_[j].parts.entries.empty()
-                                                          ? std::span<const TemporalMap::Entry>{}
-                                                          : parts_[j].list(held[j].ref & ~TemporalMap::kListBit);
+      const std::span<const TemporalMap::Entry> list = parts_[j].list(held[j].ref & ~TemporalMap::kListBit);
+      if (j > 0 && before != (list.front().session == 0)) {
+        fail(j, corner, level,
+             before ? "it carries no state into a cube observed before it"
+                    : "it carries a state into a cube that no window before it observed");
+      }
       for (size_t k = 0; k < list.size(); ++k) {
         TemporalMap::Entry e = list[k];
         for (int l = 0; l < held[j].above; ++l) e.value.length_m /= 8.0f;  // as TemporalMap::refine splits
         if (j > 0 && e.session == 0) {
-          // The state carried from the window before: the one the windows before end with.
-          if (!before || windows_[j].criterion().differs(out_.entries.back().value, e.value)) {
+          if (!carries(out_.entries.back().value, e.value)) {
             fail(j, corner, level, "its first session does not carry the state the windows before it end with");
           }
           continue;
@@ -237,9 +247,17 @@ class Joiner {
         out_.entries.push_back(e);
       }
     }
-    if (out_.entries.size() == start) fail(0, corner, level, "no window holds an entry of its own there");
     out_.list_sizes.push_back(static_cast<uint32_t>(out_.entries.size() - start));
     return static_cast<uint32_t>(out_.list_sizes.size() - 1) | TemporalMap::kListBit;
+  }
+
+  /// True when `carried` is what a continued window carries of the state `last`: the same, or,
+  /// where both are free without hits, another length (a cube the window merged, split again).
+  static bool carries(const VoxelCounters& last, const VoxelCounters& carried) {
+    if (last == carried) return true;
+    VoxelCounters other = carried;
+    other.length_m = last.length_m;
+    return last.hits == 0 && last.length_m > 0.0f && carried.length_m > 0.0f && other == last;
   }
 
   [[noreturn]] static void fail(size_t window, const VoxelKey& corner, int level, const std::string& what) {

@@ -43,6 +43,11 @@ SessionMap night(std::mt19937_64& rng, const std::vector<uint8_t>& occupied) {
         if (holes && rng() % 12 == 0) continue;
         if (occupied[(z * kWindowSide + y) * kWindowSide + x] != 0) {
           m.add(at(x, y, z), occupiedVoxelExact(1 + static_cast<uint32_t>(rng() % 3), static_cast<uint8_t>(rng() % 256)));
+        } else if (rng() % 60 == 0) {
+          VoxelCounters c = freeVoxel(2.0f + length(rng));  // free, but with a hit: never merged
+          c.hits = 1;
+          c.red = c.green = c.blue = static_cast<uint32_t>(rng() % 256);
+          m.add(at(x, y, z), c);
         } else {
           m.add(at(x, y, z), freeVoxel(length(rng)));
         }
@@ -63,12 +68,13 @@ struct Built {
 
 /// `nights` nights of a seed, into one map and into windows of `k` nights, both compacted after
 /// every night.
-Built build(uint64_t seed, int nights, int k) {
+Built build(uint64_t seed, int nights, int k, const ChangeCriterion& criterion = {}) {
   std::mt19937_64 rng(seed);
   std::vector<uint8_t> occupied(kWindowSide * kWindowSide * kWindowSide, 0);
   for (auto& o : occupied) o = rng() % 25 == 0;
   Built b;
-  TemporalMap open(0.05);
+  b.whole = TemporalMap(0.05, criterion);
+  TemporalMap open(0.05, criterion);
   int own = 0;
   for (int i = 0; i < nights; ++i) {
     for (int f = 0; f < 12; ++f) occupied[rng() % occupied.size()] ^= 1;
@@ -129,11 +135,20 @@ Built build(uint64_t seed, int nights, int k) {
 }
 
 TEST(WindowJoin, JoinedWindowsAreTheWholeHistoryBitForBit) {
+  // The change criterion's every rule: the default (shift test), probability and colour
+  // thresholds, the evidence rule, and every state change alone.
+  std::vector<ChangeCriterion> criteria(5);
+  criteria[1].probability_threshold = 0.2;
+  criteria[2].colour_distance = 30.0;
+  criteria[3].min_hits = 2;
+  criteria[3].min_free_length_m = 0.2;
+  criteria[4].surface_shift_voxels = 0.0;
   size_t refined = 0, windows = 0, coarser = 0;
-  for (uint64_t seed = 1; seed <= 12; ++seed) {
+  for (uint64_t seed = 1; seed <= 15; ++seed) {
     const int k = 1 + static_cast<int>(seed % 4);  // 2, 3, 4, 1, ...
-    const Built b = build(seed, 14, k);
-    SCOPED_TRACE("seed " + std::to_string(seed) + ", windows of " + std::to_string(k));
+    const Built b = build(seed, 14, k, criteria[seed % criteria.size()]);
+    SCOPED_TRACE("seed " + std::to_string(seed) + ", windows of " + std::to_string(k) + ", criterion " +
+                 std::to_string(seed % criteria.size()));
     windows += b.windows.size();
     refined += b.refined_between_windows;
     coarser += b.coarser_continued;
@@ -162,7 +177,7 @@ TEST(WindowJoin, JoinedWindowsAreTheWholeHistoryBitForBit) {
     }
     ASSERT_EQ(night_index, 14);
   }
-  EXPECT_GT(windows, 40u);
+  EXPECT_GT(windows, 50u);
   // Later windows refined cubes that earlier ones held whole, and continued windows merged
   // cubes whose parts were free alike: the join split the coarser ones' entries both ways.
   EXPECT_GT(refined, 10u);
@@ -184,31 +199,52 @@ TEST(WindowJoin, AContinuedWindowStartsFromTheLatestStates) {
   EXPECT_THROW(continuedWindow(TemporalMap(0.05)), UsageError);
 }
 
-TEST(WindowJoin, ACubeALaterWindowHoldsCoarserIsSplitInTheJoin) {
-  // Eight free voxels, left apart (not compacted); the continued window merges them, and a later
-  // night occupies one of them, which refines the window's cube again.
+TEST(WindowJoin, ACubeAWindowHoldsCoarserIsSplitInTheJoin) {
+  // Night 0 sees a cube of eight free voxels as one compressed leaf (a list of level 1 with an
+  // entry of its own), night 1 sees it again; the continued window carries it, night 3 occupies
+  // one voxel of it, which refines it there: the join splits window 0's entries.
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<float> length(0.013f, 0.9f);
-  SessionMap free_cube(0.05), one_occupied(0.05);
+  SessionMap coarse(0.05), one_occupied(0.05);
   for (int i = 0; i < 8; ++i) {
     const VoxelKey k = at(2 + (i & 1), 4 + ((i >> 1) & 1), 6 + (i >> 2));
-    free_cube.add(k, freeVoxel(length(rng)));
+    coarse.add(k, freeVoxel(length(rng)));
     one_occupied.add(k, i == 5 ? occupiedVoxelExact(3) : freeVoxel(length(rng)));
   }
+  coarse.compressFree();
+  ASSERT_EQ(coarse.leafCount(), 1u);
   TemporalMap first(0.05);
-  first.add(windowNightTime(0), free_cube);
-  first.add(windowNightTime(1), free_cube);  // no change: no entry
-  ASSERT_EQ(first.counts().slots, 8u);
-  TemporalMap second = continuedWindow(first);
-  ASSERT_EQ(second.counts().slots, 1u);
-  TemporalMap whole = first;
-  for (const auto& [t, s] : {std::pair{2, &free_cube}, std::pair{3, &one_occupied}, std::pair{4, &free_cube}}) {
+  first.add(windowNightTime(0), coarse);
+  first.add(windowNightTime(1), coarse);  // no change: no entry
+  ASSERT_EQ(first.counts().slots, 1u);
+  TemporalMap second = continuedWindow(first), whole = first;
+  for (const auto& [t, s] : {std::pair{2, &coarse}, std::pair{3, &one_occupied}, std::pair{4, &coarse}}) {
     second.add(windowNightTime(t), *s);
     whole.add(windowNightTime(t), *s);
   }
-  EXPECT_EQ(second.counts().slots, 8u);  // refined again on night 3
-  EXPECT_TRUE(sameHistory(joinWindows({first, second}), whole));
-  EXPECT_EQ(whole.history(at(3, 4, 7)).size(), 3u);  // free, occupied, free
+  EXPECT_EQ(second.counts().slots, 8u);
+  const TemporalMap joined = joinWindows({first, second});
+  EXPECT_TRUE(sameHistory(joined, whole));
+  const auto h = joined.history(at(3, 4, 7));
+  ASSERT_EQ(h.size(), 3u);  // free (window 0's entry, split), occupied, free
+  const auto before = first.history(at(3, 4, 7));  // the level-1 list's entry, read per voxel (split)
+  ASSERT_EQ(before.size(), 1u);
+  EXPECT_EQ(before[0].level, 1);
+  EXPECT_EQ(h[0].level, 0);
+  EXPECT_EQ(h[0].counters.length_m, before[0].counters.length_m);
+}
+
+TEST(WindowJoin, AMapWithEmptyInnerNodesIsCutAndJoinedBack) {
+  // Removing a session that alone observed a place leaves inner nodes without children, which
+  // the map keeps: the windows keep them too.
+  const Built b = build(9, 6, 1000);
+  TemporalMap map = b.windows.front();
+  SessionMap far(0.05);
+  far.add(at(200, 200, 200), occupiedVoxelExact(2));
+  map.add(windowNightTime(3) + 1.0, far);
+  map.remove(windowNightTime(3) + 1.0);
+  ASSERT_GT(map.counts().inner_nodes, b.windows.front().counts().inner_nodes);
+  for (uint32_t k = 1; k <= 4; ++k) EXPECT_TRUE(sameHistory(joinWindows(windowsOf(map, k)), map)) << "k " << k;
 }
 
 TEST(WindowJoin, AHistoryCutIntoWindowsJoinsBackAndGoesOn) {
@@ -284,6 +320,25 @@ TEST(WindowJoin, WindowsThatDoNotJoinAreRefused) {
     ADD_FAILURE() << "a changed carried state joined";
   } catch (const FormatError& e) {
     EXPECT_NE(std::string(e.what()).find("window 1"), std::string::npos) << e.what();
+  }
+  // A later window that lacks a place observed before it, or carries a state into one no window
+  // before it observed.
+  SessionMap far(0.05);
+  far.add(at(200, 200, 200), occupiedVoxelExact(2));
+  TemporalMap wider = b.windows[0], narrower = b.windows[0];
+  wider.add(windowNightTime(2) + 1.0, far);
+  narrower.add(windowNightTime(2) + 1.0, SessionMap(0.05));
+  try {
+    joinWindows({wider, continuedWindow(narrower)});
+    ADD_FAILURE() << "a window without a place observed before it joined";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("missing"), std::string::npos) << e.what();
+  }
+  try {
+    joinWindows({narrower, continuedWindow(wider)});
+    ADD_FAILURE() << "a state carried into a place never observed joined";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("no window before it observed"), std::string::npos) << e.what();
   }
   // A free carried state of another length is the same state: it joins.
   changed = p1;

@@ -50,18 +50,20 @@ std::vector<TemporalMap> windowsOf(const TemporalMap& map, uint32_t k);
 TemporalMap continuedWindow(const TemporalMap& map);
 
 /// The whole history that a run of windows holds: windows[0] from the first session, each later
-/// one continued from the one before it (continuedWindow, or windowsOf) and added to and
-/// compacted as one map is. The result is the map that adding the same sessions to one map,
-/// compacting it where the windows were compacted, gives: the same tree, lists, entries and
-/// lengths, bit for bit. Its tree is the union of the windows' trees (the finest any of them
-/// holds at each place); a list that a window holds coarser takes that window's entries split as
-/// TemporalMap's refinement splits them; the state each continued window carries is left out
-/// (checked against the state the windows before it end with). The sessions are the windows'
-/// own (session 0 of a continued window left out), node counts as each window counted them.
+/// one continued from the one before it (continuedWindow, or windowsOf). When the one map and
+/// the windows take the same sessions and are compacted at the same points (after every night
+/// or run of sessions; a window closed and continued only at such a point), the result is the
+/// one map: the same tree, lists and entries, bit for bit (the sessions' node counts are each
+/// window's own). Its tree is the union of the windows' trees (the finest any of them holds at
+/// each place); a list that a window holds coarser takes that window's entries split as
+/// TemporalMap's refinement splits them; the state each continued window carries at its session
+/// 0 is left out, once checked to be the state the windows before it end with (the same, or,
+/// free without hits, of another length).
 /// @throw UsageError when there is no window, they differ in resolution or criterion, or a
 /// window's session 0 is not the time of the last session before it; FormatError when their
-/// trees do not join (a carried state that is not the one before, a place observed earlier that
-/// a later window lacks, or a list with no entry of its own).
+/// trees do not join: a carried state that is not the one before, a place observed before a
+/// window that it lacks or carries nothing into, or one it carries a state into that no window
+/// before it observed.
 TemporalMap joinWindows(const std::vector<TemporalMap>& windows);
 
 }  // namespace chronomap
