@@ -1,7 +1,6 @@
 #include "chronomap/temporal/window.h"
 
 #include <algorithm>
-#include <array>
 #include <span>
 #include <string>
 #include <utility>
@@ -10,6 +9,21 @@
 #include "chronomap/core/error.h"
 
 namespace chronomap {
+
+namespace {
+
+/// Appends to `out` the entries a window over sessions [first, last] holds of a list of `size`
+/// entries whose first comes at or before `last`: the entry valid at `first` (as session 0, or
+/// numbered from `first` when it comes after it), then the list's entries up to `last`.
+void appendWindowEntries(const TemporalMap::Entry* list, size_t size, uint32_t first, uint32_t last,
+                         std::vector<TemporalMap::Entry>& out) {
+  size_t k = 0;
+  while (k + 1 < size && list[k + 1].session <= first) ++k;
+  out.push_back({list[k].session <= first ? 0u : list[k].session - first, list[k].value});
+  for (++k; k < size && list[k].session <= last; ++k) out.push_back({list[k].session - first, list[k].value});
+}
+
+}  // namespace
 
 TemporalMap historyWindow(const TemporalMap& map, uint32_t first, uint32_t count) {
   return historyWindow(map, map.parts(), first, count);
@@ -31,16 +45,12 @@ TemporalMap historyWindow(const TemporalMap& map, const TemporalMap::Parts& whol
   for (uint32_t& size : parts.list_sizes) {
     const TemporalMap::Entry* list = whole.entries.data() + at;
     at += size;
-    // The entry valid at `first` (the last one at or before it), if any, then those of the window.
-    size_t k = 0;
-    while (k + 1 < size && list[k + 1].session <= first) ++k;
     const size_t before = entries.size();
-    if (list[k].session > last) {  // first observed after the window: its first entry alone
-      entries.push_back({list[k].session - first, list[k].value});
-      end = std::max(end, list[k].session);
+    if (list[0].session > last) {  // first observed after the window: its first entry alone
+      entries.push_back({list[0].session - first, list[0].value});
+      end = std::max(end, list[0].session);
     } else {
-      entries.push_back({list[k].session <= first ? 0u : list[k].session - first, list[k].value});
-      for (++k; k < size && list[k].session <= last; ++k) entries.push_back({list[k].session - first, list[k].value});
+      appendWindowEntries(list, size, first, last, entries);
     }
     size = static_cast<uint32_t>(entries.size() - before);
   }
@@ -52,9 +62,9 @@ TemporalMap historyWindow(const TemporalMap& map, const TemporalMap::Parts& whol
 
 namespace {
 
-/// The window of `whole` (map's parts) over its sessions [first, last], carried at `first` when
-/// `carried`: lists first observed after `last` left out, with the inner nodes that then hold
-/// nothing; the rest numbered in the order they had.
+/// The window of `whole` (map's parts) over its sessions [first, last], session `first` a carried
+/// one (its coverage left out) when `carried`: lists first observed after `last` left out, with
+/// the inner nodes that then hold nothing; the rest numbered in the order they had.
 TemporalMap windowBetween(const TemporalMap& map, const TemporalMap::Parts& whole, uint32_t first, uint32_t last,
                           bool carried) {
   const size_t lists = whole.list_sizes.size();
@@ -67,14 +77,8 @@ TemporalMap windowBetween(const TemporalMap& map, const TemporalMap::Parts& whol
     const uint32_t size = whole.list_sizes[i];
     at += size;
     if (list[0].session > last) continue;  // first observed after the window
-    size_t k = 0;
-    while (k + 1 < size && list[k + 1].session <= first) ++k;  // the entry valid at `first`
     const size_t before = parts.entries.size();
-    if (carried) {
-      parts.entries.push_back({list[k].session <= first ? 0u : list[k].session - first, list[k].value});
-      ++k;
-    }
-    for (; k < size && list[k].session <= last; ++k) parts.entries.push_back({list[k].session - first, list[k].value});
+    appendWindowEntries(list, size, first, last, parts.entries);
     new_list[i] = static_cast<uint32_t>(parts.list_sizes.size());
     parts.list_sizes.push_back(static_cast<uint32_t>(parts.entries.size() - before));
   }
@@ -152,8 +156,6 @@ TemporalMap continuedWindow(const TemporalMap& map) {
 }
 
 namespace {
-
-using Entries = std::vector<TemporalMap::Entry>;
 
 /// One window's parts, with where each list's entries begin.
 struct WindowParts {
