@@ -203,6 +203,7 @@ struct BuildCmdOptions {
   bool tiles = false;
   std::optional<double> tile_size_m;
   std::optional<uint32_t> tile_windows;
+  bool windowed_tiles = false;
   bool json = false;
 };
 
@@ -344,7 +345,8 @@ int runStreamBuild(const BuildCmdOptions& o, BuildSettings& s) {
   const double gib = o.integrate.memory_limit_gib.value_or(kDefaultPartsGib);
   // --memory-limit is the parts' budget here; integration keeps its own default limit.
   s.session.integrator.memory_limit_bytes = defaultMemoryLimitBytes();
-  const StreamResult r = streamBuild(s, o.tile_size_m, gibToBytes(gib), o.tile_windows.value_or(kDefaultWindowSessions));
+  const StreamResult r = streamBuild(s, o.tile_size_m, gibToBytes(gib), o.tile_windows.value_or(kDefaultWindowSessions),
+                                     o.windowed_tiles);
   nlohmann::json added = nlohmann::json::array();
   for (size_t i = 0; i < r.added_times.size(); ++i) {
     added.push_back({{"time", formatTime(r.added_times[i])}, {"time_s", r.added_times[i]},
@@ -399,6 +401,7 @@ int runBuild(const BuildCmdOptions& o) {
     requireExtension(o.map, ".cmap", "4D map");
     if (o.tile_size_m) throw UsageError("--tile-size needs --tiles");
     if (o.tile_windows) throw UsageError("--tile-windows needs --tiles");
+    if (o.windowed_tiles) throw UsageError("--windowed-tiles needs --tiles");
   }
   BuildSettings s;
   s.realign = realignSettings(o.realign);
@@ -545,6 +548,10 @@ Command addBuild(CLI::App& root) {
                       "; 0: none): a snapshot of an older time reads the window that holds it, not the whole history; "
                       "a map that has windows keeps their size (docs/scale.md)")
       ->check(CLI::Range(0, 65535));
+  app->add_flag("--windowed-tiles", o->windowed_tiles,
+                "with --tiles, for a new tiled map: keep each tile as windows of --tile-windows sessions, of which a "
+                "night reads and writes the open (last) one only, so that a night's work does not grow with the "
+                "history; reading a tile whole joins its windows. An existing map keeps its layout (docs/scale.md)");
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runBuild(*o); }};
 }

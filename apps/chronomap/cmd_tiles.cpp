@@ -25,6 +25,7 @@ struct TileCmdOptions {
   std::string output;
   std::optional<double> tile_size_m;
   uint32_t tile_windows = kDefaultWindowSessions;
+  bool windowed_tiles = false;
   bool json = false;
 };
 
@@ -35,6 +36,7 @@ int runTile(const TileCmdOptions& o) {
   s.folder = o.output;
   s.tile_size_m = o.tile_size_m;
   s.window_sessions = o.tile_windows;
+  s.windowed_tiles = o.windowed_tiles;
   const TileResult r = tileMap(s);
   if (o.json) {
     std::cout << nlohmann::json{{"output", o.output},         {"tile_size_m", r.tile_size_m},
@@ -89,6 +91,9 @@ Command addTile(CLI::App& root) {
                   "window that holds it, not the whole history (docs/scale.md)")
       ->default_val(kDefaultWindowSessions)
       ->check(CLI::Range(0, 65535));
+  app->add_flag("--windowed-tiles", o->windowed_tiles,
+                "keep each tile as windows of --tile-windows sessions (the last one open), the layout in which "
+                "`build --tiles` reads and writes a tile's last window only (docs/scale.md)");
   app->add_flag("--json", o->json, "print a JSON summary on stdout");
   return {app, [o] { return runTile(*o); }};
 }

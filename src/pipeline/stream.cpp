@@ -22,6 +22,7 @@
 #include "chronomap/store/tiled_file.h"
 #include "chronomap/pipeline/tiles.h"
 #include "chronomap/temporal/tiles.h"
+#include "chronomap/temporal/window.h"
 
 namespace chronomap {
 
@@ -172,9 +173,9 @@ uint64_t nextGeneration(const std::optional<TileIndex>& index, const std::option
 class TileStream {
  public:
   TileStream(const StreamSettings& s, const std::optional<TileIndex>& index, const TemporalMap& top, int level,
-             uint64_t generation, uint32_t window_sessions, StreamResult& result)
+             uint64_t generation, uint32_t window_sessions, bool windowed, StreamResult& result)
       : s_(s), index_(index), top_(top), level_(level), generation_(generation), window_sessions_(window_sessions),
-        result_(result),
+        windowed_(windowed), result_(result),
         parts_(s.folder / (".parts-" + std::to_string(::getpid())), s.memory_limit_bytes) {}
 
   void addSessions(size_t count, const std::function<StreamSession(size_t)>& produce);
@@ -211,9 +212,12 @@ class TileStream {
   const TileEntry* storedTileOf(const Cube& g) const;
   void writeGroup(const Cube& g, GroupOut& out);
   void rewriteStoredTile(const Cube& g, const TileEntry& e, GroupOut& out);
+  void rewriteOpenWindow(const Cube& g, const TileEntry& e, GroupOut& out);
+  void countStoredTile(const TileEntry& e, GroupOut& out);
+  void addToStoredTile(const Cube& g, TemporalMap& work, GroupOut& out, size_t first);
   void writeSplit(const TemporalMap& work, GroupOut& out);
   TemporalMap groupBase(const Cube& g, std::vector<SessionRecord>& records, GroupOut& out);
-  void addGroupSessions(const Cube& g, TemporalMap& work, GroupOut& out);
+  void addGroupSessions(const Cube& g, TemporalMap& work, GroupOut& out, size_t first = 0);
   void joinGroup(const Cube& g, GroupOut& out);
 
   const StreamSettings& s_;
@@ -222,6 +226,7 @@ class TileStream {
   const int level_;
   const uint64_t generation_;
   const uint32_t window_sessions_;
+  const bool windowed_;
   StreamResult& result_;
   PartStore parts_;
   std::mutex parts_mutex_;     // parts_.take() from groups running at once
@@ -394,22 +399,37 @@ const TileEntry* TileStream::storedTileOf(const Cube& g) const {
   return e && tileCorner(e->key, level_) == g.corner ? e : nullptr;
 }
 
-// A group that is one stored tile: the tile read, the sessions added, written again. The same
-// bytes as the general path (the top cut to the cube, the tile joined in, the group split
-// again), without its three copies of the tile; the top keeps its nodes around the tile.
-void TileStream::rewriteStoredTile(const Cube& g, const TileEntry& e, GroupOut& out) {
-  TemporalMap work = readTile(s_.folder, *index_, e);
+// A stored tile read for a group that is that tile alone.
+void TileStream::countStoredTile(const TileEntry& e, GroupOut& out) {
   ++out.stats.tiles_read;
   out.done.push_back(e.key);
   out.stats.largest_group_tiles = std::max<size_t>(out.stats.largest_group_tiles, 1);
+}
+
+// The new sessions added to a stored tile's history, or to its open window (whose session 0 is
+// the index's session `first`), with their records clipped to the tile; compacted.
+void TileStream::addToStoredTile(const Cube& g, TemporalMap& work, GroupOut& out, size_t first) {
   std::vector<SessionRecord> records = work.sessions();
-  addGroupSessions(g, work, out);
+  addGroupSessions(g, work, out, first);
   out.stats.peak_group_bytes = std::max(out.stats.peak_group_bytes, work.memoryBytes());
   for (SessionRecord& r : clipped(std::vector<SessionRecord>(all_.begin() + base_rank_, all_.end()), g)) {
     records.push_back(std::move(r));
   }
   work.replaceSessionRecords(std::move(records));
   work.compact(TemporalMap::Relayout::kWhenMerged);  // written, then dropped
+}
+
+// A group that is one stored tile: the tile read, the sessions added, written again. The same
+// bytes as the general path (the top cut to the cube, the tile joined in, the group split
+// again), without its three copies of the tile; the top keeps its nodes around the tile.
+void TileStream::rewriteStoredTile(const Cube& g, const TileEntry& e, GroupOut& out) {
+  if (windowed_) {
+    rewriteOpenWindow(g, e, out);
+    return;
+  }
+  TemporalMap work = readTile(s_.folder, *index_, e);
+  countStoredTile(e, out);
+  addToStoredTile(g, work, out, 0);
   const std::vector<HistoryEntry> corner = work.history(g.corner);
   if (!corner.empty() && corner.front().level >= level_) {
     // Compaction made the whole tile one uniform cube (not seen with later sessions only): it
@@ -421,11 +441,56 @@ void TileStream::rewriteStoredTile(const Cube& g, const TileEntry& e, GroupOut& 
   out.wrote(writeTileFile(s_.folder, e.key, generation_, work, window_sessions_, e.windows), e.windows.size());
 }
 
+// The same for a tile kept as windows (TileIndex::windowed): the open window alone is read,
+// added to, compacted and written. It is closed first when it holds a whole window of sessions
+// of its own: its file stays as it is, as the last closed window, and the new open window
+// continues it (continuedWindow), the sessions that did not reach the tile since appended
+// unobserved. Where compaction leaves the open window one uniform cube, the whole history is
+// joined to tell whether the tile itself is (it then goes to the top, as rewriteStoredTile's).
+void TileStream::rewriteOpenWindow(const Cube& g, const TileEntry& e, GroupOut& out) {
+  TemporalMap work = readOpenWindow(s_.folder, *index_, e);
+  countStoredTile(e, out);
+  std::vector<WindowFile> closed = e.windows;
+  size_t first = openWindowFirst(e);
+  const size_t own = work.sessionCount() - (closed.empty() ? 0 : 1);
+  if (own >= window_sessions_) {
+    closed.push_back(WindowFile{e.file, e.bytes, e.crc32, work.sessionCount()});
+    first += work.sessionCount() - 1;
+    work = continuedWindow(work);
+  }
+  const std::vector<SessionRecord>& stored = top_.sessions();
+  work.appendUnobservedSessions(
+      std::vector<SessionRecord>(stored.begin() + static_cast<std::ptrdiff_t>(first + work.sessionCount()), stored.end()));
+  addToStoredTile(g, work, out, first);
+  const std::vector<HistoryEntry> corner = work.history(g.corner);
+  if (!corner.empty() && corner.front().level >= level_) {
+    std::vector<TemporalMap> windows;
+    size_t at = 0;
+    for (const WindowFile& w : closed) {
+      windows.push_back(readClosedWindow(s_.folder, *index_, w, at));
+      at += w.sessions - 1;
+    }
+    windows.push_back(std::move(work));
+    const TemporalMap whole = joinWindows(windows);
+    const std::vector<HistoryEntry> whole_corner = whole.history(g.corner);
+    if (!whole_corner.empty() && whole_corner.front().level >= level_) {
+      writeSplit(whole, out);
+      return;
+    }
+    work = std::move(windows.back());
+  }
+  out.wrote(writeOpenWindow(s_.folder, e.key, generation_, work, std::move(closed)), e.windows.size());
+}
+
 // A group's compacted map cut into tiles (written under the new generation's names) and its part
 // of the top (kept for newTop()).
 void TileStream::writeSplit(const TemporalMap& work, GroupOut& out) {
   SplitMap split = splitIntoTiles(work, level_);
-  for (const Tile& t : split.tiles) out.wrote(writeTileFile(s_.folder, t.key, generation_, t.map, window_sessions_), 0);
+  for (const Tile& t : split.tiles) {
+    out.wrote(windowed_ ? writeTileAsWindows(s_.folder, t.key, generation_, t.map, window_sessions_)
+                        : writeTileFile(s_.folder, t.key, generation_, t.map, window_sessions_),
+              0);
+  }
   out.top = std::move(split.top);
 }
 
@@ -457,7 +522,7 @@ TemporalMap TileStream::groupBase(const Cube& g, std::vector<SessionRecord>& rec
 }
 
 // The new sessions' parts inside the group, added to `work` in time order.
-void TileStream::addGroupSessions(const Cube& g, TemporalMap& work, GroupOut& out) {
+void TileStream::addGroupSessions(const Cube& g, TemporalMap& work, GroupOut& out, size_t first) {
   std::vector<std::vector<SessionPart>> by_session(added_.size());
   for (const Cube& c : parts_.cubes()) {  // the set does not change while groups run
     if (!g.contains(c)) continue;
@@ -481,7 +546,7 @@ void TileStream::addGroupSessions(const Cube& g, TemporalMap& work, GroupOut& ou
     by_session[k].clear();
     by_session[k].shrink_to_fit();
     work.add(added_[k].time_s, part, AddSettings{false, added_[k].name});
-    out.nodes_added[k] += work.sessions()[base_rank_ + k].nodes_added;
+    out.nodes_added[k] += work.sessions()[base_rank_ - first + k].nodes_added;
   }
 }
 
@@ -558,7 +623,9 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
   };
 
   const uint32_t window_sessions = index && index->window_sessions > 0 ? index->window_sessions : s.window_sessions;
-  TileStream stream(s, index, top, level, generation, window_sessions, result);
+  const bool windowed = index ? index->windowed : s.windowed_tiles;
+  if (windowed && window_sessions == 0) throw UsageError("tiles kept as windows need windows of one session or more");
+  TileStream stream(s, index, top, level, generation, window_sessions, windowed, result);
   stream.addSessions(count, summed);
   stream.formGroups();
   stream.writeGroups();
@@ -574,9 +641,9 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
     consensus_file = meta[kConsensusKey]["file"].get<std::string>();
     result.consensus_sessions = consensus->sessions;
   }
-  result.index_bytes = writeTileIndex(s.folder, new_top, level, entries, meta, window_sessions);
+  result.index_bytes = writeTileIndex(s.folder, new_top, level, entries, meta, window_sessions, windowed);
   cleanup.armed = false;
-  TileIndex written{level, window_sessions, TemporalMap(new_top.resolution_m()), entries};
+  TileIndex written{level, window_sessions, TemporalMap(new_top.resolution_m()), entries, windowed};
   removeLeftovers(s.folder, &written, consensus_file);
 
   result.stats.spills = stream.partStats().spills;
@@ -605,7 +672,7 @@ SessionMap consensusOfTiles(const fs::path& folder, int threads) {
 }
 
 StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size_m, size_t memory_limit_bytes,
-                         uint32_t window_sessions) {
+                         uint32_t window_sessions, bool windowed_tiles) {
   if (b.realign) throw UsageError("--realign cannot be used with --tiles (it needs every session at once)");
   if (b.replace) throw UsageError("--replace cannot be used with --tiles");
   pipeline_detail::checkInputs(b);
@@ -623,6 +690,7 @@ StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size
   s.tile_size_m = tile_size_m;
   s.memory_limit_bytes = memory_limit_bytes;
   s.window_sessions = window_sessions;
+  s.windowed_tiles = windowed_tiles;
   s.threads = b.session.integrator.threads;  // --threads: the tiles' groups too
   s.progress = b.progress;
   std::vector<std::string> warnings;

@@ -51,9 +51,10 @@ TileResult tileMap(const TileSettings& s) {
   meta.update(upKeysOf(userMetadataOf(file)));  // the map's up goes with it (docs/frames.md)
   // The tiles written on every core (their files do not depend on it).
   const TiledWriteResult w =
-      writeTiledMap(s.folder, split, meta, s.window_sessions, [](size_t n, const std::function<void(size_t)>& piece) {
-        pipeline_detail::runInOrder(n, 0, piece);
-      });
+      writeTiledMap(
+          s.folder, split, meta, s.window_sessions,
+          [](size_t n, const std::function<void(size_t)>& piece) { pipeline_detail::runInOrder(n, 0, piece); },
+          s.windowed_tiles);
   r.tiles = w.tiles;
   r.index_bytes = w.index_bytes;
   r.tile_bytes = w.tile_bytes;

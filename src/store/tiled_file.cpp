@@ -76,6 +76,12 @@ std::string windowFileName(const std::string& tile_file, size_t j) {
   return tile_file.substr(0, tile_file.size() - 5) + ".w" + std::to_string(j) + ".cmap";
 }
 
+size_t openWindowFirst(const TileEntry& entry) {
+  size_t first = 0;  // window j + 1 begins with window j's last session
+  for (const WindowFile& w : entry.windows) first += w.sessions - 1;
+  return first;
+}
+
 namespace {
 
 /// True when `file` is windowFileName(tileFileName(key, g), j) for some generation g.
@@ -83,6 +89,15 @@ bool isWindowFileOf(const TileKey& key, const std::string& file, size_t j) {
   const std::string tail = ".w" + std::to_string(j) + ".cmap";
   if (file.size() <= tail.size() || file.compare(file.size() - tail.size(), tail.size(), tail) != 0) return false;
   return tileGeneration(key, file.substr(0, file.size() - tail.size()) + ".cmap").has_value();
+}
+
+/// Writes the state of `tile` at its last session beside `e`'s file as its latest state.
+void writeLatestState(const fs::path& folder, const TemporalMap& tile, TileEntry& e) {
+  if (tile.sessionCount() == 0) return;
+  const SessionMap state = tile.snapshot(tile.sessions().back().time_s);
+  const std::vector<uint8_t> latest = encodeSessionMap(state, nlohmann::json::object());
+  e.latest = LatestState{latestFileName(e.file), latest.size(), crc32Of(latest)};
+  writeFileAtomic(folder / e.latest->file, latest);
 }
 
 /// Writes a tile's file and its latest state under `name` in `folder`, and its windows after
@@ -103,19 +118,25 @@ TileEntry writeTileAndLatest(const fs::path& folder, const TileKey& key, const s
       writeFileAtomic(folder / e.windows.back().file, w);
     }
   }
-  if (tile.sessionCount() > 0) {
-    const SessionMap state = tile.snapshot(tile.sessions().back().time_s);
-    const std::vector<uint8_t> latest = encodeSessionMap(state, nlohmann::json::object());
-    e.latest = LatestState{latestFileName(name), latest.size(), crc32Of(latest)};
-    writeFileAtomic(folder / e.latest->file, latest);
-  }
+  writeLatestState(folder, tile, e);
   return e;
+}
+
+/// Writes `e`'s open window `open` as it is (no compaction: a window's tree is its own), with its
+/// latest state; fills in the row's file fields.
+void writeWindowAndLatest(const fs::path& folder, const TemporalMap& open, TileEntry& e) {
+  const std::vector<uint8_t> bytes = encodeTemporalMapAsItIs(open, nlohmann::json::object());
+  e.bytes = bytes.size();
+  e.crc32 = crc32Of(bytes);
+  writeFileAtomic(folder / e.file, bytes);
+  writeLatestState(folder, open, e);
 }
 
 /// The index's "tiles" member: version 2 only when a tile holds fewer than all `sessions`, 3
 /// only when a tile has windows, so that a table without either keeps version 1's bytes (and
 /// older builds read it).
-nlohmann::json tableOf(const std::vector<TileEntry>& tiles, int tile_level, size_t sessions, uint32_t window_sessions) {
+nlohmann::json tableOf(const std::vector<TileEntry>& tiles, int tile_level, size_t sessions, uint32_t window_sessions,
+                       bool windowed) {
   nlohmann::json list = nlohmann::json::array();
   int version = 1;
   bool windows = false;
@@ -131,15 +152,20 @@ nlohmann::json tableOf(const std::vector<TileEntry>& tiles, int tile_level, size
     }
     if (!t.windows.empty()) {
       nlohmann::json w = nlohmann::json::array();
-      for (const WindowFile& f : t.windows) w.push_back({{"file", f.file}, {"bytes", f.bytes}, {"crc32", f.crc32}});
+      for (const WindowFile& f : t.windows) {
+        w.push_back({{"file", f.file}, {"bytes", f.bytes}, {"crc32", f.crc32}});
+        if (windowed) w.back()["sessions"] = f.sessions;
+      }
       row["windows"] = std::move(w);
       version = 3;
       windows = true;
     }
     list.push_back(std::move(row));
   }
+  if (windowed) version = 4;  // the rows' files are open windows, even where none has closed yet
   nlohmann::json table = {{"version", version}, {"level", tile_level}, {"list", std::move(list)}};
-  if (windows) {
+  if (windowed) table["layout"] = "windows";
+  if (windows || windowed) {
     if (window_sessions == 0) throw UsageError("a tile table with windows needs their session count");
     table["window_sessions"] = window_sessions;
   }
@@ -149,14 +175,16 @@ nlohmann::json tableOf(const std::vector<TileEntry>& tiles, int tile_level, size
 }  // namespace
 
 TiledWriteResult writeTiledMap(const fs::path& folder, const SplitMap& split, const nlohmann::json& meta,
-                               uint32_t window_sessions, const ForEachPiece& for_each) {
+                               uint32_t window_sessions, const ForEachPiece& for_each, bool windowed) {
+  if (windowed && window_sessions == 0) throw UsageError("the windowed layout needs windows of one session or more");
   TiledWriteResult r;
   StagedFolder staged(folder);
   fs::create_directories(staged.path() / "tiles");
   std::vector<TileEntry> entries(split.tiles.size());
   const std::function<void(size_t)> write = [&](size_t k) {
     const Tile& t = split.tiles[k];
-    entries[k] = writeTileAndLatest(staged.path(), t.key, tileFileName(t.key), t.map, window_sessions, {});
+    entries[k] = windowed ? writeTileAsWindows(staged.path(), t.key, 0, t.map, window_sessions)
+                          : writeTileAndLatest(staged.path(), t.key, tileFileName(t.key), t.map, window_sessions, {});
   };
   if (for_each) {
     for_each(entries.size(), write);
@@ -168,7 +196,7 @@ TiledWriteResult writeTiledMap(const fs::path& folder, const SplitMap& split, co
     r.windows += e.windows.size();
     ++r.tiles;
   }
-  const nlohmann::json extra = tableOf(entries, split.tile_level, split.top.sessionCount(), window_sessions);
+  const nlohmann::json extra = tableOf(entries, split.tile_level, split.top.sessionCount(), window_sessions, windowed);
   const std::vector<uint8_t> index = encodeTemporalMap(split.top, meta, MapKind::Tiled, &extra);
   writeFileAtomic(staged.path() / kTileIndexName, index);
   r.index_bytes = index.size();
@@ -181,9 +209,31 @@ TileEntry writeTileFile(const fs::path& folder, const TileKey& key, uint64_t gen
   return writeTileAndLatest(folder, key, tileFileName(key, generation), tile, window_sessions, std::move(kept));
 }
 
+TileEntry writeOpenWindow(const fs::path& folder, const TileKey& key, uint64_t generation, const TemporalMap& open,
+                          std::vector<WindowFile> closed) {
+  TileEntry e{key, tileFileName(key, generation), 0, 0, std::nullopt, std::nullopt, std::move(closed)};
+  writeWindowAndLatest(folder, open, e);
+  return e;
+}
+
+TileEntry writeTileAsWindows(const fs::path& folder, const TileKey& key, uint64_t generation, const TemporalMap& tile,
+                             uint32_t window_sessions) {
+  if (window_sessions == 0) throw UsageError("the windowed layout needs windows of one session or more");
+  const std::vector<TemporalMap> windows = windowsOf(tile, window_sessions);
+  const std::string name = tileFileName(key, generation);
+  std::vector<WindowFile> closed;
+  for (size_t j = 0; j + 1 < windows.size(); ++j) {
+    const std::vector<uint8_t> w = encodeTemporalMapAsItIs(windows[j], nlohmann::json::object());
+    closed.push_back(WindowFile{windowFileName(name, j), w.size(), crc32Of(w), windows[j].sessionCount()});
+    writeFileAtomic(folder / closed.back().file, w);
+  }
+  return writeOpenWindow(folder, key, generation, windows.back(), std::move(closed));
+}
+
 uint64_t writeTileIndex(const fs::path& folder, const TemporalMap& top, int tile_level,
-                        const std::vector<TileEntry>& tiles, const nlohmann::json& meta, uint32_t window_sessions) {
-  const nlohmann::json extra = tableOf(tiles, tile_level, top.sessionCount(), window_sessions);
+                        const std::vector<TileEntry>& tiles, const nlohmann::json& meta, uint32_t window_sessions,
+                        bool windowed) {
+  const nlohmann::json extra = tableOf(tiles, tile_level, top.sessionCount(), window_sessions, windowed);
   const std::vector<uint8_t> index = encodeTemporalMap(top, meta, MapKind::Tiled, &extra);
   writeFileAtomic(folder / kTileIndexName, index);
   return index.size();
@@ -205,9 +255,19 @@ TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& 
                         std::to_string(kOldestTileTableVersion) + " to " + std::to_string(kTileTableVersion) +
                         "); a newer chronomap wrote it: read it with that version");
     }
+    if (version == 4) {
+      const auto layout = t.find("layout");
+      if (layout == t.end() || *layout != "windows") {
+        throw FormatError(source + ": a version 4 tile table names no layout this build reads");
+      }
+      index.windowed = true;
+    }
     index.tile_level = t.at("level").get<int>();
     if (index.tile_level < kMinTileLevel || index.tile_level > kMaxTileLevel) {
       throw FormatError(source + ": invalid tile level " + std::to_string(index.tile_level));
+    }
+    if (index.windowed && !t.contains("window_sessions")) {
+      throw FormatError(source + ": a windowed tile table without its window session count");
     }
     if (const auto k = t.find("window_sessions"); k != t.end()) {
       const uint64_t n = k->get<uint64_t>();
@@ -253,16 +313,28 @@ TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& 
         if (index.window_sessions == 0) throw FormatError(source + ": tile " + e.file + " lists windows without their size");
         for (const nlohmann::json& w : *windows) {
           WindowFile f{w.at("file").get<std::string>(), w.at("bytes").get<uint64_t>(), w.at("crc32").get<uint32_t>()};
-          if (!isWindowFileOf(e.key, f.file, e.windows.size())) {
+          // A closed window of the windowed layout may be the tile file it was while open.
+          if (!isWindowFileOf(e.key, f.file, e.windows.size()) &&
+              !(index.windowed && tileGeneration(e.key, f.file) && f.file != e.file)) {
             throw FormatError(source + ": window file name '" + f.file + "' does not match its tile and place");
+          }
+          if (index.windowed) {
+            const uint64_t n = w.at("sessions").get<uint64_t>();
+            if (n < (e.windows.empty() ? 1u : 2u) || n > index.top.sessionCount()) {
+              throw FormatError(source + ": window " + f.file + " lists " + std::to_string(n) +
+                                " sessions, which a closed window cannot hold");
+            }
+            f.sessions = static_cast<size_t>(n);
           }
           e.windows.push_back(std::move(f));
         }
         const uint64_t held = e.sessions.value_or(index.top.sessionCount());
-        if (e.windows.size() * uint64_t{index.window_sessions} > held) {
+        if (index.windowed ? openWindowFirst(e) + 1 > held
+                           : e.windows.size() * uint64_t{index.window_sessions} > held) {
           throw FormatError(source + ": tile " + e.file + " lists " + std::to_string(e.windows.size()) +
-                            " windows of " + std::to_string(index.window_sessions) + " sessions but holds " +
-                            std::to_string(held) + " sessions");
+                            (index.windowed ? " closed windows" : " windows of " + std::to_string(index.window_sessions) +
+                                                                      " sessions") +
+                            " but holds " + std::to_string(held) + " sessions");
         }
       }
       index.tiles.push_back(std::move(e));
@@ -334,9 +406,65 @@ TemporalMap tileOfFile(const CmapFile& file, const std::string& source, const Ti
 
 }  // namespace
 
+namespace {
+
+/// A window of a windowed tile (`what`: "window" or "tile" for the open one) as its file holds
+/// it, checked to hold `count` sessions, those of the index from rank `first` on.
+TemporalMap windowOfFile(const fs::path& path, uint64_t bytes, uint32_t crc32, const TileIndex& index, size_t first,
+                         size_t count, const char* what) {
+  const std::string source = path.string();
+  requireListed(path, what);
+  return readNamingMemory(path, [&] {
+    TemporalMap window = temporalMapFrom(listedFile(path, bytes, crc32, what), source);
+    const std::vector<SessionRecord>& all = index.top.sessions();
+    bool same = window.sessionCount() == count && first + count <= all.size();
+    for (size_t i = 0; same && i < count; ++i) same = window.sessions()[i].time_s == all[first + i].time_s;
+    if (!same) {
+      throw FormatError(source + ": its " + std::to_string(window.sessionCount()) +
+                        " sessions are not the index's " + std::to_string(count) + " from session " +
+                        std::to_string(first + 1));
+    }
+    return window;
+  });
+}
+
+}  // namespace
+
+TemporalMap readOpenWindow(const fs::path& folder, const TileIndex& index, const TileEntry& entry) {
+  if (!index.windowed) throw UsageError("tile " + entry.file + " is not kept as windows");
+  const size_t first = openWindowFirst(entry);
+  const size_t held = entry.sessions.value_or(index.top.sessionCount());
+  return windowOfFile(folder / entry.file, entry.bytes, entry.crc32, index, first, held - first, "tile");
+}
+
+TemporalMap readClosedWindow(const fs::path& folder, const TileIndex& index, const WindowFile& window, size_t first) {
+  return windowOfFile(folder / window.file, window.bytes, window.crc32, index, first, window.sessions, "window");
+}
+
 TemporalMap readTile(const fs::path& folder, const TileIndex& index, const TileEntry& entry) {
   const fs::path path = folder / entry.file;
   const std::string source = path.string();
+  if (index.windowed) {
+    std::vector<TemporalMap> windows;
+    size_t first = 0;
+    for (const WindowFile& w : entry.windows) {
+      windows.push_back(readClosedWindow(folder, index, w, first));
+      first += w.sessions - 1;
+    }
+    windows.push_back(readOpenWindow(folder, index, entry));
+    const std::vector<SessionRecord>& all = index.top.sessions();
+    const size_t held = entry.sessions.value_or(all.size());
+    windows.back().appendUnobservedSessions(std::vector<SessionRecord>(all.begin() + static_cast<std::ptrdiff_t>(held), all.end()));
+    TemporalMap tile(index.top.resolution_m());
+    try {
+      tile = joinWindows(windows);
+    } catch (const Error& e) {
+      throw FormatError(source + ": its windows do not join into one history: " + e.what());
+    }
+    windows.clear();
+    checkTileFits(index.top, index.tile_level, entry.key, tile, source);
+    return tile;
+  }
   requireListed(path, "tile");
   return readNamingMemory(path, [&] {
     return tileOfFile(listedFile(path, entry.bytes, entry.crc32, "tile"), source, index, entry);
@@ -404,14 +532,59 @@ SessionMap windowSnapshot(const fs::path& folder, const TileIndex& index, const 
 
 }  // namespace
 
+namespace {
+
+/// Windowed layout: the snapshot at session `rank` (before the tile's held sessions end) from
+/// the window holding it: the first closed one that does, else the open one.
+SessionMap windowedSnapshot(const fs::path& folder, const TileIndex& index, const TileEntry& entry, size_t rank) {
+  size_t first = 0;
+  const WindowFile* window = nullptr;
+  for (const WindowFile& w : entry.windows) {
+    if (rank < first + w.sessions) {
+      window = &w;
+      break;
+    }
+    first += w.sessions - 1;
+  }
+  const fs::path path = folder / (window ? window->file : entry.file);
+  const std::string source = path.string();
+  const char* what = window ? "window" : "tile";
+  requireListed(path, what);
+  return readNamingMemory(path, [&] {
+    const CmapFile file =
+        listedFile(path, window ? window->bytes : entry.bytes, window ? window->crc32 : entry.crc32, what);
+    const size_t count = window ? window->sessions : entry.sessions.value_or(index.top.sessionCount()) - first;
+    if (file.header.kind != MapKind::Temporal || file.header.version < 2 || !file.appended.empty()) {
+      throw FormatError(source + ": a window is a 4D map of format version 2 or later without appended sessions");
+    }
+    StoredSnapshot stored = snapshotOfColumns(file, source, static_cast<uint32_t>(rank - first));
+    if (stored.sessions.size() != count) {
+      throw FormatError(source + ": holds " + std::to_string(stored.sessions.size()) +
+                        " sessions but the index lists it with " + std::to_string(count));
+    }
+    return checkedSnapshot(std::move(stored), file, source, index, entry, first);
+  });
+}
+
+}  // namespace
+
 bool readsWindowAt(const TileIndex& index, const TileEntry& entry, double time_s) {
   const auto rank = index.top.rankAtOrBefore(time_s);
+  if (index.windowed) {
+    const size_t held = entry.sessions.value_or(index.top.sessionCount());
+    return rank && std::min<size_t>(*rank, held - 1) < openWindowFirst(entry);
+  }
   return rank && index.window_sessions > 0 && *rank / index.window_sessions < entry.windows.size();
 }
 
 SessionMap readTileSnapshot(const fs::path& folder, const TileIndex& index, const TileEntry& entry, double time_s,
                             bool read_windows) {
   const auto rank = index.top.rankAtOrBefore(time_s);
+  if (index.windowed) {
+    // The sessions after the tile's held ones observed nothing there: the state stays.
+    if (!rank) return readTile(folder, index, entry).snapshot(time_s);
+    return windowedSnapshot(folder, index, entry, std::min<size_t>(*rank, entry.sessions.value_or(*rank + 1) - 1));
+  }
   if (read_windows && readsWindowAt(index, entry, time_s)) return windowSnapshot(folder, index, entry, *rank);
   const fs::path path = folder / entry.file;
   const std::string source = path.string();

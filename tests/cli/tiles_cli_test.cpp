@@ -11,6 +11,7 @@
 #include "chronomap/store/tiled_file.h"
 #include "builders.h"
 #include "test_support.h"
+#include "window_compare.h"
 
 namespace chronomap {
 namespace {
@@ -166,6 +167,25 @@ TEST(TilesCli, StreamingBuildGivesTheWholeBuildTiled) {
     ASSERT_EQ(runCommand(cli() + " snapshot " + w + " --at " + at + " -o " + (tmp / "b.cmap").string()).exit_code, 0);
     EXPECT_TRUE(readSessionMap(tmp / "a.cmap") == readSessionMap(tmp / "b.cmap")) << "session " << k + 1;
   }
+  // Tiles kept as windows of one session (--windowed-tiles): streamed in the same batches, or cut
+  // from the whole map by `tile`, they join to the same map.
+  const std::string sw = (tmp / "sw").string(), tw = (tmp / "tw").string();
+  ASSERT_EQ(runCommand(cli() + " build " + sw + s[1] + s[0] + " --tiles --tile-size 1.6 --tile-windows 1 --windowed-tiles")
+                .exit_code,
+            0);
+  const test::CommandResult windowed = runCommand(cli() + " build " + sw + s[2] + s[3] + " --json");
+  ASSERT_EQ(windowed.exit_code, 0) << windowed.err;
+  ASSERT_TRUE(readTileIndex(sw).windowed);
+  // (The sessions' node counts are the growth of each tile's open window: the map's history is
+  // the same, its records' counts of the sessions windows closed before differ.)
+  untiled(tmp, sw);
+  EXPECT_TRUE(test::sameHistory(readTemporalMap(tmp / "u.cmap"), readTemporalMap(w)));
+  ASSERT_EQ(runCommand(cli() + " tile " + w + " -o " + tw + " --tile-size 1.6 --tile-windows 1 --windowed-tiles").exit_code, 0);
+  ASSERT_TRUE(readTileIndex(tw).windowed);
+  EXPECT_TRUE(untiled(tmp, tw) == expected);
+  const test::CommandResult no_tiles_windowed = runCommand(cli() + " build " + (tmp / "x.cmap").string() + s[0] + " --windowed-tiles");
+  EXPECT_EQ(no_tiles_windowed.exit_code, 2);
+  EXPECT_NE(no_tiles_windowed.err.find("--windowed-tiles needs --tiles"), std::string::npos) << no_tiles_windowed.err;
   const test::CommandResult no_tiles = runCommand(cli() + " build " + (tmp / "x.cmap").string() + s[0] + " --tile-windows 2");
   EXPECT_EQ(no_tiles.exit_code, 2);
   EXPECT_NE(no_tiles.err.find("--tile-windows needs --tiles"), std::string::npos) << no_tiles.err;

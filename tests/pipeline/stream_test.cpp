@@ -23,7 +23,9 @@
 #include "chronomap/core/time.h"
 #include "chronomap/store/tiled_map.h"
 #include "chronomap/temporal/tiles.h"
+#include "chronomap/temporal/window.h"
 #include "test_support.h"
+#include "window_compare.h"
 #include "pipeline/in_order.h"
 
 namespace chronomap::stream_test {
@@ -68,9 +70,11 @@ TemporalMap wholeBuild(const std::vector<SessionMap>& sessions, const std::vecto
 
 StreamResult stream(const fs::path& folder, const std::vector<SessionMap>& sessions,
                               const std::vector<int>& batch, int tile_level, size_t limit,
-                              uint32_t window_sessions = kDefaultWindowSessions, int threads = 0) {
+                              uint32_t window_sessions = kDefaultWindowSessions, int threads = 0,
+                              bool windowed = false) {
   StreamSettings s;
   s.threads = threads;
+  s.windowed_tiles = windowed;
   s.window_sessions = window_sessions;
   s.folder = folder;
   s.tile_size_m = std::ldexp(0.05, tile_level);
@@ -684,10 +688,11 @@ TEST(Stream, AKeptTileIsListedWithTheSessionsItsFileHolds) {
   EXPECT_THROW(decodeTileIndex(indexWith(1, 1), "index"), FormatError);
   EXPECT_THROW(decodeTileIndex(indexWith(2, 2), "index"), FormatError);
   try {
-    decodeTileIndex(indexWith(4, 1), "index");
+    decodeTileIndex(indexWith(kTileTableVersion + 1, 1), "index");
     FAIL() << "no error";
   } catch (const FormatError& e) {
-    EXPECT_NE(std::string(e.what()).find("tile table version 4"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("tile table version " + std::to_string(kTileTableVersion + 1)), std::string::npos)
+        << e.what();
   }
 }
 
@@ -722,6 +727,220 @@ TEST(Stream, BadInputIsRefused) {
   const auto first = [&](size_t) { return StreamSession{timeOf(0), "x", sessions[0]}; };
   EXPECT_THROW(streamIntoTiles(s, 1, first), UsageError);
   EXPECT_FALSE(fs::exists(dir / "odd"));
+}
+
+
+// ---- Tiles kept as windows (TileIndex::windowed, issue 46) ----
+
+/// True when `a` and `b` give every leaf of either the same state (the windowed layout's older
+/// snapshots differ from the whole history's in the lengths and cubes of free space without hits
+/// only).
+::testing::AssertionResult sameStates(const SessionMap& a, const SessionMap& b) {
+  for (const SessionMap* m : {&a, &b}) {
+    bool same = true;
+    VoxelKey where{};
+    m->forEachLeaf([&](const LeafView& l) {
+      if (same && a.stateOf(l.key) != b.stateOf(l.key)) {
+        same = false;
+        where = l.key;
+      }
+    });
+    if (!same) return ::testing::AssertionFailure() << "states differ at " << where.x << " " << where.y << " " << where.z;
+  }
+  return ::testing::AssertionSuccess();
+}
+
+class StreamWindowedProperty : public ::testing::TestWithParam<uint64_t> {};
+
+// Random sessions streamed in random batches into both layouts: the windowed one's tiles join to
+// the whole layout's, bit for bit, and to the whole map built batch by batch; a closed window is
+// never written again; every session's snapshot reads the same states.
+TEST_P(StreamWindowedProperty, TilesKeptAsWindowsHoldTheWholeHistory) {
+  std::mt19937_64 rng(GetParam());
+  const int n = 11;
+  const std::vector<SessionMap> sessions = randomSessions(GetParam() * 104729, n);
+  std::vector<std::vector<int>> batches(1);
+  for (int i = 0; i < n; ++i) {
+    if (i > 0 && rng() % 3 != 0) batches.emplace_back();
+    batches.back().push_back(i);
+  }
+  for (auto& b : batches) std::shuffle(b.begin(), b.end(), rng);
+  const int level = 3 + static_cast<int>(rng() % 2);
+  const uint32_t k = 1 + static_cast<uint32_t>(rng() % 3);
+  SCOPED_TRACE("level " + std::to_string(level) + ", windows of " + std::to_string(k) + ", " +
+               std::to_string(batches.size()) + " batches");
+  test::TempDir dir;
+  const fs::path whole_folder = dir / "whole", folder = dir / "windowed";
+  std::map<std::string, std::vector<uint8_t>> closed;  // every closed window's bytes, by name
+  for (const auto& b : batches) {
+    stream(whole_folder, sessions, b, level, 0, 0);
+    stream(folder, sessions, b, level, 0, k, 0, true);
+    const TileIndex index = readTileIndex(folder);
+    ASSERT_TRUE(index.windowed);
+    ASSERT_EQ(index.window_sessions, k);
+    size_t files = 1;
+    for (const TileEntry& e : index.tiles) {
+      files += 2 + e.windows.size();
+      for (size_t j = 0; j < e.windows.size(); ++j) {
+        EXPECT_GE(e.windows[j].sessions - (j > 0), k) << e.file;  // closed with a whole window of its own
+      }
+      for (const WindowFile& w : e.windows) {
+        const std::vector<uint8_t> bytes = readFileBytes(folder / w.file);
+        const auto [it, fresh] = closed.emplace(w.file, bytes);
+        if (!fresh) {
+          EXPECT_TRUE(it->second == bytes) << w.file << " written again";
+        }
+      }
+    }
+    size_t on_disk = 0;
+    for (const auto& f : fs::recursive_directory_iterator(folder)) on_disk += f.is_regular_file();
+    EXPECT_EQ(on_disk, files);  // only what the index names
+  }
+  EXPECT_GT(closed.size(), 0u);
+  const TemporalMap whole = wholeBuild(sessions, batches);
+  ASSERT_TRUE(test::sameHistory(joined(folder), whole));
+  const TileIndex a = readTileIndex(folder), b = readTileIndex(whole_folder);
+  ASSERT_EQ(a.tiles.size(), b.tiles.size());
+  for (size_t i = 0; i < a.tiles.size(); ++i) {
+    ASSERT_EQ(a.tiles[i].key, b.tiles[i].key);
+    EXPECT_TRUE(test::sameHistory(readTile(folder, a, a.tiles[i]), readTile(whole_folder, b, b.tiles[i])))
+        << a.tiles[i].file;
+  }
+  for (const double t : whole.times()) {
+    TiledMap tiled(folder, {0});
+    EXPECT_TRUE(sameStates(tiled.snapshot(t), whole.snapshot(t))) << formatTime(t);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, StreamWindowedProperty, ::testing::Range<uint64_t>(1, 7));
+
+// A night reads and writes a tile's open window only: a closed window damaged after it was
+// closed does not stop the nights that reach its tile, but reading the tile whole, or a
+// snapshot of a time it holds, names it; the latest state still reads.
+TEST(Stream, AWindowedNightReadsTheOpenWindowOnly) {
+  const std::vector<std::string> seen = {"AB", "A", "A", "A", "A", "A", "A"};
+  const std::vector<SessionMap> sessions = twoRoomNights(4647, seen);
+  test::TempDir dir;
+  const fs::path folder = dir / "tiled";
+  for (int i = 0; i < 5; ++i) stream(folder, sessions, {i}, 3, 0, 2, 0, true);
+  TileIndex index = readTileIndex(folder);
+  const TileEntry* damaged = nullptr;
+  for (const TileEntry& e : index.tiles) {
+    if (!e.windows.empty()) damaged = &e;
+  }
+  ASSERT_NE(damaged, nullptr);
+  const std::string window = damaged->windows[0].file;
+  const TileKey key = damaged->key;
+  std::vector<uint8_t> bytes = readFileBytes(folder / window);
+  bytes[bytes.size() / 2] ^= 0x40;
+  writeFileAtomic(folder / window, bytes);
+  for (int i = 5; i < 7; ++i) {
+    const StreamResult r = stream(folder, sessions, {i}, 3, 0, 2, 0, true);
+    EXPECT_EQ(r.stats.tiles_read, 2u);  // room A's two tiles, their open windows
+  }
+  index = readTileIndex(folder);
+  const TileEntry* e = index.find(key);
+  ASSERT_NE(e, nullptr);
+  ASSERT_EQ(e->windows[0].file, window);
+  // Reached every night, one session a night: each window closed with two sessions of its own.
+  ASSERT_EQ(e->windows.size(), 3u);  // sessions 0-1, 1-3, 3-5; the open one 5-6
+  for (size_t j = 0; j < e->windows.size(); ++j) EXPECT_EQ(e->windows[j].sessions, j == 0 ? 2u : 3u);
+  EXPECT_EQ(openWindowFirst(*e), 5u);
+  auto namesTheWindow = [&](const std::function<void()>& read) {
+    try {
+      read();
+      ADD_FAILURE() << "no error";
+    } catch (const FormatError& x) {
+      EXPECT_NE(std::string(x.what()).find(window), std::string::npos) << x.what();
+    }
+  };
+  namesTheWindow([&] { readTile(folder, index, *e); });
+  namesTheWindow([&] { readTileSnapshot(folder, index, *e, timeOf(0)); });
+  EXPECT_NO_THROW(readLatestState(folder, index, *e));
+  EXPECT_NO_THROW(readTileSnapshot(folder, index, *e, timeOf(6)));  // the open window's time
+  fs::remove(folder / window);
+  EXPECT_THROW(readTile(folder, index, *e), IoError);
+}
+
+// The windowed index's rows: closed windows with their session counts, refused when missing,
+// too small, named for another tile, or holding more sessions than the tile; a version 4 table
+// names its layout.
+TEST(Stream, AWindowedIndexIsChecked) {
+  const std::vector<SessionMap> sessions = twoRoomNights(4648, {"AB", "A", "AB", "A", "AB"});
+  test::TempDir dir;
+  const fs::path folder = dir / "tiled";
+  for (int i = 0; i < 5; ++i) stream(folder, sessions, {i}, 3, 0, 1, 0, true);
+  const CmapFile file = readCmap(folder / kTileIndexName);
+  const TileIndex index = readTileIndex(folder);
+  size_t row = 0, other = 1;
+  for (size_t i = 0; i < index.tiles.size(); ++i) {
+    if (index.tiles[i].windows.size() >= 2) row = i;
+  }
+  other = row == 0 ? 1 : 0;
+  ASSERT_GE(index.tiles[row].windows.size(), 2u);
+  const nlohmann::json table = {{"tiles", metadataOf(file).at("tiles")}};
+  EXPECT_EQ(table["tiles"]["version"], 4);
+  EXPECT_EQ(table["tiles"]["layout"], "windows");
+  auto indexWith = [&](const std::function<void(nlohmann::json&)>& change) {
+    nlohmann::json t = table;
+    change(t["tiles"]);
+    return encodeTemporalMap(index.top, userMetadataOf(file), MapKind::Tiled, &t);
+  };
+  auto refused = [&](const std::function<void(nlohmann::json&)>& change, const std::string& what) {
+    try {
+      decodeTileIndex(indexWith(change), "index");
+      ADD_FAILURE() << "no error for " << what;
+    } catch (const FormatError& x) {
+      EXPECT_NE(std::string(x.what()).find(what), std::string::npos) << x.what();
+    }
+  };
+  const TileIndex same = decodeTileIndex(indexWith([](nlohmann::json&) {}), "index");
+  ASSERT_TRUE(same.windowed);
+  EXPECT_EQ(openWindowFirst(same.tiles[row]), openWindowFirst(index.tiles[row]));
+  refused([](nlohmann::json& t) { t.erase("layout"); }, "names no layout");
+  refused([](nlohmann::json& t) { t["layout"] = "tiles"; }, "names no layout");
+  refused([](nlohmann::json& t) { t.erase("window_sessions"); }, "without its window session count");
+  refused([&](nlohmann::json& t) { t["list"][row]["windows"][0].erase("sessions"); }, "malformed");
+  refused([&](nlohmann::json& t) { t["list"][row]["windows"][1]["sessions"] = 1; }, "cannot hold");
+  refused([&](nlohmann::json& t) { t["list"][row]["windows"][0]["sessions"] = 0; }, "cannot hold");
+  refused([&](nlohmann::json& t) { t["list"][row]["windows"][0]["sessions"] = t["list"][row]["windows"][1]["sessions"] = 5; },
+          "closed windows");
+  refused([&](nlohmann::json& t) { t["list"][row]["windows"][0]["file"] = t["list"][other]["file"]; },
+          "window file name");
+  refused([&](nlohmann::json& t) { t["list"][row]["windows"][0]["file"] = t["list"][row]["file"]; },
+          "window file name");
+  // A closed window whose file holds other sessions than its row says.
+  TileEntry shifted = index.tiles[row];
+  shifted.windows[1].sessions += 1;
+  try {
+    readTile(folder, index, shifted);
+    ADD_FAILURE() << "no error";
+  } catch (const FormatError& x) {
+    EXPECT_NE(std::string(x.what()).find(shifted.windows[1].file), std::string::npos) << x.what();
+  }
+}
+
+// `tile --windowed-tiles` (writeTiledMap): the windowed layout cut from a whole map reads back
+// as that map, and later nights stream onto it as onto the streamed folder.
+TEST(Stream, AMapCutIntoWindowedTilesTakesLaterNights) {
+  const std::vector<SessionMap> sessions = twoRoomNights(4649, {"AB", "A", "B", "AB", "A", "B", "A"});
+  std::vector<std::vector<int>> first = {{0}, {1}, {2}, {3}, {4}};
+  TemporalMap map = wholeBuild(sessions, first);
+  map.compact();
+  test::TempDir dir;
+  writeTiledMap(dir / "cut", splitIntoTiles(map, 3), nlohmann::json::object(), 2, {}, true);
+  const TileIndex index = readTileIndex(dir / "cut");
+  ASSERT_TRUE(index.windowed);
+  size_t windows = 0;
+  for (const TileEntry& e : index.tiles) windows += e.windows.size();
+  EXPECT_GT(windows, 0u);
+  EXPECT_TRUE(test::sameHistory(joined(dir / "cut"), map));
+  for (int i = 5; i < 7; ++i) {
+    stream(dir / "cut", sessions, {i}, 3, 0, 2);
+    first.push_back({i});
+  }
+  EXPECT_TRUE(readTileIndex(dir / "cut").windowed);  // the folder keeps its layout
+  EXPECT_TRUE(test::sameHistory(joined(dir / "cut"), wholeBuild(sessions, first)));
 }
 
 }  // namespace chronomap::stream_test

@@ -50,6 +50,9 @@ struct StreamSettings {
   /// the windows of the runs of this many sessions it holds whole. A map that records a count
   /// keeps it. 0: none written (the windows a map has are kept).
   uint32_t window_sessions = kDefaultWindowSessions;
+  /// A new map keeps each tile as windows of window_sessions sessions (TileIndex::windowed), of
+  /// which a night reads and writes the open one only; an existing map keeps its layout.
+  bool windowed_tiles = false;
   /// Start the consensus of the map's sessions (store/tiled_file.h, StoredConsensus) when the
   /// map keeps none: the streaming build's registration does. A map that keeps one has every
   /// session added to it, whatever this says.
@@ -121,8 +124,9 @@ SessionMap consensusOfTiles(const std::filesystem::path& folder, int threads = 0
 /// (consensusOfTiles), stored from then on. Re-alignment
 /// and replacing are not supported (they need the stored map at once).
 /// @throw UsageError for them; what build() throws.
+/// `windowed_tiles`: a new map keeps its tiles as windows (StreamSettings::windowed_tiles).
 StreamResult streamBuild(const BuildSettings& settings, std::optional<double> tile_size_m, size_t memory_limit_bytes,
-                         uint32_t window_sessions = kDefaultWindowSessions);
+                         uint32_t window_sessions = kDefaultWindowSessions, bool windowed_tiles = false);
 
 /// addSession() into an existing tiled map folder: the session map file streamed in
 /// (streamIntoTiles), at the time given or the one its file records.

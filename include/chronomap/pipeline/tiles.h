@@ -41,6 +41,8 @@ struct TileSettings {
   std::optional<double> tile_size_m;
   /// Sessions per window file of each tile's history (store/tiled_file.h); 0: none.
   uint32_t window_sessions = kDefaultWindowSessions;
+  /// Keep each tile as windows of window_sessions sessions (TileIndex::windowed).
+  bool windowed_tiles = false;
 };
 
 /// What tileMap() wrote.

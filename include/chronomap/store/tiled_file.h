@@ -25,8 +25,10 @@ inline constexpr const char* kTileIndexName = "index.cmap";
 /// `sessions` sessions of the index's table only (the later ones observed nothing there). A
 /// table whose every tile holds every session is written as version 1, as before. Version 3
 /// adds window files (a row's `windows`, the table's `window_sessions`); a table without them
-/// keeps version 1's or 2's bytes.
-inline constexpr int kTileTableVersion = 3;
+/// keeps version 1's or 2's bytes. Version 4 is the windowed layout (TileIndex::windowed): a
+/// row's `file` is the tile's open window and its `windows` the closed ones, each with the
+/// number of sessions its file holds.
+inline constexpr int kTileTableVersion = 4;
 /// Sessions per window file (docs/file-format.md, "A tile's history windows"), as the writers
 /// choose it when a folder does not record one: a snapshot of an older time reads one window,
 /// whose entries grow with these sessions, not with the tile's whole history. 16: on a year of
@@ -46,10 +48,14 @@ struct LatestState {
 
 /// A window of a tile's history (temporal/window.h): historyWindow(tile, j * K, K) for the j-th
 /// window of a table with K window sessions, written once, when the tile first held those sessions.
+/// In the windowed layout (TileIndex::windowed) a closed window instead: one of the runs of
+/// sessions the tile's history is kept as (temporal/window.h, joinWindows), named as a window or
+/// as the tile file it was while it was open.
 struct WindowFile {
-  std::string file;     ///< windowFileName(a tile file name, j)
+  std::string file;     ///< windowFileName(a tile file name, j), or (windowed) a tile file name
   uint64_t bytes = 0;   ///< size of the file
   uint32_t crc32 = 0;   ///< CRC-32 of the file
+  size_t sessions = 0;  ///< windowed layout: the sessions its file holds (0 otherwise)
 };
 
 /// One row of the tile table.
@@ -81,9 +87,21 @@ struct TileIndex {
   uint32_t window_sessions = 0;
   TemporalMap top;               ///< see SplitMap::top
   std::vector<TileEntry> tiles;  ///< sorted by key
+  /// The windowed layout (tile table version 4, docs/scale.md, "A tile as its windows"): each
+  /// row's `file` is the tile's open window, holding the sessions from the last closed window's
+  /// last one on (that one carried as its session 0; from the first session when there is no
+  /// closed window), and its `windows` are the closed windows in time order, window j + 1's
+  /// session 0 being window j's last session. A window closes once it holds window_sessions
+  /// sessions of its own, at the start of the next run that reaches the tile. A night reads and
+  /// writes the open window only; the whole history is joinWindows of them all.
+  bool windowed = false;
   /// The row of tile `key`, or null when the map holds nothing there.
   const TileEntry* find(const TileKey& key) const;
 };
+
+/// Windowed layout: the rank, in the index's sessions, of the first session (the carried one when
+/// it has closed windows) of `entry`'s open window.
+size_t openWindowFirst(const TileEntry& entry);
 
 /// The file name a tile gets: tiles/X_Y_Z.cmap (tile coordinates, decimal), or, for a tile
 /// written by the streaming build's generation `generation` > 0, tiles/X_Y_Z.gN.cmap (so that
@@ -113,11 +131,12 @@ using ForEachPiece = std::function<void(size_t n, const std::function<void(size_
 
 /// Writes `split` into the folder `folder` as a whole (staged, then moved into place: an
 /// error leaves the folder as it was). `meta` (a JSON object) is stored in the index.
-/// Every tile gets its windows of `window_sessions` sessions (0: none). The tiles are written
-/// through `for_each` (empty: one after another); the files do not depend on it.
+/// Every tile gets its windows of `window_sessions` sessions (0: none); `windowed` writes the
+/// windowed layout instead (each tile as writeTileAsWindows; window_sessions > 0). The tiles are
+/// written through `for_each` (empty: one after another); the files do not depend on it.
 TiledWriteResult writeTiledMap(const std::filesystem::path& folder, const SplitMap& split, const nlohmann::json& meta,
                                uint32_t window_sessions = kDefaultWindowSessions,
-                               const ForEachPiece& for_each = {});
+                               const ForEachPiece& for_each = {}, bool windowed = false);
 
 /// Writes one tile's file (atomically) into the folder as tileFileName(key, generation), and
 /// its latest state beside it. With `window_sessions` K > 0 the tile keeps the windows `kept`
@@ -126,13 +145,32 @@ TiledWriteResult writeTiledMap(const std::filesystem::path& folder, const SplitM
 /// tile table.
 TileEntry writeTileFile(const std::filesystem::path& folder, const TileKey& key, uint64_t generation,
                         const TemporalMap& tile, uint32_t window_sessions = 0, std::vector<WindowFile> kept = {});
+/// The windowed layout's writers (TileIndex::windowed). writeOpenWindow writes `open` (a window
+/// whose session 0 is `closed`'s last window's last session, or the first session when `closed`
+/// is empty) as the tile's file tileFileName(key, generation), written as it is, and its latest
+/// state beside it; the row keeps `closed`. writeTileAsWindows writes a whole history as windows
+/// of `window_sessions` (windowsOf): all but the last closed, under windowFileName(the tile's
+/// file, j), and the last as the open one.
+TileEntry writeOpenWindow(const std::filesystem::path& folder, const TileKey& key, uint64_t generation,
+                          const TemporalMap& open, std::vector<WindowFile> closed);
+TileEntry writeTileAsWindows(const std::filesystem::path& folder, const TileKey& key, uint64_t generation,
+                             const TemporalMap& tile, uint32_t window_sessions);
+/// Windowed layout: `entry`'s open window as its file holds it (its sessions checked against the
+/// index's, nothing appended). @throw IoError, FormatError as readTile.
+TemporalMap readOpenWindow(const std::filesystem::path& folder, const TileIndex& index, const TileEntry& entry);
+/// Windowed layout: the closed window `window`, whose session 0 is the index's session `first`,
+/// as its file holds it, checked likewise.
+TemporalMap readClosedWindow(const std::filesystem::path& folder, const TileIndex& index, const WindowFile& window,
+                             size_t first);
+
 /// Writes the index of a tiled map (atomically: the previous index stays until the rename).
 /// A row whose `sessions` is below top.sessionCount() is written with it (table version 2);
 /// rows with windows make it version 3, with `window_sessions` (which must then be > 0);
-/// without either the table is version 1. @return the bytes written.
+/// without either the table is version 1; `windowed` writes version 4 (TileIndex::windowed).
+/// @return the bytes written.
 uint64_t writeTileIndex(const std::filesystem::path& folder, const TemporalMap& top, int tile_level,
                         const std::vector<TileEntry>& tiles, const nlohmann::json& meta,
-                        uint32_t window_sessions = 0);
+                        uint32_t window_sessions = 0, bool windowed = false);
 
 /// Decodes an index file image. @throw FormatError naming `source`.
 TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& source);
@@ -142,6 +180,7 @@ TileIndex readTileIndex(const std::filesystem::path& folder);
 /// (resolution, criterion, the sessions' times, nothing outside its cube). A tile whose file
 /// holds only the first entry.sessions sessions gets the index's later ones appended as
 /// unobserved (TemporalMap::appendUnobservedSessions): the map that rewriting it would store.
+/// In the windowed layout the tile's windows are read, each checked so, and joined (joinWindows).
 /// @throw IoError (missing file), FormatError naming the tile's file.
 TemporalMap readTile(const std::filesystem::path& folder, const TileIndex& index, const TileEntry& entry);
 
