@@ -5,6 +5,7 @@
 //
 //   scale [--sessions N] [--whole W] [--floors F] [--scale S] [--memory-limit GIB] [--sim DIR] [--work DIR]
 //         [--plot PNG] [--first-night K] [--last-night L] [--earlier OUTPUT] [--tile-windows N]
+//         [--layout whole|windows]
 //   scale --query DIR
 //   scale --plot-from OUTPUT --plot PNG
 //
@@ -20,6 +21,8 @@
 // kept); --earlier OUTPUT adds the nights an earlier run printed that this one did not build (for
 // night 10's figure, the ratio and the plot; each such night is marked "earlier": true).
 // --tile-windows N passes `build --tile-windows N` (sessions per window file; 0: none) each night.
+// --layout windows passes `build --windowed-tiles`: the tiles kept as windows, of which a night
+// reads and writes the open one only (docs/scale.md, "A tile as its windows").
 
 #include <sys/resource.h>
 #include <sys/wait.h>
@@ -214,13 +217,13 @@ chronomap::ImageRgb plotNights(const nlohmann::json& nights) {
 int main(int argc, char** argv) {
   int sessions = 4, floors = 3, whole = 4, first_night = 1, last_night = 0;
   double scale = 0.5;
-  std::string memory_limit = "0.25", tile_windows;
+  std::string memory_limit = "0.25", tile_windows, layout = "whole";
   fs::path sim, query, plot, plot_from, earlier, work = fs::temp_directory_path() / "chronomap_bench_scale";
   for (int i = 1; i < argc; i += 2) {
     const std::string a = argv[i];
     if (a == "-h" || a == "--help" || i + 1 == argc) {
       std::cerr << "usage: scale [--sessions N] [--whole W] [--floors F] [--scale S] [--memory-limit GIB] [--sim DIR] "
-                   "[--work DIR] [--plot PNG] [--first-night K] [--last-night L] [--earlier OUTPUT] [--tile-windows N] | --query DIR | --plot-from OUTPUT --plot PNG (bench/scale.cpp says more)\n";
+                   "[--work DIR] [--plot PNG] [--first-night K] [--last-night L] [--earlier OUTPUT] [--tile-windows N] [--layout whole|windows] | --query DIR | --plot-from OUTPUT --plot PNG (bench/scale.cpp says more)\n";
       return a == "-h" || a == "--help" ? 0 : 2;
     }
     if (a == "--sessions") sessions = std::atoi(argv[i + 1]);
@@ -237,10 +240,15 @@ int main(int argc, char** argv) {
     else if (a == "--last-night") last_night = std::atoi(argv[i + 1]);
     else if (a == "--earlier") earlier = argv[i + 1];
     else if (a == "--tile-windows") tile_windows = argv[i + 1];
+    else if (a == "--layout") layout = argv[i + 1];
     else {
       std::cerr << "unknown option " << a << "\n";
       return 2;
     }
+  }
+  if (layout != "whole" && layout != "windows") {
+    std::cerr << "--layout is whole or windows\n";
+    return 2;
   }
   if (!plot_from.empty()) {  // the picture of an earlier run: its last line's nights, or its night lines
     if (plot.empty()) {
@@ -317,6 +325,7 @@ int main(int argc, char** argv) {
     std::vector<std::string> a = {cli, "build", stream_folder.string(), folders[k], "--tiles", "--tile-size", "3.2",
                                   "--memory-limit", memory_limit, "--threads", "1", "--json"};
     if (!tile_windows.empty()) a.insert(a.end(), {"--tile-windows", tile_windows});
+    if (layout == "windows") a.push_back("--windowed-tiles");
     const Run r = run(a, work / "night.json");
     if (r.exit_code != 0) return 1;
     std::ifstream in(work / "night.json");
@@ -357,6 +366,17 @@ int main(int argc, char** argv) {
     out["night_cpu_ratio_" + std::to_string(nights.back()["night"].get<size_t>()) + "_10"] =
         nights.back()["cpu_s"].get<double>() / (*night10)["cpu_s"].get<double>();
   }
+  // The same from medians, less at the mercy of one night: the last ten nights' against nights 6-15's.
+  if (nights.size() >= 25 && nights.front()["night"].get<size_t>() == 1) {
+    auto median = [&](size_t from, size_t to) {  // nights [from, to) by position
+      std::vector<double> v;
+      for (size_t i = from; i < to; ++i) v.push_back(nights[i]["cpu_s"].get<double>());
+      std::sort(v.begin(), v.end());
+      return (v[v.size() / 2 - 1] + v[v.size() / 2]) / 2.0;
+    };
+    out["night_cpu_median_ratio_last10_6to15"] = median(nights.size() - 10, nights.size()) / median(5, 15);
+  }
+  out["stream_layout"] = layout;
   folders.resize(std::min<size_t>(folders.size(), static_cast<size_t>(std::max(whole, 0))));
 
   // One process, one thread; then two ranks of one thread each (the same file). An earlier
