@@ -108,7 +108,13 @@ void fuzzOne(const std::vector<uint8_t>& bytes) {
     // the queries a tiled map asks of its top.
     const TileIndex index = decodeTileIndex(bytes, name);
     index.top.history(VoxelKey{32768, 32768, 32768});
-    for (const TileEntry& e : index.tiles) index.find(e.key);
+    for (const TileEntry& e : index.tiles) {
+      index.find(e.key);
+      if (index.windowed) {
+        volatile size_t first = openWindowFirst(e);  // where a night would read the open window
+        (void)first;
+      }
+    }
     if (index.top.sessionCount() > 1) {
       volatile size_t cells =
           diff(index.top, index.top.sessions().front().time_s, index.top.sessions().back().time_s).cells().size();

@@ -158,6 +158,10 @@ int main(int argc, char** argv) {
                     fs::copy_options::overwrite_existing);
     }
     fs::remove_all(root / "tiled");
+    // Kept as windows of one session (the windowed layout, table version 4).
+    writeTiledMap(root / "tiled", splitIntoTiles(four_d, 1), {{"seed", true}}, 1, {}, true);
+    fs::copy_file(root / "tiled" / kTileIndexName, root / "cmap/tile_index_v4.cmap", fs::copy_options::overwrite_existing);
+    fs::remove_all(root / "tiled");
     // The same 4D map with a third session appended as `chronomap add` appends it.
     writeTemporalMap(root / "cmap/four_d_appended.cmap", four_d, {{"seed", true}});
     const AddSettings options{false, "appended"};

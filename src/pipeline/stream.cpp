@@ -163,7 +163,10 @@ int tileLevelOf(const StreamSettings& s, const std::optional<TileIndex>& index, 
 uint64_t nextGeneration(const std::optional<TileIndex>& index, const std::optional<StoredConsensus>& consensus) {
   uint64_t generation = 0;
   if (index) {
-    for (const TileEntry& e : index->tiles) generation = std::max(generation, *tileGeneration(e.key, e.file));
+    for (const TileEntry& e : index->tiles) {
+      generation = std::max(generation, *tileGeneration(e.key, e.file));
+      for (const WindowFile& w : e.windows) generation = std::max(generation, windowGeneration(e.key, w.file));
+    }
   }
   if (consensus) generation = std::max(generation, *consensusGeneration(consensus->file));
   return generation + 1;
@@ -467,7 +470,7 @@ void TileStream::rewriteOpenWindow(const Cube& g, const TileEntry& e, GroupOut& 
     std::vector<TemporalMap> windows;
     size_t at = 0;
     for (const WindowFile& w : closed) {
-      windows.push_back(readClosedWindow(s_.folder, *index_, w, at));
+      windows.push_back(readClosedWindow(s_.folder, *index_, e.key, w, at));
       at += w.sessions - 1;
     }
     windows.push_back(std::move(work));
@@ -479,7 +482,8 @@ void TileStream::rewriteOpenWindow(const Cube& g, const TileEntry& e, GroupOut& 
     }
     work = std::move(windows.back());
   }
-  out.wrote(writeOpenWindow(s_.folder, e.key, generation_, work, std::move(closed)), e.windows.size());
+  const size_t kept = closed.size();  // (a window closed here keeps its file: none written)
+  out.wrote(writeOpenWindow(s_.folder, e.key, generation_, work, std::move(closed)), kept);
 }
 
 // A group's compacted map cut into tiles (written under the new generation's names) and its part

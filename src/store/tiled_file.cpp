@@ -100,6 +100,19 @@ void writeLatestState(const fs::path& folder, const TemporalMap& tile, TileEntry
   writeFileAtomic(folder / e.latest->file, latest);
 }
 
+}  // namespace
+
+uint64_t windowGeneration(const TileKey& key, const std::string& file) {
+  if (const auto g = tileGeneration(key, file)) return *g;
+  const size_t w = file.rfind(".w");
+  if (w != std::string::npos) {
+    if (const auto g = tileGeneration(key, file.substr(0, w) + ".cmap")) return *g;
+  }
+  throw UsageError("'" + file + "' is not a window file name of its tile");
+}
+
+namespace {
+
 /// Writes a tile's file and its latest state under `name` in `folder`, and its windows after
 /// `kept` (see writeTileFile); its row of the table.
 TileEntry writeTileAndLatest(const fs::path& folder, const TileKey& key, const std::string& name,
@@ -302,7 +315,7 @@ TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& 
       }
       if (const auto held = row.find("sessions"); held != row.end()) {
         const uint64_t n = held->get<uint64_t>();
-        if (version < 2 || n >= index.top.sessionCount()) {
+        if (version < 2 || n == 0 || n >= index.top.sessionCount()) {
           throw FormatError(source + ": tile " + e.file + " lists " + std::to_string(n) + " sessions held, which a" +
                             " version " + std::to_string(version) + " table of " +
                             std::to_string(index.top.sessionCount()) + " sessions cannot hold");
@@ -318,6 +331,12 @@ TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& 
               !(index.windowed && tileGeneration(e.key, f.file) && f.file != e.file)) {
             throw FormatError(source + ": window file name '" + f.file + "' does not match its tile and place");
           }
+          // A closed window was written by an earlier run than the open one (or with it, when a
+          // rebuilt group cut the tile): never a name a later run could write again.
+          if (index.windowed && (tileGeneration(e.key, f.file) ? windowGeneration(e.key, f.file) >= *tileGeneration(e.key, e.file)
+                                                                : windowGeneration(e.key, f.file) > *tileGeneration(e.key, e.file))) {
+            throw FormatError(source + ": window file name '" + f.file + "' is of a later generation than its tile's file");
+          }
           if (index.windowed) {
             const uint64_t n = w.at("sessions").get<uint64_t>();
             if (n < (e.windows.empty() ? 1u : 2u) || n > index.top.sessionCount()) {
@@ -328,6 +347,8 @@ TileIndex decodeTileIndex(const std::vector<uint8_t>& bytes, const std::string& 
           }
           e.windows.push_back(std::move(f));
         }
+      }
+      if (!e.windows.empty() || index.windowed) {
         const uint64_t held = e.sessions.value_or(index.top.sessionCount());
         if (index.windowed ? openWindowFirst(e) + 1 > held
                            : e.windows.size() * uint64_t{index.window_sessions} > held) {
@@ -410,8 +431,8 @@ namespace {
 
 /// A window of a windowed tile (`what`: "window" or "tile" for the open one) as its file holds
 /// it, checked to hold `count` sessions, those of the index from rank `first` on.
-TemporalMap windowOfFile(const fs::path& path, uint64_t bytes, uint32_t crc32, const TileIndex& index, size_t first,
-                         size_t count, const char* what) {
+TemporalMap windowOfFile(const fs::path& path, uint64_t bytes, uint32_t crc32, const TileIndex& index,
+                         const TileKey& key, size_t first, size_t count, const char* what) {
   const std::string source = path.string();
   requireListed(path, what);
   return readNamingMemory(path, [&] {
@@ -424,6 +445,20 @@ TemporalMap windowOfFile(const fs::path& path, uint64_t bytes, uint32_t crc32, c
                         " sessions are not the index's " + std::to_string(count) + " from session " +
                         std::to_string(first + 1));
     }
+    // As checkTileFits checks a tile, but that a window may be one uniform cube of tile size
+    // (compacted on its own; the joined tile is checked whole).
+    if (window.resolution_m() != index.top.resolution_m()) {
+      throw FormatError(source + ": resolution " + std::to_string(window.resolution_m()) +
+                        " m differs from the index's " + std::to_string(index.top.resolution_m()) + " m");
+    }
+    if (!(window.criterion() == index.top.criterion())) {
+      throw FormatError(source + ": its change criterion differs from the index's");
+    }
+    bool inside = true;
+    window.forEachListPlace([&](const VoxelKey& corner, int level) {
+      inside = inside && level <= index.tile_level && tileOf(corner, index.tile_level) == key;
+    });
+    if (!inside) throw FormatError(source + " holds nodes outside its tile");
     return window;
   });
 }
@@ -434,11 +469,12 @@ TemporalMap readOpenWindow(const fs::path& folder, const TileIndex& index, const
   if (!index.windowed) throw UsageError("tile " + entry.file + " is not kept as windows");
   const size_t first = openWindowFirst(entry);
   const size_t held = entry.sessions.value_or(index.top.sessionCount());
-  return windowOfFile(folder / entry.file, entry.bytes, entry.crc32, index, first, held - first, "tile");
+  return windowOfFile(folder / entry.file, entry.bytes, entry.crc32, index, entry.key, first, held - first, "tile");
 }
 
-TemporalMap readClosedWindow(const fs::path& folder, const TileIndex& index, const WindowFile& window, size_t first) {
-  return windowOfFile(folder / window.file, window.bytes, window.crc32, index, first, window.sessions, "window");
+TemporalMap readClosedWindow(const fs::path& folder, const TileIndex& index, const TileKey& key,
+                             const WindowFile& window, size_t first) {
+  return windowOfFile(folder / window.file, window.bytes, window.crc32, index, key, first, window.sessions, "window");
 }
 
 TemporalMap readTile(const fs::path& folder, const TileIndex& index, const TileEntry& entry) {
@@ -448,7 +484,7 @@ TemporalMap readTile(const fs::path& folder, const TileIndex& index, const TileE
     std::vector<TemporalMap> windows;
     size_t first = 0;
     for (const WindowFile& w : entry.windows) {
-      windows.push_back(readClosedWindow(folder, index, w, first));
+      windows.push_back(readClosedWindow(folder, index, entry.key, w, first));
       first += w.sessions - 1;
     }
     windows.push_back(readOpenWindow(folder, index, entry));
@@ -572,7 +608,8 @@ bool readsWindowAt(const TileIndex& index, const TileEntry& entry, double time_s
   const auto rank = index.top.rankAtOrBefore(time_s);
   if (index.windowed) {
     const size_t held = entry.sessions.value_or(index.top.sessionCount());
-    return rank && std::min<size_t>(*rank, held - 1) < openWindowFirst(entry);
+    // (The last closed window's last session is also the open window's first: read from the closed one.)
+    return rank && !entry.windows.empty() && std::min<size_t>(*rank, held - 1) <= openWindowFirst(entry);
   }
   return rank && index.window_sessions > 0 && *rank / index.window_sessions < entry.windows.size();
 }

@@ -666,16 +666,21 @@ TEST(Stream, AKeptTileIsListedWithTheSessionsItsFileHolds) {
     EXPECT_EQ(e.sessions, room_b ? std::optional<size_t>(1) : std::nullopt);
     EXPECT_EQ(readTile(folder, index, e).sessionCount(), 2u);  // the later session added, unobserved
   }
-  // A row that claims another count than its file holds.
+  // A row that claims no session at all (no tile holds none), or another count than its file holds.
   const TileEntry kept = index.tiles.back();
   index.tiles.back().sessions = 0;
   writeTileIndex(folder, index.top, index.tile_level, index.tiles, nlohmann::json::object());
+  EXPECT_THROW(readTileIndex(folder), FormatError);
+  index.tiles.back().sessions = 1;
+  ASSERT_FALSE(index.tiles.front().sessions.has_value());  // room A's: both sessions
+  index.tiles.front().sessions = 1;
+  writeTileIndex(folder, index.top, index.tile_level, index.tiles, nlohmann::json::object());
   index = readTileIndex(folder);
   try {
-    readTile(folder, index, index.tiles.back());
+    readTile(folder, index, index.tiles.front());
     FAIL() << "no error";
   } catch (const FormatError& e) {
-    EXPECT_NE(std::string(e.what()).find(index.tiles.back().file), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(index.tiles.front().file), std::string::npos) << e.what();
   }
   // A count in a version 1 table, a count of every session or more, a newer table version.
   auto indexWith = [&](int version, const nlohmann::json& sessions_held) {
@@ -846,6 +851,8 @@ TEST(Stream, AWindowedNightReadsTheOpenWindowOnly) {
   ASSERT_EQ(e->windows.size(), 3u);  // sessions 0-1, 1-3, 3-5; the open one 5-6
   for (size_t j = 0; j < e->windows.size(); ++j) EXPECT_EQ(e->windows[j].sessions, j == 0 ? 2u : 3u);
   EXPECT_EQ(openWindowFirst(*e), 5u);
+  EXPECT_TRUE(readsWindowAt(index, *e, timeOf(5)));  // the last closed window's last session
+  EXPECT_FALSE(readsWindowAt(index, *e, timeOf(6)));
   auto namesTheWindow = [&](const std::function<void()>& read) {
     try {
       read();
@@ -909,6 +916,10 @@ TEST(Stream, AWindowedIndexIsChecked) {
           "window file name");
   refused([&](nlohmann::json& t) { t["list"][row]["windows"][0]["file"] = t["list"][row]["file"]; },
           "window file name");
+  // A closed window named for a later generation than the open one: a later run would write that name.
+  refused([&](nlohmann::json& t) { t["list"][row]["windows"][0]["file"] = tileFileName(index.tiles[row].key, 999); },
+          "later generation");
+  refused([&](nlohmann::json& t) { t["list"][row]["sessions"] = 0; }, "sessions held");
   // A closed window whose file holds other sessions than its row says.
   TileEntry shifted = index.tiles[row];
   shifted.windows[1].sessions += 1;

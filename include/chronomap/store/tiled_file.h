@@ -61,16 +61,17 @@ struct WindowFile {
 /// One row of the tile table.
 struct TileEntry {
   TileKey key;
-  std::string file;     ///< relative to the folder: tiles/X_Y_Z.cmap
+  std::string file;     ///< relative to the folder: tiles/X_Y_Z.cmap (windowed: the open window)
   uint64_t bytes = 0;   ///< size of the tile's file
   uint32_t crc32 = 0;   ///< CRC-32 of the tile's file
   std::optional<LatestState> latest;  ///< absent in folders written before it existed
-  /// Sessions the tile's file holds: the first ones of the index's table (the later ones did
-  /// not reach the tile; readTile adds them as unobserved). Absent: every session.
+  /// Sessions the tile holds (its file; windowed: its windows, the open one up to this rank): the
+  /// first ones of the index's table (the later ones did not reach the tile; readTile adds them
+  /// as unobserved). At least 1. Absent: every session.
   std::optional<size_t> sessions;
   /// Its history's windows in time order: the j-th holds the sessions of rank [j * K, (j + 1) * K)
   /// for the table's K (TileIndex::window_sessions). Windows exist for whole runs of K sessions
-  /// the tile holds, from the first on.
+  /// the tile holds, from the first on. Windowed layout: the closed windows (TileIndex::windowed).
   std::vector<WindowFile> windows;
   /// Bytes the tile takes on disk: its file, its latest state's and its windows'.
   uint64_t diskBytes() const {
@@ -110,6 +111,9 @@ std::string tileFileName(const TileKey& key, uint64_t generation = 0);
 /// The generation in a tile's file name when it is tileFileName(key, generation) for some
 /// generation; nothing otherwise.
 std::optional<uint64_t> tileGeneration(const TileKey& key, const std::string& file);
+/// The generation of a tile's window file name (a tile file name, or one with `.wJ` before
+/// `.cmap`). @throw UsageError for another name.
+uint64_t windowGeneration(const TileKey& key, const std::string& file);
 /// The file name of a tile's latest state: its file's name with `.latest` before `.cmap`.
 std::string latestFileName(const std::string& tile_file);
 /// The file name of a tile's j-th window: the name of the tile's file when the window was
@@ -160,8 +164,8 @@ TileEntry writeTileAsWindows(const std::filesystem::path& folder, const TileKey&
 TemporalMap readOpenWindow(const std::filesystem::path& folder, const TileIndex& index, const TileEntry& entry);
 /// Windowed layout: the closed window `window`, whose session 0 is the index's session `first`,
 /// as its file holds it, checked likewise.
-TemporalMap readClosedWindow(const std::filesystem::path& folder, const TileIndex& index, const WindowFile& window,
-                             size_t first);
+TemporalMap readClosedWindow(const std::filesystem::path& folder, const TileIndex& index, const TileKey& key,
+                             const WindowFile& window, size_t first);
 
 /// Writes the index of a tiled map (atomically: the previous index stays until the rename).
 /// A row whose `sessions` is below top.sessionCount() is written with it (table version 2);
@@ -192,6 +196,10 @@ TemporalMap readTile(const std::filesystem::path& folder, const TileIndex& index
 /// the first session) are read by readTile.
 /// @throw IoError (missing file), FormatError naming the tile's file.
 /// `read_windows` false reads the tile's file even where a window holds the time.
+/// Windowed layout (TileIndex::windowed): the time is read from the one window holding it (the
+/// first closed one that does, else the open one), whatever `read_windows` says; where that
+/// window merged carried free cubes, its free space without hits has other cubes and lengths
+/// than readTile(...).snapshot(time_s) (the same states, hits, colours and positions).
 SessionMap readTileSnapshot(const std::filesystem::path& folder, const TileIndex& index, const TileEntry& entry,
                             double time_s, bool read_windows = true);
 /// True when readTileSnapshot reads `time_s` of the tile from one of its windows.

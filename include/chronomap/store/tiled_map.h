@@ -26,6 +26,8 @@ struct TileCacheSettings {
   size_t memory_limit_bytes = size_t{1} << 30;
   /// Read an older time of a tile from its history window when it has one (store/tiled_file.h);
   /// false: from the tile's file, as before windows existed (the same answer; for benchmarks).
+  /// A windowed folder has no other file to read: its windows are read either way, and a tile
+  /// held in the cache answers from its joined history (readTileSnapshot says what may differ).
   bool read_windows = true;
 };
 
