@@ -238,6 +238,8 @@ if has year; then
   "$build/bench/scale" --plot-from "$repo/docs/images/year_nights.json" --plot "$images/year_nights.png"
   "$build/bench/scale" --plot-from "$repo/docs/images/year_one_floor_windows.json" \
     --plot "$images/year_one_floor_windows.png"
+  "$build/bench/scale" --plot-from "$repo/docs/images/year_one_floor_windowed.json" \
+    --plot "$images/year_one_floor_windowed.png"
 fi
 
 figures="$repo/docs/images/figures.json"
