@@ -628,6 +628,10 @@ StreamResult streamIntoTiles(const StreamSettings& s, size_t count,
 
   const uint32_t window_sessions = index && index->window_sessions > 0 ? index->window_sessions : s.window_sessions;
   const bool windowed = index ? index->windowed : s.windowed_tiles;
+  if (index && s.windowed_tiles && !index->windowed) {
+    result.warnings.push_back(s.folder.string() + " keeps its whole-history tiles: --windowed-tiles applies to a new "
+                              "tiled map (cut this one again with `untile` and `tile --windowed-tiles`)");
+  }
   if (windowed && window_sessions == 0) throw UsageError("tiles kept as windows need windows of one session or more");
   TileStream stream(s, index, top, level, generation, window_sessions, windowed, result);
   stream.addSessions(count, summed);
@@ -707,7 +711,7 @@ StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size
       pipeline_detail::Pending p = pipeline_detail::integrateOne(with_up, i);
       return sessionOf(p);
     });
-    result.warnings = std::move(warnings);
+    result.warnings.insert(result.warnings.begin(), warnings.begin(), warnings.end());
     return result;
   }
   // Registration: the recordings integrated, sorted and registered as build() does, then streamed;
@@ -742,7 +746,7 @@ StreamResult streamBuild(const BuildSettings& b, std::optional<double> tile_size
   prior.reset();
   s.keep_consensus = true;
   StreamResult result = streamIntoTiles(s, pending.size(), [&](size_t k) { return sessionOf(pending[k]); });
-  result.warnings = std::move(warnings);
+  result.warnings.insert(result.warnings.begin(), warnings.begin(), warnings.end());
   result.corrections = std::move(corrections);
   return result;
 }

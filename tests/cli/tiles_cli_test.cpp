@@ -183,6 +183,13 @@ TEST(TilesCli, StreamingBuildGivesTheWholeBuildTiled) {
   ASSERT_EQ(runCommand(cli() + " tile " + w + " -o " + tw + " --tile-size 1.6 --tile-windows 1 --windowed-tiles").exit_code, 0);
   ASSERT_TRUE(readTileIndex(tw).windowed);
   EXPECT_TRUE(untiled(tmp, tw) == expected);
+  // An existing folder keeps its layout, and says so.
+  const std::string kl = (tmp / "kl").string();
+  ASSERT_EQ(runCommand(cli() + " build " + kl + s[0] + " --tiles --tile-size 1.6").exit_code, 0);
+  const test::CommandResult kept_layout = runCommand(cli() + " build " + kl + s[1] + " --windowed-tiles");
+  EXPECT_EQ(kept_layout.exit_code, 0) << kept_layout.err;
+  EXPECT_NE(kept_layout.err.find("keeps its whole-history tiles"), std::string::npos) << kept_layout.err;
+  EXPECT_FALSE(readTileIndex(kl).windowed);
   const test::CommandResult no_tiles_windowed = runCommand(cli() + " build " + (tmp / "x.cmap").string() + s[0] + " --windowed-tiles");
   EXPECT_EQ(no_tiles_windowed.exit_code, 2);
   EXPECT_NE(no_tiles_windowed.err.find("--windowed-tiles needs --tiles"), std::string::npos) << no_tiles_windowed.err;
