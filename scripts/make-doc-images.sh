@@ -26,7 +26,8 @@
 #                 of the year run that docs/scale.md describes (the run itself, over an hour, is
 #                 bench/scale's; its output is kept in that file); a second
 #                 (year_one_floor_windows.png) from year_one_floor_windows.json, the year of one
-#                 floor with history windows
+#                 floor with history windows; year_one_floor_windowed and year_windowed, the years
+#                 of one floor and of the site's three floors with tiles kept as windows
 #
 # Builds chronomap and the Python module (and, for weeks and floor66, the benchmark programs) in
 # build/release (cmake --preset release), or in the configured build folder --build names. The
@@ -240,6 +241,7 @@ if has year; then
     --plot "$images/year_one_floor_windows.png"
   "$build/bench/scale" --plot-from "$repo/docs/images/year_one_floor_windowed.json" \
     --plot "$images/year_one_floor_windowed.png"
+  "$build/bench/scale" --plot-from "$repo/docs/images/year_windowed.json" --plot "$images/year_windowed.png"
 fi
 
 figures="$repo/docs/images/figures.json"
