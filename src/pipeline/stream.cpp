@@ -467,12 +467,7 @@ void TileStream::rewriteOpenWindow(const Cube& g, const TileEntry& e, GroupOut& 
   addToStoredTile(g, work, out, first);
   const std::vector<HistoryEntry> corner = work.history(g.corner);
   if (!corner.empty() && corner.front().level >= level_) {
-    std::vector<TemporalMap> windows;
-    size_t at = 0;
-    for (const WindowFile& w : closed) {
-      windows.push_back(readClosedWindow(s_.folder, *index_, e.key, w, at));
-      at += w.sessions - 1;
-    }
+    std::vector<TemporalMap> windows = readClosedWindows(s_.folder, *index_, e.key, closed);
     windows.push_back(std::move(work));
     const TemporalMap whole = joinWindows(windows);
     const std::vector<HistoryEntry> whole_corner = whole.history(g.corner);

@@ -445,20 +445,9 @@ TemporalMap windowOfFile(const fs::path& path, uint64_t bytes, uint32_t crc32, c
                         " sessions are not the index's " + std::to_string(count) + " from session " +
                         std::to_string(first + 1));
     }
-    // As checkTileFits checks a tile, but that a window may be one uniform cube of tile size
-    // (compacted on its own; the joined tile is checked whole).
-    if (window.resolution_m() != index.top.resolution_m()) {
-      throw FormatError(source + ": resolution " + std::to_string(window.resolution_m()) +
-                        " m differs from the index's " + std::to_string(index.top.resolution_m()) + " m");
-    }
-    if (!(window.criterion() == index.top.criterion())) {
-      throw FormatError(source + ": its change criterion differs from the index's");
-    }
-    bool inside = true;
-    window.forEachListPlace([&](const VoxelKey& corner, int level) {
-      inside = inside && level <= index.tile_level && tileOf(corner, index.tile_level) == key;
-    });
-    if (!inside) throw FormatError(source + " holds nodes outside its tile");
+    // As a tile, but that a window may be one uniform cube of tile size (compacted on its own;
+    // the joined tile is checked whole).
+    checkFitsTileCube(index.top, index.tile_level, key, window, index.tile_level, source);
     return window;
   });
 }
@@ -472,21 +461,22 @@ TemporalMap readOpenWindow(const fs::path& folder, const TileIndex& index, const
   return windowOfFile(folder / entry.file, entry.bytes, entry.crc32, index, entry.key, first, held - first, "tile");
 }
 
-TemporalMap readClosedWindow(const fs::path& folder, const TileIndex& index, const TileKey& key,
-                             const WindowFile& window, size_t first) {
-  return windowOfFile(folder / window.file, window.bytes, window.crc32, index, key, first, window.sessions, "window");
+std::vector<TemporalMap> readClosedWindows(const fs::path& folder, const TileIndex& index, const TileKey& key,
+                                           const std::vector<WindowFile>& closed) {
+  std::vector<TemporalMap> windows;
+  size_t first = 0;  // window j + 1 begins with window j's last session
+  for (const WindowFile& w : closed) {
+    windows.push_back(windowOfFile(folder / w.file, w.bytes, w.crc32, index, key, first, w.sessions, "window"));
+    first += w.sessions - 1;
+  }
+  return windows;
 }
 
 TemporalMap readTile(const fs::path& folder, const TileIndex& index, const TileEntry& entry) {
   const fs::path path = folder / entry.file;
   const std::string source = path.string();
   if (index.windowed) {
-    std::vector<TemporalMap> windows;
-    size_t first = 0;
-    for (const WindowFile& w : entry.windows) {
-      windows.push_back(readClosedWindow(folder, index, entry.key, w, first));
-      first += w.sessions - 1;
-    }
+    std::vector<TemporalMap> windows = readClosedWindows(folder, index, entry.key, entry.windows);
     windows.push_back(readOpenWindow(folder, index, entry));
     const std::vector<SessionRecord>& all = index.top.sessions();
     const size_t held = entry.sessions.value_or(all.size());

@@ -238,28 +238,33 @@ SplitMap splitIntoTiles(const TemporalMap& map, int tile_level) {
   return out;
 }
 
-void checkTileFits(const TemporalMap& top, int tile_level, const TileKey& key, const TemporalMap& tile,
-                   const std::string& source) {
-  if (tile.resolution_m() != top.resolution_m()) {
-    throw FormatError(source + ": resolution " + std::to_string(tile.resolution_m()) + " m differs from the index's " +
+void checkFitsTileCube(const TemporalMap& top, int tile_level, const TileKey& key, const TemporalMap& part,
+                       int max_level, const std::string& source) {
+  if (part.resolution_m() != top.resolution_m()) {
+    throw FormatError(source + ": resolution " + std::to_string(part.resolution_m()) + " m differs from the index's " +
                       std::to_string(top.resolution_m()) + " m");
   }
-  if (!(tile.criterion() == top.criterion())) {
+  if (!(part.criterion() == top.criterion())) {
     throw FormatError(source + ": its change criterion differs from the index's");
   }
+  // Every history list inside the cube (a walk, not a copy of the pools; the join checks the
+  // shape of the path as it grafts).
+  bool inside = true;
+  part.forEachListPlace([&](const VoxelKey& corner, int level) {
+    inside = inside && level <= max_level && tileOf(corner, tile_level) == key;
+  });
+  if (!inside) throw FormatError(source + " holds nodes outside its tile");
+}
+
+void checkTileFits(const TemporalMap& top, int tile_level, const TileKey& key, const TemporalMap& tile,
+                   const std::string& source) {
+  checkFitsTileCube(top, tile_level, key, tile, tile_level - 1, source);  // every list below tile level
   bool same = tile.sessionCount() == top.sessionCount();
   for (size_t i = 0; same && i < tile.sessionCount(); ++i) same = tile.sessions()[i].time_s == top.sessions()[i].time_s;
   if (!same) {
     throw FormatError(source + ": its sessions (" + std::to_string(tile.sessionCount()) +
                       ") do not match the index's sessions table (" + std::to_string(top.sessionCount()) + ")");
   }
-  // Every history list inside the cube, below tile level (a walk, not a copy of the pools; the
-  // join checks the shape of the path as it grafts).
-  bool inside = true;
-  tile.forEachListPlace([&](const VoxelKey& corner, int level) {
-    inside = inside && level < tile_level && tileOf(corner, tile_level) == key;
-  });
-  if (!inside) throw FormatError(source + " holds nodes outside its tile");
 }
 
 TemporalMap joinTiles(const TemporalMap& top, int tile_level, const std::vector<const Tile*>& tiles) {

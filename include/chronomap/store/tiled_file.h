@@ -162,10 +162,10 @@ TileEntry writeTileAsWindows(const std::filesystem::path& folder, const TileKey&
 /// Windowed layout: `entry`'s open window as its file holds it (its sessions checked against the
 /// index's, nothing appended). @throw IoError, FormatError as readTile.
 TemporalMap readOpenWindow(const std::filesystem::path& folder, const TileIndex& index, const TileEntry& entry);
-/// Windowed layout: the closed window `window`, whose session 0 is the index's session `first`,
-/// as its file holds it, checked likewise.
-TemporalMap readClosedWindow(const std::filesystem::path& folder, const TileIndex& index, const TileKey& key,
-                             const WindowFile& window, size_t first);
+/// Windowed layout: tile `key`'s closed windows `closed` (from the first, in order) as their files
+/// hold them, each checked likewise against the index's sessions from where it begins.
+std::vector<TemporalMap> readClosedWindows(const std::filesystem::path& folder, const TileIndex& index,
+                                           const TileKey& key, const std::vector<WindowFile>& closed);
 
 /// Writes the index of a tiled map (atomically: the previous index stays until the rename).
 /// A row whose `sessions` is below top.sessionCount() is written with it (table version 2);

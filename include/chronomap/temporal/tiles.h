@@ -74,6 +74,11 @@ SplitMap splitIntoTiles(const TemporalMap& map, int tile_level);
 /// whose place in the top is taken, or structure outside its cube).
 TemporalMap joinTiles(const TemporalMap& top, int tile_level, const std::vector<const Tile*>& tiles);
 
+/// Checks that `part` can be part of tile `key` of `top`: same resolution and criterion, every
+/// history list inside the tile's cube at most `max_level` (the sessions are not checked: a
+/// window of a tile holds a run of them). @throw FormatError naming `source`.
+void checkFitsTileCube(const TemporalMap& top, int tile_level, const TileKey& key, const TemporalMap& part,
+                       int max_level, const std::string& source);
 /// Checks that `tile` can be tile `key` of `top`: same resolution, criterion and session times,
 /// nothing stored outside the tile's cube. @throw FormatError naming `source`.
 void checkTileFits(const TemporalMap& top, int tile_level, const TileKey& key, const TemporalMap& tile,
