@@ -3,6 +3,7 @@
 // previous tiled map as it was.
 
 #include <gtest/gtest.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <atomic>
@@ -928,6 +929,27 @@ TEST(Stream, AWindowedIndexIsChecked) {
     ADD_FAILURE() << "no error";
   } catch (const FormatError& x) {
     EXPECT_NE(std::string(x.what()).find(shifted.windows[1].file), std::string::npos) << x.what();
+  }
+  // An open window of another change criterion (its size and checksum those its row lists): a
+  // night would decide its changes by it.
+  TileEntry recriterioned = index.tiles[row];
+  const TemporalMap open = readTemporalMap(folder / recriterioned.file);
+  ChangeCriterion criterion;
+  criterion.probability_threshold = 0.2;
+  const std::vector<uint8_t> bytes = encodeTemporalMapAsItIs(
+      TemporalMap::fromParts(open.resolution_m(), criterion, open.parts(), open.sessions()), nlohmann::json::object());
+  writeFileAtomic(folder / recriterioned.file, bytes);
+  recriterioned.bytes = bytes.size();
+  recriterioned.crc32 = static_cast<uint32_t>(crc32(crc32(0L, Z_NULL, 0), bytes.data(), static_cast<uInt>(bytes.size())));
+  for (const std::function<void()>& read : std::vector<std::function<void()>>{
+           [&] { readOpenWindow(folder, index, recriterioned); }, [&] { readTile(folder, index, recriterioned); }}) {
+    try {
+      read();
+      ADD_FAILURE() << "no error";
+    } catch (const FormatError& x) {
+      EXPECT_NE(std::string(x.what()).find("change criterion"), std::string::npos) << x.what();
+      EXPECT_NE(std::string(x.what()).find(recriterioned.file), std::string::npos) << x.what();
+    }
   }
 }
 
