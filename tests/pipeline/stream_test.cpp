@@ -26,6 +26,7 @@
 #include "chronomap/temporal/tiles.h"
 #include "chronomap/temporal/window.h"
 #include "test_support.h"
+#include "tile_table_edits.h"
 #include "window_compare.h"
 #include "pipeline/in_order.h"
 
@@ -878,7 +879,6 @@ TEST(Stream, AWindowedIndexIsChecked) {
   test::TempDir dir;
   const fs::path folder = dir / "tiled";
   for (int i = 0; i < 5; ++i) stream(folder, sessions, {i}, 3, 0, 1, 0, true);
-  const CmapFile file = readCmap(folder / kTileIndexName);
   const TileIndex index = readTileIndex(folder);
   size_t row = 0, other = 1;
   for (size_t i = 0; i < index.tiles.size(); ++i) {
@@ -886,41 +886,28 @@ TEST(Stream, AWindowedIndexIsChecked) {
   }
   other = row == 0 ? 1 : 0;
   ASSERT_GE(index.tiles[row].windows.size(), 2u);
-  const nlohmann::json table = {{"tiles", metadataOf(file).at("tiles")}};
-  EXPECT_EQ(table["tiles"]["version"], 4);
-  EXPECT_EQ(table["tiles"]["layout"], "windows");
-  auto indexWith = [&](const std::function<void(nlohmann::json&)>& change) {
-    nlohmann::json t = table;
-    change(t["tiles"]);
-    return encodeTemporalMap(index.top, userMetadataOf(file), MapKind::Tiled, &t);
-  };
-  auto refused = [&](const std::function<void(nlohmann::json&)>& change, const std::string& what) {
-    try {
-      decodeTileIndex(indexWith(change), "index");
-      ADD_FAILURE() << "no error for " << what;
-    } catch (const FormatError& x) {
-      EXPECT_NE(std::string(x.what()).find(what), std::string::npos) << x.what();
-    }
-  };
-  const TileIndex same = decodeTileIndex(indexWith([](nlohmann::json&) {}), "index");
+  const test::TileTableEdits edits(folder);
+  EXPECT_EQ(edits.table()["version"], 4);
+  EXPECT_EQ(edits.table()["layout"], "windows");
+  const TileIndex same = decodeTileIndex(edits.with([](nlohmann::json&) {}), "index");
   ASSERT_TRUE(same.windowed);
   EXPECT_EQ(openWindowFirst(same.tiles[row]), openWindowFirst(index.tiles[row]));
-  refused([](nlohmann::json& t) { t.erase("layout"); }, "names no layout");
-  refused([](nlohmann::json& t) { t["layout"] = "tiles"; }, "names no layout");
-  refused([](nlohmann::json& t) { t.erase("window_sessions"); }, "without its window session count");
-  refused([&](nlohmann::json& t) { t["list"][row]["windows"][0].erase("sessions"); }, "malformed");
-  refused([&](nlohmann::json& t) { t["list"][row]["windows"][1]["sessions"] = 1; }, "cannot hold");
-  refused([&](nlohmann::json& t) { t["list"][row]["windows"][0]["sessions"] = 0; }, "cannot hold");
-  refused([&](nlohmann::json& t) { t["list"][row]["windows"][0]["sessions"] = t["list"][row]["windows"][1]["sessions"] = 5; },
+  edits.expectRefused([](nlohmann::json& t) { t.erase("layout"); }, "names no layout");
+  edits.expectRefused([](nlohmann::json& t) { t["layout"] = "tiles"; }, "names no layout");
+  edits.expectRefused([](nlohmann::json& t) { t.erase("window_sessions"); }, "without its window session count");
+  edits.expectRefused([&](nlohmann::json& t) { t["list"][row]["windows"][0].erase("sessions"); }, "malformed");
+  edits.expectRefused([&](nlohmann::json& t) { t["list"][row]["windows"][1]["sessions"] = 1; }, "cannot hold");
+  edits.expectRefused([&](nlohmann::json& t) { t["list"][row]["windows"][0]["sessions"] = 0; }, "cannot hold");
+  edits.expectRefused([&](nlohmann::json& t) { t["list"][row]["windows"][0]["sessions"] = t["list"][row]["windows"][1]["sessions"] = 5; },
           "closed windows");
-  refused([&](nlohmann::json& t) { t["list"][row]["windows"][0]["file"] = t["list"][other]["file"]; },
+  edits.expectRefused([&](nlohmann::json& t) { t["list"][row]["windows"][0]["file"] = t["list"][other]["file"]; },
           "window file name");
-  refused([&](nlohmann::json& t) { t["list"][row]["windows"][0]["file"] = t["list"][row]["file"]; },
+  edits.expectRefused([&](nlohmann::json& t) { t["list"][row]["windows"][0]["file"] = t["list"][row]["file"]; },
           "window file name");
   // A closed window named for a later generation than the open one: a later run would write that name.
-  refused([&](nlohmann::json& t) { t["list"][row]["windows"][0]["file"] = tileFileName(index.tiles[row].key, 999); },
+  edits.expectRefused([&](nlohmann::json& t) { t["list"][row]["windows"][0]["file"] = tileFileName(index.tiles[row].key, 999); },
           "later generation");
-  refused([&](nlohmann::json& t) { t["list"][row]["sessions"] = 0; }, "sessions held");
+  edits.expectRefused([&](nlohmann::json& t) { t["list"][row]["sessions"] = 0; }, "sessions held");
   // A closed window whose file holds other sessions than its row says.
   TileEntry shifted = index.tiles[row];
   shifted.windows[1].sessions += 1;

@@ -16,6 +16,7 @@
 #include "chronomap/temporal/tiles.h"
 #include "chronomap/temporal/window.h"
 #include "test_support.h"
+#include "tile_table_edits.h"
 
 namespace chronomap {
 namespace {
@@ -427,34 +428,20 @@ TEST(Tiles, ABadWindowGivesOneClearError) {
 
   // The index: a window named for another tile or place, more windows than sessions, windows
   // in a table of version 2 or without their size.
-  const CmapFile file = readCmap(dir / "tiled" / kTileIndexName);
-  const nlohmann::json table = {{"tiles", metadataOf(file).at("tiles")}};
-  auto indexWith = [&](const std::function<void(nlohmann::json&)>& change) {
-    nlohmann::json t = table;
-    change(t["tiles"]);
-    return encodeTemporalMap(index.top, userMetadataOf(file), MapKind::Tiled, &t);
-  };
-  auto refused = [&](const std::function<void(nlohmann::json&)>& change, const std::string& what) {
-    try {
-      decodeTileIndex(indexWith(change), "index");
-      ADD_FAILURE() << "no error for " << what;
-    } catch (const FormatError& x) {
-      EXPECT_NE(std::string(x.what()).find(what), std::string::npos) << x.what();
-    }
-  };
-  EXPECT_EQ(decodeTileIndex(indexWith([](nlohmann::json&) {}), "index").tiles[0].windows.size(), 2u);
-  refused([](nlohmann::json& t) { t["list"][0]["windows"][1]["file"] = t["list"][1]["windows"][1]["file"]; },
+  const test::TileTableEdits edits(dir / "tiled");
+  EXPECT_EQ(decodeTileIndex(edits.with([](nlohmann::json&) {}), "index").tiles[0].windows.size(), 2u);
+  edits.expectRefused([](nlohmann::json& t) { t["list"][0]["windows"][1]["file"] = t["list"][1]["windows"][1]["file"]; },
           "window file name");
-  refused([](nlohmann::json& t) { t["list"][0]["windows"][0]["file"] = t["list"][0]["windows"][1]["file"]; },
+  edits.expectRefused([](nlohmann::json& t) { t["list"][0]["windows"][0]["file"] = t["list"][0]["windows"][1]["file"]; },
           "window file name");
-  refused([](nlohmann::json& t) {
+  edits.expectRefused([](nlohmann::json& t) {
     nlohmann::json extra = t["list"][0]["windows"][1];
     extra["file"] = windowFileName(t["list"][0]["file"].get<std::string>(), 2);
     t["list"][0]["windows"].push_back(extra);
   }, "windows of 2 sessions");
-  refused([](nlohmann::json& t) { t["version"] = 2; }, "window session count");
-  refused([](nlohmann::json& t) { t["window_sessions"] = 0; }, "window session count");
-  refused([](nlohmann::json& t) { t.erase("window_sessions"); }, "without their size");
+  edits.expectRefused([](nlohmann::json& t) { t["version"] = 2; }, "window session count");
+  edits.expectRefused([](nlohmann::json& t) { t["window_sessions"] = 0; }, "window session count");
+  edits.expectRefused([](nlohmann::json& t) { t.erase("window_sessions"); }, "without their size");
 }
 
 TEST(Tiles, TileSizesArePowersOfTwoVoxels) {
