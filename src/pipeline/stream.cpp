@@ -446,9 +446,9 @@ void TileStream::rewriteStoredTile(const Cube& g, const TileEntry& e, GroupOut& 
 
 // The same for a tile kept as windows (TileIndex::windowed): the open window alone is read,
 // added to, compacted and written. It is closed first when it holds a whole window of sessions
-// of its own: its file stays as it is, as the last closed window, and the new open window
-// continues it (continuedWindow), the sessions that did not reach the tile since appended
-// unobserved. Where compaction leaves the open window one uniform cube, the whole history is
+// of its own (the first window: firstWindowSessions, staggered over the tiles): its file stays
+// as it is, as the last closed window, and the new open window continues it (continuedWindow),
+// the sessions that did not reach the tile since appended unobserved. Where compaction leaves the open window one uniform cube, the whole history is
 // joined to tell whether the tile itself is (it then goes to the top, as rewriteStoredTile's).
 void TileStream::rewriteOpenWindow(const Cube& g, const TileEntry& e, GroupOut& out) {
   TemporalMap work = readOpenWindow(s_.folder, *index_, e);
@@ -456,7 +456,7 @@ void TileStream::rewriteOpenWindow(const Cube& g, const TileEntry& e, GroupOut& 
   std::vector<WindowFile> closed = e.windows;
   size_t first = openWindowFirst(e);
   const size_t own = work.sessionCount() - (closed.empty() ? 0 : 1);
-  if (own >= window_sessions_) {
+  if (own >= (closed.empty() ? firstWindowSessions(e.key, window_sessions_) : window_sessions_)) {
     closed.push_back(WindowFile{e.file, e.bytes, e.crc32, work.sessionCount()});
     first += work.sessionCount() - 1;
     work = continuedWindow(work);

@@ -82,6 +82,16 @@ size_t openWindowFirst(const TileEntry& entry) {
   return first;
 }
 
+uint32_t firstWindowSessions(const TileKey& key, uint32_t k) {
+  if (k == 0) throw UsageError("windows of 0 sessions");
+  // splitmix64's finaliser over the packed key: neighbouring tiles get unrelated shares.
+  uint64_t h = (uint64_t{key.x} << 32) | (uint64_t{key.y} << 16) | key.z;
+  h = (h ^ (h >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  h = (h ^ (h >> 27)) * 0x94d049bb133111ebULL;
+  h ^= h >> 31;
+  return k + static_cast<uint32_t>(h % k);
+}
+
 namespace {
 
 /// True when `file` is windowFileName(tileFileName(key, g), j) for some generation g.
@@ -232,7 +242,7 @@ TileEntry writeOpenWindow(const fs::path& folder, const TileKey& key, uint64_t g
 TileEntry writeTileAsWindows(const fs::path& folder, const TileKey& key, uint64_t generation, const TemporalMap& tile,
                              uint32_t window_sessions) {
   if (window_sessions == 0) throw UsageError("the windowed layout needs windows of one session or more");
-  const std::vector<TemporalMap> windows = windowsOf(tile, window_sessions);
+  const std::vector<TemporalMap> windows = windowsOf(tile, window_sessions, firstWindowSessions(key, window_sessions));
   const std::string name = tileFileName(key, generation);
   std::vector<WindowFile> closed;
   for (size_t j = 0; j + 1 < windows.size(); ++j) {

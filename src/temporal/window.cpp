@@ -134,14 +134,15 @@ TemporalMap windowBetween(const TemporalMap& map, const TemporalMap::Parts& whol
 
 }  // namespace
 
-std::vector<TemporalMap> windowsOf(const TemporalMap& map, uint32_t k) {
+std::vector<TemporalMap> windowsOf(const TemporalMap& map, uint32_t k, uint32_t first_k) {
   if (k == 0) throw UsageError("windows of 0 sessions");
+  if (first_k == 0) first_k = k;
   const size_t n = map.sessionCount();
   if (n == 0) throw UsageError("a 4D map that holds no session has no windows");
   const TemporalMap::Parts whole = map.parts();
   std::vector<TemporalMap> out;
-  for (size_t start = 0; start < n; start += k) {
-    const auto last = static_cast<uint32_t>(std::min(n, start + k) - 1);
+  for (size_t start = 0; start < n; start += start == 0 ? first_k : k) {
+    const auto last = static_cast<uint32_t>(std::min<size_t>(n, start + (start == 0 ? first_k : k)) - 1);
     out.push_back(start == 0 ? windowBetween(map, whole, 0, last, false)
                              : windowBetween(map, whole, static_cast<uint32_t>(start - 1), last, true));
   }

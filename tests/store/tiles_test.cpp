@@ -444,6 +444,32 @@ TEST(Tiles, ABadWindowGivesOneClearError) {
   edits.expectRefused([](nlohmann::json& t) { t.erase("window_sessions"); }, "without their size");
 }
 
+// The windowed layout's first windows (firstWindowSessions): k plus a share of k fixed by the
+// tile, so that the tiles of a floor, reached on the same nights, close their windows on
+// different nights. Over a block of 8 x 8 x 4 tiles every share is taken, none by more than
+// twice its fair part; the same key always gets the same share.
+TEST(Tiles, FirstWindowsAreStaggeredOverTheTiles) {
+  for (const uint32_t k : {1u, 2u, 16u}) {
+    std::vector<size_t> taken(k, 0);
+    for (uint16_t x = 100; x < 108; ++x) {
+      for (uint16_t y = 7; y < 15; ++y) {
+        for (uint16_t z = 0; z < 4; ++z) {
+          const uint32_t f = firstWindowSessions(TileKey{x, y, z}, k);
+          ASSERT_GE(f, k);
+          ASSERT_LT(f, 2 * k);
+          ASSERT_EQ(f, firstWindowSessions(TileKey{x, y, z}, k));
+          ++taken[f - k];
+        }
+      }
+    }
+    for (uint32_t share = 0; share < k; ++share) {
+      EXPECT_GT(taken[share], 0u) << "k " << k << ", share " << share;
+      EXPECT_LE(taken[share], 2 * 256 / k) << "k " << k << ", share " << share;
+    }
+  }
+  EXPECT_THROW(firstWindowSessions(TileKey{1, 2, 3}, 0), UsageError);
+}
+
 TEST(Tiles, TileSizesArePowersOfTwoVoxels) {
   EXPECT_EQ(tileLevelFor(6.4, 0.05), 7);
   EXPECT_EQ(tileLevelFor(0.1, 0.05), 1);

@@ -217,6 +217,34 @@ TEST(WindowJoin, AMapWithEmptyInnerNodesIsCutAndJoinedBack) {
   for (uint32_t k = 1; k <= 4; ++k) EXPECT_TRUE(sameHistory(joinWindows(windowsOf(map, k)), map)) << "k " << k;
 }
 
+// A first window longer than the others (the windowed layout's staggered first window,
+// store/tiled_file.h firstWindowSessions): window 0 holds sessions [0, f), window j > 0 the k
+// after f + (j - 1)·k with the one before carried; they join back to the map.
+TEST(WindowJoin, AFirstWindowOfItsOwnLengthJoinsBack) {
+  const Built first = build(27, 10, 1000);
+  const TemporalMap& map = first.windows.front();
+  for (uint32_t k = 1; k <= 3; ++k) {
+    for (uint32_t f = k; f < 2 * k + 1; ++f) {
+      SCOPED_TRACE("windows of " + std::to_string(k) + ", the first of " + std::to_string(f));
+      const std::vector<TemporalMap> windows = windowsOf(map, k, f);
+      ASSERT_EQ(windows.size(), 1 + (10 - f + k - 1) / k);
+      size_t begin = 0;  // the rank of each window's first session of its own
+      for (size_t j = 0; j < windows.size(); ++j) {
+        const TemporalMap& w = windows[j];
+        const size_t own = j == 0 ? f : std::min<size_t>(k, 10 - begin);
+        ASSERT_EQ(w.sessionCount(), own + (j > 0));
+        EXPECT_EQ(w.sessions().back().time_s, map.sessions()[begin + own - 1].time_s);
+        for (size_t r = 0; r < w.sessionCount(); ++r) {
+          ASSERT_TRUE(w.snapshot(w.sessions()[r].time_s) == map.snapshot(w.sessions()[r].time_s));
+        }
+        begin += own;
+      }
+      EXPECT_EQ(begin, 10u);
+      EXPECT_TRUE(sameHistory(joinWindows(windows), map));
+    }
+  }
+}
+
 TEST(WindowJoin, AHistoryCutIntoWindowsJoinsBackAndGoesOn) {
   for (uint64_t seed = 20; seed < 26; ++seed) {
     // Ten nights in one map; then cut, and five more nights both ways.

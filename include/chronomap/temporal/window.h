@@ -34,9 +34,10 @@ TemporalMap historyWindow(const TemporalMap& map, const TemporalMap::Parts& part
 /// `map`'s tree without the lists first observed after its last session (and the inner nodes
 /// left without children), so that joinWindows gives `map` back bit for bit, and its snapshot at
 /// any of its sessions is `map`'s, node for node. The sessions keep their records (coverage
-/// included) but for the carried session 0, whose coverage is left out.
+/// included) but for the carried session 0, whose coverage is left out. With `first_k` > 0,
+/// window 0 holds sessions [0, first_k) instead and the later ones go on by k from there.
 /// @throw UsageError when k is 0 or `map` holds no session.
-std::vector<TemporalMap> windowsOf(const TemporalMap& map, uint32_t k);
+std::vector<TemporalMap> windowsOf(const TemporalMap& map, uint32_t k, uint32_t first_k = 0);
 
 /// A window that goes on after `map`'s last session (docs/scale.md, "A tile as its windows"):
 /// historyWindow(map, last, 1), each list holding its latest entry as the window's session 0
