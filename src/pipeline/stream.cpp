@@ -448,8 +448,9 @@ void TileStream::rewriteStoredTile(const Cube& g, const TileEntry& e, GroupOut& 
 // added to, compacted and written. It is closed first when it holds a whole window of sessions
 // of its own (the first window: firstWindowSessions, staggered over the tiles): its file stays
 // as it is, as the last closed window, and the new open window continues it (continuedWindow),
-// the sessions that did not reach the tile since appended unobserved. Where compaction leaves the open window one uniform cube, the whole history is
-// joined to tell whether the tile itself is (it then goes to the top, as rewriteStoredTile's).
+// the sessions that did not reach the tile since appended unobserved. Where compaction leaves
+// the open window one uniform cube, the whole history is joined to tell whether the tile itself
+// is (it then goes to the top, as rewriteStoredTile's).
 void TileStream::rewriteOpenWindow(const Cube& g, const TileEntry& e, GroupOut& out) {
   TemporalMap work = readOpenWindow(s_.folder, *index_, e);
   countStoredTile(e, out);
