@@ -83,7 +83,7 @@ size_t openWindowFirst(const TileEntry& entry) {
 }
 
 uint32_t firstWindowSessions(const TileKey& key, uint32_t k) {
-  if (k == 0) throw UsageError("windows of 0 sessions");
+  if (k == 0 || k > 0xffff) throw UsageError("windows of " + std::to_string(k) + " sessions: 1 to 65535");
   // splitmix64's finaliser over the packed key: neighbouring tiles get unrelated shares.
   uint64_t h = (uint64_t{key.x} << 32) | (uint64_t{key.y} << 16) | key.z;
   h = (h ^ (h >> 30)) * 0xbf58476d1ce4e5b9ULL;

@@ -141,8 +141,8 @@ std::vector<TemporalMap> windowsOf(const TemporalMap& map, uint32_t k, uint32_t 
   if (n == 0) throw UsageError("a 4D map that holds no session has no windows");
   const TemporalMap::Parts whole = map.parts();
   std::vector<TemporalMap> out;
-  for (size_t start = 0; start < n; start += start == 0 ? first_k : k) {
-    const auto last = static_cast<uint32_t>(std::min<size_t>(n, start + (start == 0 ? first_k : k)) - 1);
+  for (size_t start = 0, length = first_k; start < n; start += length, length = k) {
+    const auto last = static_cast<uint32_t>(std::min(n, start + length) - 1);
     out.push_back(start == 0 ? windowBetween(map, whole, 0, last, false)
                              : windowBetween(map, whole, static_cast<uint32_t>(start - 1), last, true));
   }

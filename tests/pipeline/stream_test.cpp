@@ -10,6 +10,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <random>
+#include <set>
 #include <span>
 
 #include "chronomap/align/consensus.h"
@@ -877,6 +878,38 @@ TEST(Stream, AWindowedNightReadsTheOpenWindowOnly) {
   EXPECT_THROW(readTile(folder, index, *e), IoError);
 }
 
+// The two writers of the windowed layout close a tile's windows at the same sessions: the nights
+// streamed one by one (a tile's first window closes at its firstWindowSessions, later ones at
+// K of their own) and the tile's history written whole (writeTileAsWindows, as `tile
+// --windowed-tiles` and a group rebuilt whole write it). Room A is reached every night; its two
+// tiles have first windows of 2 and 3 sessions.
+TEST(Stream, NightlyWindowsCloseWhereATileWrittenWholeCloses) {
+  const std::vector<SessionMap> sessions = twoRoomNights(4650, {"AB", "A", "A", "A", "A", "A", "A", "A"});
+  test::TempDir dir;
+  const fs::path folder = dir / "tiled";
+  for (int i = 0; i < 8; ++i) stream(folder, sessions, {i}, 3, 0, 2, 0, true);
+  const TileIndex index = readTileIndex(folder);
+  std::set<uint32_t> firsts;
+  for (const TileEntry& e : index.tiles) {
+    if (e.windows.empty()) continue;  // room B's, seen on the first night only
+    const uint32_t f = firstWindowSessions(e.key, 2);
+    firsts.insert(f);
+    // Sessions 0 to 7: the first window [0, f), then [f - 1, f + 2), ... while a later night came.
+    std::vector<size_t> expected = {f};
+    for (size_t end = f + 2; end <= 7; end += 2) expected.push_back(3);
+    std::vector<size_t> nightly;
+    for (const WindowFile& w : e.windows) nightly.push_back(w.sessions);
+    EXPECT_EQ(nightly, expected) << e.file;
+    fs::create_directories(dir / "whole" / "tiles");
+    const TileEntry whole = writeTileAsWindows(dir / "whole", e.key, 0, readTile(folder, index, e), 2);
+    std::vector<size_t> at_once;
+    for (const WindowFile& w : whole.windows) at_once.push_back(w.sessions);
+    EXPECT_EQ(at_once, nightly) << e.file;
+    EXPECT_EQ(openWindowFirst(whole), openWindowFirst(e)) << e.file;
+  }
+  EXPECT_EQ(firsts, (std::set<uint32_t>{2, 3}));  // both rules seen
+}
+
 // The windowed index's rows: closed windows with their session counts, refused when missing,
 // too small, named for another tile, or holding more sessions than the tile; a version 4 table
 // names its layout.
@@ -958,7 +991,14 @@ TEST(Stream, AMapCutIntoWindowedTilesTakesLaterNights) {
   const TileIndex index = readTileIndex(dir / "cut");
   ASSERT_TRUE(index.windowed);
   size_t windows = 0;
-  for (const TileEntry& e : index.tiles) windows += e.windows.size();
+  for (const TileEntry& e : index.tiles) {
+    // Five sessions, windows of 2: [0, 2), [1, 4) and the open [3, 5) where the tile's first
+    // window holds 2; [0, 3) and the open [2, 5) where it holds 3.
+    const uint32_t f = firstWindowSessions(e.key, 2);
+    ASSERT_EQ(e.windows.size(), f == 2 ? 2u : 1u) << e.file;
+    for (size_t j = 0; j < e.windows.size(); ++j) EXPECT_EQ(e.windows[j].sessions, j == 0 ? f : 3u) << e.file;
+    windows += e.windows.size();
+  }
   EXPECT_GT(windows, 0u);
   EXPECT_TRUE(test::sameHistory(joined(dir / "cut"), map));
   for (int i = 5; i < 7; ++i) {

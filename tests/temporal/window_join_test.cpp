@@ -222,16 +222,16 @@ TEST(WindowJoin, AMapWithEmptyInnerNodesIsCutAndJoinedBack) {
 // after f + (j - 1)·k with the one before carried; they join back to the map.
 TEST(WindowJoin, AFirstWindowOfItsOwnLengthJoinsBack) {
   const Built first = build(27, 10, 1000);
-  const TemporalMap& map = first.windows.front();
+  const TemporalMap& map = first.whole;
   for (uint32_t k = 1; k <= 3; ++k) {
-    for (uint32_t f = k; f < 2 * k + 1; ++f) {
+    for (const uint32_t f : {1u, k, k + 1, 2 * k, 9u, 10u, 12u}) {
       SCOPED_TRACE("windows of " + std::to_string(k) + ", the first of " + std::to_string(f));
       const std::vector<TemporalMap> windows = windowsOf(map, k, f);
-      ASSERT_EQ(windows.size(), 1 + (10 - f + k - 1) / k);
+      ASSERT_EQ(windows.size(), f >= 10 ? 1 : 1 + (10 - f + k - 1) / k);
       size_t begin = 0;  // the rank of each window's first session of its own
       for (size_t j = 0; j < windows.size(); ++j) {
         const TemporalMap& w = windows[j];
-        const size_t own = j == 0 ? f : std::min<size_t>(k, 10 - begin);
+        const size_t own = std::min<size_t>(j == 0 ? f : k, 10 - begin);
         ASSERT_EQ(w.sessionCount(), own + (j > 0));
         EXPECT_EQ(w.sessions().back().time_s, map.sessions()[begin + own - 1].time_s);
         for (size_t r = 0; r < w.sessionCount(); ++r) {
@@ -242,6 +242,10 @@ TEST(WindowJoin, AFirstWindowOfItsOwnLengthJoinsBack) {
       EXPECT_EQ(begin, 10u);
       EXPECT_TRUE(sameHistory(joinWindows(windows), map));
     }
+    // first_k 0 is k.
+    const std::vector<TemporalMap> a = windowsOf(map, k, 0), b = windowsOf(map, k, k);
+    ASSERT_EQ(a.size(), b.size());
+    for (size_t j = 0; j < a.size(); ++j) EXPECT_TRUE(sameHistory(a[j], b[j])) << "window " << j;
   }
 }
 

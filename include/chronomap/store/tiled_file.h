@@ -94,8 +94,8 @@ struct TileIndex {
   /// closed window), and its `windows` are the closed windows in time order, window j + 1's
   /// session 0 being window j's last session. A window closes once it holds window_sessions
   /// sessions of its own (the tile's first window: firstWindowSessions), at the start of the
-  /// next run that reaches the tile. A night reads and
-  /// writes the open window only; the whole history is joinWindows of them all.
+  /// next run that reaches the tile. A night reads and writes the open window only; the whole
+  /// history is joinWindows of them all.
   bool windowed = false;
   /// The row of tile `key`, or null when the map holds nothing there.
   const TileEntry* find(const TileKey& key) const;
@@ -110,8 +110,9 @@ size_t openWindowFirst(const TileEntry& entry);
 /// tiles of a site, reached on the same nights, would otherwise all close their windows on the
 /// same night and swing together, every night's work growing for k nights and then falling
 /// back; staggered, the open windows a night reads hold about k / 2 sessions of their own on
-/// average on every night after the first 2k. (Files of either rule read alike: the tile table lists each
-/// closed window's sessions.)
+/// average on every night after the first 2k. (Files of either rule read alike: the tile table
+/// lists each closed window's sessions.)
+/// @throw UsageError when k is 0 or above 65535 (the tile table's limit).
 uint32_t firstWindowSessions(const TileKey& key, uint32_t k);
 
 /// The file name a tile gets: tiles/X_Y_Z.cmap (tile coordinates, decimal), or, for a tile
@@ -163,8 +164,8 @@ TileEntry writeTileFile(const std::filesystem::path& folder, const TileKey& key,
 /// whose session 0 is `closed`'s last window's last session, or the first session when `closed`
 /// is empty) as the tile's file tileFileName(key, generation), written as it is, and its latest
 /// state beside it; the row keeps `closed`. writeTileAsWindows writes a whole history as windows
-/// of `window_sessions` (windowsOf; the first of firstWindowSessions): all but the last closed, under windowFileName(the tile's
-/// file, j), and the last as the open one.
+/// of `window_sessions` (windowsOf; the first of firstWindowSessions): all but the last closed,
+/// under windowFileName(the tile's file, j), and the last as the open one.
 TileEntry writeOpenWindow(const std::filesystem::path& folder, const TileKey& key, uint64_t generation,
                           const TemporalMap& open, std::vector<WindowFile> closed);
 TileEntry writeTileAsWindows(const std::filesystem::path& folder, const TileKey& key, uint64_t generation,
