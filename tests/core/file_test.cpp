@@ -125,6 +125,37 @@ TEST(WriteFile, OnlyRegularFilesAreReplaced) {
   EXPECT_NO_THROW(checkOutputs({{folder, "-o", true}, {tmp / "new", "--other", true}}, {}));
 }
 
+// What killed writers left in a folder (".NAME.tmp-PID-RANDOM", files or staging folders, of
+// any NAME, PID a process that no longer exists) is removed the first time this process writes
+// into the folder; what a live process is writing, and names of other forms, stay. Later writes
+// into the same folder do not list it again (a tiled map's folder holds thousands of files).
+TEST(WriteFile, AKilledWritersTemporariesAreSweptOnTheFirstWriteIntoTheirFolder) {
+  test::TempDir tmp;
+  const std::string dead = "4194304";  // above any Linux pid (PID_MAX_LIMIT is 2^22)
+  const std::string alive = std::to_string(::getpid());
+  const std::vector<std::string> stale = {".a.cmap.tmp-" + dead + "-77", ".b.png.tmp-" + dead + "-1",
+                                          ".x.tmp-9.cmap.tmp-" + dead + "-5"};
+  const std::vector<std::string> kept = {".a.cmap.tmp-" + alive + "-78", "a.cmap.tmp-" + dead + "-2",
+                                         ".a.cmap.tmp-" + dead, ".a.cmap.tmp--3", ".a.cmap.tmp-x1-3", "notes.txt"};
+  for (const std::string& name : stale) test::writeBytes(tmp / name, std::string("part"));
+  fs::create_directories(tmp / (".folder.tmp-" + dead + "-4") / "inside");  // a staging folder
+  for (const std::string& name : kept) test::writeBytes(tmp / name, std::string("keep"));
+  writeFileAtomic(tmp / "c.cmap", {1, 2, 3});
+  for (const std::string& name : stale) EXPECT_FALSE(fs::exists(tmp / name)) << name;
+  EXPECT_FALSE(fs::exists(tmp / (".folder.tmp-" + dead + "-4")));
+  for (const std::string& name : kept) EXPECT_TRUE(fs::exists(tmp / name)) << name;
+  EXPECT_EQ(readFileBytes(tmp / "c.cmap"), (std::vector<uint8_t>{1, 2, 3}));
+  // Swept once: a temporary that turns up later stays until another process writes there.
+  test::writeBytes(tmp / (".d.cmap.tmp-" + dead + "-6"), std::string("part"));
+  writeFileAtomic(tmp / "d.cmap", {4});
+  EXPECT_TRUE(fs::exists(tmp / (".d.cmap.tmp-" + dead + "-6")));
+  // Another folder is swept on its own first write.
+  fs::create_directories(tmp / "sub");
+  test::writeBytes(tmp / "sub" / (".e.cmap.tmp-" + dead + "-7"), std::string("part"));
+  writeFileAtomic(tmp / "sub" / "e.cmap", {5});
+  EXPECT_FALSE(fs::exists(tmp / "sub" / (".e.cmap.tmp-" + dead + "-7")));
+}
+
 TEST(WriteFile, OutputsOfOneCommandMayNotNameEachOtherOrAnInput) {
   test::TempDir tmp;
   writeFileAtomic(tmp / "in", {1});
