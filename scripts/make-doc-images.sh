@@ -27,7 +27,9 @@
 #                 bench/scale's; its output is kept in that file); a second
 #                 (year_one_floor_windows.png) from year_one_floor_windows.json, the year of one
 #                 floor with history windows; year_one_floor_windowed and year_windowed, the years
-#                 of one floor and of the site's three floors with tiles kept as windows
+#                 of one floor and of the site's three floors with tiles kept as windows;
+#                 year_site_windowed, the site's year again with staggered first windows and
+#                 the folder no longer listed on every write
 #
 # Builds chronomap and the Python module (and, for weeks and floor66, the benchmark programs) in
 # build/release (cmake --preset release), or in the configured build folder --build names. The
@@ -242,6 +244,8 @@ if has year; then
   "$build/bench/scale" --plot-from "$repo/docs/images/year_one_floor_windowed.json" \
     --plot "$images/year_one_floor_windowed.png"
   "$build/bench/scale" --plot-from "$repo/docs/images/year_windowed.json" --plot "$images/year_windowed.png"
+  "$build/bench/scale" --plot-from "$repo/docs/images/year_site_windowed.json" \
+    --plot "$images/year_site_windowed.png"
 fi
 
 figures="$repo/docs/images/figures.json"
