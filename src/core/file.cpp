@@ -9,12 +9,15 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <mutex>
+#include <optional>
 #include <random>
-#include <set>
+#include <string_view>
 
 #include "chronomap/core/error.h"
 #include "chronomap/core/format.h"
@@ -171,41 +174,74 @@ fs::path temporaryBeside(const fs::path& path) {
   return parentOf(path) / name;
 }
 
-/// The process id in the name of a temporary file or staging folder, ".NAME.tmp-PID-RANDOM"
-/// (any NAME), or 0 when `name` is not such a name.
-long temporaryWriter(const std::string& name) {
-  if (name.empty() || name[0] != '.') return 0;
-  const size_t at = name.rfind(".tmp-");
-  if (at == std::string::npos || at == 0) return 0;
-  const std::string rest = name.substr(at + 5);
-  const size_t dash = rest.find('-');
-  if (dash == std::string::npos || dash == 0) return 0;
-  char* end_ptr = nullptr;
-  const long pid = std::strtol(rest.c_str(), &end_ptr, 10);
-  return end_ptr == rest.c_str() + dash && pid > 0 ? pid : 0;
+/// True when `text` is 1 to `most` decimal digits.
+bool allDigits(std::string_view text, size_t most) {
+  return !text.empty() && text.size() <= most &&
+         std::all_of(text.begin(), text.end(), [](char c) { return c >= '0' && c <= '9'; });
 }
 
-// Removes the temporary files and staging folders that writers killed before they finished
-// left in `dir`: their names carry the writer's process id, and that process no longer exists.
-// A folder is swept the first time this process writes into it, not on every write: a tiled
-// map's folder holds thousands of files and a night writes hundreds of them, so a sweep on each
-// write cost time that grew with the folder (0.3 s of a 4.7 s night after a year of nights).
-void removeStaleTemporaries(const fs::path& dir) {
-  static std::mutex mutex;
-  static std::set<std::string> swept;
-  {
-    std::error_code ec;
-    const fs::path absolute = fs::absolute(dir, ec);
-    const std::lock_guard<std::mutex> lock(mutex);
-    if (!swept.insert((ec ? dir : absolute.lexically_normal()).string()).second) return;
-  }
+/// A temporary file or staging folder that a writer no longer running left: its name, and the
+/// prefix (temporaryPrefix) of the file it was writing.
+struct StaleTemporary {
+  std::string name, prefix;
+};
+
+/// `name` as a StaleTemporary when it has the exact form temporaryBeside gives,
+/// ".NAME.tmp-PID-RANDOM" (PID and RANDOM decimal), and process PID does not exist.
+std::optional<StaleTemporary> staleTemporary(const std::string& name) {
+  if (name.size() < 2 || name[0] != '.') return std::nullopt;
+  const size_t dash = name.rfind('-');
+  const size_t at = name.rfind(".tmp-", dash == std::string::npos || dash == 0 ? 0 : dash - 1);
+  if (dash == std::string::npos || at == std::string::npos || at == 0 || at + 5 > dash) return std::nullopt;
+  const std::string_view pid_text = std::string_view(name).substr(at + 5, dash - at - 5);
+  if (!allDigits(pid_text, 7) || !allDigits(std::string_view(name).substr(dash + 1), 8)) return std::nullopt;
+  const long pid = std::strtol(std::string(pid_text).c_str(), nullptr, 10);
+  if (pid <= 0 || pid > 4194304 || ::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) return std::nullopt;
+  return StaleTemporary{name, name.substr(0, at + 5)};
+}
+
+/// What this process found the last time it listed a folder for stale temporaries.
+struct FolderSweep {
+  std::chrono::steady_clock::time_point listed_at;
+  std::vector<StaleTemporary> stale;  // not removed yet
+};
+
+// Removes the temporary files and staging folders that writers of `path` killed before they
+// finished left beside it (their names carry the writer's process id, and that process no longer
+// exists). The folder is listed at most once a minute by a process, not before every write: a
+// tiled map's folder holds thousands of files and a night writes hundreds of them, so a listing
+// before each write cost time that grew with the folder (about 0.9 s of a 4.7 s night after a
+// year of nights). What a listing found is removed when its file is next written.
+void removeStaleTemporaries(const fs::path& dir, const fs::path& path) {
+  constexpr std::chrono::seconds kListAgainAfter{60};
+  // Never destroyed: a write may still run on another thread while the process exits.
+  static std::mutex& mutex = *new std::mutex;
+  static std::map<std::string, FolderSweep>& folders = *new std::map<std::string, FolderSweep>;
   std::error_code ec;
-  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
-    const long pid = temporaryWriter(it->path().filename().string());
-    if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH) {
-      std::error_code ignored;
-      fs::remove_all(it->path(), ignored);  // a temporary file, or a staging folder
+  const fs::path absolute = fs::absolute(dir, ec);
+  const std::string key = (ec ? dir : absolute.lexically_normal()).string();
+  const std::string prefix = temporaryPrefix(path);
+  std::vector<std::string> remove;
+  {
+    const std::lock_guard<std::mutex> lock(mutex);
+    const auto now = std::chrono::steady_clock::now();
+    auto [it, fresh] = folders.try_emplace(key);
+    FolderSweep& sweep = it->second;
+    if (fresh || now - sweep.listed_at >= kListAgainAfter) {
+      sweep = FolderSweep{now, {}};
+      for (fs::directory_iterator e(dir, ec), end; !ec && e != end; e.increment(ec)) {
+        if (auto stale = staleTemporary(e->path().filename().string())) sweep.stale.push_back(std::move(*stale));
+      }
     }
+    std::erase_if(sweep.stale, [&](const StaleTemporary& t) {
+      if (t.prefix != prefix) return false;
+      remove.push_back(t.name);
+      return true;
+    });
+  }
+  for (const std::string& name : remove) {
+    std::error_code ignored;
+    fs::remove_all(dir / name, ignored);  // a temporary file, or a staging folder
   }
 }
 
@@ -251,7 +287,7 @@ void writeFileAtomic(const fs::path& link_or_path, const std::vector<uint8_t>& b
   const fs::path path = followLinks(link_or_path);
   refuseNonRegularFile(path);
   const fs::path dir = parentOf(path);
-  removeStaleTemporaries(dir);
+  removeStaleTemporaries(dir, path);
   const fs::path tmp = temporaryBeside(path);
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
   if (fd < 0) {
@@ -467,7 +503,7 @@ StagedFolder::StagedFolder(const fs::path& destination) : destination_(followLin
   }
   fs::create_directories(dir, ec);
   if (ec) throw IoError(dir.string() + ": cannot create folder (" + ec.message() + ")");
-  removeStaleTemporaries(dir);
+  removeStaleTemporaries(dir, destination_);
   staging_ = temporaryBeside(destination_);
   if (!fs::create_directory(staging_, ec) || ec) {
     throw IoError(destination.string() + ": cannot create a folder beside it (" +

@@ -125,35 +125,49 @@ TEST(WriteFile, OnlyRegularFilesAreReplaced) {
   EXPECT_NO_THROW(checkOutputs({{folder, "-o", true}, {tmp / "new", "--other", true}}, {}));
 }
 
-// What killed writers left in a folder (".NAME.tmp-PID-RANDOM", files or staging folders, of
-// any NAME, PID a process that no longer exists) is removed the first time this process writes
-// into the folder; what a live process is writing, and names of other forms, stay. Later writes
-// into the same folder do not list it again (a tiled map's folder holds thousands of files).
-TEST(WriteFile, AKilledWritersTemporariesAreSweptOnTheFirstWriteIntoTheirFolder) {
+// What killed writers of a file left beside it (".NAME.tmp-PID-RANDOM", files or staging
+// folders, PID a process that no longer exists) is removed when the file is written; what live
+// processes are writing, other files' temporaries and names of other forms stay. The folder is
+// listed once a minute at most (a tiled map's folder holds thousands of files): what the listing
+// found goes when its own file is written, and what turns up after it waits for the next listing.
+TEST(WriteFile, AKilledWritersTemporariesGoWhenItsFileIsWritten) {
   test::TempDir tmp;
-  const std::string dead = "4194304";  // above any Linux pid (PID_MAX_LIMIT is 2^22)
-  const std::string alive = std::to_string(::getpid());
-  const std::vector<std::string> stale = {".a.cmap.tmp-" + dead + "-77", ".b.png.tmp-" + dead + "-1",
-                                          ".x.tmp-9.cmap.tmp-" + dead + "-5"};
-  const std::vector<std::string> kept = {".a.cmap.tmp-" + alive + "-78", "a.cmap.tmp-" + dead + "-2",
-                                         ".a.cmap.tmp-" + dead, ".a.cmap.tmp--3", ".a.cmap.tmp-x1-3", "notes.txt"};
-  for (const std::string& name : stale) test::writeBytes(tmp / name, std::string("part"));
-  fs::create_directories(tmp / (".folder.tmp-" + dead + "-4") / "inside");  // a staging folder
+  const std::string dead = "4194304";  // no Linux pid (they stay below PID_MAX_LIMIT, 2^22)
+  const std::string self = std::to_string(::getpid()), parent = std::to_string(::getppid());
+  const std::vector<std::string> stale = {".c.cmap.tmp-" + dead + "-77", ".c.cmap.tmp-" + dead + "-4"};
+  const std::vector<std::string> kept = {".c.cmap.tmp-" + self + "-78", ".c.cmap.tmp-" + parent + "-79",
+                                         "c.cmap.tmp-" + dead + "-2",   ".c.cmap.tmp-" + dead,
+                                         ".c.cmap.tmp--3",              ".c.cmap.tmp-x1-3",
+                                         ".c.cmap.tmp-" + dead + "-5a", ".c.cmap.tmp-94194304-5",
+                                         "notes.txt"};
+  const std::string other = ".b.png.tmp-" + dead + "-1", nested = ".x.tmp-9.cmap.tmp-" + dead + "-5";
+  test::writeBytes(tmp / stale[0], std::string("part"));
+  fs::create_directories(tmp / stale[1] / "inside");  // a staging folder
   for (const std::string& name : kept) test::writeBytes(tmp / name, std::string("keep"));
+  test::writeBytes(tmp / other, std::string("part"));
+  test::writeBytes(tmp / nested, std::string("part"));
   writeFileAtomic(tmp / "c.cmap", {1, 2, 3});
   for (const std::string& name : stale) EXPECT_FALSE(fs::exists(tmp / name)) << name;
-  EXPECT_FALSE(fs::exists(tmp / (".folder.tmp-" + dead + "-4")));
   for (const std::string& name : kept) EXPECT_TRUE(fs::exists(tmp / name)) << name;
+  EXPECT_TRUE(fs::exists(tmp / other));
+  EXPECT_TRUE(fs::exists(tmp / nested));
   EXPECT_EQ(readFileBytes(tmp / "c.cmap"), (std::vector<uint8_t>{1, 2, 3}));
-  // Swept once: a temporary that turns up later stays until another process writes there.
+  // The other files' temporaries go with their files, from the same listing.
+  writeFileAtomic(tmp / "b.png", {4});
+  EXPECT_FALSE(fs::exists(tmp / other));
+  writeFileAtomic(tmp / "x.tmp-9.cmap", {5});
+  EXPECT_FALSE(fs::exists(tmp / nested));
+  // One that turns up after the listing waits for the next one.
   test::writeBytes(tmp / (".d.cmap.tmp-" + dead + "-6"), std::string("part"));
-  writeFileAtomic(tmp / "d.cmap", {4});
+  writeFileAtomic(tmp / "d.cmap", {6});
   EXPECT_TRUE(fs::exists(tmp / (".d.cmap.tmp-" + dead + "-6")));
-  // Another folder is swept on its own first write.
-  fs::create_directories(tmp / "sub");
-  test::writeBytes(tmp / "sub" / (".e.cmap.tmp-" + dead + "-7"), std::string("part"));
-  writeFileAtomic(tmp / "sub" / "e.cmap", {5});
-  EXPECT_FALSE(fs::exists(tmp / "sub" / (".e.cmap.tmp-" + dead + "-7")));
+  for (const std::string& name : kept) EXPECT_TRUE(fs::exists(tmp / name)) << name;
+  // A staged folder's destination: a dead writer's staging folder goes when a new one starts.
+  fs::create_directories(tmp / "sub" / (".out.tmp-" + dead + "-8") / "inside");
+  {
+    const StagedFolder staged(tmp / "sub" / "out");
+    EXPECT_FALSE(fs::exists(tmp / "sub" / (".out.tmp-" + dead + "-8")));
+  }
 }
 
 TEST(WriteFile, OutputsOfOneCommandMayNotNameEachOtherOrAnInput) {
