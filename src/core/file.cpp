@@ -189,12 +189,14 @@ struct StaleTemporary {
 /// `name` as a StaleTemporary when it has the exact form temporaryBeside gives,
 /// ".NAME.tmp-PID-RANDOM" (PID and RANDOM decimal), and process PID does not exist.
 std::optional<StaleTemporary> staleTemporary(const std::string& name) {
-  if (name.size() < 2 || name[0] != '.') return std::nullopt;
-  const size_t dash = name.rfind('-');
-  const size_t at = name.rfind(".tmp-", dash == std::string::npos || dash == 0 ? 0 : dash - 1);
-  if (dash == std::string::npos || at == std::string::npos || at == 0 || at + 5 > dash) return std::nullopt;
-  const std::string_view pid_text = std::string_view(name).substr(at + 5, dash - at - 5);
-  if (!allDigits(pid_text, 7) || !allDigits(std::string_view(name).substr(dash + 1), 8)) return std::nullopt;
+  // PID and RANDOM hold no ".tmp-": the last one in the name ends NAME.
+  const size_t at = name.rfind(".tmp-");
+  if (at == std::string::npos || at == 0 || name[0] != '.') return std::nullopt;
+  const std::string_view rest = std::string_view(name).substr(at + 5);  // "PID-RANDOM"
+  const size_t dash = rest.find('-');
+  if (dash == std::string_view::npos) return std::nullopt;
+  const std::string_view pid_text = rest.substr(0, dash);
+  if (!allDigits(pid_text, 7) || !allDigits(rest.substr(dash + 1), 8)) return std::nullopt;
   const long pid = std::strtol(std::string(pid_text).c_str(), nullptr, 10);
   if (pid <= 0 || pid > 4194304 || ::kill(static_cast<pid_t>(pid), 0) == 0 || errno != ESRCH) return std::nullopt;
   return StaleTemporary{name, name.substr(0, at + 5)};

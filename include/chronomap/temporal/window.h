@@ -33,9 +33,9 @@ TemporalMap historyWindow(const TemporalMap& map, const TemporalMap::Parts& part
 /// or more), window j > 0 continues window j - 1 (its session 0 carrying the states of session
 /// f + (j - 1)·k - 1) and holds sessions [f + (j - 1)·k, f + j·k); the last may hold fewer.
 /// Each has `map`'s tree without the lists first observed after its last session (and the inner
-/// nodes left without children), so that joinWindows gives `map` back bit for bit, and its snapshot at
-/// any of its sessions is `map`'s, node for node. The sessions keep their records (coverage
-/// included) but for the carried session 0, whose coverage is left out.
+/// nodes left without children), so that joinWindows gives `map` back bit for bit, and its
+/// snapshot at any of its sessions is `map`'s, node for node. The sessions keep their records
+/// (coverage included) but for the carried session 0, whose coverage is left out.
 /// @throw UsageError when k is 0 or `map` holds no session.
 std::vector<TemporalMap> windowsOf(const TemporalMap& map, uint32_t k, uint32_t first_k = 0);
 
