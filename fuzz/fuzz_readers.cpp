@@ -51,9 +51,23 @@ using namespace chronomap;
 /// Both bag readers read files: the input goes to a file of this process (named with
 /// `extension`), then through the listing and the dataset reader (topics detected, poses from a
 /// pose topic or /tf into "map"), loading the first frames.
+/// The file of this process's inputs, removed when the process ends (libFuzzer's time limit
+/// and the input list both end in exit(), which runs this destructor).
+struct FuzzFile {
+  std::filesystem::path path;
+  explicit FuzzFile(const char* extension)
+      : path(std::filesystem::temp_directory_path() / ("chronomap-fuzz-" + std::to_string(::getpid()) + extension)) {}
+  ~FuzzFile() {
+    std::error_code ignored;
+    std::filesystem::remove(path, ignored);
+  }
+  FuzzFile(const FuzzFile&) = delete;
+  FuzzFile& operator=(const FuzzFile&) = delete;
+};
+
 void fuzzBagFile(const std::vector<uint8_t>& bytes, const char* extension, const char* format) {
-  static const std::filesystem::path path =
-      std::filesystem::temp_directory_path() / ("chronomap-fuzz-" + std::to_string(::getpid()) + extension);
+  static const FuzzFile file(extension);
+  const std::filesystem::path& path = file.path;
   std::ofstream(path, std::ios::binary | std::ios::trunc)
       .write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
   registerRosReaders();
