@@ -299,7 +299,8 @@ inline WeeksSim readWeeks(const std::filesystem::path& dir, int learn_days) {
 // The registration of `chronomap build --register` (RegistrationSettings{}), or the one
 // CHRONOMAP_BENCH_REGISTER names: comma-separated words, "recommended" first if at all (the
 // README's pipeline, recommendedRegistration()), then changes to it: "radius=V", "knots=F",
-// "yaw=DEG", "rounds=N", "drift-rounds=N", "fine=V", "planar", "points", "keep-mean" (as build's
+// "path=M" (knots every M metres of path instead of frames; "path-m=S", "path-yaw=DEG" its prior
+// per square root of a metre), "yaw=DEG", "rounds=N", "drift-rounds=N", "fine=V", "planar", "points", "keep-mean" (as build's
 // --register-radius, --register-drift, --register-drift-yaw, --register-rounds,
 // --register-drift-rounds, --register-fine-radius, --register-planar, --register-points,
 // --register-keep-mean).
@@ -328,6 +329,14 @@ inline RegistrationSettings benchRegistration() {
       r.align.radius_voxels = value;
     } else if (key == "knots") {
       r.align.drift_knot_frames = static_cast<int>(value);
+      r.align.drift_knot_m = 0.0;
+    } else if (key == "path") {
+      r.align.drift_knot_m = value;
+      r.align.drift_knot_frames = 0;
+    } else if (key == "path-m") {
+      r.align.drift_per_m = value;
+    } else if (key == "path-yaw") {
+      r.align.drift_yaw_per_m_deg = value;
     } else if (key == "yaw") {
       r.align.drift_yaw_per_frame_deg = value;
     } else if (key == "rounds") {

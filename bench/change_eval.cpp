@@ -33,6 +33,9 @@
 //                  of drift correction (RegisterSettings; defaults as the library's)
 //   --fine-radius R  the neighbourhood of the drift rounds after the first
 //                  (RegisterSettings::fine_radius_voxels, as `build --register-fine-radius`)
+//   --drift-path M  knots every M metres of the sensor's path instead (as `build --register
+//                  --register-drift-path M`); --drift-path-m S, --drift-path-yaw DEG its prior per
+//                  square root of a metre (RegisterSettings::drift_per_m, drift_yaw_per_m_deg)
 //   --drift-per-frame M, --drift-yaw-per-frame DEG  the drift fit's smoothness prior: the random
 //                  walk's step per frame (RegisterSettings::drift_per_frame_m, _yaw_per_frame_deg)
 //   --nightly      also register the sessions one at a time in time order, each against the
@@ -323,10 +326,14 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
     const SessionMap avg = consensus(std::span<const SessionMap>(registered));
     for (const SessionMap& m : registered) realigned.push_back(realign(m, avg));
   }
+  char path_knots[96];
+  std::snprintf(path_knots, sizeof path_knots, "%.2f m of path (prior %.3f m, %.2f deg per m^0.5)", reg.drift_knot_m,
+                reg.drift_per_m, reg.drift_yaw_per_m_deg);
   const std::string drift =
-      reg.drift_knot_frames > 0 ? ", then " + std::to_string(reg.drift_rounds) + " rounds of drift knots every " +
-                                      std::to_string(reg.drift_knot_frames) + " frames"
-                                : "";
+      !reg.drift() ? ""
+                   : ", then " + std::to_string(reg.drift_rounds) + " rounds of drift knots every " +
+                         (reg.drift_knot_m > 0.0 ? std::string(path_knots)
+                                                 : std::to_string(reg.drift_knot_frames) + " frames");
   const std::string options =
       std::string(reg.planar ? ", planar" : "") + (reg.drift_points ? ", drift on points" : "") +
       (reg.fine_radius_voxels > 0.0 ? ", later drift rounds at " + std::to_string(reg.fine_radius_voxels).substr(0, 4) + " voxels" : "") +
@@ -626,6 +633,14 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--drift-knots") && i + 1 < argc) {
       reg.drift_knot_frames = std::atoi(argv[++i]);
+      reg.drift_knot_m = 0.0;
+    } else if (!std::strcmp(argv[i], "--drift-path") && i + 1 < argc) {
+      reg.drift_knot_m = std::atof(argv[++i]);
+      reg.drift_knot_frames = 0;
+    } else if (!std::strcmp(argv[i], "--drift-path-m") && i + 1 < argc) {
+      reg.drift_per_m = std::atof(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--drift-path-yaw") && i + 1 < argc) {
+      reg.drift_yaw_per_m_deg = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--register-radius") && i + 1 < argc) {
       reg.radius_voxels = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--drift-rounds") && i + 1 < argc) {

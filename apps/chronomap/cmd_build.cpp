@@ -192,6 +192,7 @@ struct BuildCmdOptions {
   int register_rounds = 3;
   std::string register_model = "world";
   int register_drift = 0;
+  std::optional<double> register_drift_path;
   std::optional<double> register_radius;  // given or not: the flags that need another say so
   bool register_planar = false;
   bool register_points = false;
@@ -214,25 +215,38 @@ void setDriftSettings(const BuildCmdOptions& o, RegisterSettings& align) {
   }
   if (o.register_drift > 0 && !o.register_sessions) throw UsageError("--register-drift needs --register");
   align.drift_knot_frames = o.register_drift;
+  if (o.register_drift_path) {
+    if (!(*o.register_drift_path > 0.0 && *o.register_drift_path <= 1000.0)) {
+      throw UsageError("--register-drift-path must be a distance in (0, 1000] metres");
+    }
+    if (!o.register_sessions) throw UsageError("--register-drift-path needs --register");
+    if (o.register_drift > 0) throw UsageError("--register-drift and --register-drift-path: give one of them");
+    align.drift_knot_m = *o.register_drift_path;
+  }
+  const bool drift = align.drift();
   if (o.register_drift_yaw) {
     if (!(*o.register_drift_yaw > 0.0 && *o.register_drift_yaw <= 10.0)) {
       throw UsageError("--register-drift-yaw must lie in (0, 10] degrees per frame");
     }
-    if (o.register_drift <= 0) throw UsageError("--register-drift-yaw needs --register-drift");
+    if (o.register_drift <= 0) {
+      throw UsageError(o.register_drift_path ? "--register-drift-yaw is per frame, for --register-drift; with "
+                                               "--register-drift-path the prior is per metre travelled"
+                                             : "--register-drift-yaw needs --register-drift");
+    }
     align.drift_yaw_per_frame_deg = *o.register_drift_yaw;
   }
   if (o.register_drift_rounds) {
     if (*o.register_drift_rounds < 1 || *o.register_drift_rounds > 10) {
       throw UsageError("--register-drift-rounds must lie in [1, 10]");
     }
-    if (o.register_drift <= 0) throw UsageError("--register-drift-rounds needs --register-drift");
+    if (!drift) throw UsageError("--register-drift-rounds needs --register-drift or --register-drift-path");
     align.drift_rounds = *o.register_drift_rounds;
   }
   if (o.register_fine_radius) {
     if (!(*o.register_fine_radius >= 1.0 && *o.register_fine_radius <= 8.0)) {
       throw UsageError("--register-fine-radius must lie in [1, 8] voxels");
     }
-    if (o.register_drift <= 0) throw UsageError("--register-fine-radius needs --register-drift");
+    if (!drift) throw UsageError("--register-fine-radius needs --register-drift or --register-drift-path");
     align.fine_radius_voxels = *o.register_fine_radius;
   }
 }
@@ -252,7 +266,9 @@ std::optional<RegistrationSettings> registrationSettings(const BuildCmdOptions& 
     s.align.radius_voxels = *o.register_radius;
   }
   if (o.register_planar && !o.register_sessions) throw UsageError("--register-planar needs --register");
-  if (o.register_points && o.register_drift <= 0) throw UsageError("--register-points needs --register-drift");
+  if (o.register_points && !s.align.drift()) {
+    throw UsageError("--register-points needs --register-drift or --register-drift-path");
+  }
   s.align.planar = o.register_planar;
   s.align.drift_points = o.register_points;
   if (o.register_keep_mean && !o.register_sessions) throw UsageError("--register-keep-mean needs --register");
@@ -479,17 +495,22 @@ void addRegisterFlags(CLI::App* app, BuildCmdOptions& o) {
                   "after the rigid rounds, also correct each session's drift: every frame gets its own position and "
                   "heading correction, linear between knots this many frames apart (0: none; docs/realign.md)")
       ->capture_default_str();
+  app->add_option("--register-drift-path", o.register_drift_path,
+                  "the drift correction with knots every this many metres of the sensor's path instead of every N "
+                  "frames (an odometry drifts with the distance travelled: a stop's frames share one correction), "
+                  "its prior 1 cm and 0.2 degrees per square root of a metre; not with --register-drift "
+                  "(docs/realign.md has the figures)");
   app->add_option("--register-drift-yaw", o.register_drift_yaw,
                   "the drift fit's smoothness: how far (degrees) the heading error may wander from one frame to the "
                   "next, in (0, 10] (default 0.01), needs --register-drift; larger follows an odometry's heading drift "
                   "more closely (docs/changes.md has the figures)");
   app->add_option("--register-drift-rounds", o.register_drift_rounds,
                   "rounds of drift correction, each against the consensus the previous one left, in [1, 10] (default "
-                  "2); needs --register-drift");
+                  "2); needs --register-drift or --register-drift-path");
   app->add_option("--register-fine-radius", o.register_fine_radius,
                   "the neighbourhood (voxels, in [1, 8]) of the drift rounds after the first: a wide --register-radius "
                   "reaches a large drift, a narrower one refines once the sessions lie close (without it: "
-                  "--register-radius throughout; docs/changes.md has the figures); needs --register-drift");
+                  "--register-radius throughout; docs/changes.md has the figures); needs --register-drift or --register-drift-path");
   app->add_option("--register-rounds", o.register_rounds,
                   "registration rounds, each against the consensus the previous one left")
       ->capture_default_str();

@@ -31,6 +31,16 @@ void RegisterSettings::validate() const {
   if (drift_knot_frames < 0 || drift_knot_frames > 1000000) {
     throw UsageError("registration: the drift knot spacing must lie in [0, 1000000] frames");
   }
+  if (!std::isfinite(drift_knot_m) || drift_knot_m < 0.0 || drift_knot_m > 1000.0) {
+    throw UsageError("registration: the drift knot spacing along the path must lie in [0, 1000] m");
+  }
+  if (drift_knot_frames > 0 && drift_knot_m > 0.0) {
+    throw UsageError("registration: drift knots either by frames or along the path, not both");
+  }
+  if (!std::isfinite(drift_per_m) || drift_per_m <= 0.0 || !std::isfinite(drift_yaw_per_m_deg) ||
+      drift_yaw_per_m_deg <= 0.0) {
+    throw UsageError("registration: the drift per metre must be > 0");
+  }
   if (drift_rounds < 1 || drift_rounds > 10) throw UsageError("registration: drift rounds must lie in [1, 10]");
   if (!std::isfinite(fine_radius_voxels) || (fine_radius_voxels != 0.0 && (fine_radius_voxels < 1.0 || fine_radius_voxels > 8.0))) {
     throw UsageError("registration: the fine radius must be 0 (none) or lie in [1, 8] voxels");
@@ -622,16 +632,42 @@ void keyPointsAndSamplesOf(const Frame& f, uint32_t index, const RegistrationTar
   }
 }
 
-// Drift knots: frame i lies at u = i / spacing between knots floor(u) and floor(u) + 1, each
-// with kDriftDof unknowns (x, y, z offset and yaw).
+// Drift knots: frame i lies at u[i] (in knot spacings: i / spacing by frames, the path to the
+// frame over the spacing in metres along the path) between knots floor(u) and floor(u) + 1,
+// each with kDriftDof unknowns (x, y, z offset and yaw).
 constexpr int kDriftDof = 4;
 struct DriftKnots {
-  size_t spacing = 1;
+  size_t spacing = 0;     // knots by frames: every `spacing` frames
+  std::vector<double> u;  // knots by path: u per frame, non-decreasing, u[0] = 0
   size_t count = 0;
+  /// Knots every `spacing` frames.
+  static DriftKnots byFrames(size_t n_frames, size_t spacing) {
+    DriftKnots k;
+    k.spacing = spacing;
+    k.count = (n_frames - 1) / spacing + 2;
+    return k;
+  }
+  /// Knots every `spacing_m` metres along the path through `sensors` (a frame at the same place
+  /// as the one before lies at the same u).
+  static DriftKnots byPath(const std::vector<Eigen::Vector3d>& sensors, double spacing_m) {
+    DriftKnots k;
+    k.u.assign(sensors.size(), 0.0);
+    double path = 0.0;
+    for (size_t i = 1; i < sensors.size(); ++i) {
+      path += (sensors[i] - sensors[i - 1]).norm();
+      k.u[i] = path / spacing_m;
+    }
+    k.count = static_cast<size_t>(k.u.back()) + 2;
+    return k;
+  }
   /// Frame i's first knot and its weight on the second.
   std::pair<size_t, double> of(size_t i) const {
-    const size_t k = i / spacing;
-    return std::pair<size_t, double>{k, static_cast<double>(i - k * spacing) / static_cast<double>(spacing)};
+    if (spacing > 0) {
+      const size_t k = i / spacing;
+      return std::pair<size_t, double>{k, static_cast<double>(i - k * spacing) / static_cast<double>(spacing)};
+    }
+    const size_t k = std::min(static_cast<size_t>(u[i]), count - 2);
+    return std::pair<size_t, double>{k, u[i] - static_cast<double>(k)};
   }
 };
 
@@ -738,18 +774,21 @@ std::vector<Eigen::Isometry3d> solveDrift(const std::vector<Eigen::Vector3d>& se
   std::vector<Eigen::Isometry3d> out(n_frames, Eigen::Isometry3d::Identity());
   RegisterReport rep;
   rep.points = samples.size();
-  DriftKnots knots;
-  knots.spacing = static_cast<size_t>(settings.drift_knot_frames);
-  knots.count = (n_frames - 1) / knots.spacing + 2;
+  const bool by_path = settings.drift_knot_m > 0.0;
+  const DriftKnots knots = by_path ? DriftKnots::byPath(sensors, settings.drift_knot_m)
+                                   : DriftKnots::byFrames(n_frames, static_cast<size_t>(settings.drift_knot_frames));
   constexpr int kDof = kDriftDof;
   const int dim = static_cast<int>(knots.count) * kDof;
-  // The prior: knot differences of a random walk over `spacing` frames, against a pull noise of
-  // half a voxel (both in the least-squares units of the data).
+  // The prior: knot differences of a random walk over one spacing (`spacing` frames, or
+  // drift_knot_m metres of path), against a pull noise of half a voxel (both in the
+  // least-squares units of the data).
   const double noise = 0.5 * grid.resolution_m();
-  const double yaw_step = settings.drift_yaw_per_frame_deg * std::numbers::pi / 180.0;
-  const double lambda_t = noise * noise / (static_cast<double>(knots.spacing) * settings.drift_per_frame_m *
-                                           settings.drift_per_frame_m);
-  const double lambda_yaw = noise * noise / (static_cast<double>(knots.spacing) * yaw_step * yaw_step);
+  const double spacing = by_path ? settings.drift_knot_m : static_cast<double>(settings.drift_knot_frames);
+  const double step_m = by_path ? settings.drift_per_m : settings.drift_per_frame_m;
+  const double yaw_step =
+      (by_path ? settings.drift_yaw_per_m_deg : settings.drift_yaw_per_frame_deg) * std::numbers::pi / 180.0;
+  const double lambda_t = noise * noise / (spacing * step_m * step_m);
+  const double lambda_yaw = noise * noise / (spacing * yaw_step * yaw_step);
   const double lambda[kDof] = {lambda_t, lambda_t, lambda_t, lambda_yaw};
   Eigen::VectorXd x = Eigen::VectorXd::Zero(dim);
   // Frame i's offset and yaw: its two knots' values, linearly interpolated.
@@ -797,7 +836,7 @@ std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const Session
                                         const RegistrationTarget& target, const RegisterSettings& settings,
                                         RegisterReport* report) {
   settings.validate();
-  if (settings.drift_knot_frames < 1) throw UsageError("registration: the drift knot spacing must be >= 1 frame");
+  if (!settings.drift()) throw UsageError("registration: the drift knot spacing must be >= 1 frame or > 0 m of path");
   if (session.resolution_m() != target.resolution_m()) {
     throw UsageError("registration: the session and the consensus have different resolutions");
   }
@@ -903,7 +942,7 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
   if (per_pose && sensor_positions.size() != sessions.size()) {
     throw UsageError("registration per pose needs the sensor positions of every session");
   }
-  if (settings.drift_knot_frames > 0 && !frames) {
+  if (settings.drift() && !frames) {
     throw UsageError("registration with drift needs the frames of every session");
   }
   std::vector<PoseCorrection> corrections(sessions.size(),
@@ -937,10 +976,10 @@ std::vector<PoseCorrection> registerSessions(std::vector<SessionMap>& sessions, 
         (*reports)[k].mean_shift_after_m = r.mean_shift_after_m;
       }
     }
-    const bool last = round + 1 == rounds && settings.drift_knot_frames == 0;
+    const bool last = round + 1 == rounds && !settings.drift();
     parallelFor(sessions.size(), 0, [&](size_t k) { sessions[k] = reintegrate(k, corrections[k], last); });
   }
-  if (settings.drift_knot_frames > 0) {
+  if (settings.drift()) {
     for (int round = 0; round < settings.drift_rounds; ++round) {
       RegisterSettings now = settings;
       if (round > 0 && settings.fine_radius_voxels > 0.0) now.radius_voxels = settings.fine_radius_voxels;

@@ -725,6 +725,30 @@ TEST(SimulatorCli, SimulateAndBuildWithRegistration) {
                 std::abs(kept["added"][0]["registration_m"][1].get<double>()),
             1e-4);  // the sessions did move against each other
   for (const auto& a : kept["added"]) EXPECT_TRUE(a.contains("drift_correction_max_m"));
+  // Drift knots along the sensor's path instead of by frames.
+  r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "path.cmap").string() + " " +
+                       (tmp / "sim" / "session_00").string() + " " + (tmp / "sim" / "session_01").string() +
+                       " --fast --json --register --register-rounds 1 --register-planar --register-points"
+                       " --register-drift-path 0.5 --register-drift-rounds 1");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const auto path = nlohmann::json::parse(r.out);
+  ASSERT_EQ(path["added"].size(), 2u);
+  for (const auto& a : path["added"]) {
+    ASSERT_TRUE(a.contains("drift_correction_max_m"));
+    EXPECT_LT(a["drift_correction_max_m"].get<double>(), 0.2);
+  }
+  for (const auto& [bad, flag] : std::vector<std::pair<const char*, const char*>>{
+           {" --register-drift-path 1", "--register-drift-path needs --register"},
+           {" --register --register-drift 5 --register-drift-path 1", "give one of them"},
+           {" --register --register-drift-path 0", "--register-drift-path must"},
+           {" --register --register-drift-path nan", "--register-drift-path"},
+           {" --register --register-drift-path 1 --register-drift-yaw 0.05", "per metre"}}) {
+    r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "n.cmap").string() + " " +
+                         (tmp / "sim" / "session_00").string() + bad);
+    EXPECT_EQ(r.exit_code, 2) << bad;
+    EXPECT_NE(r.err.find(flag), std::string::npos) << bad << ": " << r.err;
+    EXPECT_FALSE(fs::exists(tmp / "n.cmap"));
+  }
   for (const auto& [bad, flag] : std::vector<std::pair<const char*, const char*>>{
            {" --register-planar", "--register-planar"}, {" --register --register-points", "--register-points"},
            {" --register-cache 1", "--register-cache"}, {" --register-keep-mean", "--register-keep-mean"}}) {

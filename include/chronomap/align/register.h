@@ -48,6 +48,19 @@ struct RegisterSettings {
   /// a position offset and a heading turn about the frame's position that vary linearly between
   /// knots this many frames apart (0: no drift correction). fitDrift() has the details.
   int drift_knot_frames = 0;
+  /// Drift knots along the sensor's path instead (metres travelled between knots; 0: by frames,
+  /// drift_knot_frames; not both). An odometry drifts with the distance travelled, not with the
+  /// frames recorded: a robot that stops, looks round and moves on keeps one error over a stop's
+  /// frames and gains more over each move. Knots by path give a stop's frames one correction and
+  /// a long move several knots, with the prior per metre (drift_per_m, drift_yaw_per_m_deg)
+  /// instead of per frame. docs/realign.md has the figures.
+  double drift_knot_m = 0.0;
+  /// The smoothness prior of knots by path: the random walk of the localisation error per
+  /// square root of a metre travelled (metres and degrees).
+  double drift_per_m = 0.01;
+  double drift_yaw_per_m_deg = 0.2;
+  /// Whether the drift is corrected at all (knots by frames or by path).
+  bool drift() const { return drift_knot_frames > 0 || drift_knot_m > 0.0; }
   /// Rounds of drift correction, each against the consensus the previous round left.
   int drift_rounds = 2;
   /// The neighbourhood (voxels) of the drift rounds after the first (0: radius_voxels in every
@@ -154,11 +167,12 @@ Eigen::Isometry3d registerToConsensus(const SessionMap& session, const Registrat
 /// target's surface as in registerToConsensus(), relative to the pull of the frame's own voxels,
 /// along the frame surface's normal where that is a plane; `session` gives the voxel grid
 /// (its resolution must be the target's). The unknowns are a position
-/// offset and a yaw at knots every drift_knot_frames frames, linear in between, fitted by least
-/// squares along each pull with a random-walk prior on the differences of neighbouring knots
-/// (drift_per_frame_m, drift_yaw_per_frame_deg; a pull's noise taken as half a voxel), so
-/// stretches of a session that see little are carried by their neighbours.
-/// @throw UsageError for bad settings (drift_knot_frames < 1 included) or resolutions that differ;
+/// offset and a yaw at knots every drift_knot_frames frames (or every drift_knot_m metres of the
+/// sensor's path as the frames give it), linear in between, fitted by least squares along each
+/// pull with a random-walk prior on the differences of neighbouring knots (drift_per_frame_m and
+/// drift_yaw_per_frame_deg, or drift_per_m and drift_yaw_per_m_deg; a pull's noise taken as half
+/// a voxel), so stretches of a session that see little are carried by their neighbours.
+/// @throw UsageError for bad settings (no drift knots included) or resolutions that differ;
 /// whatever frames.load throws.
 std::vector<Eigen::Isometry3d> fitDrift(const FrameSource& frames, const SessionMap& session,
                                         const RegistrationTarget& target, const RegisterSettings& settings,
@@ -178,7 +192,7 @@ using Reintegrate = std::function<SessionMap(size_t index, const PoseCorrection&
 /// again with its correction after every round. `sessions` are replaced by the re-integrated
 /// ones. Sessions are registered and integrated in parallel; the result does not depend on the
 /// thread count. `sensor_positions`: each session's sensor positions as first integrated
-/// (required by the PerPose model, ignored by World). With settings.drift_knot_frames > 0,
+/// (required by the PerPose model, ignored by World). With settings.drift(),
 /// drift_rounds more rounds follow, each fitting every session's drift (fitDrift()) on the
 /// frames `frames` gives, corrected as integrated last, and integrating it again.
 /// `prior`, when given, is the consensus of sessions registered before (a tiled map's stored
