@@ -127,8 +127,54 @@ inline PoseError poseError(const std::filesystem::path& dir, const PoseCorrectio
   return e;
 }
 
+// How far the sessions lie from each other, which is what the change rules see (an error all
+// sessions share moves the whole map and changes nothing): over every pair of frames of two
+// different sessions whose true positions lie within 0.5 m of each other, the root mean square
+// of the difference of their position errors (horizontal) and of their heading errors.
+struct RelativePoseError {
+  double rms_m = 0.0;
+  double heading_deg = 0.0;
+  size_t pairs = 0;
+};
+
+inline RelativePoseError relativePoseError(const std::vector<std::filesystem::path>& dirs,
+                                           const std::vector<PoseCorrection>& corrections) {
+  struct Sample {
+    Eigen::Vector2d truth, error;
+    double yaw = 0.0;
+    size_t session = 0;
+  };
+  std::vector<Sample> all;
+  for (size_t k = 0; k < dirs.size() && k < corrections.size(); ++k) {
+    const auto estimated = openDataset(dirs[k]);
+    DatasetSettings truth_options;
+    truth_options.trajectory = dirs[k] / "groundtruth.txt";
+    const auto truth = openDataset(dirs[k], truth_options);
+    for (size_t i = 0; i < std::min(estimated->size(), truth->size()); ++i) {
+      const Eigen::Isometry3d a = corrections[k].apply(estimated->poseOf(i), i), b = truth->poseOf(i);
+      const Eigen::Vector3d za = a.linear().col(2), zb = b.linear().col(2);
+      all.push_back({b.translation().head<2>(), (a.translation() - b.translation()).head<2>(),
+                     std::atan2(zb.x() * za.y() - zb.y() * za.x(), zb.x() * za.x() + zb.y() * za.y()), k});
+    }
+  }
+  RelativePoseError r;
+  double position = 0.0, heading = 0.0;
+  for (size_t i = 0; i < all.size(); ++i) {
+    for (size_t j = i + 1; j < all.size(); ++j) {
+      if (all[i].session == all[j].session || (all[i].truth - all[j].truth).squaredNorm() > 0.25) continue;
+      position += (all[i].error - all[j].error).squaredNorm();
+      heading += (all[i].yaw - all[j].yaw) * (all[i].yaw - all[j].yaw);
+      ++r.pairs;
+    }
+  }
+  if (r.pairs == 0) return r;
+  r.rms_m = std::sqrt(position / static_cast<double>(r.pairs));
+  r.heading_deg = std::sqrt(heading / static_cast<double>(r.pairs)) * 180.0 / M_PI;
+  return r;
+}
+
 // Prints one table row per session: its pose errors before (estimated poses) and after the
-// correction, in millimetres and degrees.
+// correction, in millimetres and degrees; then the sessions against each other.
 inline void printPoseErrors(const std::vector<std::filesystem::path>& dirs,
                             const std::vector<PoseCorrection>& corrections) {
   std::printf("\nposes against the truth per session (mm; offset = mean error, spread = rms about it):\n");
@@ -142,6 +188,12 @@ inline void printPoseErrors(const std::vector<std::filesystem::path>& dirs,
                 1e3 * a.mean_offset_m.x(), 1e3 * a.mean_offset_m.y(), 1e3 * a.mean_offset_m.z(), 1e3 * a.spread_m,
                 1e3 * a.max_m, b.mean_yaw_deg, a.mean_yaw_deg);
   }
+  const RelativePoseError before =
+      relativePoseError(dirs, std::vector<PoseCorrection>(std::min(dirs.size(), corrections.size())));
+  const RelativePoseError after = relativePoseError(dirs, corrections);
+  std::printf("sessions against each other (frames of two sessions within 0.5 m, %zu pairs): rms %.1f mm and "
+              "%.3f deg before, %.1f mm and %.3f deg after\n",
+              after.pairs, 1e3 * before.rms_m, before.heading_deg, 1e3 * after.rms_m, after.heading_deg);
 }
 
 // The estimated sessions registered to the consensus of all (`rounds` rounds, re-integrated)
@@ -177,6 +229,27 @@ inline std::vector<SessionMap> registerSimulationNightly(const SimSessions& s, c
     std::fprintf(stderr, "\r  registered night %zu/%zu", k + 1, s.estimated.size());
   }
   std::fprintf(stderr, "\n");
+  return out;
+}
+
+// A diagnostic of the registration itself: every session registered alone against the consensus
+// of all sessions integrated with their true poses (registerSessions' prior), so that the target
+// is exact and what is left is the fit's own error. Needs loadSimulation(dir, true).
+inline std::vector<SessionMap> registerSimulationToTruth(const SimSessions& s, const RegisterSettings& settings,
+                                                         int rounds, std::vector<PoseCorrection>* corrections) {
+  std::vector<const SessionMap*> truth;
+  for (const SessionMap& m : s.truth_pose) truth.push_back(&m);
+  if (truth.size() != s.estimated.size()) throw UsageError("registration to the truth needs the true-pose maps");
+  const SessionMap prior = consensus(std::span<const SessionMap* const>(truth));
+  std::vector<SessionMap> out;
+  for (size_t k = 0; k < s.estimated.size(); ++k) {
+    std::vector<SessionMap> one = {s.estimated[k]};
+    const std::vector<std::filesystem::path> paths = {s.dirs[k]};
+    const std::vector<std::vector<Eigen::Vector3d>> positions = {s.positions[k]};
+    auto found = registerDatasets(one, paths, positions, simSessionSettings(), {rounds, settings}, nullptr, &prior);
+    if (corrections) corrections->push_back(found.front());
+    out.push_back(std::move(one.front()));
+  }
   return out;
 }
 

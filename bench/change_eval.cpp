@@ -11,7 +11,7 @@
 //    PCL grabber sequence of a static scene (the false change rate).
 //
 // Usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] [--register-model M] [--drift-knots N]
-//                    [--keep-mean]
+//                    [--keep-mean] [--drift-path M] [--register-to-truth]
 //   --seeds A-B    simulate seeds A to B (with --sensor NAME, through that sensor) and run once on each;
 //                  prints every figure's mean, min and max (seeds.h). Train on 1-5, report 6-15.
 //                    [--register-rounds N] [--register-radius R] [--drift-rounds N] [--not-planar]
@@ -33,6 +33,8 @@
 //                  of drift correction (RegisterSettings; defaults as the library's)
 //   --fine-radius R  the neighbourhood of the drift rounds after the first
 //                  (RegisterSettings::fine_radius_voxels, as `build --register-fine-radius`)
+//   --register-to-truth  a diagnostic: each session registered alone against the consensus of the
+//                  true-pose maps (the fit's own error, with an exact target)
 //   --drift-path M  knots every M metres of the sensor's path instead (as `build --register
 //                  --register-drift-path M`); --drift-path-m S, --drift-path-yaw DEG its prior per
 //                  square root of a metre (RegisterSettings::drift_per_m, drift_yaw_per_m_deg)
@@ -112,6 +114,7 @@ double g_dark_contrast = DiffSettings::kDefaultDarkSurfaceContrast;  // --dark-c
 double g_dark_share = DiffSettings::kDefaultDarkSurfaceShare;        // --dark-share
 double g_min_shift = DiffSettings::kRecommendedMinShift;             // --min-shift
 bool g_nightly = false;  // --nightly
+bool g_to_truth = false;  // --register-to-truth
 
 DiffSettings defaultDiff() {
   DiffSettings d = recommendedChangeSettings().diff;
@@ -243,6 +246,7 @@ struct SimSummary {
   double false_components_per_pair = 0.0;
   double voxel_precision = 0.0, voxel_recall = 0.0;
   double no_shift_object_recall = 0.0, no_shift_false_components_per_pair = 0.0;  // with noShiftDiff()
+  double relative_pose_mm = 0.0, relative_heading_deg = 0.0;  // registered sessions against each other
 };
 
 template <class Fn>
@@ -320,7 +324,10 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
   // (`rounds` rounds, re-integrated with its correction), then also re-aligned voxel by voxel.
   const auto reg_start = std::chrono::steady_clock::now();
   std::vector<PoseCorrection> corrections;
-  const std::vector<SessionMap> registered = bench::registerSimulation(s, reg, rounds, &corrections);
+  const std::vector<SessionMap> registered = g_to_truth
+                                                 ? bench::registerSimulationToTruth(s, reg, rounds, &corrections)
+                                                 : bench::registerSimulation(s, reg, rounds, &corrections);
+  if (g_to_truth) std::printf("each session registered alone against the consensus of the true-pose maps\n");
   std::vector<SessionMap> realigned;
   {
     const SessionMap avg = consensus(std::span<const SessionMap>(registered));
@@ -342,6 +349,7 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
               toString(reg.model), drift.c_str(), reg.radius_voxels, options.c_str(),
               seconds(reg_start));
   bench::printPoseErrors(s.dirs, corrections);
+  const bench::RelativePoseError relative = bench::relativePoseError(s.dirs, corrections);
   std::vector<SessionMap> nightly;
   if (g_nightly) {
     const auto night_start = std::chrono::steady_clock::now();
@@ -452,6 +460,8 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
   out.no_shift_object_recall =
       unshifted.events_observable ? double(unshifted.events_found) / double(unshifted.events_observable) : 1.0;
   out.no_shift_false_components_per_pair = double(unshifted.false_components) / double(pairs);
+  out.relative_pose_mm = 1e3 * relative.rms_m;
+  out.relative_heading_deg = relative.heading_deg;
   return out;
 }
 
@@ -665,6 +675,8 @@ int main(int argc, char** argv) {
       g_min_shift = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--dark-share") && i + 1 < argc) {
       g_dark_share = std::atof(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--register-to-truth")) {
+      g_to_truth = true;
     } else if (!std::strcmp(argv[i], "--nightly")) {
       g_nightly = true;
     } else if (!std::strcmp(argv[i], "--keep-mean")) {
@@ -719,6 +731,8 @@ int main(int argc, char** argv) {
                                          {"office_no_shift_object_recall", o.no_shift_object_recall},
                                          {"office_no_shift_false_components_per_pair",
                                           o.no_shift_false_components_per_pair},
+                                         {"office_relative_pose_mm", o.relative_pose_mm},
+                                         {"office_relative_heading_deg", o.relative_heading_deg},
                                          {"mosd_a_found", mosd.found},
                                          {"mosd_a_total", mosd.total},
                                          {"mosd_a_observable", mosd.observable},
