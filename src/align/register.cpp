@@ -637,8 +637,15 @@ void keyPointsAndSamplesOf(const Frame& f, uint32_t index, const RegistrationTar
 // each with kDriftDof unknowns (x, y, z offset and yaw).
 constexpr int kDriftDof = 4;
 struct DriftKnots {
-  size_t spacing = 0;     // knots by frames: every `spacing` frames
-  std::vector<double> u;  // knots by path: u per frame, non-decreasing, u[0] = 0
+  size_t spacing = 0;  // knots by frames: every `spacing` frames
+  // Knots by path: frame i's knot (an index into the knots kept) and its weight on the next.
+  // Only the knots a frame lies next to are kept: between two frames far apart along the path
+  // the knots no frame touches would be held by the prior alone, and a random walk over g
+  // spacings is one step with g times the variance, so they are left out exactly (`gap`: the
+  // spacings from each kept knot to the next) and the system grows with the frames, not with
+  // the path's length.
+  std::vector<std::pair<size_t, double>> at;
+  std::vector<double> gap;
   size_t count = 0;
   /// Knots every `spacing` frames.
   static DriftKnots byFrames(size_t n_frames, size_t spacing) {
@@ -651,13 +658,24 @@ struct DriftKnots {
   /// as the one before lies at the same u).
   static DriftKnots byPath(const std::vector<Eigen::Vector3d>& sensors, double spacing_m) {
     DriftKnots k;
-    k.u.assign(sensors.size(), 0.0);
+    std::vector<double> u(sensors.size(), 0.0);  // in spacings along the path, non-decreasing
     double path = 0.0;
     for (size_t i = 1; i < sensors.size(); ++i) {
       path += (sensors[i] - sensors[i - 1]).norm();
-      k.u[i] = path / spacing_m;
+      u[i] = path / spacing_m;
     }
-    k.count = static_cast<size_t>(k.u.back()) + 2;
+    // Knots floor(u) and floor(u) + 1 of every frame, numbered in path order.
+    std::vector<double> kept;  // the kept knots' positions (whole spacings)
+    for (double ui : u) {
+      const double first = std::floor(ui);
+      // Make first and first + 1 the last two kept knots (u does not decrease).
+      if (kept.empty() || kept.back() < first) kept.push_back(first);  // after knots no frame touches
+      if (kept.back() == first) kept.push_back(first + 1.0);
+      const size_t index = kept.size() - 2;
+      k.at.emplace_back(index, ui - kept[index]);
+    }
+    k.count = kept.size();
+    for (size_t j = 0; j + 1 < kept.size(); ++j) k.gap.push_back(kept[j + 1] - kept[j]);
     return k;
   }
   /// Frame i's first knot and its weight on the second.
@@ -666,9 +684,10 @@ struct DriftKnots {
       const size_t k = i / spacing;
       return std::pair<size_t, double>{k, static_cast<double>(i - k * spacing) / static_cast<double>(spacing)};
     }
-    const size_t k = std::min(static_cast<size_t>(u[i]), count - 2);
-    return std::pair<size_t, double>{k, u[i] - static_cast<double>(k)};
+    return at[i];
   }
+  /// Spacings between kept knots k and k + 1 (the prior's variance grows with it).
+  double gapAfter(size_t k) const { return gap.empty() ? 1.0 : gap[k]; }
 };
 
 /// One Gauss-Newton step's normal equations over the knots, and how far the samples were pulled.
@@ -751,8 +770,9 @@ void addDriftPrior(DriftSystem& sys, const Eigen::VectorXd& x, const double lamb
   Eigen::VectorXd& atb = sys.atb;
   for (size_t k = 0; k + 1 < knots.count; ++k) {
     const Eigen::Index a = static_cast<Eigen::Index>(k) * kDof, b = a + kDof;
+    const double gap = knots.gapAfter(k);
     for (int c = 0; c < kDof; ++c) {
-      const double l = lambda[c];
+      const double l = gap == 1.0 ? lambda[c] : lambda[c] / gap;
       const double diff = x(b + c) - x(a + c);
       ata(a + c, a + c) += l;
       ata(b + c, b + c) += l;
