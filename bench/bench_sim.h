@@ -197,7 +197,7 @@ inline void printPoseErrors(const std::vector<std::filesystem::path>& dirs,
 }
 
 // The estimated sessions registered to the consensus of all (`rounds` rounds, re-integrated)
-// with `settings` (its model, radius and, when drift_knot_frames > 0, the drift correction);
+// with `settings` (its model, radius and, when settings.drift(), the drift correction);
 // the corrections go to `corrections` when given.
 inline std::vector<SessionMap> registerSimulation(const SimSessions& s, const RegisterSettings& settings, int rounds,
                                                   std::vector<PoseCorrection>* corrections = nullptr,

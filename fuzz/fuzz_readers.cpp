@@ -48,11 +48,9 @@ namespace {
 using namespace chronomap;
 
 #if defined(FUZZ_BAG) || defined(FUZZ_MCAP) || defined(FUZZ_DB3)
-/// Both bag readers read files: the input goes to a file of this process (named with
-/// `extension`), then through the listing and the dataset reader (topics detected, poses from a
-/// pose topic or /tf into "map"), loading the first frames.
-/// The file of this process's inputs, removed when the process ends (libFuzzer's time limit
-/// and the input list both end in exit(), which runs this destructor).
+/// The file of this process's inputs, removed when the process ends normally: libFuzzer's time
+/// limit and a list of inputs both end in exit(), which runs this destructor. A crash, a timeout
+/// or running out of memory ends in _Exit and leaves the file (beside the crash's artifact).
 struct FuzzFile {
   std::filesystem::path path;
   explicit FuzzFile(const char* extension)
@@ -65,6 +63,9 @@ struct FuzzFile {
   FuzzFile& operator=(const FuzzFile&) = delete;
 };
 
+/// Both bag readers read files: the input goes to a file of this process (named with
+/// `extension`), then through the listing and the dataset reader (topics detected, poses from a
+/// pose topic or /tf into "map"), loading the first frames.
 void fuzzBagFile(const std::vector<uint8_t>& bytes, const char* extension, const char* format) {
   static const FuzzFile file(extension);
   const std::filesystem::path& path = file.path;

@@ -496,8 +496,9 @@ void addRegisterFlags(CLI::App* app, BuildCmdOptions& o) {
                   "heading correction, linear between knots this many frames apart (0: none; docs/realign.md)")
       ->capture_default_str();
   app->add_option("--register-drift-path", o.register_drift_path,
-                  "the drift correction with knots every this many metres of the sensor's path instead of every N "
-                  "frames (an odometry drifts with the distance travelled: a stop's frames share one correction), "
+                  "the drift correction with knots every this many metres, in (0, 1000], of the sensor's path "
+                  "instead of every N frames (an odometry drifts with the distance travelled: a stop's frames share "
+                  "one correction), "
                   "its prior 1 cm and 0.2 degrees per square root of a metre; not with --register-drift "
                   "(docs/realign.md has the figures)");
   app->add_option("--register-drift-yaw", o.register_drift_yaw,

@@ -641,9 +641,9 @@ struct DriftKnots {
   // Knots by path: frame i's knot (an index into the knots kept) and its weight on the next.
   // Only the knots a frame lies next to are kept: between two frames far apart along the path
   // the knots no frame touches would be held by the prior alone, and a random walk over g
-  // spacings is one step with g times the variance, so they are left out exactly (`gap`: the
-  // spacings from each kept knot to the next) and the system grows with the frames, not with
-  // the path's length.
+  // spacings is one step with g times the variance, so leaving them out changes nothing but the
+  // solver's damping, whose scale follows the system's size (`gap`: the spacings from each kept
+  // knot to the next). The system grows with the frames, not with the path's length.
   std::vector<std::pair<size_t, double>> at;
   std::vector<double> gap;
   size_t count = 0;
@@ -797,6 +797,13 @@ std::vector<Eigen::Isometry3d> solveDrift(const std::vector<Eigen::Vector3d>& se
   const bool by_path = settings.drift_knot_m > 0.0;
   const DriftKnots knots = by_path ? DriftKnots::byPath(sensors, settings.drift_knot_m)
                                    : DriftKnots::byFrames(n_frames, static_cast<size_t>(settings.drift_knot_frames));
+  // The normal equations are solved dense: 4 unknowns a knot, so 2,048 knots hold 512 MiB.
+  constexpr size_t kMaxPathKnots = 2048;
+  if (by_path && knots.count > kMaxPathKnots) {
+    throw UsageError("registration: drift knots every " + std::to_string(settings.drift_knot_m) + " m of path give " +
+                     std::to_string(knots.count) + " knots for one session of " + std::to_string(n_frames) +
+                     " frames (at most " + std::to_string(kMaxPathKnots) + "): give a larger spacing");
+  }
   constexpr int kDof = kDriftDof;
   const int dim = static_cast<int>(knots.count) * kDof;
   // The prior: knot differences of a random walk over one spacing (`spacing` frames, or

@@ -399,8 +399,8 @@ TEST(FitDrift, KnotsAlongThePathFollowAnOdometryThatStopsAndMoves) {
   const SessionMap truth = DriftingHall::seen(s.d.true_frames);
   const SessionMap session = DriftingHall::seen(s.frames);
   const RegistrationTarget target(truth);
-  // The same number of knots both ways: every metre of the 18 m path (two stops), or every
-  // frames / 19 frames.
+  // About as many knots both ways: every metre of the 18 m path (two stops; 20 knots), or every
+  // frames / 19 frames (23).
   RegisterSettings by_frames;
   by_frames.drift_knot_frames = static_cast<int>(s.frames.size() / 19);
   RegisterSettings by_path;
@@ -446,6 +446,48 @@ TEST(FitDrift, KnotsAlongThePathFollowAnOdometryThatStopsAndMoves) {
   bad = by_path;
   bad.drift_yaw_per_m_deg = std::nan("");
   EXPECT_THROW(fitDrift(s.frames, session, target, bad), UsageError);
+}
+
+TEST(FitDrift, KnotsAlongThePathThatNoFrameTouchesFoldIntoThePrior) {
+  // The hall's frames 0.5 m apart along the path, each believed turned by a heading error that
+  // wanders (positions exact, so the path is too). Knots every 0.5 m put a frame on every knot;
+  // knots every 0.1 m add four between frames that no frame touches. Left out, with the prior
+  // between their neighbours over five spacings, the two are the same system (but for the
+  // solver's damping): the same corrections.
+  const DriftingHall d;
+  std::vector<Frame> believed;
+  for (size_t j = 0; j < d.true_frames.size(); ++j) {
+    Frame f = d.true_frames.load(j);
+    const double yaw = 0.4 * std::numbers::pi / 180.0 * std::sin(2.0 * std::numbers::pi * static_cast<double>(j) / 12.0);
+    f.T_world_sensor.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() * f.T_world_sensor.linear();
+    believed.push_back(std::move(f));
+  }
+  const FrameVector frames(std::move(believed));
+  const SessionMap truth = DriftingHall::seen(d.true_frames);
+  const SessionMap session = DriftingHall::seen(frames);
+  const RegistrationTarget target(truth);
+  RegisterSettings coarse;
+  coarse.drift_knot_m = 0.5;
+  RegisterSettings fine = coarse;
+  fine.drift_knot_m = 0.1;
+  const std::vector<Eigen::Isometry3d> a = fitDrift(frames, session, target, coarse);
+  const std::vector<Eigen::Isometry3d> b = fitDrift(frames, session, target, fine);
+  ASSERT_EQ(a.size(), frames.size());
+  ASSERT_EQ(b.size(), frames.size());
+  double turned = 0.0;
+  for (size_t j = 0; j < a.size(); ++j) {
+    turned = std::max(turned, Eigen::AngleAxisd(a[j].linear()).angle());
+    EXPECT_LT((a[j].translation() - b[j].translation()).norm(), 1e-6) << j;
+    EXPECT_LT(Eigen::AngleAxisd(a[j].linear().transpose() * b[j].linear()).angle(), 1e-7) << j;
+  }
+  EXPECT_GT(turned, 0.1 * std::numbers::pi / 180.0);  // the fit did turn the frames
+  // A path cut into more knots than one session's dense system should hold is refused: 1,100
+  // frames a centimetre apart, knots every millimetre (2,200 kept).
+  std::vector<Frame> many(1100, Frame{});
+  for (size_t i = 0; i < many.size(); ++i) many[i].T_world_sensor.translation() = Eigen::Vector3d(0.01 * i, 2.0, 0.5);
+  RegisterSettings tiny;
+  tiny.drift_knot_m = 0.001;
+  EXPECT_THROW(fitDrift(FrameVector(std::move(many)), session, target, tiny), UsageError);
 }
 
 TEST(RegistrationTarget, AddsThePointsThatFallIntoItsSurface) {

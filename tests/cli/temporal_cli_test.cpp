@@ -729,12 +729,13 @@ TEST(SimulatorCli, SimulateAndBuildWithRegistration) {
   r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "path.cmap").string() + " " +
                        (tmp / "sim" / "session_00").string() + " " + (tmp / "sim" / "session_01").string() +
                        " --fast --json --register --register-rounds 1 --register-planar --register-points"
-                       " --register-drift-path 0.5 --register-drift-rounds 1");
+                       " --register-drift-path 0.5 --register-drift-rounds 2 --register-fine-radius 1.5");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto path = nlohmann::json::parse(r.out);
   ASSERT_EQ(path["added"].size(), 2u);
   for (const auto& a : path["added"]) {
     ASSERT_TRUE(a.contains("drift_correction_max_m"));
+    EXPECT_GT(a["drift_correction_max_m"].get<double>(), 0.0);  // it did correct
     EXPECT_LT(a["drift_correction_max_m"].get<double>(), 0.2);
   }
   for (const auto& [bad, flag] : std::vector<std::pair<const char*, const char*>>{
