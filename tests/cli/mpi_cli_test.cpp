@@ -19,11 +19,12 @@ using test::cli;
 using test::runCommand;
 
 /// mpirun with N ranks (as root in containers, more ranks than cores allowed), each process
-/// limited to 60 s so that a hang fails the test instead of stalling the suite. LeakSanitizer
+/// limited to 120 s so that a hang fails the test instead of stalling the suite (a registered
+/// build under AddressSanitizer took over 60 s on a loaded 2-core machine). LeakSanitizer
 /// would report Open MPI's own allocations that it keeps to the end: off under MPI. Shared
 /// memory without the kernel's cross-process copy, which containers often forbid.
 std::string mpirun(int ranks) {
-  return "ASAN_OPTIONS=detect_leaks=0 OMPI_MCA_btl_vader_single_copy_mechanism=none timeout 60 " +
+  return "ASAN_OPTIONS=detect_leaks=0 OMPI_MCA_btl_vader_single_copy_mechanism=none timeout 120 " +
          std::string(CHRONOMAP_MPIEXEC) +
          " --allow-run-as-root --oversubscribe -np " + std::to_string(ranks) + " ";
 }
