@@ -100,6 +100,13 @@ struct PoseError {
   double mean_yaw_deg = 0.0;  // mean absolute heading error
 };
 
+// Heading error: the turn of the camera's optical axis (z) about the world's vertical, from the
+// true pose to the corrected one (radians).
+inline double headingError(const Eigen::Isometry3d& corrected, const Eigen::Isometry3d& true_pose) {
+  const Eigen::Vector3d a = true_pose.linear().col(2), b = corrected.linear().col(2);
+  return std::atan2(a.x() * b.y() - a.y() * b.x(), a.x() * b.x() + a.y() * b.y());
+}
+
 inline PoseError poseError(const std::filesystem::path& dir, const PoseCorrection& correction) {
   const auto estimated = openDataset(dir);
   DatasetSettings truth_options;
@@ -113,10 +120,7 @@ inline PoseError poseError(const std::filesystem::path& dir, const PoseCorrectio
     const Eigen::Isometry3d corrected = correction.apply(estimated->poseOf(i), i);
     const Eigen::Isometry3d true_pose = truth->poseOf(i);
     errors.push_back(corrected.translation() - true_pose.translation());
-    // Heading: the turn of the camera's optical axis (z) about the world's vertical.
-    const Eigen::Vector3d a = true_pose.linear().col(2), b = corrected.linear().col(2);
-    const double yaw = std::atan2(a.x() * b.y() - a.y() * b.x(), a.x() * b.x() + a.y() * b.y());
-    e.mean_yaw_deg += std::abs(yaw) * 180.0 / M_PI;
+    e.mean_yaw_deg += std::abs(headingError(corrected, true_pose)) * 180.0 / M_PI;
     e.max_m = std::max(e.max_m, errors.back().norm());
   }
   for (const auto& v : errors) e.mean_offset_m += v;
@@ -152,9 +156,7 @@ inline RelativePoseError relativePoseError(const std::vector<std::filesystem::pa
     const auto truth = openDataset(dirs[k], truth_options);
     for (size_t i = 0; i < std::min(estimated->size(), truth->size()); ++i) {
       const Eigen::Isometry3d a = corrections[k].apply(estimated->poseOf(i), i), b = truth->poseOf(i);
-      const Eigen::Vector3d za = a.linear().col(2), zb = b.linear().col(2);
-      all.push_back({b.translation().head<2>(), (a.translation() - b.translation()).head<2>(),
-                     std::atan2(zb.x() * za.y() - zb.y() * za.x(), zb.x() * za.x() + zb.y() * za.y()), k});
+      all.push_back({b.translation().head<2>(), (a.translation() - b.translation()).head<2>(), headingError(a, b), k});
     }
   }
   RelativePoseError r;
@@ -174,9 +176,10 @@ inline RelativePoseError relativePoseError(const std::vector<std::filesystem::pa
 }
 
 // Prints one table row per session: its pose errors before (estimated poses) and after the
-// correction, in millimetres and degrees; then the sessions against each other.
-inline void printPoseErrors(const std::vector<std::filesystem::path>& dirs,
-                            const std::vector<PoseCorrection>& corrections) {
+// correction, in millimetres and degrees; then the sessions against each other, which it returns
+// (after the correction).
+inline RelativePoseError printPoseErrors(const std::vector<std::filesystem::path>& dirs,
+                                         const std::vector<PoseCorrection>& corrections) {
   std::printf("\nposes against the truth per session (mm; offset = mean error, spread = rms about it):\n");
   std::printf("| session | offset before (x, y, z) | spread before | offset after (x, y, z) | spread after | max after "
               "| heading before | heading after |\n|---:|---|---:|---|---:|---:|---:|---:|\n");
@@ -194,6 +197,7 @@ inline void printPoseErrors(const std::vector<std::filesystem::path>& dirs,
   std::printf("sessions against each other (frames of two sessions within 0.5 m, %zu pairs): rms %.1f mm and "
               "%.3f deg before, %.1f mm and %.3f deg after\n",
               after.pairs, 1e3 * before.rms_m, before.heading_deg, 1e3 * after.rms_m, after.heading_deg);
+  return after;
 }
 
 // The estimated sessions registered to the consensus of all (`rounds` rounds, re-integrated)
@@ -208,6 +212,18 @@ inline std::vector<SessionMap> registerSimulation(const SimSessions& s, const Re
   return maps;
 }
 
+// Session k of `s` registered alone (registerDatasets of one recording), against `prior` when
+// given; its correction is appended to `corrections` when given.
+inline SessionMap registerAlone(const SimSessions& s, size_t k, const RegisterSettings& settings, int rounds,
+                                const SessionMap* prior, std::vector<PoseCorrection>* corrections) {
+  std::vector<SessionMap> one = {s.estimated[k]};
+  const std::vector<std::filesystem::path> paths = {s.dirs[k]};
+  const std::vector<std::vector<Eigen::Vector3d>> positions = {s.positions[k]};
+  auto found = registerDatasets(one, paths, positions, simSessionSettings(), {rounds, settings}, nullptr, prior);
+  if (corrections) corrections->push_back(found.front());
+  return std::move(one.front());
+}
+
 // Registers the sessions as the streaming build does night by night, one recording a night
 // (`chronomap build DIR --tiles --register ...` once per session, in time order): each against
 // the consensus of the sessions registered before it (registerSessions' prior), which then has
@@ -217,15 +233,10 @@ inline std::vector<SessionMap> registerSimulationNightly(const SimSessions& s, c
   std::vector<SessionMap> out;
   SessionMap running(s.estimated.front().resolution_m());
   for (size_t k = 0; k < s.estimated.size(); ++k) {
-    std::vector<SessionMap> night = {s.estimated[k]};
-    const std::vector<std::filesystem::path> paths = {s.dirs[k]};
-    const std::vector<std::vector<Eigen::Vector3d>> positions = {s.positions[k]};
-    auto found = registerDatasets(night, paths, positions, simSessionSettings(), {rounds, settings}, nullptr,
-                                  k > 0 ? &running : nullptr);
-    const SessionMap* both[] = {&running, &night.front()};
+    SessionMap night = registerAlone(s, k, settings, rounds, k > 0 ? &running : nullptr, corrections);
+    const SessionMap* both[] = {&running, &night};
     running = consensus(std::span<const SessionMap* const>(both));
-    if (corrections) corrections->push_back(found.front());
-    out.push_back(std::move(night.front()));
+    out.push_back(std::move(night));
     std::fprintf(stderr, "\r  registered night %zu/%zu", k + 1, s.estimated.size());
   }
   std::fprintf(stderr, "\n");
@@ -242,14 +253,7 @@ inline std::vector<SessionMap> registerSimulationToTruth(const SimSessions& s, c
   if (truth.size() != s.estimated.size()) throw UsageError("registration to the truth needs the true-pose maps");
   const SessionMap prior = consensus(std::span<const SessionMap* const>(truth));
   std::vector<SessionMap> out;
-  for (size_t k = 0; k < s.estimated.size(); ++k) {
-    std::vector<SessionMap> one = {s.estimated[k]};
-    const std::vector<std::filesystem::path> paths = {s.dirs[k]};
-    const std::vector<std::vector<Eigen::Vector3d>> positions = {s.positions[k]};
-    auto found = registerDatasets(one, paths, positions, simSessionSettings(), {rounds, settings}, nullptr, &prior);
-    if (corrections) corrections->push_back(found.front());
-    out.push_back(std::move(one.front()));
-  }
+  for (size_t k = 0; k < s.estimated.size(); ++k) out.push_back(registerAlone(s, k, settings, rounds, &prior, corrections));
   return out;
 }
 

@@ -348,8 +348,7 @@ SimSummary evaluateSimulation(const std::string& name, const fs::path& dir, bool
   std::printf("registered (%d rounds, %s corrections%s; radius %.2f voxels%s) and re-aligned in %.1f s\n", rounds,
               toString(reg.model), drift.c_str(), reg.radius_voxels, options.c_str(),
               seconds(reg_start));
-  bench::printPoseErrors(s.dirs, corrections);
-  const bench::RelativePoseError relative = bench::relativePoseError(s.dirs, corrections);
+  const bench::RelativePoseError relative = bench::printPoseErrors(s.dirs, corrections);
   std::vector<SessionMap> nightly;
   if (g_nightly) {
     const auto night_start = std::chrono::steady_clock::now();
