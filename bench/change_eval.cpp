@@ -22,6 +22,9 @@
 //   --floor66 DIR  also evaluate a floor66 simulation (not simulated by default: ~7 minutes)
 //   --quick        only the recommended settings, no sweep
 //   --min-shift S  the shift test's threshold, voxels (default DiffSettings::kRecommendedMinShift)
+//   --shift-plane R  the shift test counts only a flat surface's move across it, a plane being
+//                  a least spread under R of the next (DiffSettings::shift_plane_ratio; default
+//                  kRecommendedShiftPlaneRatio, as the recommended diff; 0: the whole move)
 //   --sensor NAME  ideal (default), kinect or realsense: the sensor of the simulations made here
 //                  (SimulationSettings::sensor); a folder given keeps its own
 //   --register-model  world (default) or per-pose: the registration's correction model
@@ -113,6 +116,7 @@ double g_dark_below = DiffSettings::kDefaultDarkSurfaceBrightness;   // --dark-b
 double g_dark_contrast = DiffSettings::kDefaultDarkSurfaceContrast;  // --dark-contrast
 double g_dark_share = DiffSettings::kDefaultDarkSurfaceShare;        // --dark-share
 double g_min_shift = DiffSettings::kRecommendedMinShift;             // --min-shift
+double g_shift_plane = DiffSettings::kRecommendedShiftPlaneRatio;    // --shift-plane
 bool g_nightly = false;  // --nightly
 bool g_to_truth = false;  // --register-to-truth
 
@@ -125,6 +129,7 @@ DiffSettings defaultDiff() {
   d.dark_surface_contrast = g_dark_contrast;
   d.dark_surface_share = g_dark_share;
   d.min_shift_voxels = g_min_shift;
+  d.shift_plane_ratio = g_shift_plane;
   return d;
 }
 
@@ -672,6 +677,8 @@ int main(int argc, char** argv) {
       g_dark_contrast = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--min-shift") && i + 1 < argc) {
       g_min_shift = std::atof(argv[++i]);
+    } else if (!std::strcmp(argv[i], "--shift-plane") && i + 1 < argc) {
+      g_shift_plane = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--dark-share") && i + 1 < argc) {
       g_dark_share = std::atof(argv[++i]);
     } else if (!std::strcmp(argv[i], "--register-to-truth")) {
@@ -703,7 +710,7 @@ int main(int argc, char** argv) {
                    "usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] [--sensor ideal|kinect|realsense] "
                    "[--register-model world|per-pose] [--drift-knots FRAMES] [--register-rounds N] "
                    "[--register-radius VOXELS] [--drift-rounds N] [--fine-radius VOXELS] [--not-planar] [--drift-voxels] [--kept-surface R] "
-                   "[--kept-share F] [--min-shift S] [--dark-surface R] [--dark-below B] [--dark-contrast C] [--dark-share F] [--nightly]\n");
+                   "[--kept-share F] [--min-shift S] [--shift-plane R] [--dark-surface R] [--dark-below B] [--dark-contrast C] [--dark-share F] [--nightly]\n");
       return 2;
     }
   }

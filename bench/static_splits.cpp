@@ -16,7 +16,9 @@
 // the recommended settings (findChanges' defaults), then with each rule's radius one voxel
 // smaller and one larger: the neighbourhood rule, the kept-surface rule, the dark-surface rule.
 //
-// Usage: static_splits [--data DIR] [--registered] [--only 3dmatch|grabber] [--json]
+// Usage: static_splits [--data DIR] [--registered] [--only 3dmatch|grabber] [--shift-plane R] [--json]
+// (--shift-plane R: the shift test's plane ratio, DiffSettings::shift_plane_ratio, in every
+// setting instead of the recommended one.)
 // Prints a table per recording and pipeline, and the worst split under each setting; with
 // --json one JSON line at the end. The target: at most one false object in every split, under
 // every setting.
@@ -59,6 +61,8 @@ struct Variant {
   std::string name;
   std::function<void(ChangeSettings&)> apply;
 };
+
+double g_shift_plane = -1.0;  // --shift-plane; < 0: the recommended
 
 std::vector<Variant> variants() {
   const ChangeSettings r = recommendedChangeSettings();
@@ -184,6 +188,7 @@ nlohmann::json evaluate(const std::string& title, const std::vector<std::string>
     std::printf("%-14s %-14s", names(split.a, labels).c_str(), names(split.b, labels).c_str());
     for (const Variant& v : vs) {
       ChangeSettings s = recommendedChangeSettings();
+      if (g_shift_plane >= 0.0) s.diff.shift_plane_ratio = g_shift_plane;
       v.apply(s);
       const Changes c = findChanges(map, 1000, 2000, s);
       std::string cell = std::to_string(c.objects.size());
@@ -232,8 +237,11 @@ int main(int argc, char** argv) {
       only = argv[++i];
     } else if (!std::strcmp(argv[i], "--json")) {
       json = true;
+    } else if (!std::strcmp(argv[i], "--shift-plane") && i + 1 < argc) {
+      g_shift_plane = std::atof(argv[++i]);
     } else {
-      std::fprintf(stderr, "usage: static_splits [--data DIR] [--registered] [--only 3dmatch|grabber] [--json]\n");
+      std::fprintf(stderr,
+                   "usage: static_splits [--data DIR] [--registered] [--only 3dmatch|grabber] [--shift-plane R] [--json]\n");
       return 2;
     }
   }

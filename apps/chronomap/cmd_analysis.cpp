@@ -40,6 +40,7 @@ struct DiffCmdOptions {
   std::optional<double> alpha;
   std::optional<int> neighbourhood;
   std::optional<double> min_shift_voxels;
+  std::optional<double> shift_plane;
   std::optional<int> kept_surface;
   std::optional<double> kept_share;
   std::optional<int> dark_surface;
@@ -100,6 +101,7 @@ ChangeSettings changeSettingsOf(const DiffCmdOptions& o) {
   }
   setIfGiven(d.neighbourhood_voxels, o.neighbourhood);
   setIfGiven(d.min_shift_voxels, o.min_shift_voxels);
+  setIfGiven(d.shift_plane_ratio, o.shift_plane);
   setIfGiven(d.kept_surface_radius_voxels, o.kept_surface);
   setIfGiven(d.kept_surface_share, o.kept_share);
   setIfGiven(d.dark_surface_radius_voxels, o.dark_surface);
@@ -274,7 +276,7 @@ std::string presetFlags(const ChangeSettings& s) {
   std::string text = std::string("--mode ") + toString(d.mode);
   if (d.mode == DiffMode::Threshold || d.mode == DiffMode::Band) text += " --alpha " + exactNumber(d.effectiveAlpha());
   text += " --neighbourhood " + std::to_string(d.neighbourhood_voxels) + " --min-shift " +
-          exactNumber(d.min_shift_voxels) + " --kept-surface " + std::to_string(d.kept_surface_radius_voxels) +
+          exactNumber(d.min_shift_voxels) + " --shift-plane " + exactNumber(d.shift_plane_ratio) + " --kept-surface " + std::to_string(d.kept_surface_radius_voxels) +
           " --kept-share " + exactNumber(d.kept_surface_share) + " --dark-surface " +
           std::to_string(d.dark_surface_radius_voxels) + " --dark-below " + exactNumber(d.dark_surface_brightness) +
           " --dark-contrast " + exactNumber(d.dark_surface_contrast) + " --dark-share " +
@@ -293,6 +295,11 @@ void addFalseChangeRules(CLI::App* app, DiffCmdOptions& o) {
                   "(the mean position of the hits around it, from where in each voxel the rays ended); 0 drops them "
                   "all. 0.5 tells a chair pushed by 4 cm from a centimetre of pose error, in sessions registered with "
                   "build --register --register-drift 20 --register-planar --register-points (docs/changes.md)");
+  app->add_option("--shift-plane", o.shift_plane,
+                  "with --min-shift: where the hits around a voxel lie on a plane (their least spread at most this "
+                  "share of the next), count only the plane's move across itself: a flat surface seen from "
+                  "elsewhere, at a grazing angle or measured deeper slides along itself without moving (0..1; 0: "
+                  "the whole move; docs/changes.md)");
   app->add_option("--kept-surface", o.kept_surface,
                   "voxels: a voxel that appeared (vanished) is no change when the surface the other map holds within "
                   "this many voxels is still seen, unchanged, by this map (--kept-share of its occupied voxels): "

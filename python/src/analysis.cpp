@@ -13,7 +13,8 @@ namespace chronomap::python {
 
 DiffSettings diffSettings(const std::string& mode, double alpha, int neighbourhood_voxels, double min_shift_voxels,
                           int kept_surface_radius_voxels, double kept_surface_share, int dark_surface_radius_voxels,
-                          double dark_surface_brightness, double dark_surface_contrast, double dark_surface_share) {
+                          double dark_surface_brightness, double dark_surface_contrast, double dark_surface_share,
+                          double shift_plane_ratio) {
   DiffSettings settings;
   settings.mode = parseDiffMode(mode);
   settings.alpha = alpha;
@@ -25,6 +26,7 @@ DiffSettings diffSettings(const std::string& mode, double alpha, int neighbourho
   settings.dark_surface_brightness = dark_surface_brightness;
   settings.dark_surface_contrast = dark_surface_contrast;
   settings.dark_surface_share = dark_surface_share;
+  settings.shift_plane_ratio = shift_plane_ratio;
   return settings;
 }
 
@@ -33,10 +35,11 @@ namespace {
 DiffMap diffPy(const SessionMap& before, const SessionMap& after, const std::string& mode, double alpha,
                int neighbourhood_voxels, double min_shift_voxels, int kept_surface_radius_voxels,
                double kept_surface_share, int dark_surface_radius_voxels, double dark_surface_brightness,
-               double dark_surface_contrast, double dark_surface_share) {
+               double dark_surface_contrast, double dark_surface_share, double shift_plane_ratio) {
   const DiffSettings settings =
       diffSettings(mode, alpha, neighbourhood_voxels, min_shift_voxels, kept_surface_radius_voxels, kept_surface_share,
-                   dark_surface_radius_voxels, dark_surface_brightness, dark_surface_contrast, dark_surface_share);
+                   dark_surface_radius_voxels, dark_surface_brightness, dark_surface_contrast, dark_surface_share,
+                   shift_plane_ratio);
   py::gil_scoped_release release;
   return diff(before, after, settings);
 }
@@ -161,13 +164,14 @@ void bindAnalysis(py::module_& m) {
         py::arg("dark_surface_radius_voxels") = 0,
         py::arg("dark_surface_brightness") = DiffSettings::kDefaultDarkSurfaceBrightness,
         py::arg("dark_surface_contrast") = DiffSettings::kDefaultDarkSurfaceContrast,
-        py::arg("dark_surface_share") = DiffSettings::kDefaultDarkSurfaceShare,
+        py::arg("dark_surface_share") = DiffSettings::kDefaultDarkSurfaceShare, py::arg("shift_plane_ratio") = 0.0,
         "What changed from `before` to `after` (two SessionMaps of one resolution). mode: 'hard', "
         "'threshold', 'band' or 'continuous'; alpha < 0 takes the mode's default. kept_surface_radius_voxels "
         "(0: off; 3 recommended) drops a change in front of a surface the other map still sees unchanged "
         "(docs/changes.md, the weak-change rule); dark_surface_radius_voxels (0: off; 2 as measured) drops an "
         "object lying within that many voxels of the other map's surface when at least dark_surface_share of its "
-        "voxels are dark and darker than the other map's around them (the dark-surface rule).");
+        "voxels are dark and darker than the other map's around them (the dark-surface rule); shift_plane_ratio "
+        "(0: off; 0.15 recommended) makes min_shift_voxels count only a flat surface's move across itself.");
   m.def("segment", &segmentPy, py::arg("diff"), py::arg("connectivity") = "face", py::arg("color_tolerance") = -1.0,
         py::arg("min_voxels") = 1, py::arg("min_value") = 0.5,
         "Connected components of a DiffMap, largest first: a list of Component.");

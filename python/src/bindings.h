@@ -104,7 +104,8 @@ UpSettings toUpSettings(const py::object& up);
 /// The settings of diff() and TemporalMap.diff(). @throw UsageError for an unknown mode.
 DiffSettings diffSettings(const std::string& mode, double alpha, int neighbourhood_voxels, double min_shift_voxels,
                           int kept_surface_radius_voxels, double kept_surface_share, int dark_surface_radius_voxels,
-                          double dark_surface_brightness, double dark_surface_contrast, double dark_surface_share);
+                          double dark_surface_brightness, double dark_surface_contrast, double dark_surface_share,
+                          double shift_plane_ratio);
 
 /// An (N, 3) array of real numbers (any layout) as points. @throw py::type_error for another
 /// dtype, py::value_error for another shape; both name `name`.

@@ -63,10 +63,11 @@ py::dict addSession(TemporalMap& map, const SessionMap& session, const py::handl
 DiffMap diffTimes(const TemporalMap& map, const py::handle& t1, const py::handle& t2, const std::string& mode, double alpha,
                   int neighbourhood_voxels, double min_shift_voxels, int kept_surface_radius_voxels,
                   double kept_surface_share, int dark_surface_radius_voxels, double dark_surface_brightness,
-                  double dark_surface_contrast, double dark_surface_share) {
+                  double dark_surface_contrast, double dark_surface_share, double shift_plane_ratio) {
   const DiffSettings settings =
       diffSettings(mode, alpha, neighbourhood_voxels, min_shift_voxels, kept_surface_radius_voxels, kept_surface_share,
-                   dark_surface_radius_voxels, dark_surface_brightness, dark_surface_contrast, dark_surface_share);
+                   dark_surface_radius_voxels, dark_surface_brightness, dark_surface_contrast, dark_surface_share,
+                   shift_plane_ratio);
   const double t1_s = toSeconds(t1, "t1"), t2_s = toSeconds(t2, "t2");
   const ObjectLock lock(&map);
   py::gil_scoped_release release;
@@ -200,7 +201,7 @@ void bindTemporal(py::module_& m) {
            py::arg("dark_surface_radius_voxels") = 0,
            py::arg("dark_surface_brightness") = DiffSettings::kDefaultDarkSurfaceBrightness,
            py::arg("dark_surface_contrast") = DiffSettings::kDefaultDarkSurfaceContrast,
-           py::arg("dark_surface_share") = DiffSettings::kDefaultDarkSurfaceShare,
+           py::arg("dark_surface_share") = DiffSettings::kDefaultDarkSurfaceShare, py::arg("shift_plane_ratio") = 0.0,
            "What changed from the state at t1 to the state at t2 (epoch seconds, ISO-8601 strings or datetimes): the diff of the two snapshots, visiting "
            "only what changed in between. Settings as chronomap.diff.")
       .def("__len__",

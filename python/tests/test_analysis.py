@@ -39,6 +39,11 @@ def test_weak_change_rule_keeps_an_object_that_hides_the_surface_behind_it(befor
         chronomap.diff(before, after, dark_surface_radius_voxels=2, dark_surface_share=0.0)
     with pytest.raises(chronomap.UsageError):
         chronomap.diff(before, after, kept_surface_radius_voxels=3, kept_surface_share=1.5)
+    with pytest.raises(chronomap.UsageError, match="shift plane ratio"):
+        chronomap.diff(before, after, neighbourhood_voxels=1, min_shift_voxels=0.5, shift_plane_ratio=1.5)
+    # The box is no plane and moved whole: the shift test across planes keeps it as well.
+    assert chronomap.diff(before, after, mode="band", neighbourhood_voxels=1, min_shift_voxels=0.5,
+                          shift_plane_ratio=0.15).voxel_count(chronomap.APPEARED) == 64
 
 
 def test_segment_gives_one_object(before, after):

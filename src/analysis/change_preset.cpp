@@ -15,6 +15,7 @@ ChangeSettings recommendedChangeSettings() {
   s.diff.mode = DiffMode::Band;
   s.diff.neighbourhood_voxels = 1;
   s.diff.min_shift_voxels = DiffSettings::kRecommendedMinShift;
+  s.diff.shift_plane_ratio = DiffSettings::kRecommendedShiftPlaneRatio;
   s.diff.kept_surface_radius_voxels = DiffSettings::kRecommendedKeptSurfaceRadius;
   s.diff.dark_surface_radius_voxels = DiffSettings::kDarkSurfaceRadius;
   s.diff.seen_at_both = true;

@@ -122,6 +122,7 @@ nlohmann::json changeSettingsJson(const ChangeSettings& s) {
             {"alpha", d.effectiveAlpha()},
             {"neighbourhood_voxels", d.neighbourhood_voxels},
             {"min_shift_voxels", d.min_shift_voxels},
+            {"shift_plane_ratio", d.shift_plane_ratio},
             {"kept_surface_radius_voxels", d.kept_surface_radius_voxels},
             {"kept_surface_share", d.kept_surface_share},
             {"dark_surface_radius_voxels", d.dark_surface_radius_voxels},

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <unordered_map>
 
+#include <Eigen/Dense>
+
 #include "chronomap/core/error.h"
 #include "union_find.h"
 
@@ -62,6 +64,9 @@ void DiffSettings::validate() const {
   }
   if (!std::isfinite(min_shift_voxels) || min_shift_voxels < 0.0) {
     throw UsageError("diff min shift must be a number of voxels >= 0, got " + std::to_string(min_shift_voxels));
+  }
+  if (!(shift_plane_ratio >= 0.0 && shift_plane_ratio <= 1.0)) {
+    throw UsageError("diff shift plane ratio must lie in [0, 1], got " + std::to_string(shift_plane_ratio));
   }
   if (kept_surface_radius_voxels < 0 || kept_surface_radius_voxels > kMaxNeighbourhood) {
     throw UsageError("diff kept-surface radius must lie in 0.." + std::to_string(kMaxNeighbourhood) +
@@ -223,35 +228,58 @@ struct SessionWalk {
 // the offset the voxel recorded for it), over the voxels known on both sides; their distance in
 // voxels, or nothing when a side has no hits there.
 // `before` and `after` give a voxel's counters (zero when unknown).
+// Below this middle spread (voxels squared) the points lie on a line.
+constexpr double kLineSpread = 1e-6;
+
 template <class CountersBefore, class CountersAfter>
-std::optional<double> shiftInVoxels(const VoxelKey& key, int r, CountersBefore before, CountersAfter after) {
-  double sum_a[3] = {0, 0, 0}, sum_b[3] = {0, 0, 0};
-  double hits_a = 0.0, hits_b = 0.0;
+std::optional<double> shiftInVoxels(const VoxelKey& key, int r, double plane_ratio, CountersBefore before,
+                                    CountersAfter after) {
+  // Per map: the hits' sum and count, and the voxels with hits (each at its hits' mean position)
+  // with their sum and sum of squares, for the plane the two maps' voxels share.
+  Eigen::Vector3d hit_sum[2] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  double hits[2] = {0.0, 0.0};
+  Eigen::Vector3d point_sum[2] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  Eigen::Matrix3d point_squares[2] = {Eigen::Matrix3d::Zero(), Eigen::Matrix3d::Zero()};
+  int points[2] = {0, 0};
   for (int dz = -r; dz <= r; ++dz) {
     for (int dy = -r; dy <= r; ++dy) {
       for (int dx = -r; dx <= r; ++dx) {
         const auto k = offsetKey(key, dx, dy, dz);
         if (!k) continue;
-        const VoxelCounters a = before(*k), b = after(*k);
-        if (!isKnown(a) || !isKnown(b)) continue;
-        const double offset[3] = {static_cast<double>(dx), static_cast<double>(dy), static_cast<double>(dz)};
-        // Each hit where it ended: the voxel's centre plus its offset from it.
-        for (int i = 0; i < 3; ++i) {
-          sum_a[i] += a.hits * offset[i] + a.offset[i];
-          sum_b[i] += b.hits * offset[i] + b.offset[i];
+        const VoxelCounters side[2] = {before(*k), after(*k)};
+        if (!isKnown(side[0]) || !isKnown(side[1])) continue;
+        const Eigen::Vector3d offset(dx, dy, dz);
+        for (int m = 0; m < 2; ++m) {
+          const VoxelCounters& v = side[m];
+          if (v.hits == 0) continue;
+          // Each hit where it ended: the voxel's centre plus its offset from it.
+          const Eigen::Vector3d ended(v.offset[0], v.offset[1], v.offset[2]);
+          hit_sum[m] += v.hits * offset + ended;
+          hits[m] += v.hits;
+          const Eigen::Vector3d p = offset + ended / v.hits;
+          point_sum[m] += p;
+          point_squares[m] += p * p.transpose();
+          ++points[m];
         }
-        hits_a += a.hits;
-        hits_b += b.hits;
       }
     }
   }
-  if (hits_a == 0.0 || hits_b == 0.0) return std::nullopt;
-  double d2 = 0.0;
-  for (int i = 0; i < 3; ++i) {
-    const double d = sum_b[i] / hits_b - sum_a[i] / hits_a;
-    d2 += d * d;
+  if (hits[0] == 0.0 || hits[1] == 0.0) return std::nullopt;
+  const Eigen::Vector3d moved = hit_sum[1] / hits[1] - hit_sum[0] / hits[0];
+  if (plane_ratio > 0.0 && points[0] >= 3 && points[1] >= 3) {
+    // The spread of each map's points about its own mean, pooled: the surface's shape, without
+    // the offset between the maps (which is the move being measured).
+    Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
+    for (int m = 0; m < 2; ++m) spread += point_squares[m] - point_sum[m] * point_sum[m].transpose() / points[m];
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> plane(spread / (points[0] + points[1]));
+    // A plane: the least spread at most plane_ratio of the next, and the points not all on one
+    // line (which has no normal). Only its move across itself counts.
+    const Eigen::Vector3d spreads = plane.eigenvalues();
+    if (spreads[1] > kLineSpread && spreads[0] <= plane_ratio * spreads[1]) {
+      return std::abs(moved.dot(plane.eigenvectors().col(0)));
+    }
   }
-  return std::sqrt(d2);
+  return moved.norm();
 }
 
 // The neighbourhood rule (DiffSettings::neighbourhood_voxels, min_shift_voxels): drops appeared
@@ -267,7 +295,7 @@ void dropNearSurfaces(std::vector<ChangeCell>& cells, const DiffSettings& settin
   };
   auto moved = [&](const VoxelKey& k) {
     if (settings.min_shift_voxels <= 0.0) return false;
-    const auto shift = shiftInVoxels(k, r, before, after);
+    const auto shift = shiftInVoxels(k, r, settings.shift_plane_ratio, before, after);
     return shift && *shift >= settings.min_shift_voxels;
   };
   std::erase_if(cells, [&](const ChangeCell& c) {
@@ -508,12 +536,15 @@ DiffMap diff(const TemporalMap& map, double t1_s, double t2_s, const DiffSetting
 }
 
 std::optional<double> surfaceShift(const SessionMap& before, const SessionMap& after, const VoxelKey& key,
-                                   int radius_voxels) {
+                                   int radius_voxels, double plane_ratio) {
   if (before.resolution_m() != after.resolution_m()) throw UsageError("cannot compare maps of different resolutions");
   if (radius_voxels < 0 || radius_voxels > kMaxNeighbourhood) {
     throw UsageError("surface shift radius must lie in 0.." + std::to_string(kMaxNeighbourhood) + " voxels");
   }
-  return shiftInVoxels(key, radius_voxels, countersOf(before), countersOf(after));
+  if (!(plane_ratio >= 0.0 && plane_ratio <= 1.0)) {
+    throw UsageError("surface shift plane ratio must lie in [0, 1], got " + std::to_string(plane_ratio));
+  }
+  return shiftInVoxels(key, radius_voxels, plane_ratio, countersOf(before), countersOf(after));
 }
 
 }  // namespace chronomap

@@ -50,6 +50,7 @@ void writeDiffFile(const std::filesystem::path& path, const DiffMap& diff, const
   j["alpha"] = diff.settings().effectiveAlpha();
   j["neighbourhood_voxels"] = diff.settings().neighbourhood_voxels;
   j["min_shift_voxels"] = diff.settings().min_shift_voxels;
+  j["shift_plane_ratio"] = diff.settings().shift_plane_ratio;
   j["kept_surface_radius_voxels"] = diff.settings().kept_surface_radius_voxels;
   j["kept_surface_share"] = diff.settings().kept_surface_share;
   j["dark_surface_radius_voxels"] = diff.settings().dark_surface_radius_voxels;
@@ -98,6 +99,7 @@ DiffMap diffMapFrom(const CmapFile& file, const std::string& source) {
     settings.alpha = j.at("alpha").get<double>();
     settings.neighbourhood_voxels = j.value("neighbourhood_voxels", 0);
     settings.min_shift_voxels = j.value("min_shift_voxels", 0.0);
+    settings.shift_plane_ratio = j.value("shift_plane_ratio", 0.0);
     settings.kept_surface_radius_voxels = j.value("kept_surface_radius_voxels", 0);
     settings.kept_surface_share = j.value("kept_surface_share", DiffSettings::kDefaultKeptSurfaceShare);
     settings.dark_surface_radius_voxels = j.value("dark_surface_radius_voxels", 0);

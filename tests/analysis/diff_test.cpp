@@ -5,6 +5,10 @@
 #include <map>
 #include <optional>
 #include <random>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Dense>
 
 #include "chronomap/analysis/diff.h"
 #include "chronomap/temporal/temporal_map.h"
@@ -274,6 +278,66 @@ TEST(Diff, MinShiftSeesAMoveWithinOneVoxel) {
   s.min_shift_voxels = DiffSettings::kRecommendedMinShift;
   EXPECT_EQ(diff(before, after, s).voxelCount(), 36u) << "the sheet appeared where the wall moved";
   EXPECT_TRUE(diff(before_c, after_c, s).empty()) << "at the centres the move is a sixth of a voxel";
+}
+
+// A flat surface sampled on different parts by the two maps: a table top at z = 4 whose hits
+// end 0.2 voxels above the voxels' centres in both maps, seen at x = 0..4 before and x = 4..9 after
+// (a grazing view from the other side). Every voxel around it is known in both.
+SessionMap tableTop(int x_from, int x_to, float z_offset) {
+  SessionMap m(0.05);
+  for (int z = 2; z < 7; ++z) {
+    for (int y = 0; y < 8; ++y) {
+      for (int x = 0; x < 10; ++x) {
+        VoxelCounters c = test::freeVoxel(0.25f);
+        if (z == 4 && x >= x_from && x <= x_to) {
+          c = withProbability(0.9, 5);
+          c.offset[2] = 5.0f * z_offset;
+        }
+        m.add(test::at(x, y, z, kBase), c);
+      }
+    }
+  }
+  return m;
+}
+
+// A wall across x = 4 (z = 2..6, every y), hits at the voxels' centres, in the same free space.
+SessionMap wallAtX4() {
+  SessionMap m(0.05);
+  for (int z = 2; z < 7; ++z) {
+    for (int y = 0; y < 8; ++y) {
+      for (int x = 0; x < 10; ++x) m.add(test::at(x, y, z, kBase), x == 4 ? withProbability(0.9, 5) : test::freeVoxel(0.25f));
+    }
+  }
+  return m;
+}
+
+TEST(Diff, ShiftPlaneCountsOnlyAMoveAcrossAFlatSurface) {
+  const SessionMap before = tableTop(0, 4, 0.2f), after = tableTop(4, 9, 0.2f), lower = tableTop(4, 9, -0.4f);
+  const VoxelKey k = test::at(4, 4, 4, kBase);
+  // The hits' means, over the 3 x 3 x 3 window: x = 3.5 before, 4.5 after, the same height.
+  EXPECT_NEAR(surfaceShift(before, after, k, 1).value(), 1.0, 1e-6) << "the whole move: it slid along itself";
+  EXPECT_NEAR(surfaceShift(before, after, k, 1, 0.2).value(), 0.0, 1e-6) << "across the plane: no move";
+  // The same view of a top 0.6 voxels lower: that part counts.
+  EXPECT_NEAR(surfaceShift(before, lower, k, 1).value(), std::hypot(1.0, 0.6), 1e-6);
+  EXPECT_NEAR(surfaceShift(before, lower, k, 1, 0.2).value(), 0.6, 1e-6);
+  // Where the maps see differently shaped surfaces (here a wall at x = 4 instead of the top) there
+  // is no plane: the pooled spread, x 0.1, y 2/3, z 0.4, has its least over a quarter of the next,
+  // so the whole move counts, (0.5, 0, -0.2). A ratio of 1 calls anything with hits in three voxels
+  // a side a plane: across x, 0.5.
+  const SessionMap wall = wallAtX4();
+  EXPECT_NEAR(surfaceShift(before, wall, k, 1, 0.2).value(), std::hypot(0.5, 0.2), 1e-6);
+  EXPECT_NEAR(surfaceShift(before, wall, k, 1, 1.0).value(), 0.5, 1e-6);
+  EXPECT_THROW(surfaceShift(before, after, k, 1, -0.1), UsageError);
+  EXPECT_THROW(surfaceShift(before, after, k, 1, 1.5), UsageError);
+  EXPECT_THROW(surfaceShift(before, after, k, 1, std::nan("")), UsageError);
+
+  DiffSettings s;
+  s.shift_plane_ratio = 1.1;
+  EXPECT_THROW(s.validate(), UsageError);
+  s.shift_plane_ratio = std::nan("");
+  EXPECT_THROW(s.validate(), UsageError);
+  s.shift_plane_ratio = DiffSettings::kRecommendedShiftPlaneRatio;
+  EXPECT_NO_THROW(s.validate());
 }
 
 // The 4D map keeps a surface's new position when it moved by half a voxel or more within its
@@ -698,8 +762,14 @@ bool referenceOccupiedNear(const SessionMap& other, const VoxelKey& k, int r) {
   return false;
 }
 
-std::optional<double> referenceShiftVoxels(const SessionMap& a, const SessionMap& b, const VoxelKey& k, int r) {
+// With plane_ratio > 0, the move along the normal of the plane the voxels' mean hit positions
+// share (each map's about its own mean), found here from their singular vectors.
+std::optional<double> referenceShiftVoxels(const SessionMap& a, const SessionMap& b, const VoxelKey& k, int r,
+                                           double plane_ratio = 0.0, bool* planar = nullptr) {
   double ax = 0, ay = 0, az = 0, bx = 0, by = 0, bz = 0, wa = 0, wb = 0;
+  std::vector<Eigen::Vector3d> points;
+  std::vector<int> owner;
+  int points_a = 0, points_b = 0;
   for (int dz = -r; dz <= r; ++dz) {
     for (int dy = -r; dy <= r; ++dy) {
       for (int dx = -r; dx <= r; ++dx) {
@@ -712,15 +782,106 @@ std::optional<double> referenceShiftVoxels(const SessionMap& a, const SessionMap
         az += ha * (k.z + dz) + ca.offset[2], wa += ha;
         bx += hb * (k.x + dx) + cb.offset[0], by += hb * (k.y + dy) + cb.offset[1];
         bz += hb * (k.z + dz) + cb.offset[2], wb += hb;
+        for (const VoxelCounters* c : {&ca, &cb}) {
+          if (c->hits == 0) continue;
+          points.emplace_back(dx + double(c->offset[0]) / c->hits, dy + double(c->offset[1]) / c->hits,
+                              dz + double(c->offset[2]) / c->hits);
+          owner.push_back(c == &ca ? 0 : 1);
+          ++(c == &ca ? points_a : points_b);
+        }
       }
     }
   }
   if (wa == 0 || wb == 0) return std::nullopt;
-  return std::hypot(bx / wb - ax / wa, by / wb - ay / wa, bz / wb - az / wa);
+  const Eigen::Vector3d moved(bx / wb - ax / wa, by / wb - ay / wa, bz / wb - az / wa);
+  if (planar) *planar = false;
+  if (plane_ratio > 0.0 && points_a >= 3 && points_b >= 3) {
+    // Each map's points about their own mean (a's first), stacked.
+    Eigen::Vector3d mean[2] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+    for (size_t i = 0; i < points.size(); ++i) mean[owner[i]] += points[i];
+    mean[0] /= points_a;
+    mean[1] /= points_b;
+    Eigen::MatrixXd centred(points.size(), 3);
+    for (size_t i = 0; i < points.size(); ++i) {
+      centred.row(static_cast<Eigen::Index>(i)) = (points[i] - mean[owner[i]]).transpose();
+    }
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(centred, Eigen::ComputeThinV);
+    const Eigen::Vector3d sv = svd.singularValues();  // decreasing: spreads are their squares / n
+    const double n = static_cast<double>(points.size());
+    if (sv[1] * sv[1] / n > 1e-6 && sv[2] * sv[2] <= plane_ratio * sv[1] * sv[1]) {  // not all on a line
+      if (planar) *planar = true;
+      return std::abs(moved.dot(svd.matrixV().col(2)));
+    }
+  }
+  return moved.norm();
+}
+
+// Property: two maps see patches of one plane (random orientation) that overlap in part, the
+// second's plane `delta` voxels further along its normal; every hit lies on its plane. Across the
+// plane the shift is delta wherever both maps have hits in three voxels of the window that do
+// not lie in a line; the whole move is not (the patches differ).
+TEST(Diff, ShiftPlaneMeasuresTheMoveAlongTheNormalOfRandomPlanes) {
+  std::mt19937_64 rng(2026);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  size_t checked = 0, slid = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    Eigen::Vector3d n(unit(rng), unit(rng), unit(rng));
+    if (n.norm() < 0.2) continue;
+    n.normalize();
+    const double delta = 0.4 * (unit(rng) + 1.0) / 2.0;  // [0, 0.4] voxels
+    const Eigen::Vector3d centre(6.0 + 0.5 * unit(rng), 6.0 + 0.5 * unit(rng), 6.0 + 0.5 * unit(rng));
+    const Eigen::Vector3d cut = unit(rng) * Eigen::Vector3d(n.y(), -n.x(), 0.0).normalized();
+    SessionMap maps[2] = {SessionMap(0.05), SessionMap(0.05)};
+    for (int m = 0; m < 2; ++m) {
+      const double c = n.dot(centre) + m * delta;
+      for (int z = 0; z < 13; ++z) {
+        for (int y = 0; y < 13; ++y) {
+          for (int x = 0; x < 13; ++x) {
+            VoxelCounters v = test::freeVoxel(0.25f);
+            // The voxel's centre (x + 0.5, ...) projected onto the plane: a hit when it stays in
+            // the voxel and on this map's side of the cut through the plane (before: one side,
+            // after: the other and a band across it).
+            const Eigen::Vector3d mid(x + 0.5, y + 0.5, z + 0.5);
+            const Eigen::Vector3d p = mid - (n.dot(mid) - c) * n;
+            const Eigen::Vector3d off = p - mid;
+            const double side = (p - centre).dot(cut.normalized());
+            const bool mine = m == 0 ? side < 0.5 : side > -0.5;
+            if (off.cwiseAbs().maxCoeff() < 0.5 && mine) {
+              v = withProbability(0.9, 1 + static_cast<uint32_t>(rng() % 4));
+              for (int a = 0; a < 3; ++a) v.offset[a] = static_cast<float>(v.hits * off[a]);
+            }
+            maps[m].add(test::at(x, y, z, kBase), v);
+          }
+        }
+      }
+    }
+    for (int z = 4; z < 9; ++z) {
+      for (int y = 4; y < 9; ++y) {
+        for (int x = 4; x < 9; ++x) {
+          const VoxelKey k = test::at(x, y, z, kBase);
+          int with_hits[2] = {0, 0};
+          anyKeyWithin(k, 1, [&](const VoxelKey& q) {
+            for (int m = 0; m < 2; ++m) with_hits[m] += maps[m].find(q).value_or(VoxelCounters{}).hits > 0;
+            return false;
+          });
+          if (with_hits[0] < 3 || with_hits[1] < 3) continue;
+          bool planar = false;
+          referenceShiftVoxels(maps[0], maps[1], k, 1, 0.2, &planar);
+          if (!planar) continue;  // the points of one map in a line: no plane to speak of
+          const double across = surfaceShift(maps[0], maps[1], k, 1, 0.2).value();
+          ASSERT_NEAR(across, delta, 1e-4) << "trial " << trial << " at " << x << "," << y << "," << z;
+          ++checked;
+          slid += surfaceShift(maps[0], maps[1], k, 1).value() > delta + 0.05;
+        }
+      }
+    }
+  }
+  EXPECT_GT(checked, 500u);
+  EXPECT_GT(slid, 100u) << "the patches differ: the whole move is larger where they do";
 }
 
 TEST(Diff, NeighbourhoodRuleEqualsReferenceOnRandomMaps) {
-  size_t kept_by_shift = 0, dropped = 0;
+  size_t kept_by_shift = 0, dropped = 0, across_planes = 0;
   for (uint64_t seed = 1; seed <= 10; ++seed) {
     std::mt19937_64 rng(seed * 31);
     auto world = randomWorld(rng);
@@ -728,19 +889,22 @@ TEST(Diff, NeighbourhoodRuleEqualsReferenceOnRandomMaps) {
     for (auto& v : world) v ^= rng() % 10 == 0;
     const SessionMap b = randomMap(rng, world);
     for (int r : {1, 2}) {
-      for (double min_shift : {0.0, 0.2, 0.6}) {
+      for (const auto& [min_shift, plane_ratio] : {std::pair{0.0, 0.0}, {0.2, 0.0}, {0.6, 0.0}, {0.2, 0.5}, {0.6, 1.0}}) {
         DiffSettings s = mode(seed % 2 ? DiffMode::Hard : DiffMode::Band);
         const auto plain = unitCells(diff(a, b, s));
         s.neighbourhood_voxels = r;
         s.min_shift_voxels = min_shift;
+        s.shift_plane_ratio = plane_ratio;
         const auto got = unitCells(diff(a, b, s));
         size_t expected_count = 0, ties = 0;
         for (const auto& [k, c] : plain) {
           const bool near = referenceOccupiedNear(c.kind == ChangeKind::Appeared ? a : b, k, r);
-          const auto shift = referenceShiftVoxels(a, b, k, r);
+          bool planar = false;
+          const auto shift = referenceShiftVoxels(a, b, k, r, plane_ratio, &planar);
+          across_planes += planar;
           const bool moved = min_shift > 0.0 && shift && *shift >= min_shift;
           const bool keep = !near || moved;
-          if (near && shift && std::abs(*shift - min_shift) < 1e-9) {  // rounding decides a tie
+          if (near && shift && std::abs(*shift - min_shift) < 1e-6) {  // rounding decides a tie
             ++ties;
             continue;
           }
@@ -756,6 +920,7 @@ TEST(Diff, NeighbourhoodRuleEqualsReferenceOnRandomMaps) {
     }
   }
   EXPECT_GT(kept_by_shift, 50u) << "the random maps exercise the shift test";
+  EXPECT_GT(across_planes, 50u) << "and its measure across planes";
   EXPECT_GT(dropped, 50u);
 }
 

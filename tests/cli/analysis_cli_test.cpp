@@ -112,7 +112,8 @@ TEST(AnalysisCli, DiffWithoutFlagsGivesTheRecommendedAnswer) {
   // Expert flags change single settings: raw plus the recommended flags is the default answer,
   // and the default with --min-voxels 1 keeps the small box too.
   const auto spelled = nlohmann::json::parse(
-      run("s.cmap", " --preset raw --mode band --neighbourhood 1 --min-shift 0.5 --kept-surface 3 --dark-surface 2 "
+      run("s.cmap", " --preset raw --mode band --neighbourhood 1 --min-shift 0.5 --shift-plane 0.15 --kept-surface 3 "
+                    "--dark-surface 2 "
                     "--seen-at-both --connectivity vertex --min-voxels 20 --moves --json")
           .out);
   EXPECT_EQ(spelled["objects"], j["objects"]);
@@ -138,7 +139,8 @@ TEST(AnalysisCli, DiffWithoutFlagsGivesTheRecommendedAnswer) {
 TEST(AnalysisCli, DiffHelpPrintsTheDefaults) {
   const auto r = test::runCommand(cli() + " diff --help");
   ASSERT_EQ(r.exit_code, 0);
-  EXPECT_NE(r.out.find("--mode band --alpha 0.1 --neighbourhood 1 --min-shift 0.5 --kept-surface 3"), std::string::npos)
+  EXPECT_NE(r.out.find("--mode band --alpha 0.1 --neighbourhood 1 --min-shift 0.5 --shift-plane 0.15 --kept-surface 3"),
+            std::string::npos)
       << r.out;
   EXPECT_NE(r.out.find("--connectivity vertex --min-voxels 20 --moves"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("raw (the plain thesis diff"), std::string::npos) << r.out;
@@ -220,13 +222,15 @@ TEST(AnalysisCli, DiffKeepsItsNeighbourhoodSettings) {
   test::TempDir tmp;
   writePair(tmp / "a.cmap", tmp / "b.cmap");
   const auto r = test::runCommand(cli() + " diff " + (tmp / "a.cmap").string() + " " + (tmp / "b.cmap").string() +
-                                  " --mode band --neighbourhood 1 --min-shift 0.5 --kept-surface 3 --kept-share 0.8" +
+                                  " --mode band --neighbourhood 1 --min-shift 0.5 --shift-plane 0.3 --kept-surface 3" +
+                                  " --kept-share 0.8" +
                                   " --dark-surface 2 --dark-below 50 --dark-contrast 0.5 --dark-share 0.7 -o " +
                                   (tmp / "d.cmap").string());
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const DiffMap d = readDiffMap(tmp / "d.cmap");
   EXPECT_EQ(d.settings().neighbourhood_voxels, 1);
   EXPECT_EQ(d.settings().min_shift_voxels, 0.5);
+  EXPECT_EQ(d.settings().shift_plane_ratio, 0.3);
   EXPECT_EQ(d.settings().kept_surface_radius_voxels, 3);
   EXPECT_EQ(d.settings().kept_surface_share, 0.8);
   EXPECT_EQ(d.settings().dark_surface_radius_voxels, 2);
@@ -250,6 +254,7 @@ TEST(AnalysisCli, BadInputGetsOneClearMessage) {
       {"diff " + a + " " + b + " --mode threshold --alpha 1.5 -o " + out, 2, "alpha"},
       {"diff " + a + " " + b + " -o " + (tmp / "d.txt").string(), 2, "must end in .cmap"},
       {"diff " + a + " " + b + " --neighbourhood 1 --min-shift -0.5 -o " + out, 2, "min shift"},
+      {"diff " + a + " " + b + " --neighbourhood 1 --min-shift 0.5 --shift-plane 1.5 -o " + out, 2, "shift plane ratio"},
       {"diff " + a + " " + b + " --kept-surface 5 -o " + out, 2, "kept-surface radius"},
       {"diff " + a + " " + b + " --kept-surface 3 --kept-share 0 -o " + out, 2, "kept-surface share"},
       {"diff " + a + " " + b + " --dark-surface 5 -o " + out, 2, "dark-surface radius"},

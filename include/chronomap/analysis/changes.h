@@ -95,7 +95,7 @@ Changes findChanges(const TemporalMap& map, double t0_s, double t1_s,
 /// "centroid", "size"}) and "distance_m".
 nlohmann::json changedObjectsJson(const std::vector<ChangedObject>& objects);
 
-/// The settings as JSON: {"diff": {"mode", "alpha", "neighbourhood_voxels", "min_shift_voxels",
+/// The settings as JSON: {"diff": {"mode", "alpha", "neighbourhood_voxels", "min_shift_voxels", "shift_plane_ratio",
 /// "kept_surface_radius_voxels", "kept_surface_share", "dark_surface_radius_voxels",
 /// "dark_surface_brightness", "dark_surface_contrast", "dark_surface_share", "seen_at_both"}, "segment":
 /// {"connectivity", "min_voxels", "colour_tolerance", "min_value"}, "moves": {"pair",

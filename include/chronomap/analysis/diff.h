@@ -56,6 +56,19 @@ struct DiffSettings {
   double min_shift_voxels = 0.0;
   /// The recommended min_shift_voxels for registered sessions: a surface moved by half a voxel.
   static constexpr double kRecommendedMinShift = 0.5;
+  /// > 0: the shift test measures a flat surface's move across it only. When the voxels with
+  /// hits within the neighbourhood (both maps' together, each at its hits' mean position) lie on
+  /// a plane, their least spread at most this share of the next (the eigenvalues of their
+  /// covariance), the shift is the part of the move along the plane's normal. A flat surface
+  /// seen from another place, at a grazing angle or measured deeper (a glossy table top), or
+  /// sampled on another part of it, moves its hits' mean along itself without having moved.
+  /// Each map needs hits in at least three of those voxels; elsewhere (corners, edges, thin
+  /// objects, a surface that is one map's only) the whole move counts. 0 (the default): the
+  /// whole move always, as before. In [0, 1].
+  double shift_plane_ratio = 0.0;
+  /// The recommended shift_plane_ratio, chosen on the simulated office's training seeds (both
+  /// sensors, docs/changes.md): a plane's rms thickness under 0.39 of its rms width.
+  static constexpr double kRecommendedShiftPlaneRatio = 0.15;
   /// > 0: the weak-change rule. A voxel that appeared is no change when the first map holds
   /// occupied voxels within this many voxels (Chebyshev) and at least kept_surface_share of
   /// them are occupied in the second map as well, with the mean position of their hits less than
@@ -131,8 +144,9 @@ struct DiffSettings {
   double effectiveAlpha() const;
   /// @throw UsageError for an alpha that is not finite, or not in [0, 1) (threshold) or
   /// [0, 0.5) (band), a neighbourhood outside 0..4, a min_shift_voxels that is not finite or is
-  /// negative, a kept_surface_radius_voxels outside 0..4, a kept_surface_share outside (0, 1],
-  /// a dark_surface_radius_voxels outside 0..4 or a dark_surface_brightness outside [0, 255].
+  /// negative, a shift_plane_ratio outside [0, 1], a kept_surface_radius_voxels outside 0..4, a
+  /// kept_surface_share outside (0, 1], a dark_surface_radius_voxels outside 0..4 or a
+  /// dark_surface_brightness outside [0, 255].
   void validate() const;
 };
 
@@ -206,10 +220,12 @@ std::optional<ChangeCell> compareVoxel(const VoxelCounters& before, const VoxelC
 /// DiffSettings::min_shift_voxels measures it: the distance between the mean positions of the
 /// hits within `radius_voxels` (Chebyshev) of `key` on each side, over the voxels both maps
 /// know (a hit lies at its voxel's centre plus the voxel's mean offset,
-/// VoxelCounters::offset); nothing when either side has no hits there.
-/// @throw UsageError for different resolutions or a radius outside 0..4.
+/// VoxelCounters::offset); nothing when either side has no hits there. With `plane_ratio` > 0,
+/// only the move across a plane, as DiffSettings::shift_plane_ratio says.
+/// @throw UsageError for different resolutions, a radius outside 0..4 or a plane ratio outside
+/// [0, 1].
 std::optional<double> surfaceShift(const SessionMap& before, const SessionMap& after, const VoxelKey& key,
-                                   int radius_voxels);
+                                   int radius_voxels, double plane_ratio = 0.0);
 
 /// What changed from `before` to `after` (two session maps of the same resolution).
 /// @throw UsageError for different resolutions or bad settings.
