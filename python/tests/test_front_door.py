@@ -41,6 +41,10 @@ def test_iso_strings_are_times_wherever_a_time_is_taken(tmp_path, before, after,
     assert m.snapshot(T2) == m.snapshot(T2_S)
     assert np.array_equal(m.diff(T1, T2).changed_centers(), m.diff(T1_S, T2_S).changed_centers())
     assert len(m.diff(T1, T2)) == 64
+    # The box is no plane and nothing stood where it appeared: the shift test across planes keeps it.
+    assert len(m.diff(T1, T2, mode="band", neighbourhood_voxels=1, min_shift_voxels=0.5, shift_plane_ratio=0.15)) == 64
+    with pytest.raises(chronomap.UsageError, match="shift plane ratio"):
+        m.diff(T1, T2, neighbourhood_voxels=1, min_shift_voxels=0.5, shift_plane_ratio=-1.0)
     assert chronomap.changes(m, T1, T2) == chronomap.changes(m, T1_S, T2_S)
     centres, counts = m.change_counts(from_time=T1, to_time="2026-01-06")
     assert len(centres) == 64 and (counts == 1).all()

@@ -224,18 +224,22 @@ struct SessionWalk {
   }
 };
 
+// The points lie along a line (a pole, an edge, a row of voxels) when their middle spread is under
+// this share of the largest: no plane, so the whole move counts.
+constexpr double kLineShare = 0.1;
+
 // The mean position of the hits within r of `key` on each side (each at its voxel's centre plus
 // the offset the voxel recorded for it), over the voxels known on both sides; their distance in
-// voxels, or nothing when a side has no hits there.
-// `before` and `after` give a voxel's counters (zero when unknown).
-// Below this middle spread (voxels squared) the points lie on a line.
-constexpr double kLineSpread = 1e-6;
-
+// voxels, or nothing when a side has no hits there. With plane_ratio > 0, only the part of that
+// move along the normal of the plane the voxels with hits share, where they lie on one
+// (DiffSettings::shift_plane_ratio). `before` and `after` give a voxel's counters (zero when
+// unknown).
 template <class CountersBefore, class CountersAfter>
 std::optional<double> shiftInVoxels(const VoxelKey& key, int r, double plane_ratio, CountersBefore before,
                                     CountersAfter after) {
-  // Per map: the hits' sum and count, and the voxels with hits (each at its hits' mean position)
-  // with their sum and sum of squares, for the plane the two maps' voxels share.
+  // Per map: the hits' sum and count; for the plane, the voxels with hits (each at its hits' mean
+  // position) with their sum and sum of squares.
+  const bool plane_wanted = plane_ratio > 0.0;
   Eigen::Vector3d hit_sum[2] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
   double hits[2] = {0.0, 0.0};
   Eigen::Vector3d point_sum[2] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
@@ -256,6 +260,7 @@ std::optional<double> shiftInVoxels(const VoxelKey& key, int r, double plane_rat
           const Eigen::Vector3d ended(v.offset[0], v.offset[1], v.offset[2]);
           hit_sum[m] += v.hits * offset + ended;
           hits[m] += v.hits;
+          if (!plane_wanted) continue;
           const Eigen::Vector3d p = offset + ended / v.hits;
           point_sum[m] += p;
           point_squares[m] += p * p.transpose();
@@ -266,16 +271,16 @@ std::optional<double> shiftInVoxels(const VoxelKey& key, int r, double plane_rat
   }
   if (hits[0] == 0.0 || hits[1] == 0.0) return std::nullopt;
   const Eigen::Vector3d moved = hit_sum[1] / hits[1] - hit_sum[0] / hits[0];
-  if (plane_ratio > 0.0 && points[0] >= 3 && points[1] >= 3) {
+  if (plane_wanted && points[0] >= 3 && points[1] >= 3) {
     // The spread of each map's points about its own mean, pooled: the surface's shape, without
     // the offset between the maps (which is the move being measured).
     Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();
     for (int m = 0; m < 2; ++m) spread += point_squares[m] - point_sum[m] * point_sum[m].transpose() / points[m];
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> plane(spread / (points[0] + points[1]));
-    // A plane: the least spread at most plane_ratio of the next, and the points not all on one
-    // line (which has no normal). Only its move across itself counts.
+    // A plane: the least spread at most plane_ratio of the middle one, the points not along one
+    // line (kLineShare). Only its move across itself counts.
     const Eigen::Vector3d spreads = plane.eigenvalues();
-    if (spreads[1] > kLineSpread && spreads[0] <= plane_ratio * spreads[1]) {
+    if (spreads[1] > kLineShare * spreads[2] && spreads[0] <= plane_ratio * spreads[1]) {
       return std::abs(moved.dot(plane.eigenvectors().col(0)));
     }
   }

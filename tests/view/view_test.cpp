@@ -139,6 +139,7 @@ TEST(ViewDiff, SameObjectsAsDiffAndSegmentWithTheDemosSettings) {
   EXPECT_EQ(defaults.diff.mode, demo.diff.mode);
   EXPECT_EQ(defaults.diff.neighbourhood_voxels, demo.diff.neighbourhood_voxels);
   EXPECT_EQ(defaults.diff.min_shift_voxels, demo.diff.min_shift_voxels);
+  EXPECT_EQ(defaults.diff.shift_plane_ratio, demo.diff.shift_plane_ratio);
   EXPECT_EQ(defaults.diff.kept_surface_radius_voxels, demo.diff.kept_surface_radius_voxels);
   EXPECT_EQ(defaults.diff.dark_surface_radius_voxels, demo.diff.dark_surface_radius_voxels);
   EXPECT_EQ(defaults.segment.connectivity, demo.segment.connectivity);

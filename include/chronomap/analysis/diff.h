@@ -56,15 +56,17 @@ struct DiffSettings {
   double min_shift_voxels = 0.0;
   /// The recommended min_shift_voxels for registered sessions: a surface moved by half a voxel.
   static constexpr double kRecommendedMinShift = 0.5;
-  /// > 0: the shift test measures a flat surface's move across it only. When the voxels with
-  /// hits within the neighbourhood (both maps' together, each at its hits' mean position) lie on
-  /// a plane, their least spread at most this share of the next (the eigenvalues of their
-  /// covariance), the shift is the part of the move along the plane's normal. A flat surface
-  /// seen from another place, at a grazing angle or measured deeper (a glossy table top), or
-  /// sampled on another part of it, moves its hits' mean along itself without having moved.
-  /// Each map needs hits in at least three of those voxels; elsewhere (corners, edges, thin
-  /// objects, a surface that is one map's only) the whole move counts. 0 (the default): the
-  /// whole move always, as before. In [0, 1].
+  /// > 0: the shift test measures a flat surface's move across it only. The voxels with hits
+  /// within the neighbourhood that both maps know, each at its hits' mean position, give a plane:
+  /// each map's points are taken about their own mean (so the move being measured does not tilt
+  /// it) and their spreads pooled (the eigenvalues of the pooled covariance). Where the least
+  /// spread is at most this share of the middle one, the middle one at least a tenth of the
+  /// largest (not points along a line) and each map has hits in at least three of those voxels,
+  /// the shift is the part of the move along the plane's normal. A flat surface seen from
+  /// another place, at a grazing angle or measured deeper (a glossy table top), or sampled on
+  /// another part of it, moves its hits' mean along itself without having moved. Elsewhere (most
+  /// corners, poles and rows of voxels, surfaces whose shape differs between the maps) the whole
+  /// move counts. 0 (the default): the whole move always, as before. In [0, 1].
   double shift_plane_ratio = 0.0;
   /// The recommended shift_plane_ratio, chosen on the simulated office's training seeds (both
   /// sensors, docs/changes.md): a plane's rms thickness under 0.39 of its rms width.
