@@ -276,12 +276,14 @@ std::string presetFlags(const ChangeSettings& s) {
   std::string text = std::string("--mode ") + toString(d.mode);
   if (d.mode == DiffMode::Threshold || d.mode == DiffMode::Band) text += " --alpha " + exactNumber(d.effectiveAlpha());
   text += " --neighbourhood " + std::to_string(d.neighbourhood_voxels) + " --min-shift " +
-          exactNumber(d.min_shift_voxels) + " --shift-plane " + exactNumber(d.shift_plane_ratio) + " --kept-surface " + std::to_string(d.kept_surface_radius_voxels) +
-          " --kept-share " + exactNumber(d.kept_surface_share) + " --dark-surface " +
-          std::to_string(d.dark_surface_radius_voxels) + " --dark-below " + exactNumber(d.dark_surface_brightness) +
-          " --dark-contrast " + exactNumber(d.dark_surface_contrast) + " --dark-share " +
-          exactNumber(d.dark_surface_share) + (d.seen_at_both ? " --seen-at-both" : " --last-observed") + "; objects: --connectivity " + toString(s.segment.connectivity) +
-          " --min-voxels " + std::to_string(s.segment.min_voxels) + (s.moves.pair ? " --moves" : " --no-moves");
+          exactNumber(d.min_shift_voxels) + " --shift-plane " + exactNumber(d.shift_plane_ratio) +
+          " --kept-surface " + std::to_string(d.kept_surface_radius_voxels) + " --kept-share " +
+          exactNumber(d.kept_surface_share) + " --dark-surface " + std::to_string(d.dark_surface_radius_voxels) +
+          " --dark-below " + exactNumber(d.dark_surface_brightness) + " --dark-contrast " +
+          exactNumber(d.dark_surface_contrast) + " --dark-share " + exactNumber(d.dark_surface_share) +
+          (d.seen_at_both ? " --seen-at-both" : " --last-observed") + "; objects: --connectivity " +
+          toString(s.segment.connectivity) + " --min-voxels " + std::to_string(s.segment.min_voxels) +
+          (s.moves.pair ? " --moves" : " --no-moves");
   return text;
 }
 
