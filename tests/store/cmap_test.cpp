@@ -11,6 +11,7 @@
 
 #include "chronomap/core/error.h"
 #include "chronomap/store/cmap.h"
+#include "chronomap/store/diff_file.h"
 #include "chronomap/core/file.h"
 #include "test_support.h"
 
@@ -562,6 +563,53 @@ TEST(Cmap, FullDiskLeavesTheOldFileIntact) {
   size_t files = 0;
   for (auto& e : std::filesystem::directory_iterator(tmp.path())) files += e.is_regular_file();
   EXPECT_EQ(files, 1u);  // the temporary file was removed
+}
+
+// A diff file's settings are checked as it is read: the shift test's plane ratio out of [0, 1],
+// of another type or null is a corrupt file; a file written before the ratio existed reads 0.
+TEST(DiffFile, ShiftPlaneRatioOutOfRangeIsRefused) {
+  test::TempDir tmp;
+  SessionMap before(0.05), after(0.05);
+  VoxelCounters free_voxel, hit;
+  free_voxel.length_m = 0.05f;
+  hit.length_m = 0.05f;
+  hit.hits = 4;
+  before.add({32768, 32768, 32768}, free_voxel);
+  after.add({32768, 32768, 32768}, hit);
+  DiffSettings s;
+  s.neighbourhood_voxels = 1;
+  s.min_shift_voxels = DiffSettings::kRecommendedMinShift;
+  s.shift_plane_ratio = DiffSettings::kRecommendedShiftPlaneRatio;
+  writeDiffMap(tmp / "d.cmap", diff(before, after, s), nlohmann::json::object());
+  ASSERT_EQ(readDiffMap(tmp / "d.cmap").settings().shift_plane_ratio, DiffSettings::kRecommendedShiftPlaneRatio);
+  const CmapFile file = decodeCmap(readFileBytes(tmp / "d.cmap"), "x.cmap");
+  auto withMeta = [&](auto&& mutate) {
+    CmapFile f = file;
+    size_t found = 0;
+    for (CmapBlock& b : f.blocks) {
+      if (b.tag != "META") continue;
+      nlohmann::json j = nlohmann::json::parse(b.data.begin(), b.data.end());
+      mutate(j);
+      const std::string text = j.dump();
+      b.data.assign(text.begin(), text.end());
+      ++found;
+    }
+    EXPECT_EQ(found, 1u);
+    return f;
+  };
+  EXPECT_EQ(diffMapFrom(withMeta([](nlohmann::json& j) { j.erase("shift_plane_ratio"); }), "x.cmap")
+                .settings()
+                .shift_plane_ratio,
+            0.0)
+      << "written before the ratio: the whole move";
+  for (const nlohmann::json& bad : {nlohmann::json(1.5), nlohmann::json(-0.1), nlohmann::json("0.15"), nlohmann::json()}) {
+    try {
+      diffMapFrom(withMeta([&](nlohmann::json& j) { j["shift_plane_ratio"] = bad; }), "x.cmap");
+      ADD_FAILURE() << bad.dump() << " was read";
+    } catch (const FormatError& e) {
+      EXPECT_NE(std::string(e.what()).find("x.cmap: invalid diff settings"), std::string::npos) << e.what();
+    }
+  }
 }
 
 }  // namespace
