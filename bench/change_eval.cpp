@@ -645,7 +645,11 @@ int main(int argc, char** argv) {
   int rounds = recommendedRegistration().rounds;
   RegisterSettings reg = recommendedRegistration().align;  // as the README's `build --register ...`
   for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--drift-knots") && i + 1 < argc) {
+    if (!std::strcmp(argv[i], "--register-preset") && i + 1 < argc) {  // before the flags that change it
+      const RegistrationSettings named = registrationNamed(argv[++i]);
+      reg = named.align;
+      rounds = named.rounds;
+    } else if (!std::strcmp(argv[i], "--drift-knots") && i + 1 < argc) {
       reg.drift_knot_frames = std::atoi(argv[++i]);
       reg.drift_knot_m = 0.0;
     } else if (!std::strcmp(argv[i], "--drift-path") && i + 1 < argc) {
@@ -708,7 +712,7 @@ int main(int argc, char** argv) {
     } else {
       std::fprintf(stderr,
                    "usage: change_eval [--office DIR] [--floor66 DIR] [--data DIR] [--quick] [--sensor ideal|kinect|realsense] "
-                   "[--register-model world|per-pose] [--drift-knots FRAMES] [--register-rounds N] "
+                   "[--register-preset localiser|odometry (first)] [--register-model world|per-pose] [--drift-knots FRAMES] [--drift-path M] [--keep-mean] [--register-rounds N] "
                    "[--register-radius VOXELS] [--drift-rounds N] [--fine-radius VOXELS] [--not-planar] [--drift-voxels] [--kept-surface R] "
                    "[--kept-share F] [--min-shift S] [--shift-plane R] [--dark-surface R] [--dark-below B] [--dark-contrast C] [--dark-share F] [--nightly]\n");
       return 2;

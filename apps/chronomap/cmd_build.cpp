@@ -189,8 +189,9 @@ struct BuildCmdOptions {
   IntegrateFlags integrate;
   RealignFlags realign;
   bool register_sessions = false;
-  int register_rounds = 3;
-  std::string register_model = "world";
+  std::optional<std::string> register_preset;
+  std::optional<int> register_rounds;         // unset: the preset's (3)
+  std::optional<std::string> register_model;  // unset: the preset's (world)
   int register_drift = 0;
   std::optional<double> register_drift_path;
   std::optional<double> register_radius;  // given or not: the flags that need another say so
@@ -208,30 +209,38 @@ struct BuildCmdOptions {
   bool json = false;
 };
 
-/// The drift part of the registration flags (--register-drift and the flags that need it).
+/// True when the flags ask for registration: --register or a --register-preset.
+bool registering(const BuildCmdOptions& o) { return o.register_sessions || o.register_preset.has_value(); }
+
+/// The drift part of the registration flags (--register-drift and the flags that need it), each
+/// given one replacing the preset's setting in `align`.
 void setDriftSettings(const BuildCmdOptions& o, RegisterSettings& align) {
   if (o.register_drift < 0 || o.register_drift > 100000) {
     throw UsageError("--register-drift must be a number of frames in [0, 100000] (0: no drift correction)");
   }
-  if (o.register_drift > 0 && !o.register_sessions) throw UsageError("--register-drift needs --register");
-  align.drift_knot_frames = o.register_drift;
+  if (o.register_drift > 0 && !registering(o)) throw UsageError("--register-drift needs --register");
+  if (o.register_drift > 0) {
+    align.drift_knot_frames = o.register_drift;
+    align.drift_knot_m = 0.0;
+  }
   if (o.register_drift_path) {
     if (!(*o.register_drift_path > 0.0 && *o.register_drift_path <= 1000.0)) {
       throw UsageError("--register-drift-path must be a distance in (0, 1000] metres");
     }
-    if (!o.register_sessions) throw UsageError("--register-drift-path needs --register");
+    if (!registering(o)) throw UsageError("--register-drift-path needs --register");
     if (o.register_drift > 0) throw UsageError("--register-drift and --register-drift-path: give one of them");
     align.drift_knot_m = *o.register_drift_path;
+    align.drift_knot_frames = 0;
   }
   const bool drift = align.drift();
   if (o.register_drift_yaw) {
     if (!(*o.register_drift_yaw > 0.0 && *o.register_drift_yaw <= 10.0)) {
       throw UsageError("--register-drift-yaw must lie in (0, 10] degrees per frame");
     }
-    if (o.register_drift <= 0) {
-      throw UsageError(o.register_drift_path ? "--register-drift-yaw is per frame, for --register-drift; with "
-                                               "--register-drift-path the prior is per metre travelled"
-                                             : "--register-drift-yaw needs --register-drift");
+    if (align.drift_knot_frames <= 0) {
+      throw UsageError(align.drift_knot_m > 0.0 ? "--register-drift-yaw is per frame, for --register-drift; with "
+                                                  "knots along the path the prior is per metre travelled"
+                                                : "--register-drift-yaw needs --register-drift");
     }
     align.drift_yaw_per_frame_deg = *o.register_drift_yaw;
   }
@@ -251,33 +260,41 @@ void setDriftSettings(const BuildCmdOptions& o, RegisterSettings& align) {
   }
 }
 
-/// The registration the flags ask for; refuses values out of range and flags without --register.
+/// The registration the flags ask for: the preset's (plain --register: no drift, radius 2), each
+/// flag given replacing one setting; refuses values out of range and flags without --register.
 std::optional<RegistrationSettings> registrationSettings(const BuildCmdOptions& o) {
-  if (o.register_rounds < 1 || o.register_rounds > 10) throw UsageError("--register-rounds must lie in [1, 10]");
-  RegistrationSettings s;
-  s.rounds = o.register_rounds;
-  s.align.model = parseCorrectionModel(o.register_model);
+  RegistrationSettings s = o.register_preset ? registrationNamed(*o.register_preset) : RegistrationSettings{};
+  if (o.register_rounds) {
+    if (*o.register_rounds < 1 || *o.register_rounds > 10) throw UsageError("--register-rounds must lie in [1, 10]");
+    s.rounds = *o.register_rounds;
+  }
+  if (o.register_rounds && !registering(o)) throw UsageError("--register-rounds needs --register");
+  if (o.register_model) {
+    if (!registering(o)) throw UsageError("--register-model needs --register");
+    s.align.model = parseCorrectionModel(*o.register_model);
+  }
   setDriftSettings(o, s.align);
   if (o.register_radius) {
     if (!(*o.register_radius >= 1.0 && *o.register_radius <= 8.0)) {
       throw UsageError("--register-radius must lie in [1, 8] voxels");
     }
-    if (!o.register_sessions) throw UsageError("--register-radius needs --register");
+    if (!registering(o)) throw UsageError("--register-radius needs --register");
     s.align.radius_voxels = *o.register_radius;
   }
-  if (o.register_planar && !o.register_sessions) throw UsageError("--register-planar needs --register");
+  if (o.register_planar && !registering(o)) throw UsageError("--register-planar needs --register");
   if (o.register_points && !s.align.drift()) {
     throw UsageError("--register-points needs --register-drift or --register-drift-path");
   }
-  s.align.planar = o.register_planar;
-  s.align.drift_points = o.register_points;
-  if (o.register_keep_mean && !o.register_sessions) throw UsageError("--register-keep-mean needs --register");
-  s.align.keep_mean = o.register_keep_mean;
+  s.align.planar = s.align.planar || o.register_planar;
+  s.align.drift_points = s.align.drift_points || o.register_points;
+  if (o.register_keep_mean && !registering(o)) throw UsageError("--register-keep-mean needs --register");
+  s.align.keep_mean = s.align.keep_mean || o.register_keep_mean;
   if (o.register_cache_gib) {
-    if (!o.register_sessions) throw UsageError("--register-cache needs --register");
+    if (!registering(o)) throw UsageError("--register-cache needs --register");
     s.depth_cache_bytes = gibToBytes(*o.register_cache_gib);
   }
-  if (!o.register_sessions) return std::nullopt;
+  if (!registering(o)) return std::nullopt;
+  s.align.validate();
   return s;
 }
 
@@ -292,6 +309,23 @@ std::vector<std::optional<double>> buildTimes(const BuildCmdOptions& o) {
   std::vector<std::optional<double>> times;
   for (const auto& p : parts) times.emplace_back(parseTime(p));
   return times;
+}
+
+/// The registration settings as --json reports them: the preset named (or "none"), then every
+/// setting as it was used, so that a preset changed by flags shows what ran.
+nlohmann::json registrationJson(const BuildCmdOptions& o, const RegistrationSettings& s) {
+  const RegisterSettings& a = s.align;
+  return {{"preset", o.register_preset.value_or("none")},
+          {"rounds", s.rounds},
+          {"model", toString(a.model)},
+          {"radius_voxels", a.radius_voxels},
+          {"drift_knot_frames", a.drift_knot_frames},
+          {"drift_knot_m", a.drift_knot_m},
+          {"drift_rounds", a.drift() ? a.drift_rounds : 0},
+          {"fine_radius_voxels", a.fine_radius_voxels},
+          {"planar", a.planar},
+          {"points", a.drift_points},
+          {"keep_mean", a.keep_mean}};
 }
 
 /// A session's registration in its --json object: the motion, its model, the largest drift step.
@@ -337,6 +371,7 @@ void printBuilt(const BuildCmdOptions& o, const BuildResult& r) {
     nlohmann::json j{{"map", o.map},     {"created", r.created},       {"sessions", r.sessions},
                      {"nodes", r.nodes}, {"file_bytes", r.file_bytes}, {"added", reports}};
     if (r.up.from != "default") j.update(upJson(r.up));
+    if (const auto reg = registrationSettings(o)) j["registration"] = registrationJson(o, *reg);
     std::cout << j.dump() << "\n";
     return;
   }
@@ -391,7 +426,9 @@ int runStreamBuild(const BuildCmdOptions& o, BuildSettings& s) {
                             {"warnings", r.warnings}};
   for (const std::string& w : r.warnings) printWarning(w);
   if (o.json) {
-    std::cout << j.dump() << "\n";
+    nlohmann::json out = j;
+    if (s.registration) out["registration"] = registrationJson(o, *s.registration);
+    std::cout << out.dump() << "\n";
     return 0;
   }
   for (const auto& a : added) {
@@ -487,10 +524,18 @@ void addRegisterFlags(CLI::App* app, BuildCmdOptions& o) {
                 "register each session to the consensus of all given and integrate it again with the "
                 "correction (removes the part of the localisation error that is one offset per session; "
                 "docs/realign.md)");
+  app->add_option("--register-preset", o.register_preset,
+                  "registration settings by name (implies --register; each --register-* flag given replaces one of "
+                  "them): localiser = --register-drift 20 --register-planar --register-points (poses from a "
+                  "localiser against a map: an offset and a slow drift per session); odometry = --register-drift-path "
+                  "0.5 --register-planar --register-points --register-radius 6 --register-keep-mean "
+                  "--register-drift-rounds 3 --register-fine-radius 3 (poses from an odometry that drifts with the "
+                  "distance travelled; docs/changes.md has the figures of both)")
+      ->check(CLI::IsMember({"localiser", "odometry"}));
   app->add_option("--register-model", o.register_model,
-                  "what a correction is: world (one rigid motion of the session's map frame) or per-pose (the same "
-                  "position and heading offset of every pose, turned about each pose; docs/realign.md compares them)")
-      ->capture_default_str();
+                  "what a correction is: world (one rigid motion of the session's map frame, the default) or per-pose "
+                  "(the same position and heading offset of every pose, turned about each pose; docs/realign.md "
+                  "compares them)");
   app->add_option("--register-drift", o.register_drift,
                   "after the rigid rounds, also correct each session's drift: every frame gets its own position and "
                   "heading correction, linear between knots this many frames apart (0: none; docs/realign.md)")
@@ -513,11 +558,11 @@ void addRegisterFlags(CLI::App* app, BuildCmdOptions& o) {
                   "reaches a large drift, a narrower one refines once the sessions lie close (without it: "
                   "--register-radius throughout; docs/changes.md has the figures); needs --register-drift or --register-drift-path");
   app->add_option("--register-rounds", o.register_rounds,
-                  "registration rounds, each against the consensus the previous one left")
-      ->capture_default_str();
+                  "registration rounds, each against the consensus the previous one left (default 3)");
   app->add_option("--register-radius", o.register_radius,
                   "how far (voxels) each surface voxel looks for the consensus' surfaces; smaller resolves finer "
-                  "offsets once sessions lie close, in [1, 8] (default 2; docs/changes.md has the office figures)");
+                  "offsets once sessions lie close, in [1, 8] (default 2, the odometry preset's 6; docs/changes.md has the office "
+                  "figures)");
   app->add_flag("--register-planar", o.register_planar,
                 "correct x, y and heading only, never the height: the error of a robot's 2D localisation "
                 "(docs/realign.md)");

@@ -108,7 +108,7 @@ py::dict builtSessionDict(const BuiltSession& b) {
 
 py::dict buildPy(const std::filesystem::path& map, const std::vector<std::filesystem::path>& datasets,
                  const py::object& times, double resolution_m, bool fast, double max_range_m, int threads,
-                 const std::string& format, bool register_sessions, int registration_rounds, bool realign,
+                 const std::string& format, const py::object& register_sessions, int registration_rounds, bool realign,
                  bool replace, const py::object& progress, bool carve_beyond_range, const py::object& up,
                  double depth_edges) {
   BuildSettings settings;
@@ -127,10 +127,19 @@ py::dict buildPy(const std::filesystem::path& map, const std::vector<std::filesy
   settings.session.integrator.threads = threads;
   settings.session.dataset.format = parseRecordingFormat(format);
   settings.session.up = toUpSettings(up);
-  if (register_sessions) {
-    RegistrationSettings r;
+  // register: True (plain), False, or a preset's name ("localiser", "odometry").
+  if (py::isinstance<py::str>(register_sessions)) {
+    RegistrationSettings r = registrationNamed(register_sessions.cast<std::string>());
     r.rounds = registration_rounds;
     settings.registration = r;
+  } else if (py::isinstance<py::bool_>(register_sessions)) {
+    if (register_sessions.cast<bool>()) {
+      RegistrationSettings r;
+      r.rounds = registration_rounds;
+      settings.registration = r;
+    }
+  } else {
+    throw py::type_error("register must be True, False, 'localiser' or 'odometry'");
   }
   if (realign) settings.realign = RealignSettings{};
   settings.replace = replace;
@@ -188,7 +197,8 @@ void bindPipeline(py::module_& m) {
         py::arg("realign") = false, py::arg("replace") = false, py::arg("progress") = py::none(),
         py::arg("carve_beyond_range") = false, py::arg("up") = py::none(), py::arg("depth_edges") = 0.0,
         "Builds or extends the 4D map file `map` from recordings, one session each, as `chronomap build` "
-        "does: integrated, ordered by time, registered to their consensus (register=True) and re-aligned "
+        "does: integrated, ordered by time, registered to their consensus (register=True; or a preset's name, "
+        "'localiser' or 'odometry', as `--register-preset`) and re-aligned "
         "(realign=True) when asked, added and written once, atomically. `up`: which axis of the recordings' "
         "world frame is up ('+x' .. '-z', 'auto': estimated from the floor on the first recording; None: +z, or "
         "the map's own), every recording turned so that it becomes +z (`--up`, docs/frames.md); the summary's "

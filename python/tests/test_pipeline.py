@@ -40,6 +40,25 @@ def test_build_with_registration_reports_each_correction(tmp_path, cli, building
         assert s["registration_m"].shape == (3,) and np.isfinite(s["registration_m"]).all()
 
 
+def test_build_with_a_registration_preset_matches_the_cli(tmp_path, cli, building):
+    result = chronomap.build(tmp_path / "odo.cmap", building[:2], resolution_m=0.1, fast=True, register="odometry",
+                             registration_rounds=1)
+    subprocess.run([str(cli), "build", str(tmp_path / "cli.cmap"), *map(str, building[:2]), "--resolution", "0.1",
+                    "--fast", "--register-preset", "odometry", "--register-rounds", "1"], check=True,
+                   capture_output=True)
+    assert same_maps(tmp_path / "odo.cmap", tmp_path / "cli.cmap")
+    for s in result["added"]:
+        assert s["correction"]["per_frame"] is not None  # the preset corrects drift
+        assert s["registration_m"][2] == 0.0  # planar
+    # The mean kept: the two sessions' rigid corrections are opposite.
+    assert np.allclose(result["added"][0]["registration_m"] + result["added"][1]["registration_m"], 0.0, atol=1e-6)
+    with pytest.raises(chronomap.UsageError, match="localiser or odometry"):
+        chronomap.build(tmp_path / "x.cmap", building[:1], resolution_m=0.1, register="recommended")
+    with pytest.raises(TypeError):
+        chronomap.build(tmp_path / "x.cmap", building[:1], resolution_m=0.1, register=3)
+    assert not (tmp_path / "x.cmap").exists()
+
+
 def test_build_with_times_and_a_failing_progress_callback(tmp_path, building):
     def fail(label, done, total):
         raise KeyError("stop here")

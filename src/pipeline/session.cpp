@@ -161,6 +161,26 @@ RegistrationSettings recommendedRegistration() {
   return r;
 }
 
+RegistrationSettings odometryRegistration() {
+  RegistrationSettings r;
+  r.rounds = 3;
+  r.align.radius_voxels = 6.0;
+  r.align.drift_knot_frames = 0;
+  r.align.drift_knot_m = 0.5;
+  r.align.drift_rounds = 3;
+  r.align.fine_radius_voxels = 3.0;
+  r.align.planar = true;
+  r.align.drift_points = true;
+  r.align.keep_mean = true;
+  return r;
+}
+
+RegistrationSettings registrationNamed(const std::string& name) {
+  if (name == "localiser") return recommendedRegistration();
+  if (name == "odometry") return odometryRegistration();
+  throw UsageError("unknown registration preset '" + name + "' (localiser or odometry)");
+}
+
 std::vector<PoseCorrection> registerDatasets(std::vector<SessionMap>& maps, std::span<const std::filesystem::path> paths,
                                              std::span<const std::vector<Eigen::Vector3d>> sensor_positions,
                                              const SessionSettings& settings, const RegistrationSettings& registration,

@@ -686,15 +686,36 @@ TEST(SimulatorCli, SimulateAndBuildWithRegistration) {
   const auto per_pose = nlohmann::json::parse(r.out);
   for (const auto& a : per_pose["added"]) EXPECT_EQ(a["registration_model"], "per-pose");
   // Drift: per-frame corrections after the rigid round, reported by their largest translation.
+  // Here on the odometry preset, whose knots along the path --register-drift replaces.
   r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "d.cmap").string() + " " +
                        (tmp / "sim" / "session_00").string() + " " + (tmp / "sim" / "session_01").string() +
-                       " --fast --json --register --register-rounds 1 --register-drift 5");
+                       " --fast --json --register-preset odometry --register-rounds 1 --register-drift 5"
+                       " --register-drift-rounds 1");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto drift = nlohmann::json::parse(r.out);
   for (const auto& a : drift["added"]) {
     ASSERT_TRUE(a.contains("drift_correction_max_m"));
     EXPECT_LT(a["drift_correction_max_m"].get<double>(), 0.2);
   }
+  // What ran: the preset's settings, the flags given replacing three of them.
+  ASSERT_TRUE(drift.contains("registration")) << r.out;
+  const auto& used = drift["registration"];
+  EXPECT_EQ(used["preset"], "odometry");
+  EXPECT_EQ(used["rounds"], 1);
+  EXPECT_EQ(used["drift_knot_frames"], 5);
+  EXPECT_EQ(used["drift_knot_m"], 0.0);
+  EXPECT_EQ(used["drift_rounds"], 1);
+  EXPECT_EQ(used["radius_voxels"], 6.0);
+  EXPECT_EQ(used["fine_radius_voxels"], 3.0);
+  EXPECT_EQ(used["planar"], true);
+  EXPECT_EQ(used["points"], true);
+  EXPECT_EQ(used["keep_mean"], true);
+  EXPECT_EQ(used["model"], "world");
+  for (int c = 0; c < 2; ++c) {  // the mean kept: the two sessions' rigid corrections are opposite
+    EXPECT_NEAR(drift["added"][0]["registration_m"][c].get<double>() + drift["added"][1]["registration_m"][c].get<double>(),
+                0.0, 1e-6);
+  }
+  EXPECT_NEAR(drift["added"][0]["registration_m"][2].get<double>(), 0.0, 1e-9);  // planar
   // Planar, drift on points: no vertical correction; a drift correction of centimetres.
   r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "p.cmap").string() + " " +
                        (tmp / "sim" / "session_00").string() + " " + (tmp / "sim" / "session_01").string() +
@@ -768,7 +789,13 @@ TEST(SimulatorCli, SimulateAndBuildWithRegistration) {
            {" --register --register-drift 5 --register-drift-path 1", "give one of them"},
            {" --register --register-drift-path 0", "--register-drift-path must"},
            {" --register --register-drift-path nan", "--register-drift-path"},
-           {" --register --register-drift-path 1 --register-drift-yaw 0.05", "per metre"}}) {
+           {" --register --register-drift-path 1 --register-drift-yaw 0.05", "per metre"},
+           {" --register-preset odometry --register-drift-yaw 0.05", "per metre"},  // the preset's knots by path
+           {" --register-preset odometry --register-drift 5 --register-drift-path 1", "give one of them"},
+           {" --register-preset odometry --register-radius 9", "--register-radius must"},
+           {" --register-preset sideways", "--register-preset"},
+           {" --register-rounds 2", "--register-rounds needs"},
+           {" --register-model per-pose", "--register-model needs"}}) {
     r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "n.cmap").string() + " " +
                          (tmp / "sim" / "session_00").string() + bad);
     EXPECT_EQ(r.exit_code, 2) << bad;

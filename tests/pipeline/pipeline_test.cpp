@@ -87,6 +87,31 @@ TEST(PipelineRegister, DepthCacheChangesNoCorrectionAndKeepsItsBudget) {
   EXPECT_GT(cache->hits(), cache->images());
 }
 
+TEST(PipelineRegister, PresetsByName) {
+  const RegistrationSettings localiser = registrationNamed("localiser");
+  EXPECT_EQ(localiser.align.drift_knot_frames, 20);
+  EXPECT_EQ(localiser.align.drift_knot_m, 0.0);
+  EXPECT_EQ(localiser.align.radius_voxels, 2.0);
+  EXPECT_TRUE(localiser.align.planar && localiser.align.drift_points);
+  EXPECT_FALSE(localiser.align.keep_mean);
+  const RegistrationSettings odometry = registrationNamed("odometry");
+  EXPECT_EQ(odometry.rounds, 3);
+  EXPECT_EQ(odometry.align.drift_knot_frames, 0);
+  EXPECT_EQ(odometry.align.drift_knot_m, 0.5);
+  EXPECT_EQ(odometry.align.radius_voxels, 6.0);
+  EXPECT_EQ(odometry.align.fine_radius_voxels, 3.0);
+  EXPECT_EQ(odometry.align.drift_rounds, 3);
+  EXPECT_TRUE(odometry.align.planar && odometry.align.drift_points && odometry.align.keep_mean);
+  EXPECT_NO_THROW(odometry.align.validate());
+  EXPECT_NO_THROW(localiser.align.validate());
+  try {
+    registrationNamed("recommended");
+    ADD_FAILURE() << "an unknown name was accepted";
+  } catch (const UsageError& e) {
+    EXPECT_NE(std::string(e.what()).find("localiser or odometry"), std::string::npos) << e.what();
+  }
+}
+
 TEST(PipelineBuild, SortsByTimeAndRefusesClashesBeforeIntegrating) {
   test::TempDir tmp;
   BuildSettings s;

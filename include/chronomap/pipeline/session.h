@@ -138,6 +138,18 @@ struct RegistrationSettings {
 /// --register-points`.
 RegistrationSettings recommendedRegistration();
 
+/// The registration for sessions whose poses come from an odometry that drifts with the distance
+/// travelled (no localisation against a map): 3 rounds with a 6-voxel neighbourhood, then 3 drift
+/// rounds with knots every 0.5 m of the sensor's path (the second and third at 3 voxels), planar,
+/// fitted on the frames' points, the motion all sessions share taken out after every round. The
+/// radii were chosen on the Kinect model's training seeds 1-5 (docs/changes.md). `chronomap build
+/// --register-preset odometry`.
+RegistrationSettings odometryRegistration();
+
+/// A registration by its name: "localiser" (recommendedRegistration()) or "odometry"
+/// (odometryRegistration()); UsageError naming both otherwise.
+RegistrationSettings registrationNamed(const std::string& name);
+
 /// Registers the session maps integrated from `paths` (in that order, with `sensor_positions` as
 /// read: turned for settings.up, whose auto is estimated on the first path) to their consensus, integrating each recording again with its correction (in
 /// parallel, unreported); `maps` become the corrected sessions. `reports`, when given, receives
