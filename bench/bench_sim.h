@@ -374,9 +374,9 @@ inline WeeksSim readWeeks(const std::filesystem::path& dir, int learn_days) {
 }
 
 // The registration of `chronomap build --register` (RegistrationSettings{}), or the one
-// CHRONOMAP_BENCH_REGISTER names: comma-separated words, "recommended" or "odometry" first if at
-// all (build's --register-preset localiser or odometry: recommendedRegistration(),
-// odometryRegistration()), then changes to it: "radius=V", "knots=F",
+// CHRONOMAP_BENCH_REGISTER names: comma-separated words, a preset first if at all ("localiser" or
+// its older name "recommended", or "odometry": build's --register-preset, registrationNamed()),
+// then changes to it: "radius=V", "knots=F",
 // "path=M" (knots every M metres of path instead of frames; "path-m=S", "path-yaw=DEG" its prior
 // per square root of a metre), "yaw=DEG", "rounds=N", "drift-rounds=N", "fine=V", "planar", "points", "keep-mean" (as build's
 // --register-radius, --register-drift, --register-drift-yaw, --register-rounds,
@@ -400,9 +400,9 @@ inline RegistrationSettings benchRegistration() {
         throw UsageError("CHRONOMAP_BENCH_REGISTER: '" + w + "' needs a number after '='");
       }
     }
-    if (w == "recommended" || w == "odometry") {
+    if (w == "recommended" || w == "localiser" || w == "odometry") {
       if (start != 0) throw UsageError("CHRONOMAP_BENCH_REGISTER: '" + w + "' must come first");
-      r = w == "odometry" ? odometryRegistration() : recommendedRegistration();
+      r = registrationNamed(w == "recommended" ? "localiser" : w);
     } else if (key == "radius") {
       r.align.radius_voxels = value;
     } else if (key == "knots") {

@@ -27,6 +27,8 @@
 //                  kRecommendedShiftPlaneRatio, as the recommended diff; 0: the whole move)
 //   --sensor NAME  ideal (default), kinect or realsense: the sensor of the simulations made here
 //                  (SimulationSettings::sensor); a folder given keeps its own
+//   --register-preset NAME  first if at all: the registration of `build --register-preset NAME`
+//                  (localiser, the default here, or odometry); the flags after it change it
 //   --register-model  world (default) or per-pose: the registration's correction model
 //                  (align/register.h) for the "register" and "reg+align" rows
 //   --register-rounds N  rigid registration rounds (default 3, as `chronomap build --register`)
@@ -645,10 +647,19 @@ int main(int argc, char** argv) {
   int rounds = recommendedRegistration().rounds;
   RegisterSettings reg = recommendedRegistration().align;  // as the README's `build --register ...`
   for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--register-preset") && i + 1 < argc) {  // before the flags that change it
-      const RegistrationSettings named = registrationNamed(argv[++i]);
-      reg = named.align;
-      rounds = named.rounds;
+    if (!std::strcmp(argv[i], "--register-preset") && i + 1 < argc) {
+      if (i != 1) {
+        std::fprintf(stderr, "change_eval: --register-preset must come first (the flags after it change it)\n");
+        return 2;
+      }
+      try {
+        const RegistrationSettings named = registrationNamed(argv[++i]);
+        reg = named.align;
+        rounds = named.rounds;
+      } catch (const UsageError& e) {
+        std::fprintf(stderr, "change_eval: %s\n", e.what());
+        return 2;
+      }
     } else if (!std::strcmp(argv[i], "--drift-knots") && i + 1 < argc) {
       reg.drift_knot_frames = std::atoi(argv[++i]);
       reg.drift_knot_m = 0.0;

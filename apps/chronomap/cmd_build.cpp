@@ -6,6 +6,7 @@
 #include <iostream>
 #include <memory>
 #include <numbers>
+#include <sstream>
 #include <nlohmann/json.hpp>
 #if defined(__GLIBC__)
 #include <malloc.h>
@@ -192,7 +193,7 @@ struct BuildCmdOptions {
   std::optional<std::string> register_preset;
   std::optional<int> register_rounds;         // unset: the preset's (3)
   std::optional<std::string> register_model;  // unset: the preset's (world)
-  int register_drift = 0;
+  std::optional<int> register_drift;  // given 0: no drift correction, whatever the preset's
   std::optional<double> register_drift_path;
   std::optional<double> register_radius;  // given or not: the flags that need another say so
   bool register_planar = false;
@@ -215,12 +216,13 @@ bool registering(const BuildCmdOptions& o) { return o.register_sessions || o.reg
 /// The drift part of the registration flags (--register-drift and the flags that need it), each
 /// given one replacing the preset's setting in `align`.
 void setDriftSettings(const BuildCmdOptions& o, RegisterSettings& align) {
-  if (o.register_drift < 0 || o.register_drift > 100000) {
+  const int knot_frames = o.register_drift.value_or(0);
+  if (knot_frames < 0 || knot_frames > 100000) {
     throw UsageError("--register-drift must be a number of frames in [0, 100000] (0: no drift correction)");
   }
-  if (o.register_drift > 0 && !registering(o)) throw UsageError("--register-drift needs --register");
-  if (o.register_drift > 0) {
-    align.drift_knot_frames = o.register_drift;
+  if (knot_frames > 0 && !registering(o)) throw UsageError("--register-drift needs --register");
+  if (o.register_drift) {  // replaces the preset's knots, by frames or along the path (0: none)
+    align.drift_knot_frames = knot_frames;
     align.drift_knot_m = 0.0;
   }
   if (o.register_drift_path) {
@@ -228,7 +230,7 @@ void setDriftSettings(const BuildCmdOptions& o, RegisterSettings& align) {
       throw UsageError("--register-drift-path must be a distance in (0, 1000] metres");
     }
     if (!registering(o)) throw UsageError("--register-drift-path needs --register");
-    if (o.register_drift > 0) throw UsageError("--register-drift and --register-drift-path: give one of them");
+    if (knot_frames > 0) throw UsageError("--register-drift and --register-drift-path: give one of them");
     align.drift_knot_m = *o.register_drift_path;
     align.drift_knot_frames = 0;
   }
@@ -280,6 +282,8 @@ std::optional<RegistrationSettings> registrationSettings(const BuildCmdOptions& 
     }
     if (!registering(o)) throw UsageError("--register-radius needs --register");
     s.align.radius_voxels = *o.register_radius;
+    // A preset's finer radius never wider than the radius given: then one radius throughout.
+    if (!o.register_fine_radius && s.align.fine_radius_voxels > s.align.radius_voxels) s.align.fine_radius_voxels = 0.0;
   }
   if (o.register_planar && !registering(o)) throw UsageError("--register-planar needs --register");
   if (o.register_points && !s.align.drift()) {
@@ -311,8 +315,9 @@ std::vector<std::optional<double>> buildTimes(const BuildCmdOptions& o) {
   return times;
 }
 
-/// The registration settings as --json reports them: the preset named (or "none"), then every
-/// setting as it was used, so that a preset changed by flags shows what ran.
+/// The registration settings as --json reports them: the preset named (or "none"), then the
+/// settings the flags change as they were used (0 or false where they did not apply), so that a
+/// preset changed by flags shows what ran.
 nlohmann::json registrationJson(const BuildCmdOptions& o, const RegistrationSettings& s) {
   const RegisterSettings& a = s.align;
   return {{"preset", o.register_preset.value_or("none")},
@@ -322,10 +327,31 @@ nlohmann::json registrationJson(const BuildCmdOptions& o, const RegistrationSett
           {"drift_knot_frames", a.drift_knot_frames},
           {"drift_knot_m", a.drift_knot_m},
           {"drift_rounds", a.drift() ? a.drift_rounds : 0},
-          {"fine_radius_voxels", a.fine_radius_voxels},
+          {"drift_yaw_per_frame_deg", a.drift_knot_frames > 0 ? a.drift_yaw_per_frame_deg : 0.0},
+          {"fine_radius_voxels", a.drift() ? a.fine_radius_voxels : 0.0},
           {"planar", a.planar},
-          {"points", a.drift_points},
+          {"points", a.drift() && a.drift_points},
           {"keep_mean", a.keep_mean}};
+}
+
+/// registrationJson() in words, for the text output.
+std::string registrationLine(const nlohmann::json& j) {
+  std::ostringstream line;
+  const auto rounds = [](int n) { return std::to_string(n) + (n == 1 ? " round" : " rounds"); };
+  line << "preset " << j["preset"].get<std::string>() << " (" << rounds(j["rounds"].get<int>()) << ", "
+       << j["model"].get<std::string>() << ", radius " << j["radius_voxels"].get<double>() << " voxels";
+  if (j["drift_rounds"].get<int>() > 0) {
+    line << "; drift knots every ";
+    if (j["drift_knot_frames"].get<int>() > 0) line << j["drift_knot_frames"].get<int>() << " frames";
+    else line << j["drift_knot_m"].get<double>() << " m of path";
+    line << ", " << rounds(j["drift_rounds"].get<int>());
+    if (j["fine_radius_voxels"].get<double>() > 0.0) line << ", later at " << j["fine_radius_voxels"].get<double>() << " voxels";
+    if (j["points"].get<bool>()) line << ", on points";
+  }
+  if (j["planar"].get<bool>()) line << "; planar";
+  if (j["keep_mean"].get<bool>()) line << "; mean kept";
+  line << ")";
+  return line.str();
 }
 
 /// A session's registration in its --json object: the motion, its model, the largest drift step.
@@ -361,7 +387,7 @@ nlohmann::json builtJson(const BuiltSession& b) {
   return j;
 }
 
-void printBuilt(const BuildCmdOptions& o, const BuildResult& r) {
+void printBuilt(const BuildCmdOptions& o, const BuildSettings& s, const BuildResult& r) {
   nlohmann::json reports = nlohmann::json::array();
   for (const auto& b : r.added) {
     for (const std::string& w : b.warnings) printWarning(b.dataset.string() + ": " + w);
@@ -371,11 +397,12 @@ void printBuilt(const BuildCmdOptions& o, const BuildResult& r) {
     nlohmann::json j{{"map", o.map},     {"created", r.created},       {"sessions", r.sessions},
                      {"nodes", r.nodes}, {"file_bytes", r.file_bytes}, {"added", reports}};
     if (r.up.from != "default") j.update(upJson(r.up));
-    if (const auto reg = registrationSettings(o)) j["registration"] = registrationJson(o, *reg);
+    if (s.registration) j["registration"] = registrationJson(o, *s.registration);
     std::cout << j.dump() << "\n";
     return;
   }
   if (r.up.from != "default") std::cout << "  up: " << upLine(r.up) << "\n";
+  if (s.registration) std::cout << "  registration: " << registrationLine(registrationJson(o, *s.registration)) << "\n";
   for (const auto& j : reports) {
     std::cout << "  " << j["time"].get<std::string>() << "  " << j["dataset"].get<std::string>() << ": "
               << j["nodes_added"].get<int64_t>() << " nodes added (" << j["nodes_separate"].get<uint64_t>()
@@ -431,6 +458,7 @@ int runStreamBuild(const BuildCmdOptions& o, BuildSettings& s) {
     std::cout << out.dump() << "\n";
     return 0;
   }
+  if (s.registration) std::cout << "  registration: " << registrationLine(registrationJson(o, *s.registration)) << "\n";
   for (const auto& a : added) {
     std::cout << "  " << a["time"].get<std::string>() << ": " << a["nodes_added"].get<int64_t>() << " nodes added";
     printCorrection(a);
@@ -470,7 +498,7 @@ int runBuild(const BuildCmdOptions& o) {
   const Ranks ranks;
   s.progress = terminalProgress(o.json || ranks.rank() != 0);
   try {
-    if (const auto result = buildOnRanks(s, ranks)) printBuilt(o, *result);
+    if (const auto result = buildOnRanks(s, ranks)) printBuilt(o, s, *result);
   } catch (const RankStopped& stopped) {
     return stopped.exitCode();  // rank 0 says why
   } catch (...) {
@@ -538,8 +566,8 @@ void addRegisterFlags(CLI::App* app, BuildCmdOptions& o) {
                   "compares them)");
   app->add_option("--register-drift", o.register_drift,
                   "after the rigid rounds, also correct each session's drift: every frame gets its own position and "
-                  "heading correction, linear between knots this many frames apart (0: none; docs/realign.md)")
-      ->capture_default_str();
+                  "heading correction, linear between knots this many frames apart (default 0: none; 0 also turns a "
+                  "preset's drift correction off; docs/realign.md)");
   app->add_option("--register-drift-path", o.register_drift_path,
                   "the drift correction with knots every this many metres, in (0, 1000], of the sensor's path "
                   "instead of every N frames (an odometry drifts with the distance travelled: a stop's frames share "
@@ -548,11 +576,11 @@ void addRegisterFlags(CLI::App* app, BuildCmdOptions& o) {
                   "(docs/realign.md has the figures)");
   app->add_option("--register-drift-yaw", o.register_drift_yaw,
                   "the drift fit's smoothness: how far (degrees) the heading error may wander from one frame to the "
-                  "next, in (0, 10] (default 0.01), needs --register-drift; larger follows an odometry's heading drift "
+                  "next, in (0, 10] (default 0.01), needs knots by frames (--register-drift, or the localiser preset); larger follows an odometry's heading drift "
                   "more closely (docs/changes.md has the figures)");
   app->add_option("--register-drift-rounds", o.register_drift_rounds,
                   "rounds of drift correction, each against the consensus the previous one left, in [1, 10] (default "
-                  "2); needs --register-drift or --register-drift-path");
+                  "2, the odometry preset's 3); needs --register-drift or --register-drift-path");
   app->add_option("--register-fine-radius", o.register_fine_radius,
                   "the neighbourhood (voxels, in [1, 8]) of the drift rounds after the first: a wide --register-radius "
                   "reaches a large drift, a narrower one refines once the sessions lie close (without it: "

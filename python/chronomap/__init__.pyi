@@ -150,7 +150,7 @@ def segment(diff: DiffMap, connectivity: str = "face", color_tolerance: float = 
 
 def build(map: _Path, datasets: Sequence[_Path], times: Optional[Sequence[Optional[_Time]]] = None,
           resolution_m: float = 0.05, fast: bool = False, max_range_m: float = 3.0, threads: int = 0,
-          format: str = "auto", register: Union[bool, str] = False, registration_rounds: int = 3, realign: bool = False,
+          format: str = "auto", register: Union[bool, Literal["localiser", "odometry"]] = False, registration_rounds: Optional[int] = None, realign: bool = False,
           replace: bool = False, progress: _Progress = None, carve_beyond_range: bool = False,
           up: Optional[str] = None, depth_edges: float = 0.0) -> dict[str, Any]: ...
 def add_session(map: _Path, session: _Path, time: Optional[_Time] = None, replace: bool = False,

@@ -108,7 +108,7 @@ py::dict builtSessionDict(const BuiltSession& b) {
 
 py::dict buildPy(const std::filesystem::path& map, const std::vector<std::filesystem::path>& datasets,
                  const py::object& times, double resolution_m, bool fast, double max_range_m, int threads,
-                 const std::string& format, const py::object& register_sessions, int registration_rounds, bool realign,
+                 const std::string& format, const py::object& register_sessions, std::optional<int> registration_rounds, bool realign,
                  bool replace, const py::object& progress, bool carve_beyond_range, const py::object& up,
                  double depth_edges) {
   BuildSettings settings;
@@ -127,20 +127,17 @@ py::dict buildPy(const std::filesystem::path& map, const std::vector<std::filesy
   settings.session.integrator.threads = threads;
   settings.session.dataset.format = parseRecordingFormat(format);
   settings.session.up = toUpSettings(up);
-  // register: True (plain), False, or a preset's name ("localiser", "odometry").
+  // register: a preset's name ("localiser", "odometry"), or anything else by its truth (plain).
+  std::optional<RegistrationSettings> registration;
   if (py::isinstance<py::str>(register_sessions)) {
-    RegistrationSettings r = registrationNamed(register_sessions.cast<std::string>());
-    r.rounds = registration_rounds;
-    settings.registration = r;
-  } else if (py::isinstance<py::bool_>(register_sessions)) {
-    if (register_sessions.cast<bool>()) {
-      RegistrationSettings r;
-      r.rounds = registration_rounds;
-      settings.registration = r;
-    }
-  } else {
-    throw py::type_error("register must be True, False, 'localiser' or 'odometry'");
+    registration = registrationNamed(register_sessions.cast<std::string>());
+  } else if (PyObject_IsTrue(register_sessions.ptr()) == 1) {
+    registration = RegistrationSettings{};
+  } else if (PyErr_Occurred()) {
+    throw py::error_already_set();
   }
+  if (registration && registration_rounds) registration->rounds = *registration_rounds;  // else the preset's (3)
+  settings.registration = registration;
   if (realign) settings.realign = RealignSettings{};
   settings.replace = replace;
   LongCall call(progress);
@@ -193,7 +190,7 @@ py::dict addSessionPy(const std::filesystem::path& map, const std::filesystem::p
 void bindPipeline(py::module_& m) {
   m.def("build", &buildPy, py::arg("map"), py::arg("datasets"), py::arg("times") = py::none(),
         py::arg("resolution_m") = 0.05, py::arg("fast") = false, py::arg("max_range_m") = 3.0, py::arg("threads") = 0,
-        py::arg("format") = "auto", py::arg("register") = false, py::arg("registration_rounds") = 3,
+        py::arg("format") = "auto", py::arg("register") = false, py::arg("registration_rounds") = py::none(),
         py::arg("realign") = false, py::arg("replace") = false, py::arg("progress") = py::none(),
         py::arg("carve_beyond_range") = false, py::arg("up") = py::none(), py::arg("depth_edges") = 0.0,
         "Builds or extends the 4D map file `map` from recordings, one session each, as `chronomap build` "

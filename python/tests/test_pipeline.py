@@ -54,9 +54,10 @@ def test_build_with_a_registration_preset_matches_the_cli(tmp_path, cli, buildin
     assert np.allclose(result["added"][0]["registration_m"] + result["added"][1]["registration_m"], 0.0, atol=1e-6)
     with pytest.raises(chronomap.UsageError, match="localiser or odometry"):
         chronomap.build(tmp_path / "x.cmap", building[:1], resolution_m=0.1, register="recommended")
-    with pytest.raises(TypeError):
-        chronomap.build(tmp_path / "x.cmap", building[:1], resolution_m=0.1, register=3)
     assert not (tmp_path / "x.cmap").exists()
+    # Anything but a name counts by its truth, as before: None and 0 do not register.
+    plain = chronomap.build(tmp_path / "n.cmap", building[:1], resolution_m=0.1, fast=True, register=None)
+    assert "correction" not in plain["added"][0]
 
 
 def test_build_with_times_and_a_failing_progress_callback(tmp_path, building):

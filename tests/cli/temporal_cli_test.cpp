@@ -673,8 +673,17 @@ TEST(SimulatorCli, SimulateAndBuildWithRegistration) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto built = nlohmann::json::parse(r.out);
   EXPECT_EQ(built["sessions"], 2);
+  // Plain --register: the library's defaults, no preset's.
+  ASSERT_TRUE(built.contains("registration")) << r.out;
+  EXPECT_EQ(built["registration"]["preset"], "none");
+  EXPECT_EQ(built["registration"]["rounds"], 1);
+  EXPECT_EQ(built["registration"]["radius_voxels"], 2.0);
+  EXPECT_EQ(built["registration"]["drift_rounds"], 0);
+  EXPECT_EQ(built["registration"]["planar"], false);
+  EXPECT_EQ(built["registration"]["keep_mean"], false);
   for (const auto& a : built["added"]) {
     EXPECT_TRUE(a.contains("realigned_voxels"));
+    EXPECT_FALSE(a.contains("drift_correction_max_m"));  // no drift correction
     ASSERT_TRUE(a.contains("registration_m"));
     EXPECT_LT(std::abs(a["registration_m"][0].get<double>()), 0.2);  // a correction of centimetres
     EXPECT_EQ(a["registration_model"], "world");  // the default
@@ -712,17 +721,26 @@ TEST(SimulatorCli, SimulateAndBuildWithRegistration) {
   EXPECT_EQ(used["keep_mean"], true);
   EXPECT_EQ(used["model"], "world");
   for (int c = 0; c < 2; ++c) {  // the mean kept: the two sessions' rigid corrections are opposite
-    EXPECT_NEAR(drift["added"][0]["registration_m"][c].get<double>() + drift["added"][1]["registration_m"][c].get<double>(),
+    EXPECT_NEAR(drift["added"][0]["registration_m"][c].get<double>() +
+                    drift["added"][1]["registration_m"][c].get<double>(),
                 0.0, 1e-6);
   }
   EXPECT_NEAR(drift["added"][0]["registration_m"][2].get<double>(), 0.0, 1e-9);  // planar
-  // Planar, drift on points: no vertical correction; a drift correction of centimetres.
+  // Planar, drift on points: no vertical correction; a drift correction of centimetres. As the
+  // localiser preset, with its knots every 20 frames replaced and a heading prior given.
   r = test::runCommand(std::string(CHRONOMAP_CLI_PATH) + " build " + (tmp / "p.cmap").string() + " " +
                        (tmp / "sim" / "session_00").string() + " " + (tmp / "sim" / "session_01").string() +
-                       " --fast --json --register --register-rounds 1 --register-drift 5 --register-planar"
-                       " --register-points");
+                       " --fast --json --register-preset localiser --register-rounds 1 --register-drift 5"
+                       " --register-drift-yaw 0.05");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto points = nlohmann::json::parse(r.out);
+  EXPECT_EQ(points["registration"]["preset"], "localiser");
+  EXPECT_EQ(points["registration"]["drift_knot_frames"], 5);
+  EXPECT_EQ(points["registration"]["drift_yaw_per_frame_deg"], 0.05);
+  EXPECT_EQ(points["registration"]["radius_voxels"], 2.0);
+  EXPECT_EQ(points["registration"]["planar"], true);
+  EXPECT_EQ(points["registration"]["points"], true);
+  EXPECT_EQ(points["registration"]["keep_mean"], false);
   for (const auto& a : points["added"]) {
     ASSERT_TRUE(a.contains("registration_m"));
     EXPECT_NEAR(a["registration_m"][2].get<double>(), 0.0, 1e-9);
@@ -791,6 +809,7 @@ TEST(SimulatorCli, SimulateAndBuildWithRegistration) {
            {" --register --register-drift-path nan", "--register-drift-path"},
            {" --register --register-drift-path 1 --register-drift-yaw 0.05", "per metre"},
            {" --register-preset odometry --register-drift-yaw 0.05", "per metre"},  // the preset's knots by path
+           {" --register-preset odometry --register-drift 0 --register-fine-radius 2", "--register-fine-radius needs"},
            {" --register-preset odometry --register-drift 5 --register-drift-path 1", "give one of them"},
            {" --register-preset odometry --register-radius 9", "--register-radius must"},
            {" --register-preset sideways", "--register-preset"},

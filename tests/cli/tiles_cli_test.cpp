@@ -255,6 +255,11 @@ TEST(TilesCli, StreamingBuildRegistersAsTheWholeBuild) {
   EXPECT_TRUE(untiled(tmp, st) == expected);
   EXPECT_EQ(first["consensus_sessions"], 3);
   EXPECT_TRUE(first["warnings"].empty()) << first["warnings"].dump();
+  // Both report the registration that ran, the same: plain --register, one round.
+  ASSERT_TRUE(first.contains("registration")) << night.out;
+  EXPECT_EQ(first["registration"], nlohmann::json::parse(whole.out)["registration"]);
+  EXPECT_EQ(first["registration"]["preset"], "none");
+  EXPECT_EQ(first["registration"]["rounds"], 1);
 
   // The next night: against the stored sessions (the folder's consensus of them; a .cmap's, its
   // 4D map's consensus), where the same recording registered alone has nothing to move towards.
