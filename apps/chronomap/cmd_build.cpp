@@ -268,9 +268,9 @@ std::optional<RegistrationSettings> registrationSettings(const BuildCmdOptions& 
   RegistrationSettings s = o.register_preset ? registrationNamed(*o.register_preset) : RegistrationSettings{};
   if (o.register_rounds) {
     if (*o.register_rounds < 1 || *o.register_rounds > 10) throw UsageError("--register-rounds must lie in [1, 10]");
+    if (!registering(o)) throw UsageError("--register-rounds needs --register");
     s.rounds = *o.register_rounds;
   }
-  if (o.register_rounds && !registering(o)) throw UsageError("--register-rounds needs --register");
   if (o.register_model) {
     if (!registering(o)) throw UsageError("--register-model needs --register");
     s.align.model = parseCorrectionModel(*o.register_model);
@@ -431,7 +431,7 @@ int runStreamBuild(const BuildCmdOptions& o, BuildSettings& s) {
                      {"nodes_added", r.nodes_added[i]}});
     if (i < r.corrections.size()) addCorrection(added.back(), r.corrections[i]);
   }
-  const nlohmann::json j = {{"map", o.map},
+  nlohmann::json j = {{"map", o.map},
                             {"created", r.created},
                             {"sessions", r.sessions},
                             {"tiles", r.tiles},
@@ -453,9 +453,8 @@ int runStreamBuild(const BuildCmdOptions& o, BuildSettings& s) {
                             {"warnings", r.warnings}};
   for (const std::string& w : r.warnings) printWarning(w);
   if (o.json) {
-    nlohmann::json out = j;
-    if (s.registration) out["registration"] = registrationJson(o, *s.registration);
-    std::cout << out.dump() << "\n";
+    if (s.registration) j["registration"] = registrationJson(o, *s.registration);
+    std::cout << j.dump() << "\n";
     return 0;
   }
   if (s.registration) std::cout << "  registration: " << registrationLine(registrationJson(o, *s.registration)) << "\n";
@@ -546,19 +545,39 @@ Command addAdd(CLI::App& root) {
   return {app, [o] { return runAdd(*o); }};
 }
 
+/// The flags a registration preset stands for: its settings where they differ from plain
+/// --register's, as the flags that would set them (--help's line, so it follows the presets).
+std::string registrationFlags(const RegistrationSettings& s) {
+  const RegistrationSettings plain;
+  const RegisterSettings &a = s.align, &p = plain.align;
+  std::string text;
+  const auto add = [&text](const std::string& flag) { text += (text.empty() ? "" : " ") + flag; };
+  if (s.rounds != plain.rounds) add("--register-rounds " + std::to_string(s.rounds));
+  if (a.drift_knot_frames > 0) add("--register-drift " + std::to_string(a.drift_knot_frames));
+  if (a.drift_knot_m > 0.0) add("--register-drift-path " + exactNumber(a.drift_knot_m));
+  if (a.planar) add("--register-planar");
+  if (a.drift_points) add("--register-points");
+  if (a.radius_voxels != p.radius_voxels) add("--register-radius " + exactNumber(a.radius_voxels));
+  if (a.keep_mean) add("--register-keep-mean");
+  if (a.drift_rounds != p.drift_rounds) add("--register-drift-rounds " + std::to_string(a.drift_rounds));
+  if (a.fine_radius_voxels != p.fine_radius_voxels) add("--register-fine-radius " + exactNumber(a.fine_radius_voxels));
+  return text;
+}
+
 /// build's --register flags.
 void addRegisterFlags(CLI::App* app, BuildCmdOptions& o) {
+  const RegistrationSettings odometry = odometryRegistration();
   app->add_flag("--register", o.register_sessions,
                 "register each session to the consensus of all given and integrate it again with the "
                 "correction (removes the part of the localisation error that is one offset per session; "
                 "docs/realign.md)");
   app->add_option("--register-preset", o.register_preset,
                   "registration settings by name (implies --register; each --register-* flag given replaces one of "
-                  "them): localiser = --register-drift 20 --register-planar --register-points (poses from a "
-                  "localiser against a map: an offset and a slow drift per session); odometry = --register-drift-path "
-                  "0.5 --register-planar --register-points --register-radius 6 --register-keep-mean "
-                  "--register-drift-rounds 3 --register-fine-radius 3 (poses from an odometry that drifts with the "
-                  "distance travelled; docs/changes.md has the figures of both)")
+                  "them): localiser = " + registrationFlags(recommendedRegistration()) +
+                      " (poses from a localiser against a map: an offset and a slow drift per session); odometry = " +
+                      registrationFlags(odometry) +
+                      " (poses from an odometry that drifts with the distance travelled; docs/changes.md has the "
+                      "figures of both)")
       ->check(CLI::IsMember({"localiser", "odometry"}));
   app->add_option("--register-model", o.register_model,
                   "what a correction is: world (one rigid motion of the session's map frame, the default) or per-pose "
@@ -580,7 +599,7 @@ void addRegisterFlags(CLI::App* app, BuildCmdOptions& o) {
                   "more closely (docs/changes.md has the figures)");
   app->add_option("--register-drift-rounds", o.register_drift_rounds,
                   "rounds of drift correction, each against the consensus the previous one left, in [1, 10] (default "
-                  "2, the odometry preset's 3); needs --register-drift or --register-drift-path");
+                  "2, the odometry preset's " + std::to_string(odometry.align.drift_rounds) + "); needs --register-drift or --register-drift-path");
   app->add_option("--register-fine-radius", o.register_fine_radius,
                   "the neighbourhood (voxels, in [1, 8]) of the drift rounds after the first: a wide --register-radius "
                   "reaches a large drift, a narrower one refines once the sessions lie close (without it: "
@@ -589,8 +608,8 @@ void addRegisterFlags(CLI::App* app, BuildCmdOptions& o) {
                   "registration rounds, each against the consensus the previous one left (default 3)");
   app->add_option("--register-radius", o.register_radius,
                   "how far (voxels) each surface voxel looks for the consensus' surfaces; smaller resolves finer "
-                  "offsets once sessions lie close, in [1, 8] (default 2, the odometry preset's 6; docs/changes.md has the office "
-                  "figures)");
+                  "offsets once sessions lie close, in [1, 8] (default 2, the odometry preset's " +
+                      exactNumber(odometry.align.radius_voxels) + "; docs/changes.md has the office figures)");
   app->add_flag("--register-planar", o.register_planar,
                 "correct x, y and heading only, never the height: the error of a robot's 2D localisation "
                 "(docs/realign.md)");
